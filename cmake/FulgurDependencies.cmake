@@ -1,0 +1,25 @@
+# Every dependency comes from Debian 12 packages (scripts/setup.sh installs them).
+# Nothing is downloaded or vendored at build time.
+find_package(Threads REQUIRED)
+find_package(OpenMP REQUIRED COMPONENTS CXX)        # libgomp: threads over the 2 cores
+find_package(glm REQUIRED)                          # libglm-dev: vector math
+find_package(nlohmann_json 3.10 REQUIRED)           # nlohmann-json3-dev: scene files, reports
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(STB REQUIRED IMPORTED_TARGET stb) # libstb-dev: PNG writing (stb_image_write)
+
+if(FULGUR_BUILD_TESTS)
+  find_package(doctest REQUIRED)                    # doctest-dev
+endif()
+
+if(FULGUR_BUILD_GL)
+  find_package(OpenGL REQUIRED COMPONENTS OpenGL)   # libgl-dev (glvnd)
+  find_package(glfw3 3.3 REQUIRED)                  # libglfw3-dev: demo window
+  pkg_check_modules(OSMESA REQUIRED IMPORTED_TARGET osmesa)   # libosmesa6-dev: headless GL
+  pkg_check_modules(IMGUI REQUIRED IMPORTED_TARGET imgui)     # libimgui-dev: demo panel
+  # glad2 (python3-glad) generates the GL 4.5 core loader at build time from the Khronos
+  # XML it ships; the generated loader takes the current context's get-proc-address.
+  find_program(FULGUR_PYTHON3 NAMES python3 PATHS /usr/bin NO_DEFAULT_PATH)
+  if(NOT FULGUR_PYTHON3)
+    find_program(FULGUR_PYTHON3 NAMES python3 REQUIRED)
+  endif()
+endif()

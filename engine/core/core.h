@@ -1,0 +1,234 @@
+// fulgur::core — the foundation every module builds on.
+//
+//  * Error / FULGUR_ASSERT: the two tiers of failure. `Error` is thrown for bad *data*
+//    (files, scene fields, command-line values); its message names where (file, field,
+//    byte offset) and what was expected. FULGUR_ASSERT aborts on *programmer misuse*
+//    (violated preconditions) and is active in every build type.
+//  * Grid3<T>: a dense 3D voxel grid with physical geometry (voxel size in metres,
+//    origin of the grid's lower corner) and cell-centred trilinear sampling.
+//  * Rng: PCG32 (O'Neill 2014), deterministic per (seed, stream).
+//  * Threads: OpenMP underneath; thread_count()/set_thread_count() and parallel_for.
+//  * NRRD (header + raw float32) import/export; PNG export (stb_image_write).
+#pragma once
+
+#include <glm/vec3.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace fulgur::core {
+
+// ---------------------------------------------------------------------------------------
+// Errors
+
+/// Bad input (data, files, parameters). `where` names the file, field or byte offset;
+/// `what` says what was wrong and what was expected. what() returns "where: what".
+class Error : public std::runtime_error {
+public:
+    Error(std::string where, std::string what);
+    const std::string& where() const noexcept { return where_; }
+    const std::string& reason() const noexcept { return reason_; }
+
+private:
+    std::string where_;
+    std::string reason_;
+};
+
+/// Aborts with file:line and the message. For programmer misuse only, never for data.
+[[noreturn]] void assertion_failed(const char* expr, const char* file, int line, const char* msg);
+
+#define FULGUR_ASSERT(cond, msg)                                                    \
+    do {                                                                            \
+        if (!(cond)) ::fulgur::core::assertion_failed(#cond, __FILE__, __LINE__, msg); \
+    } while (0)
+
+// ---------------------------------------------------------------------------------------
+// Grids
+
+struct Int3 {
+    int x = 0, y = 0, z = 0;
+    constexpr std::size_t volume() const noexcept {
+        return std::size_t(x) * std::size_t(y) * std::size_t(z);
+    }
+    constexpr bool operator==(const Int3&) const = default;
+};
+
+/// Physical placement of a voxel grid. Voxel (i,j,k) covers
+/// [origin + (i,j,k)*voxel_size, origin + (i+1,j+1,k+1)*voxel_size); its sample sits at the
+/// centre. z is up. Units: metres.
+struct GridGeometry {
+    Int3 dims;
+    double voxel_size = 1.0;
+    glm::dvec3 origin{0.0};
+
+    std::size_t cell_count() const noexcept { return dims.volume(); }
+    std::size_t index(int i, int j, int k) const noexcept {
+        return std::size_t(i) + std::size_t(dims.x) * (std::size_t(j) + std::size_t(dims.y) * std::size_t(k));
+    }
+    Int3 unindex(std::size_t idx) const noexcept;
+    glm::dvec3 centre(int i, int j, int k) const noexcept {
+        return origin + (glm::dvec3(i, j, k) + 0.5) * voxel_size;
+    }
+    glm::dvec3 extent() const noexcept { return glm::dvec3(dims.x, dims.y, dims.z) * voxel_size; }
+    glm::dvec3 upper() const noexcept { return origin + extent(); }
+    /// Continuous voxel coordinates: the centre of voxel i maps to i + 0.5.
+    glm::dvec3 to_voxel(const glm::dvec3& world) const noexcept { return (world - origin) / voxel_size; }
+    bool contains(const glm::dvec3& world) const noexcept;
+    bool operator==(const GridGeometry&) const = default;
+};
+
+/// Dense 3D grid, x fastest. Values are samples at voxel centres.
+template <class T>
+struct Grid3 {
+    GridGeometry geom;
+    std::vector<T> data;
+
+    Grid3() = default;
+    explicit Grid3(const GridGeometry& g, T fill = T{}) : geom(g), data(g.cell_count(), fill) {}
+
+    const Int3& dims() const noexcept { return geom.dims; }
+    std::size_t size() const noexcept { return data.size(); }
+    T& at(int i, int j, int k) noexcept { return data[geom.index(i, j, k)]; }
+    const T& at(int i, int j, int k) const noexcept { return data[geom.index(i, j, k)]; }
+
+    /// Trilinear interpolation between voxel centres at a world position, clamped to the
+    /// outermost centres (constant extrapolation outside the grid).
+    T sample(const glm::dvec3& world) const noexcept;
+};
+
+/// Validates a geometry (positive dims, finite positive voxel size, finite origin);
+/// throws Error naming `where`.
+void validate_geometry(const GridGeometry& g, std::string_view where);
+
+/// Box-filter downsample by an integer factor per axis (dims must divide exactly, or the
+/// trailing partial block averages only the voxels it has). Voxel size grows by `factor`.
+Grid3<float> downsample(const Grid3<float>& src, int factor);
+
+// ---------------------------------------------------------------------------------------
+// Random numbers
+
+/// PCG32 (XSH-RR, 64-bit state). Deterministic for a given (seed, stream); different
+/// streams are independent sequences, so per-path or per-batch streams give results that
+/// do not depend on the thread count.
+class Rng {
+public:
+    explicit Rng(std::uint64_t seed = 0x853c49e6748fea9bULL, std::uint64_t stream = 0xda3e39cb94b95bdbULL) noexcept;
+    std::uint32_t next_u32() noexcept;
+    /// Uniform in [0, 1) with 24 random bits.
+    float uniform_float() noexcept { return float(next_u32() >> 8) * 0x1p-24f; }
+    /// Uniform in [0, 1) with 53 random bits.
+    double uniform() noexcept;
+    /// Uniform integer in [0, bound) without modulo bias.
+    std::uint32_t uniform_below(std::uint32_t bound) noexcept;
+    /// Standard normal (Box-Muller, both draws consumed).
+    double normal() noexcept;
+
+private:
+    std::uint64_t state_ = 0;
+    std::uint64_t inc_ = 0;
+};
+
+/// Mixes several 64-bit values into one seed (SplitMix64 finalizer chain).
+std::uint64_t hash_seed(std::uint64_t a, std::uint64_t b = 0, std::uint64_t c = 0) noexcept;
+
+// ---------------------------------------------------------------------------------------
+// Numerics
+
+/// Neumaier compensated summation; use where a long accumulation decides a result.
+struct CompensatedSum {
+    double sum = 0.0, comp = 0.0;
+    void add(double v) noexcept {
+        const double t = sum + v;
+        comp += (std::fabs(sum) >= std::fabs(v)) ? (sum - t) + v : (v - t) + sum;
+        sum = t;
+    }
+    double value() const noexcept { return sum + comp; }
+};
+
+// ---------------------------------------------------------------------------------------
+// Threads and time
+
+/// Threads used by parallel regions (default: all hardware threads).
+int thread_count() noexcept;
+/// Sets the thread count for subsequent parallel regions (n >= 1).
+void set_thread_count(int n);
+
+/// Calls fn(i) for i in [begin, end) over thread_count() threads with a static schedule.
+template <class F>
+void parallel_for(std::int64_t begin, std::int64_t end, F&& fn) {
+#pragma omp parallel for schedule(static) num_threads(thread_count())
+    for (std::int64_t i = begin; i < end; ++i) fn(i);
+}
+
+/// Like parallel_for but with dynamic scheduling in chunks, for uneven work items.
+template <class F>
+void parallel_for_dynamic(std::int64_t begin, std::int64_t end, F&& fn, int chunk = 1) {
+#pragma omp parallel for schedule(dynamic, chunk) num_threads(thread_count())
+    for (std::int64_t i = begin; i < end; ++i) fn(i);
+}
+
+class Stopwatch {
+public:
+    Stopwatch() noexcept : start_(std::chrono::steady_clock::now()) {}
+    void reset() noexcept { start_ = std::chrono::steady_clock::now(); }
+    double seconds() const noexcept {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    }
+    double milliseconds() const noexcept { return seconds() * 1e3; }
+
+private:
+    std::chrono::steady_clock::time_point start_;
+};
+
+// ---------------------------------------------------------------------------------------
+// Files
+
+/// Writes a float32 grid as NRRD (attached header, raw little-endian data) with space
+/// origin and spacing in metres, so ParaView / 3D Slicer place it correctly.
+void write_nrrd(const std::filesystem::path& path, const Grid3<float>& grid, std::string_view content = {});
+
+/// Reads a NRRD written by write_nrrd or any 3D float32 raw/attached NRRD. Validates the
+/// header and the data size; every error names the file and the field or byte offset.
+Grid3<float> read_nrrd(const std::filesystem::path& path);
+
+/// Writes an 8-bit RGB or RGBA PNG (channels 3 or 4), rows top to bottom.
+void write_png(const std::filesystem::path& path, int width, int height, int channels,
+               std::span<const std::uint8_t> pixels);
+
+/// Maps a scalar in [0,1] to a perceptual pseudo-colour (viridis-like), 8-bit RGB.
+void pseudo_colour(double t, std::uint8_t rgb[3]) noexcept;
+
+// ---------------------------------------------------------------------------------------
+// Template definitions
+
+template <class T>
+T Grid3<T>::sample(const glm::dvec3& world) const noexcept {
+    const glm::dvec3 u = geom.to_voxel(world) - 0.5;
+    const int nx = geom.dims.x, ny = geom.dims.y, nz = geom.dims.z;
+    auto split = [](double v, int n, int& i0, int& i1, double& f) {
+        if (!(v > 0.0)) { i0 = i1 = 0; f = 0.0; return; }        // also catches NaN
+        if (v >= double(n - 1)) { i0 = i1 = n - 1; f = 0.0; return; }
+        i0 = int(v); i1 = i0 + 1; f = v - double(i0);
+    };
+    int x0, x1, y0, y1, z0, z1;
+    double fx, fy, fz;
+    split(u.x, nx, x0, x1, fx);
+    split(u.y, ny, y0, y1, fy);
+    split(u.z, nz, z0, z1, fz);
+    auto lerp = [](double a, double b, double t) { return a + (b - a) * t; };
+    const double c00 = lerp(double(at(x0, y0, z0)), double(at(x1, y0, z0)), fx);
+    const double c10 = lerp(double(at(x0, y1, z0)), double(at(x1, y1, z0)), fx);
+    const double c01 = lerp(double(at(x0, y0, z1)), double(at(x1, y0, z1)), fx);
+    const double c11 = lerp(double(at(x0, y1, z1)), double(at(x1, y1, z1)), fx);
+    return T(lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz));
+}
+
+}  // namespace fulgur::core

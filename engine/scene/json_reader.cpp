@@ -1,0 +1,202 @@
+#include "scene/json_reader.h"
+
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+namespace fulgur::scene::detail {
+
+namespace {
+std::string fmt(double v) {
+    std::ostringstream os;
+    os.precision(10);
+    os << v;
+    return os.str();
+}
+
+std::string describe(const nlohmann::json& v) {
+    std::string s = v.dump();
+    if (s.size() > 60) s = s.substr(0, 57) + "...";
+    return s + " (" + v.type_name() + ")";
+}
+}  // namespace
+
+std::string Range::str() const {
+    auto bound = [](double v) {
+        if (v == std::numeric_limits<double>::infinity()) return std::string("inf");
+        if (v == -std::numeric_limits<double>::infinity()) return std::string("-inf");
+        return fmt(v);
+    };
+    return std::string(lo_open ? "(" : "[") + bound(lo) + ", " + bound(hi) + (hi_open ? ")" : "]");
+}
+
+JsonObject::JsonObject(const nlohmann::json& j, std::string file, std::string path)
+    : j_(j), file_(std::move(file)), path_(std::move(path)) {
+    if (!j_.is_object())
+        throw core::Error(file_ + (path_.empty() ? "" : ": " + path_), "expected a JSON object, got " + describe(j_));
+}
+
+std::string JsonObject::field(std::string_view key) const {
+    return path_.empty() ? std::string(key) : path_ + "." + std::string(key);
+}
+
+void JsonObject::fail(std::string_view key, const std::string& what) const {
+    throw core::Error(file_ + ": " + field(key), what);
+}
+
+bool JsonObject::has(std::string_view key) const { return j_.contains(key); }
+
+const nlohmann::json* JsonObject::find(std::string_view key) {
+    known_.emplace(key);
+    auto it = j_.find(key);
+    return it == j_.end() ? nullptr : &*it;
+}
+
+double JsonObject::number(std::string_view key, Range r) {
+    const nlohmann::json* v = find(key);
+    if (!v) fail(key, "required number in " + r.str() + " is missing");
+    if (!v->is_number()) fail(key, "expected a number in " + r.str() + ", got " + describe(*v));
+    const double d = v->get<double>();
+    if (!std::isfinite(d) || !r.contains(d)) fail(key, "value " + fmt(d) + " is outside the allowed range " + r.str());
+    return d;
+}
+
+double JsonObject::number_or(std::string_view key, double fallback, Range r) {
+    return j_.contains(key) ? number(key, r) : (known_.emplace(key), fallback);
+}
+
+std::int64_t JsonObject::integer(std::string_view key, std::int64_t lo, std::int64_t hi) {
+    const nlohmann::json* v = find(key);
+    const std::string range = "[" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+    if (!v) fail(key, "required integer in " + range + " is missing");
+    if (!v->is_number_integer()) fail(key, "expected an integer in " + range + ", got " + describe(*v));
+    if (v->is_number_unsigned() && v->get<std::uint64_t>() > std::uint64_t(std::numeric_limits<std::int64_t>::max()))
+        fail(key, "value is outside the allowed range " + range);
+    const std::int64_t i = v->get<std::int64_t>();
+    if (i < lo || i > hi) fail(key, "value " + std::to_string(i) + " is outside the allowed range " + range);
+    return i;
+}
+
+std::int64_t JsonObject::integer_or(std::string_view key, std::int64_t fallback, std::int64_t lo, std::int64_t hi) {
+    return j_.contains(key) ? integer(key, lo, hi) : (known_.emplace(key), fallback);
+}
+
+std::uint64_t JsonObject::seed_or(std::string_view key, std::uint64_t fallback) {
+    const nlohmann::json* v = find(key);
+    if (!v) return fallback;
+    if (!v->is_number_integer() || (v->is_number_integer() && !v->is_number_unsigned() && v->get<std::int64_t>() < 0))
+        fail(key, "expected a non-negative integer seed, got " + describe(*v));
+    return v->get<std::uint64_t>();
+}
+
+bool JsonObject::boolean_or(std::string_view key, bool fallback) {
+    const nlohmann::json* v = find(key);
+    if (!v) return fallback;
+    if (!v->is_boolean()) fail(key, "expected true or false, got " + describe(*v));
+    return v->get<bool>();
+}
+
+std::string JsonObject::string(std::string_view key) {
+    const nlohmann::json* v = find(key);
+    if (!v) fail(key, "required string is missing");
+    if (!v->is_string()) fail(key, "expected a string, got " + describe(*v));
+    return v->get<std::string>();
+}
+
+std::string JsonObject::string_or(std::string_view key, std::string fallback) {
+    return j_.contains(key) ? string(key) : (known_.emplace(key), fallback);
+}
+
+std::string JsonObject::choice_or(std::string_view key, std::string fallback,
+                                  std::initializer_list<std::string_view> allowed) {
+    std::string list;
+    for (auto a : allowed) list += (list.empty() ? "\"" : ", \"") + std::string(a) + "\"";
+    const nlohmann::json* v = find(key);
+    if (!v) return fallback;
+    if (!v->is_string()) fail(key, "expected one of " + list + ", got " + describe(*v));
+    const std::string s = v->get<std::string>();
+    for (auto a : allowed)
+        if (s == a) return s;
+    fail(key, "\"" + s + "\" is not one of " + list);
+}
+
+glm::dvec3 JsonObject::vec3(std::string_view key, Range each) {
+    const nlohmann::json* v = find(key);
+    if (!v) fail(key, "required [x, y, z] is missing");
+    if (!v->is_array() || v->size() != 3) fail(key, "expected an array of 3 numbers, got " + describe(*v));
+    glm::dvec3 out;
+    for (int i = 0; i < 3; ++i) {
+        const auto& e = (*v)[std::size_t(i)];
+        if (!e.is_number()) fail(key, "element " + std::to_string(i) + " is not a number: " + describe(e));
+        const double d = e.get<double>();
+        if (!std::isfinite(d) || !each.contains(d))
+            fail(key, "element " + std::to_string(i) + " = " + fmt(d) + " is outside the allowed range " + each.str());
+        out[i] = d;
+    }
+    return out;
+}
+
+glm::dvec3 JsonObject::vec3_or(std::string_view key, glm::dvec3 fallback, Range each) {
+    return j_.contains(key) ? vec3(key, each) : (known_.emplace(key), fallback);
+}
+
+core::Int3 JsonObject::int3(std::string_view key, int lo, int hi) {
+    const nlohmann::json* v = find(key);
+    const std::string range = "[" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+    if (!v) fail(key, "required [nx, ny, nz] is missing");
+    if (!v->is_array() || v->size() != 3) fail(key, "expected an array of 3 integers in " + range + ", got " + describe(*v));
+    int n[3];
+    for (int i = 0; i < 3; ++i) {
+        const auto& e = (*v)[std::size_t(i)];
+        if (!e.is_number_integer()) fail(key, "element " + std::to_string(i) + " is not an integer: " + describe(e));
+        const auto x = e.get<std::int64_t>();
+        const bool too_big = e.is_number_unsigned() && e.get<std::uint64_t>() > std::uint64_t(hi);
+        if (too_big || x < lo || x > hi)
+            fail(key, "element " + std::to_string(i) + " = " + e.dump() + " is outside the allowed range " + range);
+        n[i] = int(x);
+    }
+    return {n[0], n[1], n[2]};
+}
+
+core::Int3 JsonObject::int3_or(std::string_view key, core::Int3 fallback, int lo, int hi) {
+    return j_.contains(key) ? int3(key, lo, hi) : (known_.emplace(key), fallback);
+}
+
+JsonObject JsonObject::object(std::string_view key) {
+    const nlohmann::json* v = find(key);
+    if (!v) fail(key, "required object is missing");
+    if (!v->is_object()) fail(key, "expected an object, got " + describe(*v));
+    return JsonObject(*v, file_, field(key));
+}
+
+std::optional<JsonObject> JsonObject::optional_object(std::string_view key) {
+    if (!j_.contains(key)) {
+        known_.emplace(key);
+        return std::nullopt;
+    }
+    return object(key);
+}
+
+std::vector<JsonObject> JsonObject::objects(std::string_view key) {
+    std::vector<JsonObject> out;
+    const nlohmann::json* v = find(key);
+    if (!v) return out;
+    if (!v->is_array()) fail(key, "expected an array of objects, got " + describe(*v));
+    for (std::size_t i = 0; i < v->size(); ++i) {
+        const std::string p = field(key) + "[" + std::to_string(i) + "]";
+        if (!(*v)[i].is_object()) throw core::Error(file_ + ": " + p, "expected an object, got " + describe((*v)[i]));
+        out.emplace_back((*v)[i], file_, p);
+    }
+    return out;
+}
+
+void JsonObject::finish() const {
+    for (auto it = j_.begin(); it != j_.end(); ++it) {
+        if (known_.count(it.key())) continue;
+        std::string list;
+        for (const auto& k : known_) list += (list.empty() ? "" : ", ") + k;
+        throw core::Error(file_ + ": " + field(it.key()), "unknown key; allowed keys here: " + list);
+    }
+}
+
+}  // namespace fulgur::scene::detail

@@ -1,0 +1,72 @@
+// Internal to fulgur::scene: a strict reader over nlohmann::json that tracks the field path,
+// checks types and ranges, and rejects unknown keys. Every error names the file and the
+// field (e.g. "storm.json: medium.albedo") and the allowed range or values.
+#pragma once
+
+#include "core/core.h"
+
+#include <nlohmann/json.hpp>
+
+#include <glm/vec3.hpp>
+
+#include <cstdint>
+#include <initializer_list>
+#include <optional>
+#include <set>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace fulgur::scene::detail {
+
+/// A closed or half-open numeric interval, printed in error messages as e.g. "(0, 1]".
+struct Range {
+    double lo, hi;
+    bool lo_open = false, hi_open = false;
+    bool contains(double v) const noexcept {
+        return (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
+    }
+    std::string str() const;
+};
+
+class JsonObject {
+public:
+    /// `path` is the dotted field path of this object ("" for the root).
+    JsonObject(const nlohmann::json& j, std::string file, std::string path);
+
+    bool has(std::string_view key) const;
+
+    double number(std::string_view key, Range r);
+    double number_or(std::string_view key, double fallback, Range r);
+    std::int64_t integer(std::string_view key, std::int64_t lo, std::int64_t hi);
+    std::int64_t integer_or(std::string_view key, std::int64_t fallback, std::int64_t lo, std::int64_t hi);
+    std::uint64_t seed_or(std::string_view key, std::uint64_t fallback);
+    bool boolean_or(std::string_view key, bool fallback);
+    std::string string(std::string_view key);
+    std::string string_or(std::string_view key, std::string fallback);
+    /// One of `allowed`; the error lists them.
+    std::string choice_or(std::string_view key, std::string fallback, std::initializer_list<std::string_view> allowed);
+    glm::dvec3 vec3(std::string_view key, Range each);
+    glm::dvec3 vec3_or(std::string_view key, glm::dvec3 fallback, Range each);
+    core::Int3 int3(std::string_view key, int lo, int hi);
+    core::Int3 int3_or(std::string_view key, core::Int3 fallback, int lo, int hi);
+
+    JsonObject object(std::string_view key);
+    std::optional<JsonObject> optional_object(std::string_view key);
+    std::vector<JsonObject> objects(std::string_view key);  // an array of objects; missing -> empty
+
+    /// Throws if the object holds keys that were never read, naming them and the known keys.
+    void finish() const;
+
+    const std::string& file() const noexcept { return file_; }
+    std::string field(std::string_view key) const;  // dotted path of a member
+    [[noreturn]] void fail(std::string_view key, const std::string& what) const;
+
+private:
+    const nlohmann::json* find(std::string_view key);
+    const nlohmann::json& j_;
+    std::string file_, path_;
+    std::set<std::string, std::less<>> known_;
+};
+
+}  // namespace fulgur::scene::detail

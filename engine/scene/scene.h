@@ -1,0 +1,101 @@
+// fulgur::scene — scene files (JSON): what a scene contains and what it asks to simulate.
+//
+// A scene declares the medium, the cloud (generated or loaded), the grids, the lights and
+// the effects it needs. Loading is strict: unknown keys, wrong types and out-of-range
+// values are rejected with a core::Error naming the file, the field path and the allowed
+// range. Relative paths inside a scene are relative to the scene file. The format is
+// documented in docs/scene-format.md; content/scenes/storm.json is the default scene.
+#pragma once
+
+#include "cloud/cloud.h"
+#include "core/core.h"
+#include "transport/transport.h"
+
+#include <glm/vec3.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace fulgur::scene {
+
+inline constexpr int kFormatVersion = 1;
+
+struct CloudSource {
+    enum class Kind { Generator, File };
+    Kind kind = Kind::Generator;
+    cloud::CumulonimbusParams generator;  ///< used when kind == Generator
+    std::filesystem::path file;           ///< NRRD density, used when kind == File (absolute)
+};
+
+/// Effects the scene calls for. Work for an effect that is off is not done (no solve, no
+/// texture, no pass); DESIGN.md "Simulate only what the scene calls for".
+struct Effects {
+    bool lightning = true;            ///< lightning bolts and their virtual lights
+    bool single_scattering = true;    ///< direct (first-scattered) light in the cloud
+    bool multiple_scattering = true;  ///< orders >= 2 (transport solver in the bake)
+    bool sun = false;                 ///< the scene's directional light
+    bool glow = true;                 ///< glow quads around strokes (render)
+    bool ground = true;               ///< ground plane lit by the flash (render)
+};
+
+/// Multiple-scattering solver settings as written in the scene.
+struct TransportSettings {
+    enum class Solver { LatticeBoltzmann, MonteCarlo };
+    Solver solver = Solver::LatticeBoltzmann;
+    // lattice_boltzmann
+    std::string lb_collision = "corrected";  ///< "corrected" (energy-conserving) or "published"
+    std::string lb_absorption = "physical";  ///< "physical" (absorbed energy leaves) or "conservative" (paper)
+    double lb_tolerance = 1e-4;              ///< steady state: relative change per step
+    int lb_max_iterations = 4000;
+    // monte_carlo
+    std::uint64_t mc_paths = 2'000'000;      ///< paths per light
+    std::uint64_t mc_seed = 1;
+    int mc_batches = 32;                     ///< batches for the per-voxel standard error
+};
+
+struct PointLight {
+    glm::dvec3 position{0.0};
+    double intensity = 1.0;  ///< radiant intensity, W/sr
+};
+
+struct SunLight {
+    glm::dvec3 direction{0.0, 0.0, -1.0};  ///< propagation direction (unit)
+    double irradiance = 1.0;               ///< W/m^2 perpendicular to the direction
+};
+
+struct Scene {
+    std::filesystem::path path;  ///< the scene file ("" when parsed from memory)
+    std::string name;
+    transport::Medium medium;
+    CloudSource cloud;
+    int lighting_downsample = 4;  ///< lighting grid = density grid box-filtered by this factor
+    int directions = 26;          ///< output directions n_dir: 1, 6, 18 or 26
+    TransportSettings transport;
+    std::vector<PointLight> point_lights;
+    std::optional<SunLight> sun;
+    Effects effects;
+
+    /// Output directions the bake needs: 1 when scattering is isotropic (g == 0), since S
+    /// then does not depend on direction; the scene's count otherwise.
+    int effective_directions() const noexcept { return medium.g == 0.0 ? 1 : directions; }
+};
+
+/// Loads and validates a scene file.
+Scene load_scene(const std::filesystem::path& path);
+
+/// Parses a scene from JSON text; `file_name` appears in error messages and `base_dir`
+/// resolves relative paths.
+Scene parse_scene(std::string_view json_text, std::string_view file_name,
+                  const std::filesystem::path& base_dir = {});
+
+/// The cloud density the scene describes (generated or loaded).
+core::Grid3<float> make_density(const Scene& s);
+
+/// The transport medium on the lighting grid (density box-filtered by lighting_downsample).
+transport::LightingMedium make_lighting_medium(const Scene& s, const core::Grid3<float>& density);
+
+}  // namespace fulgur::scene

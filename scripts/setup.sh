@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Installs every system dependency Fulgur needs, from Debian 12 packages only.
+# Safe to run repeatedly; skips apt when everything is already installed.
+set -euo pipefail
+
+PACKAGES=(
+  build-essential cmake ninja-build pkg-config   # toolchain
+  libglm-dev                                     # vector math
+  nlohmann-json3-dev                             # scene files, JSON reports
+  libstb-dev                                     # stb_image_write (PNG)
+  doctest-dev                                    # unit/property tests
+  libomp-dev                                     # (OpenMP headers for clang tooling; g++ uses libgomp)
+  libgl-dev libosmesa6-dev libgl1-mesa-dri       # OpenGL through Mesa, OSMesa for headless
+  libglfw3-dev                                   # demo window
+  libimgui-dev                                   # demo panel (Dear ImGui)
+  python3-glad                                   # GL loader generator (glad2), run at build time
+  xvfb xauth                                     # virtual display for the demo screenshot
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if ((${#missing[@]})); then
+  SUDO=""
+  if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
+  echo "setup: installing ${missing[*]}"
+  $SUDO apt-get update
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y --no-install-recommends "${missing[@]}"
+else
+  echo "setup: all system packages present"
+fi

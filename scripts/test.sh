@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Sets up (Debian packages), builds and runs every test: the full suite in the optimized
+# build, then the `asan`-labelled tests (parsers, file loaders, corruption fuzzing) under
+# AddressSanitizer + UndefinedBehaviorSanitizer.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+./scripts/setup.sh
+jobs=$(nproc)
+
+cmake --preset release
+cmake --build --preset release -j "$jobs"
+ctest --preset release -j "$jobs"
+
+cmake --preset asan
+cmake --build --preset asan -j "$jobs"
+ctest --preset asan -j "$jobs"
+echo "test.sh: all tests passed"

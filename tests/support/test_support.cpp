@@ -1,0 +1,20 @@
+#include "support/test_support.h"
+
+#include <fstream>
+
+namespace fulgur::test {
+
+std::filesystem::path source_dir() { return FULGUR_SOURCE_DIR; }
+
+std::filesystem::path scratch_dir(const std::string& name) {
+    const std::filesystem::path p = std::filesystem::path(FULGUR_TEST_OUTPUT_DIR) / name;
+    std::filesystem::remove_all(p);
+    std::filesystem::create_directories(p);
+    return p;
+}
+
+void write_text(const std::filesystem::path& path, const std::string& text) {
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
+}
+
+}  // namespace fulgur::test
