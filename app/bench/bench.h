@@ -1,0 +1,50 @@
+// fulgur-bench: benchmarks that print one JSON object per line.
+//
+// Each benchmark file registers itself with FULGUR_BENCH(name) { ... } and reports through
+// ctx.emit(json). Machines are shared and noisy: report medians over repeats and a baseline
+// measured in the same run (memory bandwidth from measure_bandwidth(), or the naive path),
+// so ratios stay meaningful. Timings are never asserted in tests; they live here.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace fulgur::bench {
+
+struct Context {
+    bool quick = false;  ///< --quick: smaller problems / fewer repeats (smoke runs)
+    int max_threads = 2;
+    /// Prints one JSON object on one line (adds "name" if missing) and flushes.
+    void emit(const std::string& name, nlohmann::json j) const;
+};
+
+using BenchFn = std::function<void(const Context&)>;
+
+struct Registration {
+    Registration(const char* name, const char* help, BenchFn fn);
+};
+
+#define FULGUR_BENCH_CONCAT2(a, b) a##b
+#define FULGUR_BENCH_CONCAT(a, b) FULGUR_BENCH_CONCAT2(a, b)
+/// FULGUR_BENCH(lb, "help text") { ... uses ctx ... }
+#define FULGUR_BENCH(name, help)                                                                  \
+    static void FULGUR_BENCH_CONCAT(bench_fn_, name)(const ::fulgur::bench::Context& ctx);        \
+    static const ::fulgur::bench::Registration FULGUR_BENCH_CONCAT(bench_reg_, name)(              \
+        #name, help, &FULGUR_BENCH_CONCAT(bench_fn_, name));                                      \
+    static void FULGUR_BENCH_CONCAT(bench_fn_, name)([[maybe_unused]] const ::fulgur::bench::Context& ctx)
+
+/// Median of the samples (copied and partially sorted).
+double median(std::vector<double> v);
+
+/// Runs fn `repeats` times and returns the median wall time in seconds.
+double time_median(int repeats, const std::function<void()>& fn);
+
+/// Sustained memory bandwidth in GB/s (10^9 bytes/s) measured now, STREAM-triad style
+/// (a[i] = b[i] + s*c[i], counting 3 x 8 bytes per element, plus write-allocate ignored),
+/// over `threads` threads on arrays much larger than the last-level cache. Median of 5.
+double measure_bandwidth(int threads);
+
+}  // namespace fulgur::bench
