@@ -69,19 +69,29 @@ struct Walk {
     }
 
     /// Azimuth of a turn of d: uniform over a window of half-width (1 - bias) * pi centred
-    /// on the azimuth that points toward `toward` (unit). bias 0: uniform; bias 1: always
-    /// toward. Only the azimuth is biased, so the turn angle keeps its distribution. The
-    /// walk then zig-zags about the aim direction instead of drifting in arcs.
+    /// on a preferred azimuth; bias 0: uniform. The preferred sideways direction is the aim
+    /// (`toward`, unit) seen from d, plus `zigzag` times sin(angle_mean) times the opposite of
+    /// the previous turn's sideways direction `prev_side` (so turns alternate and the walk
+    /// zig-zags about the aim instead of drifting in arcs). Only the azimuth is biased: the
+    /// turn angle keeps its distribution exactly.
     double azimuth(core::Rng& r, const glm::dvec3& d, const glm::dvec3& u, const glm::dvec3& v,
-                   const glm::dvec3& toward, double bias) const {
+                   const glm::dvec3& toward, double bias, const glm::dvec3& prev_side) const {
         const double x = r.uniform();
-        const glm::dvec3 tp = toward - glm::dot(toward, d) * d;
+        const glm::dvec3 ps = prev_side - glm::dot(prev_side, d) * d;
+        const glm::dvec3 tp = toward - glm::dot(toward, d) * d - p.zigzag * std::sin(p.angle_mean_deg * kDeg) * ps;
         if (!(bias > 0.0) || !(glm::length(tp) > 1e-12)) return 2.0 * std::numbers::pi * x;
         const double phi_t = std::atan2(glm::dot(tp, v), glm::dot(tp, u));
         const double b = bias;
         return phi_t + (1.0 - b) * std::numbers::pi * (2.0 * x - 1.0);
     }
 };
+
+/// Unit sideways component of the turn from d0 to d1 (zero for no turn).
+glm::dvec3 side_of(const glm::dvec3& d0, const glm::dvec3& d1) noexcept {
+    const glm::dvec3 w = d1 - glm::dot(d1, d0) * d0;
+    const double l = glm::length(w);
+    return l > 1e-12 ? w / l : glm::dvec3(0.0);
+}
 
 /// Parameter t in (0, 1] where the segment from `a` (inside) along `delta` leaves the box,
 /// or > 1 if it stays inside.
@@ -278,6 +288,7 @@ Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) c
         d = turn(t0, u, v, Walk::angle(rng, theta_mean, theta_sd), 2.0 * std::numbers::pi * rng.uniform());
     }
     double path = 0.0;
+    glm::dvec3 side(0.0);  // sideways direction of the previous turn (zig-zag preference)
     const int follow_tries = p.kind == Kind::IntraCloud ? 4 : 1;
     for (std::size_t n = 0; n + 1 < cap; ++n) {
         const double len = walk.length(rng);
@@ -295,11 +306,12 @@ Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) c
             glm::dvec3 best_d = d;
             double best_rho = -1.0;
             for (int k = 0; k < follow_tries; ++k) {
-                const glm::dvec3 c = turn(d, u, v, theta, walk.azimuth(rng, d, u, v, tt, bias));
+                const glm::dvec3 c = turn(d, u, v, theta, walk.azimuth(rng, d, u, v, tt, bias, side));
                 const double rho = follow_tries > 1 ? double(density_->sample(pos + len * c)) : 0.0;
                 if (rho > best_rho) best_rho = rho, best_d = c;
                 if (rho >= follow_threshold) break;
             }
+            side = side_of(d, best_d);
             d = best_d;
         }
         // Walls: mirror the direction at each wall the step would cross (the ground is a wall
@@ -399,6 +411,7 @@ Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) c
         const glm::dvec3 drift = glm::normalize(dd + q.drift);
         glm::dvec3 bpos = q.origin;
         double travelled = 0.0, bpath = q.path;
+        glm::dvec3 bside(0.0);
         std::int32_t parent = q.parent;
         for (bool first = true; bolt.segments.size() < cap; first = false) {
             double len = walk.length(r);
@@ -408,11 +421,12 @@ Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) c
                 glm::dvec3 best_d = dd;
                 double best_rho = -1.0;
                 for (int k = 0; k < follow_tries; ++k) {
-                    const glm::dvec3 c = turn(dd, u, v, theta, walk.azimuth(r, dd, u, v, drift, branch_bias));
+                    const glm::dvec3 c = turn(dd, u, v, theta, walk.azimuth(r, dd, u, v, drift, branch_bias, bside));
                     const double rho = follow_tries > 1 ? double(density_->sample(bpos + len * c)) : 0.0;
                     if (rho > best_rho) best_rho = rho, best_d = c;
                     if (rho >= follow_threshold) break;
                 }
+                bside = side_of(dd, best_d);
                 dd = best_d;
             }
             bool stop = false;

@@ -63,6 +63,7 @@ struct BoltParams {
     double segment_length_mean = 200.0;   ///< m
     double segment_length_spread = 80.0;  ///< m, standard deviation; lengths truncated to [0.2, 3] x mean
     double target_bias = 0.8;             ///< [0,1]: 0 = unbiased turn azimuth, 1 = always turn toward the aim point
+    double zigzag = 1.0;                  ///< [0,4]: preference for turning back the other way (0 = none)
     double wander = 0.5;                  ///< sideways spread of the aim points (every 4 segments), x their spacing
     double branch_probability = 0.2;      ///< chance per segment to sprout a branch
     double branch_angle_mean_deg = 35.0;  ///< first turn of a branch away from its parent (deg)
@@ -368,9 +369,10 @@ private:
 
 /// Draws lit stretches in a side view (x horizontal, z up) over the density's projection
 /// (mean along y) into an 8-bit RGB image of `width` x height, where height follows the
-/// view box's aspect ratio. Line width and brightness grow with intensity (additive glow).
-/// `view` is the region shown (x and z used). Returns the pixels, rows top to bottom.
+/// view box's aspect ratio. Line width and brightness grow with intensity relative to
+/// `reference` (W/sr/m; 0 = the brightest stretch drawn), additive glow. `view` is the
+/// region shown (x and z used). Returns the pixels, rows top to bottom.
 std::vector<std::uint8_t> draw_side_view(std::span<const LitSegment> lit, const core::Grid3<float>* density,
-                                         const Box& view, int width, int& height);
+                                         const Box& view, int width, int& height, double reference = 0.0);
 
 }  // namespace fulgur::lightning

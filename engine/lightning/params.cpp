@@ -43,6 +43,7 @@ void validate(const LightningParams& p, std::string_view where) {
     c.range("segment_length_spread", b.segment_length_spread, 0.0, 5000.0);
     c.range("target_bias", b.target_bias, 0.0, 1.0);
     c.range("wander", b.wander, 0.0, 2.0);
+    c.range("zigzag", b.zigzag, 0.0, 4.0);
     c.range("branches.probability", b.branch_probability, 0.0, 1.0);
     c.range("branches.angle_mean", b.branch_angle_mean_deg, 0.0, 90.0);
     c.range("branches.length_fraction", b.branch_length_fraction, 0.0, 1.0, true, false);

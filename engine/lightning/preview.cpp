@@ -12,7 +12,7 @@
 namespace fulgur::lightning {
 
 std::vector<std::uint8_t> draw_side_view(std::span<const LitSegment> lit, const core::Grid3<float>* density,
-                                         const Box& view, int width, int& height) {
+                                         const Box& view, int width, int& height, double reference) {
     FULGUR_ASSERT(width >= 16 && width <= 8192, "draw_side_view: width must be in [16, 8192]");
     const double wx = view.hi.x - view.lo.x, wz = view.hi.z - view.lo.z;
     FULGUR_ASSERT(wx > 0.0 && wz > 0.0, "draw_side_view: empty view box");
@@ -58,13 +58,14 @@ std::vector<std::uint8_t> draw_side_view(std::span<const LitSegment> lit, const 
     // Bolt: additive Gaussian footprints along each stretch; width ~ sqrt(intensity).
     double imax = 0.0;
     for (const LitSegment& l : lit) imax = std::max(imax, l.intensity);
+    if (reference > 0.0) imax = reference;
     std::vector<float> glow(W * H, 0.0f);
     if (imax > 0.0) {
         for (const LitSegment& l : lit) {
-            const double rel = l.intensity / imax;
+            const double rel = std::min(1.0, l.intensity / imax);
             if (!(rel > 0.0)) continue;
             const double sigma = 0.35 + 0.85 * std::sqrt(rel);  // px
-            const double amp = 0.2 + 0.8 * rel;
+            const double amp = std::pow(rel, 0.6);  // compresses the range: dim branches stay visible
             const glm::dvec2 a = to_px(l.a), b = to_px(l.b);
             const double len = glm::length(b - a);
             const int steps = std::max(1, int(std::ceil(len / 0.3)));

@@ -179,7 +179,17 @@ void Splatter::accumulate_impl(std::span<const PointSource> sources, LightWeight
             }
     }
     out.total = total.value();
-    // Exact cancellation (sources of opposite sign) can leave e_l == 0: drop those.
+    // Exact cancellation (sources of opposite sign) can leave e_l == 0: drop those. Then sort:
+    // a dense list is rebuilt by one ordered scan (cheaper than sorting it).
+    if (out.active.size() * 8 > count_) {
+        out.active.clear();
+        for (std::size_t l = 0; l < count_; ++l) {
+            if (!touched[l]) continue;
+            if (e[l] != 0.0) out.active.push_back(std::uint32_t(l));
+            else touched[l] = 0;
+        }
+        return;
+    }
     std::size_t w = 0;
     for (const std::uint32_t l : out.active) {
         if (e[l] != 0.0) out.active[w++] = l;

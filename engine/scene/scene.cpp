@@ -132,6 +132,7 @@ void parse_lightning(JsonObject o, lightning::LightningParams& l) {
     b.segment_length_spread = o.number_or("segment_length_spread", b.segment_length_spread, Range{0.0, 5000.0});
     b.target_bias = o.number_or("target_bias", b.target_bias, Range{0.0, 1.0});
     b.wander = o.number_or("wander", b.wander, Range{0.0, 2.0});
+    b.zigzag = o.number_or("zigzag", b.zigzag, Range{0.0, 4.0});
     b.max_segments = int(o.integer_or("max_segments", b.max_segments, 1, 1'000'000));
     if (auto br = o.optional_object("branches")) {
         b.branch_probability = br->number_or("probability", b.branch_probability, Range{0.0, 1.0});

@@ -7,6 +7,10 @@
 
 #include <doctest/doctest.h>
 
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+
 using namespace fulgur;
 using namespace fulgur::lightning;
 
@@ -27,6 +31,52 @@ void draw(const std::filesystem::path& file, const core::Grid3<float>& cloud, co
     CHECK(bright > 500);  // a few km of channel, >= 1 px wide: well over 500 px
 }
 }  // namespace
+
+TEST_CASE("preview: a flash over time - leader, return stroke, decay, dart leader, restrike") {
+    const auto cloud = fixture::synthetic_storm(200.0);
+    LightningParams p;
+    p.schedule.strike_rate = 0.0;
+    p.timing.restrikes = 2.0;
+    Storm storm(p, cloud);
+    // The first on-demand seed whose flash has a restrike.
+    std::size_t i = 0;
+    for (std::uint64_t seed = 1;; ++seed) {
+        i = storm.strike_at(10.0 * double(seed), seed);
+        if (storm.strike(i).profile.stroke_onset.size() > 1) break;
+        REQUIRE(seed < 100);
+    }
+    const Strike& s = storm.strike(i);
+    const FlashProfile& f = s.profile;
+    const double times[5] = {0.6 * f.leader_duration, f.stroke_onset[0] + p.timing.rise_time,
+                             f.stroke_onset[0] + p.timing.rise_time + 0.02, f.stroke_onset[1] - 0.4 * f.dart_duration,
+                             f.stroke_onset[1] + p.timing.rise_time};
+    const Box view{cloud.geom.origin, cloud.geom.upper()};
+    const int w = 320;
+    int h = 0;
+    std::vector<std::uint8_t> strip;
+    std::vector<std::vector<std::uint8_t>> panels;
+    double brightest = 0.0;
+    std::vector<double> lit_energy;
+    for (const double t : times) {
+        std::vector<LitSegment> lit;
+        storm.lit(s.time + t, lit);
+        core::CompensatedSum e;
+        for (const LitSegment& l : lit) e.add(l.intensity * glm::length(l.b - l.a));
+        lit_energy.push_back(e.value());
+        brightest = std::max(brightest, e.value());
+        panels.push_back(draw_side_view(lit, &cloud, view, w, h, p.bolt.intensity));
+    }
+    // The return-stroke peak is the brightest panel; the leader and the decay are dimmer.
+    CHECK(lit_energy[1] == brightest);
+    CHECK(lit_energy[0] < 0.1 * lit_energy[1]);
+    CHECK(lit_energy[2] < lit_energy[1]);
+    CHECK(lit_energy[3] < lit_energy[4]);
+    strip.resize(std::size_t(5 * w * h * 3));
+    for (int k = 0; k < 5; ++k)
+        for (int y = 0; y < h; ++y)
+            std::copy_n(&panels[std::size_t(k)][std::size_t(y * w * 3)], w * 3, &strip[std::size_t((y * 5 * w + k * w) * 3)]);
+    core::write_png(fulgur::test::scratch_dir("lightning_sequence") / "flash_sequence.png", 5 * w, h, 3, strip);
+}
 
 TEST_CASE("preview: bolts of each kind drawn over the cloud") {
     const auto cloud = fixture::synthetic_storm(200.0);

@@ -99,9 +99,11 @@ double inside_fraction(const BoltParams& p, bool* all_reached = nullptr) {
 }  // namespace
 
 TEST_CASE("generator: turn angles follow |N(angle_mean, angle_spread)| whatever the target bias") {
-    for (const auto& [mean, spread, bias] : {std::tuple{16.0, 10.0, 0.8}, std::tuple{16.0, 4.0, 0.0},
-                                             std::tuple{30.0, 5.0, 1.0}}) {
+    for (const auto& [mean, spread, bias, zigzag] :
+         {std::tuple{16.0, 10.0, 0.8, 1.0}, std::tuple{16.0, 4.0, 0.0, 0.0}, std::tuple{30.0, 5.0, 1.0, 0.0},
+          std::tuple{16.0, 10.0, 0.9, 4.0}}) {
         BoltParams p;
+        p.zigzag = zigzag;
         p.angle_mean_deg = mean;
         p.angle_spread_deg = spread;
         p.target_bias = bias;
@@ -109,7 +111,7 @@ TEST_CASE("generator: turn angles follow |N(angle_mean, angle_spread)| whatever 
         const AngleStats st = main_channel_turns(p, 150);
         double expect_mean, expect_sd;
         folded_normal(mean, spread, expect_mean, expect_sd);
-        INFO("mean " << mean << " spread " << spread << " bias " << bias << ": measured " << st.mean << " +- " << st.sd
+        INFO("mean " << mean << " spread " << spread << " bias " << bias << " zigzag " << zigzag << ": measured " << st.mean << " +- " << st.sd
                      << " over " << st.count << " turns; expected " << expect_mean << " +- " << expect_sd);
         REQUIRE(st.count > 2000);
         CHECK(st.skipped_bolts < 15);  // the big domain keeps walls away from almost every bolt

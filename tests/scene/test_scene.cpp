@@ -100,7 +100,7 @@ TEST_CASE("lightning section: defaults, every field, and ranges naming the field
     const std::string full = with("\"cloud\"", R"("lightning": {
         "kind": "intra_cloud", "seed": 9, "intensity": 2e5, "start_density_threshold": 0.4,
         "ground_height": 120, "angle_mean": 20, "angle_spread": 6, "segment_length_mean": 150,
-        "segment_length_spread": 30, "target_bias": 0.5, "wander": 0.25, "max_segments": 5000,
+        "segment_length_spread": 30, "target_bias": 0.5, "wander": 0.25, "zigzag": 0.5, "max_segments": 5000,
         "branches": {"probability": 0.1, "angle_mean": 40, "length_fraction": 0.5, "intensity_decay": 0.3, "max_depth": 2},
         "timing": {"leader_speed": 3e5, "leader_brightness": 0.05, "rise_time": 2e-4, "decay_time": 0.02,
                    "restrikes": 4, "restrikes_max": 6, "restrike_interval": 0.07, "restrike_brightness": 0.4,
@@ -119,6 +119,7 @@ TEST_CASE("lightning section: defaults, every field, and ranges naming the field
     CHECK(l.bolt.segment_length_spread == 30.0);
     CHECK(l.bolt.target_bias == 0.5);
     CHECK(l.bolt.wander == 0.25);
+    CHECK(l.bolt.zigzag == 0.5);
     CHECK(l.bolt.max_segments == 5000);
     CHECK(l.bolt.branch_probability == 0.1);
     CHECK(l.bolt.branch_angle_mean_deg == 40.0);
@@ -147,6 +148,7 @@ TEST_CASE("lightning section: defaults, every field, and ranges naming the field
     bad(R"({"angle_mean": 400})", "lightning.angle_mean");
     bad(R"({"segment_length_mean": 0})", "lightning.segment_length_mean");
     bad(R"({"target_bias": 1.2})", "lightning.target_bias");
+    bad(R"({"zigzag": 5})", "lightning.zigzag");
     bad(R"({"intensity": -1})", "lightning.intensity");
     bad(R"({"start_density_threshold": 1})", "lightning.start_density_threshold");
     bad(R"({"max_segments": 0})", "lightning.max_segments");
