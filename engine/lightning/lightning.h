@@ -159,10 +159,13 @@ private:
 };
 
 /// Generates bolts in a cloud. Keeps a reference to `density`, which must outlive it.
-/// The domain defaults to the density grid's box with its floor lowered (or raised) to the
-/// ground; the main channel mirrors at its walls (counted in Bolt::reflections), branches
-/// stop at them (Bolt::clipped). Throws core::Error for invalid parameters, a ground above
-/// the cloud, or a cloud with no voxel above the start threshold.
+/// The domain defaults to the density grid's box with its floor moved to the ground; a
+/// caller's box has its floor raised to the ground (a ground below its floor is an error).
+/// The main channel mirrors at the walls (counted in Bolt::reflections), branches stop at
+/// them (Bolt::clipped). Throws core::Error for invalid parameters, a ground within a
+/// segment of the domain's top, or a cloud with no voxel above the start threshold.
+/// Not thread-safe to construct concurrently with edits of `density`; generate() is const
+/// and may run on several threads.
 class BoltGenerator {
 public:
     BoltGenerator(const BoltParams& p, const core::Grid3<float>& density, std::optional<Box> domain = {});
@@ -323,7 +326,8 @@ public:
     std::size_t strike_at(double t, std::optional<std::uint64_t> seed = {});
 
     /// Indices of the strikes whose flash is not dark at t, ascending by start time. Cost: a
-    /// binary search plus the strikes overlapping t (and scheduling strikes up to t).
+    /// binary search plus the strikes overlapping t (and scheduling strikes up to t). The
+    /// span is valid until the next call. Storm is not thread-safe.
     std::span<const std::size_t> active(double t);
     /// True if any strike glows at t (the run time skips reconstruction when false).
     bool any_active(double t) { return !active(t).empty(); }

@@ -10,6 +10,8 @@
 #include <glm/geometric.hpp>
 
 #include <algorithm>
+#include <cmath>
+#include <utility>
 
 using namespace fulgur;
 using namespace fulgur::lightning;
@@ -89,4 +91,38 @@ TEST_CASE("preview: bolts of each kind drawn over the cloud") {
             draw(dir / (std::string(kind_name(kind)) + "_" + std::to_string(seed) + ".png"), cloud, {gen.generate(seed)});
         }
     }
+}
+
+TEST_CASE("preview: the documentation mosaic (two cloud-to-ground, one intra-cloud, one cloud-to-cloud)") {
+    // docs/images/lightning-bolts.png is a copy of this output. Intra- and cloud-to-cloud
+    // bolts are turned about the vertical axis so their start-to-target line runs along x
+    // (a side view would otherwise look at them end-on).
+    const auto cloud = fixture::synthetic_storm(200.0);
+    const Box view{cloud.geom.origin, cloud.geom.upper()};
+    const int w = 640;
+    int h = 0;
+    const std::pair<Kind, std::uint64_t> cases[4] = {
+        {Kind::CloudToGround, 1}, {Kind::CloudToGround, 3}, {Kind::IntraCloud, 2}, {Kind::CloudToCloud, 2}};
+    std::vector<std::uint8_t> mosaic;
+    for (int c = 0; c < 4; ++c) {
+        BoltParams p;
+        p.kind = cases[c].first;
+        const Bolt b = BoltGenerator(p, cloud).generate(cases[c].second);
+        FlashState peak;
+        peak.main_glow = peak.branch_glow = 1.0;
+        std::vector<LitSegment> lit;
+        lit_segments(b, peak, lit);
+        if (p.kind != Kind::CloudToGround) {
+            const double a = -std::atan2(b.target.y - b.start.y, b.target.x - b.start.x);
+            for (LitSegment& l : lit)
+                for (glm::dvec3* q : {&l.a, &l.b}) *q = glm::dvec3(std::cos(a) * q->x - std::sin(a) * q->y, std::sin(a) * q->x + std::cos(a) * q->y, q->z);
+        }
+        const auto px = draw_side_view(lit, &cloud, view, w, h, p.intensity);
+        if (mosaic.empty()) mosaic.resize(std::size_t(4 * w * h * 3));
+        const int ox = (c % 2) * w, oy = (c / 2) * h;
+        for (int y = 0; y < h; ++y)
+            std::copy_n(&px[std::size_t(y * w * 3)], w * 3, &mosaic[std::size_t(((oy + y) * 2 * w + ox) * 3)]);
+    }
+    core::write_png(fulgur::test::scratch_dir("lightning_docs") / "lightning-bolts.png", 2 * w, 2 * h, 3, mosaic);
+    CHECK(h == 480);
 }
