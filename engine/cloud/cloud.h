@@ -20,6 +20,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <span>
 #include <string_view>
 #include <vector>
 
@@ -30,8 +31,8 @@ namespace fulgur::cloud {
 /// are consistent; the defaults are the default storm's cloud.
 struct CumulonimbusParams {
     std::uint64_t seed = 1;           ///< everything random (layout and automaton) follows from it
-    core::Int3 grid{128, 128, 96};    ///< density voxels (x, y, z)
-    double voxel_size = 100.0;        ///< metres per voxel (all axes)
+    core::Int3 grid{144, 144, 80};    ///< density voxels (x, y, z): 18 x 18 x 10 km by default
+    double voxel_size = 125.0;        ///< metres per voxel (all axes)
 
     // --- Shape (metres) ---------------------------------------------------------------
     /// Height of the flat cloud base (the condensation level). No density below it; the
@@ -56,11 +57,11 @@ struct CumulonimbusParams {
     /// Anvil: a wide, flat cloud spreading at the top of the tower (the tropopause),
     /// thickest near the tower and thinner, more diffuse towards its edges.
     bool anvil = true;
-    double anvil_radius = 5000.0;     ///< horizontal radius of the anvil (> tower_radius)
+    double anvil_radius = 6500.0;     ///< horizontal radius of the anvil (> tower_radius)
     double anvil_thickness = 1500.0;  ///< thickness of the anvil near the tower
     /// Downwind (+x) displacement of the anvil's centre from the top of the tower: anvils
     /// spread mostly downwind.
-    double anvil_offset = 1000.0;
+    double anvil_offset = 1500.0;
     /// Height of the overshooting top, the dome the updraft pushes above the anvil's flat
     /// top; the anvil's top is at top_height - overshoot. 0 = none. Used only with the anvil.
     double overshoot = 600.0;
@@ -77,8 +78,8 @@ struct CumulonimbusParams {
     double p_ext = 0.2;               ///< extinction probability where W = 0 (falls to 0 at W = 1)
     double p_hum = 0.2;               ///< vapour supply probability where W = 1
     double p_act = 0.02;              ///< activation supply probability where W = 1
-    int average_steps = 6;            ///< the last average_steps steps are averaged (time window)
-    int smoothing_radius = 2;         ///< radius (voxels) of the spatial smoothing kernel
+    int average_steps = 4;            ///< the last average_steps steps are averaged (time window)
+    int smoothing_radius = 1;         ///< radius (voxels) of the spatial smoothing kernel
     /// Density = min(1, density_gain * smoothed cloud fraction). Above 1 it fills the
     /// interior (dense core, soft edges); below 1 the whole cloud is thinner.
     double density_gain = 1.3;
@@ -128,14 +129,17 @@ enum class PreviewKind {
     SliceXZ,       ///< vertical slice through the grid's centre (y = middle), density in pseudo-colour
     TopMax,        ///< top-down maximum projection of the density along z, pseudo-colour
     SideDepth,     ///< side view along y: optical depth tau, shown as 1 - exp(-tau), grey
+    SideLit,       ///< side view along y against a sky, lit by a sun from the upper left:
+                   ///< attenuated sunlight plus a flat ambient term, no multiple scattering
+                   ///< (a quick look at the shape, not the engine's renderer)
 };
 
-/// Renders a preview; `extinction` (1/m per unit density) is used by SideDepth only. Each
+/// Renders a preview; `extinction` (1/m per unit density) is used by the side views. Each
 /// voxel becomes `scale` x `scale` pixels. z points up in the side views, y up in the top view.
 Image render_preview(const core::Grid3<float>& density, PreviewKind kind, double extinction = 0.004, int scale = 1);
 
-/// Writes the three previews side by side in one PNG (slice | side optical depth | top).
+/// Writes the previews in `kinds` side by side, bottom-aligned, in one PNG.
 void write_preview_png(const std::filesystem::path& path, const core::Grid3<float>& density,
-                       double extinction = 0.004, int scale = 1);
+                       std::span<const PreviewKind> kinds, double extinction = 0.004, int scale = 1);
 
 }  // namespace fulgur::cloud
