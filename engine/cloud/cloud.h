@@ -58,7 +58,7 @@ struct CumulonimbusParams {
     /// thickest near the tower and thinner, more diffuse towards its edges.
     bool anvil = true;
     double anvil_radius = 6500.0;     ///< horizontal radius of the anvil (> tower_radius)
-    double anvil_thickness = 1500.0;  ///< thickness of the anvil near the tower
+    double anvil_thickness = 1800.0;  ///< thickness of the anvil near the tower
     /// Downwind (+x) displacement of the anvil's centre from the top of the tower: anvils
     /// spread mostly downwind.
     double anvil_offset = 1500.0;

@@ -152,10 +152,10 @@ TEST_CASE("the anvil spreads wider than the tower when on, and not when off") {
         CAPTURE(upper);
         if (anvil) {
             // anvil_radius / tower_radius = 2.6, i.e. ~7x the area; the flanking towers
-            // widen the mid-tower layer, so ask for 2x (measured ~2.9x).
+            // widen the mid-tower layer, so ask for 2x (measured 2.8x).
             CHECK(upper > 2.0 * tower);
         } else {
-            // Without an anvil the top rounds off: narrower than the body (measured ~0.4x).
+            // Without an anvil the top rounds off: narrower than the body (measured 0.65x).
             CHECK(upper < 0.8 * tower);
         }
     }
@@ -175,7 +175,10 @@ TEST_CASE("the anvil spreads wider than the tower when on, and not when off") {
     CAPTURE(edge);
     CHECK(edge > 0.0);             // the anvil does reach out there
     CHECK(beside > 0.5 * p.anvil_thickness);
-    CHECK(edge < 0.8 * beside);    // the layout's thickness falls from ~0.85 to ~0.5 of full there
+    // Measured 0.24 for the default cloud. An anvil of uniform thickness still thins a
+    // little at its rim, where the ellipsoids stop overlapping (measured 0.44), so 0.4
+    // tells the two apart.
+    CHECK(edge < 0.4 * beside);
 }
 
 TEST_CASE("previews of the default cloud (written for docs/cloud.md)") {
