@@ -316,7 +316,7 @@ void validate_cumulonimbus(const CumulonimbusParams& p) {
 
     if (p.anvil) {
         if (!(p.anvil_radius > p.tower_radius))
-            fail("anvil_radius", "must be larger than tower_radius (" + metres(p.tower_radius) + ") — an anvil is wider than its tower; got " +
+            fail("anvil_radius", "must be larger than tower_radius (" + metres(p.tower_radius) + "): an anvil is wider than its tower; got " +
                                      metres(p.anvil_radius));
         if (p.anvil_thickness < 2.0 * h)
             fail("anvil_thickness", "must be at least 2 voxels (" + metres(2.0 * h) + "), got " + metres(p.anvil_thickness));
