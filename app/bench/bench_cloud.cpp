@@ -36,7 +36,7 @@ FULGUR_BENCH(cloud, "cumulonimbus generator at the default size: total and per-s
         ctx.emit("cloud", {{"threads", t},
                            {"grid", {p.grid.x, p.grid.y, p.grid.z}},
                            {"cells", g.cell_count()},
-                           {"automaton_cells", active},
+                           {"seeded_cells", active},
                            {"steps", p.steps},
                            {"total_s", total_s},
                            {"seed_field_s", seed_s},

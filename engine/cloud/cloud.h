@@ -28,7 +28,8 @@ namespace fulgur::cloud {
 
 /// Every parameter of the cumulonimbus generator; the scene file's "cloud.generator" object
 /// sets them by the same names. Lengths in metres. validate_cumulonimbus() checks that they
-/// are consistent; the defaults are the default storm's cloud.
+/// are consistent; the defaults are the default storm's cloud (content/scenes/storm.json),
+/// except the seed (7 there).
 struct CumulonimbusParams {
     std::uint64_t seed = 1;           ///< everything random (layout and automaton) follows from it
     core::Int3 grid{144, 144, 80};    ///< density voxels (x, y, z): 18 x 18 x 10 km by default
