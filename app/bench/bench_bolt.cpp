@@ -1,10 +1,11 @@
 // fulgur-bench bolt: the lightning module's per-frame costs on one thread — bolt
 // generation, lit stretches + point sources, trilinear splatting (a typical bolt and 10,000
 // sources), and the "which strikes are active" query. Baseline: splatting with a binary
-// search per axis (the naive lookup) on the same sources.
+// search per axis (the naive lookup) on the same sources. Cloud: the default storm's.
 #include "bench/bench.h"
 
 #include "basis/basis.h"
+#include "cloud/cloud.h"
 #include "core/core.h"
 #include "lightning/lightning.h"
 
@@ -15,41 +16,28 @@ using namespace fulgur;
 
 namespace {
 
-/// A cumulonimbus-like density (tower + anvil, 200 m voxels, 12.8 x 12.8 x 9.6 km), so the
-/// benchmark does not depend on the cloud generator's speed or state.
-core::Grid3<float> bench_cloud() {
-    core::GridGeometry g;
-    g.dims = {64, 64, 48};
-    g.voxel_size = 200.0;
-    g.origin = glm::dvec3(-6400.0, -6400.0, 0.0);
-    core::Grid3<float> d(g);
-    for (int k = 0; k < g.dims.z; ++k)
-        for (int j = 0; j < g.dims.y; ++j)
-            for (int i = 0; i < g.dims.x; ++i) {
-                const glm::dvec3 p = g.centre(i, j, k);
-                const double r = std::hypot(p.x, p.y);
-                const bool tower = r < 2500.0 && p.z > 1500.0 && p.z < 9000.0;
-                const bool anvil = r < 5000.0 && p.z > 7500.0 && p.z < 9000.0;
-                d.at(i, j, k) = tower || anvil ? 0.8f : 0.0f;
-            }
-    return d;
-}
-
-/// Dobashi section 5 style: 400 m horizontally, 400 m above the base, wider below.
-basis::VirtualLightGrid bench_lights() {
+/// Dobashi section 5 style over the cloud's footprint: 400 m horizontally and above the
+/// cloud base, wider layers below it.
+basis::VirtualLightGrid bench_lights(const core::Grid3<float>& cloud) {
     basis::VirtualLightGrid v;
-    for (double x = -6400.0; x <= 6400.0 + 1e-9; x += 400.0) v.x.push_back(x), v.y.push_back(x);
-    v.z = {0.0, 700.0, 1100.0};
-    for (double z = 1500.0; z <= 9500.0 + 1e-9; z += 400.0) v.z.push_back(z);
+    const glm::dvec3 lo = cloud.geom.origin, hi = cloud.geom.upper();
+    for (double x = lo.x; x <= hi.x + 1e-9; x += 400.0) v.x.push_back(x);
+    for (double y = lo.y; y <= hi.y + 1e-9; y += 400.0) v.y.push_back(y);
+    const double base = cloud::cloud_base_height(cloud);
+    v.z = {0.0};
+    for (double gap = 400.0, z = base; z - gap > v.z.back() + 200.0; gap *= 1.6) v.z.insert(v.z.begin() + 1, z - gap);
+    for (double z = base; z <= hi.z + 1e-9; z += 400.0) v.z.push_back(z);
+    std::sort(v.z.begin(), v.z.end());
     return v;
 }
 
 }  // namespace
 
 FULGUR_BENCH(bolt, "lightning: bolt generation, point sources, splatting (typical bolt and 10k sources), 1 thread") {
+    // The default storm's cloud (generated on all threads; the measurements use one).
+    const auto cloud = cloud::generate_cumulonimbus(cloud::CumulonimbusParams{});
     core::set_thread_count(1);
-    const auto cloud = bench_cloud();
-    const auto lights = bench_lights();
+    const auto lights = bench_lights(cloud);
     const lightning::Splatter splatter(lights);
     const int bolts = ctx.quick ? 10 : 60;
     const int repeats = ctx.quick ? 3 : 9;
@@ -108,12 +96,16 @@ FULGUR_BENCH(bolt, "lightning: bolt generation, point sources, splatting (typica
                           {"baseline_splat_binary_search_ms", 1e3 * bench::median(t_splat_bs)}});
     }
 
-    // 10,000 point sources spread over the light grid's box (and 10% outside it).
+    // 10,000 point sources spread over the light grid's box (some outside it).
     {
         core::Rng r(1, 1);
         std::vector<lightning::PointSource> q(10000);
         for (auto& s : q) {
-            s.position = glm::dvec3(-7000.0 + 14000.0 * r.uniform(), -7000.0 + 14000.0 * r.uniform(), 10000.0 * r.uniform());
+            // The light grid's box grown by 5% per side: ~10% of the sources fall outside.
+            const glm::dvec3 lo(lights.x.front(), lights.y.front(), lights.z.front());
+            const glm::dvec3 hi(lights.x.back(), lights.y.back(), lights.z.back());
+            const glm::dvec3 pad = 0.05 * (hi - lo);
+            s.position = lo - pad + glm::dvec3(r.uniform(), r.uniform(), r.uniform()) * (hi - lo + 2.0 * pad);
             s.intensity = 1e5 * r.uniform();
         }
         lightning::LightWeights w;
@@ -128,6 +120,7 @@ FULGUR_BENCH(bolt, "lightning: bolt generation, point sources, splatting (typica
             }
         }) / inner;
         ctx.emit("bolt", {{"case", "10k_sources"},
+                          {"grid", {lights.x.size(), lights.y.size(), lights.z.size()}},
                           {"threads", 1},
                           {"lights", splatter.light_count()},
                           {"active_lights", w.active.size()},
