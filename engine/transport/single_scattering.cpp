@@ -329,6 +329,7 @@ DensityBounds density_bounds(const LightingMedium& m) {
 
 constexpr int kMaxTensorOrder = 4;  // tensor Gauss rules use 1..4 points per axis
 constexpr int kMaxDepth = 5;        // octree levels below a voxel
+constexpr int kMaxCheckDepth = 2;   // a-posteriori transmittance checks stop below this level
 
 struct PointCtx {
     const core::GridGeometry* g;
@@ -337,6 +338,7 @@ struct PointCtx {
     glm::dvec3 xl;
     double cutoff;
     DensityBounds bounds;
+    double sigma_max;  // largest extinction in the grid
     double optical_depth(const glm::dvec3& dir, double len) const noexcept {
         return detail::optical_depth_along(*g, rho, kappa, xl, dir, 0.0, len, cutoff, bounds.lo, bounds.hi);
     }
@@ -404,7 +406,19 @@ void face_rule_point(const PointCtx& c, const Box& b, double sigma, int ax, bool
                 double u_edge = u_lo;
                 for (int is = 0; is < nsub; ++is) {
                     u_edge *= ratio;
-                    const double t_hi = (is + 1 == nsub) ? th_a : std::acos(std::min(1.0, u_edge));
+                    const double t_hi_piece = (is + 1 == nsub) ? th_a : std::acos(std::min(1.0, u_edge));
+                    // Outside faces: the entry transmittance can fall by e^{-sigma_max dR} across
+                    // the piece (light crossing the source's dense voxel): split so that each
+                    // part spans at most 1.5 optical depths at the medium's largest extinction.
+                    int nparts = 1;
+                    if (!inside && c.sigma_max > 0.0) {
+                        const double dR = a / std::cos(t_lo) - a / std::cos(t_hi_piece);
+                        nparts = std::clamp(int(std::ceil(c.sigma_max * std::fabs(dR) / 1.5)), 1, 16);
+                    }
+                    const double t_lo_piece = t_lo;
+                    for (int ip2 = 0; ip2 < nparts; ++ip2) {
+                    const double t_hi = t_lo_piece - (t_lo_piece - t_hi_piece) * (ip2 + 1) / nparts;
+                    t_lo = t_lo_piece - (t_lo_piece - t_hi_piece) * ip2 / nparts;
                     const double dth = t_lo - t_hi;  // > 0: t_hi < t_lo
                     for (int ju = 0; ju < n; ++ju) {
                         const double th = t_hi + dth * gr.x[std::size_t(ju)];
@@ -432,52 +446,12 @@ void face_rule_point(const PointCtx& c, const Box& b, double sigma, int ax, bool
                         }
                         acc.add(w * value, dir);
                     }
-                    t_lo = t_hi;
+                    }
+                    t_lo = t_hi_piece;
                 }
             }
         }
     }
-}
-
-/// Tensor rule of order n on box b. Returns false without accumulating anything when the
-/// optical depths at the nodes spread more than the box's own attenuation explains (a
-/// shadow edge of upstream voxels crosses the box) by enough to break the tolerance:
-/// `spread_limit` is the largest spread the error model accepts at this order.
-bool tensor_rule_point(const PointCtx& c, const Box& b, int n, double spread_limit, PhaseAccumulator& acc) {
-    const GaussRule gr = gauss_legendre(n);
-    const glm::dvec3 ext = b.hi - b.lo;
-    const double vol = ext.x * ext.y * ext.z;
-    struct Node {
-        double w;
-        glm::dvec3 dir;
-    };
-    Node nodes[kMaxTensorOrder * kMaxTensorOrder * kMaxTensorOrder];
-    int nn = 0;
-    double tau_min = detail::kInf, tau_max = 0.0;
-    for (int k = 0; k < n; ++k)
-        for (int j = 0; j < n; ++j)
-            for (int i = 0; i < n; ++i) {
-                const glm::dvec3 x(b.lo.x + ext.x * gr.x[std::size_t(i)], b.lo.y + ext.y * gr.x[std::size_t(j)],
-                                   b.lo.z + ext.z * gr.x[std::size_t(k)]);
-                const glm::dvec3 r = x - c.xl;
-                const double r2 = glm::dot(r, r);
-                const double R = std::sqrt(r2);
-                const glm::dvec3 dir = r / R;
-                const double tau = std::min(c.cutoff, c.optical_depth(dir, R));
-                tau_min = std::min(tau_min, tau);
-                tau_max = std::max(tau_max, tau);
-                const double T = tau >= c.cutoff ? 0.0 : std::exp(-tau);
-                const double w = gr.w[std::size_t(i)] * gr.w[std::size_t(j)] * gr.w[std::size_t(k)] * vol;
-                nodes[nn++] = {w * T / r2, dir};
-            }
-    if (tau_max - tau_min > spread_limit) return false;
-    for (int q = 0; q < nn; ++q) acc.add(nodes[q].w, nodes[q].dir);
-    return true;
-}
-
-double box_distance(const Box& b, const glm::dvec3& p) {
-    const glm::dvec3 q = glm::max(b.lo - p, glm::max(glm::dvec3(0.0), p - b.hi));
-    return glm::length(q);
 }
 
 /// Per-box choice of the quadrature rule from the tolerance (the accuracy knob).
@@ -498,25 +472,27 @@ struct Plan {
     int n_face;   // points per axis of each face-rule piece
     double k_g;   // phase-function variation bound
     double cutoff;
-    std::array<double, kMaxTensorOrder + 1> a{}, c{};
+    std::array<double, kMaxTensorOrder + 1> geo_{}, att_{};  // a_n and c_n of the model
     Plan(double tolerance, double g, double cut) : eps(tolerance), cutoff(cut) {
         const double ag = std::min(std::fabs(g), kMaxAbsG);
         k_g = 1.5 * ag / (1.0 - ag);
         for (int n = 1; n <= kMaxTensorOrder; ++n) {
             const double lf = std::lgamma(n + 1.0), l2f = std::lgamma(2.0 * n + 1.0);
-            a[std::size_t(n)] = std::exp(4.0 * lf - 2.0 * l2f);
-            c[std::size_t(n)] = std::exp(4.0 * lf - 3.0 * l2f) / (2.0 * n + 1.0);
+            geo_[std::size_t(n)] = std::exp(4.0 * lf - 2.0 * l2f);
+            att_[std::size_t(n)] = std::exp(4.0 * lf - 3.0 * l2f) / (2.0 * n + 1.0);
         }
         // Face rule: ~1.5 digits per extra point per axis (measured, docs/transport.md).
         n_face = std::clamp(2 + int(std::ceil(-std::log10(tolerance) / 1.5)), 3, 12);
     }
-    /// Largest optical-depth spread over a box's nodes that the attenuation term accepts at
-    /// order n (solves c_n y^{2n} = eps / 2), but never below what the box's own attenuation
-    /// produces (sigma s sqrt(3)): only an excess (a shadow edge) triggers a split.
-    double spread_limit(int n, double sigma_s) const {
-        const double y = std::pow(0.5 * eps / c[std::size_t(n)], 0.5 / n);
-        return std::max(1.5 * y, 1.8 * sigma_s);
+    /// Largest residual of the upstream optical depth about its linear fit over a box's nodes
+    /// (a kink) accepted by the tensor rule; calibrated against the Monte Carlo reference on the
+    /// default storm cloud (docs/transport.md): 0.2 * sqrt(tol / 1e-3).
+    double kink_limit() const {
+        return 0.2 * std::sqrt(eps / 1e-3);
     }
+    /// Whether an optical-depth variation y across the box is integrated to the tolerance by
+    /// an order-n rule (same model as the box's own attenuation).
+    bool smooth_ok(int n, double y) const { return att_[std::size_t(n)] * std::pow(y, 2.0 * n) <= eps; }
     /// Smallest adequate tensor order, or 0 (thick set when attenuation is the obstacle).
     int tensor_order(double s, double inv_len, double sigma, bool& thick) const {
         const double x = s * inv_len, y = sigma * s;
@@ -524,12 +500,102 @@ struct Plan {
         for (int n = 1; n <= kMaxTensorOrder; ++n) {
             xp *= x2;
             yp *= y2;
-            if (a[std::size_t(n)] * xp + c[std::size_t(n)] * yp <= eps) return n;
+            if (geo_[std::size_t(n)] * xp + att_[std::size_t(n)] * yp <= eps) return n;
         }
-        thick = c[kMaxTensorOrder] * yp > eps;
+        thick = att_[kMaxTensorOrder] * yp > eps;
         return 0;
     }
 };
+
+
+/// Tensor rule of order n on box b. Returns false without accumulating anything when the
+/// transmittance to the nodes is not what an order-n Gauss rule integrates to the tolerance:
+/// the optical depth over the nodes is fitted by a linear function (on a tensor grid the
+/// least-squares fit decouples per axis);
+///  * the fit's variation across the box, y (sum over axes), is a smooth exponential
+///    e^{-y x}: it must pass the a-priori attenuation model, c_n y^{2n} <= tol (behind a
+///    cloud the optical depth can vary across a box much more than the box's own sigma * s);
+///  * the largest residual (a kink: a shadow edge of an upstream voxel crossing the box,
+///    which Gauss rules integrate poorly) must stay below plan.kink_limit().
+/// On failure, *retry_order is the order the measured smooth variation needs (0: none does,
+/// or a kink was found: split the box).
+bool tensor_rule_point(const PointCtx& c, const Box& b, int n, const Plan* check, PhaseAccumulator& acc,
+                       int* retry_order = nullptr) {
+    const GaussRule gr = gauss_legendre(n);
+    const glm::dvec3 ext = b.hi - b.lo;
+    const double vol = ext.x * ext.y * ext.z;
+    struct Node {
+        double w;
+        glm::dvec3 dir;
+    };
+    constexpr int kMaxNodes = kMaxTensorOrder * kMaxTensorOrder * kMaxTensorOrder;
+    Node nodes[kMaxNodes];
+    double up[kMaxNodes];
+    int nn = 0;
+    bool any_lit = false;
+    for (int k = 0; k < n; ++k)
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                const glm::dvec3 x(b.lo.x + ext.x * gr.x[std::size_t(i)], b.lo.y + ext.y * gr.x[std::size_t(j)],
+                                   b.lo.z + ext.z * gr.x[std::size_t(k)]);
+                const glm::dvec3 r = x - c.xl;
+                const double r2 = glm::dot(r, r);
+                const double R = std::sqrt(r2);
+                const glm::dvec3 dir = r / R;
+                const double tau = std::min(c.cutoff, c.optical_depth(dir, R));
+                up[nn] = tau;
+                any_lit = any_lit || tau < c.cutoff;
+                const double T = tau >= c.cutoff ? 0.0 : std::exp(-tau);
+                const double w = gr.w[std::size_t(i)] * gr.w[std::size_t(j)] * gr.w[std::size_t(k)] * vol;
+                nodes[nn++] = {w * T / r2, dir};
+            }
+    if (check && n > 1 && any_lit) {
+        // Least-squares linear fit on the tensor grid: mean + per-axis slopes in the node
+        // coordinate u = x - 1/2 (in box units).
+        double mean = 0.0;
+        for (int q = 0; q < nn; ++q) mean += up[q];
+        mean /= nn;
+        double su2 = 0.0;
+        for (int i = 0; i < n; ++i) su2 += (gr.x[std::size_t(i)] - 0.5) * (gr.x[std::size_t(i)] - 0.5);
+        double slope[3] = {0.0, 0.0, 0.0};
+        for (int q = 0; q < nn; ++q) {
+            const int ii[3] = {q % n, (q / n) % n, q / (n * n)};
+            for (int a = 0; a < 3; ++a) slope[a] += up[q] * (gr.x[std::size_t(ii[a])] - 0.5);
+        }
+        for (double& sl : slope) sl /= su2 * n * n;
+        double resid = 0.0;
+        for (int q = 0; q < nn; ++q) {
+            const int ii[3] = {q % n, (q / n) % n, q / (n * n)};
+            double fit = mean;
+            for (int a = 0; a < 3; ++a) fit += slope[a] * (gr.x[std::size_t(ii[a])] - 0.5);
+            resid = std::max(resid, std::fabs(up[q] - fit));
+        }
+        const double grad = std::fabs(slope[0]) + std::fabs(slope[1]) + std::fabs(slope[2]);
+        if (resid > check->kink_limit()) {
+            if (retry_order) *retry_order = 0;
+            return false;
+        }
+        if (!check->smooth_ok(n, grad)) {
+            if (retry_order) {
+                *retry_order = 0;
+                for (int m = n + 1; m <= kMaxTensorOrder; ++m)
+                    if (check->smooth_ok(m, grad)) {
+                        *retry_order = m;
+                        break;
+                    }
+            }
+            return false;
+        }
+    }
+    for (int q = 0; q < nn; ++q) acc.add(nodes[q].w, nodes[q].dir);
+    return true;
+}
+
+double box_distance(const Box& b, const glm::dvec3& p) {
+    const glm::dvec3 q = glm::max(b.lo - p, glm::max(glm::dvec3(0.0), p - b.hi));
+    return glm::length(q);
+}
+
 
 void split_box(const PointCtx& c, const Box& b, double sigma, int depth, const Plan& plan, PhaseAccumulator& acc);
 
@@ -556,13 +622,14 @@ void integrate_box_point(const PointCtx& c, const Box& b, double sigma, int dept
         if (!clear) n = 2;
     }
     if (n > 0) {
-        const double limit = depth < kMaxDepth ? plan.spread_limit(n, sigma * s) : detail::kInf;
-        if (tensor_rule_point(c, b, n, limit, acc)) return;
-        // A shadow edge or grazing rays: T = T_upstream(direction) * e^{-sigma * depth in
-        // box}. The face rule integrates the upstream factor in 2D over directions and the
-        // box's own attenuation exactly, which is both cheaper and more accurate here than
-        // splitting the box (measured, docs/transport.md).
-        thick = true;
+        const Plan* check = depth < kMaxCheckDepth ? &plan : nullptr;
+        int retry = 0;
+        if (tensor_rule_point(c, b, n, check, acc, &retry)) return;
+        // A steep but smooth transmittance gradient (rays grazing a cloud layer, deep shadow):
+        // a higher order is much cheaper than a split. A kink (shadow edge): split.
+        if (retry > n && tensor_rule_point(c, b, retry, check, acc)) return;
+        split_box(c, b, sigma, depth, plan, acc);
+        return;
     }
     if (dmin < s || thick) {
         // (A lower order for far faces halves the rays but raised the 99th-percentile
@@ -575,7 +642,7 @@ void integrate_box_point(const PointCtx& c, const Box& b, double sigma, int dept
         return;
     }
     if (depth >= kMaxDepth) {
-        tensor_rule_point(c, b, kMaxTensorOrder, detail::kInf, acc);
+        tensor_rule_point(c, b, kMaxTensorOrder, nullptr, acc);
         return;
     }
     split_box(c, b, sigma, depth, plan, acc);
@@ -766,7 +833,9 @@ void single_scattering(const LightingMedium& medium, const PointSource& light, S
     prepare_output(medium, out);
     const core::GridGeometry& g = medium.density.geom;
     const PointCtx ctx{&g, medium.density.data.data(), medium.optics.extinction, light.position,
-                       options.optical_depth_cutoff, density_bounds(medium)};
+                       options.optical_depth_cutoff, density_bounds(medium),
+                       medium.optics.extinction *
+                           double(*std::max_element(medium.density.data.begin(), medium.density.data.end()))};
     const Plan plan(options.tolerance, medium.optics.g, options.optical_depth_cutoff);
     const double vol = g.voxel_size * g.voxel_size * g.voxel_size;
     const double factor = medium.optics.albedo * light.intensity / vol;
