@@ -179,7 +179,7 @@ struct FieldStats {
         for (std::size_t c = 0; c < cells; ++c)
             for (std::size_t m = 0; m < M; ++m) {
                 mean_out.data[m * cells + c] = float(mean[c * M + m]);
-                se_out.data[m * cells + c] = float(std::sqrt(m2[c * M + m] * k));
+                se_out.data[m * cells + c] = float(std::sqrt(std::max(0.0, m2[c * M + m]) * k));
             }
     }
 };
@@ -231,10 +231,10 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
             if (multiple) buf.multiple.assign(size, 0.0);
             buf.energy = EnergyBatch{};
             const int b = b0 + int(i);
-            core::Rng rng = batch_rng(o.seed, b);
             GridTally tally(medium, dirs, expected, !expected, multiple, kCutoff, buf.single.data(),
                             multiple ? buf.multiple.data() : nullptr);
-            trace_paths(gm, em, po, batch_paths(o.paths, o.batches, b), rng, tally, buf.energy);
+            trace_paths(gm, em, po, o.seed, batch_first_path(o.paths, o.batches, b), batch_paths(o.paths, o.batches, b),
+                        tally, buf.energy);
         });
         for (int i = 0; i < nb; ++i) {
             const std::uint64_t np = batch_paths(o.paths, o.batches, b0 + i);

@@ -26,6 +26,7 @@
 
 #include <glm/geometric.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -85,13 +86,22 @@ bool delta_track(const Medium& m, const glm::dvec3& x, const glm::dvec3& d, core
     return false;
 }
 
-/// Traces n paths from the emitter, accumulating into the tally and the energy sums.
+/// Random stream of path number `path` (global index): every path's randomness depends only on
+/// (seed, path), so results are independent of threads and batching, and two runs that differ
+/// only in what they do after some event (e.g. max_scatterings) follow identical paths up to it.
+inline core::Rng path_rng(std::uint64_t seed, std::uint64_t path) noexcept {
+    return core::Rng(core::hash_seed(seed, path), path);
+}
+
+/// Traces paths [first, first + n) from the emitter, accumulating into the tally and the
+/// energy sums.
 template <class Medium, class Emitter, class Tally>
-void trace_paths(const Medium& med, const Emitter& em, const PathOptions& o, std::uint64_t n, core::Rng& rng,
-                 Tally& tally, EnergyBatch& e) {
+void trace_paths(const Medium& med, const Emitter& em, const PathOptions& o, std::uint64_t seed, std::uint64_t first,
+                 std::uint64_t n, Tally& tally, EnergyBatch& e) {
     const double w0 = em.power();
     const double w_rr = o.roulette_threshold * w0;
     for (std::uint64_t p = 0; p < n; ++p) {
+        core::Rng rng = path_rng(seed, first + p);
         glm::dvec3 x, d;
         em.emit(rng, x, d);
         double w = w0;
@@ -302,7 +312,7 @@ struct ScalarStats {
         m2 += d * (x - mean);
     }
     Estimate estimate() const noexcept {
-        return {mean, n > 1 ? std::sqrt(m2 / (double(n) * double(n - 1))) : 0.0};
+        return {mean, n > 1 ? std::sqrt(std::max(0.0, m2) / (double(n) * double(n - 1))) : 0.0};
     }
 };
 
@@ -346,9 +356,10 @@ inline std::uint64_t batch_paths(std::uint64_t paths, int batches, int b) noexce
     return paths / B + (std::uint64_t(b) < paths % B ? 1 : 0);
 }
 
-/// Random stream of batch b: independent of the thread that runs it.
-inline core::Rng batch_rng(std::uint64_t seed, int b) noexcept {
-    return core::Rng(core::hash_seed(seed, std::uint64_t(b)), std::uint64_t(b));
+/// First global path index of batch b.
+inline std::uint64_t batch_first_path(std::uint64_t paths, int batches, int b) noexcept {
+    const std::uint64_t B = std::uint64_t(batches), ub = std::uint64_t(b);
+    return ub * (paths / B) + std::min(ub, paths % B);
 }
 
 /// Validates the options shared by every run; throws core::Error naming the field.
@@ -378,10 +389,10 @@ EnergyRun run_energy(const Medium& med, const Emitter& em, double albedo, double
         const int nb = std::min(T, o.batches - b0);
         core::parallel_for(0, nb, [&](std::int64_t i) {
             const int b = b0 + int(i);
-            core::Rng rng = batch_rng(o.seed, b);
             NullTally tally;
             EnergyBatch e;
-            trace_paths(med, em, po, batch_paths(o.paths, o.batches, b), rng, tally, e);
+            trace_paths(med, em, po, o.seed, batch_first_path(o.paths, o.batches, b),
+                        batch_paths(o.paths, o.batches, b), tally, e);
             group[std::size_t(i)] = e;
         });
         for (int i = 0; i < nb; ++i) stats.add(group[std::size_t(i)], batch_paths(o.paths, o.batches, b0 + i));

@@ -508,6 +508,39 @@ struct Plan {
 };
 
 
+/// Checks optical depths at the n^3 tensor nodes (x fastest) against the plan: returns 0 if
+/// an order-n rule is adequate, otherwise the order the smooth part needs (> n) or -1 (a
+/// kink, or no order suffices). Linear least-squares fit per axis, as described at
+/// tensor_rule_point().
+int check_nodes(const double* tau, int n, const Plan& plan) {
+    const GaussRule gr = gauss_legendre(n);
+    const int nn = n * n * n;
+    double mean = 0.0;
+    for (int q = 0; q < nn; ++q) mean += tau[q];
+    mean /= nn;
+    double su2 = 0.0;
+    for (int i = 0; i < n; ++i) su2 += (gr.x[std::size_t(i)] - 0.5) * (gr.x[std::size_t(i)] - 0.5);
+    double slope[3] = {0.0, 0.0, 0.0};
+    for (int q = 0; q < nn; ++q) {
+        const int ii[3] = {q % n, (q / n) % n, q / (n * n)};
+        for (int a = 0; a < 3; ++a) slope[a] += tau[q] * (gr.x[std::size_t(ii[a])] - 0.5);
+    }
+    for (double& sl : slope) sl /= su2 * n * n;
+    double resid = 0.0;
+    for (int q = 0; q < nn; ++q) {
+        const int ii[3] = {q % n, (q / n) % n, q / (n * n)};
+        double fit = mean;
+        for (int a = 0; a < 3; ++a) fit += slope[a] * (gr.x[std::size_t(ii[a])] - 0.5);
+        resid = std::max(resid, std::fabs(tau[q] - fit));
+    }
+    if (resid > plan.kink_limit()) return -1;
+    const double grad = std::fabs(slope[0]) + std::fabs(slope[1]) + std::fabs(slope[2]);
+    if (plan.smooth_ok(n, grad)) return 0;
+    for (int m = n + 1; m <= kMaxTensorOrder; ++m)
+        if (plan.smooth_ok(m, grad)) return m;
+    return -1;
+}
+
 /// Tensor rule of order n on box b. Returns false without accumulating anything when the
 /// transmittance to the nodes is not what an order-n Gauss rule integrates to the tolerance:
 /// the optical depth over the nodes is fitted by a linear function (on a tensor grid the
@@ -550,40 +583,9 @@ bool tensor_rule_point(const PointCtx& c, const Box& b, int n, const Plan* check
                 nodes[nn++] = {w * T / r2, dir};
             }
     if (check && n > 1 && any_lit) {
-        // Least-squares linear fit on the tensor grid: mean + per-axis slopes in the node
-        // coordinate u = x - 1/2 (in box units).
-        double mean = 0.0;
-        for (int q = 0; q < nn; ++q) mean += up[q];
-        mean /= nn;
-        double su2 = 0.0;
-        for (int i = 0; i < n; ++i) su2 += (gr.x[std::size_t(i)] - 0.5) * (gr.x[std::size_t(i)] - 0.5);
-        double slope[3] = {0.0, 0.0, 0.0};
-        for (int q = 0; q < nn; ++q) {
-            const int ii[3] = {q % n, (q / n) % n, q / (n * n)};
-            for (int a = 0; a < 3; ++a) slope[a] += up[q] * (gr.x[std::size_t(ii[a])] - 0.5);
-        }
-        for (double& sl : slope) sl /= su2 * n * n;
-        double resid = 0.0;
-        for (int q = 0; q < nn; ++q) {
-            const int ii[3] = {q % n, (q / n) % n, q / (n * n)};
-            double fit = mean;
-            for (int a = 0; a < 3; ++a) fit += slope[a] * (gr.x[std::size_t(ii[a])] - 0.5);
-            resid = std::max(resid, std::fabs(up[q] - fit));
-        }
-        const double grad = std::fabs(slope[0]) + std::fabs(slope[1]) + std::fabs(slope[2]);
-        if (resid > check->kink_limit()) {
-            if (retry_order) *retry_order = 0;
-            return false;
-        }
-        if (!check->smooth_ok(n, grad)) {
-            if (retry_order) {
-                *retry_order = 0;
-                for (int m = n + 1; m <= kMaxTensorOrder; ++m)
-                    if (check->smooth_ok(m, grad)) {
-                        *retry_order = m;
-                        break;
-                    }
-            }
+        const int verdict = check_nodes(up, n, *check);
+        if (verdict != 0) {
+            if (retry_order) *retry_order = std::max(verdict, 0);
             return false;
         }
     }
@@ -667,26 +669,44 @@ struct SunCtx {
     glm::dvec3 d;  // propagation direction, unit
     double cutoff;
     DensityBounds bounds;
+    double optical_depth(const glm::dvec3& x) const noexcept {
+        return detail::optical_depth_along(*g, rho, kappa, x, -d, 0.0, detail::kInf, cutoff, bounds.lo, bounds.hi);
+    }
     double transmittance(const glm::dvec3& x) const noexcept {
-        const double tau =
-            detail::optical_depth_along(*g, rho, kappa, x, -d, 0.0, detail::kInf, cutoff, bounds.lo, bounds.hi);
+        const double tau = optical_depth(x);
         return tau > cutoff ? 0.0 : std::exp(-tau);
     }
 };
 
-/// integral over box of T_sun, tensor rule.
-double tensor_rule_sun(const SunCtx& c, const Box& b, int n) {
+/// integral over box of T_sun, tensor rule of order n; with a plan, fails (returns false)
+/// when check_nodes() rejects the nodes, setting *retry as check_nodes() does.
+bool tensor_rule_sun(const SunCtx& c, const Box& b, int n, const Plan* check, double& result, int* retry) {
     const GaussRule gr = gauss_legendre(n);
     const glm::dvec3 ext = b.hi - b.lo;
+    double tau[kMaxTensorOrder * kMaxTensorOrder * kMaxTensorOrder];
+    int nn = 0;
     double s = 0.0;
+    bool any_lit = false;
     for (int k = 0; k < n; ++k)
         for (int j = 0; j < n; ++j)
             for (int i = 0; i < n; ++i) {
                 const glm::dvec3 x(b.lo.x + ext.x * gr.x[std::size_t(i)], b.lo.y + ext.y * gr.x[std::size_t(j)],
                                    b.lo.z + ext.z * gr.x[std::size_t(k)]);
-                s += gr.w[std::size_t(i)] * gr.w[std::size_t(j)] * gr.w[std::size_t(k)] * c.transmittance(x);
+                const double t = std::min(c.cutoff, c.optical_depth(x));
+                any_lit = any_lit || t < c.cutoff;
+                tau[nn++] = t;
+                const double T = t >= c.cutoff ? 0.0 : std::exp(-t);
+                s += gr.w[std::size_t(i)] * gr.w[std::size_t(j)] * gr.w[std::size_t(k)] * T;
             }
-    return s * ext.x * ext.y * ext.z;
+    if (check && n > 1 && any_lit) {
+        const int verdict = check_nodes(tau, n, *check);
+        if (verdict != 0) {
+            if (retry) *retry = verdict;
+            return false;
+        }
+    }
+    result = s * ext.x * ext.y * ext.z;
+    return true;
 }
 
 /// integral over box of T_sun with the radial (along d) integral exact: sum over the entry
@@ -877,8 +897,13 @@ void single_scattering(const LightingMedium& medium, const DirectionalSource& su
     for_each_voxel(medium, out, need, medium.optics.g, [&](const Box& b, std::size_t cell, PhaseAccumulator& acc) {
         const double sigma = medium.sigma_t(cell);
         bool thick = false;
-        const int n = plan.tensor_order(g.voxel_size, 0.0, sigma, thick);
-        const double integral = n > 0 ? tensor_rule_sun(ctx, b, n) : face_rule_sun(ctx, b, sigma, plan.n_face);
+        int n = plan.tensor_order(g.voxel_size, 0.0, sigma, thick);
+        if (n == 1) n = 2;  // a one-node rule cannot see transmittance varying across the box
+        double integral = 0.0;
+        int retry = 0;
+        const bool ok = n > 0 && (tensor_rule_sun(ctx, b, n, &plan, integral, &retry) ||
+                                  (retry > n && tensor_rule_sun(ctx, b, retry, &plan, integral, nullptr)));
+        if (!ok) integral = face_rule_sun(ctx, b, sigma, plan.n_face);
         acc.add(integral, ctx.d);
         return factor;
     });
