@@ -486,13 +486,18 @@ struct Plan {
     }
     /// Largest residual of the upstream optical depth about its linear fit over a box's nodes
     /// (a kink) accepted by the tensor rule; calibrated against the Monte Carlo reference on the
-    /// default storm cloud (docs/transport.md): 0.2 * sqrt(tol / 1e-3).
+    /// default storm cloud (docs/transport.md): 0.1 * sqrt(tol / 1e-3).
     double kink_limit() const {
-        return 0.2 * std::sqrt(eps / 1e-3);
+        return 0.1 * std::sqrt(eps / 1e-3);
     }
-    /// Whether an optical-depth variation y across the box is integrated to the tolerance by
-    /// an order-n rule (same model as the box's own attenuation).
-    bool smooth_ok(int n, double y) const { return att_[std::size_t(n)] * std::pow(y, 2.0 * n) <= eps; }
+    /// Whether a linear optical-depth variation with per-axis changes y[3] across the box is
+    /// integrated to the tolerance by an order-n tensor rule: e^{-(y.x)} is separable, and the
+    /// tensor rule's relative error is the sum of the per-axis errors c_n y_a^{2n}.
+    bool smooth_ok(int n, const double* y) const {
+        double e = 0.0;
+        for (int a = 0; a < 3; ++a) e += att_[std::size_t(n)] * std::pow(std::fabs(y[a]), 2.0 * n);
+        return e <= eps;
+    }
     /// Smallest adequate tensor order, or 0 (thick set when attenuation is the obstacle).
     int tensor_order(double s, double inv_len, double sigma, bool& thick) const {
         const double x = s * inv_len, y = sigma * s;
@@ -534,10 +539,9 @@ int check_nodes(const double* tau, int n, const Plan& plan) {
         resid = std::max(resid, std::fabs(tau[q] - fit));
     }
     if (resid > plan.kink_limit()) return -1;
-    const double grad = std::fabs(slope[0]) + std::fabs(slope[1]) + std::fabs(slope[2]);
-    if (plan.smooth_ok(n, grad)) return 0;
+    if (plan.smooth_ok(n, slope)) return 0;
     for (int m = n + 1; m <= kMaxTensorOrder; ++m)
-        if (plan.smooth_ok(m, grad)) return m;
+        if (plan.smooth_ok(m, slope)) return m;
     return -1;
 }
 
@@ -545,9 +549,9 @@ int check_nodes(const double* tau, int n, const Plan& plan) {
 /// transmittance to the nodes is not what an order-n Gauss rule integrates to the tolerance:
 /// the optical depth over the nodes is fitted by a linear function (on a tensor grid the
 /// least-squares fit decouples per axis);
-///  * the fit's variation across the box, y (sum over axes), is a smooth exponential
-///    e^{-y x}: it must pass the a-priori attenuation model, c_n y^{2n} <= tol (behind a
-///    cloud the optical depth can vary across a box much more than the box's own sigma * s);
+///  * the fit's variation across the box, y_a per axis, is a smooth (separable) exponential:
+///    it must pass the attenuation model, sum_a c_n y_a^{2n} <= tol (behind a cloud the
+///    optical depth can vary across a box much more than the box's own sigma * s);
 ///  * the largest residual (a kink: a shadow edge of an upstream voxel crossing the box,
 ///    which Gauss rules integrate poorly) must stay below plan.kink_limit().
 /// On failure, *retry_order is the order the measured smooth variation needs (0: none does,
