@@ -254,10 +254,12 @@ std::array<double, kQ> output_phase(const glm::dvec3& sin, double g) {
         const Velocity& v = kVelocity[std::size_t(j)];
         c[std::size_t(j)] = (v.x * s.x + v.y * s.y + v.z * s.z) / hop_length(j);
     }
-    auto weights = [&](double gs, std::array<double, kQ>& q) {
+    const double sg = g >= 0.0 ? 1.0 : -1.0;
+    // beta >= 0 tilts towards s for g >= 0 and away from it for g < 0; the exponent is <= 0.
+    auto weights = [&](double gs, double beta, std::array<double, kQ>& q) {
         double Z = 0.0, m = 0.0;
         for (int j = 1; j < kQ; ++j) {
-            q[std::size_t(j)] = hg_kernel(c[std::size_t(j)], gs);
+            q[std::size_t(j)] = hg_kernel(c[std::size_t(j)], gs) * std::exp(beta * (sg * c[std::size_t(j)] - 1.0));
             Z += weight(j) * q[std::size_t(j)];
             m += weight(j) * q[std::size_t(j)] * c[std::size_t(j)];
         }
@@ -265,16 +267,28 @@ std::array<double, kQ> output_phase(const glm::dvec3& sin, double g) {
         return m / Z;
     };
     std::array<double, kQ> q{};
-    // The discrete mean cosine is increasing in gs; bisection, saturating at +-kMaxAbsG.
+    // The discrete mean cosine is increasing in gs; bisection on gs. Between lattice
+    // directions the HG family saturates (its g -> 1 limit is a power law, not a peak), so
+    // if g is out of its reach an exponential tilt exp(beta s.n_j) sharpens it further
+    // (up to the cosine of the nearest lattice direction, e.g. 0.816 for a cube corner).
     double lo = -kMaxAbsG, hi = kMaxAbsG;
-    if (weights(hi, q) <= g) return q;
-    if (weights(lo, q) >= g) return q;
+    if (sg * weights(sg * kMaxAbsG, 0.0, q) < sg * g) {
+        double blo = 0.0, bhi = 400.0;
+        if (sg * weights(sg * kMaxAbsG, bhi, q) <= sg * g) return q;
+        for (int it = 0; it < 60; ++it) {
+            const double mid = 0.5 * (blo + bhi);
+            if (sg * weights(sg * kMaxAbsG, mid, q) < sg * g) blo = mid;
+            else bhi = mid;
+        }
+        weights(sg * kMaxAbsG, 0.5 * (blo + bhi), q);
+        return q;
+    }
     for (int it = 0; it < 60; ++it) {
         const double mid = 0.5 * (lo + hi);
-        if (weights(mid, q) < g) lo = mid;
+        if (weights(mid, 0.0, q) < g) lo = mid;
         else hi = mid;
     }
-    weights(0.5 * (lo + hi), q);
+    weights(0.5 * (lo + hi), 0.0, q);
     return q;
 }
 

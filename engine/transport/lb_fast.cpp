@@ -183,6 +183,7 @@ public:
         row_medium_.assign(rows, 0);
         row_source_.assign(rows, -1);
         row_absorbed_.assign(rows, 0.0);
+        row_total_.assign(rows, 0.0);
         for (int z = 0; z < d.z; ++z)
             for (int y = 0; y < d.y; ++y) {
                 const std::size_t row = std::size_t(y) + std::size_t(d.y) * std::size_t(z);
@@ -208,35 +209,46 @@ public:
         build_boundary();
         // Initial state: the inflow has arrived (t = 0), natural layout.
         for (const auto& b : pairs_)
-            if (b.partner < 0) slot(opposite(b.q), b.site) = b.in;
+            if (b.partner < 0) {
+                slot(opposite(b.q), b.site) = b.in;
+                inflow_sum_ += double(b.in);
+            }
+        last_total_ = inflow_sum_;
     }
 
     void step() override {
         const bool odd = (steps_ % 2) != 0;
         const core::Int3 d = p_.dims;
         const std::int64_t rows = std::int64_t(d.y) * std::int64_t(d.z);
-#pragma omp parallel for schedule(static) num_threads(core::thread_count())
+        // Small lattices run on one thread: a parallel region per step costs more than the
+        // work (and much more on a loaded machine, where a barrier can wait a time slice).
+        const bool parallel = std::int64_t(p_.sites()) >= 65536 && core::thread_count() > 1;
+#pragma omp parallel for schedule(static) num_threads(core::thread_count()) if (parallel)
         for (std::int64_t r = 0; r < rows; ++r) {
             const int y = int(r % d.y), z = int(r / d.y);
             const std::size_t base = pad(0, y, z);
-            float absorbed;
+            float absorbed, total = 0.0f;
             const bool medium = row_medium_[std::size_t(r)] != 0;
             const float* src = row_source_[std::size_t(r)] >= 0 ? &src_[std::size_t(row_source_[std::size_t(r)])] : nullptr;
-            if (!medium) absorbed = odd ? stream_row<true>(base, d.x) : stream_row<false>(base, d.x);
+            if (!medium) absorbed = odd ? stream_row<true>(base, d.x, total) : stream_row<false>(base, d.x, total);
             else if (conservative_)
-                absorbed = odd ? row<true, true>(base, d.x, src) : row<false, true>(base, d.x, src);
-            else absorbed = odd ? row<true, false>(base, d.x, src) : row<false, false>(base, d.x, src);
+                absorbed = odd ? row<true, true>(base, d.x, src, total) : row<false, true>(base, d.x, src, total);
+            else absorbed = odd ? row<true, false>(base, d.x, src, total) : row<false, false>(base, d.x, src, total);
             row_absorbed_[std::size_t(r)] = conservative_ ? 0.0 : double(absorbed) * (1.0 - p_.albedo);
+            row_total_[std::size_t(r)] = double(total);
         }
-        double a = 0.0;
+        double a = 0.0, t = 0.0;
         for (double v : row_absorbed_) a += v;
+        for (double v : row_total_) t += v;
         last_absorbed_ = a + p_.source_absorbed_per_step;
         last_escaped_ = odd ? boundary_after_odd() : boundary_after_even();
+        last_total_ = t - last_escaped_ + inflow_sum_;
         ++steps_;
     }
 
     double last_absorbed() const override { return last_absorbed_; }
     double last_escaped() const override { return last_escaped_; }
+    double last_total() const override { return last_total_; }
 
     double stored() const override {
         // After the boundary pass every arriving density sits in exactly one interior slot.
@@ -282,19 +294,25 @@ private:
 
     // Pure streaming (no medium, no source) of one row.
     template <bool Odd>
-    float stream_row(std::size_t base, int nx) {
+    float stream_row(std::size_t base, int nx, float& total) {
         float* A = data_.ptr;
         const std::size_t S = stride_;
+        float sum = 0.0f;
         if constexpr (!Odd) {
             for (int q = 1; q < kQ; q += 2) {  // swap each opposite pair in place
                 float* a = A + std::size_t(q) * S + base;
                 float* b = A + std::size_t(q + 1) * S + base;
-#pragma omp simd
+#pragma omp simd reduction(+ : sum)
                 for (int x = 0; x < nx; ++x) {
                     const float t = a[x];
                     a[x] = b[x];
                     b[x] = t;
+                    sum += a[x] + t;
                 }
+            }
+            if (conservative_) {
+                const float* r0 = A + base;
+                for (int x = 0; x < nx; ++x) sum += r0[x];
             }
         } else {
             // out_q = f_q: read A[opp q][x - c_q], write A[q][x + c_q]; the pair (q, opp q)
@@ -305,19 +323,25 @@ private:
                 float* a = A + std::size_t(o) * S + std::size_t(std::ptrdiff_t(base) - off_[q]);  // f_q source
                 float* b = A + std::size_t(q) * S + std::size_t(std::ptrdiff_t(base) + off_[q]);  // out_q target
                 // f_o is read from A[q][x - c_o] = A[q][x + c_q] = b; out_o goes to A[o][x + c_o] = a.
-#pragma omp simd
+#pragma omp simd reduction(+ : sum)
                 for (int x = 0; x < nx; ++x) {
                     const float t = a[x];
                     a[x] = b[x];
                     b[x] = t;
+                    sum += a[x] + t;
                 }
             }
+            if (conservative_) {
+                const float* r0 = A + base;
+                for (int x = 0; x < nx; ++x) sum += r0[x];
+            }
         }
+        total = sum;
         return 0.0f;
     }
 
     template <bool Odd, bool Conservative>
-    float row(std::size_t base, int nx, const float* src) {
+    float row(std::size_t base, int nx, const float* src, float& total) {
         float* __restrict A = data_.ptr;
         const std::size_t S = stride_;
         const float* __restrict eA = ext_.ptr + base;
@@ -334,28 +358,46 @@ private:
             }
         }
         const Coeffs k = coeffs_;
-        float absorbed = 0.0f;
+        float absorbed = 0.0f, sum = 0.0f;
         if (src) {
-#pragma omp simd reduction(+ : absorbed)
+#pragma omp simd reduction(+ : absorbed, sum)
             for (int x = 0; x < nx; ++x) {
                 float f[kQ], o[kQ];
                 f[0] = Conservative ? in[0][x] : 0.0f;
                 for (int q = 1; q < kQ; ++q) f[q] = in[q][x];
                 absorbed += collide<Conservative>(f, eA[x], eD[x], k, o);
-                for (int q = 1; q < kQ; ++q) out[q][x] = o[q] + src[std::size_t(q) * std::size_t(nx) + std::size_t(x)];
-                if constexpr (Conservative) out[0][x] = o[0] + src[x];
+                float site = 0.0f;
+                for (int q = 1; q < kQ; ++q) {
+                    const float v = o[q] + src[std::size_t(q) * std::size_t(nx) + std::size_t(x)];
+                    out[q][x] = v;
+                    site += v;
+                }
+                if constexpr (Conservative) {
+                    out[0][x] = o[0] + src[x];
+                    site += o[0] + src[x];
+                }
+                sum += site;
             }
         } else {
-#pragma omp simd reduction(+ : absorbed)
+#pragma omp simd reduction(+ : absorbed, sum)
             for (int x = 0; x < nx; ++x) {
                 float f[kQ], o[kQ];
                 f[0] = Conservative ? in[0][x] : 0.0f;
                 for (int q = 1; q < kQ; ++q) f[q] = in[q][x];
                 absorbed += collide<Conservative>(f, eA[x], eD[x], k, o);
-                for (int q = 1; q < kQ; ++q) out[q][x] = o[q];
-                if constexpr (Conservative) out[0][x] = o[0];
+                float site = 0.0f;
+                for (int q = 1; q < kQ; ++q) {
+                    out[q][x] = o[q];
+                    site += o[q];
+                }
+                if constexpr (Conservative) {
+                    out[0][x] = o[0];
+                    site += o[0];
+                }
+                sum += site;
             }
         }
+        total = sum;
         return absorbed;
     }
 
@@ -434,7 +476,8 @@ private:
     std::vector<char> row_medium_;
     std::vector<std::int64_t> row_source_;
     std::vector<float> src_;
-    std::vector<double> row_absorbed_;
+    std::vector<double> row_absorbed_, row_total_;
+    double inflow_sum_ = 0.0, last_total_ = 0.0;
     std::vector<Pair> pairs_;
     double last_absorbed_ = 0.0, last_escaped_ = 0.0;
 };

@@ -30,13 +30,16 @@ public:
                             in_links_.push_back({s, q, inflow_value[s * kQ + std::size_t(q)]});
                         }
                     }
-        for (const auto& l : in_links_) src_[l.site][std::size_t(l.dir)] = l.value;  // first arrival at t = 0
+        for (const auto& l : in_links_) {
+            src_[l.site][std::size_t(l.dir)] = l.value;  // first arrival at t = 0
+            last_total_ += double(l.value);
+        }
     }
 
     void step() override {
         const Problem& p = p_;
         const bool conservative = p.absorption == LbAbsorption::Conservative;
-        double absorbed = 0.0, escaped = 0.0;
+        double absorbed = 0.0, escaped = 0.0, total = 0.0;
         // Distribute density locally according to the collision rules.
         for (std::size_t i = 0; i < p.sites(); ++i) {
             const double eA = p.ext_axis[i], eD = p.ext_diag[i];
@@ -59,7 +62,10 @@ public:
                 const auto& s = p.sources[std::size_t(src_out_[i])].out;
                 for (int q = 0; q < kQ; ++q) new_dense[q] += s[std::size_t(q)];
             }
-            for (int q = 0; q < kQ; ++q) src_[i][std::size_t(q)] = new_dense[q];
+            for (int q = 0; q < kQ; ++q) {
+                src_[i][std::size_t(q)] = new_dense[q];
+                total += double(new_dense[q]);
+            }
         }
         // Now flow density to neighbours.
         for (int z = 0; z < p.dims.z; ++z)
@@ -75,8 +81,12 @@ public:
                     }
                 }
         // Inject new light on the borders (the in-links nobody streamed into).
-        for (const auto& l : in_links_) dst_[l.site][std::size_t(l.dir)] = l.value;
+        for (const auto& l : in_links_) {
+            dst_[l.site][std::size_t(l.dir)] = l.value;
+            total += double(l.value);
+        }
         std::swap(src_, dst_);
+        last_total_ = total - escaped;
         last_absorbed_ = absorbed + p.source_absorbed_per_step;
         last_escaped_ = escaped;
         ++steps_;
@@ -84,6 +94,7 @@ public:
 
     double last_absorbed() const override { return last_absorbed_; }
     double last_escaped() const override { return last_escaped_; }
+    double last_total() const override { return last_total_; }
     double stored() const override {
         double s = 0.0;
         for (const auto& n : src_)
@@ -117,7 +128,7 @@ private:
     std::vector<std::array<float, kQ>> src_, dst_;
     std::vector<std::int64_t> src_out_;
     std::vector<Link> in_links_;
-    double last_absorbed_ = 0.0, last_escaped_ = 0.0;
+    double last_absorbed_ = 0.0, last_escaped_ = 0.0, last_total_ = 0.0;
 };
 
 }  // namespace
