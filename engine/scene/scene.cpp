@@ -28,25 +28,38 @@ void parse_medium(JsonObject o, transport::Medium& m) {
 }
 
 void parse_generator(JsonObject o, cloud::CumulonimbusParams& p) {
+    // Ranges here are what each field can ever mean; validate_cumulonimbus() then checks
+    // that the fields agree with each other and that the cloud fits in its grid.
+    constexpr double kMaxLength = 1e6;  // metres: far beyond any storm, catches unit mistakes
     p.seed = o.seed_or("seed", p.seed);
-    p.grid = o.int3_or("grid", p.grid, 1, 1024);
+    p.grid = o.int3_or("grid", p.grid, 8, 1024);
     p.voxel_size = o.number_or("voxel_size", p.voxel_size, Range{0.0, 10000.0, true, false});
     p.base_height = o.number_or("base_height", p.base_height, Range{0.0, 50000.0});
     p.top_height = o.number_or("top_height", p.top_height, Range{0.0, 50000.0, true, false});
-    p.tower_radius = o.number_or("tower_radius", p.tower_radius, Range{0.0, 1e6, true, false});
+    p.tower_radius = o.number_or("tower_radius", p.tower_radius, Range{0.0, kMaxLength, true, false});
+    p.cells = int(o.integer_or("cells", p.cells, 0, 1000));
+    p.shear = o.number_or("shear", p.shear, Range{-kMaxLength, kMaxLength});
+    p.flanking_towers = int(o.integer_or("flanking_towers", p.flanking_towers, 0, 8));
     p.anvil = o.boolean_or("anvil", p.anvil);
-    p.anvil_radius = o.number_or("anvil_radius", p.anvil_radius, Range{0.0, 1e6, true, false});
+    p.anvil_radius = o.number_or("anvil_radius", p.anvil_radius, Range{0.0, kMaxLength, true, false});
     p.anvil_thickness = o.number_or("anvil_thickness", p.anvil_thickness, Range{0.0, 50000.0, true, false});
-    p.cells = int(o.integer_or("cells", p.cells, 1, 1000));
+    p.anvil_offset = o.number_or("anvil_offset", p.anvil_offset, Range{0.0, kMaxLength});
+    p.overshoot = o.number_or("overshoot", p.overshoot, Range{0.0, 50000.0});
+    p.edge_softness = o.number_or("edge_softness", p.edge_softness, Range{0.0, 1.0, true, false});
     p.steps = int(o.integer_or("steps", p.steps, 1, 1000));
     p.p_ext = o.number_or("p_ext", p.p_ext, Range{0.0, 1.0});
-    p.p_hum = o.number_or("p_hum", p.p_hum, Range{0.0, 1.0});
-    p.p_act = o.number_or("p_act", p.p_act, Range{0.0, 1.0});
-    p.average_steps = int(o.integer_or("average_steps", p.average_steps, 1, 100));
+    p.p_hum = o.number_or("p_hum", p.p_hum, Range{0.0, 1.0, true, false});
+    p.p_act = o.number_or("p_act", p.p_act, Range{0.0, 1.0, true, false});
+    p.average_steps = int(o.integer_or("average_steps", p.average_steps, 1, 255));
     p.smoothing_radius = int(o.integer_or("smoothing_radius", p.smoothing_radius, 0, 16));
+    p.density_gain = o.number_or("density_gain", p.density_gain, Range{0.0, 100.0, true, false});
     o.finish();
-    if (!(p.base_height < p.top_height))
-        o.fail("top_height", "must be above base_height (" + std::to_string(p.base_height) + " m)");
+    try {
+        cloud::validate_cumulonimbus(p);
+    } catch (const core::Error& e) {
+        // e.where() is the field path ("cloud.generator.top_height"); add the file.
+        throw core::Error(o.file() + ": " + e.where(), e.reason());
+    }
 }
 
 void parse_cloud(JsonObject o, CloudSource& c, const std::filesystem::path& base_dir) {

@@ -12,7 +12,8 @@ namespace {
 const std::string kMinimal = R"({
   "fulgur_scene": 1,
   "medium": {"extinction": 0.01, "albedo": 0.9, "g": 0.5},
-  "cloud": {"generator": {"seed": 3, "grid": [32, 32, 16]}}
+  "cloud": {"generator": {"seed": 3, "grid": [32, 32, 24], "voxel_size": 500, "base_height": 1000,
+                          "tower_radius": 2000, "anvil_radius": 4500, "anvil_offset": 500}}
 })";
 
 std::string with(const std::string& from, const std::string& to) {
@@ -30,7 +31,10 @@ TEST_CASE("a minimal scene parses with documented defaults") {
     CHECK(s.medium.albedo == 0.9);
     CHECK(s.cloud.kind == CloudSource::Kind::Generator);
     CHECK(s.cloud.generator.seed == 3);
-    CHECK(s.cloud.generator.grid == fulgur::core::Int3{32, 32, 16});
+    CHECK(s.cloud.generator.grid == fulgur::core::Int3{32, 32, 24});
+    CHECK(s.cloud.generator.voxel_size == 500.0);
+    CHECK(s.cloud.generator.anvil_radius == 4500.0);
+    CHECK(s.cloud.generator.top_height == fulgur::cloud::CumulonimbusParams{}.top_height);  // default
     CHECK(s.directions == 26);
     CHECK(s.effective_directions() == 26);
     CHECK(s.transport.solver == TransportSettings::Solver::LatticeBoltzmann);
@@ -51,15 +55,53 @@ TEST_CASE("bad scenes are rejected with the file, the field and the allowed rang
                          doctest::Contains("expected a number"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"g\": 0.5", "\"g\": 0.5, \"colour\": 1"), "s.json"),
                          doctest::Contains("medium.colour: unknown key"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"grid\": [32, 32, 16]", "\"grid\": [32, 0, 16]"), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"grid\": [32, 32, 24]", "\"grid\": [32, 0, 24]"), "s.json"),
                          doctest::Contains("cloud.generator.grid"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"grid\": [32, 32, 16]", "\"grid\": [32, 32]"), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"grid\": [32, 32, 24]", "\"grid\": [32, 32]"), "s.json"),
                          doctest::Contains("3 integers"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"fulgur_scene\": 1", "\"fulgur_scene\": 2"), "s.json"),
                          doctest::Contains("version"), Error);
     CHECK_THROWS_WITH_AS(parse_scene("{\"fulgur_scene\": 1,", "s.json"), doctest::Contains("invalid JSON"), Error);
     CHECK_THROWS_WITH_AS(parse_scene("[]", "s.json"), doctest::Contains("expected a JSON object"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"seed\": 3", "\"seed\": -3"), "s.json"), doctest::Contains("seed"), Error);
+}
+
+TEST_CASE("every cloud generator field is read, range-checked and cross-checked") {
+    const Scene s = parse_scene(with("\"seed\": 3", R"("seed": 3, "cells": 12, "shear": -300, "flanking_towers": 1,
+        "anvil": false, "anvil_thickness": 900, "overshoot": 0, "edge_softness": 0.7, "steps": 20,
+        "p_ext": 0.3, "p_hum": 0.25, "p_act": 0.05, "average_steps": 5, "smoothing_radius": 2, "density_gain": 1.1)"),
+                                "g.json");
+    const auto& g = s.cloud.generator;
+    CHECK(g.cells == 12);
+    CHECK(g.shear == -300.0);
+    CHECK(g.flanking_towers == 1);
+    CHECK_FALSE(g.anvil);
+    CHECK(g.anvil_thickness == 900.0);
+    CHECK(g.overshoot == 0.0);
+    CHECK(g.edge_softness == 0.7);
+    CHECK(g.steps == 20);
+    CHECK(g.p_ext == 0.3);
+    CHECK(g.p_hum == 0.25);
+    CHECK(g.p_act == 0.05);
+    CHECK(g.average_steps == 5);
+    CHECK(g.smoothing_radius == 2);
+    CHECK(g.density_gain == 1.1);
+    // Single-field ranges name the field and the range.
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"seed\": 3", "\"seed\": 3, \"edge_softness\": 0"), "s.json"),
+                         doctest::Contains("s.json: cloud.generator.edge_softness"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"seed\": 3", "\"seed\": 3, \"p_act\": 0"), "s.json"),
+                         doctest::Contains("(0, 1]"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"seed\": 3", "\"seed\": 3, \"flanking_towers\": 12"), "s.json"),
+                         doctest::Contains("cloud.generator.flanking_towers"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"anvil_radius\": 4500", "\"anvil_radius\": 1e9"), "s.json"),
+                         doctest::Contains("cloud.generator.anvil_radius"), Error);
+    // Inconsistent fields are caught at load time too, with the file and the field.
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"anvil_radius\": 4500", "\"anvil_radius\": 1500"), "s.json"),
+                         doctest::Contains("s.json: cloud.generator.anvil_radius: must be larger than tower_radius"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"base_height\": 1000", "\"base_height\": 9500"), "s.json"),
+                         doctest::Contains("s.json: cloud.generator.top_height"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"voxel_size\": 500", "\"voxel_size\": 100"), "s.json"),
+                         doctest::Contains("s.json: cloud.generator.top_height: 9000 m does not fit in the grid"), Error);
 }
 
 TEST_CASE("cloud needs exactly one of generator or file") {
@@ -87,4 +129,7 @@ TEST_CASE("the default storm scene loads") {
     const Scene s = load_scene(fulgur::test::source_dir() / "content/scenes/storm.json");
     CHECK(s.effects.lightning);
     CHECK(s.medium.extinction > 0.0);
+    CHECK(s.cloud.kind == CloudSource::Kind::Generator);
+    CHECK(s.cloud.generator.grid == fulgur::core::Int3{144, 144, 80});
+    CHECK(s.cloud.generator.anvil);
 }
