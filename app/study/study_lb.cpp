@@ -121,6 +121,7 @@ FULGUR_STUDY(lb_convergence, "lb-convergence",
     po.y_label = "total density / site";
     po.vlines = {{2.0 * n, "2N"}};
     po.y_min = 0.0;
+    po.x_min = 0.0;
     double ymax = 0.0;
     for (std::size_t k = 0; k + 1 < curves.size(); ++k)
         for (double v : curves[k].y) ymax = std::max(ymax, v);
@@ -134,6 +135,7 @@ FULGUR_STUDY(lb_convergence, "lb-convergence",
     pc.vlines = {{2.0 * n, "2N"}};
     pc.hlines = {{1e-4, "default tolerance 1e-4"}};
     pc.y_min = 1e-8;
+    pc.x_min = 0.0;
     study::write_svg_plot(ctx.file("lb_convergence_change.svg"), changes, pc);
     ctx.summary("lb-convergence", {{"grid", n}, {"voxel_m", h}, {"cloud_seconds", gen_s}, {"two_N", 2 * n}, {"runs", js}});
 }
