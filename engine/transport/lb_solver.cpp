@@ -133,9 +133,10 @@ int match_direction(const SourceField& f, int q) {
 }
 
 // Boundary inflow from a light outside the grid: for each face cell of an open face whose
-// inward normal faces the light, the power crossing the cell (I * A cos / d^2 for a point,
-// E * A * (L . n) for the sun) is spread over the in-links crossing that face with the
-// Appendix A weights of the local light direction.
+// inward normal faces the light, the power crossing the cell (I times the cell's exact solid
+// angle for a point, E * A * (L . n) for the sun) is spread over the in-links crossing that
+// face with the Appendix A weights of the local light direction (towards the cell centre).
+// The medium between an outside light and the grid is vacuum (density 0 outside).
 void add_boundary_light(Problem& p, const core::GridGeometry& g, const glm::dvec3* point, double intensity,
                         const glm::dvec3* sun_dir, double irradiance) {
     const core::Int3 d = g.dims;
@@ -159,13 +160,19 @@ void add_boundary_light(Problem& p, const core::GridGeometry& g, const glm::dvec
                     glm::dvec3 L;
                     double power;
                     if (point) {
+                        // Exact solid angle of the face cell seen from the light (also for a
+                        // light on the face plane, where it tends to 2 pi for the cell under it).
+                        const double dist = (fc[axis] - (*point)[axis]) * n_in[axis];  // >= 0 if the light is outside
+                        if (dist < 0.0) continue;
+                        const double u0 = fc[u] - 0.5 * h - (*point)[u], u1 = u0 + h;
+                        const double v0 = fc[v] - 0.5 * h - (*point)[v], v1 = v0 + h;
+                        auto F = [dist](double p1, double p2) { return std::atan2(p1 * p2, dist * std::sqrt(p1 * p1 + p2 * p2 + dist * dist)); };
+                        const double omega = F(u1, v1) - F(u0, v1) - F(u1, v0) + F(u0, v0);
+                        if (!(omega > 0.0)) continue;
+                        power = intensity * omega;
                         const glm::dvec3 r = fc - *point;
-                        const double r2 = glm::dot(r, r);
-                        if (!(r2 > 0.0)) continue;
-                        L = r / std::sqrt(r2);
-                        const double cosn = glm::dot(L, n_in);
-                        if (cosn <= 0.0) continue;
-                        power = intensity * area * cosn / r2;
+                        L = glm::dot(r, r) > 0.0 ? glm::normalize(r) : n_in;
+                        if (glm::dot(L, n_in) <= 0.0) L = n_in;  // grazing: enter along the normal
                     } else {
                         L = *sun_dir;
                         const double cosn = glm::dot(L, n_in);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <numbers>
 
 using namespace fulgur;
 using namespace fulgur::transport;
@@ -244,6 +245,32 @@ TEST_CASE("hard cases stay finite and converge") {
         run(10.0, 0.0, 0.5, 1.0f, LbAbsorption::Conservative);
         run(10.0, 1.0, 0.5, 1.0f, LbAbsorption::Conservative);
     }
+}
+
+TEST_CASE("point lights outside the grid and on its faces inject the power they send into it") {
+    const core::GridGeometry geom{{10, 8, 6}, 5.0, {0, 0, 0}};
+    LightingMedium m;
+    m.density = core::Grid3<float>(geom, 0.0f);
+    m.optics = Medium{0.1, 0.9, 0.0};
+    const auto dirs = output_directions(1);
+    LbSettings s;
+    s.max_iterations = 2;
+    // On the top face (z = 30 m: outside, the upper bound is exclusive), over the centre of a
+    // face cell: the face fills the lower half-space's view, 2 pi sr (exact rectangle solid
+    // angles summed over the face cells).
+    LbSources src;
+    src.points.push_back({glm::dvec3(22.5, 17.5, 30.0), 2.0});
+    LbResult r = solve_lattice_boltzmann(m, src, dirs, s);
+    const double face = r.injected_per_step;
+    CHECK(face == doctest::Approx(2.0 * 2.0 * std::numbers::pi).epsilon(1e-6));  // float inflow values
+    // On the bottom face (inclusive lower bound) the light is inside: all 4 pi I is injected.
+    src.points[0].position = glm::dvec3(22.5, 17.5, 0.0);
+    r = solve_lattice_boltzmann(m, src, dirs, s);
+    CHECK(r.injected_per_step == doctest::Approx(4.0 * 2.0 * std::numbers::pi).epsilon(1e-12));  // double sum of w_q
+    // Far below the grid: the bottom face's solid angle ~ A / d^2.
+    src.points[0].position = glm::dvec3(25.0, 20.0, -1000.0);
+    r = solve_lattice_boltzmann(m, src, dirs, s);
+    CHECK(r.injected_per_step == doctest::Approx(2.0 * 50.0 * 40.0 / 1e6).epsilon(1e-3));  // (A/d^2)(1 + O(A/d^2))
 }
 
 TEST_CASE("bad input is rejected with an error naming the parameter") {
