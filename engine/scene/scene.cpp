@@ -127,6 +127,54 @@ void parse_effects(JsonObject o, Effects& e) {
     o.finish();
 }
 
+void parse_lightning(JsonObject o, lightning::LightningParams& l) {
+    // Ranges: the same as lightning::validate (engine/lightning/params.cpp).
+    lightning::BoltParams& b = l.bolt;
+    const std::string kind = o.choice_or("kind", std::string(lightning::kind_name(b.kind)),
+                                         {"cloud_to_ground", "intra_cloud", "cloud_to_cloud"});
+    b.kind = kind == "intra_cloud"      ? lightning::Kind::IntraCloud
+             : kind == "cloud_to_cloud" ? lightning::Kind::CloudToCloud
+                                        : lightning::Kind::CloudToGround;
+    l.seed = o.seed_or("seed", l.seed);
+    b.intensity = o.number_or("intensity", b.intensity, Range{0.0, 1e12});
+    b.start_density_threshold = o.number_or("start_density_threshold", b.start_density_threshold, Range{0.0, 1.0, false, true});
+    b.ground_height = o.number_or("ground_height", b.ground_height, Range{-1e4, 5e4});
+    b.angle_mean_deg = o.number_or("angle_mean", b.angle_mean_deg, Range{0.0, 90.0});
+    b.angle_spread_deg = o.number_or("angle_spread", b.angle_spread_deg, Range{0.0, 60.0});
+    b.segment_length_mean = o.number_or("segment_length_mean", b.segment_length_mean, Range{1.0, 5000.0});
+    b.segment_length_spread = o.number_or("segment_length_spread", b.segment_length_spread, Range{0.0, 5000.0});
+    b.target_bias = o.number_or("target_bias", b.target_bias, Range{0.0, 1.0});
+    b.wander = o.number_or("wander", b.wander, Range{0.0, 2.0});
+    b.zigzag = o.number_or("zigzag", b.zigzag, Range{0.0, 4.0});
+    b.max_segments = int(o.integer_or("max_segments", b.max_segments, 1, 1'000'000));
+    if (auto br = o.optional_object("branches")) {
+        b.branch_probability = br->number_or("probability", b.branch_probability, Range{0.0, 1.0});
+        b.branch_angle_mean_deg = br->number_or("angle_mean", b.branch_angle_mean_deg, Range{0.0, 90.0});
+        b.branch_length_fraction = br->number_or("length_fraction", b.branch_length_fraction, Range{0.0, 1.0, true, false});
+        b.branch_intensity_decay = br->number_or("intensity_decay", b.branch_intensity_decay, Range{0.0, 1.0});
+        b.max_depth = int(br->integer_or("max_depth", b.max_depth, 0, 8));
+        br->finish();
+    }
+    if (auto t = o.optional_object("timing")) {
+        lightning::TimingParams& p = l.timing;
+        p.leader_speed = t->number_or("leader_speed", p.leader_speed, Range{1e3, 1e8});
+        p.leader_brightness = t->number_or("leader_brightness", p.leader_brightness, Range{0.0, 1.0});
+        p.rise_time = t->number_or("rise_time", p.rise_time, Range{0.0, 0.01});
+        p.decay_time = t->number_or("decay_time", p.decay_time, Range{0.0, 1.0, true, false});
+        p.restrikes = t->number_or("restrikes", p.restrikes, Range{0.0, 20.0});
+        p.restrikes_max = int(t->integer_or("restrikes_max", p.restrikes_max, 0, 32));
+        p.restrike_interval = t->number_or("restrike_interval", p.restrike_interval, Range{0.001, 1.0});
+        p.restrike_brightness = t->number_or("restrike_brightness", p.restrike_brightness, Range{0.0, 10.0});
+        p.dart_leader_speed = t->number_or("dart_leader_speed", p.dart_leader_speed, Range{1e5, 1e9});
+        p.dark_threshold = t->number_or("dark_threshold", p.dark_threshold, Range{0.0, 0.5, true, false});
+        t->finish();
+    }
+    l.schedule.strike_rate = o.number_or("strike_rate", l.schedule.strike_rate, Range{0.0, 100.0});
+    l.schedule.first_strike = o.number_or("first_strike", l.schedule.first_strike, Range{0.0, 1e6});
+    o.finish();
+    lightning::validate(l, o.file() + ": lightning");  // the same ranges, kept in one place for code users
+}
+
 }  // namespace
 
 Scene parse_scene(std::string_view json_text, std::string_view file_name, const std::filesystem::path& base_dir) {
@@ -157,6 +205,7 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
     if (auto t = root.optional_object("transport")) parse_transport(*t, s.transport);
     parse_lights(root, s);
     if (auto e = root.optional_object("effects")) parse_effects(*e, s.effects);
+    if (auto l = root.optional_object("lightning")) parse_lightning(*l, s.lightning);
     root.finish();
     if (s.effects.sun && !s.sun) root.fail("effects", "\"sun\": true needs a light of type \"sun\" in \"lights\"");
     return s;

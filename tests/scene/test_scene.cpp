@@ -129,7 +129,83 @@ TEST_CASE("the default storm scene loads") {
     const Scene s = load_scene(fulgur::test::source_dir() / "content/scenes/storm.json");
     CHECK(s.effects.lightning);
     CHECK(s.medium.extinction > 0.0);
+    CHECK(s.lightning.bolt.kind == fulgur::lightning::Kind::CloudToGround);
+    CHECK_NOTHROW(fulgur::lightning::validate(s.lightning));
     CHECK(s.cloud.kind == CloudSource::Kind::Generator);
     CHECK(s.cloud.generator.grid == fulgur::core::Int3{144, 144, 80});
     CHECK(s.cloud.generator.anvil);
+}
+
+TEST_CASE("lightning section: defaults, every field, and ranges naming the field") {
+    const Scene d = parse_scene(kMinimal, "min.json");
+    CHECK(d.lightning.bolt.kind == fulgur::lightning::Kind::CloudToGround);
+    CHECK(d.lightning.bolt.angle_mean_deg == 16.0);
+    CHECK(d.lightning.schedule.strike_rate == 0.2);
+
+    const std::string full = with("\"cloud\"", R"("lightning": {
+        "kind": "intra_cloud", "seed": 9, "intensity": 2e5, "start_density_threshold": 0.4,
+        "ground_height": 120, "angle_mean": 20, "angle_spread": 6, "segment_length_mean": 150,
+        "segment_length_spread": 30, "target_bias": 0.5, "wander": 0.25, "zigzag": 0.5, "max_segments": 5000,
+        "branches": {"probability": 0.1, "angle_mean": 40, "length_fraction": 0.5, "intensity_decay": 0.3, "max_depth": 2},
+        "timing": {"leader_speed": 3e5, "leader_brightness": 0.05, "rise_time": 2e-4, "decay_time": 0.02,
+                   "restrikes": 4, "restrikes_max": 6, "restrike_interval": 0.07, "restrike_brightness": 0.4,
+                   "dart_leader_speed": 2e7, "dark_threshold": 0.002},
+        "strike_rate": 1.5, "first_strike": 2}, "cloud")");
+    const Scene s = parse_scene(full, "l.json");
+    const auto& l = s.lightning;
+    CHECK(l.bolt.kind == fulgur::lightning::Kind::IntraCloud);
+    CHECK(l.seed == 9);
+    CHECK(l.bolt.intensity == 2e5);
+    CHECK(l.bolt.start_density_threshold == 0.4);
+    CHECK(l.bolt.ground_height == 120.0);
+    CHECK(l.bolt.angle_mean_deg == 20.0);
+    CHECK(l.bolt.angle_spread_deg == 6.0);
+    CHECK(l.bolt.segment_length_mean == 150.0);
+    CHECK(l.bolt.segment_length_spread == 30.0);
+    CHECK(l.bolt.target_bias == 0.5);
+    CHECK(l.bolt.wander == 0.25);
+    CHECK(l.bolt.zigzag == 0.5);
+    CHECK(l.bolt.max_segments == 5000);
+    CHECK(l.bolt.branch_probability == 0.1);
+    CHECK(l.bolt.branch_angle_mean_deg == 40.0);
+    CHECK(l.bolt.branch_length_fraction == 0.5);
+    CHECK(l.bolt.branch_intensity_decay == 0.3);
+    CHECK(l.bolt.max_depth == 2);
+    CHECK(l.timing.leader_speed == 3e5);
+    CHECK(l.timing.leader_brightness == 0.05);
+    CHECK(l.timing.rise_time == 2e-4);
+    CHECK(l.timing.decay_time == 0.02);
+    CHECK(l.timing.restrikes == 4.0);
+    CHECK(l.timing.restrikes_max == 6);
+    CHECK(l.timing.restrike_interval == 0.07);
+    CHECK(l.timing.restrike_brightness == 0.4);
+    CHECK(l.timing.dart_leader_speed == 2e7);
+    CHECK(l.timing.dark_threshold == 0.002);
+    CHECK(l.schedule.strike_rate == 1.5);
+    CHECK(l.schedule.first_strike == 2.0);
+
+    auto bad = [&](const std::string& section, const char* field) {
+        CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", "\"lightning\": " + section + ", \"cloud\""), "s.json"),
+                             doctest::Contains(field), Error);
+    };
+    bad(R"({"kind": "ball"})", "s.json: lightning.kind");
+    bad(R"({"angle_mean": -3})", "s.json: lightning.angle_mean");
+    bad(R"({"angle_mean": 400})", "lightning.angle_mean");
+    bad(R"({"segment_length_mean": 0})", "lightning.segment_length_mean");
+    bad(R"({"target_bias": 1.2})", "lightning.target_bias");
+    bad(R"({"zigzag": 5})", "lightning.zigzag");
+    bad(R"({"intensity": -1})", "lightning.intensity");
+    bad(R"({"start_density_threshold": 1})", "lightning.start_density_threshold");
+    bad(R"({"max_segments": 0})", "lightning.max_segments");
+    bad(R"({"branches": {"probability": 2}})", "lightning.branches.probability");
+    bad(R"({"branches": {"max_depth": 50}})", "lightning.branches.max_depth");
+    bad(R"({"branches": {"length_fraction": 0}})", "lightning.branches.length_fraction");
+    bad(R"({"timing": {"decay_time": 0}})", "lightning.timing.decay_time");
+    bad(R"({"timing": {"leader_speed": 1e12}})", "lightning.timing.leader_speed");
+    bad(R"({"timing": {"restrikes": 1e9}})", "lightning.timing.restrikes");
+    bad(R"({"timing": {"restrikes_max": 2.5}})", "lightning.timing.restrikes_max");
+    bad(R"({"strike_rate": -1})", "lightning.strike_rate");
+    bad(R"({"first_strike": "soon"})", "lightning.first_strike");
+    bad(R"({"thunder": true})", "lightning.thunder: unknown key");
+    bad(R"({"timing": {"boom": 1}})", "lightning.timing.boom: unknown key");
 }
