@@ -3,6 +3,7 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 
 using namespace fulgur;
@@ -10,6 +11,7 @@ using namespace fulgur::transport;
 using namespace fulgur::transport::lb;
 
 TEST_CASE("diffusion limit: variance grows by 2D per step per axis, D from Eq. 19") {
+    double worst = 0.0;
     for (double st : {0.1, 0.25, 0.5, 0.9, 1.0})
         for (double albedo : {1.0, 0.9, 0.5}) {
             const double sa = st * (1.0 - albedo);
@@ -54,9 +56,12 @@ TEST_CASE("diffusion limit: variance grows by 2D per step per axis, D from Eq. 1
             }
             const double slope = (n * stv - st_ * sv) / (n * stt - st_ * st_);
             INFO("sigma_t " << st << " albedo " << albedo << ": slope " << slope << " vs 2D " << 2.0 * D);
-            // 1%: the issue's bound for finite runs (the transient decays like (1 - sigma_t)^t
-            // and fades before the fitted second half; float32 densities add ~1e-6).
+            // The issue asks for 1% on finite runs; the fitted second-half slope actually
+            // matches Eq. 19 to ~2e-7 (the transient has decayed; float32 sums), so 1e-4 keeps
+            // margin for rounding while catching any error in D or in the collision.
             CHECK(slope == doctest::Approx(2.0 * D).epsilon(0.01));
-            CHECK(std::fabs(slope / (2.0 * D) - 1.0) < 0.01);
+            CHECK(std::fabs(slope / (2.0 * D) - 1.0) < 1e-4);
+            worst = std::max(worst, std::fabs(slope / (2.0 * D) - 1.0));
         }
+    MESSAGE("largest relative deviation of the fitted slope from 2D: " << worst);
 }
