@@ -463,37 +463,51 @@ private:
                         pairs_.push_back(pr);
                     }
                 }
+        // Group by direction, then by address: each group walks two direction arrays in
+        // increasing order (the pass is ~5% of a 128^3 step instead of ~15% in site order),
+        // and groups run in parallel with their own sums (added in order: deterministic).
+        std::stable_sort(pairs_.begin(), pairs_.end(), [](const Pair& a, const Pair& b) {
+            return a.q != b.q ? a.q < b.q : a.site < b.site;
+        });
+        group_begin_.assign(kQ + 1, pairs_.size());
+        for (std::size_t i = pairs_.size(); i-- > 0;) group_begin_[std::size_t(pairs_[i].q)] = i;
+        for (int q = kQ - 1; q >= 0; --q)
+            if (group_begin_[std::size_t(q)] > group_begin_[std::size_t(q + 1)]) group_begin_[std::size_t(q)] = group_begin_[std::size_t(q + 1)];
+        group_escaped_.assign(kQ, 0.0);
     }
 
-    double boundary_after_even() {
-        double escaped = 0.0;
-        for (const Pair& b : pairs_) {
-            const int o = opposite(b.q);
-            float& ghost = slot(b.q, std::size_t(std::ptrdiff_t(b.site) + off_[b.q]));
-            if (b.partner < 0) {
-                float& own = slot(o, b.site);
-                escaped += double(own);
-                own = b.in;
-                ghost = b.in;
-            } else {
-                ghost = slot(b.q, std::size_t(b.partner));
+    template <bool Odd>
+    double boundary_pass() {
+        const bool parallel = pairs_.size() >= 16384 && core::thread_count() > 1;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(core::thread_count()) if (parallel)
+        for (int q = 1; q < kQ; ++q) {
+            double escaped = 0.0;
+            const int o = opposite(q);
+            for (std::size_t i = group_begin_[std::size_t(q)]; i < group_begin_[std::size_t(q + 1)]; ++i) {
+                const Pair& b = pairs_[i];
+                float& ghost = slot(q, std::size_t(std::ptrdiff_t(b.site) + off_[q]));
+                if constexpr (!Odd) {
+                    if (b.partner < 0) {
+                        float& own = slot(o, b.site);
+                        escaped += double(own);
+                        own = b.in;
+                        ghost = b.in;
+                    } else {
+                        ghost = slot(q, std::size_t(b.partner));
+                    }
+                } else {
+                    if (b.partner < 0) escaped += double(ghost);
+                    else slot(o, b.site) = slot(o, std::size_t(b.partner - off_[q]));
+                }
             }
+            group_escaped_[std::size_t(q)] = escaped;
         }
-        return escaped;
+        double total = 0.0;
+        for (int q = 1; q < kQ; ++q) total += group_escaped_[std::size_t(q)];
+        return total;
     }
-
-    double boundary_after_odd() {
-        double escaped = 0.0;
-        for (const Pair& b : pairs_) {
-            const int o = opposite(b.q);
-            if (b.partner < 0) {
-                escaped += double(slot(b.q, std::size_t(std::ptrdiff_t(b.site) + off_[b.q])));
-            } else {
-                slot(o, b.site) = slot(o, std::size_t(b.partner - off_[b.q]));
-            }
-        }
-        return escaped;
-    }
+    double boundary_after_even() { return boundary_pass<false>(); }
+    double boundary_after_odd() { return boundary_pass<true>(); }
 
     const Problem& p_;
     bool conservative_;
@@ -508,6 +522,8 @@ private:
     std::vector<double> row_absorbed_, row_total_;
     double inflow_sum_ = 0.0, last_total_ = 0.0;
     std::vector<Pair> pairs_;
+    std::vector<std::size_t> group_begin_;
+    std::vector<double> group_escaped_;
     double last_absorbed_ = 0.0, last_escaped_ = 0.0;
 };
 
