@@ -1,11 +1,11 @@
 #version 450 core
 // S toward the camera on the lighting grid:
 //   S_cam(x_i) = sum_m w_m(normalize(camera - x_i)) S_m(x_i) / sum_m w_m
-// over the uploaded directions the view needs (u_active; the renormalization makes leaving
-// out directions of negligible weight harmless), four directions per dispatch (one sampler
-// per direction; the first dispatch writes, later ones accumulate). Four separate samplers
-// rather than an array of 26: a dynamically indexed sampler array makes software
-// rasterizers generate (and JIT-compile) a fetch path per array element.
+// over the uploaded directions the view needs (the renormalization makes leaving out
+// directions of negligible weight harmless). Eight directions per dispatch, one sampler each
+// (the first dispatch writes, later ones accumulate): separate samplers rather than an
+// array, because a dynamically indexed sampler array makes a software rasterizer generate
+// and JIT-compile a fetch path per element.
 #include "common.glsl"
 #include "directions.glsl"
 
@@ -15,24 +15,19 @@ layout(binding = 0) uniform sampler3D u_src0;
 layout(binding = 1) uniform sampler3D u_src1;
 layout(binding = 2) uniform sampler3D u_src2;
 layout(binding = 3) uniform sampler3D u_src3;
+layout(binding = 4) uniform sampler3D u_src4;
+layout(binding = 5) uniform sampler3D u_src5;
+layout(binding = 6) uniform sampler3D u_src6;
+layout(binding = 7) uniform sampler3D u_src7;
 layout(r32f, binding = 0) uniform image3D u_out;
 
 uniform ivec3 u_dims;
-uniform ivec4 u_dirs;        // baked direction index per sampler, -1 = unused
-uniform int u_accumulate;    // 0: first batch (write), 1: add to u_out
-uniform int u_active_count;  // all directions of this resolve (for the weight sum)
-uniform int u_active[26];
+uniform ivec4 u_dirs_lo;       // baked direction index per sampler 0-3, -1 = unused
+uniform ivec4 u_dirs_hi;       // samplers 4-7
+uniform int u_accumulate;      // 0: first batch (write), 1: add to u_out
+uniform float u_active[26];    // 1 for the directions of this resolve (for the weight sum)
 uniform ivec3 u_fold_index[27];
 uniform vec3 u_fold_fraction[27];
-
-// Weight of baked direction m for unit direction d.
-float weight_of(int m, ivec4 code, vec4 cw) {
-    float w = 0.0;
-    for (int n = 0; n < 4; ++n)
-        for (int k = 0; k < 3; ++k)
-            if (u_fold_index[code[n]][k] == m) w += cw[n] * u_fold_fraction[code[n]][k];
-    return w;
-}
 
 void main() {
     ivec3 c = ivec3(gl_GlobalInvocationID);
@@ -44,13 +39,26 @@ void main() {
     ivec4 code;
     vec4 cw;
     cube_cell_weights(d, code, cw);
+    // One pass over the (at most 4 x 3) folded contributions: the weight of each of this
+    // batch's directions and the sum over all active directions.
+    vec4 w_lo = vec4(0.0), w_hi = vec4(0.0);
     float wsum = 0.0;
-    for (int k = 0; k < u_active_count; ++k) wsum += weight_of(u_active[k], code, cw);
+    for (int n = 0; n < 4; ++n)
+        for (int k = 0; k < 3; ++k) {
+            int idx = u_fold_index[code[n]][k];
+            if (idx < 0) continue;
+            float f = cw[n] * u_fold_fraction[code[n]][k];
+            wsum += u_active[idx] * f;
+            w_lo += vec4(equal(ivec4(idx), u_dirs_lo)) * f;
+            w_hi += vec4(equal(ivec4(idx), u_dirs_hi)) * f;
+        }
     float inv = wsum > 0.0 ? 1.0 / wsum : 0.0;
-    float s = u_accumulate != 0 ? imageLoad(u_out, c).r : 0.0;
-    if (u_dirs.x >= 0) s += weight_of(u_dirs.x, code, cw) * inv * texelFetch(u_src0, c, 0).r;
-    if (u_dirs.y >= 0) s += weight_of(u_dirs.y, code, cw) * inv * texelFetch(u_src1, c, 0).r;
-    if (u_dirs.z >= 0) s += weight_of(u_dirs.z, code, cw) * inv * texelFetch(u_src2, c, 0).r;
-    if (u_dirs.w >= 0) s += weight_of(u_dirs.w, code, cw) * inv * texelFetch(u_src3, c, 0).r;
+    vec4 s_lo = vec4(texelFetch(u_src0, c, 0).r, texelFetch(u_src1, c, 0).r, texelFetch(u_src2, c, 0).r,
+                     texelFetch(u_src3, c, 0).r);
+    vec4 s_hi = u_dirs_hi.x < 0 ? vec4(0.0)
+                                : vec4(texelFetch(u_src4, c, 0).r, texelFetch(u_src5, c, 0).r,
+                                       texelFetch(u_src6, c, 0).r, texelFetch(u_src7, c, 0).r);
+    float s = (dot(w_lo, s_lo) + dot(w_hi, s_hi)) * inv;
+    if (u_accumulate != 0) s += imageLoad(u_out, c).r;
     imageStore(u_out, c, vec4(s));
 }

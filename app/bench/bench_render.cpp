@@ -10,8 +10,9 @@
 //                  sample count for the view; Msamples_per_s = samples / time.
 //   case "frame":  whole frames (resolve with a moving camera, glow, march, bolt, composite)
 //                  per internal scale, wall and CPU, fps.
-//   case "step" / "precision": accuracy knobs (step length, density precision) against a
-//                  fine reference image: relative RMS error of the HDR image and time.
+//   case "step":   accuracy knobs (step length, density precision) against a fine reference:
+//                  relative RMS error of the ray-march output (radiance and transmittance of
+//                  every internal pixel) and the march time.
 // llvmpipe uses LP_NUM_THREADS threads (default: all cores); the row says how many.
 #include "bench/bench.h"
 
@@ -47,13 +48,22 @@ Medians run_frames(render::Renderer& r, render::Camera cam, render::Settings st,
     return {bench::median(wall), bench::median(cpu)};
 }
 
-double rel_rms(const std::vector<float>& a, const std::vector<float>& ref) {
+/// Relative RMS error of the radiance (rgb) of two ray-march outputs (RGBA, a = T).
+double radiance_rel_rms(const std::vector<float>& a, const std::vector<float>& ref) {
     core::CompensatedSum num, den;
     for (std::size_t i = 0; i < a.size(); ++i) {
+        if (i % 4 == 3) continue;
         num.add(double(a[i] - ref[i]) * double(a[i] - ref[i]));
         den.add(double(ref[i]) * double(ref[i]));
     }
     return den.value() > 0.0 ? std::sqrt(num.value() / den.value()) : 0.0;
+}
+
+/// Largest absolute transmittance difference.
+double transmittance_max_err(const std::vector<float>& a, const std::vector<float>& ref) {
+    double e = 0.0;
+    for (std::size_t i = 3; i < a.size(); i += 4) e = std::max(e, std::abs(double(a[i]) - double(ref[i])));
+    return e;
 }
 
 int llvmpipe_threads() {
@@ -119,6 +129,10 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
         }
         const double o_wall = bench::median(ow), o_cpu = bench::median(oc), p_wall = bench::median(pw),
                      p_cpu = bench::median(pc);
+        // The same pass timed by GL timer queries (does the driver's clock agree?).
+        render::Settings q = opt;
+        q.timing = render::Timing::Queries;
+        const Medians tq = run_frames(r, cam, q, W, H, frames, march);
         ctx.emit("render", {{"case", "march"},
                             {"kernel", kernel == render::MarchKernel::Fragment ? "fragment" : "compute"},
                             {"size", {W, H}},
@@ -128,6 +142,7 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
                             {"samples", samples},
                             {"march_ms", o_wall},
                             {"march_cpu_ms", o_cpu},
+                            {"march_ms_timer_query", tq.wall},
                             {"plain_march_ms", p_wall},
                             {"plain_march_cpu_ms", p_cpu},
                             {"Msamples_per_s", samples / o_wall * 1e-3},
@@ -142,7 +157,7 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
         render::Settings st = base;
         st.internal_scale = scale;
         r.render(cam, st, W, H);
-        std::vector<double> wall, cpu, resolve, glow, mar, bolt_ms, comp;
+        std::vector<double> wall, cpu, resolve, glow, mar, bolt_ms, comp, resolve_cpu, march_cpu, comp_cpu;
         int glow_quads = 0;
         render::Camera c = cam;
         for (int i = 0; i < frames; ++i) {
@@ -156,6 +171,9 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
             mar.push_back(s.wall.march);
             bolt_ms.push_back(s.wall.bolt);
             comp.push_back(s.wall.composite);
+            resolve_cpu.push_back(s.cpu.resolve);
+            march_cpu.push_back(s.cpu.march);
+            comp_cpu.push_back(s.cpu.composite);
             glow_quads = s.glow_quads;
         }
         // Without per-pass glFinish (Timing::Off + one glFinish): what the demo sees.
@@ -182,6 +200,9 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
                             {"march_ms", bench::median(mar)},
                             {"bolt_ms", bench::median(bolt_ms)},
                             {"composite_ms", bench::median(comp)},
+                            {"resolve_cpu_ms", bench::median(resolve_cpu)},
+                            {"march_cpu_ms", bench::median(march_cpu)},
+                            {"composite_cpu_ms", bench::median(comp_cpu)},
                             {"upload_ms", upload_ms},
                             {"directions_uploaded", up.directions.size()},
                             {"glow_quads", glow_quads},
@@ -195,22 +216,24 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
     ref.jitter = false;
     ref.dither = false;
     r.set_volume({.density = &density, .extinction = kappa, .precision = render::DensityPrecision::F16});
+    int mw = 0, mh = 0;
     r.render(cam, ref, W, H);
-    const std::vector<float> reference = r.read_hdr();
+    const std::vector<float> reference = r.read_march(mw, mh);
     for (auto precision : {render::DensityPrecision::F16, render::DensityPrecision::U8}) {
         r.set_volume({.density = &density, .extinction = kappa, .precision = precision});
         for (double step : {0.5, 1.0, 2.0}) {
             render::Settings st = ref;
             st.step_voxels = step;
             r.render(cam, st, W, H);
-            const std::vector<float> img = r.read_hdr();
+            const std::vector<float> img = r.read_march(mw, mh);
             const Medians t = run_frames(r, cam, st, W, H, frames, march);
             ctx.emit("render", {{"case", "step"},
                                 {"density", precision == render::DensityPrecision::U8 ? "u8" : "f16"},
                                 {"step_voxels", step},
                                 {"march_ms", t.wall},
                                 {"march_cpu_ms", t.cpu},
-                                {"rel_rms_error", rel_rms(img, reference)},
+                                {"radiance_rel_rms_error", radiance_rel_rms(img, reference)},
+                                {"transmittance_max_error", transmittance_max_err(img, reference)},
                                 {"reference", "step 0.25 voxel, f16 density, no jitter"}});
         }
     }

@@ -141,10 +141,15 @@ std::vector<DirectionUse> view_directions(const glm::dvec3& camera_position, con
     if (!active.empty() && active.size() != lighting.cell_count())
         throw core::Error("view_directions", "active mask has " + std::to_string(active.size()) +
                                                  " entries, the lighting grid " + std::to_string(lighting.cell_count()));
-    std::vector<double> maxw(std::size_t(std::max(direction_count, 1)), 0.0);
+    const std::size_t nd = std::size_t(std::max(direction_count, 1));
     (void)transport::output_directions(direction_count);  // validates the count
     const core::Int3 n = lighting.dims;
-    for (int k = 0; k < n.z; ++k)
+    // Serial on purpose: ~40 ns per node (~1 ms for 32x32x24 nodes, less over the cloud's
+    // active nodes); an OpenMP region would compete with the software rasterizer's threads
+    // and costs more than it saves on a loaded 2-core machine (measured: 11 ms vs 1 ms).
+    std::vector<double> maxw(nd, 0.0);
+    for (int k = 0; k < n.z; ++k) {
+        double* mx = maxw.data();
         for (int j = 0; j < n.y; ++j)
             for (int i = 0; i < n.x; ++i) {
                 if (!active.empty() && !active[lighting.index(i, j, k)]) continue;
@@ -153,9 +158,9 @@ std::vector<DirectionUse> view_directions(const glm::dvec3& camera_position, con
                 if (glm::length(d) < 1e-9 * lighting.voxel_size) d = glm::dvec3(0, 0, 1);
                 const DirectionWeights w = direction_weights(d, direction_count);
                 for (int s = 0; s < w.count; ++s)
-                    maxw[std::size_t(w.index[std::size_t(s)])] =
-                        std::max(maxw[std::size_t(w.index[std::size_t(s)])], w.weight[std::size_t(s)]);
+                    mx[w.index[std::size_t(s)]] = std::max(mx[w.index[std::size_t(s)]], w.weight[std::size_t(s)]);
             }
+    }
     std::vector<DirectionUse> out;
     for (std::size_t m = 0; m < maxw.size(); ++m)
         if (maxw[m] > min_weight) out.push_back({int(m), maxw[m]});

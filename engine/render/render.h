@@ -126,15 +126,15 @@ struct Settings {
     bool cloud_lighting = true;     ///< false: S = 0 (cloud only absorbs the background)
     // Scene constants
     double ground_height = 0.0;     ///< z of the ground plane (m)
-    double ground_albedo = 0.15;    ///< Lambertian reflectance of the ground
+    double ground_albedo = 0.1;     ///< Lambertian reflectance of the ground (wet fields at night)
     /// Colour of the flash (luminance ~1; bluish white: lightning's spectrum is dominated
     /// by nitrogen and hydrogen lines) applied to S, the bolt, the glow and the ground light.
     glm::dvec3 flash_colour{0.93, 0.97, 1.25};
     int ground_lights = 6;          ///< representative point lights along the bolt for the ground
     double sky_radiance = 2e-7;     ///< night sky radiance at the zenith (W m^-2 sr^-1)
     double star_radiance = 2e-5;    ///< brightest stars (W m^-2 sr^-1, per pixel-sized star)
-    double air_scattering = 2e-4;   ///< sigma_s of the rain-laden air around the bolt (1/m), glow strength
-    double glow_radius = 1500.0;    ///< glow quad radius (m); the profile tapers to 0 there
+    double air_scattering = 1.5e-5; ///< sigma_s of the (rainy) air around the bolt (1/m): glow strength
+    double glow_radius = 600.0;     ///< glow quad radius (m); the profile tapers to 0 there
     double bolt_min_width_px = 1.5; ///< thinner ribbons are widened and dimmed (flux conserved)
     /// Directions with smaller interpolation weights are not needed (see view_directions);
     /// 0 uses every direction with a non-zero weight.

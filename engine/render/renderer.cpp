@@ -697,6 +697,8 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
     // ---- resolve: S toward the camera on the lighting grid
     GLuint scam = m.zero_tex;
     if (lit) {
+        const bool must_resolve = m.dir_count > 1 && (m.resolve_dirty || m.resolved_camera != camera.position);
+        if (must_resolve) begin_pass(kResolve);  // includes the CPU work of finding the needed directions
         const std::vector<DirectionUse>& need =
             m.needed_for(camera.position, m.lit_geom, m.dir_count, st.direction_min_weight);
         stats.directions_used = int(need.size());
@@ -709,8 +711,7 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
             scam = m.src_tex[0];
         } else {
             scam = m.scam_tex;
-            if (m.resolve_dirty || m.resolved_camera != camera.position) {
-                begin_pass(kResolve);
+            if (must_resolve) {
                 const GLuint p = m.program("resolve", {{GL_COMPUTE_SHADER, "resolve.comp"}});
                 glUseProgram(p);
                 const detail::FoldTable ft = detail::fold_table(m.dir_count);
@@ -725,18 +726,22 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
                 glUniform3fv(glGetUniformLocation(p, "u_fold_fraction"), 27, frac);
                 glUniform3i(glGetUniformLocation(p, "u_dims"), m.lit_geom.dims.x, m.lit_geom.dims.y, m.lit_geom.dims.z);
                 glBindImageTexture(0, m.scam_tex, 0, GL_TRUE, 0, GL_READ_WRITE, GL_R32F);
-                const GLint loc_dirs = glGetUniformLocation(p, "u_dirs"), loc_acc = glGetUniformLocation(p, "u_accumulate");
-                glUniform1i(glGetUniformLocation(p, "u_active_count"), GLint(active.size()));
-                if (!active.empty())
-                    glUniform1iv(glGetUniformLocation(p, "u_active"), GLsizei(active.size()), active.data());
-                // Four directions per dispatch; at least one dispatch so S_cam is written (zeros).
-                for (std::size_t b = 0; b == 0 || b < active.size(); b += 4) {
-                    GLint dirs[4] = {-1, -1, -1, -1};
-                    for (std::size_t k = 0; k < 4 && b + k < active.size(); ++k) {
-                        dirs[k] = active[b + k];
-                        glBindTextureUnit(GLuint(k), m.src_tex[std::size_t(active[b + k])]);
+                const GLint loc_lo = glGetUniformLocation(p, "u_dirs_lo"), loc_hi = glGetUniformLocation(p, "u_dirs_hi");
+                const GLint loc_acc = glGetUniformLocation(p, "u_accumulate");
+                GLfloat active_mask[26] = {};
+                for (int d : active) active_mask[d] = 1.0f;
+                glUniform1fv(glGetUniformLocation(p, "u_active"), 26, active_mask);
+                // Eight directions per dispatch (unused samplers read the zero texture with
+                // weight 0); at least one dispatch so S_cam is written (zeros) even without S.
+                for (std::size_t b = 0; b == 0 || b < active.size(); b += 8) {
+                    GLint dirs[8] = {-1, -1, -1, -1, -1, -1, -1, -1};
+                    for (std::size_t k = 0; k < 8; ++k) {
+                        const bool used = b + k < active.size();
+                        if (used) dirs[k] = active[b + k];
+                        glBindTextureUnit(GLuint(k), used ? m.src_tex[std::size_t(active[b + k])] : m.zero_tex);
                     }
-                    glUniform4iv(loc_dirs, 1, dirs);
+                    glUniform4iv(loc_lo, 1, dirs);
+                    glUniform4iv(loc_hi, 1, dirs + 4);
                     glUniform1i(loc_acc, b == 0 ? 0 : 1);
                     if (b > 0) glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
                     glDispatchCompute(GLuint((m.lit_geom.dims.x + 3) / 4), GLuint((m.lit_geom.dims.y + 3) / 4),

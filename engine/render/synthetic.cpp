@@ -60,45 +60,62 @@ core::Grid3<float> cumulus(const core::Int3& dims, double voxel_size, std::uint6
     core::validate_geometry(g, "synthetic::cumulus");
     const glm::dvec3 ext = g.extent();
     const double H = ext.z, W = std::min(ext.x, ext.y);
+    // Proportions of a cumulonimbus in a 12.8 x 12.8 x 9.6 km box (scaled with the box).
+    const double base = 0.16 * H, anvil_lo = 0.78 * H, anvil_hi = 0.93 * H;
     core::Rng rng(seed, 1);
     std::vector<Blob> blobs;
-    // Base layer: a ragged flat-bottomed deck.
-    for (int i = 0; i < 28; ++i) {
-        const double a = rng.uniform() * 2.0 * std::numbers::pi, r = 0.30 * W * std::sqrt(rng.uniform());
-        const double rad = (0.07 + 0.05 * rng.uniform()) * W;
-        blobs.push_back({{r * std::cos(a), r * std::sin(a), 0.24 * H + 0.06 * H * rng.uniform()},
-                         {rad, rad, rad * 0.55}});
-    }
-    // Tower: convective cells stacked up the middle.
-    for (int i = 0; i < 22; ++i) {
-        const double z = (0.3 + 0.55 * rng.uniform()) * H;
-        const double a = rng.uniform() * 2.0 * std::numbers::pi, r = 0.08 * W * rng.uniform();
-        const double rad = (0.09 + 0.05 * rng.uniform()) * W * (1.0 - 0.3 * z / H);
-        blobs.push_back({{r * std::cos(a), r * std::sin(a), z}, {rad, rad, rad * 0.9}});
-    }
-    // Anvil: wide and flat near the top, offset downwind (+x).
-    for (int i = 0; i < 14; ++i) {
-        const double a = rng.uniform() * 2.0 * std::numbers::pi, r = 0.22 * W * std::sqrt(rng.uniform());
+    auto disc = [&](double radius) {  // uniform point in a disc
+        const double a = rng.uniform() * 2.0 * std::numbers::pi, r = radius * std::sqrt(rng.uniform());
+        return glm::dvec2(r * std::cos(a), r * std::sin(a));
+    };
+    // Lower body: a lumpy deck over a flat base, a little wider than the tower.
+    for (int i = 0; i < 26; ++i) {
+        const glm::dvec2 c = disc(0.22 * W);
         const double rad = (0.10 + 0.06 * rng.uniform()) * W;
-        blobs.push_back({{0.06 * W + r * std::cos(a), r * std::sin(a), 0.83 * H + 0.03 * H * rng.uniform()},
-                         {rad * 1.3, rad, rad * 0.28}});
+        blobs.push_back({{c.x, c.y, base + (0.04 + 0.10 * rng.uniform()) * H}, {rad, rad, rad * 0.7}});
     }
+    // Tower: convective cells stacked around a slightly leaning axis, bulging outwards.
+    for (int i = 0; i < 70; ++i) {
+        const double z = base + (0.12 + (anvil_lo - base) / H * 0.95 * rng.uniform()) * H;
+        const double lean = 0.04 * W * (z - base) / (anvil_lo - base);
+        const glm::dvec2 c = disc(0.11 * W);
+        const double rad = (0.07 + 0.06 * rng.uniform()) * W;
+        blobs.push_back({{c.x + lean, c.y, z}, {rad, rad, rad * 0.95}});
+    }
+    // Anvil: wide, flat and sheared downwind (+x), with an overshooting dome on top.
+    for (int i = 0; i < 40; ++i) {
+        glm::dvec2 c = disc(0.30 * W);
+        c.x += 0.06 * W;
+        const double rad = (0.08 + 0.05 * rng.uniform()) * W;
+        const double z = anvil_lo + (anvil_hi - anvil_lo) * (0.35 + 0.4 * rng.uniform());
+        blobs.push_back({{c.x, c.y, z}, {rad * 1.4, rad * 1.2, (anvil_hi - anvil_lo) * (0.45 + 0.2 * rng.uniform())}});
+    }
+    blobs.push_back({{0.05 * W, 0.0, anvil_hi - 0.02 * H}, {0.1 * W, 0.1 * W, 0.06 * H}});
     core::Grid3<float> out(g, 0.0f);
-    const double base = 0.2 * H;  // flat cloud base
+    const double scale = W / 12800.0;  // noise scales in metres for the reference box
     core::parallel_for(0, dims.z, [&](std::int64_t k) {
         for (int j = 0; j < dims.y; ++j)
             for (int i = 0; i < dims.x; ++i) {
                 const glm::dvec3 p = g.centre(i, j, int(k));
-                double shape = -1.0;
+                // Smooth union of the blobs (soft maximum of 1 - |q|).
+                double acc = 0.0;
                 for (const Blob& b : blobs) {
                     const glm::dvec3 q = (p - b.centre) / b.radius;
-                    shape = std::max(shape, 1.0 - glm::length(q));
+                    const double v = 1.0 - glm::dot(q, q);
+                    if (v > -0.3) acc += std::exp(16.0 * v);
                 }
-                if (shape < -0.4) continue;
-                const double n = fbm(p / 900.0, seed * 31 + 7, 4);
-                double v = shape + 0.55 * (n - 0.5);
-                v *= std::clamp((p.z - base) / 250.0, 0.0, 1.0);  // flat base, soft
-                const double rho = glm::smoothstep(0.0, 0.35, v) * (0.55 + 0.45 * fbm(p / 400.0, seed * 31 + 19, 3));
+                if (acc <= 0.0) continue;
+                const double shape = std::log(acc) / 16.0;
+                if (shape < -0.5) continue;
+                // Billows: large-scale fbm displaces the surface, finer fbm roughens it.
+                const double billow = fbm(p / (900.0 * scale), seed * 31 + 7, 3) - 0.5;
+                const double detail = fbm(p / (260.0 * scale), seed * 31 + 11, 3) - 0.5;
+                double v = shape + 0.55 * billow + 0.3 * detail;
+                v *= std::clamp((p.z - base) / (150.0 * scale), 0.0, 1.0);  // flat, sharp base
+                v *= std::clamp((anvil_hi + 0.03 * H - p.z) / (300.0 * scale), 0.0, 1.0);  // flat anvil top
+                if (v <= 0.0) continue;
+                const double inner = 0.6 + 0.4 * fbm(p / (500.0 * scale), seed * 31 + 19, 2);
+                const double rho = glm::smoothstep(0.0, 0.15, v) * inner;
                 out.at(i, j, int(k)) = float(std::clamp(rho, 0.0, 1.0));
             }
     });
@@ -122,7 +139,7 @@ std::vector<float> point_flash_source(const core::Grid3<float>& density, double 
     const std::size_t cells = lighting.cell_count();
     std::vector<float> S(cells * dirs.size(), 0.0f);
     const double r0 = lighting.voxel_size;        // regularizes 1/r^2 within a lighting voxel
-    const double ell = 1200.0;                     // diffusion length of the stand-in multiple scattering
+    const double ell = 900.0;                      // diffusion length of the stand-in multiple scattering
     const double step = 0.5 * density.geom.voxel_size;
     core::parallel_for(0, std::int64_t(cells), [&](std::int64_t c) {
         const core::Int3 ijk = lighting.unindex(std::size_t(c));
@@ -135,15 +152,42 @@ std::vector<float> point_flash_source(const core::Grid3<float>& density, double 
         for (int s = 0; s < n; ++s) tau += double(density.sample(light + v * ((s + 0.5) / n)));
         tau *= extinction * r / n;
         const double T = std::exp(-tau), T_ms = std::exp(-0.25 * tau);
-        const double here = double(density.sample(x));
         const double ms = albedo * intensity * T_ms * std::exp(-r / ell) / (4.0 * std::numbers::pi * (r * ell + r0 * r0));
         const glm::dvec3 w = r > 0.0 ? v / r : glm::dvec3(0, 0, 1);
         for (std::size_t m = 0; m < dirs.size(); ++m) {
             const double p = direction_count == 1 ? 1.0 / (4.0 * std::numbers::pi) : transport::hg_phase(glm::dot(dirs[m], w), g);
             const double single = albedo * p * intensity * T / (r * r + r0 * r0);
-            S[m * cells + std::size_t(c)] = float((single + 6.0 * ms) * (here > 0.0 ? 1.0 : 0.5));
+            S[m * cells + std::size_t(c)] = float(single + 4.0 * ms);
         }
     });
+    return S;
+}
+
+std::vector<float> bolt_source(const core::Grid3<float>& density, double extinction, const core::GridGeometry& lighting,
+                               int direction_count, const Bolt& bolt, double spacing, double albedo, double g) {
+    // Merge the bolt into point sources about `spacing` apart (power-weighted centroids).
+    std::vector<std::pair<glm::dvec3, double>> points;
+    glm::dvec3 acc(0.0);
+    double power = 0.0, length = 0.0;
+    for (const Segment& seg : bolt.segments) {
+        const double len = glm::length(glm::dvec3(seg.b - seg.a));
+        const double p = double(seg.intensity) * len;
+        if (p <= 0.0) continue;
+        acc += p * 0.5 * (glm::dvec3(seg.a) + glm::dvec3(seg.b));
+        power += p;
+        length += len;
+        if (length >= spacing) {
+            points.emplace_back(acc / power, power);
+            acc = glm::dvec3(0.0);
+            power = length = 0.0;
+        }
+    }
+    if (power > 0.0) points.emplace_back(acc / power, power);
+    std::vector<float> S(lighting.cell_count() * std::size_t(std::max(direction_count, 1)), 0.0f);
+    for (const auto& [pos, intensity] : points) {
+        const std::vector<float> one = point_flash_source(density, extinction, lighting, direction_count, pos, intensity, albedo, g);
+        for (std::size_t i = 0; i < S.size(); ++i) S[i] += one[i];
+    }
     return S;
 }
 
@@ -156,7 +200,7 @@ Bolt bolt(std::uint64_t seed, const glm::dvec3& start, double intensity, double 
         int depth;
         int max_segments;
     };
-    std::vector<Channel> todo{{start, {0.0, 0.0, -1.0}, intensity, 0, 400}};
+    std::vector<Channel> todo{{start, {0.0, 0.0, -1.0}, intensity, 0, 600}};
     const double mean_angle = glm::radians(16.0);
     while (!todo.empty() && out.segments.size() < 4000) {
         Channel ch = todo.back();
@@ -169,9 +213,9 @@ Bolt bolt(std::uint64_t seed, const glm::dvec3& start, double intensity, double 
             const double angle = std::abs(mean_angle + 0.5 * mean_angle * rng.normal());
             const double phi = 2.0 * std::numbers::pi * rng.uniform();
             glm::dvec3 nd = std::cos(angle) * ch.dir + std::sin(angle) * (std::cos(phi) * t + std::sin(phi) * b);
-            if (ch.depth == 0) nd = glm::normalize(nd + glm::dvec3(0, 0, -0.35));
-            else nd = glm::normalize(nd + glm::dvec3(0, 0, -0.1));
-            const double len = 40.0 + 80.0 * rng.uniform();
+            if (ch.depth == 0) nd = glm::normalize(nd + glm::dvec3(0, 0, -0.25));
+            else nd = glm::normalize(nd + glm::dvec3(0, 0, -0.18));
+            const double len = 25.0 + 55.0 * rng.uniform();
             glm::dvec3 q = ch.p + nd * len;
             bool ground = false;
             if (q.z <= 0.0) {
@@ -181,11 +225,11 @@ Bolt bolt(std::uint64_t seed, const glm::dvec3& start, double intensity, double 
             }
             out.segments.push_back({glm::vec3(ch.p), glm::vec3(q), float(ch.intensity),
                                     float(radius * std::sqrt(ch.intensity / intensity))});
-            if (ch.depth < 2 && rng.uniform() < (ch.depth == 0 ? 0.06 : 0.03)) {
+            if (ch.depth < 2 && rng.uniform() < (ch.depth == 0 ? 0.07 : 0.04)) {
                 glm::dvec3 bt, bb;
                 transport::orthonormal_basis(nd, bt, bb);
-                const glm::dvec3 bd = glm::normalize(nd + 1.2 * (rng.uniform() < 0.5 ? bt : -bt));
-                todo.push_back({q, bd, ch.intensity * 0.25, ch.depth + 1, 15 + int(rng.uniform_below(35))});
+                const glm::dvec3 bd = glm::normalize(nd + 0.9 * (rng.uniform() < 0.5 ? bt : -bt));
+                todo.push_back({q, bd, ch.intensity * 0.3, ch.depth + 1, 8 + int(rng.uniform_below(24))});
             }
             ch.p = q;
             ch.dir = nd;

@@ -30,6 +30,12 @@ std::vector<float> point_flash_source(const core::Grid3<float>& density, double 
                                       const glm::dvec3& light, double intensity, double albedo = 0.99,
                                       double g = 0.6);
 
+/// S for a whole bolt: point flashes every `spacing` metres along its segments, each of
+/// intensity (segment intensity x length share), summed (S is linear in the sources).
+std::vector<float> bolt_source(const core::Grid3<float>& density, double extinction, const core::GridGeometry& lighting,
+                               int direction_count, const Bolt& bolt, double spacing = 400.0, double albedo = 0.99,
+                               double g = 0.6);
+
 /// A branching cloud-to-ground bolt (Reed-Wyvill-style random walk, deterministic per seed)
 /// from `start` to the ground plane z = 0; `intensity` is the main channel's W/sr per metre.
 Bolt bolt(std::uint64_t seed, const glm::dvec3& start, double intensity, double radius = 2.0);
