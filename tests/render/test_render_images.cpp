@@ -1,5 +1,7 @@
-// Golden image of the synthetic storm (procedural cloud, flash inside it, branching bolt,
-// glow, sky, ground) at 192x108, through the whole pipeline.
+// Images of the synthetic storm (procedural cumulonimbus, a branching cloud-to-ground bolt
+// whose channel lights the cloud from inside, glow, night sky, lit ground) through the whole
+// pipeline: a golden-image test, and (with FULGUR_WRITE_DOC_IMAGES=1) the documentation
+// image docs/images/render_synthetic.png.
 #include "gl_fixture.h"
 #include "golden.h"
 
@@ -8,36 +10,70 @@
 
 #include <doctest/doctest.h>
 
+#include <cstdlib>
+#include <cstring>
+
 using namespace fulgur;
 
-TEST_CASE("golden: synthetic storm") {
+namespace {
+
+/// Renders the synthetic storm at w x h and returns the 8-bit frame (rows top to bottom).
+std::vector<std::uint8_t> synthetic_storm(const core::Int3& dims, double voxel, int w, int h, int directions,
+                                          bool dither = true) {
     render::Renderer& r = test::gl_renderer();
     const double kappa = 0.004;
-    const auto density = render::synthetic::cumulus({64, 64, 48}, 200.0, 7);
+    const core::Grid3<float> density = render::synthetic::cumulus(dims, voxel, 7);
     r.set_volume({.density = &density, .extinction = kappa});
-    const auto lg = render::synthetic::lighting_geometry(density.geom, 4);
-    const glm::dvec3 flash(300.0, -200.0, 3200.0);
-    const auto S = render::synthetic::point_flash_source(density, kappa, lg, 26, flash, 1e6);
-    const render::Camera cam = render::Camera::orbit({0.0, 0.0, 3800.0}, 21000.0, -70.0, 6.0, 50.0);
-    render::SourceUpload up{lg, 26, {}, {}};
-    for (const auto& u : r.needed_directions(cam, lg, 26)) {
+    const core::GridGeometry lg = render::synthetic::lighting_geometry(density.geom, 4);
+    const render::Bolt bolt = render::synthetic::bolt(3, {300.0, -200.0, 6800.0}, 1e6 / 3000.0);
+    const std::vector<float> S = render::synthetic::bolt_source(density, kappa, lg, directions, bolt, 800.0);
+    const render::Camera cam = render::Camera::orbit({0.0, 0.0, 4300.0}, 13500.0, -60.0, -6.0, 55.0);
+    render::SourceUpload up{lg, directions, {}, {}};
+    for (const auto& u : r.needed_directions(cam, lg, directions)) {
         up.directions.push_back(u.index);
         up.values.emplace_back(S.data() + std::size_t(u.index) * lg.cell_count(), lg.cell_count());
     }
     r.upload_source(up);
-    r.set_bolt(render::synthetic::bolt(3, flash, 1e6 / 3000.0));
+    r.set_bolt(bolt);
     render::Settings st;
-    st.exposure = 2500.0;
+    st.exposure = 110.0;
+    st.dither = dither;
+    st.sky_radiance = 3e-5;  // a long-exposure night sky: visible behind the cloud
+    st.star_radiance = 2e-3;
+    test::render_at(r, cam, st, w, h);
+    std::vector<std::uint8_t> rgba = test::gl_context().read_rgba8();
+    r.set_bolt({});
+    r.clear_source();
+    return rgba;
+}
+
+}  // namespace
+
+TEST_CASE("golden: synthetic storm") {
     const int W = 192, H = 108;
-    test::render_at(r, cam, st, W, H);
-    const auto rgba = test::gl_context().read_rgba8();
+    const auto rgba = synthetic_storm({64, 64, 48}, 200.0, W, H, 26);
     // llvmpipe's results differ slightly between CPUs (vector width, FMA): allow 0.5% of the
-    // pixels to move by more than 6 levels (e.g. a star or the bolt's edge moving by a
-    // fraction of a pixel) and a mean difference of 0.5 levels.
+    // pixels to move by more than 6 levels (a star or the bolt's edge moving by a fraction of
+    // a pixel) and a mean difference of 0.5 levels; a changed scene, camera, tone map or
+    // lighting moves far more.
     const test::GoldenTolerance tol{.pixel_threshold = 6, .max_failing_fraction = 0.005, .max_mean_diff = 0.5};
     const auto res = test::compare_golden(test::source_dir() / "tests/render/golden/synthetic_storm.png", W, H, rgba, tol,
                                           std::filesystem::path(FULGUR_TEST_OUTPUT_DIR) / "golden");
     MESSAGE(res.message);
     CHECK(res.passed);
-    r.set_bolt({});
+}
+
+TEST_CASE("documentation image (only with FULGUR_WRITE_DOC_IMAGES=1)") {
+    const char* e = std::getenv("FULGUR_WRITE_DOC_IMAGES");
+    if (!e || std::strcmp(e, "1") != 0) return;
+    const int W = 960, H = 540;
+    // No dither: the documentation image must stay small as a PNG (dither noise does not compress).
+    const auto rgba = synthetic_storm({128, 128, 96}, 100.0, W, H, 26, false);
+    std::vector<std::uint8_t> rgb(std::size_t(W) * H * 3);
+    for (std::size_t p = 0; p < std::size_t(W) * H; ++p)
+        for (int c = 0; c < 3; ++c) rgb[p * 3 + std::size_t(c)] = rgba[p * 4 + std::size_t(c)];
+    const auto path = test::source_dir() / "docs/images/render_synthetic.png";
+    std::filesystem::create_directories(path.parent_path());
+    core::write_png(path, W, H, 3, rgb);
+    MESSAGE("wrote " << path.string());
 }
