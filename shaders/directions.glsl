@@ -8,24 +8,28 @@
 // boundaries (smoothstep has zero slope at 0 and 1). Smaller baked sets fold missing lattice
 // directions onto present ones (u_fold_* tables built by detail::fold_table()).
 
-// Lattice code of a vector with components in {-1, 0, 1}.
-int lattice_code(ivec3 l) { return (l.x + 1) + 3 * (l.y + 1) + 9 * (l.z + 1); }
-
-// The four lattice nodes of the cell containing unit d, and their weights.
+// The four lattice nodes of the cube-face cell containing unit d (as lattice codes
+// (x+1) + 3(y+1) + 9(z+1)) and their weights. Written without dynamic vector indexing, which
+// software rasterizers execute slowly: the components are permuted so that p.x is the major
+// axis a, p.y axis (a+1) mod 3 and p.z axis (a+2) mod 3.
 void cube_cell_weights(vec3 d, out ivec4 code, out vec4 w) {
     vec3 ad = abs(d);
-    int a = (ad.x >= ad.y && ad.x >= ad.z) ? 0 : (ad.y >= ad.z ? 1 : 2);
-    int b = (a + 1) % 3, c = (a + 2) % 3;
-    float u = d[b] / ad[a], v = d[c] / ad[a];
-    int sa = d[a] >= 0.0 ? 1 : -1, su = u >= 0.0 ? 1 : -1, sv = v >= 0.0 ? 1 : -1;
+    vec3 p;
+    ivec3 mul;  // code multiplier of each permuted component
+    if (ad.x >= ad.y && ad.x >= ad.z) {
+        p = d.xyz;
+        mul = ivec3(1, 3, 9);
+    } else if (ad.y >= ad.z) {
+        p = d.yzx;
+        mul = ivec3(3, 9, 1);
+    } else {
+        p = d.zxy;
+        mul = ivec3(9, 1, 3);
+    }
+    float u = p.y / abs(p.x), v = p.z / abs(p.x);
+    int sa = p.x >= 0.0 ? 1 : -1, su = u >= 0.0 ? 1 : -1, sv = v >= 0.0 ? 1 : -1;
     float fu = smoothstep(0.0, 1.0, min(abs(u), 1.0)), fv = smoothstep(0.0, 1.0, min(abs(v), 1.0));
-    ivec3 l00 = ivec3(0);
-    l00[a] = sa;
-    ivec3 l10 = l00, l01 = l00, l11 = l00;
-    l10[b] = su;
-    l01[c] = sv;
-    l11[b] = su;
-    l11[c] = sv;
-    code = ivec4(lattice_code(l00), lattice_code(l10), lattice_code(l01), lattice_code(l11));
+    int c00 = 13 + sa * mul.x;
+    code = ivec4(c00, c00 + su * mul.y, c00 + sv * mul.z, c00 + su * mul.y + sv * mul.z);
     w = vec4((1.0 - fu) * (1.0 - fv), fu * (1.0 - fv), (1.0 - fu) * fv, fu * fv);
 }

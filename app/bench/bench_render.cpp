@@ -1,7 +1,8 @@
 // `fulgur-bench render`: the OpenGL renderer through OSMesa (Mesa llvmpipe) at 640x360.
 //
-// Scene: a procedural cumulonimbus of 128x128x96 density voxels (100 m), S for a flash inside
-// it on the 32x32x24 lighting grid (26 directions; the view needs a few), a branching bolt.
+// Scene: synthetic::storm() — a procedural cumulonimbus of 128x128x96 density voxels (100 m),
+// a branching cloud-to-ground bolt whose channel lights it (S on the 32x32x24 lighting grid,
+// 26 directions; the view needs a few), the camera of docs/images/render_synthetic.png.
 // Rows (JSON lines):
 //   case "march":  the ray-march pass (wall and process-CPU medians) for the fragment and the
 //                  compute kernel, against the baseline measured in the same run: a plain
@@ -79,32 +80,21 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
     auto context = platform::create_headless({.width = W, .height = H});
     const core::Int3 dims = ctx.quick ? core::Int3{64, 64, 48} : core::Int3{128, 128, 96};
     const double voxel = ctx.quick ? 200.0 : 100.0;
-    const double kappa = 0.004;
-    const core::Grid3<float> density = render::synthetic::cumulus(dims, voxel, 7);
-    const core::GridGeometry lg = render::synthetic::lighting_geometry(density.geom, 4);
-    const glm::dvec3 flash(300.0, -200.0, 3200.0);
-    const int ndir = 26;
-    const std::vector<float> S = render::synthetic::point_flash_source(density, kappa, lg, ndir, flash, 1e6);
-    const render::Bolt bolt = render::synthetic::bolt(3, flash, 1e6 / 3000.0);
+    const render::synthetic::Storm storm = render::synthetic::storm(dims, voxel);
+    const core::Grid3<float>& density = storm.density;
+    const double kappa = storm.extinction;
+    const render::Camera& cam = storm.camera;
 
     render::Renderer r(context->get_proc_address());
     r.set_volume({.density = &density, .extinction = kappa});
-    r.set_bolt(bolt);
-    const render::Camera cam = render::Camera::orbit({0.0, 0.0, 4000.0}, 20000.0, -70.0, 8.0, 50.0);
+    r.set_bolt(storm.bolt);
     // Upload only the directions this view needs, as the run time does.
-    render::SourceUpload up;
-    up.geometry = lg;
-    up.direction_count = ndir;
-    for (const render::DirectionUse& u : r.needed_directions(cam, lg, ndir)) {
-        up.directions.push_back(u.index);
-        up.values.emplace_back(S.data() + std::size_t(u.index) * lg.cell_count(), lg.cell_count());
-    }
+    const render::SourceUpload up = render::synthetic::needed_upload(r, storm);
     core::Stopwatch upload_clock;
     r.upload_source(up);
     const double upload_ms = upload_clock.milliseconds();
 
-    render::Settings base;  // defaults: internal scale 0.5, step 1 voxel, skipping, early exit
-    base.exposure = 2000.0;
+    const render::Settings base = storm.settings;  // defaults: internal scale 0.5, step 1 voxel, skipping, early exit
     const int iw = int(std::lround(W * base.internal_scale)), ih = int(std::lround(H * base.internal_scale));
     const double samples = render::plain_march_samples(cam, density.geom, iw, ih, base.step_voxels * voxel);
     auto march = [](const render::PassTimes& t) { return t.march; };

@@ -726,26 +726,28 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
                 glUniform3fv(glGetUniformLocation(p, "u_fold_fraction"), 27, frac);
                 glUniform3i(glGetUniformLocation(p, "u_dims"), m.lit_geom.dims.x, m.lit_geom.dims.y, m.lit_geom.dims.z);
                 glBindImageTexture(0, m.scam_tex, 0, GL_TRUE, 0, GL_READ_WRITE, GL_R32F);
-                const GLint loc_lo = glGetUniformLocation(p, "u_dirs_lo"), loc_hi = glGetUniformLocation(p, "u_dirs_hi");
-                const GLint loc_acc = glGetUniformLocation(p, "u_accumulate");
+                const GLint loc_dirs = glGetUniformLocation(p, "u_dirs"), loc_acc = glGetUniformLocation(p, "u_accumulate");
+                const GLint loc_n = glGetUniformLocation(p, "u_samplers");
                 GLfloat active_mask[26] = {};
                 for (int d : active) active_mask[d] = 1.0f;
                 glUniform1fv(glGetUniformLocation(p, "u_active"), 26, active_mask);
-                // Eight directions per dispatch (unused samplers read the zero texture with
+                // Up to 16 directions per dispatch (unused samplers read the zero texture with
                 // weight 0); at least one dispatch so S_cam is written (zeros) even without S.
-                for (std::size_t b = 0; b == 0 || b < active.size(); b += 8) {
-                    GLint dirs[8] = {-1, -1, -1, -1, -1, -1, -1, -1};
-                    for (std::size_t k = 0; k < 8; ++k) {
+                constexpr std::size_t kBatch = 16;
+                for (std::size_t b = 0; b == 0 || b < active.size(); b += kBatch) {
+                    GLint dirs[kBatch];
+                    std::fill(std::begin(dirs), std::end(dirs), -1);
+                    for (std::size_t k = 0; k < kBatch; ++k) {
                         const bool used = b + k < active.size();
                         if (used) dirs[k] = active[b + k];
                         glBindTextureUnit(GLuint(k), used ? m.src_tex[std::size_t(active[b + k])] : m.zero_tex);
                     }
-                    glUniform4iv(loc_lo, 1, dirs);
-                    glUniform4iv(loc_hi, 1, dirs + 4);
+                    glUniform4iv(loc_dirs, 4, dirs);
+                    glUniform1i(loc_n, GLint(std::min(kBatch, std::max<std::size_t>(1, active.size() - b))));
                     glUniform1i(loc_acc, b == 0 ? 0 : 1);
                     if (b > 0) glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
-                    glDispatchCompute(GLuint((m.lit_geom.dims.x + 3) / 4), GLuint((m.lit_geom.dims.y + 3) / 4),
-                                      GLuint((m.lit_geom.dims.z + 3) / 4));
+                    glDispatchCompute(GLuint((m.lit_geom.dims.x + 7) / 8), GLuint((m.lit_geom.dims.y + 7) / 8),
+                                      GLuint(m.lit_geom.dims.z));
                 }
                 glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
                 end_pass(kResolve);

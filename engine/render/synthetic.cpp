@@ -239,4 +239,31 @@ Bolt bolt(std::uint64_t seed, const glm::dvec3& start, double intensity, double 
     return out;
 }
 
+Storm storm(const core::Int3& dims, double voxel_size) {
+    Storm st;
+    st.density = cumulus(dims, voxel_size, 7);
+    st.lighting = lighting_geometry(st.density.geom, 4);
+    const glm::dvec3 start(300.0, -200.0, 6800.0);
+    st.bolt = bolt(3, start, 1e6 / 3000.0);
+    st.source = bolt_source(st.density, st.extinction, st.lighting, st.directions, st.bolt, 800.0);
+    st.camera = Camera::orbit({0.0, 0.0, 4300.0}, 13500.0, -60.0, -6.0, 55.0);
+    st.settings.exposure = 110.0;
+    st.settings.sky_radiance = 3e-5;  // a long-exposure night sky, visible behind the cloud
+    st.settings.star_radiance = 2e-3;
+    return st;
+}
+
+SourceUpload needed_upload(const Renderer& renderer, const Storm& storm) {
+    SourceUpload up;
+    up.geometry = storm.lighting;
+    up.direction_count = storm.directions;
+    const std::size_t cells = storm.lighting.cell_count();
+    for (const DirectionUse& u : renderer.needed_directions(storm.camera, storm.lighting, storm.directions,
+                                                             storm.settings.direction_min_weight)) {
+        up.directions.push_back(u.index);
+        up.values.emplace_back(storm.source.data() + std::size_t(u.index) * cells, cells);
+    }
+    return up;
+}
+
 }  // namespace fulgur::render::synthetic

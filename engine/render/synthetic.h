@@ -40,4 +40,25 @@ std::vector<float> bolt_source(const core::Grid3<float>& density, double extinct
 /// from `start` to the ground plane z = 0; `intensity` is the main channel's W/sr per metre.
 Bolt bolt(std::uint64_t seed, const glm::dvec3& start, double intensity, double radius = 2.0);
 
+/// The synthetic storm used by the renderer's golden test, benchmark and documentation
+/// image: a cumulonimbus (seed 7), a cloud-to-ground bolt from 6.8 km (seed 3) whose channel
+/// lights the cloud (bolt_source, 26 directions, lighting grid = density / 4), a camera
+/// 13.5 km away looking slightly up, and settings for a long-exposure night look.
+struct Storm {
+    core::Grid3<float> density;
+    double extinction = 0.004;
+    core::GridGeometry lighting;
+    int directions = 26;
+    std::vector<float> source;  ///< transport::SourceField layout
+    Bolt bolt;
+    Camera camera;
+    Settings settings;
+};
+
+/// dims/voxel: {128,128,96} x 100 m (full) or e.g. {64,64,48} x 200 m (fast).
+Storm storm(const core::Int3& dims = {128, 128, 96}, double voxel_size = 100.0);
+
+/// An upload of the directions of `storm.source` that `renderer` says the camera needs.
+SourceUpload needed_upload(const Renderer& renderer, const Storm& storm);
+
 }  // namespace fulgur::render::synthetic

@@ -18,29 +18,15 @@ using namespace fulgur;
 namespace {
 
 /// Renders the synthetic storm at w x h and returns the 8-bit frame (rows top to bottom).
-std::vector<std::uint8_t> synthetic_storm(const core::Int3& dims, double voxel, int w, int h, int directions,
-                                          bool dither = true) {
+std::vector<std::uint8_t> synthetic_storm(const core::Int3& dims, double voxel, int w, int h, bool dither = true) {
     render::Renderer& r = test::gl_renderer();
-    const double kappa = 0.004;
-    const core::Grid3<float> density = render::synthetic::cumulus(dims, voxel, 7);
-    r.set_volume({.density = &density, .extinction = kappa});
-    const core::GridGeometry lg = render::synthetic::lighting_geometry(density.geom, 4);
-    const render::Bolt bolt = render::synthetic::bolt(3, {300.0, -200.0, 6800.0}, 1e6 / 3000.0);
-    const std::vector<float> S = render::synthetic::bolt_source(density, kappa, lg, directions, bolt, 800.0);
-    const render::Camera cam = render::Camera::orbit({0.0, 0.0, 4300.0}, 13500.0, -60.0, -6.0, 55.0);
-    render::SourceUpload up{lg, directions, {}, {}};
-    for (const auto& u : r.needed_directions(cam, lg, directions)) {
-        up.directions.push_back(u.index);
-        up.values.emplace_back(S.data() + std::size_t(u.index) * lg.cell_count(), lg.cell_count());
-    }
-    r.upload_source(up);
-    r.set_bolt(bolt);
-    render::Settings st;
-    st.exposure = 110.0;
+    const render::synthetic::Storm storm = render::synthetic::storm(dims, voxel);
+    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
+    r.upload_source(render::synthetic::needed_upload(r, storm));
+    r.set_bolt(storm.bolt);
+    render::Settings st = storm.settings;
     st.dither = dither;
-    st.sky_radiance = 3e-5;  // a long-exposure night sky: visible behind the cloud
-    st.star_radiance = 2e-3;
-    test::render_at(r, cam, st, w, h);
+    test::render_at(r, storm.camera, st, w, h);
     std::vector<std::uint8_t> rgba = test::gl_context().read_rgba8();
     r.set_bolt({});
     r.clear_source();
@@ -51,7 +37,7 @@ std::vector<std::uint8_t> synthetic_storm(const core::Int3& dims, double voxel, 
 
 TEST_CASE("golden: synthetic storm") {
     const int W = 192, H = 108;
-    const auto rgba = synthetic_storm({64, 64, 48}, 200.0, W, H, 26);
+    const auto rgba = synthetic_storm({64, 64, 48}, 200.0, W, H);
     // llvmpipe's results differ slightly between CPUs (vector width, FMA): allow 0.5% of the
     // pixels to move by more than 6 levels (a star or the bolt's edge moving by a fraction of
     // a pixel) and a mean difference of 0.5 levels; a changed scene, camera, tone map or
@@ -68,7 +54,7 @@ TEST_CASE("documentation image (only with FULGUR_WRITE_DOC_IMAGES=1)") {
     if (!e || std::strcmp(e, "1") != 0) return;
     const int W = 960, H = 540;
     // No dither: the documentation image must stay small as a PNG (dither noise does not compress).
-    const auto rgba = synthetic_storm({128, 128, 96}, 100.0, W, H, 26, false);
+    const auto rgba = synthetic_storm({128, 128, 96}, 100.0, W, H, false);
     std::vector<std::uint8_t> rgb(std::size_t(W) * H * 3);
     for (std::size_t p = 0; p < std::size_t(W) * H; ++p)
         for (int c = 0; c < 3; ++c) rgb[p * 3 + std::size_t(c)] = rgba[p * 4 + std::size_t(c)];
