@@ -192,7 +192,8 @@ struct Renderer::Impl {
     double glow_built_radius = -1.0;
     double profile_radius = -1.0, profile_sigma = -1.0;
     std::vector<glm::vec4> ground_lights;
-    int ground_lights_k = -1;
+    int ground_lights_k = -1;        // -1: to rebuild
+    double ground_lights_height = 0.0;
 
     GLuint last_scam = 0;  // S_cam texture the last frame sampled (0: none)
 
@@ -336,6 +337,7 @@ struct Renderer::Impl {
     void rebuild_ground_lights(int k, double ground) {
         ground_lights.clear();
         ground_lights_k = k;
+        ground_lights_height = ground;
         double total = 0.0;
         for (const Segment& s : bolt.segments) total += double(s.intensity) * glm::length(glm::dvec3(s.b - s.a));
         if (total <= 0.0 || k <= 0) return;
@@ -647,10 +649,11 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
                                float(std::fmod(double(st.frame_index) * 0.6180339887498949, 1.0)));
     f.sizes = glm::vec4(float(width), float(height), float(iw), float(ih));
     if (st.ground) {
-        if (m.ground_lights_k != st.ground_lights) m.rebuild_ground_lights(st.ground_lights, st.ground_height);
+        if (m.ground_lights_k != st.ground_lights || m.ground_lights_height != st.ground_height)
+            m.rebuild_ground_lights(st.ground_lights, st.ground_height);
         for (std::size_t i = 0; i < m.ground_lights.size() && i < kMaxGroundLights; ++i) f.ground_light[i] = m.ground_lights[i];
         f.ground_params = glm::vec4(float(st.ground_height), float(st.ground_albedo / std::numbers::pi), 1.0f,
-                                    float(st.bolt || st.glow ? m.ground_lights.size() : 0));
+                                    float(m.ground_lights.size()));
     } else {
         f.ground_params = glm::vec4(float(st.ground_height), 0.0f, 0.0f, 0.0f);
     }
