@@ -429,6 +429,49 @@ TEST_CASE("bolt core and glow are attenuated by the cloud in front of them, not 
     r.set_bolt({});
 }
 
+TEST_CASE("hard cases give finite images") {
+    render::Renderer& r = gl_renderer();
+    auto finite = [&] {
+        for (float v : r.read_hdr())
+            if (!std::isfinite(v) || v < 0.0f) return false;
+        return true;
+    };
+    render::Settings st;
+    st.exposure = 1e3;
+    // A single-voxel cloud, a 1x1x1 lighting grid, the camera inside the voxel.
+    const auto one = test::make_grid({1, 1, 1}, 500.0, {-250, -250, 1000}, [](int, int, int) { return 1.0f; });
+    r.set_volume({.density = &one, .extinction = 0.05});
+    upload_all(r, one.geom, 26, [](int m, std::size_t) { return float(m); });
+    render::Bolt b;
+    b.segments.push_back({{0, 0, 1200}, {0, 0, 1200}, 5.0f, 1.0f});        // zero length
+    b.segments.push_back({{0, 0, 1200}, {10, 0, 900}, 0.0f, 1.0f});        // zero intensity
+    b.segments.push_back({{0, 0, 1100}, {0, 0, 0}, 100.0f, 1e-3f});        // very thin, to the ground
+    b.segments.push_back({{0, 0, -50}, {0, 0, -20}, 100.0f, 1.0f});        // under the ground
+    r.set_bolt(b);
+    render::Camera inside;
+    inside.position = {0, 0, 1250};
+    inside.target = {100, 0, 1250};
+    render_at(r, inside, st, 48, 32);
+    CHECK(finite());
+    // The camera exactly on the lighting node and looking straight down the bolt.
+    render::Camera on_node;
+    on_node.position = {0, 0, 1250};
+    on_node.target = {0, 0, 0};
+    on_node.up = {0, 1, 0};
+    render_at(r, on_node, st, 48, 32);
+    CHECK(finite());
+    // Far away, the cloud smaller than a pixel; a huge extinction (opaque voxel).
+    r.set_volume({.density = &one, .extinction = 1e3});
+    render_at(r, render::Camera::orbit({0, 0, 1250}, 4e5, 10, 1, 30), st, 48, 32);
+    CHECK(finite());
+    // No volume, no source, no bolt at all.
+    r.clear_volume();
+    r.clear_source();
+    r.set_bolt({});
+    render_at(r, inside, st, 48, 32);
+    CHECK(finite());
+}
+
 TEST_CASE("a shader compile error names the file and the line") {
     test::gl_context();
     const auto dir = test::scratch_dir("broken_shaders");
