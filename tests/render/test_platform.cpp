@@ -7,7 +7,9 @@
 
 #include <doctest/doctest.h>
 
+#include <chrono>
 #include <cstdlib>
+#include <thread>
 
 using namespace fulgur;
 
@@ -64,7 +66,12 @@ TEST_CASE("window context (GLFW) renders what the headless context renders") {
         MESSAGE("no DISPLAY: only the error path was tested");
         return;
     }
-    REQUIRE(platform::display_available());
+    // A freshly started Xvfb can refuse the first connections for a moment (seen when two
+    // servers start at once): wait up to 5 s for it.
+    bool ready = false;
+    for (int i = 0; i < 50 && !(ready = platform::display_available()); ++i)
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    REQUIRE(ready);
     auto win = platform::create_window({.width = 64, .height = 48, .title = "fulgur test", .visible = false});
     CHECK(!win->headless());
     CHECK(win->native_window() != nullptr);
