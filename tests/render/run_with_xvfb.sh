@@ -1,11 +1,13 @@
 #!/bin/sh
 # Runs a command with DISPLAY set to a private Xvfb server. The server picks a free display
 # number itself and reports it once it accepts connections (-displayfd), so parallel test
-# runs (and other users' servers) cannot race for a display. Exit status: the command's.
+# runs (and other users' servers) cannot race for a display; -noreset keeps it from
+# resetting (and refusing connections meanwhile) each time its last client disconnects.
+# Exit status: the command's.
 set -u
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-Xvfb -displayfd 3 -screen 0 320x240x24 -nolisten tcp 3>"$tmp/display" 2>"$tmp/xvfb.log" &
+Xvfb -displayfd 3 -screen 0 320x240x24 -nolisten tcp -noreset 3>"$tmp/display" 2>"$tmp/xvfb.log" &
 server=$!
 i=0
 while [ ! -s "$tmp/display" ]; do
