@@ -60,11 +60,13 @@ struct VolumeDesc {
     DensityPrecision precision = DensityPrecision::U8;
 };
 
-/// One upload of the source function S. The listed directions replace the renderer's
-/// copies of those directions; the current S is exactly the set listed in the latest
-/// upload (other directions count as absent: if the view needs one, it contributes zero and
-/// FrameStats::missing_weight reports it). Only the listed directions are transferred, so a
-/// run time that reconstructs only needed_directions() uploads only those.
+/// One upload of the source function S. Only the listed directions are transferred. By
+/// default the listed directions *replace* S: the current S is exactly the set listed in the
+/// latest upload, and other directions count as absent (if the view needs one, it contributes
+/// zero and FrameStats::missing_weight reports it). With `keep_others`, directions not listed
+/// keep their previous data, so a caller can upload only what changed (e.g. a direction a
+/// moved camera now needs while S itself is unchanged); a different geometry or direction
+/// count still starts from an empty set.
 struct SourceUpload {
     core::GridGeometry geometry;  ///< lighting grid (world placement of the S samples)
     int direction_count = 1;      ///< size of the baked set: 1, 6, 18 or 26
@@ -72,6 +74,7 @@ struct SourceUpload {
     /// One array per listed direction: geometry.cell_count() floats, x fastest
     /// (transport::SourceField layout), radiance units. Must stay valid during the call only.
     std::vector<std::span<const float>> values;
+    bool keep_others = false;
 };
 
 /// A straight piece of lightning channel at this instant.

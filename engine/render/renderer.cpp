@@ -531,7 +531,9 @@ void Renderer::upload_source(const SourceUpload& s) {
         for (std::size_t c = 0; c < cells; ++c)
             if (!std::isfinite(s.values[k][c])) throw core::Error(where, "value of cell " + std::to_string(c) + " is not finite");
     }
+    bool fresh = false;
     if (!(m.lit_geom == s.geometry) || m.dir_count != s.direction_count || m.src_tex.empty()) {
+        fresh = true;
         for (GLuint& t : m.src_tex) delete_texture(t);
         delete_texture(m.scam_tex);
         m.src_tex.assign(std::size_t(s.direction_count), 0);
@@ -544,8 +546,12 @@ void Renderer::upload_source(const SourceUpload& s) {
     for (std::size_t k = 0; k < s.directions.size(); ++k)
         glTextureSubImage3D(m.src_tex[std::size_t(s.directions[k])], 0, 0, 0, 0, s.geometry.dims.x, s.geometry.dims.y,
                             s.geometry.dims.z, GL_RED, GL_FLOAT, s.values[k].data());
-    m.present = listed;
-    m.has_source = !s.directions.empty();
+    if (s.keep_others && !fresh && m.present.size() == listed.size()) {
+        for (std::size_t d = 0; d < listed.size(); ++d) m.present[d] = m.present[d] || listed[d];
+    } else {
+        m.present = listed;
+    }
+    m.has_source = std::find(m.present.begin(), m.present.end(), true) != m.present.end();
     m.resolve_dirty = true;
     m.pending_upload_ms += sw.milliseconds();
     m.pending_upload_cpu_ms += process_cpu_ms() - cpu0;

@@ -305,9 +305,20 @@ TEST_CASE("uploading only the needed directions gives the same image; a missing 
     }
     // Same terms, summed in another grouping (batches of four directions): float rounding.
     CHECK(diff <= 1e-5 * peak);
+    const int dropped = needed.back();
     needed.pop_back();
     upload(needed);
     CHECK(render_at(r, cam, st, 128, 72).missing_weight > 0.0);
+    // Uploading just the missing direction with keep_others completes S again.
+    render::SourceUpload one{lg, 26, {dropped}, {}, true};
+    one.values.emplace_back(S.data() + std::size_t(dropped) * lg.cell_count(), lg.cell_count());
+    r.upload_source(one);
+    CHECK(render_at(r, cam, st, 128, 72).missing_weight == 0.0);
+    double diff2 = 0.0;
+    const Image again = read_march(r);
+    for (std::size_t i = 0; i < full.rgba.size(); ++i)
+        diff2 = std::max(diff2, std::abs(double(full.rgba[i]) - double(again.rgba[i])));
+    CHECK(diff2 <= 1e-5 * peak);
 }
 
 TEST_CASE("empty-space skipping is exact; early exit errs by at most T_min * S_max") {
