@@ -110,6 +110,15 @@ VirtualLightGrid build_virtual_light_grid(const core::Grid3<float>& density, con
 /// sum(x)/sqrt(n) and every other basis function has zero mean: a constant field is one
 /// coefficient on any length. On powers of two it is the textbook orthonormal Haar.
 ///
+/// Arithmetic (how float32 stays accurate): a literal implementation multiplies by
+/// float(1/sqrt 2) at every level, and that constant is 1.7e-8 too small, a bias that grows
+/// with the number of levels (3.4e-7 after the 18 levels of a 33^3 inverse). Instead the
+/// inverse is computed as U P: P scales each coefficient once by k^e (k = 1/sqrt 2, e the
+/// number of levels the coefficient passes through; exact when e is even), then U runs the
+/// levels with plain sums and differences; only the last pair of a level of even length has
+/// a general 2x2 step (absorbing the unbalanced weights and the pass-through scales). Since
+/// U P is orthogonal, the forward transform is P U^T with the same constants.
+///
 /// A transform object owns its plan and scratch memory: forward()/inverse() do not
 /// allocate. One object per thread (calls mutate the scratch).
 template <class T>
@@ -125,17 +134,27 @@ public:
     /// Coefficients -> samples, in place. data.size() must equal size().
     void inverse(std::span<T> data);
 
-    /// One step of a 1D level: m current approximations, the last pair rotated by (c, s).
+    /// One level of the 1D plan (see the scheme above).
     struct Level {
-        int m = 0;           ///< length transformed at this level
-        int pairs = 0;       ///< floor(m/2)
-        int half = 0;        ///< ceil(m/2): approximations that go on to the next level
-        T c_last = T(0), s_last = T(0);  ///< rotation of the last pair (others: 1/sqrt(2))
+        int m = 0;      ///< length transformed at this level
+        int pairs = 0;  ///< floor(m/2)
+        int half = 0;   ///< ceil(m/2): approximations that go on to the next level
+        /// When m is even, the last pair's step: x0 = u00 a + u01 d, x1 = u10 a + u11 d.
+        T u00 = T(1), u01 = T(1), u10 = T(1), u11 = T(-1);
+    };
+    struct Axis {
+        std::vector<Level> levels;    ///< finest first
+        std::vector<int> exponent;    ///< per coefficient position: e in k^e of P
+        /// Runs of equal exponent along the axis: [begin, end) and e.
+        std::vector<int> run_begin, run_end, run_exponent;
     };
 
 private:
+    void scale(T* d) const noexcept;
+
     core::Int3 dims_;
-    std::vector<Level> levels_[3];  ///< per axis, finest first
+    Axis axes_[3];
+    std::vector<T> powk_;  ///< k^e, e = 0 .. sum of the axes' depths
     std::vector<T> scratch_;
 };
 
