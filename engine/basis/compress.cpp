@@ -48,6 +48,14 @@ std::string_view to_string(ThresholdMode m) noexcept {
     return "unknown";
 }
 
+std::string_view to_string(Decomposition d) noexcept {
+    switch (d) {
+        case Decomposition::Standard: return "standard";
+        case Decomposition::NonStandard: return "nonstandard";
+    }
+    return "unknown";
+}
+
 std::string_view to_string(Precision p) noexcept {
     switch (p) {
         case Precision::Float32: return "float32";
@@ -62,6 +70,8 @@ void validate(const CompressionParams& p, std::string_view where) {
         throw core::Error(std::string(where) + ".threshold", "unknown threshold mode");
     if (p.precision != Precision::Float32 && p.precision != Precision::Float16)
         throw core::Error(std::string(where) + ".precision", "unknown precision");
+    if (p.decomposition != Decomposition::Standard && p.decomposition != Decomposition::NonStandard)
+        throw core::Error(std::string(where) + ".decomposition", "unknown Haar decomposition");
     if (!std::isfinite(p.xi) || p.xi < 0.0)
         throw core::Error(w, "must be finite and >= 0, got " + num(p.xi));
     if (p.mode == ThresholdMode::Energy && p.xi > 1.0)
@@ -159,6 +169,7 @@ CompressedBasis compress_coefficients(std::span<const double> c, const Compressi
 CompressedLight compress_light(std::uint32_t light, const transport::SourceField& field, const CompressionParams& p,
                                HaarTransform<double>& plan) {
     FULGUR_ASSERT(plan.dims() == field.geom.dims, "compress_light: the Haar plan does not match the field's grid");
+    FULGUR_ASSERT(plan.decomposition() == p.decomposition, "compress_light: the Haar plan has another decomposition");
     FULGUR_ASSERT(field.data.size() == field.cells() * field.directions.size(), "compress_light: field size mismatch");
     CompressedLight out;
     out.light = light;

@@ -44,7 +44,7 @@ core::Grid3<float> reconstruct(const BakedBasis& baked, std::span<const Weighted
         FULGUR_ASSERT(direction < cl.directions.size(), "reconstruct: light without that direction");
         accumulate(cl.directions[direction], wl.weight, coeffs);
     }
-    HaarTransform<double> plan(m.lighting.dims);
+    HaarTransform<double> plan(m.lighting.dims, m.compression.decomposition);
     plan.inverse(coeffs);
     core::Grid3<float> out(m.lighting);
     for (std::size_t i = 0; i < coeffs.size(); ++i) out.data[i] = float(coeffs[i]);
@@ -81,7 +81,8 @@ void export_compressed_nrrd(const std::filesystem::path& path, const BakedBasis&
     std::ostringstream c;
     c << "Fulgur source function S, reconstructed from the compressed bake (threshold "
       << to_string(baked.meta.compression.mode) << " xi=" << baked.meta.compression.xi << ", "
-      << to_string(baked.meta.compression.precision) << ", no ambient term), "
+      << to_string(baked.meta.compression.precision) << ", " << to_string(baked.meta.compression.decomposition)
+      << " Haar, no ambient term), "
       << describe(lights, direction, baked.meta.directions);
     core::write_nrrd(path, g, c.str());
 }

@@ -192,6 +192,7 @@ std::vector<std::uint8_t> encode_metadata(const FgbMetadata& m) {
     w.put(std::uint32_t(m.compression.mode));
     w.put(m.compression.xi);
     w.put(std::uint32_t(m.compression.precision));
+    w.put(std::uint32_t(m.compression.decomposition));
     w.put(std::uint32_t(m.index_bytes()));
     return w.bytes;
 }
@@ -265,6 +266,9 @@ FgbMetadata decode_metadata(ByteReader& r, std::uint64_t scene_hash, const std::
     const std::uint32_t prec = r.get<std::uint32_t>("metadata.compression.precision");
     if (prec > 1) r.fail("metadata.compression.precision", "unknown precision " + std::to_string(prec));
     m.compression.precision = Precision(prec);
+    const std::uint32_t dec = r.get<std::uint32_t>("metadata.compression.decomposition");
+    if (dec > 1) r.fail("metadata.compression.decomposition", "unknown decomposition " + std::to_string(dec));
+    m.compression.decomposition = Decomposition(dec);
     try {
         validate(m.compression, "metadata.compression");
     } catch (const core::Error& e) {

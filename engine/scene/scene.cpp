@@ -108,6 +108,9 @@ void parse_compression(JsonObject o, basis::CompressionParams& c) {
         o.fail("xi", std::string("required with threshold \"") + mode + "\" (the default xi belongs to \"energy\")");
     const std::string prec = o.choice_or("precision", std::string(basis::to_string(c.precision)), {"float32", "float16"});
     c.precision = prec == "float32" ? basis::Precision::Float32 : basis::Precision::Float16;
+    const std::string dec = o.choice_or("decomposition", std::string(basis::to_string(c.decomposition)),
+                                        {"nonstandard", "standard"});
+    c.decomposition = dec == "standard" ? basis::Decomposition::Standard : basis::Decomposition::NonStandard;
     o.finish();
     basis::validate(c, o.file() + ": compression");
 }

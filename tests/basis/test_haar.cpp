@@ -1,4 +1,5 @@
 #include "basis/basis.h"
+#include "basis/haar_reference.h"
 #include "fields.h"
 
 #include <doctest/doctest.h>
@@ -8,12 +9,15 @@
 #include <vector>
 
 using namespace fulgur;
+using basis::Decomposition;
 using basis::HaarTransform;
 using core::Int3;
 
 namespace {
 
 std::string str(Int3 n) { return std::to_string(n.x) + "x" + std::to_string(n.y) + "x" + std::to_string(n.z); }
+
+constexpr Decomposition kBoth[] = {Decomposition::NonStandard, Decomposition::Standard};
 
 // The sizes the issue names (1, 2, 3, 5, 33 as cubes), its two grids, and mixed odd/even axes.
 const std::vector<Int3> kSizes = {{1, 1, 1},  {2, 2, 2},  {3, 3, 3},  {5, 5, 5},   {33, 33, 33}, {33, 1, 1},
@@ -71,11 +75,12 @@ TEST_CASE("textbook Haar on powers of two") {
 }
 
 TEST_CASE("a constant is one coefficient on any size (unbalanced Haar)") {
+    for (const Decomposition dec : kBoth)
     for (const Int3 n : kSizes) {
-        HaarTransform<double> t(n);
+        HaarTransform<double> t(n, dec);
         std::vector<double> v(n.volume(), 2.5);
         t.forward(v);
-        INFO(str(n));
+        INFO(str(n) << " " << basis::to_string(dec));
         // coefficient 0 = sum / sqrt(N); rounding of ~3*log2(n) rotations, relative 1e-13.
         CHECK(v[0] == doctest::Approx(2.5 * std::sqrt(double(n.volume()))).epsilon(1e-13));
         double rest = 0.0;
@@ -89,7 +94,7 @@ TEST_CASE("the 3D transform is the tensor product of the 1D transforms (standard
         const std::vector<double> wx = matrix_1d(n.x, 0), wy = matrix_1d(n.y, 0), wz = matrix_1d(n.z, 0);
         const std::vector<double> f = test::light_field(n, 5);
         std::vector<double> fast = f;
-        HaarTransform<double>(n).forward(fast);
+        HaarTransform<double>(n, Decomposition::Standard).forward(fast);
         double worst = 0.0;
         for (int c = 0; c < n.z; ++c)
             for (int b = 0; b < n.y; ++b)
@@ -108,27 +113,71 @@ TEST_CASE("the 3D transform is the tensor product of the 1D transforms (standard
     }
 }
 
+TEST_CASE("both decompositions equal the literal reference and are orthonormal in 3D") {
+    for (const Decomposition dec : kBoth) {
+        for (const Int3 n : kSizes) {
+            const std::vector<double> f = test::light_field(n, 8);
+            std::vector<double> fast = f, ref = f;
+            HaarTransform<double>(n, dec).forward(fast);
+            basis::reference::haar_forward(ref, n, dec == Decomposition::Standard);
+            double worst = 0.0;
+            for (std::size_t i = 0; i < f.size(); ++i) worst = std::max(worst, std::fabs(fast[i] - ref[i]));
+            INFO(str(n) << " " << basis::to_string(dec));
+            // Same operations up to the factoring into U P: rounding only (coefficients up to ~1e2).
+            CHECK(worst < 1e-12 * std::max(1.0, test::l2(f)));
+        }
+        // The full matrix of small mixed grids: W W^T = I.
+        for (const Int3 n : {Int3{5, 3, 4}, Int3{2, 7, 3}, Int3{6, 1, 5}, Int3{3, 3, 3}}) {
+            const std::size_t N = n.volume();
+            HaarTransform<double> t(n, dec);
+            std::vector<double> w(N * N), e(N);
+            for (std::size_t j = 0; j < N; ++j) {
+                std::fill(e.begin(), e.end(), 0.0);
+                e[j] = 1.0;
+                t.forward(e);
+                for (std::size_t i = 0; i < N; ++i) w[i * N + j] = e[i];
+            }
+            double worst = 0.0;
+            for (std::size_t a = 0; a < N; ++a)
+                for (std::size_t b = 0; b < N; ++b) {
+                    double dot = 0.0;
+                    for (std::size_t c = 0; c < N; ++c) dot += w[a * N + c] * w[b * N + c];
+                    worst = std::max(worst, std::fabs(dot - (a == b ? 1.0 : 0.0)));
+                }
+            INFO(str(n) << " " << basis::to_string(dec));
+            CHECK(worst < 1e-13);  // double rounding over <= 15 steps per entry
+            // The inverse inverts it.
+            std::vector<double> x = test::light_field(n, 2), y = x;
+            t.forward(y);
+            t.inverse(y);
+            CHECK(test::l2_diff(x, y) < 1e-14 * test::l2(x));
+        }
+    }
+}
+
 TEST_CASE("lossless round trip at xi = 0 in float32: relative RMS < 3e-7") {
-    basis::CompressionParams p;
-    p.mode = basis::ThresholdMode::Absolute;
-    p.xi = 0.0;
-    p.precision = basis::Precision::Float32;
+    for (const Decomposition dec : kBoth)
     for (const Int3 n : kSizes) {
-        INFO(str(n));
+        basis::CompressionParams p;
+        p.mode = basis::ThresholdMode::Absolute;
+        p.xi = 0.0;
+        p.precision = basis::Precision::Float32;
+        p.decomposition = dec;
+        INFO(str(n) << " " << basis::to_string(dec));
         const std::vector<double> f = test::light_field(n, 11);
         // The bake's path: forward in double, store float32, run-time inverse in float.
         std::vector<double> c = f;
-        HaarTransform<double>(n).forward(c);
+        HaarTransform<double>(n, dec).forward(c);
         const basis::CompressedBasis b = basis::compress_coefficients(c, p);
         std::vector<float> h(n.volume(), 0.0f);
         basis::accumulate(b, 1.0f, h);
-        HaarTransform<float>(n).inverse(h);
+        HaarTransform<float>(n, dec).inverse(h);
         std::vector<double> back(h.begin(), h.end());
         const double rel = test::l2_diff(back, f) / test::l2(f);
         CHECK(rel < 3e-7);  // the issue's bound for float32 (unit roundoff 6e-8, ~log2(n) levels per axis)
         // Pure float forward + inverse stays within the same bound.
         std::vector<float> g(f.begin(), f.end());
-        HaarTransform<float> tf(n);
+        HaarTransform<float> tf(n, dec);
         tf.forward(g);
         tf.inverse(g);
         std::vector<double> back2(g.begin(), g.end());
@@ -138,11 +187,12 @@ TEST_CASE("lossless round trip at xi = 0 in float32: relative RMS < 3e-7") {
 }
 
 TEST_CASE("Parseval: the L2 error of a thresholded reconstruction is the norm of the dropped coefficients") {
+    for (const Decomposition dec : kBoth)
     for (const Int3 n : kSizes) {
-        INFO(str(n));
+        INFO(str(n) << " " << basis::to_string(dec));
         const std::vector<double> f = test::light_field(n, 23);
         std::vector<double> c = f;
-        HaarTransform<double> t(n);
+        HaarTransform<double> t(n, dec);
         t.forward(c);
         // Energy of the signal is preserved.
         CHECK(test::l2(c) == doctest::Approx(test::l2(f)).epsilon(1e-12));
@@ -174,13 +224,14 @@ TEST_CASE("Parseval: the L2 error of a thresholded reconstruction is the norm of
 }
 
 TEST_CASE("Parseval through compress: reconstruction error equals gamma up to float32 storage rounding") {
+    for (const Decomposition dec : kBoth)
     for (const Int3 n : {Int3{32, 32, 4}, Int3{33, 4, 7}, Int3{64, 48, 20}}) {
-        INFO(str(n));
+        INFO(str(n) << " " << basis::to_string(dec));
         const std::vector<double> f = test::light_field(n, 31);
         std::vector<double> c = f;
-        HaarTransform<double> t(n);
+        HaarTransform<double> t(n, dec);
         t.forward(c);
-        basis::CompressionParams p{basis::ThresholdMode::Energy, 0.999, basis::Precision::Float32};
+        basis::CompressionParams p{basis::ThresholdMode::Energy, 0.999, basis::Precision::Float32, dec};
         const basis::CompressedBasis b = basis::compress_coefficients(c, p);
         std::vector<double> h(n.volume(), 0.0);
         basis::accumulate(b, 1.0, h);

@@ -110,6 +110,9 @@ TEST_CASE("virtual_lights and compression sections: values, defaults and ranges"
     const Scene r = parse_scene(with("\"cloud\"", R"("compression": {"threshold": "relative_l2", "xi": 0.001}, "cloud")"), "r.json");
     CHECK(r.compression.mode == fulgur::basis::ThresholdMode::RelativeL2);
     CHECK(r.compression.precision == fulgur::basis::Precision::Float16);
+    CHECK(r.compression.decomposition == fulgur::basis::Decomposition::NonStandard);
+    const Scene st = parse_scene(with("\"cloud\"", R"("compression": {"decomposition": "standard"}, "cloud")"), "d.json");
+    CHECK(st.compression.decomposition == fulgur::basis::Decomposition::Standard);
 
     auto bad = [](const std::string& section, const char* needle) {
         CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", section + ", \"cloud\""), "b.json"), doctest::Contains(needle), Error);
@@ -125,4 +128,5 @@ TEST_CASE("virtual_lights and compression sections: values, defaults and ranges"
     bad(R"("compression": {"threshold": "lossy", "xi": 1})", "compression.threshold");
     bad(R"("compression": {"xi": 0.99, "precision": "float8"})", "compression.precision");
     bad(R"("compression": {"threshold": "relative_l2", "xi": -0.1})", "compression.xi");
+    bad(R"("compression": {"decomposition": "wavelet"})", "compression.decomposition");
 }
