@@ -278,6 +278,9 @@ inline double ambient_rms(const CompressedBasis& b, std::size_t cells) noexcept 
 // The .fgb file (docs/fgb-format.md)
 
 inline constexpr std::uint32_t kFgbVersion = 1;
+/// Largest lighting grid a .fgb may describe (2^26 cells = 256 MiB per float32 field):
+/// loaders and the run time allocate per-cell arrays from it, so it is bounded by the format.
+inline constexpr std::size_t kMaxFgbCells = std::size_t(1) << 26;
 
 /// What the file was baked from: a 64-bit hash of every bake-relevant scene parameter and
 /// the canonical description it was computed from (one "key=value" per line), both stored

@@ -215,6 +215,10 @@ FgbMetadata decode_metadata(ByteReader& r, std::uint64_t scene_hash, const std::
     m.lighting.origin.y = r.get<double>("metadata.lighting.origin.y");
     m.lighting.origin.z = r.get<double>("metadata.lighting.origin.z");
     core::validate_geometry(m.lighting, name + " (byte " + std::to_string(geom_at) + ") metadata.lighting");
+    if (m.lighting.cell_count() > kMaxFgbCells)
+        throw core::Error(name + " (byte " + std::to_string(geom_at) + ")",
+                          "metadata.lighting: " + std::to_string(m.lighting.cell_count()) + " cells, the format allows " +
+                              std::to_string(kMaxFgbCells));
 
     const std::uint32_t ndir = r.count("metadata.direction count", 24, std::uint32_t(fgb::kMaxDirections));
     if (ndir == 0) r.fail("metadata.direction count", "must be at least 1");
@@ -330,7 +334,7 @@ CompressedLight decode_block(const std::uint8_t* data, std::size_t size, std::ui
     if (payload != r.remaining())
         fail_at(r.offset(), "block size: the coefficient counts need " + std::to_string(payload) +
                                 " bytes of indices and values, the block has " + std::to_string(r.remaining()));
-    std::vector<std::uint8_t> seen(cells, 0);  // cells <= 2^31 was checked with the geometry
+    std::vector<std::uint32_t> sorted;  // duplicate check; sized by counts, which the block size bounds
     for (std::uint32_t d = 0; d < ndir; ++d) {
         CompressedBasis& b = out.directions[d];
         const std::uint32_t n = counts[d];
@@ -346,10 +350,6 @@ CompressedLight decode_block(const std::uint8_t* data, std::size_t size, std::ui
             if (idx >= cells)
                 fail_at(idx_at + k * ib, f + " coefficient " + std::to_string(k) + ": index " + std::to_string(idx) +
                                              " outside the " + std::to_string(cells) + " cells");
-            if (seen[idx])
-                fail_at(idx_at + k * ib, f + " coefficient " + std::to_string(k) + ": index " + std::to_string(idx) +
-                                             " appears twice");
-            seen[idx] = 1;
             b.index[k] = idx;
             float v;
             if (vb == 2) {
@@ -367,7 +367,14 @@ CompressedLight decode_block(const std::uint8_t* data, std::size_t size, std::ui
                                              ": magnitudes must not increase (the file stores them largest first)");
             b.value[k] = v;
         }
-        for (std::uint32_t k = 0; k < n; ++k) seen[b.index[k]] = 0;
+        sorted.assign(b.index.begin(), b.index.end());
+        std::sort(sorted.begin(), sorted.end());
+        const auto dup = std::adjacent_find(sorted.begin(), sorted.end());
+        if (dup != sorted.end()) {
+            const std::size_t k = std::size_t(std::find(b.index.begin(), b.index.end(), *dup) - b.index.begin());
+            fail_at(idx_at, f + ": index " + std::to_string(*dup) + " appears twice (first as coefficient " +
+                                std::to_string(k) + ")");
+        }
     }
     return out;
 }
@@ -427,6 +434,8 @@ std::uint32_t fgb::header_crc(std::span<const std::uint8_t> file, std::uint64_t 
 void validate(const FgbMetadata& m, std::string_view where) {
     const std::string w(where);
     core::validate_geometry(m.lighting, w + ".lighting");
+    if (m.lighting.cell_count() > kMaxFgbCells)
+        throw core::Error(w + ".lighting", "more than " + std::to_string(kMaxFgbCells) + " cells");
     if (m.directions.empty() || m.directions.size() > fgb::kMaxDirections)
         throw core::Error(w + ".directions", "needs 1 to 64 directions, got " + std::to_string(m.directions.size()));
     for (std::size_t i = 0; i < m.directions.size(); ++i) {

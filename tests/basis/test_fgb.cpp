@@ -262,6 +262,19 @@ TEST_CASE("specific damage is named: magic, version, endianness, size, CRCs") {
         put<std::uint16_t>(b, at, 60);  // the grid has 60 cells
         fix_crcs(b, good);
         expect(b, ("byte " + std::to_string(at) + ", light 0): direction 0 coefficient 0: index 60 outside the 60 cells").c_str());
+        // A duplicated index.
+        b = good;
+        put<std::uint16_t>(b, at + 2, get<std::uint16_t>(good, at));
+        fix_crcs(b, good);
+        expect(b, "appears twice (first as coefficient 0)");
+        // A lighting grid beyond the format's limit (4096 x 4096 x 8 = 2^27 cells).
+        b = good;
+        const std::size_t dims_at = kHeaderSize + 4 + get<std::uint32_t>(good, kHeaderSize);
+        put<std::int32_t>(b, dims_at, 4096);
+        put<std::int32_t>(b, dims_at + 4, 4096);
+        put<std::int32_t>(b, dims_at + 8, 8);
+        fix_crcs(b, good);
+        expect(b, "cells, the format allows 67108864");
     }
     // On disk (the ifstream path): truncated and empty files.
     auto b = good;
