@@ -265,11 +265,12 @@ void accumulate(const CompressedBasis& b, double weight, std::span<double> coeff
 
 /// The paper's ambient term (Eq. 10) needs care with an orthonormal transform: gamma is
 /// the L2 norm of the reconstruction error over all N cells (Parseval), so the per-cell RMS
-/// error is gamma / sqrt(N), and since the scaling coefficient is kept whenever anything is
-/// kept, the error has zero mean — the best constant correction is 0. Adding e_l * gamma to
-/// every cell (Eq. 10 literally) adds sqrt(N) times the RMS error as a bias. The run time
-/// should add no ambient by default; where a visual floor is wanted, this per-cell value
-/// (same energy as the dropped detail) is the consistent one. docs/basis.md has the argument.
+/// error is gamma / sqrt(N); and while coefficient 0 (the scaled mean, among the largest of
+/// a non-negative basis) is kept, the error has zero mean — the best constant correction
+/// is 0 (were it dropped, it would be c0 / sqrt(N)). Adding e_l * gamma to every cell (Eq. 10
+/// literally) adds sqrt(N) times the RMS error as a bias. The run time should add no
+/// ambient by default; where a visual floor is wanted, this per-cell value (same energy as
+/// the dropped detail) is the consistent one. docs/basis.md has the argument.
 inline double ambient_rms(const CompressedBasis& b, std::size_t cells) noexcept {
     return cells ? b.gamma / std::sqrt(double(cells)) : 0.0;
 }
