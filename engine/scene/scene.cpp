@@ -28,25 +28,38 @@ void parse_medium(JsonObject o, transport::Medium& m) {
 }
 
 void parse_generator(JsonObject o, cloud::CumulonimbusParams& p) {
+    // Ranges here are what each field can ever mean; validate_cumulonimbus() then checks
+    // that the fields agree with each other and that the cloud fits in its grid.
+    constexpr double kMaxLength = 1e6;  // metres: far beyond any storm, catches unit mistakes
     p.seed = o.seed_or("seed", p.seed);
-    p.grid = o.int3_or("grid", p.grid, 1, 1024);
+    p.grid = o.int3_or("grid", p.grid, 8, 1024);
     p.voxel_size = o.number_or("voxel_size", p.voxel_size, Range{0.0, 10000.0, true, false});
     p.base_height = o.number_or("base_height", p.base_height, Range{0.0, 50000.0});
     p.top_height = o.number_or("top_height", p.top_height, Range{0.0, 50000.0, true, false});
-    p.tower_radius = o.number_or("tower_radius", p.tower_radius, Range{0.0, 1e6, true, false});
+    p.tower_radius = o.number_or("tower_radius", p.tower_radius, Range{0.0, kMaxLength, true, false});
+    p.cells = int(o.integer_or("cells", p.cells, 0, 1000));
+    p.shear = o.number_or("shear", p.shear, Range{-kMaxLength, kMaxLength});
+    p.flanking_towers = int(o.integer_or("flanking_towers", p.flanking_towers, 0, 8));
     p.anvil = o.boolean_or("anvil", p.anvil);
-    p.anvil_radius = o.number_or("anvil_radius", p.anvil_radius, Range{0.0, 1e6, true, false});
+    p.anvil_radius = o.number_or("anvil_radius", p.anvil_radius, Range{0.0, kMaxLength, true, false});
     p.anvil_thickness = o.number_or("anvil_thickness", p.anvil_thickness, Range{0.0, 50000.0, true, false});
-    p.cells = int(o.integer_or("cells", p.cells, 1, 1000));
+    p.anvil_offset = o.number_or("anvil_offset", p.anvil_offset, Range{0.0, kMaxLength});
+    p.overshoot = o.number_or("overshoot", p.overshoot, Range{0.0, 50000.0});
+    p.edge_softness = o.number_or("edge_softness", p.edge_softness, Range{0.0, 1.0, true, false});
     p.steps = int(o.integer_or("steps", p.steps, 1, 1000));
     p.p_ext = o.number_or("p_ext", p.p_ext, Range{0.0, 1.0});
-    p.p_hum = o.number_or("p_hum", p.p_hum, Range{0.0, 1.0});
-    p.p_act = o.number_or("p_act", p.p_act, Range{0.0, 1.0});
-    p.average_steps = int(o.integer_or("average_steps", p.average_steps, 1, 100));
+    p.p_hum = o.number_or("p_hum", p.p_hum, Range{0.0, 1.0, true, false});
+    p.p_act = o.number_or("p_act", p.p_act, Range{0.0, 1.0, true, false});
+    p.average_steps = int(o.integer_or("average_steps", p.average_steps, 1, 255));
     p.smoothing_radius = int(o.integer_or("smoothing_radius", p.smoothing_radius, 0, 16));
+    p.density_gain = o.number_or("density_gain", p.density_gain, Range{0.0, 100.0, true, false});
     o.finish();
-    if (!(p.base_height < p.top_height))
-        o.fail("top_height", "must be above base_height (" + std::to_string(p.base_height) + " m)");
+    try {
+        cloud::validate_cumulonimbus(p);
+    } catch (const core::Error& e) {
+        // e.where() is the field path ("cloud.generator.top_height"); add the file.
+        throw core::Error(o.file() + ": " + e.where(), e.reason());
+    }
 }
 
 void parse_cloud(JsonObject o, CloudSource& c, const std::filesystem::path& base_dir) {
@@ -147,6 +160,54 @@ void parse_effects(JsonObject o, Effects& e) {
     o.finish();
 }
 
+void parse_lightning(JsonObject o, lightning::LightningParams& l) {
+    // Ranges: the same as lightning::validate (engine/lightning/params.cpp).
+    lightning::BoltParams& b = l.bolt;
+    const std::string kind = o.choice_or("kind", std::string(lightning::kind_name(b.kind)),
+                                         {"cloud_to_ground", "intra_cloud", "cloud_to_cloud"});
+    b.kind = kind == "intra_cloud"      ? lightning::Kind::IntraCloud
+             : kind == "cloud_to_cloud" ? lightning::Kind::CloudToCloud
+                                        : lightning::Kind::CloudToGround;
+    l.seed = o.seed_or("seed", l.seed);
+    b.intensity = o.number_or("intensity", b.intensity, Range{0.0, 1e12});
+    b.start_density_threshold = o.number_or("start_density_threshold", b.start_density_threshold, Range{0.0, 1.0, false, true});
+    b.ground_height = o.number_or("ground_height", b.ground_height, Range{-1e4, 5e4});
+    b.angle_mean_deg = o.number_or("angle_mean", b.angle_mean_deg, Range{0.0, 90.0});
+    b.angle_spread_deg = o.number_or("angle_spread", b.angle_spread_deg, Range{0.0, 60.0});
+    b.segment_length_mean = o.number_or("segment_length_mean", b.segment_length_mean, Range{1.0, 5000.0});
+    b.segment_length_spread = o.number_or("segment_length_spread", b.segment_length_spread, Range{0.0, 5000.0});
+    b.target_bias = o.number_or("target_bias", b.target_bias, Range{0.0, 1.0});
+    b.wander = o.number_or("wander", b.wander, Range{0.0, 2.0});
+    b.zigzag = o.number_or("zigzag", b.zigzag, Range{0.0, 4.0});
+    b.max_segments = int(o.integer_or("max_segments", b.max_segments, 1, 1'000'000));
+    if (auto br = o.optional_object("branches")) {
+        b.branch_probability = br->number_or("probability", b.branch_probability, Range{0.0, 1.0});
+        b.branch_angle_mean_deg = br->number_or("angle_mean", b.branch_angle_mean_deg, Range{0.0, 90.0});
+        b.branch_length_fraction = br->number_or("length_fraction", b.branch_length_fraction, Range{0.0, 1.0, true, false});
+        b.branch_intensity_decay = br->number_or("intensity_decay", b.branch_intensity_decay, Range{0.0, 1.0});
+        b.max_depth = int(br->integer_or("max_depth", b.max_depth, 0, 8));
+        br->finish();
+    }
+    if (auto t = o.optional_object("timing")) {
+        lightning::TimingParams& p = l.timing;
+        p.leader_speed = t->number_or("leader_speed", p.leader_speed, Range{1e3, 1e8});
+        p.leader_brightness = t->number_or("leader_brightness", p.leader_brightness, Range{0.0, 1.0});
+        p.rise_time = t->number_or("rise_time", p.rise_time, Range{0.0, 0.01});
+        p.decay_time = t->number_or("decay_time", p.decay_time, Range{0.0, 1.0, true, false});
+        p.restrikes = t->number_or("restrikes", p.restrikes, Range{0.0, 20.0});
+        p.restrikes_max = int(t->integer_or("restrikes_max", p.restrikes_max, 0, 32));
+        p.restrike_interval = t->number_or("restrike_interval", p.restrike_interval, Range{0.001, 1.0});
+        p.restrike_brightness = t->number_or("restrike_brightness", p.restrike_brightness, Range{0.0, 10.0});
+        p.dart_leader_speed = t->number_or("dart_leader_speed", p.dart_leader_speed, Range{1e5, 1e9});
+        p.dark_threshold = t->number_or("dark_threshold", p.dark_threshold, Range{0.0, 0.5, true, false});
+        t->finish();
+    }
+    l.schedule.strike_rate = o.number_or("strike_rate", l.schedule.strike_rate, Range{0.0, 100.0});
+    l.schedule.first_strike = o.number_or("first_strike", l.schedule.first_strike, Range{0.0, 1e6});
+    o.finish();
+    lightning::validate(l, o.file() + ": lightning");  // the same ranges, kept in one place for code users
+}
+
 }  // namespace
 
 Scene parse_scene(std::string_view json_text, std::string_view file_name, const std::filesystem::path& base_dir) {
@@ -179,6 +240,7 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
     if (auto c = root.optional_object("compression")) parse_compression(*c, s.compression);
     parse_lights(root, s);
     if (auto e = root.optional_object("effects")) parse_effects(*e, s.effects);
+    if (auto l = root.optional_object("lightning")) parse_lightning(*l, s.lightning);
     root.finish();
     if (s.effects.sun && !s.sun) root.fail("effects", "\"sun\": true needs a light of type \"sun\" in \"lights\"");
     return s;

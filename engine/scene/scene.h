@@ -10,6 +10,7 @@
 #include "basis/basis.h"
 #include "cloud/cloud.h"
 #include "core/core.h"
+#include "lightning/lightning.h"
 #include "transport/transport.h"
 
 #include <glm/vec3.hpp>
@@ -81,6 +82,7 @@ struct Scene {
     std::vector<PointLight> point_lights;
     std::optional<SunLight> sun;
     Effects effects;
+    lightning::LightningParams lightning;  ///< section "lightning": bolt shape, flash timing, schedule
 
     /// Output directions the bake needs: 1 when scattering is isotropic (g == 0), since S
     /// then does not depend on direction; the scene's count otherwise.
