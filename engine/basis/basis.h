@@ -41,9 +41,9 @@ namespace fulgur::basis {
 
 /// Spacing of the virtual-light grid (paper section 5).
 struct VirtualLightParams {
-    double h_usr = 800.0;      ///< base interval (m): horizontal spacing, and vertical above the cloud base
+    double h_usr = 1000.0;     ///< base interval (m): horizontal spacing, and vertical above the cloud base
     double epsilon = 1e-7;     ///< Eq. 4 bound on 1/r_l^2 - 1/r_{l+1}^2 below the base (1/m^2)
-    double margin = 800.0;     ///< horizontal margin around the cloud's footprint (m)
+    double margin = 1000.0;    ///< horizontal margin around the cloud's footprint (m)
     double ground_height = 0.0;  ///< lowest layer of virtual lights (m)
     double density_threshold = 0.05;  ///< a voxel belongs to the cloud when its density exceeds this
 };
