@@ -8,6 +8,7 @@ PACKAGES=(
   libglm-dev                                     # vector math
   nlohmann-json3-dev                             # scene files, JSON reports
   libstb-dev                                     # stb_image_write (PNG)
+  zlib1g-dev                                     # CRC-32 (crc32) for the .fgb baked file
   doctest-dev                                    # unit/property tests
   libomp-dev                                     # (OpenMP headers for clang tooling; g++ uses libgomp)
   libgl-dev libosmesa6-dev libgl1-mesa-dri       # OpenGL through Mesa, OSMesa for headless

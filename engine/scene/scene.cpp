@@ -95,6 +95,39 @@ void parse_transport(JsonObject o, TransportSettings& t) {
     o.finish();
 }
 
+void parse_virtual_lights(JsonObject o, basis::VirtualLightParams& v) {
+    v.h_usr = o.number_or("h_usr", v.h_usr, Range{0.0, 1e6, true, false});
+    // 1/m^2. Any epsilon >= 1/h_usr^2 already puts the layer after the first one on the
+    // ground; the upper bound only rejects nonsense.
+    v.epsilon = o.number_or("epsilon", v.epsilon, Range{0.0, 1e6});
+    v.margin = o.number_or("margin", v.margin, Range{0.0, 1e6});
+    v.ground_height = o.number_or("ground_height", v.ground_height, Range{-1e6, 1e6});
+    v.density_threshold = o.number_or("density_threshold", v.density_threshold, Range{0.0, 1.0, false, true});
+    o.finish();
+    basis::validate(v, o.file() + ": virtual_lights");
+}
+
+void parse_compression(JsonObject o, basis::CompressionParams& c) {
+    const std::string mode = o.choice_or("threshold", std::string(basis::to_string(c.mode)),
+                                         {"absolute", "relative_l2", "energy"});
+    c.mode = mode == "absolute"      ? basis::ThresholdMode::Absolute
+             : mode == "relative_l2" ? basis::ThresholdMode::RelativeL2
+                                     : basis::ThresholdMode::Energy;
+    if (c.mode == basis::ThresholdMode::Energy)
+        c.xi = o.number_or("xi", c.xi, Range{0.0, 1.0});  // fraction of each basis' energy kept
+    else if (o.has("xi"))
+        c.xi = o.number("xi", Range{0.0, 1e30});  // absolute: units of S; relative_l2: fraction of ||B||
+    else
+        o.fail("xi", std::string("required with threshold \"") + mode + "\" (the default xi belongs to \"energy\")");
+    const std::string prec = o.choice_or("precision", std::string(basis::to_string(c.precision)), {"float32", "float16"});
+    c.precision = prec == "float32" ? basis::Precision::Float32 : basis::Precision::Float16;
+    const std::string dec = o.choice_or("decomposition", std::string(basis::to_string(c.decomposition)),
+                                        {"nonstandard", "standard"});
+    c.decomposition = dec == "standard" ? basis::Decomposition::Standard : basis::Decomposition::NonStandard;
+    o.finish();
+    basis::validate(c, o.file() + ": compression");
+}
+
 void parse_lights(JsonObject& root, Scene& s) {
     for (JsonObject& l : root.objects("lights")) {
         const std::string type = l.choice_or("type", "", {"point", "sun"});
@@ -203,6 +236,8 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
         lighting->finish();
     }
     if (auto t = root.optional_object("transport")) parse_transport(*t, s.transport);
+    if (auto v = root.optional_object("virtual_lights")) parse_virtual_lights(*v, s.virtual_lights);
+    if (auto c = root.optional_object("compression")) parse_compression(*c, s.compression);
     parse_lights(root, s);
     if (auto e = root.optional_object("effects")) parse_effects(*e, s.effects);
     if (auto l = root.optional_object("lightning")) parse_lightning(*l, s.lightning);

@@ -7,6 +7,7 @@
 // documented in docs/scene-format.md; content/scenes/storm.json is the default scene.
 #pragma once
 
+#include "basis/basis.h"
 #include "cloud/cloud.h"
 #include "core/core.h"
 #include "lightning/lightning.h"
@@ -76,6 +77,8 @@ struct Scene {
     int lighting_downsample = 4;  ///< lighting grid = density grid box-filtered by this factor
     int directions = 26;          ///< output directions n_dir: 1, 6, 18 or 26
     TransportSettings transport;
+    basis::VirtualLightParams virtual_lights;  ///< "virtual_lights": the grid of paper section 5
+    basis::CompressionParams compression;      ///< "compression": Haar threshold and storage precision
     std::vector<PointLight> point_lights;
     std::optional<SunLight> sun;
     Effects effects;

@@ -129,11 +129,53 @@ TEST_CASE("the default storm scene loads") {
     const Scene s = load_scene(fulgur::test::source_dir() / "content/scenes/storm.json");
     CHECK(s.effects.lightning);
     CHECK(s.medium.extinction > 0.0);
+    CHECK(s.virtual_lights.h_usr == 1000.0);
+    CHECK(s.compression.mode == fulgur::basis::ThresholdMode::Energy);
+    CHECK(s.compression.precision == fulgur::basis::Precision::Float16);
     CHECK(s.lightning.bolt.kind == fulgur::lightning::Kind::CloudToGround);
     CHECK_NOTHROW(fulgur::lightning::validate(s.lightning));
     CHECK(s.cloud.kind == CloudSource::Kind::Generator);
     CHECK(s.cloud.generator.grid == fulgur::core::Int3{144, 144, 80});
     CHECK(s.cloud.generator.anvil);
+}
+
+TEST_CASE("virtual_lights and compression sections: values, defaults and ranges") {
+    const Scene d = parse_scene(kMinimal, "min.json");
+    CHECK(d.virtual_lights.h_usr == fulgur::basis::VirtualLightParams{}.h_usr);
+    CHECK(d.compression == fulgur::basis::CompressionParams{});
+    const Scene s = parse_scene(with("\"cloud\"", R"("virtual_lights": {"h_usr": 500, "epsilon": 2e-7, "margin": 100,
+        "ground_height": -50, "density_threshold": 0.1},
+        "compression": {"threshold": "absolute", "xi": 5e-10, "precision": "float32"}, "cloud")"), "v.json");
+    CHECK(s.virtual_lights.h_usr == 500.0);
+    CHECK(s.virtual_lights.epsilon == 2e-7);
+    CHECK(s.virtual_lights.margin == 100.0);
+    CHECK(s.virtual_lights.ground_height == -50.0);
+    CHECK(s.virtual_lights.density_threshold == 0.1);
+    CHECK(s.compression.mode == fulgur::basis::ThresholdMode::Absolute);
+    CHECK(s.compression.xi == 5e-10);
+    CHECK(s.compression.precision == fulgur::basis::Precision::Float32);
+    const Scene r = parse_scene(with("\"cloud\"", R"("compression": {"threshold": "relative_l2", "xi": 0.001}, "cloud")"), "r.json");
+    CHECK(r.compression.mode == fulgur::basis::ThresholdMode::RelativeL2);
+    CHECK(r.compression.precision == fulgur::basis::Precision::Float16);
+    CHECK(r.compression.decomposition == fulgur::basis::Decomposition::NonStandard);
+    const Scene st = parse_scene(with("\"cloud\"", R"("compression": {"decomposition": "standard"}, "cloud")"), "d.json");
+    CHECK(st.compression.decomposition == fulgur::basis::Decomposition::Standard);
+
+    auto bad = [](const std::string& section, const char* needle) {
+        CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", section + ", \"cloud\""), "b.json"), doctest::Contains(needle), Error);
+    };
+    bad(R"("virtual_lights": {"h_usr": 0})", "b.json: virtual_lights.h_usr");
+    bad(R"("virtual_lights": {"h_usr": -5})", "(0, 1000000]");
+    bad(R"("virtual_lights": {"epsilon": -1e-9})", "virtual_lights.epsilon");
+    bad(R"("virtual_lights": {"margin": "wide"})", "expected a number");
+    bad(R"("virtual_lights": {"density_threshold": 1})", "virtual_lights.density_threshold");
+    bad(R"("virtual_lights": {"spacing": 3})", "virtual_lights.spacing: unknown key");
+    bad(R"("compression": {"threshold": "energy", "xi": 1.5})", "compression.xi");
+    bad(R"("compression": {"threshold": "absolute"})", "compression.xi: required with threshold \"absolute\"");
+    bad(R"("compression": {"threshold": "lossy", "xi": 1})", "compression.threshold");
+    bad(R"("compression": {"xi": 0.99, "precision": "float8"})", "compression.precision");
+    bad(R"("compression": {"threshold": "relative_l2", "xi": -0.1})", "compression.xi");
+    bad(R"("compression": {"decomposition": "wavelet"})", "compression.decomposition");
 }
 
 TEST_CASE("lightning section: defaults, every field, and ranges naming the field") {

@@ -1,0 +1,230 @@
+// `fulgur-bench render`: the OpenGL renderer through OSMesa (Mesa llvmpipe) at 640x360.
+//
+// Scene: synthetic::storm() — a procedural cumulonimbus of 128x128x96 density voxels (100 m),
+// a branching cloud-to-ground bolt whose channel lights it (S on the 32x32x24 lighting grid,
+// 26 directions; the view needs a few), the camera of docs/images/render_synthetic.png.
+// Rows (JSON lines):
+//   case "march":  the ray-march pass (wall and process-CPU medians) for the fragment and the
+//                  compute kernel, against the baseline measured in the same run: a plain
+//                  fixed-step march of the same volume (same step, same samples per ray, no
+//                  empty-space skipping, no early exit, no glow). samples = the plain march's
+//                  sample count for the view; Msamples_per_s = samples / time.
+//   case "frame":  whole frames (resolve with a moving camera, glow, march, bolt, composite)
+//                  per internal scale, wall and CPU, fps.
+//   case "step":   accuracy knobs (step length, density precision) against a fine reference:
+//                  relative RMS error of the ray-march output (radiance and transmittance of
+//                  every internal pixel) and the march time.
+// llvmpipe uses LP_NUM_THREADS threads (default: all cores); the row says how many.
+#include "bench/bench.h"
+
+#include "core/core.h"
+#include "platform/platform.h"
+#include "render/render.h"
+#include "render/synthetic.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <thread>
+
+namespace {
+
+using namespace fulgur;
+
+struct Medians {
+    double wall = 0, cpu = 0;
+};
+
+template <class Get>
+Medians run_frames(render::Renderer& r, render::Camera cam, render::Settings st, int w, int h, int frames, Get get,
+                   bool move_camera = false) {
+    std::vector<double> wall, cpu;
+    for (int i = 0; i < frames; ++i) {
+        st.frame_index = std::uint32_t(i);
+        if (move_camera) cam.position.x += 1.0;  // forces the resolve pass every frame
+        const render::FrameStats s = r.render(cam, st, w, h);
+        wall.push_back(get(s.wall));
+        cpu.push_back(get(s.cpu));
+    }
+    return {bench::median(wall), bench::median(cpu)};
+}
+
+/// Relative RMS error of the radiance (rgb) of two ray-march outputs (RGBA, a = T).
+double radiance_rel_rms(const std::vector<float>& a, const std::vector<float>& ref) {
+    core::CompensatedSum num, den;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        if (i % 4 == 3) continue;
+        num.add(double(a[i] - ref[i]) * double(a[i] - ref[i]));
+        den.add(double(ref[i]) * double(ref[i]));
+    }
+    return den.value() > 0.0 ? std::sqrt(num.value() / den.value()) : 0.0;
+}
+
+/// Largest absolute transmittance difference.
+double transmittance_max_err(const std::vector<float>& a, const std::vector<float>& ref) {
+    double e = 0.0;
+    for (std::size_t i = 3; i < a.size(); i += 4) e = std::max(e, std::abs(double(a[i]) - double(ref[i])));
+    return e;
+}
+
+int llvmpipe_threads() {
+    if (const char* e = std::getenv("LP_NUM_THREADS"); e && *e) return std::atoi(e);
+    return int(std::thread::hardware_concurrency());
+}
+
+}  // namespace
+
+FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixed-step march, frame times, knobs") {
+    const int W = 640, H = 360;
+    const int frames = ctx.quick ? 3 : 9;
+    auto context = platform::create_headless({.width = W, .height = H});
+    const core::Int3 dims = ctx.quick ? core::Int3{64, 64, 48} : core::Int3{128, 128, 96};
+    const double voxel = ctx.quick ? 200.0 : 100.0;
+    const render::synthetic::Storm storm = render::synthetic::storm(dims, voxel);
+    const core::Grid3<float>& density = storm.density;
+    const double kappa = storm.extinction;
+    const render::Camera& cam = storm.camera;
+
+    render::Renderer r(context->get_proc_address());
+    r.set_volume({.density = &density, .extinction = kappa});
+    r.set_bolt(storm.bolt);
+    // Upload only the directions this view needs, as the run time does.
+    const render::SourceUpload up = render::synthetic::needed_upload(r, storm);
+    core::Stopwatch upload_clock;
+    r.upload_source(up);
+    const double upload_ms = upload_clock.milliseconds();
+
+    const render::Settings base = storm.settings;  // defaults: internal scale 0.5, step 1 voxel, skipping, early exit
+    const int iw = int(std::lround(W * base.internal_scale)), ih = int(std::lround(H * base.internal_scale));
+    const double samples = render::plain_march_samples(cam, density.geom, iw, ih, base.step_voxels * voxel);
+    auto march = [](const render::PassTimes& t) { return t.march; };
+
+    for (render::MarchKernel kernel : {render::MarchKernel::Fragment, render::MarchKernel::Compute}) {
+        render::Settings opt = base, plain = base;
+        opt.kernel = plain.kernel = kernel;
+        plain.skip_empty = false;
+        plain.early_exit = false;
+        plain.glow = false;
+        r.render(cam, opt, W, H);  // JIT compile (llvmpipe compiles shaders at first use)
+        r.render(cam, plain, W, H);
+        // Interleave the two so both see the same machine load.
+        std::vector<double> ow, oc, pw, pc;
+        for (int rep = 0; rep < 3; ++rep) {
+            const Medians o = run_frames(r, cam, opt, W, H, frames, march);
+            const Medians p = run_frames(r, cam, plain, W, H, frames, march);
+            ow.push_back(o.wall);
+            oc.push_back(o.cpu);
+            pw.push_back(p.wall);
+            pc.push_back(p.cpu);
+        }
+        const double o_wall = bench::median(ow), o_cpu = bench::median(oc), p_wall = bench::median(pw),
+                     p_cpu = bench::median(pc);
+        // The same pass timed by GL timer queries (does the driver's clock agree?).
+        render::Settings q = opt;
+        q.timing = render::Timing::Queries;
+        const Medians tq = run_frames(r, cam, q, W, H, frames, march);
+        ctx.emit("render", {{"case", "march"},
+                            {"kernel", kernel == render::MarchKernel::Fragment ? "fragment" : "compute"},
+                            {"size", {W, H}},
+                            {"internal", {iw, ih}},
+                            {"volume", {dims.x, dims.y, dims.z}},
+                            {"step_voxels", base.step_voxels},
+                            {"samples", samples},
+                            {"march_ms", o_wall},
+                            {"march_cpu_ms", o_cpu},
+                            {"march_ms_timer_query", tq.wall},
+                            {"plain_march_ms", p_wall},
+                            {"plain_march_cpu_ms", p_cpu},
+                            {"Msamples_per_s", samples / o_wall * 1e-3},
+                            {"plain_Msamples_per_s", samples / p_wall * 1e-3},
+                            {"ratio_vs_plain", p_wall / o_wall},
+                            {"ratio_vs_plain_cpu", p_cpu / o_cpu},
+                            {"llvmpipe_threads", llvmpipe_threads()}});
+    }
+
+    // Whole frames with a moving camera (the resolve runs every frame), per internal scale.
+    for (double scale : {0.5, 0.75, 1.0}) {
+        render::Settings st = base;
+        st.internal_scale = scale;
+        r.render(cam, st, W, H);
+        std::vector<double> wall, cpu, resolve, glow, mar, bolt_ms, comp, resolve_cpu, march_cpu, comp_cpu;
+        int glow_quads = 0;
+        render::Camera c = cam;
+        for (int i = 0; i < frames; ++i) {
+            st.frame_index = std::uint32_t(i);
+            c.position.x += 1.0;
+            const render::FrameStats s = r.render(c, st, W, H);
+            wall.push_back(s.wall.total);
+            cpu.push_back(s.cpu.total);
+            resolve.push_back(s.wall.resolve);
+            glow.push_back(s.wall.glow);
+            mar.push_back(s.wall.march);
+            bolt_ms.push_back(s.wall.bolt);
+            comp.push_back(s.wall.composite);
+            resolve_cpu.push_back(s.cpu.resolve);
+            march_cpu.push_back(s.cpu.march);
+            comp_cpu.push_back(s.cpu.composite);
+            glow_quads = s.glow_quads;
+        }
+        // Without per-pass glFinish (Timing::Off + one glFinish): what the demo sees.
+        render::Settings fast = st;
+        fast.timing = render::Timing::Off;
+        std::vector<double> off;
+        for (int i = 0; i < frames; ++i) {
+            fast.frame_index = std::uint32_t(i);
+            c.position.x += 1.0;
+            core::Stopwatch sw;
+            r.render(c, fast, W, H);
+            context->present();  // glFinish
+            off.push_back(sw.milliseconds());
+        }
+        const double frame_ms = bench::median(off);
+        ctx.emit("render", {{"case", "frame"},
+                            {"internal_scale", scale},
+                            {"frame_ms", frame_ms},
+                            {"fps", 1000.0 / frame_ms},
+                            {"timed_frame_ms", bench::median(wall)},
+                            {"timed_frame_cpu_ms", bench::median(cpu)},
+                            {"resolve_ms", bench::median(resolve)},
+                            {"glow_ms", bench::median(glow)},
+                            {"march_ms", bench::median(mar)},
+                            {"bolt_ms", bench::median(bolt_ms)},
+                            {"composite_ms", bench::median(comp)},
+                            {"resolve_cpu_ms", bench::median(resolve_cpu)},
+                            {"march_cpu_ms", bench::median(march_cpu)},
+                            {"composite_cpu_ms", bench::median(comp_cpu)},
+                            {"upload_ms", upload_ms},
+                            {"directions_uploaded", up.directions.size()},
+                            {"glow_quads", glow_quads},
+                            {"llvmpipe_threads", llvmpipe_threads()}});
+    }
+
+    // Accuracy knobs against a fine reference (step 1/4 voxel, F16 density, no jitter so the
+    // comparison measures bias rather than noise).
+    render::Settings ref = base;
+    ref.step_voxels = 0.25;
+    ref.jitter = false;
+    ref.dither = false;
+    r.set_volume({.density = &density, .extinction = kappa, .precision = render::DensityPrecision::F16});
+    int mw = 0, mh = 0;
+    r.render(cam, ref, W, H);
+    const std::vector<float> reference = r.read_march(mw, mh);
+    for (auto precision : {render::DensityPrecision::F16, render::DensityPrecision::U8}) {
+        r.set_volume({.density = &density, .extinction = kappa, .precision = precision});
+        for (double step : {0.5, 1.0, 2.0}) {
+            render::Settings st = ref;
+            st.step_voxels = step;
+            r.render(cam, st, W, H);
+            const std::vector<float> img = r.read_march(mw, mh);
+            const Medians t = run_frames(r, cam, st, W, H, frames, march);
+            ctx.emit("render", {{"case", "step"},
+                                {"density", precision == render::DensityPrecision::U8 ? "u8" : "f16"},
+                                {"step_voxels", step},
+                                {"march_ms", t.wall},
+                                {"march_cpu_ms", t.cpu},
+                                {"radiance_rel_rms_error", radiance_rel_rms(img, reference)},
+                                {"transmittance_max_error", transmittance_max_err(img, reference)},
+                                {"reference", "step 0.25 voxel, f16 density, no jitter"}});
+        }
+    }
+}

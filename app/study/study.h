@@ -1,0 +1,90 @@
+// fulgur-study: accuracy/time studies that write CSV tables and SVG plots.
+//
+// Each study file registers itself with FULGUR_STUDY(name, "help") { ... } and writes its
+// results into ctx.output_dir (CSV + SVG, and a one-line JSON summary on stdout). Studies
+// are the "accuracy costs time" evidence of DESIGN.md: every knob measured against a
+// reference. They may take minutes; --quick runs a reduced version for smoke tests.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace fulgur::study {
+
+struct Context {
+    std::filesystem::path output_dir = "study-output";
+    bool quick = false;
+    /// Prints one JSON object on one line (adds "study" if missing) and flushes.
+    void summary(const std::string& name, nlohmann::json j) const;
+    /// output_dir / file, creating output_dir.
+    std::filesystem::path file(const std::string& name) const;
+};
+
+using StudyFn = std::function<void(const Context&)>;
+
+struct Registration {
+    Registration(const char* name, const char* help, StudyFn fn);
+};
+
+#define FULGUR_STUDY_CONCAT2(a, b) a##b
+#define FULGUR_STUDY_CONCAT(a, b) FULGUR_STUDY_CONCAT2(a, b)
+/// FULGUR_STUDY(lb_convergence, "lb-convergence", "help") { ... uses ctx ... }
+#define FULGUR_STUDY(ident, name, help)                                                             \
+    static void FULGUR_STUDY_CONCAT(study_fn_, ident)(const ::fulgur::study::Context& ctx);         \
+    static const ::fulgur::study::Registration FULGUR_STUDY_CONCAT(study_reg_, ident)(               \
+        name, help, &FULGUR_STUDY_CONCAT(study_fn_, ident));                                        \
+    static void FULGUR_STUDY_CONCAT(study_fn_, ident)([[maybe_unused]] const ::fulgur::study::Context& ctx)
+
+/// A small CSV writer: header once, then rows of numbers or strings; throws core::Error
+/// naming the file if it cannot be written.
+class Csv {
+public:
+    Csv(const std::filesystem::path& path, const std::vector<std::string>& header);
+    Csv& operator<<(double v);
+    Csv& operator<<(const std::string& v);
+    void end_row();
+
+private:
+    std::filesystem::path path_;
+    std::string buffer_;
+    bool first_in_row_ = true;
+    std::size_t columns_ = 0, in_row_ = 0;
+    void flush();
+
+public:
+    ~Csv();
+};
+
+// ---------------------------------------------------------------------------------------
+// SVG line plots (self-made, no dependencies)
+
+struct Series {
+    std::string label;
+    std::vector<double> x, y;
+    std::string color;   ///< CSS colour; "" picks from a palette
+    bool dashed = false;
+    bool markers = false;
+};
+
+struct PlotOptions {
+    std::string title, x_label, y_label;
+    bool log_x = false, log_y = false;
+    int width = 760, height = 460;
+    /// Vertical reference lines (x value, label), drawn dashed grey.
+    std::vector<std::pair<double, std::string>> vlines;
+    /// Horizontal reference lines (y value, label).
+    std::vector<std::pair<double, std::string>> hlines;
+    /// Optional fixed ranges (NaN = automatic).
+    double x_min = std::nan(""), x_max = std::nan(""), y_min = std::nan(""), y_max = std::nan("");
+};
+
+/// Writes an SVG line plot with axes, "nice" ticks, a legend and the reference lines.
+/// Non-finite points (and non-positive ones on log axes) are skipped.
+void write_svg_plot(const std::filesystem::path& path, const std::vector<Series>& series, const PlotOptions& opt);
+
+}  // namespace fulgur::study

@@ -1,0 +1,141 @@
+// Lattice-Boltzmann studies.
+//   lb-convergence: the paper's Figure 5 (total lattice density per step on a 128^3
+//   sun-lit cloud) and the iterations to converge against "about twice the longest
+//   dimension", for the paper's model and ours.
+#include "study/study.h"
+
+#include "cloud/cloud.h"
+#include "core/core.h"
+#include "scene/scene.h"
+#include "transport/transport.h"
+
+#include <glm/geometric.hpp>
+
+#include <cmath>
+
+using namespace fulgur;
+
+namespace {
+
+// The default scene's cumulonimbus on an n^3 lattice covering the same horizontal extent.
+core::Grid3<float> study_cloud(int n, double* voxel) {
+    const scene::Scene sc = scene::load_scene(std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes/storm.json");
+    cloud::CumulonimbusParams cp = sc.cloud.generator;
+    const double extent = std::max(cp.grid.x, cp.grid.y) * cp.voxel_size;
+    cp.voxel_size = extent / (n - 8);  // the original extent plus a 4-voxel margin per side
+    cp.grid = {n, n, n};
+    *voxel = cp.voxel_size;
+    return cloud::generate_cumulonimbus(cp);
+}
+
+int first_below(const std::vector<double>& total, double tol) {
+    for (std::size_t t = 2; t < total.size(); ++t) {
+        const double c = std::fabs(total[t] - total[t - 2]) / (2.0 * std::fabs(total[t]));
+        if (c < tol) return int(t + 1);
+    }
+    return -1;
+}
+
+}  // namespace
+
+FULGUR_STUDY(lb_convergence, "lb-convergence",
+             "Fig. 5 of Geist 2004: total lattice density per step, 128^3 sun-lit cloud; steps to converge vs 2N") {
+    const int n = ctx.quick ? 48 : 128;
+    double h = 0.0;
+    core::Stopwatch gen;
+    transport::LightingMedium m;
+    m.density = study_cloud(n, &h);
+    const double gen_s = gen.seconds();
+    // The paper's Figure 2 medium: extinction 0.25 per lattice hop at full density.
+    const double kappa = -std::log(0.75) / h;
+    const glm::dvec3 sun = glm::normalize(glm::dvec3(0.4, 0.25, -1.0));
+    struct Run {
+        std::string label;
+        transport::LbCollision collision;
+        transport::LbAbsorption absorption;
+        double g;
+        bool dashed;
+    };
+    const std::vector<Run> runs = {
+        {"paper model: conservative, g = 0", transport::LbCollision::Corrected, transport::LbAbsorption::Conservative, 0.0, false},
+        {"physical absorption, g = 0", transport::LbCollision::Corrected, transport::LbAbsorption::Physical, 0.0, false},
+        {"conservative, g = 0.85 corrected", transport::LbCollision::Corrected, transport::LbAbsorption::Conservative, 0.85, true},
+        {"physical, g = 0.85 corrected", transport::LbCollision::Corrected, transport::LbAbsorption::Physical, 0.85, true},
+        {"conservative, g = 0.85 published", transport::LbCollision::Published, transport::LbAbsorption::Conservative, 0.85, true},
+    };
+    const int max_steps = 6 * n;
+    std::vector<study::Series> curves, changes;
+    study::Csv summary(ctx.file("lb_convergence_summary.csv"),
+                       {"run", "steps_to_1e-3", "steps_to_1e-4", "steps_to_1e-5", "converged_1e-6", "steps_run", "two_N",
+                        "seconds", "MLUPS", "final_total"});
+    std::vector<std::vector<double>> histories;
+    nlohmann::json js = nlohmann::json::array();
+    for (const Run& r : runs) {
+        m.optics = transport::Medium{kappa, 0.9, r.g};
+        transport::LbSources src;
+        src.sun = transport::LbDirectionalLight{sun, 1.0};
+        transport::LbSettings s;
+        s.collision = r.collision;
+        s.absorption = r.absorption;
+        s.tolerance = 1e-6;
+        s.max_iterations = max_steps;
+        s.record_history = true;
+        const std::vector<glm::dvec3> dirs = {glm::dvec3(0, 0, 1)};
+        const transport::LbResult res = transport::solve_lattice_boltzmann(m, src, dirs, s);
+        const auto& tot = res.total_density;
+        const double final_total = tot.empty() ? 0.0 : tot.back();
+        study::Series c{r.label, {}, {}, "", r.dashed, false}, d{r.label, {}, {}, "", r.dashed, false};
+        for (std::size_t t = 0; t < tot.size(); ++t) {
+            c.x.push_back(double(t + 1));
+            c.y.push_back(tot[t] / double(m.density.size()));
+            if (t >= 2) {
+                d.x.push_back(double(t + 1));
+                d.y.push_back(std::fabs(tot[t] - tot[t - 2]) / (2.0 * std::fabs(tot[t])));
+            }
+        }
+        curves.push_back(c);
+        changes.push_back(d);
+        histories.push_back(tot);
+        const double mlups = double(m.density.size()) * res.iterations / res.seconds / 1e6;
+        summary << ("\"" + r.label + "\"") << double(first_below(tot, 1e-3)) << double(first_below(tot, 1e-4))
+                << double(first_below(tot, 1e-5)) << double(res.converged) << double(res.iterations) << double(2 * n)
+                << res.seconds << mlups << final_total;
+        summary.end_row();
+        js.push_back({{"run", r.label}, {"steps_to_1e-3", first_below(tot, 1e-3)}, {"steps_to_1e-4", first_below(tot, 1e-4)},
+                      {"steps_to_1e-5", first_below(tot, 1e-5)}, {"converged", res.converged}, {"steps", res.iterations},
+                      {"seconds", res.seconds}, {"MLUPS", mlups}});
+    }
+    {
+        std::vector<std::string> header = {"step"};
+        for (const Run& r : runs) header.push_back("\"" + r.label + "\"");
+        study::Csv csv(ctx.file("lb_convergence.csv"), header);
+        for (int t = 0; t < max_steps; ++t) {
+            csv << double(t + 1);
+            for (const auto& h2 : histories) csv << (std::size_t(t) < h2.size() ? h2[std::size_t(t)] : std::nan(""));
+            csv.end_row();
+        }
+    }
+    study::PlotOptions po;
+    po.title = "Total lattice density per step (" + std::to_string(n) + "^3 sun-lit cloud; cf. Geist 2004 Fig. 5)";
+    po.x_label = "step";
+    po.y_label = "total density / site";
+    po.vlines = {{2.0 * n, "2N"}};
+    po.y_min = 0.0;
+    po.x_min = 0.0;
+    double ymax = 0.0;
+    for (std::size_t k = 0; k + 1 < curves.size(); ++k)
+        for (double v : curves[k].y) ymax = std::max(ymax, v);
+    po.y_max = 1.15 * ymax;  // the published run may blow up: keep the others readable
+    study::write_svg_plot(ctx.file("lb_convergence.svg"), curves, po);
+    study::PlotOptions pc;
+    pc.title = "Relative change of the total density per step";
+    pc.x_label = "step";
+    pc.y_label = "|M(t) - M(t-2)| / 2M(t)";
+    pc.log_y = true;
+    pc.vlines = {{2.0 * n, "2N"}};
+    pc.hlines = {{1e-4, "default tolerance 1e-4"}};
+    pc.y_min = 1e-8;
+    pc.x_min = 0.0;
+    study::write_svg_plot(ctx.file("lb_convergence_change.svg"), changes, pc);
+    ctx.summary("lb-convergence", {{"grid", n}, {"voxel_m", h}, {"cloud_seconds", gen_s}, {"two_N", 2 * n}, {"runs", js}});
+}

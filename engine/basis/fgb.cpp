@@ -1,0 +1,943 @@
+// The .fgb baked-basis file: writer, reader, merge. Byte layout in docs/fgb-format.md and
+// basis/internal.h. The reader treats every byte as hostile: each count is bounded by the
+// bytes that remain before anything is allocated, each offset is checked against the file
+// size without overflow, and every error names the file, the byte offset and the field.
+#include "basis/basis.h"
+
+#include "basis/internal.h"
+
+#include <zlib.h>
+
+#include <algorithm>
+#include <bit>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <mutex>
+#include <sstream>
+
+namespace fulgur::basis {
+
+static_assert(std::endian::native == std::endian::little, "the .fgb writer and reader assume a little-endian host");
+
+std::uint32_t crc32_of(std::span<const std::uint8_t> bytes) noexcept {
+    uLong crc = ::crc32(0L, Z_NULL, 0);
+    const std::uint8_t* p = bytes.data();
+    std::size_t n = bytes.size();
+    while (n > 0) {  // zlib takes uInt lengths
+        const uInt chunk = uInt(std::min<std::size_t>(n, 1u << 30));
+        crc = ::crc32(crc, p, chunk);
+        p += chunk;
+        n -= chunk;
+    }
+    return std::uint32_t(crc);
+}
+
+std::uint64_t hash_description(std::string_view text) noexcept {
+    std::uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a 64
+    for (char ch : text) {
+        h ^= std::uint8_t(ch);
+        h *= 0x100000001b3ull;
+    }
+    h ^= h >> 30;  // SplitMix64 finalizer: spreads FNV's weak high bits
+    h *= 0xbf58476d1ce4e5b9ull;
+    h ^= h >> 27;
+    h *= 0x94d049bb133111ebull;
+    h ^= h >> 31;
+    return h;
+}
+
+BakeKey BakeKey::from_description(std::string description) {
+    BakeKey k;
+    k.hash = hash_description(description);
+    k.description = std::move(description);
+    return k;
+}
+
+namespace {
+
+std::string hex64(std::uint64_t v) {
+    char buf[24];
+    std::snprintf(buf, sizeof buf, "0x%016llx", static_cast<unsigned long long>(v));
+    return buf;
+}
+std::string hex32(std::uint32_t v) {
+    char buf[16];
+    std::snprintf(buf, sizeof buf, "0x%08x", v);
+    return buf;
+}
+std::string num(double v) {
+    std::ostringstream s;
+    s.precision(17);
+    s << v;
+    return s.str();
+}
+
+// ---- little-endian serialization ---------------------------------------------------------
+
+class ByteWriter {
+public:
+    std::vector<std::uint8_t> bytes;
+    template <class T>
+    void put(T v) {
+        static_assert(std::is_trivially_copyable_v<T>);
+        const std::size_t at = bytes.size();
+        bytes.resize(at + sizeof(T));
+        std::memcpy(bytes.data() + at, &v, sizeof(T));
+    }
+    void put_bytes(const void* p, std::size_t n) {
+        const std::size_t at = bytes.size();
+        bytes.resize(at + n);
+        if (n) std::memcpy(bytes.data() + at, p, n);
+    }
+};
+
+template <class T>
+void poke(std::vector<std::uint8_t>& b, std::size_t at, T v) {
+    std::memcpy(b.data() + at, &v, sizeof(T));
+}
+template <class T>
+T peek(const std::uint8_t* p) {
+    T v;
+    std::memcpy(&v, p, sizeof(T));
+    return v;
+}
+
+/// A bounded cursor over bytes that sit at `base` in the file named `name`.
+class ByteReader {
+public:
+    ByteReader(const std::uint8_t* data, std::size_t size, std::uint64_t base, const std::string& name)
+        : p_(data), n_(size), base_(base), name_(name) {}
+
+    std::uint64_t offset() const noexcept { return base_ + pos_; }
+    std::size_t remaining() const noexcept { return n_ - pos_; }
+    std::string where() const { return name_ + " (byte " + std::to_string(offset()) + ")"; }
+    [[noreturn]] void fail(const std::string& field, const std::string& what) const {
+        throw core::Error(where(), field + ": " + what);
+    }
+
+    template <class T>
+    T get(const std::string& field) {
+        if (remaining() < sizeof(T))
+            fail(field, "needs " + std::to_string(sizeof(T)) + " bytes, only " + std::to_string(remaining()) +
+                            " remain in this section (truncated or inconsistent sizes)");
+        T v;
+        std::memcpy(&v, p_ + pos_, sizeof(T));
+        pos_ += sizeof(T);
+        return v;
+    }
+    double get_finite(const std::string& field) {
+        const std::uint64_t at = offset();
+        const double v = get<double>(field);
+        if (!std::isfinite(v)) throw core::Error(name_ + " (byte " + std::to_string(at) + ")", field + ": not finite");
+        return v;
+    }
+    /// A count of items of `item_bytes` each that must fit in what remains.
+    std::uint32_t count(const std::string& field, std::size_t item_bytes, std::uint32_t max_allowed) {
+        const std::uint64_t at = offset();
+        const std::uint32_t c = get<std::uint32_t>(field);
+        if (c > max_allowed)
+            throw core::Error(name_ + " (byte " + std::to_string(at) + ")",
+                              field + ": " + std::to_string(c) + " exceeds the limit " + std::to_string(max_allowed));
+        if (item_bytes && std::uint64_t(c) * item_bytes > remaining())
+            throw core::Error(name_ + " (byte " + std::to_string(at) + ")",
+                              field + ": " + std::to_string(c) + " items of " + std::to_string(item_bytes) +
+                                  " bytes do not fit in the " + std::to_string(remaining()) + " bytes that remain");
+        return c;
+    }
+    const std::uint8_t* take(std::size_t n, const std::string& field) {
+        if (remaining() < n) fail(field, "needs " + std::to_string(n) + " bytes, " + std::to_string(remaining()) + " remain");
+        const std::uint8_t* q = p_ + pos_;
+        pos_ += n;
+        return q;
+    }
+
+private:
+    const std::uint8_t* p_;
+    std::size_t n_;
+    std::size_t pos_ = 0;
+    std::uint64_t base_;
+    const std::string& name_;
+};
+
+// ---- metadata ----------------------------------------------------------------------------
+
+std::vector<std::uint8_t> encode_metadata(const FgbMetadata& m) {
+    ByteWriter w;
+    w.put(std::uint32_t(m.key.description.size()));
+    w.put_bytes(m.key.description.data(), m.key.description.size());
+    w.put(std::int32_t(m.lighting.dims.x));
+    w.put(std::int32_t(m.lighting.dims.y));
+    w.put(std::int32_t(m.lighting.dims.z));
+    w.put(m.lighting.voxel_size);
+    w.put(m.lighting.origin.x);
+    w.put(m.lighting.origin.y);
+    w.put(m.lighting.origin.z);
+    w.put(std::uint32_t(m.directions.size()));
+    for (const glm::dvec3& d : m.directions) {
+        w.put(d.x);
+        w.put(d.y);
+        w.put(d.z);
+    }
+    const std::vector<double>* axes[3] = {&m.lights.x, &m.lights.y, &m.lights.z};
+    for (const auto* a : axes) w.put(std::uint32_t(a->size()));
+    for (const auto* a : axes)
+        for (double v : *a) w.put(v);
+    w.put(m.lights.cloud_base);
+    w.put(m.lights.cloud_top);
+    w.put(std::uint32_t(m.lights.base_layer));
+    w.put(std::uint32_t(m.compression.mode));
+    w.put(m.compression.xi);
+    w.put(std::uint32_t(m.compression.precision));
+    w.put(std::uint32_t(m.compression.decomposition));
+    w.put(std::uint32_t(m.index_bytes()));
+    return w.bytes;
+}
+
+constexpr std::uint32_t kMaxDescription = 1u << 24;
+
+FgbMetadata decode_metadata(ByteReader& r, std::uint64_t scene_hash, const std::string& name) {
+    FgbMetadata m;
+    m.key.hash = scene_hash;
+    const std::uint32_t dlen = r.count("metadata.description length", 1, kMaxDescription);
+    const std::uint8_t* d = r.take(dlen, "metadata.description");
+    m.key.description.assign(reinterpret_cast<const char*>(d), dlen);
+
+    const std::uint64_t geom_at = r.offset();
+    m.lighting.dims.x = r.get<std::int32_t>("metadata.lighting.nx");
+    m.lighting.dims.y = r.get<std::int32_t>("metadata.lighting.ny");
+    m.lighting.dims.z = r.get<std::int32_t>("metadata.lighting.nz");
+    m.lighting.voxel_size = r.get<double>("metadata.lighting.voxel_size");
+    m.lighting.origin.x = r.get<double>("metadata.lighting.origin.x");
+    m.lighting.origin.y = r.get<double>("metadata.lighting.origin.y");
+    m.lighting.origin.z = r.get<double>("metadata.lighting.origin.z");
+    core::validate_geometry(m.lighting, name + " (byte " + std::to_string(geom_at) + ") metadata.lighting");
+    if (m.lighting.cell_count() > kMaxFgbCells)
+        throw core::Error(name + " (byte " + std::to_string(geom_at) + ")",
+                          "metadata.lighting: " + std::to_string(m.lighting.cell_count()) + " cells, the format allows " +
+                              std::to_string(kMaxFgbCells));
+
+    const std::uint32_t ndir = r.count("metadata.direction count", 24, std::uint32_t(fgb::kMaxDirections));
+    if (ndir == 0) r.fail("metadata.direction count", "must be at least 1");
+    m.directions.resize(ndir);
+    for (std::uint32_t i = 0; i < ndir; ++i) {
+        const std::string f = "metadata.direction[" + std::to_string(i) + "]";
+        const std::uint64_t at = r.offset();
+        glm::dvec3& v = m.directions[i];
+        v.x = r.get_finite(f + ".x");
+        v.y = r.get_finite(f + ".y");
+        v.z = r.get_finite(f + ".z");
+        const double len = std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
+        if (!(std::fabs(len - 1.0) <= 1e-9))
+            throw core::Error(name + " (byte " + std::to_string(at) + ")", f + ": not a unit vector (length " + num(len) + ")");
+    }
+
+    std::uint32_t nl[3];
+    const char* axis_names[3] = {"x", "y", "z"};
+    std::uint64_t total = 1;
+    for (int a = 0; a < 3; ++a) {
+        nl[a] = r.count(std::string("metadata.virtual_lights.n") + axis_names[a], 8, std::uint32_t(kMaxVirtualLights));
+        if (nl[a] == 0) r.fail(std::string("metadata.virtual_lights.n") + axis_names[a], "must be at least 1");
+        total *= nl[a];
+        if (total > kMaxVirtualLights)
+            r.fail("metadata.virtual_lights", "more than " + std::to_string(kMaxVirtualLights) + " virtual lights");
+    }
+    std::vector<double>* axes[3] = {&m.lights.x, &m.lights.y, &m.lights.z};
+    for (int a = 0; a < 3; ++a) {
+        const std::string f = std::string("metadata.virtual_lights.") + axis_names[a];
+        if (std::uint64_t(nl[a]) * 8 > r.remaining()) r.fail(f, "does not fit in the metadata");
+        axes[a]->resize(nl[a]);
+        for (std::uint32_t i = 0; i < nl[a]; ++i) {
+            const std::uint64_t at = r.offset();
+            (*axes[a])[i] = r.get_finite(f + "[" + std::to_string(i) + "]");
+            if (i > 0 && !((*axes[a])[i] > (*axes[a])[i - 1]))
+                throw core::Error(name + " (byte " + std::to_string(at) + ")", f + ": coordinates must increase");
+        }
+    }
+    m.lights.cloud_base = r.get_finite("metadata.virtual_lights.cloud_base");
+    m.lights.cloud_top = r.get_finite("metadata.virtual_lights.cloud_top");
+    const std::uint32_t base_layer = r.get<std::uint32_t>("metadata.virtual_lights.base_layer");
+    if (base_layer >= nl[2]) r.fail("metadata.virtual_lights.base_layer", "outside the z layers");
+    m.lights.base_layer = base_layer;
+
+    const std::uint32_t mode = r.get<std::uint32_t>("metadata.compression.threshold");
+    if (mode > 2) r.fail("metadata.compression.threshold", "unknown mode " + std::to_string(mode));
+    m.compression.mode = ThresholdMode(mode);
+    m.compression.xi = r.get_finite("metadata.compression.xi");
+    const std::uint32_t prec = r.get<std::uint32_t>("metadata.compression.precision");
+    if (prec > 1) r.fail("metadata.compression.precision", "unknown precision " + std::to_string(prec));
+    m.compression.precision = Precision(prec);
+    const std::uint32_t dec = r.get<std::uint32_t>("metadata.compression.decomposition");
+    if (dec > 1) r.fail("metadata.compression.decomposition", "unknown decomposition " + std::to_string(dec));
+    m.compression.decomposition = Decomposition(dec);
+    try {
+        validate(m.compression, "metadata.compression");
+    } catch (const core::Error& e) {
+        r.fail(e.where(), e.reason());
+    }
+    const std::uint32_t ib = r.get<std::uint32_t>("metadata.index_bytes");
+    if (int(ib) != m.index_bytes())
+        r.fail("metadata.index_bytes", std::to_string(ib) + " does not match the grid (" +
+                                           std::to_string(m.index_bytes()) + " expected)");
+    if (r.remaining() != 0) r.fail("metadata", std::to_string(r.remaining()) + " unexpected bytes at the end");
+    return m;
+}
+
+// ---- blocks ------------------------------------------------------------------------------
+
+std::size_t value_bytes(Precision p) { return p == Precision::Float16 ? 2 : 4; }
+
+CompressedLight decode_block(const std::uint8_t* data, std::size_t size, std::uint64_t file_offset,
+                             std::uint32_t expected_light, const FgbMetadata& m, const std::string& name) {
+    const std::string light_name = "light " + std::to_string(expected_light);
+    ByteReader r(data, size, file_offset, name);
+    auto fail_at = [&](std::uint64_t at, const std::string& what) -> void {
+        throw core::Error(name + " (byte " + std::to_string(at) + ", " + light_name + ")", what);
+    };
+    const std::uint32_t magic = r.get<std::uint32_t>("block.magic");
+    if (magic != fgb::kBlockMagic) fail_at(file_offset, "block.magic: " + hex32(magic) + " is not \"FGBL\"");
+    const std::uint32_t light = r.get<std::uint32_t>("block.light");
+    if (light != expected_light) fail_at(file_offset + 4, "block.light: the block says light " + std::to_string(light));
+    const std::uint64_t ndir_at = r.offset();
+    const std::uint32_t ndir = r.get<std::uint32_t>("block.direction count");
+    if (ndir != m.directions.size())
+        fail_at(ndir_at, "block.direction count: " + std::to_string(ndir) + ", the file has " +
+                             std::to_string(m.directions.size()) + " directions");
+    const std::size_t ib = std::size_t(m.index_bytes()), vb = value_bytes(m.compression.precision);
+    const std::uint64_t cells = m.cells();
+    CompressedLight out;
+    out.light = light;
+    out.directions.resize(ndir);
+    std::vector<std::uint32_t> counts(ndir);
+    std::uint64_t payload = 0;
+    for (std::uint32_t d = 0; d < ndir; ++d) {
+        const std::string f = "block.direction[" + std::to_string(d) + "].";
+        const std::uint64_t at = r.offset();
+        counts[d] = r.get<std::uint32_t>(f + "count");
+        if (counts[d] > cells)
+            fail_at(at, f + "count: " + std::to_string(counts[d]) + " coefficients, the grid has " +
+                            std::to_string(cells) + " cells");
+        CompressedBasis& b = out.directions[d];
+        b.scale_exp = r.get<std::int32_t>(f + "scale_exp");
+        if (m.compression.precision == Precision::Float32 ? b.scale_exp != 0 : (b.scale_exp < -125 || b.scale_exp > 112))
+            fail_at(at + 4, f + "scale_exp: " + std::to_string(b.scale_exp) + " is out of range");
+        if (counts[d] == 0 && b.scale_exp != 0) fail_at(at + 4, f + "scale_exp: must be 0 for an empty basis");
+        b.gamma = r.get<double>(f + "gamma");
+        b.norm = r.get<double>(f + "norm");
+        if (!std::isfinite(b.gamma) || b.gamma < 0.0) fail_at(at + 8, f + "gamma: not a finite value >= 0");
+        if (!std::isfinite(b.norm) || b.norm < 0.0) fail_at(at + 16, f + "norm: not a finite value >= 0");
+        payload += std::uint64_t(counts[d]) * (ib + vb);
+    }
+    if (payload != r.remaining())
+        fail_at(r.offset(), "block size: the coefficient counts need " + std::to_string(payload) +
+                                " bytes of indices and values, the block has " + std::to_string(r.remaining()));
+    std::vector<std::uint32_t> sorted;  // duplicate check; sized by counts, which the block size bounds
+    for (std::uint32_t d = 0; d < ndir; ++d) {
+        CompressedBasis& b = out.directions[d];
+        const std::uint32_t n = counts[d];
+        const std::string f = "direction " + std::to_string(d);
+        const std::uint64_t idx_at = r.offset();
+        const std::uint8_t* ip = r.take(std::size_t(n) * ib, "indices");
+        const std::uint64_t val_at = r.offset();
+        const std::uint8_t* vp = r.take(std::size_t(n) * vb, "values");
+        b.index.resize(n);
+        b.value.resize(n);
+        for (std::uint32_t k = 0; k < n; ++k) {
+            const std::uint32_t idx = ib == 2 ? std::uint32_t(peek<std::uint16_t>(ip + 2 * k)) : peek<std::uint32_t>(ip + 4 * k);
+            if (idx >= cells)
+                fail_at(idx_at + k * ib, f + " coefficient " + std::to_string(k) + ": index " + std::to_string(idx) +
+                                             " outside the " + std::to_string(cells) + " cells");
+            b.index[k] = idx;
+            float v;
+            if (vb == 2) {
+                const std::uint16_t h = peek<std::uint16_t>(vp + 2 * k);
+                if ((h & 0x7c00u) == 0x7c00u)
+                    fail_at(val_at + k * vb, f + " coefficient " + std::to_string(k) + ": float16 value is not finite");
+                v = std::ldexp(half_to_float(h), b.scale_exp);
+            } else {
+                v = peek<float>(vp + 4 * k);
+                if (!std::isfinite(v))
+                    fail_at(val_at + k * vb, f + " coefficient " + std::to_string(k) + ": float32 value is not finite");
+            }
+            if (k > 0 && std::fabs(v) > std::fabs(b.value[k - 1]))
+                fail_at(val_at + k * vb, f + " coefficient " + std::to_string(k) +
+                                             ": magnitudes must not increase (the file stores them largest first)");
+            b.value[k] = v;
+        }
+        sorted.assign(b.index.begin(), b.index.end());
+        std::sort(sorted.begin(), sorted.end());
+        const auto dup = std::adjacent_find(sorted.begin(), sorted.end());
+        if (dup != sorted.end()) {
+            const std::size_t k = std::size_t(std::find(b.index.begin(), b.index.end(), *dup) - b.index.begin());
+            fail_at(idx_at, f + ": index " + std::to_string(*dup) + " appears twice (first as coefficient " +
+                                std::to_string(k) + ")");
+        }
+    }
+    return out;
+}
+
+// ---- header ------------------------------------------------------------------------------
+
+struct Header {
+    std::uint32_t version = kFgbVersion;
+    std::uint64_t file_size = 0;
+    std::uint64_t scene_hash = 0;
+    std::uint32_t flags = 0;
+    std::uint32_t light_count = 0, light_begin = 0, light_end = 0;
+    std::uint64_t meta_offset = 0, meta_size = 0, index_offset = 0, index_size = 0, blocks_offset = 0, blocks_size = 0;
+    std::uint32_t header_crc = 0;
+};
+
+std::vector<std::uint8_t> encode_header(const Header& h) {
+    std::vector<std::uint8_t> b(fgb::kHeaderSize, 0);
+    std::memcpy(b.data(), fgb::kMagic, 8);
+    poke(b, fgb::kOffVersion, h.version);
+    poke(b, fgb::kOffEndian, fgb::kEndianMarker);
+    poke(b, fgb::kOffFileSize, h.file_size);
+    poke(b, fgb::kOffSceneHash, h.scene_hash);
+    poke(b, fgb::kOffFlags, h.flags);
+    poke(b, fgb::kOffLightCount, h.light_count);
+    poke(b, fgb::kOffLightBegin, h.light_begin);
+    poke(b, fgb::kOffLightEnd, h.light_end);
+    poke(b, fgb::kOffMetaOffset, h.meta_offset);
+    poke(b, fgb::kOffMetaSize, h.meta_size);
+    poke(b, fgb::kOffIndexOffset, h.index_offset);
+    poke(b, fgb::kOffIndexSize, h.index_size);
+    poke(b, fgb::kOffBlocksOffset, h.blocks_offset);
+    poke(b, fgb::kOffBlocksSize, h.blocks_size);
+    poke(b, fgb::kOffHeaderCrc, h.header_crc);
+    poke(b, fgb::kOffReserved, std::uint32_t(0));
+    return b;
+}
+
+std::string describe_range(std::uint32_t a, std::uint32_t b) {
+    return "[" + std::to_string(a) + ", " + std::to_string(b) + ")";
+}
+
+}  // namespace
+
+std::uint32_t fgb::header_crc(std::span<const std::uint8_t> file, std::uint64_t blocks_offset) noexcept {
+    if (blocks_offset > file.size() || blocks_offset < kHeaderSize) return 0;
+    uLong crc = ::crc32(0L, Z_NULL, 0);
+    const std::uint8_t zero[4] = {0, 0, 0, 0};
+    crc = ::crc32(crc, file.data(), uInt(kOffHeaderCrc));
+    crc = ::crc32(crc, zero, 4);
+    const std::span<const std::uint8_t> rest = file.subspan(kOffHeaderCrc + 4, std::size_t(blocks_offset) - kOffHeaderCrc - 4);
+    const std::uint32_t tail = crc32_of(rest);
+    // Combine without re-reading: crc32_combine(crc(A), crc(B), len(B)).
+    return std::uint32_t(::crc32_combine(crc, tail, z_off_t(rest.size())));
+}
+
+void validate(const FgbMetadata& m, std::string_view where) {
+    const std::string w(where);
+    core::validate_geometry(m.lighting, w + ".lighting");
+    if (m.lighting.cell_count() > kMaxFgbCells)
+        throw core::Error(w + ".lighting", "more than " + std::to_string(kMaxFgbCells) + " cells");
+    if (m.directions.empty() || m.directions.size() > fgb::kMaxDirections)
+        throw core::Error(w + ".directions", "needs 1 to 64 directions, got " + std::to_string(m.directions.size()));
+    for (std::size_t i = 0; i < m.directions.size(); ++i) {
+        const glm::dvec3& d = m.directions[i];
+        const double len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+        if (!(std::fabs(len - 1.0) <= 1e-9))
+            throw core::Error(w + ".directions[" + std::to_string(i) + "]", "not a unit vector");
+    }
+    const std::vector<double>* axes[3] = {&m.lights.x, &m.lights.y, &m.lights.z};
+    for (int a = 0; a < 3; ++a) {
+        if (axes[a]->empty()) throw core::Error(w + ".lights", "every axis needs at least one virtual light");
+        for (std::size_t i = 0; i < axes[a]->size(); ++i) {
+            if (!std::isfinite((*axes[a])[i]) || (i > 0 && !((*axes[a])[i] > (*axes[a])[i - 1])))
+                throw core::Error(w + ".lights", "coordinates must be finite and increasing");
+        }
+    }
+    if (m.lights.count() > kMaxVirtualLights) throw core::Error(w + ".lights", "too many virtual lights");
+    if (m.lights.base_layer >= m.lights.z.size()) throw core::Error(w + ".lights.base_layer", "outside the z layers");
+    if (!std::isfinite(m.lights.cloud_base) || !std::isfinite(m.lights.cloud_top))
+        throw core::Error(w + ".lights", "cloud base and top must be finite");
+    validate(m.compression, w + ".compression");
+    if (m.key.description.size() > kMaxDescription) throw core::Error(w + ".key", "description longer than 16 MiB");
+}
+
+EncodedBlock encode_block(const CompressedLight& light, const FgbMetadata& m) {
+    FULGUR_ASSERT(light.directions.size() == m.directions.size(), "encode_block: direction count differs from the file's");
+    const std::size_t ib = std::size_t(m.index_bytes());
+    const bool f16 = m.compression.precision == Precision::Float16;
+    ByteWriter w;
+    w.put(fgb::kBlockMagic);
+    w.put(light.light);
+    w.put(std::uint32_t(light.directions.size()));
+    for (const CompressedBasis& b : light.directions) {
+        FULGUR_ASSERT(b.index.size() == b.value.size() && b.size() <= m.cells(), "encode_block: malformed basis");
+        w.put(std::uint32_t(b.size()));
+        w.put(std::int32_t(b.scale_exp));
+        w.put(b.gamma);
+        w.put(b.norm);
+    }
+    for (const CompressedBasis& b : light.directions) {
+        for (std::uint32_t idx : b.index) {
+            FULGUR_ASSERT(idx < m.cells(), "encode_block: coefficient index outside the grid");
+            if (ib == 2)
+                w.put(std::uint16_t(idx));
+            else
+                w.put(idx);
+        }
+        for (float v : b.value) {
+            if (f16) {
+                const std::uint16_t h = float_to_half(std::ldexp(v, -b.scale_exp));
+                FULGUR_ASSERT((h & 0x7c00u) != 0x7c00u, "encode_block: value not representable in float16 (not compressed for float16?)");
+                w.put(h);
+            } else {
+                w.put(v);
+            }
+        }
+    }
+    EncodedBlock e;
+    e.light = light.light;
+    e.bytes = std::move(w.bytes);
+    e.crc = crc32_of(e.bytes);
+    return e;
+}
+
+// =======================================================================================
+// Writer
+
+struct FgbWriter::Impl {
+    struct Entry {
+        std::uint64_t offset = 0, size = 0;
+        std::uint32_t crc = 0;
+        bool present = false;
+    };
+    std::filesystem::path path, tmp;
+    FgbMetadata meta;
+    std::vector<std::uint8_t> meta_bytes;
+    std::uint32_t begin = 0, end = 0;
+    std::vector<Entry> entries;
+    std::uint64_t cursor = 0;
+    std::FILE* file = nullptr;
+    std::mutex mutex;
+    bool finished = false;
+
+    [[noreturn]] void io_fail(const std::string& what) const {
+        throw core::Error(tmp.string(), what + ": " + std::strerror(errno));
+    }
+    void write_at(std::uint64_t offset, const void* p, std::size_t n) {
+        if (std::fseek(file, long(offset), SEEK_SET) != 0) io_fail("seek failed");
+        if (n && std::fwrite(p, 1, n, file) != n) io_fail("write failed");
+    }
+    std::uint64_t index_offset() const { return fgb::kHeaderSize + meta_bytes.size(); }
+    std::uint64_t blocks_offset() const { return index_offset() + std::uint64_t(end - begin) * fgb::kIndexEntrySize; }
+};
+
+FgbWriter::FgbWriter(std::filesystem::path path, FgbMetadata meta)
+    : FgbWriter(std::move(path), meta, 0, std::uint32_t(meta.light_count())) {}
+
+FgbWriter::FgbWriter(std::filesystem::path path, FgbMetadata meta, std::uint32_t light_begin, std::uint32_t light_end)
+    : impl_(std::make_unique<Impl>()) {
+    Impl& w = *impl_;
+    validate(meta, "fgb writer: metadata");
+    if (!(light_begin < light_end && light_end <= meta.light_count()))
+        throw core::Error(path.string(), "light range " + describe_range(light_begin, light_end) +
+                                             " is empty or outside the " + std::to_string(meta.light_count()) +
+                                             " virtual lights");
+    w.path = std::move(path);
+    w.tmp = w.path;
+    w.tmp += ".tmp";
+    w.meta = std::move(meta);
+    w.meta_bytes = encode_metadata(w.meta);
+    w.begin = light_begin;
+    w.end = light_end;
+    w.entries.resize(light_end - light_begin);
+    w.file = std::fopen(w.tmp.c_str(), "wb");
+    if (!w.file) w.io_fail("cannot open for writing");
+    // Placeholder header and index, filled by finish().
+    const std::vector<std::uint8_t> zeros(std::size_t(w.blocks_offset()), 0);
+    w.write_at(0, zeros.data(), zeros.size());
+    w.cursor = w.blocks_offset();
+}
+
+FgbWriter::~FgbWriter() {
+    if (!impl_) return;
+    if (impl_->file) std::fclose(impl_->file);
+    if (!impl_->finished) {
+        std::error_code ec;
+        std::filesystem::remove(impl_->tmp, ec);
+    }
+}
+
+const FgbMetadata& FgbWriter::metadata() const noexcept { return impl_->meta; }
+
+void FgbWriter::add(const CompressedLight& light) { add(encode_block(light, impl_->meta)); }
+
+void FgbWriter::add(const EncodedBlock& block) {
+    Impl& w = *impl_;
+    std::lock_guard lock(w.mutex);
+    FULGUR_ASSERT(!w.finished, "FgbWriter::add after finish()");
+    if (block.light < w.begin || block.light >= w.end)
+        throw core::Error(w.path.string(), "light " + std::to_string(block.light) + " is outside this file's range " +
+                                               describe_range(w.begin, w.end));
+    Impl::Entry& e = w.entries[block.light - w.begin];
+    if (e.present) throw core::Error(w.path.string(), "light " + std::to_string(block.light) + " was added twice");
+    w.write_at(w.cursor, block.bytes.data(), block.bytes.size());
+    e.offset = w.cursor;
+    e.size = block.bytes.size();
+    e.crc = block.crc;
+    e.present = true;
+    w.cursor += block.bytes.size();
+}
+
+void FgbWriter::finish() {
+    Impl& w = *impl_;
+    std::lock_guard lock(w.mutex);
+    FULGUR_ASSERT(!w.finished, "FgbWriter::finish called twice");
+    std::size_t missing = 0, first_missing = 0;
+    for (std::size_t i = 0; i < w.entries.size(); ++i)
+        if (!w.entries[i].present && missing++ == 0) first_missing = w.begin + i;
+    if (missing)
+        throw core::Error(w.path.string(), std::to_string(missing) + " of the lights " + describe_range(w.begin, w.end) +
+                                               " were never added (first: light " + std::to_string(first_missing) + ")");
+    Header h;
+    h.file_size = w.cursor;
+    h.scene_hash = w.meta.key.hash;
+    h.light_count = std::uint32_t(w.meta.light_count());
+    h.light_begin = w.begin;
+    h.light_end = w.end;
+    h.flags = (w.begin == 0 && w.end == h.light_count) ? 0u : fgb::kFlagPartial;
+    h.meta_offset = fgb::kHeaderSize;
+    h.meta_size = w.meta_bytes.size();
+    h.index_offset = w.index_offset();
+    h.index_size = std::uint64_t(w.end - w.begin) * fgb::kIndexEntrySize;
+    h.blocks_offset = w.blocks_offset();
+    h.blocks_size = w.cursor - h.blocks_offset;
+
+    std::vector<std::uint8_t> head = encode_header(h);
+    head.insert(head.end(), w.meta_bytes.begin(), w.meta_bytes.end());
+    ByteWriter index;
+    for (std::size_t i = 0; i < w.entries.size(); ++i) {
+        index.put(w.entries[i].offset);
+        index.put(w.entries[i].size);
+        index.put(w.entries[i].crc);
+        index.put(std::uint32_t(w.begin + i));
+    }
+    head.insert(head.end(), index.bytes.begin(), index.bytes.end());
+    poke(head, fgb::kOffHeaderCrc, fgb::header_crc(head, h.blocks_offset));
+    w.write_at(0, head.data(), head.size());
+    if (std::fflush(w.file) != 0) w.io_fail("flush failed");
+    const int rc = std::fclose(w.file);
+    w.file = nullptr;
+    if (rc != 0) w.io_fail("close failed");
+    std::error_code ec;
+    std::filesystem::rename(w.tmp, w.path, ec);
+    if (ec) throw core::Error(w.path.string(), "cannot move the finished file into place: " + ec.message());
+    w.finished = true;
+}
+
+// =======================================================================================
+// Reader
+
+struct FgbReader::Impl {
+    std::string name;
+    bool in_memory = false;
+    std::vector<std::uint8_t> memory;  // whole file (memory reader)
+    std::ifstream file;                // file reader
+    std::uint64_t size = 0;
+    Header h;
+    std::vector<std::uint8_t> meta_bytes;
+    FgbMetadata meta;
+    struct Entry {
+        std::uint64_t offset, size;
+        std::uint32_t crc;
+    };
+    std::vector<Entry> entries;
+
+    std::string at(std::uint64_t off) const { return name + " (byte " + std::to_string(off) + ")"; }
+
+    std::vector<std::uint8_t> read(std::uint64_t offset, std::uint64_t n) {
+        FULGUR_ASSERT(offset <= size && n <= size - offset, "fgb reader: read outside the file");
+        std::vector<std::uint8_t> out(static_cast<std::size_t>(n));
+        if (in_memory) {
+            if (n) std::memcpy(out.data(), memory.data() + offset, std::size_t(n));
+            return out;
+        }
+        file.clear();
+        file.seekg(std::streamoff(offset));
+        file.read(reinterpret_cast<char*>(out.data()), std::streamsize(n));
+        if (!file || std::uint64_t(file.gcount()) != n)
+            throw core::Error(at(offset), "read of " + std::to_string(n) + " bytes failed (file changed or unreadable)");
+        return out;
+    }
+
+    void open();
+};
+
+void FgbReader::Impl::open() {
+    using namespace fgb;
+    if (size < kHeaderSize)
+        throw core::Error(name, "truncated: the file has " + std::to_string(size) + " bytes, the fixed header alone is " +
+                                    std::to_string(kHeaderSize));
+    const std::vector<std::uint8_t> head = read(0, kHeaderSize);
+    if (std::memcmp(head.data(), kMagic, 8) != 0) {
+        if (head[1] == 'F' && head[2] == 'G' && head[3] == 'B')
+            throw core::Error(at(0), "header.magic: damaged signature (line endings converted by a text-mode transfer?)");
+        throw core::Error(at(0), "header.magic: not a Fulgur baked-basis (.fgb) file");
+    }
+    h.version = peek<std::uint32_t>(head.data() + kOffVersion);
+    if (h.version != kFgbVersion)
+        throw core::Error(at(kOffVersion), "header.version: format version " + std::to_string(h.version) +
+                                               ", this build reads version " + std::to_string(kFgbVersion) + "; rebake");
+    const std::uint32_t endian = peek<std::uint32_t>(head.data() + kOffEndian);
+    if (endian != kEndianMarker)
+        throw core::Error(at(kOffEndian), "header.endianness: marker " + hex32(endian) + ", expected " +
+                                              hex32(kEndianMarker) + " (a little-endian file)");
+    h.file_size = peek<std::uint64_t>(head.data() + kOffFileSize);
+    if (h.file_size != size)
+        throw core::Error(at(kOffFileSize), std::string(size < h.file_size ? "truncated" : "wrong size") +
+                                                ": header.file_size says " + std::to_string(h.file_size) +
+                                                " bytes, the file has " + std::to_string(size));
+    h.scene_hash = peek<std::uint64_t>(head.data() + kOffSceneHash);
+    h.flags = peek<std::uint32_t>(head.data() + kOffFlags);
+    h.light_count = peek<std::uint32_t>(head.data() + kOffLightCount);
+    h.light_begin = peek<std::uint32_t>(head.data() + kOffLightBegin);
+    h.light_end = peek<std::uint32_t>(head.data() + kOffLightEnd);
+    h.meta_offset = peek<std::uint64_t>(head.data() + kOffMetaOffset);
+    h.meta_size = peek<std::uint64_t>(head.data() + kOffMetaSize);
+    h.index_offset = peek<std::uint64_t>(head.data() + kOffIndexOffset);
+    h.index_size = peek<std::uint64_t>(head.data() + kOffIndexSize);
+    h.blocks_offset = peek<std::uint64_t>(head.data() + kOffBlocksOffset);
+    h.blocks_size = peek<std::uint64_t>(head.data() + kOffBlocksSize);
+    h.header_crc = peek<std::uint32_t>(head.data() + kOffHeaderCrc);
+    if (h.flags & ~kFlagPartial) throw core::Error(at(kOffFlags), "header.flags: unknown bits " + hex32(h.flags));
+    if (peek<std::uint32_t>(head.data() + kOffReserved) != 0)
+        throw core::Error(at(kOffReserved), "header.reserved: must be 0");
+
+    // Section layout: header | metadata | index | blocks, contiguous, ending at the file end.
+    // Each comparison is written so that no addition can overflow.
+    if (h.meta_offset != kHeaderSize)
+        throw core::Error(at(kOffMetaOffset), "header.meta_offset: " + std::to_string(h.meta_offset) + ", expected " +
+                                                  std::to_string(kHeaderSize));
+    if (h.meta_size > size - h.meta_offset)
+        throw core::Error(at(kOffMetaSize), "header.meta_size: " + std::to_string(h.meta_size) + " bytes run past the end of the file");
+    if (h.index_offset != h.meta_offset + h.meta_size)
+        throw core::Error(at(kOffIndexOffset), "header.index_offset: " + std::to_string(h.index_offset) +
+                                                   ", the metadata ends at " + std::to_string(h.meta_offset + h.meta_size));
+    if (h.index_size > size - h.index_offset)
+        throw core::Error(at(kOffIndexSize), "header.index_size: " + std::to_string(h.index_size) + " bytes run past the end of the file");
+    if (h.blocks_offset != h.index_offset + h.index_size)
+        throw core::Error(at(kOffBlocksOffset), "header.blocks_offset: " + std::to_string(h.blocks_offset) +
+                                                    ", the index ends at " + std::to_string(h.index_offset + h.index_size));
+    if (h.blocks_size != size - h.blocks_offset)
+        throw core::Error(at(kOffBlocksSize), "header.blocks_size: " + std::to_string(h.blocks_size) + ", the blocks span " +
+                                                  std::to_string(size - h.blocks_offset) + " bytes to the end of the file");
+
+    // Header CRC over header + metadata + index (bounded by the file size above).
+    std::vector<std::uint8_t> region = read(0, h.blocks_offset);
+    const std::uint32_t crc = header_crc(region, h.blocks_offset);
+    if (crc != h.header_crc)
+        throw core::Error(at(kOffHeaderCrc), "header CRC mismatch: stored " + hex32(h.header_crc) + ", computed " + hex32(crc) +
+                                                 " over bytes [0, " + std::to_string(h.blocks_offset) +
+                                                 ") (header, metadata or index is corrupt)");
+
+    // Light range and index.
+    if (h.light_count == 0 || h.light_count > kMaxVirtualLights)
+        throw core::Error(at(kOffLightCount), "header.light_count: " + std::to_string(h.light_count) + " is out of range");
+    if (!(h.light_begin < h.light_end && h.light_end <= h.light_count))
+        throw core::Error(at(kOffLightBegin), "header.light_begin/light_end: range " + describe_range(h.light_begin, h.light_end) +
+                                                  " is empty or outside the " + std::to_string(h.light_count) + " lights");
+    const bool complete = h.light_begin == 0 && h.light_end == h.light_count;
+    if (complete == bool(h.flags & kFlagPartial))
+        throw core::Error(at(kOffFlags), "header.flags: the partial flag contradicts the light range");
+    const std::uint64_t n = h.light_end - h.light_begin;
+    if (h.index_size != n * kIndexEntrySize)
+        throw core::Error(at(kOffIndexSize), "header.index_size: " + std::to_string(h.index_size) + " bytes for " +
+                                                 std::to_string(n) + " lights of " + std::to_string(kIndexEntrySize) + " bytes each");
+
+    // Metadata.
+    meta_bytes.assign(region.begin() + std::ptrdiff_t(h.meta_offset), region.begin() + std::ptrdiff_t(h.index_offset));
+    ByteReader mr(meta_bytes.data(), meta_bytes.size(), h.meta_offset, name);
+    meta = decode_metadata(mr, h.scene_hash, name);
+    if (meta.light_count() != h.light_count)
+        throw core::Error(at(kOffLightCount), "header.light_count: " + std::to_string(h.light_count) +
+                                                  ", the virtual-light grid in the metadata has " + std::to_string(meta.light_count()));
+
+    // Index: every block inside the block section; together they tile it without overlap.
+    entries.resize(std::size_t(n));
+    struct Span {
+        std::uint64_t offset, size;
+        std::uint32_t light;
+    };
+    std::vector<Span> spans(static_cast<std::size_t>(n));
+    for (std::uint64_t i = 0; i < n; ++i) {
+        const std::uint64_t eo = h.index_offset + i * kIndexEntrySize;
+        const std::uint8_t* e = region.data() + eo;
+        Entry& en = entries[std::size_t(i)];
+        en.offset = peek<std::uint64_t>(e);
+        en.size = peek<std::uint64_t>(e + 8);
+        en.crc = peek<std::uint32_t>(e + 16);
+        const std::uint32_t light = peek<std::uint32_t>(e + 20);
+        const std::uint32_t expected = h.light_begin + std::uint32_t(i);
+        const std::string who = "index entry of light " + std::to_string(expected);
+        if (light != expected) throw core::Error(at(eo + 20), who + ": names light " + std::to_string(light));
+        if (en.offset < h.blocks_offset || en.offset > size)
+            throw core::Error(at(eo), who + ": block offset " + std::to_string(en.offset) + " is outside the block section [" +
+                                          std::to_string(h.blocks_offset) + ", " + std::to_string(size) + ")");
+        if (en.size < kBlockHeaderSize || en.size > size - en.offset)
+            throw core::Error(at(eo + 8), who + ": block size " + std::to_string(en.size) + " at offset " +
+                                              std::to_string(en.offset) + " does not fit in the file");
+        spans[std::size_t(i)] = {en.offset, en.size, expected};
+    }
+    std::sort(spans.begin(), spans.end(), [](const Span& a, const Span& b) { return a.offset < b.offset; });
+    std::uint64_t expect = h.blocks_offset;
+    for (const Span& s : spans) {
+        if (s.offset != expect)
+            throw core::Error(at(s.offset), "block of light " + std::to_string(s.light) +
+                                                (s.offset < expect ? " overlaps the previous block" : " leaves a gap after the previous block") +
+                                                " (expected it at byte " + std::to_string(expect) + ")");
+        expect = s.offset + s.size;
+    }
+    if (expect != size) throw core::Error(at(expect), "bytes after the last block are not indexed");
+}
+
+FgbReader::FgbReader(const std::filesystem::path& path) : impl_(std::make_unique<Impl>()) {
+    impl_->name = path.string();
+    std::error_code ec;
+    const auto sz = std::filesystem::file_size(path, ec);
+    if (ec) throw core::Error(impl_->name, "cannot open baked file: " + ec.message());
+    impl_->file.open(path, std::ios::binary);
+    if (!impl_->file) throw core::Error(impl_->name, "cannot open baked file");
+    impl_->size = sz;
+    impl_->open();
+}
+
+FgbReader::FgbReader(std::vector<std::uint8_t> bytes, std::string name) : impl_(std::make_unique<Impl>()) {
+    impl_->name = std::move(name);
+    impl_->size = bytes.size();
+    impl_->memory = std::move(bytes);
+    impl_->in_memory = true;
+    impl_->open();
+}
+
+FgbReader::~FgbReader() = default;
+FgbReader::FgbReader(FgbReader&&) noexcept = default;
+FgbReader& FgbReader::operator=(FgbReader&&) noexcept = default;
+
+const FgbMetadata& FgbReader::metadata() const noexcept { return impl_->meta; }
+std::uint32_t FgbReader::light_begin() const noexcept { return impl_->h.light_begin; }
+std::uint32_t FgbReader::light_end() const noexcept { return impl_->h.light_end; }
+bool FgbReader::partial() const noexcept { return impl_->h.flags & fgb::kFlagPartial; }
+std::uint64_t FgbReader::file_size() const noexcept { return impl_->size; }
+const std::string& FgbReader::name() const noexcept { return impl_->name; }
+
+void FgbReader::check_key(const BakeKey& expected) const {
+    const BakeKey& have = impl_->meta.key;
+    if (have == expected) return;
+    // Name the first differing line of the canonical descriptions.
+    auto lines = [](const std::string& s) {
+        std::vector<std::string> v;
+        std::size_t a = 0;
+        while (a <= s.size()) {
+            const std::size_t b = s.find('\n', a);
+            if (b == std::string::npos) {
+                if (a < s.size()) v.push_back(s.substr(a));
+                break;
+            }
+            v.push_back(s.substr(a, b - a));
+            a = b + 1;
+        }
+        return v;
+    };
+    const std::vector<std::string> f = lines(have.description), e = lines(expected.description);
+    std::string diff;
+    for (std::size_t i = 0; i < std::max(f.size(), e.size()); ++i) {
+        const std::string fl = i < f.size() ? "\"" + f[i] + "\"" : "nothing";
+        const std::string el = i < e.size() ? "\"" + e[i] + "\"" : "nothing";
+        if (fl != el) {
+            diff = "; first difference at line " + std::to_string(i + 1) + ": the file has " + fl + ", the scene has " + el;
+            break;
+        }
+    }
+    if (diff.empty()) diff = "; the descriptions are identical, only the hashes differ (hash function changed?)";
+    else if (have.hash == expected.hash) diff += " (equal hashes: a hash collision)";
+    throw core::Error(impl_->name, "stale bake: baked for scene hash " + hex64(have.hash) + ", the scene now hashes to " +
+                                       hex64(expected.hash) + diff + "; rebake it");
+}
+
+CompressedLight FgbReader::read_light(std::uint32_t l) {
+    Impl& r = *impl_;
+    if (l < r.h.light_begin || l >= r.h.light_end)
+        throw core::Error(r.name, "light " + std::to_string(l) + " is not in this file's range " +
+                                      describe_range(r.h.light_begin, r.h.light_end));
+    const Impl::Entry& e = r.entries[l - r.h.light_begin];
+    const std::vector<std::uint8_t> bytes = r.read(e.offset, e.size);
+    const std::uint32_t crc = crc32_of(bytes);
+    if (crc != e.crc)
+        throw core::Error(r.at(e.offset), "light " + std::to_string(l) + ": block CRC mismatch over bytes [" +
+                                              std::to_string(e.offset) + ", " + std::to_string(e.offset + e.size) +
+                                              "): stored " + hex32(e.crc) + ", computed " + hex32(crc));
+    return decode_block(bytes.data(), bytes.size(), e.offset, l, r.meta, r.name);
+}
+
+EncodedBlock FgbReader::read_encoded(std::uint32_t l) {
+    (void)read_light(l);  // full validation
+    const Impl::Entry& e = impl_->entries[l - impl_->h.light_begin];
+    EncodedBlock b;
+    b.light = l;
+    b.crc = e.crc;
+    b.bytes = impl_->read(e.offset, e.size);
+    return b;
+}
+
+std::size_t BakedBasis::coefficient_count() const noexcept {
+    std::size_t n = 0;
+    for (const CompressedLight& l : lights) n += l.coefficient_count();
+    return n;
+}
+
+BakedBasis load_fgb(FgbReader& reader, const LoadOptions& options) {
+    if (reader.partial())
+        throw core::Error(reader.name(), "holds only lights " + describe_range(reader.light_begin(), reader.light_end()) +
+                                             " of " + std::to_string(reader.metadata().light_count()) +
+                                             " (a partial bake); merge the parts first");
+    if (options.expected_key) reader.check_key(*options.expected_key);
+    BakedBasis out;
+    out.meta = reader.metadata();
+    out.lights.reserve(out.meta.light_count());
+    for (std::uint32_t l = 0; l < out.meta.light_count(); ++l) {
+        out.lights.push_back(reader.read_light(l));
+        if (options.retruncate)
+            for (CompressedBasis& b : out.lights.back().directions)
+                retruncate(b, options.retruncate_mode, options.retruncate_xi);
+    }
+    return out;
+}
+
+BakedBasis load_fgb(const std::filesystem::path& path, const LoadOptions& options) {
+    FgbReader reader(path);
+    return load_fgb(reader, options);
+}
+
+void merge_fgb(const std::filesystem::path& out, std::span<const std::filesystem::path> parts) {
+    if (parts.empty()) throw core::Error(out.string(), "merge needs at least one partial file");
+    std::vector<FgbReader> readers;
+    readers.reserve(parts.size());
+    for (const auto& p : parts) readers.emplace_back(p);
+    std::sort(readers.begin(), readers.end(),
+              [](const FgbReader& a, const FgbReader& b) { return a.light_begin() < b.light_begin(); });
+    const FgbMetadata& meta = readers.front().metadata();
+    for (std::size_t i = 0; i < readers.size(); ++i) {
+        if (!(readers[i].metadata() == meta))
+            throw core::Error(readers[i].name(), "cannot merge: its metadata (scene key, grids, directions or compression) "
+                                                 "differs from " + readers.front().name() + "'s");
+        if (i > 0 && readers[i].light_begin() != readers[i - 1].light_end())
+            throw core::Error(readers[i].name(),
+                              std::string("cannot merge: lights ") + describe_range(readers[i].light_begin(), readers[i].light_end()) +
+                                  (readers[i].light_begin() < readers[i - 1].light_end() ? " overlap " : " leave a gap after ") +
+                                  readers[i - 1].name() + "'s " + describe_range(readers[i - 1].light_begin(), readers[i - 1].light_end()));
+    }
+    FgbWriter writer(out, meta, readers.front().light_begin(), readers.back().light_end());
+    for (FgbReader& r : readers)
+        for (std::uint32_t l = r.light_begin(); l < r.light_end(); ++l) writer.add(r.read_encoded(l));
+    writer.finish();
+}
+
+}  // namespace fulgur::basis

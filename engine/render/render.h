@@ -1,0 +1,270 @@
+// fulgur::render — the OpenGL 4.5 core renderer: storm cloud volume, bolt, glow, sky, ground.
+//
+// The renderer draws into whatever framebuffer is bound when render() is called, in a GL
+// 4.5 core context that is current on the calling thread; it loads GL functions through the
+// get-proc-address of that context (glad2). It never creates contexts or windows (see
+// app/platform). Inputs are plain structs; the renderer does not know about bakes, bolts'
+// generators or scenes.
+//
+// Physics (DESIGN.md): sigma_t(x) = kappa * rho(x) from the full-resolution density;
+// S(x, s) is the source function (radiance scattered INTO direction s) on the lighting grid,
+// for the baked output directions (transport::output_directions order). The camera sees
+//     L_cam = integral_0^D T(0, t) sigma_t(x_t) S(x_t, w_cam(x_t)) dt + T(0, D) L_background
+// with w_cam(x) = normalize(camera - x) (from the sample toward the camera), plus the bolt
+// core and its glow attenuated by the cloud in front of them. docs/render.md describes the
+// passes, the direction interpolation, the tone map and measured timings.
+//
+// Frame outline (one call to render()):
+//   resolve   S_cam(x_i) = sum_m w_m(normalize(camera - x_i)) S_m(x_i) on the lighting grid
+//             (compute shader; only when S or the camera changed; skipped for 1 direction)
+//   glow      texture-mapped glow quads along the strokes -> emission buffer (internal res)
+//   march     ray march at internal resolution -> (in-scattered + attenuated glow, T)
+//   bolt      bright HDR core ribbons at full resolution, attenuated per vertex
+//   composite upsample + background (sky, stars, ground) * T + bolt -> filmic tone map
+#pragma once
+
+#include "core/core.h"
+
+#include <glm/vec3.hpp>
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace fulgur::render {
+
+/// GL function pointer and a context's get-proc-address (glad's GLADapiproc/GLADloadfunc).
+using GLProc = void (*)();
+using GetProcAddress = GLProc (*)(const char* name);
+
+/// The shader directory: $FULGUR_SHADER_DIR when set, else the source tree's shaders/
+/// (compile-time default).
+std::filesystem::path default_shader_dir();
+
+// ---------------------------------------------------------------------------------------
+// Inputs
+
+/// Storage precision of the density texture (an accuracy/time knob, measured by
+/// `fulgur-bench render`). U8 quantizes rho to 1/255 (error <= 0.002 in rho);
+/// F16 keeps ~3 significant digits.
+enum class DensityPrecision { U8, F16 };
+
+/// The cloud: density at full resolution and the extinction per unit density.
+struct VolumeDesc {
+    const core::Grid3<float>* density = nullptr;  ///< rho in [0, 1] (values outside are clamped)
+    double extinction = 0.02;                     ///< kappa (1/m): sigma_t = kappa * rho
+    DensityPrecision precision = DensityPrecision::U8;
+};
+
+/// One upload of the source function S. Only the listed directions are transferred. By
+/// default the listed directions *replace* S: the current S is exactly the set listed in the
+/// latest upload, and other directions count as absent (if the view needs one, it contributes
+/// zero and FrameStats::missing_weight reports it). With `keep_others`, directions not listed
+/// keep their previous data, so a caller can upload only what changed (e.g. a direction a
+/// moved camera now needs while S itself is unchanged); a different geometry or direction
+/// count still starts from an empty set.
+struct SourceUpload {
+    core::GridGeometry geometry;  ///< lighting grid (world placement of the S samples)
+    int direction_count = 1;      ///< size of the baked set: 1, 6, 18 or 26
+    std::vector<int> directions;  ///< indices into transport::output_directions(direction_count)
+    /// One array per listed direction: geometry.cell_count() floats, x fastest
+    /// (transport::SourceField layout), radiance units. Must stay valid during the call only.
+    std::vector<std::span<const float>> values;
+    bool keep_others = false;
+};
+
+/// A straight piece of lightning channel at this instant.
+struct Segment {
+    glm::vec3 a{0.0f}, b{0.0f};  ///< endpoints (metres, world)
+    float intensity = 0.0f;      ///< radiant intensity per metre of channel (W sr^-1 m^-1), >= 0
+    float radius = 1.0f;         ///< channel radius (m): core radiance = intensity / (2 radius)
+};
+
+struct Bolt {
+    std::vector<Segment> segments;
+};
+
+struct Camera {
+    glm::dvec3 position{0.0, -30000.0, 3000.0};
+    glm::dvec3 target{0.0, 0.0, 4000.0};
+    glm::dvec3 up{0.0, 0.0, 1.0};
+    double vertical_fov_deg = 50.0;
+
+    /// Camera on a sphere around `target`: azimuth from +x toward +y, elevation above the
+    /// horizontal plane (degrees).
+    static Camera orbit(const glm::dvec3& target, double distance, double azimuth_deg, double elevation_deg,
+                        double vertical_fov_deg = 50.0);
+};
+
+/// Default of Settings::direction_min_weight and of the `min_weight` arguments of
+/// view_directions() and Renderer::needed_directions().
+inline constexpr double kDirectionMinWeight = 1e-3;
+
+enum class MarchKernel { Fragment, Compute };
+enum class Timing { Off, Finish, Queries };
+
+/// Frame settings. Every accuracy/time knob is here with its default.
+struct Settings {
+    // Image
+    double exposure = 1.0;          ///< linear multiplier applied before the tone map
+    double internal_scale = 0.5;    ///< ray-march resolution / output resolution, (0, 1]
+    bool dither = true;             ///< +-0.5 LSB triangular dither before 8-bit output (no banding)
+    // Ray march
+    double step_voxels = 1.0;       ///< step length in density voxels (accuracy/time knob)
+    bool jitter = true;             ///< per-pixel start offset (interleaved gradient noise + R1 per frame)
+    bool skip_empty = true;         ///< empty-space skipping (Chebyshev distance field)
+    bool early_exit = true;         ///< stop when the transmittance falls below min_transmittance
+    double min_transmittance = 1e-3;  ///< early-exit threshold (max error: this * S along the rest)
+    MarchKernel kernel = MarchKernel::Fragment;
+    std::uint32_t frame_index = 0;  ///< varies the jitter pattern between frames (deterministic)
+    // Effects
+    bool sky = true;
+    bool ground = true;
+    bool bolt = true;
+    bool glow = true;
+    bool cloud_lighting = true;     ///< false: S = 0 (cloud only absorbs the background)
+    // Scene constants
+    double ground_height = 0.0;     ///< z of the ground plane (m)
+    double ground_albedo = 0.1;     ///< Lambertian reflectance of the ground (wet fields at night)
+    /// Colour of the flash (luminance ~1; bluish white: lightning's spectrum is dominated
+    /// by nitrogen and hydrogen lines) applied to S, the bolt, the glow and the ground light.
+    glm::dvec3 flash_colour{0.93, 0.97, 1.25};
+    int ground_lights = 6;          ///< representative point lights along the bolt for the ground
+    double sky_radiance = 2e-7;     ///< night sky radiance at the zenith (W m^-2 sr^-1)
+    double star_radiance = 2e-5;    ///< brightest stars (W m^-2 sr^-1, per pixel-sized star)
+    double air_scattering = 1.5e-5; ///< sigma_s of the (rainy) air around the bolt (1/m): glow strength
+    double glow_radius = 600.0;     ///< glow quad radius (m); the profile tapers to 0 there
+    double bolt_min_width_px = 1.5; ///< thinner ribbons are widened and dimmed (flux conserved)
+    /// Directions with smaller interpolation weights are not needed (see view_directions);
+    /// 0 uses every direction with a non-zero weight.
+    double direction_min_weight = kDirectionMinWeight;
+    Timing timing = Timing::Finish;
+};
+
+/// A baked output direction the current view needs, with the largest interpolation weight it
+/// receives anywhere in the (non-empty part of the) lighting grid.
+struct DirectionUse {
+    int index = 0;
+    double max_weight = 0.0;
+};
+
+/// Up to four (direction, weight) pairs with weights >= 0 summing to 1.
+struct DirectionWeights {
+    int count = 0;
+    std::array<int, 4> index{};
+    std::array<double, 4> weight{};
+};
+
+/// Interpolation of S between the baked directions for direction `dir` (unit, the direction
+/// from the sample toward the camera). For 26 directions (faces, edges, corners of a cube):
+/// `dir` is projected onto the cube (gnomonic), each cube face is a 2x2 grid of cells whose
+/// nodes are the face centre, edge midpoints and corners, and the weights are bilinear in
+/// smoothstep-remapped cell coordinates: non-negative, partition of unity, exactly one
+/// direction at a baked direction, C1 on the sphere. 18 directions give each corner's weight
+/// in equal thirds to its three edge neighbours, 6 give edge (corner) weights in halves
+/// (thirds) to the adjacent faces; 1 direction has weight 1. Mirrored in shaders/directions.glsl.
+DirectionWeights direction_weights(const glm::dvec3& dir, int direction_count);
+
+/// The directions S must provide for a camera at `camera_position`: the directions whose
+/// weight direction_weights(normalize(camera - x_i)) exceeds `min_weight` at some
+/// lighting-grid node x_i with `active[i] != 0` (all nodes when `active` is empty), sorted
+/// by index. Directions below the threshold are left out (the smooth weights give every
+/// neighbouring direction a tiny weight); the resolve renormalizes the weights of the
+/// directions it has, so leaving them out changes S by less than min_weight times the
+/// spread of S over the directions.
+std::vector<DirectionUse> view_directions(const glm::dvec3& camera_position, const core::GridGeometry& lighting,
+                                          int direction_count, std::span<const std::uint8_t> active = {},
+                                          double min_weight = kDirectionMinWeight);
+
+/// Samples a plain fixed-step ray march of `volume` takes for this view (sum over the pixels
+/// of an internal-resolution image of chord / step): the unit behind samples/s figures.
+double plain_march_samples(const Camera& camera, const core::GridGeometry& volume, int width, int height,
+                           double step_metres);
+
+// ---------------------------------------------------------------------------------------
+// Output
+
+/// Times of one frame's passes, milliseconds (0 for passes that did not run).
+struct PassTimes {
+    double upload = 0;     ///< S uploads since the previous frame (time of the upload calls)
+    double resolve = 0;    ///< S toward the camera (only when S or the camera changed)
+    double glow = 0;
+    double march = 0;
+    double bolt = 0;       ///< endpoint transmittances + core ribbons
+    double composite = 0;  ///< upsampling, background, tone map
+    double total = 0;      ///< the whole render() call
+};
+
+/// Statistics of the last frame. With Timing::Finish each pass ends with glFinish and is
+/// timed twice: `wall` on the steady clock, `cpu` as the process CPU time over the pass
+/// (with a software rasterizer: the work of all its threads; unlike wall time it does not
+/// grow when other processes compete for the cores). Timing::Queries fills `wall` from GL
+/// timer queries (render() waits for them); Timing::Off only measures `total` (no glFinish).
+struct FrameStats {
+    PassTimes wall, cpu;
+    int internal_width = 0, internal_height = 0;
+    int directions_used = 0;      ///< directions with non-zero weight in this view
+    double missing_weight = 0.0;  ///< largest weight of a needed direction that was not uploaded
+    int glow_quads = 0, bolt_segments = 0;
+};
+
+class Renderer {
+public:
+    /// Loads GL through `get_proc_address` (the context must be current) and compiles the
+    /// shaders from `shader_dir`. Throws core::Error when GL 4.5 core is unavailable or a
+    /// shader fails (the message names the shader file and line).
+    explicit Renderer(GetProcAddress get_proc_address, std::filesystem::path shader_dir = default_shader_dir());
+    ~Renderer();
+    Renderer(const Renderer&) = delete;
+    Renderer& operator=(const Renderer&) = delete;
+
+    /// Recompiles every shader from disk (hot reload); on error keeps the old programs and throws.
+    void reload_shaders();
+
+    /// Uploads the density (full resolution) and derives the empty-space distance field.
+    /// Throws core::Error for an invalid geometry or a null density.
+    void set_volume(const VolumeDesc& volume);
+    /// No cloud: the march pass outputs T = 1 (the background is seen unchanged).
+    void clear_volume();
+    /// Uploads directions of S (see SourceUpload). Throws core::Error on inconsistent input
+    /// (direction index out of range, wrong array size, invalid geometry, non-finite values).
+    void upload_source(const SourceUpload& source);
+    /// No light in the cloud (no active flash): the march skips S entirely.
+    void clear_source();
+    void set_bolt(const Bolt& bolt);
+
+    /// Directions of S this camera needs (see view_directions), restricted to lighting nodes
+    /// near non-empty density (all nodes before set_volume()). Pass the min_weight of the
+    /// Settings the frame will use.
+    std::vector<DirectionUse> needed_directions(const Camera& camera, const core::GridGeometry& lighting,
+                                                int direction_count,
+                                                double min_weight = kDirectionMinWeight) const;
+
+    /// Renders one frame of size width x height into the currently bound draw framebuffer
+    /// (sets the viewport to the full size; restores the framebuffer binding).
+    FrameStats render(const Camera& camera, const Settings& settings, int width, int height);
+
+    /// The last frame before tone mapping (radiance, RGB float, rows top to bottom).
+    std::vector<float> read_hdr() const;
+    /// The last frame's ray-march output at internal resolution: RGBA float (rgb in-scattered
+    /// + attenuated glow radiance, a = transmittance), rows top to bottom.
+    std::vector<float> read_march(int& width, int& height) const;
+
+    /// The last frame's S toward the camera on the lighting grid (x fastest): what the ray
+    /// march sampled. Empty when the last frame had no S. For tests and radiance views.
+    std::vector<float> read_resolved_source() const;
+
+    /// GL_RENDERER | GL_VERSION of the context.
+    std::string gl_description() const;
+
+    struct Impl;
+
+private:
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace fulgur::render

@@ -1,0 +1,119 @@
+// Internal: collision matrices of the lattice-Boltzmann solver and the mapping from the
+// physical medium to per-step lattice coefficients. Tests include this header.
+//
+// Notation (Geist et al. 2004, Eqs. 3-6): Theta[i][j] is the fraction of density arriving
+// at a site in direction j that leaves it in direction i after the collision. For the
+// moving directions i, j = 1..18:
+//     Theta_ij = (1 - e_j) delta_ij + albedo * e_j * P_ij
+// where e_j is the extinction probability of a packet arriving along direction j (the
+// paper's sigma_t, here per direction class, see site_coefficients()) and P_ij the
+// discrete phase function: the fraction of density scattered out of direction j that goes
+// to direction i. Rest direction 0: conservative model Theta_0j = (1 - albedo) e_j (the
+// absorbed part waits in the rest direction) and Theta_i0 = w_i (re-emitted isotropically
+// next step); physical model Theta_0j = 0 (absorbed density leaves the system).
+#pragma once
+
+#include "transport/lb_lattice.h"
+#include "transport/transport.h"
+
+#include <array>
+
+namespace fulgur::transport::lb {
+
+using Matrix19 = std::array<std::array<double, kQ>, kQ>;
+
+/// Discrete phase function P[i][j] on directions 1..18 (index 0 unused, kept zero so that
+/// indices match the lattice table).
+struct DiscretePhase {
+    Matrix19 P{};
+    double g = 0.0;           ///< the medium's asymmetry parameter
+    LbCollision form = LbCollision::Corrected;
+    // Parameters of the corrected construction (see corrected_phase()).
+    double g_fit = 0.0;       ///< HG parameter of the smooth part
+    double scale_axis = 1.0, scale_diag = 1.0;  ///< symmetric class scalings s_A, s_D
+    double delta_diag = 0.0;  ///< forward (g >= 0) or backward (g < 0) delta weight, diagonal class
+};
+
+/// Unnormalized Henyey-Greenstein kernel (1 - g^2) / (1 - 2 g c + g^2)^{3/2}, written
+/// without cancellation near c = 1, g = 1.
+double hg_kernel(double cos_theta, double g) noexcept;
+
+/// The paper's anisotropic form: P_ij = w_i p_ij / (sum_{k=1}^{18} p_ik / 18), p the HG
+/// kernel at n_i . n_j (a row normalization: the column sums are not 1 for g != 0).
+DiscretePhase published_phase(double g);
+
+/// The corrected form (default). P_ij = w_i K_ij with K symmetric, so that
+///   (1) sum_i P_ij = 1 for every j (energy conserved exactly),
+///   (2) sum_j P_ij w_j = w_i (isotropic radiance stays isotropic; P is reversible with
+///       respect to w, so its eigenvalues are real and lie in [-1, 1]),
+///   (3) sum_i P_ij n_i . n_j = g for every incoming j (mean cosine exact),
+///   (4) P_ij = w_i for g = 0 (the paper's isotropic matrix, Eqs. 4-6).
+/// K_ij = s_c(i) s_c(j) HG(n_i . n_j; g_fit) + delta_diag * [i == j (g >= 0) or
+/// i == opp(j) (g < 0), diagonal class only] / w_j; g_fit, s_A, s_D and delta_diag solve
+/// (1) and (3) for both direction classes. A plain column normalization of HG satisfies
+/// (1) but overshoots (3) (0.98 for g = 0.85) and breaks (2).
+DiscretePhase corrected_phase(double g);
+
+DiscretePhase make_phase(LbCollision form, double g);
+
+/// Per-site, per-step lattice coefficients derived from the physical medium.
+struct SiteCoefficients {
+    double sigma_t = 0.0;            ///< physical extinction kappa * rho, 1/m
+    double albedo = 1.0;
+    double extinction[3] = {0, 0, 0};  ///< per direction class (rest, axis, diagonal): e_c
+    double track[3] = {0, 0, 0};       ///< mean track length (m) in the voxel per arriving unit
+    double hop[3] = {0, 0, 0};         ///< hop length (m): 0, h, sqrt(2) h
+};
+
+/// THE mapping from the physical medium to lattice coefficients (DESIGN.md). A lattice site
+/// is a voxel of side h; a packet arriving along direction j stands for light crossing the
+/// voxel along a chord of the hop length l_j = h |c_j| (h or sqrt(2) h). With the density
+/// piecewise constant, the probability that it interacts in the voxel is
+///     e_j = 1 - exp(-kappa * rho * l_j)
+/// (per-class extinction; the paper uses one sigma_t for both classes, which makes the
+/// diagonal free path sqrt(2) too long and the diffusion coefficient 1.5x too large). e_j
+/// is always < 1, so no clamping is needed, but a voxel much thicker than one mean free
+/// path saturates at e_j -> 1: the lattice allows one collision per voxel crossing, so it
+/// under-resolves transport inside such voxels (a lighting grid finer than the mean free
+/// path avoids it). The expected track length in the voxel, used to turn densities into
+/// fluence, is (1 - exp(-sigma_t l_j)) / sigma_t = e_j / sigma_t (l_j when rho = 0): the
+/// collision estimator, exact for the lattice's collision rate.
+SiteCoefficients site_coefficients(const Medium& optics, double voxel_size, double density) noexcept;
+
+/// The paper's lattice units: one extinction probability sigma_t in [0, 1] for every
+/// direction (clamped), h = 1, track = hop length. Used to reproduce Eqs. 4-6 and Eq. 19.
+SiteCoefficients lattice_unit_coefficients(double sigma_t, double albedo) noexcept;
+
+/// The full 19x19 collision matrix Theta for one site.
+Matrix19 collision_matrix(const DiscretePhase& phase, const SiteCoefficients& c, LbAbsorption absorption);
+
+/// The 14 distinct values of albedo * P_ij (float) used by the factored collision:
+/// P_ij depends only on the classes of i and j and on c_i . c_j.
+struct FactoredPhase {
+    // output axis, input axis: same, opposite, perpendicular
+    float aa_same, aa_opp, aa_perp;
+    // output axis, input diagonal: c_i.c_j = +1, 0, -1
+    float ad_pos, ad_zero, ad_neg;
+    // output diagonal, input axis: +1, 0, -1
+    float da_pos, da_zero, da_neg;
+    // output diagonal, input diagonal: same (+2), opposite (-2), +1, 0, -1
+    float dd_same, dd_opp, dd_pos, dd_zero, dd_neg;
+};
+/// Extracts and checks the factored values (asserts that P has the cubic structure) and
+/// nudges the "same" entries so that the float column sums equal albedo * (double column
+/// sum) as closely as float allows (no systematic energy drift in float32 kernels).
+FactoredPhase factor_phase(const DiscretePhase& phase, double albedo);
+
+/// Appendix A: resolves a unit light direction into lattice directions 1..18 (weights sum
+/// to 1): repeatedly take the unused direction with the largest dot product n_i . L and
+/// give it min(dot, remaining); stop when nothing remains. Uses normalized directions.
+std::array<double, kQ> resolve_direction(const glm::dvec3& L);
+
+/// Discrete phase for an arbitrary output direction s: q_j = HG(s . n_j; g_s) /
+/// (4 pi sum_k w_k HG(s . n_k; g_s)), so that sum_j 4 pi w_j q_j = 1, with g_s fitted so that
+/// the discrete mean cosine sum_j 4 pi w_j q_j (s . n_j) equals g where the lattice can
+/// represent it (saturates for directions between lattice directions at large |g|).
+/// Then S(x, s) = albedo * sum_j q_j(s) T_j(x) / h^3, T_j the track of direction j.
+std::array<double, kQ> output_phase(const glm::dvec3& s, double g);
+
+}  // namespace fulgur::transport::lb

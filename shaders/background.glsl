@@ -1,0 +1,100 @@
+// What the camera sees behind the cloud: the night sky, or the ground lit by the flash.
+// The smooth part (sky gradient, ground) is evaluated per ray-march pixel (internal
+// resolution); the stars per output pixel (full resolution: they stay pixel-sharp whatever
+// the internal scale). Both are multiplied by the cloud's transmittance.
+
+// Night sky: airglow/light-pollution gradient, brighter and greyer at the horizon.
+vec3 sky_gradient(vec3 d) {
+    float h = clamp(d.z, 0.0, 1.0);
+    vec3 zenith = vec3(0.45, 0.6, 1.0);
+    vec3 horizon = vec3(2.4, 2.3, 2.6);
+    return sky_params.x * mix(horizon, zenith, sqrt(h));
+}
+
+// Stars: each cell of a cube map (kStarCells per face edge) holds at most one star, placed
+// well inside its cell and drawn as a Gaussian spot of fixed size in pixels (sigma 0.6 px),
+// with a brightness from a steep power law (many faint stars, few bright ones). One hash per
+// pixel decides presence, position, brightness and tint. Deterministic.
+const float kStarCells = 160.0;
+const float kStarProbability = 0.07;
+
+vec3 stars(vec3 d, float pixel_angle) {
+    // Cube face of d without dynamic vector indexing (slow on SIMD software rasterizers).
+    vec3 ad = abs(d);
+    vec2 uv;
+    float major;
+    uint face;
+    if (ad.x >= ad.y && ad.x >= ad.z) {
+        uv = d.yz;
+        major = ad.x;
+        face = d.x > 0.0 ? 1u : 0u;
+    } else if (ad.y >= ad.z) {
+        uv = d.zx;
+        major = ad.y;
+        face = d.y > 0.0 ? 3u : 2u;
+    } else {
+        uv = d.xy;
+        major = ad.z;
+        face = d.z > 0.0 ? 5u : 4u;
+    }
+    uv /= major;                                            // [-1, 1]^2 on the face
+    vec2 cell = floor((uv * 0.5 + 0.5) * kStarCells);
+    uint h = hash_u32(uvec3(uvec2(cell), face));
+    // bits: 0-7 presence, 8-15 / 16-23 position in the cell, 24-31 brightness and tint
+    vec4 u = vec4(uvec4(h, h >> 8u, h >> 16u, h >> 24u) & 255u) * (1.0 / 255.0);
+    vec2 star = ((cell + 0.35 + 0.3 * u.yz) / kStarCells) * 2.0 - 1.0;
+    // Angular distance on the cube face: d(angle) = d(uv) / (1 + |uv|^2) (exact at the face
+    // centre and along radial lines; stars near face edges are slightly elongated).
+    float r = length(star - uv) / ((1.0 + dot(uv, uv)) * pixel_angle);  // pixels
+    float b2 = u.w * u.w, b4 = b2 * b2;
+    float brightness = b4 * b4 * b4;                          // u^12
+    vec3 tint = mix(vec3(1.0, 0.85, 0.7), vec3(0.8, 0.9, 1.0), fract(u.w * 7.0));
+    float present = u.x < kStarProbability ? 1.0 : 0.0;
+    return (present * sky_params.y * brightness * exp(-r * r * (0.5 / 0.36))) * tint;
+}
+
+vec3 sky_radiance(vec3 d) {
+    if (sky_params.z < 0.5) return vec3(0.0);
+    return sky_gradient(d);
+}
+
+// Stars over the sky (not over the ground), fading out toward the horizon (extinction).
+vec3 star_radiance(vec3 o, vec3 d, float pixel_angle) {
+    if (sky_params.z < 0.5 || ground_distance(o, d) < kBig) return vec3(0.0);
+    return d.z > 0.0 ? stars(d, pixel_angle) * smoothstep(0.0, 0.08, d.z) : vec3(0.0);
+}
+
+// Ground: Lambertian, lit by a few point lights standing for the bolt (intensity already
+// multiplied by their visibility through the cloud), plus the night sky's irradiance; hazy
+// with distance (aerial perspective toward the horizon colour).
+vec3 ground_radiance(vec3 p, vec3 d, float t) {
+    vec3 E = vec3(0.0);
+    int n = int(ground_params.w);
+    for (int i = 0; i < n; ++i) {
+        vec3 l = ground_light[i].xyz - p;
+        float r2 = max(dot(l, l), 1.0);
+        float cos_theta = max(l.z, 0.0) * inversesqrt(r2);
+        E += light_colour.rgb * (ground_light[i].w * cos_theta / r2);
+    }
+    // Sky irradiance on a horizontal surface: pi * (mean sky radiance), ~ pi * 2 * zenith.
+    E += sky_params.z > 0.5 ? 3.14159265 * 2.0 * sky_params.x * vec3(0.6, 0.65, 0.8) : vec3(0.0);
+    // Mild, low-frequency variation of the reflectance (fields, forest) so the plane reads as ground.
+    vec2 g = p.xy / 1500.0;
+    vec2 gi = floor(g), gf = fract(g);
+    gf = gf * gf * (3.0 - 2.0 * gf);
+    float n00 = hash_unit(hash_u32(uvec3(ivec3(gi, 7)))), n10 = hash_unit(hash_u32(uvec3(ivec3(gi + vec2(1, 0), 7))));
+    float n01 = hash_unit(hash_u32(uvec3(ivec3(gi + vec2(0, 1), 7)))), n11 = hash_unit(hash_u32(uvec3(ivec3(gi + vec2(1, 1), 7))));
+    float variation = mix(mix(n00, n10, gf.x), mix(n01, n11, gf.x), gf.y);
+    vec3 albedo = ground_params.y * (0.85 + 0.3 * variation) * vec3(0.9, 1.0, 0.85);
+    vec3 L = albedo * E;
+    float haze = 1.0 - exp(-t / 40000.0);
+    return mix(L, sky_params.z > 0.5 ? sky_gradient(vec3(d.xy, 0.0)) : vec3(0.0), haze);
+}
+
+// The smooth background (no stars).
+vec3 background(vec3 o, vec3 d) {
+    float tg = ground_distance(o, d);
+    if (tg < kBig) return ground_radiance(o + tg * d, d, tg);
+    if (ground_params.z > 0.5 && d.z < 0.0 && o.z <= ground_params.x) return vec3(0.0);  // under the ground
+    return sky_radiance(d);
+}

@@ -1,0 +1,47 @@
+#version 450 core
+// The bolt's bright core: one screen-aligned ribbon per segment, with round-ish caps (the
+// ribbon extends half a width past each end), at least bolt_min_width_px wide; a thinner
+// channel is widened and dimmed by the same factor so its flux is conserved.
+#include "common.glsl"
+
+layout(std430, binding = 1) readonly buffer Segments { vec4 seg[]; };          // a.xyz, intensity | b.xyz, radius
+layout(std430, binding = 2) readonly buffer Endpoints { vec2 endpoint_t[]; };
+
+uniform float u_min_width_px;
+
+out float v_across;          // -1 .. 1 across the ribbon
+out vec3 v_radiance;
+
+void main() {
+    // (end, side) per vertex of the two triangles
+    const ivec2 corner[6] = ivec2[](ivec2(0, -1), ivec2(1, -1), ivec2(1, 1), ivec2(0, -1), ivec2(1, 1), ivec2(0, 1));
+    int s = gl_VertexID / 6;
+    ivec2 k = corner[gl_VertexID % 6];
+    vec4 A = seg[2 * s], B = seg[2 * s + 1];
+    vec4 ca = view_proj * vec4(A.xyz, 1.0), cb = view_proj * vec4(B.xyz, 1.0);
+    const float w_near = 1e-2;  // clip against a plane just in front of the camera
+    if (ca.w < w_near && cb.w < w_near) {
+        gl_Position = vec4(2.0, 2.0, 2.0, 1.0);  // behind the camera: degenerate, outside
+        v_across = 0.0;
+        v_radiance = vec3(0.0);
+        return;
+    }
+    if (ca.w < w_near) ca = mix(ca, cb, (w_near - ca.w) / (cb.w - ca.w));
+    if (cb.w < w_near) cb = mix(cb, ca, (w_near - cb.w) / (ca.w - cb.w));
+    vec2 half_size = 0.5 * sizes.xy;
+    vec2 pa = ca.xy / ca.w * half_size, pb = cb.xy / cb.w * half_size;  // pixels from the centre
+    vec2 dir = pb - pa;
+    float len = length(dir);
+    dir = len > 1e-4 ? dir / len : vec2(1.0, 0.0);
+    vec2 n = vec2(-dir.y, dir.x);
+    float focal = half_size.y / cam_pos.w;                // pixels per unit of (size / distance)
+    float w_clip = k.x == 0 ? ca.w : cb.w;
+    float w_true = 2.0 * B.w * focal / w_clip;            // projected channel diameter, pixels
+    float w = max(w_true, u_min_width_px);
+    vec2 p = (k.x == 0 ? pa - dir * 0.5 * w : pb + dir * 0.5 * w) + float(k.y) * n * 0.5 * w;
+    gl_Position = vec4(p / half_size, 0.0, 1.0);
+    float core = A.w / (2.0 * B.w) * (w_true / w);        // radiance of a cylinder seen side-on
+    float T = k.x == 0 ? endpoint_t[s].x : endpoint_t[s].y;
+    v_across = float(k.y);
+    v_radiance = core * T * light_colour.rgb;
+}

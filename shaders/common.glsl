@@ -1,0 +1,54 @@
+// Shared by every Fulgur shader: the per-frame constants (std140, binding 0; mirrored by
+// FrameBlock in engine/render/renderer.cpp) and small helpers. Units: metres, radiance in
+// W m^-2 sr^-1. World: z up.
+
+layout(std140, binding = 0) uniform Frame {
+    mat4 view_proj;        // world -> clip (rasterized passes)
+    vec4 cam_pos;          // xyz camera position, w = tan(vertical fov / 2)
+    vec4 cam_fwd;          // xyz unit forward, w = aspect (width / height)
+    vec4 cam_right;        // xyz unit right
+    vec4 cam_up;           // xyz unit up
+    vec4 vol_min;          // xyz density grid lower corner, w = kappa (1/m)
+    vec4 vol_size;         // xyz density grid extent, w = density voxel size (0: no volume)
+    vec4 lit_min;          // xyz lighting grid lower corner, w = 1 when S is present
+    vec4 lit_size;         // xyz lighting grid extent
+    vec4 march_params;     // x step (m), y min transmittance, z jitter on, w frame jitter offset
+    vec4 sizes;            // xy output size, zw internal (ray-march) size, pixels
+    vec4 ground_params;    // x ground height, y albedo / pi, z ground on, w number of ground lights
+    vec4 ground_light[8];  // xyz position, w intensity * visibility (W/sr)
+    vec4 sky_params;       // x zenith radiance, y star radiance, z sky on, w exposure
+    vec4 glow_params;      // x glow radius (m), y air scattering (1/m), z glow on, w bolt on
+    vec4 light_colour;     // rgb colour of the flash (luminance 1), w dither on
+    ivec4 counts;          // x max march steps, y frame index, z glow quads, w bolt segments
+};
+
+const float kBig = 1e30;
+
+float luminance(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }
+
+// Camera ray through a point of the image plane given in NDC ([-1, 1]^2, y up).
+vec3 camera_ray(vec2 ndc) {
+    return normalize(cam_fwd.xyz + ndc.x * cam_pos.w * cam_fwd.w * cam_right.xyz + ndc.y * cam_pos.w * cam_up.xyz);
+}
+
+// Interleaved gradient noise (Jimenez 2014): a per-pixel value in [0, 1) whose neighbours
+// differ strongly (blue-noise-like), so jittered sampling leaves fine noise, not banding.
+float interleaved_gradient_noise(vec2 pixel) {
+    return fract(52.9829189 * fract(dot(pixel, vec2(0.06711056, 0.00583715))));
+}
+
+// 32-bit integer hash (Jarzynski & Olano 2020, PCG-based), deterministic on every GPU.
+uint hash_u32(uint v) {
+    uint state = v * 747796405u + 2891336453u;
+    uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+uint hash_u32(uvec3 v) { return hash_u32(v.x ^ hash_u32(v.y ^ hash_u32(v.z))); }
+float hash_unit(uint h) { return float(h >> 8) * (1.0 / 16777216.0); }
+
+// Distance along the ray to the ground plane (kBig when the ray does not hit it or the
+// ground is off).
+float ground_distance(vec3 o, vec3 d) {
+    if (ground_params.z < 0.5 || d.z >= -1e-6 || o.z <= ground_params.x) return kBig;
+    return (ground_params.x - o.z) / d.z;
+}

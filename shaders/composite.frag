@@ -1,0 +1,50 @@
+#version 450 core
+// Full-resolution composite: bilinear upsampling of the ray-march result (cloud, glow and
+// smooth background), the stars through the cloud's transmittance, the bolt core; then
+// exposure, the filmic tone map and the sRGB encoding (u_hdr_output = 1 writes the
+// radiance instead, for read-back).
+#include "common.glsl"
+#include "background.glsl"
+
+layout(binding = 3) uniform sampler2D u_march;   // internal res: rgb radiance, a transmittance
+layout(binding = 4) uniform sampler2D u_core;    // full res: bolt core radiance
+
+uniform int u_hdr_output;
+
+out vec4 o_colour;
+
+// ACES filmic curve, Krzysztof Narkowicz's 2015 fit of the RRT + ODT (per channel, input
+// already exposed, output display-linear in [0, 1]).
+vec3 aces_filmic(vec3 x) {
+    return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
+}
+
+// sRGB encoding. The power 1/2.4 is approximated with three square roots (Ian Taylor's
+// fit; max error 0.4 of an 8-bit level over [0, 1]; pow() costs a log2 and an
+// exp2 per channel on a software rasterizer).
+vec3 srgb_encode(vec3 c) {
+    vec3 s1 = sqrt(c), s2 = sqrt(s1), s3 = sqrt(s2);
+    vec3 curve = 0.585122381 * s1 + 0.783140355 * s2 - 0.368262736 * s3;
+    return mix(12.92 * c, curve, step(0.0031308, c));
+}
+
+void main() {
+    vec2 pixel = gl_FragCoord.xy;
+    vec2 uv = pixel / sizes.xy;
+    vec4 m = textureLod(u_march, uv, 0.0);
+    vec3 d = camera_ray(uv * 2.0 - 1.0);
+    float pixel_angle = 2.0 * cam_pos.w / sizes.y;
+    vec3 hdr = m.rgb + m.a * star_radiance(cam_pos.xyz, d, pixel_angle) + texelFetch(u_core, ivec2(pixel), 0).rgb;
+    if (u_hdr_output != 0) {
+        o_colour = vec4(hdr, 1.0);
+        return;
+    }
+    vec3 c = srgb_encode(aces_filmic(hdr * sky_params.w));
+    if (light_colour.w > 0.5) {
+        // Triangular dither of +-1 LSB (sum of two 16-bit uniforms from one hash), deterministic per frame.
+        uint h = hash_u32(uvec3(uvec2(pixel), uint(counts.y)));
+        float n = float(h & 0xffffu) * (1.0 / 65535.0) + float(h >> 16u) * (1.0 / 65535.0) - 1.0;
+        c += n / 255.0;
+    }
+    o_colour = vec4(c, 1.0);
+}

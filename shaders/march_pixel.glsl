@@ -1,0 +1,29 @@
+// One ray-march pixel (shared by march.frag and march.comp).
+#include "common.glsl"
+#include "volume.glsl"
+#include "background.glsl"
+
+// Glow emission at internal resolution: rgb radiance, a = sum of luminance * distance.
+layout(binding = 2) uniform sampler2D u_glow;
+
+// pixel: internal-resolution pixel centre (x + 0.5, y + 0.5), origin bottom-left.
+// Returns rgb = in-scattered radiance * flash colour + glow * T(camera, glow depth)
+//              + smooth background (sky gradient or ground) * T,
+// a = transmittance of the whole ray (the stars are added at full resolution).
+vec4 shade_pixel(vec2 pixel) {
+    vec2 ndc = pixel / sizes.zw * 2.0 - 1.0;
+    vec3 d = camera_ray(ndc);
+    float jitter = march_params.z > 0.5 ? fract(interleaved_gradient_noise(floor(pixel)) + march_params.w) : 0.5;
+    float t_end = ground_distance(cam_pos.xyz, d);
+#if HAS_EMISSION
+    vec4 e = texelFetch(u_glow, ivec2(pixel), 0);
+    float y = luminance(e.rgb);
+    float t_emit = y > 0.0 ? e.a / y : kBig;
+#else
+    vec4 e = vec4(0.0);
+    float t_emit = kBig;
+#endif
+    MarchResult r = march_ray(cam_pos.xyz, d, t_end, jitter, t_emit);
+    vec3 bg = background(cam_pos.xyz, d);
+    return vec4(r.in_scattered * light_colour.rgb + r.t_emit * e.rgb + r.transmittance * bg, r.transmittance);
+}

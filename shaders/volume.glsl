@@ -1,0 +1,148 @@
+// The cloud volume: density texture with its empty-space distance, the view-resolved source
+// function, and the ray marcher.
+//
+// Compile-time switches (set by the renderer):
+//   SKIP_EMPTY   1: jump over space the Chebyshev distance field proves empty
+//   EARLY_EXIT   1: stop once the transmittance is below march_params.y
+//   HAS_SOURCE   1: S is present (0: the cloud only absorbs; no S fetch at all)
+//   HAS_EMISSION 1: track the transmittance up to the glow's depth
+#ifndef SKIP_EMPTY
+#define SKIP_EMPTY 1
+#endif
+#ifndef EARLY_EXIT
+#define EARLY_EXIT 1
+#endif
+#ifndef HAS_SOURCE
+#define HAS_SOURCE 1
+#endif
+#ifndef HAS_EMISSION
+#define HAS_EMISSION 1
+#endif
+
+// r: density rho in [0, 1]; g: Chebyshev (L-infinity) distance, in density voxels / 255,
+// from the voxel centre to the nearest voxel with non-zero density (0 inside the cloud).
+layout(binding = 0) uniform sampler3D u_density;
+// S(x, w_cam(x)) on the lighting grid: the source function toward the camera.
+layout(binding = 1) uniform sampler3D u_scam;
+
+// Safety margin of the skip distance, in voxels. The trilinear interpolant D~(p) of the
+// distance field satisfies |p - c|_inf >= D~(p) - 1 for every non-zero voxel centre c, and
+// the density at q is non-zero only if |q - c|_inf < 1, so a jump of D~ - 2 voxels is exact.
+// The extra voxel covers the 8-bit quantization of filtered values (+-0.5) and the
+// fixed-point filter weights of software rasterizers.
+const float kSkipMargin = 3.0;
+
+vec3 nonzero_dir(vec3 d) {
+    return vec3(abs(d.x) < 1e-9 ? 1e-9 : d.x, abs(d.y) < 1e-9 ? 1e-9 : d.y, abs(d.z) < 1e-9 ? 1e-9 : d.z);
+}
+
+bool ray_box(vec3 o, vec3 d, vec3 lo, vec3 hi, out float t0, out float t1) {
+    vec3 inv = 1.0 / nonzero_dir(d);
+    vec3 ta = (lo - o) * inv, tb = (hi - o) * inv;
+    vec3 tmin = min(ta, tb), tmax = max(ta, tb);
+    t0 = max(max(tmin.x, tmin.y), max(tmin.z, 0.0));
+    t1 = min(min(tmax.x, tmax.y), tmax.z);
+    return t1 > t0;
+}
+
+struct MarchResult {
+    float in_scattered;  // integral of T sigma_t S dt (radiance, before the flash colour)
+    float transmittance; // T over the whole ray segment
+    float t_emit;        // T from the camera to the emission depth
+};
+
+// Integrates L = int T(t) sigma_t(t) S(t) dt over the ray o + t d (d unit) inside the box,
+// up to t_end. The chord [t0, t1] is cut at b_k = t0 + (k + jitter) dt (k = 0, 1, ...);
+// each piece, clipped to the chord, is sampled at its midpoint with density and S constant
+// on it. The pieces cover the chord exactly, so a homogeneous box with constant S gives
+// S (1 - exp(-kappa rho chord)) whatever the step, and a linear density is integrated
+// exactly (midpoint rule). Boundaries are computed from k, never accumulated, so skipping
+// empty pieces leaves the arithmetic of the others bit-identical.
+MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
+    MarchResult r;
+    r.in_scattered = 0.0;
+    r.transmittance = 1.0;
+    r.t_emit = 1.0;
+    float t0, t1;
+    if (vol_size.w <= 0.0 || !ray_box(o, d, vol_min.xyz, vol_min.xyz + vol_size.xyz, t0, t1)) return r;
+    t1 = min(t1, t_end);
+    if (t1 <= t0) return r;
+    float dt = march_params.x;
+    vec3 o_tex = (o - vol_min.xyz) / vol_size.xyz, d_tex = d / vol_size.xyz;
+#if HAS_SOURCE
+    vec3 o_lit = (o - lit_min.xyz) / lit_size.xyz, d_lit = d / lit_size.xyz;
+#endif
+    float kappa = vol_min.w;
+    float voxel = vol_size.w;
+    float T = 1.0, L = 0.0, Te = 1.0;
+    float a = t0;      // start of the current piece
+    float k = 0.0;     // index of its end boundary
+    int steps = counts.x;
+    for (int i = 0; i < steps; ++i) {
+        if (a >= t1) break;
+#if EARLY_EXIT
+        if (T < march_params.y) break;
+#endif
+        float b = min(t0 + (k + jitter) * dt, t1);
+        float t = 0.5 * (a + b);
+        vec2 dv = textureLod(u_density, o_tex + t * d_tex, 0.0).rg;
+#if SKIP_EMPTY
+        float skip = (dv.g * 255.0 - kSkipMargin) * voxel;
+        if (skip >= dt) {
+            // Every piece ending before t + skip is empty: continue after the last of them.
+            k = floor((t + skip - t0) / dt - jitter);
+            a = min(t0 + (k + jitter) * dt, t1);
+            k += 1.0;
+            continue;
+        }
+#endif
+        float alpha = 1.0 - exp(-kappa * dv.r * (b - a));
+#if HAS_SOURCE
+        L += T * alpha * textureLod(u_scam, o_lit + t * d_lit, 0.0).r;
+#endif
+        T *= 1.0 - alpha;
+#if HAS_EMISSION
+        if (t <= t_emit) Te = T;
+#endif
+        a = b;
+        k += 1.0;
+    }
+    r.in_scattered = L;
+    r.transmittance = T;
+    r.t_emit = Te;
+    return r;
+}
+
+// Transmittance from the camera to the point p (same pieces as march_ray, no jitter).
+float transmittance_to(vec3 p) {
+    vec3 o = cam_pos.xyz;
+    vec3 d = p - o;
+    float dist = length(d);
+    if (dist <= 0.0 || vol_size.w <= 0.0) return 1.0;
+    d /= dist;
+    float t0, t1;
+    if (!ray_box(o, d, vol_min.xyz, vol_min.xyz + vol_size.xyz, t0, t1)) return 1.0;
+    t1 = min(t1, dist);
+    if (t1 <= t0) return 1.0;
+    float dt = march_params.x;
+    vec3 o_tex = (o - vol_min.xyz) / vol_size.xyz, d_tex = d / vol_size.xyz;
+    float tau = 0.0;
+    float a = t0, k = 1.0;
+    for (int i = 0; i < counts.x; ++i) {
+        if (a >= t1) break;
+        float b = min(t0 + k * dt, t1);
+        float t = 0.5 * (a + b);
+        vec2 dv = textureLod(u_density, o_tex + t * d_tex, 0.0).rg;
+        float skip = (dv.g * 255.0 - kSkipMargin) * vol_size.w;
+        if (skip >= dt) {
+            k = floor((t + skip - t0) / dt);
+            a = min(t0 + k * dt, t1);
+            k += 1.0;
+            continue;
+        }
+        tau += dv.r * (b - a);
+        a = b;
+        k += 1.0;
+    }
+    return exp(-vol_min.w * tau);
+}

@@ -1,0 +1,363 @@
+// The .fgb file: bit-exact round trips, partial files and merge, stale detection, and a
+// loader that rejects every truncation and corruption without crashing (this test also
+// runs under AddressSanitizer + UndefinedBehaviorSanitizer: the asan preset).
+#include "basis/basis.h"
+#include "basis/internal.h"
+#include "bake_fixture.h"
+#include "support/test_support.h"
+
+#include <doctest/doctest.h>
+
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <thread>
+
+using namespace fulgur;
+using basis::FgbReader;
+
+namespace {
+
+std::vector<std::uint8_t> slurp(const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), {}};
+}
+void spit(const std::filesystem::path& p, const std::vector<std::uint8_t>& b) {
+    std::ofstream(p, std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char*>(b.data()), std::streamsize(b.size()));
+}
+
+std::filesystem::path write_small(const std::filesystem::path& path, basis::Precision prec) {
+    const basis::FgbMetadata m = test::small_metadata(prec);
+    basis::FgbWriter w(path, m);
+    for (std::uint32_t l = 0; l < m.light_count(); ++l) w.add(test::small_light(m, l));
+    w.finish();
+    return path;
+}
+
+basis::BakedBasis load_bytes(std::vector<std::uint8_t> b, const basis::BakeKey* key = nullptr) {
+    FgbReader r(std::move(b), "mem.fgb");
+    basis::LoadOptions o;
+    o.expected_key = key;
+    return basis::load_fgb(r, o);
+}
+
+template <class T>
+T get(const std::vector<std::uint8_t>& b, std::size_t at) {
+    T v;
+    std::memcpy(&v, b.data() + at, sizeof(T));
+    return v;
+}
+template <class T>
+void put(std::vector<std::uint8_t>& b, std::size_t at, T v) {
+    std::memcpy(b.data() + at, &v, sizeof(T));
+}
+
+// Recomputes the block CRCs in the index and the header CRC using the layout of the
+// pristine file, so a corruption gets past the checksums to the structural validation.
+void fix_crcs(std::vector<std::uint8_t>& b, const std::vector<std::uint8_t>& pristine) {
+    using namespace basis::fgb;
+    const auto index_offset = get<std::uint64_t>(pristine, kOffIndexOffset);
+    const auto blocks_offset = get<std::uint64_t>(pristine, kOffBlocksOffset);
+    const auto n = get<std::uint64_t>(pristine, kOffIndexSize) / kIndexEntrySize;
+    for (std::uint64_t i = 0; i < n; ++i) {
+        const std::size_t e = std::size_t(index_offset + i * kIndexEntrySize);
+        const auto off = get<std::uint64_t>(pristine, e), size = get<std::uint64_t>(pristine, e + 8);
+        put(b, e + kEntryOffCrc, basis::crc32_of(std::span(b).subspan(std::size_t(off), std::size_t(size))));
+    }
+    put(b, kOffHeaderCrc, basis::fgb::header_crc(b, blocks_offset));
+}
+
+}  // namespace
+
+TEST_CASE(".fgb round trip is bit-exact, float32 and float16, 2- and 4-byte indices") {
+    const auto dir = test::scratch_dir("fgb_roundtrip");
+    for (const auto prec : {basis::Precision::Float32, basis::Precision::Float16}) {
+        const auto path = write_small(dir / "a.fgb", prec);
+        const basis::FgbMetadata m = test::small_metadata(prec);
+        const basis::BakedBasis b = basis::load_fgb(path);
+        CHECK(b.meta == m);
+        REQUIRE(b.lights.size() == m.light_count());
+        for (std::uint32_t l = 0; l < m.light_count(); ++l) CHECK(b.lights[l] == test::small_light(m, l));
+        CHECK(b.lights[5].coefficient_count() == 0);  // the dropped light survives as an empty block
+        // Writing what was loaded gives the same bytes.
+        {
+            basis::FgbWriter w(dir / "b.fgb", b.meta);
+            for (const auto& l : b.lights) w.add(l);
+            w.finish();
+        }
+        CHECK(slurp(path) == slurp(dir / "b.fgb"));
+        CHECK_FALSE(std::filesystem::exists(dir / "a.fgb.tmp"));
+    }
+    // More than 65536 cells: 4-byte indices.
+    basis::FgbMetadata big = test::small_metadata(basis::Precision::Float16, {41, 40, 40}, 1);
+    CHECK(big.index_bytes() == 4);
+    big.compression = {basis::ThresholdMode::Absolute, 0.0, basis::Precision::Float16};  // keep all 65600
+    big.lights.x = {0.0};
+    big.lights.y = {0.0};
+    big.lights.z = {0.0};
+    big.lights.base_layer = 0;
+    const basis::CompressedLight l0 = test::small_light(big, 0);
+    {
+        basis::FgbWriter w(dir / "big.fgb", big);
+        w.add(l0);
+        w.finish();
+    }
+    const basis::BakedBasis bb = basis::load_fgb(dir / "big.fgb");
+    CHECK(bb.lights[0] == l0);
+    bool high_index = false;
+    for (std::uint32_t i : bb.lights[0].directions[0].index) high_index |= i > 65535;
+    CHECK(high_index);
+}
+
+TEST_CASE("blocks from independent jobs: any order, several threads, partial files and merge") {
+    const auto dir = test::scratch_dir("fgb_merge");
+    const basis::FgbMetadata m = test::small_metadata(basis::Precision::Float16);
+    const auto complete = write_small(dir / "complete.fgb", basis::Precision::Float16);
+
+    // Two threads adding lights in scrambled order: the same content.
+    {
+        basis::FgbWriter w(dir / "threads.fgb", m);
+        auto job = [&](int t) {
+            for (std::uint32_t l = 7 - std::uint32_t(t); l < 8; l -= 2) w.add(test::small_light(m, l));
+        };
+        std::thread a(job, 0), b(job, 1);
+        a.join();
+        b.join();
+        w.finish();
+    }
+    CHECK(basis::load_fgb(dir / "threads.fgb").lights == basis::load_fgb(complete).lights);
+
+    // Three bake jobs write partial files; the merge only concatenates, checks and indexes.
+    const std::pair<std::uint32_t, std::uint32_t> ranges[] = {{3, 5}, {0, 3}, {5, 8}};
+    std::vector<std::filesystem::path> parts;
+    for (auto [a, b] : ranges) {
+        parts.push_back(dir / ("part" + std::to_string(a) + ".fgb"));
+        basis::FgbWriter w(parts.back(), m, a, b);
+        for (std::uint32_t l = b; l-- > a;) w.add(test::small_light(m, l));
+        w.finish();
+        FgbReader r(parts.back());
+        CHECK(r.partial());
+        CHECK_THROWS_WITH_AS(basis::load_fgb(parts.back()), doctest::Contains("partial bake"), core::Error);
+    }
+    basis::merge_fgb(dir / "merged.fgb", parts);
+    CHECK(slurp(dir / "merged.fgb") == slurp(complete));  // blocks copied verbatim, in light order
+
+    // Merging two parts into a bigger part, then with the rest.
+    const std::vector<std::filesystem::path> first = {parts[1], parts[0]};
+    basis::merge_fgb(dir / "p0_5.fgb", first);
+    CHECK(FgbReader(dir / "p0_5.fgb").light_end() == 5);
+    const std::vector<std::filesystem::path> second = {dir / "p0_5.fgb", parts[2]};
+    basis::merge_fgb(dir / "merged2.fgb", second);
+    CHECK(slurp(dir / "merged2.fgb") == slurp(complete));
+
+    // Overlap, gap, different bakes.
+    const std::vector<std::filesystem::path> overlap = {parts[1], dir / "p0_5.fgb"};
+    CHECK_THROWS_WITH_AS(basis::merge_fgb(dir / "x.fgb", overlap), doctest::Contains("overlap"), core::Error);
+    const std::vector<std::filesystem::path> gap = {parts[1], parts[2]};
+    CHECK_THROWS_WITH_AS(basis::merge_fgb(dir / "x.fgb", gap), doctest::Contains("gap"), core::Error);
+    basis::FgbMetadata other = m;
+    other.key = basis::BakeKey::from_description("something else");
+    {
+        basis::FgbWriter w(dir / "other.fgb", other, 3, 5);
+        for (std::uint32_t l = 3; l < 5; ++l) w.add(test::small_light(other, l));
+        w.finish();
+    }
+    const std::vector<std::filesystem::path> mixed = {parts[1], dir / "other.fgb", parts[2]};
+    CHECK_THROWS_WITH_AS(basis::merge_fgb(dir / "x.fgb", mixed), doctest::Contains("metadata"), core::Error);
+    CHECK_FALSE(std::filesystem::exists(dir / "x.fgb"));
+    CHECK_FALSE(std::filesystem::exists(dir / "x.fgb.tmp"));
+}
+
+TEST_CASE("writer misuse by data: missing, duplicate and out-of-range lights") {
+    const auto dir = test::scratch_dir("fgb_writer");
+    const basis::FgbMetadata m = test::small_metadata(basis::Precision::Float32);
+    {
+        basis::FgbWriter w(dir / "w.fgb", m);
+        w.add(test::small_light(m, 0));
+        CHECK_THROWS_WITH_AS(w.add(test::small_light(m, 0)), doctest::Contains("added twice"), core::Error);
+        CHECK_THROWS_WITH_AS(w.finish(), doctest::Contains("first: light 1"), core::Error);
+    }
+    CHECK_FALSE(std::filesystem::exists(dir / "w.fgb"));       // never looks finished
+    CHECK_FALSE(std::filesystem::exists(dir / "w.fgb.tmp"));   // and leaves nothing behind
+    basis::FgbWriter w(dir / "p.fgb", m, 2, 4);
+    CHECK_THROWS_WITH_AS(w.add(test::small_light(m, 4)), doctest::Contains("outside this file's range [2, 4)"), core::Error);
+    CHECK_THROWS_AS(basis::FgbWriter(dir / "q.fgb", m, 4, 4), core::Error);
+    CHECK_THROWS_AS(basis::FgbWriter(dir / "q.fgb", m, 0, 9), core::Error);
+}
+
+TEST_CASE("a stale file is detected and the difference explained") {
+    const auto dir = test::scratch_dir("fgb_stale");
+    const auto path = write_small(dir / "s.fgb", basis::Precision::Float16);
+    const basis::FgbMetadata m = test::small_metadata(basis::Precision::Float16);
+    basis::LoadOptions o;
+    o.expected_key = &m.key;
+    CHECK_NOTHROW(basis::load_fgb(path, o));
+    std::string desc = m.key.description;
+    desc.replace(desc.find("albedo=0.99"), 11, "albedo=0.90");
+    const basis::BakeKey changed = basis::BakeKey::from_description(desc);
+    CHECK(changed.hash != m.key.hash);
+    o.expected_key = &changed;
+    CHECK_THROWS_WITH_AS(basis::load_fgb(path, o), doctest::Contains("stale bake"), core::Error);
+    CHECK_THROWS_WITH_AS(basis::load_fgb(path, o),
+                         doctest::Contains("line 3: the file has \"medium.albedo=0.99\", the scene has \"medium.albedo=0.90\""),
+                         core::Error);
+    basis::BakeKey same_text = m.key;
+    same_text.hash ^= 1;  // caller-supplied hash differs, description equal
+    o.expected_key = &same_text;
+    CHECK_THROWS_WITH_AS(basis::load_fgb(path, o), doctest::Contains("only the hashes differ"), core::Error);
+}
+
+TEST_CASE("specific damage is named: magic, version, endianness, size, CRCs") {
+    const auto dir = test::scratch_dir("fgb_damage");
+    const std::vector<std::uint8_t> good = slurp(write_small(dir / "g.fgb", basis::Precision::Float16));
+    using namespace basis::fgb;
+    auto expect = [&](std::vector<std::uint8_t> b, const char* needle) {
+        CHECK_THROWS_WITH_AS(load_bytes(std::move(b)), doctest::Contains(needle), core::Error);
+    };
+    {
+        auto b = good;
+        b[1] = 'X';
+        expect(b, "header.magic: not a Fulgur");
+    }
+    {
+        auto b = good;
+        b[4] = '\n';  // "\r\n" -> "\n\n": a text-mode transfer
+        expect(b, "text-mode");
+    }
+    {
+        auto b = good;
+        put<std::uint32_t>(b, kOffVersion, 2);
+        expect(b, "mem.fgb (byte 8): header.version: format version 2");
+    }
+    {
+        auto b = good;
+        put<std::uint32_t>(b, kOffEndian, 0x04030201u);
+        expect(b, "header.endianness");
+    }
+    {
+        auto b = good;
+        b.resize(b.size() - 1);
+        expect(b, "truncated: header.file_size says");
+        b = good;
+        b.push_back(0);
+        expect(b, "wrong size");
+    }
+    {
+        auto b = good;
+        b[good.size() - 3] ^= 0x10;  // inside the last block's values
+        expect(b, "light 7: block CRC mismatch");
+    }
+    {
+        auto b = good;
+        b[kHeaderSize + 5] ^= 0x01;  // inside the metadata
+        expect(b, "header CRC mismatch");
+    }
+    {
+        // Past the CRCs: a coefficient index outside the grid, named with light and byte.
+        auto b = good;
+        const auto index_offset = get<std::uint64_t>(good, kOffIndexOffset);
+        const auto off = get<std::uint64_t>(good, std::size_t(index_offset));  // light 0's block
+        // First index of direction 0 follows the block header and the 3 direction records.
+        const std::size_t at = std::size_t(off + kBlockHeaderSize + 3 * kBlockDirRecordSize);
+        put<std::uint16_t>(b, at, 60);  // the grid has 60 cells
+        fix_crcs(b, good);
+        expect(b, ("byte " + std::to_string(at) + ", light 0): direction 0 coefficient 0: index 60 outside the 60 cells").c_str());
+        // A duplicated index.
+        b = good;
+        put<std::uint16_t>(b, at + 2, get<std::uint16_t>(good, at));
+        fix_crcs(b, good);
+        expect(b, "appears twice (first as coefficient 0)");
+        // A lighting grid beyond the format's limit (4096 x 4096 x 8 = 2^27 cells).
+        b = good;
+        const std::size_t dims_at = kHeaderSize + 4 + get<std::uint32_t>(good, kHeaderSize);
+        put<std::int32_t>(b, dims_at, 4096);
+        put<std::int32_t>(b, dims_at + 4, 4096);
+        put<std::int32_t>(b, dims_at + 8, 8);
+        fix_crcs(b, good);
+        expect(b, "cells, the format allows 67108864");
+    }
+    // On disk (the ifstream path): truncated and empty files.
+    auto b = good;
+    b.resize(50);
+    spit(dir / "t.fgb", b);
+    CHECK_THROWS_WITH_AS(basis::load_fgb(dir / "t.fgb"), doctest::Contains("the fixed header alone is 104"), core::Error);
+    spit(dir / "e.fgb", {});
+    CHECK_THROWS_AS(basis::load_fgb(dir / "e.fgb"), core::Error);
+    CHECK_THROWS_WITH_AS(basis::load_fgb(dir / "missing.fgb"), doctest::Contains("cannot open"), core::Error);
+}
+
+TEST_CASE("every truncation and 3000 random byte corruptions are rejected without a crash") {
+    const auto dir = test::scratch_dir("fgb_fuzz");
+    for (const auto prec : {basis::Precision::Float16, basis::Precision::Float32}) {
+        const std::vector<std::uint8_t> good = slurp(write_small(dir / "f.fgb", prec));
+        CHECK_NOTHROW(load_bytes(good));
+        INFO("file of " << good.size() << " bytes, " << basis::to_string(prec));
+        std::size_t rejected = 0;
+        for (std::size_t len = 0; len < good.size(); ++len) {
+            try {
+                load_bytes(std::vector<std::uint8_t>(good.begin(), good.begin() + std::ptrdiff_t(len)));
+                FAIL_CHECK("truncation to " << len << " bytes was accepted");
+            } catch (const core::Error& e) {
+                ++rejected;
+                CHECK(std::string(e.what()).find("mem.fgb") != std::string::npos);
+            }
+        }
+        CHECK(rejected == good.size());
+        // Random single-byte corruptions (any value but the original) anywhere in the file:
+        // every byte is covered by a CRC, so each must be rejected.
+        core::Rng rng(42, std::uint64_t(prec));
+        for (int t = 0; t < 1500; ++t) {
+            auto b = good;
+            const std::size_t at = rng.uniform_below(std::uint32_t(b.size()));
+            b[at] ^= std::uint8_t(1 + rng.uniform_below(255));
+            try {
+                load_bytes(std::move(b));
+                FAIL_CHECK("corruption of byte " << at << " was accepted");
+            } catch (const core::Error&) {
+            }
+        }
+    }
+}
+
+TEST_CASE("corruptions that get past the CRCs reach the structural checks and never crash") {
+    // With the checksums recomputed, the parser's own bounds checks are all that stands
+    // between a hostile file and the process: each load must either throw core::Error or
+    // return data that satisfies every invariant the run time relies on.
+    const auto dir = test::scratch_dir("fgb_fuzz2");
+    const std::vector<std::uint8_t> good = slurp(write_small(dir / "f.fgb", basis::Precision::Float16));
+    core::Rng rng(7, 3);
+    int rejected = 0, accepted = 0;
+    for (int t = 0; t < 3000; ++t) {
+        auto b = good;
+        const int flips = 1 + int(rng.uniform_below(3));
+        for (int f = 0; f < flips; ++f) {
+            const std::size_t at = rng.uniform_below(std::uint32_t(b.size()));
+            if (rng.uniform_below(4) == 0)
+                b[at] = std::uint8_t(rng.uniform_below(2) ? 0xff : 0x00);  // extreme values in sizes
+            else
+                b[at] ^= std::uint8_t(1u << rng.uniform_below(8));
+        }
+        fix_crcs(b, good);
+        try {
+            const basis::BakedBasis bb = load_bytes(std::move(b));
+            ++accepted;
+            basis::validate(bb.meta, "accepted file");
+            REQUIRE(bb.lights.size() == bb.meta.light_count());
+            for (const auto& l : bb.lights) {
+                REQUIRE(l.directions.size() == bb.meta.directions.size());
+                for (const auto& d : l.directions) {
+                    REQUIRE(d.index.size() == d.value.size());
+                    for (std::size_t k = 0; k < d.size(); ++k) {
+                        REQUIRE(d.index[k] < bb.meta.cells());
+                        REQUIRE(std::isfinite(d.value[k]));
+                    }
+                    REQUIRE(std::isfinite(d.gamma));
+                }
+            }
+        } catch (const core::Error&) {
+            ++rejected;
+        }
+    }
+    MESSAGE("CRC-patched corruptions: " << rejected << " rejected, " << accepted << " accepted as valid data");
+    CHECK(rejected > 1000);  // most structural damage is caught; the rest changes only values
+}

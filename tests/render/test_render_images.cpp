@@ -1,0 +1,65 @@
+// Images of the synthetic storm (procedural cumulonimbus, a branching cloud-to-ground bolt
+// whose channel lights the cloud from inside, glow, night sky, lit ground) through the whole
+// pipeline: a golden-image test, and (with FULGUR_WRITE_DOC_IMAGES=1) the documentation
+// image docs/images/render_synthetic.png.
+#include "gl_fixture.h"
+#include "golden.h"
+
+#include "render/synthetic.h"
+#include "support/test_support.h"
+
+#include <doctest/doctest.h>
+
+#include <cstdlib>
+#include <cstring>
+
+using namespace fulgur;
+
+namespace {
+
+/// Renders the synthetic storm at w x h and returns the 8-bit frame (rows top to bottom).
+std::vector<std::uint8_t> synthetic_storm(const core::Int3& dims, double voxel, int w, int h, bool dither = true) {
+    render::Renderer& r = test::gl_renderer();
+    const render::synthetic::Storm storm = render::synthetic::storm(dims, voxel);
+    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
+    r.upload_source(render::synthetic::needed_upload(r, storm));
+    r.set_bolt(storm.bolt);
+    render::Settings st = storm.settings;
+    st.dither = dither;
+    test::render_at(r, storm.camera, st, w, h);
+    std::vector<std::uint8_t> rgba = test::gl_context().read_rgba8();
+    r.set_bolt({});
+    r.clear_source();
+    return rgba;
+}
+
+}  // namespace
+
+TEST_CASE("golden: synthetic storm") {
+    const int W = 192, H = 108;
+    const auto rgba = synthetic_storm({64, 64, 48}, 200.0, W, H);
+    // llvmpipe's results differ slightly between CPUs (vector width, FMA): allow 0.5% of the
+    // pixels to move by more than 6 levels (a star or the bolt's edge moving by a fraction of
+    // a pixel) and a mean difference of 0.5 levels; a changed scene, camera, tone map or
+    // lighting moves far more.
+    const test::GoldenTolerance tol{.pixel_threshold = 6, .max_failing_fraction = 0.005, .max_mean_diff = 0.5};
+    const auto res = test::compare_golden(test::source_dir() / "tests/render/golden/synthetic_storm.png", W, H, rgba, tol,
+                                          std::filesystem::path(FULGUR_TEST_OUTPUT_DIR) / "golden");
+    MESSAGE(res.message);
+    CHECK(res.passed);
+}
+
+TEST_CASE("documentation image (only with FULGUR_WRITE_DOC_IMAGES=1)") {
+    const char* e = std::getenv("FULGUR_WRITE_DOC_IMAGES");
+    if (!e || std::strcmp(e, "1") != 0) return;
+    const int W = 960, H = 540;
+    // No dither: the documentation image must stay small as a PNG (dither noise does not compress).
+    const auto rgba = synthetic_storm({128, 128, 96}, 100.0, W, H, false);
+    std::vector<std::uint8_t> rgb(std::size_t(W) * H * 3);
+    for (std::size_t p = 0; p < std::size_t(W) * H; ++p)
+        for (int c = 0; c < 3; ++c) rgb[p * 3 + std::size_t(c)] = rgba[p * 4 + std::size_t(c)];
+    const auto path = test::source_dir() / "docs/images/render_synthetic.png";
+    std::filesystem::create_directories(path.parent_path());
+    core::write_png(path, W, H, 3, rgb);
+    MESSAGE("wrote " << path.string());
+}

@@ -1,0 +1,67 @@
+// Lattice-Boltzmann diffusion limit (Geist et al. 2004, Eq. 19), numeric.
+#include "transport/lb_solver.h"
+
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+
+using namespace fulgur;
+using namespace fulgur::transport;
+using namespace fulgur::transport::lb;
+
+TEST_CASE("diffusion limit: variance grows by 2D per step per axis, D from Eq. 19") {
+    double worst = 0.0;
+    for (double st : {0.1, 0.25, 0.5, 0.9, 1.0})
+        for (double albedo : {1.0, 0.9, 0.5}) {
+            const double sa = st * (1.0 - albedo);
+            const double D = ((2.0 / st) - 1.0) / (4.0 * (1.0 + sa));  // lambda = tau = 1
+            const int T = int(std::ceil(60.0 / st));                     // 60 mean free times
+            const int N = 2 * T + 5;                                     // nothing reaches the x faces
+            const core::Int3 d{N, 4, 4};
+            Problem p = Problem::uniform(d, lattice_unit_coefficients(st, albedo), corrected_phase(0.0), LbAbsorption::Conservative);
+            p.boundary = {Boundary::Open, Boundary::Periodic, Boundary::Periodic};  // exact x-marginal
+            Simulation sim(p, LbKernel::Fast);
+            // Pulse in local equilibrium f_i = v_i / (1 + sigma_a), v = (sigma_a, w_1..w_18).
+            const int x0 = T + 2;
+            sim.kernel().set_arriving(p.index(x0, 0, 0), 0, float(sa / (1.0 + sa)));
+            for (int q = 1; q < kQ; ++q) sim.kernel().set_arriving(p.index(x0, 0, 0), q, float(weight(q) / (1.0 + sa)));
+            std::vector<double> ts, vs;
+            for (int t = 1; t <= T; ++t) {
+                sim.step();
+                if (t < T / 2 || (t % 2 && t != T)) continue;
+                double m0 = 0.0, m1 = 0.0, m2 = 0.0;
+                for (int x = 0; x < N; ++x) {
+                    double rho = 0.0;
+                    for (int z = 0; z < 4; ++z)
+                        for (int y = 0; y < 4; ++y)
+                            for (int q = 0; q < kQ; ++q) rho += double(sim.kernel().arriving(p.index(x, y, z), q));
+                    const double dx = double(x - x0);
+                    m0 += rho;
+                    m1 += rho * dx;
+                    m2 += rho * dx * dx;
+                }
+                const double mean = m1 / m0;
+                ts.push_back(double(t));
+                vs.push_back(m2 / m0 - mean * mean);
+            }
+            // Least-squares slope over the second half of the run.
+            double st_ = 0, sv = 0, stt = 0, stv = 0;
+            const double n = double(ts.size());
+            for (std::size_t i = 0; i < ts.size(); ++i) {
+                st_ += ts[i];
+                sv += vs[i];
+                stt += ts[i] * ts[i];
+                stv += ts[i] * vs[i];
+            }
+            const double slope = (n * stv - st_ * sv) / (n * stt - st_ * st_);
+            INFO("sigma_t " << st << " albedo " << albedo << ": slope " << slope << " vs 2D " << 2.0 * D);
+            // The issue asks for 1% on finite runs; the fitted second-half slope actually
+            // matches Eq. 19 to ~2e-7 (the transient has decayed; float32 sums), so 1e-4 keeps
+            // margin for rounding while catching any error in D or in the collision.
+            CHECK(slope == doctest::Approx(2.0 * D).epsilon(0.01));
+            CHECK(std::fabs(slope / (2.0 * D) - 1.0) < 1e-4);
+            worst = std::max(worst, std::fabs(slope / (2.0 * D) - 1.0));
+        }
+    MESSAGE("largest relative deviation of the fitted slope from 2D: " << worst);
+}
