@@ -217,6 +217,20 @@ private:
     double sum_ = 0.0;
 };
 
+/// Insertion sort for the few breakpoints of a face (std::sort on such small arrays trips a
+/// GCC 12 -Warray-bounds false positive under the sanitizer build).
+void sort_small(double* a, int n) {
+    for (int i = 1; i < n; ++i) {
+        const double v = a[i];
+        int j = i - 1;
+        while (j >= 0 && a[j] > v) {
+            a[j + 1] = a[j];
+            --j;
+        }
+        a[j + 1] = v;
+    }
+}
+
 /// Angular breakpoints (ascending) of the polar decomposition, around the foot point, of the
 /// face rectangle [A0,A1]x[B0,B1] (coordinates relative to the foot point). Between two
 /// consecutive breakpoints the ray from the foot point enters and leaves the rectangle (and,
@@ -284,7 +298,7 @@ int polar_breakpoints(double A0, double A1, double B0, double B1, double k, doub
             add(-x);
         }
     }
-    std::sort(phi, phi + n);
+    sort_small(phi, n);
     return n;
 }
 
@@ -730,7 +744,7 @@ double face_rule_sun(const SunCtx& c, const Box& b, double sigma, int n) {
             int n2 = 0;
             for (double x : v)
                 if (x >= lo && x <= hi) out[n2++] = x;
-            std::sort(out, out + n2);
+            sort_small(out, n2);
             return n2;
         };
         double cu[4], cv[4];
