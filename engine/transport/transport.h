@@ -20,7 +20,9 @@
 
 #include <glm/vec3.hpp>
 
+#include <array>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <span>
 #include <string_view>
@@ -91,6 +93,160 @@ struct SourceField {
     std::span<float> direction(std::size_t m) noexcept { return {data.data() + m * cells(), cells()}; }
     std::span<const float> direction(std::size_t m) const noexcept { return {data.data() + m * cells(), cells()}; }
 };
+
+
+// ================================================================================// Transmittance, single scattering and the Monte Carlo reference   (helper branch `mc`)
+//
+// Light sources. A point source of radiant intensity I (W/sr) emits 4*pi*I W isotropically;
+// the unit virtual light has I = 1. A directional (sun) source has irradiance E (W/m^2) on a
+// plane perpendicular to its propagation direction, and illuminates the grid from outside.
+
+struct PointSource {
+    glm::dvec3 position{0.0};  ///< metres, anywhere (inside or outside the grid)
+    double intensity = 1.0;    ///< radiant intensity I, W/sr, finite and >= 0
+};
+
+struct DirectionalSource {
+    glm::dvec3 direction{0.0, 0.0, -1.0};  ///< propagation direction (normalized on use)
+    double irradiance = 1.0;               ///< E, W/m^2, finite and >= 0
+};
+
+/// Throws core::Error naming the field when the medium is unusable: extinction not finite
+/// or < 0, albedo outside [0, 1], g not finite, a density that is not finite or outside
+/// [0, 1] (names the voxel), or an invalid grid geometry. Every solver calls it.
+void validate_medium(const LightingMedium& medium);
+
+/// Optical depth integral(sigma_t) along the segment a -> b through the piecewise-constant
+/// LightingMedium (density 0 outside the grid), by exact voxel traversal (3D DDA). Robust for
+/// axis-parallel segments, endpoints on faces, edges or corners, endpoints outside the grid
+/// and a == b (0). See engine/transport/traversal.h for the conventions.
+double optical_depth(const LightingMedium& medium, const glm::dvec3& a, const glm::dvec3& b) noexcept;
+
+/// exp(-optical_depth(a, b)).
+double transmittance(const LightingMedium& medium, const glm::dvec3& a, const glm::dvec3& b) noexcept;
+
+/// Optical depth from x back to where a directional source's light enters the grid: along
+/// -direction from x to the grid boundary (direction = propagation direction, unit).
+double optical_depth_to_sun(const LightingMedium& medium, const glm::dvec3& x, const glm::dvec3& direction) noexcept;
+
+/// Accuracy/time knobs of single_scattering(). docs/transport.md tabulates error vs time.
+struct SingleScatteringOptions {
+    /// THE accuracy knob: target relative quadrature error per voxel. Each voxel (or octree
+    /// sub-box) gets the cheapest rule an a-priori error model says meets it: a tensor
+    /// Gauss rule of order 1..4 (far, optically thin boxes; 1 node where nothing varies),
+    /// a 2^3 split (boxes close to the source), or the exact-radial face rule (the voxels
+    /// touching the source, and optically thick voxels) with more points per piece for a
+    /// smaller tolerance. Range [1e-9, 0.5]. Shadow edges of upstream voxels are not in the
+    /// model: docs/transport.md reports the error actually measured.
+    double tolerance = 1e-3;
+    /// Transmittance is set to 0 once the optical depth exceeds this (e^-104 < 1e-45, the
+    /// smallest float32: results are stored as float, so the default loses nothing for
+    /// intensities up to ~1).
+    double optical_depth_cutoff = 104.0;
+    /// Skip (write 0 to) voxels with zero density whose 26 neighbours all have zero density:
+    /// the renderer multiplies S by sigma_t and interpolates S trilinearly, so such voxels
+    /// never reach an image. Off by default (the full radiance field is computed).
+    bool skip_far_empty = false;
+};
+
+/// Exact single scattering (DESIGN.md's direct term) from a point source:
+///   S1(x, s) = albedo * p(s . w_lx) * I * T(x_l, x) / |x - x_l|^2
+/// AVERAGED OVER EACH VOXEL (the finite-volume value every solver stores). The voxel average
+/// is the regularization of the 1/r^2 singularity: it is finite for every voxel, including
+/// the one containing the source, where (density constant there) it is computed in spherical
+/// coordinates around the source with the radial integral done analytically:
+///   S = albedo I / V * integral p(s . w) (1 - exp(-sigma R(w))) / sigma dw,
+/// R(w) the distance from the source to the voxel boundary. Voxels near the source use the
+/// same exact-radial form over their faces; far voxels a tensor Gauss rule with exact DDA
+/// transmittance to every node. Writes S for out.directions into out (out.geom must equal the
+/// medium's grid; data is resized). Parallel over voxels (core::thread_count()).
+void single_scattering(const LightingMedium& medium, const PointSource& light, SourceField& out,
+                       const SingleScatteringOptions& options = {});
+SourceField single_scattering(const LightingMedium& medium, const PointSource& light,
+                              std::span<const glm::dvec3> directions, const SingleScatteringOptions& options = {});
+
+/// Single scattering of a directional source, voxel-averaged:
+///   S1(x, s) = albedo * p(s . d) * E * T_sun(x),
+/// T_sun the transmittance from where the light enters the grid to x.
+void single_scattering(const LightingMedium& medium, const DirectionalSource& sun, SourceField& out,
+                       const SingleScatteringOptions& options = {});
+SourceField single_scattering(const LightingMedium& medium, const DirectionalSource& sun,
+                              std::span<const glm::dvec3> directions, const SingleScatteringOptions& options = {});
+
+// ---------------------------------------------------------------------------------------
+// Monte Carlo reference solver
+
+/// A Monte Carlo estimate and its standard error (from independent batches).
+struct Estimate {
+    double mean = 0.0;
+    double se = 0.0;
+};
+
+/// Energy bookkeeping of a Monte Carlo run, in watts (means over batches, with SE).
+/// Per path and exactly: emitted + roulette = absorbed + escaped + truncated.
+struct EnergyTally {
+    static constexpr int kOrders = 10;  ///< entries 0..8 are exact orders, entry 9 is ">= 9"
+    Estimate emitted;    ///< power the source sent (into all directions, hitting the grid or not)
+    Estimate absorbed;   ///< absorbed in the medium
+    Estimate escaped;    ///< left the medium (including light that never entered it)
+    Estimate truncated;  ///< weight of paths stopped by max_scatterings / max_collisions
+    Estimate roulette;   ///< net weight Russian roulette added (expectation 0)
+    /// Escaped after exactly k scatterings (k = 0: uncollided).
+    std::array<Estimate, kOrders> escaped_by_order{};
+    /// Absorbed at the (k+1)-th collision, i.e. after exactly k scatterings.
+    std::array<Estimate, kOrders> absorbed_by_order{};
+};
+
+struct MonteCarloOptions {
+    std::uint64_t paths = 1'000'000;  ///< photon paths in total (split evenly over batches)
+    int batches = 32;                 ///< independent batches (>= 2) for standard errors
+    std::uint64_t seed = 1;           ///< results depend only on (seed, paths, batches), not on threads
+    /// Order-1 estimator. ExpectedValue: each emitted ray deposits its *expected* uncollided
+    /// track length T_in (1 - e^{-sigma l}) / sigma in every voxel it crosses (no zero
+    /// estimates behind thick voxels; an angular Monte Carlo quadrature of single
+    /// scattering). TrackLength: the analog flight sampled by delta tracking deposits its
+    /// length (validates delta tracking; noisier).
+    enum class SingleEstimator { ExpectedValue, TrackLength };
+    SingleEstimator single_estimator = SingleEstimator::ExpectedValue;
+    /// Scattering events followed per path. The flight after the last allowed scattering is
+    /// still traced, so S up to order max_scatterings + 1 and escape after exactly
+    /// max_scatterings scatterings are complete; the remaining weight is `truncated`.
+    /// 0: only uncollided light (order-1 S). Default: unlimited.
+    int max_scatterings = std::numeric_limits<int>::max();
+    /// Implicit capture: every collision scatters with weight *= albedo and deposits
+    /// weight * (1 - albedo) as absorbed (lower variance); false: analog absorption.
+    bool implicit_capture = true;
+    /// Russian roulette below this fraction of the emitted weight: survive with probability
+    /// weight / threshold and continue with weight = threshold (unbiased).
+    double roulette_threshold = 0.05;
+    /// Delta-tracking majorant per macro-cell of this many voxels per axis; 0 = one majorant
+    /// for the whole grid. Empty macro-cells are skipped without sampling.
+    int macro_cell = 4;
+    /// Safety stop per path (counted as `truncated`; never reached in practice).
+    std::uint64_t max_collisions = 100'000'000;
+    /// Estimate orders >= 2 (the `multiple` field). false: only order 1 is tallied.
+    bool tally_multiple = true;
+};
+
+struct MonteCarloResult {
+    SourceField single;      ///< order 1: S from unscattered light, voxel-averaged
+    SourceField multiple;    ///< orders >= 2
+    SourceField single_se;   ///< standard error of `single`, per voxel and direction
+    SourceField multiple_se; ///< standard error of `multiple`
+    EnergyTally energy;
+    std::uint64_t paths = 0;
+    std::uint64_t collisions = 0;       ///< real collisions (scattering or absorption events)
+    std::uint64_t null_collisions = 0;  ///< rejected tentative collisions of delta tracking
+    double seconds = 0.0;
+};
+
+/// Monte Carlo photon tracing in the LightingMedium (delta tracking with macro-cell
+/// majorants, exact HG sampling, implicit capture + Russian roulette, track-length
+/// estimators). Multithreaded over batches; deterministic per seed for any thread count.
+MonteCarloResult monte_carlo(const LightingMedium& medium, const PointSource& light,
+                             std::span<const glm::dvec3> directions, const MonteCarloOptions& options = {});
+MonteCarloResult monte_carlo(const LightingMedium& medium, const DirectionalSource& sun,
+                             std::span<const glm::dvec3> directions, const MonteCarloOptions& options = {});
 
 // =======================================================================================
 // Lattice-Boltzmann (Geist et al. 2004): multiple scattering on a D3Q19 lattice whose

@@ -1,0 +1,285 @@
+// Monte Carlo paths/s and single-scattering voxels/s (per direction count) on 1 and 2 threads,
+// and the single-scattering accuracy/time study behind docs/transport.md's table.
+#include "bench/bench.h"
+
+#include "cloud/cloud.h"
+#include "core/core.h"
+#include "scene/scene.h"
+#include "transport/transport.h"
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <string>
+#include <vector>
+
+namespace {
+
+using namespace fulgur;
+using namespace fulgur::transport;
+
+std::filesystem::path storm_scene() { return std::filesystem::path(FULGUR_SOURCE_ROOT) / "content/scenes/storm.json"; }
+
+LightingMedium storm_medium() {
+    const scene::Scene sc = scene::load_scene(storm_scene());
+    return scene::make_lighting_medium(sc, scene::make_density(sc));
+}
+
+/// Dobashi 2007's configuration: a flat cloud layer on a 32x32x4 lighting grid (here a
+/// synthetic smooth layer, 400 m voxels) and its 20x20x7 virtual-light grid, the vertical
+/// spacing growing away from the layer (2800 lights).
+LightingMedium dobashi_layer(int nxy, int nz) {
+    core::GridGeometry g;
+    g.dims = {nxy, nxy, nz};
+    g.voxel_size = 12800.0 / nxy;
+    g.origin = {-6400.0, -6400.0, 1200.0};
+    LightingMedium m;
+    m.density = core::Grid3<float>(g, 0.0f);
+    m.optics = {0.004, 0.99, 0.6};
+    for (int k = 0; k < nz; ++k)
+        for (int j = 0; j < nxy; ++j)
+            for (int i = 0; i < nxy; ++i) {
+                const double x = (i + 0.5) / nxy - 0.5, y = (j + 0.5) / nxy - 0.5, z = (k + 0.5) / nz;
+                const double r = std::sqrt(x * x + y * y) / 0.45 + 0.3 * std::fabs(z - 0.5);
+                if (r < 1.0)
+                    m.density.at(i, j, k) =
+                        float((1.0 - r) * (0.7 + 0.3 * std::sin(11.0 * x + 2.0 * z) * std::cos(9.0 * y)));
+            }
+    return m;
+}
+
+std::vector<glm::dvec3> dobashi_lights() {
+    std::vector<glm::dvec3> l;
+    const double zs[7] = {0.0, 600.0, 1100.0, 2000.0, 2900.0, 3600.0, 5000.0};
+    for (double z : zs)
+        for (int j = 0; j < 20; ++j)
+            for (int i = 0; i < 20; ++i) l.push_back({-7600.0 + 800.0 * i, -7600.0 + 800.0 * j, z});
+    return l;
+}
+
+/// Every stride-th light of a list (deterministic subset for timing).
+std::vector<glm::dvec3> every(const std::vector<glm::dvec3>& v, std::size_t stride, std::size_t offset = 0) {
+    std::vector<glm::dvec3> s;
+    for (std::size_t i = offset; i < v.size(); i += stride) s.push_back(v[i]);
+    return s;
+}
+
+struct SsTiming {
+    double seconds_per_light = 0.0;
+};
+
+SsTiming time_ss(const LightingMedium& m, const std::vector<glm::dvec3>& lights, int ndir, int threads, int repeats,
+                 const SingleScatteringOptions& o) {
+    core::set_thread_count(threads);
+    SourceField f;
+    f.directions = output_directions(ndir);
+    const double t = bench::time_median(repeats, [&] {
+        for (const auto& p : lights) single_scattering(m, PointSource{p, 1.0}, f, o);
+    });
+    return {t / double(lights.size())};
+}
+
+/// The naive baseline: S sampled at voxel centres (one DDA per voxel, no voxel average), as
+/// a point-sampled method would do (and as Dobashi 2007 evaluates its direct term).
+double naive_centre_seconds(const LightingMedium& m, const std::vector<glm::dvec3>& lights, int ndir, int threads) {
+    core::set_thread_count(threads);
+    const auto dirs = output_directions(ndir);
+    const core::GridGeometry& g = m.density.geom;
+    std::vector<float> out(g.cell_count() * dirs.size());
+    core::Stopwatch w;
+    for (const auto& p : lights)
+        core::parallel_for(0, std::int64_t(g.cell_count()), [&](std::int64_t c) {
+            const core::Int3 v = g.unindex(std::size_t(c));
+            const glm::dvec3 x = g.centre(v.x, v.y, v.z), r = x - p;
+            const double r2 = glm::dot(r, r), T = transmittance(m, p, x);
+            for (std::size_t k = 0; k < dirs.size(); ++k)
+                out[k * g.cell_count() + std::size_t(c)] =
+                    float(m.optics.albedo * hg_phase(glm::dot(dirs[k], r) / std::sqrt(r2), m.optics.g) * T / r2);
+        });
+    return w.seconds() / double(lights.size());
+}
+
+}  // namespace
+
+FULGUR_BENCH(mc, "Monte Carlo paths/s and single-scattering voxels/s (1, 6, 26 directions) on 1 and 2 threads") {
+    const int repeats = ctx.quick ? 1 : 3;
+    ctx.emit("mc", {{"baseline", "memory"}, {"threads", 1}, {"triad_GBps", bench::measure_bandwidth(1)}});
+
+    // --- Monte Carlo on the default storm cloud (scene light, 26 directions) ------------------
+    const LightingMedium storm = storm_medium();
+    const scene::Scene sc = scene::load_scene(storm_scene());
+    const PointSource light{sc.point_lights.at(0).position, 1.0};
+    const auto dirs26 = output_directions(26);
+    struct McRun {
+        const char* what;
+        int max_scatterings;
+        std::uint64_t paths;
+        int macro;
+    };
+    const std::uint64_t base = ctx.quick ? 20'000 : 200'000;
+    for (const McRun run : {McRun{"full transport (all orders)", std::numeric_limits<int>::max(), base, 4},
+                            McRun{"full transport, one global majorant", std::numeric_limits<int>::max(), base, 0},
+                            McRun{"order 1 only (expected-value rays)", 0, base * 10, 4}}) {
+        double rate[3] = {0, 0, 0};
+        MonteCarloResult last;
+        for (int t = 1; t <= std::min(2, ctx.max_threads); ++t) {
+            core::set_thread_count(t);
+            MonteCarloOptions o;
+            o.paths = run.paths;
+            o.max_scatterings = run.max_scatterings;
+            o.macro_cell = run.macro;
+            const double s = bench::time_median(repeats, [&] { last = monte_carlo(storm, light, dirs26, o); });
+            rate[t] = double(run.paths) / s;
+            ctx.emit("mc", {{"case", run.what},
+                            {"grid", "36x36x20 storm"},
+                            {"directions", 26},
+                            {"threads", t},
+                            {"paths", run.paths},
+                            {"paths_per_s", rate[t]},
+                            {"collisions_per_path", double(last.collisions) / double(run.paths)},
+                            {"null_collisions_per_path", double(last.null_collisions) / double(run.paths)}});
+        }
+        if (rate[2] > 0) ctx.emit("mc", {{"case", run.what}, {"speedup_2t_over_1t", rate[2] / rate[1]}});
+    }
+
+    // --- Single scattering: voxels/s per direction count --------------------------------------
+    struct SsCase {
+        const char* what;
+        LightingMedium medium;
+        std::vector<glm::dvec3> lights;
+        std::size_t total_lights;
+    };
+    std::vector<SsCase> cases;
+    {
+        std::vector<glm::dvec3> storm_lights;
+        for (int k = 0; k < 4; ++k)
+            for (int j = 0; j < 3; ++j)
+                for (int i = 0; i < 3; ++i)
+                    storm_lights.push_back({-6000.0 + 6000.0 * i + 170.0, -6000.0 + 6000.0 * j - 230.0, 500.0 + 2800.0 * k});
+        cases.push_back({"storm 36x36x20 (500 m)", storm, ctx.quick ? every(storm_lights, 12) : every(storm_lights, 3), 0});
+    }
+    const auto dl = dobashi_lights();
+    cases.push_back({"Dobashi layer 32x32x4 (400 m), 2800 virtual lights", dobashi_layer(32, 4),
+                     ctx.quick ? every(dl, 700, 13) : every(dl, 70, 13), dl.size()});
+    cases.push_back({"Dobashi layer 64x64x16 (200 m), 2800 virtual lights", dobashi_layer(64, 16),
+                     ctx.quick ? every(dl, 1400, 13) : every(dl, 350, 13), dl.size()});
+    for (const SsCase& c : cases) {
+        const std::size_t cells = c.medium.density.geom.cell_count();
+        for (int ndir : {1, 6, 26}) {
+            double spl[3] = {0, 0, 0};
+            for (int t = 1; t <= std::min(2, ctx.max_threads); ++t) {
+                const SsTiming tm = time_ss(c.medium, c.lights, ndir, t, repeats, SingleScatteringOptions{});
+                spl[t] = tm.seconds_per_light;
+                nlohmann::json j = {{"case", c.what},
+                                    {"solver", "single_scattering"},
+                                    {"tolerance", SingleScatteringOptions{}.tolerance},
+                                    {"directions", ndir},
+                                    {"threads", t},
+                                    {"lights_timed", c.lights.size()},
+                                    {"seconds_per_light", spl[t]},
+                                    {"voxels_per_s", double(cells) / spl[t]}};
+                if (c.total_lights) j["seconds_for_all_lights"] = spl[t] * double(c.total_lights);
+                ctx.emit("mc", j);
+            }
+            if (spl[2] > 0) ctx.emit("mc", {{"case", c.what}, {"directions", ndir}, {"speedup_2t_over_1t", spl[1] / spl[2]}});
+        }
+        // Other tolerances (26 directions, 2 threads) and the naive centre-sample baseline.
+        for (double tol : {1e-1, 1e-2}) {
+            SingleScatteringOptions o;
+            o.tolerance = tol;
+            const SsTiming tm = time_ss(c.medium, c.lights, 26, std::min(2, ctx.max_threads), repeats, o);
+            nlohmann::json j = {{"case", c.what},
+                                {"solver", "single_scattering"},
+                                {"tolerance", tol},
+                                {"directions", 26},
+                                {"threads", std::min(2, ctx.max_threads)},
+                                {"seconds_per_light", tm.seconds_per_light},
+                                {"voxels_per_s", double(cells) / tm.seconds_per_light}};
+            if (c.total_lights) j["seconds_for_all_lights"] = tm.seconds_per_light * double(c.total_lights);
+            ctx.emit("mc", j);
+        }
+        const double naive = naive_centre_seconds(c.medium, c.lights, 26, std::min(2, ctx.max_threads));
+        nlohmann::json j = {{"case", c.what},
+                            {"baseline", "naive centre sample (1 ray per voxel, not a voxel average)"},
+                            {"directions", 26},
+                            {"threads", std::min(2, ctx.max_threads)},
+                            {"seconds_per_light", naive},
+                            {"voxels_per_s", double(cells) / naive}};
+        if (c.total_lights) j["seconds_for_all_lights"] = naive * double(c.total_lights);
+        ctx.emit("mc", j);
+    }
+    core::set_thread_count(std::min(2, ctx.max_threads));
+}
+
+FULGUR_BENCH(ss_accuracy, "single-scattering error vs time per tolerance on the storm cloud (docs/transport.md table)") {
+    const LightingMedium m = storm_medium();
+    const scene::Scene sc = scene::load_scene(storm_scene());
+    const auto dirs = output_directions(26);
+    std::vector<glm::dvec3> lights = {sc.point_lights.at(0).position, {2170.0, -1730.0, 3300.0},
+                                      {-6230.0, 770.0, 6100.0}, {430.0, 260.0, 4100.0}};
+    if (ctx.quick) lights.resize(1);
+    core::set_thread_count(1);
+    // Reference: tolerance 1e-6 (its own error, estimated from 1e-5 vs 1e-6, is < 1e-4 L1).
+    std::vector<SourceField> ref;
+    for (const auto& p : lights) {
+        SingleScatteringOptions o;
+        o.tolerance = 1e-6;
+        ref.push_back(single_scattering(m, PointSource{p, 1.0}, dirs, o));
+    }
+    auto report = [&](const std::string& rule, double tol, const std::vector<SourceField>& got, double seconds) {
+        double l1n = 0, l1d = 0, maxbright = 0;
+        std::vector<double> rel;
+        for (std::size_t l = 0; l < lights.size(); ++l) {
+            const float smax = *std::max_element(ref[l].data.begin(), ref[l].data.end());
+            for (std::size_t i = 0; i < got[l].data.size(); ++i) {
+                const double r = ref[l].data[i], v = got[l].data[i];
+                l1n += std::fabs(v - r);
+                l1d += r;
+                if (!(m.density.data[i % got[l].cells()] > 0.0f) || !(r > 0.0)) continue;
+                rel.push_back(std::fabs(v - r) / r);
+                if (r > 1e-3 * smax) maxbright = std::max(maxbright, std::fabs(v - r) / r);
+            }
+        }
+        std::sort(rel.begin(), rel.end());
+        ctx.emit("ss_accuracy", {{"rule", rule},
+                                 {"tolerance", tol},
+                                 {"L1_relative_error", l1n / l1d},
+                                 {"max_rel_error_bright_voxels", maxbright},
+                                 {"p99_rel_error_cloud_voxels", rel.empty() ? 0.0 : rel[rel.size() * 99 / 100]},
+                                 {"p50_rel_error_cloud_voxels", rel.empty() ? 0.0 : rel[rel.size() / 2]},
+                                 {"seconds_per_light_1_thread", seconds},
+                                 {"lights", lights.size()},
+                                 {"grid", "36x36x20 storm, 26 directions"}});
+    };
+    for (double tol : {1e-1, 1e-2, 1e-3, 1e-4, 1e-5}) {
+        SingleScatteringOptions o;
+        o.tolerance = tol;
+        std::vector<SourceField> got;
+        core::Stopwatch w;
+        for (const auto& p : lights) got.push_back(single_scattering(m, PointSource{p, 1.0}, dirs, o));
+        report("adaptive (voxel average)", tol, got, w.seconds() / double(lights.size()));
+    }
+    // Naive: the value at the voxel centre instead of the voxel average.
+    {
+        std::vector<SourceField> got;
+        core::Stopwatch w;
+        const core::GridGeometry& g = m.density.geom;
+        for (const auto& p : lights) {
+            SourceField f(g, dirs);
+            for (std::size_t c = 0; c < g.cell_count(); ++c) {
+                const core::Int3 v = g.unindex(c);
+                const glm::dvec3 x = g.centre(v.x, v.y, v.z), r = x - p;
+                const double r2 = glm::dot(r, r), T = transmittance(m, p, x);
+                for (std::size_t k = 0; k < dirs.size(); ++k)
+                    f.data[k * g.cell_count() + c] =
+                        float(m.optics.albedo * hg_phase(glm::dot(dirs[k], r) / std::sqrt(r2), m.optics.g) * T / r2);
+            }
+            got.push_back(std::move(f));
+        }
+        report("naive centre sample", 0.0, got, w.seconds() / double(lights.size()));
+    }
+    core::set_thread_count(2);
+}

@@ -1,0 +1,403 @@
+// Internal: the Monte Carlo photon-tracing core, templated on the medium, the emitter and
+// the tally, so the SAME code runs on analytic media (homogeneous sphere, half-space,
+// infinite medium: the oracle tests) and on the LightingMedium grid (real use).
+//
+// Concepts
+//   Medium:  typename Walker;
+//            bool start(Walker&, x, d) const      -- false: the ray never meets the medium
+//            void segment(const Walker&, double& t0, double& t1, double& sigma_bar) const
+//                                                  -- current majorant segment [t0, t1)
+//            bool advance(Walker&) const           -- next segment; false when none is left
+//            double sigma_t(const glm::dvec3& x, const Walker&) const  (<= sigma_bar)
+//   Emitter: void emit(core::Rng&, glm::dvec3& x, glm::dvec3& d) const; double power() const
+//   Tally:   void uncollided(x, d, w)              -- once per emitted path (expected value)
+//            void flight(x, d, t0, t1, w, k)       -- a sampled flight after k scatterings
+//
+// Free flights use delta tracking (Woodcock): tentative collisions at rate sigma_bar of the
+// current majorant segment, accepted with probability sigma_t(x) / sigma_bar; by the
+// memorylessness of the exponential a segment boundary simply restarts the sampling.
+// Collisions use implicit capture (weight *= albedo, the rest is tallied as absorbed) or
+// analog absorption; Russian roulette below a weight threshold keeps the estimate unbiased.
+#pragma once
+
+#include "core/core.h"
+#include "transport/transport.h"
+#include "transport/traversal.h"
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <numbers>
+#include <vector>
+
+namespace fulgur::transport::detail {
+
+/// Per-path options the core needs (derived from MonteCarloOptions + the medium's optics).
+struct PathOptions {
+    double albedo = 1.0;
+    double g = 0.0;
+    int max_scatterings = std::numeric_limits<int>::max();
+    bool implicit_capture = true;
+    double roulette_threshold = 0.05;
+    std::uint64_t max_collisions = 100'000'000;
+};
+
+/// Raw sums of one batch (watts, summed over the batch's paths).
+struct EnergyBatch {
+    double emitted = 0, absorbed = 0, escaped = 0, truncated = 0, roulette = 0;
+    std::array<double, EnergyTally::kOrders> escaped_by_order{}, absorbed_by_order{};
+    std::uint64_t collisions = 0, null_collisions = 0;
+};
+
+inline std::size_t order_bucket(int k) noexcept {
+    return std::size_t(k < EnergyTally::kOrders - 1 ? k : EnergyTally::kOrders - 1);
+}
+
+/// Samples a free flight from x along d by delta tracking. Returns true with t_hit at a real
+/// collision; false if the ray leaves the medium, with t_end the exit parameter (0 when it
+/// never entered, +inf never happens for a path that can escape).
+template <class Medium>
+bool delta_track(const Medium& m, const glm::dvec3& x, const glm::dvec3& d, core::Rng& rng, double& t_hit,
+                 double& t_end, EnergyBatch& e) {
+    typename Medium::Walker w;
+    t_end = 0.0;
+    if (!m.start(w, x, d)) return false;
+    do {
+        double t0, t1, sb;
+        m.segment(w, t0, t1, sb);
+        t_end = t1;
+        if (sb > 0.0) {
+            double t = t0;
+            for (;;) {
+                t -= std::log1p(-rng.uniform()) / sb;  // u in [0,1): -ln(1-u) finite
+                if (t >= t1) break;
+                const double s = m.sigma_t(x + t * d, w);
+                if (rng.uniform() * sb < s) {
+                    t_hit = t;
+                    return true;
+                }
+                ++e.null_collisions;
+            }
+        }
+    } while (m.advance(w));
+    return false;
+}
+
+/// Random stream of path number `path` (global index): every path's randomness depends only on
+/// (seed, path), so results are independent of threads and batching, and two runs that differ
+/// only in what they do after some event (e.g. max_scatterings) follow identical paths up to it.
+inline core::Rng path_rng(std::uint64_t seed, std::uint64_t path) noexcept {
+    return core::Rng(core::hash_seed(seed, path), path);
+}
+
+/// Traces paths [first, first + n) from the emitter, accumulating into the tally and the
+/// energy sums.
+template <class Medium, class Emitter, class Tally>
+void trace_paths(const Medium& med, const Emitter& em, const PathOptions& o, std::uint64_t seed, std::uint64_t first,
+                 std::uint64_t n, Tally& tally, EnergyBatch& e) {
+    const double w0 = em.power();
+    const double w_rr = o.roulette_threshold * w0;
+    for (std::uint64_t p = 0; p < n; ++p) {
+        core::Rng rng = path_rng(seed, first + p);
+        glm::dvec3 x, d;
+        em.emit(rng, x, d);
+        double w = w0;
+        e.emitted += w;
+        tally.uncollided(x, d, w);
+        int k = 0;  // scatterings so far
+        std::uint64_t ncol = 0;
+        for (;;) {
+            double t_hit = 0.0, t_end = 0.0;
+            const bool hit = delta_track(med, x, d, rng, t_hit, t_end, e);
+            tally.flight(x, d, 0.0, hit ? t_hit : t_end, w, k);
+            if (!hit) {
+                e.escaped += w;
+                e.escaped_by_order[order_bucket(k)] += w;
+                break;
+            }
+            x += t_hit * d;
+            ++e.collisions;
+            if (++ncol > o.max_collisions) {
+                e.truncated += w;
+                break;
+            }
+            if (o.implicit_capture) {
+                const double wn = w * o.albedo;
+                e.absorbed += w - wn;
+                e.absorbed_by_order[order_bucket(k)] += w - wn;
+                w = wn;
+                if (!(w > 0.0)) break;
+            } else if (rng.uniform() >= o.albedo) {
+                e.absorbed += w;
+                e.absorbed_by_order[order_bucket(k)] += w;
+                break;
+            }
+            if (k >= o.max_scatterings) {
+                e.truncated += w;
+                break;
+            }
+            const double u1 = rng.uniform(), u2 = rng.uniform();
+            d = hg_sample(d, o.g, u1, u2);
+            ++k;
+            if (w < w_rr) {
+                if (rng.uniform() * w_rr < w) {
+                    e.roulette += w_rr - w;
+                    w = w_rr;
+                } else {
+                    e.roulette -= w;
+                    break;
+                }
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Emitters
+
+/// Uniform random direction on the unit sphere.
+inline glm::dvec3 uniform_sphere(core::Rng& rng) noexcept {
+    const double z = 1.0 - 2.0 * rng.uniform();
+    const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
+    const double phi = 2.0 * std::numbers::pi * rng.uniform();
+    return {r * std::cos(phi), r * std::sin(phi), z};
+}
+
+/// Isotropic point source of radiant intensity I: power 4 pi I.
+struct PointEmitter {
+    glm::dvec3 position{0.0};
+    double intensity = 1.0;
+    void emit(core::Rng& rng, glm::dvec3& x, glm::dvec3& d) const {
+        x = position;
+        d = uniform_sphere(rng);
+    }
+    double power() const noexcept { return 4.0 * std::numbers::pi * intensity; }
+};
+
+/// A collimated pencil beam of the given power.
+struct BeamEmitter {
+    glm::dvec3 position{0.0};
+    glm::dvec3 direction{0.0, 0.0, -1.0};
+    double beam_power = 1.0;
+    void emit(core::Rng&, glm::dvec3& x, glm::dvec3& d) const {
+        x = position;
+        d = direction;
+    }
+    double power() const noexcept { return beam_power; }
+};
+
+/// Directional light of irradiance E entering a box through the faces that face it, spread
+/// uniformly over the box's projected area A: power E * A.
+struct BoxSunEmitter {
+    glm::dvec3 lo{0.0}, hi{1.0};
+    glm::dvec3 direction{0.0, 0.0, -1.0};  // unit
+    double irradiance = 1.0;
+    std::array<double, 3> cumulative{};    // cumulative projected areas per axis
+    BoxSunEmitter(const glm::dvec3& lo_, const glm::dvec3& hi_, const glm::dvec3& dir, double e)
+        : lo(lo_), hi(hi_), direction(dir), irradiance(e) {
+        const glm::dvec3 ext = hi - lo;
+        const double areas[3] = {ext.y * ext.z * std::fabs(dir.x), ext.x * ext.z * std::fabs(dir.y),
+                                 ext.x * ext.y * std::fabs(dir.z)};
+        cumulative[0] = areas[0];
+        cumulative[1] = areas[0] + areas[1];
+        cumulative[2] = areas[0] + areas[1] + areas[2];
+    }
+    void emit(core::Rng& rng, glm::dvec3& x, glm::dvec3& d) const {
+        const double u = rng.uniform() * cumulative[2];
+        const int ax = u < cumulative[0] ? 0 : (u < cumulative[1] ? 1 : 2);
+        const int ua = (ax + 1) % 3, va = (ax + 2) % 3;
+        x[ax] = direction[ax] > 0.0 ? lo[ax] : hi[ax];
+        x[ua] = lo[ua] + (hi[ua] - lo[ua]) * rng.uniform();
+        x[va] = lo[va] + (hi[va] - lo[va]) * rng.uniform();
+        d = direction;
+    }
+    double power() const noexcept { return irradiance * cumulative[2]; }
+};
+
+// ---------------------------------------------------------------------------------------
+// Analytic media (oracles)
+
+/// One majorant segment [t0, t1) with constant sigma: the walker of every homogeneous medium.
+struct SingleSegmentWalker {
+    double t0 = 0.0, t1 = 0.0;
+};
+
+struct HomogeneousSphere {
+    using Walker = SingleSegmentWalker;
+    glm::dvec3 centre{0.0};
+    double radius = 1.0;
+    double sigma = 1.0;
+    bool start(Walker& w, const glm::dvec3& x, const glm::dvec3& d) const noexcept {
+        const glm::dvec3 oc = x - centre;
+        const double b = glm::dot(oc, d);
+        const double c = glm::dot(oc, oc) - radius * radius;
+        const double disc = b * b - c;
+        if (!(disc > 0.0)) return false;
+        const double sq = std::sqrt(disc);
+        w.t0 = std::max(0.0, -b - sq);
+        w.t1 = -b + sq;
+        return w.t1 > w.t0;
+    }
+    void segment(const Walker& w, double& t0, double& t1, double& sb) const noexcept {
+        t0 = w.t0;
+        t1 = w.t1;
+        sb = sigma;
+    }
+    bool advance(Walker&) const noexcept { return false; }
+    double sigma_t(const glm::dvec3&, const Walker&) const noexcept { return sigma; }
+};
+
+/// The half-space z <= 0 filled with a homogeneous medium.
+struct HalfSpace {
+    using Walker = SingleSegmentWalker;
+    double sigma = 1.0;
+    bool start(Walker& w, const glm::dvec3& x, const glm::dvec3& d) const noexcept {
+        if (x.z > 0.0) {
+            if (!(d.z < 0.0)) return false;
+            w.t0 = -x.z / d.z;
+            w.t1 = kInf;
+            return true;
+        }
+        w.t0 = 0.0;
+        w.t1 = d.z > 0.0 ? -x.z / d.z : kInf;
+        return w.t1 > w.t0;
+    }
+    void segment(const Walker& w, double& t0, double& t1, double& sb) const noexcept {
+        t0 = w.t0;
+        t1 = w.t1;
+        sb = sigma;
+    }
+    bool advance(Walker&) const noexcept { return false; }
+    double sigma_t(const glm::dvec3&, const Walker&) const noexcept { return sigma; }
+};
+
+/// An infinite homogeneous medium (nothing escapes; needs albedo < 1).
+struct InfiniteMedium {
+    using Walker = SingleSegmentWalker;
+    double sigma = 1.0;
+    bool start(Walker& w, const glm::dvec3&, const glm::dvec3&) const noexcept {
+        w.t0 = 0.0;
+        w.t1 = kInf;
+        return true;
+    }
+    void segment(const Walker& w, double& t0, double& t1, double& sb) const noexcept {
+        t0 = w.t0;
+        t1 = w.t1;
+        sb = sigma;
+    }
+    bool advance(Walker&) const noexcept { return false; }
+    double sigma_t(const glm::dvec3&, const Walker&) const noexcept { return sigma; }
+};
+
+/// The tally of energy-only runs.
+struct NullTally {
+    void uncollided(const glm::dvec3&, const glm::dvec3&, double) noexcept {}
+    void flight(const glm::dvec3&, const glm::dvec3&, double, double, double, int) noexcept {}
+};
+
+// ---------------------------------------------------------------------------------------
+// Batches
+
+/// Welford accumulation of a scalar over batches (in batch order: deterministic).
+struct ScalarStats {
+    double mean = 0.0, m2 = 0.0;
+    int n = 0;
+    void add(double x) noexcept {
+        ++n;
+        const double d = x - mean;
+        mean += d / n;
+        m2 += d * (x - mean);
+    }
+    Estimate estimate() const noexcept {
+        return {mean, n > 1 ? std::sqrt(std::max(0.0, m2) / (double(n) * double(n - 1))) : 0.0};
+    }
+};
+
+struct EnergyStats {
+    ScalarStats emitted, absorbed, escaped, truncated, roulette;
+    std::array<ScalarStats, EnergyTally::kOrders> esc, abs;
+    std::uint64_t collisions = 0, null_collisions = 0;
+    /// Adds one batch (its sums divided by its path count: watts per path of power P).
+    void add(const EnergyBatch& b, std::uint64_t paths) {
+        const double k = 1.0 / double(paths);
+        emitted.add(b.emitted * k);
+        absorbed.add(b.absorbed * k);
+        escaped.add(b.escaped * k);
+        truncated.add(b.truncated * k);
+        roulette.add(b.roulette * k);
+        for (std::size_t i = 0; i < esc.size(); ++i) {
+            esc[i].add(b.escaped_by_order[i] * k);
+            abs[i].add(b.absorbed_by_order[i] * k);
+        }
+        collisions += b.collisions;
+        null_collisions += b.null_collisions;
+    }
+    EnergyTally tally() const {
+        EnergyTally t;
+        t.emitted = emitted.estimate();
+        t.absorbed = absorbed.estimate();
+        t.escaped = escaped.estimate();
+        t.truncated = truncated.estimate();
+        t.roulette = roulette.estimate();
+        for (std::size_t i = 0; i < esc.size(); ++i) {
+            t.escaped_by_order[i] = esc[i].estimate();
+            t.absorbed_by_order[i] = abs[i].estimate();
+        }
+        return t;
+    }
+};
+
+/// Paths of batch b when `paths` are split over `batches` (remainder to the first batches).
+inline std::uint64_t batch_paths(std::uint64_t paths, int batches, int b) noexcept {
+    const std::uint64_t B = std::uint64_t(batches);
+    return paths / B + (std::uint64_t(b) < paths % B ? 1 : 0);
+}
+
+/// First global path index of batch b.
+inline std::uint64_t batch_first_path(std::uint64_t paths, int batches, int b) noexcept {
+    const std::uint64_t B = std::uint64_t(batches), ub = std::uint64_t(b);
+    return ub * (paths / B) + std::min(ub, paths % B);
+}
+
+/// Validates the options shared by every run; throws core::Error naming the field.
+void check_mc_options(const MonteCarloOptions& o);
+
+struct EnergyRun {
+    EnergyTally energy;
+    std::uint64_t collisions = 0, null_collisions = 0;
+};
+
+/// Energy-only Monte Carlo on any medium (the analytic oracles): batches run in groups of
+/// thread_count() and are combined in batch order, so the result is deterministic per seed.
+template <class Medium, class Emitter>
+EnergyRun run_energy(const Medium& med, const Emitter& em, double albedo, double g, const MonteCarloOptions& o) {
+    check_mc_options(o);
+    PathOptions po;
+    po.albedo = albedo;
+    po.g = g;
+    po.max_scatterings = o.max_scatterings;
+    po.implicit_capture = o.implicit_capture;
+    po.roulette_threshold = o.roulette_threshold;
+    po.max_collisions = o.max_collisions;
+    const int T = std::max(1, core::thread_count());
+    EnergyStats stats;
+    std::vector<EnergyBatch> group(static_cast<std::size_t>(T));
+    for (int b0 = 0; b0 < o.batches; b0 += T) {
+        const int nb = std::min(T, o.batches - b0);
+        core::parallel_for(0, nb, [&](std::int64_t i) {
+            const int b = b0 + int(i);
+            NullTally tally;
+            EnergyBatch e;
+            trace_paths(med, em, po, o.seed, batch_first_path(o.paths, o.batches, b),
+                        batch_paths(o.paths, o.batches, b), tally, e);
+            group[std::size_t(i)] = e;
+        });
+        for (int i = 0; i < nb; ++i) stats.add(group[std::size_t(i)], batch_paths(o.paths, o.batches, b0 + i));
+    }
+    return {stats.tally(), stats.collisions, stats.null_collisions};
+}
+
+}  // namespace fulgur::transport::detail
