@@ -233,10 +233,11 @@ struct CompressedBasis {
     bool operator==(const CompressedBasis&) const = default;
 };
 
-/// All output directions of one virtual light: the unit of a bake job and of a file block.
+/// All bases of one virtual light (every output direction, for every stored component;
+/// FgbMetadata::basis_index gives the order): the unit of a bake job and of a file block.
 struct CompressedLight {
     std::uint32_t light = 0;
-    std::vector<CompressedBasis> directions;
+    std::vector<CompressedBasis> directions;  ///< FgbMetadata::bases() entries
     std::size_t coefficient_count() const noexcept;
     bool operator==(const CompressedLight&) const = default;
 };
@@ -278,7 +279,7 @@ inline double ambient_rms(const CompressedBasis& b, std::size_t cells) noexcept 
 // =======================================================================================
 // The .fgb file (docs/fgb-format.md)
 
-inline constexpr std::uint32_t kFgbVersion = 1;
+inline constexpr std::uint32_t kFgbVersion = 2;
 /// Largest lighting grid a .fgb may describe (2^26 cells = 256 MiB per float32 field):
 /// loaders and the run time allocate per-cell arrays from it, so it is bounded by the format.
 inline constexpr std::size_t kMaxFgbCells = std::size_t(1) << 26;
@@ -302,10 +303,25 @@ struct FgbMetadata {
     BakeKey key;
     core::GridGeometry lighting;          ///< the grid the bases live on
     std::vector<glm::dvec3> directions;   ///< output directions s_m (unit vectors), 1..64
+    /// What the bases hold, a mask of kContentSingle (order 1, the direct term) and
+    /// kContentMultiple (orders >= 2). With components == 1 each (light, direction) has one
+    /// basis holding the sum of the content; with components == 2 (content must be both)
+    /// the single and the multiple part are stored as separate bases, so the run time can
+    /// show either (both are linear: summing them into one accumulator costs no extra
+    /// inverse transform).
+    std::uint32_t content = kContentSingle | kContentMultiple;
+    std::uint32_t components = 1;         ///< 1 or 2 (see content)
     VirtualLightGrid lights;
     CompressionParams compression;
     bool operator==(const FgbMetadata&) const = default;
 
+    static constexpr std::uint32_t kContentSingle = 1, kContentMultiple = 2;
+    /// Bases per light: components * directions.size(). CompressedLight::directions holds
+    /// them in the order basis_index(c, m) = c * directions.size() + m.
+    std::size_t bases() const noexcept { return std::size_t(components) * directions.size(); }
+    std::size_t basis_index(std::size_t component, std::size_t direction) const noexcept {
+        return component * directions.size() + direction;
+    }
     std::size_t light_count() const noexcept { return lights.count(); }
     std::size_t cells() const noexcept { return lighting.cell_count(); }
     /// Bytes per stored coefficient index: 2 when cells <= 65536, else 4.
@@ -422,8 +438,9 @@ struct WeightedLight {
 };
 
 /// sum_l w_l b_l for direction m from the compressed data: the coefficients are summed
-/// (Eq. 9) and inverse transformed once (the bake's decomposition), in double; no ambient
-/// term is added.
+/// (Eq. 9) over the lights and over the stored components (the total S the file holds)
+/// and inverse transformed once (the bake's decomposition), in double; no ambient term is
+/// added.
 core::Grid3<float> reconstruct(const BakedBasis& baked, std::span<const WeightedLight> lights, std::size_t direction);
 
 /// sum_l w_l b_l for direction m from uncompressed fields: field_of(light) returns that

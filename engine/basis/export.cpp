@@ -41,8 +41,8 @@ core::Grid3<float> reconstruct(const BakedBasis& baked, std::span<const Weighted
         if (!std::isfinite(wl.weight))
             throw core::Error("reconstruct", "the weight of light " + std::to_string(wl.light) + " is not finite");
         const CompressedLight& cl = baked.lights[wl.light];
-        FULGUR_ASSERT(direction < cl.directions.size(), "reconstruct: light without that direction");
-        accumulate(cl.directions[direction], wl.weight, coeffs);
+        FULGUR_ASSERT(cl.directions.size() == m.bases(), "reconstruct: light without all bases");
+        for (std::size_t c = 0; c < m.components; ++c) accumulate(cl.directions[m.basis_index(c, direction)], wl.weight, coeffs);
     }
     HaarTransform<double> plan(m.lighting.dims, m.compression.decomposition);
     plan.inverse(coeffs);

@@ -182,6 +182,8 @@ std::vector<std::uint8_t> encode_metadata(const FgbMetadata& m) {
         w.put(d.y);
         w.put(d.z);
     }
+    w.put(m.content);
+    w.put(m.components);
     const std::vector<double>* axes[3] = {&m.lights.x, &m.lights.y, &m.lights.z};
     for (const auto* a : axes) w.put(std::uint32_t(a->size()));
     for (const auto* a : axes)
@@ -234,6 +236,15 @@ FgbMetadata decode_metadata(ByteReader& r, std::uint64_t scene_hash, const std::
         if (!(std::fabs(len - 1.0) <= 1e-9))
             throw core::Error(name + " (byte " + std::to_string(at) + ")", f + ": not a unit vector (length " + num(len) + ")");
     }
+    m.content = r.get<std::uint32_t>("metadata.content");
+    if (m.content < 1 || m.content > 3)
+        r.fail("metadata.content", "mask " + std::to_string(m.content) + ", expected 1 (single), 2 (multiple) or 3 (both)");
+    m.components = r.get<std::uint32_t>("metadata.components");
+    if (m.components < 1 || m.components > 2)
+        r.fail("metadata.components", std::to_string(m.components) + ", expected 1 or 2");
+    if (m.components == 2 && m.content != 3)
+        r.fail("metadata.components", "2 separate components need content 3 (single and multiple), got " +
+                                          std::to_string(m.content));
 
     std::uint32_t nl[3];
     const char* axis_names[3] = {"x", "y", "z"};
@@ -302,10 +313,10 @@ CompressedLight decode_block(const std::uint8_t* data, std::size_t size, std::ui
     const std::uint32_t light = r.get<std::uint32_t>("block.light");
     if (light != expected_light) fail_at(file_offset + 4, "block.light: the block says light " + std::to_string(light));
     const std::uint64_t ndir_at = r.offset();
-    const std::uint32_t ndir = r.get<std::uint32_t>("block.direction count");
-    if (ndir != m.directions.size())
-        fail_at(ndir_at, "block.direction count: " + std::to_string(ndir) + ", the file has " +
-                             std::to_string(m.directions.size()) + " directions");
+    const std::uint32_t ndir = r.get<std::uint32_t>("block.basis count");
+    if (ndir != m.bases())
+        fail_at(ndir_at, "block.basis count: " + std::to_string(ndir) + ", the file has " +
+                             std::to_string(m.bases()) + " bases (components x directions)");
     const std::size_t ib = std::size_t(m.index_bytes()), vb = value_bytes(m.compression.precision);
     const std::uint64_t cells = m.cells();
     CompressedLight out;
@@ -456,12 +467,17 @@ void validate(const FgbMetadata& m, std::string_view where) {
     if (m.lights.base_layer >= m.lights.z.size()) throw core::Error(w + ".lights.base_layer", "outside the z layers");
     if (!std::isfinite(m.lights.cloud_base) || !std::isfinite(m.lights.cloud_top))
         throw core::Error(w + ".lights", "cloud base and top must be finite");
+    if (m.content < 1 || m.content > 3)
+        throw core::Error(w + ".content", "mask " + std::to_string(m.content) + ", expected 1, 2 or 3");
+    if (m.components < 1 || m.components > 2 || (m.components == 2 && m.content != 3))
+        throw core::Error(w + ".components", std::to_string(m.components) +
+                                                 ", expected 1, or 2 with content 3 (single and multiple)");
     validate(m.compression, w + ".compression");
     if (m.key.description.size() > kMaxDescription) throw core::Error(w + ".key", "description longer than 16 MiB");
 }
 
 EncodedBlock encode_block(const CompressedLight& light, const FgbMetadata& m) {
-    FULGUR_ASSERT(light.directions.size() == m.directions.size(), "encode_block: direction count differs from the file's");
+    FULGUR_ASSERT(light.directions.size() == m.bases(), "encode_block: basis count differs from the file's (components x directions)");
     const std::size_t ib = std::size_t(m.index_bytes());
     const bool f16 = m.compression.precision == Precision::Float16;
     ByteWriter w;

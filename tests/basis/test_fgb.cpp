@@ -88,6 +88,23 @@ TEST_CASE(".fgb round trip is bit-exact, float32 and float16, 2- and 4-byte indi
         CHECK(slurp(path) == slurp(dir / "b.fgb"));
         CHECK_FALSE(std::filesystem::exists(dir / "a.fgb.tmp"));
     }
+    // Two components (single and multiple stored apart): 2 x 3 bases per light.
+    {
+        const basis::FgbMetadata m2 = test::small_metadata(basis::Precision::Float16, {5, 4, 3}, 3, 2);
+        REQUIRE(m2.bases() == 6);
+        {
+            basis::FgbWriter w(dir / "c2.fgb", m2);
+            for (std::uint32_t l = 0; l < m2.light_count(); ++l) w.add(test::small_light(m2, l));
+            w.finish();
+        }
+        const basis::BakedBasis b2 = basis::load_fgb(dir / "c2.fgb");
+        CHECK(b2.meta == m2);
+        for (std::uint32_t l = 0; l < m2.light_count(); ++l) CHECK(b2.lights[l] == test::small_light(m2, l));
+        // A file and a metadata record that disagree on components are errors, not misreads.
+        basis::FgbMetadata bad = m2;
+        bad.content = basis::FgbMetadata::kContentSingle;
+        CHECK_THROWS_AS(basis::validate(bad, "meta"), core::Error);
+    }
     // More than 65536 cells: 4-byte indices.
     basis::FgbMetadata big = test::small_metadata(basis::Precision::Float16, {41, 40, 40}, 1);
     CHECK(big.index_bytes() == 4);
@@ -226,8 +243,8 @@ TEST_CASE("specific damage is named: magic, version, endianness, size, CRCs") {
     }
     {
         auto b = good;
-        put<std::uint32_t>(b, kOffVersion, 2);
-        expect(b, "mem.fgb (byte 8): header.version: format version 2");
+        put<std::uint32_t>(b, kOffVersion, 1);  // a file of the previous format (no components field)
+        expect(b, "mem.fgb (byte 8): header.version: format version 1");
     }
     {
         auto b = good;
@@ -344,7 +361,7 @@ TEST_CASE("corruptions that get past the CRCs reach the structural checks and ne
             basis::validate(bb.meta, "accepted file");
             REQUIRE(bb.lights.size() == bb.meta.light_count());
             for (const auto& l : bb.lights) {
-                REQUIRE(l.directions.size() == bb.meta.directions.size());
+                REQUIRE(l.directions.size() == bb.meta.bases());
                 for (const auto& d : l.directions) {
                     REQUIRE(d.index.size() == d.value.size());
                     for (std::size_t k = 0; k < d.size(); ++k) {
