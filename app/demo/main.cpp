@@ -1,0 +1,236 @@
+// fulgur: the interactive storm demo (GLFW window + Dear ImGui panel). Without a display it
+// says so and renders a short headless PNG sequence through OSMesa into out/.
+#include "common/storm_view.h"
+#include "platform/platform.h"
+
+#include <GLFW/glfw3.h>
+#include <imgui.h>
+#include <backends/imgui_impl_glfw.h>
+#include <backends/imgui_impl_opengl3.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+using namespace fulgur;
+
+namespace {
+
+const char* kUsage =
+    "usage: fulgur [SCENE.json] [--headless] [--frames N] [--size WxH]\n"
+    "Interactive storm demo (default scene: content/scenes/storm.json). Bakes the scene first\n"
+    "when no up-to-date .fgb exists. Without a display (or with --headless) it renders N\n"
+    "(default 8) frames headless to out/fulgur_NNN.png.\n"
+    "Mouse: left drag orbits, wheel zooms. Keys: Space strike now, P screenshot, Esc quit.\n";
+
+// Pseudo-colour (blue -> cyan -> yellow -> red -> white) of v in [0, 1].
+void pseudo(double v, std::uint8_t* px) {
+    v = std::clamp(v, 0.0, 1.0);
+    const double r = std::clamp(3.0 * v - 1.0, 0.0, 1.0), g = std::clamp(3.0 * v - 0.5, 0.0, 1.0) * (v < 0.9 ? 1 : 1),
+                 b = std::clamp(1.0 - 2.0 * std::abs(v - 0.25) * 2.0, 0.0, 1.0) + std::clamp(3.0 * v - 2.0, 0.0, 1.0);
+    px[0] = std::uint8_t(255 * r), px[1] = std::uint8_t(255 * g), px[2] = std::uint8_t(255 * std::min(b, 1.0)), px[3] = 255;
+}
+
+int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb, int frames,
+                      int w, int h) {
+    auto ctx = platform::create_headless({.width = w, .height = h});
+    app::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
+    view.pipeline().strike_at(0.0);
+    std::filesystem::create_directories("out");
+    const render::Camera cam = app::default_camera(view.density());
+    for (int i = 0; i < frames; ++i) {
+        const double t = 0.02 + 0.04 * i;
+        app::ViewOptions opt;
+        opt.settings.frame_index = std::uint32_t(i);
+        const app::FrameReport r = view.render(cam, t, w, h, opt);
+        ctx->present();
+        char name[64];
+        std::snprintf(name, sizeof name, "out/fulgur_%03d.png", i);
+        core::write_png(name, w, h, 4, ctx->read_rgba8());
+        std::printf("%s  t=%.2f s  %s\n", name, t, app::timings_json(r, w, h).c_str());
+    }
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    std::filesystem::path scene_path = "content/scenes/storm.json";
+    bool force_headless = false;
+    int frames = 8, W = 1280, H = 720;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a == "--help" || a == "-h") {
+            std::fputs(kUsage, stdout);
+            return 0;
+        } else if (a == "--headless") {
+            force_headless = true;
+        } else if (a == "--frames" && i + 1 < argc) {
+            frames = std::atoi(argv[++i]);
+            if (frames < 1 || frames > 10000) { std::fprintf(stderr, "fulgur: --frames must be 1..10000\n"); return 2; }
+        } else if (a == "--size" && i + 1 < argc) {
+            if (std::sscanf(argv[++i], "%dx%d", &W, &H) != 2 || W < 16 || H < 16 || W > 8192 || H > 8192) {
+                std::fprintf(stderr, "fulgur: --size must be WxH (16..8192)\n");
+                return 2;
+            }
+        } else if (!a.empty() && a[0] == '-') {
+            std::fprintf(stderr, "fulgur: unknown option '%s' (see --help)\n", a.c_str());
+            return 2;
+        } else {
+            scene_path = a;
+        }
+    }
+    try {
+        scene::Scene s = scene::load_scene(scene_path);
+        core::Grid3<float> density = scene::make_density(s);
+        const auto fgb = app::ensure_baked(s, density, std::nullopt, true);
+        if (force_headless || !platform::display_available()) {
+            if (!force_headless)
+                std::printf("fulgur: no display available (DISPLAY unset or GLFW cannot open it); rendering %d "
+                            "headless frames into out/ instead\n", frames);
+            return headless_sequence(std::move(s), std::move(density), fgb, frames, std::min(W, 640), std::min(H, 360));
+        }
+        auto ctx = platform::create_window({.width = W, .height = H, .title = "Fulgur"});
+        auto* win = static_cast<GLFWwindow*>(ctx->native_window());
+        IMGUI_CHECKVERSION();
+        ImGui::CreateContext();
+        ImGui::GetIO().IniFilename = nullptr;
+        ImGui_ImplGlfw_InitForOpenGL(win, true);
+        ImGui_ImplOpenGL3_Init("#version 450");
+
+        const bool has_ms = true;  // set from the bases below
+        app::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
+        const bool separate = view.bases().has_multiple();
+        (void)has_ms;
+        lightning::Storm& storm = view.pipeline().storm();
+        (void)storm;
+
+        double az = -90, el = 8, dist_f = 1.45;
+        app::ViewOptions opt;
+        float rate = float(view.scene().lightning.schedule.strike_rate);
+        int seed = int(view.scene().lightning.seed);
+        bool autos = rate > 0;
+        double t = 0.0;
+        auto last = std::chrono::steady_clock::now();
+        double fps = 0;
+        app::FrameReport rep;
+        GLuint slice_tex = 0;
+        glGenTextures(1, &slice_tex);
+        int shot_n = 0;
+        view.pipeline().strike_at(0.2, std::uint64_t(seed));
+        double mx = 0, my = 0;
+        bool space_down = false, p_down = false;
+        while (!glfwWindowShouldClose(win)) {
+            glfwPollEvents();
+            const auto now = std::chrono::steady_clock::now();
+            const double dt = std::chrono::duration<double>(now - last).count();
+            last = now;
+            t += dt;
+            fps = 0.9 * fps + 0.1 * (dt > 0 ? 1.0 / dt : 0.0);
+            ImGuiIO& io = ImGui::GetIO();
+            double cx, cy;
+            glfwGetCursorPos(win, &cx, &cy);
+            if (!io.WantCaptureMouse) {
+                if (glfwGetMouseButton(win, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
+                    az -= 0.3 * (cx - mx);
+                    el = std::clamp(el + 0.3 * (cy - my), -10.0, 80.0);
+                }
+                if (io.MouseWheel != 0) dist_f = std::clamp(dist_f * std::pow(0.9, io.MouseWheel), 0.4, 5.0);
+            }
+            mx = cx, my = cy;
+            bool strike = false, screenshot = false;
+            if (!io.WantCaptureKeyboard) {
+                const bool sp = glfwGetKey(win, GLFW_KEY_SPACE) == GLFW_PRESS, pk = glfwGetKey(win, GLFW_KEY_P) == GLFW_PRESS;
+                strike = sp && !space_down;
+                screenshot = pk && !p_down;
+                space_down = sp, p_down = pk;
+                if (glfwGetKey(win, GLFW_KEY_ESCAPE) == GLFW_PRESS) glfwSetWindowShouldClose(win, 1);
+            }
+
+            ImGui_ImplOpenGL3_NewFrame();
+            ImGui_ImplGlfw_NewFrame();
+            ImGui::NewFrame();
+            ImGui::SetNextWindowPos({10, 10}, ImGuiCond_FirstUseEver);
+            ImGui::SetNextWindowSize({330, 0}, ImGuiCond_FirstUseEver);
+            ImGui::Begin("Fulgur");
+            ImGui::Text("%.1f fps  (%.1f ms frame)", fps, rep.wall_ms);
+            ImGui::Separator(); ImGui::TextUnformatted("Lightning");
+            ImGui::InputInt("seed", &seed);
+            if (ImGui::Button("Strike now")) strike = true;
+            ImGui::Checkbox("automatic strikes", &autos);
+            ImGui::SliderFloat("rate (1/s)", &rate, 0.01f, 2.0f);
+            ImGui::TextDisabled("kind, branch probability, angle spread and intensity: scene file");
+            ImGui::Separator(); ImGui::TextUnformatted("Light");
+            ImGui::BeginDisabled(!separate);
+            ImGui::Checkbox("single scattering", &opt.components.single);
+            ImGui::Checkbox("multiple scattering", &opt.components.multiple);
+            ImGui::EndDisabled();
+            if (!separate && ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled))
+                ImGui::SetTooltip("this bake has no separate multiple-scattering component");
+            ImGui::Checkbox("glow", &opt.settings.glow);
+            ImGui::Checkbox("bolt", &opt.settings.bolt);
+            ImGui::Checkbox("ground", &opt.settings.ground);
+            float expo = float(std::log2(opt.settings.exposure));
+            if (ImGui::SliderFloat("exposure (EV)", &expo, -6, 6)) opt.settings.exposure = std::exp2(expo);
+            float scale = float(opt.settings.internal_scale);
+            if (ImGui::SliderFloat("internal scale", &scale, 0.25f, 1.0f)) opt.settings.internal_scale = scale;
+            ImGui::Separator(); ImGui::TextUnformatted("Frame times (ms)");
+            ImGui::Text("bolt %.2f  sources %.2f  splat %.2f", rep.stages.bolt, rep.stages.sources, rep.stages.splat);
+            ImGui::Text("accumulate %.2f  inverse Haar %.2f", rep.stages.accumulate, rep.stages.inverse_haar);
+            ImGui::Text("upload %.2f  ray march %.2f  GPU total %.2f", rep.gpu.wall.upload, rep.gpu.wall.march,
+                        rep.gpu.wall.total);
+            // Cross-section of the radiance S (middle y slice of the lighting grid; paper Fig. 6(b,d)).
+            const runtime::Frame* f = view.last_frame();
+            if (f && f->lit && !f->radiance.values.empty()) {
+                const core::GridGeometry& g = f->radiance.geometry;
+                const std::vector<float>& v = f->radiance.values[0];
+                const int j = g.dims.y / 2;
+                float vmax = 0;
+                for (int k = 0; k < g.dims.z; ++k)
+                    for (int i = 0; i < g.dims.x; ++i) vmax = std::max(vmax, v[g.index(i, j, k)]);
+                std::vector<std::uint8_t> img(std::size_t(g.dims.x) * g.dims.z * 4);
+                for (int k = 0; k < g.dims.z; ++k)
+                    for (int i = 0; i < g.dims.x; ++i)
+                        pseudo(vmax > 0 ? std::sqrt(v[g.index(i, j, k)] / vmax) : 0.0,
+                               &img[(std::size_t(g.dims.z - 1 - k) * g.dims.x + i) * 4]);
+                glBindTexture(GL_TEXTURE_2D, slice_tex);
+                glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+                glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+                glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+                glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, g.dims.x, g.dims.z, 0, GL_RGBA, GL_UNSIGNED_BYTE, img.data());
+                ImGui::Separator(); ImGui::TextUnformatted("Radiance S, vertical slice (sqrt scale)");
+                const float wpx = 300.0f;
+                ImGui::Image((ImTextureID)(intptr_t)slice_tex, {wpx, wpx * g.dims.z / float(g.dims.x)});
+            }
+            ImGui::End();
+            ImGui::Render();
+
+            if (strike) view.pipeline().strike_at(t, std::uint64_t(seed++));
+            view.pipeline().storm();  // schedule rate: automatic strikes use the scene's rate
+            if (autos && rate > 0 && std::fmod(t, 1.0 / rate) < dt) view.pipeline().strike_at(t);
+            const int fw = ctx->width(), fh = ctx->height();
+            opt.settings.frame_index++;
+            const render::Camera cam = app::default_camera(view.density(), az, el, dist_f);
+            rep = view.render(cam, t, fw, fh, opt);
+            ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+            if (screenshot) {
+                std::filesystem::create_directories("out");
+                char name[64];
+                std::snprintf(name, sizeof name, "out/screenshot_%03d.png", shot_n++);
+                core::write_png(name, fw, fh, 4, ctx->read_rgba8());
+                std::printf("wrote %s\n", name);
+            }
+            ctx->present();
+        }
+        ImGui_ImplOpenGL3_Shutdown();
+        ImGui_ImplGlfw_Shutdown();
+        ImGui::DestroyContext();
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "fulgur: %s\n", e.what());
+        return 1;
+    }
+    return 0;
+}
