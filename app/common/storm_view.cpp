@@ -54,6 +54,14 @@ StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::file
     renderer_->set_volume({.density = &density_, .extinction = scene_.medium.extinction});
 }
 
+void StormView::set_lightning(const lightning::LightningParams& p) {
+    lightning::validate(p);
+    scene_.lightning = p;
+    last_ = nullptr;
+    pipeline_.reset();
+    pipeline_ = std::make_unique<runtime::FramePipeline>(scene_, density_, bases_);
+}
+
 FrameReport StormView::render(const render::Camera& camera, double t, int width, int height,
                               const ViewOptions& options) {
     using clock = std::chrono::steady_clock;

@@ -44,6 +44,10 @@ public:
     /// Builds the frame at time t and renders it into the bound framebuffer.
     FrameReport render(const render::Camera& camera, double t, int width, int height, const ViewOptions& options);
 
+    /// New lightning parameters (bolt shape, schedule, seed): rebuilds the pipeline's storm,
+    /// so bolts are regenerated; the bake is unchanged (it does not depend on them).
+    void set_lightning(const lightning::LightningParams& p);
+
     runtime::FramePipeline& pipeline() noexcept { return *pipeline_; }
     render::Renderer& renderer() noexcept { return *renderer_; }
     const runtime::BakedBases& bases() const noexcept { return bases_; }

@@ -101,12 +101,8 @@ int main(int argc, char** argv) {
         ImGui_ImplGlfw_InitForOpenGL(win, true);
         ImGui_ImplOpenGL3_Init("#version 450");
 
-        const bool has_ms = true;  // set from the bases below
         app::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
         const bool separate = view.bases().has_multiple();
-        (void)has_ms;
-        lightning::Storm& storm = view.pipeline().storm();
-        (void)storm;
 
         double az = -90, el = 8, dist_f = 1.45;
         app::ViewOptions opt;
@@ -122,6 +118,8 @@ int main(int argc, char** argv) {
         int shot_n = 0;
         view.pipeline().strike_at(0.2, std::uint64_t(seed));
         double mx = 0, my = 0;
+        lightning::LightningParams lp = view.scene().lightning;
+        bool shape_changed = false;
         bool space_down = false, p_down = false;
         while (!glfwWindowShouldClose(win)) {
             glfwPollEvents();
@@ -162,7 +160,19 @@ int main(int argc, char** argv) {
             if (ImGui::Button("Strike now")) strike = true;
             ImGui::Checkbox("automatic strikes", &autos);
             ImGui::SliderFloat("rate (1/s)", &rate, 0.01f, 2.0f);
-            ImGui::TextDisabled("kind, branch probability, angle spread and intensity: scene file");
+            {
+                lightning::BoltParams& b = lp.bolt;
+                int kind = int(b.kind);
+                bool changed = ImGui::Combo("kind", &kind, "cloud to ground\0intra-cloud\0cloud to cloud\0");
+                b.kind = lightning::Kind(kind);
+                float bp = float(b.branch_probability), sp = float(b.angle_spread_deg),
+                      ie = float(std::log10(b.intensity));
+                changed |= ImGui::SliderFloat("branch probability", &bp, 0.0f, 0.6f);
+                changed |= ImGui::SliderFloat("angle spread (deg)", &sp, 0.0f, 40.0f);
+                changed |= ImGui::SliderFloat("intensity (log10 W/sr/m)", &ie, 3.0f, 7.0f);
+                b.branch_probability = bp, b.angle_spread_deg = sp, b.intensity = std::pow(10.0, double(ie));
+                if (changed) shape_changed = true;
+            }
             ImGui::Separator(); ImGui::TextUnformatted("Light");
             ImGui::BeginDisabled(!separate);
             ImGui::Checkbox("single scattering", &opt.components.single);
@@ -208,9 +218,16 @@ int main(int argc, char** argv) {
             ImGui::End();
             ImGui::Render();
 
+            const double want_rate = autos ? double(rate) : 0.0;
+            if (shape_changed || want_rate != lp.schedule.strike_rate) {
+                // Bolt shape / schedule changed: new storm (bolts regenerate), same bake.
+                lp.schedule.strike_rate = want_rate;
+                lp.schedule.first_strike = t + 0.5;
+                lp.seed = std::uint64_t(seed);
+                view.set_lightning(lp);
+                shape_changed = false;
+            }
             if (strike) view.pipeline().strike_at(t, std::uint64_t(seed++));
-            view.pipeline().storm();  // schedule rate: automatic strikes use the scene's rate
-            if (autos && rate > 0 && std::fmod(t, 1.0 / rate) < dt) view.pipeline().strike_at(t);
             const int fw = ctx->width(), fh = ctx->height();
             opt.settings.frame_index++;
             const render::Camera cam = app::default_camera(view.density(), az, el, dist_f);
