@@ -1,6 +1,11 @@
 // fulgur: the interactive storm demo (GLFW window + Dear ImGui panel). Without a display it
 // says so and renders a short headless PNG sequence through OSMesa into out/.
+#ifdef FULGUR_HAVE_RUNTIME
 #include "common/storm_view.h"
+#endif
+#include "core/core.h"
+#include "render/render.h"
+#include "render/synthetic.h"
 #include "platform/platform.h"
 
 #include <GLFW/glfw3.h>
@@ -20,18 +25,42 @@ using namespace fulgur;
 namespace {
 
 const char* kUsage =
-    "usage: fulgur [SCENE.json] [--headless] [--frames N] [--size WxH]\n"
+    "usage: fulgur [SCENE.json] [--headless] [--frames N] [--size WxH] [--synthetic] [--screenshot-after N] [--no-dither]\n"
     "Interactive storm demo (default scene: content/scenes/storm.json). Bakes the scene first\n"
     "when no up-to-date .fgb exists. Without a display (or with --headless) it renders N\n"
     "(default 8) frames headless to out/fulgur_NNN.png.\n"
+    "--synthetic shows the renderer's synthetic storm (no bake, no run time: a procedural cloud\n"
+    "lit by a precomputed bolt). --screenshot-after N writes out/screenshot_000.png after N\n"
+    "frames and quits (for documentation images); --no-dither turns the 8-bit dither off\n"
+    "(smaller PNGs).\n"
     "Mouse: left drag orbits, wheel zooms. Keys: Space strike now, P screenshot, Esc quit.\n";
 
+#ifdef FULGUR_HAVE_RUNTIME
 // Pseudo-colour (blue -> cyan -> yellow -> red -> white) of v in [0, 1].
 void pseudo(double v, std::uint8_t* px) {
     v = std::clamp(v, 0.0, 1.0);
     const double r = std::clamp(3.0 * v - 1.0, 0.0, 1.0), g = std::clamp(3.0 * v - 0.5, 0.0, 1.0) * (v < 0.9 ? 1 : 1),
                  b = std::clamp(1.0 - 2.0 * std::abs(v - 0.25) * 2.0, 0.0, 1.0) + std::clamp(3.0 * v - 2.0, 0.0, 1.0);
     px[0] = std::uint8_t(255 * r), px[1] = std::uint8_t(255 * g), px[2] = std::uint8_t(255 * std::min(b, 1.0)), px[3] = 255;
+}
+
+struct SliceGL {
+    void (*GenTextures)(GLsizei, GLuint*);
+    void (*BindTexture)(GLenum, GLuint);
+    void (*TexParameteri)(GLenum, GLenum, GLint);
+    void (*PixelStorei)(GLenum, GLint);
+    void (*TexImage2D)(GLenum, GLint, GLint, GLsizei, GLsizei, GLint, GLenum, GLenum, const void*);
+};
+SliceGL load_slice_gl() {
+    SliceGL g{};
+    g.GenTextures = reinterpret_cast<decltype(g.GenTextures)>(glfwGetProcAddress("glGenTextures"));
+    g.BindTexture = reinterpret_cast<decltype(g.BindTexture)>(glfwGetProcAddress("glBindTexture"));
+    g.TexParameteri = reinterpret_cast<decltype(g.TexParameteri)>(glfwGetProcAddress("glTexParameteri"));
+    g.PixelStorei = reinterpret_cast<decltype(g.PixelStorei)>(glfwGetProcAddress("glPixelStorei"));
+    g.TexImage2D = reinterpret_cast<decltype(g.TexImage2D)>(glfwGetProcAddress("glTexImage2D"));
+    if (!g.GenTextures || !g.BindTexture || !g.TexParameteri || !g.PixelStorei || !g.TexImage2D)
+        throw core::Error("fulgur", "the window's GL context lacks basic texture functions");
+    return g;
 }
 
 int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb, int frames,
@@ -54,18 +83,30 @@ int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::fil
     }
     return 0;
 }
+#endif
+
+int synthetic_demo(int W, int H, int screenshot_after);
+bool g_dither = true;
 
 }  // namespace
 
 int main(int argc, char** argv) {
     std::filesystem::path scene_path = "content/scenes/storm.json";
-    bool force_headless = false;
+    bool force_headless = false, synthetic = false;
+    int screenshot_after = 0;
     int frames = 8, W = 1280, H = 720;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         if (a == "--help" || a == "-h") {
             std::fputs(kUsage, stdout);
             return 0;
+        } else if (a == "--no-dither") {
+            g_dither = false;
+        } else if (a == "--synthetic") {
+            synthetic = true;
+        } else if (a == "--screenshot-after" && i + 1 < argc) {
+            screenshot_after = std::atoi(argv[++i]);
+            if (screenshot_after < 1) { std::fprintf(stderr, "fulgur: --screenshot-after must be >= 1\n"); return 2; }
         } else if (a == "--headless") {
             force_headless = true;
         } else if (a == "--frames" && i + 1 < argc) {
@@ -83,6 +124,19 @@ int main(int argc, char** argv) {
             scene_path = a;
         }
     }
+    if (synthetic) {
+        try {
+            return synthetic_demo(W, H, screenshot_after);
+        } catch (const std::exception& e) {
+            std::fprintf(stderr, "fulgur: %s\n", e.what());
+            return 1;
+        }
+    }
+#ifndef FULGUR_HAVE_RUNTIME
+    (void)force_headless, (void)frames;
+    std::fprintf(stderr, "fulgur: built without engine/bake and engine/runtime; only --synthetic works\n");
+    return 1;
+#else
     try {
         scene::Scene s = scene::load_scene(scene_path);
         core::Grid3<float> density = scene::make_density(s);
@@ -106,6 +160,7 @@ int main(int argc, char** argv) {
 
         double az = -90, el = 8, dist_f = 1.45;
         app::ViewOptions opt;
+        opt.settings.dither = g_dither;
         float rate = float(view.scene().lightning.schedule.strike_rate);
         int seed = int(view.scene().lightning.seed);
         bool autos = rate > 0;
@@ -113,21 +168,25 @@ int main(int argc, char** argv) {
         auto last = std::chrono::steady_clock::now();
         double fps = 0;
         app::FrameReport rep;
+        // The few GL calls of the slice image, through the window's get-proc-address (the
+        // process also links OSMesa, whose gl* symbols must not be called on a GLX context).
+        const SliceGL gl = load_slice_gl();
         GLuint slice_tex = 0;
-        glGenTextures(1, &slice_tex);
+        gl.GenTextures(1, &slice_tex);
         int shot_n = 0;
         view.pipeline().strike_at(0.2, std::uint64_t(seed));
         double mx = 0, my = 0;
         lightning::LightningParams lp = view.scene().lightning;
         bool shape_changed = false;
         bool space_down = false, p_down = false;
+        int frame_count = 0;
         while (!glfwWindowShouldClose(win)) {
             glfwPollEvents();
             const auto now = std::chrono::steady_clock::now();
             const double dt = std::chrono::duration<double>(now - last).count();
             last = now;
             t += dt;
-            fps = 0.9 * fps + 0.1 * (dt > 0 ? 1.0 / dt : 0.0);
+            fps = fps == 0.0 ? 1.0 / std::max(dt, 1e-6) : 0.8 * fps + 0.2 / std::max(dt, 1e-6);
             ImGuiIO& io = ImGui::GetIO();
             double cx, cy;
             glfwGetCursorPos(win, &cx, &cy);
@@ -152,7 +211,7 @@ int main(int argc, char** argv) {
             ImGui_ImplGlfw_NewFrame();
             ImGui::NewFrame();
             ImGui::SetNextWindowPos({10, 10}, ImGuiCond_FirstUseEver);
-            ImGui::SetNextWindowSize({330, 0}, ImGuiCond_FirstUseEver);
+            ImGui::SetNextWindowSize({380, 0}, ImGuiCond_FirstUseEver);
             ImGui::Begin("Fulgur");
             ImGui::Text("%.1f fps  (%.1f ms frame)", fps, rep.wall_ms);
             ImGui::Separator(); ImGui::TextUnformatted("Lightning");
@@ -206,11 +265,11 @@ int main(int argc, char** argv) {
                     for (int i = 0; i < g.dims.x; ++i)
                         pseudo(vmax > 0 ? std::sqrt(v[g.index(i, j, k)] / vmax) : 0.0,
                                &img[(std::size_t(g.dims.z - 1 - k) * g.dims.x + i) * 4]);
-                glBindTexture(GL_TEXTURE_2D, slice_tex);
-                glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-                glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-                glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-                glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, g.dims.x, g.dims.z, 0, GL_RGBA, GL_UNSIGNED_BYTE, img.data());
+                gl.BindTexture(GL_TEXTURE_2D, slice_tex);
+                gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+                gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+                gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+                gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, g.dims.x, g.dims.z, 0, GL_RGBA, GL_UNSIGNED_BYTE, img.data());
                 ImGui::Separator(); ImGui::TextUnformatted("Radiance S, vertical slice (sqrt scale)");
                 const float wpx = 300.0f;
                 ImGui::Image((ImTextureID)(intptr_t)slice_tex, {wpx, wpx * g.dims.z / float(g.dims.x)});
@@ -233,12 +292,15 @@ int main(int argc, char** argv) {
             const render::Camera cam = app::default_camera(view.density(), az, el, dist_f);
             rep = view.render(cam, t, fw, fh, opt);
             ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+            ++frame_count;
+            if (screenshot_after > 0 && frame_count == screenshot_after) screenshot = true;
             if (screenshot) {
                 std::filesystem::create_directories("out");
                 char name[64];
                 std::snprintf(name, sizeof name, "out/screenshot_%03d.png", shot_n++);
                 core::write_png(name, fw, fh, 4, ctx->read_rgba8());
                 std::printf("wrote %s\n", name);
+                if (screenshot_after > 0) glfwSetWindowShouldClose(win, 1);
             }
             ctx->present();
         }
@@ -250,4 +312,112 @@ int main(int argc, char** argv) {
         return 1;
     }
     return 0;
+#endif
 }
+
+namespace {
+
+// The renderer's synthetic storm in the demo window: camera, effect toggles, exposure,
+// internal scale and pass times work; the lightning controls need the run time.
+int synthetic_demo(int W, int H, int screenshot_after) {
+    auto ctx = platform::create_window({.width = W, .height = H, .title = "Fulgur (synthetic storm)"});
+    auto* win = static_cast<GLFWwindow*>(ctx->native_window());
+    IMGUI_CHECKVERSION();
+    ImGui::CreateContext();
+    ImGui::GetIO().IniFilename = nullptr;
+    ImGui_ImplGlfw_InitForOpenGL(win, true);
+    ImGui_ImplOpenGL3_Init("#version 450");
+    render::Renderer r(ctx->get_proc_address());
+    std::printf("synthetic storm: generating cloud and bolt light...\n");
+    render::synthetic::Storm st = render::synthetic::storm({64, 64, 48}, 200.0);
+    r.set_volume({.density = &st.density, .extinction = st.extinction});
+    render::SourceUpload up;
+    up.geometry = st.lighting;
+    up.direction_count = st.directions;
+    const std::size_t n = st.lighting.cell_count();
+    for (int m = 0; m < st.directions; ++m) {
+        up.directions.push_back(m);
+        up.values.emplace_back(st.source.data() + std::size_t(m) * n, n);
+    }
+    r.upload_source(up);
+    r.set_bolt(st.bolt);
+    render::Settings set = st.settings;
+    set.dither = g_dither;
+    double az = -60, el = -6, dist = 13500;
+    double mx = 0, my = 0;
+    bool p_down = false;
+    int frames = 0, shot_n = 0;
+    double fps = 0;
+    render::FrameStats fs;
+    auto last = std::chrono::steady_clock::now();
+    while (!glfwWindowShouldClose(win)) {
+        glfwPollEvents();
+        const auto now = std::chrono::steady_clock::now();
+        const double dt = std::chrono::duration<double>(now - last).count();
+        last = now;
+        if (frames == 1) fps = 1.0 / dt;
+        else if (frames > 1) fps = 0.8 * fps + 0.2 / dt;
+        ImGuiIO& io = ImGui::GetIO();
+        double cx, cy;
+        glfwGetCursorPos(win, &cx, &cy);
+        if (!io.WantCaptureMouse) {
+            if (glfwGetMouseButton(win, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
+                az -= 0.3 * (cx - mx);
+                el = std::clamp(el + 0.3 * (cy - my), -10.0, 80.0);
+            }
+            if (io.MouseWheel != 0) dist = std::clamp(dist * std::pow(0.9, io.MouseWheel), 4000.0, 60000.0);
+        }
+        mx = cx, my = cy;
+        const bool pk = glfwGetKey(win, GLFW_KEY_P) == GLFW_PRESS;
+        bool screenshot = pk && !p_down && !io.WantCaptureKeyboard;
+        p_down = pk;
+        if (glfwGetKey(win, GLFW_KEY_ESCAPE) == GLFW_PRESS) glfwSetWindowShouldClose(win, 1);
+
+        ImGui_ImplOpenGL3_NewFrame();
+        ImGui_ImplGlfw_NewFrame();
+        ImGui::NewFrame();
+        ImGui::SetNextWindowPos({10, 10}, ImGuiCond_FirstUseEver);
+        ImGui::SetNextWindowSize({360, 0}, ImGuiCond_FirstUseEver);
+        ImGui::Begin("Fulgur (synthetic storm)");
+        ImGui::Text("%.1f fps  (%.1f ms render)", fps, fs.wall.total);
+        ImGui::TextDisabled("no bake / run time: lightning controls off");
+        ImGui::Separator();
+        ImGui::Checkbox("glow", &set.glow);
+        ImGui::Checkbox("bolt", &set.bolt);
+        ImGui::Checkbox("ground", &set.ground);
+        ImGui::Checkbox("cloud lighting", &set.cloud_lighting);
+        float expo = float(std::log2(set.exposure));
+        if (ImGui::SliderFloat("exposure (EV)", &expo, 0, 12)) set.exposure = std::exp2(expo);
+        float scale = float(set.internal_scale);
+        if (ImGui::SliderFloat("internal scale", &scale, 0.25f, 1.0f)) set.internal_scale = scale;
+        ImGui::Separator();
+        ImGui::TextUnformatted("Pass times (ms)");
+        ImGui::Text("upload %.2f  resolve %.2f  glow %.2f", fs.wall.upload, fs.wall.resolve, fs.wall.glow);
+        ImGui::Text("ray march %.2f  bolt %.2f  composite %.2f", fs.wall.march, fs.wall.bolt, fs.wall.composite);
+        ImGui::Text("internal %d x %d, %d directions", fs.internal_width, fs.internal_height, fs.directions_used);
+        ImGui::End();
+        ImGui::Render();
+
+        set.frame_index = std::uint32_t(frames);
+        const render::Camera cam = render::Camera::orbit(st.camera.target, dist, az, el, st.camera.vertical_fov_deg);
+        fs = r.render(cam, set, ctx->width(), ctx->height());
+        ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+        ++frames;
+        if (screenshot_after > 0 && frames == screenshot_after) screenshot = true;
+        if (screenshot) {
+            std::filesystem::create_directories("out");
+            char name[64];
+            std::snprintf(name, sizeof name, "out/screenshot_%03d.png", shot_n++);
+            core::write_png(name, ctx->width(), ctx->height(), 4, ctx->read_rgba8());
+            std::printf("wrote %s\n", name);
+            if (screenshot_after > 0) glfwSetWindowShouldClose(win, 1);
+        }
+        ctx->present();
+    }
+    ImGui_ImplOpenGL3_Shutdown();
+    ImGui_ImplGlfw_Shutdown();
+    ImGui::DestroyContext();
+    return 0;
+}
+
+}  // namespace
