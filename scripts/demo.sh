@@ -6,5 +6,5 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/setup.sh
 cmake --preset release
-cmake --build --preset release -j "$(nproc)" --target fulgur fulgur-shot fulgur-bench
+cmake --build --preset release -j "$(nproc)"
 exec ./build/release/app/fulgur content/scenes/storm.json "$@"

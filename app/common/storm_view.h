@@ -41,6 +41,8 @@ class StormView {
 public:
     StormView(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb,
               render::GetProcAddress gl);
+    StormView(const StormView&) = delete;  // the pipeline refers to the members
+    StormView& operator=(const StormView&) = delete;
     /// Builds the frame at time t and renders it into the bound framebuffer.
     FrameReport render(const render::Camera& camera, double t, int width, int height, const ViewOptions& options);
 

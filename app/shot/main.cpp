@@ -22,11 +22,13 @@ int main(int argc, char** argv) {
     }
     try {
         scene::Scene s = scene::load_scene(a.scene);
-        s.lightning.schedule.strike_rate = 0.0;  // only the requested strike
         core::Grid3<float> density = scene::make_density(s);
         const auto fgb = app::ensure_baked(s, density, a.fgb, true);
         auto ctx = platform::create_headless({.width = a.width, .height = a.height});
         app::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
+        lightning::LightningParams lp = view.scene().lightning;
+        lp.schedule.strike_rate = 0.0;  // only the requested strike (after the bake check: same .fgb as the demo)
+        view.set_lightning(lp);
         view.pipeline().strike_at(0.0, a.seed);
         app::ViewOptions opt;
         const render::Camera cam = app::default_camera(view.density());
