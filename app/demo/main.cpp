@@ -86,6 +86,9 @@ int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::fil
 #endif
 
 int synthetic_demo(int W, int H, int screenshot_after);
+int synthetic_headless(int frames, int W, int H);
+const char* kNoDisplay =
+    "fulgur: no display available (DISPLAY unset or GLFW cannot open it); rendering %d headless frames into out/ instead\n";
 bool g_dither = true;
 
 }  // namespace
@@ -126,6 +129,10 @@ int main(int argc, char** argv) {
     }
     if (synthetic) {
         try {
+            if (force_headless || !platform::display_available()) {
+                if (!force_headless) std::printf(kNoDisplay, frames);
+                return synthetic_headless(frames, std::min(W, 640), std::min(H, 360));
+            }
             return synthetic_demo(W, H, screenshot_after);
         } catch (const std::exception& e) {
             std::fprintf(stderr, "fulgur: %s\n", e.what());
@@ -143,8 +150,7 @@ int main(int argc, char** argv) {
         const auto fgb = app::ensure_baked(s, density, std::nullopt, true);
         if (force_headless || !platform::display_available()) {
             if (!force_headless)
-                std::printf("fulgur: no display available (DISPLAY unset or GLFW cannot open it); rendering %d "
-                            "headless frames into out/ instead\n", frames);
+                std::printf(kNoDisplay, frames);
             return headless_sequence(std::move(s), std::move(density), fgb, frames, std::min(W, 640), std::min(H, 360));
         }
         auto ctx = platform::create_window({.width = W, .height = H, .title = "Fulgur"});
@@ -317,17 +323,7 @@ int main(int argc, char** argv) {
 
 namespace {
 
-// The renderer's synthetic storm in the demo window: camera, effect toggles, exposure,
-// internal scale and pass times work; the lightning controls need the run time.
-int synthetic_demo(int W, int H, int screenshot_after) {
-    auto ctx = platform::create_window({.width = W, .height = H, .title = "Fulgur (synthetic storm)"});
-    auto* win = static_cast<GLFWwindow*>(ctx->native_window());
-    IMGUI_CHECKVERSION();
-    ImGui::CreateContext();
-    ImGui::GetIO().IniFilename = nullptr;
-    ImGui_ImplGlfw_InitForOpenGL(win, true);
-    ImGui_ImplOpenGL3_Init("#version 450");
-    render::Renderer r(ctx->get_proc_address());
+render::synthetic::Storm synthetic_storm(render::Renderer& r) {
     std::printf("synthetic storm: generating cloud and bolt light...\n");
     render::synthetic::Storm st = render::synthetic::storm({64, 64, 48}, 200.0);
     r.set_volume({.density = &st.density, .extinction = st.extinction});
@@ -341,6 +337,43 @@ int synthetic_demo(int W, int H, int screenshot_after) {
     }
     r.upload_source(up);
     r.set_bolt(st.bolt);
+    return st;
+}
+
+// Headless sequence of the synthetic storm: the camera orbits 4 degrees per frame.
+int synthetic_headless(int frames, int W, int H) {
+    auto ctx = platform::create_headless({.width = W, .height = H});
+    render::Renderer r(ctx->get_proc_address());
+    const render::synthetic::Storm st = synthetic_storm(r);
+    std::filesystem::create_directories("out");
+    for (int i = 0; i < frames; ++i) {
+        render::Settings set = st.settings;
+        set.frame_index = std::uint32_t(i);
+        set.dither = g_dither;
+        const render::Camera cam = render::Camera::orbit(st.camera.target, 13500.0, -60.0 + 4.0 * i, -6.0,
+                                                         st.camera.vertical_fov_deg);
+        const render::FrameStats fs = r.render(cam, set, W, H);
+        ctx->present();
+        char name[64];
+        std::snprintf(name, sizeof name, "out/fulgur_%03d.png", i);
+        core::write_png(name, W, H, 4, ctx->read_rgba8());
+        std::printf("%s  render %.1f ms (march %.1f ms)\n", name, fs.wall.total, fs.wall.march);
+    }
+    return 0;
+}
+
+// The renderer's synthetic storm in the demo window: camera, effect toggles, exposure,
+// internal scale and pass times work; the lightning controls need the run time.
+int synthetic_demo(int W, int H, int screenshot_after) {
+    auto ctx = platform::create_window({.width = W, .height = H, .title = "Fulgur (synthetic storm)"});
+    auto* win = static_cast<GLFWwindow*>(ctx->native_window());
+    IMGUI_CHECKVERSION();
+    ImGui::CreateContext();
+    ImGui::GetIO().IniFilename = nullptr;
+    ImGui_ImplGlfw_InitForOpenGL(win, true);
+    ImGui_ImplOpenGL3_Init("#version 450");
+    render::Renderer r(ctx->get_proc_address());
+    const render::synthetic::Storm st = synthetic_storm(r);
     render::Settings set = st.settings;
     set.dither = g_dither;
     double az = -60, el = -6, dist = 13500;
