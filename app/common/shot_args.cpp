@@ -1,0 +1,82 @@
+#include "shot_args.h"
+
+#include "core/core.h"
+
+#include <charconv>
+#include <cmath>
+
+namespace fulgur::app {
+
+std::string shot_usage() {
+    return "usage: fulgur-shot SCENE.json [--fgb FILE] --seed S --time T --size WxH -o OUT.png\n"
+           "Renders one frame of SCENE's storm headless (OSMesa) to OUT.png and prints the\n"
+           "per-stage timings as one JSON line.\n"
+           "  --fgb FILE   baked bases to use (default: the scene's .fgb, baked first if missing or stale)\n"
+           "  --seed S     strike seed (unsigned integer); a strike starts at t = 0\n"
+           "  --time T     seconds after the strike start (>= 0)\n"
+           "  --size WxH   image size in pixels (1..8192 each)\n"
+           "  -o OUT.png   output PNG\n"
+           "  --help       this text\n";
+}
+
+namespace {
+template <class T>
+T parse_number(const std::string& s, const char* what) {
+    T v{};
+    auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    if (ec != std::errc() || p != s.data() + s.size() || s.empty())
+        throw core::Error("fulgur-shot", std::string(what) + ": not a number: '" + s + "'");
+    return v;
+}
+}  // namespace
+
+ShotArgs parse_shot_args(const std::vector<std::string>& args) {
+    ShotArgs a;
+    bool have_seed = false, have_time = false, have_size = false, have_out = false;
+    auto value = [&](std::size_t& i) -> const std::string& {
+        if (i + 1 >= args.size()) throw core::Error("fulgur-shot", "" + args[i] + " needs a value");
+        return args[++i];
+    };
+    for (std::size_t i = 0; i < args.size(); ++i) {
+        const std::string& s = args[i];
+        if (s == "--help" || s == "-h") {
+            a.help = true;
+            return a;
+        } else if (s == "--fgb") {
+            a.fgb = value(i);
+        } else if (s == "--seed") {
+            a.seed = parse_number<std::uint64_t>(value(i), "--seed");
+            have_seed = true;
+        } else if (s == "--time") {
+            a.time = parse_number<double>(value(i), "--time");
+            if (!std::isfinite(a.time) || a.time < 0.0) throw core::Error("fulgur-shot", "--time must be finite and >= 0");
+            have_time = true;
+        } else if (s == "--size") {
+            const std::string& v = value(i);
+            auto x = v.find('x');
+            if (x == std::string::npos) throw core::Error("fulgur-shot", "--size must be WxH, got '" + v + "'");
+            a.width = parse_number<int>(v.substr(0, x), "--size width");
+            a.height = parse_number<int>(v.substr(x + 1), "--size height");
+            if (a.width < 1 || a.height < 1 || a.width > 8192 || a.height > 8192)
+                throw core::Error("fulgur-shot", "--size: each side must be in 1..8192, got '" + v + "'");
+            have_size = true;
+        } else if (s == "-o" || s == "--output") {
+            a.output = value(i);
+            have_out = true;
+        } else if (!s.empty() && s[0] == '-') {
+            throw core::Error("fulgur-shot", "unknown option '" + s + "' (see --help)");
+        } else if (a.scene.empty()) {
+            a.scene = s;
+        } else {
+            throw core::Error("fulgur-shot", "more than one scene given ('" + a.scene.string() + "', '" + s + "')");
+        }
+    }
+    if (a.scene.empty()) throw core::Error("fulgur-shot", "no SCENE.json given (see --help)");
+    if (!have_seed) throw core::Error("fulgur-shot", "--seed is required");
+    if (!have_time) throw core::Error("fulgur-shot", "--time is required");
+    if (!have_size) throw core::Error("fulgur-shot", "--size is required");
+    if (!have_out) throw core::Error("fulgur-shot", "-o is required");
+    return a;
+}
+
+}  // namespace fulgur::app

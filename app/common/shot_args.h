@@ -1,0 +1,29 @@
+// fulgur-shot's command line (kept apart from main so tests can check the validation).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace fulgur::app {
+
+struct ShotArgs {
+    std::filesystem::path scene;
+    std::optional<std::filesystem::path> fgb;  ///< default: the scene's up-to-date .fgb (baked if needed)
+    std::uint64_t seed = 1;
+    double time = 0.6;
+    int width = 640, height = 360;
+    std::filesystem::path output;
+    bool help = false;
+};
+
+/// The --help text.
+std::string shot_usage();
+
+/// Parses argv[1..]. Throws core::Error with a one-line reason on any invalid input
+/// (unknown option, missing value, malformed number, non-positive size, missing -o).
+ShotArgs parse_shot_args(const std::vector<std::string>& args);
+
+}  // namespace fulgur::app

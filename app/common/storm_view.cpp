@@ -1,0 +1,120 @@
+#include "storm_view.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+namespace fulgur::app {
+
+std::filesystem::path ensure_baked(const scene::Scene& s, const core::Grid3<float>& density,
+                                   const std::optional<std::filesystem::path>& explicit_fgb, bool progress) {
+    if (explicit_fgb) {
+        if (!std::filesystem::exists(*explicit_fgb))
+            throw core::Error(explicit_fgb->string(), "no such .fgb file");
+        return *explicit_fgb;
+    }
+    const std::filesystem::path fgb = bake::default_fgb_path(s);
+    std::string why;
+    if (bake::up_to_date(s, density, fgb, &why)) return fgb;
+    if (progress) std::fprintf(stderr, "baking %s (%s)\n", fgb.string().c_str(), why.c_str());
+    bake::Progress cb;
+    if (progress) {
+        cb = [](std::size_t done, std::size_t total, double seconds) {
+            const int width = 40;
+            const double f = total ? double(done) / double(total) : 1.0;
+            const int n = int(std::lround(f * width));
+            std::fprintf(stderr, "\r[%s%s] %zu/%zu lights %.1f s", std::string(std::size_t(n), '#').c_str(),
+                         std::string(std::size_t(width - n), '.').c_str(), done, total, seconds);
+            if (done == total) std::fprintf(stderr, "\n");
+            std::fflush(stderr);
+        };
+    }
+    bake::bake(s, density, fgb, cb);
+    return fgb;
+}
+
+render::Camera default_camera(const core::Grid3<float>& density, double azimuth_deg, double elevation_deg,
+                              double distance_factor) {
+    const core::GridGeometry& g = density.geom;
+    const glm::dvec3 ext = g.extent();
+    glm::dvec3 target = g.origin + 0.5 * ext;
+    target.z = g.origin.z + 0.4 * ext.z;
+    const double distance = distance_factor * std::max({ext.x, ext.y, ext.z});
+    return render::Camera::orbit(target, distance, azimuth_deg, elevation_deg);
+}
+
+StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb,
+                     render::GetProcAddress gl)
+    : scene_(std::move(s)),
+      density_(std::move(density)),
+      bases_(runtime::BakedBases::load(fgb, bake::scene_key(scene_, density_).hash)) {
+    pipeline_ = std::make_unique<runtime::FramePipeline>(scene_, density_, bases_);
+    renderer_ = std::make_unique<render::Renderer>(gl);
+    renderer_->set_volume({.density = &density_, .extinction = scene_.medium.extinction});
+}
+
+void StormView::set_lightning(const lightning::LightningParams& p) {
+    lightning::validate(p);
+    scene_.lightning = p;
+    last_ = nullptr;
+    pipeline_.reset();
+    pipeline_ = std::make_unique<runtime::FramePipeline>(scene_, density_, bases_);
+}
+
+FrameReport StormView::render(const render::Camera& camera, double t, int width, int height,
+                              const ViewOptions& options) {
+    using clock = std::chrono::steady_clock;
+    const auto t0 = clock::now();
+    FrameReport rep;
+    const int ndir = int(bases_.directions().size());
+    std::vector<int> dirs;
+    for (const render::DirectionUse& u :
+         renderer_->needed_directions(camera, bases_.lighting(), ndir, options.settings.direction_min_weight))
+        dirs.push_back(u.index);
+    runtime::ReconstructOptions ro;
+    ro.components = options.components;
+    const runtime::Frame& f = pipeline_->build(t, dirs, ro);
+    last_ = &f;
+    rep.stages = f.times;
+    rep.lit = f.lit;
+
+    render::Bolt bolt;
+    bolt.segments.reserve(f.segments.size());
+    for (const lightning::LitSegment& s : f.segments)
+        bolt.segments.push_back({glm::vec3(s.a), glm::vec3(s.b), float(s.intensity), 2.0f});
+    renderer_->set_bolt(bolt);
+    if (f.lit && !f.radiance.values.empty()) {
+        render::SourceUpload up;
+        up.geometry = f.radiance.geometry;
+        up.direction_count = f.radiance.direction_count;
+        up.directions = f.radiance.directions;
+        for (const auto& v : f.radiance.values) up.values.emplace_back(v.data(), v.size());
+        renderer_->upload_source(up);
+    } else {
+        renderer_->clear_source();
+    }
+    render::Settings st = options.settings;
+    st.ground_height = scene_.lightning.bolt.ground_height;
+    rep.gpu = renderer_->render(camera, st, width, height);
+    rep.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - t0).count();
+    return rep;
+}
+
+std::string timings_json(const FrameReport& r, int width, int height) {
+    std::ostringstream o;
+    o.precision(4);
+    o << "{\"name\":\"fulgur-shot\",\"width\":" << width << ",\"height\":" << height
+      << ",\"lit\":" << (r.lit ? "true" : "false") << ",\"bolt_ms\":" << r.stages.bolt
+      << ",\"sources_ms\":" << r.stages.sources << ",\"splat_ms\":" << r.stages.splat
+      << ",\"accumulate_ms\":" << r.stages.accumulate << ",\"inverse_haar_ms\":" << r.stages.inverse_haar
+      << ",\"upload_ms\":" << r.gpu.wall.upload << ",\"resolve_ms\":" << r.gpu.wall.resolve
+      << ",\"glow_ms\":" << r.gpu.wall.glow << ",\"march_ms\":" << r.gpu.wall.march
+      << ",\"bolt_draw_ms\":" << r.gpu.wall.bolt << ",\"composite_ms\":" << r.gpu.wall.composite
+      << ",\"gpu_total_ms\":" << r.gpu.wall.total << ",\"frame_ms\":" << r.wall_ms
+      << ",\"internal_width\":" << r.gpu.internal_width << ",\"internal_height\":" << r.gpu.internal_height
+      << "}";
+    return o.str();
+}
+
+}  // namespace fulgur::app

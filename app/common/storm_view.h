@@ -1,0 +1,72 @@
+// The frame-rendering logic shared by `fulgur` (demo), `fulgur-shot` and the golden-image
+// tests: scene + baked bases -> runtime::FramePipeline -> render::Renderer, in whatever GL
+// context is current. Also: finding (or baking) the scene's .fgb.
+#pragma once
+
+#include "bake/bake.h"
+#include "render/render.h"
+#include "runtime/runtime.h"
+#include "scene/scene.h"
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
+namespace fulgur::app {
+
+/// The scene's .fgb: `explicit_fgb` when given (must exist), else bake::default_fgb_path,
+/// baked first (with a progress bar on stderr when `progress`) when missing or stale.
+std::filesystem::path ensure_baked(const scene::Scene& s, const core::Grid3<float>& density,
+                                   const std::optional<std::filesystem::path>& explicit_fgb, bool progress);
+
+/// A camera framing the scene's cloud from the side, slightly below its centre.
+render::Camera default_camera(const core::Grid3<float>& density, double azimuth_deg = -90.0,
+                              double elevation_deg = 8.0, double distance_factor = 1.45);
+
+struct ViewOptions {
+    runtime::Components components;
+    render::Settings settings;  ///< bolt/glow/ground/exposure/internal scale
+};
+
+struct FrameReport {
+    runtime::StageTimes stages;  ///< CPU side: bolt, sources, splat, accumulate, inverse Haar
+    render::FrameStats gpu;      ///< upload, ray march, ... (wall and CPU)
+    bool lit = false;
+    double wall_ms = 0.0;        ///< the whole frame: reconstruction + upload + render
+};
+
+/// Owns density, bases, pipeline and renderer for one scene.
+class StormView {
+public:
+    StormView(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb,
+              render::GetProcAddress gl);
+    StormView(const StormView&) = delete;  // the pipeline refers to the members
+    StormView& operator=(const StormView&) = delete;
+    /// Builds the frame at time t and renders it into the bound framebuffer.
+    FrameReport render(const render::Camera& camera, double t, int width, int height, const ViewOptions& options);
+
+    /// New lightning parameters (bolt shape, schedule, seed): rebuilds the pipeline's storm,
+    /// so bolts are regenerated; the bake is unchanged (it does not depend on them).
+    void set_lightning(const lightning::LightningParams& p);
+
+    runtime::FramePipeline& pipeline() noexcept { return *pipeline_; }
+    render::Renderer& renderer() noexcept { return *renderer_; }
+    const runtime::BakedBases& bases() const noexcept { return bases_; }
+    const scene::Scene& scene() const noexcept { return scene_; }
+    const core::Grid3<float>& density() const noexcept { return density_; }
+    const runtime::Frame* last_frame() const noexcept { return last_; }
+
+private:
+    scene::Scene scene_;
+    core::Grid3<float> density_;
+    runtime::BakedBases bases_;
+    std::unique_ptr<runtime::FramePipeline> pipeline_;
+    std::unique_ptr<render::Renderer> renderer_;
+    const runtime::Frame* last_ = nullptr;
+};
+
+/// The JSON line fulgur-shot prints (stage times in ms).
+std::string timings_json(const FrameReport& r, int width, int height);
+
+}  // namespace fulgur::app

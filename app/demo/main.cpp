@@ -1,0 +1,456 @@
+// fulgur: the interactive storm demo (GLFW window + Dear ImGui panel). Without a display it
+// says so and renders a short headless PNG sequence through OSMesa into out/.
+#ifdef FULGUR_HAVE_RUNTIME
+#include "common/storm_view.h"
+#endif
+#include "core/core.h"
+#include "render/render.h"
+#include "render/synthetic.h"
+#include "platform/platform.h"
+
+#include <GLFW/glfw3.h>
+#include <imgui.h>
+#include <backends/imgui_impl_glfw.h>
+#include <backends/imgui_impl_opengl3.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+using namespace fulgur;
+
+namespace {
+
+const char* kUsage =
+    "usage: fulgur [SCENE.json] [--headless] [--frames N] [--size WxH] [--synthetic] [--screenshot-after N] [--no-dither]\n"
+    "Interactive storm demo (default scene: content/scenes/storm.json). Bakes the scene first\n"
+    "when no up-to-date .fgb exists. Without a display (or with --headless) it renders N\n"
+    "(default 8) frames headless to out/fulgur_NNN.png.\n"
+    "--synthetic shows the renderer's synthetic storm (no bake, no run time: a procedural cloud\n"
+    "lit by a precomputed bolt). --screenshot-after N writes out/screenshot_000.png after N\n"
+    "frames and quits (for documentation images); --no-dither turns the 8-bit dither off\n"
+    "(smaller PNGs).\n"
+    "Mouse: left drag orbits, wheel zooms. Keys: Space strike now, P screenshot, Esc quit.\n";
+
+#ifdef FULGUR_HAVE_RUNTIME
+// Pseudo-colour (blue -> cyan -> yellow -> red -> white) of v in [0, 1].
+void pseudo(double v, std::uint8_t* px) {
+    v = std::clamp(v, 0.0, 1.0);
+    const double r = std::clamp(3.0 * v - 1.0, 0.0, 1.0), g = std::clamp(3.0 * v - 0.5, 0.0, 1.0) * (v < 0.9 ? 1 : 1),
+                 b = std::clamp(1.0 - 2.0 * std::abs(v - 0.25) * 2.0, 0.0, 1.0) + std::clamp(3.0 * v - 2.0, 0.0, 1.0);
+    px[0] = std::uint8_t(255 * r), px[1] = std::uint8_t(255 * g), px[2] = std::uint8_t(255 * std::min(b, 1.0)), px[3] = 255;
+}
+
+struct SliceGL {
+    void (*GenTextures)(GLsizei, GLuint*);
+    void (*BindTexture)(GLenum, GLuint);
+    void (*TexParameteri)(GLenum, GLenum, GLint);
+    void (*PixelStorei)(GLenum, GLint);
+    void (*TexImage2D)(GLenum, GLint, GLint, GLsizei, GLsizei, GLint, GLenum, GLenum, const void*);
+};
+SliceGL load_slice_gl() {
+    SliceGL g{};
+    g.GenTextures = reinterpret_cast<decltype(g.GenTextures)>(glfwGetProcAddress("glGenTextures"));
+    g.BindTexture = reinterpret_cast<decltype(g.BindTexture)>(glfwGetProcAddress("glBindTexture"));
+    g.TexParameteri = reinterpret_cast<decltype(g.TexParameteri)>(glfwGetProcAddress("glTexParameteri"));
+    g.PixelStorei = reinterpret_cast<decltype(g.PixelStorei)>(glfwGetProcAddress("glPixelStorei"));
+    g.TexImage2D = reinterpret_cast<decltype(g.TexImage2D)>(glfwGetProcAddress("glTexImage2D"));
+    if (!g.GenTextures || !g.BindTexture || !g.TexParameteri || !g.PixelStorei || !g.TexImage2D)
+        throw core::Error("fulgur", "the window's GL context lacks basic texture functions");
+    return g;
+}
+
+int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb, int frames,
+                      int w, int h) {
+    auto ctx = platform::create_headless({.width = w, .height = h});
+    app::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
+    view.pipeline().strike_at(0.0);
+    std::filesystem::create_directories("out");
+    const render::Camera cam = app::default_camera(view.density());
+    for (int i = 0; i < frames; ++i) {
+        const double t = 0.02 + 0.04 * i;
+        app::ViewOptions opt;
+        opt.settings.frame_index = std::uint32_t(i);
+        const app::FrameReport r = view.render(cam, t, w, h, opt);
+        ctx->present();
+        char name[64];
+        std::snprintf(name, sizeof name, "out/fulgur_%03d.png", i);
+        core::write_png(name, w, h, 4, ctx->read_rgba8());
+        std::printf("%s  t=%.2f s  %s\n", name, t, app::timings_json(r, w, h).c_str());
+    }
+    return 0;
+}
+#endif
+
+int synthetic_demo(int W, int H, int screenshot_after);
+int synthetic_headless(int frames, int W, int H);
+const char* kNoDisplay =
+    "fulgur: no display available (DISPLAY unset or GLFW cannot open it); rendering %d headless frames into out/ instead\n";
+bool g_dither = true;
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    std::filesystem::path scene_path = "content/scenes/storm.json";
+    bool force_headless = false, synthetic = false;
+    int screenshot_after = 0;
+    int frames = 8, W = 1280, H = 720;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a == "--help" || a == "-h") {
+            std::fputs(kUsage, stdout);
+            return 0;
+        } else if (a == "--no-dither") {
+            g_dither = false;
+        } else if (a == "--synthetic") {
+            synthetic = true;
+        } else if (a == "--screenshot-after" && i + 1 < argc) {
+            screenshot_after = std::atoi(argv[++i]);
+            if (screenshot_after < 1) { std::fprintf(stderr, "fulgur: --screenshot-after must be >= 1\n"); return 2; }
+        } else if (a == "--headless") {
+            force_headless = true;
+        } else if (a == "--frames" && i + 1 < argc) {
+            frames = std::atoi(argv[++i]);
+            if (frames < 1 || frames > 10000) { std::fprintf(stderr, "fulgur: --frames must be 1..10000\n"); return 2; }
+        } else if (a == "--size" && i + 1 < argc) {
+            if (std::sscanf(argv[++i], "%dx%d", &W, &H) != 2 || W < 16 || H < 16 || W > 8192 || H > 8192) {
+                std::fprintf(stderr, "fulgur: --size must be WxH (16..8192)\n");
+                return 2;
+            }
+        } else if (!a.empty() && a[0] == '-') {
+            std::fprintf(stderr, "fulgur: unknown option '%s' (see --help)\n", a.c_str());
+            return 2;
+        } else {
+            scene_path = a;
+        }
+    }
+    if (synthetic) {
+        try {
+            if (force_headless || !platform::display_available()) {
+                if (!force_headless) std::printf(kNoDisplay, frames);
+                return synthetic_headless(frames, std::min(W, 640), std::min(H, 360));
+            }
+            return synthetic_demo(W, H, screenshot_after);
+        } catch (const std::exception& e) {
+            std::fprintf(stderr, "fulgur: %s\n", e.what());
+            return 1;
+        }
+    }
+#ifndef FULGUR_HAVE_RUNTIME
+    (void)force_headless, (void)frames;
+    std::fprintf(stderr, "fulgur: built without engine/bake and engine/runtime; only --synthetic works\n");
+    return 1;
+#else
+    try {
+        scene::Scene s = scene::load_scene(scene_path);
+        core::Grid3<float> density = scene::make_density(s);
+        const auto fgb = app::ensure_baked(s, density, std::nullopt, true);
+        if (force_headless || !platform::display_available()) {
+            if (!force_headless)
+                std::printf(kNoDisplay, frames);
+            return headless_sequence(std::move(s), std::move(density), fgb, frames, std::min(W, 640), std::min(H, 360));
+        }
+        auto ctx = platform::create_window({.width = W, .height = H, .title = "Fulgur"});
+        auto* win = static_cast<GLFWwindow*>(ctx->native_window());
+        IMGUI_CHECKVERSION();
+        ImGui::CreateContext();
+        ImGui::GetIO().IniFilename = nullptr;
+        ImGui_ImplGlfw_InitForOpenGL(win, true);
+        ImGui_ImplOpenGL3_Init("#version 450");
+
+        app::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
+        const bool separate = view.bases().has_multiple();
+
+        double az = -90, el = 8, dist_f = 1.45;
+        app::ViewOptions opt;
+        opt.settings.dither = g_dither;
+        float rate = float(view.scene().lightning.schedule.strike_rate);
+        int seed = int(view.scene().lightning.seed);
+        bool autos = rate > 0;
+        double t = 0.0;
+        auto last = std::chrono::steady_clock::now();
+        double fps = 0;
+        app::FrameReport rep;
+        // The few GL calls of the slice image, through the window's get-proc-address (the
+        // process also links OSMesa, whose gl* symbols must not be called on a GLX context).
+        const SliceGL gl = load_slice_gl();
+        GLuint slice_tex = 0;
+        gl.GenTextures(1, &slice_tex);
+        int shot_n = 0;
+        view.pipeline().strike_at(0.2, std::uint64_t(seed));
+        double mx = 0, my = 0;
+        lightning::LightningParams lp = view.scene().lightning;
+        bool shape_changed = false;
+        bool space_down = false, p_down = false;
+        int frame_count = 0;
+        while (!glfwWindowShouldClose(win)) {
+            glfwPollEvents();
+            const auto now = std::chrono::steady_clock::now();
+            const double dt = std::chrono::duration<double>(now - last).count();
+            last = now;
+            t += dt;
+            fps = fps == 0.0 ? 1.0 / std::max(dt, 1e-6) : 0.8 * fps + 0.2 / std::max(dt, 1e-6);
+            ImGuiIO& io = ImGui::GetIO();
+            double cx, cy;
+            glfwGetCursorPos(win, &cx, &cy);
+            if (!io.WantCaptureMouse) {
+                if (glfwGetMouseButton(win, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
+                    az -= 0.3 * (cx - mx);
+                    el = std::clamp(el + 0.3 * (cy - my), -10.0, 80.0);
+                }
+                if (io.MouseWheel != 0) dist_f = std::clamp(dist_f * std::pow(0.9, io.MouseWheel), 0.4, 5.0);
+            }
+            mx = cx, my = cy;
+            bool strike = false, screenshot = false;
+            if (!io.WantCaptureKeyboard) {
+                const bool sp = glfwGetKey(win, GLFW_KEY_SPACE) == GLFW_PRESS, pk = glfwGetKey(win, GLFW_KEY_P) == GLFW_PRESS;
+                strike = sp && !space_down;
+                screenshot = pk && !p_down;
+                space_down = sp, p_down = pk;
+                if (glfwGetKey(win, GLFW_KEY_ESCAPE) == GLFW_PRESS) glfwSetWindowShouldClose(win, 1);
+            }
+
+            ImGui_ImplOpenGL3_NewFrame();
+            ImGui_ImplGlfw_NewFrame();
+            ImGui::NewFrame();
+            ImGui::SetNextWindowPos({10, 10}, ImGuiCond_FirstUseEver);
+            ImGui::SetNextWindowSize({380, 0}, ImGuiCond_FirstUseEver);
+            ImGui::Begin("Fulgur");
+            ImGui::Text("%.1f fps  (%.1f ms frame)", fps, rep.wall_ms);
+            ImGui::Separator(); ImGui::TextUnformatted("Lightning");
+            ImGui::InputInt("seed", &seed);
+            if (ImGui::Button("Strike now")) strike = true;
+            ImGui::Checkbox("automatic strikes", &autos);
+            ImGui::SliderFloat("rate (1/s)", &rate, 0.01f, 2.0f);
+            {
+                lightning::BoltParams& b = lp.bolt;
+                int kind = int(b.kind);
+                bool changed = ImGui::Combo("kind", &kind, "cloud to ground\0intra-cloud\0cloud to cloud\0");
+                b.kind = lightning::Kind(kind);
+                float bp = float(b.branch_probability), sp = float(b.angle_spread_deg),
+                      ie = float(std::log10(b.intensity));
+                changed |= ImGui::SliderFloat("branch probability", &bp, 0.0f, 0.6f);
+                changed |= ImGui::SliderFloat("angle spread (deg)", &sp, 0.0f, 40.0f);
+                changed |= ImGui::SliderFloat("intensity (log10 W/sr/m)", &ie, 3.0f, 7.0f);
+                b.branch_probability = bp, b.angle_spread_deg = sp, b.intensity = std::pow(10.0, double(ie));
+                if (changed) shape_changed = true;
+            }
+            ImGui::Separator(); ImGui::TextUnformatted("Light");
+            ImGui::BeginDisabled(!separate);
+            ImGui::Checkbox("single scattering", &opt.components.single);
+            ImGui::Checkbox("multiple scattering", &opt.components.multiple);
+            ImGui::EndDisabled();
+            if (!separate && ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled))
+                ImGui::SetTooltip("this bake has no separate multiple-scattering component");
+            ImGui::Checkbox("glow", &opt.settings.glow);
+            ImGui::Checkbox("bolt", &opt.settings.bolt);
+            ImGui::Checkbox("ground", &opt.settings.ground);
+            float expo = float(std::log2(opt.settings.exposure));
+            if (ImGui::SliderFloat("exposure (EV)", &expo, -6, 6)) opt.settings.exposure = std::exp2(expo);
+            float scale = float(opt.settings.internal_scale);
+            if (ImGui::SliderFloat("internal scale", &scale, 0.25f, 1.0f)) opt.settings.internal_scale = scale;
+            ImGui::Separator(); ImGui::TextUnformatted("Frame times (ms)");
+            ImGui::Text("bolt %.2f  sources %.2f  splat %.2f", rep.stages.bolt, rep.stages.sources, rep.stages.splat);
+            ImGui::Text("accumulate %.2f  inverse Haar %.2f", rep.stages.accumulate, rep.stages.inverse_haar);
+            ImGui::Text("upload %.2f  ray march %.2f  GPU total %.2f", rep.gpu.wall.upload, rep.gpu.wall.march,
+                        rep.gpu.wall.total);
+            // Cross-section of the radiance S (middle y slice of the lighting grid; paper Fig. 6(b,d)).
+            const runtime::Frame* f = view.last_frame();
+            if (f && f->lit && !f->radiance.values.empty()) {
+                const core::GridGeometry& g = f->radiance.geometry;
+                const std::vector<float>& v = f->radiance.values[0];
+                const int j = g.dims.y / 2;
+                float vmax = 0;
+                for (int k = 0; k < g.dims.z; ++k)
+                    for (int i = 0; i < g.dims.x; ++i) vmax = std::max(vmax, v[g.index(i, j, k)]);
+                std::vector<std::uint8_t> img(std::size_t(g.dims.x) * g.dims.z * 4);
+                for (int k = 0; k < g.dims.z; ++k)
+                    for (int i = 0; i < g.dims.x; ++i)
+                        pseudo(vmax > 0 ? std::sqrt(v[g.index(i, j, k)] / vmax) : 0.0,
+                               &img[(std::size_t(g.dims.z - 1 - k) * g.dims.x + i) * 4]);
+                gl.BindTexture(GL_TEXTURE_2D, slice_tex);
+                gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+                gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+                gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+                gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, g.dims.x, g.dims.z, 0, GL_RGBA, GL_UNSIGNED_BYTE, img.data());
+                ImGui::Separator(); ImGui::TextUnformatted("Radiance S, vertical slice (sqrt scale)");
+                const float wpx = 300.0f;
+                ImGui::Image((ImTextureID)(intptr_t)slice_tex, {wpx, wpx * g.dims.z / float(g.dims.x)});
+            }
+            ImGui::End();
+            ImGui::Render();
+
+            const double want_rate = autos ? double(rate) : 0.0;
+            if (shape_changed || want_rate != lp.schedule.strike_rate) {
+                // Bolt shape / schedule changed: new storm (bolts regenerate), same bake.
+                lp.schedule.strike_rate = want_rate;
+                lp.schedule.first_strike = t + 0.5;
+                lp.seed = std::uint64_t(seed);
+                view.set_lightning(lp);
+                shape_changed = false;
+            }
+            if (strike) view.pipeline().strike_at(t, std::uint64_t(seed++));
+            const int fw = ctx->width(), fh = ctx->height();
+            opt.settings.frame_index++;
+            const render::Camera cam = app::default_camera(view.density(), az, el, dist_f);
+            rep = view.render(cam, t, fw, fh, opt);
+            ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+            ++frame_count;
+            if (screenshot_after > 0 && frame_count == screenshot_after) screenshot = true;
+            if (screenshot) {
+                std::filesystem::create_directories("out");
+                char name[64];
+                std::snprintf(name, sizeof name, "out/screenshot_%03d.png", shot_n++);
+                core::write_png(name, fw, fh, 4, ctx->read_rgba8());
+                std::printf("wrote %s\n", name);
+                if (screenshot_after > 0) glfwSetWindowShouldClose(win, 1);
+            }
+            ctx->present();
+        }
+        ImGui_ImplOpenGL3_Shutdown();
+        ImGui_ImplGlfw_Shutdown();
+        ImGui::DestroyContext();
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "fulgur: %s\n", e.what());
+        return 1;
+    }
+    return 0;
+#endif
+}
+
+namespace {
+
+render::synthetic::Storm synthetic_storm(render::Renderer& r) {
+    std::printf("synthetic storm: generating cloud and bolt light...\n");
+    render::synthetic::Storm st = render::synthetic::storm({64, 64, 48}, 200.0);
+    r.set_volume({.density = &st.density, .extinction = st.extinction});
+    render::SourceUpload up;
+    up.geometry = st.lighting;
+    up.direction_count = st.directions;
+    const std::size_t n = st.lighting.cell_count();
+    for (int m = 0; m < st.directions; ++m) {
+        up.directions.push_back(m);
+        up.values.emplace_back(st.source.data() + std::size_t(m) * n, n);
+    }
+    r.upload_source(up);
+    r.set_bolt(st.bolt);
+    return st;
+}
+
+// Headless sequence of the synthetic storm: the camera orbits 4 degrees per frame.
+int synthetic_headless(int frames, int W, int H) {
+    auto ctx = platform::create_headless({.width = W, .height = H});
+    render::Renderer r(ctx->get_proc_address());
+    const render::synthetic::Storm st = synthetic_storm(r);
+    std::filesystem::create_directories("out");
+    for (int i = 0; i < frames; ++i) {
+        render::Settings set = st.settings;
+        set.frame_index = std::uint32_t(i);
+        set.dither = g_dither;
+        const render::Camera cam = render::Camera::orbit(st.camera.target, 13500.0, -60.0 + 4.0 * i, -6.0,
+                                                         st.camera.vertical_fov_deg);
+        const render::FrameStats fs = r.render(cam, set, W, H);
+        ctx->present();
+        char name[64];
+        std::snprintf(name, sizeof name, "out/fulgur_%03d.png", i);
+        core::write_png(name, W, H, 4, ctx->read_rgba8());
+        std::printf("%s  render %.1f ms (march %.1f ms)\n", name, fs.wall.total, fs.wall.march);
+    }
+    return 0;
+}
+
+// The renderer's synthetic storm in the demo window: camera, effect toggles, exposure,
+// internal scale and pass times work; the lightning controls need the run time.
+int synthetic_demo(int W, int H, int screenshot_after) {
+    auto ctx = platform::create_window({.width = W, .height = H, .title = "Fulgur (synthetic storm)"});
+    auto* win = static_cast<GLFWwindow*>(ctx->native_window());
+    IMGUI_CHECKVERSION();
+    ImGui::CreateContext();
+    ImGui::GetIO().IniFilename = nullptr;
+    ImGui_ImplGlfw_InitForOpenGL(win, true);
+    ImGui_ImplOpenGL3_Init("#version 450");
+    render::Renderer r(ctx->get_proc_address());
+    const render::synthetic::Storm st = synthetic_storm(r);
+    render::Settings set = st.settings;
+    set.dither = g_dither;
+    double az = -60, el = -6, dist = 13500;
+    double mx = 0, my = 0;
+    bool p_down = false;
+    int frames = 0, shot_n = 0;
+    double fps = 0;
+    render::FrameStats fs;
+    auto last = std::chrono::steady_clock::now();
+    while (!glfwWindowShouldClose(win)) {
+        glfwPollEvents();
+        const auto now = std::chrono::steady_clock::now();
+        const double dt = std::chrono::duration<double>(now - last).count();
+        last = now;
+        if (frames == 1) fps = 1.0 / dt;
+        else if (frames > 1) fps = 0.8 * fps + 0.2 / dt;
+        ImGuiIO& io = ImGui::GetIO();
+        double cx, cy;
+        glfwGetCursorPos(win, &cx, &cy);
+        if (!io.WantCaptureMouse) {
+            if (glfwGetMouseButton(win, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
+                az -= 0.3 * (cx - mx);
+                el = std::clamp(el + 0.3 * (cy - my), -10.0, 80.0);
+            }
+            if (io.MouseWheel != 0) dist = std::clamp(dist * std::pow(0.9, io.MouseWheel), 4000.0, 60000.0);
+        }
+        mx = cx, my = cy;
+        const bool pk = glfwGetKey(win, GLFW_KEY_P) == GLFW_PRESS;
+        bool screenshot = pk && !p_down && !io.WantCaptureKeyboard;
+        p_down = pk;
+        if (glfwGetKey(win, GLFW_KEY_ESCAPE) == GLFW_PRESS) glfwSetWindowShouldClose(win, 1);
+
+        ImGui_ImplOpenGL3_NewFrame();
+        ImGui_ImplGlfw_NewFrame();
+        ImGui::NewFrame();
+        ImGui::SetNextWindowPos({10, 10}, ImGuiCond_FirstUseEver);
+        ImGui::SetNextWindowSize({360, 0}, ImGuiCond_FirstUseEver);
+        ImGui::Begin("Fulgur (synthetic storm)");
+        ImGui::Text("%.1f fps  (%.1f ms render)", fps, fs.wall.total);
+        ImGui::TextDisabled("no bake / run time: lightning controls off");
+        ImGui::Separator();
+        ImGui::Checkbox("glow", &set.glow);
+        ImGui::Checkbox("bolt", &set.bolt);
+        ImGui::Checkbox("ground", &set.ground);
+        ImGui::Checkbox("cloud lighting", &set.cloud_lighting);
+        float expo = float(std::log2(set.exposure));
+        if (ImGui::SliderFloat("exposure (EV)", &expo, 0, 12)) set.exposure = std::exp2(expo);
+        float scale = float(set.internal_scale);
+        if (ImGui::SliderFloat("internal scale", &scale, 0.25f, 1.0f)) set.internal_scale = scale;
+        ImGui::Separator();
+        ImGui::TextUnformatted("Pass times (ms)");
+        ImGui::Text("upload %.2f  resolve %.2f  glow %.2f", fs.wall.upload, fs.wall.resolve, fs.wall.glow);
+        ImGui::Text("ray march %.2f  bolt %.2f  composite %.2f", fs.wall.march, fs.wall.bolt, fs.wall.composite);
+        ImGui::Text("internal %d x %d, %d directions", fs.internal_width, fs.internal_height, fs.directions_used);
+        ImGui::End();
+        ImGui::Render();
+
+        set.frame_index = std::uint32_t(frames);
+        const render::Camera cam = render::Camera::orbit(st.camera.target, dist, az, el, st.camera.vertical_fov_deg);
+        fs = r.render(cam, set, ctx->width(), ctx->height());
+        ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+        ++frames;
+        if (screenshot_after > 0 && frames == screenshot_after) screenshot = true;
+        if (screenshot) {
+            std::filesystem::create_directories("out");
+            char name[64];
+            std::snprintf(name, sizeof name, "out/screenshot_%03d.png", shot_n++);
+            core::write_png(name, ctx->width(), ctx->height(), 4, ctx->read_rgba8());
+            std::printf("wrote %s\n", name);
+            if (screenshot_after > 0) glfwSetWindowShouldClose(win, 1);
+        }
+        ctx->present();
+    }
+    ImGui_ImplOpenGL3_Shutdown();
+    ImGui_ImplGlfw_Shutdown();
+    ImGui::DestroyContext();
+    return 0;
+}
+
+}  // namespace

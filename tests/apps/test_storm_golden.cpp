@@ -1,0 +1,115 @@
+// Golden images of whole storm frames through fulgur-shot's code path (app::StormView):
+// tiny scenes baked at test time (tests/apps/scenes), rendered headless at 160x90.
+// Goldens: tests/render/golden/storm_*.png, regenerated only with FULGUR_UPDATE_GOLDENS=1.
+#include "common/storm_view.h"
+#include "golden.h"
+#include "platform/platform.h"
+
+#include <doctest/doctest.h>
+
+#include <cstdio>
+#include <map>
+
+using namespace fulgur;
+
+namespace {
+
+constexpr int W = 160, H = 90;
+const std::filesystem::path kScenes = std::filesystem::path(FULGUR_SOURCE_DIR) / "tests/apps/scenes";
+const std::filesystem::path kGoldens = std::filesystem::path(FULGUR_SOURCE_DIR) / "tests/render/golden";
+const std::filesystem::path kOut = std::filesystem::path(FULGUR_TEST_OUTPUT_DIR) / "storm_golden";
+
+// One headless context for all cases (OSMesa context creation is slow-ish).
+platform::Context& context() {
+    static std::unique_ptr<platform::Context> ctx = platform::create_headless({.width = W, .height = H});
+    ctx->make_current();
+    return *ctx;
+}
+
+// The scene's bases, baked once into the test output directory (never next to the scene).
+std::filesystem::path baked(const std::string& name, const scene::Scene& s, const core::Grid3<float>& d) {
+    std::filesystem::create_directories(kOut);
+    const std::filesystem::path fgb = kOut / (name + ".fgb");
+    if (!bake::up_to_date(s, d, fgb)) bake::bake(s, d, fgb);
+    return app::ensure_baked(s, d, fgb, false);
+}
+
+struct Shot {
+    std::vector<std::uint8_t> rgba;
+    double cloud_mean = 0.0;  ///< mean in-scattered luminance of the march (cloud only, no bolt/glow)
+    std::size_t segments = 0;
+    double first_x = 0.0;     ///< first lit segment's start (bolt identity)
+};
+
+// The frame at the first return-stroke peak + 2 ms of a strike with `seed` at t = 0.
+Shot shoot(const std::string& name, std::uint64_t seed, runtime::Components comp = {}) {
+    scene::Scene s = scene::load_scene(kScenes / (name + ".json"));
+    core::Grid3<float> d = scene::make_density(s);
+    const auto fgb = baked(name, s, d);
+    platform::Context& ctx = context();
+    app::StormView view(std::move(s), std::move(d), fgb, ctx.get_proc_address());
+    const std::size_t i = view.pipeline().strike_at(0.0, seed);
+    const double t = view.pipeline().storm().strike(i).profile.stroke_peak.at(0) + 0.002;
+    app::ViewOptions opt;
+    opt.components = comp;
+    opt.settings.timing = render::Timing::Off;
+    const app::FrameReport r = view.render(app::default_camera(view.density()), t, W, H, opt);
+    REQUIRE(r.lit);
+    ctx.present();
+    Shot out;
+    out.rgba = ctx.read_rgba8();
+    int mw = 0, mh = 0;
+    const std::vector<float> m = view.renderer().read_march(mw, mh);
+    double sum = 0.0;  // double: sum over ~3600 pixels
+    for (std::size_t p = 0; p < m.size(); p += 4) sum += 0.2126 * m[p] + 0.7152 * m[p + 1] + 0.0722 * m[p + 2];
+    out.cloud_mean = sum / double(std::max<std::size_t>(1, m.size() / 4));
+    const runtime::Frame* f = view.last_frame();
+    out.segments = f->segments.size();
+    out.first_x = f->segments.empty() ? 0.0 : f->segments.front().a.x;
+    return out;
+}
+
+// Same metric and tolerances as the renderer's golden test (tests/render/golden.h):
+// llvmpipe differs slightly between CPUs; a regression moves many pixels or moves them far.
+void check_golden(const std::string& name, const Shot& s) {
+    const test::GoldenResult r = test::compare_golden(kGoldens / ("storm_" + name + ".png"), W, H, s.rgba,
+                                                      test::GoldenTolerance{}, kOut);
+    MESSAGE(r.message);
+    CHECK(r.passed);
+}
+
+}  // namespace
+
+TEST_CASE("storm golden: isotropic, multiple scattering, cloud-to-ground") {
+    check_golden("iso_ms_cg", shoot("test_iso_ms_cg", 11));
+}
+TEST_CASE("storm golden: anisotropic, multiple scattering, cloud-to-ground") {
+    check_golden("aniso_ms_cg", shoot("test_aniso_ms_cg", 12));
+}
+TEST_CASE("storm golden: anisotropic, single scattering only, intra-cloud") {
+    check_golden("aniso_ss_ic", shoot("test_aniso_ss_ic", 13));
+}
+TEST_CASE("storm golden: isotropic, single scattering only, intra-cloud") {
+    check_golden("iso_ss_ic", shoot("test_iso_ss_ic", 14));
+}
+
+TEST_CASE("storm: same seed and time give identical images; different seeds different bolts") {
+    const Shot a = shoot("test_aniso_ms_cg", 21), b = shoot("test_aniso_ms_cg", 21), c = shoot("test_aniso_ms_cg", 22);
+    CHECK(a.rgba == b.rgba);
+    CHECK((a.segments != c.segments || a.first_x != c.first_x));
+    std::size_t differing = 0;
+    for (std::size_t i = 0; i < a.rgba.size(); ++i) differing += a.rgba[i] != c.rgba[i];
+    // Another bolt lights the cloud elsewhere: far more than a few pixels change.
+    CHECK(differing > a.rgba.size() / 50);
+}
+
+TEST_CASE("storm: multiple scattering on vs off is visibly different") {
+    const Shot on = shoot("test_aniso_ms_cg", 31, {.single = true, .multiple = true});
+    const Shot off = shoot("test_aniso_ms_cg", 31, {.single = true, .multiple = false});
+    REQUIRE(off.cloud_mean > 0.0);
+    const double ratio = on.cloud_mean / off.cloud_mean;
+    std::printf("cloud mean in-scattered luminance, multiple+single / single only: %.4f\n", ratio);
+    // Multiple scattering only adds light (albedo 0.99): at least 5% more is a visible change;
+    // a ratio of 1 would mean the toggle does nothing.
+    CHECK(ratio > 1.05);
+}
