@@ -85,6 +85,25 @@ int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::fil
 }
 #endif
 
+// Orbit camera from the mouse, shared by both demo modes: left-drag turns (azimuth, elevation
+// clamped to -10..80 degrees), the wheel scales the distance within [dist_min, dist_max].
+// (mx, my) is the previous cursor position. ImGui keeps the mouse while it is over the panel.
+struct Orbit {
+    double az, el, dist, mx = 0, my = 0;
+    void update(GLFWwindow* win, const ImGuiIO& io, double dist_min, double dist_max) {
+        double cx, cy;
+        glfwGetCursorPos(win, &cx, &cy);
+        if (!io.WantCaptureMouse) {
+            if (glfwGetMouseButton(win, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
+                az -= 0.3 * (cx - mx);
+                el = std::clamp(el + 0.3 * (cy - my), -10.0, 80.0);
+            }
+            if (io.MouseWheel != 0) dist = std::clamp(dist * std::pow(0.9, io.MouseWheel), dist_min, dist_max);
+        }
+        mx = cx, my = cy;
+    }
+};
+
 int synthetic_demo(int W, int H, int screenshot_after);
 int synthetic_headless(int frames, int W, int H);
 const char* kNoDisplay =
@@ -171,7 +190,7 @@ int main(int argc, char** argv) {
         app::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
         const bool separate = view.bases().has_multiple();
 
-        double az = -90, el = 8, dist_f = 1.45;
+        Orbit orbit{-90, 8, 1.45};  // distance as a multiple of the cloud size
         app::ViewOptions opt;
         opt.settings.dither = g_dither;
         float rate = float(view.scene().lightning.schedule.strike_rate);
@@ -188,7 +207,6 @@ int main(int argc, char** argv) {
         gl.GenTextures(1, &slice_tex);
         int shot_n = 0;
         view.pipeline().strike_at(0.2, std::uint64_t(seed));
-        double mx = 0, my = 0;
         lightning::LightningParams lp = view.scene().lightning;
         bool shape_changed = false;
         bool space_down = false, p_down = false;
@@ -201,16 +219,7 @@ int main(int argc, char** argv) {
             t += dt;
             fps = fps == 0.0 ? 1.0 / std::max(dt, 1e-6) : 0.8 * fps + 0.2 / std::max(dt, 1e-6);
             ImGuiIO& io = ImGui::GetIO();
-            double cx, cy;
-            glfwGetCursorPos(win, &cx, &cy);
-            if (!io.WantCaptureMouse) {
-                if (glfwGetMouseButton(win, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
-                    az -= 0.3 * (cx - mx);
-                    el = std::clamp(el + 0.3 * (cy - my), -10.0, 80.0);
-                }
-                if (io.MouseWheel != 0) dist_f = std::clamp(dist_f * std::pow(0.9, io.MouseWheel), 0.4, 5.0);
-            }
-            mx = cx, my = cy;
+            orbit.update(win, io, 0.4, 5.0);
             bool strike = false, screenshot = false;
             if (!io.WantCaptureKeyboard) {
                 const bool sp = glfwGetKey(win, GLFW_KEY_SPACE) == GLFW_PRESS, pk = glfwGetKey(win, GLFW_KEY_P) == GLFW_PRESS;
@@ -302,7 +311,7 @@ int main(int argc, char** argv) {
             if (strike) view.pipeline().strike_at(t, std::uint64_t(seed++));
             const int fw = ctx->width(), fh = ctx->height();
             opt.settings.frame_index++;
-            const render::Camera cam = app::default_camera(view.density(), az, el, dist_f);
+            const render::Camera cam = app::default_camera(view.density(), orbit.az, orbit.el, orbit.dist);
             rep = view.render(cam, t, fw, fh, opt);
             ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
             ++frame_count;
@@ -383,8 +392,7 @@ int synthetic_demo(int W, int H, int screenshot_after) {
     const render::synthetic::Storm st = synthetic_storm(r);
     render::Settings set = st.settings;
     set.dither = g_dither;
-    double az = -60, el = -6, dist = 13500;
-    double mx = 0, my = 0;
+    Orbit orbit{-60, -6, 13500};  // distance in metres
     bool p_down = false;
     int frames = 0, shot_n = 0;
     double fps = 0;
@@ -398,16 +406,7 @@ int synthetic_demo(int W, int H, int screenshot_after) {
         if (frames == 1) fps = 1.0 / dt;
         else if (frames > 1) fps = 0.8 * fps + 0.2 / dt;
         ImGuiIO& io = ImGui::GetIO();
-        double cx, cy;
-        glfwGetCursorPos(win, &cx, &cy);
-        if (!io.WantCaptureMouse) {
-            if (glfwGetMouseButton(win, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
-                az -= 0.3 * (cx - mx);
-                el = std::clamp(el + 0.3 * (cy - my), -10.0, 80.0);
-            }
-            if (io.MouseWheel != 0) dist = std::clamp(dist * std::pow(0.9, io.MouseWheel), 4000.0, 60000.0);
-        }
-        mx = cx, my = cy;
+        orbit.update(win, io, 4000.0, 60000.0);
         const bool pk = glfwGetKey(win, GLFW_KEY_P) == GLFW_PRESS;
         bool screenshot = pk && !p_down && !io.WantCaptureKeyboard;
         p_down = pk;
@@ -439,7 +438,7 @@ int synthetic_demo(int W, int H, int screenshot_after) {
         ImGui::Render();
 
         set.frame_index = std::uint32_t(frames);
-        const render::Camera cam = render::Camera::orbit(st.camera.target, dist, az, el, st.camera.vertical_fov_deg);
+        const render::Camera cam = render::Camera::orbit(st.camera.target, orbit.dist, orbit.az, orbit.el, st.camera.vertical_fov_deg);
         fs = r.render(cam, set, ctx->width(), ctx->height());
         ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
         ++frames;
