@@ -1,8 +1,8 @@
 #include "shot_args.h"
 
+#include "args.h"
 #include "core/core.h"
 
-#include <charconv>
 #include <cmath>
 
 namespace fulgur::app {
@@ -22,11 +22,7 @@ std::string shot_usage() {
 namespace {
 template <class T>
 T parse_number(const std::string& s, const char* what) {
-    T v{};
-    auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-    if (ec != std::errc() || p != s.data() + s.size() || s.empty())
-        throw core::Error("fulgur-shot", std::string(what) + ": not a number: '" + s + "'");
-    return v;
+    return app::parse_number<T>(s, "fulgur-shot", what);
 }
 }  // namespace
 

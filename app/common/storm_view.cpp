@@ -1,5 +1,7 @@
 #include "storm_view.h"
 
+#include "progress.h"
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -19,17 +21,7 @@ std::filesystem::path ensure_baked(const scene::Scene& s, const core::Grid3<floa
     if (bake::up_to_date(s, density, fgb, &why)) return fgb;
     if (progress) std::fprintf(stderr, "baking %s (%s)\n", fgb.string().c_str(), why.c_str());
     bake::Progress cb;
-    if (progress) {
-        cb = [](std::size_t done, std::size_t total, double seconds) {
-            const int width = 40;
-            const double f = total ? double(done) / double(total) : 1.0;
-            const int n = int(std::lround(f * width));
-            std::fprintf(stderr, "\r[%s%s] %zu/%zu lights %.1f s", std::string(std::size_t(n), '#').c_str(),
-                         std::string(std::size_t(width - n), '.').c_str(), done, total, seconds);
-            if (done == total) std::fprintf(stderr, "\n");
-            std::fflush(stderr);
-        };
-    }
+    if (progress) cb = make_progress_printer(stderr, "lights");
     bake::bake(s, density, fgb, cb);
     return fgb;
 }

@@ -17,10 +17,12 @@
 #include "basis/basis.h"
 #include "core/core.h"
 #include "scene/scene.h"
+#include "transport/transport.h"
 
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -29,27 +31,71 @@ namespace fulgur::bake {
 /// 64-bit hash of every bake-relevant scene parameter and the canonical description it is
 /// computed from (one "key=value" per line); stored in the .fgb so a stale file is detected
 /// and explained. A density loaded from a file contributes a hash of its bytes.
-struct SceneKey {
-    std::uint64_t hash = 0;
-    std::string description;
+/// (basis::BakeKey: hash = hash_description(description).)
+basis::BakeKey scene_key(const scene::Scene& s, const core::Grid3<float>& density);
+
+/// S of point sources in the scene's medium, split into its two parts: the exact single
+/// scattering (transport::single_scattering, voxel averages) and the multiple scattering
+/// by the scene's solver (lattice-Boltzmann fed with the exact S1 as its first-scattered
+/// source, or Monte Carlo orders >= 2). This is the one function the bake (per virtual
+/// light) and the run time's direct solve (per frame, all sources at once) both use, so
+/// the two are comparable by construction.
+struct Solution {
+    transport::SourceField single;    ///< order 1 (empty data when not requested)
+    transport::SourceField multiple;  ///< orders >= 2 (empty data when not requested)
+    /// Power scattered once by the cloud, sum over voxels of sigma_s phi1 h^3 (W), where
+    /// phi1 is the uncollided fluence: the drop criterion for virtual lights.
+    double first_scattered_power = 0.0;
+    int iterations = 0;               ///< lattice steps (0 for Monte Carlo or no solve)
+    bool converged = true;
+    double seconds_single = 0.0, seconds_multiple = 0.0;
 };
-SceneKey scene_key(const scene::Scene& s, const core::Grid3<float>& density);
+struct SolveRequest {
+    bool single = true;    ///< return S1 (it is computed anyway when multiple is requested)
+    bool multiple = true;  ///< run the scene's multiple-scattering solver
+    /// Skip the multiple-scattering solve when first_scattered_power is below this fraction
+    /// of the sources' emitted power (the bake's drop test; 0 never skips).
+    double skip_below = 0.0;
+};
+/// Single-scattering settings the bake and the direct solve share (scene's tolerance,
+/// far-empty voxels skipped; part of the scene key).
+transport::SingleScatteringOptions single_scattering_options(const scene::Scene& s);
+Solution solve(const scene::Scene& s, const transport::LightingMedium& medium,
+               std::span<const transport::PointSource> sources, std::span<const glm::dvec3> directions,
+               const SolveRequest& request = {});
 
 /// What a bake will do, and why. Printable (to_text) before baking; `--dry-run` prints only this.
 struct Plan {
     core::GridGeometry lighting;         ///< lighting grid
     basis::VirtualLightGrid lights;      ///< virtual-light grid
-    int directions = 1;                  ///< output directions actually baked
+    std::vector<glm::dvec3> output_directions;  ///< the baked output directions
+    int directions = 1;                  ///< output_directions.size()
     bool single = true;                  ///< direct term baked
     bool multiple = true;                ///< transport solver runs
+    std::uint32_t components = 1;        ///< 2: single and multiple stored separately
     std::string solver;                  ///< "lattice_boltzmann", "monte_carlo" or "none"
     std::vector<std::string> reasons;    ///< one line per decision ("g = 0: 1 direction instead of 26", ...)
     std::uint64_t raw_bytes = 0;         ///< uncompressed float32 size of all bases
-    std::uint64_t expected_bytes = 0;    ///< estimated compressed size
-    double expected_seconds = 0.0;       ///< estimated wall time on this machine
+    std::uint64_t expected_bytes = 0;    ///< estimated compressed size (0: not estimated)
+    double expected_seconds = 0.0;       ///< estimated wall time on this machine (0: not estimated)
+    int threads = 1;                     ///< worker threads the bake will use
+    basis::FgbMetadata metadata;         ///< what the file will hold (key, grids, directions)
     std::string to_text() const;
 };
-Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density);
+struct PlanOptions {
+    /// Time and compress two sample lights (one in the cloud, one below it) to estimate the
+    /// bake's time and size; a few seconds. false: expected_* stay 0.
+    bool estimate = true;
+    int threads = 0;  ///< 0: core::thread_count()
+};
+/// Throws core::Error when the scene asks for nothing to bake (lightning off, or neither
+/// single nor multiple scattering) or its cloud is empty.
+Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const PlanOptions& options = {});
+
+/// The uncompressed bases of virtual light l as the bake stores them (FgbMetadata order:
+/// component-major, then direction), before the Haar transform. For NRRD export and tests.
+transport::SourceField solve_light(const scene::Scene& s, const transport::LightingMedium& medium, const Plan& plan,
+                                   std::uint32_t light);
 
 /// Progress callback: lights done, lights total, seconds elapsed.
 using Progress = std::function<void(std::size_t done, std::size_t total, double seconds)>;
@@ -63,11 +109,16 @@ struct Report {
     double compression_ratio = 0.0;
     double relative_l2_error = 0.0;      ///< compressed vs uncompressed bases, over all lights and directions
     double mean_solver_iterations = 0.0, max_solver_iterations = 0.0;
+    std::size_t unconverged = 0;         ///< lights whose solver hit its iteration cap
+    double max_dropped_fraction = 0.0;   ///< largest first-scattered power fraction of a dropped light
+    int threads = 1;
 };
 
 /// Bakes the scene into `out` (atomically: a partial file never replaces a good one).
 Report bake(const scene::Scene& s, const core::Grid3<float>& density, const std::filesystem::path& out,
             const Progress& progress = {});
+Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan& plan,
+            const std::filesystem::path& out, const Progress& progress = {});
 
 /// The scene's default .fgb path (next to the scene: <scene>.fgb).
 std::filesystem::path default_fgb_path(const scene::Scene& s);

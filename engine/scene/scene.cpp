@@ -86,6 +86,11 @@ void parse_transport(JsonObject o, TransportSettings& t) {
         t.lb_max_iterations = int(lb->integer_or("max_iterations", t.lb_max_iterations, 1, 1'000'000));
         lb->finish();
     }
+    if (auto ss = o.optional_object("single_scattering")) {
+        // transport::SingleScatteringOptions accepts [1e-9, 0.5].
+        t.ss_tolerance = ss->number_or("tolerance", t.ss_tolerance, Range{1e-9, 0.5});
+        ss->finish();
+    }
     if (auto mc = o.optional_object("monte_carlo")) {
         t.mc_paths = std::uint64_t(mc->integer_or("paths", std::int64_t(t.mc_paths), 1000, std::int64_t(1) << 40));
         t.mc_seed = mc->seed_or("seed", t.mc_seed);
@@ -95,7 +100,7 @@ void parse_transport(JsonObject o, TransportSettings& t) {
     o.finish();
 }
 
-void parse_virtual_lights(JsonObject o, basis::VirtualLightParams& v) {
+void parse_virtual_lights(JsonObject o, basis::VirtualLightParams& v, double& drop_below) {
     v.h_usr = o.number_or("h_usr", v.h_usr, Range{0.0, 1e6, true, false});
     // 1/m^2. Any epsilon >= 1/h_usr^2 already puts the layer after the first one on the
     // ground; the upper bound only rejects nonsense.
@@ -103,11 +108,12 @@ void parse_virtual_lights(JsonObject o, basis::VirtualLightParams& v) {
     v.margin = o.number_or("margin", v.margin, Range{0.0, 1e6});
     v.ground_height = o.number_or("ground_height", v.ground_height, Range{-1e6, 1e6});
     v.density_threshold = o.number_or("density_threshold", v.density_threshold, Range{0.0, 1.0, false, true});
+    drop_below = o.number_or("drop_below", drop_below, Range{0.0, 1.0});
     o.finish();
     basis::validate(v, o.file() + ": virtual_lights");
 }
 
-void parse_compression(JsonObject o, basis::CompressionParams& c) {
+void parse_compression(JsonObject o, basis::CompressionParams& c, bool& separate_components) {
     const std::string mode = o.choice_or("threshold", std::string(basis::to_string(c.mode)),
                                          {"absolute", "relative_l2", "energy"});
     c.mode = mode == "absolute"      ? basis::ThresholdMode::Absolute
@@ -124,6 +130,8 @@ void parse_compression(JsonObject o, basis::CompressionParams& c) {
     const std::string dec = o.choice_or("decomposition", std::string(basis::to_string(c.decomposition)),
                                         {"nonstandard", "standard"});
     c.decomposition = dec == "standard" ? basis::Decomposition::Standard : basis::Decomposition::NonStandard;
+    separate_components =
+        o.choice_or("components", separate_components ? "separate" : "combined", {"separate", "combined"}) == "separate";
     o.finish();
     basis::validate(c, o.file() + ": compression");
 }
@@ -236,8 +244,8 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
         lighting->finish();
     }
     if (auto t = root.optional_object("transport")) parse_transport(*t, s.transport);
-    if (auto v = root.optional_object("virtual_lights")) parse_virtual_lights(*v, s.virtual_lights);
-    if (auto c = root.optional_object("compression")) parse_compression(*c, s.compression);
+    if (auto v = root.optional_object("virtual_lights")) parse_virtual_lights(*v, s.virtual_lights, s.drop_below);
+    if (auto c = root.optional_object("compression")) parse_compression(*c, s.compression, s.separate_components);
     parse_lights(root, s);
     if (auto e = root.optional_object("effects")) parse_effects(*e, s.effects);
     if (auto l = root.optional_object("lightning")) parse_lightning(*l, s.lightning);

@@ -48,6 +48,9 @@ struct Effects {
 struct TransportSettings {
     enum class Solver { LatticeBoltzmann, MonteCarlo };
     Solver solver = Solver::LatticeBoltzmann;
+    /// single_scattering.tolerance: accuracy knob of the exact single scattering
+    /// (transport::SingleScatteringOptions::tolerance; docs/transport.md tabulates error vs time).
+    double ss_tolerance = 1e-3;
     // lattice_boltzmann
     std::string lb_collision = "corrected";  ///< "corrected" (energy-conserving) or "published"
     std::string lb_absorption = "physical";  ///< "physical" (absorbed energy leaves) or "conservative" (paper)
@@ -79,6 +82,14 @@ struct Scene {
     TransportSettings transport;
     basis::VirtualLightParams virtual_lights;  ///< "virtual_lights": the grid of paper section 5
     basis::CompressionParams compression;      ///< "compression": Haar threshold and storage precision
+    /// "compression.components": store the single- and the multiple-scattering part of each
+    /// basis separately ("separate", default: the run time can show either, at about twice
+    /// the file size) or summed ("combined"). Only meaningful when both effects are on.
+    bool separate_components = true;
+    /// "virtual_lights.drop_below": a virtual light whose light scattered by the cloud (first
+    /// scattering, sigma_s * uncollided fluence summed over the cloud) is below this fraction
+    /// of its emitted power is dropped from the bake (stored with no coefficients). 0 keeps all.
+    double drop_below = 1e-4;
     std::vector<PointLight> point_lights;
     std::optional<SunLight> sun;
     Effects effects;

@@ -160,10 +160,12 @@ public:
     void reset() {
         std::fill(acc_.begin(), acc_.end(), 0.0);
         sum_ = 0.0;
+        total_ = 0.0;
         n_ = 0;
     }
     void add(double w, const glm::dvec3& d) {
         if (!(w > 0.0)) return;
+        total_ += w;
         if (hg_.isotropic) {
             sum_ += w;
             return;
@@ -174,6 +176,8 @@ public:
         z_[n_] = d.z;
         if (++n_ == kCap) flush();
     }
+    /// Sum of the weights without the phase function (the uncollided fluence integral).
+    double weight_sum() const noexcept { return total_; }
     /// Reduces and returns acc[m] (for every output direction).
     const std::vector<double>& result() {
         if (hg_.isotropic) {
@@ -213,6 +217,7 @@ private:
     std::span<const glm::dvec3> dirs_;
     detail::HgConstants hg_;
     std::vector<double> w_, x_, y_, z_, acc_;
+    double total_ = 0.0;
     std::size_t n_ = 0;
     double sum_ = 0.0;
 };
@@ -827,7 +832,8 @@ std::vector<unsigned char> needed_mask(const LightingMedium& m, bool skip_far_em
 
 template <class PerVoxel>
 void for_each_voxel(const LightingMedium& m, SourceField& out, const std::vector<unsigned char>& need,
-                    double g_phase, PerVoxel&& fn) {
+                    double g_phase, core::Grid3<float>* fluence, double fluence_scale, PerVoxel&& fn) {
+    if (fluence) *fluence = core::Grid3<float>(m.density.geom, 0.0f);
     const core::GridGeometry& g = m.density.geom;
     const std::size_t cells = g.cell_count();
     const std::int64_t rows = std::int64_t(g.dims.y) * g.dims.z;
@@ -848,6 +854,7 @@ void for_each_voxel(const LightingMedium& m, SourceField& out, const std::vector
             const double scale = fn(b, cell, acc);
             const std::vector<double>& r = acc.result();
             for (std::size_t mm = 0; mm < M; ++mm) out.data[mm * cells + cell] = float(scale * r[mm]);
+            if (fluence) fluence->data[cell] = float(fluence_scale * acc.weight_sum());
         }
     });
 }
@@ -878,7 +885,8 @@ void single_scattering(const LightingMedium& medium, const PointSource& light, S
     const double vol = g.voxel_size * g.voxel_size * g.voxel_size;
     const double factor = medium.optics.albedo * light.intensity / vol;
     const auto need = needed_mask(medium, options.skip_far_empty);
-    for_each_voxel(medium, out, need, medium.optics.g, [&](const Box& b, std::size_t cell, PhaseAccumulator& acc) {
+    for_each_voxel(medium, out, need, medium.optics.g, options.uncollided_fluence, light.intensity / vol,
+                   [&](const Box& b, std::size_t cell, PhaseAccumulator& acc) {
         integrate_box_point(ctx, b, medium.sigma_t(cell), 0, plan, acc);
         return factor;
     });
@@ -912,7 +920,8 @@ void single_scattering(const LightingMedium& medium, const DirectionalSource& su
     const auto need = needed_mask(medium, options.skip_far_empty);
     // p(s_m . d) is the same for every voxel: the accumulator receives one sample per voxel
     // (weight = integral of T over the voxel, direction d) and applies the phase function.
-    for_each_voxel(medium, out, need, medium.optics.g, [&](const Box& b, std::size_t cell, PhaseAccumulator& acc) {
+    for_each_voxel(medium, out, need, medium.optics.g, options.uncollided_fluence, sun.irradiance / vol,
+                   [&](const Box& b, std::size_t cell, PhaseAccumulator& acc) {
         const double sigma = medium.sigma_t(cell);
         bool thick = false;
         int n = plan.tensor_order(g.voxel_size, 0.0, sigma, thick);

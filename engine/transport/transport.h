@@ -147,6 +147,10 @@ struct SingleScatteringOptions {
     /// the renderer multiplies S by sigma_t and interpolates S trilinearly, so such voxels
     /// never reach an image. Off by default (the full radiance field is computed).
     bool skip_far_empty = false;
+    /// When set, also receives the voxel-averaged uncollided fluence phi1 (W/m^2) from the
+    /// same quadrature (the weights without the phase function; no extra cost). Resized to
+    /// the medium's grid. The lattice-Boltzmann solver takes it as first_scattered_fluence.
+    core::Grid3<float>* uncollided_fluence = nullptr;
 };
 
 /// Exact single scattering (DESIGN.md's direct term) from a point source:

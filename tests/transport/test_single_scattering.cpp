@@ -264,6 +264,28 @@ TEST_CASE("isotropic scattering: all output directions equal; one direction is e
         for (std::size_t k = 0; k < dirs.size(); ++k) CHECK(S.data[k * S.cells() + c] == S1.data[c]);
 }
 
+TEST_CASE("uncollided fluence from the same pass equals 4 pi S of an isotropic unit-albedo medium") {
+    // phi1 = (I / V) * integral T / r^2 over the voxel; S for g = 0, albedo 1 is phi1 / (4 pi).
+    const LightingMedium m = test::synthetic_cloud({8, 8, 6}, 100.0, {0.01, 0.9, 0.7});
+    LightingMedium iso = m;
+    iso.optics.g = 0.0;
+    iso.optics.albedo = 1.0;
+    for (const PointSource L : {PointSource{{10, 20, 50}, 2.0}, PointSource{{-300, 40, -200}, 1.0}}) {
+        core::Grid3<float> phi;
+        SingleScatteringOptions o;
+        o.uncollided_fluence = &phi;
+        const SourceField aniso = single_scattering(m, L, output_directions(26), o);
+        const SourceField ref = single_scattering(iso, L, output_directions(1));
+        REQUIRE(phi.size() == ref.cells());
+        for (std::size_t c = 0; c < ref.cells(); ++c) {
+            // The anisotropic pass may pick other quadrature nodes (its error model includes
+            // the phase function's variation), each within the 1e-3 default tolerance.
+            CHECK(double(phi.data[c]) == doctest::Approx(4.0 * std::numbers::pi * double(ref.data[c])).epsilon(2e-3));
+        }
+        CHECK(aniso.data.size() == 26 * ref.cells());
+    }
+}
+
 TEST_CASE("results do not depend on the thread count; skipping far-empty voxels changes nothing else") {
     const LightingMedium m = test::synthetic_cloud({10, 10, 8}, 100.0, {0.01, 0.99, 0.6});
     const auto dirs = output_directions(26);

@@ -1,0 +1,139 @@
+// fulgur-bake: scene -> plan -> baked virtual-light bases (.fgb), report and NRRD export.
+// Thin: the work is engine/bake (bake.h); this file parses arguments and prints.
+#include "bake/bake.h"
+#include "common/bake_args.h"
+#include "common/progress.h"
+#include "core/core.h"
+#include "scene/scene.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <fstream>
+#include <map>
+
+using namespace fulgur;
+
+namespace {
+
+nlohmann::json report_json(const bake::Plan& plan, const bake::Report& r, const std::filesystem::path& out) {
+    nlohmann::json j;
+    j["file"] = out.string();
+    j["lighting_grid"] = {plan.lighting.dims.x, plan.lighting.dims.y, plan.lighting.dims.z};
+    j["virtual_lights"] = {plan.lights.x.size(), plan.lights.y.size(), plan.lights.z.size()};
+    j["directions"] = plan.directions;
+    j["components"] = plan.components;
+    j["solver"] = plan.solver;
+    j["threads"] = r.threads;
+    j["seconds"] = {{"total_wall", r.seconds_total},
+                    {"single_cpu", r.seconds_single},
+                    {"multiple_cpu", r.seconds_multiple},
+                    {"compress_cpu", r.seconds_compress},
+                    {"write", r.seconds_write}};
+    j["lights"] = r.lights;
+    j["lights_dropped"] = r.lights_dropped;
+    j["max_dropped_fraction"] = r.max_dropped_fraction;
+    j["raw_bytes"] = r.raw_bytes;
+    j["file_bytes"] = r.file_bytes;
+    j["coefficients_kept"] = r.coefficients_kept;
+    j["compression_ratio"] = r.compression_ratio;
+    j["relative_l2_error"] = r.relative_l2_error;
+    j["solver_iterations"] = {{"mean", r.mean_solver_iterations}, {"max", r.max_solver_iterations}};
+    j["unconverged_lights"] = r.unconverged;
+    j["expected"] = {{"seconds", plan.expected_seconds}, {"bytes", plan.expected_bytes}};
+    return j;
+}
+
+void export_nrrd(const app::BakeArgs& a, const scene::Scene& s, const core::Grid3<float>& density,
+                 const bake::Plan& plan, const std::filesystem::path& fgb) {
+    const std::size_t nd = plan.output_directions.size();
+    if (std::size_t(a.export_direction) >= nd)
+        throw core::Error("fulgur-bake", "--direction " + std::to_string(a.export_direction) + " is out of range (the bake has " +
+                                             std::to_string(nd) + " directions)");
+    std::vector<basis::WeightedLight> lights;
+    for (const app::ExportLight& e : a.export_lights) {
+        if (e.light >= plan.lights.count())
+            throw core::Error("fulgur-bake", "--export: light " + std::to_string(e.light) + " is out of range (the bake has " +
+                                                 std::to_string(plan.lights.count()) + " lights)");
+        lights.push_back({e.light, e.weight});
+    }
+    const basis::BakedBasis baked = basis::load_fgb(fgb);
+    const std::filesystem::path comp = a.export_prefix.string() + "_compressed.nrrd";
+    basis::export_compressed_nrrd(comp, baked, lights, std::size_t(a.export_direction));
+    // Raw: solve the listed lights again; the stored components are summed, as in the
+    // compressed export.
+    const transport::LightingMedium medium = scene::make_lighting_medium(s, density);
+    std::map<std::uint32_t, transport::SourceField> fields;
+    for (const basis::WeightedLight& w : lights) {
+        if (fields.count(w.light)) continue;
+        transport::SourceField f = bake::solve_light(s, medium, plan, w.light);
+        if (plan.components == 2) {
+            const std::size_t cells = f.cells();
+            for (std::size_t i = 0; i < nd * cells; ++i) f.data[i] += f.data[nd * cells + i];
+            f.data.resize(nd * cells);
+            f.directions.resize(nd);
+        }
+        fields.emplace(w.light, std::move(f));
+    }
+    const std::filesystem::path raw = a.export_prefix.string() + "_raw.nrrd";
+    basis::export_raw_nrrd(raw, lights, std::size_t(a.export_direction),
+                           [&](std::uint32_t l) -> const transport::SourceField& { return fields.at(l); });
+    std::printf("exported %s and %s\n", raw.string().c_str(), comp.string().c_str());
+}
+
+int run(const app::BakeArgs& a) {
+    if (a.threads > 0) core::set_thread_count(a.threads);
+    const scene::Scene s = scene::load_scene(a.scene);
+    const core::Grid3<float> density = scene::make_density(s);
+    const std::filesystem::path out = a.output ? *a.output : bake::default_fgb_path(s);
+
+    std::string why;
+    const bool fresh = bake::up_to_date(s, density, out, &why);
+    bake::PlanOptions po;
+    po.estimate = !fresh || a.force || a.dry_run;
+    const bake::Plan plan = bake::make_plan(s, density, po);
+    std::fputs(plan.to_text().c_str(), stdout);
+    std::printf("  output          %s (%s)\n", out.string().c_str(), fresh ? "up to date" : why.c_str());
+    std::fflush(stdout);
+    if (a.dry_run) return 0;
+
+    if (fresh && !a.force) {
+        std::printf("%s is up to date; nothing to bake (--force rebakes)\n", out.string().c_str());
+    } else {
+        const bake::Report r = bake::bake(s, density, plan, out, app::make_progress_printer(stderr, "lights"));
+        std::printf("baked %s in %s: %zu lights (%zu dropped), %.1f MB raw -> %.2f MB file (1/%.0f), "
+                    "%llu coefficients, relative L2 error %.3g%%, solver iterations mean %.0f max %.0f%s\n",
+                    out.string().c_str(), app::format_duration(r.seconds_total).c_str(), r.lights, r.lights_dropped,
+                    double(r.raw_bytes) / 1e6, double(r.file_bytes) / 1e6, r.compression_ratio,
+                    static_cast<unsigned long long>(r.coefficients_kept), 100.0 * r.relative_l2_error,
+                    r.mean_solver_iterations, r.max_solver_iterations,
+                    r.unconverged ? (", " + std::to_string(r.unconverged) + " lights hit the iteration cap").c_str() : "");
+        if (a.report) {
+            std::ofstream f(*a.report);
+            if (!f) throw core::Error(a.report->string(), "cannot write the report");
+            f << report_json(plan, r, out).dump(2) << "\n";
+            if (!f) throw core::Error(a.report->string(), "write failed");
+        }
+    }
+    if (!a.export_lights.empty()) export_nrrd(a, s, density, plan, out);
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    try {
+        const app::BakeArgs a = app::parse_bake_args(std::vector<std::string>(argv + 1, argv + argc));
+        if (a.help) {
+            std::fputs(app::bake_usage().c_str(), stdout);
+            return 0;
+        }
+        return run(a);
+    } catch (const core::Error& e) {
+        std::fprintf(stderr, "fulgur-bake: %s\n", e.what());
+        return 1;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "fulgur-bake: %s\n", e.what());
+        return 1;
+    }
+}

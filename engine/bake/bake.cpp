@@ -1,0 +1,539 @@
+// The baker: plan, per-light solve + compression, checksummed file (bake.h, docs/bake.md).
+#include "bake/bake.h"
+
+#include <glm/geometric.hpp>
+#include <omp.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <map>
+#include <mutex>
+#include <numbers>
+#include <sstream>
+
+namespace fulgur::bake {
+
+namespace {
+
+// Bump when the bake's algorithm changes what it writes for the same scene (forces a rebake).
+constexpr int kBakeAlgorithm = 1;
+
+std::string num(double v) {
+    char b[40];
+    std::snprintf(b, sizeof b, "%.17g", v);
+    return b;
+}
+
+// For messages: 6 significant digits.
+std::string short_num(double v) {
+    char b[40];
+    std::snprintf(b, sizeof b, "%g", v);
+    return b;
+}
+
+std::uint64_t hash_bytes(const void* data, std::size_t n) noexcept {
+    return basis::hash_description(std::string_view(static_cast<const char*>(data), n));
+}
+
+std::string human_bytes(double b) {
+    char buf[64];
+    if (b >= 1e9)
+        std::snprintf(buf, sizeof buf, "%.2f GB", b / 1e9);
+    else if (b >= 1e6)
+        std::snprintf(buf, sizeof buf, "%.1f MB", b / 1e6);
+    else if (b >= 1e3)
+        std::snprintf(buf, sizeof buf, "%.1f kB", b / 1e3);
+    else
+        std::snprintf(buf, sizeof buf, "%.0f B", b);
+    return buf;
+}
+
+std::string human_seconds(double s) {
+    char buf[64];
+    if (s >= 3600.0)
+        std::snprintf(buf, sizeof buf, "%.1f h", s / 3600.0);
+    else if (s >= 90.0)
+        std::snprintf(buf, sizeof buf, "%.1f min", s / 60.0);
+    else
+        std::snprintf(buf, sizeof buf, "%.1f s", s);
+    return buf;
+}
+
+transport::LbSettings lb_settings(const scene::Scene& s) {
+    transport::LbSettings lb;
+    lb.collision = transport::parse_lb_collision(s.transport.lb_collision);
+    lb.absorption = transport::parse_lb_absorption(s.transport.lb_absorption);
+    lb.tolerance = s.transport.lb_tolerance;
+    lb.max_iterations = s.transport.lb_max_iterations;
+    return lb;
+}
+
+void add_into(transport::SourceField& acc, const transport::SourceField& f) {
+    if (acc.data.empty()) {
+        acc = f;
+        return;
+    }
+    for (std::size_t i = 0; i < acc.data.size(); ++i) acc.data[i] += f.data[i];
+}
+
+// Light l's stored bases from a solution: [single dirs][multiple dirs] when separate,
+// else their sum (or the one part baked).
+transport::SourceField stored_bases(const Plan& plan, Solution&& sol) {
+    const std::size_t cells = plan.lighting.cell_count(), nd = plan.output_directions.size();
+    if (plan.components == 2) {
+        std::vector<glm::dvec3> dirs = plan.output_directions;
+        dirs.insert(dirs.end(), plan.output_directions.begin(), plan.output_directions.end());
+        transport::SourceField out(plan.lighting, std::move(dirs));
+        if (!sol.single.data.empty()) std::copy(sol.single.data.begin(), sol.single.data.end(), out.data.begin());
+        if (!sol.multiple.data.empty())
+            std::copy(sol.multiple.data.begin(), sol.multiple.data.end(), out.data.begin() + std::ptrdiff_t(cells * nd));
+        return out;
+    }
+    transport::SourceField out(plan.lighting, plan.output_directions);
+    if (plan.single && !sol.single.data.empty()) add_into(out, sol.single);
+    if (plan.multiple && !sol.multiple.data.empty()) add_into(out, sol.multiple);
+    return out;
+}
+
+// Squared L2 norm of the stored field and of (reconstruction - field) over all bases of a
+// light; reconstruction by the same inverse transform the run time uses (in double).
+void compression_error(const basis::CompressedLight& c, const transport::SourceField& f,
+                       basis::HaarTransform<double>& plan, double& ref2, double& err2) {
+    const std::size_t cells = f.cells();
+    std::vector<double> buf(cells);
+    for (std::size_t m = 0; m < c.directions.size(); ++m) {
+        std::fill(buf.begin(), buf.end(), 0.0);
+        const basis::CompressedBasis& b = c.directions[m];
+        basis::accumulate(b, 1.0, std::span<double>(buf));  // values are stored already scaled
+        plan.inverse(buf);
+        const std::span<const float> x = f.direction(m);
+        core::CompensatedSum r, e;
+        for (std::size_t i = 0; i < cells; ++i) {
+            r.add(double(x[i]) * double(x[i]));
+            const double d = buf[i] - double(x[i]);
+            e.add(d * d);
+        }
+        ref2 += r.value();
+        err2 += e.value();
+    }
+}
+
+int worker_threads(int requested) { return requested > 0 ? requested : core::thread_count(); }
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+
+basis::BakeKey scene_key(const scene::Scene& s, const core::Grid3<float>& density) {
+    std::ostringstream d;
+    const bool multiple = s.effects.multiple_scattering;
+    d << "bake.algorithm=" << kBakeAlgorithm << "\n";
+    d << "density.dims=" << density.dims().x << "x" << density.dims().y << "x" << density.dims().z << "\n";
+    d << "density.voxel_size=" << num(density.geom.voxel_size) << "\n";
+    d << "density.origin=" << num(density.geom.origin.x) << "," << num(density.geom.origin.y) << ","
+      << num(density.geom.origin.z) << "\n";
+    char hx[24];
+    std::snprintf(hx, sizeof hx, "%016llx",
+                  static_cast<unsigned long long>(hash_bytes(density.data.data(), density.data.size() * sizeof(float))));
+    d << "density.hash=" << hx << "\n";
+    d << "medium.extinction=" << num(s.medium.extinction) << "\n";
+    d << "medium.albedo=" << num(s.medium.albedo) << "\n";
+    d << "medium.g=" << num(s.medium.g) << "\n";
+    d << "lighting.downsample=" << s.lighting_downsample << "\n";
+    d << "lighting.directions=" << s.effective_directions() << "\n";
+    d << "effects.single_scattering=" << s.effects.single_scattering << "\n";
+    d << "effects.multiple_scattering=" << multiple << "\n";
+    d << "transport.single_scattering.tolerance=" << num(s.transport.ss_tolerance) << "\n";
+    if (multiple) {
+        if (s.transport.solver == scene::TransportSettings::Solver::LatticeBoltzmann) {
+            d << "transport.solver=lattice_boltzmann\n";
+            d << "transport.lattice_boltzmann.collision=" << s.transport.lb_collision << "\n";
+            d << "transport.lattice_boltzmann.absorption=" << s.transport.lb_absorption << "\n";
+            d << "transport.lattice_boltzmann.tolerance=" << num(s.transport.lb_tolerance) << "\n";
+            d << "transport.lattice_boltzmann.max_iterations=" << s.transport.lb_max_iterations << "\n";
+        } else {
+            d << "transport.solver=monte_carlo\n";
+            d << "transport.monte_carlo.paths=" << s.transport.mc_paths << "\n";
+            d << "transport.monte_carlo.seed=" << s.transport.mc_seed << "\n";
+            d << "transport.monte_carlo.batches=" << s.transport.mc_batches << "\n";
+        }
+    }
+    const basis::VirtualLightParams& v = s.virtual_lights;
+    d << "virtual_lights.h_usr=" << num(v.h_usr) << "\n";
+    d << "virtual_lights.epsilon=" << num(v.epsilon) << "\n";
+    d << "virtual_lights.margin=" << num(v.margin) << "\n";
+    d << "virtual_lights.ground_height=" << num(v.ground_height) << "\n";
+    d << "virtual_lights.density_threshold=" << num(v.density_threshold) << "\n";
+    d << "virtual_lights.drop_below=" << num(s.drop_below) << "\n";
+    const basis::CompressionParams& c = s.compression;
+    d << "compression.threshold=" << basis::to_string(c.mode) << "\n";
+    d << "compression.xi=" << num(c.xi) << "\n";
+    d << "compression.precision=" << basis::to_string(c.precision) << "\n";
+    d << "compression.decomposition=" << basis::to_string(c.decomposition) << "\n";
+    d << "compression.components=" << (s.separate_components ? "separate" : "combined") << "\n";
+    return basis::BakeKey::from_description(d.str());
+}
+
+transport::SingleScatteringOptions single_scattering_options(const scene::Scene& s) {
+    transport::SingleScatteringOptions o;
+    o.tolerance = s.transport.ss_tolerance;
+    // S in an empty voxel with no cloud among its 26 neighbours never reaches an image (the
+    // renderer weights S by density and interpolates trilinearly) and feeds no lattice
+    // emission (sigma_t = 0): not computed.
+    o.skip_far_empty = true;
+    return o;
+}
+
+Solution solve(const scene::Scene& s, const transport::LightingMedium& medium,
+               std::span<const transport::PointSource> sources, std::span<const glm::dvec3> directions,
+               const SolveRequest& request) {
+    Solution out;
+    const core::GridGeometry& geom = medium.density.geom;
+    const std::vector<glm::dvec3> dirs(directions.begin(), directions.end());
+    if (!request.single && !request.multiple) return out;
+
+    // Exact single scattering, summed over the sources, and the uncollided fluence phi1
+    // from the same quadrature (the lattice's first_scattered_fluence; the drop criterion).
+    core::Stopwatch sw;
+    transport::SingleScatteringOptions ss = single_scattering_options(s);
+    transport::SourceField s1(geom, dirs), tmp(geom, dirs);
+    core::Grid3<float> phi1(geom, 0.0f), phi_one;
+    ss.uncollided_fluence = &phi_one;
+    for (const transport::PointSource& p : sources) {
+        if (p.intensity == 0.0) continue;
+        transport::single_scattering(medium, p, tmp, ss);
+        add_into(s1, tmp);
+        for (std::size_t i = 0; i < phi1.size(); ++i) phi1.data[i] += phi_one.data[i];
+    }
+    {
+        core::CompensatedSum p;
+        const double vol = geom.voxel_size * geom.voxel_size * geom.voxel_size;
+        for (std::size_t i = 0; i < phi1.size(); ++i)
+            p.add(medium.optics.albedo * medium.sigma_t(i) * double(phi1.data[i]) * vol);
+        out.first_scattered_power = p.value();
+    }
+    out.seconds_single = sw.seconds();
+
+    double emitted = 0.0;
+    for (const transport::PointSource& p : sources) emitted += 4.0 * std::numbers::pi * p.intensity;
+    const bool skip = request.skip_below > 0.0 && out.first_scattered_power < request.skip_below * emitted;
+
+    if (request.multiple && !skip) {
+        sw.reset();
+        if (s.transport.solver == scene::TransportSettings::Solver::LatticeBoltzmann) {
+            transport::LbSources src;
+            src.first_scattered = &s1;
+            src.first_scattered_fluence = &phi1;
+            transport::LbResult r = transport::solve_lattice_boltzmann(medium, src, dirs, lb_settings(s));
+            out.multiple = std::move(r.source);
+            out.iterations = r.iterations;
+            out.converged = r.converged;
+        } else {
+            out.multiple = transport::SourceField(geom, dirs);
+            for (std::size_t q = 0; q < sources.size(); ++q) {
+                if (sources[q].intensity == 0.0) continue;
+                transport::MonteCarloOptions mo;
+                mo.paths = s.transport.mc_paths;
+                mo.batches = s.transport.mc_batches;
+                mo.seed = core::hash_seed(s.transport.mc_seed, q);
+                const transport::MonteCarloResult r = transport::monte_carlo(medium, sources[q], dirs, mo);
+                add_into(out.multiple, r.multiple);
+            }
+        }
+        out.seconds_multiple = sw.seconds();
+    } else if (request.multiple) {
+        out.multiple = transport::SourceField(geom, dirs);
+    }
+    if (request.single) out.single = std::move(s1);
+    return out;
+}
+
+// ---------------------------------------------------------------------------------------
+
+std::string Plan::to_text() const {
+    std::ostringstream o;
+    o << "bake plan\n";
+    o << "  lighting grid   " << lighting.dims.x << " x " << lighting.dims.y << " x " << lighting.dims.z << " cells of "
+      << lighting.voxel_size << " m\n";
+    o << "  virtual lights  " << lights.x.size() << " x " << lights.y.size() << " x " << lights.z.size() << " = "
+      << lights.count() << " (cloud base " << lights.cloud_base << " m, top " << lights.cloud_top << " m)\n";
+    o << "  directions      " << directions << "\n";
+    o << "  components      " << (single ? "single" : "") << (single && multiple ? " + " : "")
+      << (multiple ? "multiple" : "") << (components == 2 ? " (stored separately)" : "") << "\n";
+    o << "  solver          " << solver << "\n";
+    o << "  threads         " << threads << "\n";
+    o << "  raw size        " << human_bytes(double(raw_bytes)) << " (float32, every light, direction and component)\n";
+    if (expected_bytes)
+        o << "  expected file   " << human_bytes(double(expected_bytes)) << " (from 2 sample lights)\n";
+    if (expected_seconds > 0.0) o << "  expected time   " << human_seconds(expected_seconds) << " (from 2 sample lights)\n";
+    o << "  why:\n";
+    for (const std::string& r : reasons) o << "    - " << r << "\n";
+    return o.str();
+}
+
+Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const PlanOptions& options) {
+    if (!s.effects.lightning)
+        throw core::Error(s.path.string() + ": effects.lightning",
+                          "false: the scene has no lightning, so there are no virtual lights to bake");
+    if (!s.effects.single_scattering && !s.effects.multiple_scattering)
+        throw core::Error(s.path.string() + ": effects",
+                          "single_scattering and multiple_scattering are both false: nothing to bake");
+    Plan p;
+    const transport::LightingMedium medium = scene::make_lighting_medium(s, density);
+    p.lighting = medium.density.geom;
+    p.lights = basis::build_virtual_light_grid(density, s.virtual_lights);
+    p.directions = s.effective_directions();
+    p.output_directions = transport::output_directions(p.directions);
+    p.single = s.effects.single_scattering;
+    p.multiple = s.effects.multiple_scattering;
+    p.components = (p.single && p.multiple && s.separate_components) ? 2u : 1u;
+    p.solver = !p.multiple ? "none"
+               : s.transport.solver == scene::TransportSettings::Solver::LatticeBoltzmann ? "lattice_boltzmann"
+                                                                                           : "monte_carlo";
+    p.threads = worker_threads(options.threads);
+
+    auto& why = p.reasons;
+    if (s.medium.g == 0.0)
+        why.push_back("g = 0 (isotropic scattering): S does not depend on direction, 1 output direction instead of " +
+                      std::to_string(s.directions));
+    else
+        why.push_back("g = " + short_num(s.medium.g) + ": " + std::to_string(p.directions) + " output directions");
+    if (!p.multiple)
+        why.push_back("effects.multiple_scattering = false: no transport solve, bases hold the exact single scattering");
+    else if (p.solver == "lattice_boltzmann")
+        why.push_back("multiple scattering by lattice-Boltzmann (" + s.transport.lb_collision + " collision, " +
+                      s.transport.lb_absorption + " absorption, tolerance " + short_num(s.transport.lb_tolerance) +
+                      ") fed with the exact single scattering");
+    else
+        why.push_back("multiple scattering by Monte Carlo (reference quality, " + std::to_string(s.transport.mc_paths) +
+                      " paths per light)");
+    if (!p.single) why.push_back("effects.single_scattering = false: the direct term is solved (it feeds the solver) but not stored");
+    if (p.components == 2)
+        why.push_back("compression.components = separate: single and multiple parts stored apart (run time can toggle them)");
+    else if (p.single && p.multiple)
+        why.push_back("compression.components = combined: one basis per direction holds single + multiple");
+    if (s.effects.sun || s.sun)
+        why.push_back("the sun is not part of the virtual-light bake (it does not change per frame)");
+    if (s.drop_below > 0.0)
+        why.push_back("lights scattering less than " + short_num(s.drop_below) +
+                      " of their power in the cloud are dropped (the count is reported)");
+    why.push_back(std::to_string(p.lights.count()) + " virtual lights: h_usr " + short_num(s.virtual_lights.h_usr) +
+                  " m over the footprint + " + short_num(s.virtual_lights.margin) + " m margin, " +
+                  std::to_string(p.lights.z.size() - p.lights.base_layer) + " layers from the cloud base up, " +
+                  std::to_string(p.lights.base_layer) + " below (Eq. 4, epsilon " + short_num(s.virtual_lights.epsilon) + ")");
+
+    p.metadata.key = scene_key(s, density);
+    p.metadata.lighting = p.lighting;
+    p.metadata.directions = p.output_directions;
+    p.metadata.content = (p.single ? basis::FgbMetadata::kContentSingle : 0u) |
+                         (p.multiple ? basis::FgbMetadata::kContentMultiple : 0u);
+    p.metadata.components = p.components;
+    p.metadata.lights = p.lights;
+    p.metadata.compression = s.compression;
+    basis::validate(p.metadata, "bake plan");
+
+    p.raw_bytes = std::uint64_t(p.lights.count()) * p.metadata.bases() * p.lighting.cell_count() * sizeof(float);
+
+    if (options.estimate) {
+        // Sample lights: the node nearest the cloud's centre at mid-height, and the one below
+        // it on the lowest layer. Each is solved single-threaded (as a bake worker does).
+        const basis::VirtualLightGrid& g = p.lights;
+        const std::size_t ci = g.x.size() / 2, cj = g.y.size() / 2;
+        const std::size_t mid = g.base_layer + (g.z.size() - g.base_layer) / 2;
+        const std::uint32_t samples[2] = {std::uint32_t(g.index(ci, cj, std::min(mid, g.z.size() - 1))),
+                                          std::uint32_t(g.index(ci, cj, 0))};
+        const int saved = core::thread_count();
+        core::set_thread_count(1);
+        double seconds = 0.0, coeffs = 0.0;
+        basis::HaarTransform<double> haar(p.lighting.dims, s.compression.decomposition);
+        try {
+            for (std::uint32_t l : samples) {
+                core::Stopwatch sw;
+                const transport::SourceField f = solve_light(s, medium, p, l);
+                const basis::CompressedLight c = basis::compress_light(l, f, s.compression, haar);
+                seconds += sw.seconds();
+                coeffs += double(c.coefficient_count());
+            }
+        } catch (...) {
+            core::set_thread_count(saved);
+            throw;
+        }
+        core::set_thread_count(saved);
+        const double n = double(p.lights.count());
+        const double value_bytes = s.compression.precision == basis::Precision::Float16 ? 2.0 : 4.0;
+        p.expected_seconds = seconds / 2.0 * n / double(p.threads);
+        p.expected_bytes = std::uint64_t(coeffs / 2.0 * n * (value_bytes + p.metadata.index_bytes()));
+    }
+    return p;
+}
+
+transport::SourceField solve_light(const scene::Scene& s, const transport::LightingMedium& medium, const Plan& plan,
+                                   std::uint32_t light) {
+    FULGUR_ASSERT(light < plan.lights.count(), "solve_light: light index out of range");
+    const transport::PointSource src{plan.lights.position(light), 1.0};
+    SolveRequest rq;
+    rq.single = true;
+    rq.multiple = plan.multiple;
+    Solution sol = solve(s, medium, std::span(&src, 1), plan.output_directions, rq);
+    return stored_bases(plan, std::move(sol));
+}
+
+// ---------------------------------------------------------------------------------------
+
+Report bake(const scene::Scene& s, const core::Grid3<float>& density, const std::filesystem::path& out,
+            const Progress& progress) {
+    PlanOptions po;
+    po.estimate = false;
+    return bake(s, density, make_plan(s, density, po), out, progress);
+}
+
+Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan& plan,
+            const std::filesystem::path& out, const Progress& progress) {
+    core::Stopwatch total;
+    Report rep;
+    rep.threads = plan.threads;
+    rep.lights = plan.lights.count();
+    rep.raw_bytes = plan.raw_bytes;
+    const transport::LightingMedium medium = scene::make_lighting_medium(s, density);
+    basis::FgbWriter writer(out, plan.metadata);
+
+    const std::size_t n = plan.lights.count();
+    std::atomic<std::size_t> next{0}, done{0};
+    std::mutex mu, write_mu;
+    std::map<std::size_t, basis::EncodedBlock> pending;
+    std::size_t next_write = 0;
+    auto writer_encode = [&](const basis::CompressedLight& c) { return basis::encode_block(c, plan.metadata); };
+    std::exception_ptr failure;
+    std::atomic<bool> failed{false};
+    // Totals (double, merged under the mutex).
+    double t_single = 0.0, t_multiple = 0.0, t_compress = 0.0, ref2 = 0.0, err2 = 0.0, iters = 0.0, max_iters = 0.0;
+    std::size_t solved = 0;
+
+    // Lights in parallel, each solved single-threaded: the solvers' own parallel regions
+    // run nested inside this one and so get one thread each (max-active-levels 1).
+    const int saved_levels = omp_get_max_active_levels();
+    omp_set_max_active_levels(1);
+#pragma omp parallel num_threads(plan.threads)
+    {
+        basis::HaarTransform<double> haar(plan.lighting.dims, s.compression.decomposition);
+        double my_single = 0, my_multiple = 0, my_compress = 0, my_ref2 = 0, my_err2 = 0, my_iters = 0, my_max = 0;
+        std::size_t my_solved = 0, my_dropped = 0, my_unconverged = 0, my_kept = 0;
+        double my_max_drop = 0.0;
+        for (;;) {
+            const std::size_t l = next.fetch_add(1);
+            if (l >= n || failed.load()) break;
+            try {
+                const transport::PointSource src{plan.lights.position(l), 1.0};
+                SolveRequest rq;
+                rq.single = true;
+                rq.multiple = plan.multiple;
+                rq.skip_below = s.drop_below;
+                Solution sol = solve(s, medium, std::span(&src, 1), plan.output_directions, rq);
+                my_single += sol.seconds_single;
+                my_multiple += sol.seconds_multiple;
+                const double fraction = sol.first_scattered_power / (4.0 * std::numbers::pi);
+                core::Stopwatch sw;
+                basis::CompressedLight c;
+                if (s.drop_below > 0.0 && fraction < s.drop_below) {
+                    c.light = std::uint32_t(l);
+                    c.directions.resize(plan.metadata.bases());
+                    ++my_dropped;
+                    my_max_drop = std::max(my_max_drop, fraction);
+                } else {
+                    const transport::SourceField f = stored_bases(plan, std::move(sol));
+                    c = basis::compress_light(std::uint32_t(l), f, s.compression, haar);
+                    compression_error(c, f, haar, my_ref2, my_err2);
+                    if (plan.multiple && plan.solver == "lattice_boltzmann") {
+                        my_iters += sol.iterations;
+                        my_max = std::max(my_max, double(sol.iterations));
+                        if (!sol.converged) ++my_unconverged;
+                    }
+                    ++my_solved;
+                }
+                my_kept += c.coefficient_count();
+                my_compress += sw.seconds();
+                // Blocks are written in light order (the file is byte-identical for any
+                // thread count): a finished light waits until all lights before it are in.
+                {
+                    std::lock_guard lock(write_mu);
+                    pending.emplace(l, writer_encode(c));
+                    while (!pending.empty() && pending.begin()->first == next_write) {
+                        writer.add(pending.begin()->second);
+                        pending.erase(pending.begin());
+                        ++next_write;
+                    }
+                }
+                const std::size_t d = done.fetch_add(1) + 1;
+                if (progress) {
+                    std::lock_guard lock(mu);
+                    progress(d, n, total.seconds());
+                }
+            } catch (...) {
+                std::lock_guard lock(mu);
+                if (!failure) failure = std::current_exception();
+                failed = true;
+            }
+        }
+        std::lock_guard lock(mu);
+        t_single += my_single;
+        t_multiple += my_multiple;
+        t_compress += my_compress;
+        ref2 += my_ref2;
+        err2 += my_err2;
+        iters += my_iters;
+        max_iters = std::max(max_iters, my_max);
+        solved += my_solved;
+        rep.lights_dropped += my_dropped;
+        rep.coefficients_kept += my_kept;
+        rep.unconverged += my_unconverged;
+        rep.max_dropped_fraction = std::max(rep.max_dropped_fraction, my_max_drop);
+    }
+    omp_set_max_active_levels(saved_levels);
+    if (failure) std::rethrow_exception(failure);
+
+    core::Stopwatch sw;
+    writer.finish();
+    rep.seconds_write = sw.seconds();
+    // Per-stage times are summed over the worker threads (CPU seconds); the total is wall time.
+    rep.seconds_single = t_single;
+    rep.seconds_multiple = t_multiple;
+    rep.seconds_compress = t_compress;
+    rep.file_bytes = std::filesystem::file_size(out);
+    rep.compression_ratio = rep.file_bytes ? double(rep.raw_bytes) / double(rep.file_bytes) : 0.0;
+    rep.relative_l2_error = ref2 > 0.0 ? std::sqrt(err2 / ref2) : 0.0;
+    const std::size_t lb_lights = plan.solver == "lattice_boltzmann" ? solved : 0;
+    rep.mean_solver_iterations = lb_lights ? iters / double(lb_lights) : 0.0;
+    rep.max_solver_iterations = max_iters;
+    rep.seconds_total = total.seconds();
+    return rep;
+}
+
+std::filesystem::path default_fgb_path(const scene::Scene& s) {
+    if (s.path.empty()) return std::filesystem::path("scene.fgb");
+    std::filesystem::path p = s.path;
+    p.replace_extension(".fgb");
+    return p;
+}
+
+bool up_to_date(const scene::Scene& s, const core::Grid3<float>& density, const std::filesystem::path& fgb,
+                std::string* why) {
+    auto fail = [&](const std::string& m) {
+        if (why) *why = m;
+        return false;
+    };
+    std::error_code ec;
+    if (!std::filesystem::exists(fgb, ec)) return fail(fgb.string() + ": no baked file");
+    try {
+        basis::FgbReader r(fgb);
+        if (r.partial()) return fail(fgb.string() + ": a partial file (one bake job's lights), not a complete bake");
+        r.check_key(scene_key(s, density));
+    } catch (const core::Error& e) {
+        return fail(e.what());
+    }
+    return true;
+}
+
+}  // namespace fulgur::bake
