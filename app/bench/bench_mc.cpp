@@ -1,6 +1,7 @@
 // Monte Carlo paths/s and single-scattering voxels/s (per direction count) on 1 and 2 threads,
 // and the single-scattering accuracy/time study behind docs/transport.md's table.
 #include "bench/bench.h"
+#include "bench/paper_config.h"
 
 #include "cloud/cloud.h"
 #include "core/core.h"
@@ -20,44 +21,14 @@ namespace {
 
 using namespace fulgur;
 using namespace fulgur::transport;
+using bench::dobashi_layer;
+using bench::dobashi_lights;
 
 std::filesystem::path storm_scene() { return std::filesystem::path(FULGUR_SOURCE_ROOT) / "content/scenes/storm.json"; }
 
 LightingMedium storm_medium() {
     const scene::Scene sc = scene::load_scene(storm_scene());
     return scene::make_lighting_medium(sc, scene::make_density(sc));
-}
-
-/// Dobashi 2007's configuration: a flat cloud layer on a 32x32x4 lighting grid (here a
-/// synthetic smooth layer, 400 m voxels) and its 20x20x7 virtual-light grid, the vertical
-/// spacing growing away from the layer (2800 lights).
-LightingMedium dobashi_layer(int nxy, int nz) {
-    core::GridGeometry g;
-    g.dims = {nxy, nxy, nz};
-    g.voxel_size = 12800.0 / nxy;
-    g.origin = {-6400.0, -6400.0, 1200.0};
-    LightingMedium m;
-    m.density = core::Grid3<float>(g, 0.0f);
-    m.optics = {0.004, 0.99, 0.6};
-    for (int k = 0; k < nz; ++k)
-        for (int j = 0; j < nxy; ++j)
-            for (int i = 0; i < nxy; ++i) {
-                const double x = (i + 0.5) / nxy - 0.5, y = (j + 0.5) / nxy - 0.5, z = (k + 0.5) / nz;
-                const double r = std::sqrt(x * x + y * y) / 0.45 + 0.3 * std::fabs(z - 0.5);
-                if (r < 1.0)
-                    m.density.at(i, j, k) =
-                        float((1.0 - r) * (0.7 + 0.3 * std::sin(11.0 * x + 2.0 * z) * std::cos(9.0 * y)));
-            }
-    return m;
-}
-
-std::vector<glm::dvec3> dobashi_lights() {
-    std::vector<glm::dvec3> l;
-    const double zs[7] = {0.0, 600.0, 1100.0, 2000.0, 2900.0, 3600.0, 5000.0};
-    for (double z : zs)
-        for (int j = 0; j < 20; ++j)
-            for (int i = 0; i < 20; ++i) l.push_back({-7600.0 + 800.0 * i, -7600.0 + 800.0 * j, z});
-    return l;
 }
 
 /// Every stride-th light of a list (deterministic subset for timing).
