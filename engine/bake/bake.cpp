@@ -267,8 +267,8 @@ std::string Plan::to_text() const {
     o << "  threads         " << threads << "\n";
     o << "  raw size        " << human_bytes(double(raw_bytes)) << " (float32, every light, direction and component)\n";
     if (expected_bytes)
-        o << "  expected file   " << human_bytes(double(expected_bytes)) << " (from 2 sample lights)\n";
-    if (expected_seconds > 0.0) o << "  expected time   " << human_seconds(expected_seconds) << " (from 2 sample lights)\n";
+        o << "  expected file   " << human_bytes(double(expected_bytes)) << " (from 16 sample lights)\n";
+    if (expected_seconds > 0.0) o << "  expected time   " << human_seconds(expected_seconds) << " (from 16 sample lights)\n";
     o << "  why:\n";
     for (const std::string& r : reasons) o << "    - " << r << "\n";
     return o.str();
@@ -338,13 +338,20 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
     p.raw_bytes = std::uint64_t(p.lights.count()) * p.metadata.bases() * p.lighting.cell_count() * sizeof(float);
 
     if (options.estimate) {
-        // Sample lights: the node nearest the cloud's centre at mid-height, and the one below
-        // it on the lowest layer. Each is solved single-threaded (as a bake worker does).
+        // Sample lights: 16 spread over the grid by a golden-ratio sequence in each axis
+        // (inside, below and beside the cloud), each solved single-threaded as a bake worker
+        // does. Light costs and sizes vary by ~3x between in-cloud and far lights.
+        constexpr int kSamples = 16;
+        std::vector<std::uint32_t> samples;
         const basis::VirtualLightGrid& g = p.lights;
-        const std::size_t ci = g.x.size() / 2, cj = g.y.size() / 2;
-        const std::size_t mid = g.base_layer + (g.z.size() - g.base_layer) / 2;
-        const std::uint32_t samples[2] = {std::uint32_t(g.index(ci, cj, std::min(mid, g.z.size() - 1))),
-                                          std::uint32_t(g.index(ci, cj, 0))};
+        for (int k = 0; k < kSamples; ++k) {
+            auto pick = [&](double a, std::size_t n) {
+                const double f = std::fmod(0.5 + k * a, 1.0);
+                return std::min(n - 1, std::size_t(f * double(n)));
+            };
+            samples.push_back(std::uint32_t(
+                g.index(pick(0.6180339887, g.x.size()), pick(0.7548776662, g.y.size()), pick(0.5698402910, g.z.size()))));
+        }
         const int saved = core::thread_count();
         core::set_thread_count(1);
         double seconds = 0.0, coeffs = 0.0;
@@ -364,8 +371,9 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
         core::set_thread_count(saved);
         const double n = double(p.lights.count());
         const double value_bytes = s.compression.precision == basis::Precision::Float16 ? 2.0 : 4.0;
-        p.expected_seconds = seconds / 2.0 * n / double(p.threads);
-        p.expected_bytes = std::uint64_t(coeffs / 2.0 * n * (value_bytes + p.metadata.index_bytes()));
+        const double ns = double(samples.size());
+        p.expected_seconds = seconds / ns * n / double(p.threads);
+        p.expected_bytes = std::uint64_t(coeffs / ns * n * (value_bytes + p.metadata.index_bytes()));
     }
     return p;
 }

@@ -83,8 +83,8 @@ struct Plan {
     std::string to_text() const;
 };
 struct PlanOptions {
-    /// Time and compress two sample lights (one in the cloud, one below it) to estimate the
-    /// bake's time and size; a few seconds. false: expected_* stay 0.
+    /// Time and compress 16 sample lights spread over the grid to estimate the bake's time
+    /// and size; about a second. false: expected_* stay 0.
     bool estimate = true;
     int threads = 0;  ///< 0: core::thread_count()
 };
