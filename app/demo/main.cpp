@@ -6,6 +6,7 @@
 #include "core/core.h"
 #include "render/render.h"
 #include "render/synthetic.h"
+#include "demo/shell.h"
 #include "platform/platform.h"
 
 #include <GLFW/glfw3.h>
@@ -34,6 +35,15 @@ const char* kUsage =
     "frames and quits (for documentation images); --no-dither turns the 8-bit dither off\n"
     "(smaller PNGs).\n"
     "Mouse: left drag orbits, wheel zooms. Keys: Space strike now, P screenshot, Esc quit.\n";
+
+// Writes frame i of a headless sequence to out/fulgur_NNN.png; returns the name.
+std::string write_sequence_frame(platform::Context& ctx, int i) {
+    std::filesystem::create_directories("out");
+    char name[64];
+    std::snprintf(name, sizeof name, "out/fulgur_%03d.png", i);
+    core::write_png(name, ctx.width(), ctx.height(), 4, ctx.read_rgba8());
+    return name;
+}
 
 #ifdef FULGUR_HAVE_RUNTIME
 // Pseudo-colour (blue -> cyan -> yellow -> red -> white) of v in [0, 1].
@@ -68,7 +78,6 @@ int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::fil
     auto ctx = platform::create_headless({.width = w, .height = h});
     app::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
     view.pipeline().strike_at(0.0);
-    std::filesystem::create_directories("out");
     const render::Camera cam = app::default_camera(view.density());
     for (int i = 0; i < frames; ++i) {
         const double t = 0.02 + 0.04 * i;
@@ -76,33 +85,11 @@ int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::fil
         opt.settings.frame_index = std::uint32_t(i);
         const app::FrameReport r = view.render(cam, t, w, h, opt);
         ctx->present();
-        char name[64];
-        std::snprintf(name, sizeof name, "out/fulgur_%03d.png", i);
-        core::write_png(name, w, h, 4, ctx->read_rgba8());
-        std::printf("%s  t=%.2f s  %s\n", name, t, app::timings_json(r, w, h).c_str());
+        std::printf("%s  t=%.2f s  %s\n", write_sequence_frame(*ctx, i).c_str(), t, app::timings_json(r, w, h).c_str());
     }
     return 0;
 }
 #endif
-
-// Orbit camera from the mouse, shared by both demo modes: left-drag turns (azimuth, elevation
-// clamped to -10..80 degrees), the wheel scales the distance within [dist_min, dist_max].
-// (mx, my) is the previous cursor position. ImGui keeps the mouse while it is over the panel.
-struct Orbit {
-    double az, el, dist, mx = 0, my = 0;
-    void update(GLFWwindow* win, const ImGuiIO& io, double dist_min, double dist_max) {
-        double cx, cy;
-        glfwGetCursorPos(win, &cx, &cy);
-        if (!io.WantCaptureMouse) {
-            if (glfwGetMouseButton(win, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
-                az -= 0.3 * (cx - mx);
-                el = std::clamp(el + 0.3 * (cy - my), -10.0, 80.0);
-            }
-            if (io.MouseWheel != 0) dist = std::clamp(dist * std::pow(0.9, io.MouseWheel), dist_min, dist_max);
-        }
-        mx = cx, my = cy;
-    }
-};
 
 int synthetic_demo(int W, int H, int screenshot_after);
 int synthetic_headless(int frames, int W, int H);
@@ -179,63 +166,33 @@ int main(int argc, char** argv) {
                 std::printf(kNoDisplay, frames);
             return headless_sequence(std::move(s), std::move(density), fgb, frames, std::min(W, 640), std::min(H, 360));
         }
-        auto ctx = platform::create_window({.width = W, .height = H, .title = "Fulgur"});
-        auto* win = static_cast<GLFWwindow*>(ctx->native_window());
-        IMGUI_CHECKVERSION();
-        ImGui::CreateContext();
-        ImGui::GetIO().IniFilename = nullptr;
-        ImGui_ImplGlfw_InitForOpenGL(win, true);
-        ImGui_ImplOpenGL3_Init("#version 450");
-
-        app::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
+        app::DemoShell shell(W, H, "Fulgur", screenshot_after);
+        app::StormView view(std::move(s), std::move(density), fgb, shell.context().get_proc_address());
         const bool separate = view.bases().has_multiple();
 
-        Orbit orbit{-90, 8, 1.45};  // distance as a multiple of the cloud size
+        app::Orbit orbit{-90, 8, 1.45, 0.4, 5.0};  // distance as a multiple of the cloud size
         app::ViewOptions opt;
         opt.settings.dither = g_dither;
         float rate = float(view.scene().lightning.schedule.strike_rate);
         int seed = int(view.scene().lightning.seed);
         bool autos = rate > 0;
         double t = 0.0;
-        auto last = std::chrono::steady_clock::now();
-        double fps = 0;
         app::FrameReport rep;
         // The few GL calls of the slice image, through the window's get-proc-address (the
         // process also links OSMesa, whose gl* symbols must not be called on a GLX context).
         const SliceGL gl = load_slice_gl();
         GLuint slice_tex = 0;
         gl.GenTextures(1, &slice_tex);
-        int shot_n = 0;
         view.pipeline().strike_at(0.2, std::uint64_t(seed));
         lightning::LightningParams lp = view.scene().lightning;
         bool shape_changed = false;
-        bool space_down = false, p_down = false;
-        int frame_count = 0;
-        while (!glfwWindowShouldClose(win)) {
-            glfwPollEvents();
-            const auto now = std::chrono::steady_clock::now();
-            const double dt = std::chrono::duration<double>(now - last).count();
-            last = now;
-            t += dt;
-            fps = fps == 0.0 ? 1.0 / std::max(dt, 1e-6) : 0.8 * fps + 0.2 / std::max(dt, 1e-6);
-            ImGuiIO& io = ImGui::GetIO();
-            orbit.update(win, io, 0.4, 5.0);
-            bool strike = false, screenshot = false;
-            if (!io.WantCaptureKeyboard) {
-                const bool sp = glfwGetKey(win, GLFW_KEY_SPACE) == GLFW_PRESS, pk = glfwGetKey(win, GLFW_KEY_P) == GLFW_PRESS;
-                strike = sp && !space_down;
-                screenshot = pk && !p_down;
-                space_down = sp, p_down = pk;
-                if (glfwGetKey(win, GLFW_KEY_ESCAPE) == GLFW_PRESS) glfwSetWindowShouldClose(win, 1);
-            }
-
-            ImGui_ImplOpenGL3_NewFrame();
-            ImGui_ImplGlfw_NewFrame();
-            ImGui::NewFrame();
+        while (shell.begin_frame(orbit)) {
+            t += shell.dt();
+            bool strike = shell.strike_pressed();
             ImGui::SetNextWindowPos({10, 10}, ImGuiCond_FirstUseEver);
             ImGui::SetNextWindowSize({380, 0}, ImGuiCond_FirstUseEver);
             ImGui::Begin("Fulgur");
-            ImGui::Text("%.1f fps  (%.1f ms frame)", fps, rep.wall_ms);
+            ImGui::Text("%.1f fps  (%.1f ms frame)", shell.fps(), rep.wall_ms);
             ImGui::Separator(); ImGui::TextUnformatted("Lightning");
             ImGui::InputInt("seed", &seed);
             if (ImGui::Button("Strike now")) strike = true;
@@ -297,7 +254,6 @@ int main(int argc, char** argv) {
                 ImGui::Image((ImTextureID)(intptr_t)slice_tex, {wpx, wpx * g.dims.z / float(g.dims.x)});
             }
             ImGui::End();
-            ImGui::Render();
 
             const double want_rate = autos ? double(rate) : 0.0;
             if (shape_changed || want_rate != lp.schedule.strike_rate) {
@@ -309,26 +265,11 @@ int main(int argc, char** argv) {
                 shape_changed = false;
             }
             if (strike) view.pipeline().strike_at(t, std::uint64_t(seed++));
-            const int fw = ctx->width(), fh = ctx->height();
             opt.settings.frame_index++;
             const render::Camera cam = app::default_camera(view.density(), orbit.az, orbit.el, orbit.dist);
-            rep = view.render(cam, t, fw, fh, opt);
-            ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
-            ++frame_count;
-            if (screenshot_after > 0 && frame_count == screenshot_after) screenshot = true;
-            if (screenshot) {
-                std::filesystem::create_directories("out");
-                char name[64];
-                std::snprintf(name, sizeof name, "out/screenshot_%03d.png", shot_n++);
-                core::write_png(name, fw, fh, 4, ctx->read_rgba8());
-                std::printf("wrote %s\n", name);
-                if (screenshot_after > 0) glfwSetWindowShouldClose(win, 1);
-            }
-            ctx->present();
+            rep = view.render(cam, t, shell.width(), shell.height(), opt);
+            shell.end_frame();
         }
-        ImGui_ImplOpenGL3_Shutdown();
-        ImGui_ImplGlfw_Shutdown();
-        ImGui::DestroyContext();
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur: %s\n", e.what());
         return 1;
@@ -361,7 +302,6 @@ int synthetic_headless(int frames, int W, int H) {
     auto ctx = platform::create_headless({.width = W, .height = H});
     render::Renderer r(ctx->get_proc_address());
     const render::synthetic::Storm st = synthetic_storm(r);
-    std::filesystem::create_directories("out");
     for (int i = 0; i < frames; ++i) {
         render::Settings set = st.settings;
         set.frame_index = std::uint32_t(i);
@@ -370,10 +310,8 @@ int synthetic_headless(int frames, int W, int H) {
                                                          st.camera.vertical_fov_deg);
         const render::FrameStats fs = r.render(cam, set, W, H);
         ctx->present();
-        char name[64];
-        std::snprintf(name, sizeof name, "out/fulgur_%03d.png", i);
-        core::write_png(name, W, H, 4, ctx->read_rgba8());
-        std::printf("%s  render %.1f ms (march %.1f ms)\n", name, fs.wall.total, fs.wall.march);
+        std::printf("%s  render %.1f ms (march %.1f ms)\n", write_sequence_frame(*ctx, i).c_str(), fs.wall.total,
+                    fs.wall.march);
     }
     return 0;
 }
@@ -381,44 +319,18 @@ int synthetic_headless(int frames, int W, int H) {
 // The renderer's synthetic storm in the demo window: camera, effect toggles, exposure,
 // internal scale and pass times work; the lightning controls need the run time.
 int synthetic_demo(int W, int H, int screenshot_after) {
-    auto ctx = platform::create_window({.width = W, .height = H, .title = "Fulgur (synthetic storm)"});
-    auto* win = static_cast<GLFWwindow*>(ctx->native_window());
-    IMGUI_CHECKVERSION();
-    ImGui::CreateContext();
-    ImGui::GetIO().IniFilename = nullptr;
-    ImGui_ImplGlfw_InitForOpenGL(win, true);
-    ImGui_ImplOpenGL3_Init("#version 450");
-    render::Renderer r(ctx->get_proc_address());
+    app::DemoShell shell(W, H, "Fulgur (synthetic storm)", screenshot_after);
+    render::Renderer r(shell.context().get_proc_address());
     const render::synthetic::Storm st = synthetic_storm(r);
     render::Settings set = st.settings;
     set.dither = g_dither;
-    Orbit orbit{-60, -6, 13500};  // distance in metres
-    bool p_down = false;
-    int frames = 0, shot_n = 0;
-    double fps = 0;
+    app::Orbit orbit{-60, -6, 13500, 4000.0, 60000.0};  // distance in metres
     render::FrameStats fs;
-    auto last = std::chrono::steady_clock::now();
-    while (!glfwWindowShouldClose(win)) {
-        glfwPollEvents();
-        const auto now = std::chrono::steady_clock::now();
-        const double dt = std::chrono::duration<double>(now - last).count();
-        last = now;
-        if (frames == 1) fps = 1.0 / dt;
-        else if (frames > 1) fps = 0.8 * fps + 0.2 / dt;
-        ImGuiIO& io = ImGui::GetIO();
-        orbit.update(win, io, 4000.0, 60000.0);
-        const bool pk = glfwGetKey(win, GLFW_KEY_P) == GLFW_PRESS;
-        bool screenshot = pk && !p_down && !io.WantCaptureKeyboard;
-        p_down = pk;
-        if (glfwGetKey(win, GLFW_KEY_ESCAPE) == GLFW_PRESS) glfwSetWindowShouldClose(win, 1);
-
-        ImGui_ImplOpenGL3_NewFrame();
-        ImGui_ImplGlfw_NewFrame();
-        ImGui::NewFrame();
+    while (shell.begin_frame(orbit)) {
         ImGui::SetNextWindowPos({10, 10}, ImGuiCond_FirstUseEver);
         ImGui::SetNextWindowSize({360, 0}, ImGuiCond_FirstUseEver);
         ImGui::Begin("Fulgur (synthetic storm)");
-        ImGui::Text("%.1f fps  (%.1f ms render)", fps, fs.wall.total);
+        ImGui::Text("%.1f fps  (%.1f ms render)", shell.fps(), fs.wall.total);
         ImGui::TextDisabled("no bake / run time: lightning controls off");
         ImGui::Separator();
         ImGui::Checkbox("glow", &set.glow);
@@ -435,27 +347,12 @@ int synthetic_demo(int W, int H, int screenshot_after) {
         ImGui::Text("ray march %.2f  bolt %.2f  composite %.2f", fs.wall.march, fs.wall.bolt, fs.wall.composite);
         ImGui::Text("internal %d x %d, %d directions", fs.internal_width, fs.internal_height, fs.directions_used);
         ImGui::End();
-        ImGui::Render();
 
-        set.frame_index = std::uint32_t(frames);
+        set.frame_index = std::uint32_t(shell.frames());
         const render::Camera cam = render::Camera::orbit(st.camera.target, orbit.dist, orbit.az, orbit.el, st.camera.vertical_fov_deg);
-        fs = r.render(cam, set, ctx->width(), ctx->height());
-        ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
-        ++frames;
-        if (screenshot_after > 0 && frames == screenshot_after) screenshot = true;
-        if (screenshot) {
-            std::filesystem::create_directories("out");
-            char name[64];
-            std::snprintf(name, sizeof name, "out/screenshot_%03d.png", shot_n++);
-            core::write_png(name, ctx->width(), ctx->height(), 4, ctx->read_rgba8());
-            std::printf("wrote %s\n", name);
-            if (screenshot_after > 0) glfwSetWindowShouldClose(win, 1);
-        }
-        ctx->present();
+        fs = r.render(cam, set, shell.width(), shell.height());
+        shell.end_frame();
     }
-    ImGui_ImplOpenGL3_Shutdown();
-    ImGui_ImplGlfw_Shutdown();
-    ImGui::DestroyContext();
     return 0;
 }
 

@@ -1,0 +1,88 @@
+#include "demo/shell.h"
+
+#include "core/core.h"
+
+#include <GLFW/glfw3.h>
+#include <backends/imgui_impl_glfw.h>
+#include <backends/imgui_impl_opengl3.h>
+#include <imgui.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+namespace fulgur::app {
+
+DemoShell::DemoShell(int width, int height, const std::string& title, int screenshot_after)
+    : screenshot_after_(screenshot_after) {
+    ctx_ = platform::create_window({.width = width, .height = height, .title = title});
+    win_ = static_cast<GLFWwindow*>(ctx_->native_window());
+    IMGUI_CHECKVERSION();
+    ImGui::CreateContext();
+    ImGui::GetIO().IniFilename = nullptr;
+    ImGui_ImplGlfw_InitForOpenGL(win_, true);
+    ImGui_ImplOpenGL3_Init("#version 450");
+    last_ = glfwGetTime();
+    glfwGetCursorPos(win_, &mx_, &my_);
+}
+
+DemoShell::~DemoShell() {
+    ImGui_ImplOpenGL3_Shutdown();
+    ImGui_ImplGlfw_Shutdown();
+    ImGui::DestroyContext();
+}
+
+bool DemoShell::begin_frame(Orbit& orbit) {
+    glfwPollEvents();
+    if (glfwWindowShouldClose(win_)) return false;
+    const double now = glfwGetTime();
+    dt_ = std::max(now - last_, 1e-6);
+    last_ = now;
+    fps_ = frames_ <= 1 ? 1.0 / dt_ : 0.8 * fps_ + 0.2 / dt_;
+
+    const ImGuiIO& io = ImGui::GetIO();
+    double cx, cy;
+    glfwGetCursorPos(win_, &cx, &cy);
+    if (!io.WantCaptureMouse) {
+        if (glfwGetMouseButton(win_, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
+            orbit.az -= 0.3 * (cx - mx_);
+            orbit.el = std::clamp(orbit.el + 0.3 * (cy - my_), -10.0, 80.0);
+        }
+        if (io.MouseWheel != 0)
+            orbit.dist = std::clamp(orbit.dist * std::pow(0.9, io.MouseWheel), orbit.dist_min, orbit.dist_max);
+    }
+    mx_ = cx, my_ = cy;
+
+    strike_ = false;
+    if (!io.WantCaptureKeyboard) {
+        const bool sp = glfwGetKey(win_, GLFW_KEY_SPACE) == GLFW_PRESS, pk = glfwGetKey(win_, GLFW_KEY_P) == GLFW_PRESS;
+        strike_ = sp && !space_down_;
+        if (pk && !p_down_) screenshot_ = true;
+        space_down_ = sp, p_down_ = pk;
+        if (glfwGetKey(win_, GLFW_KEY_ESCAPE) == GLFW_PRESS) glfwSetWindowShouldClose(win_, 1);
+    }
+    ImGui_ImplOpenGL3_NewFrame();
+    ImGui_ImplGlfw_NewFrame();
+    ImGui::NewFrame();
+    return true;
+}
+
+void DemoShell::end_frame() {
+    ImGui::Render();
+    ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+    ++frames_;
+    if (screenshot_after_ > 0 && frames_ == screenshot_after_) screenshot_ = true;
+    if (screenshot_) {
+        screenshot_ = false;
+        std::filesystem::create_directories("out");
+        char name[64];
+        std::snprintf(name, sizeof name, "out/screenshot_%03d.png", shots_++);
+        core::write_png(name, ctx_->width(), ctx_->height(), 4, ctx_->read_rgba8());
+        std::printf("wrote %s\n", name);
+        if (screenshot_after_ > 0) glfwSetWindowShouldClose(win_, 1);
+    }
+    ctx_->present();
+}
+
+}  // namespace fulgur::app

@@ -1,0 +1,55 @@
+// The demo's window shell, shared by its two modes (baked storm and synthetic storm): GLFW
+// window + Dear ImGui set-up and teardown, frame timing and smoothed fps, the orbit camera
+// input, key edges (Space, P, Esc) and screenshots (P, or --screenshot-after N).
+#pragma once
+
+#include "platform/platform.h"
+
+#include <memory>
+#include <string>
+
+struct GLFWwindow;
+
+namespace fulgur::app {
+
+/// Orbit camera from the mouse: left-drag turns (azimuth; elevation clamped to -10..80
+/// degrees), the wheel scales the distance within [dist_min, dist_max]. ImGui keeps the
+/// mouse while it is over the panel.
+struct Orbit {
+    double az = 0, el = 0, dist = 1, dist_min = 0.1, dist_max = 10;
+};
+
+class DemoShell {
+public:
+    /// Opens the window and ImGui. screenshot_after > 0: write a screenshot after that many
+    /// frames and close.
+    DemoShell(int width, int height, const std::string& title, int screenshot_after);
+    ~DemoShell();
+    DemoShell(const DemoShell&) = delete;
+    DemoShell& operator=(const DemoShell&) = delete;
+
+    /// Polls events, updates timing, the orbit and key edges, and starts the ImGui frame.
+    /// False when the window should close.
+    bool begin_frame(Orbit& orbit);
+    /// Draws ImGui over the rendered frame, writes a screenshot when asked, presents.
+    void end_frame();
+
+    platform::Context& context() noexcept { return *ctx_; }
+    int width() const { return ctx_->width(); }
+    int height() const { return ctx_->height(); }
+    double dt() const noexcept { return dt_; }      ///< seconds since the previous frame
+    double fps() const noexcept { return fps_; }    ///< exponentially smoothed
+    bool strike_pressed() const noexcept { return strike_; }  ///< Space went down this frame
+    void request_screenshot() noexcept { screenshot_ = true; }
+    int frames() const noexcept { return frames_; }
+
+private:
+    std::unique_ptr<platform::Context> ctx_;
+    GLFWwindow* win_ = nullptr;
+    int screenshot_after_ = 0, frames_ = 0, shots_ = 0;
+    double dt_ = 0, fps_ = 0, mx_ = 0, my_ = 0;
+    bool strike_ = false, screenshot_ = false, space_down_ = false, p_down_ = false;
+    double last_ = 0;
+};
+
+}  // namespace fulgur::app
