@@ -395,6 +395,7 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
                                   {"noise_floor_multiple_native", s.native_floor_multiple},
                                   {"iterations", rr.iterations},
                                   {"lb_seconds", rr.seconds},
+                                  {"mc_paths", p},
                                   {"mc_seconds", s.mc_seconds}});
                 std::fprintf(stderr, "lb-vs-mc: %3.0f m grid %-14s total %.4f multiple %.4f (500 m); native %.4f / %.4f\n",
                              s.geom.voxel_size, runs[r].label.c_str(), et, em, rr.native_total, rr.native_multiple);
@@ -477,6 +478,7 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
         po.x_label = "height (km)";
         po.y_label = "S (W m^-2 sr^-1)";
         po.log_y = true;
+        po.y_min = 1e-11;  // S1 falls to ~1e-20 at the top: keep the multiple-scattering curves readable
         po.vlines = {{base / 1000.0, "cloud base"}};
         study::write_svg_plot(ctx.file("lb_vs_mc_profile.svg"), series, po);
     }
