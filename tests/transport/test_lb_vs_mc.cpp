@@ -1,0 +1,155 @@
+// Lattice-Boltzmann (exact single scattering + LB orders >= 2) against the Monte Carlo
+// reference on a small cloud lit by a point light below the grid (numeric). A pinned
+// regression of the comparison `fulgur-study lb-vs-mc` makes on the default storm
+// (docs/lattice-boltzmann.md, "LB against Monte Carlo"). Monte Carlo results depend only on
+// (seed, paths, batches), so the errors below are deterministic up to floating-point
+// differences between compilers; the bounds are the values measured when the test was
+// written plus a margin, so a loss of accuracy shows up here.
+#include "transport/transport.h"
+
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+using namespace fulgur;
+using namespace fulgur::transport;
+
+namespace {
+
+// A 14^3 grid of 100 m voxels with a smooth blob (density 1 - (r/R)^2, R = 5.5 voxels) in
+// its middle: axis-hop optical depth sigma_t h <= 0.4 (voxels thinner than a mean free
+// path), optical diameter ~2.9, so orders 2..4 dominate the multiple part.
+LightingMedium blob(double albedo) {
+    const int n = 14;
+    const double h = 100.0;
+    core::GridGeometry g;
+    g.dims = {n, n, n};
+    g.voxel_size = h;
+    g.origin = {-0.5 * n * h, -0.5 * n * h, 0.0};
+    LightingMedium m;
+    m.density = core::Grid3<float>(g, 0.0f);
+    m.optics = Medium{0.004, albedo, 0.6};
+    const double R = 5.5;
+    for (int k = 0; k < n; ++k)
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                const double x = i + 0.5 - 0.5 * n, y = j + 0.5 - 0.5 * n, z = k + 0.5 - 0.5 * n;
+                const double r2 = (x * x + y * y + z * z) / (R * R);
+                if (r2 < 1.0) m.density.at(i, j, k) = float(1.0 - r2);
+            }
+    return m;
+}
+
+struct Errors {
+    double total = 0.0, multiple = 0.0;              // relative L2 over cloud voxels, 26 directions
+    double floor_total = 0.0, floor_multiple = 0.0;  // Monte Carlo noise floor ||SE|| / ||ref||
+    double ratio_multiple = 0.0;                     // sum of LB multiple S / sum of MC multiple S
+};
+
+Errors compare(const LightingMedium& m, const SourceField& S1, const SourceField& lb, const MonteCarloResult& mc) {
+    const std::size_t n = S1.cells(), M = S1.directions.size();
+    double nt = 0, dt = 0, nm = 0, dm = 0, ft = 0, fm = 0, sum_lb = 0, sum_mc = 0;
+    for (std::size_t k = 0; k < M; ++k)
+        for (std::size_t c = 0; c < n; ++c) {
+            if (!(m.density.data[c] > 0.0f)) continue;  // cloud voxels: density > 0
+            const std::size_t i = k * n + c;
+            const double ref_m = mc.multiple.data[i], ref_t = ref_m + mc.single.data[i];
+            const double got_m = lb.data[i], got_t = got_m + S1.data[i];
+            nt += (got_t - ref_t) * (got_t - ref_t);
+            dt += ref_t * ref_t;
+            nm += (got_m - ref_m) * (got_m - ref_m);
+            dm += ref_m * ref_m;
+            const double s1 = mc.single_se.data[i], sm = mc.multiple_se.data[i];
+            ft += s1 * s1 + sm * sm;
+            fm += sm * sm;
+            sum_lb += got_m;
+            sum_mc += ref_m;
+        }
+    return {std::sqrt(nt / dt), std::sqrt(nm / dm), std::sqrt(ft / dt), std::sqrt(fm / dm), sum_lb / sum_mc};
+}
+
+double sum_of(const core::Grid3<float>& f) {
+    double s = 0.0;
+    for (float v : f.data) s += double(v);
+    return s;
+}
+
+}  // namespace
+
+TEST_CASE("LB vs Monte Carlo: small blob, point light below the grid") {
+    const LightingMedium m = blob(0.95);
+    const core::GridGeometry& g = m.density.geom;
+    const PointSource light{{37.0, -23.0, -200.0}, 1.0};  // outside the grid, 200 m below it
+    const auto dirs = output_directions(26);
+
+    // First-scattered source and the uncollided fluence phi1 (albedo 1, g 0, one direction:
+    // S = phi1 / (4 pi)).
+    const SourceField S1 = single_scattering(m, light, dirs);
+    LightingMedium probe = m;
+    probe.optics.albedo = 1.0;
+    probe.optics.g = 0.0;
+    const SourceField iso = single_scattering(probe, light, output_directions(1));
+    core::Grid3<float> phi1(g, 0.0f);
+    for (std::size_t c = 0; c < g.cell_count(); ++c) phi1.data[c] = float(4.0 * std::numbers::pi * double(iso.data[c]));
+
+    MonteCarloOptions mo;
+    mo.paths = 8'000'000;  // ~1 s on 2 cores; noise floor 0.8% (total), 2.1% (multiple)
+    mo.seed = 11;
+    const MonteCarloResult mc = monte_carlo(m, light, dirs, mo);
+
+    LbSources src;
+    src.first_scattered = &S1;
+    src.first_scattered_fluence = &phi1;
+    LbSettings ls;
+    ls.tolerance = 1e-6;
+    const LbResult phys = solve_lattice_boltzmann(m, src, dirs, ls);
+    ls.absorption = LbAbsorption::Conservative;
+    const LbResult cons = solve_lattice_boltzmann(m, src, dirs, ls);
+    REQUIRE(phys.converged);
+    REQUIRE(cons.converged);
+
+    const Errors e = compare(m, S1, phys.source, mc);
+    MESSAGE("physical: relative L2 total " << e.total << ", multiple " << e.multiple << " (LB/MC sum "
+                                           << e.ratio_multiple << "); MC noise floor total " << e.floor_total
+                                           << ", multiple " << e.floor_multiple << "; " << phys.iterations << " steps");
+    // The MC noise is well below what is being bounded (else the bounds would test noise).
+    CHECK(e.floor_total < 0.015);
+    CHECK(e.floor_multiple < 0.03);
+    // Measured 0.064 (dominated by the multiple part: S1 itself matches MC's order 1 to the
+    // noise). Bound 0.08: a 25% margin, ~2 noise floors; a real loss of accuracy of the
+    // lattice part by more than ~1/10 of its error fails here.
+    CHECK(e.total < 0.08);
+    // Measured 0.238 with the LB/MC sum at 0.95: in this thin blob the error is a shape
+    // error, LB too low in the lower half and too high at the top (1.4-1.8x in the two top
+    // layers); halving the voxel size (28^3, measured once) left it at 0.249, so it is not
+    // the lattice's spatial resolution but its 18 directions (docs/lattice-boltzmann.md).
+    // Bound 0.28: measured + 2 noise floors of the multiple part.
+    CHECK(e.multiple < 0.28);
+
+    // The power the lattice emits (sigma_s phi1 h^3 summed) is the power Monte Carlo scatters
+    // at least once: measured 0.6949 vs 0.6932 +- 0.0010 W (0.24%). Bound 0.5%: 3-4 MC
+    // standard errors plus the 1e-3 quadrature tolerance of single_scattering.
+    double mc_scattered = mc.energy.truncated.mean;
+    for (int k = 1; k < EnergyTally::kOrders; ++k)
+        mc_scattered += mc.energy.absorbed_by_order[std::size_t(k)].mean + mc.energy.escaped_by_order[std::size_t(k)].mean;
+    CHECK(phys.injected_per_step == doctest::Approx(mc_scattered).epsilon(5e-3));
+
+    // Albedo < 1: the conservative model re-emits what it absorbs, so it holds more light
+    // than the physical one (measured: total fluence +4.5%; the physical model absorbs
+    // 4.8% of the injected power, the conservative one nothing: all of it escapes).
+    const double Ep = sum_of(phys.fluence), Ec = sum_of(cons.fluence);
+    MESSAGE("fluence sums: physical " << Ep << ", conservative " << Ec << "; escaped/injected physical "
+                                      << phys.escaped_last_step / phys.injected_per_step << ", conservative "
+                                      << cons.escaped_last_step / cons.injected_per_step);
+    CHECK(Ec > 1.02 * Ep);  // half the measured excess: the sign is the point, not the size
+    CHECK(cons.escaped_last_step / cons.injected_per_step == doctest::Approx(1.0).epsilon(1e-3));  // tol 1e-6 steady state
+    CHECK(phys.escaped_last_step / phys.injected_per_step < 0.97);
+    double conservative_multiple = 0.0, physical_multiple = 0.0;
+    for (std::size_t i = 0; i < phys.source.data.size(); ++i) {
+        physical_multiple += phys.source.data[i];
+        conservative_multiple += cons.source.data[i];
+    }
+    CHECK(conservative_multiple > physical_multiple);
+}
