@@ -264,7 +264,17 @@ bool Reconstructor::reconstruct(const lightning::LightWeights& w, std::span<cons
         }
     }
 
-    const int threads = int(std::min<std::size_t>(std::size_t(std::max(1, core::thread_count())), n));
+    // Work estimate: coefficients to add plus samples to transform.
+    std::size_t work = n * cells;
+    if (options.parallel_min_work > 0 && core::thread_count() > 1)
+        for (std::size_t i = 0; i < n && work < options.parallel_min_work; ++i)
+            for (const std::uint32_t l : im.lights)
+                for (int c = 0; c < sel.count; ++c) {
+                    const std::size_t r = b.run(l, meta.basis_index(sel.component[c], std::size_t(im.dirs[i])));
+                    work += std::size_t(b.offset[r + 1] - b.offset[r]);
+                }
+    const bool parallel = core::thread_count() > 1 && work >= options.parallel_min_work;
+    const int threads = parallel ? int(std::min<std::size_t>(std::size_t(core::thread_count()), n)) : 1;
     im.ensure_plans(threads);
     im.for_directions(threads, n, [&](int, std::size_t i) {
         im.accumulate_direction(std::size_t(im.dirs[i]), sel, out.values[i].data());

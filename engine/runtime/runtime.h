@@ -101,12 +101,18 @@ struct RadianceField {
 struct ReconstructOptions {
     Components components;
     Ambient ambient = Ambient::None;
+    /// Directions run on several threads only when the frame's work (coefficients to add +
+    /// cells x directions to transform) reaches this: below it a fork/join costs more than it
+    /// saves, and on a loaded machine a parallel region can cost a scheduler slice (ms).
+    /// 0: always use core::thread_count() threads. docs/runtime.md has the measurement.
+    std::size_t parallel_min_work = std::size_t(1) << 21;
 };
 
 /// Eq. 8-10: sparse accumulation + inverse Haar. Owns its scratch (one Haar plan per
 /// worker thread); not thread-safe itself: one Reconstructor per calling thread.
-/// Directions are spread over core::thread_count() threads (each direction is an
-/// independent accumulation + transform; the result does not depend on the thread count).
+/// Directions are spread over core::thread_count() threads when the frame is big enough
+/// (ReconstructOptions::parallel_min_work); each direction is an independent accumulation +
+/// transform, so the result does not depend on the thread count.
 /// Arithmetic is float32 (H and the inverse transform); docs/runtime.md gives the error
 /// against a double reference.
 class Reconstructor {
