@@ -54,7 +54,7 @@ struct StageTimes {
 /// The baked bases in a layout for fast accumulation (loaded from a .fgb; validated).
 /// Layout (docs/runtime.md): one pool of coefficients, per (light, basis) a contiguous run
 /// [offset, next offset) of indices (uint16 when the lighting grid has <= 65536 cells, else
-/// uint32) and float32 values (float16 files are expanded at load), sorted by index.
+/// uint32) and float32 values (float16 files are expanded at load), in the file's order.
 class BakedBases {
 public:
     /// Loads and validates `fgb` (basis::load_fgb: every CRC, index and value). If

@@ -50,7 +50,7 @@ double rel_l2(std::span<const float> x, std::span<const float> ref) {
 
 }  // namespace
 
-TEST_CASE("bases: the accumulation layout holds every coefficient of the file, sorted by index") {
+TEST_CASE("bases: the accumulation layout holds every coefficient of the file") {
     for (const std::uint32_t comps : {1u, 2u}) {
         const basis::FgbMetadata m = test::small_metadata(basis::Precision::Float16, {5, 4, 3}, 3, comps);
         const auto path = write_bake("layout" + std::to_string(comps), m);
@@ -70,13 +70,10 @@ TEST_CASE("bases: the accumulation layout holds every coefficient of the file, s
                 const std::size_t r = im.run(l, k);
                 REQUIRE(im.offset[r + 1] - im.offset[r] == cb.size());
                 CHECK(im.gamma[r] == cb.gamma);
-                double sum_file = 0, sum_pool = 0;  // same multiset of (index, value)
-                for (std::size_t q = 0; q < cb.size(); ++q) sum_file += double(cb.index[q]) * double(cb.value[q]);
-                for (std::uint64_t q = im.offset[r]; q < im.offset[r + 1]; ++q) {
-                    sum_pool += double(im.index16[q]) * double(im.value[q]);
-                    if (q > im.offset[r]) CHECK(im.index16[q - 1] < im.index16[q]);
-                }
-                CHECK(sum_pool == doctest::Approx(sum_file).epsilon(1e-12));  // same terms, another order
+                bool same = true;  // the file's coefficients, in the file's order
+                for (std::size_t q = 0; q < cb.size(); ++q)
+                    same &= im.index16[im.offset[r] + q] == cb.index[q] && im.value[im.offset[r] + q] == cb.value[q];
+                CHECK(same);
             }
         CHECK(im.offset[im.run(5, 0)] == im.offset[im.run(5, m.bases() - 1) + 1]);  // the dropped light is empty
     }
