@@ -25,6 +25,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -51,17 +52,28 @@ struct StageTimes {
 };
 
 /// The baked bases in a layout for fast accumulation (loaded from a .fgb; validated).
+/// Layout (docs/runtime.md): one pool of coefficients, per (light, basis) a contiguous run
+/// [offset, next offset) of indices (uint16 when the lighting grid has <= 65536 cells, else
+/// uint32) and float32 values (float16 files are expanded at load), in the file's order.
 class BakedBases {
 public:
-    /// Loads and validates `fgb`. If `expected_hash` is given and differs from the file's,
-    /// throws core::Error explaining what changed (stale bake).
+    /// Loads and validates `fgb` (basis::load_fgb: every CRC, index and value). If
+    /// `expected_hash` is given and differs from the file's, throws core::Error "stale bake"
+    /// naming both hashes (checked from the header, before the blocks are read).
     static BakedBases load(const std::filesystem::path& fgb, std::optional<std::uint64_t> expected_hash = {});
+    /// Same, with the scene's full key: the message also names the first parameter that changed.
+    static BakedBases load(const std::filesystem::path& fgb, const basis::BakeKey& expected);
 
     const core::GridGeometry& lighting() const noexcept;
     const std::vector<glm::dvec3>& directions() const noexcept;
     const basis::VirtualLightGrid& lights() const noexcept;
+    const basis::FgbMetadata& metadata() const noexcept;
     bool has_multiple() const noexcept;   ///< the multiple-scattering component was baked
+    /// Single and multiple scattering are stored as separate bases (FgbMetadata::components
+    /// == 2), so a reconstruction can show either alone.
+    bool separate() const noexcept;
     std::size_t coefficient_count() const noexcept;  ///< all kept coefficients, all components
+    std::size_t memory_bytes() const noexcept;       ///< bytes of the coefficient pool and offsets
 
     BakedBases(BakedBases&&) noexcept;
     BakedBases& operator=(BakedBases&&) noexcept;
@@ -81,20 +93,42 @@ struct RadianceField {
     int direction_count = 1;            ///< size of the baked direction set
     std::vector<int> directions;        ///< indices of the reconstructed directions
     std::vector<std::vector<float>> values;
+    /// What the values hold. Usually the request; it differs when the bake cannot separate
+    /// the request (see Reconstructor::reconstruct).
+    Components components;
 };
 
 struct ReconstructOptions {
     Components components;
     Ambient ambient = Ambient::None;
+    /// Directions run on several threads only when the frame's work (coefficients to add +
+    /// cells x directions to transform) reaches this: below it a fork/join costs more than it
+    /// saves, and on a loaded machine a parallel region can cost a scheduler slice (ms).
+    /// 0: always use core::thread_count() threads. docs/runtime.md has the measurement.
+    std::size_t parallel_min_work = std::size_t(1) << 21;
 };
 
-/// Eq. 8-10: sparse accumulation + inverse Haar. Owns its scratch; one per thread of use.
+/// Eq. 8-10: sparse accumulation + inverse Haar. Owns its scratch (one Haar plan per
+/// worker thread); not thread-safe itself: one Reconstructor per calling thread.
+/// Directions are spread over core::thread_count() threads when the frame is big enough
+/// (ReconstructOptions::parallel_min_work); each direction is an independent accumulation +
+/// transform, so the result does not depend on the thread count.
+/// Arithmetic is float32 (H and the inverse transform); docs/runtime.md gives the error
+/// against a double reference.
 class Reconstructor {
 public:
     explicit Reconstructor(const BakedBases& bases);
     ~Reconstructor();
-    /// Reconstructs the requested directions for light weights `w` (over bases.lights()).
-    /// Returns false and leaves `out` untouched when no light is active.
+    /// Reconstructs the requested directions (all when `directions` is empty; an index
+    /// outside the bake's set throws core::Error) for light weights `w` (over
+    /// bases.lights()). Returns false and leaves `out` untouched when no light is active
+    /// (times.accumulate and times.inverse_haar are set to 0). Else writes `out` (its
+    /// buffers are reused from call to call) and the two stage times.
+    /// Components: with separate bases each requested part is summed. A bake that stores
+    /// one basis per direction (components == 1) holds its `content`: a request including
+    /// a part it holds gets that basis (with single + multiple combined, asking for only
+    /// one of them gets both: they cannot be separated); a request for only a part that
+    /// was not baked gets zeros. out.components says what the values hold.
     bool reconstruct(const lightning::LightWeights& w, std::span<const int> directions,
                      const ReconstructOptions& options, RadianceField& out, StageTimes& times);
 
@@ -106,7 +140,9 @@ private:
 /// One frame's lightning state and radiance.
 struct Frame {
     double time = 0.0;
-    bool lit = false;                                ///< a flash is active: radiance is valid
+    /// Some virtual light is active (a flash glows at t with non-zero intensity): radiance
+    /// is valid. When false, radiance holds stale buffers and must not be shown.
+    bool lit = false;
     std::vector<lightning::LitSegment> segments;     ///< for the renderer's bolt and glow
     std::vector<lightning::PointSource> sources;
     lightning::LightWeights weights;
@@ -117,11 +153,17 @@ struct Frame {
 /// Drives a storm over a baked scene: schedule -> bolt -> sources -> splat -> reconstruct.
 class FramePipeline {
 public:
-    FramePipeline(const scene::Scene& scene, const core::Grid3<float>& density, const BakedBases& bases);
+    /// Keeps references to `density` (bolt start points) and `bases`; both must outlive it.
+    /// `domain`: the bolts' box (lightning::BoltGenerator; default: the density's box down
+    /// to the ground).
+    FramePipeline(const scene::Scene& scene, const core::Grid3<float>& density, const BakedBases& bases,
+                  std::optional<lightning::Box> domain = {});
     ~FramePipeline();
     /// Schedules a strike at time t (demo "strike now"); returns its index.
     std::size_t strike_at(double t, std::optional<std::uint64_t> seed = {});
-    /// Builds the frame at time t for the requested directions (all when empty).
+    /// Builds the frame at time t for the requested directions (all when empty). A dark
+    /// frame (no strike glows at t) costs the strike lookup only: no sources, no splat, no
+    /// reconstruction. The returned frame is valid until the next build().
     const Frame& build(double t, std::span<const int> directions, const ReconstructOptions& options = {});
     lightning::Storm& storm() noexcept;
 
@@ -133,7 +175,9 @@ private:
 /// The reference the basis method is measured against (paper Table 2, "previous method"):
 /// the frame's point sources fed straight to exact single scattering plus the scene's
 /// multiple-scattering solver, no virtual lights, no compression. Same units and layout
-/// as the reconstruction (all directions).
+/// as the reconstruction (all directions). Runs bake::solve with the bake's settings (same
+/// single-scattering tolerance, same lattice-Boltzmann settings, no light drop); a part the
+/// scene does not simulate (effects.*_scattering false) is not added, as in the bake.
 transport::SourceField direct_solve(const scene::Scene& scene, const transport::LightingMedium& medium,
                                     std::span<const lightning::PointSource> sources, const Components& components = {});
 

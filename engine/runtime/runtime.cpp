@@ -1,0 +1,376 @@
+// The run time (runtime.h, docs/runtime.md): baked bases in an accumulation layout, the
+// sparse sum + inverse Haar of Dobashi et al. 2007 (Eqs. 8-10), the per-frame pipeline and
+// the direct solve it is measured against.
+#include "runtime/internal.h"
+
+#include "bake/bake.h"
+
+#include <algorithm>
+#include <cinttypes>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <utility>
+
+namespace fulgur::runtime {
+
+// =======================================================================================
+// BakedBases
+
+namespace {
+
+std::string hex(std::uint64_t v) {
+    char b[24];
+    std::snprintf(b, sizeof b, "%016" PRIx64, v);
+    return b;
+}
+
+// The file in the accumulation layout, streamed light by light (each block validated by
+// FgbReader::read_light, as basis::load_fgb does), so the peak memory is the pool plus one
+// light. Runs keep the file's order (decreasing magnitude): sorting them by index was
+// measured to change the accumulation time by < 5% on the default storm (H in L1) while
+// doubling the load time.
+std::unique_ptr<BakedBases::Impl> build_layout(basis::FgbReader& reader) {
+    if (reader.partial())
+        throw core::Error(reader.name(), "holds only lights [" + std::to_string(reader.light_begin()) + ", " +
+                                             std::to_string(reader.light_end()) + ") of " +
+                                             std::to_string(reader.metadata().light_count()) +
+                                             " (a partial bake); merge the parts first");
+    auto impl = std::make_unique<BakedBases::Impl>();
+    BakedBases::Impl& b = *impl;
+    b.meta = reader.metadata();
+    b.bases_per_light = b.meta.bases();
+    const std::size_t lights = b.meta.light_count(), runs = lights * b.bases_per_light;
+    b.narrow = b.meta.cells() <= 65536;
+    b.offset.assign(runs + 1, 0);
+    b.gamma.assign(runs, 0.0);
+    // Every stored coefficient takes at least its index and value bytes in the file: an
+    // upper bound on the count, reserved once (untouched reserve costs no resident memory).
+    const std::size_t per = std::size_t(b.meta.index_bytes()) +
+                            (b.meta.compression.precision == basis::Precision::Float16 ? 2u : 4u);
+    const std::size_t bound = std::size_t(reader.file_size() / per);
+    if (b.narrow)
+        b.index16.reserve(bound);
+    else
+        b.index32.reserve(bound);
+    b.value.reserve(bound);
+    for (std::uint32_t l = 0; l < lights; ++l) {
+        const basis::CompressedLight cl = reader.read_light(l);
+        FULGUR_ASSERT(cl.directions.size() == b.bases_per_light, "FgbReader returned a light without all its bases");
+        for (std::size_t k = 0; k < b.bases_per_light; ++k) {
+            const std::size_t r = b.run(l, k);
+            const basis::CompressedBasis& cb = cl.directions[k];
+            b.offset[r] = b.value.size();
+            b.gamma[r] = cb.gamma;
+            // read_light has checked every index against the cell count.
+            if (b.narrow)
+                for (const std::uint32_t i : cb.index) b.index16.push_back(std::uint16_t(i));
+            else
+                b.index32.insert(b.index32.end(), cb.index.begin(), cb.index.end());
+            b.value.insert(b.value.end(), cb.value.begin(), cb.value.end());
+        }
+    }
+    b.offset[runs] = b.value.size();
+    return impl;
+}
+
+}  // namespace
+
+BakedBases::BakedBases(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+BakedBases::BakedBases(BakedBases&&) noexcept = default;
+BakedBases& BakedBases::operator=(BakedBases&&) noexcept = default;
+BakedBases::~BakedBases() = default;
+
+BakedBases BakedBases::load(const std::filesystem::path& fgb, std::optional<std::uint64_t> expected_hash) {
+    basis::FgbReader reader(fgb);
+    if (expected_hash && reader.metadata().key.hash != *expected_hash)
+        throw core::Error(fgb.string(),
+                          "stale bake: the file was baked from a scene whose key hash is " +
+                              hex(reader.metadata().key.hash) + ", but the scene now hashes to " + hex(*expected_hash) +
+                              " (a bake-relevant parameter or the cloud changed); rebake it with fulgur-bake");
+    return BakedBases(build_layout(reader));
+}
+
+BakedBases BakedBases::load(const std::filesystem::path& fgb, const basis::BakeKey& expected) {
+    basis::FgbReader reader(fgb);
+    reader.check_key(expected);
+    return BakedBases(build_layout(reader));
+}
+
+const core::GridGeometry& BakedBases::lighting() const noexcept { return impl_->meta.lighting; }
+const std::vector<glm::dvec3>& BakedBases::directions() const noexcept { return impl_->meta.directions; }
+const basis::VirtualLightGrid& BakedBases::lights() const noexcept { return impl_->meta.lights; }
+const basis::FgbMetadata& BakedBases::metadata() const noexcept { return impl_->meta; }
+bool BakedBases::has_multiple() const noexcept {
+    return (impl_->meta.content & basis::FgbMetadata::kContentMultiple) != 0;
+}
+bool BakedBases::separate() const noexcept { return impl_->meta.components == 2; }
+std::size_t BakedBases::coefficient_count() const noexcept { return std::size_t(impl_->offset.back()); }
+std::size_t BakedBases::memory_bytes() const noexcept {
+    const Impl& b = *impl_;
+    return b.offset.size() * sizeof(std::uint64_t) + b.index16.size() * sizeof(std::uint16_t) +
+           b.index32.size() * sizeof(std::uint32_t) + b.value.size() * sizeof(float) + b.gamma.size() * sizeof(double);
+}
+
+// =======================================================================================
+// Reconstructor
+
+namespace {
+
+// Which stored components a request sums, and what the sum holds (runtime.h).
+struct Selection {
+    std::size_t component[2] = {0, 0};
+    int count = 0;
+    Components holds{false, false};
+};
+
+Selection select(const basis::FgbMetadata& m, const Components& want) {
+    Selection s;
+    if (m.components == 2) {  // content is single | multiple (validated by the loader)
+        if (want.single) s.component[s.count++] = 0;
+        if (want.multiple) s.component[s.count++] = 1;
+        s.holds = {want.single, want.multiple};
+        return s;
+    }
+    const bool has_single = (m.content & basis::FgbMetadata::kContentSingle) != 0;
+    const bool has_multiple = (m.content & basis::FgbMetadata::kContentMultiple) != 0;
+    if ((want.single && has_single) || (want.multiple && has_multiple)) {
+        s.component[s.count++] = 0;
+        s.holds = {has_single, has_multiple};
+    }
+    return s;
+}
+
+// H += w * B over one run: the inner loop of Eq. 9 (scattered adds; H is L1/L2-resident).
+template <class I>
+inline void add_run(const I* __restrict idx, const float* __restrict val, std::size_t n, float w,
+                    float* __restrict h) noexcept {
+    for (std::size_t k = 0; k < n; ++k) h[idx[k]] += w * val[k];
+}
+
+}  // namespace
+
+struct Reconstructor::Impl {
+    const BakedBases::Impl& bases;
+    std::vector<std::unique_ptr<basis::HaarTransform<float>>> haar;  ///< one per worker thread
+    std::vector<int> dirs;
+    std::vector<std::uint32_t> lights;  ///< active lights with a float weight != 0
+    std::vector<float> weight;
+    std::vector<double> ambient;        ///< per requested direction
+
+    explicit Impl(const BakedBases::Impl& b) : bases(b) {}
+
+    void ensure_plans(int n) {
+        while (int(haar.size()) < n)
+            haar.push_back(std::make_unique<basis::HaarTransform<float>>(bases.meta.lighting.dims,
+                                                                          bases.meta.compression.decomposition));
+    }
+
+    // fn(thread, i) for i in [0, n), contiguous blocks of directions per thread.
+    template <class F>
+    void for_directions(int threads, std::size_t n, F&& fn) {
+        if (threads <= 1) {
+            for (std::size_t i = 0; i < n; ++i) fn(0, i);
+            return;
+        }
+        core::parallel_for(0, threads, [&](std::int64_t t) {
+            const std::size_t a = n * std::size_t(t) / std::size_t(threads), b = n * std::size_t(t + 1) / std::size_t(threads);
+            for (std::size_t i = a; i < b; ++i) fn(int(t), i);
+        });
+    }
+
+    void accumulate_direction(std::size_t m, const Selection& sel, float* h) const {
+        const BakedBases::Impl& b = bases;
+        std::fill(h, h + b.meta.cells(), 0.0f);
+        const std::uint64_t* off = b.offset.data();
+        const float* val = b.value.data();
+        for (std::size_t a = 0; a < lights.size(); ++a) {
+            const std::size_t l = lights[a];
+            const float w = weight[a];
+            for (int c = 0; c < sel.count; ++c) {
+                const std::size_t r = b.run(l, b.meta.basis_index(sel.component[c], m));
+                const std::uint64_t o = off[r], n = off[r + 1] - o;
+                if (b.narrow)
+                    add_run(b.index16.data() + o, val + o, n, w, h);
+                else
+                    add_run(b.index32.data() + o, val + o, n, w, h);
+            }
+        }
+    }
+};
+
+Reconstructor::Reconstructor(const BakedBases& bases) : impl_(std::make_unique<Impl>(bases.impl())) {
+    impl_->ensure_plans(1);
+}
+Reconstructor::~Reconstructor() = default;
+
+bool Reconstructor::reconstruct(const lightning::LightWeights& w, std::span<const int> directions,
+                                const ReconstructOptions& options, RadianceField& out, StageTimes& times) {
+    times.accumulate = times.inverse_haar = 0.0;
+    if (w.active.empty()) return false;
+    Impl& im = *impl_;
+    const BakedBases::Impl& b = im.bases;
+    const basis::FgbMetadata& meta = b.meta;
+    const std::size_t nd = meta.directions.size(), cells = meta.cells();
+    FULGUR_ASSERT(w.e.size() == meta.light_count(), "LightWeights are not over this bake's virtual-light grid");
+
+    core::Stopwatch sw;
+    im.dirs.clear();
+    if (directions.empty()) {
+        for (std::size_t m = 0; m < nd; ++m) im.dirs.push_back(int(m));
+    } else {
+        for (const int m : directions) {
+            if (m < 0 || std::size_t(m) >= nd)
+                throw core::Error("runtime::reconstruct", "direction " + std::to_string(m) + " does not exist (the bake has " +
+                                                              std::to_string(nd) + " directions)");
+            im.dirs.push_back(m);
+        }
+    }
+    const Selection sel = select(meta, options.components);
+    // Float weights; a weight that underflows float contributes nothing and is skipped.
+    im.lights.clear();
+    im.weight.clear();
+    for (const std::uint32_t l : w.active) {
+        const float f = float(w.e[l]);
+        if (f == 0.0f) continue;
+        im.lights.push_back(l);
+        im.weight.push_back(f);
+    }
+
+    const std::size_t n = im.dirs.size();
+    out.geometry = meta.lighting;
+    out.direction_count = int(nd);
+    out.directions = im.dirs;
+    out.components = sel.holds;
+    out.values.resize(n);
+    for (std::vector<float>& v : out.values) v.resize(cells);
+
+    // Ambient (Eq. 10), per direction, in double: sum_l e_l gamma_l (Paper) or the per-cell
+    // RMS of the dropped detail, sum_l e_l gamma_l / sqrt(N) (Rms).
+    im.ambient.assign(n, 0.0);
+    if (options.ambient != Ambient::None) {
+        const double scale = options.ambient == Ambient::Rms ? 1.0 / std::sqrt(double(cells)) : 1.0;
+        for (std::size_t i = 0; i < n; ++i) {
+            double a = 0.0;
+            for (const std::uint32_t l : w.active)
+                for (int c = 0; c < sel.count; ++c)
+                    a += w.e[l] * b.gamma[b.run(l, meta.basis_index(sel.component[c], std::size_t(im.dirs[i])))];
+            im.ambient[i] = a * scale;
+        }
+    }
+
+    // Work estimate: coefficients to add plus samples to transform.
+    std::size_t work = n * cells;
+    if (options.parallel_min_work > 0 && core::thread_count() > 1)
+        for (std::size_t i = 0; i < n && work < options.parallel_min_work; ++i)
+            for (const std::uint32_t l : im.lights)
+                for (int c = 0; c < sel.count; ++c) {
+                    const std::size_t r = b.run(l, meta.basis_index(sel.component[c], std::size_t(im.dirs[i])));
+                    work += std::size_t(b.offset[r + 1] - b.offset[r]);
+                }
+    const bool parallel = core::thread_count() > 1 && work >= options.parallel_min_work;
+    const int threads = parallel ? int(std::min<std::size_t>(std::size_t(core::thread_count()), n)) : 1;
+    im.ensure_plans(threads);
+    im.for_directions(threads, n, [&](int, std::size_t i) {
+        im.accumulate_direction(std::size_t(im.dirs[i]), sel, out.values[i].data());
+    });
+    times.accumulate = sw.milliseconds();
+
+    sw.reset();
+    im.for_directions(threads, n, [&](int t, std::size_t i) {
+        std::vector<float>& v = out.values[i];
+        im.haar[std::size_t(t)]->inverse(v);
+        if (im.ambient[i] != 0.0) {
+            const float a = float(im.ambient[i]);
+            for (float& x : v) x += a;
+        }
+    });
+    times.inverse_haar = sw.milliseconds();
+    return true;
+}
+
+// =======================================================================================
+// FramePipeline
+
+struct FramePipeline::Impl {
+    lightning::Storm storm;
+    lightning::Splatter splatter;
+    Reconstructor reconstructor;
+    Frame frame;
+
+    Impl(const scene::Scene& s, const core::Grid3<float>& density, const BakedBases& bases,
+         std::optional<lightning::Box> domain)
+        : storm(s.lightning, density, domain), splatter(bases.lights()), reconstructor(bases) {}
+};
+
+FramePipeline::FramePipeline(const scene::Scene& scene, const core::Grid3<float>& density, const BakedBases& bases,
+                             std::optional<lightning::Box> domain)
+    : impl_(std::make_unique<Impl>(scene, density, bases, domain)) {}
+FramePipeline::~FramePipeline() = default;
+
+std::size_t FramePipeline::strike_at(double t, std::optional<std::uint64_t> seed) {
+    return impl_->storm.strike_at(t, seed);
+}
+
+lightning::Storm& FramePipeline::storm() noexcept { return impl_->storm; }
+
+const Frame& FramePipeline::build(double t, std::span<const int> directions, const ReconstructOptions& options) {
+    Impl& im = *impl_;
+    Frame& f = im.frame;
+    f.time = t;
+    f.lit = false;
+    f.times = {};
+    core::Stopwatch sw;
+    const bool glowing = im.storm.lit(t, f.segments);  // schedule (new bolts), active strikes, lit stretches
+    f.times.bolt = sw.milliseconds();
+    if (!glowing) {
+        f.sources.clear();
+        if (!f.weights.active.empty()) im.splatter.reset(f.weights);  // sparse: last frame's lights only
+        return f;
+    }
+    // Storm::point_sources(t, spacing) is lit(t) + append_point_sources: the stretches are
+    // already here, so only the second half runs (same sources, bit for bit).
+    sw.reset();
+    f.sources.clear();
+    lightning::append_point_sources(f.segments, im.splatter.source_spacing(), f.sources);
+    f.times.sources = sw.milliseconds();
+    sw.reset();
+    im.splatter.splat(f.sources, f.weights);
+    f.times.splat = sw.milliseconds();
+    f.lit = im.reconstructor.reconstruct(f.weights, directions, options, f.radiance, f.times);
+    return f;
+}
+
+// =======================================================================================
+// Direct solve
+
+transport::SourceField direct_solve(const scene::Scene& scene, const transport::LightingMedium& medium,
+                                    std::span<const lightning::PointSource> sources, const Components& components) {
+    const std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
+    transport::SourceField out(medium.density.geom, dirs);
+    bake::SolveRequest rq;
+    rq.single = components.single && scene.effects.single_scattering;
+    rq.multiple = components.multiple && scene.effects.multiple_scattering;
+    rq.skip_below = 0.0;  // the reference never drops light
+    if (!rq.single && !rq.multiple) return out;
+    std::vector<transport::PointSource> pts;
+    pts.reserve(sources.size());
+    for (const lightning::PointSource& q : sources) {
+        // As the splat: non-finite sources are skipped; zero ones add nothing.
+        if (!std::isfinite(q.position.x) || !std::isfinite(q.position.y) || !std::isfinite(q.position.z) ||
+            !std::isfinite(q.intensity) || q.intensity == 0.0)
+            continue;
+        pts.push_back({q.position, q.intensity});
+    }
+    if (pts.empty()) return out;
+    const bake::Solution s = bake::solve(scene, medium, pts, dirs, rq);
+    auto add = [&](const transport::SourceField& f) {
+        if (f.data.empty()) return;
+        for (std::size_t i = 0; i < out.data.size(); ++i) out.data[i] += f.data[i];
+    };
+    if (rq.single) add(s.single);
+    if (rq.multiple) add(s.multiple);
+    return out;
+}
+
+}  // namespace fulgur::runtime
