@@ -13,8 +13,10 @@ std::string shot_usage() {
            "per-stage timings as one JSON line.\n"
            "  --fgb FILE   baked bases to use (default: the scene's .fgb, baked first if missing or stale)\n"
            "  --seed S     strike seed (unsigned integer); a strike starts at t = 0\n"
-           "  --time T     seconds after the strike start (>= 0)\n"
+           "  --time T     seconds after the strike start (>= 0); +T: T seconds after the first return\n"
+           "               stroke's onset (the stepped leader's duration depends on the bolt)\n"
            "  --size WxH   image size in pixels (1..8192 each)\n"
+           "  --exposure EV  exposure change in stops from the default (0; -20..20)\n"
            "  -o OUT.png   output PNG\n"
            "  --help       this text\n";
 }
@@ -44,9 +46,18 @@ ShotArgs parse_shot_args(const std::vector<std::string>& args) {
             a.seed = parse_number<std::uint64_t>(value(i), "--seed");
             have_seed = true;
         } else if (s == "--time") {
-            a.time = parse_number<double>(value(i), "--time");
+            std::string v = value(i);
+            if (!v.empty() && v[0] == '+') {
+                a.time_after_return_stroke = true;
+                v.erase(0, 1);
+            }
+            a.time = parse_number<double>(v, "--time");
             if (!std::isfinite(a.time) || a.time < 0.0) throw core::Error("fulgur-shot", "--time must be finite and >= 0");
             have_time = true;
+        } else if (s == "--exposure") {
+            a.exposure_ev = parse_number<double>(value(i), "--exposure");
+            if (!(a.exposure_ev >= -20.0 && a.exposure_ev <= 20.0))
+                throw core::Error("fulgur-shot", "--exposure must be in -20..20 stops");
         } else if (s == "--size") {
             const std::string& v = value(i);
             auto x = v.find('x');

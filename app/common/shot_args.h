@@ -14,7 +14,9 @@ struct ShotArgs {
     std::optional<std::filesystem::path> fgb;  ///< default: the scene's up-to-date .fgb (baked if needed)
     std::uint64_t seed = 1;
     double time = 0.6;
+    bool time_after_return_stroke = false;  ///< --time +T: T seconds after the first return stroke's onset
     int width = 640, height = 360;
+    double exposure_ev = 0.0;  ///< --exposure EV: exposure = 2^EV (render::Settings::exposure)
     std::filesystem::path output;
     bool help = false;
 };

@@ -31,7 +31,7 @@ render::Camera default_camera(const core::Grid3<float>& density, double azimuth_
     const core::GridGeometry& g = density.geom;
     const glm::dvec3 ext = g.extent();
     glm::dvec3 target = g.origin + 0.5 * ext;
-    target.z = g.origin.z + 0.4 * ext.z;
+    target.z = g.origin.z + 0.33 * ext.z;
     const double distance = distance_factor * std::max({ext.x, ext.y, ext.z});
     return render::Camera::orbit(target, distance, azimuth_deg, elevation_deg);
 }

@@ -22,9 +22,12 @@ std::filesystem::path ensure_baked(const scene::Scene& s, const core::Grid3<floa
 
 /// A camera framing the scene's cloud from the side, slightly below its centre.
 render::Camera default_camera(const core::Grid3<float>& density, double azimuth_deg = -90.0,
-                              double elevation_deg = 8.0, double distance_factor = 1.45);
+                              double elevation_deg = 6.0, double distance_factor = 1.1);
 
 struct ViewOptions {
+    /// Exposure 2^-3: the default storm's return-stroke peak (1e5 W/sr/m) then fills the
+    /// tone map's shoulder without clipping the cloud (calibrated by eye on fulgur-shot frames).
+    ViewOptions() { settings.exposure = 0.125; }
     runtime::Components components;
     render::Settings settings;  ///< bolt/glow/ground/exposure/internal scale
 };

@@ -3,6 +3,7 @@
 #ifdef FULGUR_HAVE_RUNTIME
 #include "common/storm_view.h"
 #endif
+#include "common/args.h"
 #include "core/core.h"
 #include "render/render.h"
 #include "render/synthetic.h"
@@ -19,6 +20,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <optional>
+#include <vector>
 #include <string>
 
 using namespace fulgur;
@@ -26,14 +29,18 @@ using namespace fulgur;
 namespace {
 
 const char* kUsage =
-    "usage: fulgur [SCENE.json] [--headless] [--frames N] [--size WxH] [--synthetic] [--screenshot-after N] [--no-dither]\n"
+    "usage: fulgur [SCENE.json] [--headless] [--frames N] [--size WxH] [--synthetic] [--screenshot-after N]\n"
+    "              [--screenshot-at-peak] [--seed S] [--time-scale X] [--no-dither]\n"
     "Interactive storm demo (default scene: content/scenes/storm.json). Bakes the scene first\n"
     "when no up-to-date .fgb exists. Without a display (or with --headless) it renders N\n"
     "(default 8) frames headless to out/fulgur_NNN.png.\n"
     "--synthetic shows the renderer's synthetic storm (no bake, no run time: a procedural cloud\n"
     "lit by a precomputed bolt). --screenshot-after N writes out/screenshot_000.png after N\n"
     "frames and quits (for documentation images); --no-dither turns the 8-bit dither off\n"
-    "(smaller PNGs).\n"
+    "(smaller PNGs). --seed S: the first strike's seed (default: the scene's). --time-scale X:\n"
+    "storm time per wall-clock second (default 0.25: a flash decays in ~12 ms, slowed down so a\n"
+    "software-rendered frame rate shows it). --screenshot-at-peak: hold the first strike 2 ms after\n"
+    "its return stroke, write out/screenshot_000.png after a few frames and quit.\n"
     "Mouse: left drag orbits, wheel zooms. Keys: Space strike now, P screenshot, Esc quit.\n";
 
 // Writes frame i of a headless sequence to out/fulgur_NNN.png; returns the name.
@@ -73,19 +80,34 @@ SliceGL load_slice_gl() {
     return g;
 }
 
+// Times of a headless sequence: the stepped leader half-way, then each stroke 1 ms and 6 ms
+// after its onset (peak and decay), then evenly over the rest of the flash.
+std::vector<double> flash_times(const lightning::FlashProfile& f, double start, int frames) {
+    std::vector<double> t = {start + 0.5 * f.leader_duration};
+    for (double onset : f.stroke_onset) {
+        t.push_back(start + onset + 0.001);
+        t.push_back(start + onset + 0.006);
+    }
+    for (int i = 0; int(t.size()) < frames; ++i) t.push_back(start + f.duration * (i + 0.5) / frames);
+    t.resize(std::size_t(frames));
+    std::sort(t.begin(), t.end());
+    return t;
+}
+
 int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb, int frames,
-                      int w, int h) {
+                      int w, int h, std::uint64_t seed) {
     auto ctx = platform::create_headless({.width = w, .height = h});
     app::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
-    view.pipeline().strike_at(0.0);
+    const std::size_t strike = view.pipeline().strike_at(0.0, seed);
+    const std::vector<double> times = flash_times(view.pipeline().storm().strike(strike).profile, 0.0, frames);
     const render::Camera cam = app::default_camera(view.density());
     for (int i = 0; i < frames; ++i) {
-        const double t = 0.02 + 0.04 * i;
+        const double t = times[std::size_t(i)];
         app::ViewOptions opt;
         opt.settings.frame_index = std::uint32_t(i);
         const app::FrameReport r = view.render(cam, t, w, h, opt);
         ctx->present();
-        std::printf("%s  t=%.2f s  %s\n", write_sequence_frame(*ctx, i).c_str(), t, app::timings_json(r, w, h).c_str());
+        std::printf("%s  t=%.4f s  %s\n", write_sequence_frame(*ctx, i).c_str(), t, app::timings_json(r, w, h).c_str());
     }
     return 0;
 }
@@ -104,6 +126,9 @@ int main(int argc, char** argv) {
     bool force_headless = false, synthetic = false;
     int screenshot_after = 0;
     int frames = 8, W = 1280, H = 720;
+    std::optional<std::uint64_t> seed_arg;
+    double time_scale = 0.25;
+    bool at_peak = false;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         if (a == "--help" || a == "-h") {
@@ -116,6 +141,22 @@ int main(int argc, char** argv) {
         } else if (a == "--screenshot-after" && i + 1 < argc) {
             screenshot_after = std::atoi(argv[++i]);
             if (screenshot_after < 1) { std::fprintf(stderr, "fulgur: --screenshot-after must be >= 1\n"); return 2; }
+        } else if (a == "--seed" && i + 1 < argc) {
+            try {
+                seed_arg = app::parse_number<std::uint64_t>(argv[++i], "fulgur", "--seed");
+            } catch (const std::exception& e) {
+                std::fprintf(stderr, "%s\n", e.what());
+                return 2;
+            }
+        } else if (a == "--time-scale" && i + 1 < argc) {
+            time_scale = std::atof(argv[++i]);
+            if (!(time_scale >= 0.001 && time_scale <= 10.0)) {
+                std::fprintf(stderr, "fulgur: --time-scale must be in 0.001..10\n");
+                return 2;
+            }
+        } else if (a == "--screenshot-at-peak") {
+            at_peak = true;
+            screenshot_after = 4;  // a few frames for the panel to lay itself out
         } else if (a == "--headless") {
             force_headless = true;
         } else if (a == "--frames" && i + 1 < argc) {
@@ -164,17 +205,18 @@ int main(int argc, char** argv) {
         if (force_headless || !platform::display_available()) {
             if (!force_headless)
                 std::printf(kNoDisplay, frames);
-            return headless_sequence(std::move(s), std::move(density), fgb, frames, std::min(W, 640), std::min(H, 360));
+            const std::uint64_t sd = seed_arg.value_or(s.lightning.seed);
+            return headless_sequence(std::move(s), std::move(density), fgb, frames, std::min(W, 640), std::min(H, 360), sd);
         }
         app::DemoShell shell(W, H, "Fulgur", screenshot_after);
         app::StormView view(std::move(s), std::move(density), fgb, shell.context().get_proc_address());
         const bool separate = view.bases().has_multiple();
 
-        app::Orbit orbit{-90, 8, 1.45, 0.4, 5.0};  // distance as a multiple of the cloud size
+        app::Orbit orbit{-90, 6, 1.1, 0.4, 5.0};  // distance as a multiple of the cloud size
         app::ViewOptions opt;
         opt.settings.dither = g_dither;
         float rate = float(view.scene().lightning.schedule.strike_rate);
-        int seed = int(view.scene().lightning.seed);
+        int seed = int(seed_arg.value_or(view.scene().lightning.seed));
         bool autos = rate > 0;
         double t = 0.0;
         app::FrameReport rep;
@@ -183,21 +225,29 @@ int main(int argc, char** argv) {
         const SliceGL gl = load_slice_gl();
         GLuint slice_tex = 0;
         gl.GenTextures(1, &slice_tex);
-        view.pipeline().strike_at(0.2, std::uint64_t(seed));
+        const std::size_t first = view.pipeline().strike_at(0.2, std::uint64_t(seed));
+        // --screenshot-at-peak holds the time 2 ms after the first strike's return stroke.
+        const double peak_time = 0.2 + view.pipeline().storm().strike(first).profile.stroke_onset.at(0) + 0.002;
+        float slow = float(time_scale);
         lightning::LightningParams lp = view.scene().lightning;
+        // The slider holds a float: compare against what it can represent, or the first frame
+        // would see a "changed" rate and rebuild the storm (dropping the first strike).
+        lp.schedule.strike_rate = autos ? double(rate) : 0.0;
         bool shape_changed = false;
         while (shell.begin_frame(orbit)) {
-            t += shell.dt();
+            t = at_peak ? peak_time : t + shell.dt() * double(slow);
             bool strike = shell.strike_pressed();
             ImGui::SetNextWindowPos({10, 10}, ImGuiCond_FirstUseEver);
-            ImGui::SetNextWindowSize({380, 0}, ImGuiCond_FirstUseEver);
-            ImGui::Begin("Fulgur");
+            ImGui::SetNextWindowSize({430, 0}, ImGuiCond_FirstUseEver);
+            ImGui::Begin("Fulgur", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
             ImGui::Text("%.1f fps  (%.1f ms frame)", shell.fps(), rep.wall_ms);
             ImGui::Separator(); ImGui::TextUnformatted("Lightning");
             ImGui::InputInt("seed", &seed);
             if (ImGui::Button("Strike now")) strike = true;
             ImGui::Checkbox("automatic strikes", &autos);
             ImGui::SliderFloat("rate (1/s)", &rate, 0.01f, 2.0f);
+            ImGui::SliderFloat("time scale", &slow, 0.01f, 1.0f, "%.2f", ImGuiSliderFlags_Logarithmic);
+            if (ImGui::IsItemHovered()) ImGui::SetTooltip("storm seconds per wall second (slow motion: a flash decays in ~12 ms)");
             {
                 lightning::BoltParams& b = lp.bolt;
                 int kind = int(b.kind);
@@ -235,7 +285,8 @@ int main(int argc, char** argv) {
             if (f && f->lit && !f->radiance.values.empty()) {
                 const core::GridGeometry& g = f->radiance.geometry;
                 const std::vector<float>& v = f->radiance.values[0];
-                const int j = g.dims.y / 2;
+                // The x-z slice through the brightest cell (where the bolt lights the cloud).
+                const int j = g.unindex(std::size_t(std::max_element(v.begin(), v.end()) - v.begin())).y;
                 float vmax = 0;
                 for (int k = 0; k < g.dims.z; ++k)
                     for (int i = 0; i < g.dims.x; ++i) vmax = std::max(vmax, v[g.index(i, j, k)]);
@@ -249,8 +300,8 @@ int main(int argc, char** argv) {
                 gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
                 gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
                 gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, g.dims.x, g.dims.z, 0, GL_RGBA, GL_UNSIGNED_BYTE, img.data());
-                ImGui::Separator(); ImGui::TextUnformatted("Radiance S, vertical slice (sqrt scale)");
-                const float wpx = 300.0f;
+                ImGui::Separator(); ImGui::TextUnformatted("Radiance S, x-z slice through its maximum (sqrt scale)");
+                const float wpx = 240.0f;
                 ImGui::Image((ImTextureID)(intptr_t)slice_tex, {wpx, wpx * g.dims.z / float(g.dims.x)});
             }
             ImGui::End();

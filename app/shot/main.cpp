@@ -3,6 +3,7 @@
 #include "common/storm_view.h"
 #include "platform/platform.h"
 
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 
@@ -29,10 +30,13 @@ int main(int argc, char** argv) {
         lightning::LightningParams lp = view.scene().lightning;
         lp.schedule.strike_rate = 0.0;  // only the requested strike (after the bake check: same .fgb as the demo)
         view.set_lightning(lp);
-        view.pipeline().strike_at(0.0, a.seed);
+        const std::size_t strike = view.pipeline().strike_at(0.0, a.seed);
+        const double t =
+            a.time + (a.time_after_return_stroke ? view.pipeline().storm().strike(strike).profile.stroke_onset.at(0) : 0.0);
         app::ViewOptions opt;
+        opt.settings.exposure *= std::exp2(a.exposure_ev);
         const render::Camera cam = app::default_camera(view.density());
-        const app::FrameReport r = view.render(cam, a.time, a.width, a.height, opt);
+        const app::FrameReport r = view.render(cam, t, a.width, a.height, opt);
         ctx->present();
         const auto px = ctx->read_rgba8();
         core::write_png(a.output, a.width, a.height, 4, px);

@@ -17,6 +17,11 @@ TEST_CASE("fulgur-shot: a complete command line parses") {
     CHECK(a.scene == "s.json");
     CHECK(a.seed == 7);
     CHECK(a.time == doctest::Approx(0.05));
+    CHECK_FALSE(a.time_after_return_stroke);
+    std::vector<std::string> plus = good;
+    plus[4] = "+0.002";
+    CHECK(parse(plus).time_after_return_stroke);
+    CHECK(parse(plus).time == doctest::Approx(0.002));
     CHECK(a.width == 64);
     CHECK(a.height == 32);
     CHECK(a.output == "x.png");

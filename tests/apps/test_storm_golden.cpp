@@ -41,7 +41,7 @@ struct Shot {
     double first_x = 0.0;     ///< first lit segment's start (bolt identity)
 };
 
-// The frame at the first return-stroke peak + 2 ms of a strike with `seed` at t = 0.
+// The frame 2 ms after the first return stroke's onset of a strike with `seed` at t = 0.
 Shot shoot(const std::string& name, std::uint64_t seed, runtime::Components comp = {}) {
     scene::Scene s = scene::load_scene(kScenes / (name + ".json"));
     core::Grid3<float> d = scene::make_density(s);
@@ -49,7 +49,7 @@ Shot shoot(const std::string& name, std::uint64_t seed, runtime::Components comp
     platform::Context& ctx = context();
     app::StormView view(std::move(s), std::move(d), fgb, ctx.get_proc_address());
     const std::size_t i = view.pipeline().strike_at(0.0, seed);
-    const double t = view.pipeline().storm().strike(i).profile.stroke_peak.at(0) + 0.002;
+    const double t = view.pipeline().storm().strike(i).profile.stroke_onset.at(0) + 0.002;
     app::ViewOptions opt;
     opt.components = comp;
     opt.settings.timing = render::Timing::Off;
