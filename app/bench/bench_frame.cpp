@@ -102,6 +102,21 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
         }
     }
 
+    // A dark frame (between flashes): the whole build() call, wall time.
+    std::vector<double> dark_us;
+    {
+        core::set_thread_count(1);
+        runtime::FramePipeline p(s, c.config.density, bases, domain);
+        for (int k = 0; k < seeds; ++k) p.strike_at(spacing * k, std::uint64_t(1000 + k));
+        for (int k = 0; k < seeds; ++k)
+            for (int j = 0; j < 50; ++j) {
+                core::Stopwatch sw;
+                const runtime::Frame& f = p.build(spacing * k + 5.0 + 0.01 * j, all_dirs);
+                dark_us.push_back(sw.seconds() * 1e6);
+                if (f.lit) dark_us.pop_back();  // not dark after all (never with 10 s between strikes)
+            }
+    }
+
     nlohmann::json base = {{"config", c.label},
                            {"lighting_grid", {g.dims.x, g.dims.y, g.dims.z}},
                            {"virtual_lights", bases.lights().count()},
@@ -113,6 +128,7 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
                            {"file_MB", file_mb},
                            {"load_seconds", load_s},
                            {"bolt_generation_ms_per_strike", bench::median(gen_ms)},
+                           {"dark_frame_us", bench::median(dark_us)},
                            {"baseline_triad_GBps", bw}};
 
     // Frame stage times, per thread count and direction set. Two threads twice: forced
