@@ -16,6 +16,7 @@ std::string shot_usage() {
            "  --time T     seconds after the strike start (>= 0); +T: T seconds after the first return\n"
            "               stroke's onset (the stepped leader's duration depends on the bolt)\n"
            "  --size WxH   image size in pixels (1..8192 each)\n"
+           "  --repeat N   render the frame N times (1..1000) and report median stage times\n"
            "  --exposure EV  exposure change in stops from the default (0; -20..20)\n"
            "  -o OUT.png   output PNG\n"
            "  --help       this text\n";
@@ -54,6 +55,9 @@ ShotArgs parse_shot_args(const std::vector<std::string>& args) {
             a.time = parse_number<double>(v, "--time");
             if (!std::isfinite(a.time) || a.time < 0.0) throw core::Error("fulgur-shot", "--time must be finite and >= 0");
             have_time = true;
+        } else if (s == "--repeat") {
+            a.repeat = parse_number<int>(value(i), "--repeat");
+            if (a.repeat < 1 || a.repeat > 1000) throw core::Error("fulgur-shot", "--repeat must be in 1..1000");
         } else if (s == "--exposure") {
             a.exposure_ev = parse_number<double>(value(i), "--exposure");
             if (!(a.exposure_ev >= -20.0 && a.exposure_ev <= 20.0))

@@ -2,6 +2,7 @@
 
 #include "progress.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -91,6 +92,30 @@ FrameReport StormView::render(const render::Camera& camera, double t, int width,
     rep.gpu = renderer_->render(camera, st, width, height);
     rep.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - t0).count();
     return rep;
+}
+
+FrameReport median_report(const std::vector<FrameReport>& reps) {
+    FrameReport m = reps.back();
+    auto med = [&](auto get) {
+        std::vector<double> v;
+        for (const FrameReport& r : reps) v.push_back(get(r));
+        std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
+        return v[v.size() / 2];
+    };
+    m.stages.bolt = med([](const FrameReport& r) { return r.stages.bolt; });
+    m.stages.sources = med([](const FrameReport& r) { return r.stages.sources; });
+    m.stages.splat = med([](const FrameReport& r) { return r.stages.splat; });
+    m.stages.accumulate = med([](const FrameReport& r) { return r.stages.accumulate; });
+    m.stages.inverse_haar = med([](const FrameReport& r) { return r.stages.inverse_haar; });
+    m.gpu.wall.upload = med([](const FrameReport& r) { return r.gpu.wall.upload; });
+    m.gpu.wall.resolve = med([](const FrameReport& r) { return r.gpu.wall.resolve; });
+    m.gpu.wall.glow = med([](const FrameReport& r) { return r.gpu.wall.glow; });
+    m.gpu.wall.march = med([](const FrameReport& r) { return r.gpu.wall.march; });
+    m.gpu.wall.bolt = med([](const FrameReport& r) { return r.gpu.wall.bolt; });
+    m.gpu.wall.composite = med([](const FrameReport& r) { return r.gpu.wall.composite; });
+    m.gpu.wall.total = med([](const FrameReport& r) { return r.gpu.wall.total; });
+    m.wall_ms = med([](const FrameReport& r) { return r.wall_ms; });
+    return m;
 }
 
 std::string timings_json(const FrameReport& r, int width, int height) {

@@ -12,6 +12,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace fulgur::app {
 
@@ -68,6 +69,9 @@ private:
     std::unique_ptr<render::Renderer> renderer_;
     const runtime::Frame* last_ = nullptr;
 };
+
+/// Per-field medians of several frames' reports (lit taken from the last one).
+FrameReport median_report(const std::vector<FrameReport>& reps);
 
 /// The JSON line fulgur-shot prints (stage times in ms).
 std::string timings_json(const FrameReport& r, int width, int height);

@@ -4,6 +4,7 @@
 #include "platform/platform.h"
 
 #include <cmath>
+#include <vector>
 #include <cstdio>
 #include <iostream>
 
@@ -36,7 +37,15 @@ int main(int argc, char** argv) {
         app::ViewOptions opt;
         opt.settings.exposure *= std::exp2(a.exposure_ev);
         const render::Camera cam = app::default_camera(view.density());
-        const app::FrameReport r = view.render(cam, t, a.width, a.height, opt);
+        // Medians over --repeat frames: the first one also compiles shaders and uploads the
+        // density; the run time rebuilds the same frame each time (same strike, same t).
+        std::vector<app::FrameReport> reps;
+        for (int k = 0; k < a.repeat; ++k) {
+            opt.settings.frame_index = std::uint32_t(k);
+            reps.push_back(view.render(cam, t, a.width, a.height, opt));
+        }
+        app::FrameReport r = reps.back();
+        if (reps.size() > 1) r = app::median_report(reps);
         ctx->present();
         const auto px = ctx->read_rgba8();
         core::write_png(a.output, a.width, a.height, 4, px);

@@ -22,6 +22,12 @@ TEST_CASE("fulgur-shot: a complete command line parses") {
     plus[4] = "+0.002";
     CHECK(parse(plus).time_after_return_stroke);
     CHECK(parse(plus).time == doctest::Approx(0.002));
+    std::vector<std::string> more = good;
+    more.insert(more.end(), {"--repeat", "12", "--exposure", "-2.5"});
+    CHECK(parse(more).repeat == 12);
+    CHECK(parse(more).exposure_ev == -2.5);
+    more[more.size() - 3] = "0";  // --repeat 0
+    CHECK_THROWS_AS(parse(more), core::Error);
     CHECK(a.width == 64);
     CHECK(a.height == 32);
     CHECK(a.output == "x.png");
