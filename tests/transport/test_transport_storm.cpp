@@ -13,7 +13,13 @@ using namespace fulgur;
 using namespace fulgur::transport;
 
 TEST_CASE("default storm cloud: single scattering equals the Monte Carlo order-1 estimate") {
-    const scene::Scene sc = scene::load_scene(test::source_dir() / "content/scenes/storm.json");
+    scene::Scene sc = scene::load_scene(test::source_dir() / "content/scenes/storm.json");
+    // The acceptance check is specified on the 36x36x20 lighting grid of 500 m voxels
+    // (downsample 4). The scene now bakes on 750 m voxels (downsample 6, docs/bake.md), where
+    // the default tolerance gives 98.9% within 3 SE and tolerance 1e-4 gives 99.2%: larger
+    // voxels see larger transmittance variation inside them, so 1e-3 is slightly optimistic
+    // there (measured when the default changed; docs/transport.md).
+    sc.lighting_downsample = 4;
     const core::Grid3<float> density = scene::make_density(sc);
     const LightingMedium m = scene::make_lighting_medium(sc, density);
     REQUIRE(!sc.point_lights.empty());
