@@ -118,10 +118,10 @@ FrameReport median_report(const std::vector<FrameReport>& reps) {
     return m;
 }
 
-std::string timings_json(const FrameReport& r, int width, int height) {
+std::string timings_json(const FrameReport& r, int width, int height, const char* name) {
     std::ostringstream o;
     o.precision(4);
-    o << "{\"name\":\"fulgur-shot\",\"width\":" << width << ",\"height\":" << height
+    o << "{\"name\":\"" << name << "\",\"width\":" << width << ",\"height\":" << height
       << ",\"lit\":" << (r.lit ? "true" : "false") << ",\"bolt_ms\":" << r.stages.bolt
       << ",\"sources_ms\":" << r.stages.sources << ",\"splat_ms\":" << r.stages.splat
       << ",\"accumulate_ms\":" << r.stages.accumulate << ",\"inverse_haar_ms\":" << r.stages.inverse_haar

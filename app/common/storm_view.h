@@ -73,7 +73,7 @@ private:
 /// Per-field medians of several frames' reports (lit taken from the last one).
 FrameReport median_report(const std::vector<FrameReport>& reps);
 
-/// The JSON line fulgur-shot prints (stage times in ms).
-std::string timings_json(const FrameReport& r, int width, int height);
+/// The JSON line fulgur-shot (and the demo's headless frames) print (stage times in ms).
+std::string timings_json(const FrameReport& r, int width, int height, const char* name = "fulgur-shot");
 
 }  // namespace fulgur::app

@@ -107,7 +107,7 @@ int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::fil
         opt.settings.frame_index = std::uint32_t(i);
         const app::FrameReport r = view.render(cam, t, w, h, opt);
         ctx->present();
-        std::printf("%s  t=%.4f s  %s\n", write_sequence_frame(*ctx, i).c_str(), t, app::timings_json(r, w, h).c_str());
+        std::printf("%s  t=%.4f s  %s\n", write_sequence_frame(*ctx, i).c_str(), t, app::timings_json(r, w, h, "fulgur").c_str());
     }
     return 0;
 }
