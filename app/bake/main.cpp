@@ -103,7 +103,7 @@ int run(const app::BakeArgs& a) {
         const bake::Report r = bake::bake(s, density, plan, out, app::make_progress_printer(stderr, "lights"));
         std::printf("baked %s in %s: %zu lights (%zu dropped), %.1f MB raw -> %.2f MB file (1/%.0f), "
                     "%llu coefficients, relative L2 error %.3g%%, solver iterations mean %.0f max %.0f%s\n",
-                    out.string().c_str(), app::format_duration(r.seconds_total).c_str(), r.lights, r.lights_dropped,
+                    out.string().c_str(), core::format_seconds(r.seconds_total).c_str(), r.lights, r.lights_dropped,
                     double(r.raw_bytes) / 1e6, double(r.file_bytes) / 1e6, r.compression_ratio,
                     static_cast<unsigned long long>(r.coefficients_kept), 100.0 * r.relative_l2_error,
                     r.mean_solver_iterations, r.max_solver_iterations,

@@ -6,6 +6,7 @@
 
 #include <charconv>
 #include <string>
+#include <vector>
 
 namespace fulgur::app {
 
@@ -18,6 +19,13 @@ T parse_number(const std::string& s, const char* tool, const char* what) {
     if (ec != std::errc() || p != s.data() + s.size() || s.empty())
         throw core::Error(tool, std::string(what) + ": not a number: '" + s + "'");
     return v;
+}
+
+/// The value of option args[i]: returns args[i + 1] and advances i past it. Throws
+/// core::Error(tool, "<option> needs a value") when the option is the last argument.
+inline const std::string& option_value(const std::vector<std::string>& args, std::size_t& i, const char* tool) {
+    if (i + 1 >= args.size()) throw core::Error(tool, args[i] + " needs a value");
+    return args[++i];
 }
 
 }  // namespace fulgur::app

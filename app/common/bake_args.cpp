@@ -33,10 +33,7 @@ std::string bake_usage() {
 BakeArgs parse_bake_args(const std::vector<std::string>& args) {
     BakeArgs a;
     bool have_nrrd = false, have_direction = false;
-    auto value = [&](std::size_t& i) -> const std::string& {
-        if (i + 1 >= args.size()) throw core::Error(kTool, args[i] + " needs a value");
-        return args[++i];
-    };
+    auto value = [&](std::size_t& i) -> const std::string& { return option_value(args, i, kTool); };
     for (std::size_t i = 0; i < args.size(); ++i) {
         const std::string& s = args[i];
         if (s == "--help" || s == "-h") {

@@ -1,24 +1,13 @@
 #include "progress.h"
 
+#include "core/core.h"
+
 #include <unistd.h>
 
 #include <cmath>
 #include <memory>
 
 namespace fulgur::app {
-
-std::string format_duration(double s) {
-    char buf[48];
-    if (!std::isfinite(s) || s < 0.0)
-        std::snprintf(buf, sizeof buf, "?");
-    else if (s >= 3600.0)
-        std::snprintf(buf, sizeof buf, "%.1f h", s / 3600.0);
-    else if (s >= 90.0)
-        std::snprintf(buf, sizeof buf, "%.1f min", s / 60.0);
-    else
-        std::snprintf(buf, sizeof buf, "%.1f s", s);
-    return buf;
-}
 
 ProgressFn make_progress_printer(std::FILE* out, std::string label) {
     const bool tty = isatty(fileno(out)) != 0;
@@ -37,8 +26,8 @@ ProgressFn make_progress_printer(std::FILE* out, std::string label) {
             const int n = int(std::lround(f * kWidth));
             std::fprintf(out, "\r[%s%s] %5.1f%%  %zu/%zu %s  %s elapsed, ETA %s   ",
                          std::string(std::size_t(n), '#').c_str(), std::string(std::size_t(kWidth - n), '.').c_str(),
-                         100.0 * f, done, total, label.c_str(), format_duration(seconds).c_str(),
-                         done == total ? "0 s" : format_duration(eta).c_str());
+                         100.0 * f, done, total, label.c_str(), core::format_seconds(seconds).c_str(),
+                         done == total ? "0 s" : core::format_seconds(eta).c_str());
             if (done == total) std::fprintf(out, "\n");
         } else {
             const int decile = int(f * 10.0);
@@ -46,7 +35,7 @@ ProgressFn make_progress_printer(std::FILE* out, std::string label) {
             st->last_decile = decile;
             st->last_print = seconds;
             std::fprintf(out, "%zu/%zu %s (%.0f%%), %s elapsed, ETA %s\n", done, total, label.c_str(), 100.0 * f,
-                         format_duration(seconds).c_str(), done == total ? "0 s" : format_duration(eta).c_str());
+                         core::format_seconds(seconds).c_str(), done == total ? "0 s" : core::format_seconds(eta).c_str());
         }
         std::fflush(out);
     };

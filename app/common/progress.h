@@ -16,7 +16,4 @@ using ProgressFn = std::function<void(std::size_t, std::size_t, double)>;
 /// Terminal detection: isatty(fileno(out)).
 ProgressFn make_progress_printer(std::FILE* out, std::string label);
 
-/// "1.2 s", "3.4 min", "1.1 h".
-std::string format_duration(double seconds);
-
 }  // namespace fulgur::app

@@ -32,10 +32,7 @@ T parse_number(const std::string& s, const char* what) {
 ShotArgs parse_shot_args(const std::vector<std::string>& args) {
     ShotArgs a;
     bool have_seed = false, have_time = false, have_size = false, have_out = false;
-    auto value = [&](std::size_t& i) -> const std::string& {
-        if (i + 1 >= args.size()) throw core::Error("fulgur-shot", "" + args[i] + " needs a value");
-        return args[++i];
-    };
+    auto value = [&](std::size_t& i) -> const std::string& { return option_value(args, i, "fulgur-shot"); };
     for (std::size_t i = 0; i < args.size(); ++i) {
         const std::string& s = args[i];
         if (s == "--help" || s == "-h") {

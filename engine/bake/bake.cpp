@@ -38,30 +38,6 @@ std::uint64_t hash_bytes(const void* data, std::size_t n) noexcept {
     return basis::hash_description(std::string_view(static_cast<const char*>(data), n));
 }
 
-std::string human_bytes(double b) {
-    char buf[64];
-    if (b >= 1e9)
-        std::snprintf(buf, sizeof buf, "%.2f GB", b / 1e9);
-    else if (b >= 1e6)
-        std::snprintf(buf, sizeof buf, "%.1f MB", b / 1e6);
-    else if (b >= 1e3)
-        std::snprintf(buf, sizeof buf, "%.1f kB", b / 1e3);
-    else
-        std::snprintf(buf, sizeof buf, "%.0f B", b);
-    return buf;
-}
-
-std::string human_seconds(double s) {
-    char buf[64];
-    if (s >= 3600.0)
-        std::snprintf(buf, sizeof buf, "%.1f h", s / 3600.0);
-    else if (s >= 90.0)
-        std::snprintf(buf, sizeof buf, "%.1f min", s / 60.0);
-    else
-        std::snprintf(buf, sizeof buf, "%.1f s", s);
-    return buf;
-}
-
 transport::LbSettings lb_settings(const scene::Scene& s) {
     transport::LbSettings lb;
     lb.collision = transport::parse_lb_collision(s.transport.lb_collision);
@@ -265,10 +241,10 @@ std::string Plan::to_text() const {
       << (multiple ? "multiple" : "") << (components == 2 ? " (stored separately)" : "") << "\n";
     o << "  solver          " << solver << "\n";
     o << "  threads         " << threads << "\n";
-    o << "  raw size        " << human_bytes(double(raw_bytes)) << " (float32, every light, direction and component)\n";
+    o << "  raw size        " << core::format_bytes(double(raw_bytes)) << " (float32, every light, direction and component)\n";
     if (expected_bytes)
-        o << "  expected file   " << human_bytes(double(expected_bytes)) << " (from 16 sample lights)\n";
-    if (expected_seconds > 0.0) o << "  expected time   " << human_seconds(expected_seconds) << " (from 16 sample lights)\n";
+        o << "  expected file   " << core::format_bytes(double(expected_bytes)) << " (from 16 sample lights)\n";
+    if (expected_seconds > 0.0) o << "  expected time   " << core::format_seconds(expected_seconds) << " (from 16 sample lights)\n";
     o << "  why:\n";
     for (const std::string& r : reasons) o << "    - " << r << "\n";
     return o.str();

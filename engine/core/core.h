@@ -175,6 +175,11 @@ void parallel_for_dynamic(std::int64_t begin, std::int64_t end, F&& fn, int chun
     for (std::int64_t i = begin; i < end; ++i) fn(i);
 }
 
+/// A duration for people: "12.3 s", "4.5 min", "1.2 h" ("?" when negative or not finite).
+std::string format_seconds(double seconds);
+/// A size for people (powers of ten): "512 B", "12.3 kB", "229.4 MB", "1.19 GB".
+std::string format_bytes(double bytes);
+
 class Stopwatch {
 public:
     Stopwatch() noexcept : start_(std::chrono::steady_clock::now()) {}

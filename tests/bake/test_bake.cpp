@@ -25,16 +25,6 @@ std::vector<std::uint8_t> read_bytes(const std::filesystem::path& p) {
     return {std::istreambuf_iterator<char>(f), {}};
 }
 
-// Relative L2 difference of b against a.
-double rel_l2(std::span<const float> a, std::span<const float> b) {
-    REQUIRE(a.size() == b.size());
-    double d = 0, n = 0;
-    for (std::size_t i = 0; i < a.size(); ++i) {
-        d += (double(a[i]) - double(b[i])) * (double(a[i]) - double(b[i]));
-        n += double(a[i]) * double(a[i]);
-    }
-    return n > 0 ? std::sqrt(d / n) : std::sqrt(d);
-}
 
 // Stored bases of a light with the components summed (what the file's total S is).
 transport::SourceField total(const bake::Plan& plan, transport::SourceField f) {
@@ -182,7 +172,7 @@ TEST_CASE("bake: the file holds the solved bases within the compression error, b
         for (std::size_t m = 0; m < plan.output_directions.size(); m += 5) {
             const basis::WeightedLight w{l, 1.0};
             const core::Grid3<float> rec = basis::reconstruct(baked, std::span(&w, 1), m);
-            worst = std::max(worst, rel_l2(sol.single.direction(m), rec.data));
+            worst = std::max(worst, test::relative_l2(rec.data, sol.single.direction(m)));
         }
     }
     // Per basis and per component at most 1% (energy 0.9999) plus float16 rounding; the
@@ -226,7 +216,7 @@ TEST_CASE("linearity: the sum of every light's basis equals one solve with all l
         }
     }
     // float32 sums of O(10) terms in another order: a few ulps.
-    CHECK(rel_l2(single_sum.data, one.single.data) < 1e-6);
+    CHECK(test::relative_l2(one.single.data, single_sum.data) < 1e-6);
     for (std::size_t i = 0; i < one.single.data.size(); ++i) one.single.data[i] += one.multiple.data[i];
     // The lattice itself is linear, but its first-scattered emission is renormalized per
     // voxel to sigma_s phi1 h^3 (LbSources::first_scattered_fluence: the 18-direction
@@ -234,7 +224,7 @@ TEST_CASE("linearity: the sum of every light's basis equals one solve with all l
     // light comes from). With several sources the correction is a ratio of sums, not a sum
     // of ratios: measured 1.3e-3 here (independent of the lattice tolerance, checked from
     // 1e-4 to 1e-7). 3e-3 bounds it; a real non-linearity would be orders larger.
-    const double e = rel_l2(one.single.data, sum.data);
+    const double e = test::relative_l2(sum.data, one.single.data);
     MESSAGE("linearity: relative L2 " << e);
     CHECK(e < 3e-3);
 }

@@ -50,15 +50,6 @@ const Baked& baked(const std::string& name) {
     return *slot;
 }
 
-double rel_l2(std::span<const float> x, std::span<const float> ref) {
-    REQUIRE(x.size() == ref.size());
-    double d = 0, n = 0;
-    for (std::size_t i = 0; i < x.size(); ++i) {
-        d += (double(x[i]) - double(ref[i])) * (double(x[i]) - double(ref[i]));
-        n += double(ref[i]) * double(ref[i]);
-    }
-    return n > 0 ? std::sqrt(d / n) : std::sqrt(d);
-}
 
 bool all_finite(const runtime::RadianceField& r) {
     for (const auto& v : r.values)
@@ -75,7 +66,7 @@ double vs_reference(const Baked& b, const lightning::LightWeights& w, const runt
     double worst = 0.0;
     for (std::size_t i = 0; i < r.directions.size(); ++i) {
         const core::Grid3<float> ref = basis::reconstruct(b.file, wl, std::size_t(r.directions[i]));
-        worst = std::max(worst, rel_l2(r.values[i], ref.data));
+        worst = std::max(worst, test::relative_l2(r.values[i], ref.data));
     }
     return worst;
 }
@@ -169,7 +160,7 @@ TEST_CASE("reconstruct: linear - two bolts together equal the sum of each alone"
     for (std::size_t d = 0; d < 26; ++d) {
         std::vector<float> sum(ra.values[d].size());
         for (std::size_t i = 0; i < sum.size(); ++i) sum[i] = ra.values[d][i] + rc.values[d][i];
-        worst = std::max(worst, rel_l2(sum, rac.values[d]));
+        worst = std::max(worst, test::relative_l2(sum, rac.values[d]));
     }
     MESSAGE("linearity: worst relative L2 difference over 26 directions " << worst);
     // Three float reconstructions, each within kFloatTol of its exact value.
@@ -196,7 +187,7 @@ TEST_CASE("reconstruct: components of a real bake - single only + multiple only 
             total += double(both[d][i]);
         }
         // Same float operations in another grouping: a few float roundings.
-        CHECK(rel_l2(sum, both[d]) < kFloatTol);
+        CHECK(test::relative_l2(sum, both[d]) < kFloatTol);
     }
     MESSAGE("multiple scattering carries " << share / total << " of S");
     CHECK(share > 0.0);  // the multiple part is really there (and not the single one twice)
@@ -224,7 +215,7 @@ TEST_CASE("reconstruct: a point source exactly on a virtual light reproduces tha
         const std::vector<basis::WeightedLight> wl = {{std::uint32_t(l), intensity}};
         for (std::size_t d = 0; d < 26; ++d) {
             const core::Grid3<float> ref = basis::reconstruct(b.file, wl, d);
-            CHECK(rel_l2(r.values[d], ref.data) < kFloatTol);
+            CHECK(test::relative_l2(r.values[d], ref.data) < kFloatTol);
         }
     }
 }

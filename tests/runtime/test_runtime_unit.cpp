@@ -38,15 +38,6 @@ lightning::LightWeights weights(std::size_t lights, std::initializer_list<std::p
     return w;
 }
 
-double rel_l2(std::span<const float> x, std::span<const float> ref) {
-    REQUIRE(x.size() == ref.size());
-    double d = 0, n = 0;
-    for (std::size_t i = 0; i < x.size(); ++i) {
-        d += (double(x[i]) - double(ref[i])) * (double(x[i]) - double(ref[i]));
-        n += double(ref[i]) * double(ref[i]);
-    }
-    return n > 0 ? std::sqrt(d / n) : std::sqrt(d);
-}
 
 }  // namespace
 
@@ -102,7 +93,7 @@ TEST_CASE("reconstruct: float sum + inverse Haar agrees with the double referenc
         const core::Grid3<float> ref = basis::reconstruct(file, wl, d);
         // float32 weights, products, sums of 5 terms and a 3-level inverse: a few float
         // ulps (6e-8) per operation over ~15 operations; 2e-6 leaves a factor ~2 of margin.
-        CHECK(rel_l2(out.values[d], ref.data) < 2e-6);
+        CHECK(test::relative_l2(out.values[d], ref.data) < 2e-6);
     }
 
     // A subset, in the caller's order, duplicates allowed.
@@ -111,7 +102,7 @@ TEST_CASE("reconstruct: float sum + inverse Haar agrees with the double referenc
     CHECK(out.directions == some);
     REQUIRE(out.values.size() == 3);
     CHECK(out.values[0] == out.values[2]);
-    CHECK(rel_l2(out.values[1], basis::reconstruct(file, wl, 0).data) < 2e-6);  // as above
+    CHECK(test::relative_l2(out.values[1], basis::reconstruct(file, wl, 0).data) < 2e-6);  // as above
 
     const std::vector<int> bad = {3};
     CHECK_THROWS_WITH_AS(rec.reconstruct(w, bad, {}, out, t), doctest::Contains("direction 3 does not exist"),
@@ -158,7 +149,7 @@ TEST_CASE("reconstruct: components - separate parts add up, combined and missing
         std::vector<float> sum(single.values[d].size());
         for (std::size_t i = 0; i < sum.size(); ++i) sum[i] = single.values[d][i] + multiple.values[d][i];
         // Two float sums in another order and a linear float transform: ~1e-7 relative.
-        CHECK(rel_l2(sum, both.values[d]) < 1e-6);
+        CHECK(test::relative_l2(sum, both.values[d]) < 1e-6);
         bool differ = false;  // the parts are different fields
         for (std::size_t i = 0; i < sum.size(); ++i) differ |= single.values[d][i] != multiple.values[d][i];
         CHECK(differ);

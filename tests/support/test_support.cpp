@@ -1,5 +1,8 @@
 #include "support/test_support.h"
 
+#include <doctest/doctest.h>
+
+#include <cmath>
 #include <fstream>
 
 namespace fulgur::test {
@@ -11,6 +14,16 @@ std::filesystem::path scratch_dir(const std::string& name) {
     std::filesystem::remove_all(p);
     std::filesystem::create_directories(p);
     return p;
+}
+
+double relative_l2(std::span<const float> x, std::span<const float> ref) {
+    REQUIRE(x.size() == ref.size());
+    double d = 0, n = 0;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+        d += (double(x[i]) - double(ref[i])) * (double(x[i]) - double(ref[i]));
+        n += double(ref[i]) * double(ref[i]);
+    }
+    return n > 0 ? std::sqrt(d / n) : std::sqrt(d);
 }
 
 void write_text(const std::filesystem::path& path, const std::string& text) {
