@@ -389,7 +389,6 @@ Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan
     std::mutex mu, write_mu;
     std::map<std::size_t, basis::EncodedBlock> pending;
     std::size_t next_write = 0;
-    auto writer_encode = [&](const basis::CompressedLight& c) { return basis::encode_block(c, plan.metadata); };
     std::exception_ptr failure;
     std::atomic<bool> failed{false};
     // Totals (double, merged under the mutex).
@@ -441,9 +440,10 @@ Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan
                 my_compress += sw.seconds();
                 // Blocks are written in light order (the file is byte-identical for any
                 // thread count): a finished light waits until all lights before it are in.
+                basis::EncodedBlock block = basis::encode_block(c, plan.metadata);  // outside the lock
                 {
                     std::lock_guard lock(write_mu);
-                    pending.emplace(l, writer_encode(c));
+                    pending.emplace(l, std::move(block));
                     while (!pending.empty() && pending.begin()->first == next_write) {
                         writer.add(pending.begin()->second);
                         pending.erase(pending.begin());
