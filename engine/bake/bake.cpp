@@ -149,6 +149,7 @@ basis::BakeKey scene_key(const scene::Scene& s, const core::Grid3<float>& densit
     d << "compression.xi=" << num(c.xi) << "\n";
     d << "compression.precision=" << basis::to_string(c.precision) << "\n";
     d << "compression.decomposition=" << basis::to_string(c.decomposition) << "\n";
+    d << "compression.entropy=" << basis::to_string(c.entropy) << "\n";
     d << "compression.components=" << (s.separate_components ? "separate" : "combined") << "\n";
     return basis::BakeKey::from_description(d.str());
 }
@@ -330,15 +331,15 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
         }
         const int saved = core::thread_count();
         core::set_thread_count(1);
-        double seconds = 0.0, coeffs = 0.0;
+        double seconds = 0.0, block_bytes = 0.0;
         basis::HaarTransform<double> haar(p.lighting.dims, s.compression.decomposition);
         try {
             for (std::uint32_t l : samples) {
                 core::Stopwatch sw;
                 const transport::SourceField f = solve_light(s, medium, p, l);
                 const basis::CompressedLight c = basis::compress_light(l, f, s.compression, haar);
+                block_bytes += double(basis::encode_block(c, p.metadata).bytes.size());  // as the file will hold it
                 seconds += sw.seconds();
-                coeffs += double(c.coefficient_count());
             }
         } catch (...) {
             core::set_thread_count(saved);
@@ -346,10 +347,9 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
         }
         core::set_thread_count(saved);
         const double n = double(p.lights.count());
-        const double value_bytes = s.compression.precision == basis::Precision::Float16 ? 2.0 : 4.0;
         const double ns = double(samples.size());
         p.expected_seconds = seconds / ns * n / double(p.threads);
-        p.expected_bytes = std::uint64_t(coeffs / ns * n * (value_bytes + p.metadata.index_bytes()));
+        p.expected_bytes = std::uint64_t(block_bytes / ns * n);
     }
     return p;
 }

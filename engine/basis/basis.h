@@ -201,17 +201,26 @@ enum class Precision : std::uint32_t {
     Float16 = 1,  ///< binary16 with a per-basis power-of-two scale (docs/fgb-format.md)
 };
 
-/// "absolute" / "relative_l2" / "energy", "float32" / "float16", "standard" / "nonstandard"
-/// (the names used in scene files and reports).
+/// How a .fgb block stores its kept coefficients (docs/fgb-format.md, "Block").
+enum class Entropy : std::uint32_t {
+    None = 0,     ///< fixed-width indices and values in magnitude order (fast to read)
+    Deflate = 1,  ///< indices sorted and gap-coded (LEB128), values split into byte planes, the
+                  ///< whole stream deflated (zlib): ~1.8x smaller for the same coefficients
+};
+
+/// "absolute" / "relative_l2" / "energy", "float32" / "float16", "standard" / "nonstandard",
+/// "none" / "deflate" (the names used in scene files and reports).
 std::string_view to_string(ThresholdMode m) noexcept;
 std::string_view to_string(Precision p) noexcept;
 std::string_view to_string(Decomposition d) noexcept;
+std::string_view to_string(Entropy e) noexcept;
 
 struct CompressionParams {
     ThresholdMode mode = ThresholdMode::Energy;
     double xi = 0.9999;  ///< energy kept: relative L2 error <= 1% per basis
     Precision precision = Precision::Float16;
     Decomposition decomposition = Decomposition::NonStandard;
+    Entropy entropy = Entropy::Deflate;  ///< file encoding only: lossless, the values are the same
     bool operator==(const CompressionParams&) const = default;
 };
 
@@ -219,9 +228,11 @@ struct CompressionParams {
 /// `where`.xi.
 void validate(const CompressionParams& p, std::string_view where);
 
-/// The kept coefficients of one basis (one light, one direction), in the file's order:
-/// decreasing magnitude, ties by increasing index. Because of that order, any prefix is
-/// the same basis compressed at a stricter threshold (see retruncate()).
+/// The kept coefficients of one basis (one light, one direction), in canonical order:
+/// decreasing magnitude of the stored (rounded) value, ties by increasing index. Because of
+/// that order, any prefix is the same basis compressed at a stricter threshold (see
+/// retruncate()); and because it depends only on the stored values, a reader that gets the
+/// coefficients in another order (Entropy::Deflate stores them by index) restores it exactly.
 struct CompressedBasis {
     std::vector<std::uint32_t> index;  ///< position in the Haar coefficient array (x fastest)
     std::vector<float> value;          ///< the stored value (already rounded to the precision)
@@ -279,7 +290,7 @@ inline double ambient_rms(const CompressedBasis& b, std::size_t cells) noexcept 
 // =======================================================================================
 // The .fgb file (docs/fgb-format.md)
 
-inline constexpr std::uint32_t kFgbVersion = 2;
+inline constexpr std::uint32_t kFgbVersion = 3;
 /// Largest lighting grid a .fgb may describe (2^26 cells = 256 MiB per float32 field):
 /// loaders and the run time allocate per-cell arrays from it, so it is bounded by the format.
 inline constexpr std::size_t kMaxFgbCells = std::size_t(1) << 26;
@@ -395,8 +406,17 @@ public:
     /// names both hashes and the first differing description line.
     void check_key(const BakeKey& expected) const;
 
+    /// Order of the coefficients read_light() returns within each basis.
+    enum class Order {
+        Canonical,  ///< CompressedBasis' order (decreasing magnitude): what retruncate() needs
+        Any,        ///< as stored (by index for Entropy::Deflate): skips a sort, for consumers
+                    ///< such as the run time's accumulation that do not care
+    };
     /// Decodes and validates light l (light_begin() <= l < light_end()).
-    CompressedLight read_light(std::uint32_t l);
+    CompressedLight read_light(std::uint32_t l, Order order = Order::Canonical);
+    /// Total coefficients stored in light l's block, from its table (CRC-checked, each count
+    /// <= cells): sizes a consumer's arrays before decoding anything.
+    std::uint64_t coefficient_count(std::uint32_t l);
     /// The block's bytes after checking its CRC and contents (for merging).
     EncodedBlock read_encoded(std::uint32_t l);
 

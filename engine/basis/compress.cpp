@@ -5,6 +5,7 @@
 #include "basis/internal.h"
 
 #include <algorithm>
+#include <bit>
 #include <cfloat>
 #include <cmath>
 #include <limits>
@@ -56,6 +57,39 @@ std::string_view to_string(Decomposition d) noexcept {
     return "unknown";
 }
 
+std::string_view to_string(Entropy e) noexcept {
+    switch (e) {
+        case Entropy::None: return "none";
+        case Entropy::Deflate: return "deflate";
+    }
+    return "unknown";
+}
+
+void sort_canonical(CompressedBasis& b) {
+    FULGUR_ASSERT(b.index.size() == b.value.size(), "sort_canonical: index and value counts differ");
+    const std::size_t n = b.size();
+    // One 64-bit key per coefficient, sorted as integers: high word = the complement of the
+    // magnitude's bits (IEEE order of non-negative floats is their integer order, so
+    // ascending keys = decreasing magnitude), low word = index * 2 + sign (indices are
+    // unique and < 2^31, so ties go by index and the sign just rides along).
+    std::vector<std::uint64_t> key(n);
+    bool sorted = true;
+    for (std::size_t k = 0; k < n; ++k) {
+        const std::uint32_t bits = std::bit_cast<std::uint32_t>(b.value[k]);
+        FULGUR_ASSERT(b.index[k] < (1u << 31), "sort_canonical: index beyond 2^31");
+        key[k] = (std::uint64_t(0x7fffffffu - (bits & 0x7fffffffu)) << 32) | (std::uint64_t(b.index[k]) << 1) | (bits >> 31);
+        sorted = sorted && (k == 0 || key[k - 1] < key[k]);
+    }
+    if (sorted) return;
+    std::sort(key.begin(), key.end());
+    for (std::size_t k = 0; k < n; ++k) {
+        const std::uint32_t magnitude = 0x7fffffffu - std::uint32_t(key[k] >> 32);
+        const std::uint32_t sign = std::uint32_t(key[k] & 1u) << 31;
+        b.value[k] = std::bit_cast<float>(magnitude | sign);
+        b.index[k] = std::uint32_t((key[k] & 0xffffffffu) >> 1);
+    }
+}
+
 std::string_view to_string(Precision p) noexcept {
     switch (p) {
         case Precision::Float32: return "float32";
@@ -72,6 +106,8 @@ void validate(const CompressionParams& p, std::string_view where) {
         throw core::Error(std::string(where) + ".precision", "unknown precision");
     if (p.decomposition != Decomposition::Standard && p.decomposition != Decomposition::NonStandard)
         throw core::Error(std::string(where) + ".decomposition", "unknown Haar decomposition");
+    if (p.entropy != Entropy::None && p.entropy != Entropy::Deflate)
+        throw core::Error(std::string(where) + ".entropy", "unknown entropy coding");
     if (!std::isfinite(p.xi) || p.xi < 0.0)
         throw core::Error(w, "must be finite and >= 0, got " + num(p.xi));
     if (p.mode == ThresholdMode::Energy && p.xi > 1.0)
@@ -181,6 +217,9 @@ CompressedBasis compress_coefficients(std::span<const double> c, const Compressi
             out.value[k] = std::ldexp(half_to_float(h), out.scale_exp);
         }
     }
+    // Rounding can make neighbours in the double order equal: restore the canonical order
+    // of the stored values (ties by index), which is what a reader reconstructs.
+    sort_canonical(out);
     return out;
 }
 

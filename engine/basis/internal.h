@@ -14,6 +14,10 @@ namespace fulgur::basis {
 /// float_to_half (overflow -> infinity).
 std::uint16_t double_to_half(double v) noexcept;
 
+/// Puts a basis' coefficients in the canonical order (CompressedBasis: decreasing |value|,
+/// ties by increasing index).
+void sort_canonical(CompressedBasis& b);
+
 /// CRC-32 (zlib's polynomial) of the bytes.
 std::uint32_t crc32_of(std::span<const std::uint8_t> bytes) noexcept;
 
@@ -50,9 +54,14 @@ inline constexpr std::size_t kIndexEntrySize = 24;
 inline constexpr std::size_t kEntryOffCrc = 16;
 
 // Block: u32 magic, u32 light, u32 n_dir, then per direction a 24-byte record
-// (u32 count, i32 scale_exp, f64 gamma, f64 norm), then per direction indices and values.
+// (u32 count, i32 scale_exp, f64 gamma, f64 norm), then the coefficients: per direction
+// indices and values (Entropy::None), or u32 stream size + a zlib stream (Entropy::Deflate).
 inline constexpr std::size_t kBlockHeaderSize = 12;
 inline constexpr std::size_t kBlockDirRecordSize = 24;
+
+/// Deflate stream: the largest expansion zlib can produce is 1032:1; a stream size claiming
+/// more than this per compressed byte is rejected before anything is allocated.
+inline constexpr std::uint64_t kMaxInflateRatio = 1032;
 
 /// Header CRC of a whole file image (bytes [0, blocks_offset) with the CRC field as zero).
 std::uint32_t header_crc(std::span<const std::uint8_t> file, std::uint64_t blocks_offset) noexcept;

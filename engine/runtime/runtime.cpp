@@ -27,9 +27,9 @@ std::string hex(std::uint64_t v) {
 
 // The file in the accumulation layout, streamed light by light (each block validated by
 // FgbReader::read_light, as basis::load_fgb does), so the peak memory is the pool plus one
-// light. Runs keep the file's order (decreasing magnitude): sorting them by index was
-// measured to change the accumulation time by < 5% on the default storm (H in L1) while
-// doubling the load time.
+// light. Runs keep the file's order (by index in deflated files, by decreasing magnitude
+// in plain ones): the order was measured to change the accumulation time by < 5% on the
+// default storm (H in L1), and sorting costs load time.
 std::unique_ptr<BakedBases::Impl> build_layout(basis::FgbReader& reader) {
     if (reader.partial())
         throw core::Error(reader.name(), "holds only lights [" + std::to_string(reader.light_begin()) + ", " +
@@ -44,18 +44,19 @@ std::unique_ptr<BakedBases::Impl> build_layout(basis::FgbReader& reader) {
     b.narrow = b.meta.cells() <= 65536;
     b.offset.assign(runs + 1, 0);
     b.gamma.assign(runs, 0.0);
-    // Every stored coefficient takes at least its index and value bytes in the file: an
-    // upper bound on the count, reserved once (untouched reserve costs no resident memory).
-    const std::size_t per = std::size_t(b.meta.index_bytes()) +
-                            (b.meta.compression.precision == basis::Precision::Float16 ? 2u : 4u);
-    const std::size_t bound = std::size_t(reader.file_size() / per);
+    // The exact coefficient count from the blocks' tables (CRC-checked, each count bounded
+    // by the cells), reserved once: a deflated file gives no bound from its size.
+    std::size_t bound = 0;
+    for (std::uint32_t l = 0; l < lights; ++l) bound += std::size_t(reader.coefficient_count(l));
     if (b.narrow)
         b.index16.reserve(bound);
     else
         b.index32.reserve(bound);
     b.value.reserve(bound);
     for (std::uint32_t l = 0; l < lights; ++l) {
-        const basis::CompressedLight cl = reader.read_light(l);
+        // Order::Any: each index occurs once per basis, so the accumulation's result does
+        // not depend on the order within a basis (and the deflated files store them by index).
+        const basis::CompressedLight cl = reader.read_light(l, basis::FgbReader::Order::Any);
         FULGUR_ASSERT(cl.directions.size() == b.bases_per_light, "FgbReader returned a light without all its bases");
         for (std::size_t k = 0; k < b.bases_per_light; ++k) {
             const std::size_t r = b.run(l, k);

@@ -130,6 +130,9 @@ void parse_compression(JsonObject o, basis::CompressionParams& c, bool& separate
     const std::string dec = o.choice_or("decomposition", std::string(basis::to_string(c.decomposition)),
                                         {"nonstandard", "standard"});
     c.decomposition = dec == "standard" ? basis::Decomposition::Standard : basis::Decomposition::NonStandard;
+    c.entropy = o.choice_or("entropy", std::string(basis::to_string(c.entropy)), {"deflate", "none"}) == "none"
+                    ? basis::Entropy::None
+                    : basis::Entropy::Deflate;
     separate_components =
         o.choice_or("components", separate_components ? "separate" : "combined", {"separate", "combined"}) == "separate";
     o.finish();

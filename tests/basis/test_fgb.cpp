@@ -8,7 +8,10 @@
 
 #include <doctest/doctest.h>
 
+#include <zlib.h>
+
 #include <cstring>
+#include <functional>
 #include <fstream>
 #include <iterator>
 #include <thread>
@@ -26,8 +29,15 @@ void spit(const std::filesystem::path& p, const std::vector<std::uint8_t>& b) {
     std::ofstream(p, std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char*>(b.data()), std::streamsize(b.size()));
 }
 
-std::filesystem::path write_small(const std::filesystem::path& path, basis::Precision prec) {
-    const basis::FgbMetadata m = test::small_metadata(prec);
+basis::FgbMetadata small_meta(basis::Precision prec, basis::Entropy entropy) {
+    basis::FgbMetadata m = test::small_metadata(prec);
+    m.compression.entropy = entropy;
+    return m;
+}
+
+std::filesystem::path write_small(const std::filesystem::path& path, basis::Precision prec,
+                                  basis::Entropy entropy = basis::Entropy::Deflate) {
+    const basis::FgbMetadata m = small_meta(prec, entropy);
     basis::FgbWriter w(path, m);
     for (std::uint32_t l = 0; l < m.light_count(); ++l) w.add(test::small_light(m, l));
     w.finish();
@@ -69,11 +79,13 @@ void fix_crcs(std::vector<std::uint8_t>& b, const std::vector<std::uint8_t>& pri
 
 }  // namespace
 
-TEST_CASE(".fgb round trip is bit-exact, float32 and float16, 2- and 4-byte indices") {
+TEST_CASE(".fgb round trip is bit-exact, float32 and float16, plain and deflated, 2- and 4-byte indices") {
     const auto dir = test::scratch_dir("fgb_roundtrip");
+    for (const auto entropy : {basis::Entropy::None, basis::Entropy::Deflate})
     for (const auto prec : {basis::Precision::Float32, basis::Precision::Float16}) {
-        const auto path = write_small(dir / "a.fgb", prec);
-        const basis::FgbMetadata m = test::small_metadata(prec);
+        INFO(basis::to_string(prec) << ", " << basis::to_string(entropy));
+        const auto path = write_small(dir / "a.fgb", prec, entropy);
+        const basis::FgbMetadata m = small_meta(prec, entropy);
         const basis::BakedBasis b = basis::load_fgb(path);
         CHECK(b.meta == m);
         REQUIRE(b.lights.size() == m.light_count());
@@ -114,16 +126,19 @@ TEST_CASE(".fgb round trip is bit-exact, float32 and float16, 2- and 4-byte indi
     big.lights.z = {0.0};
     big.lights.base_layer = 0;
     const basis::CompressedLight l0 = test::small_light(big, 0);
-    {
-        basis::FgbWriter w(dir / "big.fgb", big);
-        w.add(l0);
-        w.finish();
+    for (const auto entropy : {basis::Entropy::None, basis::Entropy::Deflate}) {
+        big.compression.entropy = entropy;
+        {
+            basis::FgbWriter w(dir / "big.fgb", big);
+            w.add(l0);
+            w.finish();
+        }
+        const basis::BakedBasis bb = basis::load_fgb(dir / "big.fgb");
+        CHECK(bb.lights[0] == l0);
+        bool high_index = false;
+        for (std::uint32_t i : bb.lights[0].directions[0].index) high_index |= i > 65535;
+        CHECK(high_index);
     }
-    const basis::BakedBasis bb = basis::load_fgb(dir / "big.fgb");
-    CHECK(bb.lights[0] == l0);
-    bool high_index = false;
-    for (std::uint32_t i : bb.lights[0].directions[0].index) high_index |= i > 65535;
-    CHECK(high_index);
 }
 
 TEST_CASE("blocks from independent jobs: any order, several threads, partial files and merge") {
@@ -270,27 +285,29 @@ TEST_CASE("specific damage is named: magic, version, endianness, size, CRCs") {
         expect(b, "header CRC mismatch");
     }
     {
-        // Past the CRCs: a coefficient index outside the grid, named with light and byte.
-        auto b = good;
-        const auto index_offset = get<std::uint64_t>(good, kOffIndexOffset);
-        const auto off = get<std::uint64_t>(good, std::size_t(index_offset));  // light 0's block
+        // Past the CRCs: a coefficient index outside the grid, named with light and byte
+        // (the plain layout, where indices sit at fixed offsets).
+        const std::vector<std::uint8_t> plain = slurp(write_small(dir / "p.fgb", basis::Precision::Float16, basis::Entropy::None));
+        auto b = plain;
+        const auto index_offset = get<std::uint64_t>(plain, kOffIndexOffset);
+        const auto off = get<std::uint64_t>(plain, std::size_t(index_offset));  // light 0's block
         // First index of direction 0 follows the block header and the 3 direction records.
         const std::size_t at = std::size_t(off + kBlockHeaderSize + 3 * kBlockDirRecordSize);
         put<std::uint16_t>(b, at, 60);  // the grid has 60 cells
-        fix_crcs(b, good);
+        fix_crcs(b, plain);
         expect(b, ("byte " + std::to_string(at) + ", light 0): direction 0 coefficient 0: index 60 outside the 60 cells").c_str());
         // A duplicated index.
-        b = good;
-        put<std::uint16_t>(b, at + 2, get<std::uint16_t>(good, at));
-        fix_crcs(b, good);
+        b = plain;
+        put<std::uint16_t>(b, at + 2, get<std::uint16_t>(plain, at));
+        fix_crcs(b, plain);
         expect(b, "appears twice (first as coefficient 0)");
         // A lighting grid beyond the format's limit (4096 x 4096 x 8 = 2^27 cells).
-        b = good;
-        const std::size_t dims_at = kHeaderSize + 4 + get<std::uint32_t>(good, kHeaderSize);
+        b = plain;
+        const std::size_t dims_at = kHeaderSize + 4 + get<std::uint32_t>(plain, kHeaderSize);
         put<std::int32_t>(b, dims_at, 4096);
         put<std::int32_t>(b, dims_at + 4, 4096);
         put<std::int32_t>(b, dims_at + 8, 8);
-        fix_crcs(b, good);
+        fix_crcs(b, plain);
         expect(b, "cells, the format allows 67108864");
     }
     // On disk (the ifstream path): truncated and empty files.
@@ -303,12 +320,86 @@ TEST_CASE("specific damage is named: magic, version, endianness, size, CRCs") {
     CHECK_THROWS_WITH_AS(basis::load_fgb(dir / "missing.fgb"), doctest::Contains("cannot open"), core::Error);
 }
 
-TEST_CASE("every truncation and 3000 random byte corruptions are rejected without a crash") {
+namespace {
+
+// Light 0's deflated block with its inflated stream changed by `mutate`, re-deflated and
+// given a valid CRC (so only the stream's own checks can catch the damage). `size_delta`
+// offsets the stored stream size; `trailing` bytes are appended after the zlib stream.
+basis::EncodedBlock rebuilt_block(const basis::FgbMetadata& m, const std::function<void(std::vector<std::uint8_t>&)>& mutate,
+                                  std::int64_t size_delta = 0, std::size_t trailing = 0) {
+    const basis::EncodedBlock e = basis::encode_block(test::small_light(m, 0), m);
+    const std::size_t head = basis::fgb::kBlockHeaderSize + m.bases() * basis::fgb::kBlockDirRecordSize;
+    std::vector<std::uint8_t> raw(get<std::uint32_t>(e.bytes, head));
+    uLongf n = raw.size();
+    REQUIRE(uncompress(raw.data(), &n, e.bytes.data() + head + 4, uLong(e.bytes.size() - head - 4)) == Z_OK);
+    REQUIRE(n == raw.size());
+    mutate(raw);
+    uLongf zn = compressBound(uLong(raw.size()));
+    std::vector<std::uint8_t> z(zn);
+    REQUIRE(compress2(z.data(), &zn, raw.data(), uLong(raw.size()), 6) == Z_OK);
+    basis::EncodedBlock out;
+    out.light = 0;
+    out.bytes.assign(e.bytes.begin(), e.bytes.begin() + std::ptrdiff_t(head));
+    const std::uint32_t size = std::uint32_t(std::int64_t(raw.size()) + size_delta);
+    out.bytes.insert(out.bytes.end(), reinterpret_cast<const std::uint8_t*>(&size), reinterpret_cast<const std::uint8_t*>(&size) + 4);
+    out.bytes.insert(out.bytes.end(), z.begin(), z.begin() + std::ptrdiff_t(zn));
+    out.bytes.insert(out.bytes.end(), trailing, std::uint8_t(0));
+    out.crc = basis::crc32_of(out.bytes);
+    return out;
+}
+
+std::vector<std::uint8_t> file_with(const std::filesystem::path& path, const basis::FgbMetadata& m,
+                                    const basis::EncodedBlock& block0) {
+    basis::FgbWriter w(path, m);
+    w.add(block0);
+    for (std::uint32_t l = 1; l < m.light_count(); ++l) w.add(test::small_light(m, l));
+    w.finish();
+    return slurp(path);
+}
+
+}  // namespace
+
+TEST_CASE("deflated blocks: damage inside a stream with valid checksums is named, never misread") {
+    const auto dir = test::scratch_dir("fgb_deflate");
+    const basis::FgbMetadata m = small_meta(basis::Precision::Float16, basis::Entropy::Deflate);
+    std::size_t total = 0;
+    for (const auto& b : test::small_light(m, 0).directions) total += b.size();
+    REQUIRE(total > 0);
+    auto expect = [&](const basis::EncodedBlock& block, const char* needle) {
+        CHECK_THROWS_WITH_AS(load_bytes(file_with(dir / "d.fgb", m, block)), doctest::Contains(needle), core::Error);
+    };
+    // Unchanged stream: accepted and identical to the light.
+    CHECK(load_bytes(file_with(dir / "d.fgb", m, rebuilt_block(m, [](auto&) {}))).lights[0] == test::small_light(m, 0));
+    // The first index gap (one byte: the grid has 60 cells) pointing past the grid.
+    expect(rebuilt_block(m, [](auto& raw) { raw[0] = 60; }), "direction 0 coefficient 0: index 60 outside the 60 cells");
+    // A gap of 5 LEB128 bytes (indices need at most 4).
+    expect(rebuilt_block(m, [](auto& raw) { raw.insert(raw.begin(), 4, std::uint8_t(0x80)); }), "index gap longer than 4 bytes");
+    // One byte more of gaps than the coefficients use.
+    expect(rebuilt_block(m, [&](auto& raw) { raw.insert(raw.end() - std::ptrdiff_t(2 * total), std::uint8_t(0)); }),
+           "1 bytes of index gaps left over");
+    // A float16 value with an all-ones exponent (high-byte plane first).
+    expect(rebuilt_block(m, [&](auto& raw) { raw[raw.size() - 2 * total] = 0x7e; }), "float16 value is not finite");
+    // Stream sizes that lie: one byte more than inflates, or more than any deflate stream can give.
+    expect(rebuilt_block(m, [](auto&) {}, +1), "the deflated coefficients are damaged");
+    // (a non-minimal but valid 2-byte first gap keeps size - 1 above the size's lower bound)
+    auto longer_gap = [](auto& raw) {
+        raw[0] |= 0x80;
+        raw.insert(raw.begin() + 1, std::uint8_t(0));
+    };
+    CHECK(load_bytes(file_with(dir / "d.fgb", m, rebuilt_block(m, longer_gap))).lights[0] == test::small_light(m, 0));
+    expect(rebuilt_block(m, longer_gap, -1), "more data than the stream size");
+    expect(rebuilt_block(m, [](auto&) {}, std::int64_t(1) << 31), "bytes cannot hold");
+    // Bytes after the end of the zlib stream.
+    expect(rebuilt_block(m, [](auto&) {}, 0, 3), "3 bytes unread");
+}
+
+TEST_CASE("every truncation and 6000 random byte corruptions are rejected without a crash") {
     const auto dir = test::scratch_dir("fgb_fuzz");
+    for (const auto entropy : {basis::Entropy::Deflate, basis::Entropy::None})
     for (const auto prec : {basis::Precision::Float16, basis::Precision::Float32}) {
-        const std::vector<std::uint8_t> good = slurp(write_small(dir / "f.fgb", prec));
+        const std::vector<std::uint8_t> good = slurp(write_small(dir / "f.fgb", prec, entropy));
         CHECK_NOTHROW(load_bytes(good));
-        INFO("file of " << good.size() << " bytes, " << basis::to_string(prec));
+        INFO("file of " << good.size() << " bytes, " << basis::to_string(prec) << ", " << basis::to_string(entropy));
         std::size_t rejected = 0;
         for (std::size_t len = 0; len < good.size(); ++len) {
             try {
@@ -322,7 +413,7 @@ TEST_CASE("every truncation and 3000 random byte corruptions are rejected withou
         CHECK(rejected == good.size());
         // Random single-byte corruptions (any value but the original) anywhere in the file:
         // every byte is covered by a CRC, so each must be rejected.
-        core::Rng rng(42, std::uint64_t(prec));
+        core::Rng rng(42, std::uint64_t(prec) + 2 * std::uint64_t(entropy));
         for (int t = 0; t < 1500; ++t) {
             auto b = good;
             const std::size_t at = rng.uniform_below(std::uint32_t(b.size()));
@@ -341,8 +432,10 @@ TEST_CASE("corruptions that get past the CRCs reach the structural checks and ne
     // between a hostile file and the process: each load must either throw core::Error or
     // return data that satisfies every invariant the run time relies on.
     const auto dir = test::scratch_dir("fgb_fuzz2");
-    const std::vector<std::uint8_t> good = slurp(write_small(dir / "f.fgb", basis::Precision::Float16));
-    core::Rng rng(7, 3);
+    for (const auto entropy : {basis::Entropy::None, basis::Entropy::Deflate}) {
+    INFO(basis::to_string(entropy));
+    const std::vector<std::uint8_t> good = slurp(write_small(dir / "f.fgb", basis::Precision::Float16, entropy));
+    core::Rng rng(7, 3 + std::uint64_t(entropy));
     int rejected = 0, accepted = 0;
     for (int t = 0; t < 3000; ++t) {
         auto b = good;
@@ -375,6 +468,8 @@ TEST_CASE("corruptions that get past the CRCs reach the structural checks and ne
             ++rejected;
         }
     }
-    MESSAGE("CRC-patched corruptions: " << rejected << " rejected, " << accepted << " accepted as valid data");
+    MESSAGE("CRC-patched corruptions (" << basis::to_string(entropy) << "): " << rejected << " rejected, " << accepted
+                                         << " accepted as valid data");
     CHECK(rejected > 1000);  // most structural damage is caught; the rest changes only values
+    }
 }

@@ -163,6 +163,9 @@ TEST_CASE("virtual_lights and compression sections: values, defaults and ranges"
     CHECK(r.compression.decomposition == fulgur::basis::Decomposition::NonStandard);
     const Scene st = parse_scene(with("\"cloud\"", R"("compression": {"decomposition": "standard"}, "cloud")"), "d.json");
     CHECK(st.compression.decomposition == fulgur::basis::Decomposition::Standard);
+    CHECK(r.compression.entropy == fulgur::basis::Entropy::Deflate);
+    const Scene plain = parse_scene(with("\"cloud\"", R"("compression": {"entropy": "none"}, "cloud")"), "e.json");
+    CHECK(plain.compression.entropy == fulgur::basis::Entropy::None);
 
     auto bad = [](const std::string& section, const char* needle) {
         CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", section + ", \"cloud\""), "b.json"), doctest::Contains(needle), Error);
@@ -179,6 +182,7 @@ TEST_CASE("virtual_lights and compression sections: values, defaults and ranges"
     bad(R"("compression": {"xi": 0.99, "precision": "float8"})", "compression.precision");
     bad(R"("compression": {"threshold": "relative_l2", "xi": -0.1})", "compression.xi");
     bad(R"("compression": {"decomposition": "wavelet"})", "compression.decomposition");
+    bad(R"("compression": {"entropy": "zstd"})", "compression.entropy");
 }
 
 TEST_CASE("lightning section: defaults, every field, and ranges naming the field") {
