@@ -277,7 +277,16 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
     const std::vector<std::uint64_t> sweep_seeds = ctx.quick ? std::vector<std::uint64_t>{1} : std::vector<std::uint64_t>{1, 3};
     study::Csv sweep(ctx.file("runtime_accuracy_spacing.csv"),
                      {"seed", "h_usr", "virtual_lights", "active_lights", "sources", "splat_total", "splat_single",
-                      "splat_multiple", "sources_only_total", "V_solve_s"});
+                      "splat_multiple", "sources_only_total", "V_solve_s", "bake_estimate_s", "file_estimate_MB"});
+    // What each spacing costs to bake: the plan's estimate (16 sample lights solved and
+    // encoded as the bake would, ~1-2 s each), so the sweep shows accuracy against cost.
+    std::vector<std::pair<double, double>> bake_cost;  // (seconds, MB) per spacing
+    for (const double h : spacings) {
+        scene::Scene sh = s;
+        sh.virtual_lights.h_usr = h;
+        const bake::Plan hp = bake::make_plan(sh, density);
+        bake_cost.emplace_back(hp.expected_seconds, double(hp.expected_bytes) / 1e6);
+    }
     std::vector<study::Series> sweep_series;
     nlohmann::json sweep_rows = nlohmann::json::array();
     for (const std::uint64_t seed : sweep_seeds) {
@@ -294,7 +303,8 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         const double nF = l2(nd, f_total), nF1 = l2(nd, [&](auto m, auto i) { return double(dir_ptr(F.single, m)[i]); }),
                      nF2 = l2(nd, [&](auto m, auto i) { return double(dir_ptr(F.multiple, m)[i]); });
         study::Series ser{"seed " + std::to_string(seed), {}, {}, "", false, true};
-        for (const double h : spacings) {
+        for (std::size_t hi = 0; hi < spacings.size(); ++hi) {
+            const double h = spacings[hi];
             basis::VirtualLightParams vp = s.virtual_lights;
             vp.h_usr = h;
             const basis::VirtualLightGrid grid = basis::build_virtual_light_grid(density, vp);
@@ -319,7 +329,7 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
                                   return double(dir_ptr(Dh.single, m)[i]) + double(dir_ptr(Dh.multiple, m)[i]) - f_total(m, i);
                               }) / nF;
             sweep << double(seed) << h << double(grid.count()) << double(w.active.size()) << double(q.size()) << e << e1
-                  << e2 << eq << v_s;
+                  << e2 << eq << v_s << bake_cost[hi].first << bake_cost[hi].second;
             sweep.end_row();
             sweep_rows.push_back({{"seed", seed},
                                   {"h_usr", h},
@@ -329,11 +339,14 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
                                   {"splat_rel_l2_total", e},
                                   {"splat_rel_l2_single", e1},
                                   {"splat_rel_l2_multiple", e2},
-                                  {"sources_only_rel_l2", eq}});
+                                  {"sources_only_rel_l2", eq},
+                                  {"bake_estimate_s", bake_cost[hi].first},
+                                  {"file_estimate_MB", bake_cost[hi].second}});
             std::fprintf(stderr,
                          "spacing sweep, seed %llu, h %.0f m: %zu lights (%zu active), %zu sources: splat error total "
-                         "%.4f single %.4f multiple %.4f; sources at h/2 alone %.4f\n",
-                         static_cast<unsigned long long>(seed), h, grid.count(), w.active.size(), q.size(), e, e1, e2, eq);
+                         "%.4f single %.4f multiple %.4f; sources at h/2 alone %.4f; bake ~%.0f s, ~%.0f MB\n",
+                         static_cast<unsigned long long>(seed), h, grid.count(), w.active.size(), q.size(), e, e1, e2, eq,
+                         bake_cost[hi].first, bake_cost[hi].second);
             ser.x.push_back(h);
             ser.y.push_back(e);
         }
