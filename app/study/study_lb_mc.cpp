@@ -118,6 +118,7 @@ struct Run {
     LbAbsorption absorption;
     double tolerance;
     bool use_phi1;
+    LbThickVoxels thick = LbSettings{}.thick_voxels;
 };
 
 struct RunResult {
@@ -214,6 +215,7 @@ Solve solve_at(const scene::Scene& scene, const core::Grid3<float>& density, int
         ls.collision = run.collision;
         ls.absorption = run.absorption;
         ls.tolerance = run.tolerance;
+        ls.thick_voxels = run.thick;
         const LbResult res = solve_lattice_boltzmann(m, src, dirs, ls);
         RunResult rr;
         rr.mult = coarsen(res.source, coarse, f);
@@ -284,15 +286,21 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
     const glm::dvec3 lv = g.to_voxel(light.position);
     const int li = int(std::floor(lv.x)), lj = int(std::floor(lv.y));
 
+    // Runs 0-1: the default thick-voxel mapping; 2-3: the other one (solved on every grid).
+    const LbThickVoxels def = LbSettings{}.thick_voxels;
+    const LbThickVoxels other = def == LbThickVoxels::Saturate ? LbThickVoxels::DiffusionMatched : LbThickVoxels::Saturate;
+    auto tname = [](LbThickVoxels t) { return std::string(t == LbThickVoxels::Saturate ? "saturate" : "matched"); };
     const std::vector<Run> runs = {
-        {"physical", LbCollision::Corrected, LbAbsorption::Physical, 1e-4, true},
-        {"conservative", LbCollision::Corrected, LbAbsorption::Conservative, 1e-4, true},
-        {"physical tol 1e-6", LbCollision::Corrected, LbAbsorption::Physical, 1e-6, true},
-        {"physical without phi1", LbCollision::Corrected, LbAbsorption::Physical, 1e-4, false},
-        {"published physical", LbCollision::Published, LbAbsorption::Physical, 1e-4, true},
-        {"published conservative", LbCollision::Published, LbAbsorption::Conservative, 1e-4, true},
+        {"physical " + tname(def), LbCollision::Corrected, LbAbsorption::Physical, 1e-4, true, def},
+        {"conservative " + tname(def), LbCollision::Corrected, LbAbsorption::Conservative, 1e-4, true, def},
+        {"physical " + tname(other), LbCollision::Corrected, LbAbsorption::Physical, 1e-4, true, other},
+        {"conservative " + tname(other), LbCollision::Corrected, LbAbsorption::Conservative, 1e-4, true, other},
+        {"physical tol 1e-6", LbCollision::Corrected, LbAbsorption::Physical, 1e-6, true, def},
+        {"physical without phi1", LbCollision::Corrected, LbAbsorption::Physical, 1e-4, false, def},
+        {"published physical", LbCollision::Published, LbAbsorption::Physical, 1e-4, true, def},
+        {"published conservative", LbCollision::Published, LbAbsorption::Conservative, 1e-4, true, def},
     };
-    const std::vector<Run> fine_runs(runs.begin(), runs.begin() + 2);
+    const std::vector<Run> fine_runs(runs.begin(), runs.begin() + 4);
 
     // --- Solves: the scene's grid (500 m), then finer lighting grids ---------------------------
     const std::uint64_t paths = ctx.quick ? 200'000 : 20'000'000;
@@ -378,7 +386,7 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
         for (const Solve& s : solves) {
             const Field t = sum(s.mc1, s.mcm), st = quad_sum(s.se1, s.sem);
             const double ft = noise_floor(st, t, cloud, n, M), fm = noise_floor(s.sem, s.mcm, cloud, n, M);
-            for (std::size_t r = 0; r < std::min<std::size_t>(2, s.runs.size()); ++r) {
+            for (std::size_t r = 0; r < std::min<std::size_t>(4, s.runs.size()); ++r) {
                 const RunResult& rr = s.runs[r];
                 const double et = rel_l2(sum(s.s1, rr.mult), t, cloud, n, M), em = rel_l2(rr.mult, s.mcm, cloud, n, M);
                 const double ratio = field_sum(rr.mult, cloud, n, M) / field_sum(s.mcm, cloud, n, M);
@@ -401,7 +409,7 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
                                   {"lb_seconds", rr.seconds},
                                   {"mc_paths", p},
                                   {"mc_seconds", s.mc_seconds}});
-                std::fprintf(stderr, "lb-vs-mc: %3.0f m grid %-14s total %.4f multiple %.4f (500 m); native %.4f / %.4f\n",
+                std::fprintf(stderr, "lb-vs-mc: %3.0f m grid %-22s total %.4f multiple %.4f (500 m); native %.4f / %.4f\n",
                              s.geom.voxel_size, runs[r].label.c_str(), et, em, rr.native_total, rr.native_multiple);
             }
         }
@@ -421,7 +429,7 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
                               {"relL2_multiple_native", rr.native_multiple},
                               {"noise_floor_multiple_native", own.native_floor_multiple},
                               {"iterations", rr.iterations}});
-            std::fprintf(stderr, "lb-vs-mc: scene grid %3.0f m %-14s native total %.4f multiple %.4f\n",
+            std::fprintf(stderr, "lb-vs-mc: scene grid %3.0f m %-22s native total %.4f multiple %.4f\n",
                          own.geom.voxel_size, runs[r].label.c_str(), rr.native_total, rr.native_multiple);
         }
     }
