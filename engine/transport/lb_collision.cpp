@@ -193,7 +193,7 @@ double phase_min_eigenvalue(const DiscretePhase& phase) {
     return m;
 }
 
-ThickVoxelModel make_thick_voxel_model(LbThickVoxels mode, const DiscretePhase& phase, double albedo) {
+ThickVoxelModel make_thick_voxel_model(LbThickVoxels mode, const DiscretePhase& phase, double albedo, LbAbsorption absorption) {
     ThickVoxelModel m;
     m.mode = mode;
     m.albedo = std::clamp(albedo, 0.0, 1.0);
@@ -212,6 +212,11 @@ ThickVoxelModel make_thick_voxel_model(LbThickVoxels mode, const DiscretePhase& 
     }
     m.p_min = phase_min_eigenvalue(phase);
     m.e_max = 2.0 * kStabilityMargin / std::max(1e-12, 1.0 - m.albedo * m.p_min);
+    // Conservative model: absorbed density waits one step in the rest direction, and the
+    // isotropic mode (moving total, rest) has the eigenvalue -(1 - albedo) e of Theta
+    // besides 1; keep it >= 1 - 2 kStabilityMargin too.
+    if (absorption == LbAbsorption::Conservative && m.albedo < 1.0)
+        m.e_max = std::min(m.e_max, (2.0 * kStabilityMargin - 1.0) / (1.0 - m.albedo));
     return m;
 }
 

@@ -107,7 +107,10 @@ struct ThickVoxelModel {
 };
 /// Omega's eigenvalues stay >= -2 * kStabilityMargin under the diffusion-matched mapping.
 inline constexpr double kStabilityMargin = 0.95;
-ThickVoxelModel make_thick_voxel_model(LbThickVoxels mode, const DiscretePhase& phase, double albedo);
+/// With the conservative model the cap is also (2 kStabilityMargin - 1) / (1 - albedo): its
+/// rest direction gives Theta the eigenvalue -(1 - albedo) e in the isotropic mode.
+ThickVoxelModel make_thick_voxel_model(LbThickVoxels mode, const DiscretePhase& phase, double albedo,
+                                       LbAbsorption absorption = LbAbsorption::Physical);
 /// Smallest eigenvalue of the discrete phase function P (directions 1..18; Jacobi on the
 /// symmetrized W^-1/2 P W^1/2, exact for the corrected form, whose K is symmetric).
 double phase_min_eigenvalue(const DiscretePhase& phase);

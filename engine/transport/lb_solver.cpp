@@ -246,7 +246,7 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
     p.phase = make_phase(settings.collision, medium.optics.g);
     p.ext_axis.resize(n);
     p.ext_diag.resize(n);
-    const ThickVoxelModel thick = make_thick_voxel_model(settings.thick_voxels, p.phase, p.albedo);
+    const ThickVoxelModel thick = make_thick_voxel_model(settings.thick_voxels, p.phase, p.albedo, settings.absorption);
     std::vector<SiteCoefficients> coef(n);
     for (std::size_t i = 0; i < n; ++i) {
         const float rho = medium.density.data[i];
