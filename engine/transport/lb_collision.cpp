@@ -211,6 +211,9 @@ ThickVoxelModel make_thick_voxel_model(LbThickVoxels mode, const DiscretePhase& 
         m.first_moment[1][b] = img[7];
     }
     m.p_min = phase_min_eigenvalue(phase);
+    m.p_self[kAxis] = phase.P[1][1];
+    m.p_self[kDiagonal] = phase.P[7][7];
+    m.nu = std::min(1.0, std::sqrt(3.0 * (1.0 - m.albedo) * std::max(0.0, 1.0 - m.albedo * m.g)));
     m.e_max = 2.0 * kStabilityMargin / std::max(1e-12, 1.0 - m.albedo * m.p_min);
     // Conservative model: absorbed density waits one step in the rest direction, and the
     // isotropic mode (moving total, rest) has the eigenvalue -(1 - albedo) e of Theta
@@ -251,6 +254,18 @@ SiteCoefficients site_coefficients(const Medium& optics, double voxel_size, doub
     double k = 2.0 * A / (B + std::sqrt(B * B + 4.0 * A * C));
     if (!std::isfinite(k)) k = 1.0;
     k = std::min(k, thick.e_max / std::max(eA, eD));
+    // Over-relaxation leaves a spurious, sign-alternating streaming mode (a packet's
+    // persistence 1 - e_j (1 - albedo P_jj) < 0). Where the physical field decays slowly per
+    // voxel it is harmless; where it decays by more than e^-1 per hop (albedo well below 1
+    // and thick voxels: the diffusion length is shorter than a voxel) it dominates the far
+    // field and the diffusion argument does not hold anyway. So the correction fades out
+    // linearly between nu tau = kTaperStart and kTaperEnd (nu: the medium's diffusion-
+    // approximation decay constant per optical depth, tau the axis hop's optical depth).
+    // It is also weighted by albedo^2: a diffusion coefficient means nothing without
+    // scattering (a pure absorber keeps the exact chord mapping, exact for its beams).
+    const double nt = thick.nu * tau;
+    const double s = thick.albedo * thick.albedo * std::clamp((kTaperEnd - nt) / (kTaperEnd - kTaperStart), 0.0, 1.0);
+    k = 1.0 + s * (k - 1.0);
     k = std::max(k, 1.0);
     for (int cl = 1; cl <= 2; ++cl) {
         c.extinction[cl] *= k;

@@ -104,9 +104,16 @@ struct ThickVoxelModel {
     double first_moment[2][2]{};    ///< P restricted to span{axis c_x, diagonal c_x}
     double p_min = 0.0;             ///< smallest eigenvalue of P (directions 1..18)
     double e_max = 1.0;             ///< stability cap on every e_j
+    double p_self[3] = {0, 0, 0};   ///< P_jj per class (axis: j = 1, diagonal: j = 7)
+    /// Physical asymptotic decay constant per unit optical depth, diffusion approximation
+    /// sqrt(3 (1 - albedo)(1 - albedo g)) capped at 1 (pure absorber).
+    double nu = 0.0;
 };
 /// Omega's eigenvalues stay >= -2 * kStabilityMargin under the diffusion-matched mapping.
 inline constexpr double kStabilityMargin = 0.95;
+/// The correction fades out (k -> 1, the chord mapping) between nu tau = kTaperStart and
+/// kTaperEnd: voxels thicker than the diffusion length 1 / nu (site_coefficients()).
+inline constexpr double kTaperStart = 1.0, kTaperEnd = 1.5;
 /// With the conservative model the cap is also (2 kStabilityMargin - 1) / (1 - albedo): its
 /// rest direction gives Theta the eigenvalue -(1 - albedo) e in the isotropic mode.
 ThickVoxelModel make_thick_voxel_model(LbThickVoxels mode, const DiscretePhase& phase, double albedo,

@@ -49,10 +49,10 @@ TEST_CASE("thick voxels: saturate is the exact-chord mapping; diffusion_matched 
                 // Thin voxels: the same as the chord mapping to first order (k = 1 + O(tau);
                 // measured k - 1 ~ 0.3..0.6 tau for these g).
                 if (tau < 1e-3) CHECK(c1.extinction[1] / c0.extinction[1] - 1.0 < 2.0 * tau);
-                // Continuous and non-decreasing in density (5% steps in tau: e moves by < 10%).
-                CHECK(c1.extinction[1] >= prev_eA * (1.0 - 1e-12));
+                // Continuous in density (5% steps in tau: e moves by < 10%; it decreases where
+                // the correction fades out, nu tau in [1, 1.5]).
+                if (prev_eA > 0.0) CHECK(std::fabs(c1.extinction[1] / prev_eA - 1.0) < 0.1);
                 if (c1.extinction[1] > c0.extinction[1]) CHECK(c1.extinction[2] <= tm.e_max * (1.0 + 1e-12));
-                if (prev_eA > 0.0) CHECK(c1.extinction[1] < prev_eA * 1.1);
                 prev_eA = c1.extinction[1];
             }
         }
@@ -247,4 +247,22 @@ TEST_CASE("thick voxels: units hold with over-relaxation (infinite medium, unifo
                 CHECK(worst_phi < 1e-5);
                 CHECK(worst_s < 2e-4);
             }
+}
+TEST_CASE("probe albedo") {
+    auto case_nu = [](double albedo) {
+        if (albedo <= 0.0) return 1.0;
+        double lo = 1e-9, hi = 1.0 - 1e-15;
+        for (int it = 0; it < 200; ++it) {
+            const double mid = 0.5 * (lo + hi);
+            (albedo / (2.0 * mid) * std::log((1.0 + mid) / (1.0 - mid)) < 1.0 ? lo : hi) = mid;
+        }
+        return 0.5 * (lo + hi);
+    };
+    for (double albedo : {0.0, 0.3, 0.6, 0.8, 0.9, 0.95})
+        for (double tau : {0.25, 1.0, 3.0}) {
+            const double nu = case_nu(albedo);
+            const double ns = lattice_decay(tau, albedo, 0.0, LbThickVoxels::Saturate, nu);
+            const double nm = lattice_decay(tau, albedo, 0.0, LbThickVoxels::DiffusionMatched, nu);
+            MESSAGE("albedo " << albedo << " tau " << tau << " nu " << nu << ": saturate " << ns / nu << ", matched " << nm / nu);
+        }
 }
