@@ -274,9 +274,10 @@ enum class LbAbsorption { Physical, Conservative };
 /// How the lattice treats voxels thicker than a mean free path (docs/lattice-boltzmann.md,
 /// "Thick voxels"). Saturate: the exact-chord mapping e_j = 1 - exp(-sigma_t l_j), which
 /// saturates at one collision per voxel crossing (light diffuses out of optically thick
-/// voxels too fast). DiffusionMatched: e_j scaled up (over-relaxation, 1 < e_j < 2 / (1 -
-/// albedo p_min)) so that the lattice's diffusion coefficient per unit track equals the
-/// physical 1 / (3 sigma_tr); the collision-estimator track keeps absorption exact.
+/// voxels too fast). DiffusionMatched (default): e_j scaled up by k >= 1 (over-relaxation
+/// where needed, capped so that Omega's eigenvalues stay >= -1.9) so that the lattice's
+/// diffusion coefficient per unit track equals the physical 1 / (3 sigma_tr); the
+/// collision-estimator track e_j / sigma_t keeps absorption per unit track exact.
 enum class LbThickVoxels { Saturate, DiffusionMatched };
 
 /// Fast: in-place (AA-pattern) SoA float32 kernel with a factored collision, OpenMP.
@@ -293,7 +294,7 @@ LbThickVoxels parse_lb_thick_voxels(std::string_view s, std::string_view where =
 struct LbSettings {
     LbCollision collision = LbCollision::Corrected;
     LbAbsorption absorption = LbAbsorption::Physical;
-    LbThickVoxels thick_voxels = LbThickVoxels::Saturate;
+    LbThickVoxels thick_voxels = LbThickVoxels::DiffusionMatched;
     LbKernel kernel = LbKernel::Fast;
     /// Steady state: stop when the relative change of the total lattice density per step
     /// (measured over two steps) and the change still to come (geometric extrapolation from

@@ -182,7 +182,7 @@ TEST_CASE("virtual_lights and compression sections: values, defaults and ranges"
 }
 
 TEST_CASE("transport.lattice_boltzmann.thick_voxels: default, both values, unknown value names the field") {
-    CHECK(parse_scene(kMinimal, "min.json").transport.lb_thick_voxels == "saturate");
+    CHECK(parse_scene(kMinimal, "min.json").transport.lb_thick_voxels == "diffusion_matched");
     const Scene m = parse_scene(with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "diffusion_matched"}}, "cloud")"), "t.json");
     CHECK(m.transport.lb_thick_voxels == "diffusion_matched");
     const Scene s = parse_scene(with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "saturate"}}, "cloud")"), "t.json");
