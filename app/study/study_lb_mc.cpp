@@ -129,6 +129,8 @@ struct RunResult {
     bool converged = false;
     double seconds = 0.0;
     double injected = 0.0, escaped = 0.0;  ///< W per step in the steady state
+    std::size_t negative_entries = 0;      ///< S entries < 0 (all voxels and directions)
+    double most_negative = 0.0;            ///< min S / max S
 };
 
 /// Everything solved on one lighting grid, with the fields averaged onto the 500 m grid.
@@ -229,8 +231,18 @@ Solve solve_at(const scene::Scene& scene, const core::Grid3<float>& density, int
         rr.injected = res.injected_per_step;
         rr.escaped = res.escaped_last_step;
         s.runs.push_back(std::move(rr));
-        std::fprintf(stderr, "lb-vs-mc: %3.0f m grid, %-24s %4d steps, %.2f s\n", g.voxel_size, run.label.c_str(),
-                     res.iterations, res.seconds);
+        // Over-relaxation (diffusion_matched) can leave negative S entries: count them.
+        std::size_t negative = 0;
+        float smin = 0.0f, smax = 0.0f;
+        for (float v : res.source.data) {
+            negative += v < 0.0f;
+            smin = std::min(smin, v);
+            smax = std::max(smax, v);
+        }
+        s.runs.back().negative_entries = negative;
+        s.runs.back().most_negative = smax > 0.0f ? double(smin) / double(smax) : 0.0;
+        std::fprintf(stderr, "lb-vs-mc: %3.0f m grid, %-24s %4d steps, %.2f s, %zu negative S entries (min/max %.2g)\n",
+                     g.voxel_size, run.label.c_str(), res.iterations, res.seconds, negative, s.runs.back().most_negative);
     }
     std::fprintf(stderr, "lb-vs-mc: %3.0f m grid: single scattering %.1f s, Monte Carlo %llu paths %.1f s\n",
                  g.voxel_size, s.ss_seconds, static_cast<unsigned long long>(paths), s.mc_seconds);
@@ -371,7 +383,9 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
                            {"sum_S_total_ratio", ratio_t},
                            {"sum_S_multiple_ratio", ratio_m},
                            {"scattered_power_ratio", power_ratio},
-                           {"escaped_fraction_lb", esc_lb}});
+                           {"escaped_fraction_lb", esc_lb},
+                           {"negative_S_entries", rr.negative_entries},
+                           {"min_S_over_max_S", rr.most_negative}});
     }
 
     // --- Resolution: finer lighting grids, compared on the 500 m grid ------------------------------
@@ -487,6 +501,8 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
         for (std::size_t q = 1; q < solves.size(); ++q)
             series.push_back({"LB physical multiple, " + std::to_string(int(solves[q].geom.voxel_size)) + " m grid", {}, {},
                               q == 1 ? "#ff7f0e" : "#9467bd", true, false});
+        const std::size_t other_series = series.size();
+        series.push_back({"LB physical multiple, " + runs[2].label.substr(9) + " mapping", {}, {}, "#8c564b", true, false});
         study::Csv pcsv(ctx.file("lb_vs_mc_profile.csv"),
                         {"k", "z_m", "density", "S1", "mc_single", "mc_multiple", "mc_multiple_se", "lb_multiple_physical",
                          "lb_multiple_conservative"});
@@ -503,6 +519,7 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
             for (std::size_t q = 0; q < 6; ++q) series[q].x.push_back(z), series[q].y.push_back(ys[q]);
             for (std::size_t q = 1; q < solves.size(); ++q)
                 series[5 + q].x.push_back(z), series[5 + q].y.push_back(dir_mean(solves[q].runs[0].mult, c, n, M));
+            series[other_series].x.push_back(z), series[other_series].y.push_back(dir_mean(S.runs[2].mult, c, n, M));
         }
         study::PlotOptions po;
         po.title = "S (mean over 26 directions, 500 m voxels) in the light's column";

@@ -195,7 +195,9 @@ double phase_min_eigenvalue(const DiscretePhase& phase) {
 
 ThickVoxelModel make_thick_voxel_model(LbThickVoxels mode, const DiscretePhase& phase, double albedo, LbAbsorption absorption) {
     ThickVoxelModel m;
-    m.mode = mode;
+    // The analysis needs a column-stochastic P reversible with respect to w (the corrected
+    // form); the published form creates energy, and over-relaxing it diverges: chord mapping.
+    m.mode = phase.form == LbCollision::Corrected ? mode : LbThickVoxels::Saturate;
     m.albedo = std::clamp(albedo, 0.0, 1.0);
     m.g = phase.g;
     // P restricted to the x-odd vectors b1 (axis: c_jx) and b2 (diagonals: c_jx): read the

@@ -114,6 +114,8 @@ inline constexpr double kStabilityMargin = 0.95;
 /// The correction fades out (k -> 1, the chord mapping) between nu tau = kTaperStart and
 /// kTaperEnd: voxels thicker than the diffusion length 1 / nu (site_coefficients()).
 inline constexpr double kTaperStart = 1.0, kTaperEnd = 1.5;
+/// The published collision form always gets the chord mapping (Saturate): the analysis needs
+/// the corrected form's conserving, reversible P, and over-relaxing the published one diverges.
 /// With the conservative model the cap is also (2 kStabilityMargin - 1) / (1 - albedo): its
 /// rest direction gives Theta the eigenvalue -(1 - albedo) e in the isotropic mode.
 ThickVoxelModel make_thick_voxel_model(LbThickVoxels mode, const DiscretePhase& phase, double albedo,

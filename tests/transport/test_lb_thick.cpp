@@ -57,6 +57,10 @@ TEST_CASE("thick voxels: saturate is the exact-chord mapping; diffusion_matched 
                 prev_eA = c1.extinction[1];
             }
         }
+    // The published form keeps the chord mapping (it creates energy; over-relaxed it diverges).
+    const ThickVoxelModel pub = make_thick_voxel_model(LbThickVoxels::DiffusionMatched, published_phase(0.6), 0.99);
+    CHECK(pub.mode == LbThickVoxels::Saturate);
+    CHECK(site_coefficients(Medium{2.0, 0.99, 0.6}, 1.0, 1.0, pub).extinction[1] == site_coefficients(Medium{2.0, 0.99, 0.6}, 1.0, 1.0).extinction[1]);
     // Empty voxels stay pure streaming.
     const SiteCoefficients e = site_coefficients(Medium{1.0, 0.99, 0.6}, 1.0, 0.0, matched(0.6, 0.99));
     CHECK(e.extinction[1] == 0.0);
