@@ -19,7 +19,8 @@ namespace fulgur::bake {
 namespace {
 
 // Bump when the bake's algorithm changes what it writes for the same scene (forces a rebake).
-constexpr int kBakeAlgorithm = 1;
+// 2: the lattice-Boltzmann thick-voxel mapping (transport.lattice_boltzmann.thick_voxels).
+constexpr int kBakeAlgorithm = 2;
 
 std::string num(double v) {
     char b[40];

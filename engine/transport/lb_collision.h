@@ -96,7 +96,9 @@ SiteCoefficients site_coefficients(const Medium& optics, double voxel_size, doub
 /// quadratic. k is floored at 1 (never below the chord mapping: the thin-voxel limit) and
 /// capped so that every eigenvalue of Omega = Theta - I stays >= -2 kStabilityMargin:
 /// the eigenvalues of (I - albedo P) E are real (P is reversible with respect to w) and at
-/// most max_j e_j (1 - albedo p_min), p_min the smallest eigenvalue of P.
+/// most max_j e_j (1 - albedo p_min), p_min the smallest eigenvalue of P; and e_j <= 2
+/// kStabilityMargin (a packet's own persistence 1 - e_j >= -0.9: less ringing, fewer
+/// negative outputs).
 struct ThickVoxelModel {
     LbThickVoxels mode = LbThickVoxels::Saturate;
     double albedo = 1.0;
