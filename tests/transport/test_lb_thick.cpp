@@ -204,7 +204,7 @@ TEST_CASE("thick voxels: plane-source decay (diffusion length) converges to tran
         MESSAGE("L = 8 voxels, tau " << tau << " albedo " << a << ": nu / nu_transport saturate " << ns / n8 << ", diffusion_matched " << nm / n8);
         if (tau <= 4.0) CHECK(std::fabs(nm / n8 - 1.0) < 0.01);  // 8 voxels per diffusion length: 0.2% measured
         else CHECK(std::fabs(nm / n8 - 1.0) < 0.75 * std::fabs(ns / n8 - 1.0));  // capped: 0.56 vs 0.87 off
-        CHECK(ns / n8 < 0.75);
+        CHECK(ns / n8 < 0.75);  // saturate: 0.72 at tau 1, falling to 0.13 at 16 (the contrast is the point)
     }
 }
 
