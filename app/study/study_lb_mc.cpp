@@ -118,6 +118,7 @@ struct Run {
     LbAbsorption absorption;
     double tolerance;
     bool use_phi1;
+    LbThickVoxels thick = LbSettings{}.thick_voxels;
 };
 
 struct RunResult {
@@ -128,6 +129,8 @@ struct RunResult {
     bool converged = false;
     double seconds = 0.0;
     double injected = 0.0, escaped = 0.0;  ///< W per step in the steady state
+    std::size_t negative_entries = 0;      ///< S entries < 0 (all voxels and directions)
+    double most_negative = 0.0;            ///< min S / max S
 };
 
 /// Everything solved on one lighting grid, with the fields averaged onto the 500 m grid.
@@ -214,6 +217,7 @@ Solve solve_at(const scene::Scene& scene, const core::Grid3<float>& density, int
         ls.collision = run.collision;
         ls.absorption = run.absorption;
         ls.tolerance = run.tolerance;
+        ls.thick_voxels = run.thick;
         const LbResult res = solve_lattice_boltzmann(m, src, dirs, ls);
         RunResult rr;
         rr.mult = coarsen(res.source, coarse, f);
@@ -227,8 +231,18 @@ Solve solve_at(const scene::Scene& scene, const core::Grid3<float>& density, int
         rr.injected = res.injected_per_step;
         rr.escaped = res.escaped_last_step;
         s.runs.push_back(std::move(rr));
-        std::fprintf(stderr, "lb-vs-mc: %3.0f m grid, %-24s %4d steps, %.2f s\n", g.voxel_size, run.label.c_str(),
-                     res.iterations, res.seconds);
+        // Over-relaxation (diffusion_matched) can leave negative S entries: count them.
+        std::size_t negative = 0;
+        float smin = 0.0f, smax = 0.0f;
+        for (float v : res.source.data) {
+            negative += v < 0.0f;
+            smin = std::min(smin, v);
+            smax = std::max(smax, v);
+        }
+        s.runs.back().negative_entries = negative;
+        s.runs.back().most_negative = smax > 0.0f ? double(smin) / double(smax) : 0.0;
+        std::fprintf(stderr, "lb-vs-mc: %3.0f m grid, %-24s %4d steps, %.2f s, %zu negative S entries (min/max %.2g)\n",
+                     g.voxel_size, run.label.c_str(), res.iterations, res.seconds, negative, s.runs.back().most_negative);
     }
     std::fprintf(stderr, "lb-vs-mc: %3.0f m grid: single scattering %.1f s, Monte Carlo %llu paths %.1f s\n",
                  g.voxel_size, s.ss_seconds, static_cast<unsigned long long>(paths), s.mc_seconds);
@@ -284,15 +298,21 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
     const glm::dvec3 lv = g.to_voxel(light.position);
     const int li = int(std::floor(lv.x)), lj = int(std::floor(lv.y));
 
+    // Runs 0-1: the default thick-voxel mapping; 2-3: the other one (solved on every grid).
+    const LbThickVoxels def = LbSettings{}.thick_voxels;
+    const LbThickVoxels other = def == LbThickVoxels::Saturate ? LbThickVoxels::DiffusionMatched : LbThickVoxels::Saturate;
+    auto tname = [](LbThickVoxels t) { return std::string(t == LbThickVoxels::Saturate ? "saturate" : "matched"); };
     const std::vector<Run> runs = {
-        {"physical", LbCollision::Corrected, LbAbsorption::Physical, 1e-4, true},
-        {"conservative", LbCollision::Corrected, LbAbsorption::Conservative, 1e-4, true},
-        {"physical tol 1e-6", LbCollision::Corrected, LbAbsorption::Physical, 1e-6, true},
-        {"physical without phi1", LbCollision::Corrected, LbAbsorption::Physical, 1e-4, false},
-        {"published physical", LbCollision::Published, LbAbsorption::Physical, 1e-4, true},
-        {"published conservative", LbCollision::Published, LbAbsorption::Conservative, 1e-4, true},
+        {"physical " + tname(def), LbCollision::Corrected, LbAbsorption::Physical, 1e-4, true, def},
+        {"conservative " + tname(def), LbCollision::Corrected, LbAbsorption::Conservative, 1e-4, true, def},
+        {"physical " + tname(other), LbCollision::Corrected, LbAbsorption::Physical, 1e-4, true, other},
+        {"conservative " + tname(other), LbCollision::Corrected, LbAbsorption::Conservative, 1e-4, true, other},
+        {"physical tol 1e-6", LbCollision::Corrected, LbAbsorption::Physical, 1e-6, true, def},
+        {"physical without phi1", LbCollision::Corrected, LbAbsorption::Physical, 1e-4, false, def},
+        {"published physical", LbCollision::Published, LbAbsorption::Physical, 1e-4, true, def},
+        {"published conservative", LbCollision::Published, LbAbsorption::Conservative, 1e-4, true, def},
     };
-    const std::vector<Run> fine_runs(runs.begin(), runs.begin() + 2);
+    const std::vector<Run> fine_runs(runs.begin(), runs.begin() + 4);
 
     // --- Solves: the scene's grid (500 m), then finer lighting grids ---------------------------
     const std::uint64_t paths = ctx.quick ? 200'000 : 20'000'000;
@@ -363,7 +383,9 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
                            {"sum_S_total_ratio", ratio_t},
                            {"sum_S_multiple_ratio", ratio_m},
                            {"scattered_power_ratio", power_ratio},
-                           {"escaped_fraction_lb", esc_lb}});
+                           {"escaped_fraction_lb", esc_lb},
+                           {"negative_S_entries", rr.negative_entries},
+                           {"min_S_over_max_S", rr.most_negative}});
     }
 
     // --- Resolution: finer lighting grids, compared on the 500 m grid ------------------------------
@@ -378,7 +400,7 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
         for (const Solve& s : solves) {
             const Field t = sum(s.mc1, s.mcm), st = quad_sum(s.se1, s.sem);
             const double ft = noise_floor(st, t, cloud, n, M), fm = noise_floor(s.sem, s.mcm, cloud, n, M);
-            for (std::size_t r = 0; r < std::min<std::size_t>(2, s.runs.size()); ++r) {
+            for (std::size_t r = 0; r < std::min<std::size_t>(4, s.runs.size()); ++r) {
                 const RunResult& rr = s.runs[r];
                 const double et = rel_l2(sum(s.s1, rr.mult), t, cloud, n, M), em = rel_l2(rr.mult, s.mcm, cloud, n, M);
                 const double ratio = field_sum(rr.mult, cloud, n, M) / field_sum(s.mcm, cloud, n, M);
@@ -401,7 +423,7 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
                                   {"lb_seconds", rr.seconds},
                                   {"mc_paths", p},
                                   {"mc_seconds", s.mc_seconds}});
-                std::fprintf(stderr, "lb-vs-mc: %3.0f m grid %-14s total %.4f multiple %.4f (500 m); native %.4f / %.4f\n",
+                std::fprintf(stderr, "lb-vs-mc: %3.0f m grid %-22s total %.4f multiple %.4f (500 m); native %.4f / %.4f\n",
                              s.geom.voxel_size, runs[r].label.c_str(), et, em, rr.native_total, rr.native_multiple);
             }
         }
@@ -421,7 +443,7 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
                               {"relL2_multiple_native", rr.native_multiple},
                               {"noise_floor_multiple_native", own.native_floor_multiple},
                               {"iterations", rr.iterations}});
-            std::fprintf(stderr, "lb-vs-mc: scene grid %3.0f m %-14s native total %.4f multiple %.4f\n",
+            std::fprintf(stderr, "lb-vs-mc: scene grid %3.0f m %-22s native total %.4f multiple %.4f\n",
                          own.geom.voxel_size, runs[r].label.c_str(), rr.native_total, rr.native_multiple);
         }
     }
@@ -479,6 +501,8 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
         for (std::size_t q = 1; q < solves.size(); ++q)
             series.push_back({"LB physical multiple, " + std::to_string(int(solves[q].geom.voxel_size)) + " m grid", {}, {},
                               q == 1 ? "#ff7f0e" : "#9467bd", true, false});
+        const std::size_t other_series = series.size();
+        series.push_back({"LB physical multiple, " + runs[2].label.substr(9) + " mapping", {}, {}, "#8c564b", true, false});
         study::Csv pcsv(ctx.file("lb_vs_mc_profile.csv"),
                         {"k", "z_m", "density", "S1", "mc_single", "mc_multiple", "mc_multiple_se", "lb_multiple_physical",
                          "lb_multiple_conservative"});
@@ -495,6 +519,7 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
             for (std::size_t q = 0; q < 6; ++q) series[q].x.push_back(z), series[q].y.push_back(ys[q]);
             for (std::size_t q = 1; q < solves.size(); ++q)
                 series[5 + q].x.push_back(z), series[5 + q].y.push_back(dir_mean(solves[q].runs[0].mult, c, n, M));
+            series[other_series].x.push_back(z), series[other_series].y.push_back(dir_mean(S.runs[2].mult, c, n, M));
         }
         study::PlotOptions po;
         po.title = "S (mean over 26 directions, 500 m voxels) in the light's column";

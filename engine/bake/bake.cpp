@@ -19,7 +19,8 @@ namespace fulgur::bake {
 namespace {
 
 // Bump when the bake's algorithm changes what it writes for the same scene (forces a rebake).
-constexpr int kBakeAlgorithm = 1;
+// 2: the lattice-Boltzmann thick-voxel mapping (transport.lattice_boltzmann.thick_voxels).
+constexpr int kBakeAlgorithm = 2;
 
 std::string num(double v) {
     char b[40];
@@ -42,6 +43,7 @@ transport::LbSettings lb_settings(const scene::Scene& s) {
     transport::LbSettings lb;
     lb.collision = transport::parse_lb_collision(s.transport.lb_collision);
     lb.absorption = transport::parse_lb_absorption(s.transport.lb_absorption);
+    lb.thick_voxels = transport::parse_lb_thick_voxels(s.transport.lb_thick_voxels);
     lb.tolerance = s.transport.lb_tolerance;
     lb.max_iterations = s.transport.lb_max_iterations;
     return lb;
@@ -128,6 +130,7 @@ basis::BakeKey scene_key(const scene::Scene& s, const core::Grid3<float>& densit
             d << "transport.solver=lattice_boltzmann\n";
             d << "transport.lattice_boltzmann.collision=" << s.transport.lb_collision << "\n";
             d << "transport.lattice_boltzmann.absorption=" << s.transport.lb_absorption << "\n";
+            d << "transport.lattice_boltzmann.thick_voxels=" << s.transport.lb_thick_voxels << "\n";
             d << "transport.lattice_boltzmann.tolerance=" << num(s.transport.lb_tolerance) << "\n";
             d << "transport.lattice_boltzmann.max_iterations=" << s.transport.lb_max_iterations << "\n";
         } else {
@@ -282,7 +285,8 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
         why.push_back("effects.multiple_scattering = false: no transport solve, bases hold the exact single scattering");
     else if (p.solver == "lattice_boltzmann")
         why.push_back("multiple scattering by lattice-Boltzmann (" + s.transport.lb_collision + " collision, " +
-                      s.transport.lb_absorption + " absorption, tolerance " + short_num(s.transport.lb_tolerance) +
+                      s.transport.lb_absorption + " absorption, " + s.transport.lb_thick_voxels +
+                      " thick voxels, tolerance " + short_num(s.transport.lb_tolerance) +
                       ") fed with the exact single scattering");
     else
         why.push_back("multiple scattering by Monte Carlo (reference quality, " + std::to_string(s.transport.mc_paths) +

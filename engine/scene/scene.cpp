@@ -82,6 +82,7 @@ void parse_transport(JsonObject o, TransportSettings& t) {
     if (auto lb = o.optional_object("lattice_boltzmann")) {
         t.lb_collision = lb->choice_or("collision", t.lb_collision, {"corrected", "published"});
         t.lb_absorption = lb->choice_or("absorption", t.lb_absorption, {"physical", "conservative"});
+        t.lb_thick_voxels = lb->choice_or("thick_voxels", t.lb_thick_voxels, {"saturate", "diffusion_matched"});
         t.lb_tolerance = lb->number_or("tolerance", t.lb_tolerance, Range{0.0, 0.1, true, false});
         t.lb_max_iterations = int(lb->integer_or("max_iterations", t.lb_max_iterations, 1, 1'000'000));
         lb->finish();

@@ -54,6 +54,9 @@ struct TransportSettings {
     // lattice_boltzmann
     std::string lb_collision = "corrected";  ///< "corrected" (energy-conserving) or "published"
     std::string lb_absorption = "physical";  ///< "physical" (absorbed energy leaves) or "conservative" (paper)
+    /// "saturate" (exact-chord mapping, one collision per voxel crossing) or
+    /// "diffusion_matched" (over-relaxed in optically thick voxels; docs/lattice-boltzmann.md)
+    std::string lb_thick_voxels = "diffusion_matched";
     double lb_tolerance = 1e-4;              ///< steady state: relative change per step
     int lb_max_iterations = 4000;
     // monte_carlo

@@ -80,6 +80,64 @@ struct SiteCoefficients {
 /// collision estimator, exact for the lattice's collision rate.
 SiteCoefficients site_coefficients(const Medium& optics, double voxel_size, double density) noexcept;
 
+/// Thick-voxel correction (LbThickVoxels::DiffusionMatched; docs/lattice-boltzmann.md,
+/// "Thick voxels"). Built once per solve from the discrete phase and the albedo.
+///
+/// The lattice's diffusion coefficient for uniform per-class extinctions e_A, e_D follows
+/// from a uniform-gradient (Chapman-Enskog / Green-Kubo) analysis of the collide-stream
+/// step: with the stationary direction distribution pi_j = (w_j / e_j) / Z,
+/// Z = sum_j w_j / e_j, the flux is -D grad(rho) (rho = sum_j f_j, lattice units h, step) with
+///     D = sum_j c_jx chi_j - (1/2) sum_j pi_j c_jx^2,   (I - albedo P) E chi = pi o c_x,
+/// E = diag(e_j). By cubic symmetry chi lies in the 2-dimensional space of x-odd vectors
+/// spanned by the axis and the diagonal c_jx, so this is a 2x2 solve (`first_moment`). The
+/// continuous medium needs D = lbar / (3 tau_tr) with lbar = sum_j pi_j track_j / h the mean
+/// track per arriving packet and tau_tr = sigma_t (1 - albedo g) h. Scaling the exact-chord
+/// extinctions by k (e_j = k e_j^chord) gives D = A / k - B and lbar = C' k, so k solves a
+/// quadratic. k is floored at 1 (never below the chord mapping: the thin-voxel limit) and
+/// capped so that every eigenvalue of Omega = Theta - I stays >= -2 kStabilityMargin:
+/// the eigenvalues of (I - albedo P) E are real (P is reversible with respect to w) and at
+/// most max_j e_j (1 - albedo p_min), p_min the smallest eigenvalue of P; and e_j <= 2
+/// kStabilityMargin (a packet's own persistence 1 - e_j >= -0.9: less ringing, fewer
+/// negative outputs).
+struct ThickVoxelModel {
+    LbThickVoxels mode = LbThickVoxels::Saturate;
+    double albedo = 1.0;
+    double g = 0.0;                 ///< the medium's asymmetry (for sigma_tr)
+    double first_moment[2][2]{};    ///< P restricted to span{axis c_x, diagonal c_x}
+    double p_min = 0.0;             ///< smallest eigenvalue of P (directions 1..18)
+    double e_max = 1.0;             ///< stability cap on every e_j
+    double p_self[3] = {0, 0, 0};   ///< P_jj per class (axis: j = 1, diagonal: j = 7)
+    /// Physical asymptotic decay constant per unit optical depth, diffusion approximation
+    /// sqrt(3 (1 - albedo)(1 - albedo g)) capped at 1 (pure absorber).
+    double nu = 0.0;
+};
+/// Omega's eigenvalues stay >= -2 * kStabilityMargin under the diffusion-matched mapping.
+inline constexpr double kStabilityMargin = 0.95;
+/// The correction fades out (k -> 1, the chord mapping) between nu tau = kTaperStart and
+/// kTaperEnd: voxels thicker than the diffusion length 1 / nu (site_coefficients()).
+inline constexpr double kTaperStart = 1.0, kTaperEnd = 1.5;
+/// The published collision form always gets the chord mapping (Saturate): the analysis needs
+/// the corrected form's conserving, reversible P, and over-relaxing the published one diverges.
+/// With the conservative model the cap is also (2 kStabilityMargin - 1) / (1 - albedo): its
+/// rest direction gives Theta the eigenvalue -(1 - albedo) e in the isotropic mode.
+ThickVoxelModel make_thick_voxel_model(LbThickVoxels mode, const DiscretePhase& phase, double albedo,
+                                       LbAbsorption absorption = LbAbsorption::Physical);
+/// Smallest eigenvalue of the discrete phase function P (directions 1..18; Jacobi on the
+/// symmetrized W^-1/2 P W^1/2, exact for the corrected form, whose K is symmetric).
+double phase_min_eigenvalue(const DiscretePhase& phase);
+/// The lattice's diffusion coefficient (h^2 per step, per axis; for rho = sum_j f_j) and the
+/// mean track per packet per step in units of h (for track_j = e_j / sigma_t: 1 / (Z tau_A)),
+/// for uniform extinctions e_A, e_D in (0, 2) and hop optical depth tau_A = sigma_t h > 0.
+struct LatticeDiffusion {
+    double D = 0.0;
+    double mean_track = 0.0;
+};
+LatticeDiffusion lattice_diffusion(const ThickVoxelModel& m, double eA, double eD, double tau_axis);
+/// site_coefficients() with the thick-voxel model: Saturate gives exactly the exact-chord
+/// mapping above; DiffusionMatched scales e_j (and the collision-estimator track
+/// e_j / sigma_t with it) by k >= 1 as described at ThickVoxelModel.
+SiteCoefficients site_coefficients(const Medium& optics, double voxel_size, double density, const ThickVoxelModel& thick) noexcept;
+
 /// The paper's lattice units: one extinction probability sigma_t in [0, 1] for every
 /// direction (clamped), h = 1, track = hop length. Used to reproduce Eqs. 4-6 and Eq. 19.
 SiteCoefficients lattice_unit_coefficients(double sigma_t, double albedo) noexcept;

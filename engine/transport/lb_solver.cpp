@@ -246,12 +246,13 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
     p.phase = make_phase(settings.collision, medium.optics.g);
     p.ext_axis.resize(n);
     p.ext_diag.resize(n);
+    const ThickVoxelModel thick = make_thick_voxel_model(settings.thick_voxels, p.phase, p.albedo, settings.absorption);
     std::vector<SiteCoefficients> coef(n);
     for (std::size_t i = 0; i < n; ++i) {
         const float rho = medium.density.data[i];
         if (!std::isfinite(rho) || rho < 0.0f)
             throw core::Error("lattice_boltzmann: density", "voxel " + std::to_string(i) + " is negative or not finite");
-        coef[i] = site_coefficients(medium.optics, h, double(rho));
+        coef[i] = site_coefficients(medium.optics, h, double(rho), thick);
         p.ext_axis[i] = float(coef[i].extinction[kAxis]);
         p.ext_diag[i] = float(coef[i].extinction[kDiagonal]);
     }

@@ -271,6 +271,15 @@ enum class LbCollision { Corrected, Published };
 /// isotropically on the next step, so total density is conserved.
 enum class LbAbsorption { Physical, Conservative };
 
+/// How the lattice treats voxels thicker than a mean free path (docs/lattice-boltzmann.md,
+/// "Thick voxels"). Saturate: the exact-chord mapping e_j = 1 - exp(-sigma_t l_j), which
+/// saturates at one collision per voxel crossing (light diffuses out of optically thick
+/// voxels too fast). DiffusionMatched (default): e_j scaled up by k >= 1 (over-relaxation
+/// where needed, capped so that Omega's eigenvalues stay >= -1.9) so that the lattice's
+/// diffusion coefficient per unit track equals the physical 1 / (3 sigma_tr); the
+/// collision-estimator track e_j / sigma_t keeps absorption per unit track exact.
+enum class LbThickVoxels { Saturate, DiffusionMatched };
+
 /// Fast: in-place (AA-pattern) SoA float32 kernel with a factored collision, OpenMP.
 /// Naive: the paper's Appendix B (dense 19x19 collision, separate streaming pass).
 enum class LbKernel { Fast, Naive };
@@ -279,10 +288,13 @@ enum class LbKernel { Fast, Naive };
 LbCollision parse_lb_collision(std::string_view s, std::string_view where = "transport.lattice_boltzmann.collision");
 /// "physical" | "conservative"; throws core::Error naming `where` otherwise.
 LbAbsorption parse_lb_absorption(std::string_view s, std::string_view where = "transport.lattice_boltzmann.absorption");
+/// "saturate" | "diffusion_matched"; throws core::Error naming `where` otherwise.
+LbThickVoxels parse_lb_thick_voxels(std::string_view s, std::string_view where = "transport.lattice_boltzmann.thick_voxels");
 
 struct LbSettings {
     LbCollision collision = LbCollision::Corrected;
     LbAbsorption absorption = LbAbsorption::Physical;
+    LbThickVoxels thick_voxels = LbThickVoxels::DiffusionMatched;
     LbKernel kernel = LbKernel::Fast;
     /// Steady state: stop when the relative change of the total lattice density per step
     /// (measured over two steps) and the change still to come (geometric extrapolation from

@@ -117,6 +117,11 @@ TEST_CASE("scene key: bake-relevant parameters change it, others do not") {
     changed([](scene::Scene& t, core::Grid3<float>&) { t.virtual_lights.h_usr = 3000; }, "virtual_lights.h_usr=");
     changed([](scene::Scene& t, core::Grid3<float>&) { t.transport.lb_tolerance = 1e-5; }, "tolerance=");
     changed([](scene::Scene& t, core::Grid3<float>&) { t.separate_components = false; }, "compression.components=");
+    changed(
+        [](scene::Scene& t, core::Grid3<float>&) {
+            t.transport.lb_thick_voxels = t.transport.lb_thick_voxels == "saturate" ? "diffusion_matched" : "saturate";
+        },
+        "transport.lattice_boltzmann.thick_voxels=");
     changed([](scene::Scene&, core::Grid3<float>& dt) { dt.data[100] += 1e-6f; }, "density.hash=");
 
     // Lightning and rendering parameters are not baked.

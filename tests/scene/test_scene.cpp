@@ -185,6 +185,16 @@ TEST_CASE("virtual_lights and compression sections: values, defaults and ranges"
     bad(R"("compression": {"entropy": "zstd"})", "compression.entropy");
 }
 
+TEST_CASE("transport.lattice_boltzmann.thick_voxels: default, both values, unknown value names the field") {
+    CHECK(parse_scene(kMinimal, "min.json").transport.lb_thick_voxels == "diffusion_matched");
+    const Scene m = parse_scene(with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "diffusion_matched"}}, "cloud")"), "t.json");
+    CHECK(m.transport.lb_thick_voxels == "diffusion_matched");
+    const Scene s = parse_scene(with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "saturate"}}, "cloud")"), "t.json");
+    CHECK(s.transport.lb_thick_voxels == "saturate");
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "subgrid"}}, "cloud")"), "t.json"),
+                         doctest::Contains("transport.lattice_boltzmann.thick_voxels"), Error);
+}
+
 TEST_CASE("lightning section: defaults, every field, and ranges naming the field") {
     const Scene d = parse_scene(kMinimal, "min.json");
     CHECK(d.lightning.bolt.kind == fulgur::lightning::Kind::CloudToGround);
