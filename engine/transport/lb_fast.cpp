@@ -32,62 +32,91 @@ namespace fulgur::transport::lb {
 
 namespace {
 
-// --- constexpr tables for the factored collision -----------------------------------------
-struct DiagInfo {
-    int a, b;     // the two axis directions whose sum is c_i
-    int x1, x2;   // the diagonals (a, -b) and (-a, b): c . c_i = 0
-};
-constexpr int find_dir(int x, int y, int z) {
-    for (int q = 0; q < kQ; ++q)
-        if (kVelocity[std::size_t(q)].x == x && kVelocity[std::size_t(q)].y == y && kVelocity[std::size_t(q)].z == z) return q;
-    return -1;
-}
-constexpr int axis_dir(int axis, int sign) { return 1 + 2 * axis + (sign > 0 ? 0 : 1); }
-constexpr std::array<DiagInfo, kQ> make_diag_info() {
-    std::array<DiagInfo, kQ> t{};
-    for (int i = 7; i < kQ; ++i) {
-        const int v[3] = {kVelocity[std::size_t(i)].x, kVelocity[std::size_t(i)].y, kVelocity[std::size_t(i)].z};
-        int ax[2] = {-1, -1}, sg[2] = {0, 0}, n = 0;
-        for (int k = 0; k < 3; ++k)
-            if (v[k] != 0) {
-                ax[n] = k;
-                sg[n] = v[k];
-                ++n;
-            }
-        DiagInfo d{};
-        d.a = axis_dir(ax[0], sg[0]);
-        d.b = axis_dir(ax[1], sg[1]);
-        int w1[3] = {0, 0, 0}, w2[3] = {0, 0, 0};
-        w1[ax[0]] = sg[0];
-        w1[ax[1]] = -sg[1];
-        w2[ax[0]] = -sg[0];
-        w2[ax[1]] = sg[1];
-        d.x1 = find_dir(w1[0], w1[1], w1[2]);
-        d.x2 = find_dir(w2[0], w2[1], w2[2]);
-        t[std::size_t(i)] = d;
-    }
-    return t;
-}
-inline constexpr std::array<DiagInfo, kQ> kDiag = make_diag_info();
-// For axis direction a (1..6): the 4 diagonals with c . c_a = +1.
-constexpr std::array<std::array<int, 4>, kQ> make_axis_diags() {
-    std::array<std::array<int, 4>, kQ> t{};
-    for (int a = 1; a <= 6; ++a) {
-        int n = 0;
-        for (int d = 7; d < kQ; ++d)
-            if (cdot(a, d) == 1) t[std::size_t(a)][std::size_t(n++)] = d;
-    }
-    return t;
-}
-inline constexpr std::array<std::array<int, 4>, kQ> kAxisDiags = make_axis_diags();
-static_assert(kDiag[7].a == 1 && kDiag[7].b == 3, "diagonal (1,1,0) = +x + +y");
-static_assert(kAxisDiags[1][3] != 0, "every axis has 4 diagonals with a positive component along it");
-
-// --- the per-site collision (inlined into the vectorized row loops) ----------------------
-struct Coeffs {
-    FactoredPhase fp;
+// --- the factored collision in pair form --------------------------------------------------
+//
+// The 18 moving directions form 9 opposite pairs (q, q + 1), q odd: the axis pairs X, Y, Z
+// and the diagonal pairs P7 (1,1,0), P9 (1,-1,0), P11 (1,0,1), P13 (1,0,-1), P15 (0,1,1),
+// P17 (0,1,-1) (c of the odd member). Because P_ij depends only on the classes and on
+// c_i.c_j, and P_{opp i, j} = P_{i, opp j}, the collision splits into an even part acting on
+// the pair sums sigma_J = f_J+ + f_J- and an odd part acting on the differences
+// delta_J = f_J+ - f_J-. With u = e f (e per class and site):
+//   even:  Sigma_I = sum_J (P_{I+,J+} + P_{I+,J-}) sigma^u_J depends on |c_I.c_J| only, so it
+//          is a combination of the class totals SA, SD, one plane (or axis) term and the
+//          pair itself;
+//   odd:   Delta_I = sum_J (P_{I+,J+} - P_{I+,J-}) delta^u_J is linear in c_I.c_J except for
+//          the pair itself, so it needs the two "flux" vectors JA = sum_axis c_J delta^u_J and
+//          JD = sum_diag c_J delta^u_J and the pair's own difference.
+// The scattered part is s_{I+} = H_I + G_I, s_{I-} = H_I - G_I with H = Sigma / 2,
+// G = Delta / 2, and out_i = (1 - e_i) f_i + s_i: the unscattered part is added per
+// direction, so a small output next to a large opposite one (a beam's backward direction)
+// is not the difference of two large numbers. About 150 flops per site instead of ~360 for
+// the class-sum form, and only the 9 + 9 pair values plus a few aggregates live at once.
+struct PairCoeffs {
+    // (all on u = e f)
+    // axis outputs: H_x = hA_pl Pl_yz + hA_SA SA + hA_SD SD, G_x = gA_JD JD_x, and the
+    //   pair's own term: out_{+x} = (1 + kpA1 e) f_{+x} + kmA u_{-x} + H_x + G_x, where
+    //   kpA1 = kpA - 1 (scattered back into the same direction, minus the extinguished unit)
+    float kpA1, kmA, hA_pl, hA_SA, hA_SD, gA_JD;
+    // diagonal outputs (plane xy, third axis z): H_I = hD_pl Pl_xy + hD_ax sigma_z
+    //   + hD_SA SA + hD_SD SD, G_I = c_I . V, V = gD_JA JA + gD_JD JD, and the pair's own
+    //   term as for the axes with kpD1, kmD
+    float kpD1, kmD, hD_pl, hD_ax, hD_SA, hD_SD, gD_JA, gD_JD;
     float one_minus_albedo;
 };
+
+// The pair layout this kernel is written for (checked against the lattice table).
+constexpr bool check_pair_layout() {
+    constexpr int c[19][3] = {{0, 0, 0},  {1, 0, 0},   {-1, 0, 0}, {0, 1, 0},  {0, -1, 0}, {0, 0, 1},   {0, 0, -1},
+                              {1, 1, 0},  {-1, -1, 0}, {1, -1, 0}, {-1, 1, 0}, {1, 0, 1},  {-1, 0, -1}, {1, 0, -1},
+                              {-1, 0, 1}, {0, 1, 1},   {0, -1, -1}, {0, 1, -1}, {0, -1, 1}};
+    for (int q = 0; q < kQ; ++q)
+        if (kVelocity[std::size_t(q)].x != c[q][0] || kVelocity[std::size_t(q)].y != c[q][1] || kVelocity[std::size_t(q)].z != c[q][2])
+            return false;
+    for (int q = 1; q < kQ; q += 2)
+        if (opposite(q) != q + 1) return false;
+    return true;
+}
+static_assert(check_pair_layout(), "the pair-form collision assumes this direction order");
+
+PairCoeffs make_pair_coeffs(const DiscretePhase& phase, double albedo) {
+    // Asserts the cubic structure (every entry equals its class representative).
+    (void)factor_phase(phase, albedo);
+    auto P = [&](int i, int j) { return albedo * phase.P[std::size_t(i)][std::size_t(j)]; };
+    const double As = P(1, 1), Ao = P(1, 2), Ap = P(1, 3);
+    const double ADp = P(1, 7), AD0 = P(1, 15), ADn = P(1, 8);
+    const double DAp = P(7, 1), DA0 = P(7, 5), DAn = P(7, 2);
+    const double DDs = P(7, 7), DDo = P(7, 8), DDp = P(7, 11), DD0 = P(7, 9), DDn = P(7, 12);
+    PairCoeffs k{};
+    k.hA_pl = float(0.5 * (2.0 * AD0 - ADp - ADn));
+    k.hA_SA = float(Ap);
+    k.hA_SD = float(0.5 * (ADp + ADn));
+    k.gA_JD = float(0.5 * (ADp - ADn));
+    k.hD_pl = float(0.5 * (2.0 * DD0 - DDp - DDn));
+    k.hD_ax = float(0.5 * (2.0 * DA0 - DAp - DAn));
+    k.hD_SA = float(0.5 * (DAp + DAn));
+    k.hD_SD = float(0.5 * (DDp + DDn));
+    k.gD_JA = float(0.5 * (DAp - DAn));
+    k.gD_JD = float(0.5 * (DDp - DDn));
+    // The pair's own terms (what the aggregates above do not already give): into the same
+    // direction kp (stored as kp - 1, the float actually used), into the opposite one km.
+    k.kpA1 = float(As - Ap - 1.0);
+    k.kpD1 = float(DDs - DD0 - DDp + DDn - 1.0);
+    const double kpA = double(k.kpA1) + 1.0, kpD = double(k.kpD1) + 1.0;
+    // km absorbs the rounding of the others so that the scattered column sums, evaluated
+    // exactly on the float coefficients, equal the double ones (albedo for the corrected
+    // form; the published form keeps its own): an arriving axis or diagonal unit scatters
+    // in total (the odd coefficients cancel in the sum over each pair)
+    //   axis input:     kpA + kmA + 2 (3 hA_SA + 6 hD_SA + 2 hD_ax)            = colA
+    //   diagonal input: kpD + kmD + 2 (2 hD_pl + 6 hD_SD + 3 hA_SD + hA_pl)    = colD
+    // (no systematic energy drift in float32 kernels).
+    const double colA = As + Ao + 4.0 * Ap + 4.0 * (DAp + DA0 + DAn);
+    const double colD = 2.0 * (ADp + AD0 + ADn) + DDs + DDo + 4.0 * DDp + 2.0 * DD0 + 4.0 * DDn;
+    k.kmA = float(colA - kpA - 2.0 * (3.0 * double(k.hA_SA) + 6.0 * double(k.hD_SA) + 2.0 * double(k.hD_ax)));
+    k.kmD = float(colD - kpD -
+                  2.0 * (2.0 * double(k.hD_pl) + 6.0 * double(k.hD_SD) + 3.0 * double(k.hA_SD) + double(k.hA_pl)));
+    k.one_minus_albedo = float(1.0 - albedo);
+    return k;
+}
 
 #if defined(__GNUC__)
 #define FULGUR_INLINE inline __attribute__((always_inline))
@@ -97,9 +126,9 @@ struct Coeffs {
 #define FULGUR_LAMBDA_INLINE
 #endif
 
-// Compile-time unrolling: every direction index becomes a constant, so the per-site arrays
-// below live in registers and the loop over x vectorizes (a runtime loop over q with table
-// lookups compiles to scalar code, ~10x slower).
+// Compile-time unrolling of the per-direction loads and stores: every direction index
+// becomes a constant, so the per-site arrays live in registers and the loop over x
+// vectorizes (a runtime loop over q compiles to scalar code, ~10x slower).
 template <int Begin, class F, int... I>
 FULGUR_INLINE void unroll_impl(F&& f, std::integer_sequence<int, I...>) {
     (f(std::integral_constant<int, Begin + I>{}), ...);
@@ -109,44 +138,81 @@ FULGUR_INLINE void unroll(F&& f) {
     unroll_impl<Begin>(f, std::make_integer_sequence<int, End - Begin>{});
 }
 
-// f[0..18] arriving -> out[0..18] collided; returns the extinguished total U = sum e_j f_j.
+// f[1..18] arriving (f[0] the rest density, conservative model only) -> out[0..18]
+// collided; returns the extinguished total U = sum e_j f_j, and the collided site total
+// (the float sum of the outputs) in `total`.
 template <bool Conservative>
-FULGUR_INLINE float collide(const float* f, float eA, float eD, const Coeffs& k, float* out) {
+FULGUR_INLINE float collide(const float* f, float eA, float eD, const PairCoeffs& k, float* out, float& total) {
+    // pair sums and differences of u = e f (index by the odd member); the sums s7..s17 feed
+    // only the plane totals
     float u[kQ];
     unroll<1, 7>([&](auto Q) FULGUR_LAMBDA_INLINE { u[Q] = eA * f[Q]; });
     unroll<7, kQ>([&](auto Q) FULGUR_LAMBDA_INLINE { u[Q] = eD * f[Q]; });
-    const float SA = ((u[1] + u[2]) + (u[3] + u[4])) + (u[5] + u[6]);
-    const float SD = (((u[7] + u[8]) + (u[9] + u[10])) + ((u[11] + u[12]) + (u[13] + u[14]))) + ((u[15] + u[16]) + (u[17] + u[18]));
-    float D[7];
-    unroll<1, 7>([&](auto A) FULGUR_LAMBDA_INLINE {
-        constexpr auto& t = kAxisDiags[std::size_t(A.value)];
-        D[A] = (u[t[0]] + u[t[1]]) + (u[t[2]] + u[t[3]]);
-    });
-    const FactoredPhase& p = k.fp;
-    unroll<1, 7>([&](auto I) FULGUR_LAMBDA_INLINE {
-        constexpr int i = I, o = opposite(i);
-        const float s = p.aa_same * u[i] + p.aa_opp * u[o] + p.aa_perp * (SA - u[i] - u[o]) + p.ad_pos * D[i] +
-                        p.ad_neg * D[o] + p.ad_zero * (SD - D[i] - D[o]);
-        out[i] = (f[i] - u[i]) + s;
-    });
-    unroll<7, kQ>([&](auto I) FULGUR_LAMBDA_INLINE {
-        constexpr int i = I, o = opposite(i);
-        constexpr DiagInfo d = kDiag[std::size_t(i)];
-        constexpr int oa = opposite(d.a), ob = opposite(d.b);
-        const float cross = u[d.x1] + u[d.x2];
-        const float s = p.da_pos * (u[d.a] + u[d.b]) + p.da_neg * (u[oa] + u[ob]) +
-                        p.da_zero * (SA - u[d.a] - u[d.b] - u[oa] - u[ob]) + p.dd_same * u[i] + p.dd_opp * u[o] +
-                        p.dd_pos * (D[d.a] + D[d.b] - 2.0f * u[i] - cross) +
-                        p.dd_neg * (D[oa] + D[ob] - 2.0f * u[o] - cross) + p.dd_zero * cross;
-        out[i] = (f[i] - u[i]) + s;
-    });
-    const float U = SA + SD;
+    const float sx = u[1] + u[2], dx = u[1] - u[2];
+    const float sy = u[3] + u[4], dy = u[3] - u[4];
+    const float sz = u[5] + u[6], dz = u[5] - u[6];
+    const float s7 = u[7] + u[8], d7 = u[7] - u[8];
+    const float s9 = u[9] + u[10], d9 = u[9] - u[10];
+    const float s11 = u[11] + u[12], d11 = u[11] - u[12];
+    const float s13 = u[13] + u[14], d13 = u[13] - u[14];
+    const float s15 = u[15] + u[16], d15 = u[15] - u[16];
+    const float s17 = u[17] + u[18], d17 = u[17] - u[18];
+    // aggregates
+    const float SA = (sx + sy) + sz;
+    const float Pxy = s7 + s9, Pxz = s11 + s13, Pyz = s15 + s17;
+    const float SD = (Pxy + Pxz) + Pyz;
+    const float JDx = (d7 + d9) + (d11 + d13);
+    const float JDy = (d7 - d9) + (d15 + d17);
+    const float JDz = (d11 - d13) + (d15 - d17);
+    float CA = k.hA_SA * SA + k.hA_SD * SD;
+    float CD = k.hD_SA * SA + k.hD_SD * SD;
     if constexpr (Conservative) {
+        // the rest density is re-emitted with weights w_i (1/12 axis, 1/24 diagonal)
         const float rest = f[0];
-        unroll<1, 7>([&](auto I) FULGUR_LAMBDA_INLINE { out[I] += (1.0f / 12.0f) * rest; });
-        unroll<7, kQ>([&](auto I) FULGUR_LAMBDA_INLINE { out[I] += (1.0f / 24.0f) * rest; });
-        out[0] = k.one_minus_albedo * U;
+        CA += (1.0f / 12.0f) * rest;
+        CD += (1.0f / 24.0f) * rest;
     }
+    // unscattered plus the pair's own forward term: (1 - e) f + kp e f
+    const float KA = k.kpA1 * eA + 1.0f, KD = k.kpD1 * eD + 1.0f;
+    // axis outputs
+    const float Hx = k.hA_pl * Pyz + CA, Gx = k.gA_JD * JDx;
+    const float Hy = k.hA_pl * Pxz + CA, Gy = k.gA_JD * JDy;
+    const float Hz = k.hA_pl * Pxy + CA, Gz = k.gA_JD * JDz;
+    out[1] = KA * f[1] + (k.kmA * u[2] + (Hx + Gx));
+    out[2] = KA * f[2] + (k.kmA * u[1] + (Hx - Gx));
+    out[3] = KA * f[3] + (k.kmA * u[4] + (Hy + Gy));
+    out[4] = KA * f[4] + (k.kmA * u[3] + (Hy - Gy));
+    out[5] = KA * f[5] + (k.kmA * u[6] + (Hz + Gz));
+    out[6] = KA * f[6] + (k.kmA * u[5] + (Hz - Gz));
+    // diagonal outputs
+    const float Vx = k.gD_JA * dx + k.gD_JD * JDx;
+    const float Vy = k.gD_JA * dy + k.gD_JD * JDy;
+    const float Vz = k.gD_JA * dz + k.gD_JD * JDz;
+    const float Cxy = k.hD_ax * sz + (k.hD_pl * Pxy + CD);
+    const float Cxz = k.hD_ax * sy + (k.hD_pl * Pxz + CD);
+    const float Cyz = k.hD_ax * sx + (k.hD_pl * Pyz + CD);
+    const float G7 = Vx + Vy, G9 = Vx - Vy, G11 = Vx + Vz, G13 = Vx - Vz, G15 = Vy + Vz, G17 = Vy - Vz;
+    out[7] = KD * f[7] + (k.kmD * u[8] + (Cxy + G7));
+    out[8] = KD * f[8] + (k.kmD * u[7] + (Cxy - G7));
+    out[9] = KD * f[9] + (k.kmD * u[10] + (Cxy + G9));
+    out[10] = KD * f[10] + (k.kmD * u[9] + (Cxy - G9));
+    out[11] = KD * f[11] + (k.kmD * u[12] + (Cxz + G11));
+    out[12] = KD * f[12] + (k.kmD * u[11] + (Cxz - G11));
+    out[13] = KD * f[13] + (k.kmD * u[14] + (Cxz + G13));
+    out[14] = KD * f[14] + (k.kmD * u[13] + (Cxz - G13));
+    out[15] = KD * f[15] + (k.kmD * u[16] + (Cyz + G15));
+    out[16] = KD * f[16] + (k.kmD * u[15] + (Cyz - G15));
+    out[17] = KD * f[17] + (k.kmD * u[18] + (Cyz + G17));
+    out[18] = KD * f[18] + (k.kmD * u[17] + (Cyz - G17));
+    const float U = SA + SD;
+    float t = (((out[1] + out[2]) + (out[3] + out[4])) + (out[5] + out[6])) +
+              ((((out[7] + out[8]) + (out[9] + out[10])) + ((out[11] + out[12]) + (out[13] + out[14]))) +
+               ((out[15] + out[16]) + (out[17] + out[18])));
+    if constexpr (Conservative) {
+        out[0] = k.one_minus_albedo * U;
+        t += out[0];
+    }
+    total = t;
     return U;
 }
 
@@ -159,25 +225,26 @@ struct SiteResult {
 // which GCC keeps in memory, lane by lane.
 template <bool Conservative, bool HasSource>
 FULGUR_INLINE SiteResult update_site(const float* const* in, float* const* out, std::size_t x, float eA, float eD,
-                                     const Coeffs& k, const float* src, std::size_t nx) {
+                                     const PairCoeffs& k, const float* src, std::size_t nx) {
     float f[kQ], o[kQ];
     f[0] = 0.0f;
     if constexpr (Conservative) f[0] = in[0][x];
     unroll<1, kQ>([&](auto Q) FULGUR_LAMBDA_INLINE { f[Q] = in[Q][x]; });
-    const float U = collide<Conservative>(f, eA, eD, k, o);
-    if constexpr (HasSource) {
-        unroll<1, kQ>([&](auto Q) FULGUR_LAMBDA_INLINE { o[Q] += src[std::size_t(Q.value) * nx + x]; });
-        if constexpr (Conservative) o[0] += src[x];
-    }
     float site = 0.0f;
-    unroll<1, kQ>([&](auto Q) FULGUR_LAMBDA_INLINE {
-        out[Q][x] = o[Q];
-        site += o[Q];
-    });
-    if constexpr (Conservative) {
-        out[0][x] = o[0];
-        site += o[0];
+    const float U = collide<Conservative>(f, eA, eD, k, o, site);
+    if constexpr (HasSource) {
+        unroll<1, kQ>([&](auto Q) FULGUR_LAMBDA_INLINE {
+            const float s = src[std::size_t(Q.value) * nx + x];
+            o[Q] += s;
+            site += s;
+        });
+        if constexpr (Conservative) {
+            o[0] += src[x];
+            site += src[x];
+        }
     }
+    unroll<1, kQ>([&](auto Q) FULGUR_LAMBDA_INLINE { out[Q][x] = o[Q]; });
+    if constexpr (Conservative) out[0][x] = o[0];
     return {U, site};
 }
 
@@ -225,8 +292,7 @@ public:
             const Velocity& c = kVelocity[std::size_t(q)];
             off_[q] = std::ptrdiff_t(c.x) + std::ptrdiff_t(px_) * (std::ptrdiff_t(c.y) + std::ptrdiff_t(py_) * std::ptrdiff_t(c.z));
         }
-        coeffs_.fp = factor_phase(p.phase, p.albedo);
-        coeffs_.one_minus_albedo = float(1.0 - p.albedo);
+        coeffs_ = make_pair_coeffs(p.phase, p.albedo);
 
         const std::size_t rows = std::size_t(d.y) * std::size_t(d.z);
         row_medium_.assign(rows, 0);
@@ -408,7 +474,7 @@ private:
                 out[q] = A + std::size_t(q) * S + std::size_t(std::ptrdiff_t(base) + off_[q]);
             }
         }
-        const Coeffs k = coeffs_;
+        const PairCoeffs k = coeffs_;
         float absorbed = 0.0f, sum = 0.0f;
         const std::size_t n = std::size_t(nx);
         if (src) {
@@ -515,7 +581,7 @@ private:
     std::size_t stride_ = 0;
     std::ptrdiff_t off_[kQ] = {};
     AlignedBuffer<float> data_, ext_;
-    Coeffs coeffs_{};
+    PairCoeffs coeffs_{};
     std::vector<char> row_medium_;
     std::vector<std::int64_t> row_source_;
     std::vector<float> src_;
