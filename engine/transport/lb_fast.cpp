@@ -10,12 +10,14 @@
 //    read and 19 written (152 bytes; 144 in the physical model, which never uses the rest
 //    direction).
 //  * Collision: factored. Theta's scattering part takes 14 distinct values (P_ij depends
-//    only on the classes of i, j and on c_i.c_j), so out_i needs a handful of partial sums
-//    of u_j = e_j f_j (per class and per axis half-space) instead of a 19x19 product:
-//    ~100 flops per site, vectorized over x (#pragma omp simd).
+//    only on the classes of i, j and on c_i.c_j), so it acts on the sums and differences
+//    of opposite pairs through a few aggregates (class totals, plane totals, two flux
+//    vectors) instead of a 19x19 product: ~150 flops per site, vectorized over x
+//    (#pragma omp simd). See "the factored collision in pair form" below.
 //  * Empty rows (zero density, no source) only stream. Sources live in per-row blocks.
-//  * Boundaries: after each step a short pass over the boundary links (open faces: count
-//    the outflow as escaped and place the inflow; periodic faces: copy across).
+//  * Boundaries: open faces are handled per row right after the row's update (count the
+//    outflow as escaped, place the inflow); periodic faces by a short pass after the rows
+//    (copy across).
 //  * Threads: rows (y, z) split statically over core::thread_count() threads; per-row
 //    double accumulators summed in order, so results do not depend on the thread count.
 #include "transport/lb_solver.h"
@@ -299,6 +301,7 @@ public:
         row_source_.assign(rows, -1);
         row_absorbed_.assign(rows, 0.0);
         row_total_.assign(rows, 0.0);
+        row_escaped_.assign(rows, 0.0);
         for (int z = 0; z < d.z; ++z)
             for (int y = 0; y < d.y; ++y) {
                 const std::size_t row = std::size_t(y) + std::size_t(d.y) * std::size_t(z);
@@ -323,10 +326,13 @@ public:
         }
         build_boundary();
         // Initial state: the inflow has arrived (t = 0), natural layout.
-        for (const auto& b : pairs_)
-            if (b.partner < 0) {
-                slot(opposite(b.q), b.site) = b.in;
-                inflow_sum_ += double(b.in);
+        for (int z = 0; z < d.z; ++z)
+            for (int y = 0; y < d.y; ++y) {
+                const std::size_t row = std::size_t(y) + std::size_t(d.y) * std::size_t(z);
+                for (std::size_t i = open_begin_[row]; i < open_begin_[row + 1]; ++i) {
+                    slot(opposite(open_[i].q), pad(open_[i].x, y, z)) = open_[i].in;
+                    inflow_sum_ += double(open_[i].in);
+                }
             }
         last_total_ = inflow_sum_;
     }
@@ -351,12 +357,18 @@ public:
             else absorbed = odd ? row<true, false>(base, d.x, src, total) : row<false, false>(base, d.x, src, total);
             row_absorbed_[std::size_t(r)] = conservative_ ? 0.0 : double(absorbed) * (1.0 - p_.albedo);
             row_total_[std::size_t(r)] = double(total);
+            row_escaped_[std::size_t(r)] = odd ? open_links<true>(r, base) : open_links<false>(r, base);
         }
-        double a = 0.0, t = 0.0;
+        double a = 0.0, t = 0.0, e = 0.0;
         for (double v : row_absorbed_) a += v;
         for (double v : row_total_) t += v;
+        for (double v : row_escaped_) e += v;
         last_absorbed_ = a + p_.source_absorbed_per_step;
-        last_escaped_ = odd ? boundary_after_odd() : boundary_after_even();
+        if (!pairs_.empty()) {
+            if (odd) periodic_pass<true>();
+            else periodic_pass<false>();
+        }
+        last_escaped_ = e;
         last_total_ = t - last_escaped_ + inflow_sum_;
         ++steps_;
     }
@@ -497,11 +509,50 @@ private:
     }
 
     // --- boundary links ----------------------------------------------------------------
+    // Open faces, handled per row right after the row's update (its lines are still in
+    // cache; no separate pass over the faces). After an even step the collided density
+    // heading out (in the site's own swapped slot) escapes and the inflow takes its place
+    // (the following even step reads it there), and the inflow is also written to the
+    // ghost slot A[q][x + c_q] that the odd step reads. After an odd step the density the
+    // update wrote to that ghost slot escapes. The ghost writes of the x faces are done by
+    // the row that owns the ghost's cache line (the row at (y + c_y, z + c_z), whose update
+    // touches that line anyway): done by the site's row, they would each fetch a cold line.
+    // Every slot touched belongs to one link, so rows stay independent.
+    struct OpenLink {
+        std::int32_t x;  // site's x
+        std::int32_t q;  // direction pointing out: x + c_q is outside
+        float in;        // inflow arriving at x in direction opp(q)
+    };
+    struct GhostWrite {
+        std::size_t index;  // in data_
+        float in;
+    };
+    template <bool Odd>
+    double open_links(std::int64_t r, std::size_t base) {
+        float* A = data_.ptr;
+        double escaped = 0.0;
+        const std::size_t b = open_begin_[std::size_t(r)], e = open_begin_[std::size_t(r) + 1];
+        for (std::size_t i = b; i < e; ++i) {
+            const OpenLink& l = open_[i];
+            const std::size_t site = base + std::size_t(l.x);
+            if constexpr (!Odd) {
+                float& own = A[std::size_t(opposite(l.q)) * stride_ + site];
+                escaped += double(own);
+                own = l.in;
+            } else {
+                escaped += double(A[ghost_off_[l.q] + site]);
+            }
+        }
+        if constexpr (!Odd)
+            for (std::size_t i = ghost_begin_[std::size_t(r)]; i < ghost_begin_[std::size_t(r) + 1]; ++i) A[ghosts_[i].index] = ghosts_[i].in;
+        return escaped;
+    }
+
+    // Periodic faces: a pass after the rows (it copies between rows).
     struct Pair {
         std::size_t site;     // padded index of the interior site x
         int q;                // direction pointing out: x + c_q is outside
-        std::int64_t partner; // padded index of wrap(x + c_q) on periodic faces, else -1
-        float in;             // inflow arriving at x in direction opp(q) (open faces)
+        std::int64_t partner; // padded index of wrap(x + c_q)
     };
 
     void build_boundary() {
@@ -509,6 +560,8 @@ private:
         const int dd[3] = {d.x, d.y, d.z};
         std::vector<float> inflow(p_.sites() * kQ, 0.0f);
         for (const auto& in : p_.inflow) inflow[in.site * kQ + std::size_t(in.dir)] += in.value;
+        std::vector<std::pair<std::size_t, OpenLink>> open_rows;
+        std::vector<std::pair<std::size_t, GhostWrite>> ghost_rows;
         for (int z = 0; z < d.z; ++z)
             for (int y = 0; y < d.y; ++y)
                 for (int x = 0; x < d.x; ++x) {
@@ -524,14 +577,42 @@ private:
                             else open = true;
                         }
                         if (!outside) continue;
-                        Pair pr{pad(x, y, z), q, open ? -1 : std::int64_t(pad(n[0], n[1], n[2])),
-                                open ? inflow[p_.index(x, y, z) * kQ + std::size_t(opposite(q))] : 0.0f};
+                        if (open) {
+                            const std::size_t row = std::size_t(y) + std::size_t(d.y) * std::size_t(z);
+                            const float in = inflow[p_.index(x, y, z) * kQ + std::size_t(opposite(q))];
+                            open_rows.push_back({row, {x, q, in}});
+                            // the ghost's row, if it is an interior row (x faces), else the site's
+                            const int gy = y + c.y, gz = z + c.z;
+                            const bool interior_row = gy >= 0 && gy < d.y && gz >= 0 && gz < d.z;
+                            const std::size_t grow = interior_row ? std::size_t(gy) + std::size_t(d.y) * std::size_t(gz) : row;
+                            ghost_rows.push_back({grow, {std::size_t(q) * stride_ + std::size_t(std::ptrdiff_t(pad(x, y, z)) + off_[q]), in}});
+                            continue;
+                        }
+                        Pair pr{pad(x, y, z), q, std::int64_t(pad(n[0], n[1], n[2]))};
                         pairs_.push_back(pr);
                     }
                 }
-        // Group by direction, then by address: each group walks two direction arrays in
-        // increasing order (the pass is ~5% of a 128^3 step instead of ~15% in site order),
-        // and groups run in parallel with their own sums (added in order: deterministic).
+        // Open links: by row (already in row order: z, y, x, q).
+        const std::size_t rows = std::size_t(d.y) * std::size_t(d.z);
+        open_begin_.assign(rows + 1, 0);
+        open_.reserve(open_rows.size());
+        for (const auto& [row, l] : open_rows) {
+            open_begin_[row + 1]++;
+            open_.push_back(l);
+        }
+        for (std::size_t r = 0; r < rows; ++r) open_begin_[r + 1] += open_begin_[r];
+        std::stable_sort(ghost_rows.begin(), ghost_rows.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+        ghost_begin_.assign(rows + 1, 0);
+        ghosts_.reserve(ghost_rows.size());
+        for (const auto& [row, g] : ghost_rows) {
+            ghost_begin_[row + 1]++;
+            ghosts_.push_back(g);
+        }
+        for (std::size_t r = 0; r < rows; ++r) ghost_begin_[r + 1] += ghost_begin_[r];
+        for (int q = 0; q < kQ; ++q) ghost_off_[q] = std::size_t(q) * stride_ + std::size_t(off_[q]);
+        // Periodic pairs: grouped by direction, then by address: each group walks two
+        // direction arrays in increasing order, and groups run in parallel (each copies to
+        // its own slots).
         std::stable_sort(pairs_.begin(), pairs_.end(), [](const Pair& a, const Pair& b) {
             return a.q != b.q ? a.q < b.q : a.site < b.site;
         });
@@ -539,41 +620,22 @@ private:
         for (std::size_t i = pairs_.size(); i-- > 0;) group_begin_[std::size_t(pairs_[i].q)] = i;
         for (int q = kQ - 1; q >= 0; --q)
             if (group_begin_[std::size_t(q)] > group_begin_[std::size_t(q + 1)]) group_begin_[std::size_t(q)] = group_begin_[std::size_t(q + 1)];
-        group_escaped_.assign(kQ, 0.0);
     }
 
     template <bool Odd>
-    double boundary_pass() {
+    void periodic_pass() {
         const bool parallel = pairs_.size() >= 16384 && core::thread_count() > 1;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(core::thread_count()) if (parallel)
         for (int q = 1; q < kQ; ++q) {
-            double escaped = 0.0;
             const int o = opposite(q);
             for (std::size_t i = group_begin_[std::size_t(q)]; i < group_begin_[std::size_t(q + 1)]; ++i) {
                 const Pair& b = pairs_[i];
                 float& ghost = slot(q, std::size_t(std::ptrdiff_t(b.site) + off_[q]));
-                if constexpr (!Odd) {
-                    if (b.partner < 0) {
-                        float& own = slot(o, b.site);
-                        escaped += double(own);
-                        own = b.in;
-                        ghost = b.in;
-                    } else {
-                        ghost = slot(q, std::size_t(b.partner));
-                    }
-                } else {
-                    if (b.partner < 0) escaped += double(ghost);
-                    else slot(o, b.site) = slot(o, std::size_t(b.partner - off_[q]));
-                }
+                if constexpr (!Odd) ghost = slot(q, std::size_t(b.partner));
+                else slot(o, b.site) = slot(o, std::size_t(b.partner - off_[q]));
             }
-            group_escaped_[std::size_t(q)] = escaped;
         }
-        double total = 0.0;
-        for (int q = 1; q < kQ; ++q) total += group_escaped_[std::size_t(q)];
-        return total;
     }
-    double boundary_after_even() { return boundary_pass<false>(); }
-    double boundary_after_odd() { return boundary_pass<true>(); }
 
     const Problem& p_;
     bool conservative_;
@@ -587,9 +649,14 @@ private:
     std::vector<float> src_;
     std::vector<double> row_absorbed_, row_total_;
     double inflow_sum_ = 0.0, last_total_ = 0.0;
+    std::vector<OpenLink> open_;
+    std::vector<std::size_t> open_begin_;
+    std::vector<GhostWrite> ghosts_;
+    std::vector<std::size_t> ghost_begin_;
+    std::size_t ghost_off_[kQ] = {};
+    std::vector<double> row_escaped_;
     std::vector<Pair> pairs_;
     std::vector<std::size_t> group_begin_;
-    std::vector<double> group_escaped_;
     double last_absorbed_ = 0.0, last_escaped_ = 0.0;
 };
 
