@@ -223,6 +223,7 @@ FULGUR_INLINE SiteResult update_site(const float* const* in, float* const* out, 
     return {U, site};
 }
 
+// ptr[0] sits `lead` elements after a 64-byte boundary (all elements zeroed).
 template <class T>
 struct AlignedBuffer {
     T* ptr = nullptr;
@@ -230,16 +231,24 @@ struct AlignedBuffer {
     explicit AlignedBuffer(std::size_t count = 0) { resize(count); }
     AlignedBuffer(const AlignedBuffer&) = delete;
     AlignedBuffer& operator=(const AlignedBuffer&) = delete;
-    ~AlignedBuffer() { std::free(ptr); }
-    void resize(std::size_t count) {
-        std::free(ptr);
+    ~AlignedBuffer() { std::free(raw_); }
+    void resize(std::size_t count, std::size_t lead = 0) {
+        std::free(raw_);
+        raw_ = nullptr;
+        ptr = nullptr;
         n = count;
-        const std::size_t bytes = ((count * sizeof(T) + 63) / 64) * 64;
-        ptr = count ? static_cast<T*>(std::aligned_alloc(64, bytes ? bytes : 64)) : nullptr;
-        if (count && !ptr) throw std::bad_alloc();
+        if (!count) return;
+        const std::size_t bytes = (((count + lead) * sizeof(T) + 63) / 64) * 64;
+        raw_ = static_cast<T*>(std::aligned_alloc(64, bytes));
+        if (!raw_) throw std::bad_alloc();
+        ptr = raw_ + lead;
+        for (std::size_t i = 0; i < lead; ++i) raw_[i] = T{};
     }
     T& operator[](std::size_t i) noexcept { return ptr[i]; }
     const T& operator[](std::size_t i) const noexcept { return ptr[i]; }
+
+private:
+    T* raw_ = nullptr;
 };
 
 class FastKernel final : public Kernel {
@@ -247,7 +256,11 @@ public:
     explicit FastKernel(const Problem& p)
         : p_(p), conservative_(p.absorption == LbAbsorption::Conservative) {
         const core::Int3 d = p.dims;
-        px_ = d.x + 2;
+        // Rows padded to a multiple of 16 floats and the buffers offset by 15 floats, so that
+        // every row's x = 0 starts a cache line: the even step's 512-bit loads and stores
+        // are aligned (the odd step's for the directions with c_x = 0), and a row of 128
+        // sites touches 8 lines per direction instead of 9.
+        px_ = ((d.x + 2 + 15) / 16) * 16;
         py_ = d.y + 2;
         pz_ = d.z + 2;
         // Stride per direction: 64-byte aligned, and NOT a multiple of 4 KiB: the 19 arrays are
@@ -256,8 +269,8 @@ public:
         // 5 cache lines of shift between consecutive directions.
         stride_ = ((std::size_t(px_) * std::size_t(py_) * std::size_t(pz_) + 1023) / 1024) * 1024 + 80;
         q0_ = conservative_ ? 0 : 1;
-        data_.resize(stride_ * kQ);
-        ext_.resize(stride_ * 2);
+        data_.resize(stride_ * kQ, 15);
+        ext_.resize(stride_ * 2, 15);
         // First touch by the threads that will work on the rows.
         const std::int64_t total = std::int64_t(stride_ * kQ);
 #pragma omp parallel for schedule(static) num_threads(core::thread_count())
