@@ -405,64 +405,11 @@ private:
     }
     float& slot(int q, std::size_t ps) noexcept { return data_[std::size_t(q) * stride_ + ps]; }
 
-    // Pure streaming (no medium, no source) of one row.
+    // The 19 read and 19 write pointers of a row (AA pattern, see the top of the file).
     template <bool Odd>
-    float stream_row(std::size_t base, int nx, float& total) {
+    void row_pointers(std::size_t base, const float** in, float** out) {
         float* A = data_.ptr;
         const std::size_t S = stride_;
-        float sum = 0.0f;
-        if constexpr (!Odd) {
-            for (int q = 1; q < kQ; q += 2) {  // swap each opposite pair in place
-                float* a = A + std::size_t(q) * S + base;
-                float* b = A + std::size_t(q + 1) * S + base;
-#pragma omp simd reduction(+ : sum)
-                for (int x = 0; x < nx; ++x) {
-                    const float t = a[x];
-                    a[x] = b[x];
-                    b[x] = t;
-                    sum += a[x] + t;
-                }
-            }
-            if (conservative_) {
-                const float* r0 = A + base;
-#pragma omp simd reduction(+ : sum)
-                for (int x = 0; x < nx; ++x) sum += r0[x];
-            }
-        } else {
-            // out_q = f_q: read A[opp q][x - c_q], write A[q][x + c_q]; the pair (q, opp q)
-            // exchanges A[opp q][x - c_q] <-> A[q][x + c_q]... which are both read and
-            // written by this site only, so a swap of the two locations per pair.
-            for (int q = 1; q < kQ; q += 2) {
-                const int o = q + 1;
-                float* a = A + std::size_t(o) * S + std::size_t(std::ptrdiff_t(base) - off_[q]);  // f_q source
-                float* b = A + std::size_t(q) * S + std::size_t(std::ptrdiff_t(base) + off_[q]);  // out_q target
-                // f_o is read from A[q][x - c_o] = A[q][x + c_q] = b; out_o goes to A[o][x + c_o] = a.
-#pragma omp simd reduction(+ : sum)
-                for (int x = 0; x < nx; ++x) {
-                    const float t = a[x];
-                    a[x] = b[x];
-                    b[x] = t;
-                    sum += a[x] + t;
-                }
-            }
-            if (conservative_) {
-                const float* r0 = A + base;
-#pragma omp simd reduction(+ : sum)
-                for (int x = 0; x < nx; ++x) sum += r0[x];
-            }
-        }
-        total = sum;
-        return 0.0f;
-    }
-
-    template <bool Odd, bool Conservative>
-    float row(std::size_t base, int nx, const float* src, float& total) {
-        float* __restrict A = data_.ptr;
-        const std::size_t S = stride_;
-        const float* __restrict eA = ext_.ptr + base;
-        const float* __restrict eD = ext_.ptr + S + base;
-        const float* in[kQ];
-        float* out[kQ];
         for (int q = 0; q < kQ; ++q) {
             if constexpr (!Odd) {
                 in[q] = A + std::size_t(q) * S + base;
@@ -472,6 +419,54 @@ private:
                 out[q] = A + std::size_t(q) * S + std::size_t(std::ptrdiff_t(base) + off_[q]);
             }
         }
+    }
+
+    // Pure streaming (no medium, no source) of one row: out_q = f_q, i.e. each opposite pair
+    // swaps its two slots (both read and written by this site only), in one pass over x.
+    template <bool Odd>
+    float stream_row(std::size_t base, int nx, float& total) {
+        const float* in[kQ];
+        float* out[kQ];
+        row_pointers<Odd>(base, in, out);
+        float sum = 0.0f;
+        const std::size_t n = std::size_t(nx);
+#pragma omp simd reduction(+ : sum)
+        for (std::size_t x = 0; x < n; ++x) {
+            auto swap = [&](auto Q) FULGUR_LAMBDA_INLINE {
+                constexpr int q = Q.value;
+                const float a = in[q][x], b = in[q + 1][x];
+                out[q][x] = a;
+                out[q + 1][x] = b;
+                sum += a + b;
+            };
+            using std::integral_constant;
+            swap(integral_constant<int, 1>{});
+            swap(integral_constant<int, 3>{});
+            swap(integral_constant<int, 5>{});
+            swap(integral_constant<int, 7>{});
+            swap(integral_constant<int, 9>{});
+            swap(integral_constant<int, 11>{});
+            swap(integral_constant<int, 13>{});
+            swap(integral_constant<int, 15>{});
+            swap(integral_constant<int, 17>{});
+        }
+        if (conservative_) {  // the rest density stays
+            const float* r0 = in[0];
+#pragma omp simd reduction(+ : sum)
+            for (std::size_t x = 0; x < n; ++x) sum += r0[x];
+        }
+        total = sum;
+        return 0.0f;
+    }
+
+    template <bool Odd, bool Conservative>
+    float row(std::size_t base, int nx, const float* src, float& total) {
+        const std::size_t S = stride_;
+        const float* __restrict eA = ext_.ptr + base;
+        const float* __restrict eD = ext_.ptr + S + base;
+        const float* in[kQ];
+        float* out[kQ];
+        row_pointers<Odd>(base, in, out);
         const PairCoeffs k = coeffs_;
         float absorbed = 0.0f, sum = 0.0f;
         const std::size_t n = std::size_t(nx);
