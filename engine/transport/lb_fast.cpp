@@ -288,9 +288,8 @@ public:
         const std::size_t rows = std::size_t(d.y) * std::size_t(d.z);
         row_medium_.assign(rows, 0);
         row_source_.assign(rows, -1);
-        row_absorbed_.assign(rows, 0.0);
-        row_total_.assign(rows, 0.0);
-        row_escaped_.assign(rows, 0.0);
+        row_sums_[0].assign(rows, RowSums{});
+        row_sums_[1].assign(rows, RowSums{});
         for (int z = 0; z < d.z; ++z)
             for (int y = 0; y < d.y; ++y) {
                 const std::size_t row = std::size_t(y) + std::size_t(d.y) * std::size_t(z);
@@ -330,33 +329,96 @@ public:
         const bool odd = (steps_ % 2) != 0;
         const core::Int3 d = p_.dims;
         const std::int64_t rows = std::int64_t(d.y) * std::int64_t(d.z);
-        // Small lattices run on one thread: a parallel region per step costs more than the
-        // work (and much more on a loaded machine, where a barrier can wait a time slice).
-        const bool parallel = std::int64_t(p_.sites()) >= 65536 && core::thread_count() > 1;
-#pragma omp parallel for schedule(static) num_threads(core::thread_count()) if (parallel)
+#pragma omp parallel for schedule(static) num_threads(core::thread_count()) if (parallel())
         for (std::int64_t r = 0; r < rows; ++r) {
-            const int y = int(r % d.y), z = int(r / d.y);
-            const std::size_t base = pad(0, y, z);
-            float absorbed, total = 0.0f;
-            const bool medium = row_medium_[std::size_t(r)] != 0;
-            const float* src = row_source_[std::size_t(r)] >= 0 ? &src_[std::size_t(row_source_[std::size_t(r)])] : nullptr;
-            if (!medium) absorbed = odd ? stream_row<true>(base, d.x, total) : stream_row<false>(base, d.x, total);
-            else if (conservative_)
-                absorbed = odd ? row<true, true>(base, d.x, src, total) : row<false, true>(base, d.x, src, total);
-            else absorbed = odd ? row<true, false>(base, d.x, src, total) : row<false, false>(base, d.x, src, total);
-            row_absorbed_[std::size_t(r)] = conservative_ ? 0.0 : double(absorbed) * (1.0 - p_.albedo);
-            row_total_[std::size_t(r)] = double(total);
-            row_escaped_[std::size_t(r)] = odd ? open_links<true>(r, base) : open_links<false>(r, base);
+            if (odd) update_row<true>(r, 0);
+            else update_row<false>(r, 0);
         }
-        double a = 0.0, t = 0.0, e = 0.0;
-        for (double v : row_absorbed_) a += v;
-        for (double v : row_total_) t += v;
-        for (double v : row_escaped_) e += v;
-        last_absorbed_ = a + p_.source_absorbed_per_step;
         if (!pairs_.empty()) {
             if (odd) periodic_pass<true>();
             else periodic_pass<false>();
         }
+        finish_step(0);
+    }
+
+    // Two steps in one sweep over z (only from an even step, without periodic faces: their
+    // pass needs the whole even step first). The odd update of plane z needs the even update
+    // of planes z - 1, z, z + 1 (it reads and writes slots in them), so each thread runs a
+    // wavefront over its block of planes: even(z), then odd(z - 1), while plane z - 1's
+    // lines are still in the last-level cache; the odd updates of a block's first and last
+    // plane, which need the neighbouring block's even planes, wait for a barrier. Memory
+    // traffic per two steps is then about that of one step. Every slot is read and written
+    // by one site per step (AA pattern), so the deferred planes cannot conflict.
+    void two_steps(StepResult& first, StepResult& second) override {
+        const core::Int3 d = p_.dims;
+        if (steps_ % 2 != 0 || !pairs_.empty() || d.z < 4) {
+            Kernel::two_steps(first, second);
+            return;
+        }
+        const int nz = d.z;
+#pragma omp parallel num_threads(core::thread_count()) if (parallel())
+        {
+            const int t = omp_get_thread_num(), nt = omp_get_num_threads();
+            const int z0 = int(std::int64_t(nz) * t / nt), z1 = int(std::int64_t(nz) * (t + 1) / nt);
+            // odd(p) can run inside the block once even(p + 1) is done, unless it needs an
+            // even plane of another block
+            auto inside = [&](int p) { return (p == 0 || p - 1 >= z0) && (p + 1 == nz || p + 1 < z1); };
+            for (int z = z0; z < z1; ++z) {
+                even_plane(z);
+                if (z - 1 >= z0 && inside(z - 1)) odd_plane(z - 1);
+            }
+            if (z1 > z0 && z1 == nz && inside(z1 - 1)) odd_plane(z1 - 1);
+#pragma omp barrier
+            if (z1 > z0) {
+                if (!inside(z0)) odd_plane(z0);
+                if (z1 - 1 != z0 && !inside(z1 - 1)) odd_plane(z1 - 1);
+            }
+        }
+        finish_step(0);
+        first = {last_absorbed_, last_escaped_, last_total_};
+        finish_step(1);
+        second = {last_absorbed_, last_escaped_, last_total_};
+    }
+
+    // Small lattices run on one thread: a parallel region per step costs more than the
+    // work (and much more on a loaded machine, where a barrier can wait a time slice).
+    bool parallel() const { return std::int64_t(p_.sites()) >= 65536 && core::thread_count() > 1; }
+
+    // One row's update (collision or pure streaming, then its open boundary links); the
+    // row's sums go to accumulator set `acc` (0 or 1: the two steps of two_steps()).
+    template <bool Odd>
+    void update_row(std::int64_t r, int acc) {
+        const core::Int3 d = p_.dims;
+        const int y = int(r % d.y), z = int(r / d.y);
+        const std::size_t base = pad(0, y, z);
+        float absorbed, total = 0.0f;
+        const bool medium = row_medium_[std::size_t(r)] != 0;
+        const float* src = row_source_[std::size_t(r)] >= 0 ? &src_[std::size_t(row_source_[std::size_t(r)])] : nullptr;
+        if (!medium) absorbed = stream_row<Odd>(base, d.x, total);
+        else if (conservative_) absorbed = row<Odd, true>(base, d.x, src, total);
+        else absorbed = row<Odd, false>(base, d.x, src, total);
+        RowSums& s = row_sums_[std::size_t(acc)][std::size_t(r)];
+        s.absorbed = conservative_ ? 0.0 : double(absorbed) * (1.0 - p_.albedo);
+        s.total = double(total);
+        s.escaped = open_links<Odd>(r, base);
+    }
+    void even_plane(int z) {
+        const std::int64_t ny = p_.dims.y;
+        for (std::int64_t r = z * ny; r < (z + 1) * ny; ++r) update_row<false>(r, 0);
+    }
+    void odd_plane(int z) {
+        const std::int64_t ny = p_.dims.y;
+        for (std::int64_t r = z * ny; r < (z + 1) * ny; ++r) update_row<true>(r, 1);
+    }
+    // Sums the per-row accumulators in row order (the same for any thread count).
+    void finish_step(int acc) {
+        double a = 0.0, t = 0.0, e = 0.0;
+        for (const RowSums& s : row_sums_[std::size_t(acc)]) {
+            a += s.absorbed;
+            t += s.total;
+            e += s.escaped;
+        }
+        last_absorbed_ = a + p_.source_absorbed_per_step;
         last_escaped_ = e;
         last_total_ = t - last_escaped_ + inflow_sum_;
         ++steps_;
@@ -631,14 +693,16 @@ private:
     std::vector<char> row_medium_;
     std::vector<std::int64_t> row_source_;
     std::vector<float> src_;
-    std::vector<double> row_absorbed_, row_total_;
+    struct RowSums {
+        double absorbed = 0.0, total = 0.0, escaped = 0.0;
+    };
+    std::vector<RowSums> row_sums_[2];
     double inflow_sum_ = 0.0, last_total_ = 0.0;
     std::vector<OpenLink> open_;
     std::vector<std::size_t> open_begin_;
     std::vector<GhostWrite> ghosts_;
     std::vector<std::size_t> ghost_begin_;
     std::size_t ghost_off_[kQ] = {};
-    std::vector<double> row_escaped_;
     std::vector<Pair> pairs_;
     std::vector<std::size_t> group_begin_;
     double last_absorbed_ = 0.0, last_escaped_ = 0.0;

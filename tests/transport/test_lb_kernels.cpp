@@ -319,3 +319,32 @@ TEST_CASE("fast kernel: results do not depend on the thread count") {
     CHECK(a.escaped_total() == b.escaped_total());
     CHECK(a.kernel().last_total() == b.kernel().last_total());
 }
+
+TEST_CASE("fast kernel: two steps in one sweep equal two single steps, on 1 and 2 threads") {
+    // Open faces (the fused sweep); 66 x 40 x 28 = 73920 sites runs in parallel on 2 threads,
+    // with blocks of 14 planes each.
+    const Problem p = random_problem({66, 40, 28}, 11, LbCollision::Corrected, LbAbsorption::Conservative, 0.7, 0.9);
+    const int saved = core::thread_count();
+    for (int threads : {1, 2}) {
+        core::set_thread_count(threads);
+        Simulation a(p, LbKernel::Fast), b(p, LbKernel::Fast);
+        bool results = true;
+        for (int t = 0; t < 10; ++t) {
+            Kernel::StepResult r1, r2;
+            b.kernel().two_steps(r1, r2);
+            a.step();
+            results = results && r1.absorbed == a.kernel().last_absorbed() && r1.escaped == a.kernel().last_escaped() &&
+                      r1.total == a.kernel().last_total();
+            a.step();
+            results = results && r2.absorbed == a.kernel().last_absorbed() && r2.escaped == a.kernel().last_escaped() &&
+                      r2.total == a.kernel().last_total();
+        }
+        CHECK(results);
+        CHECK(a.steps() == b.steps());
+        bool same = true;
+        for (std::size_t s = 0; s < p.sites(); ++s)
+            for (int q = 0; q < kQ; ++q) same = same && a.kernel().arriving(s, q) == b.kernel().arriving(s, q);
+        CHECK(same);  // bit for bit
+    }
+    core::set_thread_count(saved);
+}
