@@ -77,6 +77,19 @@ public:
     virtual float arriving(std::size_t site, int q) const = 0;
     /// Sets an arriving density; only before the first step.
     virtual void set_arriving(std::size_t site, int q, float v) = 0;
+    /// What last_absorbed(), last_escaped() and last_total() return after a step.
+    struct StepResult {
+        double absorbed = 0.0, escaped = 0.0, total = 0.0;
+    };
+    /// Two steps, with the results of each; afterwards the last_*() accessors report the
+    /// second. The fast kernel runs both in one sweep over the lattice where it can (from
+    /// an even step, no periodic faces): the same result, about half the memory traffic.
+    virtual void two_steps(StepResult& first, StepResult& second) {
+        step();
+        first = {last_absorbed(), last_escaped(), last_total()};
+        step();
+        second = {last_absorbed(), last_escaped(), last_total()};
+    }
     int steps() const noexcept { return steps_; }
 
 protected:
@@ -98,6 +111,9 @@ public:
     Simulation(const Simulation&) = delete;  // the kernel refers to problem_
     Simulation& operator=(const Simulation&) = delete;
     void step();
+    /// Two steps (Kernel::two_steps: one sweep in the fast kernel); the kernel's total after
+    /// the first goes to *first_total if given.
+    void step_two(double* first_total = nullptr);
     /// Steps until the relative change of the total density per step, and the change still
     /// to come extrapolated from the ratio of successive increments, are both below
     /// `tolerance` (tested after even steps, over two steps), or until the change is below
