@@ -17,8 +17,18 @@ struct BakedBases::Impl {
     bool narrow = true;                  ///< indices in index16 (cells <= 65536), else index32
     std::vector<std::uint16_t> index16;
     std::vector<std::uint32_t> index32;
-    std::vector<float> value;            ///< float32 (float16 files expanded exactly)
+    /// Values as the file stores them: float32 files in `value`; float16 files stay float16
+    /// in `value16` (a third less memory and accumulation traffic than expanding them),
+    /// each run's value being half * 2^scale_exp[r] (exactly the file's value).
+    bool half = false;
+    std::vector<float> value;
+    std::vector<std::uint16_t> value16;
+    std::vector<std::int32_t> scale_exp;  ///< per run, float16 only
     std::vector<double> gamma;           ///< per run: sqrt of the dropped coefficients' energy
+
+    std::size_t values() const noexcept { return half ? value16.size() : value.size(); }
+    /// Stored value k of run r as a float (the file's value, exactly).
+    float value_at(std::size_t r, std::size_t k) const noexcept;
 
     std::size_t run(std::size_t light, std::size_t basis) const noexcept { return light * bases_per_light + basis; }
 };

@@ -5,6 +5,10 @@
 
 #include "bake/bake.h"
 
+#if defined(__F16C__)
+#include <immintrin.h>
+#endif
+
 #include <algorithm>
 #include <cinttypes>
 #include <cmath>
@@ -18,6 +22,16 @@ namespace fulgur::runtime {
 // BakedBases
 
 namespace {
+
+// Exact binary16 -> binary32: the F16C instruction where the build targets it, else the
+// portable bit-level conversion (same result).
+inline float half_to_float_fast(std::uint16_t h) noexcept {
+#if defined(__F16C__)
+    return _cvtsh_ss(h);
+#else
+    return basis::half_to_float(h);
+#endif
+}
 
 std::string hex(std::uint64_t v) {
     char b[24];
@@ -42,8 +56,10 @@ std::unique_ptr<BakedBases::Impl> build_layout(basis::FgbReader& reader) {
     b.bases_per_light = b.meta.bases();
     const std::size_t lights = b.meta.light_count(), runs = lights * b.bases_per_light;
     b.narrow = b.meta.cells() <= 65536;
+    b.half = b.meta.compression.precision == basis::Precision::Float16;
     b.offset.assign(runs + 1, 0);
     b.gamma.assign(runs, 0.0);
+    if (b.half) b.scale_exp.assign(runs, 0);
     // The exact coefficient count from the blocks' tables (CRC-checked, each count bounded
     // by the cells), reserved once: a deflated file gives no bound from its size.
     std::size_t bound = 0;
@@ -52,7 +68,10 @@ std::unique_ptr<BakedBases::Impl> build_layout(basis::FgbReader& reader) {
         b.index16.reserve(bound);
     else
         b.index32.reserve(bound);
-    b.value.reserve(bound);
+    if (b.half)
+        b.value16.reserve(bound);
+    else
+        b.value.reserve(bound);
     for (std::uint32_t l = 0; l < lights; ++l) {
         // Order::Any: each index occurs once per basis, so the accumulation's result does
         // not depend on the order within a basis (and the deflated files store them by index).
@@ -61,17 +80,23 @@ std::unique_ptr<BakedBases::Impl> build_layout(basis::FgbReader& reader) {
         for (std::size_t k = 0; k < b.bases_per_light; ++k) {
             const std::size_t r = b.run(l, k);
             const basis::CompressedBasis& cb = cl.directions[k];
-            b.offset[r] = b.value.size();
+            b.offset[r] = b.values();
             b.gamma[r] = cb.gamma;
             // read_light has checked every index against the cell count.
             if (b.narrow)
                 for (const std::uint32_t i : cb.index) b.index16.push_back(std::uint16_t(i));
             else
                 b.index32.insert(b.index32.end(), cb.index.begin(), cb.index.end());
-            b.value.insert(b.value.end(), cb.value.begin(), cb.value.end());
+            if (b.half) {
+                // Back to the file's half bits: exact (every stored value is half * 2^scale_exp).
+                b.scale_exp[r] = cb.scale_exp;
+                for (const float v : cb.value) b.value16.push_back(basis::float_to_half(std::ldexp(v, -cb.scale_exp)));
+            } else {
+                b.value.insert(b.value.end(), cb.value.begin(), cb.value.end());
+            }
         }
     }
-    b.offset[runs] = b.value.size();
+    b.offset[runs] = b.values();
     return impl;
 }
 
@@ -110,7 +135,14 @@ std::size_t BakedBases::coefficient_count() const noexcept { return std::size_t(
 std::size_t BakedBases::memory_bytes() const noexcept {
     const Impl& b = *impl_;
     return b.offset.size() * sizeof(std::uint64_t) + b.index16.size() * sizeof(std::uint16_t) +
-           b.index32.size() * sizeof(std::uint32_t) + b.value.size() * sizeof(float) + b.gamma.size() * sizeof(double);
+           b.index32.size() * sizeof(std::uint32_t) + b.value.size() * sizeof(float) +
+           b.value16.size() * sizeof(std::uint16_t) + b.scale_exp.size() * sizeof(std::int32_t) +
+           b.gamma.size() * sizeof(double);
+}
+
+float BakedBases::Impl::value_at(std::size_t r, std::size_t k) const noexcept {
+    const std::size_t q = std::size_t(offset[r]) + k;
+    return half ? std::ldexp(half_to_float_fast(value16[q]), scale_exp[r]) : value[q];
 }
 
 // =======================================================================================
@@ -148,6 +180,14 @@ inline void add_run(const I* __restrict idx, const float* __restrict val, std::s
                     float* __restrict h) noexcept {
     for (std::size_t k = 0; k < n; ++k) h[idx[k]] += w * val[k];
 }
+// The same over float16 values; w already carries the run's 2^scale_exp, so each term is
+// w * half * 2^scale_exp rounded once, as with the expanded float value (both scalings by a
+// power of two are exact for normal numbers).
+template <class I>
+inline void add_run(const I* __restrict idx, const std::uint16_t* __restrict val, std::size_t n, float w,
+                    float* __restrict h) noexcept {
+    for (std::size_t k = 0; k < n; ++k) h[idx[k]] += w * half_to_float_fast(val[k]);
+}
 
 }  // namespace
 
@@ -184,19 +224,25 @@ struct Reconstructor::Impl {
         const BakedBases::Impl& b = bases;
         std::fill(h, h + b.meta.cells(), 0.0f);
         const std::uint64_t* off = b.offset.data();
-        const float* val = b.value.data();
         for (std::size_t a = 0; a < lights.size(); ++a) {
             const std::size_t l = lights[a];
-            const float w = weight[a];
             for (int c = 0; c < sel.count; ++c) {
                 const std::size_t r = b.run(l, b.meta.basis_index(sel.component[c], m));
                 const std::uint64_t o = off[r], n = off[r + 1] - o;
-                if (b.narrow)
-                    add_run(b.index16.data() + o, val + o, n, w, h);
+                if (b.half)
+                    add_typed(b.value16.data() + o, std::ldexp(weight[a], b.scale_exp[r]), o, n, h);
                 else
-                    add_run(b.index32.data() + o, val + o, n, w, h);
+                    add_typed(b.value.data() + o, weight[a], o, n, h);
             }
         }
+    }
+
+    template <class V>
+    void add_typed(const V* val, float w, std::uint64_t o, std::uint64_t n, float* h) const {
+        if (bases.narrow)
+            add_run(bases.index16.data() + o, val, n, w, h);
+        else
+            add_run(bases.index32.data() + o, val, n, w, h);
     }
 };
 

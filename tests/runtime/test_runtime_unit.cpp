@@ -65,9 +65,10 @@ TEST_CASE("bases: the accumulation layout holds every coefficient of the file") 
                 CHECK(im.gamma[r] == cb.gamma);
                 // The file's coefficients (in the order stored: by index in a deflated file).
                 basis::CompressedBasis run;
+                CHECK(im.half);  // a float16 file keeps its values in float16
                 for (std::size_t q = im.offset[r]; q < im.offset[r + 1]; ++q) {
                     run.index.push_back(im.index16[q]);
-                    run.value.push_back(im.value[q]);
+                    run.value.push_back(im.value_at(r, q - im.offset[r]));
                 }
                 CHECK(std::is_sorted(run.index.begin(), run.index.end()));
                 basis::sort_canonical(run);
