@@ -169,16 +169,12 @@ Solve solve_at(const scene::Scene& scene, const core::Grid3<float>& density, int
         }
     s.native_cloud_voxels = cloud.size();
 
-    // Exact single scattering and the uncollided fluence (albedo 1, g 0, one direction:
-    // S = phi1 / (4 pi)).
+    // Exact single scattering and, from the same quadrature, the uncollided fluence phi1.
     core::Stopwatch w1;
-    const SourceField S1 = single_scattering(m, light, dirs);  // default tolerance 1e-3
-    LightingMedium probe = m;
-    probe.optics.albedo = 1.0;
-    probe.optics.g = 0.0;
-    const SourceField S_iso = single_scattering(probe, light, output_directions(1));
-    core::Grid3<float> phi1(g, 0.0f);
-    for (std::size_t c = 0; c < n; ++c) phi1.data[c] = float(4.0 * std::numbers::pi * double(S_iso.data[c]));
+    core::Grid3<float> phi1;
+    SingleScatteringOptions so;  // default tolerance 1e-3
+    so.uncollided_fluence = &phi1;
+    const SourceField S1 = single_scattering(m, light, dirs, so);
     s.ss_seconds = w1.seconds();
 
     // Monte Carlo reference.

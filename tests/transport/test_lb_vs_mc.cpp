@@ -10,7 +10,6 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
-#include <numbers>
 #include <vector>
 
 using namespace fulgur;
@@ -70,6 +69,15 @@ Errors compare(const LightingMedium& m, const SourceField& S1, const SourceField
     return {std::sqrt(nt / dt), std::sqrt(nm / dm), std::sqrt(ft / dt), std::sqrt(fm / dm), sum_lb / sum_mc};
 }
 
+// The first-scattered source and, from the same quadrature, the uncollided fluence phi1
+// the lattice takes with it.
+SourceField first_scattered(const LightingMedium& m, const PointSource& light, const std::vector<glm::dvec3>& dirs,
+                            core::Grid3<float>& phi1) {
+    SingleScatteringOptions o;
+    o.uncollided_fluence = &phi1;
+    return single_scattering(m, light, dirs, o);
+}
+
 double sum_of(const core::Grid3<float>& f) {
     double s = 0.0;
     for (float v : f.data) s += double(v);
@@ -80,19 +88,12 @@ double sum_of(const core::Grid3<float>& f) {
 
 TEST_CASE("LB vs Monte Carlo: small blob, point light below the grid") {
     const LightingMedium m = blob(0.95);
-    const core::GridGeometry& g = m.density.geom;
     const PointSource light{{37.0, -23.0, -200.0}, 1.0};  // outside the grid, 200 m below it
     const auto dirs = output_directions(26);
 
-    // First-scattered source and the uncollided fluence phi1 (albedo 1, g 0, one direction:
-    // S = phi1 / (4 pi)).
-    const SourceField S1 = single_scattering(m, light, dirs);
-    LightingMedium probe = m;
-    probe.optics.albedo = 1.0;
-    probe.optics.g = 0.0;
-    const SourceField iso = single_scattering(probe, light, output_directions(1));
-    core::Grid3<float> phi1(g, 0.0f);
-    for (std::size_t c = 0; c < g.cell_count(); ++c) phi1.data[c] = float(4.0 * std::numbers::pi * double(iso.data[c]));
+    // First-scattered source and the uncollided fluence phi1.
+    core::Grid3<float> phi1;
+    const SourceField S1 = first_scattered(m, light, dirs, phi1);
 
     MonteCarloOptions mo;
     mo.paths = 8'000'000;  // ~1 s on 2 cores; noise floor 0.8% (total), 2.1% (multiple)
@@ -175,16 +176,10 @@ TEST_CASE("LB vs Monte Carlo: optically thick blob (hop optical depth up to 2), 
     // lighting grid) and albedo 0.99: voxels thicker than a mean free path, where the
     // exact-chord mapping lets light diffuse out too fast (docs/lattice-boltzmann.md).
     const LightingMedium m = blob(0.99, 0.02);
-    const core::GridGeometry& g = m.density.geom;
     const PointSource light{{37.0, -23.0, -200.0}, 1.0};
     const auto dirs = output_directions(26);
-    const SourceField S1 = single_scattering(m, light, dirs);
-    LightingMedium probe = m;
-    probe.optics.albedo = 1.0;
-    probe.optics.g = 0.0;
-    const SourceField iso = single_scattering(probe, light, output_directions(1));
-    core::Grid3<float> phi1(g, 0.0f);
-    for (std::size_t c = 0; c < g.cell_count(); ++c) phi1.data[c] = float(4.0 * std::numbers::pi * double(iso.data[c]));
+    core::Grid3<float> phi1;
+    const SourceField S1 = first_scattered(m, light, dirs, phi1);
     MonteCarloOptions mo;
     mo.paths = 2'000'000;
     mo.seed = 12;
