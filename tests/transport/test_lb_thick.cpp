@@ -3,6 +3,7 @@
 // over-relaxation, and convergence to transport theory as voxels get optically thicker.
 // (Stability of every matrix it can build: test_lb_lattice.cpp.)
 #include "transport/lb_solver.h"
+#include "transport_test_util.h"
 
 #include <doctest/doctest.h>
 
@@ -133,10 +134,8 @@ double lattice_decay(double tau, double albedo, double g, LbThickVoxels mode, do
     const double L = 1.0 / (nu_ref * tau);  // diffusion length in sites
     const int a = int(std::ceil(2.0 * L)) + 1, b = int(std::ceil(6.0 * L)) + 2;
     const int N = 2 * (b + int(std::ceil(6.0 * L)) + 4);
-    const core::GridGeometry geom{{N, 4, 4}, 1.0, {0, 0, 0}};
-    LightingMedium m;
-    m.density = core::Grid3<float>(geom, 1.0f);
-    m.optics = Medium{tau, albedo, g};
+    const LightingMedium m = test::uniform_medium({N, 4, 4}, 1.0, {0, 0, 0}, 1.0f, Medium{tau, albedo, g});
+    const core::GridGeometry& geom = m.density.geom;
     SourceField S1(geom, output_directions(1));
     for (int z = 0; z < 4; ++z)
         for (int y = 0; y < 4; ++y) S1.data[geom.index(N / 2, y, z)] = 1.0f;
@@ -153,6 +152,17 @@ double lattice_decay(double tau, double albedo, double g, LbThickVoxels mode, do
     return std::log(pa / pb) / (double(b - a) * tau);
 }
 
+// Case's dispersion relation for isotropic scattering: the transport decay constant nu
+// (units of sigma_t) solving albedo / (2 nu) ln((1 + nu) / (1 - nu)) = 1, by bisection.
+double case_nu(double albedo) {
+    double lo = 1e-9, hi = 1.0 - 1e-12;
+    for (int it = 0; it < 200; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (albedo / (2.0 * mid) * std::log((1.0 + mid) / (1.0 - mid)) < 1.0 ? lo : hi) = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
 }  // namespace
 
 TEST_CASE("thick voxels: plane-source decay (diffusion length) converges to transport theory as voxels thicken") {
@@ -161,14 +171,6 @@ TEST_CASE("thick voxels: plane-source decay (diffusion length) converges to tran
     // relation; the diffusion approximation sqrt(3 (1 - albedo)) = 0.1732 differs by 0.1%).
     // The diffusion length 1 / nu = 5.8 mean free paths spans 23 voxels at tau = 0.25 and
     // 1.5 at tau = 4: from "well resolved" to "thicker than the diffusion length".
-    auto case_nu = [](double albedo) {
-        double lo = 1e-9, hi = 1.0 - 1e-12;
-        for (int it = 0; it < 200; ++it) {
-            const double mid = 0.5 * (lo + hi);
-            (albedo / (2.0 * mid) * std::log((1.0 + mid) / (1.0 - mid)) < 1.0 ? lo : hi) = mid;
-        }
-        return 0.5 * (lo + hi);
-    };
     const double albedo = 0.99;
     const double nu = case_nu(albedo);
     // Measured nu / nu_transport, saturate / diffusion_matched: tau 0.5: 0.854 / 0.9986,
@@ -217,10 +219,8 @@ TEST_CASE("thick voxels: units hold with over-relaxation (infinite medium, unifo
         for (float rho : {0.5f, 5.0f, 50.0f})
             for (LbAbsorption abs : {LbAbsorption::Physical, LbAbsorption::Conservative}) {
                 const double h = 40.0, albedo = 0.8, S1v = 0.25;
-                const core::GridGeometry geom{{6, 5, 4}, h, {0, 0, 0}};
-                LightingMedium m;
-                m.density = core::Grid3<float>(geom, rho);
-                m.optics = Medium{0.03, albedo, g};
+                const LightingMedium m = test::uniform_medium({6, 5, 4}, h, {0, 0, 0}, rho, Medium{0.03, albedo, g});
+                const core::GridGeometry& geom = m.density.geom;
                 SourceField S1(geom, output_directions(1));
                 std::fill(S1.data.begin(), S1.data.end(), float(S1v));
                 LbSources src;
@@ -255,22 +255,4 @@ TEST_CASE("thick voxels: units hold with over-relaxation (infinite medium, unifo
                 CHECK(worst_phi < 1e-5);
                 CHECK(worst_s < 2e-4);
             }
-}
-TEST_CASE("probe albedo") {
-    auto case_nu = [](double albedo) {
-        if (albedo <= 0.0) return 1.0;
-        double lo = 1e-9, hi = 1.0 - 1e-15;
-        for (int it = 0; it < 200; ++it) {
-            const double mid = 0.5 * (lo + hi);
-            (albedo / (2.0 * mid) * std::log((1.0 + mid) / (1.0 - mid)) < 1.0 ? lo : hi) = mid;
-        }
-        return 0.5 * (lo + hi);
-    };
-    for (double albedo : {0.0, 0.3, 0.6, 0.8, 0.9, 0.95})
-        for (double tau : {0.25, 1.0, 3.0}) {
-            const double nu = case_nu(albedo);
-            const double ns = lattice_decay(tau, albedo, 0.0, LbThickVoxels::Saturate, nu);
-            const double nm = lattice_decay(tau, albedo, 0.0, LbThickVoxels::DiffusionMatched, nu);
-            MESSAGE("albedo " << albedo << " tau " << tau << " nu " << nu << ": saturate " << ns / nu << ", matched " << nm / nu);
-        }
 }
