@@ -254,6 +254,21 @@ private:
     T* raw_ = nullptr;
 };
 
+// Row-grouped (CSR) layout of (row, item) pairs given in row order: row r's items are
+// out[begin[r], begin[r + 1]).
+template <class T>
+void group_by_row(std::size_t rows, const std::vector<std::pair<std::size_t, T>>& items, std::vector<std::size_t>& begin,
+                  std::vector<T>& out) {
+    begin.assign(rows + 1, 0);
+    out.clear();
+    out.reserve(items.size());
+    for (const auto& [row, item] : items) {
+        begin[row + 1]++;
+        out.push_back(item);
+    }
+    for (std::size_t r = 0; r < rows; ++r) begin[r + 1] += begin[r];
+}
+
 class FastKernel final : public Kernel {
 public:
     explicit FastKernel(const Problem& p)
@@ -640,21 +655,9 @@ private:
                 }
         // Open links: by row (already in row order: z, y, x, q).
         const std::size_t rows = std::size_t(d.y) * std::size_t(d.z);
-        open_begin_.assign(rows + 1, 0);
-        open_.reserve(open_rows.size());
-        for (const auto& [row, l] : open_rows) {
-            open_begin_[row + 1]++;
-            open_.push_back(l);
-        }
-        for (std::size_t r = 0; r < rows; ++r) open_begin_[r + 1] += open_begin_[r];
+        group_by_row(rows, open_rows, open_begin_, open_);
         std::stable_sort(ghost_rows.begin(), ghost_rows.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-        ghost_begin_.assign(rows + 1, 0);
-        ghosts_.reserve(ghost_rows.size());
-        for (const auto& [row, g] : ghost_rows) {
-            ghost_begin_[row + 1]++;
-            ghosts_.push_back(g);
-        }
-        for (std::size_t r = 0; r < rows; ++r) ghost_begin_[r + 1] += ghost_begin_[r];
+        group_by_row(rows, ghost_rows, ghost_begin_, ghosts_);
         for (int q = 0; q < kQ; ++q) ghost_off_[q] = std::size_t(q) * stride_ + std::size_t(off_[q]);
         // Periodic pairs: grouped by direction, then by address: each group walks two
         // direction arrays in increasing order, and groups run in parallel (each copies to
