@@ -306,10 +306,12 @@ FgbMetadata decode_metadata(ByteReader& r, std::uint64_t scene_hash, const std::
 std::size_t value_bytes(Precision p) { return p == Precision::Float16 ? 2 : 4; }
 
 template <class Fail>
-void decode_plain(ByteReader& r, const std::vector<std::uint32_t>& counts, std::uint64_t payload, const FgbMetadata& m,
-                  CompressedLight& out, const Fail& fail_at) {
+void decode_plain(ByteReader& r, const std::vector<std::uint32_t>& counts, const FgbMetadata& m, CompressedLight& out,
+                  const Fail& fail_at) {
     const std::size_t ib = std::size_t(m.index_bytes()), vb = value_bytes(m.compression.precision);
     const std::uint64_t cells = m.cells();
+    std::uint64_t payload = 0;
+    for (std::uint32_t c : counts) payload += std::uint64_t(c) * (ib + vb);
     if (payload != r.remaining())
         fail_at(r.offset(), "block size: the coefficient counts need " + std::to_string(payload) +
                                 " bytes of indices and values, the block has " + std::to_string(r.remaining()));
@@ -472,13 +474,11 @@ CompressedLight decode_block(const std::uint8_t* data, std::size_t size, std::ui
     if (ndir != m.bases())
         fail_at(ndir_at, "block.basis count: " + std::to_string(ndir) + ", the file has " +
                              std::to_string(m.bases()) + " bases (components x directions)");
-    const std::size_t ib = std::size_t(m.index_bytes()), vb = value_bytes(m.compression.precision);
     const std::uint64_t cells = m.cells();
     CompressedLight out;
     out.light = light;
     out.directions.resize(ndir);
     std::vector<std::uint32_t> counts(ndir);
-    std::uint64_t payload = 0;
     for (std::uint32_t d = 0; d < ndir; ++d) {
         const std::string f = "block.direction[" + std::to_string(d) + "].";
         const std::uint64_t at = r.offset();
@@ -495,12 +495,11 @@ CompressedLight decode_block(const std::uint8_t* data, std::size_t size, std::ui
         b.norm = r.get<double>(f + "norm");
         if (!std::isfinite(b.gamma) || b.gamma < 0.0) fail_at(at + 8, f + "gamma: not a finite value >= 0");
         if (!std::isfinite(b.norm) || b.norm < 0.0) fail_at(at + 16, f + "norm: not a finite value >= 0");
-        payload += std::uint64_t(counts[d]) * (ib + vb);
     }
     if (m.compression.entropy == Entropy::Deflate)
         decode_deflated(r, counts, m, out, canonical, fail_at);
     else
-        decode_plain(r, counts, payload, m, out, fail_at);
+        decode_plain(r, counts, m, out, fail_at);
     return out;
 }
 
