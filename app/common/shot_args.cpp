@@ -9,6 +9,7 @@ namespace fulgur::app {
 
 std::string shot_usage() {
     return "usage: fulgur-shot SCENE.json [--fgb FILE] --seed S --time T --size WxH -o OUT.png\n"
+           "                   [--repeat N] [--exposure EV] [--reference REF.png]\n"
            "Renders one frame of SCENE's storm headless (OSMesa) to OUT.png and prints the\n"
            "per-stage timings as one JSON line.\n"
            "  --fgb FILE   baked bases to use (default: the scene's .fgb, baked first if missing or stale)\n"
@@ -19,6 +20,10 @@ std::string shot_usage() {
            "  --repeat N   render the frame N times (1..1000) and report median stage times\n"
            "  --exposure EV  exposure change in stops from the default (0; -20..20)\n"
            "  -o OUT.png   output PNG\n"
+           "  --reference REF.png  also render the frame lit by the direct solve (exact single\n"
+           "               scattering + the scene's solver on the frame's point sources, no basis;\n"
+           "               seconds) into REF.png, |difference| into REF_diff.png (white = 10% of\n"
+           "               the reference's maximum), and print the errors and times as JSON\n"
            "  --help       this text\n";
 }
 
@@ -68,6 +73,10 @@ ShotArgs parse_shot_args(const std::vector<std::string>& args) {
             if (a.width < 1 || a.height < 1 || a.width > 8192 || a.height > 8192)
                 throw core::Error("fulgur-shot", "--size: each side must be in 1..8192, got '" + v + "'");
             have_size = true;
+        } else if (s == "--reference") {
+            a.reference = value(i);
+            if (a.reference->extension() != ".png")
+                throw core::Error("fulgur-shot", "--reference must name a .png file, got '" + a.reference->string() + "'");
         } else if (s == "-o" || s == "--output") {
             a.output = value(i);
             have_out = true;
@@ -84,6 +93,8 @@ ShotArgs parse_shot_args(const std::vector<std::string>& args) {
     if (!have_time) throw core::Error("fulgur-shot", "--time is required");
     if (!have_size) throw core::Error("fulgur-shot", "--size is required");
     if (!have_out) throw core::Error("fulgur-shot", "-o is required");
+    if (a.reference && std::filesystem::absolute(*a.reference) == std::filesystem::absolute(a.output))
+        throw core::Error("fulgur-shot", "--reference and -o name the same file");
     return a;
 }
 

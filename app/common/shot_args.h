@@ -19,6 +19,10 @@ struct ShotArgs {
     int repeat = 1;            ///< --repeat N: render N times, report medians (the first frame compiles shaders)
     double exposure_ev = 0.0;  ///< --exposure EV: exposure = 2^EV (render::Settings::exposure)
     std::filesystem::path output;
+    /// --reference REF.png: also render the frame lit by the direct solve (the reference the
+    /// basis method is measured against) into REF.png, its difference image into
+    /// REF_diff.png, and print a second JSON line with the errors and the times.
+    std::optional<std::filesystem::path> reference;
     bool help = false;
 };
 

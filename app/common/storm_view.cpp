@@ -55,8 +55,23 @@ void StormView::set_lightning(const lightning::LightningParams& p) {
     pipeline_ = std::make_unique<runtime::FramePipeline>(scene_, density_, bases_);
 }
 
+const transport::LightingMedium& StormView::lighting_medium() {
+    if (!medium_) medium_ = scene::make_lighting_medium(scene_, density_);
+    return *medium_;
+}
+
+transport::SourceField StormView::solve_direct(double t, const runtime::Components& components, double* seconds) {
+    const runtime::Frame& f = pipeline_->build(t, {}, {});
+    last_ = &f;
+    const transport::LightingMedium& m = lighting_medium();
+    core::Stopwatch sw;
+    transport::SourceField out = runtime::direct_solve(scene_, m, f.sources, components);
+    if (seconds) *seconds = sw.seconds();
+    return out;
+}
+
 FrameReport StormView::render(const render::Camera& camera, double t, int width, int height,
-                              const ViewOptions& options) {
+                              const ViewOptions& options, const transport::SourceField* source) {
     using clock = std::chrono::steady_clock;
     const auto t0 = clock::now();
     FrameReport rep;
@@ -77,7 +92,17 @@ FrameReport StormView::render(const render::Camera& camera, double t, int width,
     for (const lightning::LitSegment& s : f.segments)
         bolt.segments.push_back({glm::vec3(s.a), glm::vec3(s.b), float(s.intensity), 2.0f});
     renderer_->set_bolt(bolt);
-    if (f.lit && !f.radiance.values.empty()) {
+    if (source) {
+        if (!(source->geom == bases_.lighting()) || source->directions.size() != bases_.directions().size())
+            throw core::Error("StormView::render", "the source field is not on the bases' lighting grid with all " +
+                                                       std::to_string(bases_.directions().size()) + " directions");
+        render::SourceUpload up;
+        up.geometry = source->geom;
+        up.direction_count = ndir;
+        up.directions = dirs;
+        for (int m : dirs) up.values.push_back(source->direction(std::size_t(m)));
+        renderer_->upload_source(up);
+    } else if (f.lit && !f.radiance.values.empty()) {
         render::SourceUpload up;
         up.geometry = f.radiance.geometry;
         up.direction_count = f.radiance.direction_count;

@@ -47,8 +47,20 @@ public:
               render::GetProcAddress gl);
     StormView(const StormView&) = delete;  // the pipeline refers to the members
     StormView& operator=(const StormView&) = delete;
-    /// Builds the frame at time t and renders it into the bound framebuffer.
-    FrameReport render(const render::Camera& camera, double t, int width, int height, const ViewOptions& options);
+    /// Builds the frame at time t and renders it into the bound framebuffer. With `source`
+    /// (a field on the bases' lighting grid with all their directions, e.g. solve_direct's),
+    /// the cloud is lit by that field instead of the reconstruction: the bolt, glow and
+    /// ground still come from the frame at t, so two renders differ only in S.
+    FrameReport render(const render::Camera& camera, double t, int width, int height, const ViewOptions& options,
+                       const transport::SourceField* source = nullptr);
+
+    /// The reference of the frame at time t (runtime::direct_solve of the frame's point
+    /// sources: exact single scattering + the scene's solver, no virtual lights, no basis),
+    /// all directions, on the lighting grid. Seconds to minutes: not for interactive frames.
+    /// `seconds` receives the solve's wall time. Builds the frame at t (last_frame() changes).
+    transport::SourceField solve_direct(double t, const runtime::Components& components, double* seconds = nullptr);
+    /// The medium the direct solve runs in (the density averaged onto the lighting grid).
+    const transport::LightingMedium& lighting_medium();
 
     /// New lightning parameters (bolt shape, schedule, seed): rebuilds the pipeline's storm,
     /// so bolts are regenerated; the bake is unchanged (it does not depend on them).
@@ -68,6 +80,7 @@ private:
     std::unique_ptr<runtime::FramePipeline> pipeline_;
     std::unique_ptr<render::Renderer> renderer_;
     const runtime::Frame* last_ = nullptr;
+    std::optional<transport::LightingMedium> medium_;  // built on first use (solve_direct)
 };
 
 /// Per-field medians of several frames' reports (lit taken from the last one).

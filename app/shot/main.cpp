@@ -1,14 +1,123 @@
 // fulgur-shot: one frame of a scene's storm, headless (OSMesa), to PNG; timings as JSON.
+#include "common/image_compare.h"
 #include "common/shot_args.h"
 #include "common/storm_view.h"
 #include "platform/platform.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <vector>
 #include <cstdio>
 #include <iostream>
 
 using namespace fulgur;
+
+namespace {
+
+// Relative L2 of the reconstruction against the direct solve over cloud voxels (lighting-grid
+// density > 0), every direction the frame holds.
+double source_error(const runtime::RadianceField& r, const transport::SourceField& ref,
+                    const transport::LightingMedium& m) {
+    core::CompensatedSum d2, r2;
+    for (std::size_t k = 0; k < r.directions.size(); ++k) {
+        const std::span<const float> ref_m = ref.direction(std::size_t(r.directions[k]));
+        for (std::size_t i = 0; i < ref_m.size(); ++i)
+            if (m.density.data[i] > 0.0f) {
+                const double d = double(r.values[k][i]) - double(ref_m[i]);
+                d2.add(d * d);
+                r2.add(double(ref_m[i]) * double(ref_m[i]));
+            }
+    }
+    return std::sqrt(d2.value() / (r2.value() > 0.0 ? r2.value() : 1.0));
+}
+
+// The displayed (tone-mapped, 8-bit) images: mean |difference| in levels over all RGB
+// channels, and the fraction of pixels whose largest channel difference exceeds 25 levels
+// (10% of the display range).
+struct DisplayDifference {
+    double mean_levels = 0.0, fraction_over = 0.0;
+};
+DisplayDifference display_difference(const std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b) {
+    DisplayDifference d;
+    std::size_t over = 0;
+    double sum = 0.0;
+    for (std::size_t p = 0; p + 3 < a.size(); p += 4) {
+        int mx = 0;
+        for (std::size_t c = 0; c < 3; ++c) {
+            const int v = std::abs(int(a[p + c]) - int(b[p + c]));
+            sum += v;
+            mx = std::max(mx, v);
+        }
+        over += mx > 25;
+    }
+    const std::size_t px = a.size() / 4;
+    d.mean_levels = px ? sum / double(3 * px) : 0.0;
+    d.fraction_over = px ? double(over) / double(px) : 0.0;
+    return d;
+}
+
+// --reference: the same frame lit by the direct solve, its difference image and the errors
+// (S over the cloud; the cloud's in-scattered radiance in the image) and times as JSON.
+void render_reference(app::StormView& view, platform::Context* ctx, const render::Camera& cam, double t,
+                      const app::ViewOptions& opt, const app::ShotArgs& a, const std::vector<std::uint8_t>& shown_basis) {
+    double solve_s = 0.0;
+    const transport::SourceField direct = view.solve_direct(t, opt.components, &solve_s);
+    const runtime::Frame& f = *view.last_frame();  // all directions: the solve's counterpart
+    const double s_err = f.lit ? source_error(f.radiance, direct, view.lighting_medium()) : 0.0;
+
+    view.render(cam, t, a.width, a.height, opt, &direct);
+    ctx->present();
+    const std::vector<std::uint8_t> shown_ref = ctx->read_rgba8();
+    core::write_png(*a.reference, a.width, a.height, 4, shown_ref);
+    const DisplayDifference shown = display_difference(shown_basis, shown_ref);
+
+    // The cloud alone (no glow in the march buffer, no jitter), once per field.
+    app::ViewOptions metric = opt;
+    metric.settings.glow = false;
+    metric.settings.jitter = false;
+    int w = 0, h = 0;
+    view.render(cam, t, a.width, a.height, metric);
+    const std::vector<float> basis = view.renderer().read_march(w, h);
+    view.render(cam, t, a.width, a.height, metric, &direct);
+    const std::vector<float> ref = view.renderer().read_march(w, h);
+    const app::RadianceComparison c = app::compare_radiance(basis, ref);
+    std::filesystem::path diff = *a.reference;
+    diff.replace_filename(a.reference->stem().string() + "_diff.png");
+    const std::vector<std::uint8_t> diff_px = app::difference_image(basis, ref);
+    core::write_png(diff, w, h, 4, diff_px);
+    // Side by side for a quick look: basis | direct | difference (nearest-upsampled).
+    std::filesystem::path both = *a.reference;
+    both.replace_filename(a.reference->stem().string() + "_compare.png");
+    const int W = a.width, H = a.height;
+    std::vector<std::uint8_t> trio(std::size_t(3 * W) * std::size_t(H) * 4);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+            for (int ch = 0; ch < 4; ++ch) {
+                const std::size_t src = (std::size_t(y) * std::size_t(W) + std::size_t(x)) * 4 + std::size_t(ch);
+                const std::size_t row = std::size_t(y) * std::size_t(3 * W);
+                trio[(row + std::size_t(x)) * 4 + std::size_t(ch)] = shown_basis[src];
+                trio[(row + std::size_t(W + x)) * 4 + std::size_t(ch)] = shown_ref[src];
+                const std::size_t dx = std::size_t(x) * std::size_t(w) / std::size_t(W);
+                const std::size_t dy = std::size_t(y) * std::size_t(h) / std::size_t(H);
+                trio[(row + std::size_t(2 * W + x)) * 4 + std::size_t(ch)] =
+                    diff_px[(dy * std::size_t(w) + dx) * 4 + std::size_t(ch)];
+            }
+    core::write_png(both, 3 * W, H, 4, trio);
+
+    const double frame_ms = f.times.total();
+    std::printf("{\"name\":\"fulgur-shot-reference\",\"lit\":%s,\"sources\":%zu,\"active_lights\":%zu,"
+                "\"direct_solve_s\":%.4g,\"basis_frame_ms_all_directions\":%.4g,\"speedup\":%.4g,"
+                "\"source_rel_l2\":%.4g,\"image_rel_l2\":%.4g,\"image_max_difference\":%.4g,"
+                "\"image_fraction_over_10pct\":%.4g,\"image_lit_pixels\":%zu,\"image_width\":%d,\"image_height\":%d,"
+                "\"shown_mean_levels\":%.4g,\"shown_fraction_over_25_levels\":%.4g}\n",
+                f.lit ? "true" : "false", f.sources.size(), f.weights.active.size(), solve_s, frame_ms,
+                frame_ms > 0.0 ? solve_s * 1e3 / frame_ms : 0.0, s_err, c.relative_l2, c.max_difference,
+                c.fraction_over, c.lit_pixels, w, h, shown.mean_levels, shown.fraction_over);
+    std::fflush(stdout);
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
     app::ShotArgs a;
@@ -50,6 +159,7 @@ int main(int argc, char** argv) {
         const auto px = ctx->read_rgba8();
         core::write_png(a.output, a.width, a.height, 4, px);
         std::cout << app::timings_json(r, a.width, a.height) << std::endl;
+        if (a.reference) render_reference(view, ctx.get(), cam, t, opt, a, px);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur-shot: %s\n", e.what());
         return 1;

@@ -91,3 +91,16 @@ TEST_CASE("golden-test scenes are tiny and cover the required cases") {
     }
     CHECK((iso && aniso && ss_only && ms && cg && ic));
 }
+
+TEST_CASE("fulgur-shot: --reference names a PNG other than -o") {
+    std::vector<std::string> r = good;
+    CHECK_FALSE(parse(r).reference.has_value());
+    r.insert(r.end(), {"--reference", "ref.png"});
+    CHECK(parse(r).reference.value() == "ref.png");
+    r.back() = "ref.jpg";
+    CHECK_THROWS_AS(parse(r), core::Error);
+    r.back() = "x.png";  // the basis frame's own output
+    CHECK_THROWS_AS(parse(r), core::Error);
+    r.pop_back();  // missing value
+    CHECK_THROWS_AS(parse(r), core::Error);
+}
