@@ -18,12 +18,13 @@ std::filesystem::path ensure_baked(const scene::Scene& s, const core::Grid3<floa
         return *explicit_fgb;
     }
     const std::filesystem::path fgb = bake::default_fgb_path(s);
-    std::string why;
-    if (bake::up_to_date(s, density, fgb, &why)) return fgb;
-    if (progress) std::fprintf(stderr, "baking %s (%s)\n", fgb.string().c_str(), why.c_str());
     bake::Progress cb;
-    if (progress) cb = make_progress_printer(stderr, "lights");
-    bake::bake(s, density, fgb, cb);
+    std::function<void(const std::string&)> tell;
+    if (progress) {
+        cb = make_progress_printer(stderr, "lights");
+        tell = [&](const std::string& why) { std::fprintf(stderr, "baking %s (%s)\n", fgb.string().c_str(), why.c_str()); };
+    }
+    bake::bake_if_stale(s, density, fgb, cb, tell);
     return fgb;
 }
 

@@ -109,15 +109,13 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
     const scene::Scene s = scene::load_scene(scene_path);
     const core::Grid3<float> density = scene::make_density(s);
     const std::filesystem::path fgb = bake::default_fgb_path(s);
-    std::string why;
     double bake_s = 0.0;
-    if (!bake::up_to_date(s, density, fgb, &why)) {
-        std::fprintf(stderr, "runtime-accuracy: baking %s (%s)\n", fgb.string().c_str(), why.c_str());
-        core::Stopwatch sw;
-        const bake::Report r = bake::bake(s, density, fgb);
-        bake_s = sw.seconds();
-        std::fprintf(stderr, "runtime-accuracy: baked in %.1f s (%zu lights, %zu dropped, %.1f MB)\n", bake_s, r.lights,
-                     r.lights_dropped, double(r.file_bytes) / 1e6);
+    if (const std::optional<bake::Report> r = bake::bake_if_stale(s, density, fgb, {}, [&](const std::string& why) {
+            std::fprintf(stderr, "runtime-accuracy: baking %s (%s)\n", fgb.string().c_str(), why.c_str());
+        })) {
+        bake_s = r->seconds_total;
+        std::fprintf(stderr, "runtime-accuracy: baked in %.1f s (%zu lights, %zu dropped, %.1f MB)\n", bake_s, r->lights,
+                     r->lights_dropped, double(r->file_bytes) / 1e6);
     }
     const runtime::BakedBases bases = runtime::BakedBases::load(fgb, bake::scene_key(s, density));
     basis::FgbReader reader(fgb);  // per-light coefficient counts (dropped lights)

@@ -524,4 +524,13 @@ bool up_to_date(const scene::Scene& s, const core::Grid3<float>& density, const 
     return true;
 }
 
+std::optional<Report> bake_if_stale(const scene::Scene& s, const core::Grid3<float>& density,
+                                    const std::filesystem::path& fgb, const Progress& progress,
+                                    const std::function<void(const std::string& why)>& on_stale) {
+    std::string why;
+    if (up_to_date(s, density, fgb, &why)) return std::nullopt;
+    if (on_stale) on_stale(why);
+    return bake(s, density, fgb, progress);
+}
+
 }  // namespace fulgur::bake

@@ -22,6 +22,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -127,5 +128,12 @@ std::filesystem::path default_fgb_path(const scene::Scene& s);
 /// receives the reason when false (missing, corrupt, stale: which parameter changed).
 bool up_to_date(const scene::Scene& s, const core::Grid3<float>& density, const std::filesystem::path& fgb,
                 std::string* why = nullptr);
+
+/// Bakes the scene into `fgb` unless it is up_to_date. Returns the report of the bake it
+/// ran, or nothing when the file was already fresh. `on_stale` is called with up_to_date's
+/// reason just before baking (e.g. to tell the user why a bake starts).
+std::optional<Report> bake_if_stale(const scene::Scene& s, const core::Grid3<float>& density,
+                                    const std::filesystem::path& fgb, const Progress& progress = {},
+                                    const std::function<void(const std::string& why)>& on_stale = {});
 
 }  // namespace fulgur::bake

@@ -307,3 +307,30 @@ TEST_CASE("up_to_date: missing, fresh, stale (names the parameter), corrupt, par
     CHECK(bake::default_fgb_path(s).extension() == ".fgb");
     CHECK(bake::default_fgb_path(s).stem() == "test_iso_ss_ic");
 }
+
+TEST_CASE("bake_if_stale: bakes a missing or stale file once, says why, then leaves it") {
+    const scene::Scene s = tiny("test_iso_ss_ic");
+    const core::Grid3<float> d = scene::make_density(s);
+    const std::filesystem::path f = test::scratch_dir("bake_if_stale") / "s.fgb";
+    std::filesystem::remove(f);
+    std::vector<std::string> reasons;
+    auto tell = [&](const std::string& why) { reasons.push_back(why); };
+    const std::optional<bake::Report> first = bake::bake_if_stale(s, d, f, {}, tell);
+    REQUIRE(first.has_value());
+    CHECK(first->lights > 0);
+    REQUIRE(reasons.size() == 1);
+    CHECK(reasons[0].find("no baked file") != std::string::npos);
+    CHECK(bake::up_to_date(s, d, f));
+
+    const auto before = std::filesystem::last_write_time(f);
+    CHECK_FALSE(bake::bake_if_stale(s, d, f, {}, tell).has_value());  // fresh: nothing done
+    CHECK(reasons.size() == 1);
+    CHECK(std::filesystem::last_write_time(f) == before);
+
+    scene::Scene t = s;
+    t.medium.albedo = 0.5;
+    CHECK(bake::bake_if_stale(t, d, f, {}, tell).has_value());  // stale: rebaked, reason named
+    REQUIRE(reasons.size() == 2);
+    CHECK(reasons[1].find("medium.albedo") != std::string::npos);
+    CHECK(bake::up_to_date(t, d, f));
+}
