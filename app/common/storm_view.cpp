@@ -71,6 +71,31 @@ transport::SourceField StormView::solve_direct(double t, const runtime::Componen
     return out;
 }
 
+void StormView::check_field(const transport::SourceField& f, const char* where) const {
+    if (!(f.geom == bases_.lighting()) || f.directions.size() != bases_.directions().size() ||
+        f.data.size() != f.cells() * f.directions.size())
+        throw core::Error(where, "the field is not on the bases' lighting grid with all " +
+                                     std::to_string(bases_.directions().size()) + " directions");
+}
+
+double StormView::reconstruction_error(const transport::SourceField& reference) {
+    check_field(reference, "StormView::reconstruction_error");
+    if (!last_ || !last_->lit) return 0.0;
+    const runtime::RadianceField& r = last_->radiance;
+    const std::vector<float>& density = lighting_medium().density.data;
+    core::CompensatedSum d2, r2;  // ~10^5 terms spanning many orders of magnitude
+    for (std::size_t k = 0; k < r.directions.size(); ++k) {
+        const std::span<const float> ref = reference.direction(std::size_t(r.directions[k]));
+        for (std::size_t i = 0; i < ref.size(); ++i)
+            if (density[i] > 0.0f) {
+                const double d = double(r.values[k][i]) - double(ref[i]);
+                d2.add(d * d);
+                r2.add(double(ref[i]) * double(ref[i]));
+            }
+    }
+    return std::sqrt(d2.value() / (r2.value() > 0.0 ? r2.value() : 1.0));
+}
+
 FrameReport StormView::render(const render::Camera& camera, double t, int width, int height,
                               const ViewOptions& options, const transport::SourceField* source) {
     using clock = std::chrono::steady_clock;
@@ -94,9 +119,7 @@ FrameReport StormView::render(const render::Camera& camera, double t, int width,
         bolt.segments.push_back({glm::vec3(s.a), glm::vec3(s.b), float(s.intensity), 2.0f});
     renderer_->set_bolt(bolt);
     if (source) {
-        if (!(source->geom == bases_.lighting()) || source->directions.size() != bases_.directions().size())
-            throw core::Error("StormView::render", "the source field is not on the bases' lighting grid with all " +
-                                                       std::to_string(bases_.directions().size()) + " directions");
+        check_field(*source, "StormView::render");
         render::SourceUpload up;
         up.geometry = source->geom;
         up.direction_count = ndir;

@@ -61,6 +61,10 @@ public:
     transport::SourceField solve_direct(double t, const runtime::Components& components, double* seconds = nullptr);
     /// The medium the direct solve runs in (the density averaged onto the lighting grid).
     const transport::LightingMedium& lighting_medium();
+    /// Relative L2 of the last frame's reconstruction against `reference` (a field like
+    /// solve_direct's) over cloud voxels (lighting-grid density > 0), every direction the
+    /// frame holds (after solve_direct: all). 0 when the last frame is dark.
+    double reconstruction_error(const transport::SourceField& reference);
 
     /// New lightning parameters (bolt shape, schedule, seed): rebuilds the pipeline's storm,
     /// so bolts are regenerated; the bake is unchanged (it does not depend on them).
@@ -74,6 +78,7 @@ public:
     const runtime::Frame* last_frame() const noexcept { return last_; }
 
 private:
+    void check_field(const transport::SourceField& f, const char* where) const;  // throws core::Error
     scene::Scene scene_;
     core::Grid3<float> density_;
     runtime::BakedBases bases_;

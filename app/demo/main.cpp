@@ -30,7 +30,7 @@ namespace {
 
 const char* kUsage =
     "usage: fulgur [SCENE.json] [--headless] [--frames N] [--size WxH] [--synthetic] [--screenshot-after N]\n"
-    "              [--screenshot-at-peak] [--seed S] [--time-scale X] [--no-dither]\n"
+    "              [--screenshot-at-peak] [--solve-direct] [--seed S] [--time-scale X] [--no-dither]\n"
     "Interactive storm demo (default scene: content/scenes/storm.json). Bakes the scene first\n"
     "when no up-to-date .fgb exists. Without a display (or with --headless) it renders N\n"
     "(default 8) frames headless to out/fulgur_NNN.png.\n"
@@ -40,7 +40,9 @@ const char* kUsage =
     "(smaller PNGs). --seed S: the first strike's seed (default: the scene's). --time-scale X:\n"
     "storm time per wall-clock second (default 0.25: a flash decays in ~12 ms, slowed down so a\n"
     "software-rendered frame rate shows it). --screenshot-at-peak: hold the first strike 2 ms after\n"
-    "its return stroke, write out/screenshot_000.png after a few frames and quit.\n"
+    "its return stroke, write out/screenshot_000.png after a few frames and quit. --solve-direct:\n"
+    "press \"Solve this frame directly\" on the second frame (with --screenshot-at-peak: the\n"
+    "screenshot shows the direct solve and its figures).\n"
     "Mouse: left drag orbits, wheel zooms. Keys: Space strike now, P screenshot, Esc quit.\n";
 
 // Writes frame i of a headless sequence to out/fulgur_NNN.png; returns the name.
@@ -128,7 +130,7 @@ int main(int argc, char** argv) {
     int frames = 8, W = 1280, H = 720;
     std::optional<std::uint64_t> seed_arg;
     double time_scale = 0.25;
-    bool at_peak = false;
+    bool at_peak = false, solve_direct_at_start = false;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         if (a == "--help" || a == "-h") {
@@ -157,6 +159,8 @@ int main(int argc, char** argv) {
         } else if (a == "--screenshot-at-peak") {
             at_peak = true;
             screenshot_after = 4;  // a few frames for the panel to lay itself out
+        } else if (a == "--solve-direct") {
+            solve_direct_at_start = true;
         } else if (a == "--headless") {
             force_headless = true;
         } else if (a == "--frames" && i + 1 < argc) {
@@ -234,8 +238,21 @@ int main(int argc, char** argv) {
         // would see a "changed" rate and rebuild the storm (dropping the first strike).
         lp.schedule.strike_rate = autos ? double(rate) : 0.0;
         bool shape_changed = false;
+        // "Solve this frame directly": the reference the basis method is measured against,
+        // held with the storm time so the view can orbit and switch between the two.
+        struct Reference {
+            transport::SourceField field;
+            double seconds = 0.0, basis_ms = 0.0, error = 0.0;
+            runtime::Components components;
+            bool show = true;
+        };
+        std::optional<Reference> reference;
+        bool solve_now = false;
+        int frame_no = 0;
         while (shell.begin_frame(orbit)) {
-            t = at_peak ? peak_time : t + shell.dt() * double(slow);
+            // --solve-direct: press "Solve this frame directly" on the second frame.
+            if (solve_direct_at_start && ++frame_no == 2) solve_now = true;
+            if (!reference) t = at_peak ? peak_time : t + shell.dt() * double(slow);
             bool strike = shell.strike_pressed();
             ImGui::SetNextWindowPos({10, 10}, ImGuiCond_FirstUseEver);
             ImGui::SetNextWindowSize({430, 0}, ImGuiCond_FirstUseEver);
@@ -275,12 +292,32 @@ int main(int argc, char** argv) {
             if (ImGui::SliderFloat("exposure (EV)", &expo, -6, 6)) opt.settings.exposure = std::exp2(expo);
             float scale = float(opt.settings.internal_scale);
             if (ImGui::SliderFloat("internal scale", &scale, 0.25f, 1.0f)) opt.settings.internal_scale = scale;
+            ImGui::Separator(); ImGui::TextUnformatted("Accuracy: basis method vs direct solve");
+            if (!reference) {
+                const runtime::Frame* lit_frame = view.last_frame();
+                ImGui::BeginDisabled(!(lit_frame && lit_frame->lit));
+                if (ImGui::Button("Solve this frame directly")) solve_now = true;
+                ImGui::EndDisabled();
+                if (ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled))
+                    ImGui::SetTooltip("exact single scattering + lattice-Boltzmann on this frame's point sources,\n"
+                                      "no virtual lights (the paper's 'previous method'): seconds, the window\n"
+                                      "waits; the storm time then holds until Release");
+            } else {
+                ImGui::Text("direct %.2f s, basis %.2f ms: %.0fx", reference->seconds, reference->basis_ms,
+                            reference->basis_ms > 0 ? reference->seconds * 1e3 / reference->basis_ms : 0.0);
+                ImGui::Text("basis S off by %.1f%% (rel. L2, cloud voxels)", 100.0 * reference->error);
+                ImGui::Checkbox("show the direct solve", &reference->show);
+                ImGui::SameLine();
+                if (ImGui::Button("Release")) reference.reset();
+            }
             ImGui::Separator(); ImGui::TextUnformatted("Frame times (ms)");
             ImGui::Text("bolt %.2f  sources %.2f  splat %.2f", rep.stages.bolt, rep.stages.sources, rep.stages.splat);
             ImGui::Text("accumulate %.2f  inverse Haar %.2f", rep.stages.accumulate, rep.stages.inverse_haar);
             ImGui::Text("upload %.2f  ray march %.2f  GPU total %.2f", rep.gpu.wall.upload, rep.gpu.wall.march,
                         rep.gpu.wall.total);
-            // Cross-section of the radiance S (middle y slice of the lighting grid; paper Fig. 6(b,d)).
+            ImGui::End();
+            // Cross-section of the radiance S (paper Fig. 6(b,d)), in its own window at the
+            // bottom right (the panel fills a 720-pixel-high window already).
             const runtime::Frame* f = view.last_frame();
             if (f && f->lit && !f->radiance.values.empty()) {
                 const core::GridGeometry& g = f->radiance.geometry;
@@ -300,11 +337,17 @@ int main(int argc, char** argv) {
                 gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
                 gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
                 gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, g.dims.x, g.dims.z, 0, GL_RGBA, GL_UNSIGNED_BYTE, img.data());
-                ImGui::Separator(); ImGui::TextUnformatted("Radiance S, x-z slice through its maximum (sqrt scale)");
                 const float wpx = 240.0f;
+                ImGui::SetNextWindowPos({float(shell.width()) - 10.0f, float(shell.height()) - 10.0f},
+                                        ImGuiCond_FirstUseEver, {1.0f, 1.0f});
+                ImGui::Begin("S: x-z slice through its maximum", nullptr,
+                             ImGuiWindowFlags_AlwaysAutoResize);
                 ImGui::Image((ImTextureID)(intptr_t)slice_tex, {wpx, wpx * g.dims.z / float(g.dims.x)});
+                if (ImGui::IsItemHovered())
+                    ImGui::SetTooltip("the reconstructed source function S (first direction), square-root scale,\n"
+                                      "normalized to the slice's maximum: where the bolt lights the cloud");
+                ImGui::End();
             }
-            ImGui::End();
 
             const double want_rate = autos ? double(rate) : 0.0;
             if (shape_changed || want_rate != lp.schedule.strike_rate) {
@@ -314,11 +357,29 @@ int main(int argc, char** argv) {
                 lp.seed = std::uint64_t(seed);
                 view.set_lightning(lp);
                 shape_changed = false;
+                reference.reset();
             }
             if (strike) view.pipeline().strike_at(t, std::uint64_t(seed++));
+            // The reference belongs to one frame and one choice of components.
+            if (reference && (strike || reference->components.single != opt.components.single ||
+                              reference->components.multiple != opt.components.multiple))
+                reference.reset();
+            if (solve_now) {
+                solve_now = false;
+                std::fprintf(stderr, "fulgur: solving the frame at t = %.4f s directly...\n", t);
+                Reference r;
+                r.components = opt.components;
+                r.field = view.solve_direct(t, opt.components, &r.seconds);
+                r.basis_ms = view.last_frame()->times.total();  // all directions, as the solve
+                r.error = view.reconstruction_error(r.field);
+                std::fprintf(stderr, "fulgur: direct solve %.2f s, basis %.3f ms, S off by %.1f%%\n", r.seconds,
+                             r.basis_ms, 100.0 * r.error);
+                reference = std::move(r);
+            }
             opt.settings.frame_index++;
             const render::Camera cam = app::default_camera(view.density(), orbit.az, orbit.el, orbit.dist);
-            rep = view.render(cam, t, shell.width(), shell.height(), opt);
+            rep = view.render(cam, t, shell.width(), shell.height(), opt,
+                              reference && reference->show ? &reference->field : nullptr);
             shell.end_frame();
         }
     } catch (const std::exception& e) {

@@ -15,23 +15,6 @@ using namespace fulgur;
 
 namespace {
 
-// Relative L2 of the reconstruction against the direct solve over cloud voxels (lighting-grid
-// density > 0), every direction the frame holds.
-double source_error(const runtime::RadianceField& r, const transport::SourceField& ref,
-                    const transport::LightingMedium& m) {
-    core::CompensatedSum d2, r2;
-    for (std::size_t k = 0; k < r.directions.size(); ++k) {
-        const std::span<const float> ref_m = ref.direction(std::size_t(r.directions[k]));
-        for (std::size_t i = 0; i < ref_m.size(); ++i)
-            if (m.density.data[i] > 0.0f) {
-                const double d = double(r.values[k][i]) - double(ref_m[i]);
-                d2.add(d * d);
-                r2.add(double(ref_m[i]) * double(ref_m[i]));
-            }
-    }
-    return std::sqrt(d2.value() / (r2.value() > 0.0 ? r2.value() : 1.0));
-}
-
 // The displayed (tone-mapped, 8-bit) images: mean |difference| in levels over all RGB
 // channels, and the fraction of pixels whose largest channel difference exceeds 25 levels
 // (10% of the display range).
@@ -64,7 +47,7 @@ void render_reference(app::StormView& view, platform::Context* ctx, const render
     double solve_s = 0.0;
     const transport::SourceField direct = view.solve_direct(t, opt.components, &solve_s);
     const runtime::Frame& f = *view.last_frame();  // all directions: the solve's counterpart
-    const double s_err = f.lit ? source_error(f.radiance, direct, view.lighting_medium()) : 0.0;
+    const double s_err = view.reconstruction_error(direct);
 
     view.render(cam, t, a.width, a.height, opt, &direct);
     ctx->present();
