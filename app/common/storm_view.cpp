@@ -61,13 +61,21 @@ const transport::LightingMedium& StormView::lighting_medium() {
     return *medium_;
 }
 
-transport::SourceField StormView::solve_direct(double t, const runtime::Components& components, double* seconds) {
-    const runtime::Frame& f = pipeline_->build(t, {}, {});
-    last_ = &f;
+StormView::DirectSolve StormView::solve_direct(double t, const runtime::Components& components) {
+    DirectSolve out;
+    runtime::ReconstructOptions ro;
+    ro.components = components;
+    std::vector<double> ms;
+    for (int k = 0; k < 5; ++k) {
+        last_ = &pipeline_->build(t, {}, ro);
+        ms.push_back(last_->times.total());
+    }
+    std::nth_element(ms.begin(), ms.begin() + 2, ms.end());
+    out.basis_ms = ms[2];
     const transport::LightingMedium& m = lighting_medium();
     core::Stopwatch sw;
-    transport::SourceField out = runtime::direct_solve(scene_, m, f.sources, components);
-    if (seconds) *seconds = sw.seconds();
+    out.field = runtime::direct_solve(scene_, m, last_->sources, components);
+    out.seconds = sw.seconds();
     return out;
 }
 

@@ -57,8 +57,15 @@ public:
     /// The reference of the frame at time t (runtime::direct_solve of the frame's point
     /// sources: exact single scattering + the scene's solver, no virtual lights, no basis),
     /// all directions, on the lighting grid. Seconds to minutes: not for interactive frames.
-    /// `seconds` receives the solve's wall time. Builds the frame at t (last_frame() changes).
-    transport::SourceField solve_direct(double t, const runtime::Components& components, double* seconds = nullptr);
+    /// Also times the basis method on the same frame for all directions (median of 5
+    /// builds: one build is at the mercy of page faults and the scheduler), so the two
+    /// times compare like with like. last_frame() is then that all-direction frame.
+    struct DirectSolve {
+        transport::SourceField field;
+        double seconds = 0.0;   ///< wall time of the direct solve
+        double basis_ms = 0.0;  ///< the basis frame, all directions, median of 5
+    };
+    DirectSolve solve_direct(double t, const runtime::Components& components);
     /// The medium the direct solve runs in (the density averaged onto the lighting grid).
     const transport::LightingMedium& lighting_medium();
     /// Relative L2 of the last frame's reconstruction against `reference` (a field like

@@ -369,8 +369,10 @@ int main(int argc, char** argv) {
                 std::fprintf(stderr, "fulgur: solving the frame at t = %.4f s directly...\n", t);
                 Reference r;
                 r.components = opt.components;
-                r.field = view.solve_direct(t, opt.components, &r.seconds);
-                r.basis_ms = view.last_frame()->times.total();  // all directions, as the solve
+                app::StormView::DirectSolve solved = view.solve_direct(t, opt.components);
+                r.field = std::move(solved.field);
+                r.seconds = solved.seconds;
+                r.basis_ms = solved.basis_ms;  // all directions, as the solve
                 r.error = view.reconstruction_error(r.field);
                 std::fprintf(stderr, "fulgur: direct solve %.2f s, basis %.3f ms, S off by %.1f%%\n", r.seconds,
                              r.basis_ms, 100.0 * r.error);

@@ -44,9 +44,15 @@ DisplayDifference display_difference(const std::vector<std::uint8_t>& a, const s
 // (S over the cloud; the cloud's in-scattered radiance in the image) and times as JSON.
 void render_reference(app::StormView& view, platform::Context* ctx, const render::Camera& cam, double t,
                       const app::ViewOptions& opt, const app::ShotArgs& a, const std::vector<std::uint8_t>& shown_basis) {
-    double solve_s = 0.0;
-    const transport::SourceField direct = view.solve_direct(t, opt.components, &solve_s);
-    const runtime::Frame& f = *view.last_frame();  // all directions: the solve's counterpart
+    const app::StormView::DirectSolve solved = view.solve_direct(t, opt.components);
+    const transport::SourceField& direct = solved.field;
+    const double solve_s = solved.seconds;
+    // The basis frame's figures now, for all directions (the solve's counterpart): the
+    // renders below rebuild the frame for the view's directions only.
+    const runtime::Frame& f = *view.last_frame();
+    const bool lit = f.lit;
+    const std::size_t sources = f.sources.size(), active = f.weights.active.size();
+    const double frame_ms = solved.basis_ms;
     const double s_err = view.reconstruction_error(direct);
 
     view.render(cam, t, a.width, a.height, opt, &direct);
@@ -88,13 +94,12 @@ void render_reference(app::StormView& view, platform::Context* ctx, const render
             }
     core::write_png(both, 3 * W, H, 4, trio);
 
-    const double frame_ms = f.times.total();
     std::printf("{\"name\":\"fulgur-shot-reference\",\"lit\":%s,\"sources\":%zu,\"active_lights\":%zu,"
                 "\"direct_solve_s\":%.4g,\"basis_frame_ms_all_directions\":%.4g,\"speedup\":%.4g,"
                 "\"source_rel_l2\":%.4g,\"image_rel_l2\":%.4g,\"image_max_difference\":%.4g,"
                 "\"image_fraction_over_10pct\":%.4g,\"image_lit_pixels\":%zu,\"image_width\":%d,\"image_height\":%d,"
                 "\"shown_mean_levels\":%.4g,\"shown_fraction_over_25_levels\":%.4g}\n",
-                f.lit ? "true" : "false", f.sources.size(), f.weights.active.size(), solve_s, frame_ms,
+                lit ? "true" : "false", sources, active, solve_s, frame_ms,
                 frame_ms > 0.0 ? solve_s * 1e3 / frame_ms : 0.0, s_err, c.relative_l2, c.max_difference,
                 c.fraction_over, c.lit_pixels, w, h, shown.mean_levels, shown.fraction_over);
     std::fflush(stdout);
