@@ -364,6 +364,10 @@ int main(int argc, char** argv) {
             if (reference && (strike || reference->components.single != opt.components.single ||
                               reference->components.multiple != opt.components.multiple))
                 reference.reset();
+            if (solve_now && !(view.last_frame() && view.last_frame()->lit)) {
+                solve_now = false;  // no flash glows: nothing to compare
+                std::fprintf(stderr, "fulgur: no flash at t = %.4f s: nothing to solve\n", t);
+            }
             if (solve_now) {
                 solve_now = false;
                 std::fprintf(stderr, "fulgur: solving the frame at t = %.4f s directly...\n", t);
