@@ -213,8 +213,6 @@ ThickVoxelModel make_thick_voxel_model(LbThickVoxels mode, const DiscretePhase& 
         m.first_moment[1][b] = img[7];
     }
     m.p_min = phase_min_eigenvalue(phase);
-    m.p_self[kAxis] = phase.P[1][1];
-    m.p_self[kDiagonal] = phase.P[7][7];
     m.nu = std::min(1.0, std::sqrt(3.0 * (1.0 - m.albedo) * std::max(0.0, 1.0 - m.albedo * m.g)));
     // Spectrum: max_j e_j (1 - albedo p_min) <= 2 kStabilityMargin. And |1 - e_j| <= 2
     // kStabilityMargin - 1 as well (e_j <= 1.9): for g > 0, p_min > 0 would allow e_j up to

@@ -106,7 +106,6 @@ struct ThickVoxelModel {
     double first_moment[2][2]{};    ///< P restricted to span{axis c_x, diagonal c_x}
     double p_min = 0.0;             ///< smallest eigenvalue of P (directions 1..18)
     double e_max = 1.0;             ///< stability cap on every e_j
-    double p_self[3] = {0, 0, 0};   ///< P_jj per class (axis: j = 1, diagonal: j = 7)
     /// Physical asymptotic decay constant per unit optical depth, diffusion approximation
     /// sqrt(3 (1 - albedo)(1 - albedo g)) capped at 1 (pure absorber).
     double nu = 0.0;
