@@ -93,28 +93,10 @@ TEST_CASE("thick voxels: the lattice diffusion coefficient formula matches a spr
             for (int t = 1; t <= T; ++t) {
                 sim.step();
                 if (t < T / 2 || t % 2) continue;  // second half, even steps (over-relaxation rings at period 2)
-                double m0 = 0.0, m1 = 0.0, m2 = 0.0;
-                for (int x = 0; x < N; ++x) {
-                    double rho = 0.0;
-                    for (int z = 0; z < 4; ++z)
-                        for (int y = 0; y < 4; ++y)
-                            for (int q = 1; q < kQ; ++q) rho += double(sim.kernel().arriving(p.index(x, y, z), q));
-                    m0 += rho;
-                    m1 += rho * (x - x0);
-                    m2 += rho * double(x - x0) * double(x - x0);
-                }
                 ts.push_back(double(t));
-                vs.push_back(m2 / m0 - (m1 / m0) * (m1 / m0));
+                vs.push_back(test::pulse_variance_x(sim, p, x0, 1));
             }
-            double s_t = 0, s_v = 0, s_tt = 0, s_tv = 0;
-            const double n = double(ts.size());
-            for (std::size_t i = 0; i < ts.size(); ++i) {
-                s_t += ts[i];
-                s_v += vs[i];
-                s_tt += ts[i] * ts[i];
-                s_tv += ts[i] * vs[i];
-            }
-            const double slope = (n * s_tv - s_t * s_v) / (n * s_tt - s_t * s_t);
+            const double slope = test::least_squares_slope(ts, vs);
             INFO("g " << g << " tau " << tau << " e " << eA << "/" << eD << ": slope " << slope << " vs 2D " << 2.0 * D);
             const double dev = std::fabs(slope / (2.0 * D) - 1.0);
             worst = std::max(worst, dev);

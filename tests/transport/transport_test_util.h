@@ -3,12 +3,14 @@
 #pragma once
 
 #include "transport/kernels.h"
+#include "transport/lb_solver.h"
 #include "transport/transport.h"
 
 #include <glm/geometric.hpp>
 
 #include <cmath>
 #include <functional>
+#include <span>
 
 namespace fulgur::test {
 
@@ -23,6 +25,39 @@ inline transport::LightingMedium uniform_medium(core::Int3 dims, double h, glm::
     m.density = core::Grid3<float>(g, rho);
     m.optics = optics;
     return m;
+}
+
+/// Variance along x (voxels^2) of a lattice pulse started at x0: the density summed over the
+/// y-z cross-section and over directions [q_begin, kQ) (0: with the rest direction), in
+/// double. For the diffusion tests (variance grows by 2 D per step).
+inline double pulse_variance_x(const transport::lb::Simulation& sim, const transport::lb::Problem& p, int x0,
+                               int q_begin) {
+    double m0 = 0.0, m1 = 0.0, m2 = 0.0;
+    for (int x = 0; x < p.dims.x; ++x) {
+        double rho = 0.0;
+        for (int z = 0; z < p.dims.z; ++z)
+            for (int y = 0; y < p.dims.y; ++y)
+                for (int q = q_begin; q < transport::lb::kQ; ++q) rho += double(sim.kernel().arriving(p.index(x, y, z), q));
+        const double dx = double(x - x0);
+        m0 += rho;
+        m1 += rho * dx;
+        m2 += rho * dx * dx;
+    }
+    const double mean = m1 / m0;
+    return m2 / m0 - mean * mean;
+}
+
+/// Least-squares slope of y over x (same sizes, at least two distinct x).
+inline double least_squares_slope(std::span<const double> x, std::span<const double> y) {
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    const double n = double(x.size());
+    for (std::size_t i = 0; i < x.size(); ++i) {
+        sx += x[i];
+        sy += y[i];
+        sxx += x[i] * x[i];
+        sxy += x[i] * y[i];
+    }
+    return (n * sxy - sx * sy) / (n * sxx - sx * sx);
 }
 
 /// A smooth synthetic cumulus: a flat-based dome with sinusoidal texture, zero outside.
