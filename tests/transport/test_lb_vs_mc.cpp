@@ -69,13 +69,41 @@ Errors compare(const LightingMedium& m, const SourceField& S1, const SourceField
     return {std::sqrt(nt / dt), std::sqrt(nm / dm), std::sqrt(ft / dt), std::sqrt(fm / dm), sum_lb / sum_mc};
 }
 
-// The first-scattered source and, from the same quadrature, the uncollided fluence phi1
-// the lattice takes with it.
-SourceField first_scattered(const LightingMedium& m, const PointSource& light, const std::vector<glm::dvec3>& dirs,
-                            core::Grid3<float>& phi1) {
+// What both cases compare the lattice against, for one light and 26 directions: the
+// first-scattered source S1 with, from the same quadrature, the uncollided fluence phi1 the
+// lattice takes with it; and the Monte Carlo reference.
+struct Reference {
+    std::vector<glm::dvec3> dirs;
+    core::Grid3<float> phi1;
+    SourceField S1;
+    MonteCarloResult mc;
+    // The lattice's input; it points into this object.
+    LbSources sources() const {
+        LbSources src;
+        src.first_scattered = &S1;
+        src.first_scattered_fluence = &phi1;
+        return src;
+    }
+    // The power Monte Carlo scatters at least once (W): what the lattice must be fed.
+    double mc_scattered() const {
+        double p = mc.energy.truncated.mean;
+        for (int k = 1; k < EnergyTally::kOrders; ++k)
+            p += mc.energy.absorbed_by_order[std::size_t(k)].mean + mc.energy.escaped_by_order[std::size_t(k)].mean;
+        return p;
+    }
+};
+
+Reference reference(const LightingMedium& m, const PointSource& light, std::uint64_t paths, std::uint64_t seed) {
+    Reference r;
+    r.dirs = output_directions(26);
     SingleScatteringOptions o;
-    o.uncollided_fluence = &phi1;
-    return single_scattering(m, light, dirs, o);
+    o.uncollided_fluence = &r.phi1;
+    r.S1 = single_scattering(m, light, r.dirs, o);
+    MonteCarloOptions mo;
+    mo.paths = paths;
+    mo.seed = seed;
+    r.mc = monte_carlo(m, light, r.dirs, mo);
+    return r;
 }
 
 double sum_of(const core::Grid3<float>& f) {
@@ -89,20 +117,12 @@ double sum_of(const core::Grid3<float>& f) {
 TEST_CASE("LB vs Monte Carlo: small blob, point light below the grid") {
     const LightingMedium m = blob(0.95);
     const PointSource light{{37.0, -23.0, -200.0}, 1.0};  // outside the grid, 200 m below it
-    const auto dirs = output_directions(26);
-
-    // First-scattered source and the uncollided fluence phi1.
-    core::Grid3<float> phi1;
-    const SourceField S1 = first_scattered(m, light, dirs, phi1);
-
-    MonteCarloOptions mo;
-    mo.paths = 8'000'000;  // ~1 s on 2 cores; noise floor 0.8% (total), 2.1% (multiple)
-    mo.seed = 11;
-    const MonteCarloResult mc = monte_carlo(m, light, dirs, mo);
-
-    LbSources src;
-    src.first_scattered = &S1;
-    src.first_scattered_fluence = &phi1;
+    // ~1 s on 2 cores; noise floor 0.8% (total), 2.1% (multiple)
+    const Reference ref = reference(m, light, 8'000'000, 11);
+    const auto& dirs = ref.dirs;
+    const SourceField& S1 = ref.S1;
+    const MonteCarloResult& mc = ref.mc;
+    const LbSources src = ref.sources();
     LbSettings ls;
     ls.tolerance = 1e-6;
     ls.thick_voxels = LbThickVoxels::Saturate;
@@ -148,10 +168,7 @@ TEST_CASE("LB vs Monte Carlo: small blob, point light below the grid") {
     // The power the lattice emits (sigma_s phi1 h^3 summed) is the power Monte Carlo scatters
     // at least once: measured 0.6949 vs 0.6932 +- 0.0010 W (0.24%). Bound 0.5%: 3-4 MC
     // standard errors plus the 1e-3 quadrature tolerance of single_scattering.
-    double mc_scattered = mc.energy.truncated.mean;
-    for (int k = 1; k < EnergyTally::kOrders; ++k)
-        mc_scattered += mc.energy.absorbed_by_order[std::size_t(k)].mean + mc.energy.escaped_by_order[std::size_t(k)].mean;
-    CHECK(phys.injected_per_step == doctest::Approx(mc_scattered).epsilon(5e-3));
+    CHECK(phys.injected_per_step == doctest::Approx(ref.mc_scattered()).epsilon(5e-3));
 
     // Albedo < 1: the conservative model re-emits what it absorbs, so it holds more light
     // than the physical one (measured: total fluence +4.5%; the physical model absorbs
@@ -177,16 +194,11 @@ TEST_CASE("LB vs Monte Carlo: optically thick blob (hop optical depth up to 2), 
     // exact-chord mapping lets light diffuse out too fast (docs/lattice-boltzmann.md).
     const LightingMedium m = blob(0.99, 0.02);
     const PointSource light{{37.0, -23.0, -200.0}, 1.0};
-    const auto dirs = output_directions(26);
-    core::Grid3<float> phi1;
-    const SourceField S1 = first_scattered(m, light, dirs, phi1);
-    MonteCarloOptions mo;
-    mo.paths = 2'000'000;
-    mo.seed = 12;
-    const MonteCarloResult mc = monte_carlo(m, light, dirs, mo);
-    LbSources src;
-    src.first_scattered = &S1;
-    src.first_scattered_fluence = &phi1;
+    const Reference ref = reference(m, light, 2'000'000, 12);
+    const auto& dirs = ref.dirs;
+    const SourceField& S1 = ref.S1;
+    const MonteCarloResult& mc = ref.mc;
+    const LbSources src = ref.sources();
     LbSettings ls;
     ls.tolerance = 1e-6;
     ls.thick_voxels = LbThickVoxels::Saturate;
@@ -202,11 +214,9 @@ TEST_CASE("LB vs Monte Carlo: optically thick blob (hop optical depth up to 2), 
                                                     << em.ratio_multiple << ", escaped "
                                                     << mat.escaped_last_step / mat.injected_per_step << ")");
     MESSAGE("noise floor total " << es.floor_total << ", multiple " << es.floor_multiple);
-    double mc_scattered = mc.energy.truncated.mean, mc_escaped = 0.0;
-    for (int k = 1; k < EnergyTally::kOrders; ++k) {
-        mc_scattered += mc.energy.absorbed_by_order[std::size_t(k)].mean + mc.energy.escaped_by_order[std::size_t(k)].mean;
-        mc_escaped += mc.energy.escaped_by_order[std::size_t(k)].mean;
-    }
+    const double mc_scattered = ref.mc_scattered();
+    double mc_escaped = 0.0;
+    for (int k = 1; k < EnergyTally::kOrders; ++k) mc_escaped += mc.energy.escaped_by_order[std::size_t(k)].mean;
     MESSAGE("MC escaped / scattered " << mc_escaped / mc_scattered);
     // Noise: 2M paths give floors of 1.8% (total) / 2.8% (multiple), well below the errors.
     CHECK(es.floor_total < 0.025);
