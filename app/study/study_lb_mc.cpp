@@ -186,11 +186,8 @@ Solve solve_at(const scene::Scene& scene, const core::Grid3<float>& density, int
         mo.seed = 20240603;
         const MonteCarloResult mc = monte_carlo(m, light, dirs, mo);
         s.mc_seconds = mc.seconds;
-        for (int k = 1; k < EnergyTally::kOrders; ++k) {
-            s.mc_scattered += mc.energy.absorbed_by_order[std::size_t(k)].mean + mc.energy.escaped_by_order[std::size_t(k)].mean;
-            s.mc_escaped += mc.energy.escaped_by_order[std::size_t(k)].mean;
-        }
-        s.mc_scattered += mc.energy.truncated.mean;
+        s.mc_scattered = mc.energy.scattered_mean();
+        s.mc_escaped = mc.energy.escaped_scattered_mean();
         s.mc1 = coarsen(mc.single, coarse, f);
         s.mcm = coarsen(mc.multiple, coarse, f);
         s.se1 = coarsen(mc.single_se, coarse, f, true);

@@ -199,6 +199,21 @@ struct EnergyTally {
     std::array<Estimate, kOrders> escaped_by_order{};
     /// Absorbed at the (k+1)-th collision, i.e. after exactly k scatterings.
     std::array<Estimate, kOrders> absorbed_by_order{};
+
+    /// Mean power scattered at least once: truncated + sum over k >= 1 of absorbed and
+    /// escaped after k scatterings. What a multiple-scattering solver fed with the
+    /// first-scattered light must be given (the lattice's injected power is checked against it).
+    double scattered_mean() const noexcept {
+        double p = truncated.mean;
+        for (std::size_t k = 1; k < std::size_t(kOrders); ++k) p += absorbed_by_order[k].mean + escaped_by_order[k].mean;
+        return p;
+    }
+    /// Mean power that escaped after at least one scattering.
+    double escaped_scattered_mean() const noexcept {
+        double p = 0.0;
+        for (std::size_t k = 1; k < std::size_t(kOrders); ++k) p += escaped_by_order[k].mean;
+        return p;
+    }
 };
 
 struct MonteCarloOptions {

@@ -283,6 +283,12 @@ TEST_CASE("full transport in a grid: energy closes per path, roulette is unbiase
     }
     CHECK(esc == doctest::Approx(e.escaped.mean).epsilon(1e-12));
     CHECK(abs == doctest::Approx(e.absorbed.mean).epsilon(1e-12));
+    // What was scattered at least once is what the source put in minus what left or was
+    // absorbed uncollided (energy closes per path; round-off only).
+    CHECK(e.scattered_mean() ==
+          doctest::Approx(e.emitted.mean + e.roulette.mean - e.escaped_by_order[0].mean - e.absorbed_by_order[0].mean)
+              .epsilon(1e-12));
+    CHECK(e.escaped_scattered_mean() == doctest::Approx(e.escaped.mean - e.escaped_by_order[0].mean).epsilon(1e-12));
     // Multiple scattering is positive where there is cloud and its SE is finite.
     for (std::size_t c = 0; c < r.multiple.cells(); ++c)
         if (m.density.data[c] > 0.3f) {
