@@ -142,6 +142,7 @@ struct Solve {
     Field s1, mc1, mcm, se1, sem;
     double native_floor_total = 0.0, native_floor_multiple = 0.0;
     double ss_seconds = 0.0, mc_seconds = 0.0;
+    std::uint64_t mc_paths = 0;
     double mc_scattered = 0.0, mc_escaped = 0.0;  ///< W scattered at least once; of it, escaped
     std::vector<RunResult> runs;
 };
@@ -186,6 +187,7 @@ Solve solve_at(const scene::Scene& scene, const core::Grid3<float>& density, int
         mo.seed = 20240603;
         const MonteCarloResult mc = monte_carlo(m, light, dirs, mo);
         s.mc_seconds = mc.seconds;
+        s.mc_paths = paths;
         s.mc_scattered = mc.energy.scattered_mean();
         s.mc_escaped = mc.energy.escaped_scattered_mean();
         s.mc1 = coarsen(mc.single, coarse, f);
@@ -397,7 +399,7 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
                 const RunResult& rr = s.runs[r];
                 const double et = rel_l2(sum(s.s1, rr.mult), t, cloud, n, M), em = rel_l2(rr.mult, s.mcm, cloud, n, M);
                 const double ratio = field_sum(rr.mult, cloud, n, M) / field_sum(s.mcm, cloud, n, M);
-                const std::uint64_t p = &s == &solves[0] ? paths : (ctx.quick ? paths : paths / 2);
+                const std::uint64_t p = s.mc_paths;
                 rcsv << double(s.downsample) << s.geom.voxel_size << s.max_tau_hop << ("\"" + runs[r].label + "\"")
                      << double(rr.iterations) << rr.seconds << double(p) << s.mc_seconds << s.ss_seconds << et << em << ft
                      << fm << ratio << rr.native_total << rr.native_multiple << s.native_floor_total
