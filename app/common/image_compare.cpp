@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <string>
 
 namespace fulgur::app {
@@ -58,6 +59,29 @@ RadianceComparison compare_radiance(std::span<const float> test_rgba, std::span<
     c.max_difference = max_d / scale;
     c.fraction_over = c.lit_pixels ? double(over) / double(c.lit_pixels) : 0.0;
     return c;
+}
+
+DisplayDifference compare_display(std::span<const std::uint8_t> a, std::span<const std::uint8_t> b,
+                                  int threshold_levels) {
+    if (a.size() != b.size() || a.size() % 4 != 0)
+        throw core::Error("compare_display", "images of different sizes or not RGBA (" + std::to_string(a.size()) +
+                                                 " and " + std::to_string(b.size()) + " bytes)");
+    DisplayDifference d;
+    std::size_t over = 0;
+    double sum = 0.0;
+    for (std::size_t p = 0; p < a.size(); p += 4) {
+        int mx = 0;
+        for (std::size_t c = 0; c < 3; ++c) {
+            const int v = std::abs(int(a[p + c]) - int(b[p + c]));
+            sum += v;
+            mx = std::max(mx, v);
+        }
+        over += mx > threshold_levels;
+    }
+    const std::size_t px = a.size() / 4;
+    d.mean_levels = px ? sum / double(3 * px) : 0.0;
+    d.fraction_over = px ? double(over) / double(px) : 0.0;
+    return d;
 }
 
 std::vector<std::uint8_t> difference_image(std::span<const float> test_rgba, std::span<const float> ref_rgba,

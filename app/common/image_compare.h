@@ -28,6 +28,15 @@ struct RadianceComparison {
 RadianceComparison compare_radiance(std::span<const float> test_rgba, std::span<const float> ref_rgba,
                                     double threshold = 0.1);
 
+/// The displayed (tone-mapped, 8-bit RGBA) images of the same size (throws core::Error
+/// otherwise): mean |difference| in levels over all RGB channels, and the fraction of pixels
+/// whose largest channel difference exceeds `threshold_levels` (25: 10% of the range).
+struct DisplayDifference {
+    double mean_levels = 0.0, fraction_over = 0.0;
+};
+DisplayDifference compare_display(std::span<const std::uint8_t> a, std::span<const std::uint8_t> b,
+                                  int threshold_levels = 25);
+
 /// The difference image, RGBA8: grey level |Y_test - Y_ref| / (full_scale x max Y_ref),
 /// white at full_scale (default 10%, the paper's scaling) and above.
 std::vector<std::uint8_t> difference_image(std::span<const float> test_rgba, std::span<const float> ref_rgba,

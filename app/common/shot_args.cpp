@@ -23,7 +23,8 @@ std::string shot_usage() {
            "  --reference REF.png  also render the frame lit by the direct solve (exact single\n"
            "               scattering + the scene's solver on the frame's point sources, no basis;\n"
            "               seconds) into REF.png, |difference| into REF_diff.png (white = 10% of\n"
-           "               the reference's maximum), and print the errors and times as JSON\n"
+           "               the reference's maximum), basis | direct | difference into REF_compare.png,\n"
+           "               and print the errors and times as JSON\n"
            "  --help       this text\n";
 }
 

@@ -4,9 +4,7 @@
 #include "common/storm_view.h"
 #include "platform/platform.h"
 
-#include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <vector>
 #include <cstdio>
 #include <iostream>
@@ -14,31 +12,6 @@
 using namespace fulgur;
 
 namespace {
-
-// The displayed (tone-mapped, 8-bit) images: mean |difference| in levels over all RGB
-// channels, and the fraction of pixels whose largest channel difference exceeds 25 levels
-// (10% of the display range).
-struct DisplayDifference {
-    double mean_levels = 0.0, fraction_over = 0.0;
-};
-DisplayDifference display_difference(const std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b) {
-    DisplayDifference d;
-    std::size_t over = 0;
-    double sum = 0.0;
-    for (std::size_t p = 0; p + 3 < a.size(); p += 4) {
-        int mx = 0;
-        for (std::size_t c = 0; c < 3; ++c) {
-            const int v = std::abs(int(a[p + c]) - int(b[p + c]));
-            sum += v;
-            mx = std::max(mx, v);
-        }
-        over += mx > 25;
-    }
-    const std::size_t px = a.size() / 4;
-    d.mean_levels = px ? sum / double(3 * px) : 0.0;
-    d.fraction_over = px ? double(over) / double(px) : 0.0;
-    return d;
-}
 
 // --reference: the same frame lit by the direct solve, its difference image and the errors
 // (S over the cloud; the cloud's in-scattered radiance in the image) and times as JSON.
@@ -59,7 +32,7 @@ void render_reference(app::StormView& view, platform::Context* ctx, const render
     ctx->present();
     const std::vector<std::uint8_t> shown_ref = ctx->read_rgba8();
     core::write_png(*a.reference, a.width, a.height, 4, shown_ref);
-    const DisplayDifference shown = display_difference(shown_basis, shown_ref);
+    const app::DisplayDifference shown = app::compare_display(shown_basis, shown_ref);
 
     // The cloud alone (no glow in the march buffer, no jitter), once per field.
     app::ViewOptions metric = opt;

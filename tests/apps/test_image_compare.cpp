@@ -67,3 +67,14 @@ TEST_CASE("compare_radiance: bad input is rejected with a reason") {
     CHECK(std::isfinite(c.relative_l2));
     CHECK(c.max_difference == doctest::Approx(2.0).epsilon(1e-6));
 }
+
+TEST_CASE("compare_display: mean levels and pixels beyond the threshold") {
+    // Two pixels: one identical, one off by (30, 10, 0) levels; alpha is ignored.
+    const std::vector<std::uint8_t> a = {10, 20, 30, 255, 100, 100, 100, 255};
+    const std::vector<std::uint8_t> b = {10, 20, 30, 0, 130, 90, 100, 0};
+    const app::DisplayDifference d = app::compare_display(a, b);
+    CHECK(d.mean_levels == doctest::Approx(40.0 / 6.0));
+    CHECK(d.fraction_over == doctest::Approx(0.5));  // 30 > 25
+    CHECK(app::compare_display(a, b, 30).fraction_over == 0.0);  // not strictly above 30
+    CHECK_THROWS_AS(app::compare_display(a, std::vector<std::uint8_t>(4)), core::Error);
+}
