@@ -248,10 +248,9 @@ int main(int argc, char** argv) {
         };
         std::optional<Reference> reference;
         bool solve_now = false;
-        int frame_no = 0;
         while (shell.begin_frame(orbit)) {
             // --solve-direct: press "Solve this frame directly" on the second frame.
-            if (solve_direct_at_start && ++frame_no == 2) solve_now = true;
+            if (solve_direct_at_start && shell.frames() == 1) solve_now = true;  // frames() counts finished frames
             if (!reference) t = at_peak ? peak_time : t + shell.dt() * double(slow);
             bool strike = shell.strike_pressed();
             ImGui::SetNextWindowPos({10, 10}, ImGuiCond_FirstUseEver);
