@@ -178,7 +178,8 @@ int main(int argc, char** argv) {
         std::printf("lighting   %dx%dx%d voxels of %g m (%zu with cloud); %d output directions%s\n", ld.x, ld.y, ld.z,
                     medium.density.geom.voxel_size, cloud_voxels, sc.effective_directions(),
                     sc.medium.g == 0.0 ? " (isotropic scattering)" : "");
-        std::printf("medium     extinction %g /m, albedo %g, g %g\n", sc.medium.extinction, sc.medium.albedo, sc.medium.g);
+        std::printf("medium     extinction %g /m, albedo %g, g %g\n", sc.medium.extinction, sc.medium.albedo,
+                    sc.medium.g);
 
         const auto dirs = transport::output_directions(sc.effective_directions());
         transport::SingleScatteringOptions so;
@@ -187,7 +188,8 @@ int main(int argc, char** argv) {
         const glm::dvec3* marker = sc.point_lights.empty() ? nullptr : &sc.point_lights[0].position;
         {
             const double dmax = std::max(1e-6, double(*std::max_element(density.data.begin(), density.data.end())));
-            write_slice(args.out / "density_slice.png", density, slice_y, 4, [dmax](double v) { return v / dmax; }, marker);
+            write_slice(
+                args.out / "density_slice.png", density, slice_y, 4, [dmax](double v) { return v / dmax; }, marker);
         }
         if (!sc.effects.single_scattering) {
             std::printf("single     skipped: the scene turns single scattering off\n");
@@ -200,14 +202,16 @@ int main(int argc, char** argv) {
                 transport::single_scattering(medium, transport::PointSource{pl.position, pl.intensity}, dirs, so);
             const double t_ss = w.seconds();
             const core::Grid3<float> mean = direction_mean(S);
-            write_field(args.out / "single_scattering.nrrd", mean,
-                        "single scattering S1, mean over " + std::to_string(dirs.size()) + " output directions, W/m^2/sr");
+            write_field(
+                args.out / "single_scattering.nrrd", mean,
+                "single scattering S1, mean over " + std::to_string(dirs.size()) + " output directions, W/m^2/sr");
             write_slice(args.out / "single_scattering_slice.png", mean, slice_y, 16, log_map(mean), &pl.position);
             const float smax = *std::max_element(mean.data.begin(), mean.data.end());
-            std::printf("single     point light at (%g, %g, %g), I = %g W/sr: %.3f s (%.0f voxels/s, %d threads, "
-                        "tolerance %g); max S1 %.3e W/m^2/sr\n",
-                        pl.position.x, pl.position.y, pl.position.z, pl.intensity, t_ss,
-                        double(medium.density.geom.cell_count()) / t_ss, core::thread_count(), so.tolerance, smax);
+            std::printf(
+                "single     point light at (%g, %g, %g), I = %g W/sr: %.3f s (%.0f voxels/s, %d threads, "
+                "tolerance %g); max S1 %.3e W/m^2/sr\n",
+                pl.position.x, pl.position.y, pl.position.z, pl.intensity, t_ss,
+                double(medium.density.geom.cell_count()) / t_ss, core::thread_count(), so.tolerance, smax);
             if (args.mc_paths) {
                 transport::MonteCarloOptions mo;
                 mo.paths = args.mc_paths;
@@ -219,21 +223,23 @@ int main(int argc, char** argv) {
                                          mse = direction_mean(r.multiple_se);
                 write_field(args.out / "mc_single.nrrd", m1, "Monte Carlo S order 1, direction mean");
                 write_field(args.out / "mc_multiple.nrrd", mm, "Monte Carlo S orders >= 2, direction mean");
-                write_field(args.out / "mc_multiple_se.nrrd", mse, "standard error of mc_multiple (direction mean of SEs)");
+                write_field(args.out / "mc_multiple_se.nrrd", mse,
+                            "standard error of mc_multiple (direction mean of SEs)");
                 write_slice(args.out / "mc_multiple_slice.png", mm, slice_y, 16, log_map(mm), &pl.position);
                 const auto& e = r.energy;
-                std::printf("mc         %llu paths in %.2f s (%.0f paths/s): absorbed %.4f, escaped %.4f of emitted "
-                            "(uncollided %.4f); max S(>=2) %.3e W/m^2/sr\n",
-                            static_cast<unsigned long long>(r.paths), r.seconds, double(r.paths) / r.seconds,
-                            e.absorbed.mean / e.emitted.mean, e.escaped.mean / e.emitted.mean,
-                            e.escaped_by_order[0].mean / e.emitted.mean,
-                            double(*std::max_element(mm.data.begin(), mm.data.end())));
+                std::printf(
+                    "mc         %llu paths in %.2f s (%.0f paths/s): absorbed %.4f, escaped %.4f of emitted "
+                    "(uncollided %.4f); max S(>=2) %.3e W/m^2/sr\n",
+                    static_cast<unsigned long long>(r.paths), r.seconds, double(r.paths) / r.seconds,
+                    e.absorbed.mean / e.emitted.mean, e.escaped.mean / e.emitted.mean,
+                    e.escaped_by_order[0].mean / e.emitted.mean,
+                    double(*std::max_element(mm.data.begin(), mm.data.end())));
             }
         }
         if (sc.effects.sun && sc.sun) {
             w.reset();
-            const transport::SourceField S =
-                transport::single_scattering(medium, transport::DirectionalSource{sc.sun->direction, sc.sun->irradiance}, dirs, so);
+            const transport::SourceField S = transport::single_scattering(
+                medium, transport::DirectionalSource{sc.sun->direction, sc.sun->irradiance}, dirs, so);
             write_field(args.out / "single_scattering_sun.nrrd", direction_mean(S),
                         "single scattering S1 of the sun, mean over output directions, W/m^2/sr");
             std::printf("sun        direction (%g, %g, %g), E = %g W/m^2: %.3f s\n", sc.sun->direction.x,

@@ -48,12 +48,13 @@ void export_nrrd(const app::BakeArgs& a, const scene::Scene& s, const core::Grid
                  const bake::Plan& plan, const std::filesystem::path& fgb) {
     const std::size_t nd = plan.output_directions.size();
     if (std::size_t(a.export_direction) >= nd)
-        throw core::Error("fulgur-bake", "--direction " + std::to_string(a.export_direction) + " is out of range (the bake has " +
-                                             std::to_string(nd) + " directions)");
+        throw core::Error("fulgur-bake", "--direction " + std::to_string(a.export_direction) +
+                                             " is out of range (the bake has " + std::to_string(nd) + " directions)");
     std::vector<basis::WeightedLight> lights;
     for (const app::ExportLight& e : a.export_lights) {
         if (e.light >= plan.lights.count())
-            throw core::Error("fulgur-bake", "--export: light " + std::to_string(e.light) + " is out of range (the bake has " +
+            throw core::Error("fulgur-bake", "--export: light " + std::to_string(e.light) +
+                                                 " is out of range (the bake has " +
                                                  std::to_string(plan.lights.count()) + " lights)");
         lights.push_back({e.light, e.weight});
     }
@@ -101,13 +102,14 @@ int run(const app::BakeArgs& a) {
         std::printf("%s is up to date; nothing to bake (--force rebakes)\n", out.string().c_str());
     } else {
         const bake::Report r = bake::bake(s, density, plan, out, app::make_progress_printer(stderr, "lights"));
-        std::printf("baked %s in %s: %zu lights (%zu dropped), %.1f MB raw -> %.2f MB file (1/%.0f), "
-                    "%llu coefficients, relative L2 error %.3g%%, solver iterations mean %.0f max %.0f%s\n",
-                    out.string().c_str(), core::format_seconds(r.seconds_total).c_str(), r.lights, r.lights_dropped,
-                    double(r.raw_bytes) / 1e6, double(r.file_bytes) / 1e6, r.compression_ratio,
-                    static_cast<unsigned long long>(r.coefficients_kept), 100.0 * r.relative_l2_error,
-                    r.mean_solver_iterations, r.max_solver_iterations,
-                    r.unconverged ? (", " + std::to_string(r.unconverged) + " lights hit the iteration cap").c_str() : "");
+        std::printf(
+            "baked %s in %s: %zu lights (%zu dropped), %.1f MB raw -> %.2f MB file (1/%.0f), "
+            "%llu coefficients, relative L2 error %.3g%%, solver iterations mean %.0f max %.0f%s\n",
+            out.string().c_str(), core::format_seconds(r.seconds_total).c_str(), r.lights, r.lights_dropped,
+            double(r.raw_bytes) / 1e6, double(r.file_bytes) / 1e6, r.compression_ratio,
+            static_cast<unsigned long long>(r.coefficients_kept), 100.0 * r.relative_l2_error, r.mean_solver_iterations,
+            r.max_solver_iterations,
+            r.unconverged ? (", " + std::to_string(r.unconverged) + " lights hit the iteration cap").c_str() : "");
         if (a.report) {
             std::ofstream f(*a.report);
             if (!f) throw core::Error(a.report->string(), "cannot write the report");

@@ -81,8 +81,9 @@ int main(int argc, char** argv) {
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         if (a == "--help" || a == "-h") {
-            std::printf("usage: fulgur-bench [--quick] [NAME...]\n"
-                        "Runs the named benchmarks (all if none), printing one JSON object per line.\n\n");
+            std::printf(
+                "usage: fulgur-bench [--quick] [NAME...]\n"
+                "Runs the named benchmarks (all if none), printing one JSON object per line.\n\n");
             for (const auto& [n, e] : registry()) std::printf("  %-10s %s\n", n.c_str(), e.help.c_str());
             return 0;
         }

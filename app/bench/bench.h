@@ -30,10 +30,10 @@ struct Registration {
 #define FULGUR_BENCH_CONCAT2(a, b) a##b
 #define FULGUR_BENCH_CONCAT(a, b) FULGUR_BENCH_CONCAT2(a, b)
 /// FULGUR_BENCH(lb, "help text") { ... uses ctx ... }
-#define FULGUR_BENCH(name, help)                                                                  \
-    static void FULGUR_BENCH_CONCAT(bench_fn_, name)(const ::fulgur::bench::Context& ctx);        \
-    static const ::fulgur::bench::Registration FULGUR_BENCH_CONCAT(bench_reg_, name)(              \
-        #name, help, &FULGUR_BENCH_CONCAT(bench_fn_, name));                                      \
+#define FULGUR_BENCH(name, help)                                                           \
+    static void FULGUR_BENCH_CONCAT(bench_fn_, name)(const ::fulgur::bench::Context& ctx); \
+    static const ::fulgur::bench::Registration FULGUR_BENCH_CONCAT(bench_reg_, name)(      \
+        #name, help, &FULGUR_BENCH_CONCAT(bench_fn_, name));                               \
     static void FULGUR_BENCH_CONCAT(bench_fn_, name)([[maybe_unused]] const ::fulgur::bench::Context& ctx)
 
 /// Median of the samples (copied and partially sorted).

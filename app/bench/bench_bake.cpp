@@ -30,8 +30,8 @@ struct Truncated {
     std::uint64_t coefficients = 0, bytes = 0;
 };
 
-Truncated truncate(const basis::BakedBasis& full, basis::ThresholdMode mode, double xi, const std::filesystem::path& out,
-                   bool write, basis::Entropy entropy = basis::Entropy::Deflate) {
+Truncated truncate(const basis::BakedBasis& full, basis::ThresholdMode mode, double xi,
+                   const std::filesystem::path& out, bool write, basis::Entropy entropy = basis::Entropy::Deflate) {
     Truncated t;
     double g2 = 0.0, n2 = 0.0;
     std::vector<double> per_basis;
@@ -77,14 +77,15 @@ double solve_xi(const basis::BakedBasis& full, basis::ThresholdMode mode, double
         double maxc = 0.0;
         for (const auto& l : full.lights)
             for (const auto& b : l.directions)
-                maxc = std::max(maxc, mode == basis::ThresholdMode::Absolute ? (b.value.empty() ? 0.0 : std::fabs(double(b.value[0])))
-                                                                             : 1.0);
+                maxc = std::max(maxc, mode == basis::ThresholdMode::Absolute
+                                          ? (b.value.empty() ? 0.0 : std::fabs(double(b.value[0])))
+                                          : 1.0);
         lo = 1e-12 * maxc;
         hi = maxc;
     }
     for (int it = 0; it < 50; ++it) {
-        const double mid = mode == basis::ThresholdMode::Energy ? 1.0 - std::sqrt((1.0 - lo) * (1.0 - hi))
-                                                                : std::sqrt(lo * hi);
+        const double mid =
+            mode == basis::ThresholdMode::Energy ? 1.0 - std::sqrt((1.0 - lo) * (1.0 - hi)) : std::sqrt(lo * hi);
         const double e = truncate(full, mode, mid, {}, false).overall;
         const bool too_lossy = e > target;
         if (mode == basis::ThresholdMode::Energy)
@@ -106,7 +107,8 @@ nlohmann::json bake_case(const std::string& label, bench::PaperConfig& c, int th
             {"directions", c.plan.directions},
             {"single_scattering_tolerance", c.scene.transport.ss_tolerance},
             {"seconds_wall", r.seconds_total},
-            {"cpu_seconds", {{"single", r.seconds_single}, {"multiple", r.seconds_multiple}, {"compress", r.seconds_compress}}},
+            {"cpu_seconds",
+             {{"single", r.seconds_single}, {"multiple", r.seconds_multiple}, {"compress", r.seconds_compress}}},
             {"lb_iterations_mean", r.mean_solver_iterations},
             {"raw_MB", double(r.raw_bytes) / 1e6},
             {"file_MB", double(r.file_bytes) / 1e6},
@@ -116,12 +118,17 @@ nlohmann::json bake_case(const std::string& label, bench::PaperConfig& c, int th
 
 }  // namespace
 
-FULGUR_BENCH(bake, "bake in the paper's configuration (32x32x4, 20x20x7 lights, 26 dirs) and at 64x64x16: time, size at 1% error") {
+FULGUR_BENCH(
+    bake,
+    "bake in the paper's configuration (32x32x4, 20x20x7 lights, 26 dirs) and at 64x64x16: time, size at 1% error") {
     const std::filesystem::path dir = std::filesystem::temp_directory_path();
     const std::filesystem::path out = dir / "fulgur_bench_bake.fgb", tmp = dir / "fulgur_bench_bake_t.fgb";
     const int saved = core::thread_count();
     const double bw = bench::measure_bandwidth(ctx.max_threads);
-    const nlohmann::json paper = {{"minutes", 60.0}, {"raw_MB", 1137.5}, {"file_MB", 86.0}, {"ratio", 1137.5 / 86.0},
+    const nlohmann::json paper = {{"minutes", 60.0},
+                                  {"raw_MB", 1137.5},
+                                  {"file_MB", 86.0},
+                                  {"ratio", 1137.5 / 86.0},
                                   {"machine", "Pentium 4 3.2 GHz (Dobashi 2007, section 8)"}};
 
     bench::PaperConfig c = bench::paper_config(32, 4, 1.0 - 1e-9);

@@ -110,15 +110,19 @@ FULGUR_BENCH(bolt, "lightning: bolt generation, point sources, splatting (typica
         }
         lightning::LightWeights w;
         const int inner = ctx.quick ? 5 : 50;
-        const double lut = bench::time_median(repeats, [&] {
-            for (int k = 0; k < inner; ++k) splatter.splat(q, w);
-        }) / inner;
-        const double bs = bench::time_median(repeats, [&] {
-            for (int k = 0; k < inner; ++k) {
-                splatter.reset(w);
-                splatter.accumulate_binary_search(q, w);
-            }
-        }) / inner;
+        const double lut = bench::time_median(repeats,
+                                              [&] {
+                                                  for (int k = 0; k < inner; ++k) splatter.splat(q, w);
+                                              }) /
+                           inner;
+        const double bs = bench::time_median(repeats,
+                                             [&] {
+                                                 for (int k = 0; k < inner; ++k) {
+                                                     splatter.reset(w);
+                                                     splatter.accumulate_binary_search(q, w);
+                                                 }
+                                             }) /
+                          inner;
         ctx.emit("bolt", {{"case", "10k_sources"},
                           {"grid", {lights.x.size(), lights.y.size(), lights.z.size()}},
                           {"threads", 1},

@@ -19,7 +19,8 @@ FULGUR_BENCH(cloud, "cumulonimbus generator at the default size: total and per-s
     for (int t = 1; t <= ctx.max_threads; ++t) {
         core::set_thread_count(t);
         std::vector<std::uint8_t> weights;
-        const double seed_s = bench::time_median(repeats, [&] { weights = cloud::detail::seed_field(g, ellipsoids, p.base_height); });
+        const double seed_s =
+            bench::time_median(repeats, [&] { weights = cloud::detail::seed_field(g, ellipsoids, p.base_height); });
         std::size_t active = 0;
         for (auto w : weights) active += w > 0 ? 1 : 0;
         std::vector<std::uint8_t> counts;
@@ -30,7 +31,8 @@ FULGUR_BENCH(cloud, "cumulonimbus generator at the default size: total and per-s
             for (int s = 0; s < p.steps; ++s) ca.step(s >= p.steps - p.average_steps ? counts.data() : nullptr);
         });
         const double smooth_s = bench::time_median(repeats, [&] {
-            (void)cloud::detail::smooth_density(p.grid, counts, p.average_steps, p.smoothing_radius, first_layer, p.density_gain);
+            (void)cloud::detail::smooth_density(p.grid, counts, p.average_steps, p.smoothing_radius, first_layer,
+                                                p.density_gain);
         });
         const double total_s = bench::time_median(repeats, [&] { (void)cloud::generate_cumulonimbus(p); });
         ctx.emit("cloud", {{"threads", t},

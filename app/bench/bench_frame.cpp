@@ -178,12 +178,9 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
             j["directions"] = subset ? int(side.size()) : int(bases.directions().size());
             if (subset) j["direction_indices"] = side;
             j["lit_frames"] = total.size();
-            j["median_ms"] = {{"bolt", bench::median(bolt)},
-                              {"sources", bench::median(src)},
-                              {"splat", bench::median(splat)},
-                              {"accumulate", bench::median(acc)},
-                              {"inverse_haar", bench::median(inv)},
-                              {"total", bench::median(total)}};
+            j["median_ms"] = {{"bolt", bench::median(bolt)},        {"sources", bench::median(src)},
+                              {"splat", bench::median(splat)},      {"accumulate", bench::median(acc)},
+                              {"inverse_haar", bench::median(inv)}, {"total", bench::median(total)}};
             j["p90_total_ms"] = pct(total, 0.9);
             j["median_sources"] = bench::median(nsrc);
             j["median_active_lights"] = bench::median(nact);
@@ -218,7 +215,8 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
                     sp.splat(q, w);
                     sp_ms.push_back(sw.milliseconds());
                     runtime::StageTimes st;
-                    rec.reconstruct(w, subset ? std::span<const int>(side) : std::span<const int>(all_dirs), {}, out, st);
+                    rec.reconstruct(w, subset ? std::span<const int>(side) : std::span<const int>(all_dirs), {}, out,
+                                    st);
                     acc.push_back(st.accumulate);
                     inv.push_back(st.inverse_haar);
                 }
@@ -274,8 +272,9 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
 
 }  // namespace
 
-FULGUR_BENCH(frame, "run time per frame (bolt, sources, splat, accumulate, inverse Haar), paper config and 64x64x16, "
-                    "1 and 2 threads, vs the direct solve") {
+FULGUR_BENCH(frame,
+             "run time per frame (bolt, sources, splat, accumulate, inverse Haar), paper config and 64x64x16, "
+             "1 and 2 threads, vs the direct solve") {
     const int saved = core::thread_count();
     const double bw = bench::measure_bandwidth(ctx.max_threads);
     const scene::Scene storm = scene::load_scene(storm_scene());

@@ -29,7 +29,9 @@ double per_call_us(int batches, int per_batch, F&& fn) {
 
 }  // namespace
 
-FULGUR_BENCH(haar, "3D Haar transform (float32 inverse/forward, float64 forward), both decompositions, vs memcpy of the same bytes; 1 thread") {
+FULGUR_BENCH(haar,
+             "3D Haar transform (float32 inverse/forward, float64 forward), both decompositions, vs memcpy of the same "
+             "bytes; 1 thread") {
     using namespace fulgur;
     const Int3 sizes[] = {{32, 32, 4}, {64, 64, 16}, {32, 32, 24}, {64, 48, 20}};
     const int batches = ctx.quick ? 5 : 21;
@@ -84,7 +86,9 @@ FULGUR_BENCH(haar, "3D Haar transform (float32 inverse/forward, float64 forward)
 //   standard + unbalanced   (full 1D transform per axis; weighted last pair)
 //   standard + plain        (1/sqrt2 everywhere, odd element passed through unweighted)
 
-FULGUR_BENCH(haar_schemes, "kept coefficients at 0.1%, 1%, 5% relative L2 error: non-standard vs standard, unbalanced vs plain Haar") {
+FULGUR_BENCH(
+    haar_schemes,
+    "kept coefficients at 0.1%, 1%, 5% relative L2 error: non-standard vs standard, unbalanced vs plain Haar") {
     using namespace fulgur;
     const Int3 sizes[] = {{32, 32, 4}, {32, 32, 24}, {33, 31, 20}};
     for (const Int3 n : sizes) {
@@ -107,8 +111,10 @@ FULGUR_BENCH(haar_schemes, "kept coefficients at 0.1%, 1%, 5% relative L2 error:
             const struct {
                 const char* name;
                 bool standard, unbalanced;
-            } schemes[] = {{"nonstandard_unbalanced", false, true}, {"nonstandard_plain", false, false},
-                           {"standard_unbalanced", true, true}, {"standard_plain", true, false}};
+            } schemes[] = {{"nonstandard_unbalanced", false, true},
+                           {"nonstandard_plain", false, false},
+                           {"standard_unbalanced", true, true},
+                           {"standard_plain", true, false}};
             for (const auto& s : schemes) {
                 std::vector<double> c = f;
                 basis::reference::haar_forward(c, n, s.standard, s.unbalanced);

@@ -129,8 +129,10 @@ FULGUR_BENCH(mc, "Monte Carlo paths/s and single-scattering voxels/s (1, 6, 26 d
         for (int k = 0; k < 4; ++k)
             for (int j = 0; j < 3; ++j)
                 for (int i = 0; i < 3; ++i)
-                    storm_lights.push_back({-6000.0 + 6000.0 * i + 170.0, -6000.0 + 6000.0 * j - 230.0, 500.0 + 2800.0 * k});
-        cases.push_back({"storm 36x36x20 (500 m)", storm, ctx.quick ? every(storm_lights, 12) : every(storm_lights, 3), 0});
+                    storm_lights.push_back(
+                        {-6000.0 + 6000.0 * i + 170.0, -6000.0 + 6000.0 * j - 230.0, 500.0 + 2800.0 * k});
+        cases.push_back(
+            {"storm 36x36x20 (500 m)", storm, ctx.quick ? every(storm_lights, 12) : every(storm_lights, 3), 0});
     }
     const auto dl = dobashi_lights();
     cases.push_back({"Dobashi layer 32x32x4 (400 m), 2800 virtual lights", dobashi_layer(32, 4),
@@ -155,7 +157,8 @@ FULGUR_BENCH(mc, "Monte Carlo paths/s and single-scattering voxels/s (1, 6, 26 d
                 if (c.total_lights) j["seconds_for_all_lights"] = spl[t] * double(c.total_lights);
                 ctx.emit("mc", j);
             }
-            if (spl[2] > 0) ctx.emit("mc", {{"case", c.what}, {"directions", ndir}, {"speedup_2t_over_1t", spl[1] / spl[2]}});
+            if (spl[2] > 0)
+                ctx.emit("mc", {{"case", c.what}, {"directions", ndir}, {"speedup_2t_over_1t", spl[1] / spl[2]}});
         }
         // Other tolerances (26 directions, 2 threads) and the naive centre-sample baseline.
         for (double tol : {1e-1, 1e-2}) {
@@ -185,12 +188,13 @@ FULGUR_BENCH(mc, "Monte Carlo paths/s and single-scattering voxels/s (1, 6, 26 d
     core::set_thread_count(std::min(2, ctx.max_threads));
 }
 
-FULGUR_BENCH(ss_accuracy, "single-scattering error vs time per tolerance on the storm cloud (docs/transport.md table)") {
+FULGUR_BENCH(ss_accuracy,
+             "single-scattering error vs time per tolerance on the storm cloud (docs/transport.md table)") {
     const LightingMedium m = storm_medium();
     const scene::Scene sc = scene::load_scene(storm_scene());
     const auto dirs = output_directions(26);
-    std::vector<glm::dvec3> lights = {sc.point_lights.at(0).position, {2170.0, -1730.0, 3300.0},
-                                      {-6230.0, 770.0, 6100.0}, {430.0, 260.0, 4100.0}};
+    std::vector<glm::dvec3> lights = {
+        sc.point_lights.at(0).position, {2170.0, -1730.0, 3300.0}, {-6230.0, 770.0, 6100.0}, {430.0, 260.0, 4100.0}};
     if (ctx.quick) lights.resize(1);
     core::set_thread_count(1);
     // Reference: tolerance 1e-6 (its own error, estimated from 1e-5 vs 1e-6, is < 1e-4 L1).

@@ -85,7 +85,8 @@ BakeArgs parse_bake_args(const std::vector<std::string>& args) {
     if (!a.export_lights.empty() && !have_nrrd) throw core::Error(kTool, "--export needs --nrrd PREFIX");
     if (a.export_lights.empty() && (have_nrrd || have_direction))
         throw core::Error(kTool, "--nrrd and --direction only go with --export");
-    if (!a.export_lights.empty() && a.dry_run) throw core::Error(kTool, "--export needs a bake; it cannot go with --dry-run");
+    if (!a.export_lights.empty() && a.dry_run)
+        throw core::Error(kTool, "--export needs a bake; it cannot go with --dry-run");
     return a;
 }
 

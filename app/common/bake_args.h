@@ -18,12 +18,12 @@ struct BakeArgs {
     std::filesystem::path scene;
     std::optional<std::filesystem::path> output;  ///< default: bake::default_fgb_path
     bool dry_run = false;
-    bool force = false;                            ///< rebake even when the file is up to date
-    std::optional<std::filesystem::path> report;   ///< --report FILE.json
-    int threads = 0;                               ///< 0: all cores
-    std::vector<ExportLight> export_lights;        ///< --export L[:W],...
-    int export_direction = 0;                      ///< --direction M
-    std::filesystem::path export_prefix;           ///< --nrrd PREFIX -> PREFIX_raw.nrrd, PREFIX_compressed.nrrd
+    bool force = false;                           ///< rebake even when the file is up to date
+    std::optional<std::filesystem::path> report;  ///< --report FILE.json
+    int threads = 0;                              ///< 0: all cores
+    std::vector<ExportLight> export_lights;       ///< --export L[:W],...
+    int export_direction = 0;                     ///< --direction M
+    std::filesystem::path export_prefix;          ///< --nrrd PREFIX -> PREFIX_raw.nrrd, PREFIX_compressed.nrrd
     bool help = false;
 };
 

@@ -35,7 +35,8 @@ ProgressFn make_progress_printer(std::FILE* out, std::string label) {
             st->last_decile = decile;
             st->last_print = seconds;
             std::fprintf(out, "%zu/%zu %s (%.0f%%), %s elapsed, ETA %s\n", done, total, label.c_str(), 100.0 * f,
-                         core::format_seconds(seconds).c_str(), done == total ? "0 s" : core::format_seconds(eta).c_str());
+                         core::format_seconds(seconds).c_str(),
+                         done == total ? "0 s" : core::format_seconds(eta).c_str());
         }
         std::fflush(out);
     };

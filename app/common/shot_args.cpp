@@ -56,7 +56,8 @@ ShotArgs parse_shot_args(const std::vector<std::string>& args) {
                 v.erase(0, 1);
             }
             a.time = parse_number<double>(v, "--time");
-            if (!std::isfinite(a.time) || a.time < 0.0) throw core::Error("fulgur-shot", "--time must be finite and >= 0");
+            if (!std::isfinite(a.time) || a.time < 0.0)
+                throw core::Error("fulgur-shot", "--time must be finite and >= 0");
             have_time = true;
         } else if (s == "--repeat") {
             a.repeat = parse_number<int>(value(i), "--repeat");
@@ -77,7 +78,8 @@ ShotArgs parse_shot_args(const std::vector<std::string>& args) {
         } else if (s == "--reference") {
             a.reference = value(i);
             if (a.reference->extension() != ".png")
-                throw core::Error("fulgur-shot", "--reference must name a .png file, got '" + a.reference->string() + "'");
+                throw core::Error("fulgur-shot",
+                                  "--reference must name a .png file, got '" + a.reference->string() + "'");
         } else if (s == "-o" || s == "--output") {
             a.output = value(i);
             have_out = true;

@@ -13,8 +13,7 @@ namespace fulgur::app {
 std::filesystem::path ensure_baked(const scene::Scene& s, const core::Grid3<float>& density,
                                    const std::optional<std::filesystem::path>& explicit_fgb, bool progress) {
     if (explicit_fgb) {
-        if (!std::filesystem::exists(*explicit_fgb))
-            throw core::Error(explicit_fgb->string(), "no such .fgb file");
+        if (!std::filesystem::exists(*explicit_fgb)) throw core::Error(explicit_fgb->string(), "no such .fgb file");
         return *explicit_fgb;
     }
     const std::filesystem::path fgb = bake::default_fgb_path(s);
@@ -22,7 +21,9 @@ std::filesystem::path ensure_baked(const scene::Scene& s, const core::Grid3<floa
     std::function<void(const std::string&)> tell;
     if (progress) {
         cb = make_progress_printer(stderr, "lights");
-        tell = [&](const std::string& why) { std::fprintf(stderr, "baking %s (%s)\n", fgb.string().c_str(), why.c_str()); };
+        tell = [&](const std::string& why) {
+            std::fprintf(stderr, "baking %s (%s)\n", fgb.string().c_str(), why.c_str());
+        };
     }
     bake::bake_if_stale(s, density, fgb, cb, tell);
     return fgb;
@@ -104,8 +105,8 @@ double StormView::reconstruction_error(const transport::SourceField& reference) 
     return std::sqrt(d2.value() / (r2.value() > 0.0 ? r2.value() : 1.0));
 }
 
-FrameReport StormView::render(const render::Camera& camera, double t, int width, int height,
-                              const ViewOptions& options, const transport::SourceField* source) {
+FrameReport StormView::render(const render::Camera& camera, double t, int width, int height, const ViewOptions& options,
+                              const transport::SourceField* source) {
     using clock = std::chrono::steady_clock;
     const auto t0 = clock::now();
     FrameReport rep;
@@ -186,8 +187,7 @@ std::string timings_json(const FrameReport& r, int width, int height, const char
       << ",\"glow_ms\":" << r.gpu.wall.glow << ",\"march_ms\":" << r.gpu.wall.march
       << ",\"bolt_draw_ms\":" << r.gpu.wall.bolt << ",\"composite_ms\":" << r.gpu.wall.composite
       << ",\"gpu_total_ms\":" << r.gpu.wall.total << ",\"frame_ms\":" << r.wall_ms
-      << ",\"internal_width\":" << r.gpu.internal_width << ",\"internal_height\":" << r.gpu.internal_height
-      << "}";
+      << ",\"internal_width\":" << r.gpu.internal_width << ",\"internal_height\":" << r.gpu.internal_height << "}";
     return o.str();
 }
 

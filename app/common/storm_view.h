@@ -22,8 +22,8 @@ std::filesystem::path ensure_baked(const scene::Scene& s, const core::Grid3<floa
                                    const std::optional<std::filesystem::path>& explicit_fgb, bool progress);
 
 /// A camera framing the scene's cloud from the side, slightly below its centre.
-render::Camera default_camera(const core::Grid3<float>& density, double azimuth_deg = -90.0,
-                              double elevation_deg = 6.0, double distance_factor = 1.1);
+render::Camera default_camera(const core::Grid3<float>& density, double azimuth_deg = -90.0, double elevation_deg = 6.0,
+                              double distance_factor = 1.1);
 
 struct ViewOptions {
     /// Exposure 2^-3: the default storm's return-stroke peak (1e5 W/sr/m) then fills the
@@ -37,14 +37,13 @@ struct FrameReport {
     runtime::StageTimes stages;  ///< CPU side: bolt, sources, splat, accumulate, inverse Haar
     render::FrameStats gpu;      ///< upload, ray march, ... (wall and CPU)
     bool lit = false;
-    double wall_ms = 0.0;        ///< the whole frame: reconstruction + upload + render
+    double wall_ms = 0.0;  ///< the whole frame: reconstruction + upload + render
 };
 
 /// Owns density, bases, pipeline and renderer for one scene.
 class StormView {
 public:
-    StormView(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb,
-              render::GetProcAddress gl);
+    StormView(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb, render::GetProcAddress gl);
     StormView(const StormView&) = delete;  // the pipeline refers to the members
     StormView& operator=(const StormView&) = delete;
     /// Builds the frame at time t and renders it into the bound framebuffer. With `source`

@@ -5,15 +5,15 @@
 #endif
 #include "common/args.h"
 #include "core/core.h"
-#include "render/render.h"
-#include "render/synthetic.h"
 #include "demo/shell.h"
 #include "platform/platform.h"
+#include "render/render.h"
+#include "render/synthetic.h"
 
 #include <GLFW/glfw3.h>
-#include <imgui.h>
 #include <backends/imgui_impl_glfw.h>
 #include <backends/imgui_impl_opengl3.h>
+#include <imgui.h>
 
 #include <algorithm>
 #include <chrono>
@@ -21,8 +21,8 @@
 #include <cstdio>
 #include <cstring>
 #include <optional>
-#include <vector>
 #include <string>
+#include <vector>
 
 using namespace fulgur;
 
@@ -60,7 +60,8 @@ void pseudo(double v, std::uint8_t* px) {
     v = std::clamp(v, 0.0, 1.0);
     const double r = std::clamp(3.0 * v - 1.0, 0.0, 1.0), g = std::clamp(3.0 * v - 0.5, 0.0, 1.0) * (v < 0.9 ? 1 : 1),
                  b = std::clamp(1.0 - 2.0 * std::abs(v - 0.25) * 2.0, 0.0, 1.0) + std::clamp(3.0 * v - 2.0, 0.0, 1.0);
-    px[0] = std::uint8_t(255 * r), px[1] = std::uint8_t(255 * g), px[2] = std::uint8_t(255 * std::min(b, 1.0)), px[3] = 255;
+    px[0] = std::uint8_t(255 * r), px[1] = std::uint8_t(255 * g), px[2] = std::uint8_t(255 * std::min(b, 1.0)),
+    px[3] = 255;
 }
 
 struct SliceGL {
@@ -96,8 +97,8 @@ std::vector<double> flash_times(const lightning::FlashProfile& f, double start, 
     return t;
 }
 
-int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb, int frames,
-                      int w, int h, std::uint64_t seed) {
+int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb, int frames, int w,
+                      int h, std::uint64_t seed) {
     auto ctx = platform::create_headless({.width = w, .height = h});
     app::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
     const std::size_t strike = view.pipeline().strike_at(0.0, seed);
@@ -109,7 +110,8 @@ int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::fil
         opt.settings.frame_index = std::uint32_t(i);
         const app::FrameReport r = view.render(cam, t, w, h, opt);
         ctx->present();
-        std::printf("%s  t=%.4f s  %s\n", write_sequence_frame(*ctx, i).c_str(), t, app::timings_json(r, w, h, "fulgur").c_str());
+        std::printf("%s  t=%.4f s  %s\n", write_sequence_frame(*ctx, i).c_str(), t,
+                    app::timings_json(r, w, h, "fulgur").c_str());
     }
     return 0;
 }
@@ -118,7 +120,8 @@ int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::fil
 int synthetic_demo(int W, int H, int screenshot_after);
 int synthetic_headless(int frames, int W, int H);
 const char* kNoDisplay =
-    "fulgur: no display available (DISPLAY unset or GLFW cannot open it); rendering %d headless frames into out/ instead\n";
+    "fulgur: no display available (DISPLAY unset or GLFW cannot open it); rendering %d headless frames into out/ "
+    "instead\n";
 bool g_dither = true;
 
 }  // namespace
@@ -142,7 +145,10 @@ int main(int argc, char** argv) {
             synthetic = true;
         } else if (a == "--screenshot-after" && i + 1 < argc) {
             screenshot_after = std::atoi(argv[++i]);
-            if (screenshot_after < 1) { std::fprintf(stderr, "fulgur: --screenshot-after must be >= 1\n"); return 2; }
+            if (screenshot_after < 1) {
+                std::fprintf(stderr, "fulgur: --screenshot-after must be >= 1\n");
+                return 2;
+            }
         } else if (a == "--seed" && i + 1 < argc) {
             try {
                 seed_arg = app::parse_number<std::uint64_t>(argv[++i], "fulgur", "--seed");
@@ -165,7 +171,10 @@ int main(int argc, char** argv) {
             force_headless = true;
         } else if (a == "--frames" && i + 1 < argc) {
             frames = std::atoi(argv[++i]);
-            if (frames < 1 || frames > 10000) { std::fprintf(stderr, "fulgur: --frames must be 1..10000\n"); return 2; }
+            if (frames < 1 || frames > 10000) {
+                std::fprintf(stderr, "fulgur: --frames must be 1..10000\n");
+                return 2;
+            }
         } else if (a == "--size" && i + 1 < argc) {
             if (std::sscanf(argv[++i], "%dx%d", &W, &H) != 2 || W < 16 || H < 16 || W > 8192 || H > 8192) {
                 std::fprintf(stderr, "fulgur: --size must be WxH (16..8192)\n");
@@ -182,8 +191,10 @@ int main(int argc, char** argv) {
     if (!synthetic) {
         // The baked-storm path needs engine/bake and engine/runtime, which are not built yet
         // (issues 4 and 5); the main job still shows the renderer on its synthetic storm.
-        std::fprintf(stderr, "fulgur: built without engine/bake and engine/runtime; showing the renderer's "
-                             "synthetic storm instead of %s\n", scene_path.string().c_str());
+        std::fprintf(stderr,
+                     "fulgur: built without engine/bake and engine/runtime; showing the renderer's "
+                     "synthetic storm instead of %s\n",
+                     scene_path.string().c_str());
         synthetic = true;
     }
 #endif
@@ -207,10 +218,10 @@ int main(int argc, char** argv) {
         core::Grid3<float> density = scene::make_density(s);
         const auto fgb = app::ensure_baked(s, density, std::nullopt, true);
         if (force_headless || !platform::display_available()) {
-            if (!force_headless)
-                std::printf(kNoDisplay, frames);
+            if (!force_headless) std::printf(kNoDisplay, frames);
             const std::uint64_t sd = seed_arg.value_or(s.lightning.seed);
-            return headless_sequence(std::move(s), std::move(density), fgb, frames, std::min(W, 640), std::min(H, 360), sd);
+            return headless_sequence(std::move(s), std::move(density), fgb, frames, std::min(W, 640), std::min(H, 360),
+                                     sd);
         }
         app::DemoShell shell(W, H, "Fulgur", screenshot_after);
         app::StormView view(std::move(s), std::move(density), fgb, shell.context().get_proc_address());
@@ -257,13 +268,15 @@ int main(int argc, char** argv) {
             ImGui::SetNextWindowSize({430, 0}, ImGuiCond_FirstUseEver);
             ImGui::Begin("Fulgur", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
             ImGui::Text("%.1f fps  (%.1f ms frame)", shell.fps(), rep.wall_ms);
-            ImGui::Separator(); ImGui::TextUnformatted("Lightning");
+            ImGui::Separator();
+            ImGui::TextUnformatted("Lightning");
             ImGui::InputInt("seed", &seed);
             if (ImGui::Button("Strike now")) strike = true;
             ImGui::Checkbox("automatic strikes", &autos);
             ImGui::SliderFloat("rate (1/s)", &rate, 0.01f, 2.0f);
             ImGui::SliderFloat("time scale", &slow, 0.01f, 1.0f, "%.2f", ImGuiSliderFlags_Logarithmic);
-            if (ImGui::IsItemHovered()) ImGui::SetTooltip("storm seconds per wall second (slow motion: a flash decays in ~12 ms)");
+            if (ImGui::IsItemHovered())
+                ImGui::SetTooltip("storm seconds per wall second (slow motion: a flash decays in ~12 ms)");
             {
                 lightning::BoltParams& b = lp.bolt;
                 int kind = int(b.kind);
@@ -277,7 +290,8 @@ int main(int argc, char** argv) {
                 b.branch_probability = bp, b.angle_spread_deg = sp, b.intensity = std::pow(10.0, double(ie));
                 if (changed) shape_changed = true;
             }
-            ImGui::Separator(); ImGui::TextUnformatted("Light");
+            ImGui::Separator();
+            ImGui::TextUnformatted("Light");
             ImGui::BeginDisabled(!separate);
             ImGui::Checkbox("single scattering", &opt.components.single);
             ImGui::Checkbox("multiple scattering", &opt.components.multiple);
@@ -291,16 +305,18 @@ int main(int argc, char** argv) {
             if (ImGui::SliderFloat("exposure (EV)", &expo, -6, 6)) opt.settings.exposure = std::exp2(expo);
             float scale = float(opt.settings.internal_scale);
             if (ImGui::SliderFloat("internal scale", &scale, 0.25f, 1.0f)) opt.settings.internal_scale = scale;
-            ImGui::Separator(); ImGui::TextUnformatted("Accuracy: basis method vs direct solve");
+            ImGui::Separator();
+            ImGui::TextUnformatted("Accuracy: basis method vs direct solve");
             if (!reference) {
                 const runtime::Frame* lit_frame = view.last_frame();
                 ImGui::BeginDisabled(!(lit_frame && lit_frame->lit));
                 if (ImGui::Button("Solve this frame directly")) solve_now = true;
                 ImGui::EndDisabled();
                 if (ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled))
-                    ImGui::SetTooltip("exact single scattering + lattice-Boltzmann on this frame's point sources,\n"
-                                      "no virtual lights (the paper's 'previous method'): seconds, the window\n"
-                                      "waits; the storm time then holds until Release");
+                    ImGui::SetTooltip(
+                        "exact single scattering + lattice-Boltzmann on this frame's point sources,\n"
+                        "no virtual lights (the paper's 'previous method'): seconds, the window\n"
+                        "waits; the storm time then holds until Release");
             } else {
                 ImGui::Text("direct %.2f s, basis %.2f ms: %.0fx", reference->seconds, reference->basis_ms,
                             reference->basis_ms > 0 ? reference->seconds * 1e3 / reference->basis_ms : 0.0);
@@ -309,7 +325,8 @@ int main(int argc, char** argv) {
                 ImGui::SameLine();
                 if (ImGui::Button("Release")) reference.reset();
             }
-            ImGui::Separator(); ImGui::TextUnformatted("Frame times (ms)");
+            ImGui::Separator();
+            ImGui::TextUnformatted("Frame times (ms)");
             ImGui::Text("bolt %.2f  sources %.2f  splat %.2f", rep.stages.bolt, rep.stages.sources, rep.stages.splat);
             ImGui::Text("accumulate %.2f  inverse Haar %.2f", rep.stages.accumulate, rep.stages.inverse_haar);
             ImGui::Text("upload %.2f  ray march %.2f  GPU total %.2f", rep.gpu.wall.upload, rep.gpu.wall.march,
@@ -339,12 +356,12 @@ int main(int argc, char** argv) {
                 const float wpx = 240.0f;
                 ImGui::SetNextWindowPos({float(shell.width()) - 10.0f, float(shell.height()) - 10.0f},
                                         ImGuiCond_FirstUseEver, {1.0f, 1.0f});
-                ImGui::Begin("S: x-z slice through its maximum", nullptr,
-                             ImGuiWindowFlags_AlwaysAutoResize);
+                ImGui::Begin("S: x-z slice through its maximum", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
                 ImGui::Image((ImTextureID)(intptr_t)slice_tex, {wpx, wpx * g.dims.z / float(g.dims.x)});
                 if (ImGui::IsItemHovered())
-                    ImGui::SetTooltip("the reconstructed source function S (first direction), square-root scale,\n"
-                                      "normalized to the slice's maximum: where the bolt lights the cloud");
+                    ImGui::SetTooltip(
+                        "the reconstructed source function S (first direction), square-root scale,\n"
+                        "normalized to the slice's maximum: where the bolt lights the cloud");
                 ImGui::End();
             }
 
@@ -423,8 +440,8 @@ int synthetic_headless(int frames, int W, int H) {
         render::Settings set = st.settings;
         set.frame_index = std::uint32_t(i);
         set.dither = g_dither;
-        const render::Camera cam = render::Camera::orbit(st.camera.target, 13500.0, -60.0 + 4.0 * i, -6.0,
-                                                         st.camera.vertical_fov_deg);
+        const render::Camera cam =
+            render::Camera::orbit(st.camera.target, 13500.0, -60.0 + 4.0 * i, -6.0, st.camera.vertical_fov_deg);
         const render::FrameStats fs = r.render(cam, set, W, H);
         ctx->present();
         std::printf("%s  render %.1f ms (march %.1f ms)\n", write_sequence_frame(*ctx, i).c_str(), fs.wall.total,
@@ -466,7 +483,8 @@ int synthetic_demo(int W, int H, int screenshot_after) {
         ImGui::End();
 
         set.frame_index = std::uint32_t(shell.frames());
-        const render::Camera cam = render::Camera::orbit(st.camera.target, orbit.dist, orbit.az, orbit.el, st.camera.vertical_fov_deg);
+        const render::Camera cam =
+            render::Camera::orbit(st.camera.target, orbit.dist, orbit.az, orbit.el, st.camera.vertical_fov_deg);
         fs = r.render(cam, set, shell.width(), shell.height());
         shell.end_frame();
     }

@@ -37,8 +37,8 @@ public:
     platform::Context& context() noexcept { return *ctx_; }
     int width() const { return ctx_->width(); }
     int height() const { return ctx_->height(); }
-    double dt() const noexcept { return dt_; }      ///< seconds since the previous frame
-    double fps() const noexcept { return fps_; }    ///< exponentially smoothed
+    double dt() const noexcept { return dt_; }                ///< seconds since the previous frame
+    double fps() const noexcept { return fps_; }              ///< exponentially smoothed
     bool strike_pressed() const noexcept { return strike_; }  ///< Space went down this frame
     void request_screenshot() noexcept { screenshot_ = true; }
     int frames() const noexcept { return frames_; }

@@ -30,7 +30,7 @@ using GetProcAddress = GLProc (*)(const char* name);
 enum class PixelFormat { RGBA8, RGBA32F };
 
 struct ContextOptions {
-    int width = 640;   ///< framebuffer size in pixels (window: initial client size)
+    int width = 640;  ///< framebuffer size in pixels (window: initial client size)
     int height = 360;
     PixelFormat format = PixelFormat::RGBA8;  ///< headless only
     std::string title = "Fulgur";             ///< window only
@@ -40,10 +40,10 @@ struct ContextOptions {
 
 /// Input collected by poll_events() (window contexts; headless contexts report nothing).
 struct InputState {
-    double cursor_x = 0, cursor_y = 0;         ///< pixels, origin top-left
-    bool buttons[3] = {false, false, false};   ///< left, right, middle
-    double scroll = 0;                         ///< wheel steps since the previous poll
-    std::vector<int> keys_pressed;             ///< key codes pressed since the previous poll (GLFW_KEY_*)
+    double cursor_x = 0, cursor_y = 0;        ///< pixels, origin top-left
+    bool buttons[3] = {false, false, false};  ///< left, right, middle
+    double scroll = 0;                        ///< wheel steps since the previous poll
+    std::vector<int> keys_pressed;            ///< key codes pressed since the previous poll (GLFW_KEY_*)
     bool close_requested = false;
 };
 

@@ -45,8 +45,8 @@ class GlfwContext final : public Context {
 public:
     explicit GlfwContext(const ContextOptions& o) {
         if (o.width <= 0 || o.height <= 0)
-            throw core::Error("window", "size must be positive, got " + std::to_string(o.width) + "x" +
-                                            std::to_string(o.height));
+            throw core::Error("window",
+                              "size must be positive, got " + std::to_string(o.width) + "x" + std::to_string(o.height));
         if (!glfw_acquire())
             throw core::Error("window", "no display: GLFW could not initialize (" + last_glfw_error() +
                                             "); set DISPLAY or use the headless mode");
@@ -161,8 +161,6 @@ bool display_available() {
     return true;
 }
 
-std::unique_ptr<Context> create_window(const ContextOptions& options) {
-    return std::make_unique<GlfwContext>(options);
-}
+std::unique_ptr<Context> create_window(const ContextOptions& options) { return std::make_unique<GlfwContext>(options); }
 
 }  // namespace fulgur::platform

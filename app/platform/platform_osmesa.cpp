@@ -17,22 +17,30 @@ class OSMesaContextImpl final : public Context {
 public:
     explicit OSMesaContextImpl(const ContextOptions& o) : format_(o.format) {
         if (o.width <= 0 || o.height <= 0)
-            throw core::Error("headless context", "size must be positive, got " + std::to_string(o.width) +
-                                                      "x" + std::to_string(o.height));
+            throw core::Error("headless context",
+                              "size must be positive, got " + std::to_string(o.width) + "x" + std::to_string(o.height));
         // No depth/stencil/accum in the default framebuffer: the renderer draws into its
         // own framebuffer objects and composites into this one with a full-screen pass.
-        const int attribs[] = {OSMESA_FORMAT,        OSMESA_RGBA,
-                               OSMESA_DEPTH_BITS,    0,
-                               OSMESA_STENCIL_BITS,  0,
-                               OSMESA_ACCUM_BITS,    0,
-                               OSMESA_PROFILE,       OSMESA_CORE_PROFILE,
-                               OSMESA_CONTEXT_MAJOR_VERSION, 4,
-                               OSMESA_CONTEXT_MINOR_VERSION, 5,
+        const int attribs[] = {OSMESA_FORMAT,
+                               OSMESA_RGBA,
+                               OSMESA_DEPTH_BITS,
+                               0,
+                               OSMESA_STENCIL_BITS,
+                               0,
+                               OSMESA_ACCUM_BITS,
+                               0,
+                               OSMESA_PROFILE,
+                               OSMESA_CORE_PROFILE,
+                               OSMESA_CONTEXT_MAJOR_VERSION,
+                               4,
+                               OSMESA_CONTEXT_MINOR_VERSION,
+                               5,
                                0};
         ctx_ = OSMesaCreateContextAttribs(attribs, nullptr);
         if (!ctx_)
-            throw core::Error("OSMesa", "OSMesaCreateContextAttribs failed to create a GL 4.5 core context "
-                                        "(Mesa with llvmpipe >= 20 is required)");
+            throw core::Error("OSMesa",
+                              "OSMesaCreateContextAttribs failed to create a GL 4.5 core context "
+                              "(Mesa with llvmpipe >= 20 is required)");
         allocate(o.width, o.height);
         make_current();
         glFinish_ = reinterpret_cast<void (*)()>(OSMesaGetProcAddress("glFinish"));
@@ -50,7 +58,8 @@ public:
 
     void make_current() override {
         const GLenum type = format_ == PixelFormat::RGBA8 ? GL_UNSIGNED_BYTE : GL_FLOAT;
-        void* buf = format_ == PixelFormat::RGBA8 ? static_cast<void*>(bytes_.data()) : static_cast<void*>(floats_.data());
+        void* buf =
+            format_ == PixelFormat::RGBA8 ? static_cast<void*>(bytes_.data()) : static_cast<void*>(floats_.data());
         if (!OSMesaMakeCurrent(ctx_, buf, type, width_, height_))
             throw core::Error("OSMesa", "OSMesaMakeCurrent failed for a " + std::to_string(width_) + "x" +
                                             std::to_string(height_) + " buffer");
@@ -62,7 +71,8 @@ public:
 
     void resize(int w, int h) override {
         if (w <= 0 || h <= 0)
-            throw core::Error("headless context", "size must be positive, got " + std::to_string(w) + "x" + std::to_string(h));
+            throw core::Error("headless context",
+                              "size must be positive, got " + std::to_string(w) + "x" + std::to_string(h));
         allocate(w, h);
         make_current();
     }
@@ -108,8 +118,10 @@ private:
         width_ = w;
         height_ = h;
         const std::size_t n = std::size_t(w) * std::size_t(h) * 4;
-        if (format_ == PixelFormat::RGBA8) bytes_.assign(n, 0);
-        else floats_.assign(n, 0.0f);
+        if (format_ == PixelFormat::RGBA8)
+            bytes_.assign(n, 0);
+        else
+            floats_.assign(n, 0.0f);
     }
 
     OSMesaContext ctx_ = nullptr;

@@ -5,9 +5,9 @@
 #include "platform/platform.h"
 
 #include <cmath>
-#include <vector>
 #include <cstdio>
 #include <iostream>
+#include <vector>
 
 using namespace fulgur;
 
@@ -16,7 +16,8 @@ namespace {
 // --reference: the same frame lit by the direct solve, its difference image and the errors
 // (S over the cloud; the cloud's in-scattered radiance in the image) and times as JSON.
 void render_reference(app::StormView& view, platform::Context* ctx, const render::Camera& cam, double t,
-                      const app::ViewOptions& opt, const app::ShotArgs& a, const std::vector<std::uint8_t>& shown_basis) {
+                      const app::ViewOptions& opt, const app::ShotArgs& a,
+                      const std::vector<std::uint8_t>& shown_basis) {
     const app::StormView::DirectSolve solved = view.solve_direct(t, opt.components);
     const transport::SourceField& direct = solved.field;
     const double solve_s = solved.seconds;
@@ -67,14 +68,15 @@ void render_reference(app::StormView& view, platform::Context* ctx, const render
             }
     core::write_png(both, 3 * W, H, 4, trio);
 
-    std::printf("{\"name\":\"fulgur-shot-reference\",\"lit\":%s,\"sources\":%zu,\"active_lights\":%zu,"
-                "\"direct_solve_s\":%.4g,\"basis_frame_ms_all_directions\":%.4g,\"speedup\":%.4g,"
-                "\"source_rel_l2\":%.4g,\"image_rel_l2\":%.4g,\"image_max_difference\":%.4g,"
-                "\"image_fraction_over_10pct\":%.4g,\"image_lit_pixels\":%zu,\"image_width\":%d,\"image_height\":%d,"
-                "\"shown_mean_levels\":%.4g,\"shown_fraction_over_25_levels\":%.4g}\n",
-                lit ? "true" : "false", sources, active, solve_s, frame_ms,
-                frame_ms > 0.0 ? solve_s * 1e3 / frame_ms : 0.0, s_err, c.relative_l2, c.max_difference,
-                c.fraction_over, c.lit_pixels, w, h, shown.mean_levels, shown.fraction_over);
+    std::printf(
+        "{\"name\":\"fulgur-shot-reference\",\"lit\":%s,\"sources\":%zu,\"active_lights\":%zu,"
+        "\"direct_solve_s\":%.4g,\"basis_frame_ms_all_directions\":%.4g,\"speedup\":%.4g,"
+        "\"source_rel_l2\":%.4g,\"image_rel_l2\":%.4g,\"image_max_difference\":%.4g,"
+        "\"image_fraction_over_10pct\":%.4g,\"image_lit_pixels\":%zu,\"image_width\":%d,\"image_height\":%d,"
+        "\"shown_mean_levels\":%.4g,\"shown_fraction_over_25_levels\":%.4g}\n",
+        lit ? "true" : "false", sources, active, solve_s, frame_ms, frame_ms > 0.0 ? solve_s * 1e3 / frame_ms : 0.0,
+        s_err, c.relative_l2, c.max_difference, c.fraction_over, c.lit_pixels, w, h, shown.mean_levels,
+        shown.fraction_over);
     std::fflush(stdout);
 }
 
@@ -103,7 +105,8 @@ int main(int argc, char** argv) {
         view.set_lightning(lp);
         const std::size_t strike = view.pipeline().strike_at(0.0, a.seed);
         const double t =
-            a.time + (a.time_after_return_stroke ? view.pipeline().storm().strike(strike).profile.stroke_onset.at(0) : 0.0);
+            a.time +
+            (a.time_after_return_stroke ? view.pipeline().storm().strike(strike).profile.stroke_onset.at(0) : 0.0);
         app::ViewOptions opt;
         opt.settings.exposure *= std::exp2(a.exposure_ev);
         const render::Camera cam = app::default_camera(view.density());

@@ -31,10 +31,14 @@ std::string fmt(double v) {
 std::string esc(const std::string& s) {
     std::string o;
     for (char c : s) {
-        if (c == '<') o += "&lt;";
-        else if (c == '>') o += "&gt;";
-        else if (c == '&') o += "&amp;";
-        else o += c;
+        if (c == '<')
+            o += "&lt;";
+        else if (c == '>')
+            o += "&gt;";
+        else if (c == '&')
+            o += "&amp;";
+        else
+            o += c;
     }
     return o;
 }
@@ -51,12 +55,15 @@ std::vector<double> nice_ticks(double lo, double hi, int target = 6) {
             step = m * mag;
             break;
         }
-    for (double v = std::ceil(lo / step) * step; v <= hi + 1e-9 * step; v += step) t.push_back(std::fabs(v) < 1e-12 * step ? 0.0 : v);
+    for (double v = std::ceil(lo / step) * step; v <= hi + 1e-9 * step; v += step)
+        t.push_back(std::fabs(v) < 1e-12 * step ? 0.0 : v);
     return t;
 }
 }  // namespace
 
-Registration::Registration(const char* name, const char* help, StudyFn fn) { registry()[name] = Entry{help, std::move(fn)}; }
+Registration::Registration(const char* name, const char* help, StudyFn fn) {
+    registry()[name] = Entry{help, std::move(fn)};
+}
 
 void Context::summary(const std::string& name, nlohmann::json j) const {
     if (!j.contains("study")) j["study"] = name;
@@ -70,7 +77,8 @@ std::filesystem::path Context::file(const std::string& name) const {
     return output_dir / name;
 }
 
-Csv::Csv(const std::filesystem::path& path, const std::vector<std::string>& header) : path_(path), columns_(header.size()) {
+Csv::Csv(const std::filesystem::path& path, const std::vector<std::string>& header)
+    : path_(path), columns_(header.size()) {
     for (std::size_t i = 0; i < header.size(); ++i) buffer_ += (i ? "," : "") + header[i];
     buffer_ += "\n";
 }
@@ -106,7 +114,8 @@ Csv::~Csv() {
 }
 
 void write_svg_plot(const std::filesystem::path& path, const std::vector<Series>& series, const PlotOptions& opt) {
-    static const char* palette[] = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf"};
+    static const char* palette[] = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e",
+                                    "#9467bd", "#8c564b", "#e377c2", "#17becf"};
     auto tx = [&](double v) { return opt.log_x ? std::log10(v) : v; };
     auto ty = [&](double v) { return opt.log_y ? std::log10(v) : v; };
     auto ok = [&](double x, double y) {
@@ -129,8 +138,14 @@ void write_svg_plot(const std::filesystem::path& path, const std::vector<Series>
     if (std::isfinite(opt.x_max)) x1 = tx(opt.x_max);
     if (std::isfinite(opt.y_min)) y0 = ty(opt.y_min);
     if (std::isfinite(opt.y_max)) y1 = ty(opt.y_max);
-    if (!(x1 > x0)) { x0 -= 1; x1 += 1; }
-    if (!(y1 > y0)) { y0 -= 1; y1 += 1; }
+    if (!(x1 > x0)) {
+        x0 -= 1;
+        x1 += 1;
+    }
+    if (!(y1 > y0)) {
+        y0 -= 1;
+        y1 += 1;
+    }
     if (!opt.log_y && !std::isfinite(opt.y_min) && !std::isfinite(opt.y_max)) {
         const double pad = 0.05 * (y1 - y0);
         y0 -= pad;
@@ -144,7 +159,8 @@ void write_svg_plot(const std::filesystem::path& path, const std::vector<Series>
     o << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << opt.width << "\" height=\"" << opt.height
       << "\" font-family=\"sans-serif\" font-size=\"12\">\n";
     o << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
-    o << "<text x=\"" << opt.width / 2 << "\" y=\"22\" text-anchor=\"middle\" font-size=\"15\">" << esc(opt.title) << "</text>\n";
+    o << "<text x=\"" << opt.width / 2 << "\" y=\"22\" text-anchor=\"middle\" font-size=\"15\">" << esc(opt.title)
+      << "</text>\n";
     o << "<defs><clipPath id=\"plot\"><rect x=\"" << L << "\" y=\"" << T << "\" width=\"" << W << "\" height=\"" << H
       << "\"/></clipPath></defs>\n";
     // Ticks and grid.
@@ -161,17 +177,22 @@ void write_svg_plot(const std::filesystem::path& path, const std::vector<Series>
     };
     for (double v : axis_ticks(x0, x1, opt.log_x)) {
         const double X = px(v);
-        o << "<line x1=\"" << X << "\" y1=\"" << T << "\" x2=\"" << X << "\" y2=\"" << T + H << "\" stroke=\"#e4e4e4\"/>\n";
+        o << "<line x1=\"" << X << "\" y1=\"" << T << "\" x2=\"" << X << "\" y2=\"" << T + H
+          << "\" stroke=\"#e4e4e4\"/>\n";
         o << "<text x=\"" << X << "\" y=\"" << T + H + 16 << "\" text-anchor=\"middle\">" << fmt(v) << "</text>\n";
     }
     for (double v : axis_ticks(y0, y1, opt.log_y)) {
         const double Y = py(v);
-        o << "<line x1=\"" << L << "\" y1=\"" << Y << "\" x2=\"" << L + W << "\" y2=\"" << Y << "\" stroke=\"#e4e4e4\"/>\n";
+        o << "<line x1=\"" << L << "\" y1=\"" << Y << "\" x2=\"" << L + W << "\" y2=\"" << Y
+          << "\" stroke=\"#e4e4e4\"/>\n";
         o << "<text x=\"" << L - 6 << "\" y=\"" << Y + 4 << "\" text-anchor=\"end\">" << fmt(v) << "</text>\n";
     }
-    o << "<rect x=\"" << L << "\" y=\"" << T << "\" width=\"" << W << "\" height=\"" << H << "\" fill=\"none\" stroke=\"black\"/>\n";
-    o << "<text x=\"" << L + W / 2 << "\" y=\"" << opt.height - 14 << "\" text-anchor=\"middle\">" << esc(opt.x_label) << "</text>\n";
-    o << "<text transform=\"translate(18," << T + H / 2 << ") rotate(-90)\" text-anchor=\"middle\">" << esc(opt.y_label) << "</text>\n";
+    o << "<rect x=\"" << L << "\" y=\"" << T << "\" width=\"" << W << "\" height=\"" << H
+      << "\" fill=\"none\" stroke=\"black\"/>\n";
+    o << "<text x=\"" << L + W / 2 << "\" y=\"" << opt.height - 14 << "\" text-anchor=\"middle\">" << esc(opt.x_label)
+      << "</text>\n";
+    o << "<text transform=\"translate(18," << T + H / 2 << ") rotate(-90)\" text-anchor=\"middle\">" << esc(opt.y_label)
+      << "</text>\n";
     for (const auto& v : opt.vlines) {
         const double X = px(v.first);
         o << "<line x1=\"" << X << "\" y1=\"" << T << "\" x2=\"" << X << "\" y2=\"" << T + H
@@ -196,10 +217,12 @@ void write_svg_plot(const std::filesystem::path& path, const std::vector<Series>
         if (s.markers)
             for (std::size_t i = 0; i < std::min(s.x.size(), s.y.size()); ++i)
                 if (ok(s.x[i], s.y[i]))
-                    o << "<circle clip-path=\"url(#plot)\" cx=\"" << px(s.x[i]) << "\" cy=\"" << py(s.y[i]) << "\" r=\"3\" fill=\"" << col << "\"/>\n";
+                    o << "<circle clip-path=\"url(#plot)\" cx=\"" << px(s.x[i]) << "\" cy=\"" << py(s.y[i])
+                      << "\" r=\"3\" fill=\"" << col << "\"/>\n";
         const double ly = T + 16 + 18 * double(k);
-        o << "<line x1=\"" << L + W - 230 << "\" y1=\"" << ly << "\" x2=\"" << L + W - 205 << "\" y2=\"" << ly << "\" stroke=\"" << col
-          << "\" stroke-width=\"2.5\"" << (s.dashed ? " stroke-dasharray=\"7,4\"" : "") << "/>\n";
+        o << "<line x1=\"" << L + W - 230 << "\" y1=\"" << ly << "\" x2=\"" << L + W - 205 << "\" y2=\"" << ly
+          << "\" stroke=\"" << col << "\" stroke-width=\"2.5\"" << (s.dashed ? " stroke-dasharray=\"7,4\"" : "")
+          << "/>\n";
         o << "<text x=\"" << L + W - 200 << "\" y=\"" << ly + 4 << "\">" << esc(s.label) << "</text>\n";
     }
     o << "</svg>\n";
@@ -217,9 +240,10 @@ int main(int argc, char** argv) {
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         if (a == "--help" || a == "-h") {
-            std::printf("usage: fulgur-study [--quick] [-o DIR] NAME...\n"
-                        "Runs the named studies (all if none), writing CSV and SVG files into DIR\n"
-                        "(default ./study-output) and one JSON summary line per study on stdout.\n\n");
+            std::printf(
+                "usage: fulgur-study [--quick] [-o DIR] NAME...\n"
+                "Runs the named studies (all if none), writing CSV and SVG files into DIR\n"
+                "(default ./study-output) and one JSON summary line per study on stdout.\n\n");
             for (const auto& [n, e] : registry()) std::printf("  %-16s %s\n", n.c_str(), e.help.c_str());
             return 0;
         }

@@ -34,10 +34,10 @@ struct Registration {
 #define FULGUR_STUDY_CONCAT2(a, b) a##b
 #define FULGUR_STUDY_CONCAT(a, b) FULGUR_STUDY_CONCAT2(a, b)
 /// FULGUR_STUDY(lb_convergence, "lb-convergence", "help") { ... uses ctx ... }
-#define FULGUR_STUDY(ident, name, help)                                                             \
-    static void FULGUR_STUDY_CONCAT(study_fn_, ident)(const ::fulgur::study::Context& ctx);         \
-    static const ::fulgur::study::Registration FULGUR_STUDY_CONCAT(study_reg_, ident)(               \
-        name, help, &FULGUR_STUDY_CONCAT(study_fn_, ident));                                        \
+#define FULGUR_STUDY(ident, name, help)                                                     \
+    static void FULGUR_STUDY_CONCAT(study_fn_, ident)(const ::fulgur::study::Context& ctx); \
+    static const ::fulgur::study::Registration FULGUR_STUDY_CONCAT(study_reg_, ident)(      \
+        name, help, &FULGUR_STUDY_CONCAT(study_fn_, ident));                                \
     static void FULGUR_STUDY_CONCAT(study_fn_, ident)([[maybe_unused]] const ::fulgur::study::Context& ctx)
 
 /// A small CSV writer: header once, then rows of numbers or strings; throws core::Error
@@ -66,7 +66,7 @@ public:
 struct Series {
     std::string label;
     std::vector<double> x, y;
-    std::string color;   ///< CSS colour; "" picks from a palette
+    std::string color;  ///< CSS colour; "" picks from a palette
     bool dashed = false;
     bool markers = false;
 };

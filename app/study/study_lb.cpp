@@ -57,17 +57,22 @@ FULGUR_STUDY(lb_convergence, "lb-convergence",
         bool dashed;
     };
     const std::vector<Run> runs = {
-        {"paper model: conservative, g = 0", transport::LbCollision::Corrected, transport::LbAbsorption::Conservative, 0.0, false},
-        {"physical absorption, g = 0", transport::LbCollision::Corrected, transport::LbAbsorption::Physical, 0.0, false},
-        {"conservative, g = 0.85 corrected", transport::LbCollision::Corrected, transport::LbAbsorption::Conservative, 0.85, true},
-        {"physical, g = 0.85 corrected", transport::LbCollision::Corrected, transport::LbAbsorption::Physical, 0.85, true},
-        {"conservative, g = 0.85 published", transport::LbCollision::Published, transport::LbAbsorption::Conservative, 0.85, true},
+        {"paper model: conservative, g = 0", transport::LbCollision::Corrected, transport::LbAbsorption::Conservative,
+         0.0, false},
+        {"physical absorption, g = 0", transport::LbCollision::Corrected, transport::LbAbsorption::Physical, 0.0,
+         false},
+        {"conservative, g = 0.85 corrected", transport::LbCollision::Corrected, transport::LbAbsorption::Conservative,
+         0.85, true},
+        {"physical, g = 0.85 corrected", transport::LbCollision::Corrected, transport::LbAbsorption::Physical, 0.85,
+         true},
+        {"conservative, g = 0.85 published", transport::LbCollision::Published, transport::LbAbsorption::Conservative,
+         0.85, true},
     };
     const int max_steps = 6 * n;
     std::vector<study::Series> curves, changes;
     study::Csv summary(ctx.file("lb_convergence_summary.csv"),
-                       {"run", "steps_to_1e-3", "steps_to_1e-4", "steps_to_1e-5", "converged_1e-6", "steps_run", "two_N",
-                        "seconds", "MLUPS", "final_total"});
+                       {"run", "steps_to_1e-3", "steps_to_1e-4", "steps_to_1e-5", "converged_1e-6", "steps_run",
+                        "two_N", "seconds", "MLUPS", "final_total"});
     std::vector<std::vector<double>> histories;
     nlohmann::json js = nlohmann::json::array();
     for (const Run& r : runs) {
@@ -101,9 +106,14 @@ FULGUR_STUDY(lb_convergence, "lb-convergence",
                 << double(first_below(tot, 1e-5)) << double(res.converged) << double(res.iterations) << double(2 * n)
                 << res.seconds << mlups << final_total;
         summary.end_row();
-        js.push_back({{"run", r.label}, {"steps_to_1e-3", first_below(tot, 1e-3)}, {"steps_to_1e-4", first_below(tot, 1e-4)},
-                      {"steps_to_1e-5", first_below(tot, 1e-5)}, {"converged", res.converged}, {"steps", res.iterations},
-                      {"seconds", res.seconds}, {"MLUPS", mlups}});
+        js.push_back({{"run", r.label},
+                      {"steps_to_1e-3", first_below(tot, 1e-3)},
+                      {"steps_to_1e-4", first_below(tot, 1e-4)},
+                      {"steps_to_1e-5", first_below(tot, 1e-5)},
+                      {"converged", res.converged},
+                      {"steps", res.iterations},
+                      {"seconds", res.seconds},
+                      {"MLUPS", mlups}});
     }
     {
         std::vector<std::string> header = {"step"};
@@ -137,5 +147,6 @@ FULGUR_STUDY(lb_convergence, "lb-convergence",
     pc.y_min = 1e-8;
     pc.x_min = 0.0;
     study::write_svg_plot(ctx.file("lb_convergence_change.svg"), changes, pc);
-    ctx.summary("lb-convergence", {{"grid", n}, {"voxel_m", h}, {"cloud_seconds", gen_s}, {"two_N", 2 * n}, {"runs", js}});
+    ctx.summary("lb-convergence",
+                {{"grid", n}, {"voxel_m", h}, {"cloud_seconds", gen_s}, {"two_N", 2 * n}, {"runs", js}});
 }

@@ -70,8 +70,8 @@ Field coarsen(const SourceField& fine, const core::GridGeometry& coarse, int f, 
 
 /// Relative L2 error ||x - ref|| / ||ref|| over the listed cells and the directions in
 /// [m0, m1) (all directions by default).
-double rel_l2(const Field& x, const Field& ref, const std::vector<std::size_t>& cells, std::size_t ncell,
-              std::size_t M, std::size_t m0 = 0, std::size_t m1 = std::size_t(-1)) {
+double rel_l2(const Field& x, const Field& ref, const std::vector<std::size_t>& cells, std::size_t ncell, std::size_t M,
+              std::size_t m0 = 0, std::size_t m1 = std::size_t(-1)) {
     double num = 0.0, den = 0.0;
     for (std::size_t m = m0; m < std::min(M, m1); ++m)
         for (std::size_t c : cells) {
@@ -122,8 +122,8 @@ struct Run {
 };
 
 struct RunResult {
-    Field mult;                  ///< LB multiple scattering, on the 500 m grid
-    double native_total = 0.0;   ///< relative L2 on the solve's own grid (its cloud voxels)
+    Field mult;                 ///< LB multiple scattering, on the 500 m grid
+    double native_total = 0.0;  ///< relative L2 on the solve's own grid (its cloud voxels)
     double native_multiple = 0.0;
     int iterations = 0;
     bool converged = false;
@@ -237,7 +237,8 @@ Solve solve_at(const scene::Scene& scene, const core::Grid3<float>& density, int
         s.runs.back().negative_entries = negative;
         s.runs.back().most_negative = smax > 0.0f ? double(smin) / double(smax) : 0.0;
         std::fprintf(stderr, "lb-vs-mc: %3.0f m grid, %-24s %4d steps, %.2f s, %zu negative S entries (min/max %.2g)\n",
-                     g.voxel_size, run.label.c_str(), res.iterations, res.seconds, negative, s.runs.back().most_negative);
+                     g.voxel_size, run.label.c_str(), res.iterations, res.seconds, negative,
+                     s.runs.back().most_negative);
     }
     std::fprintf(stderr, "lb-vs-mc: %3.0f m grid: single scattering %.1f s, Monte Carlo %llu paths %.1f s\n",
                  g.voxel_size, s.ss_seconds, static_cast<unsigned long long>(paths), s.mc_seconds);
@@ -250,7 +251,8 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
              "LB (+ exact single scattering) vs Monte Carlo on the default storm, point light below the base: "
              "relative L2 of S over cloud voxels; also on 250 m and 125 m lighting grids") {
     // --- The scene's medium on its lighting grid ------------------------------------------------
-    const scene::Scene scene_file = scene::load_scene(std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes/storm.json");
+    const scene::Scene scene_file =
+        scene::load_scene(std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes/storm.json");
     // The comparison grid is 500 m (downsample 4), where the 250 m and 125 m grids nest; the
     // scene's own lighting grid (the bake's) is solved as well at the end when it differs.
     scene::Scene sc = scene_file;
@@ -295,7 +297,8 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
 
     // Runs 0-1: the default thick-voxel mapping; 2-3: the other one (solved on every grid).
     const LbThickVoxels def = LbSettings{}.thick_voxels;
-    const LbThickVoxels other = def == LbThickVoxels::Saturate ? LbThickVoxels::DiffusionMatched : LbThickVoxels::Saturate;
+    const LbThickVoxels other =
+        def == LbThickVoxels::Saturate ? LbThickVoxels::DiffusionMatched : LbThickVoxels::Saturate;
     auto tname = [](LbThickVoxels t) { return std::string(t == LbThickVoxels::Saturate ? "saturate" : "matched"); };
     const std::vector<Run> runs = {
         {"physical " + tname(def), LbCollision::Corrected, LbAbsorption::Physical, 1e-4, true, def},
@@ -340,8 +343,8 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
                     "relL2_total_denoised", "relL2_multiple_denoised", "sum_S_total_ratio", "sum_S_multiple_ratio",
                     "scattered_power_ratio", "escaped_fraction_lb", "escaped_fraction_mc"});
     study::Csv bins(ctx.file("lb_vs_mc_tau_bins.csv"),
-                    {"run", "tau_hop_lo", "tau_hop_hi", "voxels", "relL2_total", "relL2_multiple", "noise_floor_multiple",
-                     "sum_S_multiple_ratio"});
+                    {"run", "tau_hop_lo", "tau_hop_hi", "voxels", "relL2_total", "relL2_multiple",
+                     "noise_floor_multiple", "sum_S_multiple_ratio"});
     nlohmann::json js_runs = nlohmann::json::array();
     for (std::size_t r = 0; r < runs.size(); ++r) {
         const Run& run = runs[r];
@@ -353,7 +356,8 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
         const double ratio_m = field_sum(rr.mult, cloud, n, M) / field_sum(S.mcm, cloud, n, M);
         const double power_ratio = rr.injected / S.mc_scattered;
         const double esc_lb = rr.escaped / rr.injected, esc_mc = S.mc_escaped / S.mc_scattered;
-        csv << ("\"" + run.label + "\"") << std::string(run.collision == LbCollision::Corrected ? "corrected" : "published")
+        csv << ("\"" + run.label + "\"")
+            << std::string(run.collision == LbCollision::Corrected ? "corrected" : "published")
             << std::string(run.absorption == LbAbsorption::Physical ? "physical" : "conservative") << run.tolerance
             << double(run.use_phi1) << double(rr.iterations) << double(rr.converged) << rr.seconds << et << em << et_any
             << em_any << denoised(et, floor_t) << denoised(em, floor_m) << ratio_t << ratio_m << power_ratio << esc_lb
@@ -386,12 +390,27 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
     // --- Resolution: finer lighting grids, compared on the 500 m grid ------------------------------
     nlohmann::json js_res = nlohmann::json::array();
     {
-        study::Csv rcsv(ctx.file("lb_vs_mc_resolution.csv"),
-                        {"downsample", "voxel_m", "max_tau_hop", "run", "iterations", "lb_seconds", "mc_paths",
-                         "mc_seconds", "ss_seconds", "relL2_total_500m", "relL2_multiple_500m", "noise_floor_total_500m",
-                         "noise_floor_multiple_500m", "sum_S_multiple_ratio_500m", "relL2_total_native",
-                         "relL2_multiple_native", "noise_floor_total_native", "noise_floor_multiple_native",
-                         "native_cloud_voxels", "escaped_fraction_lb", "escaped_fraction_mc"});
+        study::Csv rcsv(ctx.file("lb_vs_mc_resolution.csv"), {"downsample",
+                                                              "voxel_m",
+                                                              "max_tau_hop",
+                                                              "run",
+                                                              "iterations",
+                                                              "lb_seconds",
+                                                              "mc_paths",
+                                                              "mc_seconds",
+                                                              "ss_seconds",
+                                                              "relL2_total_500m",
+                                                              "relL2_multiple_500m",
+                                                              "noise_floor_total_500m",
+                                                              "noise_floor_multiple_500m",
+                                                              "sum_S_multiple_ratio_500m",
+                                                              "relL2_total_native",
+                                                              "relL2_multiple_native",
+                                                              "noise_floor_total_native",
+                                                              "noise_floor_multiple_native",
+                                                              "native_cloud_voxels",
+                                                              "escaped_fraction_lb",
+                                                              "escaped_fraction_mc"});
         for (const Solve& s : solves) {
             const Field t = sum(s.mc1, s.mcm), st = quad_sum(s.se1, s.sem);
             const double ft = noise_floor(st, t, cloud, n, M), fm = noise_floor(s.sem, s.mcm, cloud, n, M);
@@ -401,8 +420,8 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
                 const double ratio = field_sum(rr.mult, cloud, n, M) / field_sum(s.mcm, cloud, n, M);
                 const std::uint64_t p = s.mc_paths;
                 rcsv << double(s.downsample) << s.geom.voxel_size << s.max_tau_hop << ("\"" + runs[r].label + "\"")
-                     << double(rr.iterations) << rr.seconds << double(p) << s.mc_seconds << s.ss_seconds << et << em << ft
-                     << fm << ratio << rr.native_total << rr.native_multiple << s.native_floor_total
+                     << double(rr.iterations) << rr.seconds << double(p) << s.mc_seconds << s.ss_seconds << et << em
+                     << ft << fm << ratio << rr.native_total << rr.native_multiple << s.native_floor_total
                      << s.native_floor_multiple << double(s.native_cloud_voxels) << rr.escaped / rr.injected
                      << s.mc_escaped / s.mc_scattered;
                 rcsv.end_row();
@@ -418,7 +437,8 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
                                   {"lb_seconds", rr.seconds},
                                   {"mc_paths", p},
                                   {"mc_seconds", s.mc_seconds}});
-                std::fprintf(stderr, "lb-vs-mc: %3.0f m grid %-22s total %.4f multiple %.4f (500 m); native %.4f / %.4f\n",
+                std::fprintf(stderr,
+                             "lb-vs-mc: %3.0f m grid %-22s total %.4f multiple %.4f (500 m); native %.4f / %.4f\n",
                              s.geom.voxel_size, runs[r].label.c_str(), et, em, rr.native_total, rr.native_multiple);
             }
         }
@@ -427,8 +447,8 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
     // --- The scene's own lighting grid (what the bake uses), if it is not the 500 m one ---------
     if (scene_file.lighting_downsample != sc.lighting_downsample) {
         const LightingMedium ms = scene::make_lighting_medium(scene_file, density);
-        const Solve own = solve_at(scene_file, density, scene_file.lighting_downsample, light, dirs, paths / 2, fine_runs,
-                                   ms.density.geom, kCloud);
+        const Solve own = solve_at(scene_file, density, scene_file.lighting_downsample, light, dirs, paths / 2,
+                                   fine_runs, ms.density.geom, kCloud);
         for (std::size_t r = 0; r < own.runs.size(); ++r) {
             const RunResult& rr = own.runs[r];
             js_res.push_back({{"voxel_m", own.geom.voxel_size},
@@ -446,8 +466,8 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
     // --- Per direction (physical model, 500 m) -----------------------------------------------------
     {
         study::Csv dcsv(ctx.file("lb_vs_mc_directions.csv"),
-                        {"m", "sx", "sy", "sz", "relL2_total_physical", "relL2_multiple_physical", "noise_floor_multiple",
-                         "sum_S_multiple_ratio_physical"});
+                        {"m", "sx", "sy", "sz", "relL2_total_physical", "relL2_multiple_physical",
+                         "noise_floor_multiple", "sum_S_multiple_ratio_physical"});
         const Field tot = sum(S.s1, S.runs[0].mult);
         for (std::size_t mm = 0; mm < M; ++mm) {
             double a = 0.0, b = 0.0;
@@ -464,8 +484,17 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
 
     // --- Per voxel (direction means, 500 m) ---------------------------------------------------------
     {
-        std::vector<std::string> header = {"i", "j", "k", "density", "tau_hop", "S1", "mc_single", "mc_multiple",
-                                           "mc_multiple_se", "lb_multiple_physical", "lb_multiple_conservative"};
+        std::vector<std::string> header = {"i",
+                                           "j",
+                                           "k",
+                                           "density",
+                                           "tau_hop",
+                                           "S1",
+                                           "mc_single",
+                                           "mc_multiple",
+                                           "mc_multiple_se",
+                                           "lb_multiple_physical",
+                                           "lb_multiple_conservative"};
         for (std::size_t q = 1; q < solves.size(); ++q) {
             const std::string v = std::to_string(int(solves[q].geom.voxel_size)) + "m";
             header.push_back("mc_multiple_" + v);
@@ -494,20 +523,25 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
             {"LB physical multiple", {}, {}, "#d62728", true, false},
         };
         for (std::size_t q = 1; q < solves.size(); ++q)
-            series.push_back({"LB physical multiple, " + std::to_string(int(solves[q].geom.voxel_size)) + " m grid", {}, {},
-                              q == 1 ? "#ff7f0e" : "#9467bd", true, false});
+            series.push_back({"LB physical multiple, " + std::to_string(int(solves[q].geom.voxel_size)) + " m grid",
+                              {},
+                              {},
+                              q == 1 ? "#ff7f0e" : "#9467bd",
+                              true,
+                              false});
         const std::size_t other_series = series.size();
-        series.push_back({"LB physical multiple, " + runs[2].label.substr(9) + " mapping", {}, {}, "#8c564b", true, false});
+        series.push_back(
+            {"LB physical multiple, " + runs[2].label.substr(9) + " mapping", {}, {}, "#8c564b", true, false});
         study::Csv pcsv(ctx.file("lb_vs_mc_profile.csv"),
-                        {"k", "z_m", "density", "S1", "mc_single", "mc_multiple", "mc_multiple_se", "lb_multiple_physical",
-                         "lb_multiple_conservative"});
+                        {"k", "z_m", "density", "S1", "mc_single", "mc_multiple", "mc_multiple_se",
+                         "lb_multiple_physical", "lb_multiple_conservative"});
         for (int k = 0; k < g.dims.z; ++k) {
             const std::size_t c = g.index(li, lj, k);
             const double z = g.centre(li, lj, k).z / 1000.0;
             const double a1 = dir_mean(S.s1, c, n, M), b1 = dir_mean(S.mc1, c, n, M), bm = dir_mean(S.mcm, c, n, M);
             const double lp = dir_mean(S.runs[0].mult, c, n, M), lc = dir_mean(S.runs[1].mult, c, n, M);
-            pcsv << double(k) << 1000.0 * z << double(m.density.data[c]) << a1 << b1 << bm << dir_mean(S.sem, c, n, M) << lp
-                 << lc;
+            pcsv << double(k) << 1000.0 * z << double(m.density.data[c]) << a1 << b1 << bm << dir_mean(S.sem, c, n, M)
+                 << lp << lc;
             pcsv.end_row();
             if (!(m.density.data[c] > 0.0f)) continue;
             const double ys[] = {b1 + bm, bm, a1, a1 + lp, a1 + lc, lp};

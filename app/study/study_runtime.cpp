@@ -114,8 +114,8 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
             std::fprintf(stderr, "runtime-accuracy: baking %s (%s)\n", fgb.string().c_str(), why.c_str());
         })) {
         bake_s = r->seconds_total;
-        std::fprintf(stderr, "runtime-accuracy: baked in %.1f s (%zu lights, %zu dropped, %.1f MB)\n", bake_s, r->lights,
-                     r->lights_dropped, double(r->file_bytes) / 1e6);
+        std::fprintf(stderr, "runtime-accuracy: baked in %.1f s (%zu lights, %zu dropped, %.1f MB)\n", bake_s,
+                     r->lights, r->lights_dropped, double(r->file_bytes) / 1e6);
     }
     const runtime::BakedBases bases = runtime::BakedBases::load(fgb, bake::scene_key(s, density));
     basis::FgbReader reader(fgb);  // per-light coefficient counts (dropped lights)
@@ -130,8 +130,8 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
     const bool decompose = !ctx.quick;
     study::Csv csv(ctx.file("runtime_accuracy.csv"),
                    {"seed", "sources", "active_lights", "dropped_active", "err_total", "err_single", "err_multiple",
-                    "err_total_far", "err_side_view", "splat_V_vs_D", "basis_R_vs_V", "dropped_share", "nonlinear_U_vs_V",
-                    "compression_R_vs_U", "multiple_share", "basis_frame_ms", "direct_solve_s"});
+                    "err_total_far", "err_side_view", "splat_V_vs_D", "basis_R_vs_V", "dropped_share",
+                    "nonlinear_U_vs_V", "compression_R_vs_U", "multiple_share", "basis_frame_ms", "direct_solve_s"});
     nlohmann::json rows = nlohmann::json::array();
     std::vector<double> xs, e_tot, e_single, e_mult, e_splat, e_basis;
     for (const std::uint64_t seed : seeds) {
@@ -156,10 +156,12 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         auto d_total = [&](std::size_t m, std::size_t i) {
             return double(dir_ptr(D.single, m)[i]) + double(dir_ptr(D.multiple, m)[i]);
         };
-        const double nD = l2(nd, d_total), nD1 = l2(nd, [&](auto m, auto i) { return double(dir_ptr(D.single, m)[i]); }),
+        const double nD = l2(nd, d_total),
+                     nD1 = l2(nd, [&](auto m, auto i) { return double(dir_ptr(D.single, m)[i]); }),
                      nD2 = l2(nd, [&](auto m, auto i) { return double(dir_ptr(D.multiple, m)[i]); });
         const double err = l2(nd, [&](auto m, auto i) { return double(R[m][i]) - d_total(m, i); }) / nD;
-        const double err1 = l2(nd, [&](auto m, auto i) { return double(R1[m][i]) - double(dir_ptr(D.single, m)[i]); }) / nD1;
+        const double err1 =
+            l2(nd, [&](auto m, auto i) { return double(R1[m][i]) - double(dir_ptr(D.single, m)[i]); }) / nD1;
         const double err2 =
             l2(nd, [&](auto m, auto i) { return double(R2[m][i]) - double(dir_ptr(D.multiple, m)[i]); }) / nD2;
         // Away from the channel: voxels whose centre is more than 2 lighting voxels from every source.
@@ -180,16 +182,18 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
                     far_mask[c] = far ? 1.0f : 0.0f;
                 }
         const L2 l2_far{far_mask, cells};
-        const double err_far = l2_far(nd, [&](auto m, auto i) { return double(R[m][i]) - d_total(m, i); }) /
-                               l2_far(nd, d_total);
+        const double err_far =
+            l2_far(nd, [&](auto m, auto i) { return double(R[m][i]) - d_total(m, i); }) / l2_far(nd, d_total);
 
         // The side view (direction toward a camera on -y: the -y face direction).
         std::size_t toward = 0;
         for (std::size_t m = 0; m < nd; ++m)
-            if (glm::dot(bases.directions()[m], glm::dvec3(0, -1, 0)) > glm::dot(bases.directions()[toward], glm::dvec3(0, -1, 0)))
+            if (glm::dot(bases.directions()[m], glm::dvec3(0, -1, 0)) >
+                glm::dot(bases.directions()[toward], glm::dvec3(0, -1, 0)))
                 toward = m;
-        const double err_image = rel_l2(side_view(medium, toward, [&](std::size_t m, std::size_t i) { return double(R[m][i]); }),
-                                        side_view(medium, toward, d_total));
+        const double err_image =
+            rel_l2(side_view(medium, toward, [&](std::size_t m, std::size_t i) { return double(R[m][i]); }),
+                   side_view(medium, toward, d_total));
 
         // V: the active virtual lights solved directly; their dropped share.
         std::vector<lightning::PointSource> vl, dropped;
@@ -207,9 +211,10 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         double drop_share = 0.0;
         if (!dropped.empty()) {
             const Parts X = solve_parts(s, medium, dropped);
-            drop_share = l2(nd, [&](auto m, auto i) {
-                             return double(dir_ptr(X.single, m)[i]) + double(dir_ptr(X.multiple, m)[i]);
-                         }) / nV;
+            drop_share =
+                l2(nd, [&](auto m,
+                           auto i) { return double(dir_ptr(X.single, m)[i]) + double(dir_ptr(X.multiple, m)[i]); }) /
+                nV;
         }
         // U: per-light solves summed (uncompressed bases), when decomposing.
         double nonlinear = std::nan(""), compression = std::nan("");
@@ -231,7 +236,8 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         const double frame = frame_ms[frame_ms.size() / 2];
         const double mult_share = nD2 / nD;
         csv << double(seed) << double(sources.size()) << double(w.active.size()) << dropped_count << err << err1 << err2
-            << err_far << err_image << splat << basis_err << drop_share << nonlinear << compression << mult_share << frame << direct_s;
+            << err_far << err_image << splat << basis_err << drop_share << nonlinear << compression << mult_share
+            << frame << direct_s;
         csv.end_row();
         nlohmann::json row = {{"seed", seed},
                               {"sources", sources.size()},
@@ -254,7 +260,8 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         }
         rows.push_back(row);
         std::fprintf(stderr,
-                     "seed %llu: %zu sources, %zu lights: error total %.4f single %.4f multiple %.4f (far %.4f, side view %.4f); "
+                     "seed %llu: %zu sources, %zu lights: error total %.4f single %.4f multiple %.4f (far %.4f, side "
+                     "view %.4f); "
                      "splat %.4f, basis %.4f (nonlinear %.4f, compression %.4f); frame %.3f ms, direct %.2f s\n",
                      static_cast<unsigned long long>(seed), sources.size(), w.active.size(), err, err1, err2, err_far,
                      err_image, splat, basis_err, nonlinear, compression, frame, direct_s);
@@ -270,9 +277,10 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
     // rebuilt with h_usr = h, the lights solved directly (V_h), against the same stretches
     // sampled every 50 m and solved directly (D_fine, the reference line source). Also the
     // direct solve of the h/2 sources (D_h): what the point-source spacing alone costs.
-    const std::vector<double> spacings = ctx.quick ? std::vector<double>{1500.0, 750.0}
-                                                   : std::vector<double>{3000.0, 1500.0, 750.0, 375.0};
-    const std::vector<std::uint64_t> sweep_seeds = ctx.quick ? std::vector<std::uint64_t>{1} : std::vector<std::uint64_t>{1, 3};
+    const std::vector<double> spacings =
+        ctx.quick ? std::vector<double>{1500.0, 750.0} : std::vector<double>{3000.0, 1500.0, 750.0, 375.0};
+    const std::vector<std::uint64_t> sweep_seeds =
+        ctx.quick ? std::vector<std::uint64_t>{1} : std::vector<std::uint64_t>{1, 3};
     study::Csv sweep(ctx.file("runtime_accuracy_spacing.csv"),
                      {"seed", "h_usr", "virtual_lights", "active_lights", "sources", "splat_total", "splat_single",
                       "splat_multiple", "sources_only_total", "V_solve_s", "bake_estimate_s", "file_estimate_MB"});
@@ -298,7 +306,8 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         auto f_total = [&](std::size_t m, std::size_t i) {
             return double(dir_ptr(F.single, m)[i]) + double(dir_ptr(F.multiple, m)[i]);
         };
-        const double nF = l2(nd, f_total), nF1 = l2(nd, [&](auto m, auto i) { return double(dir_ptr(F.single, m)[i]); }),
+        const double nF = l2(nd, f_total),
+                     nF1 = l2(nd, [&](auto m, auto i) { return double(dir_ptr(F.single, m)[i]); }),
                      nF2 = l2(nd, [&](auto m, auto i) { return double(dir_ptr(F.multiple, m)[i]); });
         study::Series ser{"seed " + std::to_string(seed), {}, {}, "", false, true};
         for (std::size_t hi = 0; hi < spacings.size(); ++hi) {
@@ -316,16 +325,26 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
             double v_s = 0.0;
             const Parts V = solve_parts(s, medium, vl, &v_s);
             const Parts Dh = solve_parts(s, medium, q);
-            const double e = l2(nd, [&](auto m, auto i) {
-                                 return double(dir_ptr(V.single, m)[i]) + double(dir_ptr(V.multiple, m)[i]) - f_total(m, i);
-                             }) / nF;
-            const double e1 = l2(nd, [&](auto m, auto i) {
-                                  return double(dir_ptr(V.single, m)[i]) - double(dir_ptr(F.single, m)[i]); }) / nF1;
-            const double e2 = l2(nd, [&](auto m, auto i) {
-                                  return double(dir_ptr(V.multiple, m)[i]) - double(dir_ptr(F.multiple, m)[i]); }) / nF2;
-            const double eq = l2(nd, [&](auto m, auto i) {
-                                  return double(dir_ptr(Dh.single, m)[i]) + double(dir_ptr(Dh.multiple, m)[i]) - f_total(m, i);
-                              }) / nF;
+            const double e =
+                l2(nd,
+                   [&](auto m, auto i) {
+                       return double(dir_ptr(V.single, m)[i]) + double(dir_ptr(V.multiple, m)[i]) - f_total(m, i);
+                   }) /
+                nF;
+            const double e1 =
+                l2(nd,
+                   [&](auto m, auto i) { return double(dir_ptr(V.single, m)[i]) - double(dir_ptr(F.single, m)[i]); }) /
+                nF1;
+            const double e2 =
+                l2(nd, [&](auto m,
+                           auto i) { return double(dir_ptr(V.multiple, m)[i]) - double(dir_ptr(F.multiple, m)[i]); }) /
+                nF2;
+            const double eq =
+                l2(nd,
+                   [&](auto m, auto i) {
+                       return double(dir_ptr(Dh.single, m)[i]) + double(dir_ptr(Dh.multiple, m)[i]) - f_total(m, i);
+                   }) /
+                nF;
             sweep << double(seed) << h << double(grid.count()) << double(w.active.size()) << double(q.size()) << e << e1
                   << e2 << eq << v_s << bake_cost[hi].first << bake_cost[hi].second;
             sweep.end_row();
@@ -343,8 +362,8 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
             std::fprintf(stderr,
                          "spacing sweep, seed %llu, h %.0f m: %zu lights (%zu active), %zu sources: splat error total "
                          "%.4f single %.4f multiple %.4f; sources at h/2 alone %.4f; bake ~%.0f s, ~%.0f MB\n",
-                         static_cast<unsigned long long>(seed), h, grid.count(), w.active.size(), q.size(), e, e1, e2, eq,
-                         bake_cost[hi].first, bake_cost[hi].second);
+                         static_cast<unsigned long long>(seed), h, grid.count(), w.active.size(), q.size(), e, e1, e2,
+                         eq, bake_cost[hi].first, bake_cost[hi].second);
             ser.x.push_back(h);
             ser.y.push_back(e);
         }
@@ -372,14 +391,15 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
                            {"splat (virtual lights vs sources, both solved directly)", xs, e_splat, "", false, true},
                            {"basis (reconstruction vs virtual lights solved directly)", xs, e_basis, "", true, true}},
                           po_plot);
-    ctx.summary("runtime-accuracy",
-                {{"scene", scene_path.string()},
-                 {"lighting_grid", {medium.density.geom.dims.x, medium.density.geom.dims.y, medium.density.geom.dims.z}},
-                 {"lighting_voxel_m", medium.density.geom.voxel_size},
-                 {"virtual_lights", bases.lights().count()},
-                 {"h_usr_m", s.virtual_lights.h_usr},
-                 {"xi", s.compression.xi},
-                 {"bake_seconds", bake_s},
-                 {"seeds", rows},
-                 {"spacing_sweep", sweep_rows}});
+    ctx.summary(
+        "runtime-accuracy",
+        {{"scene", scene_path.string()},
+         {"lighting_grid", {medium.density.geom.dims.x, medium.density.geom.dims.y, medium.density.geom.dims.z}},
+         {"lighting_voxel_m", medium.density.geom.voxel_size},
+         {"virtual_lights", bases.lights().count()},
+         {"h_usr_m", s.virtual_lights.h_usr},
+         {"xi", s.compression.xi},
+         {"bake_seconds", bake_s},
+         {"seeds", rows},
+         {"spacing_sweep", sweep_rows}});
 }

@@ -1,8 +1,8 @@
 // The baker: plan, per-light solve + compression, checksummed file (bake.h, docs/bake.md).
 #include "bake/bake.h"
 
-#include <glm/geometric.hpp>
 #include <omp.h>
+#include <glm/geometric.hpp>
 
 #include <algorithm>
 #include <atomic>
@@ -67,7 +67,8 @@ transport::SourceField stored_bases(const Plan& plan, Solution&& sol) {
         transport::SourceField out(plan.lighting, std::move(dirs));
         if (!sol.single.data.empty()) std::copy(sol.single.data.begin(), sol.single.data.end(), out.data.begin());
         if (!sol.multiple.data.empty())
-            std::copy(sol.multiple.data.begin(), sol.multiple.data.end(), out.data.begin() + std::ptrdiff_t(cells * nd));
+            std::copy(sol.multiple.data.begin(), sol.multiple.data.end(),
+                      out.data.begin() + std::ptrdiff_t(cells * nd));
         return out;
     }
     transport::SourceField out(plan.lighting, plan.output_directions);
@@ -114,8 +115,9 @@ basis::BakeKey scene_key(const scene::Scene& s, const core::Grid3<float>& densit
     d << "density.origin=" << num(density.geom.origin.x) << "," << num(density.geom.origin.y) << ","
       << num(density.geom.origin.z) << "\n";
     char hx[24];
-    std::snprintf(hx, sizeof hx, "%016llx",
-                  static_cast<unsigned long long>(hash_bytes(density.data.data(), density.data.size() * sizeof(float))));
+    std::snprintf(
+        hx, sizeof hx, "%016llx",
+        static_cast<unsigned long long>(hash_bytes(density.data.data(), density.data.size() * sizeof(float))));
     d << "density.hash=" << hx << "\n";
     d << "medium.extinction=" << num(s.medium.extinction) << "\n";
     d << "medium.albedo=" << num(s.medium.albedo) << "\n";
@@ -245,10 +247,12 @@ std::string Plan::to_text() const {
       << (multiple ? "multiple" : "") << (components == 2 ? " (stored separately)" : "") << "\n";
     o << "  solver          " << solver << "\n";
     o << "  threads         " << threads << "\n";
-    o << "  raw size        " << core::format_bytes(double(raw_bytes)) << " (float32, every light, direction and component)\n";
+    o << "  raw size        " << core::format_bytes(double(raw_bytes))
+      << " (float32, every light, direction and component)\n";
     if (expected_bytes)
         o << "  expected file   " << core::format_bytes(double(expected_bytes)) << " (from 16 sample lights)\n";
-    if (expected_seconds > 0.0) o << "  expected time   " << core::format_seconds(expected_seconds) << " (from 16 sample lights)\n";
+    if (expected_seconds > 0.0)
+        o << "  expected time   " << core::format_seconds(expected_seconds) << " (from 16 sample lights)\n";
     o << "  why:\n";
     for (const std::string& r : reasons) o << "    - " << r << "\n";
     return o.str();
@@ -270,9 +274,9 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
     p.single = s.effects.single_scattering;
     p.multiple = s.effects.multiple_scattering;
     p.components = (p.single && p.multiple && s.separate_components) ? 2u : 1u;
-    p.solver = !p.multiple ? "none"
+    p.solver = !p.multiple                                                                ? "none"
                : s.transport.solver == scene::TransportSettings::Solver::LatticeBoltzmann ? "lattice_boltzmann"
-                                                                                           : "monte_carlo";
+                                                                                          : "monte_carlo";
     p.threads = worker_threads(options.threads);
 
     auto& why = p.reasons;
@@ -282,7 +286,8 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
     else
         why.push_back("g = " + short_num(s.medium.g) + ": " + std::to_string(p.directions) + " output directions");
     if (!p.multiple)
-        why.push_back("effects.multiple_scattering = false: no transport solve, bases hold the exact single scattering");
+        why.push_back(
+            "effects.multiple_scattering = false: no transport solve, bases hold the exact single scattering");
     else if (p.solver == "lattice_boltzmann")
         why.push_back("multiple scattering by lattice-Boltzmann (" + s.transport.lb_collision + " collision, " +
                       s.transport.lb_absorption + " absorption, " + s.transport.lb_thick_voxels +
@@ -291,9 +296,12 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
     else
         why.push_back("multiple scattering by Monte Carlo (reference quality, " + std::to_string(s.transport.mc_paths) +
                       " paths per light)");
-    if (!p.single) why.push_back("effects.single_scattering = false: the direct term is solved (it feeds the solver) but not stored");
+    if (!p.single)
+        why.push_back(
+            "effects.single_scattering = false: the direct term is solved (it feeds the solver) but not stored");
     if (p.components == 2)
-        why.push_back("compression.components = separate: single and multiple parts stored apart (run time can toggle them)");
+        why.push_back(
+            "compression.components = separate: single and multiple parts stored apart (run time can toggle them)");
     else if (p.single && p.multiple)
         why.push_back("compression.components = combined: one basis per direction holds single + multiple");
     if (s.effects.sun || s.sun)
@@ -304,13 +312,14 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
     why.push_back(std::to_string(p.lights.count()) + " virtual lights: h_usr " + short_num(s.virtual_lights.h_usr) +
                   " m over the footprint + " + short_num(s.virtual_lights.margin) + " m margin, " +
                   std::to_string(p.lights.z.size() - p.lights.base_layer) + " layers from the cloud base up, " +
-                  std::to_string(p.lights.base_layer) + " below (Eq. 4, epsilon " + short_num(s.virtual_lights.epsilon) + ")");
+                  std::to_string(p.lights.base_layer) + " below (Eq. 4, epsilon " +
+                  short_num(s.virtual_lights.epsilon) + ")");
 
     p.metadata.key = scene_key(s, density);
     p.metadata.lighting = p.lighting;
     p.metadata.directions = p.output_directions;
-    p.metadata.content = (p.single ? basis::FgbMetadata::kContentSingle : 0u) |
-                         (p.multiple ? basis::FgbMetadata::kContentMultiple : 0u);
+    p.metadata.content =
+        (p.single ? basis::FgbMetadata::kContentSingle : 0u) | (p.multiple ? basis::FgbMetadata::kContentMultiple : 0u);
     p.metadata.components = p.components;
     p.metadata.lights = p.lights;
     p.metadata.compression = s.compression;
@@ -330,8 +339,8 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
                 const double f = std::fmod(0.5 + k * a, 1.0);
                 return std::min(n - 1, std::size_t(f * double(n)));
             };
-            samples.push_back(std::uint32_t(
-                g.index(pick(0.6180339887, g.x.size()), pick(0.7548776662, g.y.size()), pick(0.5698402910, g.z.size()))));
+            samples.push_back(std::uint32_t(g.index(pick(0.6180339887, g.x.size()), pick(0.7548776662, g.y.size()),
+                                                    pick(0.5698402910, g.z.size()))));
         }
         const int saved = core::thread_count();
         core::set_thread_count(1);

@@ -47,7 +47,7 @@ struct Solution {
     /// Power scattered once by the cloud, sum over voxels of sigma_s phi1 h^3 (W), where
     /// phi1 is the uncollided fluence: the drop criterion for virtual lights.
     double first_scattered_power = 0.0;
-    int iterations = 0;               ///< lattice steps (0 for Monte Carlo or no solve)
+    int iterations = 0;  ///< lattice steps (0 for Monte Carlo or no solve)
     bool converged = true;
     double seconds_single = 0.0, seconds_multiple = 0.0;
 };
@@ -67,20 +67,20 @@ Solution solve(const scene::Scene& s, const transport::LightingMedium& medium,
 
 /// What a bake will do, and why. Printable (to_text) before baking; `--dry-run` prints only this.
 struct Plan {
-    core::GridGeometry lighting;         ///< lighting grid
-    basis::VirtualLightGrid lights;      ///< virtual-light grid
+    core::GridGeometry lighting;                ///< lighting grid
+    basis::VirtualLightGrid lights;             ///< virtual-light grid
     std::vector<glm::dvec3> output_directions;  ///< the baked output directions
-    int directions = 1;                  ///< output_directions.size()
-    bool single = true;                  ///< direct term baked
-    bool multiple = true;                ///< transport solver runs
-    std::uint32_t components = 1;        ///< 2: single and multiple stored separately
-    std::string solver;                  ///< "lattice_boltzmann", "monte_carlo" or "none"
-    std::vector<std::string> reasons;    ///< one line per decision ("g = 0: 1 direction instead of 26", ...)
-    std::uint64_t raw_bytes = 0;         ///< uncompressed float32 size of all bases
-    std::uint64_t expected_bytes = 0;    ///< estimated compressed size (0: not estimated)
-    double expected_seconds = 0.0;       ///< estimated wall time on this machine (0: not estimated)
-    int threads = 1;                     ///< worker threads the bake will use
-    basis::FgbMetadata metadata;         ///< what the file will hold (key, grids, directions)
+    int directions = 1;                         ///< output_directions.size()
+    bool single = true;                         ///< direct term baked
+    bool multiple = true;                       ///< transport solver runs
+    std::uint32_t components = 1;               ///< 2: single and multiple stored separately
+    std::string solver;                         ///< "lattice_boltzmann", "monte_carlo" or "none"
+    std::vector<std::string> reasons;           ///< one line per decision ("g = 0: 1 direction instead of 26", ...)
+    std::uint64_t raw_bytes = 0;                ///< uncompressed float32 size of all bases
+    std::uint64_t expected_bytes = 0;           ///< estimated compressed size (0: not estimated)
+    double expected_seconds = 0.0;              ///< estimated wall time on this machine (0: not estimated)
+    int threads = 1;                            ///< worker threads the bake will use
+    basis::FgbMetadata metadata;                ///< what the file will hold (key, grids, directions)
     std::string to_text() const;
 };
 struct PlanOptions {
@@ -108,10 +108,10 @@ struct Report {
     std::size_t lights = 0, lights_dropped = 0;
     std::uint64_t raw_bytes = 0, file_bytes = 0, coefficients_kept = 0;
     double compression_ratio = 0.0;
-    double relative_l2_error = 0.0;      ///< compressed vs uncompressed bases, over all lights and directions
+    double relative_l2_error = 0.0;  ///< compressed vs uncompressed bases, over all lights and directions
     double mean_solver_iterations = 0.0, max_solver_iterations = 0.0;
-    std::size_t unconverged = 0;         ///< lights whose solver hit its iteration cap
-    double max_dropped_fraction = 0.0;   ///< largest first-scattered power fraction of a dropped light
+    std::size_t unconverged = 0;        ///< lights whose solver hit its iteration cap
+    double max_dropped_fraction = 0.0;  ///< largest first-scattered power fraction of a dropped light
     int threads = 1;
 };
 

@@ -41,10 +41,10 @@ namespace fulgur::basis {
 
 /// Spacing of the virtual-light grid (paper section 5).
 struct VirtualLightParams {
-    double h_usr = 1000.0;     ///< base interval (m): horizontal spacing, and vertical above the cloud base
-    double epsilon = 1e-7;     ///< Eq. 4 bound on 1/r_l^2 - 1/r_{l+1}^2 below the base (1/m^2)
-    double margin = 1000.0;    ///< horizontal margin around the cloud's footprint (m)
-    double ground_height = 0.0;  ///< lowest layer of virtual lights (m)
+    double h_usr = 1000.0;            ///< base interval (m): horizontal spacing, and vertical above the cloud base
+    double epsilon = 1e-7;            ///< Eq. 4 bound on 1/r_l^2 - 1/r_{l+1}^2 below the base (1/m^2)
+    double margin = 1000.0;           ///< horizontal margin around the cloud's footprint (m)
+    double ground_height = 0.0;       ///< lowest layer of virtual lights (m)
     double density_threshold = 0.05;  ///< a voxel belongs to the cloud when its density exceeds this
 };
 
@@ -59,8 +59,8 @@ inline constexpr std::size_t kMaxVirtualLights = std::size_t(1) << 22;
 /// Light l = i + nx * (j + ny * k) sits at (x[i], y[j], z[k]).
 struct VirtualLightGrid {
     std::vector<double> x, y, z;
-    double cloud_base = 0.0;  ///< z of the cloud's bottom (a node of z: z[base_layer])
-    double cloud_top = 0.0;   ///< z of the cloud's top (z.back() >= cloud_top)
+    double cloud_base = 0.0;     ///< z of the cloud's bottom (a node of z: z[base_layer])
+    double cloud_top = 0.0;      ///< z of the cloud's top (z.back() >= cloud_top)
     std::size_t base_layer = 0;  ///< index in z of the cloud base; layers below follow Eq. 4
 
     std::size_t count() const noexcept { return x.size() * y.size() * z.size(); }
@@ -236,9 +236,9 @@ void validate(const CompressionParams& p, std::string_view where);
 struct CompressedBasis {
     std::vector<std::uint32_t> index;  ///< position in the Haar coefficient array (x fastest)
     std::vector<float> value;          ///< the stored value (already rounded to the precision)
-    double gamma = 0.0;  ///< paper's gamma: sqrt(sum of squares of the dropped coefficients)
-    double norm = 0.0;   ///< ||B||_2 of all coefficients before thresholding (= ||b||_2)
-    int scale_exp = 0;   ///< float16 only: value = half * 2^scale_exp; 0 for float32
+    double gamma = 0.0;                ///< paper's gamma: sqrt(sum of squares of the dropped coefficients)
+    double norm = 0.0;                 ///< ||B||_2 of all coefficients before thresholding (= ||b||_2)
+    int scale_exp = 0;                 ///< float16 only: value = half * 2^scale_exp; 0 for float32
 
     std::size_t size() const noexcept { return index.size(); }
     bool operator==(const CompressedBasis&) const = default;
@@ -312,8 +312,8 @@ std::uint64_t hash_description(std::string_view text) noexcept;
 /// Everything in a .fgb file besides the per-light blocks.
 struct FgbMetadata {
     BakeKey key;
-    core::GridGeometry lighting;          ///< the grid the bases live on
-    std::vector<glm::dvec3> directions;   ///< output directions s_m (unit vectors), 1..64
+    core::GridGeometry lighting;         ///< the grid the bases live on
+    std::vector<glm::dvec3> directions;  ///< output directions s_m (unit vectors), 1..64
     /// What the bases hold, a mask of kContentSingle (order 1, the direct term) and
     /// kContentMultiple (orders >= 2). With components == 1 each (light, direction) has one
     /// basis holding the sum of the content; with components == 2 (content must be both)
@@ -321,7 +321,7 @@ struct FgbMetadata {
     /// show either (both are linear: summing them into one accumulator costs no extra
     /// inverse transform).
     std::uint32_t content = kContentSingle | kContentMultiple;
-    std::uint32_t components = 1;         ///< 1 or 2 (see content)
+    std::uint32_t components = 1;  ///< 1 or 2 (see content)
     VirtualLightGrid lights;
     CompressionParams compression;
     bool operator==(const FgbMetadata&) const = default;

@@ -42,25 +42,32 @@ int float16_scale_exp(double max_magnitude) {
 
 std::string_view to_string(ThresholdMode m) noexcept {
     switch (m) {
-        case ThresholdMode::Absolute: return "absolute";
-        case ThresholdMode::RelativeL2: return "relative_l2";
-        case ThresholdMode::Energy: return "energy";
+        case ThresholdMode::Absolute:
+            return "absolute";
+        case ThresholdMode::RelativeL2:
+            return "relative_l2";
+        case ThresholdMode::Energy:
+            return "energy";
     }
     return "unknown";
 }
 
 std::string_view to_string(Decomposition d) noexcept {
     switch (d) {
-        case Decomposition::Standard: return "standard";
-        case Decomposition::NonStandard: return "nonstandard";
+        case Decomposition::Standard:
+            return "standard";
+        case Decomposition::NonStandard:
+            return "nonstandard";
     }
     return "unknown";
 }
 
 std::string_view to_string(Entropy e) noexcept {
     switch (e) {
-        case Entropy::None: return "none";
-        case Entropy::Deflate: return "deflate";
+        case Entropy::None:
+            return "none";
+        case Entropy::Deflate:
+            return "deflate";
     }
     return "unknown";
 }
@@ -77,7 +84,8 @@ void sort_canonical(CompressedBasis& b) {
     for (std::size_t k = 0; k < n; ++k) {
         const std::uint32_t bits = std::bit_cast<std::uint32_t>(b.value[k]);
         FULGUR_ASSERT(b.index[k] < (1u << 31), "sort_canonical: index beyond 2^31");
-        key[k] = (std::uint64_t(0x7fffffffu - (bits & 0x7fffffffu)) << 32) | (std::uint64_t(b.index[k]) << 1) | (bits >> 31);
+        key[k] =
+            (std::uint64_t(0x7fffffffu - (bits & 0x7fffffffu)) << 32) | (std::uint64_t(b.index[k]) << 1) | (bits >> 31);
         sorted = sorted && (k == 0 || key[k - 1] < key[k]);
     }
     if (sorted) return;
@@ -92,8 +100,10 @@ void sort_canonical(CompressedBasis& b) {
 
 std::string_view to_string(Precision p) noexcept {
     switch (p) {
-        case Precision::Float32: return "float32";
-        case Precision::Float16: return "float16";
+        case Precision::Float32:
+            return "float32";
+        case Precision::Float16:
+            return "float16";
     }
     return "unknown";
 }
@@ -108,11 +118,10 @@ void validate(const CompressionParams& p, std::string_view where) {
         throw core::Error(std::string(where) + ".decomposition", "unknown Haar decomposition");
     if (p.entropy != Entropy::None && p.entropy != Entropy::Deflate)
         throw core::Error(std::string(where) + ".entropy", "unknown entropy coding");
-    if (!std::isfinite(p.xi) || p.xi < 0.0)
-        throw core::Error(w, "must be finite and >= 0, got " + num(p.xi));
+    if (!std::isfinite(p.xi) || p.xi < 0.0) throw core::Error(w, "must be finite and >= 0, got " + num(p.xi));
     if (p.mode == ThresholdMode::Energy && p.xi > 1.0)
-        throw core::Error(w, "is the fraction of energy kept with threshold \"energy\": must be in [0, 1], got " +
-                                 num(p.xi));
+        throw core::Error(
+            w, "is the fraction of energy kept with threshold \"energy\": must be in [0, 1], got " + num(p.xi));
 }
 
 std::size_t CompressedLight::coefficient_count() const noexcept {
@@ -237,7 +246,8 @@ CompressedLight compress_light(std::uint32_t light, const transport::SourceField
         const std::span<const float> s = field.direction(m);
         for (std::size_t i = 0; i < s.size(); ++i) {
             if (!std::isfinite(s[i]))
-                throw core::Error(where, "cell " + std::to_string(i) + " of the basis is not finite (" + num(s[i]) + ")");
+                throw core::Error(where,
+                                  "cell " + std::to_string(i) + " of the basis is not finite (" + num(s[i]) + ")");
             buf[i] = double(s[i]);
         }
         plan.forward(buf);

@@ -9,11 +9,13 @@ namespace fulgur::basis {
 
 namespace {
 
-std::string describe(std::span<const WeightedLight> lights, std::size_t direction, const std::vector<glm::dvec3>& dirs) {
+std::string describe(std::span<const WeightedLight> lights, std::size_t direction,
+                     const std::vector<glm::dvec3>& dirs) {
     std::ostringstream s;
     s.precision(6);
     s << "direction " << direction;
-    if (direction < dirs.size()) s << " (" << dirs[direction].x << "," << dirs[direction].y << "," << dirs[direction].z << ")";
+    if (direction < dirs.size())
+        s << " (" << dirs[direction].x << "," << dirs[direction].y << "," << dirs[direction].z << ")";
     s << ", sum of";
     std::size_t shown = 0;
     for (const WeightedLight& l : lights) {
@@ -42,7 +44,8 @@ core::Grid3<float> reconstruct(const BakedBasis& baked, std::span<const Weighted
             throw core::Error("reconstruct", "the weight of light " + std::to_string(wl.light) + " is not finite");
         const CompressedLight& cl = baked.lights[wl.light];
         FULGUR_ASSERT(cl.directions.size() == m.bases(), "reconstruct: light without all bases");
-        for (std::size_t c = 0; c < m.components; ++c) accumulate(cl.directions[m.basis_index(c, direction)], wl.weight, coeffs);
+        for (std::size_t c = 0; c < m.components; ++c)
+            accumulate(cl.directions[m.basis_index(c, direction)], wl.weight, coeffs);
     }
     HaarTransform<double> plan(m.lighting.dims, m.compression.decomposition);
     plan.inverse(coeffs);
@@ -82,8 +85,7 @@ void export_compressed_nrrd(const std::filesystem::path& path, const BakedBasis&
     c << "Fulgur source function S, reconstructed from the compressed bake (threshold "
       << to_string(baked.meta.compression.mode) << " xi=" << baked.meta.compression.xi << ", "
       << to_string(baked.meta.compression.precision) << ", " << to_string(baked.meta.compression.decomposition)
-      << " Haar, no ambient term), "
-      << describe(lights, direction, baked.meta.directions);
+      << " Haar, no ambient term), " << describe(lights, direction, baked.meta.directions);
     core::write_nrrd(path, g, c.str());
 }
 

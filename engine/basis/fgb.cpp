@@ -149,7 +149,8 @@ public:
         return c;
     }
     const std::uint8_t* take(std::size_t n, const std::string& field) {
-        if (remaining() < n) fail(field, "needs " + std::to_string(n) + " bytes, " + std::to_string(remaining()) + " remain");
+        if (remaining() < n)
+            fail(field, "needs " + std::to_string(n) + " bytes, " + std::to_string(remaining()) + " remain");
         const std::uint8_t* q = p_ + pos_;
         pos_ += n;
         return q;
@@ -220,8 +221,8 @@ FgbMetadata decode_metadata(ByteReader& r, std::uint64_t scene_hash, const std::
     core::validate_geometry(m.lighting, name + " (byte " + std::to_string(geom_at) + ") metadata.lighting");
     if (m.lighting.cell_count() > kMaxFgbCells)
         throw core::Error(name + " (byte " + std::to_string(geom_at) + ")",
-                          "metadata.lighting: " + std::to_string(m.lighting.cell_count()) + " cells, the format allows " +
-                              std::to_string(kMaxFgbCells));
+                          "metadata.lighting: " + std::to_string(m.lighting.cell_count()) +
+                              " cells, the format allows " + std::to_string(kMaxFgbCells));
 
     const std::uint32_t ndir = r.count("metadata.direction count", 24, std::uint32_t(fgb::kMaxDirections));
     if (ndir == 0) r.fail("metadata.direction count", "must be at least 1");
@@ -235,17 +236,19 @@ FgbMetadata decode_metadata(ByteReader& r, std::uint64_t scene_hash, const std::
         v.z = r.get_finite(f + ".z");
         const double len = std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
         if (!(std::fabs(len - 1.0) <= 1e-9))
-            throw core::Error(name + " (byte " + std::to_string(at) + ")", f + ": not a unit vector (length " + num(len) + ")");
+            throw core::Error(name + " (byte " + std::to_string(at) + ")",
+                              f + ": not a unit vector (length " + num(len) + ")");
     }
     m.content = r.get<std::uint32_t>("metadata.content");
     if (m.content < 1 || m.content > 3)
-        r.fail("metadata.content", "mask " + std::to_string(m.content) + ", expected 1 (single), 2 (multiple) or 3 (both)");
+        r.fail("metadata.content",
+               "mask " + std::to_string(m.content) + ", expected 1 (single), 2 (multiple) or 3 (both)");
     m.components = r.get<std::uint32_t>("metadata.components");
     if (m.components < 1 || m.components > 2)
         r.fail("metadata.components", std::to_string(m.components) + ", expected 1 or 2");
     if (m.components == 2 && m.content != 3)
-        r.fail("metadata.components", "2 separate components need content 3 (single and multiple), got " +
-                                          std::to_string(m.content));
+        r.fail("metadata.components",
+               "2 separate components need content 3 (single and multiple), got " + std::to_string(m.content));
 
     std::uint32_t nl[3];
     const char* axis_names[3] = {"x", "y", "z"};
@@ -292,8 +295,8 @@ FgbMetadata decode_metadata(ByteReader& r, std::uint64_t scene_hash, const std::
     }
     const std::uint32_t ib = r.get<std::uint32_t>("metadata.index_bytes");
     if (int(ib) != m.index_bytes())
-        r.fail("metadata.index_bytes", std::to_string(ib) + " does not match the grid (" +
-                                           std::to_string(m.index_bytes()) + " expected)");
+        r.fail("metadata.index_bytes",
+               std::to_string(ib) + " does not match the grid (" + std::to_string(m.index_bytes()) + " expected)");
     const std::uint32_t ent = r.get<std::uint32_t>("metadata.compression.entropy");
     if (ent > 1) r.fail("metadata.compression.entropy", "unknown entropy coding " + std::to_string(ent));
     m.compression.entropy = Entropy(ent);
@@ -327,7 +330,8 @@ void decode_plain(ByteReader& r, const std::vector<std::uint32_t>& counts, const
         b.index.resize(n);
         b.value.resize(n);
         for (std::uint32_t k = 0; k < n; ++k) {
-            const std::uint32_t idx = ib == 2 ? std::uint32_t(peek<std::uint16_t>(ip + 2 * k)) : peek<std::uint32_t>(ip + 4 * k);
+            const std::uint32_t idx =
+                ib == 2 ? std::uint32_t(peek<std::uint16_t>(ip + 2 * k)) : peek<std::uint32_t>(ip + 4 * k);
             if (idx >= cells)
                 fail_at(idx_at + k * ib, f + " coefficient " + std::to_string(k) + ": index " + std::to_string(idx) +
                                              " outside the " + std::to_string(cells) + " cells");
@@ -377,8 +381,8 @@ inline bool plane_value(const std::uint8_t* planes, std::size_t plane_stride, st
 /// Entropy::Deflate: u32 stream size, then a zlib stream to the end of the block holding
 /// every basis' index gaps (LEB128) followed by the value byte planes of all coefficients.
 template <class Fail>
-void decode_deflated(ByteReader& r, const std::vector<std::uint32_t>& counts, const FgbMetadata& m, CompressedLight& out,
-                     bool canonical, const Fail& fail_at) {
+void decode_deflated(ByteReader& r, const std::vector<std::uint32_t>& counts, const FgbMetadata& m,
+                     CompressedLight& out, bool canonical, const Fail& fail_at) {
     const std::size_t vb = value_bytes(m.compression.precision);
     const std::uint64_t cells = m.cells();
     std::uint64_t total = 0;
@@ -388,14 +392,16 @@ void decode_deflated(ByteReader& r, const std::vector<std::uint32_t>& counts, co
     // Each gap takes 1..4 LEB128 bytes (indices < 2^26 < 2^28) and each value vb bytes.
     const std::uint64_t lo = total * (1 + vb), hi = total * (4 + vb);
     if (stream < lo || stream > hi)
-        fail_at(size_at, "block.stream size: " + std::to_string(stream) + " bytes cannot hold " + std::to_string(total) +
-                             " coefficients (" + std::to_string(lo) + " to " + std::to_string(hi) + " expected)");
+        fail_at(size_at, "block.stream size: " + std::to_string(stream) + " bytes cannot hold " +
+                             std::to_string(total) + " coefficients (" + std::to_string(lo) + " to " +
+                             std::to_string(hi) + " expected)");
     const std::uint64_t packed = r.remaining();
     if (stream > packed * fgb::kMaxInflateRatio + 64)
         fail_at(size_at, "block.stream size: " + std::to_string(stream) + " bytes cannot come out of " +
                              std::to_string(packed) + " deflated bytes");
     if (packed > std::numeric_limits<uInt>::max())
-        fail_at(size_at, "block.stream: " + std::to_string(packed) + " deflated bytes exceed the format's 4 GiB per block");
+        fail_at(size_at,
+                "block.stream: " + std::to_string(packed) + " deflated bytes exceed the format's 4 GiB per block");
     const std::uint64_t data_at = r.offset();
     const std::uint8_t* src = r.take(std::size_t(packed), "block.stream");
     std::vector<std::uint8_t> buf(std::size_t(stream) + 1);  // + 1: zlib wants a non-null output even for 0 bytes
@@ -410,13 +416,14 @@ void decode_deflated(ByteReader& r, const std::vector<std::uint32_t>& counts, co
         const std::uint64_t in_used = z.total_in, out_made = z.total_out;
         inflateEnd(&z);
         if (rc != Z_STREAM_END || out_made != stream || in_used != packed)
-            fail_at(data_at + in_used, "block.stream: the deflated coefficients are damaged (zlib: " +
-                                           std::string(rc == Z_STREAM_END ? "ends with " + std::to_string(packed - in_used) +
-                                                                                " bytes unread"
-                                                       : rc == Z_BUF_ERROR ? "more data than the stream size"
-                                                       : rc == Z_DATA_ERROR ? "invalid data"
-                                                                            : "error " + std::to_string(rc)) +
-                                           ", " + std::to_string(out_made) + " of " + std::to_string(stream) + " bytes)");
+            fail_at(
+                data_at + in_used,
+                "block.stream: the deflated coefficients are damaged (zlib: " +
+                    std::string(rc == Z_STREAM_END   ? "ends with " + std::to_string(packed - in_used) + " bytes unread"
+                                : rc == Z_BUF_ERROR  ? "more data than the stream size"
+                                : rc == Z_DATA_ERROR ? "invalid data"
+                                                     : "error " + std::to_string(rc)) +
+                    ", " + std::to_string(out_made) + " of " + std::to_string(stream) + " bytes)");
     }
     // Offsets inside the inflated stream are reported relative to the stream's start.
     const std::uint64_t gaps_size = stream - total * vb;
@@ -435,8 +442,11 @@ void decode_deflated(ByteReader& r, const std::vector<std::uint32_t>& counts, co
             const std::size_t at = pos;
             std::uint64_t gap = 0;
             for (int shift = 0;; shift += 7) {
-                if (pos >= gaps_size) fail_in_stream(at, f + " coefficient " + std::to_string(k) + ": index gaps run past their part of the stream");
-                if (shift > 21) fail_in_stream(at, f + " coefficient " + std::to_string(k) + ": index gap longer than 4 bytes");
+                if (pos >= gaps_size)
+                    fail_in_stream(
+                        at, f + " coefficient " + std::to_string(k) + ": index gaps run past their part of the stream");
+                if (shift > 21)
+                    fail_in_stream(at, f + " coefficient " + std::to_string(k) + ": index gap longer than 4 bytes");
                 const std::uint8_t byte = buf[pos++];
                 gap |= std::uint64_t(byte & 0x7fu) << shift;
                 if (!(byte & 0x80u)) break;
@@ -453,8 +463,7 @@ void decode_deflated(ByteReader& r, const std::vector<std::uint32_t>& counts, co
         }
         if (canonical) sort_canonical(b);
     }
-    if (pos != gaps_size)
-        fail_in_stream(pos, std::to_string(gaps_size - pos) + " bytes of index gaps left over");
+    if (pos != gaps_size) fail_in_stream(pos, std::to_string(gaps_size - pos) + " bytes of index gaps left over");
 }
 
 CompressedLight decode_block(const std::uint8_t* data, std::size_t size, std::uint64_t file_offset,
@@ -472,8 +481,8 @@ CompressedLight decode_block(const std::uint8_t* data, std::size_t size, std::ui
     const std::uint64_t ndir_at = r.offset();
     const std::uint32_t ndir = r.get<std::uint32_t>("block.basis count");
     if (ndir != m.bases())
-        fail_at(ndir_at, "block.basis count: " + std::to_string(ndir) + ", the file has " +
-                             std::to_string(m.bases()) + " bases (components x directions)");
+        fail_at(ndir_at, "block.basis count: " + std::to_string(ndir) + ", the file has " + std::to_string(m.bases()) +
+                             " bases (components x directions)");
     const std::uint64_t cells = m.cells();
     CompressedLight out;
     out.light = light;
@@ -488,7 +497,8 @@ CompressedLight decode_block(const std::uint8_t* data, std::size_t size, std::ui
                             std::to_string(cells) + " cells");
         CompressedBasis& b = out.directions[d];
         b.scale_exp = r.get<std::int32_t>(f + "scale_exp");
-        if (m.compression.precision == Precision::Float32 ? b.scale_exp != 0 : (b.scale_exp < -125 || b.scale_exp > 112))
+        if (m.compression.precision == Precision::Float32 ? b.scale_exp != 0
+                                                          : (b.scale_exp < -125 || b.scale_exp > 112))
             fail_at(at + 4, f + "scale_exp: " + std::to_string(b.scale_exp) + " is out of range");
         if (counts[d] == 0 && b.scale_exp != 0) fail_at(at + 4, f + "scale_exp: must be 0 for an empty basis");
         b.gamma = r.get<double>(f + "gamma");
@@ -549,7 +559,8 @@ std::uint32_t fgb::header_crc(std::span<const std::uint8_t> file, std::uint64_t 
     const std::uint8_t zero[4] = {0, 0, 0, 0};
     crc = ::crc32(crc, file.data(), uInt(kOffHeaderCrc));
     crc = ::crc32(crc, zero, 4);
-    const std::span<const std::uint8_t> rest = file.subspan(kOffHeaderCrc + 4, std::size_t(blocks_offset) - kOffHeaderCrc - 4);
+    const std::span<const std::uint8_t> rest =
+        file.subspan(kOffHeaderCrc + 4, std::size_t(blocks_offset) - kOffHeaderCrc - 4);
     const std::uint32_t tail = crc32_of(rest);
     // Combine without re-reading: crc32_combine(crc(A), crc(B), len(B)).
     return std::uint32_t(::crc32_combine(crc, tail, z_off_t(rest.size())));
@@ -583,8 +594,8 @@ void validate(const FgbMetadata& m, std::string_view where) {
     if (m.content < 1 || m.content > 3)
         throw core::Error(w + ".content", "mask " + std::to_string(m.content) + ", expected 1, 2 or 3");
     if (m.components < 1 || m.components > 2 || (m.components == 2 && m.content != 3))
-        throw core::Error(w + ".components", std::to_string(m.components) +
-                                                 ", expected 1, or 2 with content 3 (single and multiple)");
+        throw core::Error(w + ".components",
+                          std::to_string(m.components) + ", expected 1, or 2 with content 3 (single and multiple)");
     validate(m.compression, w + ".compression");
     if (m.key.description.size() > kMaxDescription) throw core::Error(w + ".key", "description longer than 16 MiB");
 }
@@ -593,7 +604,8 @@ namespace {
 
 std::uint16_t half_bits(float v, int scale_exp) {
     const std::uint16_t h = float_to_half(std::ldexp(v, -scale_exp));
-    FULGUR_ASSERT((h & 0x7c00u) != 0x7c00u, "encode_block: value not representable in float16 (not compressed for float16?)");
+    FULGUR_ASSERT((h & 0x7c00u) != 0x7c00u,
+                  "encode_block: value not representable in float16 (not compressed for float16?)");
     return h;
 }
 
@@ -634,7 +646,8 @@ void encode_deflated(const CompressedLight& light, bool f16, ByteWriter& w) {
     for (const CompressedBasis& b : light.directions) {
         order.resize(b.size());
         for (std::uint32_t k = 0; k < order.size(); ++k) order[k] = k;
-        std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t c) { return b.index[a] < b.index[c]; });
+        std::sort(order.begin(), order.end(),
+                  [&](std::uint32_t a, std::uint32_t c) { return b.index[a] < b.index[c]; });
         std::uint64_t next = 0;
         for (std::uint32_t k : order) {
             FULGUR_ASSERT(b.index[k] >= next, "encode_block: a basis holds the same index twice");
@@ -645,13 +658,15 @@ void encode_deflated(const CompressedLight& light, bool f16, ByteWriter& w) {
                 gap >>= 7;
             }
             gaps.push_back(std::uint8_t(gap));
-            const std::uint32_t bits = f16 ? half_bits(b.value[k], b.scale_exp) : std::bit_cast<std::uint32_t>(b.value[k]);
+            const std::uint32_t bits =
+                f16 ? half_bits(b.value[k], b.scale_exp) : std::bit_cast<std::uint32_t>(b.value[k]);
             for (std::size_t p = 0; p < vb; ++p) planes[p * total + coef] = std::uint8_t(bits >> (8 * (vb - 1 - p)));
             ++coef;
         }
     }
     gaps.insert(gaps.end(), planes.begin(), planes.end());
-    FULGUR_ASSERT(gaps.size() <= std::numeric_limits<std::uint32_t>::max(), "encode_block: block too large for the format");
+    FULGUR_ASSERT(gaps.size() <= std::numeric_limits<std::uint32_t>::max(),
+                  "encode_block: block too large for the format");
     uLongf packed = compressBound(uLong(gaps.size()));
     std::vector<std::uint8_t> z(packed);
     if (compress2(z.data(), &packed, gaps.data(), uLong(gaps.size()), 3) != Z_OK) throw std::bad_alloc();
@@ -662,7 +677,8 @@ void encode_deflated(const CompressedLight& light, bool f16, ByteWriter& w) {
 }  // namespace
 
 EncodedBlock encode_block(const CompressedLight& light, const FgbMetadata& m) {
-    FULGUR_ASSERT(light.directions.size() == m.bases(), "encode_block: basis count differs from the file's (components x directions)");
+    FULGUR_ASSERT(light.directions.size() == m.bases(),
+                  "encode_block: basis count differs from the file's (components x directions)");
     const bool f16 = m.compression.precision == Precision::Float16;
     ByteWriter w;
     w.put(fgb::kBlockMagic);
@@ -670,7 +686,8 @@ EncodedBlock encode_block(const CompressedLight& light, const FgbMetadata& m) {
     w.put(std::uint32_t(light.directions.size()));
     for (const CompressedBasis& b : light.directions) {
         FULGUR_ASSERT(b.index.size() == b.value.size() && b.size() <= m.cells(), "encode_block: malformed basis");
-        for (std::uint32_t idx : b.index) FULGUR_ASSERT(idx < m.cells(), "encode_block: coefficient index outside the grid");
+        for (std::uint32_t idx : b.index)
+            FULGUR_ASSERT(idx < m.cells(), "encode_block: coefficient index outside the grid");
         w.put(std::uint32_t(b.size()));
         w.put(std::int32_t(b.scale_exp));
         w.put(b.gamma);
@@ -782,8 +799,9 @@ void FgbWriter::finish() {
     for (std::size_t i = 0; i < w.entries.size(); ++i)
         if (!w.entries[i].present && missing++ == 0) first_missing = w.begin + i;
     if (missing)
-        throw core::Error(w.path.string(), std::to_string(missing) + " of the lights " + describe_range(w.begin, w.end) +
-                                               " were never added (first: light " + std::to_string(first_missing) + ")");
+        throw core::Error(w.path.string(), std::to_string(missing) + " of the lights " +
+                                               describe_range(w.begin, w.end) + " were never added (first: light " +
+                                               std::to_string(first_missing) + ")");
     Header h;
     h.file_size = w.cursor;
     h.scene_hash = w.meta.key.hash;
@@ -851,7 +869,8 @@ struct FgbReader::Impl {
         file.seekg(std::streamoff(offset));
         file.read(reinterpret_cast<char*>(out.data()), std::streamsize(n));
         if (!file || std::uint64_t(file.gcount()) != n)
-            throw core::Error(at(offset), "read of " + std::to_string(n) + " bytes failed (file changed or unreadable)");
+            throw core::Error(at(offset),
+                              "read of " + std::to_string(n) + " bytes failed (file changed or unreadable)");
         return out;
     }
 
@@ -862,18 +881,20 @@ struct FgbReader::Impl {
 void FgbReader::Impl::open() {
     using namespace fgb;
     if (size < kHeaderSize)
-        throw core::Error(name, "truncated: the file has " + std::to_string(size) + " bytes, the fixed header alone is " +
-                                    std::to_string(kHeaderSize));
+        throw core::Error(name, "truncated: the file has " + std::to_string(size) +
+                                    " bytes, the fixed header alone is " + std::to_string(kHeaderSize));
     const std::vector<std::uint8_t> head = read(0, kHeaderSize);
     if (std::memcmp(head.data(), kMagic, 8) != 0) {
         if (head[1] == 'F' && head[2] == 'G' && head[3] == 'B')
-            throw core::Error(at(0), "header.magic: damaged signature (line endings converted by a text-mode transfer?)");
+            throw core::Error(at(0),
+                              "header.magic: damaged signature (line endings converted by a text-mode transfer?)");
         throw core::Error(at(0), "header.magic: not a Fulgur baked-basis (.fgb) file");
     }
     h.version = peek<std::uint32_t>(head.data() + kOffVersion);
     if (h.version != kFgbVersion)
         throw core::Error(at(kOffVersion), "header.version: format version " + std::to_string(h.version) +
-                                               ", this build reads version " + std::to_string(kFgbVersion) + "; rebake");
+                                               ", this build reads version " + std::to_string(kFgbVersion) +
+                                               "; rebake");
     const std::uint32_t endian = peek<std::uint32_t>(head.data() + kOffEndian);
     if (endian != kEndianMarker)
         throw core::Error(at(kOffEndian), "header.endianness: marker " + hex32(endian) + ", expected " +
@@ -905,40 +926,48 @@ void FgbReader::Impl::open() {
         throw core::Error(at(kOffMetaOffset), "header.meta_offset: " + std::to_string(h.meta_offset) + ", expected " +
                                                   std::to_string(kHeaderSize));
     if (h.meta_size > size - h.meta_offset)
-        throw core::Error(at(kOffMetaSize), "header.meta_size: " + std::to_string(h.meta_size) + " bytes run past the end of the file");
+        throw core::Error(at(kOffMetaSize),
+                          "header.meta_size: " + std::to_string(h.meta_size) + " bytes run past the end of the file");
     if (h.index_offset != h.meta_offset + h.meta_size)
         throw core::Error(at(kOffIndexOffset), "header.index_offset: " + std::to_string(h.index_offset) +
-                                                   ", the metadata ends at " + std::to_string(h.meta_offset + h.meta_size));
+                                                   ", the metadata ends at " +
+                                                   std::to_string(h.meta_offset + h.meta_size));
     if (h.index_size > size - h.index_offset)
-        throw core::Error(at(kOffIndexSize), "header.index_size: " + std::to_string(h.index_size) + " bytes run past the end of the file");
+        throw core::Error(at(kOffIndexSize),
+                          "header.index_size: " + std::to_string(h.index_size) + " bytes run past the end of the file");
     if (h.blocks_offset != h.index_offset + h.index_size)
         throw core::Error(at(kOffBlocksOffset), "header.blocks_offset: " + std::to_string(h.blocks_offset) +
-                                                    ", the index ends at " + std::to_string(h.index_offset + h.index_size));
+                                                    ", the index ends at " +
+                                                    std::to_string(h.index_offset + h.index_size));
     if (h.blocks_size != size - h.blocks_offset)
-        throw core::Error(at(kOffBlocksSize), "header.blocks_size: " + std::to_string(h.blocks_size) + ", the blocks span " +
-                                                  std::to_string(size - h.blocks_offset) + " bytes to the end of the file");
+        throw core::Error(at(kOffBlocksSize), "header.blocks_size: " + std::to_string(h.blocks_size) +
+                                                  ", the blocks span " + std::to_string(size - h.blocks_offset) +
+                                                  " bytes to the end of the file");
 
     // Header CRC over header + metadata + index (bounded by the file size above).
     std::vector<std::uint8_t> region = read(0, h.blocks_offset);
     const std::uint32_t crc = header_crc(region, h.blocks_offset);
     if (crc != h.header_crc)
-        throw core::Error(at(kOffHeaderCrc), "header CRC mismatch: stored " + hex32(h.header_crc) + ", computed " + hex32(crc) +
-                                                 " over bytes [0, " + std::to_string(h.blocks_offset) +
+        throw core::Error(at(kOffHeaderCrc), "header CRC mismatch: stored " + hex32(h.header_crc) + ", computed " +
+                                                 hex32(crc) + " over bytes [0, " + std::to_string(h.blocks_offset) +
                                                  ") (header, metadata or index is corrupt)");
 
     // Light range and index.
     if (h.light_count == 0 || h.light_count > kMaxVirtualLights)
-        throw core::Error(at(kOffLightCount), "header.light_count: " + std::to_string(h.light_count) + " is out of range");
+        throw core::Error(at(kOffLightCount),
+                          "header.light_count: " + std::to_string(h.light_count) + " is out of range");
     if (!(h.light_begin < h.light_end && h.light_end <= h.light_count))
-        throw core::Error(at(kOffLightBegin), "header.light_begin/light_end: range " + describe_range(h.light_begin, h.light_end) +
-                                                  " is empty or outside the " + std::to_string(h.light_count) + " lights");
+        throw core::Error(at(kOffLightBegin),
+                          "header.light_begin/light_end: range " + describe_range(h.light_begin, h.light_end) +
+                              " is empty or outside the " + std::to_string(h.light_count) + " lights");
     const bool complete = h.light_begin == 0 && h.light_end == h.light_count;
     if (complete == bool(h.flags & kFlagPartial))
         throw core::Error(at(kOffFlags), "header.flags: the partial flag contradicts the light range");
     const std::uint64_t n = h.light_end - h.light_begin;
     if (h.index_size != n * kIndexEntrySize)
         throw core::Error(at(kOffIndexSize), "header.index_size: " + std::to_string(h.index_size) + " bytes for " +
-                                                 std::to_string(n) + " lights of " + std::to_string(kIndexEntrySize) + " bytes each");
+                                                 std::to_string(n) + " lights of " + std::to_string(kIndexEntrySize) +
+                                                 " bytes each");
 
     // Metadata.
     meta_bytes.assign(region.begin() + std::ptrdiff_t(h.meta_offset), region.begin() + std::ptrdiff_t(h.index_offset));
@@ -946,7 +975,8 @@ void FgbReader::Impl::open() {
     meta = decode_metadata(mr, h.scene_hash, name);
     if (meta.light_count() != h.light_count)
         throw core::Error(at(kOffLightCount), "header.light_count: " + std::to_string(h.light_count) +
-                                                  ", the virtual-light grid in the metadata has " + std::to_string(meta.light_count()));
+                                                  ", the virtual-light grid in the metadata has " +
+                                                  std::to_string(meta.light_count()));
 
     // Index: every block inside the block section; together they tile it without overlap.
     entries.resize(std::size_t(n));
@@ -967,8 +997,9 @@ void FgbReader::Impl::open() {
         const std::string who = "index entry of light " + std::to_string(expected);
         if (light != expected) throw core::Error(at(eo + 20), who + ": names light " + std::to_string(light));
         if (en.offset < h.blocks_offset || en.offset > size)
-            throw core::Error(at(eo), who + ": block offset " + std::to_string(en.offset) + " is outside the block section [" +
-                                          std::to_string(h.blocks_offset) + ", " + std::to_string(size) + ")");
+            throw core::Error(at(eo), who + ": block offset " + std::to_string(en.offset) +
+                                          " is outside the block section [" + std::to_string(h.blocks_offset) + ", " +
+                                          std::to_string(size) + ")");
         if (en.size < kBlockHeaderSize || en.size > size - en.offset)
             throw core::Error(at(eo + 8), who + ": block size " + std::to_string(en.size) + " at offset " +
                                               std::to_string(en.offset) + " does not fit in the file");
@@ -979,7 +1010,8 @@ void FgbReader::Impl::open() {
     for (const Span& s : spans) {
         if (s.offset != expect)
             throw core::Error(at(s.offset), "block of light " + std::to_string(s.light) +
-                                                (s.offset < expect ? " overlaps the previous block" : " leaves a gap after the previous block") +
+                                                (s.offset < expect ? " overlaps the previous block"
+                                                                   : " leaves a gap after the previous block") +
                                                 " (expected it at byte " + std::to_string(expect) + ")");
         expect = s.offset + s.size;
     }
@@ -1040,14 +1072,17 @@ void FgbReader::check_key(const BakeKey& expected) const {
         const std::string fl = i < f.size() ? "\"" + f[i] + "\"" : "nothing";
         const std::string el = i < e.size() ? "\"" + e[i] + "\"" : "nothing";
         if (fl != el) {
-            diff = "; first difference at line " + std::to_string(i + 1) + ": the file has " + fl + ", the scene has " + el;
+            diff = "; first difference at line " + std::to_string(i + 1) + ": the file has " + fl + ", the scene has " +
+                   el;
             break;
         }
     }
-    if (diff.empty()) diff = "; the descriptions are identical, only the hashes differ (hash function changed?)";
-    else if (have.hash == expected.hash) diff += " (equal hashes: a hash collision)";
-    throw core::Error(impl_->name, "stale bake: baked for scene hash " + hex64(have.hash) + ", the scene now hashes to " +
-                                       hex64(expected.hash) + diff + "; rebake it");
+    if (diff.empty())
+        diff = "; the descriptions are identical, only the hashes differ (hash function changed?)";
+    else if (have.hash == expected.hash)
+        diff += " (equal hashes: a hash collision)";
+    throw core::Error(impl_->name, "stale bake: baked for scene hash " + hex64(have.hash) +
+                                       ", the scene now hashes to " + hex64(expected.hash) + diff + "; rebake it");
 }
 
 /// Light l's block bytes after the CRC check (range, entry and CRC errors name the file).
@@ -1079,12 +1114,14 @@ std::uint64_t FgbReader::coefficient_count(std::uint32_t l) {
     const std::size_t bases = impl_->meta.bases();
     const std::size_t need = fgb::kBlockHeaderSize + bases * fgb::kBlockDirRecordSize;
     if (bytes.size() < need)
-        throw core::Error(impl_->at(offset), "light " + std::to_string(l) + ": block of " + std::to_string(bytes.size()) +
-                                                 " bytes is shorter than its table (" + std::to_string(need) + ")");
+        throw core::Error(impl_->at(offset), "light " + std::to_string(l) + ": block of " +
+                                                 std::to_string(bytes.size()) + " bytes is shorter than its table (" +
+                                                 std::to_string(need) + ")");
     std::uint64_t total = 0;
     for (std::size_t d = 0; d < bases; ++d)
-        total += std::min<std::uint64_t>(peek<std::uint32_t>(bytes.data() + fgb::kBlockHeaderSize + d * fgb::kBlockDirRecordSize),
-                                         impl_->meta.cells());
+        total += std::min<std::uint64_t>(
+            peek<std::uint32_t>(bytes.data() + fgb::kBlockHeaderSize + d * fgb::kBlockDirRecordSize),
+            impl_->meta.cells());
     return total;
 }
 
@@ -1106,8 +1143,9 @@ std::size_t BakedBasis::coefficient_count() const noexcept {
 
 BakedBasis load_fgb(FgbReader& reader, const LoadOptions& options) {
     if (reader.partial())
-        throw core::Error(reader.name(), "holds only lights " + describe_range(reader.light_begin(), reader.light_end()) +
-                                             " of " + std::to_string(reader.metadata().light_count()) +
+        throw core::Error(reader.name(), "holds only lights " +
+                                             describe_range(reader.light_begin(), reader.light_end()) + " of " +
+                                             std::to_string(reader.metadata().light_count()) +
                                              " (a partial bake); merge the parts first");
     if (options.expected_key) reader.check_key(*options.expected_key);
     BakedBasis out;
@@ -1137,13 +1175,18 @@ void merge_fgb(const std::filesystem::path& out, std::span<const std::filesystem
     const FgbMetadata& meta = readers.front().metadata();
     for (std::size_t i = 0; i < readers.size(); ++i) {
         if (!(readers[i].metadata() == meta))
-            throw core::Error(readers[i].name(), "cannot merge: its metadata (scene key, grids, directions or compression) "
-                                                 "differs from " + readers.front().name() + "'s");
-        if (i > 0 && readers[i].light_begin() != readers[i - 1].light_end())
             throw core::Error(readers[i].name(),
-                              std::string("cannot merge: lights ") + describe_range(readers[i].light_begin(), readers[i].light_end()) +
-                                  (readers[i].light_begin() < readers[i - 1].light_end() ? " overlap " : " leave a gap after ") +
-                                  readers[i - 1].name() + "'s " + describe_range(readers[i - 1].light_begin(), readers[i - 1].light_end()));
+                              "cannot merge: its metadata (scene key, grids, directions or compression) "
+                              "differs from " +
+                                  readers.front().name() + "'s");
+        if (i > 0 && readers[i].light_begin() != readers[i - 1].light_end())
+            throw core::Error(
+                readers[i].name(),
+                std::string("cannot merge: lights ") +
+                    describe_range(readers[i].light_begin(), readers[i].light_end()) +
+                    (readers[i].light_begin() < readers[i - 1].light_end() ? " overlap " : " leave a gap after ") +
+                    readers[i - 1].name() + "'s " +
+                    describe_range(readers[i - 1].light_begin(), readers[i - 1].light_end()));
     }
     FgbWriter writer(out, meta, readers.front().light_begin(), readers.back().light_end());
     for (FgbReader& r : readers)

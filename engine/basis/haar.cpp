@@ -166,7 +166,8 @@ FULGUR_INLINE_COPIES void inverse_row_level(T* __restrict x, T* __restrict tmp, 
 // (tmp holds the m elements packed, V apart.)
 
 template <class T>
-FULGUR_INLINE_COPIES void forward_vec_level(T* __restrict base, T* __restrict tmp, std::size_t V, std::size_t S, const Level<T>& L) {
+FULGUR_INLINE_COPIES void forward_vec_level(T* __restrict base, T* __restrict tmp, std::size_t V, std::size_t S,
+                                            const Level<T>& L) {
     const int m = L.m, h = L.half;
     const int regular = (m & 1) ? L.pairs : L.pairs - 1;
     for (int i = 0; i < regular; ++i) {
@@ -204,7 +205,8 @@ FULGUR_INLINE_COPIES void forward_vec_level(T* __restrict base, T* __restrict tm
 // detail still to be read: 2i + 1 < h + i' for every later pair i' > i, and the last pair
 // of an even level writes its second output over its own detail after reading it.
 template <class T>
-FULGUR_INLINE_COPIES void inverse_vec_level(T* __restrict base, T* __restrict tmp, std::size_t V, std::size_t S, const Level<T>& L) {
+FULGUR_INLINE_COPIES void inverse_vec_level(T* __restrict base, T* __restrict tmp, std::size_t V, std::size_t S,
+                                            const Level<T>& L) {
     const int m = L.m, h = L.half;
     const int regular = (m & 1) ? L.pairs : L.pairs - 1;
     for (int e = 0; e < h; ++e) {  // short runs: a loop beats memcpy's call overhead here
@@ -279,8 +281,8 @@ HaarTransform<T>::HaarTransform(core::Int3 dims, Decomposition d) : dims_(dims),
                     int L = std::min({axes_[0].detail_level[std::size_t(i)], axes_[1].detail_level[std::size_t(j)],
                                       axes_[2].detail_level[std::size_t(k)]});
                     if (L == std::numeric_limits<int>::max()) L = int(depth) + 1;  // coefficient 0
-                    const int e = axis_exponent(axes_[0], i, L) + axis_exponent(axes_[1], j, L) +
-                                  axis_exponent(axes_[2], k, L);
+                    const int e =
+                        axis_exponent(axes_[0], i, L) + axis_exponent(axes_[1], j, L) + axis_exponent(axes_[2], k, L);
                     factor_[idx] = powk_[std::size_t(e)];
                 }
     }
@@ -324,7 +326,8 @@ void HaarTransform<T>::forward(std::span<T> data) {
         for (std::size_t r = 0; r < ny * std::size_t(dims_.z); ++r)
             for (int l = 1; l <= Jx; ++l) forward_row_level<T>(d + r * nx, tmp, ax.levels[std::size_t(l - 1)]);
         for (int k = 0; k < dims_.z; ++k)
-            for (int l = 1; l <= Jy; ++l) forward_vec_level<T>(d + std::size_t(k) * nx * ny, tmp, nx, nx, ay.levels[std::size_t(l - 1)]);
+            for (int l = 1; l <= Jy; ++l)
+                forward_vec_level<T>(d + std::size_t(k) * nx * ny, tmp, nx, nx, ay.levels[std::size_t(l - 1)]);
         for (int l = 1; l <= Jz; ++l) forward_vec_level<T>(d, tmp, nx * ny, nx * ny, az.levels[std::size_t(l - 1)]);
     } else {
         const int J = std::max({Jx, Jy, Jz});
@@ -333,13 +336,16 @@ void HaarTransform<T>::forward(std::span<T> data) {
             if (l <= Jx)
                 for (int k = 0; k < mz; ++k)
                     for (int j = 0; j < my; ++j)
-                        forward_row_level<T>(d + nx * (std::size_t(j) + ny * std::size_t(k)), tmp, ax.levels[std::size_t(l - 1)]);
+                        forward_row_level<T>(d + nx * (std::size_t(j) + ny * std::size_t(k)), tmp,
+                                             ax.levels[std::size_t(l - 1)]);
             if (l <= Jy)
                 for (int k = 0; k < mz; ++k)
-                    forward_vec_level<T>(d + std::size_t(k) * nx * ny, tmp, std::size_t(mx), nx, ay.levels[std::size_t(l - 1)]);
+                    forward_vec_level<T>(d + std::size_t(k) * nx * ny, tmp, std::size_t(mx), nx,
+                                         ay.levels[std::size_t(l - 1)]);
             if (l <= Jz)
                 for (int j = 0; j < my; ++j)
-                    forward_vec_level<T>(d + std::size_t(j) * nx, tmp, std::size_t(mx), nx * ny, az.levels[std::size_t(l - 1)]);
+                    forward_vec_level<T>(d + std::size_t(j) * nx, tmp, std::size_t(mx), nx * ny,
+                                         az.levels[std::size_t(l - 1)]);
         }
     }
     scale(d);
@@ -357,7 +363,8 @@ void HaarTransform<T>::inverse(std::span<T> data) {
     if (decomposition_ == Decomposition::Standard) {
         for (int l = Jz; l >= 1; --l) inverse_vec_level<T>(d, tmp, nx * ny, nx * ny, az.levels[std::size_t(l - 1)]);
         for (int k = 0; k < dims_.z; ++k)
-            for (int l = Jy; l >= 1; --l) inverse_vec_level<T>(d + std::size_t(k) * nx * ny, tmp, nx, nx, ay.levels[std::size_t(l - 1)]);
+            for (int l = Jy; l >= 1; --l)
+                inverse_vec_level<T>(d + std::size_t(k) * nx * ny, tmp, nx, nx, ay.levels[std::size_t(l - 1)]);
         for (std::size_t r = 0; r < ny * std::size_t(dims_.z); ++r)
             for (int l = Jx; l >= 1; --l) inverse_row_level<T>(d + r * nx, tmp, ax.levels[std::size_t(l - 1)]);
     } else {
@@ -366,14 +373,17 @@ void HaarTransform<T>::inverse(std::span<T> data) {
             const int mx = block_length<T>(ax, l), my = block_length<T>(ay, l), mz = block_length<T>(az, l);
             if (l <= Jz)
                 for (int j = 0; j < my; ++j)
-                    inverse_vec_level<T>(d + std::size_t(j) * nx, tmp, std::size_t(mx), nx * ny, az.levels[std::size_t(l - 1)]);
+                    inverse_vec_level<T>(d + std::size_t(j) * nx, tmp, std::size_t(mx), nx * ny,
+                                         az.levels[std::size_t(l - 1)]);
             if (l <= Jy)
                 for (int k = 0; k < mz; ++k)
-                    inverse_vec_level<T>(d + std::size_t(k) * nx * ny, tmp, std::size_t(mx), nx, ay.levels[std::size_t(l - 1)]);
+                    inverse_vec_level<T>(d + std::size_t(k) * nx * ny, tmp, std::size_t(mx), nx,
+                                         ay.levels[std::size_t(l - 1)]);
             if (l <= Jx)
                 for (int k = 0; k < mz; ++k)
                     for (int j = 0; j < my; ++j)
-                        inverse_row_level<T>(d + nx * (std::size_t(j) + ny * std::size_t(k)), tmp, ax.levels[std::size_t(l - 1)]);
+                        inverse_row_level<T>(d + nx * (std::size_t(j) + ny * std::size_t(k)), tmp,
+                                             ax.levels[std::size_t(l - 1)]);
         }
     }
 }

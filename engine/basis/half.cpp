@@ -13,23 +13,23 @@ std::uint16_t double_to_half(double v) noexcept {
     const std::uint16_t sign = std::uint16_t((bits >> 48) & 0x8000u);
     const std::uint64_t x = bits & 0x7fffffffffffffffull;
     constexpr std::uint64_t kExpMask = 0x7ff0000000000000ull;
-    if (x >= kExpMask) {                                   // Inf or NaN
+    if (x >= kExpMask) {  // Inf or NaN
         if (x == kExpMask) return std::uint16_t(sign | 0x7c00u);
         // Quiet NaN; keep the top payload bits so a NaN stays a NaN.
         return std::uint16_t(sign | 0x7e00u | std::uint16_t((x >> 42) & 0x1ffu));
     }
-    const int e = int(x >> 52);                             // biased double exponent
+    const int e = int(x >> 52);  // biased double exponent
     const std::uint64_t mant = (x & 0x000fffffffffffffull) | (e ? 0x0010000000000000ull : 0);
     // |v| = mant * 2^(e - 1075) (e >= 1); a half is q * 2^(E - 25) with a 11-bit q.
-    if (e == 0) return sign;                                // double subnormals are far below half's range
+    if (e == 0) return sign;  // double subnormals are far below half's range
     const int unbiased = e - 1023;
     if (unbiased >= 16) return std::uint16_t(sign | 0x7c00u);  // >= 65536: overflow
-    int shift;        // right shift applied to the 53-bit mantissa
+    int shift;                                                 // right shift applied to the 53-bit mantissa
     std::uint32_t exp_field;
-    if (unbiased >= -14) {        // normal half: keep 11 significant bits
+    if (unbiased >= -14) {  // normal half: keep 11 significant bits
         shift = 42;
         exp_field = std::uint32_t(unbiased + 15);
-    } else {                      // subnormal half: value / 2^-24, rounded
+    } else {  // subnormal half: value / 2^-24, rounded
         shift = 42 + (-14 - unbiased);
         exp_field = 0;
         if (shift > 53) return sign;  // < 2^-25 (at most half the smallest subnormal, tie -> even 0)

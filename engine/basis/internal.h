@@ -25,7 +25,7 @@ namespace fgb {
 
 inline constexpr std::uint8_t kMagic[8] = {0x89, 'F', 'G', 'B', '\r', '\n', 0x1a, '\n'};
 inline constexpr std::uint32_t kEndianMarker = 0x01020304u;  // stored as 04 03 02 01
-inline constexpr std::uint32_t kBlockMagic = 0x4c424746u;   // "FGBL" on disk
+inline constexpr std::uint32_t kBlockMagic = 0x4c424746u;    // "FGBL" on disk
 inline constexpr std::uint32_t kFlagPartial = 1u;
 inline constexpr std::size_t kMaxDirections = 64;
 

@@ -21,7 +21,8 @@ std::string num(double v) {
 }
 
 void check_field(bool ok, std::string_view where, const char* field, double v, const char* expected) {
-    if (!ok) throw core::Error(std::string(where) + "." + field, "must be " + std::string(expected) + ", got " + num(v));
+    if (!ok)
+        throw core::Error(std::string(where) + "." + field, "must be " + std::string(expected) + ", got " + num(v));
 }
 
 // Nodes spaced exactly h, centred on [lo, hi] and covering it; at least two.
@@ -42,8 +43,7 @@ std::vector<double> uniform_cover(double lo, double hi, double h, const char* ax
 void validate(const VirtualLightParams& p, std::string_view where) {
     check_field(std::isfinite(p.h_usr) && p.h_usr > 0.0 && p.h_usr <= 1e6, where, "h_usr", p.h_usr,
                 "a finite spacing in (0, 1e6] m");
-    check_field(std::isfinite(p.epsilon) && p.epsilon >= 0.0, where, "epsilon", p.epsilon,
-                "finite and >= 0 (1/m^2)");
+    check_field(std::isfinite(p.epsilon) && p.epsilon >= 0.0, where, "epsilon", p.epsilon, "finite and >= 0 (1/m^2)");
     check_field(std::isfinite(p.margin) && p.margin >= 0.0 && p.margin <= 1e7, where, "margin", p.margin,
                 "in [0, 1e7] m");
     check_field(std::isfinite(p.ground_height) && std::fabs(p.ground_height) <= 1e6, where, "ground_height",
@@ -73,11 +73,11 @@ VirtualLightGrid build_virtual_light_grid(const core::Grid3<float>& density, con
                 }
             }
     if (i1 < 0)
-        throw core::Error("virtual_lights",
-                          "the cloud is empty: no voxel of the " + std::to_string(n.x) + "x" + std::to_string(n.y) + "x" +
-                              std::to_string(n.z) + " density grid exceeds density_threshold " +
-                              num(p.density_threshold) + " (largest density " + num(max_density) +
-                              "); there is nothing to light");
+        throw core::Error("virtual_lights", "the cloud is empty: no voxel of the " + std::to_string(n.x) + "x" +
+                                                std::to_string(n.y) + "x" + std::to_string(n.z) +
+                                                " density grid exceeds density_threshold " + num(p.density_threshold) +
+                                                " (largest density " + num(max_density) +
+                                                "); there is nothing to light");
 
     const core::GridGeometry& g = density.geom;
     const double vs = g.voxel_size, h = p.h_usr;

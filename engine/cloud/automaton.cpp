@@ -25,9 +25,9 @@ Automaton::Automaton(core::Int3 dims, std::vector<std::uint8_t> weights, Probabi
     : dims_(dims), weights_(std::move(weights)), seed_(seed) {
     FULGUR_ASSERT(dims.x >= 1 && dims.y >= 1 && dims.z >= 1, "automaton needs a non-empty grid");
     FULGUR_ASSERT(weights_.size() == dims.volume(), "one seed weight per cell");
-    FULGUR_ASSERT(p.p_ext >= 0.0 && p.p_ext <= 1.0 && p.p_hum >= 0.0 && p.p_hum <= 1.0 && p.p_act >= 0.0 &&
-                      p.p_act <= 1.0,
-                  "probabilities must be in [0, 1]");
+    FULGUR_ASSERT(
+        p.p_ext >= 0.0 && p.p_ext <= 1.0 && p.p_hum >= 0.0 && p.p_hum <= 1.0 && p.p_act >= 0.0 && p.p_act <= 1.0,
+        "probabilities must be in [0, 1]");
     sy_ = std::size_t(dims.x + 2 * kPad);
     sz_ = sy_ * std::size_t(dims.y + 2 * kPad);
     cur_.assign(sz_ * std::size_t(dims.z + 2 * kPad), 0);
@@ -53,7 +53,8 @@ Automaton::Automaton(core::Int3 dims, std::vector<std::uint8_t> weights, Probabi
 void Automaton::set(int i, int j, int k, std::uint8_t bits) noexcept {
     FULGUR_ASSERT(i >= 0 && j >= 0 && k >= 0 && i < dims_.x && j < dims_.y && k < dims_.z, "cell outside the grid");
     FULGUR_ASSERT((bits & ~(kHum | kAct | kCld)) == 0, "unknown state bits");
-    const std::size_t q = std::size_t(i) + std::size_t(dims_.x) * (std::size_t(j) + std::size_t(dims_.y) * std::size_t(k));
+    const std::size_t q =
+        std::size_t(i) + std::size_t(dims_.x) * (std::size_t(j) + std::size_t(dims_.y) * std::size_t(k));
     FULGUR_ASSERT(bits == 0 || weights_[q] > 0, "a cell with seed weight 0 must stay empty");
     cur_[padded(i, j, k)] = bits;
 }
@@ -63,16 +64,19 @@ void Automaton::init_vapour() {
     const std::int64_t rows = std::int64_t(ny) * dims_.z;
     std::array<std::uint32_t, 256> thr_init{};
     for (int level = 0; level < 256; ++level) thr_init[std::size_t(level)] = threshold(1.0, level);
-    core::parallel_for_dynamic(0, rows, [&](std::int64_t r) {
-        const int j = int(r % ny), k = int(r / ny);
-        core::Rng rng(core::hash_seed(seed_, kInitTag, std::uint64_t(r)));
-        const std::uint8_t* w = weights_.data() + std::size_t(r) * std::size_t(nx);
-        std::uint8_t* s = cur_.data() + padded(0, j, k);
-        for (int i = span_lo_[std::size_t(r)]; i < span_hi_[std::size_t(r)]; ++i) {
-            const std::uint32_t rnd = rng.next_u32() >> 16;
-            s[i] = rnd < thr_init[w[i]] ? kHum : 0;
-        }
-    }, 16);
+    core::parallel_for_dynamic(
+        0, rows,
+        [&](std::int64_t r) {
+            const int j = int(r % ny), k = int(r / ny);
+            core::Rng rng(core::hash_seed(seed_, kInitTag, std::uint64_t(r)));
+            const std::uint8_t* w = weights_.data() + std::size_t(r) * std::size_t(nx);
+            std::uint8_t* s = cur_.data() + padded(0, j, k);
+            for (int i = span_lo_[std::size_t(r)]; i < span_hi_[std::size_t(r)]; ++i) {
+                const std::uint32_t rnd = rng.next_u32() >> 16;
+                s[i] = rnd < thr_init[w[i]] ? kHum : 0;
+            }
+        },
+        16);
 }
 
 void Automaton::step(std::uint8_t* cld_counts) {
@@ -82,36 +86,39 @@ void Automaton::step(std::uint8_t* cld_counts) {
     const std::uint64_t step_seed = core::hash_seed(seed_, kStepTag, std::uint64_t(steps_));
     const std::uint8_t* cur = cur_.data();
     std::uint8_t* nxt = next_.data();
-    core::parallel_for_dynamic(0, rows, [&](std::int64_t r) {
-        const int lo = span_lo_[std::size_t(r)], hi = span_hi_[std::size_t(r)];
-        if (lo >= hi) return;
-        const int j = int(r % ny), k = int(r / ny);
-        core::Rng rng(core::hash_seed(step_seed, std::uint64_t(r)));
-        const std::uint8_t* w = weights_.data() + std::size_t(r) * std::size_t(nx);
-        std::uint8_t* counts = cld_counts ? cld_counts + std::size_t(r) * std::size_t(nx) : nullptr;
-        const std::size_t row0 = padded(0, j, k);
-        for (int i = lo; i < hi; ++i) {
-            const std::uint8_t* c = cur + row0 + std::size_t(i);
-            const std::uint8_t s = c[0];
-            const std::uint8_t neighbours = std::uint8_t(c[-sx] | c[sx] | c[-sy] | c[sy] | c[-sz] | c[sz] | c[-2 * sx] |
-                                                         c[2 * sx] | c[-2 * sy] | c[2 * sy] | c[-2 * sz]);
-            const bool hum = s & kHum, act = s & kAct, cld = s & kCld;
-            const bool f_act = neighbours & kAct;
-            // Growth.
-            bool hum_n = hum && !act;
-            bool cld_n = cld || act;
-            bool act_n = !act && hum && f_act;
-            // Extinction and supply: 16 random bits each, from two 32-bit draws.
-            const std::uint32_t r1 = rng.next_u32(), r2 = rng.next_u32();
-            const std::uint8_t level = w[i];
-            cld_n = cld_n && (r1 & 0xffffu) >= thr_ext_[level];
-            hum_n = hum_n || (r1 >> 16) < thr_hum_[level];
-            act_n = act_n || (r2 & 0xffffu) < thr_act_[level];
-            nxt[row0 + std::size_t(i)] =
-                std::uint8_t((hum_n ? kHum : 0) | (act_n ? kAct : 0) | (cld_n ? kCld : 0));
-            if (counts) counts[i] = std::uint8_t(counts[i] + (cld_n ? 1 : 0));
-        }
-    }, 8);
+    core::parallel_for_dynamic(
+        0, rows,
+        [&](std::int64_t r) {
+            const int lo = span_lo_[std::size_t(r)], hi = span_hi_[std::size_t(r)];
+            if (lo >= hi) return;
+            const int j = int(r % ny), k = int(r / ny);
+            core::Rng rng(core::hash_seed(step_seed, std::uint64_t(r)));
+            const std::uint8_t* w = weights_.data() + std::size_t(r) * std::size_t(nx);
+            std::uint8_t* counts = cld_counts ? cld_counts + std::size_t(r) * std::size_t(nx) : nullptr;
+            const std::size_t row0 = padded(0, j, k);
+            for (int i = lo; i < hi; ++i) {
+                const std::uint8_t* c = cur + row0 + std::size_t(i);
+                const std::uint8_t s = c[0];
+                const std::uint8_t neighbours =
+                    std::uint8_t(c[-sx] | c[sx] | c[-sy] | c[sy] | c[-sz] | c[sz] | c[-2 * sx] | c[2 * sx] |
+                                 c[-2 * sy] | c[2 * sy] | c[-2 * sz]);
+                const bool hum = s & kHum, act = s & kAct, cld = s & kCld;
+                const bool f_act = neighbours & kAct;
+                // Growth.
+                bool hum_n = hum && !act;
+                bool cld_n = cld || act;
+                bool act_n = !act && hum && f_act;
+                // Extinction and supply: 16 random bits each, from two 32-bit draws.
+                const std::uint32_t r1 = rng.next_u32(), r2 = rng.next_u32();
+                const std::uint8_t level = w[i];
+                cld_n = cld_n && (r1 & 0xffffu) >= thr_ext_[level];
+                hum_n = hum_n || (r1 >> 16) < thr_hum_[level];
+                act_n = act_n || (r2 & 0xffffu) < thr_act_[level];
+                nxt[row0 + std::size_t(i)] = std::uint8_t((hum_n ? kHum : 0) | (act_n ? kAct : 0) | (cld_n ? kCld : 0));
+                if (counts) counts[i] = std::uint8_t(counts[i] + (cld_n ? 1 : 0));
+            }
+        },
+        8);
     cur_.swap(next_);
     ++steps_;
 }
@@ -141,9 +148,8 @@ std::vector<float> smooth_density(core::Int3 dims, std::span<const std::uint8_t>
     const std::size_t sy = std::size_t(nx), sz = std::size_t(nx) * std::size_t(ny);
     std::vector<float> a(dims.volume()), b(dims.volume());
     const float inv_window = 1.0f / float(window);
-    core::parallel_for(0, std::int64_t(dims.volume()), [&](std::int64_t q) {
-        a[std::size_t(q)] = float(counts[std::size_t(q)]) * inv_window;
-    });
+    core::parallel_for(0, std::int64_t(dims.volume()),
+                       [&](std::int64_t q) { a[std::size_t(q)] = float(counts[std::size_t(q)]) * inv_window; });
     // Pass along one axis: dst[q] = sum_d kern[d] src[q + d*stride], outside the grid = 0.
     auto pass = [&](const std::vector<float>& src, std::vector<float>& dst, int axis) {
         core::parallel_for(0, nz, [&](std::int64_t kk) {
@@ -157,7 +163,8 @@ std::vector<float> smooth_density(core::Int3 dims, std::span<const std::uint8_t>
                             sum += kern[std::size_t(d + radius)] * src[q + std::size_t(std::ptrdiff_t(d))];
                     } else if (axis == 1) {
                         for (int d = std::max(-radius, -j); d <= std::min(radius, ny - 1 - j); ++d)
-                            sum += kern[std::size_t(d + radius)] * src[std::size_t(std::ptrdiff_t(q) + d * std::ptrdiff_t(sy))];
+                            sum += kern[std::size_t(d + radius)] *
+                                   src[std::size_t(std::ptrdiff_t(q) + d * std::ptrdiff_t(sy))];
                     } else {
                         if (k < first_layer) {
                             dst[q] = 0.0f;
@@ -169,7 +176,8 @@ std::vector<float> smooth_density(core::Int3 dims, std::span<const std::uint8_t>
                         for (int d = std::max(-radius, first_layer - k); d <= radius; ++d) {
                             wsum += kern[std::size_t(d + radius)];
                             if (k + d < nz)
-                                sum += kern[std::size_t(d + radius)] * src[std::size_t(std::ptrdiff_t(q) + d * std::ptrdiff_t(sz))];
+                                sum += kern[std::size_t(d + radius)] *
+                                       src[std::size_t(std::ptrdiff_t(q) + d * std::ptrdiff_t(sz))];
                         }
                         sum /= wsum;
                     }

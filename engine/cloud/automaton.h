@@ -84,8 +84,8 @@ private:
     static constexpr int kPad = 2;  // the neighbourhood reaches two cells out
     core::Int3 dims_;
     std::size_t sy_ = 0, sz_ = 0;
-    std::vector<std::uint8_t> weights_;  // unpadded, x fastest
-    std::vector<std::uint8_t> cur_, next_;  // padded states
+    std::vector<std::uint8_t> weights_;            // unpadded, x fastest
+    std::vector<std::uint8_t> cur_, next_;         // padded states
     std::vector<std::int32_t> span_lo_, span_hi_;  // per row (j + ny k): cells [lo, hi) with W > 0
     // 16-bit thresholds per weight level: event if (16 random bits) < threshold.
     std::array<std::uint32_t, 256> thr_ext_{}, thr_hum_{}, thr_act_{};

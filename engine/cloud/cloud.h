@@ -31,9 +31,9 @@ namespace fulgur::cloud {
 /// are consistent; the defaults are the default storm's cloud (content/scenes/storm.json),
 /// except the seed (7 there).
 struct CumulonimbusParams {
-    std::uint64_t seed = 1;           ///< everything random (layout and automaton) follows from it
-    core::Int3 grid{144, 144, 80};    ///< density voxels (x, y, z): 18 x 18 x 10 km by default
-    double voxel_size = 125.0;        ///< metres per voxel (all axes)
+    std::uint64_t seed = 1;         ///< everything random (layout and automaton) follows from it
+    core::Int3 grid{144, 144, 80};  ///< density voxels (x, y, z): 18 x 18 x 10 km by default
+    double voxel_size = 125.0;      ///< metres per voxel (all axes)
 
     // --- Shape (metres) ---------------------------------------------------------------
     /// Height of the flat cloud base (the condensation level). No density below it; the
@@ -75,12 +75,12 @@ struct CumulonimbusParams {
     /// full to 0: small gives hard-edged, sharply outlined cumulus towers, 1 soft blobs.
     /// The anvil's ellipsoids get softer towards the anvil's edge whatever this is.
     double edge_softness = 0.5;
-    int steps = 32;                   ///< automaton steps (the first starts from vapour ~ W)
-    double p_ext = 0.2;               ///< extinction probability where W = 0 (falls to 0 at W = 1)
-    double p_hum = 0.2;               ///< vapour supply probability where W = 1
-    double p_act = 0.02;              ///< activation supply probability where W = 1
-    int average_steps = 4;            ///< the last average_steps steps are averaged (time window)
-    int smoothing_radius = 1;         ///< radius (voxels) of the spatial smoothing kernel
+    int steps = 32;            ///< automaton steps (the first starts from vapour ~ W)
+    double p_ext = 0.2;        ///< extinction probability where W = 0 (falls to 0 at W = 1)
+    double p_hum = 0.2;        ///< vapour supply probability where W = 1
+    double p_act = 0.02;       ///< activation supply probability where W = 1
+    int average_steps = 4;     ///< the last average_steps steps are averaged (time window)
+    int smoothing_radius = 1;  ///< radius (voxels) of the spatial smoothing kernel
     /// Density = min(1, density_gain * smoothed cloud fraction). Above 1 it fills the
     /// interior (dense core, soft edges); below 1 the whole cloud is thinner.
     double density_gain = 1.3;
@@ -127,12 +127,12 @@ struct Image {
 };
 
 enum class PreviewKind {
-    SliceXZ,       ///< vertical slice through the grid's centre (y = middle), density in pseudo-colour
-    TopMax,        ///< top-down maximum projection of the density along z, pseudo-colour
-    SideDepth,     ///< side view along y: optical depth tau, shown as 1 - exp(-tau), grey
-    SideLit,       ///< side view along y against a sky, lit by a sun from the upper left:
-                   ///< attenuated sunlight plus a flat ambient term, no multiple scattering
-                   ///< (a quick look at the shape, not the engine's renderer)
+    SliceXZ,    ///< vertical slice through the grid's centre (y = middle), density in pseudo-colour
+    TopMax,     ///< top-down maximum projection of the density along z, pseudo-colour
+    SideDepth,  ///< side view along y: optical depth tau, shown as 1 - exp(-tau), grey
+    SideLit,    ///< side view along y against a sky, lit by a sun from the upper left:
+                ///< attenuated sunlight plus a flat ambient term, no multiple scattering
+                ///< (a quick look at the shape, not the engine's renderer)
 };
 
 /// Renders a preview; `extinction` (1/m per unit density) is used by the side views. Each

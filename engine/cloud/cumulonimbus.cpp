@@ -12,8 +12,8 @@ namespace fulgur::cloud {
 
 namespace {
 
-constexpr std::uint64_t kLayoutTag = 0x6c61796f7574ULL;     // "layout"
-constexpr std::uint64_t kAutomatonTag = 0x6175746f6dULL;    // "autom"
+constexpr std::uint64_t kLayoutTag = 0x6c61796f7574ULL;   // "layout"
+constexpr std::uint64_t kAutomatonTag = 0x6175746f6dULL;  // "autom"
 
 std::string field(const char* name) { return std::string("cloud.generator.") + name; }
 
@@ -51,10 +51,10 @@ struct TowerSpec {
     double summit = 0.0;        // highest visible point
     double radius = 0.0;        // radius at the base
     int turrets = 0;
-    double clip = 0.0;          // nothing above this height
-    bool dome = true;           // round the summit off (no anvil above)
-    double softness = 0.5;      // ellipsoid edge softness
-    double flare = 0.0;         // relative widening of the top quarter (into an anvil)
+    double clip = 0.0;      // nothing above this height
+    bool dome = true;       // round the summit off (no anvil above)
+    double softness = 0.5;  // ellipsoid edge softness
+    double flare = 0.0;     // relative widening of the top quarter (into an anvil)
 };
 
 // The automaton's cloud fraction is roughly proportional to the seed weight; the visible
@@ -196,7 +196,8 @@ std::vector<Placed> layout(const CumulonimbusParams& p) {
             }
             const double from_tower = std::min(1.0, std::hypot(x - tx, y) / reach);
             const double edge = std::min(1.0, std::hypot(x - cx, y) / ra);
-            const double thick = p.anvil_thickness * (1.0 - 0.7 * from_tower * from_tower) * (0.85 + 0.3 * rng.uniform());
+            const double thick =
+                p.anvil_thickness * (1.0 - 0.7 * from_tower * from_tower) * (0.85 + 0.3 * rng.uniform());
             detail::Ellipsoid e;
             e.radii = {rx * 1.15, rx * (0.75 + 0.2 * rng.uniform()), 0.8 * thick};
             e.centre = {x, y, anvil_top - 0.35 * thick};
@@ -234,18 +235,19 @@ void check_fits(const CumulonimbusParams& p, const std::vector<Placed>& placed) 
                                  metres(p.voxel_size) + ", i.e. x, y in [" + metres(lo.x) + ", " + metres(hi.x) +
                                  "] after a " + metres(margin) + " margin for smoothing";
         switch (pl.part) {
-        case Part::Tower:
-        case Part::Overshoot:
-            fail("tower_radius", "the tower (radius " + metres(p.tower_radius) + ", shear " + metres(p.shear) +
-                                     ") does not fit in the grid (" + grid + "); reduce it or enlarge the grid");
-        case Part::Flank:
-            fail("flanking_towers", std::to_string(p.flanking_towers) + " flanking towers beside a tower of radius " +
-                                        metres(p.tower_radius) + " do not fit in the grid (" + grid +
-                                        "); use fewer or enlarge the grid");
-        case Part::Anvil:
-            fail("anvil_radius", "the anvil (radius " + metres(p.anvil_radius) + ", centred " +
-                                     metres(p.shear + p.anvil_offset) + " downwind of the tower's foot) does not fit in the grid (" +
-                                     grid + "); reduce anvil_radius, anvil_offset or shear, or enlarge the grid");
+            case Part::Tower:
+            case Part::Overshoot:
+                fail("tower_radius", "the tower (radius " + metres(p.tower_radius) + ", shear " + metres(p.shear) +
+                                         ") does not fit in the grid (" + grid + "); reduce it or enlarge the grid");
+            case Part::Flank:
+                fail("flanking_towers", std::to_string(p.flanking_towers) +
+                                            " flanking towers beside a tower of radius " + metres(p.tower_radius) +
+                                            " do not fit in the grid (" + grid + "); use fewer or enlarge the grid");
+            case Part::Anvil:
+                fail("anvil_radius", "the anvil (radius " + metres(p.anvil_radius) + ", centred " +
+                                         metres(p.shear + p.anvil_offset) +
+                                         " downwind of the tower's foot) does not fit in the grid (" + grid +
+                                         "); reduce anvil_radius, anvil_offset or shear, or enlarge the grid");
         }
     }
 }
@@ -264,10 +266,15 @@ void validate_cumulonimbus(const CumulonimbusParams& p) {
     core::validate_geometry(cumulonimbus_geometry(p), field("grid"));
 
     // Plain ranges.
-    for (auto [name, v] : {std::pair{"base_height", p.base_height}, {"top_height", p.top_height},
-                           {"tower_radius", p.tower_radius}, {"shear", p.shear}, {"anvil_radius", p.anvil_radius},
-                           {"anvil_thickness", p.anvil_thickness}, {"anvil_offset", p.anvil_offset},
-                           {"overshoot", p.overshoot}, {"edge_softness", p.edge_softness},
+    for (auto [name, v] : {std::pair{"base_height", p.base_height},
+                           {"top_height", p.top_height},
+                           {"tower_radius", p.tower_radius},
+                           {"shear", p.shear},
+                           {"anvil_radius", p.anvil_radius},
+                           {"anvil_thickness", p.anvil_thickness},
+                           {"anvil_offset", p.anvil_offset},
+                           {"overshoot", p.overshoot},
+                           {"edge_softness", p.edge_softness},
                            {"density_gain", p.density_gain}})
         require_finite(name, v);
     if (!(p.edge_softness > 0.0) || p.edge_softness > 1.0)
@@ -300,38 +307,41 @@ void validate_cumulonimbus(const CumulonimbusParams& p) {
         fail("top_height", "must be above base_height (" + metres(p.base_height) + "), got " + metres(p.top_height));
     if (p.top_height - p.base_height < 6.0 * h)
         fail("top_height", "the cloud (" + metres(p.base_height) + " to " + metres(p.top_height) +
-                               ") must be at least 6 voxels (" + metres(6.0 * h) + ") tall to have a base, a body and a top");
+                               ") must be at least 6 voxels (" + metres(6.0 * h) +
+                               ") tall to have a base, a body and a top");
     if (p.top_height > grid_top - margin)
-        fail("top_height", metres(p.top_height) + " does not fit in the grid: its top is at " + metres(grid_top) + " (" +
-                               std::to_string(p.grid.z) + " voxels of " + metres(h) + ") and the smoothing needs " +
-                               metres(margin) + " above the cloud");
+        fail("top_height", metres(p.top_height) + " does not fit in the grid: its top is at " + metres(grid_top) +
+                               " (" + std::to_string(p.grid.z) + " voxels of " + metres(h) +
+                               ") and the smoothing needs " + metres(margin) + " above the cloud");
 
     // Horizontal sizes.
     if (p.tower_radius < 2.0 * h)
-        fail("tower_radius", "must be at least 2 voxels (" + metres(2.0 * h) + ") to be resolved, got " +
-                                 metres(p.tower_radius));
+        fail("tower_radius",
+             "must be at least 2 voxels (" + metres(2.0 * h) + ") to be resolved, got " + metres(p.tower_radius));
     if (std::fabs(p.shear) > 2.0 * p.tower_radius)
         fail("shear", "|shear| must be at most twice tower_radius (" + metres(2.0 * p.tower_radius) +
                           ") or the tower breaks apart, got " + metres(p.shear));
 
     if (p.anvil) {
         if (!(p.anvil_radius > p.tower_radius))
-            fail("anvil_radius", "must be larger than tower_radius (" + metres(p.tower_radius) + "): an anvil is wider than its tower; got " +
-                                     metres(p.anvil_radius));
+            fail("anvil_radius", "must be larger than tower_radius (" + metres(p.tower_radius) +
+                                     "): an anvil is wider than its tower; got " + metres(p.anvil_radius));
         if (p.anvil_thickness < 2.0 * h)
-            fail("anvil_thickness", "must be at least 2 voxels (" + metres(2.0 * h) + "), got " + metres(p.anvil_thickness));
+            fail("anvil_thickness",
+                 "must be at least 2 voxels (" + metres(2.0 * h) + "), got " + metres(p.anvil_thickness));
         if (p.overshoot < 0.0) fail("overshoot", "must be >= 0, got " + metres(p.overshoot));
         if (p.overshoot > p.anvil_thickness)
-            fail("overshoot", "must be at most anvil_thickness (" + metres(p.anvil_thickness) + "), got " + metres(p.overshoot));
+            fail("overshoot",
+                 "must be at most anvil_thickness (" + metres(p.anvil_thickness) + "), got " + metres(p.overshoot));
         const double anvil_bottom = p.top_height - p.overshoot - p.anvil_thickness;
         if (anvil_bottom - p.base_height < 0.3 * (p.top_height - p.base_height))
             fail("anvil_thickness", "anvil (" + metres(p.anvil_thickness) + ") plus overshoot (" + metres(p.overshoot) +
-                                        ") leave less than 30% of the cloud's height (" + metres(p.base_height) + " to " +
-                                        metres(p.top_height) + ") for the tower below the anvil");
+                                        ") leave less than 30% of the cloud's height (" + metres(p.base_height) +
+                                        " to " + metres(p.top_height) + ") for the tower below the anvil");
         if (p.anvil_offset < 0.0 || p.anvil_offset > p.anvil_radius - p.tower_radius)
             fail("anvil_offset", "must be in [0, anvil_radius - tower_radius] = [0, " +
-                                     metres(p.anvil_radius - p.tower_radius) + "] so the anvil stays over the tower, got " +
-                                     metres(p.anvil_offset));
+                                     metres(p.anvil_radius - p.tower_radius) +
+                                     "] so the anvil stays over the tower, got " + metres(p.anvil_offset));
     }
     check_fits(p, layout(p));
 }
@@ -359,7 +369,8 @@ double ellipsoid_weight(const Ellipsoid& e, double d2) noexcept {
     return e.strength * u * u;
 }
 
-std::vector<std::uint8_t> seed_field(const core::GridGeometry& g, std::span<const Ellipsoid> ellipsoids, double floor_z) {
+std::vector<std::uint8_t> seed_field(const core::GridGeometry& g, std::span<const Ellipsoid> ellipsoids,
+                                     double floor_z) {
     const int nx = g.dims.x, ny = g.dims.y, nz = g.dims.z;
     std::vector<std::uint8_t> out(g.cell_count(), 0);
     core::parallel_for(0, nz, [&](std::int64_t kk) {
@@ -413,13 +424,15 @@ core::Grid3<float> generate_cumulonimbus(const CumulonimbusParams& p) {
     const double floor_z = g.centre(0, 0, first_layer < p.grid.z ? first_layer : p.grid.z - 1).z;
     std::vector<std::uint8_t> weights = detail::seed_field(g, ellipsoids, floor_z - 1e-9 * p.voxel_size);
 
-    detail::Automaton ca(p.grid, std::move(weights), {p.p_ext, p.p_hum, p.p_act}, core::hash_seed(p.seed, kAutomatonTag));
+    detail::Automaton ca(p.grid, std::move(weights), {p.p_ext, p.p_hum, p.p_act},
+                         core::hash_seed(p.seed, kAutomatonTag));
     ca.init_vapour();
     std::vector<std::uint8_t> counts(g.cell_count(), 0);
     for (int t = 0; t < p.steps; ++t) ca.step(t >= p.steps - p.average_steps ? counts.data() : nullptr);
 
     core::Grid3<float> density(g);
-    density.data = detail::smooth_density(p.grid, counts, p.average_steps, p.smoothing_radius, first_layer, p.density_gain);
+    density.data =
+        detail::smooth_density(p.grid, counts, p.average_steps, p.smoothing_radius, first_layer, p.density_gain);
     return density;
 }
 

@@ -12,7 +12,8 @@ namespace {
 void put(Image& img, int x, int y, int scale, const std::uint8_t rgb[3]) {
     for (int b = 0; b < scale; ++b)
         for (int a = 0; a < scale; ++a) {
-            const std::size_t o = 3 * (std::size_t(y * scale + b) * std::size_t(img.width) + std::size_t(x * scale + a));
+            const std::size_t o =
+                3 * (std::size_t(y * scale + b) * std::size_t(img.width) + std::size_t(x * scale + a));
             img.rgb[o] = rgb[0];
             img.rgb[o + 1] = rgb[1];
             img.rgb[o + 2] = rgb[2];
@@ -34,8 +35,8 @@ Image render_lit(const core::Grid3<float>& density, double extinction, int scale
     const core::Int3 d = density.dims();
     const double tau_voxel = extinction * density.geom.voxel_size;
     const double sun[3] = {-0.62, -0.26, 0.74};  // towards the sun (unit): upper left, slightly in front
-    constexpr double kStep = 0.5;                 // voxels
-    constexpr double kOpaque = 20.0;              // optical depth beyond which the sun is gone (e^-20)
+    constexpr double kStep = 0.5;                // voxels
+    constexpr double kOpaque = 20.0;             // optical depth beyond which the sun is gone (e^-20)
     std::vector<float> sunlight(density.size(), 0.0f);
     core::parallel_for(0, d.z, [&](std::int64_t kk) {
         const int k = int(kk);
@@ -85,42 +86,43 @@ Image render_preview(const core::Grid3<float>& density, PreviewKind kind, double
     const core::Int3 d = density.dims();
     std::uint8_t rgb[3];
     switch (kind) {
-    case PreviewKind::SliceXZ: {
-        Image img = blank(d.x, d.z, scale);
-        const int j = d.y / 2;
-        for (int k = 0; k < d.z; ++k)
-            for (int i = 0; i < d.x; ++i) {
-                core::pseudo_colour(density.at(i, j, k), rgb);
-                put(img, i, d.z - 1 - k, scale, rgb);
-            }
-        return img;
-    }
-    case PreviewKind::TopMax: {
-        Image img = blank(d.x, d.y, scale);
-        for (int j = 0; j < d.y; ++j)
-            for (int i = 0; i < d.x; ++i) {
-                float m = 0.0f;
-                for (int k = 0; k < d.z; ++k) m = std::max(m, density.at(i, j, k));
-                core::pseudo_colour(m, rgb);
-                put(img, i, d.y - 1 - j, scale, rgb);
-            }
-        return img;
-    }
-    case PreviewKind::SideDepth: {
-        Image img = blank(d.x, d.z, scale);
-        const double step = extinction * density.geom.voxel_size;
-        for (int k = 0; k < d.z; ++k)
-            for (int i = 0; i < d.x; ++i) {
-                double tau = 0.0;
-                for (int j = 0; j < d.y; ++j) tau += density.at(i, j, k);
-                const double v = 1.0 - std::exp(-tau * step);
-                const auto g = std::uint8_t(std::clamp(std::lround(255.0 * v), 0L, 255L));
-                rgb[0] = rgb[1] = rgb[2] = g;
-                put(img, i, d.z - 1 - k, scale, rgb);
-            }
-        return img;
-    }
-    case PreviewKind::SideLit: return render_lit(density, extinction, scale);
+        case PreviewKind::SliceXZ: {
+            Image img = blank(d.x, d.z, scale);
+            const int j = d.y / 2;
+            for (int k = 0; k < d.z; ++k)
+                for (int i = 0; i < d.x; ++i) {
+                    core::pseudo_colour(density.at(i, j, k), rgb);
+                    put(img, i, d.z - 1 - k, scale, rgb);
+                }
+            return img;
+        }
+        case PreviewKind::TopMax: {
+            Image img = blank(d.x, d.y, scale);
+            for (int j = 0; j < d.y; ++j)
+                for (int i = 0; i < d.x; ++i) {
+                    float m = 0.0f;
+                    for (int k = 0; k < d.z; ++k) m = std::max(m, density.at(i, j, k));
+                    core::pseudo_colour(m, rgb);
+                    put(img, i, d.y - 1 - j, scale, rgb);
+                }
+            return img;
+        }
+        case PreviewKind::SideDepth: {
+            Image img = blank(d.x, d.z, scale);
+            const double step = extinction * density.geom.voxel_size;
+            for (int k = 0; k < d.z; ++k)
+                for (int i = 0; i < d.x; ++i) {
+                    double tau = 0.0;
+                    for (int j = 0; j < d.y; ++j) tau += density.at(i, j, k);
+                    const double v = 1.0 - std::exp(-tau * step);
+                    const auto g = std::uint8_t(std::clamp(std::lround(255.0 * v), 0L, 255L));
+                    rgb[0] = rgb[1] = rgb[2] = g;
+                    put(img, i, d.z - 1 - k, scale, rgb);
+                }
+            return img;
+        }
+        case PreviewKind::SideLit:
+            return render_lit(density, extinction, scale);
     }
     FULGUR_ASSERT(false, "unknown preview kind");
     return {};

@@ -45,8 +45,8 @@ private:
 /// Aborts with file:line and the message. For programmer misuse only, never for data.
 [[noreturn]] void assertion_failed(const char* expr, const char* file, int line, const char* msg);
 
-#define FULGUR_ASSERT(cond, msg)                                                    \
-    do {                                                                            \
+#define FULGUR_ASSERT(cond, msg)                                                       \
+    do {                                                                               \
         if (!(cond)) ::fulgur::core::assertion_failed(#cond, __FILE__, __LINE__, msg); \
     } while (0)
 
@@ -55,9 +55,7 @@ private:
 
 struct Int3 {
     int x = 0, y = 0, z = 0;
-    constexpr std::size_t volume() const noexcept {
-        return std::size_t(x) * std::size_t(y) * std::size_t(z);
-    }
+    constexpr std::size_t volume() const noexcept { return std::size_t(x) * std::size_t(y) * std::size_t(z); }
     constexpr bool operator==(const Int3&) const = default;
 };
 
@@ -74,9 +72,7 @@ struct GridGeometry {
         return std::size_t(i) + std::size_t(dims.x) * (std::size_t(j) + std::size_t(dims.y) * std::size_t(k));
     }
     Int3 unindex(std::size_t idx) const noexcept;
-    glm::dvec3 centre(int i, int j, int k) const noexcept {
-        return origin + (glm::dvec3(i, j, k) + 0.5) * voxel_size;
-    }
+    glm::dvec3 centre(int i, int j, int k) const noexcept { return origin + (glm::dvec3(i, j, k) + 0.5) * voxel_size; }
     glm::dvec3 extent() const noexcept { return glm::dvec3(dims.x, dims.y, dims.z) * voxel_size; }
     glm::dvec3 upper() const noexcept { return origin + extent(); }
     /// Continuous voxel coordinates: the centre of voxel i maps to i + 0.5.
@@ -219,9 +215,19 @@ T Grid3<T>::sample(const glm::dvec3& world) const noexcept {
     const glm::dvec3 u = geom.to_voxel(world) - 0.5;
     const int nx = geom.dims.x, ny = geom.dims.y, nz = geom.dims.z;
     auto split = [](double v, int n, int& i0, int& i1, double& f) {
-        if (!(v > 0.0)) { i0 = i1 = 0; f = 0.0; return; }        // also catches NaN
-        if (v >= double(n - 1)) { i0 = i1 = n - 1; f = 0.0; return; }
-        i0 = int(v); i1 = i0 + 1; f = v - double(i0);
+        if (!(v > 0.0)) {
+            i0 = i1 = 0;
+            f = 0.0;
+            return;
+        }  // also catches NaN
+        if (v >= double(n - 1)) {
+            i0 = i1 = n - 1;
+            f = 0.0;
+            return;
+        }
+        i0 = int(v);
+        i1 = i0 + 1;
+        f = v - double(i0);
     };
     int x0, x1, y0, y1, z0, z1;
     double fx, fy, fz;

@@ -12,8 +12,8 @@ Int3 GridGeometry::unindex(std::size_t idx) const noexcept {
 
 bool GridGeometry::contains(const glm::dvec3& world) const noexcept {
     const glm::dvec3 hi = upper();
-    return world.x >= origin.x && world.y >= origin.y && world.z >= origin.z &&
-           world.x < hi.x && world.y < hi.y && world.z < hi.z;
+    return world.x >= origin.x && world.y >= origin.y && world.z >= origin.z && world.x < hi.x && world.y < hi.y &&
+           world.z < hi.z;
 }
 
 void validate_geometry(const GridGeometry& g, std::string_view where) {

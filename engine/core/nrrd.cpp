@@ -26,8 +26,7 @@ void write_nrrd(const std::filesystem::path& path, const Grid3<float>& grid, std
       << "dimension: 3\n"
       << "space: 3D-right-handed\n"
       << "sizes: " << g.dims.x << ' ' << g.dims.y << ' ' << g.dims.z << '\n'
-      << "space directions: (" << g.voxel_size << ",0,0) (0," << g.voxel_size << ",0) (0,0," << g.voxel_size
-      << ")\n"
+      << "space directions: (" << g.voxel_size << ",0,0) (0," << g.voxel_size << ",0) (0,0," << g.voxel_size << ")\n"
       << "centers: cell cell cell\n"
       << "kinds: space space space\n"
       // NRRD's space origin is the position of the first sample, i.e. the first voxel centre.
@@ -87,7 +86,8 @@ Grid3<float> read_nrrd(const std::filesystem::path& path) {
     constexpr std::size_t kMaxHeader = 1 << 16;
     for (;;) {
         const std::uint64_t line_start = offset;
-        if (!std::getline(in, line)) throw Error(where(offset), "header ends before the blank line that starts the data");
+        if (!std::getline(in, line))
+            throw Error(where(offset), "header ends before the blank line that starts the data");
         offset += line.size() + 1;
         if (offset > kMaxHeader) throw Error(where(line_start), "header longer than 64 KiB");
         if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -129,9 +129,11 @@ Grid3<float> read_nrrd(const std::filesystem::path& path) {
         long long n[3] = {0, 0, 0};
         is >> n[0] >> n[1] >> n[2];
         std::string rest;
-        if (is.fail() || (is >> rest)) throw Error(where(at), "field 'sizes' must hold three integers, got '" + value + "'");
+        if (is.fail() || (is >> rest))
+            throw Error(where(at), "field 'sizes' must hold three integers, got '" + value + "'");
         for (long long v : n)
-            if (v < 1 || v > 4096) throw Error(where(at), "field 'sizes': each size must be in [1, 4096], got '" + value + "'");
+            if (v < 1 || v > 4096)
+                throw Error(where(at), "field 'sizes': each size must be in [1, 4096], got '" + value + "'");
         g.dims = {int(n[0]), int(n[1]), int(n[2])};
     }
     double spacing = 1.0;
@@ -143,7 +145,8 @@ Grid3<float> read_nrrd(const std::filesystem::path& path) {
         double d[3][3];
         for (int a = 0; a < 3; ++a)
             if (!parse_vector(tok[a], d[a]))
-                throw Error(where(at), "field 'space directions' must hold three vectors '(x,y,z)', got '" + value + "'");
+                throw Error(where(at),
+                            "field 'space directions' must hold three vectors '(x,y,z)', got '" + value + "'");
         spacing = d[0][0];
         const double tol = 1e-6 * std::fabs(spacing);  // text round-off of the written spacing
         for (int a = 0; a < 3; ++a)
@@ -167,15 +170,16 @@ Grid3<float> read_nrrd(const std::filesystem::path& path) {
     if (auto it = fields.find("space origin"); it != fields.end()) {
         double o[3];
         if (!parse_vector(it->second.first, o))
-            throw Error(where(it->second.second), "field 'space origin' must be '(x,y,z)', got '" + it->second.first + "'");
+            throw Error(where(it->second.second),
+                        "field 'space origin' must be '(x,y,z)', got '" + it->second.first + "'");
         g.origin = glm::dvec3(o[0], o[1], o[2]) - 0.5 * spacing;
     }
     validate_geometry(g, file);
 
     const std::uint64_t bytes = std::uint64_t(g.cell_count()) * sizeof(float);
     if (file_size < data_start + bytes)
-        throw Error(where(data_start), "data truncated: expected " + std::to_string(bytes) + " bytes of float32, file has " +
-                                           std::to_string(file_size - data_start));
+        throw Error(where(data_start), "data truncated: expected " + std::to_string(bytes) +
+                                           " bytes of float32, file has " + std::to_string(file_size - data_start));
     if (file_size > data_start + bytes)
         throw Error(where(data_start + bytes), std::to_string(file_size - data_start - bytes) +
                                                    " unexpected trailing bytes after the float32 data");
@@ -185,7 +189,8 @@ Grid3<float> read_nrrd(const std::filesystem::path& path) {
     if (!in) throw Error(where(data_start), "read failed");
     for (std::size_t i = 0; i < grid.data.size(); ++i)
         if (!std::isfinite(grid.data[i]))
-            throw Error(where(data_start + i * sizeof(float)), "non-finite value (NaN or Inf) at voxel " + std::to_string(i));
+            throw Error(where(data_start + i * sizeof(float)),
+                        "non-finite value (NaN or Inf) at voxel " + std::to_string(i));
     return grid;
 }
 

@@ -133,8 +133,9 @@ StartSampler::StartSampler(const core::Grid3<float>& density, double threshold, 
     }
     if (cells_.empty())
         throw core::Error("lightning.start_density_threshold",
-                          "no voxel of the cloud density above z = " + fmt(min_height) + " m exceeds the start threshold " +
-                              fmt(threshold) + " (the maximum density there is " + fmt(max_density) +
+                          "no voxel of the cloud density above z = " + fmt(min_height) +
+                              " m exceeds the start threshold " + fmt(threshold) + " (the maximum density there is " +
+                              fmt(max_density) +
                               "); a bolt needs cloud to start in: lower the threshold or check the cloud");
 }
 
@@ -164,12 +165,14 @@ Box default_domain(const BoltParams& p, const core::Grid3<float>& density, std::
     // one whose floor is above the ground could not hold a cloud-to-ground bolt.
     if (domain && p.ground_height < b.lo.z)
         throw core::Error("lightning.ground_height", "the ground (z = " + fmt(p.ground_height) +
-                                                         " m) lies below the domain's floor (z = " + fmt(b.lo.z) + " m)");
+                                                         " m) lies below the domain's floor (z = " + fmt(b.lo.z) +
+                                                         " m)");
     b.lo.z = p.ground_height;
     if (!(p.ground_height + p.segment_length_mean < b.hi.z))
-        throw core::Error("lightning.ground_height", "the ground (z = " + fmt(p.ground_height) +
-                                                         " m) must lie more than a segment below the top of the domain (z = " +
-                                                         fmt(b.hi.z) + " m)");
+        throw core::Error("lightning.ground_height",
+                          "the ground (z = " + fmt(p.ground_height) +
+                              " m) must lie more than a segment below the top of the domain (z = " + fmt(b.hi.z) +
+                              " m)");
     return b;
 }
 
@@ -263,8 +266,8 @@ Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) c
         perpendicular_basis(axis, u, v);
         for (int k = 1; k < n; ++k) {
             const double f = double(k) / n;
-            const glm::dvec3 w = start + f * (bolt.target - start) +
-                                 p.wander * spacing * (rng.normal() * u + rng.normal() * v);
+            const glm::dvec3 w =
+                start + f * (bolt.target - start) + p.wander * spacing * (rng.normal() * u + rng.normal() * v);
             glm::dvec3 lo = box.lo + inset, hi = box.hi - inset;
             lo.z = std::max(lo.z, ground + p.segment_length_mean);
             waypoints.push_back(glm::clamp(w, lo, glm::max(lo, hi)));
@@ -275,8 +278,8 @@ Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) c
     // A walk turning ~angle_mean per segment circles with radius ~ L / angle: an aim point is
     // "reached" within that radius or once passed along the line of flight, else the walk
     // would orbit it.
-    const double reach = std::max(2.0 * p.segment_length_mean,
-                                  p.segment_length_mean / std::max(p.angle_mean_deg * kDeg, 0.05));
+    const double reach =
+        std::max(2.0 * p.segment_length_mean, p.segment_length_mean / std::max(p.angle_mean_deg * kDeg, 0.05));
     const glm::dvec3 line = bolt.target - start;
     const double bias_ramp = 3.0 * direct + 20.0 * p.segment_length_mean;  // beyond this path length: bias 1
     glm::dvec3 pos = start;
@@ -299,8 +302,7 @@ Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) c
             const double bias = path > bias_ramp ? 1.0 : p.target_bias;
             // Move on once the current waypoint is near, or behind along the line of flight.
             while (next_wp + 1 < waypoints.size() &&
-                   (glm::length(waypoints[next_wp] - pos) < reach ||
-                    glm::dot(waypoints[next_wp] - pos, line) < 0.0))
+                   (glm::length(waypoints[next_wp] - pos) < reach || glm::dot(waypoints[next_wp] - pos, line) < 0.0))
                 ++next_wp;
             const glm::dvec3 tt = toward(pos, waypoints[next_wp]);
             glm::dvec3 best_d = d;
@@ -392,8 +394,8 @@ Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) c
         const double budget = p.branch_length_fraction * remaining * (0.5 + decide.uniform());
         if (budget < 0.5 * p.segment_length_mean) return;
         const glm::dvec3 dir = glm::normalize(s.b - s.a);
-        queue.push_back({std::int32_t(seg_index), depth + 1, s.b, dir, drift,
-                         s.intensity * p.branch_intensity_decay, s.path_start + s.length(), budget});
+        queue.push_back({std::int32_t(seg_index), depth + 1, s.b, dir, drift, s.intensity * p.branch_intensity_decay,
+                         s.path_start + s.length(), budget});
     };
     for (std::size_t i = 0; i + 1 < bolt.main_count; ++i)
         consider_spawn(i, 0, main_drift, bolt.main_length - (bolt.segments[i].path_start + bolt.segments[i].length()));

@@ -59,22 +59,22 @@ std::string_view kind_name(Kind k) noexcept;
 /// Shape of a bolt.
 struct BoltParams {
     Kind kind = Kind::CloudToGround;
-    double angle_mean_deg = 16.0;         ///< mean turn between successive segments (Reed-Wyvill: ~16 deg)
-    double angle_spread_deg = 10.0;       ///< standard deviation of the turn angle (deg)
-    double segment_length_mean = 200.0;   ///< m
-    double segment_length_spread = 80.0;  ///< m, standard deviation; lengths truncated to [0.2, 3] x mean
-    double target_bias = 0.8;             ///< [0,1]: 0 = unbiased turn azimuth, 1 = always turn toward the aim point
-    double zigzag = 1.0;                  ///< [0,4]: preference for turning back the other way (0 = none)
-    double wander = 0.5;                  ///< sideways spread of the aim points (every 4 segments), x their spacing
-    double branch_probability = 0.2;      ///< chance per segment to sprout a branch
-    double branch_angle_mean_deg = 35.0;  ///< first turn of a branch away from its parent (deg)
-    double branch_length_fraction = 0.3;  ///< mean branch length / parent channel length still to go
-    double branch_intensity_decay = 0.4;  ///< a depth-d channel carries intensity * decay^d
-    int max_depth = 3;                    ///< deepest branch level (0 = main channel only)
-    double intensity = 1.0e5;             ///< main channel at the return-stroke peak, W/sr/m
-    double start_density_threshold = 0.3; ///< start points lie in voxels whose density exceeds this
-    double ground_height = 0.0;           ///< z of the ground plane (m); cloud-to-ground bolts end on it
-    int max_segments = 20000;             ///< hard cap on segments per bolt (guards absurd parameters)
+    double angle_mean_deg = 16.0;          ///< mean turn between successive segments (Reed-Wyvill: ~16 deg)
+    double angle_spread_deg = 10.0;        ///< standard deviation of the turn angle (deg)
+    double segment_length_mean = 200.0;    ///< m
+    double segment_length_spread = 80.0;   ///< m, standard deviation; lengths truncated to [0.2, 3] x mean
+    double target_bias = 0.8;              ///< [0,1]: 0 = unbiased turn azimuth, 1 = always turn toward the aim point
+    double zigzag = 1.0;                   ///< [0,4]: preference for turning back the other way (0 = none)
+    double wander = 0.5;                   ///< sideways spread of the aim points (every 4 segments), x their spacing
+    double branch_probability = 0.2;       ///< chance per segment to sprout a branch
+    double branch_angle_mean_deg = 35.0;   ///< first turn of a branch away from its parent (deg)
+    double branch_length_fraction = 0.3;   ///< mean branch length / parent channel length still to go
+    double branch_intensity_decay = 0.4;   ///< a depth-d channel carries intensity * decay^d
+    int max_depth = 3;                     ///< deepest branch level (0 = main channel only)
+    double intensity = 1.0e5;              ///< main channel at the return-stroke peak, W/sr/m
+    double start_density_threshold = 0.3;  ///< start points lie in voxels whose density exceeds this
+    double ground_height = 0.0;            ///< z of the ground plane (m); cloud-to-ground bolts end on it
+    int max_segments = 20000;              ///< hard cap on segments per bolt (guards absurd parameters)
 };
 
 /// Temporal profile of a strike. Defaults follow measured lightning (Uman 1987; Rakov &
@@ -214,7 +214,9 @@ struct FlashState {
     double leader_glow = 0.0;
     double leader_front = 0.0;  ///< m along the channel
     bool leader_main_only = false;
-    bool active() const noexcept { return main_glow > 0.0 || branch_glow > 0.0 || (leader_glow > 0.0 && leader_front > 0.0); }
+    bool active() const noexcept {
+        return main_glow > 0.0 || branch_glow > 0.0 || (leader_glow > 0.0 && leader_front > 0.0);
+    }
 };
 
 FlashState flash_state(const FlashProfile& f, const TimingParams& p, double t) noexcept;
@@ -246,13 +248,13 @@ double append_point_sources(std::span<const LitSegment> lit, double max_spacing,
 
 /// Virtual-light intensities e_l for one frame.
 struct LightWeights {
-    std::vector<double> e;               ///< one per light of the grid, l = i + nx*(j + ny*k)
-    std::vector<std::uint32_t> active;   ///< lights with e_l != 0, ascending
-    double total = 0.0;                  ///< sum of the splatted L_q (compensated)
-    std::size_t sources = 0;             ///< sources splatted (clamped ones included)
-    std::size_t clamped = 0;             ///< sources outside the grid's box, moved onto it
-    std::size_t rejected = 0;            ///< non-finite position or intensity: skipped
-    std::vector<std::uint8_t> touched;   ///< internal: marks lights listed in `active`
+    std::vector<double> e;              ///< one per light of the grid, l = i + nx*(j + ny*k)
+    std::vector<std::uint32_t> active;  ///< lights with e_l != 0, ascending
+    double total = 0.0;                 ///< sum of the splatted L_q (compensated)
+    std::size_t sources = 0;            ///< sources splatted (clamped ones included)
+    std::size_t clamped = 0;            ///< sources outside the grid's box, moved onto it
+    std::size_t rejected = 0;           ///< non-finite position or intensity: skipped
+    std::vector<std::uint8_t> touched;  ///< internal: marks lights listed in `active`
     bool empty() const noexcept { return active.empty(); }
 };
 
@@ -362,8 +364,8 @@ private:
     std::vector<std::size_t> by_time_;  ///< strike indices sorted by start time
     std::vector<std::size_t> live_;     ///< strikes currently holding their bolt
     double max_duration_ = 0.0;
-    std::uint64_t scheduled_ = 0;       ///< Poisson strikes drawn so far
-    double next_arrival_ = 0.0;         ///< start time of Poisson strike number scheduled_
+    std::uint64_t scheduled_ = 0;  ///< Poisson strikes drawn so far
+    double next_arrival_ = 0.0;    ///< start time of Poisson strike number scheduled_
     core::Rng arrivals_;
     std::uint64_t on_demand_ = 0;
     double latest_query_ = -1e300;

@@ -10,9 +10,12 @@ namespace fulgur::lightning {
 
 std::string_view kind_name(Kind k) noexcept {
     switch (k) {
-        case Kind::CloudToGround: return "cloud_to_ground";
-        case Kind::IntraCloud: return "intra_cloud";
-        case Kind::CloudToCloud: return "cloud_to_cloud";
+        case Kind::CloudToGround:
+            return "cloud_to_ground";
+        case Kind::IntraCloud:
+            return "intra_cloud";
+        case Kind::CloudToCloud:
+            return "cloud_to_cloud";
     }
     return "unknown";
 }
@@ -21,7 +24,8 @@ namespace {
 
 struct Checker {
     std::string where;
-    void range(std::string_view field, double v, double lo, double hi, bool lo_open = false, bool hi_open = false) const {
+    void range(std::string_view field, double v, double lo, double hi, bool lo_open = false,
+               bool hi_open = false) const {
         const bool ok = std::isfinite(v) && (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
         if (ok) return;
         std::ostringstream os;

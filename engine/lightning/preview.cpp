@@ -33,7 +33,8 @@ std::vector<std::uint8_t> draw_side_view(std::span<const LitSegment> lit, const 
         column.assign(std::size_t(nx) * std::size_t(nz), 0.0f);
         for (int k = 0; k < nz; ++k)
             for (int j = 0; j < density->dims().y; ++j)
-                for (int i = 0; i < nx; ++i) column[std::size_t(i) + std::size_t(nx) * std::size_t(k)] += density->at(i, j, k);
+                for (int i = 0; i < nx; ++i)
+                    column[std::size_t(i) + std::size_t(nx) * std::size_t(k)] += density->at(i, j, k);
         for (float& c : column) c = float(density->geom.voxel_size) * c;  // metres of density-1 cloud
     }
     for (std::size_t y = 0; y < H; ++y)
@@ -46,7 +47,8 @@ std::vector<std::uint8_t> draw_side_view(std::span<const LitSegment> lit, const 
                 const int i = int(std::floor(u.x)), k = int(std::floor(u.z));
                 if (i >= 0 && i < nx && k >= 0 && k < nz) {
                     // 1 / 3000 m: a few km of cloud look opaque; a sketch, not a transport result.
-                    const float a = 1.0f - std::exp(-column[std::size_t(i) + std::size_t(nx) * std::size_t(k)] / 3000.0f);
+                    const float a =
+                        1.0f - std::exp(-column[std::size_t(i) + std::size_t(nx) * std::size_t(k)] / 3000.0f);
                     r += 0.16f * a, g += 0.17f * a, b += 0.21f * a;
                 }
             }
@@ -65,7 +67,7 @@ std::vector<std::uint8_t> draw_side_view(std::span<const LitSegment> lit, const 
             const double rel = std::min(1.0, l.intensity / imax);
             if (!(rel > 0.0)) continue;
             const double sigma = 0.35 + 0.85 * std::sqrt(rel);  // px
-            const double amp = std::pow(rel, 0.6);  // compresses the range: dim branches stay visible
+            const double amp = std::pow(rel, 0.6);              // compresses the range: dim branches stay visible
             const glm::dvec2 a = to_px(l.a), b = to_px(l.b);
             const double len = glm::length(b - a);
             const int steps = std::max(1, int(std::ceil(len / 0.3)));

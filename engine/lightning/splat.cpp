@@ -33,7 +33,8 @@ Splatter::Axis make_axis(const std::vector<double>& nodes, const char* name, dou
         if (!std::isfinite(nodes[i])) throw core::Error(where, "node " + std::to_string(i) + " is not finite");
         if (i > 0) {
             const double d = nodes[i] - nodes[i - 1];
-            if (!(d > 0.0)) throw core::Error(where, "nodes must be strictly ascending (node " + std::to_string(i) + ")");
+            if (!(d > 0.0))
+                throw core::Error(where, "nodes must be strictly ascending (node " + std::to_string(i) + ")");
             dmin = std::min(dmin, d);
         }
     }
@@ -138,7 +139,8 @@ void Splatter::accumulate_impl(std::span<const PointSource> sources, LightWeight
                   "LightWeights must be sized for this grid (call Splatter::reset or splat first)");
     const std::size_t nx = ax_[0].nodes.size(), nxy = nx * ax_[1].nodes.size();
     // Offsets to the upper neighbour per axis: 0 on a single-node axis (its weight is 0 then).
-    const std::size_t ox = nx > 1 ? 1 : 0, oy = ax_[1].nodes.size() > 1 ? nx : 0, oz = ax_[2].nodes.size() > 1 ? nxy : 0;
+    const std::size_t ox = nx > 1 ? 1 : 0, oy = ax_[1].nodes.size() > 1 ? nx : 0,
+                      oz = ax_[2].nodes.size() > 1 ? nxy : 0;
     double* e = out.e.data();
     std::uint8_t* touched = out.touched.data();
     core::CompensatedSum total;
@@ -185,15 +187,19 @@ void Splatter::accumulate_impl(std::span<const PointSource> sources, LightWeight
         out.active.clear();
         for (std::size_t l = 0; l < count_; ++l) {
             if (!touched[l]) continue;
-            if (e[l] != 0.0) out.active.push_back(std::uint32_t(l));
-            else touched[l] = 0;
+            if (e[l] != 0.0)
+                out.active.push_back(std::uint32_t(l));
+            else
+                touched[l] = 0;
         }
         return;
     }
     std::size_t w = 0;
     for (const std::uint32_t l : out.active) {
-        if (e[l] != 0.0) out.active[w++] = l;
-        else touched[l] = 0;
+        if (e[l] != 0.0)
+            out.active[w++] = l;
+        else
+            touched[l] = 0;
     }
     out.active.resize(w);
     std::sort(out.active.begin(), out.active.end());

@@ -74,8 +74,10 @@ std::span<const std::size_t> Storm::active(double t) {
         std::size_t w = 0;
         for (const std::size_t j : live_) {
             Entry& e = strikes_[j];
-            if (e.strike.end() <= latest_query_) e.bolt.reset();
-            else live_[w++] = j;
+            if (e.strike.end() <= latest_query_)
+                e.bolt.reset();
+            else
+                live_[w++] = j;
         }
         live_.resize(w);
     }

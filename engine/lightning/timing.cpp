@@ -53,8 +53,9 @@ FlashProfile make_flash_profile(const Bolt& bolt, const TimingParams& p, std::ui
             onset += std::max(interval, f.dart_duration + p.rise_time + 1e-4);
             peak = p.restrike_brightness * (0.6 + 0.8 * r.uniform());
         }
-        const double end = peak > p.dark_threshold ? onset + p.rise_time + p.decay_time * std::log(peak / p.dark_threshold)
-                                                   : onset + p.rise_time;
+        const double end = peak > p.dark_threshold
+                               ? onset + p.rise_time + p.decay_time * std::log(peak / p.dark_threshold)
+                               : onset + p.rise_time;
         f.stroke_onset.push_back(onset);
         f.stroke_peak.push_back(peak);
         f.stroke_end.push_back(end);

@@ -54,8 +54,10 @@ FoldTable fold_table(int direction_count) {
                 const int code = lattice_code(x, y, z);
                 if (x == 0 && y == 0 && z == 0) continue;
                 std::map<int, double> parts;
-                if (direction_count == 1) parts[0] = 1.0;
-                else fold(dirs, {x, y, z}, 1.0, parts);
+                if (direction_count == 1)
+                    parts[0] = 1.0;
+                else
+                    fold(dirs, {x, y, z}, 1.0, parts);
                 FULGUR_ASSERT(parts.size() <= 3, "fold produced more than three targets");
                 int k = 0;
                 for (const auto& [idx, frac] : parts) {
@@ -119,7 +121,8 @@ DirectionWeights direction_weights(const glm::dvec3& dir, int direction_count) {
         for (int k = 0; k < 3; ++k) {
             const int idx = table.index[std::size_t(code[std::size_t(n)])][std::size_t(k)];
             if (idx < 0) break;
-            const double share = w[std::size_t(n)] * (table.fraction[std::size_t(code[std::size_t(n)])][std::size_t(k)]);
+            const double share =
+                w[std::size_t(n)] * (table.fraction[std::size_t(code[std::size_t(n)])][std::size_t(k)]);
             int slot = 0;
             while (slot < out.count && out.index[std::size_t(slot)] != idx) ++slot;
             if (slot == out.count) {
@@ -140,7 +143,8 @@ std::vector<DirectionUse> view_directions(const glm::dvec3& camera_position, con
     core::validate_geometry(lighting, "view_directions: lighting grid");
     if (!active.empty() && active.size() != lighting.cell_count())
         throw core::Error("view_directions", "active mask has " + std::to_string(active.size()) +
-                                                 " entries, the lighting grid " + std::to_string(lighting.cell_count()));
+                                                 " entries, the lighting grid " +
+                                                 std::to_string(lighting.cell_count()));
     const std::size_t nd = std::size_t(std::max(direction_count, 1));
     (void)transport::output_directions(direction_count);  // validates the count
     const core::Int3 n = lighting.dims;
@@ -168,7 +172,8 @@ std::vector<DirectionUse> view_directions(const glm::dvec3& camera_position, con
 }
 
 namespace {
-bool ray_box(const glm::dvec3& o, const glm::dvec3& d, const glm::dvec3& lo, const glm::dvec3& hi, double& t0, double& t1) {
+bool ray_box(const glm::dvec3& o, const glm::dvec3& d, const glm::dvec3& lo, const glm::dvec3& hi, double& t0,
+             double& t1) {
     t0 = 0.0;
     t1 = 1e300;
     for (int a = 0; a < 3; ++a) {

@@ -45,7 +45,9 @@ struct Expander {
             if (!line.empty() && line.back() == '\r') line.pop_back();
             std::smatch m;
             if (std::regex_match(line, version_re)) {
-                if (!top) throw core::Error(name + ":" + std::to_string(n), "#version is only allowed in the top-level shader");
+                if (!top)
+                    throw core::Error(name + ":" + std::to_string(n),
+                                      "#version is only allowed in the top-level shader");
                 if (version_seen) throw core::Error(name + ":" + std::to_string(n), "second #version");
                 version_seen = true;
                 out.text += line + "\n" + defines;
@@ -54,8 +56,7 @@ struct Expander {
                 continue;
             }
             if (std::regex_match(line, m, include_re)) {
-                if (top && !version_seen)
-                    throw core::Error(name + ":" + std::to_string(n), "#include before #version");
+                if (top && !version_seen) throw core::Error(name + ":" + std::to_string(n), "#include before #version");
                 const std::string child = m[1].str();
                 if (!seen.count(child)) expand(child, false, {}, name + ":" + std::to_string(n));
                 out.text += "#line " + std::to_string(id * kLineBase + n + 1) + "\n";

@@ -16,8 +16,8 @@ namespace fulgur::render::detail {
 inline constexpr int kLineBase = 100000;
 
 struct Preprocessed {
-    std::string text;                 ///< GLSL ready for glShaderSource
-    std::vector<std::string> files;   ///< file k's display name (relative to the shader dir)
+    std::string text;                ///< GLSL ready for glShaderSource
+    std::vector<std::string> files;  ///< file k's display name (relative to the shader dir)
 };
 
 /// Reads `name` from `dir`, puts `defines` (lines "#define X V") right after its #version,
@@ -36,8 +36,8 @@ struct MappedLog {
 MappedLog map_log(const std::string& log, const std::vector<std::string>& files);
 
 struct Stage {
-    unsigned type;         ///< GL_VERTEX_SHADER, GL_FRAGMENT_SHADER, GL_COMPUTE_SHADER
-    std::string file;      ///< file name in the shader directory
+    unsigned type;     ///< GL_VERTEX_SHADER, GL_FRAGMENT_SHADER, GL_COMPUTE_SHADER
+    std::string file;  ///< file name in the shader directory
 };
 
 /// Compiles and links a program (GL must be loaded and a context current). Throws

@@ -110,14 +110,14 @@ enum class Timing { Off, Finish, Queries };
 /// Frame settings. Every accuracy/time knob is here with its default.
 struct Settings {
     // Image
-    double exposure = 1.0;          ///< linear multiplier applied before the tone map
-    double internal_scale = 0.5;    ///< ray-march resolution / output resolution, (0, 1]
-    bool dither = true;             ///< +-0.5 LSB triangular dither before 8-bit output (no banding)
+    double exposure = 1.0;        ///< linear multiplier applied before the tone map
+    double internal_scale = 0.5;  ///< ray-march resolution / output resolution, (0, 1]
+    bool dither = true;           ///< +-0.5 LSB triangular dither before 8-bit output (no banding)
     // Ray march
-    double step_voxels = 1.0;       ///< step length in density voxels (accuracy/time knob)
-    bool jitter = true;             ///< per-pixel start offset (interleaved gradient noise + R1 per frame)
-    bool skip_empty = true;         ///< empty-space skipping (Chebyshev distance field)
-    bool early_exit = true;         ///< stop when the transmittance falls below min_transmittance
+    double step_voxels = 1.0;         ///< step length in density voxels (accuracy/time knob)
+    bool jitter = true;               ///< per-pixel start offset (interleaved gradient noise + R1 per frame)
+    bool skip_empty = true;           ///< empty-space skipping (Chebyshev distance field)
+    bool early_exit = true;           ///< stop when the transmittance falls below min_transmittance
     double min_transmittance = 1e-3;  ///< early-exit threshold (max error: this * S along the rest)
     MarchKernel kernel = MarchKernel::Fragment;
     std::uint32_t frame_index = 0;  ///< varies the jitter pattern between frames (deterministic)
@@ -126,19 +126,19 @@ struct Settings {
     bool ground = true;
     bool bolt = true;
     bool glow = true;
-    bool cloud_lighting = true;     ///< false: S = 0 (cloud only absorbs the background)
+    bool cloud_lighting = true;  ///< false: S = 0 (cloud only absorbs the background)
     // Scene constants
-    double ground_height = 0.0;     ///< z of the ground plane (m)
-    double ground_albedo = 0.1;     ///< Lambertian reflectance of the ground (wet fields at night)
+    double ground_height = 0.0;  ///< z of the ground plane (m)
+    double ground_albedo = 0.1;  ///< Lambertian reflectance of the ground (wet fields at night)
     /// Colour of the flash (luminance ~1; bluish white: lightning's spectrum is dominated
     /// by nitrogen and hydrogen lines) applied to S, the bolt, the glow and the ground light.
     glm::dvec3 flash_colour{0.93, 0.97, 1.25};
-    int ground_lights = 6;          ///< representative point lights along the bolt for the ground
-    double sky_radiance = 2e-7;     ///< night sky radiance at the zenith (W m^-2 sr^-1)
-    double star_radiance = 2e-5;    ///< brightest stars (W m^-2 sr^-1, per pixel-sized star)
-    double air_scattering = 1.5e-5; ///< sigma_s of the (rainy) air around the bolt (1/m): glow strength
-    double glow_radius = 600.0;     ///< glow quad radius (m); the profile tapers to 0 there
-    double bolt_min_width_px = 1.5; ///< thinner ribbons are widened and dimmed (flux conserved)
+    int ground_lights = 6;           ///< representative point lights along the bolt for the ground
+    double sky_radiance = 2e-7;      ///< night sky radiance at the zenith (W m^-2 sr^-1)
+    double star_radiance = 2e-5;     ///< brightest stars (W m^-2 sr^-1, per pixel-sized star)
+    double air_scattering = 1.5e-5;  ///< sigma_s of the (rainy) air around the bolt (1/m): glow strength
+    double glow_radius = 600.0;      ///< glow quad radius (m); the profile tapers to 0 there
+    double bolt_min_width_px = 1.5;  ///< thinner ribbons are widened and dimmed (flux conserved)
     /// Directions with smaller interpolation weights are not needed (see view_directions);
     /// 0 uses every direction with a non-zero weight.
     double direction_min_weight = kDirectionMinWeight;
@@ -190,8 +190,8 @@ double plain_march_samples(const Camera& camera, const core::GridGeometry& volum
 
 /// Times of one frame's passes, milliseconds (0 for passes that did not run).
 struct PassTimes {
-    double upload = 0;     ///< S uploads since the previous frame (time of the upload calls)
-    double resolve = 0;    ///< S toward the camera (only when S or the camera changed)
+    double upload = 0;   ///< S uploads since the previous frame (time of the upload calls)
+    double resolve = 0;  ///< S toward the camera (only when S or the camera changed)
     double glow = 0;
     double march = 0;
     double bolt = 0;       ///< endpoint transmittances + core ribbons
@@ -241,8 +241,7 @@ public:
     /// near non-empty density (all nodes before set_volume()). Pass the min_weight of the
     /// Settings the frame will use.
     std::vector<DirectionUse> needed_directions(const Camera& camera, const core::GridGeometry& lighting,
-                                                int direction_count,
-                                                double min_weight = kDirectionMinWeight) const;
+                                                int direction_count, double min_weight = kDirectionMinWeight) const;
 
     /// Renders one frame of size width x height into the currently bound draw framebuffer
     /// (sets the viewport to the full size; restores the framebuffer binding).

@@ -119,8 +119,8 @@ struct Target {  // a colour texture + framebuffer
         glCreateFramebuffers(1, &fbo);
         glNamedFramebufferTexture(fbo, GL_COLOR_ATTACHMENT0, tex, 0);
         if (glCheckNamedFramebufferStatus(fbo, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-            throw core::Error("render", "RGBA32F framebuffer of " + std::to_string(w) + "x" + std::to_string(h) +
-                                            " is not complete");
+            throw core::Error(
+                "render", "RGBA32F framebuffer of " + std::to_string(w) + "x" + std::to_string(h) + " is not complete");
     }
     void release() {
         if (fbo) glDeleteFramebuffers(1, &fbo);
@@ -168,7 +168,7 @@ struct Renderer::Impl {
     // Source
     core::GridGeometry lit_geom;
     int dir_count = 0;
-    std::vector<GLuint> src_tex;         // one R32F 3D texture per baked direction
+    std::vector<GLuint> src_tex;  // one R32F 3D texture per baked direction
     std::vector<bool> present;
     GLuint scam_tex = 0;
     bool has_source = false;
@@ -192,7 +192,7 @@ struct Renderer::Impl {
     double glow_built_radius = -1.0;
     double profile_radius = -1.0, profile_sigma = -1.0;
     std::vector<glm::vec4> ground_lights;
-    int ground_lights_k = -1;        // -1: to rebuild
+    int ground_lights_k = -1;  // -1: to rebuild
     double ground_lights_height = 0.0;
 
     GLuint last_scam = 0;  // S_cam texture the last frame sampled (0: none)
@@ -212,12 +212,14 @@ struct Renderer::Impl {
 
     static std::string march_defines(bool skip, bool early, bool source, bool emission) {
         return std::string("#define SKIP_EMPTY ") + (skip ? "1" : "0") + "\n#define EARLY_EXIT " + (early ? "1" : "0") +
-               "\n#define HAS_SOURCE " + (source ? "1" : "0") + "\n#define HAS_EMISSION " + (emission ? "1" : "0") + "\n";
+               "\n#define HAS_SOURCE " + (source ? "1" : "0") + "\n#define HAS_EMISSION " + (emission ? "1" : "0") +
+               "\n";
     }
 
     GLuint march_program(MarchKernel kernel, const std::string& defines) {
         if (kernel == MarchKernel::Fragment)
-            return program("march.frag", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "march.frag"}}, defines);
+            return program("march.frag", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "march.frag"}},
+                           defines);
         return program("march.comp", {{GL_COMPUTE_SHADER, "march.comp"}}, defines);
     }
 
@@ -251,7 +253,8 @@ struct Renderer::Impl {
                 const int j = std::clamp(int(std::floor(v.y)), 0, dg.dims.y - 1);
                 const int k = std::clamp(int(std::floor(v.z)), 0, dg.dims.z - 1);
                 // Outside the density grid, the distance to the grid adds to the reach.
-                const glm::dvec3 outside = glm::max(glm::dvec3(0.0), glm::max(-v, v - glm::dvec3(dg.dims.x, dg.dims.y, dg.dims.z)));
+                const glm::dvec3 outside =
+                    glm::max(glm::dvec3(0.0), glm::max(-v, v - glm::dvec3(dg.dims.x, dg.dims.y, dg.dims.z)));
                 const double extra = std::max({outside.x, outside.y, outside.z});
                 lit_active[c] = double(distance[dg.index(i, j, k)]) <= reach + 1.0 - extra ? 1 : 0;
             }
@@ -326,8 +329,7 @@ struct Renderer::Impl {
         if (hi <= lo) return 1.0;
         const int n = int(std::ceil((hi - lo) / h));
         double tau = 0.0;
-        for (int i = 0; i < n; ++i)
-            tau += double(density.sample({p.x, p.y, lo + (hi - lo) * (i + 0.5) / n}));
+        for (int i = 0; i < n; ++i) tau += double(density.sample({p.x, p.y, lo + (hi - lo) * (i + 0.5) / n}));
         return std::exp(-kappa * tau * (hi - lo) / n);
     }
 
@@ -369,7 +371,8 @@ struct Renderer::Impl {
 
 // ---------------------------------------------------------------------------------------
 
-Renderer::Renderer(GetProcAddress get_proc_address, std::filesystem::path shader_dir) : impl_(std::make_unique<Impl>()) {
+Renderer::Renderer(GetProcAddress get_proc_address, std::filesystem::path shader_dir)
+    : impl_(std::make_unique<Impl>()) {
     FULGUR_ASSERT(get_proc_address != nullptr, "Renderer needs a get-proc-address");
     const int version = gladLoadGL(reinterpret_cast<GLADloadfunc>(get_proc_address));
     if (!version) throw core::Error("render", "cannot load OpenGL functions (is a context current?)");
@@ -453,7 +456,8 @@ void Renderer::set_volume(const VolumeDesc& v) {
     glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
     const core::Int3 d = v.density->geom.dims;
     if (d.x > max3d || d.y > max3d || d.z > max3d)
-        throw core::Error("set_volume: density grid", "dimensions exceed GL_MAX_3D_TEXTURE_SIZE " + std::to_string(max3d));
+        throw core::Error("set_volume: density grid",
+                          "dimensions exceed GL_MAX_3D_TEXTURE_SIZE " + std::to_string(max3d));
     const std::size_t n = v.density->data.size();
     core::Grid3<float> copy(v.density->geom);
     std::vector<std::uint8_t> occupied(n);
@@ -461,11 +465,12 @@ void Renderer::set_volume(const VolumeDesc& v) {
         const float rho = v.density->data[i];
         if (!std::isfinite(rho)) {
             const core::Int3 c = v.density->geom.unindex(i);
-            throw core::Error("set_volume: density", "voxel (" + std::to_string(c.x) + ", " + std::to_string(c.y) + ", " +
-                                                         std::to_string(c.z) + ") is not finite");
+            throw core::Error("set_volume: density", "voxel (" + std::to_string(c.x) + ", " + std::to_string(c.y) +
+                                                         ", " + std::to_string(c.z) + ") is not finite");
         }
         copy.data[i] = std::clamp(rho, 0.0f, 1.0f);
-        occupied[i] = v.precision == DensityPrecision::U8 ? detail::quantize_density(copy.data[i]) > 0 : copy.data[i] > 0.0f;
+        occupied[i] =
+            v.precision == DensityPrecision::U8 ? detail::quantize_density(copy.data[i]) > 0 : copy.data[i] > 0.0f;
     }
     std::vector<std::uint8_t> dist = detail::chebyshev_distance(occupied, d);
     delete_texture(m.density_tex);
@@ -529,7 +534,8 @@ void Renderer::upload_source(const SourceUpload& s) {
             throw core::Error(where, "has " + std::to_string(s.values[k].size()) + " values, the lighting grid " +
                                          std::to_string(cells) + " cells");
         for (std::size_t c = 0; c < cells; ++c)
-            if (!std::isfinite(s.values[k][c])) throw core::Error(where, "value of cell " + std::to_string(c) + " is not finite");
+            if (!std::isfinite(s.values[k][c]))
+                throw core::Error(where, "value of cell " + std::to_string(c) + " is not finite");
     }
     bool fresh = false;
     if (!(m.lit_geom == s.geometry) || m.dir_count != s.direction_count || m.src_tex.empty()) {
@@ -602,7 +608,8 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
     const double total_cpu0 = process_cpu_ms();
     FrameStats stats;
     if (width <= 0 || height <= 0)
-        throw core::Error("render", "output size must be positive, got " + std::to_string(width) + "x" + std::to_string(height));
+        throw core::Error("render",
+                          "output size must be positive, got " + std::to_string(width) + "x" + std::to_string(height));
     validate_settings(st);
     const glm::dvec3 fwd_raw = camera.target - camera.position;
     if (!(glm::length(fwd_raw) > 0.0) || !(camera.vertical_fov_deg > 0.0 && camera.vertical_fov_deg < 179.0) ||
@@ -657,14 +664,16 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
     if (st.ground) {
         if (m.ground_lights_k != st.ground_lights || m.ground_lights_height != st.ground_height)
             m.rebuild_ground_lights(st.ground_lights, st.ground_height);
-        for (std::size_t i = 0; i < m.ground_lights.size() && i < kMaxGroundLights; ++i) f.ground_light[i] = m.ground_lights[i];
+        for (std::size_t i = 0; i < m.ground_lights.size() && i < kMaxGroundLights; ++i)
+            f.ground_light[i] = m.ground_lights[i];
         f.ground_params = glm::vec4(float(st.ground_height), float(st.ground_albedo / std::numbers::pi), 1.0f,
                                     float(m.ground_lights.size()));
     } else {
         f.ground_params = glm::vec4(float(st.ground_height), 0.0f, 0.0f, 0.0f);
     }
     f.sky_params = glm::vec4(float(st.sky_radiance), float(st.star_radiance), st.sky ? 1.0f : 0.0f, float(st.exposure));
-    f.glow_params = glm::vec4(float(st.glow_radius), float(st.air_scattering), st.glow ? 1.0f : 0.0f, st.bolt ? 1.0f : 0.0f);
+    f.glow_params =
+        glm::vec4(float(st.glow_radius), float(st.air_scattering), st.glow ? 1.0f : 0.0f, st.bolt ? 1.0f : 0.0f);
     f.light_colour = glm::vec4(glm::vec3(st.flash_colour), st.dither ? 1.0f : 0.0f);
     const bool glow_on = st.glow && m.seg_count > 0 && st.air_scattering > 0.0;
     if (glow_on && m.glow_built_radius != st.glow_radius) m.rebuild_glow_quads(st.glow_radius);
@@ -713,8 +722,10 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
         stats.directions_used = int(need.size());
         std::vector<int> active;
         for (const DirectionUse& u : need) {
-            if (m.present[std::size_t(u.index)]) active.push_back(u.index);
-            else stats.missing_weight = std::max(stats.missing_weight, u.max_weight);
+            if (m.present[std::size_t(u.index)])
+                active.push_back(u.index);
+            else
+                stats.missing_weight = std::max(stats.missing_weight, u.max_weight);
         }
         if (m.dir_count == 1) {
             scam = m.src_tex[0];
@@ -735,7 +746,8 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
                 glUniform3fv(glGetUniformLocation(p, "u_fold_fraction"), 27, frac);
                 glUniform3i(glGetUniformLocation(p, "u_dims"), m.lit_geom.dims.x, m.lit_geom.dims.y, m.lit_geom.dims.z);
                 glBindImageTexture(0, m.scam_tex, 0, GL_TRUE, 0, GL_READ_WRITE, GL_R32F);
-                const GLint loc_dirs = glGetUniformLocation(p, "u_dirs"), loc_acc = glGetUniformLocation(p, "u_accumulate");
+                const GLint loc_dirs = glGetUniformLocation(p, "u_dirs"),
+                            loc_acc = glGetUniformLocation(p, "u_accumulate");
                 const GLint loc_n = glGetUniformLocation(p, "u_samplers");
                 GLfloat active_mask[26] = {};
                 for (int d : active) active_mask[d] = 1.0f;
@@ -838,7 +850,8 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
     // ---- composite + tone map into the caller's framebuffer
     {
         begin_pass(kComposite);
-        const GLuint p = m.program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}});
+        const GLuint p =
+            m.program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}});
         glUseProgram(p);
         glUniform1i(glGetUniformLocation(p, "u_hdr_output"), 0);
         glBindTextureUnit(3, m.march_target.tex);
@@ -863,10 +876,10 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
     glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(caller_fbo));
     glViewport(caller_viewport[0], caller_viewport[1], caller_viewport[2], caller_viewport[3]);
 
-    stats.wall = {m.pending_upload_ms, pass_ms[kResolve], pass_ms[kGlow], pass_ms[kMarch], pass_ms[kBolt],
-                  pass_ms[kComposite], total.milliseconds()};
-    stats.cpu = {m.pending_upload_cpu_ms, pass_cpu_ms[kResolve], pass_cpu_ms[kGlow], pass_cpu_ms[kMarch],
-                 pass_cpu_ms[kBolt], pass_cpu_ms[kComposite], process_cpu_ms() - total_cpu0};
+    stats.wall = {m.pending_upload_ms, pass_ms[kResolve],   pass_ms[kGlow],      pass_ms[kMarch],
+                  pass_ms[kBolt],      pass_ms[kComposite], total.milliseconds()};
+    stats.cpu = {m.pending_upload_cpu_ms, pass_cpu_ms[kResolve],   pass_cpu_ms[kGlow],           pass_cpu_ms[kMarch],
+                 pass_cpu_ms[kBolt],      pass_cpu_ms[kComposite], process_cpu_ms() - total_cpu0};
     m.pending_upload_ms = m.pending_upload_cpu_ms = 0.0;
     return stats;
 }
@@ -878,7 +891,8 @@ std::vector<float> Renderer::read_hdr() const {
     glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &caller_fbo);
     glGetIntegerv(GL_VIEWPORT, caller_viewport);
     m.hdr_target.ensure(m.out_w, m.out_h);
-    const GLuint p = m.program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}});
+    const GLuint p =
+        m.program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}});
     glUseProgram(p);
     glUniform1i(glGetUniformLocation(p, "u_hdr_output"), 1);
     glBindBufferBase(GL_UNIFORM_BUFFER, 0, m.frame_ubo);

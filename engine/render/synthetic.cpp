@@ -14,8 +14,8 @@ namespace fulgur::render::synthetic {
 namespace {
 
 double lattice_value(std::int64_t x, std::int64_t y, std::int64_t z, std::uint64_t seed) {
-    const std::uint64_t h = core::hash_seed(std::uint64_t(x) * 0x9E3779B97F4A7C15ULL ^ std::uint64_t(y),
-                                            std::uint64_t(z), seed);
+    const std::uint64_t h =
+        core::hash_seed(std::uint64_t(x) * 0x9E3779B97F4A7C15ULL ^ std::uint64_t(y), std::uint64_t(z), seed);
     return double(h >> 11) * 0x1p-53;
 }
 
@@ -111,7 +111,7 @@ core::Grid3<float> cumulus(const core::Int3& dims, double voxel_size, std::uint6
                 const double billow = fbm(p / (900.0 * scale), seed * 31 + 7, 3) - 0.5;
                 const double detail = fbm(p / (260.0 * scale), seed * 31 + 11, 3) - 0.5;
                 double v = shape + 0.55 * billow + 0.3 * detail;
-                v *= std::clamp((p.z - base) / (150.0 * scale), 0.0, 1.0);  // flat, sharp base
+                v *= std::clamp((p.z - base) / (150.0 * scale), 0.0, 1.0);                 // flat, sharp base
                 v *= std::clamp((anvil_hi + 0.03 * H - p.z) / (300.0 * scale), 0.0, 1.0);  // flat anvil top
                 if (v <= 0.0) continue;
                 const double inner = 0.6 + 0.4 * fbm(p / (500.0 * scale), seed * 31 + 19, 2);
@@ -133,13 +133,13 @@ core::GridGeometry lighting_geometry(const core::GridGeometry& density, int down
 }
 
 std::vector<float> point_flash_source(const core::Grid3<float>& density, double extinction,
-                                      const core::GridGeometry& lighting, int direction_count,
-                                      const glm::dvec3& light, double intensity, double albedo, double g) {
+                                      const core::GridGeometry& lighting, int direction_count, const glm::dvec3& light,
+                                      double intensity, double albedo, double g) {
     const std::vector<glm::dvec3> dirs = transport::output_directions(direction_count);
     const std::size_t cells = lighting.cell_count();
     std::vector<float> S(cells * dirs.size(), 0.0f);
-    const double r0 = lighting.voxel_size;        // regularizes 1/r^2 within a lighting voxel
-    const double ell = 900.0;                      // diffusion length of the stand-in multiple scattering
+    const double r0 = lighting.voxel_size;  // regularizes 1/r^2 within a lighting voxel
+    const double ell = 900.0;               // diffusion length of the stand-in multiple scattering
     const double step = 0.5 * density.geom.voxel_size;
     core::parallel_for(0, std::int64_t(cells), [&](std::int64_t c) {
         const core::Int3 ijk = lighting.unindex(std::size_t(c));
@@ -152,10 +152,12 @@ std::vector<float> point_flash_source(const core::Grid3<float>& density, double 
         for (int s = 0; s < n; ++s) tau += double(density.sample(light + v * ((s + 0.5) / n)));
         tau *= extinction * r / n;
         const double T = std::exp(-tau), T_ms = std::exp(-0.25 * tau);
-        const double ms = albedo * intensity * T_ms * std::exp(-r / ell) / (4.0 * std::numbers::pi * (r * ell + r0 * r0));
+        const double ms =
+            albedo * intensity * T_ms * std::exp(-r / ell) / (4.0 * std::numbers::pi * (r * ell + r0 * r0));
         const glm::dvec3 w = r > 0.0 ? v / r : glm::dvec3(0, 0, 1);
         for (std::size_t m = 0; m < dirs.size(); ++m) {
-            const double p = direction_count == 1 ? 1.0 / (4.0 * std::numbers::pi) : transport::hg_phase(glm::dot(dirs[m], w), g);
+            const double p =
+                direction_count == 1 ? 1.0 / (4.0 * std::numbers::pi) : transport::hg_phase(glm::dot(dirs[m], w), g);
             const double single = albedo * p * intensity * T / (r * r + r0 * r0);
             S[m * cells + std::size_t(c)] = float(single + 4.0 * ms);
         }
@@ -185,7 +187,8 @@ std::vector<float> bolt_source(const core::Grid3<float>& density, double extinct
     if (power > 0.0) points.emplace_back(acc / power, power);
     std::vector<float> S(lighting.cell_count() * std::size_t(std::max(direction_count, 1)), 0.0f);
     for (const auto& [pos, intensity] : points) {
-        const std::vector<float> one = point_flash_source(density, extinction, lighting, direction_count, pos, intensity, albedo, g);
+        const std::vector<float> one =
+            point_flash_source(density, extinction, lighting, direction_count, pos, intensity, albedo, g);
         for (std::size_t i = 0; i < S.size(); ++i) S[i] += one[i];
     }
     return S;
@@ -213,8 +216,10 @@ Bolt bolt(std::uint64_t seed, const glm::dvec3& start, double intensity, double 
             const double angle = std::abs(mean_angle + 0.5 * mean_angle * rng.normal());
             const double phi = 2.0 * std::numbers::pi * rng.uniform();
             glm::dvec3 nd = std::cos(angle) * ch.dir + std::sin(angle) * (std::cos(phi) * t + std::sin(phi) * b);
-            if (ch.depth == 0) nd = glm::normalize(nd + glm::dvec3(0, 0, -0.25));
-            else nd = glm::normalize(nd + glm::dvec3(0, 0, -0.18));
+            if (ch.depth == 0)
+                nd = glm::normalize(nd + glm::dvec3(0, 0, -0.25));
+            else
+                nd = glm::normalize(nd + glm::dvec3(0, 0, -0.18));
             const double len = 25.0 + 55.0 * rng.uniform();
             glm::dvec3 q = ch.p + nd * len;
             bool ground = false;
@@ -259,7 +264,7 @@ SourceUpload needed_upload(const Renderer& renderer, const Storm& storm) {
     up.direction_count = storm.directions;
     const std::size_t cells = storm.lighting.cell_count();
     for (const DirectionUse& u : renderer.needed_directions(storm.camera, storm.lighting, storm.directions,
-                                                             storm.settings.direction_min_weight)) {
+                                                            storm.settings.direction_min_weight)) {
         up.directions.push_back(u.index);
         up.values.emplace_back(storm.source.data() + std::size_t(u.index) * cells, cells);
     }

@@ -14,8 +14,7 @@ namespace fulgur::render::synthetic {
 
 /// A procedural cumulonimbus: a base layer, a tower of convective cells and an anvil built
 /// from smooth blobs, eroded by fractal value noise. Deterministic per seed.
-core::Grid3<float> cumulus(const core::Int3& dims = {128, 128, 96}, double voxel_size = 100.0,
-                           std::uint64_t seed = 1);
+core::Grid3<float> cumulus(const core::Int3& dims = {128, 128, 96}, double voxel_size = 100.0, std::uint64_t seed = 1);
 
 /// A lighting grid over `density`: the density grid box-filtered by `downsample` per axis.
 core::GridGeometry lighting_geometry(const core::GridGeometry& density, int downsample);
@@ -26,9 +25,8 @@ core::GridGeometry lighting_geometry(const core::GridGeometry& density, int down
 /// marching the density) plus a smooth isotropic diffusion-like term
 /// albedo * I * T_ms exp(-r / l) / (4 pi (r l + r0^2)) standing in for multiple scattering.
 std::vector<float> point_flash_source(const core::Grid3<float>& density, double extinction,
-                                      const core::GridGeometry& lighting, int direction_count,
-                                      const glm::dvec3& light, double intensity, double albedo = 0.99,
-                                      double g = 0.6);
+                                      const core::GridGeometry& lighting, int direction_count, const glm::dvec3& light,
+                                      double intensity, double albedo = 0.99, double g = 0.6);
 
 /// S for a whole bolt: point flashes every `spacing` metres along its segments, each of
 /// intensity (segment intensity x length share), summed (S is linear in the sources).

@@ -16,7 +16,9 @@ std::vector<std::uint8_t> chebyshev_distance(const std::vector<std::uint8_t>& oc
     FULGUR_ASSERT(occupied.size() == dims.volume(), "chebyshev_distance: mask size != dims");
     std::vector<std::uint8_t> d(occupied.size());
     for (std::size_t i = 0; i < d.size(); ++i) d[i] = occupied[i] ? 0 : 255;
-    auto idx = [&](int x, int y, int z) { return std::size_t(x) + std::size_t(nx) * (std::size_t(y) + std::size_t(ny) * std::size_t(z)); };
+    auto idx = [&](int x, int y, int z) {
+        return std::size_t(x) + std::size_t(nx) * (std::size_t(y) + std::size_t(ny) * std::size_t(z));
+    };
     // Forward pass: neighbours preceding (x, y, z) in raster order; backward: following.
     for (int pass = 0; pass < 2; ++pass) {
         const int s = pass == 0 ? -1 : 1;

@@ -14,7 +14,7 @@ struct BakedBases::Impl {
     std::size_t bases_per_light = 0;  ///< meta.bases()
     /// Run of basis (l, b) in the pool: [offset[r], offset[r + 1]) with r = l * bases_per_light + b.
     std::vector<std::uint64_t> offset;
-    bool narrow = true;                  ///< indices in index16 (cells <= 65536), else index32
+    bool narrow = true;  ///< indices in index16 (cells <= 65536), else index32
     std::vector<std::uint16_t> index16;
     std::vector<std::uint32_t> index32;
     /// Values as the file stores them: float32 files in `value`; float16 files stay float16
@@ -24,7 +24,7 @@ struct BakedBases::Impl {
     std::vector<float> value;
     std::vector<std::uint16_t> value16;
     std::vector<std::int32_t> scale_exp;  ///< per run, float16 only
-    std::vector<double> gamma;           ///< per run: sqrt of the dropped coefficients' energy
+    std::vector<double> gamma;            ///< per run: sqrt of the dropped coefficients' energy
 
     std::size_t values() const noexcept { return half ? value16.size() : value.size(); }
     /// Stored value k of run r as a float (the file's value, exactly).

@@ -197,14 +197,14 @@ struct Reconstructor::Impl {
     std::vector<int> dirs;
     std::vector<std::uint32_t> lights;  ///< active lights with a float weight != 0
     std::vector<float> weight;
-    std::vector<double> ambient;        ///< per requested direction
+    std::vector<double> ambient;  ///< per requested direction
 
     explicit Impl(const BakedBases::Impl& b) : bases(b) {}
 
     void ensure_plans(int n) {
         while (int(haar.size()) < n)
             haar.push_back(std::make_unique<basis::HaarTransform<float>>(bases.meta.lighting.dims,
-                                                                          bases.meta.compression.decomposition));
+                                                                         bases.meta.compression.decomposition));
     }
 
     // fn(thread, i) for i in [0, n), contiguous blocks of directions per thread.
@@ -215,7 +215,8 @@ struct Reconstructor::Impl {
             return;
         }
         core::parallel_for(0, threads, [&](std::int64_t t) {
-            const std::size_t a = n * std::size_t(t) / std::size_t(threads), b = n * std::size_t(t + 1) / std::size_t(threads);
+            const std::size_t a = n * std::size_t(t) / std::size_t(threads),
+                              b = n * std::size_t(t + 1) / std::size_t(threads);
             for (std::size_t i = a; i < b; ++i) fn(int(t), i);
         });
     }
@@ -268,8 +269,9 @@ bool Reconstructor::reconstruct(const lightning::LightWeights& w, std::span<cons
     } else {
         for (const int m : directions) {
             if (m < 0 || std::size_t(m) >= nd)
-                throw core::Error("runtime::reconstruct", "direction " + std::to_string(m) + " does not exist (the bake has " +
-                                                              std::to_string(nd) + " directions)");
+                throw core::Error("runtime::reconstruct", "direction " + std::to_string(m) +
+                                                              " does not exist (the bake has " + std::to_string(nd) +
+                                                              " directions)");
             im.dirs.push_back(m);
         }
     }

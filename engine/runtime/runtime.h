@@ -68,7 +68,7 @@ public:
     const std::vector<glm::dvec3>& directions() const noexcept;
     const basis::VirtualLightGrid& lights() const noexcept;
     const basis::FgbMetadata& metadata() const noexcept;
-    bool has_multiple() const noexcept;   ///< the multiple-scattering component was baked
+    bool has_multiple() const noexcept;  ///< the multiple-scattering component was baked
     /// Single and multiple scattering are stored as separate bases (FgbMetadata::components
     /// == 2), so a reconstruction can show either alone.
     bool separate() const noexcept;
@@ -90,8 +90,8 @@ private:
 /// one float array of lighting().cell_count() values per listed direction, x fastest).
 struct RadianceField {
     core::GridGeometry geometry;
-    int direction_count = 1;            ///< size of the baked direction set
-    std::vector<int> directions;        ///< indices of the reconstructed directions
+    int direction_count = 1;      ///< size of the baked direction set
+    std::vector<int> directions;  ///< indices of the reconstructed directions
     std::vector<std::vector<float>> values;
     /// What the values hold. Usually the request; it differs when the bake cannot separate
     /// the request (see Reconstructor::reconstruct).
@@ -143,7 +143,7 @@ struct Frame {
     /// Some virtual light is active (a flash glows at t with non-zero intensity): radiance
     /// is valid. When false, radiance holds stale buffers and must not be shown.
     bool lit = false;
-    std::vector<lightning::LitSegment> segments;     ///< for the renderer's bolt and glow
+    std::vector<lightning::LitSegment> segments;  ///< for the renderer's bolt and glow
     std::vector<lightning::PointSource> sources;
     lightning::LightWeights weights;
     RadianceField radiance;

@@ -144,7 +144,8 @@ core::Int3 JsonObject::int3(std::string_view key, int lo, int hi) {
     const nlohmann::json* v = find(key);
     const std::string range = "[" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
     if (!v) fail(key, "required [nx, ny, nz] is missing");
-    if (!v->is_array() || v->size() != 3) fail(key, "expected an array of 3 integers in " + range + ", got " + describe(*v));
+    if (!v->is_array() || v->size() != 3)
+        fail(key, "expected an array of 3 integers in " + range + ", got " + describe(*v));
     int n[3];
     for (int i = 0; i < 3; ++i) {
         const auto& e = (*v)[std::size_t(i)];

@@ -23,9 +23,7 @@ namespace fulgur::scene::detail {
 struct Range {
     double lo, hi;
     bool lo_open = false, hi_open = false;
-    bool contains(double v) const noexcept {
-        return (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
-    }
+    bool contains(double v) const noexcept { return (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi); }
     std::string str() const;
 };
 

@@ -64,7 +64,8 @@ void parse_generator(JsonObject o, cloud::CumulonimbusParams& p) {
 
 void parse_cloud(JsonObject o, CloudSource& c, const std::filesystem::path& base_dir) {
     const bool has_gen = o.has("generator"), has_file = o.has("file");
-    if (has_gen == has_file) o.fail("generator", "give exactly one of \"generator\" (an object) or \"file\" (a NRRD path)");
+    if (has_gen == has_file)
+        o.fail("generator", "give exactly one of \"generator\" (an object) or \"file\" (a NRRD path)");
     if (has_gen) {
         c.kind = CloudSource::Kind::Generator;
         parse_generator(o.object("generator"), c.generator);
@@ -78,7 +79,8 @@ void parse_cloud(JsonObject o, CloudSource& c, const std::filesystem::path& base
 
 void parse_transport(JsonObject o, TransportSettings& t) {
     const std::string solver = o.choice_or("solver", "lattice_boltzmann", {"lattice_boltzmann", "monte_carlo"});
-    t.solver = solver == "monte_carlo" ? TransportSettings::Solver::MonteCarlo : TransportSettings::Solver::LatticeBoltzmann;
+    t.solver =
+        solver == "monte_carlo" ? TransportSettings::Solver::MonteCarlo : TransportSettings::Solver::LatticeBoltzmann;
     if (auto lb = o.optional_object("lattice_boltzmann")) {
         t.lb_collision = lb->choice_or("collision", t.lb_collision, {"corrected", "published"});
         t.lb_absorption = lb->choice_or("absorption", t.lb_absorption, {"physical", "conservative"});
@@ -115,8 +117,8 @@ void parse_virtual_lights(JsonObject o, basis::VirtualLightParams& v, double& dr
 }
 
 void parse_compression(JsonObject o, basis::CompressionParams& c, bool& separate_components) {
-    const std::string mode = o.choice_or("threshold", std::string(basis::to_string(c.mode)),
-                                         {"absolute", "relative_l2", "energy"});
+    const std::string mode =
+        o.choice_or("threshold", std::string(basis::to_string(c.mode)), {"absolute", "relative_l2", "energy"});
     c.mode = mode == "absolute"      ? basis::ThresholdMode::Absolute
              : mode == "relative_l2" ? basis::ThresholdMode::RelativeL2
                                      : basis::ThresholdMode::Energy;
@@ -126,16 +128,17 @@ void parse_compression(JsonObject o, basis::CompressionParams& c, bool& separate
         c.xi = o.number("xi", Range{0.0, 1e30});  // absolute: units of S; relative_l2: fraction of ||B||
     else
         o.fail("xi", std::string("required with threshold \"") + mode + "\" (the default xi belongs to \"energy\")");
-    const std::string prec = o.choice_or("precision", std::string(basis::to_string(c.precision)), {"float32", "float16"});
+    const std::string prec =
+        o.choice_or("precision", std::string(basis::to_string(c.precision)), {"float32", "float16"});
     c.precision = prec == "float32" ? basis::Precision::Float32 : basis::Precision::Float16;
-    const std::string dec = o.choice_or("decomposition", std::string(basis::to_string(c.decomposition)),
-                                        {"nonstandard", "standard"});
+    const std::string dec =
+        o.choice_or("decomposition", std::string(basis::to_string(c.decomposition)), {"nonstandard", "standard"});
     c.decomposition = dec == "standard" ? basis::Decomposition::Standard : basis::Decomposition::NonStandard;
     c.entropy = o.choice_or("entropy", std::string(basis::to_string(c.entropy)), {"deflate", "none"}) == "none"
                     ? basis::Entropy::None
                     : basis::Entropy::Deflate;
-    separate_components =
-        o.choice_or("components", separate_components ? "separate" : "combined", {"separate", "combined"}) == "separate";
+    separate_components = o.choice_or("components", separate_components ? "separate" : "combined",
+                                      {"separate", "combined"}) == "separate";
     o.finish();
     basis::validate(c, o.file() + ": compression");
 }
@@ -182,7 +185,8 @@ void parse_lightning(JsonObject o, lightning::LightningParams& l) {
                                         : lightning::Kind::CloudToGround;
     l.seed = o.seed_or("seed", l.seed);
     b.intensity = o.number_or("intensity", b.intensity, Range{0.0, 1e12});
-    b.start_density_threshold = o.number_or("start_density_threshold", b.start_density_threshold, Range{0.0, 1.0, false, true});
+    b.start_density_threshold =
+        o.number_or("start_density_threshold", b.start_density_threshold, Range{0.0, 1.0, false, true});
     b.ground_height = o.number_or("ground_height", b.ground_height, Range{-1e4, 5e4});
     b.angle_mean_deg = o.number_or("angle_mean", b.angle_mean_deg, Range{0.0, 90.0});
     b.angle_spread_deg = o.number_or("angle_spread", b.angle_spread_deg, Range{0.0, 60.0});
@@ -195,7 +199,8 @@ void parse_lightning(JsonObject o, lightning::LightningParams& l) {
     if (auto br = o.optional_object("branches")) {
         b.branch_probability = br->number_or("probability", b.branch_probability, Range{0.0, 1.0});
         b.branch_angle_mean_deg = br->number_or("angle_mean", b.branch_angle_mean_deg, Range{0.0, 90.0});
-        b.branch_length_fraction = br->number_or("length_fraction", b.branch_length_fraction, Range{0.0, 1.0, true, false});
+        b.branch_length_fraction =
+            br->number_or("length_fraction", b.branch_length_fraction, Range{0.0, 1.0, true, false});
         b.branch_intensity_decay = br->number_or("intensity_decay", b.branch_intensity_decay, Range{0.0, 1.0});
         b.max_depth = int(br->integer_or("max_depth", b.max_depth, 0, 8));
         br->finish();

@@ -57,12 +57,12 @@ struct TransportSettings {
     /// "saturate" (exact-chord mapping, one collision per voxel crossing) or
     /// "diffusion_matched" (over-relaxed in optically thick voxels; docs/lattice-boltzmann.md)
     std::string lb_thick_voxels = "diffusion_matched";
-    double lb_tolerance = 1e-4;              ///< steady state: relative change per step
+    double lb_tolerance = 1e-4;  ///< steady state: relative change per step
     int lb_max_iterations = 4000;
     // monte_carlo
-    std::uint64_t mc_paths = 2'000'000;      ///< paths per light
+    std::uint64_t mc_paths = 2'000'000;  ///< paths per light
     std::uint64_t mc_seed = 1;
-    int mc_batches = 32;                     ///< batches for the per-voxel standard error
+    int mc_batches = 32;  ///< batches for the per-voxel standard error
 };
 
 struct PointLight {
@@ -108,8 +108,7 @@ Scene load_scene(const std::filesystem::path& path);
 
 /// Parses a scene from JSON text; `file_name` appears in error messages and `base_dir`
 /// resolves relative paths.
-Scene parse_scene(std::string_view json_text, std::string_view file_name,
-                  const std::filesystem::path& base_dir = {});
+Scene parse_scene(std::string_view json_text, std::string_view file_name, const std::filesystem::path& base_dir = {});
 
 /// The cloud density the scene describes (generated or loaded).
 core::Grid3<float> make_density(const Scene& s);

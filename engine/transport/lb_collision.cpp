@@ -25,7 +25,8 @@ LbAbsorption parse_lb_absorption(std::string_view s, std::string_view where) {
 LbThickVoxels parse_lb_thick_voxels(std::string_view s, std::string_view where) {
     if (s == "saturate") return LbThickVoxels::Saturate;
     if (s == "diffusion_matched") return LbThickVoxels::DiffusionMatched;
-    throw core::Error(std::string(where), "expected \"saturate\" or \"diffusion_matched\", got \"" + std::string(s) + "\"");
+    throw core::Error(std::string(where),
+                      "expected \"saturate\" or \"diffusion_matched\", got \"" + std::string(s) + "\"");
 }
 
 }  // namespace fulgur::transport
@@ -46,7 +47,8 @@ DiscretePhase published_phase(double g) {
     for (int i = 1; i < kQ; ++i) {
         double mean = 0.0;
         for (int j = 1; j < kQ; ++j) mean += hg_kernel(cosine(i, j), g) / 18.0;
-        for (int j = 1; j < kQ; ++j) ph.P[std::size_t(i)][std::size_t(j)] = weight(i) * hg_kernel(cosine(i, j), g) / mean;
+        for (int j = 1; j < kQ; ++j)
+            ph.P[std::size_t(i)][std::size_t(j)] = weight(i) * hg_kernel(cosine(i, j), g) / mean;
     }
     return ph;
 }
@@ -109,8 +111,10 @@ DiscretePhase corrected_phase(double g) {
     double lo = -kMaxAbsG, hi = kMaxAbsG;
     for (int it = 0; it < 80; ++it) {
         const double mid = 0.5 * (lo + hi);
-        if (corrected_params(mid, g).mean_axis < g) lo = mid;
-        else hi = mid;
+        if (corrected_params(mid, g).mean_axis < g)
+            lo = mid;
+        else
+            hi = mid;
     }
     const double gf = 0.5 * (lo + hi);
     const CorrectedParams p = corrected_params(gf, g);
@@ -193,7 +197,8 @@ double phase_min_eigenvalue(const DiscretePhase& phase) {
     return m;
 }
 
-ThickVoxelModel make_thick_voxel_model(LbThickVoxels mode, const DiscretePhase& phase, double albedo, LbAbsorption absorption) {
+ThickVoxelModel make_thick_voxel_model(LbThickVoxels mode, const DiscretePhase& phase, double albedo,
+                                       LbAbsorption absorption) {
     ThickVoxelModel m;
     // The analysis needs a column-stochastic P reversible with respect to w (the corrected
     // form); the published form creates energy, and over-relaxing it diverges: chord mapping.
@@ -245,7 +250,8 @@ LatticeDiffusion lattice_diffusion(const ThickVoxelModel& m, double eA, double e
     return d;
 }
 
-SiteCoefficients site_coefficients(const Medium& optics, double voxel_size, double density, const ThickVoxelModel& thick) noexcept {
+SiteCoefficients site_coefficients(const Medium& optics, double voxel_size, double density,
+                                   const ThickVoxelModel& thick) noexcept {
     SiteCoefficients c = site_coefficients(optics, voxel_size, density);
     if (thick.mode == LbThickVoxels::Saturate || !(c.sigma_t > 0.0)) return c;
     const double tau = c.sigma_t * voxel_size;
@@ -298,7 +304,8 @@ Matrix19 collision_matrix(const DiscretePhase& phase, const SiteCoefficients& c,
     for (int j = 1; j < kQ; ++j) {
         const double e = c.extinction[dir_class(j)];
         for (int i = 1; i < kQ; ++i)
-            T[std::size_t(i)][std::size_t(j)] = (i == j ? 1.0 - e : 0.0) + c.albedo * e * phase.P[std::size_t(i)][std::size_t(j)];
+            T[std::size_t(i)][std::size_t(j)] =
+                (i == j ? 1.0 - e : 0.0) + c.albedo * e * phase.P[std::size_t(i)][std::size_t(j)];
         T[0][std::size_t(j)] = conservative ? (1.0 - c.albedo) * e : 0.0;
     }
     for (int i = 1; i < kQ; ++i) T[std::size_t(i)][0] = weight(i);  // rest density re-emitted isotropically
@@ -330,7 +337,8 @@ FactoredPhase factor_phase(const DiscretePhase& phase, double a) {
     double ad_pos = P(1, 7), ad_zero = P(1, 15), ad_neg = P(1, 8);
     double da_pos = P(7, 1), da_zero = P(7, 5), da_neg = P(7, 2);
     double dd_same = P(7, 7), dd_opp = P(7, 8), dd_pos = P(7, 11), dd_zero = P(7, 9), dd_neg = P(7, 12);
-    FULGUR_ASSERT(cdot(7, 11) == 1 && cdot(7, 9) == 0 && cdot(7, 12) == -1 && cdot(1, 15) == 0, "lattice table changed");
+    FULGUR_ASSERT(cdot(7, 11) == 1 && cdot(7, 9) == 0 && cdot(7, 12) == -1 && cdot(1, 15) == 0,
+                  "lattice table changed");
     // Column sums (double) of the exact values: axis column, diagonal column.
     const double colA = aa_same + aa_opp + 4 * aa_perp + 4 * (da_pos + da_zero + da_neg);
     const double colD = 2 * (ad_pos + ad_zero + ad_neg) + dd_same + dd_opp + 4 * dd_pos + 2 * dd_zero + 4 * dd_neg;
@@ -348,9 +356,10 @@ FactoredPhase factor_phase(const DiscretePhase& phase, double a) {
     f.dd_neg = float(dd_neg);
     // The "same" entries absorb the rounding of the others so that the float column sums
     // (evaluated exactly in double) match the double ones to the nearest float step.
-    const double restA = double(f.aa_opp) + 4.0 * double(f.aa_perp) + 4.0 * (double(f.da_pos) + double(f.da_zero) + double(f.da_neg));
-    const double restD = 2.0 * (double(f.ad_pos) + double(f.ad_zero) + double(f.ad_neg)) + double(f.dd_opp) + 4.0 * double(f.dd_pos) +
-                         2.0 * double(f.dd_zero) + 4.0 * double(f.dd_neg);
+    const double restA =
+        double(f.aa_opp) + 4.0 * double(f.aa_perp) + 4.0 * (double(f.da_pos) + double(f.da_zero) + double(f.da_neg));
+    const double restD = 2.0 * (double(f.ad_pos) + double(f.ad_zero) + double(f.ad_neg)) + double(f.dd_opp) +
+                         4.0 * double(f.dd_pos) + 2.0 * double(f.dd_zero) + 4.0 * double(f.dd_neg);
     f.aa_same = float(colA - restA);
     f.dd_same = float(colD - restD);
     return f;
@@ -411,16 +420,20 @@ std::array<double, kQ> output_phase(const glm::dvec3& sin, double g) {
         if (sg * weights(sg * kMaxAbsG, bhi, q) <= sg * g) return q;
         for (int it = 0; it < 60; ++it) {
             const double mid = 0.5 * (blo + bhi);
-            if (sg * weights(sg * kMaxAbsG, mid, q) < sg * g) blo = mid;
-            else bhi = mid;
+            if (sg * weights(sg * kMaxAbsG, mid, q) < sg * g)
+                blo = mid;
+            else
+                bhi = mid;
         }
         weights(sg * kMaxAbsG, 0.5 * (blo + bhi), q);
         return q;
     }
     for (int it = 0; it < 60; ++it) {
         const double mid = 0.5 * (lo + hi);
-        if (weights(mid, 0.0, q) < g) lo = mid;
-        else hi = mid;
+        if (weights(mid, 0.0, q) < g)
+            lo = mid;
+        else
+            hi = mid;
     }
     weights(0.5 * (lo + hi), 0.0, q);
     return q;

@@ -26,12 +26,12 @@ using Matrix19 = std::array<std::array<double, kQ>, kQ>;
 /// indices match the lattice table).
 struct DiscretePhase {
     Matrix19 P{};
-    double g = 0.0;           ///< the medium's asymmetry parameter
+    double g = 0.0;  ///< the medium's asymmetry parameter
     LbCollision form = LbCollision::Corrected;
     // Parameters of the corrected construction (see corrected_phase()).
-    double g_fit = 0.0;       ///< HG parameter of the smooth part
+    double g_fit = 0.0;                         ///< HG parameter of the smooth part
     double scale_axis = 1.0, scale_diag = 1.0;  ///< symmetric class scalings s_A, s_D
-    double delta_diag = 0.0;  ///< forward (g >= 0) or backward (g < 0) delta weight, diagonal class
+    double delta_diag = 0.0;                    ///< forward (g >= 0) or backward (g < 0) delta weight, diagonal class
 };
 
 /// Unnormalized Henyey-Greenstein kernel (1 - g^2) / (1 - 2 g c + g^2)^{3/2}, written
@@ -58,7 +58,7 @@ DiscretePhase make_phase(LbCollision form, double g);
 
 /// Per-site, per-step lattice coefficients derived from the physical medium.
 struct SiteCoefficients {
-    double sigma_t = 0.0;            ///< physical extinction kappa * rho, 1/m
+    double sigma_t = 0.0;  ///< physical extinction kappa * rho, 1/m
     double albedo = 1.0;
     double extinction[3] = {0, 0, 0};  ///< per direction class (rest, axis, diagonal): e_c
     double track[3] = {0, 0, 0};       ///< mean track length (m) in the voxel per arriving unit
@@ -102,10 +102,10 @@ SiteCoefficients site_coefficients(const Medium& optics, double voxel_size, doub
 struct ThickVoxelModel {
     LbThickVoxels mode = LbThickVoxels::Saturate;
     double albedo = 1.0;
-    double g = 0.0;                 ///< the medium's asymmetry (for sigma_tr)
-    double first_moment[2][2]{};    ///< P restricted to span{axis c_x, diagonal c_x}
-    double p_min = 0.0;             ///< smallest eigenvalue of P (directions 1..18)
-    double e_max = 1.0;             ///< stability cap on every e_j
+    double g = 0.0;               ///< the medium's asymmetry (for sigma_tr)
+    double first_moment[2][2]{};  ///< P restricted to span{axis c_x, diagonal c_x}
+    double p_min = 0.0;           ///< smallest eigenvalue of P (directions 1..18)
+    double e_max = 1.0;           ///< stability cap on every e_j
     /// Physical asymptotic decay constant per unit optical depth, diffusion approximation
     /// sqrt(3 (1 - albedo)(1 - albedo g)) capped at 1 (pure absorber).
     double nu = 0.0;
@@ -135,7 +135,8 @@ LatticeDiffusion lattice_diffusion(const ThickVoxelModel& m, double eA, double e
 /// site_coefficients() with the thick-voxel model: Saturate gives exactly the exact-chord
 /// mapping above; DiffusionMatched scales e_j (and the collision-estimator track
 /// e_j / sigma_t with it) by k >= 1 as described at ThickVoxelModel.
-SiteCoefficients site_coefficients(const Medium& optics, double voxel_size, double density, const ThickVoxelModel& thick) noexcept;
+SiteCoefficients site_coefficients(const Medium& optics, double voxel_size, double density,
+                                   const ThickVoxelModel& thick) noexcept;
 
 /// The paper's lattice units: one extinction probability sigma_t in [0, 1] for every
 /// direction (clamped), h = 1, track = hop length. Used to reproduce Eqs. 4-6 and Eq. 19.

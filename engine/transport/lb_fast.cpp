@@ -71,11 +71,12 @@ struct PairCoeffs {
 
 // The pair layout this kernel is written for (checked against the lattice table).
 constexpr bool check_pair_layout() {
-    constexpr int c[19][3] = {{0, 0, 0},  {1, 0, 0},   {-1, 0, 0}, {0, 1, 0},  {0, -1, 0}, {0, 0, 1},   {0, 0, -1},
-                              {1, 1, 0},  {-1, -1, 0}, {1, -1, 0}, {-1, 1, 0}, {1, 0, 1},  {-1, 0, -1}, {1, 0, -1},
+    constexpr int c[19][3] = {{0, 0, 0},  {1, 0, 0},   {-1, 0, 0},  {0, 1, 0},  {0, -1, 0}, {0, 0, 1},   {0, 0, -1},
+                              {1, 1, 0},  {-1, -1, 0}, {1, -1, 0},  {-1, 1, 0}, {1, 0, 1},  {-1, 0, -1}, {1, 0, -1},
                               {-1, 0, 1}, {0, 1, 1},   {0, -1, -1}, {0, 1, -1}, {0, -1, 1}};
     for (int q = 0; q < kQ; ++q)
-        if (kVelocity[std::size_t(q)].x != c[q][0] || kVelocity[std::size_t(q)].y != c[q][1] || kVelocity[std::size_t(q)].z != c[q][2])
+        if (kVelocity[std::size_t(q)].x != c[q][0] || kVelocity[std::size_t(q)].y != c[q][1] ||
+            kVelocity[std::size_t(q)].z != c[q][2])
             return false;
     for (int q = 1; q < kQ; q += 2)
         if (opposite(q) != q + 1) return false;
@@ -151,13 +152,13 @@ FULGUR_INLINE SiteResult update_site(const float* const* in, float* const* out, 
     // pass 1: pair sums and differences of u = e f, and the aggregates
     auto ld = [&](auto Q) FULGUR_LAMBDA_INLINE { return in[Q][x]; };
     using std::integral_constant;
-#define FULGUR_PAIR(name, q, e)                                                    \
-    float s##name, d##name;                                                       \
-    {                                                                             \
-        const float a = e * ld(integral_constant<int, q>{});                      \
-        const float b = e * ld(integral_constant<int, q + 1>{});                  \
-        s##name = a + b;                                                          \
-        d##name = a - b;                                                          \
+#define FULGUR_PAIR(name, q, e)                                  \
+    float s##name, d##name;                                      \
+    {                                                            \
+        const float a = e * ld(integral_constant<int, q>{});     \
+        const float b = e * ld(integral_constant<int, q + 1>{}); \
+        s##name = a + b;                                         \
+        d##name = a - b;                                         \
     }
     FULGUR_PAIR(x, 1, eA)
     FULGUR_PAIR(y, 3, eA)
@@ -257,8 +258,8 @@ private:
 // Row-grouped (CSR) layout of (row, item) pairs given in row order: row r's items are
 // out[begin[r], begin[r + 1]).
 template <class T>
-void group_by_row(std::size_t rows, const std::vector<std::pair<std::size_t, T>>& items, std::vector<std::size_t>& begin,
-                  std::vector<T>& out) {
+void group_by_row(std::size_t rows, const std::vector<std::pair<std::size_t, T>>& items,
+                  std::vector<std::size_t>& begin, std::vector<T>& out) {
     begin.assign(rows + 1, 0);
     out.clear();
     out.reserve(items.size());
@@ -271,8 +272,7 @@ void group_by_row(std::size_t rows, const std::vector<std::pair<std::size_t, T>>
 
 class FastKernel final : public Kernel {
 public:
-    explicit FastKernel(const Problem& p)
-        : p_(p), conservative_(p.absorption == LbAbsorption::Conservative) {
+    explicit FastKernel(const Problem& p) : p_(p), conservative_(p.absorption == LbAbsorption::Conservative) {
         const core::Int3 d = p.dims;
         // Rows padded to a multiple of 16 floats and the buffers offset by 15 floats, so that
         // every row's x = 0 starts a cache line: the even step's 512-bit loads and stores
@@ -296,7 +296,8 @@ public:
         for (std::size_t i = 0; i < stride_ * 2; ++i) ext_[i] = 0.0f;
         for (int q = 0; q < kQ; ++q) {
             const Velocity& c = kVelocity[std::size_t(q)];
-            off_[q] = std::ptrdiff_t(c.x) + std::ptrdiff_t(px_) * (std::ptrdiff_t(c.y) + std::ptrdiff_t(py_) * std::ptrdiff_t(c.z));
+            off_[q] = std::ptrdiff_t(c.x) +
+                      std::ptrdiff_t(px_) * (std::ptrdiff_t(c.y) + std::ptrdiff_t(py_) * std::ptrdiff_t(c.z));
         }
         coeffs_ = make_pair_coeffs(p.phase, p.albedo);
 
@@ -325,7 +326,8 @@ public:
                 row_medium_[row] = 1;
             }
             for (int q = 0; q < kQ; ++q)
-                src_[std::size_t(row_source_[row]) + std::size_t(q) * std::size_t(d.x) + std::size_t(c.x)] += s.out[std::size_t(q)];
+                src_[std::size_t(row_source_[row]) + std::size_t(q) * std::size_t(d.x) + std::size_t(c.x)] +=
+                    s.out[std::size_t(q)];
         }
         build_boundary();
         // Initial state: the inflow has arrived (t = 0), natural layout.
@@ -346,12 +348,16 @@ public:
         const std::int64_t rows = std::int64_t(d.y) * std::int64_t(d.z);
 #pragma omp parallel for schedule(static) num_threads(core::thread_count()) if (parallel())
         for (std::int64_t r = 0; r < rows; ++r) {
-            if (odd) update_row<true>(r, 0);
-            else update_row<false>(r, 0);
+            if (odd)
+                update_row<true>(r, 0);
+            else
+                update_row<false>(r, 0);
         }
         if (!pairs_.empty()) {
-            if (odd) periodic_pass<true>();
-            else periodic_pass<false>();
+            if (odd)
+                periodic_pass<true>();
+            else
+                periodic_pass<false>();
         }
         finish_step(0);
     }
@@ -409,9 +415,12 @@ public:
         float absorbed, total = 0.0f;
         const bool medium = row_medium_[std::size_t(r)] != 0;
         const float* src = row_source_[std::size_t(r)] >= 0 ? &src_[std::size_t(row_source_[std::size_t(r)])] : nullptr;
-        if (!medium) absorbed = stream_row<Odd>(base, d.x, total);
-        else if (conservative_) absorbed = row<Odd, true>(base, d.x, src, total);
-        else absorbed = row<Odd, false>(base, d.x, src, total);
+        if (!medium)
+            absorbed = stream_row<Odd>(base, d.x, total);
+        else if (conservative_)
+            absorbed = row<Odd, true>(base, d.x, src, total);
+        else
+            absorbed = row<Odd, false>(base, d.x, src, total);
         RowSums& s = row_sums_[std::size_t(acc)][std::size_t(r)];
         s.absorbed = conservative_ ? 0.0 : double(absorbed) * (1.0 - p_.albedo);
         s.total = double(total);
@@ -481,7 +490,8 @@ private:
     }
     core::Int3 unindex(std::size_t s) const noexcept {
         const core::Int3 d = p_.dims;
-        return {int(s % std::size_t(d.x)), int((s / std::size_t(d.x)) % std::size_t(d.y)), int(s / (std::size_t(d.x) * std::size_t(d.y)))};
+        return {int(s % std::size_t(d.x)), int((s / std::size_t(d.x)) % std::size_t(d.y)),
+                int(s / (std::size_t(d.x) * std::size_t(d.y)))};
     }
     float& slot(int q, std::size_t ps) noexcept { return data_[std::size_t(q) * stride_ + ps]; }
 
@@ -605,15 +615,16 @@ private:
             }
         }
         if constexpr (!Odd)
-            for (std::size_t i = ghost_begin_[std::size_t(r)]; i < ghost_begin_[std::size_t(r) + 1]; ++i) A[ghosts_[i].index] = ghosts_[i].in;
+            for (std::size_t i = ghost_begin_[std::size_t(r)]; i < ghost_begin_[std::size_t(r) + 1]; ++i)
+                A[ghosts_[i].index] = ghosts_[i].in;
         return escaped;
     }
 
     // Periodic faces: a pass after the rows (it copies between rows).
     struct Pair {
-        std::size_t site;     // padded index of the interior site x
-        int q;                // direction pointing out: x + c_q is outside
-        std::int64_t partner; // padded index of wrap(x + c_q)
+        std::size_t site;      // padded index of the interior site x
+        int q;                 // direction pointing out: x + c_q is outside
+        std::int64_t partner;  // padded index of wrap(x + c_q)
     };
 
     void build_boundary() {
@@ -634,8 +645,10 @@ private:
                         for (int a = 0; a < 3; ++a) {
                             if (n[a] >= 0 && n[a] < dd[a]) continue;
                             outside = true;
-                            if (p_.boundary[std::size_t(a)] == Boundary::Periodic) n[a] = (n[a] + dd[a]) % dd[a];
-                            else open = true;
+                            if (p_.boundary[std::size_t(a)] == Boundary::Periodic)
+                                n[a] = (n[a] + dd[a]) % dd[a];
+                            else
+                                open = true;
                         }
                         if (!outside) continue;
                         if (open) {
@@ -645,8 +658,11 @@ private:
                             // the ghost's row, if it is an interior row (x faces), else the site's
                             const int gy = y + c.y, gz = z + c.z;
                             const bool interior_row = gy >= 0 && gy < d.y && gz >= 0 && gz < d.z;
-                            const std::size_t grow = interior_row ? std::size_t(gy) + std::size_t(d.y) * std::size_t(gz) : row;
-                            ghost_rows.push_back({grow, {std::size_t(q) * stride_ + std::size_t(std::ptrdiff_t(pad(x, y, z)) + off_[q]), in}});
+                            const std::size_t grow =
+                                interior_row ? std::size_t(gy) + std::size_t(d.y) * std::size_t(gz) : row;
+                            ghost_rows.push_back(
+                                {grow,
+                                 {std::size_t(q) * stride_ + std::size_t(std::ptrdiff_t(pad(x, y, z)) + off_[q]), in}});
                             continue;
                         }
                         Pair pr{pad(x, y, z), q, std::int64_t(pad(n[0], n[1], n[2]))};
@@ -656,19 +672,20 @@ private:
         // Open links: by row (already in row order: z, y, x, q).
         const std::size_t rows = std::size_t(d.y) * std::size_t(d.z);
         group_by_row(rows, open_rows, open_begin_, open_);
-        std::stable_sort(ghost_rows.begin(), ghost_rows.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+        std::stable_sort(ghost_rows.begin(), ghost_rows.end(),
+                         [](const auto& a, const auto& b) { return a.first < b.first; });
         group_by_row(rows, ghost_rows, ghost_begin_, ghosts_);
         for (int q = 0; q < kQ; ++q) ghost_off_[q] = std::size_t(q) * stride_ + std::size_t(off_[q]);
         // Periodic pairs: grouped by direction, then by address: each group walks two
         // direction arrays in increasing order, and groups run in parallel (each copies to
         // its own slots).
-        std::stable_sort(pairs_.begin(), pairs_.end(), [](const Pair& a, const Pair& b) {
-            return a.q != b.q ? a.q < b.q : a.site < b.site;
-        });
+        std::stable_sort(pairs_.begin(), pairs_.end(),
+                         [](const Pair& a, const Pair& b) { return a.q != b.q ? a.q < b.q : a.site < b.site; });
         group_begin_.assign(kQ + 1, pairs_.size());
         for (std::size_t i = pairs_.size(); i-- > 0;) group_begin_[std::size_t(pairs_[i].q)] = i;
         for (int q = kQ - 1; q >= 0; --q)
-            if (group_begin_[std::size_t(q)] > group_begin_[std::size_t(q + 1)]) group_begin_[std::size_t(q)] = group_begin_[std::size_t(q + 1)];
+            if (group_begin_[std::size_t(q)] > group_begin_[std::size_t(q + 1)])
+                group_begin_[std::size_t(q)] = group_begin_[std::size_t(q + 1)];
     }
 
     template <bool Odd>
@@ -680,8 +697,10 @@ private:
             for (std::size_t i = group_begin_[std::size_t(q)]; i < group_begin_[std::size_t(q + 1)]; ++i) {
                 const Pair& b = pairs_[i];
                 float& ghost = slot(q, std::size_t(std::ptrdiff_t(b.site) + off_[q]));
-                if constexpr (!Odd) ghost = slot(q, std::size_t(b.partner));
-                else slot(o, b.site) = slot(o, std::size_t(b.partner - off_[q]));
+                if constexpr (!Odd)
+                    ghost = slot(q, std::size_t(b.partner));
+                else
+                    slot(o, b.site) = slot(o, std::size_t(b.partner - off_[q]));
             }
         }
     }

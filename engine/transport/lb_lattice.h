@@ -13,19 +13,19 @@
 
 namespace fulgur::transport::lb {
 
-inline constexpr int kQ = 19;      ///< directions including rest
-inline constexpr int kMoving = 18; ///< directions 1..18
+inline constexpr int kQ = 19;       ///< directions including rest
+inline constexpr int kMoving = 18;  ///< directions 1..18
 
 struct Velocity {
     int x, y, z;
 };
 
 inline constexpr std::array<Velocity, kQ> kVelocity = {{
-    {0, 0, 0},                                                                     // 0 rest
-    {1, 0, 0},  {-1, 0, 0},  {0, 1, 0},  {0, -1, 0},  {0, 0, 1},  {0, 0, -1},        // 1..6 axes
-    {1, 1, 0},  {-1, -1, 0}, {1, -1, 0}, {-1, 1, 0},                                 // 7..10 xy
-    {1, 0, 1},  {-1, 0, -1}, {1, 0, -1}, {-1, 0, 1},                                 // 11..14 xz
-    {0, 1, 1},  {0, -1, -1}, {0, 1, -1}, {0, -1, 1},                                 // 15..18 yz
+    {0, 0, 0},                                                              // 0 rest
+    {1, 0, 0}, {-1, 0, 0},  {0, 1, 0},  {0, -1, 0}, {0, 0, 1}, {0, 0, -1},  // 1..6 axes
+    {1, 1, 0}, {-1, -1, 0}, {1, -1, 0}, {-1, 1, 0},                         // 7..10 xy
+    {1, 0, 1}, {-1, 0, -1}, {1, 0, -1}, {-1, 0, 1},                         // 11..14 xz
+    {0, 1, 1}, {0, -1, -1}, {0, 1, -1}, {0, -1, 1},                         // 15..18 yz
 }};
 
 /// Direction classes: 0 rest, 1 axis, 2 diagonal.
@@ -34,7 +34,8 @@ enum DirClass : int { kRest = 0, kAxis = 1, kDiagonal = 2 };
 constexpr int dir_class(int i) noexcept { return i == 0 ? kRest : (i <= 6 ? kAxis : kDiagonal); }
 constexpr int opposite(int i) noexcept { return i == 0 ? 0 : ((i % 2) ? i + 1 : i - 1); }
 constexpr int length_squared(int i) noexcept {
-    return kVelocity[std::size_t(i)].x * kVelocity[std::size_t(i)].x + kVelocity[std::size_t(i)].y * kVelocity[std::size_t(i)].y +
+    return kVelocity[std::size_t(i)].x * kVelocity[std::size_t(i)].x +
+           kVelocity[std::size_t(i)].y * kVelocity[std::size_t(i)].y +
            kVelocity[std::size_t(i)].z * kVelocity[std::size_t(i)].z;
 }
 /// Isotropy weight in units of 1/24 (exact integer arithmetic for the static checks).
@@ -43,7 +44,8 @@ constexpr int weight24(int i) noexcept { return i == 0 ? 0 : (dir_class(i) == kA
 constexpr double weight(int i) noexcept { return double(weight24(i)) / 24.0; }
 /// Integer dot product c_i . c_j.
 constexpr int cdot(int i, int j) noexcept {
-    return kVelocity[std::size_t(i)].x * kVelocity[std::size_t(j)].x + kVelocity[std::size_t(i)].y * kVelocity[std::size_t(j)].y +
+    return kVelocity[std::size_t(i)].x * kVelocity[std::size_t(j)].x +
+           kVelocity[std::size_t(i)].y * kVelocity[std::size_t(j)].y +
            kVelocity[std::size_t(i)].z * kVelocity[std::size_t(j)].z;
 }
 /// Hop length |c_i| in lattice spacings (0, 1 or sqrt 2).
@@ -67,7 +69,8 @@ constexpr bool check_table() {
     // All 18 non-corner neighbours of {-1,0,1}^3 appear exactly once.
     for (int i = 0; i < kQ; ++i)
         for (int j = i + 1; j < kQ; ++j)
-            if (kVelocity[std::size_t(i)].x == kVelocity[std::size_t(j)].x && kVelocity[std::size_t(i)].y == kVelocity[std::size_t(j)].y &&
+            if (kVelocity[std::size_t(i)].x == kVelocity[std::size_t(j)].x &&
+                kVelocity[std::size_t(i)].y == kVelocity[std::size_t(j)].y &&
                 kVelocity[std::size_t(i)].z == kVelocity[std::size_t(j)].z)
                 return false;
     return true;
@@ -96,7 +99,7 @@ constexpr bool check_weights() {
         for (int a = 0; a < 3; ++a)
             for (int b = 0; b < 3; ++b) m[a][b] += weight24(i) * v[a] * v[b];
     }
-    if (sum != 24) return false;                   // sum w_i = 1
+    if (sum != 24) return false;                      // sum w_i = 1
     if (sx != 0 || sy != 0 || sz != 0) return false;  // sum w_i c_i = 0
     for (int a = 0; a < 3; ++a)
         for (int b = 0; b < 3; ++b)
@@ -119,7 +122,8 @@ constexpr bool check_symmetry() {
 }
 }  // namespace detail
 
-static_assert(detail::check_table(), "D3Q19 velocity table must list the 18 non-corner neighbours once, classes by length");
+static_assert(detail::check_table(),
+              "D3Q19 velocity table must list the 18 non-corner neighbours once, classes by length");
 static_assert(detail::check_opposites(), "opposite(i) must be the reversed velocity of the same class");
 static_assert(detail::check_weights(), "isotropy weights: sum 1, zero first moment, second moment delta/2");
 static_assert(detail::check_symmetry(), "every direction of a class must see the same cosine multiset");

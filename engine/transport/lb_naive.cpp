@@ -48,9 +48,12 @@ public:
                 const double e = in == 0 ? 0.0 : (dir_class(in) == kAxis ? eA : eD);
                 for (int out = 0; out < kQ; ++out) {
                     double t;
-                    if (in == 0) t = out == 0 ? 0.0 : weight(out);
-                    else if (out == 0) t = conservative ? (1.0 - p.albedo) * e : 0.0;
-                    else t = (out == in ? 1.0 - e : 0.0) + p.albedo * e * p.phase.P[std::size_t(out)][std::size_t(in)];
+                    if (in == 0)
+                        t = out == 0 ? 0.0 : weight(out);
+                    else if (out == 0)
+                        t = conservative ? (1.0 - p.albedo) * e : 0.0;
+                    else
+                        t = (out == in ? 1.0 - e : 0.0) + p.albedo * e * p.phase.P[std::size_t(out)][std::size_t(in)];
                     theta[in][out] = float(t);
                 }
                 if (!conservative && in > 0) absorbed += (1.0 - p.albedo) * e * double(src_[i][std::size_t(in)]);
@@ -76,8 +79,10 @@ public:
                     for (int q = 1; q < kQ; ++q) {
                         const Velocity& c = kVelocity[std::size_t(q)];
                         int n[3] = {x + c.x, y + c.y, z + c.z};
-                        if (neighbour(n)) dst_[p.index(n[0], n[1], n[2])][std::size_t(q)] = src_[i][std::size_t(q)];
-                        else escaped += double(src_[i][std::size_t(q)]);
+                        if (neighbour(n))
+                            dst_[p.index(n[0], n[1], n[2])][std::size_t(q)] = src_[i][std::size_t(q)];
+                        else
+                            escaped += double(src_[i][std::size_t(q)]);
                     }
                 }
         // Inject new light on the borders (the in-links nobody streamed into).

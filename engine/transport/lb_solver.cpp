@@ -12,7 +12,8 @@
 
 namespace fulgur::transport::lb {
 
-Problem Problem::uniform(core::Int3 dims, const SiteCoefficients& c, const DiscretePhase& phase, LbAbsorption absorption) {
+Problem Problem::uniform(core::Int3 dims, const SiteCoefficients& c, const DiscretePhase& phase,
+                         LbAbsorption absorption) {
     Problem p;
     p.dims = dims;
     p.absorption = absorption;
@@ -23,7 +24,8 @@ Problem Problem::uniform(core::Int3 dims, const SiteCoefficients& c, const Discr
     return p;
 }
 
-std::array<double, kQ> Problem::add_source(std::size_t site, const std::array<double, kQ>& e, const SiteCoefficients& c) {
+std::array<double, kQ> Problem::add_source(std::size_t site, const std::array<double, kQ>& e,
+                                           const SiteCoefficients& c) {
     // Emission spread uniformly over the voxel: along direction j it crosses on average half
     // the chord, so a fraction Tbar_j = (1 - exp(-tau_j)) / tau_j leaves uncollided; the rest
     // collides in the voxel (scattered with the lattice's phase, absorbed with 1 - albedo).
@@ -43,8 +45,10 @@ std::array<double, kQ> Problem::add_source(std::size_t site, const std::array<do
         absorbed += (1.0 - c.albedo) * coll;
         track[std::size_t(j)] = tau > 1e-12 ? coll / c.sigma_t : 0.5 * c.hop[k] * ej;
     }
-    if (absorption == LbAbsorption::Conservative) out[0] += absorbed;
-    else source_absorbed_per_step += absorbed;
+    if (absorption == LbAbsorption::Conservative)
+        out[0] += absorbed;
+    else
+        source_absorbed_per_step += absorbed;
     emission_per_step += raw;
     // The published phase does not conserve: count what actually leaves the site.
     if (phase.form != LbCollision::Corrected) {
@@ -189,7 +193,9 @@ void add_boundary_light(Problem& p, const core::GridGeometry& g, const glm::dvec
                         if (dist < 0.0) continue;
                         const double u0 = fc[u] - 0.5 * h - (*point)[u], u1 = u0 + h;
                         const double v0 = fc[v] - 0.5 * h - (*point)[v], v1 = v0 + h;
-                        auto F = [dist](double p1, double p2) { return std::atan2(p1 * p2, dist * std::sqrt(p1 * p1 + p2 * p2 + dist * dist)); };
+                        auto F = [dist](double p1, double p2) {
+                            return std::atan2(p1 * p2, dist * std::sqrt(p1 * p1 + p2 * p2 + dist * dist));
+                        };
                         const double omega = F(u1, v1) - F(u0, v1) - F(u1, v0) + F(u0, v0);
                         if (!(omega > 0.0)) continue;
                         power = intensity * omega;
@@ -244,7 +250,8 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
     core::validate_geometry(g, "lattice_boltzmann: lighting grid");
     if (medium.density.data.size() != g.cell_count())
         throw core::Error("lattice_boltzmann: density", "holds " + std::to_string(medium.density.data.size()) +
-                                                            " values for " + std::to_string(g.cell_count()) + " voxels");
+                                                            " values for " + std::to_string(g.cell_count()) +
+                                                            " voxels");
     check_finite(medium.optics.extinction, "lattice_boltzmann: medium.extinction");
     check_finite(medium.optics.albedo, "lattice_boltzmann: medium.albedo");
     check_finite(medium.optics.g, "lattice_boltzmann: medium.g");
@@ -274,7 +281,8 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
     for (std::size_t i = 0; i < n; ++i) {
         const float rho = medium.density.data[i];
         if (!std::isfinite(rho) || rho < 0.0f)
-            throw core::Error("lattice_boltzmann: density", "voxel " + std::to_string(i) + " is negative or not finite");
+            throw core::Error("lattice_boltzmann: density",
+                              "voxel " + std::to_string(i) + " is negative or not finite");
         coef[i] = site_coefficients(medium.optics, h, double(rho), thick);
         p.ext_axis[i] = float(coef[i].extinction[kAxis]);
         p.ext_diag[i] = float(coef[i].extinction[kDiagonal]);
@@ -341,7 +349,8 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
         if (!(S1.geom == g))
             throw core::Error("lattice_boltzmann: first_scattered", "source field grid differs from the lighting grid");
         if (S1.data.size() != S1.cells() * S1.directions.size() || S1.directions.empty())
-            throw core::Error("lattice_boltzmann: first_scattered", "source field data size does not match its directions");
+            throw core::Error("lattice_boltzmann: first_scattered",
+                              "source field data size does not match its directions");
         int map[kQ] = {};
         const bool iso = S1.directions.size() == 1;
         for (int q = 1; q < kQ; ++q) {
@@ -362,7 +371,8 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
             for (int q = 1; q < kQ; ++q) {
                 const float s = S1.direction(std::size_t(map[q]))[i];
                 if (!std::isfinite(s) || s < 0.0f)
-                    throw core::Error("lattice_boltzmann: first_scattered", "voxel " + std::to_string(i) + " holds a negative or non-finite value");
+                    throw core::Error("lattice_boltzmann: first_scattered",
+                                      "voxel " + std::to_string(i) + " holds a negative or non-finite value");
                 e[std::size_t(q)] = st * V * 4.0 * std::numbers::pi * weight(q) * double(s);
                 sum += e[std::size_t(q)];
             }
@@ -375,13 +385,15 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
         }
     }
     for (std::size_t i = 0; i < n; ++i)
-        if (emission_index[i] >= 0) source_tracks.emplace_back(i, p.add_source(i, emission[std::size_t(emission_index[i])], coef[i]));
+        if (emission_index[i] >= 0)
+            source_tracks.emplace_back(i, p.add_source(i, emission[std::size_t(emission_index[i])], coef[i]));
 
     // Iterate.
     LbResult res;
     core::Stopwatch watch;
     Simulation sim(p, settings.kernel);
-    sim.run(settings.tolerance, std::max(2, settings.max_iterations), settings.record_history ? &res.total_density : nullptr);
+    sim.run(settings.tolerance, std::max(2, settings.max_iterations),
+            settings.record_history ? &res.total_density : nullptr);
     if (sim.steps() % 2) sim.step();  // (run() already stops on even steps)
     res.seconds = watch.seconds();
     res.iterations = sim.steps();

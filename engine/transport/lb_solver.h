@@ -42,20 +42,22 @@ struct Problem {
     };
     std::vector<Source> sources;
 
-    double inflow_per_step = 0.0;          ///< sum of inflow values (double)
-    double emission_per_step = 0.0;        ///< raw source power before the own-voxel collision
-    double source_absorbed_per_step = 0.0; ///< absorbed in the emitting voxels (physical model)
+    double inflow_per_step = 0.0;           ///< sum of inflow values (double)
+    double emission_per_step = 0.0;         ///< raw source power before the own-voxel collision
+    double source_absorbed_per_step = 0.0;  ///< absorbed in the emitting voxels (physical model)
 
     std::size_t sites() const noexcept { return dims.volume(); }
     std::size_t index(int x, int y, int z) const noexcept {
         return std::size_t(x) + std::size_t(dims.x) * (std::size_t(y) + std::size_t(dims.y) * std::size_t(z));
     }
     /// A problem with uniform site coefficients and no sources.
-    static Problem uniform(core::Int3 dims, const SiteCoefficients& c, const DiscretePhase& phase, LbAbsorption absorption);
+    static Problem uniform(core::Int3 dims, const SiteCoefficients& c, const DiscretePhase& phase,
+                           LbAbsorption absorption);
     /// Adds a source of raw emission e_q (W per step per direction, q = 1..18) at `site`,
     /// applying the own-voxel collision (docs: "Sources"); returns the own-voxel track
     /// sum_q (track of e_q) per direction, in m*W, for the fluence.
-    std::array<double, kQ> add_source(std::size_t site, const std::array<double, kQ>& emission, const SiteCoefficients& c);
+    std::array<double, kQ> add_source(std::size_t site, const std::array<double, kQ>& emission,
+                                      const SiteCoefficients& c);
 };
 
 class Kernel {

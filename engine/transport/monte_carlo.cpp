@@ -3,8 +3,8 @@
 // estimators), and the batch driver (deterministic per seed for any thread count).
 #include "transport/kernels.h"
 #include "transport/monte_carlo_core.h"
-#include "transport/traversal.h"
 #include "transport/transport.h"
+#include "transport/traversal.h"
 
 #include <glm/geometric.hpp>
 
@@ -18,15 +18,18 @@ namespace fulgur::transport {
 namespace detail {
 
 void check_mc_options(const MonteCarloOptions& o) {
-    if (o.batches < 2) throw core::Error("monte_carlo.batches", "must be >= 2 (standard errors), got " + std::to_string(o.batches));
+    if (o.batches < 2)
+        throw core::Error("monte_carlo.batches", "must be >= 2 (standard errors), got " + std::to_string(o.batches));
     if (o.paths < std::uint64_t(o.batches))
-        throw core::Error("monte_carlo.paths", "must be >= batches (" + std::to_string(o.batches) + "), got " +
-                                                   std::to_string(o.paths));
+        throw core::Error("monte_carlo.paths",
+                          "must be >= batches (" + std::to_string(o.batches) + "), got " + std::to_string(o.paths));
     if (!(o.roulette_threshold > 0.0 && o.roulette_threshold <= 1.0))
-        throw core::Error("monte_carlo.roulette_threshold", "must be in (0, 1], got " + std::to_string(o.roulette_threshold));
+        throw core::Error("monte_carlo.roulette_threshold",
+                          "must be in (0, 1], got " + std::to_string(o.roulette_threshold));
     if (o.max_scatterings < 0)
         throw core::Error("monte_carlo.max_scatterings", "must be >= 0, got " + std::to_string(o.max_scatterings));
-    if (o.macro_cell < 0) throw core::Error("monte_carlo.macro_cell", "must be >= 0, got " + std::to_string(o.macro_cell));
+    if (o.macro_cell < 0)
+        throw core::Error("monte_carlo.macro_cell", "must be >= 0, got " + std::to_string(o.macro_cell));
     if (o.max_collisions < 1) throw core::Error("monte_carlo.max_collisions", "must be >= 1");
 }
 
@@ -96,9 +99,19 @@ class GridTally {
 public:
     GridTally(const LightingMedium& m, std::span<const glm::dvec3> dirs, bool expected_single, bool track_single,
               bool tally_multiple, double cutoff, double* single, double* multiple)
-        : g_(&m.density.geom), rho_(m.density.data.data()), kappa_(m.optics.extinction), dirs_(dirs),
-          hg_(m.optics.g), M_(dirs.size()), expected_single_(expected_single), track_single_(track_single),
-          tally_multiple_(tally_multiple), cutoff_(cutoff), single_(single), multiple_(multiple), p_(dirs.size()) {}
+        : g_(&m.density.geom),
+          rho_(m.density.data.data()),
+          kappa_(m.optics.extinction),
+          dirs_(dirs),
+          hg_(m.optics.g),
+          M_(dirs.size()),
+          expected_single_(expected_single),
+          track_single_(track_single),
+          tally_multiple_(tally_multiple),
+          cutoff_(cutoff),
+          single_(single),
+          multiple_(multiple),
+          p_(dirs.size()) {}
 
     void uncollided(const glm::dvec3& x, const glm::dvec3& d, double w) {
         if (!expected_single_) return;

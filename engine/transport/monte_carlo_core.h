@@ -195,7 +195,7 @@ struct BoxSunEmitter {
     glm::dvec3 lo{0.0}, hi{1.0};
     glm::dvec3 direction{0.0, 0.0, -1.0};  // unit
     double irradiance = 1.0;
-    std::array<double, 3> cumulative{};    // cumulative projected areas per axis
+    std::array<double, 3> cumulative{};  // cumulative projected areas per axis
     BoxSunEmitter(const glm::dvec3& lo_, const glm::dvec3& hi_, const glm::dvec3& dir, double e)
         : lo(lo_), hi(hi_), direction(dir), irradiance(e) {
         const glm::dvec3 ext = hi - lo;

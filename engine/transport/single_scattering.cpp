@@ -23,8 +23,8 @@
 //  * tensor Gauss rule (order^3 nodes) for far, optically thin boxes, with exact DDA
 //    transmittance to every node; boxes closer than 3 box sizes are split 2^3 (twice at most).
 #include "transport/kernels.h"
-#include "transport/traversal.h"
 #include "transport/transport.h"
+#include "transport/traversal.h"
 
 #include <glm/geometric.hpp>
 
@@ -96,7 +96,8 @@ void validate_medium(const LightingMedium& m) {
                                                 std::to_string(m.density.geom.cell_count()) + " voxels");
     const Medium& o = m.optics;
     if (!std::isfinite(o.extinction) || o.extinction < 0.0)
-        throw core::Error("medium.extinction", "must be a finite value >= 0 (1/m), got " + std::to_string(o.extinction));
+        throw core::Error("medium.extinction",
+                          "must be a finite value >= 0 (1/m), got " + std::to_string(o.extinction));
     if (!(o.albedo >= 0.0 && o.albedo <= 1.0))
         throw core::Error("medium.albedo", "must be in [0, 1], got " + std::to_string(o.albedo));
     if (!std::isfinite(o.g)) throw core::Error("medium.g", "must be finite (it is clamped to +-0.9999)");
@@ -126,8 +127,8 @@ double transmittance(const LightingMedium& m, const glm::dvec3& a, const glm::dv
 double optical_depth_to_sun(const LightingMedium& m, const glm::dvec3& x, const glm::dvec3& direction) noexcept {
     const double len = glm::length(direction);
     if (!(len > 0.0) || !std::isfinite(len)) return 0.0;
-    return detail::optical_depth_along(m.density.geom, m.density.data.data(), m.optics.extinction, x,
-                                       -direction / len, 0.0, detail::kInf);
+    return detail::optical_depth_along(m.density.geom, m.density.data.data(), m.optics.extinction, x, -direction / len,
+                                       0.0, detail::kInf);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -436,35 +437,35 @@ void face_rule_point(const PointCtx& c, const Box& b, double sigma, int ax, bool
                     }
                     const double t_lo_piece = t_lo;
                     for (int ip2 = 0; ip2 < nparts; ++ip2) {
-                    const double t_hi = t_lo_piece - (t_lo_piece - t_hi_piece) * (ip2 + 1) / nparts;
-                    t_lo = t_lo_piece - (t_lo_piece - t_hi_piece) * ip2 / nparts;
-                    const double dth = t_lo - t_hi;  // > 0: t_hi < t_lo
-                    for (int ju = 0; ju < n; ++ju) {
-                        const double th = t_hi + dth * gr.x[std::size_t(ju)];
-                        const double u = std::cos(th), sn = std::sin(th);
-                        const double w = wph * dth * gr.w[std::size_t(ju)] * sn;
-                        glm::dvec3 dir;
-                        dir[ax] = sgn * u;
-                        dir[ua] = sn * cph;
-                        dir[va] = sn * sph;
-                        const double R = a / u;
-                        double value;
-                        if (inside) {
-                            value = chord_integral(sigma, R);
-                        } else {
-                            const double T = c.transmittance(dir, R);
-                            if (T == 0.0) continue;
-                            double len;
-                            if (!side) {
-                                len = depth / u;
+                        const double t_hi = t_lo_piece - (t_lo_piece - t_hi_piece) * (ip2 + 1) / nparts;
+                        t_lo = t_lo_piece - (t_lo_piece - t_hi_piece) * ip2 / nparts;
+                        const double dth = t_lo - t_hi;  // > 0: t_hi < t_lo
+                        for (int ju = 0; ju < n; ++ju) {
+                            const double th = t_hi + dth * gr.x[std::size_t(ju)];
+                            const double u = std::cos(th), sn = std::sin(th);
+                            const double w = wph * dth * gr.w[std::size_t(ju)] * sn;
+                            glm::dvec3 dir;
+                            dir[ax] = sgn * u;
+                            dir[ua] = sn * cph;
+                            dir[va] = sn * sph;
+                            const double R = a / u;
+                            double value;
+                            if (inside) {
+                                value = chord_integral(sigma, R);
                             } else {
-                                const double rho = a * sn / u;
-                                len = rho > 0.0 ? R * std::max(0.0, rout - rho) / rho : 0.0;
+                                const double T = c.transmittance(dir, R);
+                                if (T == 0.0) continue;
+                                double len;
+                                if (!side) {
+                                    len = depth / u;
+                                } else {
+                                    const double rho = a * sn / u;
+                                    len = rho > 0.0 ? R * std::max(0.0, rout - rho) / rho : 0.0;
+                                }
+                                value = T * chord_integral(sigma, len);
                             }
-                            value = T * chord_integral(sigma, len);
+                            acc.add(w * value, dir);
                         }
-                        acc.add(w * value, dir);
-                    }
                     }
                     t_lo = t_hi_piece;
                 }
@@ -487,9 +488,9 @@ void face_rule_point(const PointCtx& c, const Box& b, double sigma, int ax, bool
 /// rule (exact radial integral); if geometry cannot, the box is split 2^3.
 
 struct Plan {
-    double eps;   // tolerance
-    int n_face;   // points per axis of each face-rule piece
-    double k_g;   // phase-function variation bound
+    double eps;  // tolerance
+    int n_face;  // points per axis of each face-rule piece
+    double k_g;  // phase-function variation bound
     double cutoff;
     std::array<double, kMaxTensorOrder + 1> geo_{}, att_{};  // a_n and c_n of the model
     Plan(double tolerance, double g, double cut) : eps(tolerance), cutoff(cut) {
@@ -506,9 +507,7 @@ struct Plan {
     /// Largest residual of the upstream optical depth about its linear fit over a box's nodes
     /// (a kink) accepted by the tensor rule; calibrated against the Monte Carlo reference on the
     /// default storm cloud (docs/transport.md): 0.1 * sqrt(tol / 1e-3).
-    double kink_limit() const {
-        return 0.1 * std::sqrt(eps / 1e-3);
-    }
+    double kink_limit() const { return 0.1 * std::sqrt(eps / 1e-3); }
     /// Whether a linear optical-depth variation with per-axis changes y[3] across the box is
     /// integrated to the tolerance by an order-n tensor rule: e^{-(y.x)} is separable, and the
     /// tensor rule's relative error is the sum of the per-axis errors c_n y_a^{2n}.
@@ -530,7 +529,6 @@ struct Plan {
         return 0;
     }
 };
-
 
 /// Checks optical depths at the n^3 tensor nodes (x fastest) against the plan: returns 0 if
 /// an order-n rule is adequate, otherwise the order the smooth part needs (> n) or -1 (a
@@ -620,7 +618,6 @@ double box_distance(const Box& b, const glm::dvec3& p) {
     const glm::dvec3 q = glm::max(b.lo - p, glm::max(glm::dvec3(0.0), p - b.hi));
     return glm::length(q);
 }
-
 
 void split_box(const PointCtx& c, const Box& b, double sigma, int depth, const Plan& plan, PhaseAccumulator& acc);
 
@@ -803,8 +800,7 @@ std::vector<glm::dvec3> checked_directions(std::span<const glm::dvec3> dirs) {
 void check_options(const SingleScatteringOptions& o) {
     if (!(o.tolerance >= 1e-9 && o.tolerance <= 0.5))
         throw core::Error("single_scattering.tolerance", "must be in [1e-9, 0.5], got " + std::to_string(o.tolerance));
-    if (!(o.optical_depth_cutoff > 0.0))
-        throw core::Error("single_scattering.optical_depth_cutoff", "must be > 0");
+    if (!(o.optical_depth_cutoff > 0.0)) throw core::Error("single_scattering.optical_depth_cutoff", "must be > 0");
 }
 
 std::vector<unsigned char> needed_mask(const LightingMedium& m, bool skip_far_empty) {
@@ -831,8 +827,8 @@ std::vector<unsigned char> needed_mask(const LightingMedium& m, bool skip_far_em
 }
 
 template <class PerVoxel>
-void for_each_voxel(const LightingMedium& m, SourceField& out, const std::vector<unsigned char>& need,
-                    double g_phase, core::Grid3<float>* fluence, double fluence_scale, PerVoxel&& fn) {
+void for_each_voxel(const LightingMedium& m, SourceField& out, const std::vector<unsigned char>& need, double g_phase,
+                    core::Grid3<float>* fluence, double fluence_scale, PerVoxel&& fn) {
     if (fluence) *fluence = core::Grid3<float>(m.density.geom, 0.0f);
     const core::GridGeometry& g = m.density.geom;
     const std::size_t cells = g.cell_count();
@@ -877,19 +873,23 @@ void single_scattering(const LightingMedium& medium, const PointSource& light, S
         throw core::Error("light.intensity", "must be finite and >= 0, got " + std::to_string(light.intensity));
     prepare_output(medium, out);
     const core::GridGeometry& g = medium.density.geom;
-    const PointCtx ctx{&g, medium.density.data.data(), medium.optics.extinction, light.position,
-                       options.optical_depth_cutoff, density_bounds(medium),
-                       medium.optics.extinction *
-                           double(*std::max_element(medium.density.data.begin(), medium.density.data.end()))};
+    const PointCtx ctx{
+        &g,
+        medium.density.data.data(),
+        medium.optics.extinction,
+        light.position,
+        options.optical_depth_cutoff,
+        density_bounds(medium),
+        medium.optics.extinction * double(*std::max_element(medium.density.data.begin(), medium.density.data.end()))};
     const Plan plan(options.tolerance, medium.optics.g, options.optical_depth_cutoff);
     const double vol = g.voxel_size * g.voxel_size * g.voxel_size;
     const double factor = medium.optics.albedo * light.intensity / vol;
     const auto need = needed_mask(medium, options.skip_far_empty);
     for_each_voxel(medium, out, need, medium.optics.g, options.uncollided_fluence, light.intensity / vol,
                    [&](const Box& b, std::size_t cell, PhaseAccumulator& acc) {
-        integrate_box_point(ctx, b, medium.sigma_t(cell), 0, plan, acc);
-        return factor;
-    });
+                       integrate_box_point(ctx, b, medium.sigma_t(cell), 0, plan, acc);
+                       return factor;
+                   });
 }
 
 SourceField single_scattering(const LightingMedium& medium, const PointSource& light,
@@ -910,8 +910,12 @@ void single_scattering(const LightingMedium& medium, const DirectionalSource& su
         throw core::Error("sun.irradiance", "must be finite and >= 0, got " + std::to_string(sun.irradiance));
     prepare_output(medium, out);
     const core::GridGeometry& g = medium.density.geom;
-    const SunCtx ctx{&g, medium.density.data.data(), medium.optics.extinction, sun.direction / len,
-                     options.optical_depth_cutoff, density_bounds(medium)};
+    const SunCtx ctx{&g,
+                     medium.density.data.data(),
+                     medium.optics.extinction,
+                     sun.direction / len,
+                     options.optical_depth_cutoff,
+                     density_bounds(medium)};
     const double vol = g.voxel_size * g.voxel_size * g.voxel_size;
     const double factor = medium.optics.albedo * sun.irradiance / vol;
     // The phase function is constant per voxel for the sun (one direction): only attenuation
@@ -922,18 +926,19 @@ void single_scattering(const LightingMedium& medium, const DirectionalSource& su
     // (weight = integral of T over the voxel, direction d) and applies the phase function.
     for_each_voxel(medium, out, need, medium.optics.g, options.uncollided_fluence, sun.irradiance / vol,
                    [&](const Box& b, std::size_t cell, PhaseAccumulator& acc) {
-        const double sigma = medium.sigma_t(cell);
-        bool thick = false;
-        int n = plan.tensor_order(g.voxel_size, 0.0, sigma, thick);
-        if (n == 1) n = 2;  // a one-node rule cannot see transmittance varying across the box
-        double integral = 0.0;
-        int retry = 0;
-        const bool ok = n > 0 && (tensor_rule_sun(ctx, b, n, &plan, integral, &retry) ||
-                                  (retry > n && tensor_rule_sun(ctx, b, retry, &plan, integral, nullptr)));
-        if (!ok) integral = face_rule_sun(ctx, b, sigma, plan.n_face);
-        acc.add(integral, ctx.d);
-        return factor;
-    });
+                       const double sigma = medium.sigma_t(cell);
+                       bool thick = false;
+                       int n = plan.tensor_order(g.voxel_size, 0.0, sigma, thick);
+                       if (n == 1) n = 2;  // a one-node rule cannot see transmittance varying across the box
+                       double integral = 0.0;
+                       int retry = 0;
+                       const bool ok =
+                           n > 0 && (tensor_rule_sun(ctx, b, n, &plan, integral, &retry) ||
+                                     (retry > n && tensor_rule_sun(ctx, b, retry, &plan, integral, nullptr)));
+                       if (!ok) integral = face_rule_sun(ctx, b, sigma, plan.n_face);
+                       acc.add(integral, ctx.d);
+                       return factor;
+                   });
 }
 
 SourceField single_scattering(const LightingMedium& medium, const DirectionalSource& sun,

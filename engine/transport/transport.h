@@ -94,7 +94,6 @@ struct SourceField {
     std::span<const float> direction(std::size_t m) const noexcept { return {data.data() + m * cells(), cells()}; }
 };
 
-
 // ================================================================================// Transmittance, single scattering and the Monte Carlo reference   (helper branch `mc`)
 //
 // Light sources. A point source of radiant intensity I (W/sr) emits 4*pi*I W isotropically;
@@ -190,11 +189,11 @@ struct Estimate {
 /// Per path and exactly: emitted + roulette = absorbed + escaped + truncated.
 struct EnergyTally {
     static constexpr int kOrders = 10;  ///< entries 0..8 are exact orders, entry 9 is ">= 9"
-    Estimate emitted;    ///< power the source sent (into all directions, hitting the grid or not)
-    Estimate absorbed;   ///< absorbed in the medium
-    Estimate escaped;    ///< left the medium (including light that never entered it)
-    Estimate truncated;  ///< weight of paths stopped by max_scatterings / max_collisions
-    Estimate roulette;   ///< net weight Russian roulette added (expectation 0)
+    Estimate emitted;                   ///< power the source sent (into all directions, hitting the grid or not)
+    Estimate absorbed;                  ///< absorbed in the medium
+    Estimate escaped;                   ///< left the medium (including light that never entered it)
+    Estimate truncated;                 ///< weight of paths stopped by max_scatterings / max_collisions
+    Estimate roulette;                  ///< net weight Russian roulette added (expectation 0)
     /// Escaped after exactly k scatterings (k = 0: uncollided).
     std::array<Estimate, kOrders> escaped_by_order{};
     /// Absorbed at the (k+1)-th collision, i.e. after exactly k scatterings.
@@ -205,7 +204,8 @@ struct EnergyTally {
     /// first-scattered light must be given (the lattice's injected power is checked against it).
     double scattered_mean() const noexcept {
         double p = truncated.mean;
-        for (std::size_t k = 1; k < std::size_t(kOrders); ++k) p += absorbed_by_order[k].mean + escaped_by_order[k].mean;
+        for (std::size_t k = 1; k < std::size_t(kOrders); ++k)
+            p += absorbed_by_order[k].mean + escaped_by_order[k].mean;
         return p;
     }
     /// Mean power that escaped after at least one scattering.
@@ -248,10 +248,10 @@ struct MonteCarloOptions {
 };
 
 struct MonteCarloResult {
-    SourceField single;      ///< order 1: S from unscattered light, voxel-averaged
-    SourceField multiple;    ///< orders >= 2
-    SourceField single_se;   ///< standard error of `single`, per voxel and direction
-    SourceField multiple_se; ///< standard error of `multiple`
+    SourceField single;       ///< order 1: S from unscattered light, voxel-averaged
+    SourceField multiple;     ///< orders >= 2
+    SourceField single_se;    ///< standard error of `single`, per voxel and direction
+    SourceField multiple_se;  ///< standard error of `multiple`
     EnergyTally energy;
     std::uint64_t paths = 0;
     std::uint64_t collisions = 0;       ///< real collisions (scattering or absorption events)
@@ -304,7 +304,8 @@ LbCollision parse_lb_collision(std::string_view s, std::string_view where = "tra
 /// "physical" | "conservative"; throws core::Error naming `where` otherwise.
 LbAbsorption parse_lb_absorption(std::string_view s, std::string_view where = "transport.lattice_boltzmann.absorption");
 /// "saturate" | "diffusion_matched"; throws core::Error naming `where` otherwise.
-LbThickVoxels parse_lb_thick_voxels(std::string_view s, std::string_view where = "transport.lattice_boltzmann.thick_voxels");
+LbThickVoxels parse_lb_thick_voxels(std::string_view s,
+                                    std::string_view where = "transport.lattice_boltzmann.thick_voxels");
 
 struct LbSettings {
     LbCollision collision = LbCollision::Corrected;
@@ -318,8 +319,8 @@ struct LbSettings {
     /// lattice starts empty, every density grows monotonically, so the change of the total
     /// is also the relative L1 change of the whole field.
     double tolerance = 1e-4;
-    int max_iterations = 4000;   ///< step cap (rounded up to an even number)
-    bool record_history = false; ///< keep the total lattice density after every step
+    int max_iterations = 4000;    ///< step cap (rounded up to an even number)
+    bool record_history = false;  ///< keep the total lattice density after every step
 };
 
 /// Isotropic point light of radiant intensity `intensity` (W/sr). Inside the grid it is
@@ -352,11 +353,11 @@ struct LbSources {
 };
 
 struct LbResult {
-    SourceField source;          ///< S(x_i, s_m) in W m^-2 sr^-1, voxel averages
-    core::Grid3<float> fluence;  ///< phi(x_i) = integral L dw, W m^-2, voxel averages
-    int iterations = 0;          ///< lattice steps taken
-    bool converged = false;      ///< relative change fell below the tolerance
-    double final_change = 0.0;   ///< relative change of the total density per step at the end
+    SourceField source;                ///< S(x_i, s_m) in W m^-2 sr^-1, voxel averages
+    core::Grid3<float> fluence;        ///< phi(x_i) = integral L dw, W m^-2, voxel averages
+    int iterations = 0;                ///< lattice steps taken
+    bool converged = false;            ///< relative change fell below the tolerance
+    double final_change = 0.0;         ///< relative change of the total density per step at the end
     double estimated_remaining = 0.0;  ///< extrapolated relative change still to come
     /// Energy bookkeeping in lattice units (W per step; stored: W * step), double sums:
     double injected_per_step = 0.0, absorbed_last_step = 0.0, escaped_last_step = 0.0;

@@ -35,8 +35,8 @@ inline constexpr double kInf = std::numeric_limits<double>::infinity();
 /// Clips the parameter interval [t0, t1] of the ray o + t d against the closed box [lo, hi].
 /// Returns false (and leaves t0, t1 unspecified) when the clipped interval is empty or a
 /// coordinate is NaN. Axis-parallel rays (d component 0) are handled without 0 * inf.
-inline bool clip_box(const glm::dvec3& o, const glm::dvec3& d, const glm::dvec3& lo, const glm::dvec3& hi,
-                     double& t0, double& t1) noexcept {
+inline bool clip_box(const glm::dvec3& o, const glm::dvec3& d, const glm::dvec3& lo, const glm::dvec3& hi, double& t0,
+                     double& t1) noexcept {
     for (int a = 0; a < 3; ++a) {
         if (d[a] == 0.0) {
             if (!(o[a] >= lo[a] && o[a] <= hi[a])) return false;  // also rejects NaN
@@ -155,9 +155,9 @@ inline void traverse(const core::GridGeometry& g, const glm::dvec3& o, const glm
 /// early (returning a value > cutoff) once the depth exceeds `cutoff`. Same traversal and
 /// conventions as DdaWalker, written as one tight loop (the hot path of single scattering):
 /// the stepping axis is selected without unpredictable branches.
-inline double optical_depth_along(const core::GridGeometry& g, const float* density, double kappa,
-                                  const glm::dvec3& o, const glm::dvec3& d, double t0, double t1,
-                                  double cutoff, const glm::dvec3& lo, const glm::dvec3& hi) noexcept {
+inline double optical_depth_along(const core::GridGeometry& g, const float* density, double kappa, const glm::dvec3& o,
+                                  const glm::dvec3& d, double t0, double t1, double cutoff, const glm::dvec3& lo,
+                                  const glm::dvec3& hi) noexcept {
     if (!(t1 > t0) || !clip_box(o, d, lo, hi, t0, t1)) return 0.0;
     const double h = g.voxel_size;
     const int n[3] = {g.dims.x, g.dims.y, g.dims.z};
@@ -211,16 +211,16 @@ inline double optical_depth_along(const core::GridGeometry& g, const float* dens
         ix += bx ? step[0] : 0;
         iy += by ? step[1] : 0;
         iz += bz ? step[2] : 0;
-        if ((unsigned(ix) >= unsigned(n[0])) | (unsigned(iy) >= unsigned(n[1])) | (unsigned(iz) >= unsigned(n[2]))) break;
+        if ((unsigned(ix) >= unsigned(n[0])) | (unsigned(iy) >= unsigned(n[1])) | (unsigned(iz) >= unsigned(n[2])))
+            break;
         cell += bx ? sstep[0] : (by ? sstep[1] : sstep[2]);
     }
     return kappa * acc;
 }
 
 /// Same over the whole grid box.
-inline double optical_depth_along(const core::GridGeometry& g, const float* density, double kappa,
-                                  const glm::dvec3& o, const glm::dvec3& d, double t0, double t1,
-                                  double cutoff = kInf) noexcept {
+inline double optical_depth_along(const core::GridGeometry& g, const float* density, double kappa, const glm::dvec3& o,
+                                  const glm::dvec3& d, double t0, double t1, double cutoff = kInf) noexcept {
     return optical_depth_along(g, density, kappa, o, d, t0, t1, cutoff, g.origin, g.upper());
 }
 

@@ -56,11 +56,11 @@ TEST_CASE("fulgur-shot: invalid command lines are rejected with a reason") {
         a[i] = v;
         return a;
     };
-    CHECK_THROWS_AS(parse(with(2, "-1")), core::Error);     // negative seed
-    CHECK_THROWS_AS(parse(with(2, "7x")), core::Error);     // trailing garbage
-    CHECK_THROWS_AS(parse(with(4, "-0.1")), core::Error);   // negative time
+    CHECK_THROWS_AS(parse(with(2, "-1")), core::Error);    // negative seed
+    CHECK_THROWS_AS(parse(with(2, "7x")), core::Error);    // trailing garbage
+    CHECK_THROWS_AS(parse(with(4, "-0.1")), core::Error);  // negative time
     CHECK_THROWS_AS(parse(with(4, "nan")), core::Error);
-    CHECK_THROWS_AS(parse(with(6, "64")), core::Error);     // no 'x'
+    CHECK_THROWS_AS(parse(with(6, "64")), core::Error);  // no 'x'
     CHECK_THROWS_AS(parse(with(6, "0x32")), core::Error);
     CHECK_THROWS_AS(parse(with(6, "64x99999")), core::Error);
     std::vector<std::string> extra = good;

@@ -27,7 +27,7 @@ TEST_CASE("compare_radiance: identical images differ by nothing") {
     CHECK(c.max_difference == 0.0);
     CHECK(c.fraction_over == 0.0);
     CHECK(c.reference_max == doctest::Approx(4.0).epsilon(1e-6));  // Rec. 709 weights sum to 1 within float rounding
-    CHECK(c.lit_pixels == 3);  // the black pixel is below 1% of the maximum
+    CHECK(c.lit_pixels == 3);                                      // the black pixel is below 1% of the maximum
 }
 
 TEST_CASE("compare_radiance: figures of a known perturbation") {
@@ -74,7 +74,7 @@ TEST_CASE("compare_display: mean levels and pixels beyond the threshold") {
     const std::vector<std::uint8_t> b = {10, 20, 30, 0, 130, 90, 100, 0};
     const app::DisplayDifference d = app::compare_display(a, b);
     CHECK(d.mean_levels == doctest::Approx(40.0 / 6.0));
-    CHECK(d.fraction_over == doctest::Approx(0.5));  // 30 > 25
+    CHECK(d.fraction_over == doctest::Approx(0.5));              // 30 > 25
     CHECK(app::compare_display(a, b, 30).fraction_over == 0.0);  // not strictly above 30
     CHECK_THROWS_AS(app::compare_display(a, std::vector<std::uint8_t>(4)), core::Error);
 }

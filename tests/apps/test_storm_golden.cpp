@@ -38,7 +38,7 @@ struct Shot {
     std::vector<std::uint8_t> rgba;
     double cloud_mean = 0.0;  ///< mean in-scattered luminance of the march (cloud only, no bolt/glow)
     std::size_t segments = 0;
-    double first_x = 0.0;     ///< first lit segment's start (bolt identity)
+    double first_x = 0.0;  ///< first lit segment's start (bolt identity)
 };
 
 // The frame 2 ms after the first return stroke's onset of a strike with `seed` at t = 0.
@@ -72,8 +72,8 @@ Shot shoot(const std::string& name, std::uint64_t seed, runtime::Components comp
 // Same metric and tolerances as the renderer's golden test (tests/render/golden.h):
 // llvmpipe differs slightly between CPUs; a regression moves many pixels or moves them far.
 void check_golden(const std::string& name, const Shot& s) {
-    const test::GoldenResult r = test::compare_golden(kGoldens / ("storm_" + name + ".png"), W, H, s.rgba,
-                                                      test::GoldenTolerance{}, kOut);
+    const test::GoldenResult r =
+        test::compare_golden(kGoldens / ("storm_" + name + ".png"), W, H, s.rgba, test::GoldenTolerance{}, kOut);
     MESSAGE(r.message);
     CHECK(r.passed);
 }

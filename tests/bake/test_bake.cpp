@@ -8,9 +8,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numbers>
 #include <fstream>
 #include <iterator>
+#include <numbers>
 
 using namespace fulgur;
 
@@ -24,7 +24,6 @@ std::vector<std::uint8_t> read_bytes(const std::filesystem::path& p) {
     std::ifstream f(p, std::ios::binary);
     return {std::istreambuf_iterator<char>(f), {}};
 }
-
 
 // Stored bases of a light with the components summed (what the file's total S is).
 transport::SourceField total(const bake::Plan& plan, transport::SourceField f) {
@@ -250,8 +249,9 @@ TEST_CASE("dropped lights: counted, empty in the file, and none at drop_below = 
         const transport::PointSource src{plan.lights.position(l), 1.0};
         bake::SolveRequest rq;
         rq.multiple = false;
-        fractions.push_back(bake::solve(s, medium, std::span(&src, 1), plan.output_directions, rq).first_scattered_power /
-                            (4.0 * std::numbers::pi));
+        fractions.push_back(
+            bake::solve(s, medium, std::span(&src, 1), plan.output_directions, rq).first_scattered_power /
+            (4.0 * std::numbers::pi));
     }
     std::sort(fractions.begin(), fractions.end());
     MESSAGE("scattered fractions: min " << fractions.front() << " max " << fractions.back());
@@ -288,7 +288,8 @@ TEST_CASE("up_to_date: missing, fresh, stale (names the parameter), corrupt, par
 
     std::vector<std::uint8_t> bytes = read_bytes(f);
     bytes[20] ^= 0x40;
-    std::ofstream(dir / "bad.fgb", std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+    std::ofstream(dir / "bad.fgb", std::ios::binary)
+        .write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
     CHECK_FALSE(bake::up_to_date(s, d, dir / "bad.fgb", &why));
     CHECK_FALSE(why.empty());
 

@@ -13,8 +13,9 @@ inline basis::FgbMetadata small_metadata(basis::Precision prec, core::Int3 dims 
                                          std::uint32_t components = 1) {
     basis::FgbMetadata m;
     m.components = components;
-    m.key = basis::BakeKey::from_description("fulgur_bake=1\nmedium.extinction=0.004\nmedium.albedo=0.99\nmedium.g=0.6\n"
-                                             "lighting.downsample=4\nvirtual_lights.h_usr=1000\n");
+    m.key = basis::BakeKey::from_description(
+        "fulgur_bake=1\nmedium.extinction=0.004\nmedium.albedo=0.99\nmedium.g=0.6\n"
+        "lighting.downsample=4\nvirtual_lights.h_usr=1000\n");
     m.lighting.dims = dims;
     m.lighting.voxel_size = 400.0;
     m.lighting.origin = {-1000.0, -800.0, 0.0};

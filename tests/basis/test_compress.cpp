@@ -4,9 +4,9 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <bit>
 #include <cfloat>
-#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -59,7 +59,10 @@ std::uint16_t reference_half(float f) {
     if (a >= 65536.0) return std::uint16_t(sign | 0x7c00);
     while (hi - lo > 1) {  // value(lo) <= a < value(hi)
         const std::uint32_t mid = (lo + hi) / 2;
-        if (value(mid) <= a) lo = mid; else hi = mid;
+        if (value(mid) <= a)
+            lo = mid;
+        else
+            hi = mid;
     }
     const double dl = a - value(lo), dh = value(hi) - a;
     std::uint32_t h = dl < dh ? lo : dh < dl ? hi : ((lo & 1) ? hi : lo);
@@ -75,7 +78,8 @@ TEST_CASE("threshold forms hit their targets") {
 
     SUBCASE("absolute: keeps exactly |B| > xi") {
         for (double xi : {1e-6, 1e-4, 1e-3, 1e-2}) {
-            const CompressedBasis b = basis::compress_coefficients(c, {ThresholdMode::Absolute, xi, Precision::Float32});
+            const CompressedBasis b =
+                basis::compress_coefficients(c, {ThresholdMode::Absolute, xi, Precision::Float32});
             std::size_t expect = 0;
             for (double v : c) expect += std::fabs(v) > xi;
             CHECK(b.size() == expect);
@@ -87,7 +91,8 @@ TEST_CASE("threshold forms hit their targets") {
     }
     SUBCASE("relative_l2: keeps exactly |B| > xi * ||B||") {
         for (double xi : {1e-5, 1e-3, 0.05}) {
-            const CompressedBasis b = basis::compress_coefficients(c, {ThresholdMode::RelativeL2, xi, Precision::Float32});
+            const CompressedBasis b =
+                basis::compress_coefficients(c, {ThresholdMode::RelativeL2, xi, Precision::Float32});
             std::size_t expect = 0;
             for (double v : c) expect += std::fabs(v) > xi * norm;
             CHECK(b.size() == expect);
@@ -148,9 +153,11 @@ TEST_CASE("bad coefficients and parameters are rejected") {
                          doctest::Contains("float32 range"), core::Error);
     CHECK_THROWS_WITH_AS(basis::compress_coefficients(c, {ThresholdMode::Absolute, 0.0, Precision::Float16}),
                          doctest::Contains("overflows float16"), core::Error);
-    CHECK_THROWS_WITH_AS(basis::validate(CompressionParams{ThresholdMode::Energy, 1.5, Precision::Float16}, "s.compression"),
-                         doctest::Contains("s.compression.xi"), core::Error);
-    CHECK_THROWS_AS(basis::validate(CompressionParams{ThresholdMode::Absolute, -1.0, Precision::Float16}, "c"), core::Error);
+    CHECK_THROWS_WITH_AS(
+        basis::validate(CompressionParams{ThresholdMode::Energy, 1.5, Precision::Float16}, "s.compression"),
+        doctest::Contains("s.compression.xi"), core::Error);
+    CHECK_THROWS_AS(basis::validate(CompressionParams{ThresholdMode::Absolute, -1.0, Precision::Float16}, "c"),
+                    core::Error);
     CHECK_THROWS_AS(basis::validate(CompressionParams{ThresholdMode::Absolute, std::nan(""), Precision::Float16}, "c"),
                     core::Error);
 }
@@ -183,7 +190,8 @@ TEST_CASE("float16 storage: per-basis scale, error within half an ulp of binary1
             const double exact = c[b.index[k]], stored = b.value[k];
             const double scaled = std::ldexp(std::fabs(exact), -b.scale_exp);
             // Half an ulp: 2^-11 relative in the normal range, 2^-25 absolute (scaled) below 2^-14.
-            const double bound = scaled >= 0x1p-14 ? std::ldexp(std::fabs(exact), -11) : std::ldexp(0x1p-25, b.scale_exp);
+            const double bound =
+                scaled >= 0x1p-14 ? std::ldexp(std::fabs(exact), -11) : std::ldexp(0x1p-25, b.scale_exp);
             CHECK(std::fabs(stored - exact) <= bound);
             err2.add((stored - exact) * (stored - exact));
         }
@@ -207,21 +215,21 @@ TEST_CASE("float16 conversion: exact decode, round-to-nearest-even encode, subno
     // Known values.
     CHECK(basis::float_to_half(1.0f) == 0x3c00);
     CHECK(basis::float_to_half(-2.0f) == 0xc000);
-    CHECK(basis::float_to_half(65504.0f) == 0x7bff);        // largest finite half
-    CHECK(basis::float_to_half(65519.99f) == 0x7bff);       // below the midpoint to 2^16
-    CHECK(basis::float_to_half(65520.0f) == 0x7c00);        // the midpoint rounds to even = infinity
+    CHECK(basis::float_to_half(65504.0f) == 0x7bff);   // largest finite half
+    CHECK(basis::float_to_half(65519.99f) == 0x7bff);  // below the midpoint to 2^16
+    CHECK(basis::float_to_half(65520.0f) == 0x7c00);   // the midpoint rounds to even = infinity
     CHECK(basis::float_to_half(1e10f) == 0x7c00);
     CHECK(basis::float_to_half(-1e10f) == 0xfc00);
-    CHECK(basis::float_to_half(0x1p-14f) == 0x0400);        // smallest normal
-    CHECK(basis::float_to_half(0x1p-24f) == 0x0001);        // smallest subnormal
-    CHECK(basis::float_to_half(0x1p-25f) == 0x0000);        // tie between 0 and 2^-24 -> even (0)
-    CHECK(basis::float_to_half(0x1.8p-25f) == 0x0001);      // above the tie
-    CHECK(basis::float_to_half(0x1.8p-24f) == 0x0002);      // 1.5 * 2^-24: tie -> even (2)
+    CHECK(basis::float_to_half(0x1p-14f) == 0x0400);    // smallest normal
+    CHECK(basis::float_to_half(0x1p-24f) == 0x0001);    // smallest subnormal
+    CHECK(basis::float_to_half(0x1p-25f) == 0x0000);    // tie between 0 and 2^-24 -> even (0)
+    CHECK(basis::float_to_half(0x1.8p-25f) == 0x0001);  // above the tie
+    CHECK(basis::float_to_half(0x1.8p-24f) == 0x0002);  // 1.5 * 2^-24: tie -> even (2)
     CHECK(basis::float_to_half(1e-9f) == 0x0000);
     CHECK(basis::float_to_half(-0.0f) == 0x8000);
-    CHECK(basis::float_to_half(1.0f + 0x1p-11f) == 0x3c00);  // tie -> even mantissa
+    CHECK(basis::float_to_half(1.0f + 0x1p-11f) == 0x3c00);    // tie -> even mantissa
     CHECK(basis::float_to_half(1.0f + 0x1.8p-10f) == 0x3c02);  // 1.5 ulp -> tie -> even (2)
-    CHECK(basis::float_to_half(0x1.ffcp-15f) == 0x0400);     // rounds up from the subnormal range into normal
+    CHECK(basis::float_to_half(0x1.ffcp-15f) == 0x0400);       // rounds up from the subnormal range into normal
     CHECK(std::isnan(basis::half_to_float(basis::float_to_half(std::numeric_limits<float>::quiet_NaN()))));
     CHECK(basis::float_to_half(std::numeric_limits<float>::infinity()) == 0x7c00);
     CHECK(basis::half_to_float(0x0001) == 0x1p-24f);
@@ -240,7 +248,8 @@ TEST_CASE("float16 conversion: exact decode, round-to-nearest-even encode, subno
         }
         if (std::isnan(f)) continue;
         const std::uint16_t h = basis::float_to_half(f);
-        if (h != reference_half(f)) FAIL_CHECK("float " << f << " -> " << h << ", nearest half is " << reference_half(f));
+        if (h != reference_half(f))
+            FAIL_CHECK("float " << f << " -> " << h << ", nearest half is " << reference_half(f));
 #if defined(__F16C__)
         const std::uint16_t hw = std::uint16_t(_cvtss_sh(f, _MM_FROUND_TO_NEAREST_INT));
         if (h != hw) FAIL_CHECK("float " << f << " -> " << h << ", F16C gives " << hw);
@@ -305,5 +314,6 @@ TEST_CASE("compress_light: every direction of a field, and linearity of the reco
         CHECK(std::sqrt(e / s) < 3e-7);  // lossless float32 round trip bound
     }
     field.direction(2)[5] = std::numeric_limits<float>::infinity();
-    CHECK_THROWS_WITH_AS(basis::compress_light(7, field, {}, plan), doctest::Contains("light 7 direction 2"), core::Error);
+    CHECK_THROWS_WITH_AS(basis::compress_light(7, field, {}, plan), doctest::Contains("light 7 direction 2"),
+                         core::Error);
 }

@@ -1,5 +1,5 @@
-#include "basis/basis.h"
 #include "bake_fixture.h"
+#include "basis/basis.h"
 #include "support/test_support.h"
 
 #include <doctest/doctest.h>
@@ -47,14 +47,16 @@ TEST_CASE("export: a basis and a weighted sum, raw and reconstructed, as NRRD fl
             e += (double(c.data[i]) - expect) * (double(c.data[i]) - expect);
             s += expect * expect;
         }
-        CHECK(worst < 1e-6);               // one float32 rounding of a double sum
-        CHECK(std::sqrt(e / s) < 3e-7);    // lossless compression: float32 storage rounding only
+        CHECK(worst < 1e-6);             // one float32 rounding of a double sum
+        CHECK(std::sqrt(e / s) < 3e-7);  // lossless compression: float32 storage rounding only
     }
     // Linearity of the reconstruction: sum of reconstructions == reconstruction of the sum.
     const core::Grid3<float> all = basis::reconstruct(baked, sum, 1);
     for (std::size_t i = 0; i < all.size(); ++i) {
         double parts = 0;
-        for (const auto& wl : sum) parts += wl.weight * double(basis::reconstruct(baked, std::vector<basis::WeightedLight>{{wl.light, 1.0}}, 1).data[i]);
+        for (const auto& wl : sum)
+            parts += wl.weight *
+                     double(basis::reconstruct(baked, std::vector<basis::WeightedLight>{{wl.light, 1.0}}, 1).data[i]);
         CHECK(double(all.data[i]) == doctest::Approx(parts).epsilon(1e-6));
         if (i > 6) break;  // a few cells are enough (each reconstruct is a full inverse)
     }

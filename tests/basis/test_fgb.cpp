@@ -1,9 +1,9 @@
 // The .fgb file: bit-exact round trips, partial files and merge, stale detection, and a
 // loader that rejects every truncation and corruption without crashing (this test also
 // runs under AddressSanitizer + UndefinedBehaviorSanitizer: the asan preset).
+#include "bake_fixture.h"
 #include "basis/basis.h"
 #include "basis/internal.h"
-#include "bake_fixture.h"
 #include "support/test_support.h"
 
 #include <doctest/doctest.h>
@@ -11,8 +11,8 @@
 #include <zlib.h>
 
 #include <cstring>
-#include <functional>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <thread>
 
@@ -26,7 +26,8 @@ std::vector<std::uint8_t> slurp(const std::filesystem::path& p) {
     return {std::istreambuf_iterator<char>(in), {}};
 }
 void spit(const std::filesystem::path& p, const std::vector<std::uint8_t>& b) {
-    std::ofstream(p, std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char*>(b.data()), std::streamsize(b.size()));
+    std::ofstream(p, std::ios::binary | std::ios::trunc)
+        .write(reinterpret_cast<const char*>(b.data()), std::streamsize(b.size()));
 }
 
 basis::FgbMetadata small_meta(basis::Precision prec, basis::Entropy entropy) {
@@ -82,24 +83,24 @@ void fix_crcs(std::vector<std::uint8_t>& b, const std::vector<std::uint8_t>& pri
 TEST_CASE(".fgb round trip is bit-exact, float32 and float16, plain and deflated, 2- and 4-byte indices") {
     const auto dir = test::scratch_dir("fgb_roundtrip");
     for (const auto entropy : {basis::Entropy::None, basis::Entropy::Deflate})
-    for (const auto prec : {basis::Precision::Float32, basis::Precision::Float16}) {
-        INFO(basis::to_string(prec) << ", " << basis::to_string(entropy));
-        const auto path = write_small(dir / "a.fgb", prec, entropy);
-        const basis::FgbMetadata m = small_meta(prec, entropy);
-        const basis::BakedBasis b = basis::load_fgb(path);
-        CHECK(b.meta == m);
-        REQUIRE(b.lights.size() == m.light_count());
-        for (std::uint32_t l = 0; l < m.light_count(); ++l) CHECK(b.lights[l] == test::small_light(m, l));
-        CHECK(b.lights[5].coefficient_count() == 0);  // the dropped light survives as an empty block
-        // Writing what was loaded gives the same bytes.
-        {
-            basis::FgbWriter w(dir / "b.fgb", b.meta);
-            for (const auto& l : b.lights) w.add(l);
-            w.finish();
+        for (const auto prec : {basis::Precision::Float32, basis::Precision::Float16}) {
+            INFO(basis::to_string(prec) << ", " << basis::to_string(entropy));
+            const auto path = write_small(dir / "a.fgb", prec, entropy);
+            const basis::FgbMetadata m = small_meta(prec, entropy);
+            const basis::BakedBasis b = basis::load_fgb(path);
+            CHECK(b.meta == m);
+            REQUIRE(b.lights.size() == m.light_count());
+            for (std::uint32_t l = 0; l < m.light_count(); ++l) CHECK(b.lights[l] == test::small_light(m, l));
+            CHECK(b.lights[5].coefficient_count() == 0);  // the dropped light survives as an empty block
+            // Writing what was loaded gives the same bytes.
+            {
+                basis::FgbWriter w(dir / "b.fgb", b.meta);
+                for (const auto& l : b.lights) w.add(l);
+                w.finish();
+            }
+            CHECK(slurp(path) == slurp(dir / "b.fgb"));
+            CHECK_FALSE(std::filesystem::exists(dir / "a.fgb.tmp"));
         }
-        CHECK(slurp(path) == slurp(dir / "b.fgb"));
-        CHECK_FALSE(std::filesystem::exists(dir / "a.fgb.tmp"));
-    }
     // Two components (single and multiple stored apart): 2 x 3 bases per light.
     {
         const basis::FgbMetadata m2 = test::small_metadata(basis::Precision::Float16, {5, 4, 3}, 3, 2);
@@ -209,10 +210,11 @@ TEST_CASE("writer misuse by data: missing, duplicate and out-of-range lights") {
         CHECK_THROWS_WITH_AS(w.add(test::small_light(m, 0)), doctest::Contains("added twice"), core::Error);
         CHECK_THROWS_WITH_AS(w.finish(), doctest::Contains("first: light 1"), core::Error);
     }
-    CHECK_FALSE(std::filesystem::exists(dir / "w.fgb"));       // never looks finished
-    CHECK_FALSE(std::filesystem::exists(dir / "w.fgb.tmp"));   // and leaves nothing behind
+    CHECK_FALSE(std::filesystem::exists(dir / "w.fgb"));      // never looks finished
+    CHECK_FALSE(std::filesystem::exists(dir / "w.fgb.tmp"));  // and leaves nothing behind
     basis::FgbWriter w(dir / "p.fgb", m, 2, 4);
-    CHECK_THROWS_WITH_AS(w.add(test::small_light(m, 4)), doctest::Contains("outside this file's range [2, 4)"), core::Error);
+    CHECK_THROWS_WITH_AS(w.add(test::small_light(m, 4)), doctest::Contains("outside this file's range [2, 4)"),
+                         core::Error);
     CHECK_THROWS_AS(basis::FgbWriter(dir / "q.fgb", m, 4, 4), core::Error);
     CHECK_THROWS_AS(basis::FgbWriter(dir / "q.fgb", m, 0, 9), core::Error);
 }
@@ -230,9 +232,10 @@ TEST_CASE("a stale file is detected and the difference explained") {
     CHECK(changed.hash != m.key.hash);
     o.expected_key = &changed;
     CHECK_THROWS_WITH_AS(basis::load_fgb(path, o), doctest::Contains("stale bake"), core::Error);
-    CHECK_THROWS_WITH_AS(basis::load_fgb(path, o),
-                         doctest::Contains("line 3: the file has \"medium.albedo=0.99\", the scene has \"medium.albedo=0.90\""),
-                         core::Error);
+    CHECK_THROWS_WITH_AS(
+        basis::load_fgb(path, o),
+        doctest::Contains("line 3: the file has \"medium.albedo=0.99\", the scene has \"medium.albedo=0.90\""),
+        core::Error);
     basis::BakeKey same_text = m.key;
     same_text.hash ^= 1;  // caller-supplied hash differs, description equal
     o.expected_key = &same_text;
@@ -287,7 +290,8 @@ TEST_CASE("specific damage is named: magic, version, endianness, size, CRCs") {
     {
         // Past the CRCs: a coefficient index outside the grid, named with light and byte
         // (the plain layout, where indices sit at fixed offsets).
-        const std::vector<std::uint8_t> plain = slurp(write_small(dir / "p.fgb", basis::Precision::Float16, basis::Entropy::None));
+        const std::vector<std::uint8_t> plain =
+            slurp(write_small(dir / "p.fgb", basis::Precision::Float16, basis::Entropy::None));
         auto b = plain;
         const auto index_offset = get<std::uint64_t>(plain, kOffIndexOffset);
         const auto off = get<std::uint64_t>(plain, std::size_t(index_offset));  // light 0's block
@@ -295,7 +299,9 @@ TEST_CASE("specific damage is named: magic, version, endianness, size, CRCs") {
         const std::size_t at = std::size_t(off + kBlockHeaderSize + 3 * kBlockDirRecordSize);
         put<std::uint16_t>(b, at, 60);  // the grid has 60 cells
         fix_crcs(b, plain);
-        expect(b, ("byte " + std::to_string(at) + ", light 0): direction 0 coefficient 0: index 60 outside the 60 cells").c_str());
+        expect(b,
+               ("byte " + std::to_string(at) + ", light 0): direction 0 coefficient 0: index 60 outside the 60 cells")
+                   .c_str());
         // A duplicated index.
         b = plain;
         put<std::uint16_t>(b, at + 2, get<std::uint16_t>(plain, at));
@@ -314,7 +320,8 @@ TEST_CASE("specific damage is named: magic, version, endianness, size, CRCs") {
     auto b = good;
     b.resize(50);
     spit(dir / "t.fgb", b);
-    CHECK_THROWS_WITH_AS(basis::load_fgb(dir / "t.fgb"), doctest::Contains("the fixed header alone is 104"), core::Error);
+    CHECK_THROWS_WITH_AS(basis::load_fgb(dir / "t.fgb"), doctest::Contains("the fixed header alone is 104"),
+                         core::Error);
     spit(dir / "e.fgb", {});
     CHECK_THROWS_AS(basis::load_fgb(dir / "e.fgb"), core::Error);
     CHECK_THROWS_WITH_AS(basis::load_fgb(dir / "missing.fgb"), doctest::Contains("cannot open"), core::Error);
@@ -325,7 +332,8 @@ namespace {
 // Light 0's deflated block with its inflated stream changed by `mutate`, re-deflated and
 // given a valid CRC (so only the stream's own checks can catch the damage). `size_delta`
 // offsets the stored stream size; `trailing` bytes are appended after the zlib stream.
-basis::EncodedBlock rebuilt_block(const basis::FgbMetadata& m, const std::function<void(std::vector<std::uint8_t>&)>& mutate,
+basis::EncodedBlock rebuilt_block(const basis::FgbMetadata& m,
+                                  const std::function<void(std::vector<std::uint8_t>&)>& mutate,
                                   std::int64_t size_delta = 0, std::size_t trailing = 0) {
     const basis::EncodedBlock e = basis::encode_block(test::small_light(m, 0), m);
     const std::size_t head = basis::fgb::kBlockHeaderSize + m.bases() * basis::fgb::kBlockDirRecordSize;
@@ -341,7 +349,8 @@ basis::EncodedBlock rebuilt_block(const basis::FgbMetadata& m, const std::functi
     out.light = 0;
     out.bytes.assign(e.bytes.begin(), e.bytes.begin() + std::ptrdiff_t(head));
     const std::uint32_t size = std::uint32_t(std::int64_t(raw.size()) + size_delta);
-    out.bytes.insert(out.bytes.end(), reinterpret_cast<const std::uint8_t*>(&size), reinterpret_cast<const std::uint8_t*>(&size) + 4);
+    out.bytes.insert(out.bytes.end(), reinterpret_cast<const std::uint8_t*>(&size),
+                     reinterpret_cast<const std::uint8_t*>(&size) + 4);
     out.bytes.insert(out.bytes.end(), z.begin(), z.begin() + std::ptrdiff_t(zn));
     out.bytes.insert(out.bytes.end(), trailing, std::uint8_t(0));
     out.crc = basis::crc32_of(out.bytes);
@@ -371,16 +380,20 @@ TEST_CASE("deflated blocks: damage inside a stream with valid checksums is named
     // Unchanged stream: accepted and identical to the light.
     CHECK(load_bytes(file_with(dir / "d.fgb", m, rebuilt_block(m, [](auto&) {}))).lights[0] == test::small_light(m, 0));
     // The first index gap (one byte: the grid has 60 cells) pointing past the grid.
-    expect(rebuilt_block(m, [](auto& raw) { raw[0] = 60; }), "direction 0 coefficient 0: index 60 outside the 60 cells");
+    expect(rebuilt_block(m, [](auto& raw) { raw[0] = 60; }),
+           "direction 0 coefficient 0: index 60 outside the 60 cells");
     // A gap of 5 LEB128 bytes (indices need at most 4).
-    expect(rebuilt_block(m, [](auto& raw) { raw.insert(raw.begin(), 4, std::uint8_t(0x80)); }), "index gap longer than 4 bytes");
+    expect(rebuilt_block(m, [](auto& raw) { raw.insert(raw.begin(), 4, std::uint8_t(0x80)); }),
+           "index gap longer than 4 bytes");
     // One byte more of gaps than the coefficients use.
     expect(rebuilt_block(m, [&](auto& raw) { raw.insert(raw.end() - std::ptrdiff_t(2 * total), std::uint8_t(0)); }),
            "1 bytes of index gaps left over");
     // A float16 value with an all-ones exponent (high-byte plane first).
     expect(rebuilt_block(m, [&](auto& raw) { raw[raw.size() - 2 * total] = 0x7e; }), "float16 value is not finite");
     // Stream sizes that lie: one byte more than inflates, or more than any deflate stream can give.
-    expect(rebuilt_block(m, [](auto&) {}, +1), "the deflated coefficients are damaged");
+    expect(rebuilt_block(
+               m, [](auto&) {}, +1),
+           "the deflated coefficients are damaged");
     // (a non-minimal but valid 2-byte first gap keeps size - 1 above the size's lower bound)
     auto longer_gap = [](auto& raw) {
         raw[0] |= 0x80;
@@ -388,43 +401,47 @@ TEST_CASE("deflated blocks: damage inside a stream with valid checksums is named
     };
     CHECK(load_bytes(file_with(dir / "d.fgb", m, rebuilt_block(m, longer_gap))).lights[0] == test::small_light(m, 0));
     expect(rebuilt_block(m, longer_gap, -1), "more data than the stream size");
-    expect(rebuilt_block(m, [](auto&) {}, std::int64_t(1) << 31), "bytes cannot hold");
+    expect(rebuilt_block(
+               m, [](auto&) {}, std::int64_t(1) << 31),
+           "bytes cannot hold");
     // Bytes after the end of the zlib stream.
-    expect(rebuilt_block(m, [](auto&) {}, 0, 3), "3 bytes unread");
+    expect(rebuilt_block(
+               m, [](auto&) {}, 0, 3),
+           "3 bytes unread");
 }
 
 TEST_CASE("every truncation and 6000 random byte corruptions are rejected without a crash") {
     const auto dir = test::scratch_dir("fgb_fuzz");
     for (const auto entropy : {basis::Entropy::Deflate, basis::Entropy::None})
-    for (const auto prec : {basis::Precision::Float16, basis::Precision::Float32}) {
-        const std::vector<std::uint8_t> good = slurp(write_small(dir / "f.fgb", prec, entropy));
-        CHECK_NOTHROW(load_bytes(good));
-        INFO("file of " << good.size() << " bytes, " << basis::to_string(prec) << ", " << basis::to_string(entropy));
-        std::size_t rejected = 0;
-        for (std::size_t len = 0; len < good.size(); ++len) {
-            try {
-                load_bytes(std::vector<std::uint8_t>(good.begin(), good.begin() + std::ptrdiff_t(len)));
-                FAIL_CHECK("truncation to " << len << " bytes was accepted");
-            } catch (const core::Error& e) {
-                ++rejected;
-                CHECK(std::string(e.what()).find("mem.fgb") != std::string::npos);
+        for (const auto prec : {basis::Precision::Float16, basis::Precision::Float32}) {
+            const std::vector<std::uint8_t> good = slurp(write_small(dir / "f.fgb", prec, entropy));
+            CHECK_NOTHROW(load_bytes(good));
+            INFO("file of " << good.size() << " bytes, " << basis::to_string(prec) << ", "
+                            << basis::to_string(entropy));
+            std::size_t rejected = 0;
+            for (std::size_t len = 0; len < good.size(); ++len) {
+                try {
+                    load_bytes(std::vector<std::uint8_t>(good.begin(), good.begin() + std::ptrdiff_t(len)));
+                    FAIL_CHECK("truncation to " << len << " bytes was accepted");
+                } catch (const core::Error& e) {
+                    ++rejected;
+                    CHECK(std::string(e.what()).find("mem.fgb") != std::string::npos);
+                }
+            }
+            CHECK(rejected == good.size());
+            // Random single-byte corruptions (any value but the original) anywhere in the file:
+            // every byte is covered by a CRC, so each must be rejected.
+            core::Rng rng(42, std::uint64_t(prec) + 2 * std::uint64_t(entropy));
+            for (int t = 0; t < 1500; ++t) {
+                auto b = good;
+                const std::size_t at = rng.uniform_below(std::uint32_t(b.size()));
+                b[at] ^= std::uint8_t(1 + rng.uniform_below(255));
+                try {
+                    load_bytes(std::move(b));
+                    FAIL_CHECK("corruption of byte " << at << " was accepted");
+                } catch (const core::Error&) {}
             }
         }
-        CHECK(rejected == good.size());
-        // Random single-byte corruptions (any value but the original) anywhere in the file:
-        // every byte is covered by a CRC, so each must be rejected.
-        core::Rng rng(42, std::uint64_t(prec) + 2 * std::uint64_t(entropy));
-        for (int t = 0; t < 1500; ++t) {
-            auto b = good;
-            const std::size_t at = rng.uniform_below(std::uint32_t(b.size()));
-            b[at] ^= std::uint8_t(1 + rng.uniform_below(255));
-            try {
-                load_bytes(std::move(b));
-                FAIL_CHECK("corruption of byte " << at << " was accepted");
-            } catch (const core::Error&) {
-            }
-        }
-    }
 }
 
 TEST_CASE("corruptions that get past the CRCs reach the structural checks and never crash") {
@@ -433,43 +450,43 @@ TEST_CASE("corruptions that get past the CRCs reach the structural checks and ne
     // return data that satisfies every invariant the run time relies on.
     const auto dir = test::scratch_dir("fgb_fuzz2");
     for (const auto entropy : {basis::Entropy::None, basis::Entropy::Deflate}) {
-    INFO(basis::to_string(entropy));
-    const std::vector<std::uint8_t> good = slurp(write_small(dir / "f.fgb", basis::Precision::Float16, entropy));
-    core::Rng rng(7, 3 + std::uint64_t(entropy));
-    int rejected = 0, accepted = 0;
-    for (int t = 0; t < 3000; ++t) {
-        auto b = good;
-        const int flips = 1 + int(rng.uniform_below(3));
-        for (int f = 0; f < flips; ++f) {
-            const std::size_t at = rng.uniform_below(std::uint32_t(b.size()));
-            if (rng.uniform_below(4) == 0)
-                b[at] = std::uint8_t(rng.uniform_below(2) ? 0xff : 0x00);  // extreme values in sizes
-            else
-                b[at] ^= std::uint8_t(1u << rng.uniform_below(8));
-        }
-        fix_crcs(b, good);
-        try {
-            const basis::BakedBasis bb = load_bytes(std::move(b));
-            ++accepted;
-            basis::validate(bb.meta, "accepted file");
-            REQUIRE(bb.lights.size() == bb.meta.light_count());
-            for (const auto& l : bb.lights) {
-                REQUIRE(l.directions.size() == bb.meta.bases());
-                for (const auto& d : l.directions) {
-                    REQUIRE(d.index.size() == d.value.size());
-                    for (std::size_t k = 0; k < d.size(); ++k) {
-                        REQUIRE(d.index[k] < bb.meta.cells());
-                        REQUIRE(std::isfinite(d.value[k]));
-                    }
-                    REQUIRE(std::isfinite(d.gamma));
-                }
+        INFO(basis::to_string(entropy));
+        const std::vector<std::uint8_t> good = slurp(write_small(dir / "f.fgb", basis::Precision::Float16, entropy));
+        core::Rng rng(7, 3 + std::uint64_t(entropy));
+        int rejected = 0, accepted = 0;
+        for (int t = 0; t < 3000; ++t) {
+            auto b = good;
+            const int flips = 1 + int(rng.uniform_below(3));
+            for (int f = 0; f < flips; ++f) {
+                const std::size_t at = rng.uniform_below(std::uint32_t(b.size()));
+                if (rng.uniform_below(4) == 0)
+                    b[at] = std::uint8_t(rng.uniform_below(2) ? 0xff : 0x00);  // extreme values in sizes
+                else
+                    b[at] ^= std::uint8_t(1u << rng.uniform_below(8));
             }
-        } catch (const core::Error&) {
-            ++rejected;
+            fix_crcs(b, good);
+            try {
+                const basis::BakedBasis bb = load_bytes(std::move(b));
+                ++accepted;
+                basis::validate(bb.meta, "accepted file");
+                REQUIRE(bb.lights.size() == bb.meta.light_count());
+                for (const auto& l : bb.lights) {
+                    REQUIRE(l.directions.size() == bb.meta.bases());
+                    for (const auto& d : l.directions) {
+                        REQUIRE(d.index.size() == d.value.size());
+                        for (std::size_t k = 0; k < d.size(); ++k) {
+                            REQUIRE(d.index[k] < bb.meta.cells());
+                            REQUIRE(std::isfinite(d.value[k]));
+                        }
+                        REQUIRE(std::isfinite(d.gamma));
+                    }
+                }
+            } catch (const core::Error&) {
+                ++rejected;
+            }
         }
-    }
-    MESSAGE("CRC-patched corruptions (" << basis::to_string(entropy) << "): " << rejected << " rejected, " << accepted
-                                         << " accepted as valid data");
-    CHECK(rejected > 1000);  // most structural damage is caught; the rest changes only values
+        MESSAGE("CRC-patched corruptions (" << basis::to_string(entropy) << "): " << rejected << " rejected, "
+                                            << accepted << " accepted as valid data");
+        CHECK(rejected > 1000);  // most structural damage is caught; the rest changes only values
     }
 }

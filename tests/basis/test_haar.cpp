@@ -20,9 +20,9 @@ std::string str(Int3 n) { return std::to_string(n.x) + "x" + std::to_string(n.y)
 constexpr Decomposition kBoth[] = {Decomposition::NonStandard, Decomposition::Standard};
 
 // The sizes the issue names (1, 2, 3, 5, 33 as cubes), its two grids, and mixed odd/even axes.
-const std::vector<Int3> kSizes = {{1, 1, 1},  {2, 2, 2},  {3, 3, 3},  {5, 5, 5},   {33, 33, 33}, {33, 1, 1},
+const std::vector<Int3> kSizes = {{1, 1, 1},  {2, 2, 2},  {3, 3, 3},   {5, 5, 5},    {33, 33, 33}, {33, 1, 1},
                                   {1, 33, 1}, {1, 1, 33}, {32, 32, 4}, {64, 48, 20}, {5, 2, 3},    {33, 4, 7},
-                                  {6, 9, 1},  {1, 7, 2},  {2, 1, 5},  {32, 32, 24}};
+                                  {6, 9, 1},  {1, 7, 2},  {2, 1, 5},   {32, 32, 24}};
 
 // Matrix of the 1D transform along `axis` on length n: column j = forward(e_j).
 std::vector<double> matrix_1d(int n, int axis) {
@@ -76,17 +76,17 @@ TEST_CASE("textbook Haar on powers of two") {
 
 TEST_CASE("a constant is one coefficient on any size (unbalanced Haar)") {
     for (const Decomposition dec : kBoth)
-    for (const Int3 n : kSizes) {
-        HaarTransform<double> t(n, dec);
-        std::vector<double> v(n.volume(), 2.5);
-        t.forward(v);
-        INFO(str(n) << " " << basis::to_string(dec));
-        // coefficient 0 = sum / sqrt(N); rounding of ~3*log2(n) rotations, relative 1e-13.
-        CHECK(v[0] == doctest::Approx(2.5 * std::sqrt(double(n.volume()))).epsilon(1e-13));
-        double rest = 0.0;
-        for (std::size_t i = 1; i < v.size(); ++i) rest = std::max(rest, std::fabs(v[i]));
-        CHECK(rest < 1e-12);
-    }
+        for (const Int3 n : kSizes) {
+            HaarTransform<double> t(n, dec);
+            std::vector<double> v(n.volume(), 2.5);
+            t.forward(v);
+            INFO(str(n) << " " << basis::to_string(dec));
+            // coefficient 0 = sum / sqrt(N); rounding of ~3*log2(n) rotations, relative 1e-13.
+            CHECK(v[0] == doctest::Approx(2.5 * std::sqrt(double(n.volume()))).epsilon(1e-13));
+            double rest = 0.0;
+            for (std::size_t i = 1; i < v.size(); ++i) rest = std::max(rest, std::fabs(v[i]));
+            CHECK(rest < 1e-12);
+        }
 }
 
 TEST_CASE("the 3D transform is the tensor product of the 1D transforms (standard decomposition)") {
@@ -106,7 +106,10 @@ TEST_CASE("the 3D transform is the tensor product of the 1D transforms (standard
                                 s += wx[std::size_t(a) * n.x + i] * wy[std::size_t(b) * n.y + j] *
                                      wz[std::size_t(c) * n.z + k] *
                                      f[std::size_t(i) + std::size_t(n.x) * (std::size_t(j) + std::size_t(n.y) * k)];
-                    worst = std::max(worst, std::fabs(s - fast[std::size_t(a) + std::size_t(n.x) * (std::size_t(b) + std::size_t(n.y) * c)]));
+                    worst = std::max(
+                        worst,
+                        std::fabs(s -
+                                  fast[std::size_t(a) + std::size_t(n.x) * (std::size_t(b) + std::size_t(n.y) * c)]));
                 }
         INFO(str(n));
         CHECK(worst < 1e-13);  // values O(1), sums of <= 120 products: rounding ~1e-15 each
@@ -157,88 +160,88 @@ TEST_CASE("both decompositions equal the literal reference and are orthonormal i
 
 TEST_CASE("lossless round trip at xi = 0 in float32: relative RMS < 3e-7") {
     for (const Decomposition dec : kBoth)
-    for (const Int3 n : kSizes) {
-        basis::CompressionParams p;
-        p.mode = basis::ThresholdMode::Absolute;
-        p.xi = 0.0;
-        p.precision = basis::Precision::Float32;
-        p.decomposition = dec;
-        INFO(str(n) << " " << basis::to_string(dec));
-        const std::vector<double> f = test::light_field(n, 11);
-        // The bake's path: forward in double, store float32, run-time inverse in float.
-        std::vector<double> c = f;
-        HaarTransform<double>(n, dec).forward(c);
-        const basis::CompressedBasis b = basis::compress_coefficients(c, p);
-        std::vector<float> h(n.volume(), 0.0f);
-        basis::accumulate(b, 1.0f, h);
-        HaarTransform<float>(n, dec).inverse(h);
-        std::vector<double> back(h.begin(), h.end());
-        const double rel = test::l2_diff(back, f) / test::l2(f);
-        CHECK(rel < 3e-7);  // the issue's bound for float32 (unit roundoff 6e-8, ~log2(n) levels per axis)
-        // Pure float forward + inverse stays within the same bound.
-        std::vector<float> g(f.begin(), f.end());
-        HaarTransform<float> tf(n, dec);
-        tf.forward(g);
-        tf.inverse(g);
-        std::vector<double> back2(g.begin(), g.end());
-        CHECK(test::l2_diff(back2, f) / test::l2(f) < 3e-7);
-        CHECK(b.gamma == 0.0);  // nothing dropped at xi = 0 (exact zeros carry no energy)
-    }
+        for (const Int3 n : kSizes) {
+            basis::CompressionParams p;
+            p.mode = basis::ThresholdMode::Absolute;
+            p.xi = 0.0;
+            p.precision = basis::Precision::Float32;
+            p.decomposition = dec;
+            INFO(str(n) << " " << basis::to_string(dec));
+            const std::vector<double> f = test::light_field(n, 11);
+            // The bake's path: forward in double, store float32, run-time inverse in float.
+            std::vector<double> c = f;
+            HaarTransform<double>(n, dec).forward(c);
+            const basis::CompressedBasis b = basis::compress_coefficients(c, p);
+            std::vector<float> h(n.volume(), 0.0f);
+            basis::accumulate(b, 1.0f, h);
+            HaarTransform<float>(n, dec).inverse(h);
+            std::vector<double> back(h.begin(), h.end());
+            const double rel = test::l2_diff(back, f) / test::l2(f);
+            CHECK(rel < 3e-7);  // the issue's bound for float32 (unit roundoff 6e-8, ~log2(n) levels per axis)
+            // Pure float forward + inverse stays within the same bound.
+            std::vector<float> g(f.begin(), f.end());
+            HaarTransform<float> tf(n, dec);
+            tf.forward(g);
+            tf.inverse(g);
+            std::vector<double> back2(g.begin(), g.end());
+            CHECK(test::l2_diff(back2, f) / test::l2(f) < 3e-7);
+            CHECK(b.gamma == 0.0);  // nothing dropped at xi = 0 (exact zeros carry no energy)
+        }
 }
 
 TEST_CASE("Parseval: the L2 error of a thresholded reconstruction is the norm of the dropped coefficients") {
     for (const Decomposition dec : kBoth)
-    for (const Int3 n : kSizes) {
-        INFO(str(n) << " " << basis::to_string(dec));
-        const std::vector<double> f = test::light_field(n, 23);
-        std::vector<double> c = f;
-        HaarTransform<double> t(n, dec);
-        t.forward(c);
-        // Energy of the signal is preserved.
-        CHECK(test::l2(c) == doctest::Approx(test::l2(f)).epsilon(1e-12));
-        // Drop every coefficient below the median magnitude.
-        std::vector<double> mags;
-        for (double v : c) mags.push_back(std::fabs(v));
-        std::nth_element(mags.begin(), mags.begin() + std::ptrdiff_t(mags.size() / 2), mags.end());
-        const double thr = mags[mags.size() / 2];
-        core::CompensatedSum dropped;
-        for (double& v : c)
-            if (std::fabs(v) <= thr && n.volume() > 1) {
-                dropped.add(v * v);
-                v = 0.0;
+        for (const Int3 n : kSizes) {
+            INFO(str(n) << " " << basis::to_string(dec));
+            const std::vector<double> f = test::light_field(n, 23);
+            std::vector<double> c = f;
+            HaarTransform<double> t(n, dec);
+            t.forward(c);
+            // Energy of the signal is preserved.
+            CHECK(test::l2(c) == doctest::Approx(test::l2(f)).epsilon(1e-12));
+            // Drop every coefficient below the median magnitude.
+            std::vector<double> mags;
+            for (double v : c) mags.push_back(std::fabs(v));
+            std::nth_element(mags.begin(), mags.begin() + std::ptrdiff_t(mags.size() / 2), mags.end());
+            const double thr = mags[mags.size() / 2];
+            core::CompensatedSum dropped;
+            for (double& v : c)
+                if (std::fabs(v) <= thr && n.volume() > 1) {
+                    dropped.add(v * v);
+                    v = 0.0;
+                }
+            t.inverse(c);
+            const double err = test::l2_diff(c, f), gamma = std::sqrt(dropped.value());
+            if (gamma > 0.0) {
+                CHECK(err == doctest::Approx(gamma).epsilon(1e-5));  // the issue's bound; double gives ~1e-12
+            } else {
+                CHECK(err < 1e-14 * test::l2(f));
             }
-        t.inverse(c);
-        const double err = test::l2_diff(c, f), gamma = std::sqrt(dropped.value());
-        if (gamma > 0.0) {
-            CHECK(err == doctest::Approx(gamma).epsilon(1e-5));  // the issue's bound; double gives ~1e-12
-        } else {
-            CHECK(err < 1e-14 * test::l2(f));
+            // The thresholded error has zero mean when coefficient 0 (the mean) is kept: a constant
+            // "ambient" correction cannot reduce it (docs/basis.md).
+            double mean = 0.0;
+            for (std::size_t i = 0; i < f.size(); ++i) mean += c[i] - f[i];
+            mean /= double(f.size());
+            CHECK(std::fabs(mean) < 1e-12 * test::l2(f));
         }
-        // The thresholded error has zero mean when coefficient 0 (the mean) is kept: a constant
-        // "ambient" correction cannot reduce it (docs/basis.md).
-        double mean = 0.0;
-        for (std::size_t i = 0; i < f.size(); ++i) mean += c[i] - f[i];
-        mean /= double(f.size());
-        CHECK(std::fabs(mean) < 1e-12 * test::l2(f));
-    }
 }
 
 TEST_CASE("Parseval through compress: reconstruction error equals gamma up to float32 storage rounding") {
     for (const Decomposition dec : kBoth)
-    for (const Int3 n : {Int3{32, 32, 4}, Int3{33, 4, 7}, Int3{64, 48, 20}}) {
-        INFO(str(n) << " " << basis::to_string(dec));
-        const std::vector<double> f = test::light_field(n, 31);
-        std::vector<double> c = f;
-        HaarTransform<double> t(n, dec);
-        t.forward(c);
-        basis::CompressionParams p{basis::ThresholdMode::Energy, 0.999, basis::Precision::Float32, dec};
-        const basis::CompressedBasis b = basis::compress_coefficients(c, p);
-        std::vector<double> h(n.volume(), 0.0);
-        basis::accumulate(b, 1.0, h);
-        t.inverse(h);
-        const double err = test::l2_diff(h, f);
-        // err^2 = gamma^2 + (float32 rounding of kept values)^2; the latter is <= 2^-24 ||f||.
-        CHECK(std::fabs(err - b.gamma) <= 1e-5 * b.gamma + 6e-8 * test::l2(f));
-        CHECK(b.gamma <= std::sqrt(1.0 - 0.999) * b.norm * (1 + 1e-12));
-    }
+        for (const Int3 n : {Int3{32, 32, 4}, Int3{33, 4, 7}, Int3{64, 48, 20}}) {
+            INFO(str(n) << " " << basis::to_string(dec));
+            const std::vector<double> f = test::light_field(n, 31);
+            std::vector<double> c = f;
+            HaarTransform<double> t(n, dec);
+            t.forward(c);
+            basis::CompressionParams p{basis::ThresholdMode::Energy, 0.999, basis::Precision::Float32, dec};
+            const basis::CompressedBasis b = basis::compress_coefficients(c, p);
+            std::vector<double> h(n.volume(), 0.0);
+            basis::accumulate(b, 1.0, h);
+            t.inverse(h);
+            const double err = test::l2_diff(h, f);
+            // err^2 = gamma^2 + (float32 rounding of kept values)^2; the latter is <= 2^-24 ||f||.
+            CHECK(std::fabs(err - b.gamma) <= 1e-5 * b.gamma + 6e-8 * test::l2(f));
+            CHECK(b.gamma <= std::sqrt(1.0 - 0.999) * b.norm * (1 + 1e-12));
+        }
 }

@@ -26,8 +26,10 @@ core::Grid3<float> blob(int k0 = 10, int k1 = 24, int i0 = 8, int i1 = 29, int j
             for (int i = i0; i <= i1; ++i) {
                 const double q = std::pow((i - ci) / ri, 2) + std::pow((j - cj) / rj, 2) + std::pow((k - ck) / rk, 2);
                 // Every layer and column of the box holds cloud along the axes through the centre.
-                d.at(i, j, k) = q <= 1.0 || (i == int(ci) && j == int(cj)) || (k == int(ck) && (i == int(ci) || j == int(cj)))
-                                    ? 0.8f : 0.01f;
+                d.at(i, j, k) =
+                    q <= 1.0 || (i == int(ci) && j == int(cj)) || (k == int(ck) && (i == int(ci) || j == int(cj)))
+                        ? 0.8f
+                        : 0.01f;
             }
     return d;
 }
@@ -39,8 +41,8 @@ double eq4_next(double r, double eps) {
 }
 
 // Checks the properties every grid must have for cloud bounds (world) and params.
-void check_grid(const VirtualLightGrid& v, const core::Grid3<float>& d, const VirtualLightParams& p, double x0, double x1,
-                double y0, double y1, double zb, double zt) {
+void check_grid(const VirtualLightGrid& v, const core::Grid3<float>& d, const VirtualLightParams& p, double x0,
+                double x1, double y0, double y1, double zb, double zt) {
     const double tol = 1e-9 * 1e4;  // coordinates ~1e4 m: 1e-5 m is far above double rounding
     // Horizontal: spacing exactly h_usr, footprint + margin covered, at least 2 nodes.
     for (const auto* axis : {&v.x, &v.y}) {
@@ -160,8 +162,10 @@ TEST_CASE("virtual-light grid hard cases") {
         core::GridGeometry g;
         g.dims = {8, 8, 8};
         core::Grid3<float> d(g, 0.01f);
-        CHECK_THROWS_WITH_AS(basis::build_virtual_light_grid(d, p), doctest::Contains("the cloud is empty"), core::Error);
-        CHECK_THROWS_WITH_AS(basis::build_virtual_light_grid(d, p), doctest::Contains("density_threshold 0.05"), core::Error);
+        CHECK_THROWS_WITH_AS(basis::build_virtual_light_grid(d, p), doctest::Contains("the cloud is empty"),
+                             core::Error);
+        CHECK_THROWS_WITH_AS(basis::build_virtual_light_grid(d, p), doctest::Contains("density_threshold 0.05"),
+                             core::Error);
         d.at(3, 3, 3) = std::numeric_limits<float>::quiet_NaN();  // NaN is not cloud
         CHECK_THROWS_AS(basis::build_virtual_light_grid(d, p), core::Error);
     }
@@ -222,15 +226,19 @@ TEST_CASE("virtual-light grid hard cases") {
                              core::Error);
         p.ground_height = 0.0;
         p.h_usr = std::numeric_limits<double>::quiet_NaN();
-        CHECK_THROWS_WITH_AS(basis::build_virtual_light_grid(d, p), doctest::Contains("virtual_lights.h_usr"), core::Error);
+        CHECK_THROWS_WITH_AS(basis::build_virtual_light_grid(d, p), doctest::Contains("virtual_lights.h_usr"),
+                             core::Error);
         p.h_usr = -3.0;
-        CHECK_THROWS_WITH_AS(basis::build_virtual_light_grid(d, p), doctest::Contains("virtual_lights.h_usr"), core::Error);
+        CHECK_THROWS_WITH_AS(basis::build_virtual_light_grid(d, p), doctest::Contains("virtual_lights.h_usr"),
+                             core::Error);
         p.h_usr = 300.0;
         p.epsilon = -1.0;
-        CHECK_THROWS_WITH_AS(basis::build_virtual_light_grid(d, p), doctest::Contains("virtual_lights.epsilon"), core::Error);
+        CHECK_THROWS_WITH_AS(basis::build_virtual_light_grid(d, p), doctest::Contains("virtual_lights.epsilon"),
+                             core::Error);
         p.epsilon = 1e-7;
         p.density_threshold = 1.0;
-        CHECK_THROWS_WITH_AS(basis::build_virtual_light_grid(d, p), doctest::Contains("density_threshold"), core::Error);
+        CHECK_THROWS_WITH_AS(basis::build_virtual_light_grid(d, p), doctest::Contains("density_threshold"),
+                             core::Error);
         p.density_threshold = 0.05;
         p.h_usr = 0.5;
         CHECK_THROWS_WITH_AS(basis::build_virtual_light_grid(d, p), doctest::Contains("increase h_usr"), core::Error);

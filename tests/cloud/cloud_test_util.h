@@ -8,9 +8,7 @@
 namespace fulgur::cloud::test {
 
 /// Index of the voxel layer containing height z (metres).
-inline int layer_at(const core::Grid3<float>& d, double z) {
-    return int((z - d.geom.origin.z) / d.geom.voxel_size);
-}
+inline int layer_at(const core::Grid3<float>& d, double z) { return int((z - d.geom.origin.z) / d.geom.voxel_size); }
 
 /// Horizontal area (m^2) of layer k where the density exceeds `threshold`.
 inline double layer_area(const core::Grid3<float>& d, int k, float threshold) {

@@ -15,7 +15,9 @@ namespace {
 
 constexpr std::uint8_t H = Automaton::kHum, A = Automaton::kAct, C = Automaton::kCld;
 
-std::vector<std::uint8_t> full_weights(core::Int3 d, std::uint8_t w = 255) { return std::vector<std::uint8_t>(d.volume(), w); }
+std::vector<std::uint8_t> full_weights(core::Int3 d, std::uint8_t w = 255) {
+    return std::vector<std::uint8_t>(d.volume(), w);
+}
 
 // The growth rules written out literally from the paper, on an unpadded grid with "false"
 // outside.
@@ -184,7 +186,8 @@ TEST_CASE("smoothing: constant in, constant out; flat base; mass conserved; gain
         const std::vector<float> rho = cloud::detail::smooth_density(d, counts, window, 2, base, 1.0);
         // Interior column (2 voxels from the x/y faces: beyond the kernel's reach) at the
         // base layer and above: exactly 1 up to float rounding of the normalized weights.
-        for (int k = base; k < d.z - 2; ++k) CHECK(rho[8 + 16 * 8 + 256 * std::size_t(k)] == doctest::Approx(1.0).epsilon(1e-6));
+        for (int k = base; k < d.z - 2; ++k)
+            CHECK(rho[8 + 16 * 8 + 256 * std::size_t(k)] == doctest::Approx(1.0).epsilon(1e-6));
         for (int k = 0; k < base; ++k) CHECK(rho[8 + 16 * 8 + 256 * std::size_t(k)] == 0.0f);
     }
     SUBCASE("an isolated impulse spreads but keeps its mass, gain scales and clamps") {

@@ -173,7 +173,7 @@ TEST_CASE("the anvil spreads wider than the tower when on, and not when off") {
     const double edge = thickness(p.shear + p.anvil_offset + 0.8 * p.anvil_radius);
     CAPTURE(beside);
     CAPTURE(edge);
-    CHECK(edge > 0.0);             // the anvil does reach out there
+    CHECK(edge > 0.0);  // the anvil does reach out there
     CHECK(beside > 0.5 * p.anvil_thickness);
     // Measured 0.24 for the default cloud. An anvil of uniform thickness still thins a
     // little at its rim, where the ellipsoids stop overlapping (measured 0.44), so 0.4

@@ -58,7 +58,8 @@ TEST_CASE("load_density rejects densities outside [0, 1], naming the file and th
     SUBCASE("above 1") {
         d.at(2, 1, 3) = 1.5f;
         core::write_nrrd(dir / "hot.nrrd", d);
-        CHECK_THROWS_WITH_AS(cloud::load_density(dir / "hot.nrrd"), doctest::Contains("hot.nrrd: voxel (2,1,3)"), core::Error);
+        CHECK_THROWS_WITH_AS(cloud::load_density(dir / "hot.nrrd"), doctest::Contains("hot.nrrd: voxel (2,1,3)"),
+                             core::Error);
         CHECK_THROWS_WITH_AS(cloud::load_density(dir / "hot.nrrd"), doctest::Contains("outside [0, 1]"), core::Error);
     }
     SUBCASE("negative") {
@@ -127,7 +128,8 @@ TEST_CASE("previews have the documented sizes and show the cloud") {
     const cloud::Image lit = cloud::render_preview(d, cloud::PreviewKind::SideLit, 0.01);
     CHECK(lit.width == 12);
     const auto dir = scratch_dir("previews");
-    const cloud::PreviewKind kinds[] = {cloud::PreviewKind::SliceXZ, cloud::PreviewKind::TopMax, cloud::PreviewKind::SideLit};
+    const cloud::PreviewKind kinds[] = {cloud::PreviewKind::SliceXZ, cloud::PreviewKind::TopMax,
+                                        cloud::PreviewKind::SideLit};
     cloud::write_preview_png(dir / "p.png", d, kinds);
     CHECK(std::filesystem::file_size(dir / "p.png") > 0);
 }

@@ -46,7 +46,9 @@ TEST_CASE("NRRD reader rejects bad files with the file and offset in the message
     const std::string good = read_all(dir / "g.nrrd");
     const auto data_start = good.find("\n\n") + 2;
 
-    SUBCASE("missing file") { CHECK_THROWS_WITH_AS(read_nrrd(dir / "none.nrrd"), doctest::Contains("none.nrrd"), Error); }
+    SUBCASE("missing file") {
+        CHECK_THROWS_WITH_AS(read_nrrd(dir / "none.nrrd"), doctest::Contains("none.nrrd"), Error);
+    }
     SUBCASE("bad magic") {
         fulgur::test::write_text(dir / "b.nrrd", "P6\n" + good.substr(9));
         CHECK_THROWS_WITH_AS(read_nrrd(dir / "b.nrrd"), doctest::Contains("not a NRRD"), Error);
@@ -78,6 +80,7 @@ TEST_CASE("NRRD reader rejects bad files with the file and offset in the message
         const float nan = std::numeric_limits<float>::quiet_NaN();
         std::memcpy(s.data() + data_start + 8, &nan, 4);
         fulgur::test::write_text(dir / "t.nrrd", s);
-        CHECK_THROWS_WITH_AS(read_nrrd(dir / "t.nrrd"), doctest::Contains(("byte " + std::to_string(data_start + 8)).c_str()), Error);
+        CHECK_THROWS_WITH_AS(read_nrrd(dir / "t.nrrd"),
+                             doctest::Contains(("byte " + std::to_string(data_start + 8)).c_str()), Error);
     }
 }

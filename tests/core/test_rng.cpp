@@ -23,7 +23,8 @@ TEST_CASE("rng is deterministic per (seed, stream) and streams differ") {
 TEST_CASE("pcg32 matches the reference sequence") {
     // pcg32-global-demo reference output for seed 42, stream 54 (pcg-random.org).
     Rng r(42u, 54u);
-    const std::array<std::uint32_t, 6> expected = {0xa15c02b7, 0x7b47f409, 0xba1d3330, 0x83d2f293, 0xbfa4784b, 0xcbed606e};
+    const std::array<std::uint32_t, 6> expected = {0xa15c02b7, 0x7b47f409, 0xba1d3330,
+                                                   0x83d2f293, 0xbfa4784b, 0xcbed606e};
     for (auto e : expected) CHECK(r.next_u32() == e);
 }
 

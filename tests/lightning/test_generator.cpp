@@ -58,7 +58,6 @@ TEST_CASE("generator: cloud-to-ground bolts end exactly on the ground and stay i
     }
 }
 
-
 TEST_CASE("generator: branches hang together, decay with depth and respect max_depth") {
     BoltParams p;
     p.branch_probability = 0.3;
@@ -148,7 +147,8 @@ TEST_CASE("generator: clouds without a start region and impossible grounds are r
     g.dims = {16, 16, 16};
     g.voxel_size = 100.0;
     const core::Grid3<float> empty(g, 0.0f);
-    CHECK_THROWS_WITH_AS(BoltGenerator(BoltParams{}, empty), doctest::Contains("lightning.start_density_threshold"), Error);
+    CHECK_THROWS_WITH_AS(BoltGenerator(BoltParams{}, empty), doctest::Contains("lightning.start_density_threshold"),
+                         Error);
     CHECK_THROWS_WITH_AS(BoltGenerator(BoltParams{}, empty), doctest::Contains("maximum density there is 0"), Error);
     core::Grid3<float> thin(g, 0.2f);  // below the default threshold 0.3
     CHECK_THROWS_WITH_AS(BoltGenerator(BoltParams{}, thin), doctest::Contains("0.2"), Error);
@@ -178,12 +178,14 @@ TEST_CASE("generator: absurd parameters are rejected naming the field") {
         mutate(p);
         CHECK_THROWS_WITH_AS(validate(p), doctest::Contains(field), Error);
     };
-    rejects([](LightningParams& p) { p.bolt.angle_mean_deg = std::numeric_limits<double>::quiet_NaN(); }, "lightning.angle_mean");
+    rejects([](LightningParams& p) { p.bolt.angle_mean_deg = std::numeric_limits<double>::quiet_NaN(); },
+            "lightning.angle_mean");
     rejects([](LightningParams& p) { p.bolt.angle_spread_deg = -1.0; }, "lightning.angle_spread");
     rejects([](LightningParams& p) { p.bolt.segment_length_mean = 0.0; }, "lightning.segment_length_mean");
     rejects([](LightningParams& p) { p.bolt.branch_probability = 1.5; }, "lightning.branches.probability");
     rejects([](LightningParams& p) { p.bolt.max_depth = 9; }, "lightning.branches.max_depth");
-    rejects([](LightningParams& p) { p.bolt.intensity = std::numeric_limits<double>::infinity(); }, "lightning.intensity");
+    rejects([](LightningParams& p) { p.bolt.intensity = std::numeric_limits<double>::infinity(); },
+            "lightning.intensity");
     rejects([](LightningParams& p) { p.bolt.start_density_threshold = 1.0; }, "lightning.start_density_threshold");
     rejects([](LightningParams& p) { p.timing.decay_time = 0.0; }, "lightning.timing.decay_time");
     rejects([](LightningParams& p) { p.timing.restrikes = -1.0; }, "lightning.timing.restrikes");

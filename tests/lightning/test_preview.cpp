@@ -76,7 +76,8 @@ TEST_CASE("preview: a flash over time - leader, return stroke, decay, dart leade
     strip.resize(std::size_t(5 * w * h * 3));
     for (int k = 0; k < 5; ++k)
         for (int y = 0; y < h; ++y)
-            std::copy_n(&panels[std::size_t(k)][std::size_t(y * w * 3)], w * 3, &strip[std::size_t((y * 5 * w + k * w) * 3)]);
+            std::copy_n(&panels[std::size_t(k)][std::size_t(y * w * 3)], w * 3,
+                        &strip[std::size_t((y * 5 * w + k * w) * 3)]);
     core::write_png(fulgur::test::scratch_dir("lightning_sequence") / "flash_sequence.png", 5 * w, h, 3, strip);
 }
 
@@ -88,7 +89,8 @@ TEST_CASE("preview: bolts of each kind drawn over the cloud") {
         p.kind = kind;
         const BoltGenerator gen(p, cloud);
         for (std::uint64_t seed : {1, 2, 3}) {
-            draw(dir / (std::string(kind_name(kind)) + "_" + std::to_string(seed) + ".png"), cloud, {gen.generate(seed)});
+            draw(dir / (std::string(kind_name(kind)) + "_" + std::to_string(seed) + ".png"), cloud,
+                 {gen.generate(seed)});
         }
     }
 }
@@ -115,7 +117,9 @@ TEST_CASE("preview: the documentation mosaic (two cloud-to-ground, one intra-clo
         if (p.kind != Kind::CloudToGround) {
             const double a = -std::atan2(b.target.y - b.start.y, b.target.x - b.start.x);
             for (LitSegment& l : lit)
-                for (glm::dvec3* q : {&l.a, &l.b}) *q = glm::dvec3(std::cos(a) * q->x - std::sin(a) * q->y, std::sin(a) * q->x + std::cos(a) * q->y, q->z);
+                for (glm::dvec3* q : {&l.a, &l.b})
+                    *q = glm::dvec3(std::cos(a) * q->x - std::sin(a) * q->y, std::sin(a) * q->x + std::cos(a) * q->y,
+                                    q->z);
         }
         const auto px = draw_side_view(lit, &cloud, view, w, h, p.intensity);
         if (mosaic.empty()) mosaic.resize(std::size_t(4 * w * h * 3));

@@ -82,7 +82,7 @@ TEST_CASE("splat: the grid lookup agrees with the binary search and an independe
     // Inside, outside and on nodes: 2000 random sources over a box larger than the grid.
     const Box wide{glm::dvec3(-9000.0, -9000.0, -2000.0), glm::dvec3(9000.0, 9000.0, 12000.0)};
     std::vector<PointSource> q = random_sources(2000, 1, wide);
-    q.push_back({glm::dvec3(-6400.0, 400.0, 700.0), 3.0});  // on a node
+    q.push_back({glm::dvec3(-6400.0, 400.0, 700.0), 3.0});   // on a node
     q.push_back({glm::dvec3(6400.0, 6400.0, 9500.0), 5.0});  // the last corner
     LightWeights a, b;
     sp.splat(q, a);
@@ -113,8 +113,10 @@ TEST_CASE("splat: sum of e_l equals sum of L_q (exact energy conservation), in a
         // lost or duplicated weight (>= 1e-4 relative here) can never pass.
         CHECK(std::fabs(sum_e(w) - in) <= 1e-12 * in);
         CHECK(w.sources == q.size());
-        if (inside) CHECK(w.clamped == 0);
-        else CHECK(w.clamped > 5000);  // most of the wide box lies outside the grid
+        if (inside)
+            CHECK(w.clamped == 0);
+        else
+            CHECK(w.clamped > 5000);  // most of the wide box lies outside the grid
         for (const std::uint32_t l : w.active) CHECK(std::isfinite(w.e[l]));
         CHECK(std::is_sorted(w.active.begin(), w.active.end()));
     }
@@ -191,12 +193,9 @@ TEST_CASE("splat: sources exactly on nodes and on the boundaries get exact weigh
 TEST_CASE("splat: non-finite sources are rejected, zero intensity lights nothing, no NaN ever") {
     const Splatter sp(vgrid());
     const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
-    const std::vector<PointSource> q = {{glm::dvec3(nan, 0.0, 1000.0), 1.0},
-                                        {glm::dvec3(0.0, inf, 1000.0), 1.0},
-                                        {glm::dvec3(0.0, 0.0, 1000.0), nan},
-                                        {glm::dvec3(0.0, 0.0, 1000.0), -inf},
-                                        {glm::dvec3(0.0, 0.0, 1000.0), 0.0},
-                                        {glm::dvec3(1e300, -1e300, 1e300), 2.0}};
+    const std::vector<PointSource> q = {{glm::dvec3(nan, 0.0, 1000.0), 1.0}, {glm::dvec3(0.0, inf, 1000.0), 1.0},
+                                        {glm::dvec3(0.0, 0.0, 1000.0), nan}, {glm::dvec3(0.0, 0.0, 1000.0), -inf},
+                                        {glm::dvec3(0.0, 0.0, 1000.0), 0.0}, {glm::dvec3(1e300, -1e300, 1e300), 2.0}};
     LightWeights w;
     sp.splat(q, w);
     CHECK(w.rejected == 4);
@@ -377,7 +376,8 @@ TEST_CASE("point sources and splat: same bolt and time give bit-identical e_l") 
         REQUIRE(storm.point_sources(t, sp.source_spacing(), q));
         LightWeights w;
         sp.splat(q, w);
-        if (run == 0) first = w.e;
+        if (run == 0)
+            first = w.e;
         else
             for (std::size_t l = 0; l < w.e.size(); ++l) CHECK(fixture::same_bits(first[l], w.e[l]));
     }
@@ -390,5 +390,5 @@ TEST_CASE("splat: 10,000 point sources") {
     sp.splat(q, w);
     CHECK(w.sources == 10000);
     CHECK(std::fabs(sum_e(w) - sum_l(q)) <= 1e-12 * sum_l(q));  // see the conservation test
-    CHECK(w.active.size() > 5000);  // spread over the grid: thousands of lights lit
+    CHECK(w.active.size() > 5000);                              // spread over the grid: thousands of lights lit
 }

@@ -111,8 +111,9 @@ TEST_CASE("generator: turn angles follow |N(angle_mean, angle_spread)| whatever 
         const AngleStats st = main_channel_turns(p, 150);
         double expect_mean, expect_sd;
         folded_normal(mean, spread, expect_mean, expect_sd);
-        INFO("mean " << mean << " spread " << spread << " bias " << bias << " zigzag " << zigzag << ": measured " << st.mean << " +- " << st.sd
-                     << " over " << st.count << " turns; expected " << expect_mean << " +- " << expect_sd);
+        INFO("mean " << mean << " spread " << spread << " bias " << bias << " zigzag " << zigzag << ": measured "
+                     << st.mean << " +- " << st.sd << " over " << st.count << " turns; expected " << expect_mean
+                     << " +- " << expect_sd);
         REQUIRE(st.count > 2000);
         CHECK(st.skipped_bolts < 15);  // the big domain keeps walls away from almost every bolt
         // 4 standard errors of the mean: a false alarm has probability ~6e-5 (the turns are
@@ -160,7 +161,8 @@ TEST_CASE("timing: restrike counts are Poisson with the configured mean, interva
     for (int s = 0; s < n; ++s) {
         const FlashProfile f = make_flash_profile(bolt_of_length(5000.0), p, std::uint64_t(s) + 1);
         count += double(f.stroke_onset.size() - 1);
-        for (std::size_t k = 1; k < f.stroke_onset.size(); ++k) intervals.push_back(f.stroke_onset[k] - f.stroke_onset[k - 1]);
+        for (std::size_t k = 1; k < f.stroke_onset.size(); ++k)
+            intervals.push_back(f.stroke_onset[k] - f.stroke_onset[k - 1]);
     }
     // Poisson: variance = mean; 4 standard errors.
     CHECK(std::fabs(count / n - p.restrikes) < 4.0 * std::sqrt(p.restrikes / n));
@@ -170,7 +172,8 @@ TEST_CASE("timing: restrike counts are Poisson with the configured mean, interva
     // leaves room while failing a wrong median (e.g. the mean exp(0.08) = +8%).
     CHECK(median == doctest::Approx(p.restrike_interval).epsilon(0.04));
     // Same seed, same profile.
-    const FlashProfile a = make_flash_profile(bolt_of_length(5000.0), p, 77), b = make_flash_profile(bolt_of_length(5000.0), p, 77);
+    const FlashProfile a = make_flash_profile(bolt_of_length(5000.0), p, 77),
+                       b = make_flash_profile(bolt_of_length(5000.0), p, 77);
     CHECK(a.stroke_onset == b.stroke_onset);
     CHECK(a.stroke_peak == b.stroke_peak);
 }

@@ -137,7 +137,8 @@ TEST_CASE("storm: on-demand strikes, dark frames detectable, point sources carry
     core::CompensatedSum sq, expect;
     for (const PointSource& x : q) sq.add(x.intensity);
     const FlashState st = flash_state(s.profile, p.timing, tp - 2.0);
-    for (const Segment& g : storm.bolt(i).segments) expect.add(g.intensity * g.length() * (g.depth == 0 ? st.main_glow : st.branch_glow));
+    for (const Segment& g : storm.bolt(i).segments)
+        expect.add(g.intensity * g.length() * (g.depth == 0 ? st.main_glow : st.branch_glow));
     CHECK(sq.value() == doctest::Approx(expect.value()).epsilon(1e-12));  // a few roundings per source
     CHECK(st.main_glow == doctest::Approx(1.0));
     // Two overlapping strikes: both active.
@@ -145,4 +146,3 @@ TEST_CASE("storm: on-demand strikes, dark frames detectable, point sources carry
     CHECK(storm.active(2.02).size() == 2);
     CHECK_THROWS_AS(storm.strike_at(std::nan("")), core::Error);
 }
-

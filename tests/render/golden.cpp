@@ -47,7 +47,8 @@ GoldenResult compare_golden(const std::filesystem::path& expected, int width, in
     };
     if (!std::filesystem::exists(expected)) {
         write_actual();
-        r.message = "golden " + expected.string() + " is missing (run with FULGUR_UPDATE_GOLDENS=1 to create it); actual: " +
+        r.message = "golden " + expected.string() +
+                    " is missing (run with FULGUR_UPDATE_GOLDENS=1 to create it); actual: " +
                     (output_dir / (name + ".actual.png")).string();
         return r;
     }

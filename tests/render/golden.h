@@ -25,10 +25,10 @@
 namespace fulgur::test {
 
 struct GoldenTolerance {
-    int pixel_threshold = 8;             ///< a pixel fails above this channel difference (levels)
-    double max_failing_fraction = 0.002; ///< of all pixels
-    double max_mean_diff = 0.5;          ///< levels, over all RGB channels
-    int max_diff = 255;                  ///< hard cap on the largest difference (255: none)
+    int pixel_threshold = 8;              ///< a pixel fails above this channel difference (levels)
+    double max_failing_fraction = 0.002;  ///< of all pixels
+    double max_mean_diff = 0.5;           ///< levels, over all RGB channels
+    int max_diff = 255;                   ///< hard cap on the largest difference (255: none)
 };
 
 struct GoldenResult {

@@ -84,8 +84,10 @@ TEST_CASE("golden regeneration only with FULGUR_UPDATE_GOLDENS=1") {
     CHECK(r.passed);
     CHECK(r.regenerated);
     CHECK(std::filesystem::exists(dir / "new.png"));
-    if (old) ::setenv("FULGUR_UPDATE_GOLDENS", saved.c_str(), 1);
-    else ::unsetenv("FULGUR_UPDATE_GOLDENS");
+    if (old)
+        ::setenv("FULGUR_UPDATE_GOLDENS", saved.c_str(), 1);
+    else
+        ::unsetenv("FULGUR_UPDATE_GOLDENS");
     int w = 0, h = 0;
     CHECK(test::read_png_rgba(dir / "new.png", w, h) == img);
 }

@@ -94,7 +94,8 @@ TEST_CASE("homogeneous box with constant S: L = S (1 - exp(-tau)) for any step")
             for (int x = 0; x < W; ++x) {
                 const glm::dvec3 d = test::pixel_ray(cam, x, y, W, H);
                 double t0 = 0, t1 = 0;
-                const double chord = test::ray_box(cam.position, d, density.geom.origin, density.geom.upper(), t0, t1) ? t1 - t0 : 0.0;
+                const double chord =
+                    test::ray_box(cam.position, d, density.geom.origin, density.geom.upper(), t0, t1) ? t1 - t0 : 0.0;
                 const double T = std::exp(-kappa * rho * chord);
                 const float* p = im.px(x, y);
                 if (std::abs(double(p[0]) - S * (1.0 - T)) > worst) {
@@ -110,7 +111,7 @@ TEST_CASE("homogeneous box with constant S: L = S (1 - exp(-tau)) for any step")
             }
         CHECK(inside > W * H / 5);  // the box covers a good part of the view
         MESSAGE("step " << step << " voxels: worst |L - S(1-exp(-tau))| = " << worst << " (tolerance " << tol
-                         << ") at pixel (" << wx << ", " << wy << "), chord " << w_chord << " m, L " << w_got);
+                        << ") at pixel (" << wx << ", " << wy << "), chord " << w_chord << " m, L " << w_got);
     }
 }
 
@@ -119,7 +120,8 @@ TEST_CASE("linear density gradient: midpoint-rule error within kappa |rho'| dt^2
     const int n = 32;
     const double voxel = 100.0, kappa = 6.25e-4, S = 2.0;
     // rho = (2i + 1) / 64 along x: exact in half precision, linear between voxel centres.
-    const auto density = test::make_grid({n, 8, 8}, voxel, {0, 0, 0}, [&](int i, int, int) { return float((2 * i + 1) / 64.0); });
+    const auto density =
+        test::make_grid({n, 8, 8}, voxel, {0, 0, 0}, [&](int i, int, int) { return float((2 * i + 1) / 64.0); });
     r.set_volume({.density = &density, .extinction = kappa, .precision = render::DensityPrecision::F16});
     core::GridGeometry lg = density.geom;
     lg.dims = {2, 2, 2};
@@ -420,10 +422,13 @@ TEST_CASE("bolt core and glow are attenuated by the cloud in front of them, not 
     auto energy = [&](double bolt_y, bool with_cloud) {
         render::Bolt b;
         for (int i = 0; i < 20; ++i)
-            b.segments.push_back({{0.0f, float(bolt_y), float(2500 + 50 * i)}, {0.0f, float(bolt_y), float(2550 + 50 * i)}, 1.0f, 2.0f});
+            b.segments.push_back(
+                {{0.0f, float(bolt_y), float(2500 + 50 * i)}, {0.0f, float(bolt_y), float(2550 + 50 * i)}, 1.0f, 2.0f});
         r.set_bolt(b);
-        if (with_cloud) r.set_volume({.density = &slab, .extinction = 1e-3, .precision = render::DensityPrecision::F16});
-        else r.clear_volume();
+        if (with_cloud)
+            r.set_volume({.density = &slab, .extinction = 1e-3, .precision = render::DensityPrecision::F16});
+        else
+            r.clear_volume();
         render_at(r, cam, st, 160, 120);
         double e = 0.0;
         for (float v : r.read_hdr()) e += v;
@@ -454,10 +459,10 @@ TEST_CASE("hard cases give finite images") {
     r.set_volume({.density = &one, .extinction = 0.05});
     upload_all(r, one.geom, 26, [](int m, std::size_t) { return float(m); });
     render::Bolt b;
-    b.segments.push_back({{0, 0, 1200}, {0, 0, 1200}, 5.0f, 1.0f});        // zero length
-    b.segments.push_back({{0, 0, 1200}, {10, 0, 900}, 0.0f, 1.0f});        // zero intensity
-    b.segments.push_back({{0, 0, 1100}, {0, 0, 0}, 100.0f, 1e-3f});        // very thin, to the ground
-    b.segments.push_back({{0, 0, -50}, {0, 0, -20}, 100.0f, 1.0f});        // under the ground
+    b.segments.push_back({{0, 0, 1200}, {0, 0, 1200}, 5.0f, 1.0f});  // zero length
+    b.segments.push_back({{0, 0, 1200}, {10, 0, 900}, 0.0f, 1.0f});  // zero intensity
+    b.segments.push_back({{0, 0, 1100}, {0, 0, 0}, 100.0f, 1e-3f});  // very thin, to the ground
+    b.segments.push_back({{0, 0, -50}, {0, 0, -20}, 100.0f, 1.0f});  // under the ground
     r.set_bolt(b);
     render::Camera inside;
     inside.position = {0, 0, 1250};
@@ -520,7 +525,8 @@ TEST_CASE("bad inputs are rejected with errors naming the field") {
     render::Renderer& r = gl_renderer();
     auto density = test::make_grid({4, 4, 4}, 100.0, {0, 0, 0}, [](int, int, int) { return 0.5f; });
     density.at(1, 2, 3) = std::nanf("");
-    CHECK_THROWS_WITH_AS(r.set_volume({.density = &density, .extinction = 0.01}), doctest::Contains("(1, 2, 3)"), core::Error);
+    CHECK_THROWS_WITH_AS(r.set_volume({.density = &density, .extinction = 0.01}), doctest::Contains("(1, 2, 3)"),
+                         core::Error);
     density.at(1, 2, 3) = 0.5f;
     CHECK_THROWS_AS(r.set_volume({.density = &density, .extinction = -1.0}), core::Error);
     CHECK_THROWS_AS(r.set_volume({.density = nullptr}), core::Error);

@@ -43,8 +43,8 @@ TEST_CASE("golden: synthetic storm") {
     // a pixel) and a mean difference of 0.5 levels; a changed scene, camera, tone map or
     // lighting moves far more.
     const test::GoldenTolerance tol{.pixel_threshold = 6, .max_failing_fraction = 0.005, .max_mean_diff = 0.5};
-    const auto res = test::compare_golden(test::source_dir() / "tests/render/golden/synthetic_storm.png", W, H, rgba, tol,
-                                          std::filesystem::path(FULGUR_TEST_OUTPUT_DIR) / "golden");
+    const auto res = test::compare_golden(test::source_dir() / "tests/render/golden/synthetic_storm.png", W, H, rgba,
+                                          tol, std::filesystem::path(FULGUR_TEST_OUTPUT_DIR) / "golden");
     MESSAGE(res.message);
     CHECK(res.passed);
 }

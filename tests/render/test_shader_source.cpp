@@ -13,7 +13,8 @@ using render::detail::kLineBase;
 
 TEST_CASE("preprocess expands includes once and emits #line blocks per file") {
     const auto dir = test::scratch_dir("shader_source");
-    test::write_text(dir / "main.frag", "#version 450 core\n#include \"a.glsl\"\n#include \"a.glsl\"\nvoid main() {}\n");
+    test::write_text(dir / "main.frag",
+                     "#version 450 core\n#include \"a.glsl\"\n#include \"a.glsl\"\nvoid main() {}\n");
     test::write_text(dir / "a.glsl", "#include \"b.glsl\"\nfloat a() { return b(); }\n");
     test::write_text(dir / "b.glsl", "float b() { return 1.0; }\n");
     const auto pp = render::detail::preprocess(dir, "main.frag", "#define X 1\n");
@@ -59,13 +60,16 @@ TEST_CASE("preprocess errors name the file and line") {
 TEST_CASE("driver logs are mapped back to files") {
     const std::vector<std::string> files = {"main.frag", "common.glsl", "volume.glsl"};
     const std::string l1 = std::to_string(2 * kLineBase + 17), l0 = "12";
-    const auto mesa = render::detail::map_log("0:" + l1 + "(5): error: `foo' undeclared\n0:" + l0 + "(2): error: x\n", files);
+    const auto mesa =
+        render::detail::map_log("0:" + l1 + "(5): error: `foo' undeclared\n0:" + l0 + "(2): error: x\n", files);
     CHECK(mesa.first_location == "volume.glsl:17");
     CHECK(mesa.text.find("volume.glsl:17(5): error: `foo' undeclared") != std::string::npos);
     CHECK(mesa.text.find("main.frag:12(2): error: x") != std::string::npos);
-    const auto nvidia = render::detail::map_log("0(" + std::to_string(kLineBase + 3) + ") : error C1008: undefined\n", files);
+    const auto nvidia =
+        render::detail::map_log("0(" + std::to_string(kLineBase + 3) + ") : error C1008: undefined\n", files);
     CHECK(nvidia.first_location == "common.glsl:3");
-    const auto amd = render::detail::map_log("ERROR: 0:" + std::to_string(kLineBase + 9) + ": 'x' : undeclared\n", files);
+    const auto amd =
+        render::detail::map_log("ERROR: 0:" + std::to_string(kLineBase + 9) + ": 'x' : undeclared\n", files);
     CHECK(amd.first_location == "common.glsl:9");
     const auto none = render::detail::map_log("error: unresolved reference to function `f'\n", files);
     CHECK(none.first_location.empty());

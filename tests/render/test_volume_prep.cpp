@@ -25,7 +25,8 @@ TEST_CASE("Chebyshev distance equals brute force") {
                         for (int qy = 0; qy < d.y; ++qy)
                             for (int qx = 0; qx < d.x; ++qx)
                                 if (occ[std::size_t(qx + d.x * (qy + d.y * qz))])
-                                    best = std::min(best, std::max({std::abs(qx - x), std::abs(qy - y), std::abs(qz - z)}));
+                                    best = std::min(best,
+                                                    std::max({std::abs(qx - x), std::abs(qy - y), std::abs(qz - z)}));
                     REQUIRE(int(dist[std::size_t(x + d.x * (y + d.y * z))]) == best);
                 }
     }

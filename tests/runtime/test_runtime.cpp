@@ -50,7 +50,6 @@ const Baked& baked(const std::string& name) {
     return *slot;
 }
 
-
 bool all_finite(const runtime::RadianceField& r) {
     for (const auto& v : r.values)
         for (const float x : v)
@@ -246,7 +245,7 @@ TEST_CASE("hard cases: a bolt leaving the grid, sources on nodes and boundaries,
         for (int k = 0; k <= lg.dims.z; ++k)
             for (int i = 0; i <= lg.dims.x; i += 2) {
                 q.push_back({lg.origin + glm::dvec3(i, lg.dims.y / 2, k) * lg.voxel_size, 1e4});  // corners
-                if (i < lg.dims.x && k < lg.dims.z) q.push_back({lg.centre(i, 1, k), 1e4});        // centres
+                if (i < lg.dims.x && k < lg.dims.z) q.push_back({lg.centre(i, 1, k), 1e4});       // centres
             }
         for (const double x : {lo.x, hi.x})
             for (const double z : {lo.z, mid.z, hi.z}) q.push_back({{x, mid.y, z}, 2e4});  // faces, edges
@@ -380,19 +379,27 @@ TEST_CASE("accuracy: basis method against the direct solve on a tiny scene") {
         const transport::SourceField D = runtime::direct_solve(b.scene, b.medium, f.sources);
         REQUIRE(D.directions.size() == 26);
         std::vector<lightning::PointSource> lights;
-        for (const std::uint32_t l : f.weights.active) lights.push_back({b.bases->lights().position(l), f.weights.e[l]});
+        for (const std::uint32_t l : f.weights.active)
+            lights.push_back({b.bases->lights().position(l), f.weights.e[l]});
         const transport::SourceField V = runtime::direct_solve(b.scene, b.medium, lights);
         const double nD = cloud_l2([&](std::size_t m, std::size_t i) { return double(D.direction(m)[i]); });
         const double nV = cloud_l2([&](std::size_t m, std::size_t i) { return double(V.direction(m)[i]); });
         const double eRD = cloud_l2([&](std::size_t m, std::size_t i) {
-            return double(f.radiance.values[m][i]) - double(D.direction(m)[i]); }) / nD;
+                               return double(f.radiance.values[m][i]) - double(D.direction(m)[i]);
+                           }) /
+                           nD;
         const double eRV = cloud_l2([&](std::size_t m, std::size_t i) {
-            return double(f.radiance.values[m][i]) - double(V.direction(m)[i]); }) / nV;
+                               return double(f.radiance.values[m][i]) - double(V.direction(m)[i]);
+                           }) /
+                           nV;
         const double eVD = cloud_l2([&](std::size_t m, std::size_t i) {
-            return double(V.direction(m)[i]) - double(D.direction(m)[i]); }) / nD;
+                               return double(V.direction(m)[i]) - double(D.direction(m)[i]);
+                           }) /
+                           nD;
         MESSAGE("seed " << seed << ": " << f.sources.size() << " sources, " << f.weights.active.size()
                         << " active lights; relative L2 over cloud voxels: basis vs direct " << eRD
-                        << ", basis vs virtual lights solved directly " << eRV << ", virtual lights vs sources " << eVD);
+                        << ", basis vs virtual lights solved directly " << eRV << ", virtual lights vs sources "
+                        << eVD);
         // The basis machinery: measured 0.3%. The bake keeps 99.99% of each basis' energy (<= 1%
         // relative L2 per basis, float16 values) and the lattice-Boltzmann solve of a sum of
         // sources differs from the sum of solves by ~0.1% (fluence renormalization): 1.5% bounds

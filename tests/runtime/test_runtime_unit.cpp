@@ -40,7 +40,6 @@ lightning::LightWeights weights(std::size_t lights, std::initializer_list<std::p
     return w;
 }
 
-
 }  // namespace
 
 TEST_CASE("bases: the accumulation layout holds every coefficient of the file") {

@@ -48,8 +48,8 @@ TEST_CASE("isotropic scattering needs one output direction") {
 TEST_CASE("bad scenes are rejected with the file, the field and the allowed range") {
     CHECK_THROWS_WITH_AS(parse_scene(with("\"albedo\": 0.9", "\"albedo\": 1.5"), "s.json"),
                          doctest::Contains("s.json: medium.albedo"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"albedo\": 0.9", "\"albedo\": 1.5"), "s.json"),
-                         doctest::Contains("[0, 1]"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"albedo\": 0.9", "\"albedo\": 1.5"), "s.json"), doctest::Contains("[0, 1]"),
+                         Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"g\": 0.5", "\"g\": 1"), "s.json"), doctest::Contains("medium.g"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"albedo\": 0.9", "\"albedo\": \"high\""), "s.json"),
                          doctest::Contains("expected a number"), Error);
@@ -97,11 +97,13 @@ TEST_CASE("every cloud generator field is read, range-checked and cross-checked"
                          doctest::Contains("cloud.generator.anvil_radius"), Error);
     // Inconsistent fields are caught at load time too, with the file and the field.
     CHECK_THROWS_WITH_AS(parse_scene(with("\"anvil_radius\": 4500", "\"anvil_radius\": 1500"), "s.json"),
-                         doctest::Contains("s.json: cloud.generator.anvil_radius: must be larger than tower_radius"), Error);
+                         doctest::Contains("s.json: cloud.generator.anvil_radius: must be larger than tower_radius"),
+                         Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"base_height\": 1000", "\"base_height\": 9500"), "s.json"),
                          doctest::Contains("s.json: cloud.generator.top_height"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"voxel_size\": 500", "\"voxel_size\": 100"), "s.json"),
-                         doctest::Contains("s.json: cloud.generator.top_height: 9000 m does not fit in the grid"), Error);
+                         doctest::Contains("s.json: cloud.generator.top_height: 9000 m does not fit in the grid"),
+                         Error);
 }
 
 TEST_CASE("cloud needs exactly one of generator or file") {
@@ -120,9 +122,8 @@ TEST_CASE("lights are points and at most one sun, and the sun effect needs a sun
     CHECK(s.sun->direction.z == doctest::Approx(-1.0));
     CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", "\"effects\": {\"sun\": true}, \"cloud\""), "s.json"),
                          doctest::Contains("sun"), Error);
-    CHECK_THROWS_WITH_AS(
-        parse_scene(with("\"cloud\"", "\"lights\": [{\"type\": \"laser\"}], \"cloud\""), "s.json"),
-        doctest::Contains("lights[0].type"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", "\"lights\": [{\"type\": \"laser\"}], \"cloud\""), "s.json"),
+                         doctest::Contains("lights[0].type"), Error);
 }
 
 TEST_CASE("the default storm scene loads") {
@@ -148,7 +149,8 @@ TEST_CASE("virtual_lights and compression sections: values, defaults and ranges"
     CHECK(d.compression == fulgur::basis::CompressionParams{});
     const Scene s = parse_scene(with("\"cloud\"", R"("virtual_lights": {"h_usr": 500, "epsilon": 2e-7, "margin": 100,
         "ground_height": -50, "density_threshold": 0.1},
-        "compression": {"threshold": "absolute", "xi": 5e-10, "precision": "float32"}, "cloud")"), "v.json");
+        "compression": {"threshold": "absolute", "xi": 5e-10, "precision": "float32"}, "cloud")"),
+                                "v.json");
     CHECK(s.virtual_lights.h_usr == 500.0);
     CHECK(s.virtual_lights.epsilon == 2e-7);
     CHECK(s.virtual_lights.margin == 100.0);
@@ -157,18 +159,21 @@ TEST_CASE("virtual_lights and compression sections: values, defaults and ranges"
     CHECK(s.compression.mode == fulgur::basis::ThresholdMode::Absolute);
     CHECK(s.compression.xi == 5e-10);
     CHECK(s.compression.precision == fulgur::basis::Precision::Float32);
-    const Scene r = parse_scene(with("\"cloud\"", R"("compression": {"threshold": "relative_l2", "xi": 0.001}, "cloud")"), "r.json");
+    const Scene r = parse_scene(
+        with("\"cloud\"", R"("compression": {"threshold": "relative_l2", "xi": 0.001}, "cloud")"), "r.json");
     CHECK(r.compression.mode == fulgur::basis::ThresholdMode::RelativeL2);
     CHECK(r.compression.precision == fulgur::basis::Precision::Float16);
     CHECK(r.compression.decomposition == fulgur::basis::Decomposition::NonStandard);
-    const Scene st = parse_scene(with("\"cloud\"", R"("compression": {"decomposition": "standard"}, "cloud")"), "d.json");
+    const Scene st =
+        parse_scene(with("\"cloud\"", R"("compression": {"decomposition": "standard"}, "cloud")"), "d.json");
     CHECK(st.compression.decomposition == fulgur::basis::Decomposition::Standard);
     CHECK(r.compression.entropy == fulgur::basis::Entropy::Deflate);
     const Scene plain = parse_scene(with("\"cloud\"", R"("compression": {"entropy": "none"}, "cloud")"), "e.json");
     CHECK(plain.compression.entropy == fulgur::basis::Entropy::None);
 
     auto bad = [](const std::string& section, const char* needle) {
-        CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", section + ", \"cloud\""), "b.json"), doctest::Contains(needle), Error);
+        CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", section + ", \"cloud\""), "b.json"),
+                             doctest::Contains(needle), Error);
     };
     bad(R"("virtual_lights": {"h_usr": 0})", "b.json: virtual_lights.h_usr");
     bad(R"("virtual_lights": {"h_usr": -5})", "(0, 1000000]");
@@ -187,12 +192,17 @@ TEST_CASE("virtual_lights and compression sections: values, defaults and ranges"
 
 TEST_CASE("transport.lattice_boltzmann.thick_voxels: default, both values, unknown value names the field") {
     CHECK(parse_scene(kMinimal, "min.json").transport.lb_thick_voxels == "diffusion_matched");
-    const Scene m = parse_scene(with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "diffusion_matched"}}, "cloud")"), "t.json");
+    const Scene m = parse_scene(
+        with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "diffusion_matched"}}, "cloud")"),
+        "t.json");
     CHECK(m.transport.lb_thick_voxels == "diffusion_matched");
-    const Scene s = parse_scene(with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "saturate"}}, "cloud")"), "t.json");
+    const Scene s = parse_scene(
+        with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "saturate"}}, "cloud")"), "t.json");
     CHECK(s.transport.lb_thick_voxels == "saturate");
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "subgrid"}}, "cloud")"), "t.json"),
-                         doctest::Contains("transport.lattice_boltzmann.thick_voxels"), Error);
+    CHECK_THROWS_WITH_AS(
+        parse_scene(with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "subgrid"}}, "cloud")"),
+                    "t.json"),
+        doctest::Contains("transport.lattice_boltzmann.thick_voxels"), Error);
 }
 
 TEST_CASE("lightning section: defaults, every field, and ranges naming the field") {

@@ -63,7 +63,7 @@ TEST_CASE("HG integrates to 1 over the sphere and its mean cosine is g") {
         CAPTURE(g);
         const double norm = sphere_integral(g, [](double) { return 1.0; });
         const double mean_cos = sphere_integral(g, [](double mu) { return mu; });
-        CHECK(std::fabs(norm - 1.0) < 1e-4);   // the bound; the quadrature reaches ~1e-12
+        CHECK(std::fabs(norm - 1.0) < 1e-4);    // the bound; the quadrature reaches ~1e-12
         CHECK(std::fabs(mean_cos - g) < 1e-3);  // the bound
     }
 }
@@ -84,7 +84,8 @@ TEST_CASE("HG stays finite for g = +-0.999 and +-1 (|g| clamped to kMaxAbsG)") {
             CHECK(c >= -1.0);
             CHECK(c <= 1.0);
         }
-        for (const glm::dvec3 fwd : {glm::dvec3(0, 0, 1), glm::dvec3(0, 0, -1), glm::normalize(glm::dvec3(1, -2, 0.3))}) {
+        for (const glm::dvec3 fwd :
+             {glm::dvec3(0, 0, 1), glm::dvec3(0, 0, -1), glm::normalize(glm::dvec3(1, -2, 0.3))}) {
             const glm::dvec3 d = transport::hg_sample(fwd, g, 0.37, 0.81);
             CHECK(std::isfinite(d.x));
             CHECK(std::fabs(glm::length(d) - 1.0) < 1e-12);  // unit up to round-off
@@ -135,7 +136,8 @@ TEST_CASE("HG sampling passes a chi-square test at significance 0.01") {
 TEST_CASE("HG sampling around an arbitrary axis has mean cosine g") {
     core::Rng rng(5, 1);
     for (double g : {-0.7, 0.0, 0.6, 0.95}) {
-        for (const glm::dvec3 fwd : {glm::dvec3(0, 0, 1), glm::dvec3(0, 0, -1), glm::normalize(glm::dvec3(-0.3, 0.8, 0.1))}) {
+        for (const glm::dvec3 fwd :
+             {glm::dvec3(0, 0, 1), glm::dvec3(0, 0, -1), glm::normalize(glm::dvec3(-0.3, 0.8, 0.1))}) {
             double sum = 0.0;
             const int n = 100000;
             for (int i = 0; i < n; ++i) {

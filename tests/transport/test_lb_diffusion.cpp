@@ -17,10 +17,11 @@ TEST_CASE("diffusion limit: variance grows by 2D per step per axis, D from Eq. 1
         for (double albedo : {1.0, 0.9, 0.5}) {
             const double sa = st * (1.0 - albedo);
             const double D = ((2.0 / st) - 1.0) / (4.0 * (1.0 + sa));  // lambda = tau = 1
-            const int T = int(std::ceil(60.0 / st));                     // 60 mean free times
-            const int N = 2 * T + 5;                                     // nothing reaches the x faces
+            const int T = int(std::ceil(60.0 / st));                   // 60 mean free times
+            const int N = 2 * T + 5;                                   // nothing reaches the x faces
             const core::Int3 d{N, 4, 4};
-            Problem p = Problem::uniform(d, lattice_unit_coefficients(st, albedo), corrected_phase(0.0), LbAbsorption::Conservative);
+            Problem p = Problem::uniform(d, lattice_unit_coefficients(st, albedo), corrected_phase(0.0),
+                                         LbAbsorption::Conservative);
             p.boundary = {Boundary::Open, Boundary::Periodic, Boundary::Periodic};  // exact x-marginal
             Simulation sim(p, LbKernel::Fast);
             // Pulse in local equilibrium f_i = v_i / (1 + sigma_a), v = (sigma_a, w_1..w_18).

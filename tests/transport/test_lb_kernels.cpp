@@ -8,7 +8,6 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
-#include <numbers>
 
 using namespace fulgur;
 using namespace fulgur::transport;
@@ -36,7 +35,8 @@ Problem random_problem(core::Int3 dims, std::uint64_t seed, LbCollision form, Lb
     for (std::size_t i = 0; i < n; ++i) {
         // empty slab z < 3 and column y < 2: whole rows that only stream (the fast kernel's
         // empty-row path) next to rows that collide
-        const std::size_t z = i / (std::size_t(dims.x) * std::size_t(dims.y)), y = (i / std::size_t(dims.x)) % std::size_t(dims.y);
+        const std::size_t z = i / (std::size_t(dims.x) * std::size_t(dims.y)),
+                          y = (i / std::size_t(dims.x)) % std::size_t(dims.y);
         const double rho = (z < 3 || y < 2 || rng.uniform() < 0.3) ? 0.0 : rng.uniform();
         c[i] = site_coefficients(m, 1.0, rho, tm);
         p.ext_axis[i] = float(c[i].extinction[kAxis]);
@@ -67,7 +67,6 @@ Problem random_problem(core::Int3 dims, std::uint64_t seed, LbCollision form, Lb
     return p;
 }
 
-
 // Every arriving density of the two simulations is the same, bit for bit.
 bool same_lattice(const Simulation& a, const Simulation& b, std::size_t sites) {
     for (std::size_t s = 0; s < sites; ++s)
@@ -81,7 +80,8 @@ bool same_lattice(const Simulation& a, const Simulation& b, std::size_t sites) {
 TEST_CASE("pure streaming moves a beam exactly, with no loss (both kernels)") {
     for (LbKernel kind : {LbKernel::Naive, LbKernel::Fast}) {
         const core::Int3 d{12, 5, 7};
-        Problem p = Problem::uniform(d, lattice_unit_coefficients(0.0, 1.0), corrected_phase(0.6), LbAbsorption::Physical);
+        Problem p =
+            Problem::uniform(d, lattice_unit_coefficients(0.0, 1.0), corrected_phase(0.6), LbAbsorption::Physical);
         // A +x beam on the x = 0 face and a (1,0,1) diagonal beam entering through x = 0.
         for (int z = 0; z < d.z; ++z)
             for (int y = 0; y < d.y; ++y) {
@@ -96,7 +96,8 @@ TEST_CASE("pure streaming moves a beam exactly, with no loss (both kernels)") {
             for (int z = 0; z < d.z; ++z)
                 for (int x = 0; x < d.x; ++x) {
                     const std::size_t s = p.index(x, 2, z);
-                    CHECK(sim.kernel().arriving(s, 1) == (x <= t + 1 ? 1.0f : 0.0f));  // the +x front moves one site per step
+                    CHECK(sim.kernel().arriving(s, 1) ==
+                          (x <= t + 1 ? 1.0f : 0.0f));  // the +x front moves one site per step
                     // the diagonal beam reaches (x, z) iff it entered at x = 0 with z - x >= 0
                     const float expect = (z - x >= 0 && x <= t + 1) ? 0.25f : 0.0f;
                     CHECK(sim.kernel().arriving(s, 11) == expect);
@@ -113,14 +114,16 @@ TEST_CASE("a pulse in each direction moves by c_q per step, also across periodic
     for (LbKernel kind : {LbKernel::Naive, LbKernel::Fast})
         for (int q = 1; q < kQ; ++q) {
             const core::Int3 d{6, 5, 4};
-            Problem p = Problem::uniform(d, lattice_unit_coefficients(0.0, 1.0), corrected_phase(0.0), LbAbsorption::Physical);
+            Problem p =
+                Problem::uniform(d, lattice_unit_coefficients(0.0, 1.0), corrected_phase(0.0), LbAbsorption::Physical);
             p.boundary = {Boundary::Periodic, Boundary::Periodic, Boundary::Periodic};
             Simulation sim(p, kind);
             sim.kernel().set_arriving(p.index(2, 2, 1), q, 3.0f);
             const Velocity& c = kVelocity[std::size_t(q)];
             for (int t = 1; t <= 13; ++t) {
                 sim.step();
-                const int x = ((2 + t * c.x) % 6 + 6) % 6, y = ((2 + t * c.y) % 5 + 5) % 5, z = ((1 + t * c.z) % 4 + 4) % 4;
+                const int x = ((2 + t * c.x) % 6 + 6) % 6, y = ((2 + t * c.y) % 5 + 5) % 5,
+                          z = ((1 + t * c.z) % 4 + 4) % 4;
                 CHECK(sim.kernel().arriving(p.index(x, y, z), q) == 3.0f);
                 CHECK(sim.kernel().stored() == 3.0);  // closed lattice: nothing lost or created
             }
@@ -134,11 +137,12 @@ TEST_CASE("naive (Appendix B) and fast kernels agree within 1e-5 after 100 steps
         double g, albedo;
         LbThickVoxels thick = LbThickVoxels::Saturate;
     };
-    for (const Case& k : {Case{LbCollision::Corrected, LbAbsorption::Physical, 0.6, 0.9},
-                          Case{LbCollision::Corrected, LbAbsorption::Conservative, -0.4, 0.8},
-                          Case{LbCollision::Published, LbAbsorption::Conservative, 0.85, 0.9},
-                          Case{LbCollision::Corrected, LbAbsorption::Physical, 0.6, 0.99, LbThickVoxels::DiffusionMatched},
-                          Case{LbCollision::Corrected, LbAbsorption::Conservative, -0.4, 0.8, LbThickVoxels::DiffusionMatched}}) {
+    for (const Case& k :
+         {Case{LbCollision::Corrected, LbAbsorption::Physical, 0.6, 0.9},
+          Case{LbCollision::Corrected, LbAbsorption::Conservative, -0.4, 0.8},
+          Case{LbCollision::Published, LbAbsorption::Conservative, 0.85, 0.9},
+          Case{LbCollision::Corrected, LbAbsorption::Physical, 0.6, 0.99, LbThickVoxels::DiffusionMatched},
+          Case{LbCollision::Corrected, LbAbsorption::Conservative, -0.4, 0.8, LbThickVoxels::DiffusionMatched}}) {
         const core::Int3 d{21, 17, 13};
         const Problem p = random_problem(d, 42, k.form, k.abs, k.g, k.albedo, k.thick);
         Simulation a(p, LbKernel::Naive), b(p, LbKernel::Fast);
@@ -172,30 +176,32 @@ TEST_CASE("energy: injected = absorbed + escaped + stored at every step (conserv
     for (LbKernel kind : {LbKernel::Fast, LbKernel::Naive})
         for (LbAbsorption abs : {LbAbsorption::Physical, LbAbsorption::Conservative})
             for (double g : {0.0, 0.85, -0.6})
-              for (LbThickVoxels thick : {LbThickVoxels::Saturate, LbThickVoxels::DiffusionMatched}) {
-                CAPTURE(int(thick));
-                const Problem p = random_problem({20, 16, 12}, 9, LbCollision::Corrected, abs, g, 0.97, thick);
-                Simulation sim(p, kind);
-                double worst = 0.0, worst_total = 0.0;
-                for (int t = 0; t < (kind == LbKernel::Fast ? 400 : 120); ++t) {
-                    sim.step();
-                    const double stored = sim.kernel().stored();  // measured independently
-                    worst_total = std::max(worst_total, std::fabs(sim.kernel().last_total() - stored) / stored);
-                    worst = std::max(worst, std::fabs(sim.injected_total() - sim.absorbed_total() - sim.escaped_total() - stored) /
-                                                sim.injected_total());
+                for (LbThickVoxels thick : {LbThickVoxels::Saturate, LbThickVoxels::DiffusionMatched}) {
+                    CAPTURE(int(thick));
+                    const Problem p = random_problem({20, 16, 12}, 9, LbCollision::Corrected, abs, g, 0.97, thick);
+                    Simulation sim(p, kind);
+                    double worst = 0.0, worst_total = 0.0;
+                    for (int t = 0; t < (kind == LbKernel::Fast ? 400 : 120); ++t) {
+                        sim.step();
+                        const double stored = sim.kernel().stored();  // measured independently
+                        worst_total = std::max(worst_total, std::fabs(sim.kernel().last_total() - stored) / stored);
+                        worst = std::max(worst, std::fabs(sim.injected_total() - sim.absorbed_total() -
+                                                          sim.escaped_total() - stored) /
+                                                    sim.injected_total());
+                    }
+                    // float32 lattice, double accumulators: per-step rounding of ~1e-7 per site,
+                    // unbiased (the factored coefficients are nudged so that columns sum exactly)
+                    CHECK(worst < 1e-6);
+                    CHECK(worst_total < 1e-6);  // the kernel's running total: float row sums (~1e-7)
+                    if (abs == LbAbsorption::Conservative) CHECK(sim.absorbed_total() == 0.0);
                 }
-                // float32 lattice, double accumulators: per-step rounding of ~1e-7 per site,
-                // unbiased (the factored coefficients are nudged so that columns sum exactly)
-                CHECK(worst < 1e-6);
-                CHECK(worst_total < 1e-6);  // the kernel's running total: float row sums (~1e-7)
-                if (abs == LbAbsorption::Conservative) CHECK(sim.absorbed_total() == 0.0);
-            }
 }
 
 TEST_CASE("the published anisotropic form creates energy; the corrected one does not (closed lattice)") {
     const core::Int3 d{8, 8, 8};
     for (LbCollision form : {LbCollision::Published, LbCollision::Corrected}) {
-        Problem p = Problem::uniform(d, lattice_unit_coefficients(0.25, 0.9), make_phase(form, 0.85), LbAbsorption::Conservative);
+        Problem p = Problem::uniform(d, lattice_unit_coefficients(0.25, 0.9), make_phase(form, 0.85),
+                                     LbAbsorption::Conservative);
         p.boundary = {Boundary::Periodic, Boundary::Periodic, Boundary::Periodic};
         Simulation sim(p, LbKernel::Fast);
         core::Rng rng(3, 1);
@@ -252,7 +258,8 @@ TEST_CASE("hard cases stay finite and converge") {
         // Factored float collision: partial-sum differences such as S_A - u_i - u_opp leave
         // rounding residue (~1e-7 of the site total) where the exact value is 0.
         CHECK(vmin >= -1e-6f * vmax);
-        MESSAGE("iterations " << r.iterations << " change " << r.final_change << " remaining " << r.estimated_remaining << " floor " << 1e-6 * r.injected_per_step / r.stored);
+        MESSAGE("iterations " << r.iterations << " change " << r.final_change << " remaining " << r.estimated_remaining
+                              << " floor " << 1e-6 * r.injected_per_step / r.stored);
         CHECK(r.converged);
         // Steady state: injected = absorbed + escaped per step (to the tolerance).
         CHECK(r.absorbed_last_step + r.escaped_last_step == doctest::Approx(r.injected_per_step).epsilon(1e-3));

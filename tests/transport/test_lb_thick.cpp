@@ -24,7 +24,9 @@ ThickVoxelModel matched(double g, double albedo) {
 
 }  // namespace
 
-TEST_CASE("thick voxels: saturate is the exact-chord mapping; diffusion_matched is continuous, >= chord, -> chord when thin, capped") {
+TEST_CASE(
+    "thick voxels: saturate is the exact-chord mapping; diffusion_matched is continuous, >= chord, -> chord when thin, "
+    "capped") {
     for (double g : {-0.99, -0.6, 0.0, 0.6, 0.99})
         for (double albedo : {0.0, 0.5, 0.99, 1.0}) {
             const ThickVoxelModel sat = make_thick_voxel_model(LbThickVoxels::Saturate, corrected_phase(g), albedo);
@@ -61,7 +63,8 @@ TEST_CASE("thick voxels: saturate is the exact-chord mapping; diffusion_matched 
     // The published form keeps the chord mapping (it creates energy; over-relaxed it diverges).
     const ThickVoxelModel pub = make_thick_voxel_model(LbThickVoxels::DiffusionMatched, published_phase(0.6), 0.99);
     CHECK(pub.mode == LbThickVoxels::Saturate);
-    CHECK(site_coefficients(Medium{2.0, 0.99, 0.6}, 1.0, 1.0, pub).extinction[1] == site_coefficients(Medium{2.0, 0.99, 0.6}, 1.0, 1.0).extinction[1]);
+    CHECK(site_coefficients(Medium{2.0, 0.99, 0.6}, 1.0, 1.0, pub).extinction[1] ==
+          site_coefficients(Medium{2.0, 0.99, 0.6}, 1.0, 1.0).extinction[1]);
     // Empty voxels stay pure streaming.
     const SiteCoefficients e = site_coefficients(Medium{1.0, 0.99, 0.6}, 1.0, 0.0, matched(0.6, 0.99));
     CHECK(e.extinction[1] == 0.0);
@@ -88,7 +91,8 @@ TEST_CASE("thick voxels: the lattice diffusion coefficient formula matches a spr
             double Z = 0.0;
             for (int q = 1; q < kQ; ++q) Z += weight(q) / (dir_class(q) == kAxis ? eA : eD);
             for (int q = 1; q < kQ; ++q)
-                sim.kernel().set_arriving(p.index(x0, 0, 0), q, float(weight(q) / (dir_class(q) == kAxis ? eA : eD) / Z));
+                sim.kernel().set_arriving(p.index(x0, 0, 0), q,
+                                          float(weight(q) / (dir_class(q) == kAxis ? eA : eD) / Z));
             std::vector<double> ts, vs;
             for (int t = 1; t <= T; ++t) {
                 sim.step();
@@ -97,7 +101,8 @@ TEST_CASE("thick voxels: the lattice diffusion coefficient formula matches a spr
                 vs.push_back(test::pulse_variance_x(sim, p, x0, 1));
             }
             const double slope = test::least_squares_slope(ts, vs);
-            INFO("g " << g << " tau " << tau << " e " << eA << "/" << eD << ": slope " << slope << " vs 2D " << 2.0 * D);
+            INFO("g " << g << " tau " << tau << " e " << eA << "/" << eD << ": slope " << slope << " vs 2D "
+                      << 2.0 * D);
             const double dev = std::fabs(slope / (2.0 * D) - 1.0);
             worst = std::max(worst, dev);
             // The formula is the exact long-time slope; what is left is the decaying transient
@@ -161,7 +166,8 @@ TEST_CASE("thick voxels: plane-source decay (diffusion length) converges to tran
     for (double tau : {0.5, 1.0, 2.0, 4.0}) {
         const double ns = lattice_decay(tau, albedo, 0.0, LbThickVoxels::Saturate, nu);
         const double nm = lattice_decay(tau, albedo, 0.0, LbThickVoxels::DiffusionMatched, nu);
-        MESSAGE("albedo 0.99, tau " << tau << ": nu / nu_transport saturate " << ns / nu << ", diffusion_matched " << nm / nu);
+        MESSAGE("albedo 0.99, tau " << tau << ": nu / nu_transport saturate " << ns / nu << ", diffusion_matched "
+                                    << nm / nu);
         // The matched lattice's remaining error grows as the diffusion length (5.8 / tau
         // voxels) gets coarsely sampled: 0.2% up to tau = 2, 1% at 4 (1.45 voxels per
         // diffusion length). Bounds: 0.5% and 3%.
@@ -185,9 +191,12 @@ TEST_CASE("thick voxels: plane-source decay (diffusion length) converges to tran
         const double a = 0.5 * (lo + hi), n8 = case_nu(a);
         const double ns = lattice_decay(tau, a, 0.0, LbThickVoxels::Saturate, n8);
         const double nm = lattice_decay(tau, a, 0.0, LbThickVoxels::DiffusionMatched, n8);
-        MESSAGE("L = 8 voxels, tau " << tau << " albedo " << a << ": nu / nu_transport saturate " << ns / n8 << ", diffusion_matched " << nm / n8);
-        if (tau <= 4.0) CHECK(std::fabs(nm / n8 - 1.0) < 0.01);  // 8 voxels per diffusion length: 0.2% measured
-        else CHECK(std::fabs(nm / n8 - 1.0) < 0.75 * std::fabs(ns / n8 - 1.0));  // capped: 0.56 vs 0.87 off
+        MESSAGE("L = 8 voxels, tau " << tau << " albedo " << a << ": nu / nu_transport saturate " << ns / n8
+                                     << ", diffusion_matched " << nm / n8);
+        if (tau <= 4.0)
+            CHECK(std::fabs(nm / n8 - 1.0) < 0.01);  // 8 voxels per diffusion length: 0.2% measured
+        else
+            CHECK(std::fabs(nm / n8 - 1.0) < 0.75 * std::fabs(ns / n8 - 1.0));  // capped: 0.56 vs 0.87 off
         CHECK(ns / n8 < 0.75);  // saturate: 0.72 at tau 1, falling to 0.13 at 16 (the contrast is the point)
     }
 }

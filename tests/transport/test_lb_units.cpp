@@ -29,7 +29,7 @@ TEST_CASE("units: a collimated beam in a pure absorber gives the exact voxel-ave
     for (int k = 0; k < 20; ++k) {
         const double expect = E * std::exp(-sigma * k * h) * -std::expm1(-sigma * h) / (sigma * h);
         CHECK(double(r.fluence.at(k, 1, 1)) == doctest::Approx(expect).epsilon(2e-6));  // float32 densities
-        CHECK(r.source.direction(0)[geom.index(k, 1, 1)] == 0.0f);                     // albedo 0: no scattering
+        CHECK(r.source.direction(0)[geom.index(k, 1, 1)] == 0.0f);                      // albedo 0: no scattering
     }
 }
 
@@ -60,7 +60,8 @@ TEST_CASE("units: infinite medium with a uniform isotropic first-scattered sourc
             if (form == LbCollision::Corrected || g == 0.0) {
                 CHECK(r.converged);
                 for (std::size_t i = 0; i < geom.cell_count(); ++i) {
-                    CHECK(double(r.fluence.data[i]) == doctest::Approx(phi).epsilon(1e-5));  // converged to the float32 floor (~1e-7 per step)
+                    CHECK(double(r.fluence.data[i]) ==
+                          doctest::Approx(phi).epsilon(1e-5));  // converged to the float32 floor (~1e-7 per step)
                     for (std::size_t md = 0; md < dirs.size(); ++md)
                         CHECK(double(r.source.direction(md)[i]) == doctest::Approx(S).epsilon(1e-5));
                 }

@@ -172,7 +172,8 @@ TEST_CASE("LB vs Monte Carlo: small blob, point light below the grid") {
                                       << phys.escaped_last_step / phys.injected_per_step << ", conservative "
                                       << cons.escaped_last_step / cons.injected_per_step);
     CHECK(Ec > 1.02 * Ep);  // half the measured excess: the sign is the point, not the size
-    CHECK(cons.escaped_last_step / cons.injected_per_step == doctest::Approx(1.0).epsilon(1e-3));  // tol 1e-6 steady state
+    CHECK(cons.escaped_last_step / cons.injected_per_step ==
+          doctest::Approx(1.0).epsilon(1e-3));  // tol 1e-6 steady state
     CHECK(phys.escaped_last_step / phys.injected_per_step < 0.97);
     double conservative_multiple = 0.0, physical_multiple = 0.0;
     for (std::size_t i = 0; i < phys.source.data.size(); ++i) {
@@ -202,8 +203,9 @@ TEST_CASE("LB vs Monte Carlo: optically thick blob (hop optical depth up to 2), 
     REQUIRE(sat.converged);
     REQUIRE(mat.converged);
     const Errors es = compare(m, S1, sat.source, mc), em = compare(m, S1, mat.source, mc);
-    MESSAGE("thick blob, saturate: total " << es.total << ", multiple " << es.multiple << " (LB/MC sum " << es.ratio_multiple
-                                           << ", escaped " << sat.escaped_last_step / sat.injected_per_step << ")");
+    MESSAGE("thick blob, saturate: total " << es.total << ", multiple " << es.multiple << " (LB/MC sum "
+                                           << es.ratio_multiple << ", escaped "
+                                           << sat.escaped_last_step / sat.injected_per_step << ")");
     MESSAGE("thick blob, diffusion_matched: total " << em.total << ", multiple " << em.multiple << " (LB/MC sum "
                                                     << em.ratio_multiple << ", escaped "
                                                     << mat.escaped_last_step / mat.injected_per_step << ")");

@@ -30,7 +30,7 @@ void check_oracle(const char* what, double estimate, double se, double expect) {
     CAPTURE(se);
     CAPTURE(expect);
     MESSAGE(std::string(what) << ": " << estimate << " +- " << se << " (oracle " << expect << ", rel. error "
-                 << (estimate / expect - 1.0) << ")");
+                              << (estimate / expect - 1.0) << ")");
     CHECK(std::fabs(estimate - expect) <= 3.0 * se);
     CHECK(std::fabs(estimate - expect) <= 0.01 * expect);
     CHECK(se <= 0.004 * expect);  // the run is precise enough for the 1% test to mean something
@@ -91,8 +91,8 @@ double check_against_mc(const LightingMedium& m, const SourceField& S, const Mon
     }
     const double p0 = 0.0053, mean = p0 * voxels;
     const double allowed = mean + 3.0 * std::sqrt(mean * (1.0 - p0)) + 1.0 + extra_fraction * voxels;
-    MESSAGE(std::string(what) << ": " << failing << " of " << voxels << " cloud voxels beyond 3 SE (allowed "
-                              << allowed << ")");
+    MESSAGE(std::string(what) << ": " << failing << " of " << voxels << " cloud voxels beyond 3 SE (allowed " << allowed
+                              << ")");
     CHECK(voxels > 50);
     CHECK(double(failing) <= allowed);
     return voxels ? double(failing) / voxels : 1.0;
@@ -106,7 +106,8 @@ TEST_CASE("oracle: homogeneous sphere, centred point source, albedo 1") {
         double tau, f1;
         std::uint64_t paths;
     };
-    for (const Case c : {Case{0.1, 0.08729, 2'000'000}, Case{1.0, 0.27129, 1'000'000}, Case{5.0, 0.013179, 12'000'000}}) {
+    for (const Case c :
+         {Case{0.1, 0.08729, 2'000'000}, Case{1.0, 0.27129, 1'000'000}, Case{5.0, 0.013179, 12'000'000}}) {
         detail::HomogeneousSphere sphere;
         sphere.radius = 1.0;
         sphere.sigma = c.tau;
@@ -275,7 +276,7 @@ TEST_CASE("full transport in a grid: energy closes per path, roulette is unbiase
           doctest::Approx(e.absorbed.mean + e.escaped.mean + e.truncated.mean).epsilon(1e-12));
     CHECK(e.truncated.mean == 0.0);
     CHECK(std::fabs(e.roulette.mean) <= 3.0 * e.roulette.se);  // expectation 0
-    CHECK(e.roulette.se > 0.0);                                 // roulette did happen
+    CHECK(e.roulette.se > 0.0);                                // roulette did happen
     double esc = 0.0, abs = 0.0;
     for (int k = 0; k < EnergyTally::kOrders; ++k) {
         esc += e.escaped_by_order[std::size_t(k)].mean;
@@ -407,13 +408,15 @@ TEST_CASE("bad Monte Carlo options are rejected with the field named") {
     const auto dirs = output_directions(1);
     MonteCarloOptions o;
     o.batches = 1;
-    CHECK_THROWS_WITH_AS(monte_carlo(m, PointSource{{0, 0, 0}, 1.0}, dirs, o), doctest::Contains("batches"), core::Error);
+    CHECK_THROWS_WITH_AS(monte_carlo(m, PointSource{{0, 0, 0}, 1.0}, dirs, o), doctest::Contains("batches"),
+                         core::Error);
     o = {};
     o.paths = 3;
     CHECK_THROWS_WITH_AS(monte_carlo(m, PointSource{{0, 0, 0}, 1.0}, dirs, o), doctest::Contains("paths"), core::Error);
     o = {};
     o.roulette_threshold = 0.0;
-    CHECK_THROWS_WITH_AS(monte_carlo(m, PointSource{{0, 0, 0}, 1.0}, dirs, o), doctest::Contains("roulette"), core::Error);
+    CHECK_THROWS_WITH_AS(monte_carlo(m, PointSource{{0, 0, 0}, 1.0}, dirs, o), doctest::Contains("roulette"),
+                         core::Error);
     o = {};
     o.max_scatterings = -1;
     CHECK_THROWS_WITH_AS(monte_carlo(m, PointSource{{0, 0, 0}, 1.0}, dirs, o), doctest::Contains("max_scatterings"),

@@ -160,7 +160,8 @@ TEST_CASE("point source exactly on a voxel corner: symmetric, finite and continu
     const double v0 = on.data[m.density.geom.index(1, 1, 1)];
     for (int k = 1; k <= 2; ++k)
         for (int j = 1; j <= 2; ++j)
-            for (int i = 1; i <= 2; ++i) CHECK(on.data[m.density.geom.index(i, j, k)] == doctest::Approx(v0).epsilon(1e-6));
+            for (int i = 1; i <= 2; ++i)
+                CHECK(on.data[m.density.geom.index(i, j, k)] == doctest::Approx(v0).epsilon(1e-6));
     // Moving the source by 1e-7 voxel changes S by O(1e-7): 1e-4 relative (the quadrature
     // rule may switch between inside and outside forms, each accurate to the tolerance).
     const SourceField off = single_scattering(m, PointSource{{2 + 1e-7, 2 - 1e-7, 2 + 1e-7}, 1.0}, dir);
@@ -241,7 +242,8 @@ TEST_CASE("sun: exact in a homogeneous slab, consistent for oblique light") {
         const double p = hg_phase(-dirs[k].z, 0.2);
         for (int z = 0; z < 6; ++z) {
             const double depth_above = (5 - z) * h;
-            const double expect = 0.9 * p * 3.0 * std::exp(-sigma * depth_above) * -std::expm1(-sigma * h) / (sigma * h);
+            const double expect =
+                0.9 * p * 3.0 * std::exp(-sigma * depth_above) * -std::expm1(-sigma * h) / (sigma * h);
             // tolerance 1e-6 requested; 1e-5 covers float output and the model's slack
             CHECK(S.data[k * g.cell_count() + g.index(2, 1, z)] == doctest::Approx(expect).epsilon(1e-5));
         }
@@ -334,8 +336,8 @@ TEST_CASE("bad inputs are rejected with the field named") {
                          core::Error);
     CHECK_THROWS_WITH_AS(single_scattering(m, PointSource{{0, 0, 0}, -1.0}, dirs), doctest::Contains("light.intensity"),
                          core::Error);
-    CHECK_THROWS_WITH_AS(single_scattering(m, DirectionalSource{{0, 0, 0}, 1.0}, dirs), doctest::Contains("sun.direction"),
-                         core::Error);
+    CHECK_THROWS_WITH_AS(single_scattering(m, DirectionalSource{{0, 0, 0}, 1.0}, dirs),
+                         doctest::Contains("sun.direction"), core::Error);
     CHECK_THROWS_WITH_AS(single_scattering(m, PointSource{{0, 0, 0}, 1.0}, std::vector<glm::dvec3>{}),
                          doctest::Contains("directions"), core::Error);
     SingleScatteringOptions o;
@@ -343,12 +345,12 @@ TEST_CASE("bad inputs are rejected with the field named") {
     CHECK_THROWS_WITH_AS(single_scattering(m, PointSource{{0, 0, 0}, 1.0}, dirs, o), doctest::Contains("tolerance"),
                          core::Error);
     m.density.at(1, 0, 1) = 1.5f;
-    CHECK_THROWS_WITH_AS(single_scattering(m, PointSource{{0, 0, 0}, 1.0}, dirs), doctest::Contains("medium.density[1,0,1]"),
-                         core::Error);
+    CHECK_THROWS_WITH_AS(single_scattering(m, PointSource{{0, 0, 0}, 1.0}, dirs),
+                         doctest::Contains("medium.density[1,0,1]"), core::Error);
     m.density.at(1, 0, 1) = 0.5f;
     m.optics.extinction = nan;
-    CHECK_THROWS_WITH_AS(single_scattering(m, PointSource{{0, 0, 0}, 1.0}, dirs), doctest::Contains("medium.extinction"),
-                         core::Error);
+    CHECK_THROWS_WITH_AS(single_scattering(m, PointSource{{0, 0, 0}, 1.0}, dirs),
+                         doctest::Contains("medium.extinction"), core::Error);
     m.optics.extinction = 1.0;
     m.optics.albedo = 1.2;
     CHECK_THROWS_WITH_AS(single_scattering(m, PointSource{{0, 0, 0}, 1.0}, dirs), doctest::Contains("medium.albedo"),

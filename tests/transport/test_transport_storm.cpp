@@ -31,7 +31,7 @@ TEST_CASE("default storm cloud: single scattering equals the Monte Carlo order-1
 
     const SourceField S = single_scattering(m, light, dirs);  // default tolerance 1e-3
     MonteCarloOptions o;
-    o.paths = 1'000'000;  // ~2 s on 2 cores; median relative SE of cloud voxels ~1.5%
+    o.paths = 1'000'000;    // ~2 s on 2 cores; median relative SE of cloud voxels ~1.5%
     o.max_scatterings = 0;  // only order 1 is compared: the multiple-scattering part is not traced
     o.seed = 2;
     const MonteCarloResult r = monte_carlo(m, light, dirs, o);
@@ -48,8 +48,8 @@ TEST_CASE("default storm cloud: single scattering equals the Monte Carlo order-1
         }
     }
     const double fraction = double(within) / double(values);
-    MESSAGE(voxels << " cloud voxels x " << dirs.size() << " directions: " << 100.0 * fraction
-                   << "% within 3 SE (" << zero_se << " with zero SE)");
+    MESSAGE(voxels << " cloud voxels x " << dirs.size() << " directions: " << 100.0 * fraction << "% within 3 SE ("
+                   << zero_se << " with zero SE)");
     CHECK(voxels > 1000);
     // The issue's criterion. With S exact, 32-batch t statistics put ~0.5% beyond 3 SE; the
     // measured fraction is ~99.3%, so the quadrature error at the default tolerance is well

@@ -99,8 +99,10 @@ TEST_CASE("segment lengths tile the clipped segment exactly") {
         CHECK(sum == doctest::Approx(len).epsilon(1e-12));
         // A straight segment crosses at most |di|+|dj|+|dk|+1 voxels.
         const glm::dvec3 ua = g.to_voxel(a), ub = g.to_voxel(b);
-        const int bound = int(std::fabs(std::floor(ua.x) - std::floor(ub.x)) + std::fabs(std::floor(ua.y) - std::floor(ub.y)) +
-                              std::fabs(std::floor(ua.z) - std::floor(ub.z))) + 1;
+        const int bound =
+            int(std::fabs(std::floor(ua.x) - std::floor(ub.x)) + std::fabs(std::floor(ua.y) - std::floor(ub.y)) +
+                std::fabs(std::floor(ua.z) - std::floor(ub.z))) +
+            1;
         CHECK(visits <= bound);
     }
 }

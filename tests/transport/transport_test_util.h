@@ -37,7 +37,8 @@ inline double pulse_variance_x(const transport::lb::Simulation& sim, const trans
         double rho = 0.0;
         for (int z = 0; z < p.dims.z; ++z)
             for (int y = 0; y < p.dims.y; ++y)
-                for (int q = q_begin; q < transport::lb::kQ; ++q) rho += double(sim.kernel().arriving(p.index(x, y, z), q));
+                for (int q = q_begin; q < transport::lb::kQ; ++q)
+                    rho += double(sim.kernel().arriving(p.index(x, y, z), q));
         const double dx = double(x - x0);
         m0 += rho;
         m1 += rho * dx;
@@ -75,7 +76,8 @@ inline transport::LightingMedium synthetic_cloud(core::Int3 dims, double h, tran
                 const double x = (i + 0.5) / dims.x - 0.5, y = (j + 0.5) / dims.y - 0.5, z = (k + 0.5) / dims.z;
                 const double r = std::sqrt(x * x + y * y) / 0.35 + std::max(0.0, z - 0.3) * 0.9;
                 if (z < 0.3 || r >= 1.0) continue;
-                m.density.at(i, j, k) = float((1.0 - r) * (0.75 + 0.25 * std::sin(9.0 * x + 3.0 * z) * std::cos(7.0 * y)));
+                m.density.at(i, j, k) =
+                    float((1.0 - r) * (0.75 + 0.25 * std::sin(9.0 * x + 3.0 * z) * std::cos(7.0 * y)));
             }
     return m;
 }
@@ -89,7 +91,8 @@ inline double g8(const F2& f, double u0, double v0, double du, double dv) {
     double s = 0.0;
     for (int i = 0; i < 8; ++i)
         for (int j = 0; j < 8; ++j)
-            s += gr.w[std::size_t(i)] * gr.w[std::size_t(j)] * f(u0 + du * gr.x[std::size_t(i)], v0 + dv * gr.x[std::size_t(j)]);
+            s += gr.w[std::size_t(i)] * gr.w[std::size_t(j)] *
+                 f(u0 + du * gr.x[std::size_t(i)], v0 + dv * gr.x[std::size_t(j)]);
     return s * du * dv;
 }
 inline double adapt(const F2& f, double u0, double v0, double du, double dv, double coarse, double tol, int depth) {
@@ -98,7 +101,8 @@ inline double adapt(const F2& f, double u0, double v0, double du, double dv, dou
                          g8(f, u0 + hu, v0 + hv, hu, hv)};
     const double fine = c[0] + c[1] + c[2] + c[3];
     if (std::fabs(fine - coarse) <= tol || depth > 30) return fine;
-    return adapt(f, u0, v0, hu, hv, c[0], tol / 2, depth + 1) + adapt(f, u0 + hu, v0, hu, hv, c[1], tol / 2, depth + 1) +
+    return adapt(f, u0, v0, hu, hv, c[0], tol / 2, depth + 1) +
+           adapt(f, u0 + hu, v0, hu, hv, c[1], tol / 2, depth + 1) +
            adapt(f, u0, v0 + hv, hu, hv, c[2], tol / 2, depth + 1) +
            adapt(f, u0 + hu, v0 + hv, hu, hv, c[3], tol / 2, depth + 1);
 }
