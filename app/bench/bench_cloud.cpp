@@ -3,7 +3,7 @@
 // memory bandwidth measured in the same run.
 #include "bench/bench.h"
 
-#include "cloud/automaton.h"
+#include "cloud/detail/automaton.h"
 
 #include <cmath>
 #include <vector>

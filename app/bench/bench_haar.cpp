@@ -3,7 +3,7 @@
 #include "bench/bench.h"
 
 #include "basis/basis.h"
-#include "basis/haar_reference.h"
+#include "basis/detail/haar_reference.h"
 #include "core/core.h"
 
 #include <cmath>
@@ -81,7 +81,7 @@ FULGUR_BENCH(haar,
 
 // ---------------------------------------------------------------------------------------
 // Why this scheme: kept coefficients at the same error for alternative Haar schemes, all
-// orthonormal (the slow double reference of basis/haar_reference.h):
+// orthonormal (the slow double reference of basis/detail/haar_reference.h):
 //   nonstandard + unbalanced (the default: one level on every axis, recurse on the low block)
 //   standard + unbalanced   (full 1D transform per axis; weighted last pair)
 //   standard + plain        (1/sqrt2 everywhere, odd element passed through unweighted)

@@ -4,7 +4,7 @@
 #include "bench/bench.h"
 
 #include "core/core.h"
-#include "transport/lb_solver.h"
+#include "transport/detail/lb_solver.h"
 
 #include <algorithm>
 #include <fstream>

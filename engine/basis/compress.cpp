@@ -2,7 +2,7 @@
 // paper's gamma, magnitude ordering and storage precision.
 #include "basis/basis.h"
 
-#include "basis/internal.h"
+#include "basis/detail/internal.h"
 
 #include <algorithm>
 #include <bit>

@@ -1,10 +1,10 @@
 // The .fgb baked-basis file: writer, reader, merge. Byte layout in docs/fgb-format.md and
-// basis/internal.h. The reader treats every byte as hostile: each count is bounded by the
+// basis/detail/internal.h. The reader treats every byte as hostile: each count is bounded by the
 // bytes that remain before anything is allocated, each offset is checked against the file
 // size without overflow, and every error names the file, the byte offset and the field.
 #include "basis/basis.h"
 
-#include "basis/internal.h"
+#include "basis/detail/internal.h"
 
 #include <zlib.h>
 

@@ -2,7 +2,7 @@
 // tests compare against F16C where the build machine has it).
 #include "basis/basis.h"
 
-#include "basis/internal.h"
+#include "basis/detail/internal.h"
 
 #include <bit>
 

@@ -1,5 +1,5 @@
 // Dobashi et al. 2000's cellular automaton and the space-time smoothing to a density.
-#include "cloud/automaton.h"
+#include "cloud/detail/automaton.h"
 
 #include <algorithm>
 #include <cmath>

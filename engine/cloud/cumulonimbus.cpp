@@ -1,6 +1,6 @@
 // The cumulonimbus generator: parameter validation, seed-ellipsoid layout, seed field, and
 // the pipeline automaton -> space-time average -> density. See docs/cloud.md.
-#include "cloud/automaton.h"
+#include "cloud/detail/automaton.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "render/directions.h"
+#include "render/detail/directions.h"
 #include "render/render.h"
 
 #include "transport/transport.h"

@@ -1,4 +1,4 @@
-#include "render/gl_program.h"
+#include "render/detail/gl_program.h"
 
 #include "core/core.h"
 

@@ -1,8 +1,8 @@
 #include "render/render.h"
 
-#include "render/directions.h"
-#include "render/gl_program.h"
-#include "render/volume_prep.h"
+#include "render/detail/directions.h"
+#include "render/detail/gl_program.h"
+#include "render/detail/volume_prep.h"
 #include "transport/transport.h"
 
 #include <glad/gl.h>

@@ -1,4 +1,4 @@
-#include "render/volume_prep.h"
+#include "render/detail/volume_prep.h"
 
 #include <algorithm>
 #include <cmath>

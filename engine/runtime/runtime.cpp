@@ -1,7 +1,7 @@
 // The run time (runtime.h, docs/runtime.md): baked bases in an accumulation layout, the
 // sparse sum + inverse Haar of Dobashi et al. 2007 (Eqs. 8-10), the per-frame pipeline and
 // the direct solve it is measured against.
-#include "runtime/internal.h"
+#include "runtime/detail/internal.h"
 
 #include "bake/bake.h"
 

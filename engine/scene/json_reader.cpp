@@ -1,4 +1,4 @@
-#include "scene/json_reader.h"
+#include "scene/detail/json_reader.h"
 
 #include <cmath>
 #include <limits>

@@ -1,6 +1,6 @@
 #include "scene/scene.h"
 
-#include "scene/json_reader.h"
+#include "scene/detail/json_reader.h"
 
 #include <glm/geometric.hpp>
 

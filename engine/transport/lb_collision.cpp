@@ -1,4 +1,4 @@
-#include "transport/lb_collision.h"
+#include "transport/detail/lb_collision.h"
 
 #include <glm/geometric.hpp>
 

@@ -20,7 +20,7 @@
 //    (copy across).
 //  * Threads: rows (y, z) split statically over core::thread_count() threads; per-row
 //    double accumulators summed in order, so results do not depend on the thread count.
-#include "transport/lb_solver.h"
+#include "transport/detail/lb_solver.h"
 
 #include <omp.h>
 

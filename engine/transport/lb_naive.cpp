@@ -2,7 +2,7 @@
 // step builds the site's dense 19x19 Theta (sigma entries scaled by the local density),
 // multiplies, then a separate pass flows every density to its neighbour in a second
 // lattice. Kept simple on purpose: it is the reference the fast kernel is tested against.
-#include "transport/lb_solver.h"
+#include "transport/detail/lb_solver.h"
 
 #include <algorithm>
 

@@ -1,6 +1,6 @@
 // Lattice-Boltzmann driver: builds the lattice problem from the physical medium and the
 // light sources, steps a kernel to steady state and converts densities to radiance units.
-#include "transport/lb_solver.h"
+#include "transport/detail/lb_solver.h"
 
 #include <glm/geometric.hpp>
 

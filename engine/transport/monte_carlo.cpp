@@ -1,10 +1,10 @@
 // Monte Carlo reference solver on the LightingMedium grid: the grid medium (macro-cell
 // majorants for delta tracking), the voxel tallies of S (track-length and expected-value
 // estimators), and the batch driver (deterministic per seed for any thread count).
-#include "transport/kernels.h"
-#include "transport/monte_carlo_core.h"
+#include "transport/detail/kernels.h"
+#include "transport/detail/monte_carlo_core.h"
+#include "transport/detail/traversal.h"
 #include "transport/transport.h"
-#include "transport/traversal.h"
 
 #include <glm/geometric.hpp>
 

@@ -22,9 +22,9 @@
 //    The radial integral is exact, so optically thick voxels are integrated correctly.
 //  * tensor Gauss rule (order^3 nodes) for far, optically thin boxes, with exact DDA
 //    transmittance to every node; boxes closer than 3 box sizes are split 2^3 (twice at most).
-#include "transport/kernels.h"
+#include "transport/detail/kernels.h"
+#include "transport/detail/traversal.h"
 #include "transport/transport.h"
-#include "transport/traversal.h"
 
 #include <glm/geometric.hpp>
 

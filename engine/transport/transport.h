@@ -118,7 +118,7 @@ void validate_medium(const LightingMedium& medium);
 /// Optical depth integral(sigma_t) along the segment a -> b through the piecewise-constant
 /// LightingMedium (density 0 outside the grid), by exact voxel traversal (3D DDA). Robust for
 /// axis-parallel segments, endpoints on faces, edges or corners, endpoints outside the grid
-/// and a == b (0). See engine/transport/traversal.h for the conventions.
+/// and a == b (0). See engine/transport/detail/traversal.h for the conventions.
 double optical_depth(const LightingMedium& medium, const glm::dvec3& a, const glm::dvec3& b) noexcept;
 
 /// exp(-optical_depth(a, b)).
@@ -271,7 +271,7 @@ MonteCarloResult monte_carlo(const LightingMedium& medium, const DirectionalSour
 // Lattice-Boltzmann (Geist et al. 2004): multiple scattering on a D3Q19 lattice whose
 // sites are the voxels of the lighting grid. docs/lattice-boltzmann.md explains the model,
 // the energy-conserving ("corrected") anisotropic collision, the physical mapping (see
-// lb::site_coefficients in lb_collision.h) and the calibration of lattice densities to
+// lb::site_coefficients in detail/lb_collision.h) and the calibration of lattice densities to
 // radiance. Results are in the same units as the Monte Carlo reference.
 // =======================================================================================
 

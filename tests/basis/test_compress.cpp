@@ -1,5 +1,5 @@
 #include "basis/basis.h"
-#include "basis/internal.h"
+#include "basis/detail/internal.h"
 #include "fields.h"
 
 #include <doctest/doctest.h>

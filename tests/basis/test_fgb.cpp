@@ -3,7 +3,7 @@
 // runs under AddressSanitizer + UndefinedBehaviorSanitizer: the asan preset).
 #include "bake_fixture.h"
 #include "basis/basis.h"
-#include "basis/internal.h"
+#include "basis/detail/internal.h"
 #include "support/test_support.h"
 
 #include <doctest/doctest.h>

@@ -1,5 +1,5 @@
 #include "basis/basis.h"
-#include "basis/haar_reference.h"
+#include "basis/detail/haar_reference.h"
 #include "fields.h"
 
 #include <doctest/doctest.h>

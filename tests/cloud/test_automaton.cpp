@@ -1,7 +1,7 @@
 // Dobashi et al. 2000's automaton: the growth rules against a direct transcription, the
 // neighbourhood's shape, the extinction and supply probabilities, thread independence, and
 // the space-time smoothing.
-#include "cloud/automaton.h"
+#include "cloud/detail/automaton.h"
 
 #include <doctest/doctest.h>
 

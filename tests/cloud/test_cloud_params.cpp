@@ -1,6 +1,6 @@
 // Parameter validation of the cumulonimbus generator: every inconsistency is rejected with
 // a core::Error whose where() is the scene field to fix.
-#include "cloud/automaton.h"
+#include "cloud/detail/automaton.h"
 #include "cloud_test_util.h"
 
 #include <doctest/doctest.h>

@@ -1,5 +1,5 @@
 // Direction interpolation of S between the baked output directions.
-#include "render/directions.h"
+#include "render/detail/directions.h"
 #include "render/render.h"
 #include "transport/transport.h"
 

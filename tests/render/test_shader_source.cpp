@@ -1,5 +1,5 @@
 // GLSL preprocessing (#include, #line mapping) and driver-log mapping, without GL.
-#include "render/gl_program.h"
+#include "render/detail/gl_program.h"
 
 #include "core/core.h"
 #include "support/test_support.h"

@@ -1,5 +1,5 @@
 // CPU preparation of the density texture: quantization and the empty-space distance field.
-#include "render/volume_prep.h"
+#include "render/detail/volume_prep.h"
 
 #include <doctest/doctest.h>
 

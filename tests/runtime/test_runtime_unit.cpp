@@ -2,8 +2,8 @@
 // sparse sum + inverse Haar against the double reference (basis::reconstruct), components,
 // ambient, empty frames, thread independence, and rejected files. Fast; runs under ASan.
 // Files: tests/basis/bake_fixture.h (8 lights, 5x4x3 lighting grid, 3 directions).
-#include "basis/internal.h"
-#include "runtime/internal.h"
+#include "basis/detail/internal.h"
+#include "runtime/detail/internal.h"
 #include "runtime/runtime.h"
 
 #include "basis/bake_fixture.h"

@@ -1,7 +1,7 @@
 // Helpers shared by the lattice-Boltzmann tests.
 #pragma once
 
-#include "transport/lb_collision.h"
+#include "transport/detail/lb_collision.h"
 
 #include <algorithm>
 #include <cmath>

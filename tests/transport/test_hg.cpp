@@ -1,5 +1,5 @@
 // Henyey-Greenstein phase function: normalization, mean cosine, extreme g, exact sampling.
-#include "transport/kernels.h"
+#include "transport/detail/kernels.h"
 #include "transport/transport.h"
 
 #include <doctest/doctest.h>

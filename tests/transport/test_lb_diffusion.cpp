@@ -1,5 +1,5 @@
 // Lattice-Boltzmann diffusion limit (Geist et al. 2004, Eq. 19), numeric.
-#include "transport/lb_solver.h"
+#include "transport/detail/lb_solver.h"
 #include "transport_test_util.h"
 
 #include <doctest/doctest.h>

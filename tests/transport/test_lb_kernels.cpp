@@ -1,6 +1,6 @@
 // Lattice-Boltzmann kernels: exact streaming, naive == fast, energy bookkeeping at every
 // step, hard cases (numeric).
-#include "transport/lb_solver.h"
+#include "transport/detail/lb_solver.h"
 
 #include <doctest/doctest.h>
 

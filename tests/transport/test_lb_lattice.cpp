@@ -1,7 +1,7 @@
 // Lattice-Boltzmann: lattice tables, collision matrices, physical mapping, direction
 // resolution (unit tests, exact or near machine precision).
 #include "lb_test_util.h"
-#include "transport/lb_collision.h"
+#include "transport/detail/lb_collision.h"
 
 #include <doctest/doctest.h>
 

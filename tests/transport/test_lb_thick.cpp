@@ -2,7 +2,7 @@
 // the mapping's limits, the lattice diffusion coefficient it relies on, energy with
 // over-relaxation, and convergence to transport theory as voxels get optically thicker.
 // (Stability of every matrix it can build: test_lb_lattice.cpp.)
-#include "transport/lb_solver.h"
+#include "transport/detail/lb_solver.h"
 #include "transport_test_util.h"
 
 #include <doctest/doctest.h>

@@ -1,6 +1,6 @@
 // Lattice-Boltzmann units: lattice densities -> fluence and S in the Monte Carlo units,
 // checked on homogeneous problems with analytic answers (numeric).
-#include "transport/lb_solver.h"
+#include "transport/detail/lb_solver.h"
 
 #include <doctest/doctest.h>
 

@@ -5,7 +5,7 @@
 // of the 1% bound: "within 1%" is then implied by "within 3 SE" up to a <1e-4 chance per
 // check, and the seeds are fixed, so the suite is deterministic. Total runtime ~5 s in
 // release on 2 cores (~8 s under the sanitizers).
-#include "transport/monte_carlo_core.h"
+#include "transport/detail/monte_carlo_core.h"
 #include "transport/transport.h"
 #include "transport_test_util.h"
 

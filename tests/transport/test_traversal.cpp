@@ -1,6 +1,6 @@
 // Exact voxel traversal (3D DDA) and transmittance through the piecewise-constant medium.
+#include "transport/detail/traversal.h"
 #include "transport/transport.h"
-#include "transport/traversal.h"
 
 #include <doctest/doctest.h>
 #include <glm/geometric.hpp>

@@ -2,8 +2,8 @@
 // voxel-averaged single scattering in a homogeneous medium.
 #pragma once
 
-#include "transport/kernels.h"
-#include "transport/lb_solver.h"
+#include "transport/detail/kernels.h"
+#include "transport/detail/lb_solver.h"
 #include "transport/transport.h"
 
 #include <glm/geometric.hpp>

@@ -21,8 +21,8 @@
 #pragma once
 
 #include "core/core.h"
+#include "transport/detail/traversal.h"
 #include "transport/transport.h"
-#include "transport/traversal.h"
 
 #include <glm/geometric.hpp>
 

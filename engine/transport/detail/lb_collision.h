@@ -13,7 +13,7 @@
 // next step); physical model Theta_0j = 0 (absorbed density leaves the system).
 #pragma once
 
-#include "transport/lb_lattice.h"
+#include "transport/detail/lb_lattice.h"
 #include "transport/transport.h"
 
 #include <array>

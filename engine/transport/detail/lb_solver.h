@@ -9,7 +9,7 @@
 // Energy in lattice units: sources and inflow are powers (W) injected per step.
 #pragma once
 
-#include "transport/lb_collision.h"
+#include "transport/detail/lb_collision.h"
 
 #include <memory>
 #include <vector>
