@@ -1,6 +1,7 @@
 // Thresholding of Haar coefficients (Dobashi et al. 2007, section 6) in three forms, the
 // paper's gamma, magnitude ordering and storage precision.
-#include "basis/basis.h"
+#include "basis/compression.h"
+#include "basis/half.h"
 
 #include "basis/detail/internal.h"
 

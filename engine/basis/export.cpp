@@ -1,6 +1,6 @@
 // Reconstruction of bases and weighted sums of bases, from compressed or raw data, and
 // their export as NRRD float32 (ParaView, 3D Slicer).
-#include "basis/basis.h"
+#include "basis/export.h"
 
 #include <cmath>
 #include <sstream>

@@ -2,7 +2,8 @@
 // basis/detail/internal.h. The reader treats every byte as hostile: each count is bounded by the
 // bytes that remain before anything is allocated, each offset is checked against the file
 // size without overflow, and every error names the file, the byte offset and the field.
-#include "basis/basis.h"
+#include "basis/fgb.h"
+#include "basis/half.h"
 
 #include "basis/detail/internal.h"
 

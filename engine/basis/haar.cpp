@@ -1,5 +1,5 @@
 // Orthonormal 3D Haar transform for any grid size: the non-standard or standard
-// decomposition of the "unbalanced" 1D Haar (basis.h and docs/basis.md), computed as inverse = U P and
+// decomposition of the "unbalanced" 1D Haar (basis/haar.h and docs/basis.md), computed as inverse = U P and
 // forward = P U^T where P is a diagonal scaling by powers of k = 1/sqrt(2) and U runs the
 // levels with sums and differences (no per-level multiplication, hence no per-level
 // accumulation of the rounding of k in float32).
@@ -18,7 +18,7 @@
 // levels to whole lines, so P is a product of per-axis factors; the non-standard one
 // interleaves the axes level by level and a coefficient's factor is fixed when it leaves
 // the recursion (see the constructor).
-#include "basis/basis.h"
+#include "basis/haar.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,6 +1,6 @@
 // IEEE 754 binary16 <-> binary32 conversion, bit-exact and portable (no F16C needed; the
 // tests compare against F16C where the build machine has it).
-#include "basis/basis.h"
+#include "basis/half.h"
 
 #include "basis/detail/internal.h"
 

@@ -1,7 +1,7 @@
 // The virtual-light grid (Dobashi et al. 2007, section 5): uniform h_usr horizontally over
 // the cloud's footprint plus a margin, uniform h_usr from the cloud base through the cloud's
 // full height, and the Eq. 4 spacing below the base down to the ground.
-#include "basis/basis.h"
+#include "basis/virtual_lights.h"
 
 #include <algorithm>
 #include <cmath>

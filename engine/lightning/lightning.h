@@ -33,7 +33,7 @@
 // Docs: docs/lightning.md.
 #pragma once
 
-#include "basis/basis.h"
+#include "basis/virtual_lights.h"
 #include "core/core.h"
 
 #include <glm/vec3.hpp>

@@ -7,7 +7,8 @@
 // documented in docs/scene-format.md; content/scenes/storm.json is the default scene.
 #pragma once
 
-#include "basis/basis.h"
+#include "basis/compression.h"
+#include "basis/virtual_lights.h"
 #include "cloud/cloud.h"
 #include "core/core.h"
 #include "lightning/lightning.h"

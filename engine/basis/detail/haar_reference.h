@@ -1,5 +1,5 @@
 // Internal to fulgur::basis: a slow, literal double-precision reference of the orthonormal
-// 3D Haar schemes, written straight from the definitions in basis.h (rotations with
+// 3D Haar schemes, written straight from the definitions in docs/basis.md (rotations with
 // 1/sqrt 2 at every level, no factoring). The tests check the production transform against
 // it and the haar_schemes benchmark uses it to compare schemes, including the "plain"
 // pass-through variant that production does not offer.

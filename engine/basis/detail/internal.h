@@ -3,7 +3,7 @@
 // checksums and reach the validation behind them.
 #pragma once
 
-#include "basis/basis.h"
+#include "basis/compression.h"
 
 #include <cstdint>
 #include <span>
