@@ -8,24 +8,13 @@
 //                                basis::VirtualLightGrid, plus the ascending list of the
 //                                lights with e_l != 0 (Dobashi Eq. 6)
 //
-// The pieces, each usable on its own:
-//  * BoltGenerator: the Reed-Wyvill channel. A walk of straight segments; each turns from
-//    the previous direction by an angle theta ~ |N(angle_mean, angle_spread)| about a
-//    random axis. Only the *azimuth* of that turn is biased (toward aim points on the way to
-//    the target — the ground, a far point of the same cloud, or a cloud region across clear
-//    air — and away from the previous turn's side, for a zig-zag), so the turn-angle
-//    distribution is exactly the configured one. Branches sprout per segment with a
-//    probability, turn away by branch_angle_mean, lose intensity by a factor per depth
-//    level and stop growing when the main leader attaches. Deterministic per seed.
-//  * FlashProfile / flash_state: the temporal shape of one strike (stepped leader revealing
-//    the channel, return stroke, exponential decay, restrikes along the main channel), so
-//    the lit segments and their brightness are defined at any time t.
-//  * Storm: strike scheduling (deterministic Poisson process per seed and strikes on
-//    demand), the cheap "which strikes are active at t" query, and the point sources.
-//  * Splatter: trilinear splatting onto the rectilinear virtual-light grid; energy is
-//    conserved exactly (sum e_l == sum L_q up to double rounding); sources outside the grid
-//    are clamped onto its bounding box (their energy lands on the nearest boundary lights)
-//    and counted.
+// The pieces, each usable on its own (docs/lightning.md describes each):
+//  * BoltGenerator: the Reed-Wyvill channel, a walk of straight segments with branches,
+//    deterministic per seed; only the turn azimuth is biased toward the target.
+//  * FlashProfile / flash_state: the temporal shape of one strike (leader, return stroke,
+//    decay, restrikes).
+//  * Storm: strike scheduling (Poisson per seed, or on demand) and the point sources at t.
+//  * Splatter: trilinear splatting onto the virtual-light grid, conserving energy exactly.
 //
 // Units: metres, seconds; segment intensity is radiant intensity per metre of channel
 // (W/sr/m); a point source's intensity is radiant intensity (W/sr), the unit of a virtual

@@ -94,7 +94,8 @@ struct SourceField {
     std::span<const float> direction(std::size_t m) const noexcept { return {data.data() + m * cells(), cells()}; }
 };
 
-// ================================================================================// Transmittance, single scattering and the Monte Carlo reference   (helper branch `mc`)
+// =======================================================================================
+// Transmittance, single scattering and the Monte Carlo reference
 //
 // Light sources. A point source of radiant intensity I (W/sr) emits 4*pi*I W isotropically;
 // the unit virtual light has I = 1. A directional (sun) source has irradiance E (W/m^2) on a
@@ -152,17 +153,12 @@ struct SingleScatteringOptions {
     core::Grid3<float>* uncollided_fluence = nullptr;
 };
 
-/// Exact single scattering (DESIGN.md's direct term) from a point source:
-///   S1(x, s) = albedo * p(s . w_lx) * I * T(x_l, x) / |x - x_l|^2
-/// AVERAGED OVER EACH VOXEL (the finite-volume value every solver stores). The voxel average
-/// is the regularization of the 1/r^2 singularity: it is finite for every voxel, including
-/// the one containing the source, where (density constant there) it is computed in spherical
-/// coordinates around the source with the radial integral done analytically:
-///   S = albedo I / V * integral p(s . w) (1 - exp(-sigma R(w))) / sigma dw,
-/// R(w) the distance from the source to the voxel boundary. Voxels near the source use the
-/// same exact-radial form over their faces; far voxels a tensor Gauss rule with exact DDA
-/// transmittance to every node. Writes S for out.directions into out (out.geom must equal the
-/// medium's grid; data is resized). Parallel over voxels (core::thread_count()).
+/// Exact single scattering (DESIGN.md's direct term) from a point source,
+///   S1(x, s) = albedo * p(s . w_lx) * I * T(x_l, x) / |x - x_l|^2   [W m^-2 sr^-1],
+/// averaged over each voxel: the voxel average is finite everywhere, including the voxel
+/// holding the source (docs/transport.md, "The regularization of 1/r^2 is the voxel
+/// average", and "Quadrature rules"). Writes S for out.directions into out (out.geom must
+/// equal the medium's grid; data is resized). Parallel over voxels (core::thread_count()).
 void single_scattering(const LightingMedium& medium, const PointSource& light, SourceField& out,
                        const SingleScatteringOptions& options = {});
 SourceField single_scattering(const LightingMedium& medium, const PointSource& light,

@@ -42,16 +42,10 @@ double hg_kernel(double cos_theta, double g) noexcept;
 /// kernel at n_i . n_j (a row normalization: the column sums are not 1 for g != 0).
 DiscretePhase published_phase(double g);
 
-/// The corrected form (default). P_ij = w_i K_ij with K symmetric, so that
-///   (1) sum_i P_ij = 1 for every j (energy conserved exactly),
-///   (2) sum_j P_ij w_j = w_i (isotropic radiance stays isotropic; P is reversible with
-///       respect to w, so its eigenvalues are real and lie in [-1, 1]),
-///   (3) sum_i P_ij n_i . n_j = g for every incoming j (mean cosine exact),
-///   (4) P_ij = w_i for g = 0 (the paper's isotropic matrix, Eqs. 4-6).
-/// K_ij = s_c(i) s_c(j) HG(n_i . n_j; g_fit) + delta_diag * [i == j (g >= 0) or
-/// i == opp(j) (g < 0), diagonal class only] / w_j; g_fit, s_A, s_D and delta_diag solve
-/// (1) and (3) for both direction classes. A plain column normalization of HG satisfies
-/// (1) but overshoots (3) (0.98 for g = 0.85) and breaks (2).
+/// The corrected form (default): P_ij = w_i K_ij with K symmetric, fitted so that every
+/// column sums to 1 (energy conserved), isotropic radiance stays isotropic, the mean cosine
+/// is g for every incoming direction, and P_ij = w_i at g = 0 (docs/lattice-boltzmann.md,
+/// "The corrected form").
 DiscretePhase corrected_phase(double g);
 
 DiscretePhase make_phase(LbCollision form, double g);
@@ -65,40 +59,17 @@ struct SiteCoefficients {
     double hop[3] = {0, 0, 0};         ///< hop length (m): 0, h, sqrt(2) h
 };
 
-/// THE mapping from the physical medium to lattice coefficients (DESIGN.md). A lattice site
-/// is a voxel of side h; a packet arriving along direction j stands for light crossing the
-/// voxel along a chord of the hop length l_j = h |c_j| (h or sqrt(2) h). With the density
-/// piecewise constant, the probability that it interacts in the voxel is
-///     e_j = 1 - exp(-kappa * rho * l_j)
-/// (per-class extinction; the paper uses one sigma_t for both classes, which makes the
-/// diagonal free path sqrt(2) too long and the diffusion coefficient 1.5x too large). e_j
-/// is always < 1, so no clamping is needed, but a voxel much thicker than one mean free
-/// path saturates at e_j -> 1: the lattice allows one collision per voxel crossing, so it
-/// under-resolves transport inside such voxels (a lighting grid finer than the mean free
-/// path avoids it). The expected track length in the voxel, used to turn densities into
-/// fluence, is (1 - exp(-sigma_t l_j)) / sigma_t = e_j / sigma_t (l_j when rho = 0): the
-/// collision estimator, exact for the lattice's collision rate.
+/// THE mapping from the physical medium to lattice coefficients (DESIGN.md): per direction
+/// class, interaction probability e_j = 1 - exp(-kappa rho l_j) over the hop length l_j
+/// (h or sqrt(2) h) and collision-estimator track e_j / sigma_t (m; l_j when rho = 0).
+/// docs/lattice-boltzmann.md, "Physical mapping".
 SiteCoefficients site_coefficients(const Medium& optics, double voxel_size, double density) noexcept;
 
-/// Thick-voxel correction (LbThickVoxels::DiffusionMatched; docs/lattice-boltzmann.md,
-/// "Thick voxels"). Built once per solve from the discrete phase and the albedo.
-///
-/// The lattice's diffusion coefficient for uniform per-class extinctions e_A, e_D follows
-/// from a uniform-gradient (Chapman-Enskog / Green-Kubo) analysis of the collide-stream
-/// step: with the stationary direction distribution pi_j = (w_j / e_j) / Z,
-/// Z = sum_j w_j / e_j, the flux is -D grad(rho) (rho = sum_j f_j, lattice units h, step) with
-///     D = sum_j c_jx chi_j - (1/2) sum_j pi_j c_jx^2,   (I - albedo P) E chi = pi o c_x,
-/// E = diag(e_j). By cubic symmetry chi lies in the 2-dimensional space of x-odd vectors
-/// spanned by the axis and the diagonal c_jx, so this is a 2x2 solve (`first_moment`). The
-/// continuous medium needs D = lbar / (3 tau_tr) with lbar = sum_j pi_j track_j / h the mean
-/// track per arriving packet and tau_tr = sigma_t (1 - albedo g) h. Scaling the exact-chord
-/// extinctions by k (e_j = k e_j^chord) gives D = A / k - B and lbar = C' k, so k solves a
-/// quadratic. k is floored at 1 (never below the chord mapping: the thin-voxel limit) and
-/// capped so that every eigenvalue of Omega = Theta - I stays >= -2 kStabilityMargin:
-/// the eigenvalues of (I - albedo P) E are real (P is reversible with respect to w) and at
-/// most max_j e_j (1 - albedo p_min), p_min the smallest eigenvalue of P; and e_j <= 2
-/// kStabilityMargin (a packet's own persistence 1 - e_j >= -0.9: less ringing, fewer
-/// negative outputs).
+/// Thick-voxel correction (LbThickVoxels::DiffusionMatched): scales the chord extinctions by
+/// k >= 1 so that the lattice's diffusion coefficient per unit track is the medium's
+/// 1 / (3 tau_tr); k is capped so that Omega's eigenvalues stay >= -2 kStabilityMargin.
+/// Built once per solve from the discrete phase and the albedo; the derivation (a 2x2
+/// first-moment solve, a quadratic in k) is in docs/lattice-boltzmann.md, "Thick voxels".
 struct ThickVoxelModel {
     LbThickVoxels mode = LbThickVoxels::Saturate;
     double albedo = 1.0;
