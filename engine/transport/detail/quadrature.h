@@ -1,0 +1,239 @@
+// Internal: the per-box quadrature rules of exact single scattering (single_scattering.cpp
+// picks one per voxel or octree sub-box from the tolerance; quadrature.cpp implements them):
+//  * face rules, radial integral exact: "inside" (the source in the box's closure) and
+//    "outside" (a box near the source, or optically thick), over the faces the source sees;
+//  * tensor Gauss rules with exact DDA transmittance to every node (far, optically thin
+//    boxes), checked a posteriori against the error model (Plan).
+// docs/transport.md, "Quadrature rules", gives the rules and their measured errors.
+#pragma once
+
+#include "transport/detail/kernels.h"
+#include "transport/detail/traversal.h"
+#include "transport/transport.h"
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <span>
+#include <vector>
+
+namespace fulgur::transport::detail {
+
+struct Box {
+    glm::dvec3 lo, hi;
+};
+
+/// Collects weighted direction samples (w, omega) and reduces them to
+/// acc[m] = sum w * p(s_m . omega). Samples are buffered in SoA form so the reduction over
+/// samples vectorizes; for g == 0 only the sum of weights is kept.
+class PhaseAccumulator {
+public:
+    PhaseAccumulator(std::span<const glm::dvec3> dirs, double g) : dirs_(dirs), hg_(g) {
+        if (!hg_.isotropic) {
+            w_.resize(kCap);
+            x_.resize(kCap);
+            y_.resize(kCap);
+            z_.resize(kCap);
+        }
+        acc_.assign(dirs.size(), 0.0);
+    }
+    void reset() {
+        std::fill(acc_.begin(), acc_.end(), 0.0);
+        sum_ = 0.0;
+        total_ = 0.0;
+        n_ = 0;
+    }
+    void add(double w, const glm::dvec3& d) {
+        if (!(w > 0.0)) return;
+        total_ += w;
+        if (hg_.isotropic) {
+            sum_ += w;
+            return;
+        }
+        w_[n_] = w;
+        x_[n_] = d.x;
+        y_[n_] = d.y;
+        z_[n_] = d.z;
+        if (++n_ == kCap) flush();
+    }
+    /// Sum of the weights without the phase function (the uncollided fluence integral).
+    double weight_sum() const noexcept { return total_; }
+    /// Reduces and returns acc[m] (for every output direction).
+    const std::vector<double>& result() {
+        if (hg_.isotropic) {
+            std::fill(acc_.begin(), acc_.end(), sum_ * hg_.norm);
+        } else {
+            flush();
+        }
+        return acc_;
+    }
+
+private:
+    static constexpr std::size_t kCap = 256;
+    void flush() {
+        // omp simd reduction: the vectorized summation order is fixed by the binary, so the
+        // result is deterministic (and independent of the thread count).
+        const std::size_t n = n_;
+        const double* w = w_.data();
+        const double* x = x_.data();
+        const double* y = y_.data();
+        const double* z = z_.data();
+        const double a = hg_.one_minus_g_sq, b = hg_.two_g;
+        for (std::size_t m = 0; m < dirs_.size(); ++m) {
+            const double sx = dirs_[m].x, sy = dirs_[m].y, sz = dirs_[m].z;
+            double s = 0.0;
+#pragma omp simd reduction(+ : s)
+            for (std::size_t q = 0; q < n; ++q) {
+                double c = sx * x[q] + sy * y[q] + sz * z[q];
+                c = c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c);
+                const double d = a + b * (1.0 - c);
+                s += w[q] / (d * std::sqrt(d));
+            }
+            acc_[m] += s * hg_.norm;
+        }
+        n_ = 0;
+    }
+
+    std::span<const glm::dvec3> dirs_;
+    detail::HgConstants hg_;
+    std::vector<double> w_, x_, y_, z_, acc_;
+    double total_ = 0.0;
+    std::size_t n_ = 0;
+    double sum_ = 0.0;
+};
+
+/// Bounding box (world) of the voxels with non-zero density; density is 0 outside it, so
+/// transmittance rays are clipped to it (exact). Empty grid: an empty box (lo > hi).
+struct DensityBounds {
+    glm::dvec3 lo{1.0}, hi{-1.0};
+};
+
+constexpr int kMaxTensorOrder = 4;  // tensor Gauss rules use 1..4 points per axis
+constexpr int kMaxDepth = 5;        // octree levels below a voxel
+constexpr int kMaxCheckDepth = 2;   // a-posteriori transmittance checks stop below this level
+
+struct PointCtx {
+    const core::GridGeometry* g;
+    const float* rho;
+    double kappa;
+    glm::dvec3 xl;
+    double cutoff;
+    DensityBounds bounds;
+    double sigma_max;  // largest extinction in the grid
+    double optical_depth(const glm::dvec3& dir, double len) const noexcept {
+        return detail::optical_depth_along(*g, rho, kappa, xl, dir, 0.0, len, cutoff, bounds.lo, bounds.hi);
+    }
+    double transmittance(const glm::dvec3& dir, double len) const noexcept {
+        const double tau = optical_depth(dir, len);
+        return tau > cutoff ? 0.0 : std::exp(-tau);
+    }
+};
+
+/// Per-box choice of the quadrature rule from the tolerance (the accuracy knob).
+///
+/// Error model of an n-point Gauss-Legendre rule per axis on a box of size s (relative):
+///   geometry: a_n (s / L)^{2n}, a_n = (n!)^4 / ((2n)!)^2 (the Gauss error bound for 1/x^2
+///             on [d, d + s] is a_n (s/d)^{2n}), L = d_min / (1 + k_g), where
+///             k_g = 1.5|g|/(1-|g|) approximates max |d ln p / d theta| of HG (2.8 at g=0.6);
+///   attenuation inside the box: c_n (sigma s)^{2n}, c_n = (n!)^4 / ((2n+1) ((2n)!)^3),
+///             the Gauss error for e^{-x} on [0, sigma s];
+/// added. (Calibrated against the divergence-theorem reference in the tests: the measured
+/// error stays below the tolerance.) The smallest n <= kMaxTensorOrder meeting the tolerance is
+/// used; if attenuation alone cannot meet it the box is optically thick and gets the face
+/// rule (exact radial integral); if geometry cannot, the box is split 2^3.
+
+struct Plan {
+    double eps;  // tolerance
+    int n_face;  // points per axis of each face-rule piece
+    double k_g;  // phase-function variation bound
+    double cutoff;
+    std::array<double, kMaxTensorOrder + 1> geo_{}, att_{};  // a_n and c_n of the model
+    Plan(double tolerance, double g, double cut) : eps(tolerance), cutoff(cut) {
+        const double ag = std::min(std::fabs(g), kMaxAbsG);
+        k_g = 1.5 * ag / (1.0 - ag);
+        for (int n = 1; n <= kMaxTensorOrder; ++n) {
+            const double lf = std::lgamma(n + 1.0), l2f = std::lgamma(2.0 * n + 1.0);
+            geo_[std::size_t(n)] = std::exp(4.0 * lf - 2.0 * l2f);
+            att_[std::size_t(n)] = std::exp(4.0 * lf - 3.0 * l2f) / (2.0 * n + 1.0);
+        }
+        // Face rule: ~1.5 digits per extra point per axis (measured, docs/transport.md).
+        n_face = std::clamp(2 + int(std::ceil(-std::log10(tolerance) / 1.5)), 3, 12);
+    }
+    /// Largest residual of the upstream optical depth about its linear fit over a box's nodes
+    /// (a kink) accepted by the tensor rule; calibrated against the Monte Carlo reference on the
+    /// default storm cloud (docs/transport.md): 0.1 * sqrt(tol / 1e-3).
+    double kink_limit() const { return 0.1 * std::sqrt(eps / 1e-3); }
+    /// Whether a linear optical-depth variation with per-axis changes y[3] across the box is
+    /// integrated to the tolerance by an order-n tensor rule: e^{-(y.x)} is separable, and the
+    /// tensor rule's relative error is the sum of the per-axis errors c_n y_a^{2n}.
+    bool smooth_ok(int n, const double* y) const {
+        double e = 0.0;
+        for (int a = 0; a < 3; ++a) e += att_[std::size_t(n)] * std::pow(std::fabs(y[a]), 2.0 * n);
+        return e <= eps;
+    }
+    /// Smallest adequate tensor order, or 0 (thick set when attenuation is the obstacle).
+    int tensor_order(double s, double inv_len, double sigma, bool& thick) const {
+        const double x = s * inv_len, y = sigma * s;
+        double x2 = x * x, y2 = y * y, xp = 1.0, yp = 1.0;
+        for (int n = 1; n <= kMaxTensorOrder; ++n) {
+            xp *= x2;
+            yp *= y2;
+            if (geo_[std::size_t(n)] * xp + att_[std::size_t(n)] * yp <= eps) return n;
+        }
+        thick = att_[kMaxTensorOrder] * yp > eps;
+        return 0;
+    }
+};
+
+// ---- point source ----------------------------------------------------------------------
+
+/// Face rule for one face (normal axis ax, lower or upper) of box b, point source.
+/// inside: the source is in the box's closure (rays start in the box, T = 1, chord = R);
+/// otherwise the source sees the face from outside (entry face).
+void face_rule_point(const PointCtx& c, const Box& b, double sigma, int ax, bool upper, bool inside, int n,
+                     PhaseAccumulator& acc);
+
+/// Tensor rule of order n on box b. Returns false without accumulating anything when the
+/// transmittance to the nodes is not what an order-n Gauss rule integrates to the tolerance:
+/// the optical depth over the nodes is fitted by a linear function (on a tensor grid the
+/// least-squares fit decouples per axis);
+///  * the fit's variation across the box, y_a per axis, is a smooth (separable) exponential:
+///    it must pass the attenuation model, sum_a c_n y_a^{2n} <= tol (behind a cloud the
+///    optical depth can vary across a box much more than the box's own sigma * s);
+///  * the largest residual (a kink: a shadow edge of an upstream voxel crossing the box,
+///    which Gauss rules integrate poorly) must stay below plan.kink_limit().
+/// On failure, *retry_order is the order the measured smooth variation needs (0: none does,
+/// or a kink was found: split the box).
+bool tensor_rule_point(const PointCtx& c, const Box& b, int n, const Plan* check, PhaseAccumulator& acc,
+                       int* retry_order = nullptr);
+
+// ---- sun -------------------------------------------------------------------------------
+
+struct SunCtx {
+    const core::GridGeometry* g;
+    const float* rho;
+    double kappa;
+    glm::dvec3 d;  // propagation direction, unit
+    double cutoff;
+    DensityBounds bounds;
+    double optical_depth(const glm::dvec3& x) const noexcept {
+        return detail::optical_depth_along(*g, rho, kappa, x, -d, 0.0, detail::kInf, cutoff, bounds.lo, bounds.hi);
+    }
+    double transmittance(const glm::dvec3& x) const noexcept {
+        const double tau = optical_depth(x);
+        return tau > cutoff ? 0.0 : std::exp(-tau);
+    }
+};
+
+/// integral over box of T_sun, tensor rule of order n; with a plan, fails (returns false)
+/// when check_nodes() rejects the nodes, setting *retry as check_nodes() does.
+bool tensor_rule_sun(const SunCtx& c, const Box& b, int n, const Plan* check, double& result, int* retry);
+
+/// integral over box of T_sun with the radial (along d) integral exact: sum over the entry
+/// faces of |d . n| * integral_face T_in (1 - e^{-sigma l})/sigma dA. Each face is split into
+/// axis-aligned sub-rectangles at the lines where the exit face changes.
+double face_rule_sun(const SunCtx& c, const Box& b, double sigma, int n);
+
+}  // namespace fulgur::transport::detail
