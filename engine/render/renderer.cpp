@@ -150,6 +150,102 @@ struct Buffer {
     }
 };
 
+/// Everything the passes of one frame share, computed once before the first pass (as
+/// Filament's PerViewUniforms): the std140 block the shaders read and the host-side
+/// decisions taken from the same inputs.
+struct FrameUniforms {
+    FrameBlock block;
+    int width = 0, height = 0;                    ///< output size (pixels)
+    int internal_width = 0, internal_height = 0;  ///< ray-march resolution (pixels)
+    bool lit = false;                             ///< the march samples S (source, cloud lighting, volume)
+    bool glow = false;                            ///< the glow pass runs
+};
+
+/// The caller's draw framebuffer and viewport, restored when a frame or a read-back is done.
+struct CallerTarget {
+    GLint fbo = 0, viewport[4] = {};
+    static CallerTarget save() {
+        CallerTarget c;
+        glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &c.fbo);
+        glGetIntegerv(GL_VIEWPORT, c.viewport);
+        return c;
+    }
+    /// Unbinds the renderer's program and vertex array and rebinds the caller's target.
+    void restore() const {
+        glUseProgram(0);
+        glBindVertexArray(0);
+        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(fbo));
+        glViewport(viewport[0], viewport[1], viewport[2], viewport[3]);
+    }
+};
+
+/// Per-pass times of one frame (Settings::timing): with Timing::Finish each pass is fenced by
+/// glFinish and timed on the steady clock and in process CPU time; with Timing::Queries by GL
+/// timer queries (read in finish()); Timing::Off times nothing.
+class PassTimer {
+public:
+    PassTimer(Timing mode, const GLuint* queries) : mode_(mode), queries_(queries) {}
+    void begin(Pass p) {
+        ran_[p] = true;
+        if (mode_ == Timing::Finish) {
+            glFinish();
+            clock_.reset();
+            cpu0_ = process_cpu_ms();
+        } else if (mode_ == Timing::Queries) {
+            glBeginQuery(GL_TIME_ELAPSED, queries_[p]);
+        }
+    }
+    void end(Pass p) {
+        if (mode_ == Timing::Finish) {
+            glFinish();
+            wall_[p] = clock_.milliseconds();
+            cpu_[p] = process_cpu_ms() - cpu0_;
+        } else if (mode_ == Timing::Queries) {
+            glEndQuery(GL_TIME_ELAPSED);
+        }
+    }
+    /// Reads the timer queries of the passes that ran (waiting for them) and, unless timing
+    /// is off, waits for the frame to finish.
+    void finish() {
+        if (mode_ == Timing::Queries) {
+            for (int p = 0; p < kPassCount; ++p)
+                if (ran_[p]) {
+                    GLuint64 ns = 0;
+                    glGetQueryObjectui64v(queries_[p], GL_QUERY_RESULT, &ns);
+                    wall_[p] = double(ns) * 1e-6;
+                }
+        }
+        if (mode_ != Timing::Off) glFinish();
+    }
+    /// The frame's times: the uploads since the previous frame, each pass, the whole call.
+    PassTimes wall_times(double upload, double total) const noexcept { return times(wall_, upload, total); }
+    PassTimes cpu_times(double upload, double total) const noexcept { return times(cpu_, upload, total); }
+
+private:
+    static PassTimes times(const double* pass, double upload, double total) noexcept {
+        return {upload, pass[kResolve], pass[kGlow], pass[kMarch], pass[kBolt], pass[kComposite], total};
+    }
+    Timing mode_;
+    const GLuint* queries_;
+    double wall_[kPassCount] = {}, cpu_[kPassCount] = {};
+    bool ran_[kPassCount] = {};
+    core::Stopwatch clock_;
+    double cpu0_ = 0.0;
+};
+
+/// Rejects an empty output, out-of-range settings or a degenerate camera with an error
+/// naming the field.
+void validate_frame(const Camera& camera, const Settings& st, int width, int height) {
+    if (width <= 0 || height <= 0)
+        throw core::Error("render",
+                          "output size must be positive, got " + std::to_string(width) + "x" + std::to_string(height));
+    validate_settings(st);
+    const glm::dvec3 fwd_raw = camera.target - camera.position;
+    if (!(glm::length(fwd_raw) > 0.0) || !(camera.vertical_fov_deg > 0.0 && camera.vertical_fov_deg < 179.0) ||
+        !(glm::length(glm::cross(fwd_raw, camera.up)) > 0.0))
+        throw core::Error("render: camera", "needs target != position, up not parallel to the view and 0 < fov < 179");
+}
+
 }  // namespace
 
 struct Renderer::Impl {
@@ -367,6 +463,16 @@ struct Renderer::Impl {
             ground_lights.emplace_back(glm::vec3(c), float(wsum * vertical_transmittance(c, ground)));
         }
     }
+
+    // ---- one frame: uniforms, then the passes in order (defined below)
+    FrameUniforms prepare_frame(const Camera& camera, const Settings& st, int width, int height);
+    void bind_frame(const FrameUniforms& u);
+    void resolve_pass(const glm::dvec3& camera, const Settings& st, const FrameUniforms& u, PassTimer& timer,
+                      FrameStats& stats);
+    void glow_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer, FrameStats& stats);
+    void march_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer);
+    void bolt_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer, FrameStats& stats);
+    void composite_pass(const FrameUniforms& u, const CallerTarget& caller, PassTimer& timer);
 };
 
 // ---------------------------------------------------------------------------------------
@@ -602,37 +708,28 @@ std::vector<DirectionUse> Renderer::needed_directions(const Camera& camera, cons
     return impl_->needed_for(camera.position, lighting, direction_count, min_weight);
 }
 
-FrameStats Renderer::render(const Camera& camera, const Settings& st, int width, int height) {
-    Impl& m = *impl_;
-    core::Stopwatch total;
-    const double total_cpu0 = process_cpu_ms();
-    FrameStats stats;
-    if (width <= 0 || height <= 0)
-        throw core::Error("render",
-                          "output size must be positive, got " + std::to_string(width) + "x" + std::to_string(height));
-    validate_settings(st);
-    const glm::dvec3 fwd_raw = camera.target - camera.position;
-    if (!(glm::length(fwd_raw) > 0.0) || !(camera.vertical_fov_deg > 0.0 && camera.vertical_fov_deg < 179.0) ||
-        !(glm::length(glm::cross(fwd_raw, camera.up)) > 0.0))
-        throw core::Error("render: camera", "needs target != position, up not parallel to the view and 0 < fov < 179");
+// ---------------------------------------------------------------------------------------
+// One frame
 
-    GLint caller_fbo = 0, caller_viewport[4] = {};
-    glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &caller_fbo);
-    glGetIntegerv(GL_VIEWPORT, caller_viewport);
+/// Targets at the frame's sizes, and the frame uniforms: camera, volume and march step,
+/// lighting grid, ground lights, sky, glow and bolt switches. Rebuilds the ground lights
+/// and glow quads when their settings changed.
+FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings& st, int width, int height) {
+    FrameUniforms u;
+    u.width = width;
+    u.height = height;
+    u.internal_width = std::max(1, int(std::lround(width * st.internal_scale)));
+    u.internal_height = std::max(1, int(std::lround(height * st.internal_scale)));
+    const int iw = u.internal_width, ih = u.internal_height;
+    out_w = width;
+    out_h = height;
+    glow_target.ensure(iw, ih);
+    march_target.ensure(iw, ih);
+    core_target.ensure(width, height);
 
-    const int iw = std::max(1, int(std::lround(width * st.internal_scale)));
-    const int ih = std::max(1, int(std::lround(height * st.internal_scale)));
-    stats.internal_width = iw;
-    stats.internal_height = ih;
-    m.out_w = width;
-    m.out_h = height;
-    m.glow_target.ensure(iw, ih);
-    m.march_target.ensure(iw, ih);
-    m.core_target.ensure(width, height);
-
-    // ---- frame constants
-    FrameBlock f;
-    const glm::dvec3 fwd = glm::normalize(fwd_raw);
+    FrameBlock& f = u.block;
+    // Camera
+    const glm::dvec3 fwd = glm::normalize(camera.target - camera.position);
     const glm::dvec3 right = glm::normalize(glm::cross(fwd, camera.up));
     const glm::dvec3 up = glm::cross(right, fwd);
     const double tan_half = std::tan(glm::radians(camera.vertical_fov_deg) * 0.5);
@@ -644,97 +741,83 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
     f.cam_fwd = glm::vec4(glm::vec3(fwd), float(aspect));
     f.cam_right = glm::vec4(glm::vec3(right), 0.0f);
     f.cam_up = glm::vec4(glm::vec3(up), 0.0f);
+    // Volume and march step
     double step = 1.0;
     int max_steps = 1;
-    if (m.has_volume) {
-        const core::GridGeometry& g = m.density.geom;
+    if (has_volume) {
+        const core::GridGeometry& g = density.geom;
         step = st.step_voxels * g.voxel_size;
         max_steps = int(std::ceil(glm::length(g.extent()) / step)) + 2;
-        f.vol_min = glm::vec4(glm::vec3(g.origin), float(m.kappa));
+        f.vol_min = glm::vec4(glm::vec3(g.origin), float(kappa));
         f.vol_size = glm::vec4(glm::vec3(g.extent()), float(g.voxel_size));
     }
-    const bool lit = m.has_source && st.cloud_lighting && m.has_volume;
-    if (lit) {
-        f.lit_min = glm::vec4(glm::vec3(m.lit_geom.origin), 1.0f);
-        f.lit_size = glm::vec4(glm::vec3(m.lit_geom.extent()), 0.0f);
+    // Lighting grid
+    u.lit = has_source && st.cloud_lighting && has_volume;
+    if (u.lit) {
+        f.lit_min = glm::vec4(glm::vec3(lit_geom.origin), 1.0f);
+        f.lit_size = glm::vec4(glm::vec3(lit_geom.extent()), 0.0f);
     }
     f.march_params = glm::vec4(float(step), float(st.min_transmittance), st.jitter ? 1.0f : 0.0f,
                                float(std::fmod(double(st.frame_index) * 0.6180339887498949, 1.0)));
     f.sizes = glm::vec4(float(width), float(height), float(iw), float(ih));
+    // Ground
     if (st.ground) {
-        if (m.ground_lights_k != st.ground_lights || m.ground_lights_height != st.ground_height)
-            m.rebuild_ground_lights(st.ground_lights, st.ground_height);
-        for (std::size_t i = 0; i < m.ground_lights.size() && i < kMaxGroundLights; ++i)
-            f.ground_light[i] = m.ground_lights[i];
+        if (ground_lights_k != st.ground_lights || ground_lights_height != st.ground_height)
+            rebuild_ground_lights(st.ground_lights, st.ground_height);
+        for (std::size_t i = 0; i < ground_lights.size() && i < kMaxGroundLights; ++i)
+            f.ground_light[i] = ground_lights[i];
         f.ground_params = glm::vec4(float(st.ground_height), float(st.ground_albedo / std::numbers::pi), 1.0f,
-                                    float(m.ground_lights.size()));
+                                    float(ground_lights.size()));
     } else {
         f.ground_params = glm::vec4(float(st.ground_height), 0.0f, 0.0f, 0.0f);
     }
+    // Sky, glow, bolt, tone map
     f.sky_params = glm::vec4(float(st.sky_radiance), float(st.star_radiance), st.sky ? 1.0f : 0.0f, float(st.exposure));
     f.glow_params =
         glm::vec4(float(st.glow_radius), float(st.air_scattering), st.glow ? 1.0f : 0.0f, st.bolt ? 1.0f : 0.0f);
     f.light_colour = glm::vec4(glm::vec3(st.flash_colour), st.dither ? 1.0f : 0.0f);
-    const bool glow_on = st.glow && m.seg_count > 0 && st.air_scattering > 0.0;
-    if (glow_on && m.glow_built_radius != st.glow_radius) m.rebuild_glow_quads(st.glow_radius);
-    f.counts = glm::ivec4(max_steps, int(st.frame_index & 0x7fffffff), glow_on ? m.glow_count : 0, m.seg_count);
-    glNamedBufferSubData(m.frame_ubo, 0, sizeof(FrameBlock), &f);
-    glBindBufferBase(GL_UNIFORM_BUFFER, 0, m.frame_ubo);
+    u.glow = st.glow && seg_count > 0 && st.air_scattering > 0.0;
+    if (u.glow && glow_built_radius != st.glow_radius) rebuild_glow_quads(st.glow_radius);
+    f.counts = glm::ivec4(max_steps, int(st.frame_index & 0x7fffffff), u.glow ? glow_count : 0, seg_count);
+    return u;
+}
 
-    glBindVertexArray(m.vao);
+/// Uploads the frame uniforms (binding 0) and sets the state every pass starts from.
+void Renderer::Impl::bind_frame(const FrameUniforms& u) {
+    glNamedBufferSubData(frame_ubo, 0, sizeof(FrameBlock), &u.block);
+    glBindBufferBase(GL_UNIFORM_BUFFER, 0, frame_ubo);
+    glBindVertexArray(vao);
     glDisable(GL_DEPTH_TEST);
     glDisable(GL_CULL_FACE);
     glDisable(GL_SCISSOR_TEST);
     glDisable(GL_BLEND);
+}
 
-    // ---- timing
-    double pass_ms[kPassCount] = {}, pass_cpu_ms[kPassCount] = {};
-    bool pass_ran[kPassCount] = {};
-    core::Stopwatch pass_clock;
-    double pass_cpu0 = 0.0;
-    auto begin_pass = [&](Pass p) {
-        pass_ran[p] = true;
-        if (st.timing == Timing::Finish) {
-            glFinish();
-            pass_clock.reset();
-            pass_cpu0 = process_cpu_ms();
-        } else if (st.timing == Timing::Queries) {
-            glBeginQuery(GL_TIME_ELAPSED, m.queries[p]);
-        }
-    };
-    auto end_pass = [&](Pass p) {
-        if (st.timing == Timing::Finish) {
-            glFinish();
-            pass_ms[p] = pass_clock.milliseconds();
-            pass_cpu_ms[p] = process_cpu_ms() - pass_cpu0;
-        } else if (st.timing == Timing::Queries) {
-            glEndQuery(GL_TIME_ELAPSED);
-        }
-    };
-
-    // ---- resolve: S toward the camera on the lighting grid
-    GLuint scam = m.zero_tex;
-    if (lit) {
-        const bool must_resolve = m.dir_count > 1 && (m.resolve_dirty || m.resolved_camera != camera.position);
-        if (must_resolve) begin_pass(kResolve);  // includes the CPU work of finding the needed directions
-        const std::vector<DirectionUse>& need =
-            m.needed_for(camera.position, m.lit_geom, m.dir_count, st.direction_min_weight);
+/// Resolve: S toward the camera on the lighting grid (only when S or the camera changed;
+/// with one direction S itself). Binds the density (unit 0) and S toward the camera (unit 1).
+void Renderer::Impl::resolve_pass(const glm::dvec3& camera, const Settings& st, const FrameUniforms& u,
+                                  PassTimer& timer, FrameStats& stats) {
+    GLuint scam = zero_tex;
+    if (u.lit) {
+        const bool must_resolve = dir_count > 1 && (resolve_dirty || resolved_camera != camera);
+        if (must_resolve) timer.begin(kResolve);  // includes the CPU work of finding the needed directions
+        const std::vector<DirectionUse>& need = needed_for(camera, lit_geom, dir_count, st.direction_min_weight);
         stats.directions_used = int(need.size());
         std::vector<int> active;
-        for (const DirectionUse& u : need) {
-            if (m.present[std::size_t(u.index)])
-                active.push_back(u.index);
+        for (const DirectionUse& d : need) {
+            if (present[std::size_t(d.index)])
+                active.push_back(d.index);
             else
-                stats.missing_weight = std::max(stats.missing_weight, u.max_weight);
+                stats.missing_weight = std::max(stats.missing_weight, d.max_weight);
         }
-        if (m.dir_count == 1) {
-            scam = m.src_tex[0];
+        if (dir_count == 1) {
+            scam = src_tex[0];
         } else {
-            scam = m.scam_tex;
+            scam = scam_tex;
             if (must_resolve) {
-                const GLuint p = m.program("resolve", {{GL_COMPUTE_SHADER, "resolve.comp"}});
+                const GLuint p = program("resolve", {{GL_COMPUTE_SHADER, "resolve.comp"}});
                 glUseProgram(p);
-                const detail::FoldTable ft = detail::fold_table(m.dir_count);
+                const detail::FoldTable ft = detail::fold_table(dir_count);
                 GLint idx[27 * 3];
                 GLfloat frac[27 * 3];
                 for (int c = 0; c < 27; ++c)
@@ -744,8 +827,8 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
                     }
                 glUniform3iv(glGetUniformLocation(p, "u_fold_index"), 27, idx);
                 glUniform3fv(glGetUniformLocation(p, "u_fold_fraction"), 27, frac);
-                glUniform3i(glGetUniformLocation(p, "u_dims"), m.lit_geom.dims.x, m.lit_geom.dims.y, m.lit_geom.dims.z);
-                glBindImageTexture(0, m.scam_tex, 0, GL_TRUE, 0, GL_READ_WRITE, GL_R32F);
+                glUniform3i(glGetUniformLocation(p, "u_dims"), lit_geom.dims.x, lit_geom.dims.y, lit_geom.dims.z);
+                glBindImageTexture(0, scam_tex, 0, GL_TRUE, 0, GL_READ_WRITE, GL_R32F);
                 const GLint loc_dirs = glGetUniformLocation(p, "u_dirs"),
                             loc_acc = glGetUniformLocation(p, "u_accumulate");
                 const GLint loc_n = glGetUniformLocation(p, "u_samplers");
@@ -761,125 +844,135 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
                     for (std::size_t k = 0; k < kBatch; ++k) {
                         const bool used = b + k < active.size();
                         if (used) dirs[k] = active[b + k];
-                        glBindTextureUnit(GLuint(k), used ? m.src_tex[std::size_t(active[b + k])] : m.zero_tex);
+                        glBindTextureUnit(GLuint(k), used ? src_tex[std::size_t(active[b + k])] : zero_tex);
                     }
                     glUniform4iv(loc_dirs, 4, dirs);
                     glUniform1i(loc_n, GLint(std::min(kBatch, std::max<std::size_t>(1, active.size() - b))));
                     glUniform1i(loc_acc, b == 0 ? 0 : 1);
                     if (b > 0) glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
-                    glDispatchCompute(GLuint((m.lit_geom.dims.x + 7) / 8), GLuint((m.lit_geom.dims.y + 7) / 8),
-                                      GLuint(m.lit_geom.dims.z));
+                    glDispatchCompute(GLuint((lit_geom.dims.x + 7) / 8), GLuint((lit_geom.dims.y + 7) / 8),
+                                      GLuint(lit_geom.dims.z));
                 }
                 glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
-                end_pass(kResolve);
-                m.resolve_dirty = false;
-                m.resolved_camera = camera.position;
+                timer.end(kResolve);
+                resolve_dirty = false;
+                resolved_camera = camera;
             }
         }
     }
-    glBindTextureUnit(0, m.has_volume ? m.density_tex : m.zero_tex);
+    glBindTextureUnit(0, has_volume ? density_tex : zero_tex);
     glBindTextureUnit(1, scam);
-    m.last_scam = lit ? scam : 0;
+    last_scam = u.lit ? scam : 0;
+}
 
-    // ---- glow: emission buffer at internal resolution
-    if (glow_on) {
-        begin_pass(kGlow);
-        if (m.profile_radius != st.glow_radius || m.profile_sigma != st.air_scattering)
-            m.rebuild_profile(st.glow_radius, st.air_scattering);
-        glBindFramebuffer(GL_FRAMEBUFFER, m.glow_target.fbo);
-        glViewport(0, 0, iw, ih);
+/// Glow: additive quads along the strokes into the emission buffer at internal resolution
+/// (bound to unit 2 for the march).
+void Renderer::Impl::glow_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer, FrameStats& stats) {
+    if (u.glow) {
+        timer.begin(kGlow);
+        if (profile_radius != st.glow_radius || profile_sigma != st.air_scattering)
+            rebuild_profile(st.glow_radius, st.air_scattering);
+        glBindFramebuffer(GL_FRAMEBUFFER, glow_target.fbo);
+        glViewport(0, 0, u.internal_width, u.internal_height);
         const float clear[4] = {0, 0, 0, 0};
-        glClearNamedFramebufferfv(m.glow_target.fbo, GL_COLOR, 0, clear);
+        glClearNamedFramebufferfv(glow_target.fbo, GL_COLOR, 0, clear);
         glEnable(GL_BLEND);
         glBlendEquation(GL_FUNC_ADD);
         glBlendFunc(GL_ONE, GL_ONE);
-        glUseProgram(m.program("glow", {{GL_VERTEX_SHADER, "glow.vert"}, {GL_FRAGMENT_SHADER, "glow.frag"}}));
-        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m.glow_buf.id);
-        glBindTextureUnit(5, m.profile_tex);
-        glDrawArrays(GL_TRIANGLES, 0, 6 * m.glow_count);
+        glUseProgram(program("glow", {{GL_VERTEX_SHADER, "glow.vert"}, {GL_FRAGMENT_SHADER, "glow.frag"}}));
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, glow_buf.id);
+        glBindTextureUnit(5, profile_tex);
+        glDrawArrays(GL_TRIANGLES, 0, 6 * glow_count);
         glDisable(GL_BLEND);
-        end_pass(kGlow);
-        stats.glow_quads = m.glow_count;
+        timer.end(kGlow);
+        stats.glow_quads = glow_count;
     }
-    glBindTextureUnit(2, m.glow_target.tex);
+    glBindTextureUnit(2, glow_target.tex);
+}
 
-    // ---- ray march at internal resolution
-    {
-        begin_pass(kMarch);
-        const std::string defines = Impl::march_defines(st.skip_empty, st.early_exit, lit, glow_on);
-        const GLuint p = m.march_program(st.kernel, defines);
-        glUseProgram(p);
-        if (st.kernel == MarchKernel::Fragment) {
-            glBindFramebuffer(GL_FRAMEBUFFER, m.march_target.fbo);
-            glViewport(0, 0, iw, ih);
-            glDrawArrays(GL_TRIANGLES, 0, 3);
-        } else {
-            glBindImageTexture(0, m.march_target.tex, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
-            glDispatchCompute(GLuint((iw + 7) / 8), GLuint((ih + 7) / 8), 1);
-            glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
-        }
-        end_pass(kMarch);
-    }
-
-    // ---- bolt core at full resolution
-    {
-        const float clear[4] = {0, 0, 0, 0};
-        glClearNamedFramebufferfv(m.core_target.fbo, GL_COLOR, 0, clear);
-        if (st.bolt && m.seg_count > 0) {
-            begin_pass(kBolt);
-            glUseProgram(m.program("bolt_t", {{GL_COMPUTE_SHADER, "bolt_transmittance.comp"}}));
-            glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m.seg_buf.id);
-            glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, m.endpoint_buf.id);
-            glDispatchCompute(GLuint((m.seg_count + 63) / 64), 1, 1);
-            glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-            const GLuint p = m.program("bolt", {{GL_VERTEX_SHADER, "bolt.vert"}, {GL_FRAGMENT_SHADER, "bolt.frag"}});
-            glUseProgram(p);
-            glUniform1f(glGetUniformLocation(p, "u_min_width_px"), float(st.bolt_min_width_px));
-            glBindFramebuffer(GL_FRAMEBUFFER, m.core_target.fbo);
-            glViewport(0, 0, width, height);
-            glEnable(GL_BLEND);
-            glBlendEquation(GL_MAX);  // overlapping caps/joints do not double the core
-            glDrawArrays(GL_TRIANGLES, 0, 6 * m.seg_count);
-            glBlendEquation(GL_FUNC_ADD);
-            glDisable(GL_BLEND);
-            end_pass(kBolt);
-            stats.bolt_segments = m.seg_count;
-        }
-    }
-
-    // ---- composite + tone map into the caller's framebuffer
-    {
-        begin_pass(kComposite);
-        const GLuint p =
-            m.program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}});
-        glUseProgram(p);
-        glUniform1i(glGetUniformLocation(p, "u_hdr_output"), 0);
-        glBindTextureUnit(3, m.march_target.tex);
-        glBindTextureUnit(4, m.core_target.tex);
-        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(caller_fbo));
-        glViewport(0, 0, width, height);
+/// Ray march at internal resolution: in-scattered radiance + attenuated glow, and T.
+void Renderer::Impl::march_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer) {
+    timer.begin(kMarch);
+    const std::string defines = march_defines(st.skip_empty, st.early_exit, u.lit, u.glow);
+    const GLuint p = march_program(st.kernel, defines);
+    glUseProgram(p);
+    if (st.kernel == MarchKernel::Fragment) {
+        glBindFramebuffer(GL_FRAMEBUFFER, march_target.fbo);
+        glViewport(0, 0, u.internal_width, u.internal_height);
         glDrawArrays(GL_TRIANGLES, 0, 3);
-        end_pass(kComposite);
+    } else {
+        glBindImageTexture(0, march_target.tex, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+        glDispatchCompute(GLuint((u.internal_width + 7) / 8), GLuint((u.internal_height + 7) / 8), 1);
+        glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
     }
+    timer.end(kMarch);
+}
 
-    if (st.timing == Timing::Queries) {
-        for (int p = 0; p < kPassCount; ++p)
-            if (pass_ran[p]) {
-                GLuint64 ns = 0;
-                glGetQueryObjectui64v(m.queries[p], GL_QUERY_RESULT, &ns);
-                pass_ms[p] = double(ns) * 1e-6;
-            }
-    }
-    if (st.timing != Timing::Off) glFinish();
-    glUseProgram(0);
-    glBindVertexArray(0);
-    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(caller_fbo));
-    glViewport(caller_viewport[0], caller_viewport[1], caller_viewport[2], caller_viewport[3]);
+/// Bolt: endpoint transmittances, then the HDR core ribbons at full resolution (the core
+/// target is cleared even when no bolt is drawn).
+void Renderer::Impl::bolt_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer, FrameStats& stats) {
+    const float clear[4] = {0, 0, 0, 0};
+    glClearNamedFramebufferfv(core_target.fbo, GL_COLOR, 0, clear);
+    if (!(st.bolt && seg_count > 0)) return;
+    timer.begin(kBolt);
+    glUseProgram(program("bolt_t", {{GL_COMPUTE_SHADER, "bolt_transmittance.comp"}}));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, seg_buf.id);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, endpoint_buf.id);
+    glDispatchCompute(GLuint((seg_count + 63) / 64), 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    const GLuint p = program("bolt", {{GL_VERTEX_SHADER, "bolt.vert"}, {GL_FRAGMENT_SHADER, "bolt.frag"}});
+    glUseProgram(p);
+    glUniform1f(glGetUniformLocation(p, "u_min_width_px"), float(st.bolt_min_width_px));
+    glBindFramebuffer(GL_FRAMEBUFFER, core_target.fbo);
+    glViewport(0, 0, u.width, u.height);
+    glEnable(GL_BLEND);
+    glBlendEquation(GL_MAX);  // overlapping caps/joints do not double the core
+    glDrawArrays(GL_TRIANGLES, 0, 6 * seg_count);
+    glBlendEquation(GL_FUNC_ADD);
+    glDisable(GL_BLEND);
+    timer.end(kBolt);
+    stats.bolt_segments = seg_count;
+}
 
-    stats.wall = {m.pending_upload_ms, pass_ms[kResolve],   pass_ms[kGlow],      pass_ms[kMarch],
-                  pass_ms[kBolt],      pass_ms[kComposite], total.milliseconds()};
-    stats.cpu = {m.pending_upload_cpu_ms, pass_cpu_ms[kResolve],   pass_cpu_ms[kGlow],           pass_cpu_ms[kMarch],
-                 pass_cpu_ms[kBolt],      pass_cpu_ms[kComposite], process_cpu_ms() - total_cpu0};
+/// Composite: upsampled march + background (sky, stars, ground) * T + bolt, tone mapped
+/// into the caller's framebuffer.
+void Renderer::Impl::composite_pass(const FrameUniforms& u, const CallerTarget& caller, PassTimer& timer) {
+    timer.begin(kComposite);
+    const GLuint p =
+        program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}});
+    glUseProgram(p);
+    glUniform1i(glGetUniformLocation(p, "u_hdr_output"), 0);
+    glBindTextureUnit(3, march_target.tex);
+    glBindTextureUnit(4, core_target.tex);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(caller.fbo));
+    glViewport(0, 0, u.width, u.height);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    timer.end(kComposite);
+}
+
+FrameStats Renderer::render(const Camera& camera, const Settings& st, int width, int height) {
+    Impl& m = *impl_;
+    core::Stopwatch total;
+    const double total_cpu0 = process_cpu_ms();
+    validate_frame(camera, st, width, height);
+    const CallerTarget caller = CallerTarget::save();
+
+    const FrameUniforms u = m.prepare_frame(camera, st, width, height);
+    m.bind_frame(u);
+    FrameStats stats;
+    stats.internal_width = u.internal_width;
+    stats.internal_height = u.internal_height;
+    PassTimer timer(st.timing, m.queries);
+    m.resolve_pass(camera.position, st, u, timer, stats);
+    m.glow_pass(st, u, timer, stats);
+    m.march_pass(st, u, timer);
+    m.bolt_pass(st, u, timer, stats);
+    m.composite_pass(u, caller, timer);
+    timer.finish();
+    caller.restore();
+
+    stats.wall = timer.wall_times(m.pending_upload_ms, total.milliseconds());
+    stats.cpu = timer.cpu_times(m.pending_upload_cpu_ms, process_cpu_ms() - total_cpu0);
     m.pending_upload_ms = m.pending_upload_cpu_ms = 0.0;
     return stats;
 }
@@ -887,9 +980,7 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
 std::vector<float> Renderer::read_hdr() const {
     Impl& m = *impl_;
     FULGUR_ASSERT(m.out_w > 0, "read_hdr before render");
-    GLint caller_fbo = 0, caller_viewport[4] = {};
-    glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &caller_fbo);
-    glGetIntegerv(GL_VIEWPORT, caller_viewport);
+    const CallerTarget caller = CallerTarget::save();
     m.hdr_target.ensure(m.out_w, m.out_h);
     const GLuint p =
         m.program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}});
@@ -906,10 +997,7 @@ std::vector<float> Renderer::read_hdr() const {
     std::vector<float> rgba(std::size_t(m.out_w) * std::size_t(m.out_h) * 4);
     glPixelStorei(GL_PACK_ALIGNMENT, 4);
     glGetTextureImage(m.hdr_target.tex, 0, GL_RGBA, GL_FLOAT, GLsizei(rgba.size() * sizeof(float)), rgba.data());
-    glUseProgram(0);
-    glBindVertexArray(0);
-    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(caller_fbo));
-    glViewport(caller_viewport[0], caller_viewport[1], caller_viewport[2], caller_viewport[3]);
+    caller.restore();
     std::vector<float> rgb(std::size_t(m.out_w) * std::size_t(m.out_h) * 3);
     for (int y = 0; y < m.out_h; ++y)
         for (int x = 0; x < m.out_w; ++x)
