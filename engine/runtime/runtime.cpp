@@ -422,4 +422,46 @@ transport::SourceField direct_solve(const scene::Scene& scene, const transport::
     return out;
 }
 
+// =======================================================================================
+// Truth
+
+transport::SourceField Truth::sum(const Components& c) const {
+    transport::SourceField out(single.geom, single.directions);
+    for (std::size_t i = 0; i < out.data.size(); ++i)
+        out.data[i] = (c.single ? single.data[i] : 0.0f) + (c.multiple ? multiple.data[i] : 0.0f);
+    return out;
+}
+
+Truth truth(const scene::Scene& scene, const core::Grid3<float>& density, std::span<const lightning::LitSegment> lit,
+            std::span<const lightning::PointSource> points, const TruthOptions& options) {
+    transport::LightingMedium fine;
+    fine.density = density;
+    fine.optics = scene.medium;
+    core::GridGeometry lighting = density.geom;
+    const int f = scene.lighting_downsample;
+    lighting.voxel_size *= f;
+    lighting.dims = {(density.dims().x + f - 1) / f, (density.dims().y + f - 1) / f, (density.dims().z + f - 1) / f};
+    std::vector<transport::PointSource> pts;
+    for (const lightning::PointSource& p : points) pts.push_back({p.position, p.intensity});
+    std::vector<transport::LineSource> lines;
+    for (const lightning::LitSegment& s : lit) lines.push_back({s.a, s.b, s.intensity});
+    transport::MonteCarloOptions mc;
+    mc.paths = options.paths;
+    mc.batches = options.batches;
+    mc.seed = options.seed;
+    mc.halves = true;
+    mc.tally_weight = options.weight;
+    mc.tally_multiple = options.multiple;
+    if (!options.multiple) mc.max_scatterings = 0;
+    const std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
+    transport::MonteCarloResult r = transport::monte_carlo(fine, pts, lines, lighting, dirs, mc);
+    Truth t;
+    t.single = std::move(r.single);
+    t.multiple = std::move(r.multiple);
+    t.noise = r.noise;
+    t.paths = r.paths;
+    t.seconds = r.seconds;
+    return t;
+}
+
 }  // namespace fulgur::runtime

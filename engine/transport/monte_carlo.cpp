@@ -18,6 +18,9 @@ namespace fulgur::transport {
 namespace detail {
 
 void check_mc_options(const MonteCarloOptions& o) {
+    if (o.halves && o.batches < 4)
+        throw core::Error("monte_carlo.batches", "must be >= 4 for a noise estimate from two halves, got " +
+                                                     std::to_string(o.batches));
     if (o.batches < 2)
         throw core::Error("monte_carlo.batches", "must be >= 2 (standard errors), got " + std::to_string(o.batches));
     if (o.paths < std::uint64_t(o.batches))
@@ -93,63 +96,139 @@ private:
     std::vector<double> majorant_;
 };
 
-/// Voxel tallies of the integral of p(s_m . w) L dw dx (S without albedo / V), split into
-/// order 1 and orders >= 2; layout [cell][m] so one voxel's directions are contiguous.
+/// Where S is tallied: the medium's own grid, or a coarsening of it by an integer factor with
+/// the same origin (the truth of a frame: the full-resolution density, S on the lighting
+/// grid). The coarse box may extend past the medium's (a trailing partial block); the medium
+/// is empty there. What a tally cell holds is the average of S over the cell weighted by
+/// `weight` (MonteCarloOptions::TallyWeight): by volume, or by extinction (cells without
+/// any density fall back to volume).
+struct TallyGrid {
+    core::GridGeometry geom;
+    std::vector<std::uint32_t> of_cell;  ///< medium cell -> tally cell; empty: the same grid
+    std::vector<std::uint8_t> cloud;     ///< tally cell holds some medium density > 0
+    bool extinction = false;             ///< weight by extinction
+    std::vector<double> weight;          ///< per medium cell, when extinction: sigma_t, or 1 off the cloud
+    std::vector<double> inv_norm;        ///< per tally cell: 1 / integral of the weight over the cell
+
+    TallyGrid(const LightingMedium& m, const core::GridGeometry* coarse, MonteCarloOptions::TallyWeight w) {
+        const core::GridGeometry& g = m.density.geom;
+        geom = coarse ? *coarse : g;
+        extinction = w == MonteCarloOptions::TallyWeight::Extinction;
+        cloud.assign(geom.cell_count(), 0);
+        if (coarse) of_cell.resize(g.cell_count());
+        const int f = coarse ? int(std::lround(coarse->voxel_size / g.voxel_size)) : 1;
+        for (int k = 0; k < g.dims.z; ++k)
+            for (int j = 0; j < g.dims.y; ++j)
+                for (int i = 0; i < g.dims.x; ++i) {
+                    const std::size_t c = g.index(i, j, k), t = coarse ? geom.index(i / f, j / f, k / f) : c;
+                    if (coarse) of_cell[c] = std::uint32_t(t);
+                    if (m.density.data[c] > 0.0f) cloud[t] = 1;
+                }
+        const double vc = geom.voxel_size * geom.voxel_size * geom.voxel_size;
+        inv_norm.assign(geom.cell_count(), 1.0 / vc);
+        if (!extinction) return;
+        weight.resize(g.cell_count());
+        std::vector<double> norm(geom.cell_count(), 0.0);
+        const double vf = g.voxel_size * g.voxel_size * g.voxel_size;
+        for (std::size_t c = 0; c < g.cell_count(); ++c) {
+            const std::size_t t = tally_cell(c);
+            weight[c] = cloud[t] ? m.sigma_t(c) : 1.0;
+            norm[t] += weight[c] * vf;
+        }
+        for (std::size_t t = 0; t < norm.size(); ++t)
+            if (cloud[t]) inv_norm[t] = 1.0 / norm[t];
+    }
+    bool same() const noexcept { return of_cell.empty(); }
+    std::size_t tally_cell(std::size_t medium_cell) const noexcept {
+        return same() ? medium_cell : std::size_t(of_cell[medium_cell]);
+    }
+};
+
+/// Voxel tallies of the (weighted) integral of p(s_m . w) L dw dx (S without albedo and
+/// normalization), split into order 1 and orders >= 2; layout [cell][m] so one voxel's
+/// directions are contiguous.
 class GridTally {
 public:
-    GridTally(const LightingMedium& m, std::span<const glm::dvec3> dirs, bool expected_single, bool track_single,
-              bool tally_multiple, double cutoff, double* single, double* multiple)
-        : g_(&m.density.geom),
-          rho_(m.density.data.data()),
-          kappa_(m.optics.extinction),
-          dirs_(dirs),
-          hg_(m.optics.g),
-          M_(dirs.size()),
-          expected_single_(expected_single),
-          track_single_(track_single),
-          tally_multiple_(tally_multiple),
-          cutoff_(cutoff),
-          single_(single),
-          multiple_(multiple),
-          p_(dirs.size()) {}
+    GridTally(const LightingMedium& m, const TallyGrid& tg, std::span<const glm::dvec3> dirs, bool expected_single,
+              bool track_single, bool tally_multiple, double cutoff, double* single, double* multiple)
+        : g_(&m.density.geom), tg_(&tg), rho_(m.density.data.data()), kappa_(m.optics.extinction), dirs_(dirs),
+          hg_(m.optics.g), M_(dirs.size()), expected_single_(expected_single), track_single_(track_single),
+          tally_multiple_(tally_multiple), cutoff_(cutoff), single_(single), multiple_(multiple), p_(dirs.size()) {}
 
+    /// Expected-value estimator of the uncollided light: the ray deposits its expected track
+    /// T_in (1 - e^{-sigma l}) / sigma in every medium voxel it crosses (and its transmitted
+    /// length in the empty parts of a tally box larger than the medium's).
     void uncollided(const glm::dvec3& x, const glm::dvec3& d, double w) {
         if (!expected_single_) return;
         phase(d);
-        DdaWalker wk;
-        if (!wk.start(*g_, x, d, 0.0, kInf)) return;
-        double tau = 0.0;
-        do {
-            const double len = wk.t_next() - wk.t;
-            const double sigma = kappa_ * double(rho_[wk.cell]);
-            const double c = w * std::exp(-tau) * chord_integral(sigma, len);
-            double* a = single_ + std::size_t(wk.cell) * M_;
-            for (std::size_t m = 0; m < M_; ++m) a[m] += c * p_[m];
-            tau += sigma * len;
-            if (tau > cutoff_) break;
-        } while (wk.advance());
+        deposit(single_, x, d, 0.0, kInf, w, true);
     }
 
+    /// Track-length estimator of a sampled flight after k scatterings (t1 = infinity for a
+    /// flight that escaped the medium).
     void flight(const glm::dvec3& x, const glm::dvec3& d, double t0, double t1, double w, int k) {
         if (k == 0 ? !track_single_ : !tally_multiple_) return;
         if (!(t1 > t0)) return;
         phase(d);
         double* base = k == 0 ? single_ : multiple_;
-        DdaWalker wk;
-        if (!wk.start(*g_, x, d, t0, t1)) return;
-        do {
-            const double c = w * (wk.t_next() - wk.t);
-            double* a = base + std::size_t(wk.cell) * M_;
-            for (std::size_t m = 0; m < M_; ++m) a[m] += c * p_[m];
-        } while (wk.advance());
+        if (!tg_->extinction) {  // the track length per tally cell: walk the tally grid
+            walk_tally(base, x, d, t0, t1, w, false);
+            return;
+        }
+        deposit(base, x, d, t0, t1, w, false);
     }
 
 private:
     void phase(const glm::dvec3& d) {
         for (std::size_t m = 0; m < M_; ++m) p_[m] = hg_(glm::dot(dirs_[m], d));
     }
+    void add(double* base, std::size_t tally_cell, double c) {
+        double* a = base + tally_cell * M_;
+        for (std::size_t m = 0; m < M_; ++m) a[m] += c * p_[m];
+    }
+    /// w * (weighted) length on the tally grid over [t0, t1], outside the medium (empty:
+    /// weight 1, and nothing into cloud cells when weighting by extinction).
+    void walk_tally(double* base, const glm::dvec3& x, const glm::dvec3& d, double t0, double t1, double w,
+                    bool empty_only) {
+        DdaWalker wk;
+        if (!wk.start(tg_->geom, x, d, t0, t1)) return;
+        do {
+            if (!(empty_only && tg_->extinction && tg_->cloud[std::size_t(wk.cell)]))
+                add(base, std::size_t(wk.cell), w * (wk.t_next() - wk.t));
+        } while (wk.advance());
+    }
+    /// Deposits along x + t d, t in [t0, t1], w times the integral of the tally weight (times
+    /// the uncollided transmittance from t0 when `attenuate`) into the tally cells: the medium
+    /// part on the medium's grid, the parts of the tally box outside it as empty space.
+    void deposit(double* base, const glm::dvec3& x, const glm::dvec3& d, double t0, double t1, double w,
+                 bool attenuate) {
+        const bool same = tg_->same();
+        double ta = t0, tb = t1;
+        if (!same && !clip_box(x, d, tg_->geom.origin, tg_->geom.upper(), ta, tb)) return;
+        DdaWalker wk;
+        if (!wk.start(*g_, x, d, t0, t1)) {
+            if (!same) walk_tally(base, x, d, ta, tb, w, true);
+            return;
+        }
+        if (!same) walk_tally(base, x, d, ta, wk.t, w, true);
+        double tau = 0.0;
+        do {
+            const double len = wk.t_next() - wk.t;
+            const std::size_t cell = std::size_t(wk.cell);
+            const double sigma = kappa_ * double(rho_[cell]);
+            double c = w * (attenuate ? std::exp(-tau) * chord_integral(sigma, len) : len);
+            if (tg_->extinction) c *= tg_->weight[cell];
+            add(base, tg_->tally_cell(cell), c);
+            if (attenuate) {
+                tau += sigma * len;
+                if (tau > cutoff_) return;
+            }
+        } while (wk.advance());
+        if (!same) walk_tally(base, x, d, wk.t_end, tb, w * std::exp(-tau), true);
+    }
 
     const core::GridGeometry* g_;
+    const TallyGrid* tg_;
     const float* rho_;
     double kappa_;
     std::span<const glm::dvec3> dirs_;
@@ -161,6 +240,47 @@ private:
     double* multiple_;
     std::vector<double> p_;
 };
+
+/// Sums of the batch estimates of the first and the second half of the batches (a noise
+/// estimate that needs no per-voxel variance model: two independent estimates).
+struct HalfSums {
+    std::vector<double> a, b;
+    int na = 0, nb = 0;
+    void init(std::size_t size) {
+        a.assign(size, 0.0);
+        b.assign(size, 0.0);
+    }
+    void add(const std::vector<double>& x, double scale, bool first) {
+        std::vector<double>& h = first ? a : b;
+        (first ? na : nb) += 1;
+        for (std::size_t i = 0; i < h.size(); ++i) h[i] += x[i] * scale;
+    }
+};
+
+/// Relative L2 noise of the mean of all batches over the cloud cells ([cell][m] layout),
+/// from the two half means A, B: ||A - B|| sqrt(na nb) / (na + nb) / ||mean||.
+double half_noise(const HalfSums& s1, const HalfSums* sm, const TallyGrid& tg, std::size_t M, bool use_single) {
+    core::CompensatedSum diff2, ref2;
+    const double ka = 1.0 / std::max(1, s1.na), kb = 1.0 / std::max(1, s1.nb);
+    const double kall = 1.0 / std::max(1, s1.na + s1.nb);
+    for (std::size_t c = 0; c < tg.cloud.size(); ++c) {
+        if (!tg.cloud[c]) continue;
+        for (std::size_t m = 0; m < M; ++m) {
+            const std::size_t i = c * M + m;
+            double a = use_single ? s1.a[i] : 0.0, b = use_single ? s1.b[i] : 0.0;
+            if (sm) {
+                a += sm->a[i];
+                b += sm->b[i];
+            }
+            const double d = a * ka - b * kb, mean = (a + b) * kall;
+            diff2.add(d * d);
+            ref2.add(mean * mean);
+        }
+    }
+    if (!(ref2.value() > 0.0)) return 0.0;
+    const double na = s1.na, nb = s1.nb;
+    return std::sqrt(diff2.value() / ref2.value()) * std::sqrt(na * nb) / (na + nb);
+}
 
 /// Welford accumulation of a field over batches, element-wise, in batch order.
 struct FieldStats {
@@ -199,7 +319,7 @@ struct FieldStats {
 
 template <class Emitter>
 MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::span<const glm::dvec3> directions,
-                          const MonteCarloOptions& o) {
+                          const MonteCarloOptions& o, const core::GridGeometry* tally_grid = nullptr) {
     validate_medium(medium);
     check_mc_options(o);
     if (directions.empty()) throw core::Error("directions", "at least one output direction is needed");
@@ -211,7 +331,8 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
         dirs.push_back(directions[m] / len);
     }
     core::Stopwatch clock;
-    const core::GridGeometry& g = medium.density.geom;
+    const TallyGrid tg(medium, tally_grid, o.tally_weight);
+    const core::GridGeometry& g = tg.geom;
     const std::size_t cells = g.cell_count(), M = dirs.size(), size = cells * M;
     const GridMedium gm(medium, o.macro_cell);
     PathOptions po;
@@ -234,6 +355,11 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
     FieldStats s1, sm;
     s1.init(size);
     if (multiple) sm.init(size);
+    HalfSums h1, hm;
+    if (o.halves) {
+        h1.init(size);
+        if (multiple) hm.init(size);
+    }
     EnergyStats es;
     const double vol = g.voxel_size * g.voxel_size * g.voxel_size;
     for (int b0 = 0; b0 < o.batches; b0 += T) {
@@ -244,16 +370,28 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
             if (multiple) buf.multiple.assign(size, 0.0);
             buf.energy = EnergyBatch{};
             const int b = b0 + int(i);
-            GridTally tally(medium, dirs, expected, !expected, multiple, kCutoff, buf.single.data(),
+            GridTally tally(medium, tg, dirs, expected, !expected, multiple, kCutoff, buf.single.data(),
                             multiple ? buf.multiple.data() : nullptr);
             trace_paths(gm, em, po, o.seed, batch_first_path(o.paths, o.batches, b), batch_paths(o.paths, o.batches, b),
                         tally, buf.energy);
+            if (tg.extinction)  // per-cell normalization (volume: the constant in `scale`)
+                for (std::size_t c = 0; c < cells; ++c)
+                    for (std::size_t m = 0; m < M; ++m) {
+                        const double k = tg.inv_norm[c] * vol;
+                        buf.single[c * M + m] *= k;
+                        if (multiple) buf.multiple[c * M + m] *= k;
+                    }
         });
         for (int i = 0; i < nb; ++i) {
             const std::uint64_t np = batch_paths(o.paths, o.batches, b0 + i);
             const double scale = medium.optics.albedo / (vol * double(np));
             s1.add(bufs[std::size_t(i)].single, scale);
             if (multiple) sm.add(bufs[std::size_t(i)].multiple, scale);
+            if (o.halves) {
+                const bool first = 2 * (b0 + i) < o.batches;
+                h1.add(bufs[std::size_t(i)].single, scale, first);
+                if (multiple) hm.add(bufs[std::size_t(i)].multiple, scale, first);
+            }
             es.add(bufs[std::size_t(i)].energy, np);
         }
     }
@@ -264,6 +402,15 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
     r.multiple_se = SourceField(g, dirs);
     s1.write(r.single, r.single_se);
     if (multiple) sm.write(r.multiple, r.multiple_se);
+    if (o.halves) {
+        r.noise.single = half_noise(h1, nullptr, tg, M, true);
+        if (multiple) {
+            r.noise.multiple = half_noise(hm, nullptr, tg, M, true);
+            r.noise.total = half_noise(h1, &hm, tg, M, true);
+        } else {
+            r.noise.total = r.noise.single;
+        }
+    }
     r.energy = es.tally();
     r.paths = o.paths;
     r.collisions = es.collisions;
@@ -294,6 +441,44 @@ MonteCarloResult monte_carlo(const LightingMedium& medium, const DirectionalSour
     const core::GridGeometry& g = medium.density.geom;
     const detail::BoxSunEmitter em(g.origin, g.upper(), sun.direction / len, sun.irradiance);
     return detail::run_grid(medium, em, directions, options);
+}
+
+MonteCarloResult monte_carlo(const LightingMedium& medium, std::span<const PointSource> points,
+                             std::span<const LineSource> lines, const core::GridGeometry& tally_grid,
+                             std::span<const glm::dvec3> directions, const MonteCarloOptions& options) {
+    const auto finite = [](const glm::dvec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); };
+    const auto check_intensity = [](double v, const std::string& where) {
+        if (!std::isfinite(v) || v < 0.0)
+            throw core::Error(where + ".intensity", "must be finite and >= 0, got " + std::to_string(v));
+    };
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        const std::string where = "points[" + std::to_string(i) + "]";
+        if (!finite(points[i].position)) throw core::Error(where + ".position", "must be finite");
+        check_intensity(points[i].intensity, where);
+    }
+    for (std::size_t i = 0; i < lines.size(); ++i) {
+        const std::string where = "lines[" + std::to_string(i) + "]";
+        if (!finite(lines[i].a) || !finite(lines[i].b)) throw core::Error(where, "end points must be finite");
+        check_intensity(lines[i].intensity, where);
+    }
+    const core::GridGeometry& g = medium.density.geom;
+    core::validate_geometry(tally_grid, "tally_grid");
+    const double ratio = tally_grid.voxel_size / g.voxel_size;
+    const int f = int(std::lround(ratio));
+    const auto ceil_div = [f](int n) { return (n + f - 1) / f; };
+    if (f < 1 || std::fabs(ratio - f) > 1e-9 * ratio || tally_grid.origin != g.origin ||
+        tally_grid.dims != core::Int3{ceil_div(g.dims.x), ceil_div(g.dims.y), ceil_div(g.dims.z)})
+        throw core::Error("tally_grid", "must coarsen the medium's grid by an integer factor (same origin, dims "
+                                        "rounded up), as the lighting grid does");
+    const detail::SourceEmitter em(points, lines);
+    if (em.empty() || !std::isfinite(em.power())) {
+        if (!std::isfinite(em.power())) throw core::Error("sources", "total intensity overflows");
+        MonteCarloResult r;  // no light: S is zero everywhere, with no noise
+        std::vector<glm::dvec3> dirs(directions.begin(), directions.end());
+        r.single = r.multiple = r.single_se = r.multiple_se = SourceField(tally_grid, dirs);
+        return r;
+    }
+    return detail::run_grid(medium, em, directions, options, f == 1 ? nullptr : &tally_grid);
 }
 
 }  // namespace fulgur::transport

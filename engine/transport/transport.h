@@ -106,6 +106,13 @@ struct PointSource {
     double intensity = 1.0;    ///< radiant intensity I, W/sr, finite and >= 0
 };
 
+/// An isotropic line source (a lit stretch of a lightning channel): every metre of the
+/// segment a-b emits `intensity` W/sr (power 4 pi I |b - a|).
+struct LineSource {
+    glm::dvec3 a{0.0}, b{0.0};  ///< metres
+    double intensity = 0.0;     ///< W/sr per metre, finite and >= 0
+};
+
 struct DirectionalSource {
     glm::dvec3 direction{0.0, 0.0, -1.0};  ///< propagation direction (normalized on use)
     double irradiance = 1.0;               ///< E, W/m^2, finite and >= 0
@@ -241,6 +248,15 @@ struct MonteCarloOptions {
     std::uint64_t max_collisions = 100'000'000;
     /// Estimate orders >= 2 (the `multiple` field). false: only order 1 is tallied.
     bool tally_multiple = true;
+    /// Also estimate the noise of the result from two independent halves of the batches
+    /// (MonteCarloResult::noise; needs batches >= 4; two more fields of memory).
+    bool halves = false;
+    /// What a tally cell's S averages over: its Volume (the finite-volume value every solver
+    /// stores), or its Extinction, sigma_t-weighted (the emission sigma_t S a renderer draws
+    /// from the cell, when the tally grid is coarser than the medium; equal to Volume where
+    /// density is uniform in the cell; cells with no density fall back to Volume).
+    enum class TallyWeight { Volume, Extinction };
+    TallyWeight tally_weight = TallyWeight::Volume;
 };
 
 struct MonteCarloResult {
@@ -253,6 +269,13 @@ struct MonteCarloResult {
     std::uint64_t collisions = 0;       ///< real collisions (scattering or absorption events)
     std::uint64_t null_collisions = 0;  ///< rejected tentative collisions of delta tracking
     double seconds = 0.0;
+    /// With MonteCarloOptions::halves: relative L2 noise of single, multiple and their sum
+    /// over the cloud voxels (tally cells holding density > 0) and all directions, from the
+    /// means A, B of the two halves of the batches: ||A - B|| sqrt(na nb) / (na + nb) / ||mean||
+    /// (the standard error of the mean of all batches). 0 otherwise.
+    struct Noise {
+        double single = 0.0, multiple = 0.0, total = 0.0;
+    } noise;
 };
 
 /// Monte Carlo photon tracing in the LightingMedium (delta tracking with macro-cell
@@ -261,6 +284,19 @@ struct MonteCarloResult {
 MonteCarloResult monte_carlo(const LightingMedium& medium, const PointSource& light,
                              std::span<const glm::dvec3> directions, const MonteCarloOptions& options = {});
 MonteCarloResult monte_carlo(const LightingMedium& medium, const DirectionalSource& sun,
+                             std::span<const glm::dvec3> directions, const MonteCarloOptions& options = {});
+
+/// The truth of a set of sources (a frame's lightning channel): Monte Carlo through `medium`
+/// at full resolution (the scene's density grid, not the lighting grid), S tallied as voxel
+/// averages on `tally_grid`, a coarsening of the medium's grid by an integer factor with the
+/// same origin and dims rounded up (the lighting grid; its box may extend past the medium's,
+/// where the medium is empty). Line sources are sampled exactly (uniformly along their
+/// length), not as points. Paths start on a source chosen with probability proportional to
+/// its intensity. Sources of intensity 0 are skipped; none left: all zero. With one point
+/// source and tally_grid equal to the medium's grid this is exactly the single-source
+/// overload (same paths, same numbers).
+MonteCarloResult monte_carlo(const LightingMedium& medium, std::span<const PointSource> points,
+                             std::span<const LineSource> lines, const core::GridGeometry& tally_grid,
                              std::span<const glm::dvec3> directions, const MonteCarloOptions& options = {});
 
 // =======================================================================================

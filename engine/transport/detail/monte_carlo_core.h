@@ -31,6 +31,7 @@
 #include <cmath>
 #include <cstdint>
 #include <numbers>
+#include <span>
 #include <vector>
 
 namespace fulgur::transport::detail {
@@ -112,7 +113,9 @@ void trace_paths(const Medium& med, const Emitter& em, const PathOptions& o, std
         for (;;) {
             double t_hit = 0.0, t_end = 0.0;
             const bool hit = delta_track(med, x, d, rng, t_hit, t_end, e);
-            tally.flight(x, d, 0.0, hit ? t_hit : t_end, w, k);
+            // An escaped flight runs to infinity: the tally clips it to its own grid (which may
+            // extend beyond the medium's box, where the medium is empty).
+            tally.flight(x, d, 0.0, hit ? t_hit : kInf, w, k);
             if (!hit) {
                 e.escaped += w;
                 e.escaped_by_order[order_bucket(k)] += w;
@@ -175,6 +178,43 @@ struct PointEmitter {
         d = uniform_sphere(rng);
     }
     double power() const noexcept { return 4.0 * std::numbers::pi * intensity; }
+};
+
+/// Isotropic point and line sources (a frame's lightning channel): each path starts on one
+/// of them, chosen with probability proportional to its intensity (a line's: per metre times
+/// its length), at a uniform position along a line, and carries the total power
+/// 4 pi sum(I). Random numbers are spent only where there is a choice (several sources, a
+/// line of non-zero length), so one point source traces exactly PointEmitter's paths.
+struct SourceEmitter {
+    std::vector<glm::dvec3> from, to;  // a point has from == to
+    std::vector<double> cumulative;    // running sums of the intensities (W/sr)
+    double total = 0.0;
+    SourceEmitter(std::span<const PointSource> points, std::span<const LineSource> lines) {
+        for (const PointSource& s : points) add(s.position, s.position, s.intensity);
+        for (const LineSource& l : lines) add(l.a, l.b, l.intensity * glm::length(l.b - l.a));
+    }
+    void emit(core::Rng& rng, glm::dvec3& x, glm::dvec3& d) const {
+        std::size_t i = 0;
+        if (from.size() > 1) {
+            const double u = rng.uniform() * total;
+            i = std::size_t(std::upper_bound(cumulative.begin(), cumulative.end(), u) - cumulative.begin());
+            i = std::min(i, from.size() - 1);
+        }
+        x = from[i];
+        if (to[i] != from[i]) x += rng.uniform() * (to[i] - from[i]);
+        d = uniform_sphere(rng);
+    }
+    double power() const noexcept { return 4.0 * std::numbers::pi * total; }
+    bool empty() const noexcept { return from.empty(); }
+
+private:
+    void add(const glm::dvec3& a, const glm::dvec3& b, double intensity) {
+        if (!(intensity > 0.0)) return;
+        from.push_back(a);
+        to.push_back(b);
+        total += intensity;
+        cumulative.push_back(total);
+    }
 };
 
 /// A collimated pencil beam of the given power.
