@@ -63,11 +63,11 @@ void export_nrrd(const app::BakeArgs& a, const scene::Scene& s, const core::Grid
     basis::export_compressed_nrrd(comp, baked, lights, std::size_t(a.export_direction));
     // Raw: solve the listed lights again; the stored components are summed, as in the
     // compressed export.
-    const transport::LightingMedium medium = scene::make_lighting_medium(s, density);
+    const bake::Media media = bake::make_media(s, density);
     std::map<std::uint32_t, transport::SourceField> fields;
     for (const basis::WeightedLight& w : lights) {
         if (fields.count(w.light)) continue;
-        transport::SourceField f = bake::solve_light(s, medium, plan, w.light);
+        transport::SourceField f = bake::solve_light(s, media, plan, w.light);
         if (plan.components == 2) {
             const std::size_t cells = f.cells();
             for (std::size_t i = 0; i < nd * cells; ++i) f.data[i] += f.data[nd * cells + i];

@@ -83,7 +83,7 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
     s.lightning.schedule.strike_rate = 0.0;  // strikes on demand, one per seed
     const core::GridGeometry& g = c.config.density.geom;
     const lightning::Box domain{glm::dvec3(g.origin.x, g.origin.y, s.lightning.bolt.ground_height), g.upper()};
-    const transport::LightingMedium medium = scene::make_lighting_medium(s, c.config.density);
+    const bake::Media media = bake::make_media(s, c.config.density);
 
     const int seeds = ctx.quick ? 4 : 24;
     const int per_flash = ctx.quick ? 8 : 24;  // frame times spread over each flash
@@ -253,7 +253,7 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
             basis_ms.push_back(bench::median(b));
             nsrc.push_back(double(sources.size()));
             core::Stopwatch sw;
-            const transport::SourceField ref = runtime::direct_solve(s, medium, sources);
+            const transport::SourceField ref = runtime::direct_solve(s, media, sources);
             direct_s.push_back(sw.seconds());
         }
         nlohmann::json j = base;

@@ -57,9 +57,9 @@ void StormView::set_lightning(const lightning::LightningParams& p) {
     pipeline_ = std::make_unique<runtime::FramePipeline>(scene_, density_, bases_);
 }
 
-const transport::LightingMedium& StormView::lighting_medium() {
-    if (!medium_) medium_ = scene::make_lighting_medium(scene_, density_);
-    return *medium_;
+const bake::Media& StormView::media() {
+    if (!media_) media_ = bake::make_media(scene_, density_);
+    return *media_;
 }
 
 StormView::DirectSolve StormView::solve_direct(double t, const runtime::Components& components) {
@@ -73,7 +73,7 @@ StormView::DirectSolve StormView::solve_direct(double t, const runtime::Componen
     }
     std::nth_element(ms.begin(), ms.begin() + 2, ms.end());
     out.basis_ms = ms[2];
-    const transport::LightingMedium& m = lighting_medium();
+    const bake::Media& m = media();
     core::Stopwatch sw;
     out.field = runtime::direct_solve(scene_, m, last_->sources, components);
     out.seconds = sw.seconds();
@@ -91,7 +91,7 @@ double StormView::reconstruction_error(const transport::SourceField& reference) 
     check_field(reference, "StormView::reconstruction_error");
     if (!last_ || !last_->lit) return 0.0;
     const runtime::RadianceField& r = last_->radiance;
-    const std::vector<float>& density = lighting_medium().density.data;
+    const std::vector<float>& density = media().lighting.density.data;
     core::CompensatedSum d2, r2;  // ~10^5 terms spanning many orders of magnitude
     for (std::size_t k = 0; k < r.directions.size(); ++k) {
         const std::span<const float> ref = reference.direction(std::size_t(r.directions[k]));

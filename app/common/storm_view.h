@@ -65,8 +65,8 @@ public:
         double basis_ms = 0.0;  ///< the basis frame, all directions, median of 5
     };
     DirectSolve solve_direct(double t, const runtime::Components& components);
-    /// The medium the direct solve runs in (the density averaged onto the lighting grid).
-    const transport::LightingMedium& lighting_medium();
+    /// The media the direct solve runs in (bake::make_media: the lighting grid and the transport grid).
+    const bake::Media& media();
     /// Relative L2 of the last frame's reconstruction against `reference` (a field like
     /// solve_direct's) over cloud voxels (lighting-grid density > 0), every direction the
     /// frame holds (after solve_direct: all). 0 when the last frame is dark.
@@ -91,7 +91,7 @@ private:
     std::unique_ptr<runtime::FramePipeline> pipeline_;
     std::unique_ptr<render::Renderer> renderer_;
     const runtime::Frame* last_ = nullptr;
-    std::optional<transport::LightingMedium> medium_;  // built on first use (solve_direct)
+    std::optional<bake::Media> media_;  // built on first use (solve_direct)
 };
 
 /// Per-field medians of several frames' reports (lit taken from the last one).

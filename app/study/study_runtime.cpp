@@ -36,7 +36,7 @@ struct Parts {
 };
 
 // bake::solve on point sources, both parts (what runtime::direct_solve sums).
-Parts solve_parts(const scene::Scene& s, const transport::LightingMedium& m, std::span<const lightning::PointSource> q,
+Parts solve_parts(const scene::Scene& s, const bake::Media& m, std::span<const lightning::PointSource> q,
                   double* seconds = nullptr) {
     std::vector<transport::PointSource> pts;
     for (const lightning::PointSource& p : q)
@@ -119,7 +119,8 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
     }
     const runtime::BakedBases bases = runtime::BakedBases::load(fgb, bake::scene_key(s, density));
     basis::FgbReader reader(fgb);  // per-light coefficient counts (dropped lights)
-    const transport::LightingMedium medium = scene::make_lighting_medium(s, density);
+    const bake::Media media = bake::make_media(s, density);
+    const transport::LightingMedium& medium = media.lighting;
     const std::size_t nd = bases.directions().size(), cells = medium.density.size();
     const L2 l2{medium.density.data, cells};
     bake::PlanOptions po;
@@ -152,7 +153,7 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         const lightning::LightWeights w = f2.weights;
 
         double direct_s = 0.0;
-        const Parts D = solve_parts(s, medium, sources, &direct_s);
+        const Parts D = solve_parts(s, media, sources, &direct_s);
         auto d_total = [&](std::size_t m, std::size_t i) {
             return double(dir_ptr(D.single, m)[i]) + double(dir_ptr(D.multiple, m)[i]);
         };
@@ -201,7 +202,7 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
             vl.push_back({bases.lights().position(l), w.e[l]});
             if (reader.read_light(l).coefficient_count() == 0) dropped.push_back(vl.back());
         }
-        const Parts V = solve_parts(s, medium, vl);
+        const Parts V = solve_parts(s, media, vl);
         auto v_total = [&](std::size_t m, std::size_t i) {
             return double(dir_ptr(V.single, m)[i]) + double(dir_ptr(V.multiple, m)[i]);
         };
@@ -210,7 +211,7 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         const double basis_err = l2(nd, [&](auto m, auto i) { return double(R[m][i]) - v_total(m, i); }) / nV;
         double drop_share = 0.0;
         if (!dropped.empty()) {
-            const Parts X = solve_parts(s, medium, dropped);
+            const Parts X = solve_parts(s, media, dropped);
             drop_share =
                 l2(nd, [&](auto m,
                            auto i) { return double(dir_ptr(X.single, m)[i]) + double(dir_ptr(X.multiple, m)[i]); }) /
@@ -221,7 +222,7 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         if (decompose) {
             transport::SourceField U(medium.density.geom, bases.directions());
             for (const std::uint32_t l : w.active) {
-                const transport::SourceField b = bake::solve_light(s, medium, plan, l);  // [single dirs][multiple dirs]
+                const transport::SourceField b = bake::solve_light(s, media, plan, l);  // [single dirs][multiple dirs]
                 const std::size_t parts = b.directions.size() / nd;
                 for (std::size_t c = 0; c < parts; ++c)
                     for (std::size_t x = 0; x < nd * cells; ++x)
@@ -302,7 +303,7 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         const std::vector<lightning::LitSegment> lit = p.build(t, std::vector<int>{0}).segments;
         std::vector<lightning::PointSource> fine;
         lightning::append_point_sources(lit, 50.0, fine);
-        const Parts F = solve_parts(s, medium, fine);
+        const Parts F = solve_parts(s, media, fine);
         auto f_total = [&](std::size_t m, std::size_t i) {
             return double(dir_ptr(F.single, m)[i]) + double(dir_ptr(F.multiple, m)[i]);
         };
@@ -323,8 +324,8 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
             std::vector<lightning::PointSource> vl;
             for (const std::uint32_t l : w.active) vl.push_back({grid.position(l), w.e[l]});
             double v_s = 0.0;
-            const Parts V = solve_parts(s, medium, vl, &v_s);
-            const Parts Dh = solve_parts(s, medium, q);
+            const Parts V = solve_parts(s, media, vl, &v_s);
+            const Parts Dh = solve_parts(s, media, q);
             const double e =
                 l2(nd,
                    [&](auto m, auto i) {

@@ -42,7 +42,8 @@ FULGUR_STUDY(truth_probe, "truth-probe", "probe") {
     const std::filesystem::path fgb = bake::default_fgb_path(s);
     bake::bake_if_stale(s, density, fgb);
     const runtime::BakedBases bases = runtime::BakedBases::load(fgb, bake::scene_key(s, density));
-    const transport::LightingMedium medium = scene::make_lighting_medium(s, density);
+    const bake::Media media = bake::make_media(s, density);
+    const transport::LightingMedium& medium = media.lighting;
     const std::size_t cells = medium.density.size();
     g_rho = medium.density.data;
     const std::uint64_t paths = std::getenv("PATHS") ? std::strtoull(std::getenv("PATHS"), nullptr, 10) : 4000000;
@@ -77,13 +78,13 @@ FULGUR_STUDY(truth_probe, "truth-probe", "probe") {
                 rl2(C.single.data, T.single.data, medium.density.data, cells, nd), rl2(C.multiple.data, T.multiple.data, medium.density.data, cells, nd),
                 rl2(P.single.data, C.single.data, medium.density.data, cells, nd), rl2(P.multiple.data, C.multiple.data, medium.density.data, cells, nd));
             runtime::Components cc{true, false};
-            const transport::SourceField DD1 = runtime::direct_solve(s, medium, srcs, cc);
+            const transport::SourceField DD1 = runtime::direct_solve(s, media, srcs, cc);
             std::printf("{\"direct_single_vs_coarse_points_mc\":%.4f}\n", rl2(DD1.data, P.single.data, medium.density.data, cells, nd));
         }
         core::Stopwatch sw;
         runtime::Components c1{true, false}, c2{false, true};
-        const transport::SourceField D1 = runtime::direct_solve(s, medium, srcs, c1);
-        const transport::SourceField D2 = runtime::direct_solve(s, medium, srcs, c2);
+        const transport::SourceField D1 = runtime::direct_solve(s, media, srcs, c1);
+        const transport::SourceField D2 = runtime::direct_solve(s, media, srcs, c2);
         const double dsec = sw.seconds();
         const transport::SourceField Tt = T.sum();
         std::vector<float> Dt(D1.data.size());

@@ -127,6 +127,7 @@ basis::BakeKey scene_key(const scene::Scene& s, const core::Grid3<float>& densit
     d << "effects.single_scattering=" << s.effects.single_scattering << "\n";
     d << "effects.multiple_scattering=" << multiple << "\n";
     d << "transport.single_scattering.tolerance=" << num(s.transport.ss_tolerance) << "\n";
+    if (s.transport.refine != 1) d << "transport.refine=" << s.transport.refine << "\n";
     if (multiple) {
         if (s.transport.solver == scene::TransportSettings::Solver::LatticeBoltzmann) {
             d << "transport.solver=lattice_boltzmann\n";
@@ -159,6 +160,14 @@ basis::BakeKey scene_key(const scene::Scene& s, const core::Grid3<float>& densit
     return basis::BakeKey::from_description(d.str());
 }
 
+Media make_media(const scene::Scene& s, const core::Grid3<float>& density) {
+    Media m;
+    m.lighting = scene::make_lighting_medium(s, density);
+    m.refine = s.transport.refine;
+    m.transport = m.refine == 1 ? m.lighting : scene::make_transport_medium(s, density);
+    return m;
+}
+
 transport::SingleScatteringOptions single_scattering_options(const scene::Scene& s) {
     transport::SingleScatteringOptions o;
     o.tolerance = s.transport.ss_tolerance;
@@ -166,14 +175,18 @@ transport::SingleScatteringOptions single_scattering_options(const scene::Scene&
     // renderer weights S by density and interpolates trilinearly) and feeds no lattice
     // emission (sigma_t = 0): not computed.
     o.skip_far_empty = true;
+    o.skip_block = s.transport.refine;  // every fine voxel of a needed lighting voxel is computed
     return o;
 }
 
-Solution solve(const scene::Scene& s, const transport::LightingMedium& medium,
-               std::span<const transport::PointSource> sources, std::span<const glm::dvec3> directions,
-               const SolveRequest& request) {
+Solution solve(const scene::Scene& s, const Media& media, std::span<const transport::PointSource> sources,
+               std::span<const glm::dvec3> directions, const SolveRequest& request) {
     Solution out;
+    // Everything is solved on the transport grid and averaged onto the lighting grid at the end.
+    const transport::LightingMedium& medium = media.transport;
     const core::GridGeometry& geom = medium.density.geom;
+    FULGUR_ASSERT(media.refine >= 1 && media.lighting.density.geom.voxel_size == geom.voxel_size * media.refine,
+                  "bake::solve: media from make_media");
     const std::vector<glm::dvec3> dirs(directions.begin(), directions.end());
     if (!request.single && !request.multiple) return out;
 
@@ -230,6 +243,10 @@ Solution solve(const scene::Scene& s, const transport::LightingMedium& medium,
         out.multiple = transport::SourceField(geom, dirs);
     }
     if (request.single) out.single = std::move(s1);
+    if (media.refine > 1) {
+        if (!out.single.data.empty()) out.single = transport::block_average(out.single, media.refine);
+        if (!out.multiple.data.empty()) out.multiple = transport::block_average(out.multiple, media.refine);
+    }
     return out;
 }
 
@@ -266,8 +283,8 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
         throw core::Error(s.path.string() + ": effects",
                           "single_scattering and multiple_scattering are both false: nothing to bake");
     Plan p;
-    const transport::LightingMedium medium = scene::make_lighting_medium(s, density);
-    p.lighting = medium.density.geom;
+    const Media media = make_media(s, density);
+    p.lighting = media.lighting.density.geom;
     p.lights = basis::build_virtual_light_grid(density, s.virtual_lights);
     p.directions = s.effective_directions();
     p.output_directions = transport::output_directions(p.directions);
@@ -296,6 +313,14 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
     else
         why.push_back("multiple scattering by Monte Carlo (reference quality, " + std::to_string(s.transport.mc_paths) +
                       " paths per light)");
+    if (s.transport.refine > 1)
+        why.push_back("transport.refine = " + std::to_string(s.transport.refine) + ": single scattering and the " +
+                      (p.multiple ? p.solver : std::string("direct term")) + " run on " +
+                      short_num(media.transport.density.geom.voxel_size) + " m voxels (" +
+                      std::to_string(media.transport.density.dims().x) + " x " +
+                      std::to_string(media.transport.density.dims().y) + " x " +
+                      std::to_string(media.transport.density.dims().z) +
+                      "), averaged onto the lighting grid: thick voxels and the coarse medium cost less accuracy");
     if (!p.single)
         why.push_back(
             "effects.single_scattering = false: the direct term is solved (it feeds the solver) but not stored");
@@ -349,7 +374,7 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
         try {
             for (std::uint32_t l : samples) {
                 core::Stopwatch sw;
-                const transport::SourceField f = solve_light(s, medium, p, l);
+                const transport::SourceField f = solve_light(s, media, p, l);
                 const basis::CompressedLight c = basis::compress_light(l, f, s.compression, haar);
                 block_bytes += double(basis::encode_block(c, p.metadata).bytes.size());  // as the file will hold it
                 seconds += sw.seconds();
@@ -367,14 +392,13 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
     return p;
 }
 
-transport::SourceField solve_light(const scene::Scene& s, const transport::LightingMedium& medium, const Plan& plan,
-                                   std::uint32_t light) {
+transport::SourceField solve_light(const scene::Scene& s, const Media& media, const Plan& plan, std::uint32_t light) {
     FULGUR_ASSERT(light < plan.lights.count(), "solve_light: light index out of range");
     const transport::PointSource src{plan.lights.position(light), 1.0};
     SolveRequest rq;
     rq.single = true;
     rq.multiple = plan.multiple;
-    Solution sol = solve(s, medium, std::span(&src, 1), plan.output_directions, rq);
+    Solution sol = solve(s, media, std::span(&src, 1), plan.output_directions, rq);
     return stored_bases(plan, std::move(sol));
 }
 
@@ -394,7 +418,7 @@ Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan
     rep.threads = plan.threads;
     rep.lights = plan.lights.count();
     rep.raw_bytes = plan.raw_bytes;
-    const transport::LightingMedium medium = scene::make_lighting_medium(s, density);
+    const Media media = make_media(s, density);
     basis::FgbWriter writer(out, plan.metadata);
 
     const std::size_t n = plan.lights.count();
@@ -427,7 +451,7 @@ Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan
                 rq.single = true;
                 rq.multiple = plan.multiple;
                 rq.skip_below = s.drop_below;
-                Solution sol = solve(s, medium, std::span(&src, 1), plan.output_directions, rq);
+                Solution sol = solve(s, media, std::span(&src, 1), plan.output_directions, rq);
                 my_single += sol.seconds_single;
                 my_multiple += sol.seconds_multiple;
                 const double fraction = sol.first_scattered_power / (4.0 * std::numbers::pi);

@@ -58,11 +58,20 @@ struct SolveRequest {
     /// of the sources' emitted power (the bake's drop test; 0 never skips).
     double skip_below = 0.0;
 };
+/// The media a solve runs in: `lighting`, the grid S is stored on, and `transport`, the grid
+/// the solvers run on: the lighting grid refined by the scene's transport.refine (the same
+/// grid when refine is 1), S averaged back onto the lighting grid.
+struct Media {
+    transport::LightingMedium lighting;
+    transport::LightingMedium transport;
+    int refine = 1;
+};
+Media make_media(const scene::Scene& s, const core::Grid3<float>& density);
+
 /// Single-scattering settings the bake and the direct solve share (scene's tolerance,
 /// far-empty voxels skipped; part of the scene key).
 transport::SingleScatteringOptions single_scattering_options(const scene::Scene& s);
-Solution solve(const scene::Scene& s, const transport::LightingMedium& medium,
-               std::span<const transport::PointSource> sources, std::span<const glm::dvec3> directions,
+Solution solve(const scene::Scene& s, const Media& media, std::span<const transport::PointSource> sources, std::span<const glm::dvec3> directions,
                const SolveRequest& request = {});
 
 /// What a bake will do, and why. Printable (to_text) before baking; `--dry-run` prints only this.
@@ -95,7 +104,7 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
 
 /// The uncompressed bases of virtual light l as the bake stores them (FgbMetadata order:
 /// component-major, then direction), before the Haar transform. For NRRD export and tests.
-transport::SourceField solve_light(const scene::Scene& s, const transport::LightingMedium& medium, const Plan& plan,
+transport::SourceField solve_light(const scene::Scene& s, const Media& media, const Plan& plan,
                                    std::uint32_t light);
 
 /// Progress callback: lights done, lights total, seconds elapsed.

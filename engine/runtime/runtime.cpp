@@ -393,10 +393,10 @@ const Frame& FramePipeline::build(double t, std::span<const int> directions, con
 // =======================================================================================
 // Direct solve
 
-transport::SourceField direct_solve(const scene::Scene& scene, const transport::LightingMedium& medium,
+transport::SourceField direct_solve(const scene::Scene& scene, const bake::Media& media,
                                     std::span<const lightning::PointSource> sources, const Components& components) {
     const std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
-    transport::SourceField out(medium.density.geom, dirs);
+    transport::SourceField out(media.lighting.density.geom, dirs);
     bake::SolveRequest rq;
     rq.single = components.single && scene.effects.single_scattering;
     rq.multiple = components.multiple && scene.effects.multiple_scattering;
@@ -412,7 +412,7 @@ transport::SourceField direct_solve(const scene::Scene& scene, const transport::
         pts.push_back({q.position, q.intensity});
     }
     if (pts.empty()) return out;
-    const bake::Solution s = bake::solve(scene, medium, pts, dirs, rq);
+    const bake::Solution s = bake::solve(scene, media, pts, dirs, rq);
     auto add = [&](const transport::SourceField& f) {
         if (f.data.empty()) return;
         for (std::size_t i = 0; i < out.data.size(); ++i) out.data[i] += f.data[i];

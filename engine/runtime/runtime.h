@@ -16,6 +16,7 @@
 // documented, and free of GL / window-system types.
 #pragma once
 
+#include "bake/bake.h"
 #include "basis/basis.h"
 #include "core/core.h"
 #include "lightning/lightning.h"
@@ -178,7 +179,7 @@ private:
 /// as the reconstruction (all directions). Runs bake::solve with the bake's settings (same
 /// single-scattering tolerance, same lattice-Boltzmann settings, no light drop); a part the
 /// scene does not simulate (effects.*_scattering false) is not added, as in the bake.
-transport::SourceField direct_solve(const scene::Scene& scene, const transport::LightingMedium& medium,
+transport::SourceField direct_solve(const scene::Scene& scene, const bake::Media& media,
                                     std::span<const lightning::PointSource> sources, const Components& components = {});
 
 /// Options of truth().

@@ -89,6 +89,7 @@ void parse_transport(JsonObject o, TransportSettings& t) {
         t.lb_max_iterations = int(lb->integer_or("max_iterations", t.lb_max_iterations, 1, 1'000'000));
         lb->finish();
     }
+    t.refine = int(o.integer_or("refine", t.refine, 1, 64));
     if (auto ss = o.optional_object("single_scattering")) {
         // transport::SingleScatteringOptions accepts [1e-9, 0.5].
         t.ss_tolerance = ss->number_or("tolerance", t.ss_tolerance, Range{1e-9, 0.5});
@@ -260,6 +261,9 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
     if (auto l = root.optional_object("lightning")) parse_lightning(*l, s.lightning);
     root.finish();
     if (s.effects.sun && !s.sun) root.fail("effects", "\"sun\": true needs a light of type \"sun\" in \"lights\"");
+    if (s.lighting_downsample % s.transport.refine != 0)
+        root.fail("transport.refine", "must divide lighting.downsample (" + std::to_string(s.lighting_downsample) +
+                                          "), got " + std::to_string(s.transport.refine));
     return s;
 }
 
@@ -281,6 +285,13 @@ core::Grid3<float> make_density(const Scene& s) {
 transport::LightingMedium make_lighting_medium(const Scene& s, const core::Grid3<float>& density) {
     transport::LightingMedium m;
     m.density = core::downsample(density, s.lighting_downsample);
+    m.optics = s.medium;
+    return m;
+}
+
+transport::LightingMedium make_transport_medium(const Scene& s, const core::Grid3<float>& density) {
+    transport::LightingMedium m;
+    m.density = core::downsample(density, s.lighting_downsample / s.transport.refine);
     m.optics = s.medium;
     return m;
 }

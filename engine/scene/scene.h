@@ -52,6 +52,12 @@ struct TransportSettings {
     /// single_scattering.tolerance: accuracy knob of the exact single scattering
     /// (transport::SingleScatteringOptions::tolerance; docs/transport.md tabulates error vs time).
     double ss_tolerance = 1e-3;
+    /// "refine": single scattering and the multiple-scattering solver run on the lighting grid
+    /// refined by this factor (a divisor of lighting.downsample; voxels lighting/refine wide)
+    /// and their S is averaged onto the lighting grid. The lattice's error in optically thick
+    /// voxels and the coarse medium's error fall with the voxel size (docs/lattice-boltzmann.md,
+    /// "Refined transport grid"); the solve costs about refine^4 more. 1: the lighting grid.
+    int refine = 1;
     // lattice_boltzmann
     std::string lb_collision = "corrected";  ///< "corrected" (energy-conserving) or "published"
     std::string lb_absorption = "physical";  ///< "physical" (absorbed energy leaves) or "conservative" (paper)
@@ -116,5 +122,9 @@ core::Grid3<float> make_density(const Scene& s);
 
 /// The transport medium on the lighting grid (density box-filtered by lighting_downsample).
 transport::LightingMedium make_lighting_medium(const Scene& s, const core::Grid3<float>& density);
+
+/// The medium the solvers run in: the lighting grid refined by transport.refine (the
+/// lighting medium itself when refine is 1).
+transport::LightingMedium make_transport_medium(const Scene& s, const core::Grid3<float>& density);
 
 }  // namespace fulgur::scene

@@ -133,22 +133,35 @@ void check_options(const SingleScatteringOptions& o) {
     if (!(o.tolerance >= 1e-9 && o.tolerance <= 0.5))
         throw core::Error("single_scattering.tolerance", "must be in [1e-9, 0.5], got " + std::to_string(o.tolerance));
     if (!(o.optical_depth_cutoff > 0.0)) throw core::Error("single_scattering.optical_depth_cutoff", "must be > 0");
+    if (o.skip_block < 1 || o.skip_block > 64)
+        throw core::Error("single_scattering.skip_block", "must be in [1, 64], got " + std::to_string(o.skip_block));
 }
 
-std::vector<unsigned char> needed_mask(const LightingMedium& m, bool skip_far_empty) {
+std::vector<unsigned char> needed_mask(const LightingMedium& m, const SingleScatteringOptions& o) {
     const core::GridGeometry& g = m.density.geom;
     std::vector<unsigned char> need(g.cell_count(), 1);
-    if (!skip_far_empty) return need;
-    const core::Int3 n = g.dims;
+    if (!o.skip_far_empty) return need;
+    // Occupancy of the blocks, then each voxel looks at its block's 3x3x3 neighbourhood.
+    const int r = o.skip_block;
+    const core::Int3 n = g.dims, nb{(n.x + r - 1) / r, (n.y + r - 1) / r, (n.z + r - 1) / r};
+    std::vector<unsigned char> occupied(nb.volume(), 0);
+    const auto block = [&](int a, int b, int c) {
+        return std::size_t(a) + std::size_t(nb.x) * (std::size_t(b) + std::size_t(nb.y) * std::size_t(c));
+    };
+    for (int k = 0; k < n.z; ++k)
+        for (int j = 0; j < n.y; ++j)
+            for (int i = 0; i < n.x; ++i)
+                if (m.density.at(i, j, k) > 0.0f) occupied[block(i / r, j / r, k / r)] = 1;
     core::parallel_for(0, n.z, [&](std::int64_t kk) {
-        const int k = int(kk);
+        const int k = int(kk), kb = k / r;
         for (int j = 0; j < n.y; ++j)
             for (int i = 0; i < n.x; ++i) {
+                const int ib = i / r, jb = j / r;
                 bool any = false;
-                for (int c = std::max(0, k - 1); c <= std::min(n.z - 1, k + 1) && !any; ++c)
-                    for (int b = std::max(0, j - 1); b <= std::min(n.y - 1, j + 1) && !any; ++b)
-                        for (int a = std::max(0, i - 1); a <= std::min(n.x - 1, i + 1); ++a)
-                            if (m.density.at(a, b, c) > 0.0f) {
+                for (int c = std::max(0, kb - 1); c <= std::min(nb.z - 1, kb + 1) && !any; ++c)
+                    for (int b = std::max(0, jb - 1); b <= std::min(nb.y - 1, jb + 1) && !any; ++b)
+                        for (int a = std::max(0, ib - 1); a <= std::min(nb.x - 1, ib + 1); ++a)
+                            if (occupied[block(a, b, c)]) {
                                 any = true;
                                 break;
                             }
@@ -216,7 +229,7 @@ void single_scattering(const LightingMedium& medium, const PointSource& light, S
     const Plan plan(options.tolerance, medium.optics.g, options.optical_depth_cutoff);
     const double vol = g.voxel_size * g.voxel_size * g.voxel_size;
     const double factor = medium.optics.albedo * light.intensity / vol;
-    const auto need = needed_mask(medium, options.skip_far_empty);
+    const auto need = needed_mask(medium, options);
     for_each_voxel(medium, out, need, medium.optics.g, options.uncollided_fluence, light.intensity / vol,
                    [&](const Box& b, std::size_t cell, PhaseAccumulator& acc) {
                        integrate_box_point(ctx, b, medium.sigma_t(cell), 0, plan, acc);
@@ -253,7 +266,7 @@ void single_scattering(const LightingMedium& medium, const DirectionalSource& su
     // The phase function is constant per voxel for the sun (one direction): only attenuation
     // decides the order.
     const Plan plan(options.tolerance, 0.0, options.optical_depth_cutoff);
-    const auto need = needed_mask(medium, options.skip_far_empty);
+    const auto need = needed_mask(medium, options);
     // p(s_m . d) is the same for every voxel: the accumulator receives one sample per voxel
     // (weight = integral of T over the voxel, direction d) and applies the phase function.
     for_each_voxel(medium, out, need, medium.optics.g, options.uncollided_fluence, sun.irradiance / vol,

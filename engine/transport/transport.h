@@ -94,6 +94,10 @@ struct SourceField {
     std::span<const float> direction(std::size_t m) const noexcept { return {data.data() + m * cells(), cells()}; }
 };
 
+/// Block average of a field onto the grid coarser by `factor` per axis (same origin, dims
+/// rounded up; a trailing partial block averages the voxels it has, as core::downsample).
+SourceField block_average(const SourceField& fine, int factor);
+
 // =======================================================================================
 // Transmittance, single scattering and the Monte Carlo reference
 //
@@ -154,6 +158,11 @@ struct SingleScatteringOptions {
     /// the renderer multiplies S by sigma_t and interpolates S trilinearly, so such voxels
     /// never reach an image. Off by default (the full radiance field is computed).
     bool skip_far_empty = false;
+    /// With skip_far_empty: the emptiness test is made on blocks of this many voxels per axis
+    /// (aligned with the grid's origin): a voxel is skipped when its block and the 26
+    /// neighbouring blocks hold no density. 1: per voxel. A grid that refines a coarser one
+    /// by r uses r, so every voxel of a coarse voxel that is computed is computed. [1, 64].
+    int skip_block = 1;
     /// When set, also receives the voxel-averaged uncollided fluence phi1 (W/m^2) from the
     /// same quadrature (the weights without the phase function; no extra cost). Resized to
     /// the medium's grid. The lattice-Boltzmann solver takes it as first_scattered_fluence.

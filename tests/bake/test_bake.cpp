@@ -167,11 +167,11 @@ TEST_CASE("bake: the file holds the solved bases within the compression error, b
     // exactly on it: the basis is reproduced within the compression error.
     const basis::BakedBasis baked = basis::load_fgb(dir / "a.fgb");
     CHECK(baked.meta == plan.metadata);
-    const transport::LightingMedium medium = scene::make_lighting_medium(s, d);
+    const bake::Media media = bake::make_media(s, d);
     double worst = 0.0;
     for (std::uint32_t l = 0; l < plan.lights.count(); l += 3) {
         const transport::PointSource src{plan.lights.position(l), 1.0};
-        bake::Solution sol = bake::solve(s, medium, std::span(&src, 1), plan.output_directions);
+        bake::Solution sol = bake::solve(s, media, std::span(&src, 1), plan.output_directions);
         for (std::size_t i = 0; i < sol.single.data.size(); ++i) sol.single.data[i] += sol.multiple.data[i];
         for (std::size_t m = 0; m < plan.output_directions.size(); m += 5) {
             const basis::WeightedLight w{l, 1.0};
@@ -193,18 +193,18 @@ TEST_CASE("linearity: the sum of every light's basis equals one solve with all l
     s.transport.lb_tolerance = 1e-7;
     const core::Grid3<float> d = scene::make_density(s);
     const bake::Plan plan = bake::make_plan(s, d, no_estimate());
-    const transport::LightingMedium medium = scene::make_lighting_medium(s, d);
+    const bake::Media media = bake::make_media(s, d);
     std::vector<transport::PointSource> all;
     transport::SourceField sum;
     for (std::uint32_t l = 0; l < plan.lights.count(); ++l) {
         all.push_back({plan.lights.position(l), 1.0});
-        const transport::SourceField f = total(plan, bake::solve_light(s, medium, plan, l));
+        const transport::SourceField f = total(plan, bake::solve_light(s, media, plan, l));
         if (sum.data.empty())
             sum = f;
         else
             for (std::size_t i = 0; i < f.data.size(); ++i) sum.data[i] += f.data[i];
     }
-    bake::Solution one = bake::solve(s, medium, all, plan.output_directions);
+    bake::Solution one = bake::solve(s, media, all, plan.output_directions);
     // Single scattering is a sum of per-source solves in both cases: float rounding only.
     transport::SourceField single_sum;
     {
@@ -212,7 +212,7 @@ TEST_CASE("linearity: the sum of every light's basis equals one solve with all l
             const transport::PointSource src{plan.lights.position(l), 1.0};
             bake::SolveRequest rq;
             rq.multiple = false;
-            const bake::Solution sl = bake::solve(s, medium, std::span(&src, 1), plan.output_directions, rq);
+            const bake::Solution sl = bake::solve(s, media, std::span(&src, 1), plan.output_directions, rq);
             if (single_sum.data.empty())
                 single_sum = sl.single;
             else
@@ -243,14 +243,14 @@ TEST_CASE("dropped lights: counted, empty in the file, and none at drop_below = 
     // A threshold between the weakest and the strongest light's scattered fraction: the
     // median of the lights' fractions.
     const bake::Plan plan = bake::make_plan(s, d, no_estimate());
-    const transport::LightingMedium medium = scene::make_lighting_medium(s, d);
+    const bake::Media media = bake::make_media(s, d);
     std::vector<double> fractions;
     for (std::uint32_t l = 0; l < plan.lights.count(); ++l) {
         const transport::PointSource src{plan.lights.position(l), 1.0};
         bake::SolveRequest rq;
         rq.multiple = false;
         fractions.push_back(
-            bake::solve(s, medium, std::span(&src, 1), plan.output_directions, rq).first_scattered_power /
+            bake::solve(s, media, std::span(&src, 1), plan.output_directions, rq).first_scattered_power /
             (4.0 * std::numbers::pi));
     }
     std::sort(fractions.begin(), fractions.end());

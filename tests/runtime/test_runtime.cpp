@@ -25,7 +25,8 @@ namespace {
 struct Baked {
     scene::Scene scene;
     core::Grid3<float> density;
-    transport::LightingMedium medium;
+    bake::Media media;
+    const transport::LightingMedium& medium() const { return media.lighting; }
     std::filesystem::path fgb;
     basis::BakedBasis file;
     std::unique_ptr<runtime::BakedBases> bases;
@@ -39,7 +40,7 @@ const Baked& baked(const std::string& name) {
         auto b = std::make_unique<Baked>();
         b->scene = scene::load_scene(test::source_dir() / "tests/apps/scenes" / (name + ".json"));
         b->density = scene::make_density(b->scene);
-        b->medium = scene::make_lighting_medium(b->scene, b->density);
+        b->media = bake::make_media(b->scene, b->density);
         b->fgb = test::scratch_dir("runtime_" + name) / (name + ".fgb");
         bake::bake(b->scene, b->density, b->fgb);
         b->file = basis::load_fgb(b->fgb);
@@ -366,8 +367,8 @@ TEST_CASE("accuracy: basis method against the direct solve on a tiny scene") {
     auto cloud_l2 = [&](auto value) {
         double s = 0.0;
         for (std::size_t m = 0; m < 26; ++m)
-            for (std::size_t i = 0; i < b.medium.density.size(); ++i)
-                if (b.medium.density.data[i] > 0.0f) s += value(m, i) * value(m, i);  // cloud voxels only
+            for (std::size_t i = 0; i < b.medium().density.size(); ++i)
+                if (b.medium().density.data[i] > 0.0f) s += value(m, i) * value(m, i);  // cloud voxels only
         return std::sqrt(s);
     };
     for (const std::uint64_t seed : {31u, 32u}) {
@@ -376,12 +377,12 @@ TEST_CASE("accuracy: basis method against the direct solve on a tiny scene") {
         const double t = peak_time(p, seed);
         const runtime::Frame& f = p.build(t, {});
         REQUIRE(f.lit);
-        const transport::SourceField D = runtime::direct_solve(b.scene, b.medium, f.sources);
+        const transport::SourceField D = runtime::direct_solve(b.scene, b.media, f.sources);
         REQUIRE(D.directions.size() == 26);
         std::vector<lightning::PointSource> lights;
         for (const std::uint32_t l : f.weights.active)
             lights.push_back({b.bases->lights().position(l), f.weights.e[l]});
-        const transport::SourceField V = runtime::direct_solve(b.scene, b.medium, lights);
+        const transport::SourceField V = runtime::direct_solve(b.scene, b.media, lights);
         const double nD = cloud_l2([&](std::size_t m, std::size_t i) { return double(D.direction(m)[i]); });
         const double nV = cloud_l2([&](std::size_t m, std::size_t i) { return double(V.direction(m)[i]); });
         const double eRD = cloud_l2([&](std::size_t m, std::size_t i) {
