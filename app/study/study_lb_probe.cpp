@@ -84,6 +84,7 @@ FULGUR_STUDY(lb_probe, "lb-probe", "probe") {
             if (*p >= '1' && *p <= '9') refines.push_back(*p - '0');
     }
     for (auto& [name, pos] : lights) {
+        if (std::getenv("ONLY") && name != std::getenv("ONLY")) continue;
         std::printf("light %s at (%.0f, %.0f, %.0f), density there %.3f\n", name.c_str(), pos.x, pos.y, pos.z,
                     density.sample(pos));
         runtime::TruthOptions to;
@@ -120,6 +121,7 @@ FULGUR_STUDY(lb_probe, "lb-probe", "probe") {
                 src.first_scattered_fluence = &phi1;
                 LbSettings lb;
                 lb.thick_voxels = tv ? LbThickVoxels::Saturate : LbThickVoxels::DiffusionMatched;
+                if (std::getenv("TOL")) lb.tolerance = std::atof(std::getenv("TOL"));
                 const LbResult R = solve_lattice_boltzmann(fm, src, dirs, lb);
                 const double t_all = sw.seconds();
                 const std::vector<float> ms = coarsen(R.source, cg, r), ss = coarsen(S1, cg, r);

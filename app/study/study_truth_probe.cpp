@@ -36,7 +36,7 @@ double ratio(const std::vector<float>& a, const std::vector<float>& b) {
 }  // namespace
 
 FULGUR_STUDY(truth_probe, "truth-probe", "probe") {
-    const std::filesystem::path scene_path = std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes/storm.json";
+    const std::filesystem::path scene_path = std::getenv("SCENE") ? std::filesystem::path(std::getenv("SCENE")) : std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes/storm.json";
     const scene::Scene s = scene::load_scene(scene_path);
     const core::Grid3<float> density = scene::make_density(s);
     const std::filesystem::path fgb = bake::default_fgb_path(s);
@@ -63,7 +63,7 @@ FULGUR_STUDY(truth_probe, "truth-probe", "probe") {
         to.seed = seed;
         if (std::getenv("EXT")) to.weight = transport::MonteCarloOptions::TallyWeight::Extinction;
         const runtime::Truth T = runtime::truth(s, density, segs, {}, to);
-        {
+        if (std::getenv("COARSE")) {
             std::vector<transport::LineSource> lines;
             for (auto& g : segs) lines.push_back({g.a, g.b, g.intensity});
             std::vector<transport::PointSource> pts;

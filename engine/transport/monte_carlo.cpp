@@ -23,6 +23,8 @@ void check_mc_options(const MonteCarloOptions& o) {
                                                      std::to_string(o.batches));
     if (o.batches < 2)
         throw core::Error("monte_carlo.batches", "must be >= 2 (standard errors), got " + std::to_string(o.batches));
+    if (o.groups < 1 || o.groups > 4096)
+        throw core::Error("monte_carlo.groups", "must be in [1, 4096], got " + std::to_string(o.groups));
     if (o.paths < std::uint64_t(o.batches))
         throw core::Error("monte_carlo.paths",
                           "must be >= batches (" + std::to_string(o.batches) + "), got " + std::to_string(o.paths));
@@ -149,11 +151,22 @@ struct TallyGrid {
 /// directions are contiguous.
 class GridTally {
 public:
+    /// `single`, `multiple` (and `fluence`, the expected-value uncollided fluence, optional)
+    /// hold one block per source group: [group][cell][m] ([group][cell]).
     GridTally(const LightingMedium& m, const TallyGrid& tg, std::span<const glm::dvec3> dirs, bool expected_single,
-              bool track_single, bool tally_multiple, double cutoff, double* single, double* multiple)
+              bool track_single, bool tally_multiple, double cutoff, double* single, double* multiple,
+              double* fluence = nullptr)
         : g_(&m.density.geom), tg_(&tg), rho_(m.density.data.data()), kappa_(m.optics.extinction), dirs_(dirs),
           hg_(m.optics.g), M_(dirs.size()), expected_single_(expected_single), track_single_(track_single),
-          tally_multiple_(tally_multiple), cutoff_(cutoff), single_(single), multiple_(multiple), p_(dirs.size()) {}
+          tally_multiple_(tally_multiple), cutoff_(cutoff), single0_(single), multiple0_(multiple), fluence0_(fluence),
+          single_(single), multiple_(multiple), fluence_(fluence), p_(dirs.size()) {}
+
+    void begin_path(std::uint32_t group) {
+        const std::size_t cells = tg_->geom.cell_count();
+        single_ = single0_ + std::size_t(group) * cells * M_;
+        if (multiple0_) multiple_ = multiple0_ + std::size_t(group) * cells * M_;
+        if (fluence0_) fluence_ = fluence0_ + std::size_t(group) * cells;
+    }
 
     /// Expected-value estimator of the uncollided light: the ray deposits its expected track
     /// T_in (1 - e^{-sigma l}) / sigma in every medium voxel it crosses (and its transmitted
@@ -185,6 +198,7 @@ private:
     void add(double* base, std::size_t tally_cell, double c) {
         double* a = base + tally_cell * M_;
         for (std::size_t m = 0; m < M_; ++m) a[m] += c * p_[m];
+        if (fluence_ && base == single_) fluence_[tally_cell] += c;  // uncollided fluence: no phase
     }
     /// w * (weighted) length on the tally grid over [t0, t1], outside the medium (empty:
     /// weight 1, and nothing into cloud cells when weighting by extinction).
@@ -236,8 +250,8 @@ private:
     std::size_t M_;
     bool expected_single_, track_single_, tally_multiple_;
     double cutoff_;
-    double* single_;
-    double* multiple_;
+    double *single0_, *multiple0_, *fluence0_;  // group 0
+    double *single_, *multiple_, *fluence_;     // the current path's group
     std::vector<double> p_;
 };
 
@@ -257,20 +271,29 @@ struct HalfSums {
     }
 };
 
-/// Relative L2 noise of the mean of all batches over the cloud cells ([cell][m] layout),
-/// from the two half means A, B: ||A - B|| sqrt(na nb) / (na + nb) / ||mean||.
-double half_noise(const HalfSums& s1, const HalfSums* sm, const TallyGrid& tg, std::size_t M, bool use_single) {
+/// Relative L2 noise of the mean of all batches over the cloud cells, for the sum over the
+/// groups of s1 (when use_single) and sm, [group][cell][m] layout, from the two half means
+/// A, B: ||A - B|| sqrt(na nb) / (na + nb) / ||mean||.
+double half_noise(const HalfSums& s1, const HalfSums* sm, const TallyGrid& tg, std::size_t M, std::size_t groups,
+                  bool use_single) {
     core::CompensatedSum diff2, ref2;
     const double ka = 1.0 / std::max(1, s1.na), kb = 1.0 / std::max(1, s1.nb);
     const double kall = 1.0 / std::max(1, s1.na + s1.nb);
+    const std::size_t size = tg.cloud.size() * M;
     for (std::size_t c = 0; c < tg.cloud.size(); ++c) {
         if (!tg.cloud[c]) continue;
         for (std::size_t m = 0; m < M; ++m) {
-            const std::size_t i = c * M + m;
-            double a = use_single ? s1.a[i] : 0.0, b = use_single ? s1.b[i] : 0.0;
-            if (sm) {
-                a += sm->a[i];
-                b += sm->b[i];
+            double a = 0.0, b = 0.0;
+            for (std::size_t g = 0; g < groups; ++g) {
+                const std::size_t i = g * size + c * M + m;
+                if (use_single) {
+                    a += s1.a[i];
+                    b += s1.b[i];
+                }
+                if (sm) {
+                    a += sm->a[i];
+                    b += sm->b[i];
+                }
             }
             const double d = a * ka - b * kb, mean = (a + b) * kall;
             diff2.add(d * d);
@@ -305,14 +328,15 @@ struct FieldStats {
             }
         });
     }
-    /// Writes mean and SE into fields laid out [m][cell] from the [cell][m] accumulators.
-    void write(SourceField& mean_out, SourceField& se_out) const {
-        const std::size_t cells = mean_out.cells(), M = mean_out.directions.size();
+    /// Writes mean and SE of group `group` into fields laid out [m][cell] from the
+    /// [group][cell][m] accumulators (se_out may be null).
+    void write(SourceField& mean_out, SourceField* se_out, std::size_t group = 0) const {
+        const std::size_t cells = mean_out.cells(), M = mean_out.directions.size(), off = group * cells * M;
         const double k = n > 1 ? 1.0 / (double(n) * double(n - 1)) : 0.0;
         for (std::size_t c = 0; c < cells; ++c)
             for (std::size_t m = 0; m < M; ++m) {
-                mean_out.data[m * cells + c] = float(mean[c * M + m]);
-                se_out.data[m * cells + c] = float(std::sqrt(std::max(0.0, m2[c * M + m]) * k));
+                mean_out.data[m * cells + c] = float(mean[off + c * M + m]);
+                if (se_out) se_out->data[m * cells + c] = float(std::sqrt(std::max(0.0, m2[off + c * M + m]) * k));
             }
     }
 };
@@ -333,7 +357,9 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
     core::Stopwatch clock;
     const TallyGrid tg(medium, tally_grid, o.tally_weight);
     const core::GridGeometry& g = tg.geom;
-    const std::size_t cells = g.cell_count(), M = dirs.size(), size = cells * M;
+    const std::size_t G = std::size_t(o.groups);
+    const std::size_t cells = g.cell_count(), M = dirs.size(), size = cells * M * G;
+    const bool fluence = o.tally_fluence && o.single_estimator == MonteCarloOptions::SingleEstimator::ExpectedValue;
     const GridMedium gm(medium, o.macro_cell);
     PathOptions po;
     po.albedo = medium.optics.albedo;
@@ -348,13 +374,14 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
 
     const int T = std::max(1, core::thread_count());
     struct Buffer {
-        std::vector<double> single, multiple;
+        std::vector<double> single, multiple, fluence;
         EnergyBatch energy;
     };
     std::vector<Buffer> bufs(static_cast<std::size_t>(T));
-    FieldStats s1, sm;
+    FieldStats s1, sm, fl;
     s1.init(size);
     if (multiple) sm.init(size);
+    if (fluence) fl.init(cells * G);
     HalfSums h1, hm;
     if (o.halves) {
         h1.init(size);
@@ -368,18 +395,22 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
             Buffer& buf = bufs[std::size_t(i)];
             buf.single.assign(size, 0.0);
             if (multiple) buf.multiple.assign(size, 0.0);
+            if (fluence) buf.fluence.assign(cells * G, 0.0);
             buf.energy = EnergyBatch{};
             const int b = b0 + int(i);
             GridTally tally(medium, tg, dirs, expected, !expected, multiple, kCutoff, buf.single.data(),
-                            multiple ? buf.multiple.data() : nullptr);
+                            multiple ? buf.multiple.data() : nullptr, fluence ? buf.fluence.data() : nullptr);
             trace_paths(gm, em, po, o.seed, batch_first_path(o.paths, o.batches, b), batch_paths(o.paths, o.batches, b),
                         tally, buf.energy);
             if (tg.extinction)  // per-cell normalization (volume: the constant in `scale`)
-                for (std::size_t c = 0; c < cells; ++c)
-                    for (std::size_t m = 0; m < M; ++m) {
+                for (std::size_t q = 0; q < G; ++q)
+                    for (std::size_t c = 0; c < cells; ++c) {
                         const double k = tg.inv_norm[c] * vol;
-                        buf.single[c * M + m] *= k;
-                        if (multiple) buf.multiple[c * M + m] *= k;
+                        for (std::size_t m = 0; m < M; ++m) {
+                            buf.single[(q * cells + c) * M + m] *= k;
+                            if (multiple) buf.multiple[(q * cells + c) * M + m] *= k;
+                        }
+                        if (fluence) buf.fluence[q * cells + c] *= k;
                     }
         });
         for (int i = 0; i < nb; ++i) {
@@ -387,6 +418,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
             const double scale = medium.optics.albedo / (vol * double(np));
             s1.add(bufs[std::size_t(i)].single, scale);
             if (multiple) sm.add(bufs[std::size_t(i)].multiple, scale);
+            if (fluence) fl.add(bufs[std::size_t(i)].fluence, 1.0 / (vol * double(np)));
             if (o.halves) {
                 const bool first = 2 * (b0 + i) < o.batches;
                 h1.add(bufs[std::size_t(i)].single, scale, first);
@@ -400,13 +432,46 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
     r.single_se = SourceField(g, dirs);
     r.multiple = SourceField(g, dirs);
     r.multiple_se = SourceField(g, dirs);
-    s1.write(r.single, r.single_se);
-    if (multiple) sm.write(r.multiple, r.multiple_se);
+    const auto write_fluence = [&](core::Grid3<float>& out, std::size_t q) {
+        out = core::Grid3<float>(g, 0.0f);
+        for (std::size_t c = 0; c < cells; ++c) out.data[c] = float(fl.mean[q * cells + c]);
+    };
+    if (G == 1) {
+        s1.write(r.single, &r.single_se);
+        if (multiple) sm.write(r.multiple, &r.multiple_se);
+        if (fluence) write_fluence(r.fluence, 0);
+    } else {  // per group, and their sum (no per-voxel SE for the sum: see MonteCarloResult)
+        r.groups.resize(G);
+        std::vector<double> sum(cells * M, 0.0), sum_m(cells * M, 0.0), sum_f(cells, 0.0);
+        for (std::size_t q = 0; q < G; ++q) {
+            MonteCarloResult::Group& grp = r.groups[q];
+            grp.single = SourceField(g, dirs);
+            grp.multiple = SourceField(g, dirs);
+            s1.write(grp.single, nullptr, q);
+            if (multiple) sm.write(grp.multiple, nullptr, q);
+            if (fluence) write_fluence(grp.fluence, q);
+            for (std::size_t i = 0; i < cells * M; ++i) {
+                sum[i] += s1.mean[q * cells * M + i];
+                if (multiple) sum_m[i] += sm.mean[q * cells * M + i];
+            }
+            if (fluence)
+                for (std::size_t c = 0; c < cells; ++c) sum_f[c] += fl.mean[q * cells + c];
+        }
+        for (std::size_t c = 0; c < cells; ++c)
+            for (std::size_t m = 0; m < M; ++m) {
+                r.single.data[m * cells + c] = float(sum[c * M + m]);
+                r.multiple.data[m * cells + c] = float(sum_m[c * M + m]);
+            }
+        if (fluence) {
+            r.fluence = core::Grid3<float>(g, 0.0f);
+            for (std::size_t c = 0; c < cells; ++c) r.fluence.data[c] = float(sum_f[c]);
+        }
+    }
     if (o.halves) {
-        r.noise.single = half_noise(h1, nullptr, tg, M, true);
+        r.noise.single = half_noise(h1, nullptr, tg, M, G, true);
         if (multiple) {
-            r.noise.multiple = half_noise(hm, nullptr, tg, M, true);
-            r.noise.total = half_noise(h1, &hm, tg, M, true);
+            r.noise.multiple = half_noise(hm, nullptr, tg, M, G, true);
+            r.noise.total = half_noise(h1, &hm, tg, M, G, true);
         } else {
             r.noise.total = r.noise.single;
         }
@@ -459,6 +524,9 @@ MonteCarloResult monte_carlo(const LightingMedium& medium, std::span<const Point
     for (std::size_t i = 0; i < lines.size(); ++i) {
         const std::string where = "lines[" + std::to_string(i) + "]";
         if (!finite(lines[i].a) || !finite(lines[i].b)) throw core::Error(where, "end points must be finite");
+        if (lines[i].group >= std::uint32_t(options.groups))
+            throw core::Error(where + ".group", "must be < monte_carlo.groups (" + std::to_string(options.groups) +
+                                                    "), got " + std::to_string(lines[i].group));
         check_intensity(lines[i].intensity, where);
     }
     const core::GridGeometry& g = medium.density.geom;

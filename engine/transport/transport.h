@@ -115,6 +115,7 @@ struct PointSource {
 struct LineSource {
     glm::dvec3 a{0.0}, b{0.0};  ///< metres
     double intensity = 0.0;     ///< W/sr per metre, finite and >= 0
+    std::uint32_t group = 0;    ///< tally group (MonteCarloOptions::groups), e.g. main channel / branches
 };
 
 struct DirectionalSource {
@@ -266,6 +267,11 @@ struct MonteCarloOptions {
     /// density is uniform in the cell; cells with no density fall back to Volume).
     enum class TallyWeight { Volume, Extinction };
     TallyWeight tally_weight = TallyWeight::Volume;
+    /// Source groups tallied apart (MonteCarloResult::groups; line sources name theirs). 1: one.
+    int groups = 1;
+    /// Also tally the uncollided fluence phi1 (W/m^2, voxel averages; expected-value estimator
+    /// only), what the lattice takes as first_scattered_fluence.
+    bool tally_fluence = false;
 };
 
 struct MonteCarloResult {
@@ -285,6 +291,16 @@ struct MonteCarloResult {
     struct Noise {
         double single = 0.0, multiple = 0.0, total = 0.0;
     } noise;
+    /// With MonteCarloOptions::tally_fluence: the uncollided fluence (sum over the groups).
+    core::Grid3<float> fluence;
+    /// With MonteCarloOptions::groups > 1: each group's part (single, multiple, fluence), in
+    /// group order; `single` and `multiple` above are their sums, and the per-voxel SE fields
+    /// stay zero (paths are shared out between groups at random: use `noise`).
+    struct Group {
+        SourceField single, multiple;
+        core::Grid3<float> fluence;
+    };
+    std::vector<Group> groups;
 };
 
 /// Monte Carlo photon tracing in the LightingMedium (delta tracking with macro-cell

@@ -9,8 +9,10 @@
 //                                                  -- current majorant segment [t0, t1)
 //            bool advance(Walker&) const           -- next segment; false when none is left
 //            double sigma_t(const glm::dvec3& x, const Walker&) const  (<= sigma_bar)
-//   Emitter: void emit(core::Rng&, glm::dvec3& x, glm::dvec3& d) const; double power() const
-//   Tally:   void uncollided(x, d, w)              -- once per emitted path (expected value)
+//   Emitter: std::uint32_t emit(core::Rng&, glm::dvec3& x, glm::dvec3& d) const  -- returns the
+//            path's source group (0 for single sources); double power() const
+//   Tally:   void begin_path(std::uint32_t group)  -- the emitted path's source group
+//            void uncollided(x, d, w)              -- once per emitted path (expected value)
 //            void flight(x, d, t0, t1, w, k)       -- a sampled flight after k scatterings
 //
 // Free flights use delta tracking (Woodcock): tentative collisions at rate sigma_bar of the
@@ -104,7 +106,7 @@ void trace_paths(const Medium& med, const Emitter& em, const PathOptions& o, std
     for (std::uint64_t p = 0; p < n; ++p) {
         core::Rng rng = path_rng(seed, first + p);
         glm::dvec3 x, d;
-        em.emit(rng, x, d);
+        tally.begin_path(em.emit(rng, x, d));
         double w = w0;
         e.emitted += w;
         tally.uncollided(x, d, w);
@@ -173,9 +175,10 @@ inline glm::dvec3 uniform_sphere(core::Rng& rng) noexcept {
 struct PointEmitter {
     glm::dvec3 position{0.0};
     double intensity = 1.0;
-    void emit(core::Rng& rng, glm::dvec3& x, glm::dvec3& d) const {
+    std::uint32_t emit(core::Rng& rng, glm::dvec3& x, glm::dvec3& d) const {
         x = position;
         d = uniform_sphere(rng);
+        return 0;
     }
     double power() const noexcept { return 4.0 * std::numbers::pi * intensity; }
 };
@@ -183,17 +186,19 @@ struct PointEmitter {
 /// Isotropic point and line sources (a frame's lightning channel): each path starts on one
 /// of them, chosen with probability proportional to its intensity (a line's: per metre times
 /// its length), at a uniform position along a line, and carries the total power
-/// 4 pi sum(I). Random numbers are spent only where there is a choice (several sources, a
-/// line of non-zero length), so one point source traces exactly PointEmitter's paths.
+/// 4 pi sum(I); emit() returns the source's group (points: 0). Random numbers are spent only
+/// where there is a choice (several sources, a line of non-zero length), so one point source
+/// traces exactly PointEmitter's paths.
 struct SourceEmitter {
     std::vector<glm::dvec3> from, to;  // a point has from == to
-    std::vector<double> cumulative;    // running sums of the intensities (W/sr)
+    std::vector<std::uint32_t> group;
+    std::vector<double> cumulative;  // running sums of the intensities (W/sr)
     double total = 0.0;
     SourceEmitter(std::span<const PointSource> points, std::span<const LineSource> lines) {
-        for (const PointSource& s : points) add(s.position, s.position, s.intensity);
-        for (const LineSource& l : lines) add(l.a, l.b, l.intensity * glm::length(l.b - l.a));
+        for (const PointSource& s : points) add(s.position, s.position, s.intensity, 0);
+        for (const LineSource& l : lines) add(l.a, l.b, l.intensity * glm::length(l.b - l.a), l.group);
     }
-    void emit(core::Rng& rng, glm::dvec3& x, glm::dvec3& d) const {
+    std::uint32_t emit(core::Rng& rng, glm::dvec3& x, glm::dvec3& d) const {
         std::size_t i = 0;
         if (from.size() > 1) {
             const double u = rng.uniform() * total;
@@ -203,15 +208,17 @@ struct SourceEmitter {
         x = from[i];
         if (to[i] != from[i]) x += rng.uniform() * (to[i] - from[i]);
         d = uniform_sphere(rng);
+        return group[i];
     }
     double power() const noexcept { return 4.0 * std::numbers::pi * total; }
     bool empty() const noexcept { return from.empty(); }
 
 private:
-    void add(const glm::dvec3& a, const glm::dvec3& b, double intensity) {
+    void add(const glm::dvec3& a, const glm::dvec3& b, double intensity, std::uint32_t g) {
         if (!(intensity > 0.0)) return;
         from.push_back(a);
         to.push_back(b);
+        group.push_back(g);
         total += intensity;
         cumulative.push_back(total);
     }
@@ -222,9 +229,10 @@ struct BeamEmitter {
     glm::dvec3 position{0.0};
     glm::dvec3 direction{0.0, 0.0, -1.0};
     double beam_power = 1.0;
-    void emit(core::Rng&, glm::dvec3& x, glm::dvec3& d) const {
+    std::uint32_t emit(core::Rng&, glm::dvec3& x, glm::dvec3& d) const {
         x = position;
         d = direction;
+        return 0;
     }
     double power() const noexcept { return beam_power; }
 };
@@ -245,7 +253,7 @@ struct BoxSunEmitter {
         cumulative[1] = areas[0] + areas[1];
         cumulative[2] = areas[0] + areas[1] + areas[2];
     }
-    void emit(core::Rng& rng, glm::dvec3& x, glm::dvec3& d) const {
+    std::uint32_t emit(core::Rng& rng, glm::dvec3& x, glm::dvec3& d) const {
         const double u = rng.uniform() * cumulative[2];
         const int ax = u < cumulative[0] ? 0 : (u < cumulative[1] ? 1 : 2);
         const int ua = (ax + 1) % 3, va = (ax + 2) % 3;
@@ -253,6 +261,7 @@ struct BoxSunEmitter {
         x[ua] = lo[ua] + (hi[ua] - lo[ua]) * rng.uniform();
         x[va] = lo[va] + (hi[va] - lo[va]) * rng.uniform();
         d = direction;
+        return 0;
     }
     double power() const noexcept { return irradiance * cumulative[2]; }
 };
@@ -334,6 +343,7 @@ struct InfiniteMedium {
 
 /// The tally of energy-only runs.
 struct NullTally {
+    void begin_path(std::uint32_t) noexcept {}
     void uncollided(const glm::dvec3&, const glm::dvec3&, double) noexcept {}
     void flight(const glm::dvec3&, const glm::dvec3&, double, double, double, int) noexcept {}
 };
