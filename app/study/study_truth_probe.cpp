@@ -81,6 +81,33 @@ FULGUR_STUDY(truth_probe, "truth-probe", "probe") {
             const transport::SourceField DD1 = runtime::direct_solve(s, media, srcs, cc);
             std::printf("{\"direct_single_vs_coarse_points_mc\":%.4f}\n", rl2(DD1.data, P.single.data, medium.density.data, cells, nd));
         }
+        if (std::getenv("STRIKE")) {
+            runtime::StrikeSolveOptions so;
+            if (std::getenv("SP")) so.single_paths = std::strtoull(std::getenv("SP"), nullptr, 10);
+            if (std::getenv("MP")) so.multiple_paths = std::strtoull(std::getenv("MP"), nullptr, 10);
+            const std::string mult = std::getenv("STRIKE");
+            so.multiple = mult == "mc" ? runtime::StrikeSolveOptions::Multiple::MonteCarlo
+                          : mult == "none" ? runtime::StrikeSolveOptions::Multiple::None
+                                           : runtime::StrikeSolveOptions::Multiple::Lattice;
+            so.seed = seed;
+            const auto& bolt = p.storm().bolt(k);
+            const runtime::StrikeLight L = runtime::solve_strike(s, density, media, bolt, so);
+            const auto st = lightning::flash_state(p.storm().strike(k).profile, s.lightning.timing, t - p.storm().strike(k).time);
+            std::vector<float> s1(T.single.data.size()), sm(s1.size());
+            for (std::size_t i = 0; i < s1.size(); ++i) {
+                s1[i] = float(st.main_glow * L.single[0].data[i] + st.branch_glow * L.single[1].data[i]);
+                if (L.has_multiple()) sm[i] = float(st.main_glow * L.multiple[0].data[i] + st.branch_glow * L.multiple[1].data[i]);
+            }
+            std::vector<float> tt(s1.size());
+            for (std::size_t i = 0; i < s1.size(); ++i) tt[i] = s1[i] + sm[i];
+            const std::size_t nd = T.single.directions.size();
+            std::printf("{\"strike\":\"%s\",\"s_single\":%.2f,\"s_multiple\":%.2f,\"noise\":[%.4f,%.4f],\"vs_truth\":[%.4f,%.4f,%.4f],\"ratio\":[%.3f,%.3f],\"leader\":%g}\n",
+                mult.c_str(), L.seconds_single, L.seconds_multiple, L.noise.single, L.noise.multiple,
+                rl2(s1, T.single.data, medium.density.data, cells, nd), rl2(sm, T.multiple.data, medium.density.data, cells, nd),
+                rl2(tt, T.sum().data, medium.density.data, cells, nd), ratio(s1, T.single.data), ratio(sm, T.multiple.data), st.leader_glow);
+            std::fflush(stdout);
+            if (std::getenv("NODIRECT")) continue;
+        }
         core::Stopwatch sw;
         runtime::Components c1{true, false}, c2{false, true};
         const transport::SourceField D1 = runtime::direct_solve(s, media, srcs, c1);

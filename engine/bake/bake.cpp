@@ -39,15 +39,6 @@ std::uint64_t hash_bytes(const void* data, std::size_t n) noexcept {
     return basis::hash_description(std::string_view(static_cast<const char*>(data), n));
 }
 
-transport::LbSettings lb_settings(const scene::Scene& s) {
-    transport::LbSettings lb;
-    lb.collision = transport::parse_lb_collision(s.transport.lb_collision);
-    lb.absorption = transport::parse_lb_absorption(s.transport.lb_absorption);
-    lb.thick_voxels = transport::parse_lb_thick_voxels(s.transport.lb_thick_voxels);
-    lb.tolerance = s.transport.lb_tolerance;
-    lb.max_iterations = s.transport.lb_max_iterations;
-    return lb;
-}
 
 void add_into(transport::SourceField& acc, const transport::SourceField& f) {
     if (acc.data.empty()) {
@@ -160,6 +151,16 @@ basis::BakeKey scene_key(const scene::Scene& s, const core::Grid3<float>& densit
     return basis::BakeKey::from_description(d.str());
 }
 
+transport::LbSettings lattice_settings(const scene::Scene& s) {
+    transport::LbSettings lb;
+    lb.collision = transport::parse_lb_collision(s.transport.lb_collision);
+    lb.absorption = transport::parse_lb_absorption(s.transport.lb_absorption);
+    lb.thick_voxels = transport::parse_lb_thick_voxels(s.transport.lb_thick_voxels);
+    lb.tolerance = s.transport.lb_tolerance;
+    lb.max_iterations = s.transport.lb_max_iterations;
+    return lb;
+}
+
 Media make_media(const scene::Scene& s, const core::Grid3<float>& density) {
     Media m;
     m.lighting = scene::make_lighting_medium(s, density);
@@ -222,7 +223,7 @@ Solution solve(const scene::Scene& s, const Media& media, std::span<const transp
             transport::LbSources src;
             src.first_scattered = &s1;
             src.first_scattered_fluence = &phi1;
-            transport::LbResult r = transport::solve_lattice_boltzmann(medium, src, dirs, lb_settings(s));
+            transport::LbResult r = transport::solve_lattice_boltzmann(medium, src, dirs, lattice_settings(s));
             out.multiple = std::move(r.source);
             out.iterations = r.iterations;
             out.converged = r.converged;

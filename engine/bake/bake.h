@@ -68,6 +68,9 @@ struct Media {
 };
 Media make_media(const scene::Scene& s, const core::Grid3<float>& density);
 
+/// The scene's lattice-Boltzmann settings (transport.lattice_boltzmann).
+transport::LbSettings lattice_settings(const scene::Scene& s);
+
 /// Single-scattering settings the bake and the direct solve share (scene's tolerance,
 /// far-empty voxels skipped; part of the scene key).
 transport::SingleScatteringOptions single_scattering_options(const scene::Scene& s);

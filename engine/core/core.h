@@ -157,6 +157,20 @@ int thread_count() noexcept;
 /// Sets the thread count for subsequent parallel regions (n >= 1).
 void set_thread_count(int n);
 
+/// For its lifetime, parallel regions started from the calling thread use n threads (n >= 1)
+/// whatever set_thread_count says: a worker thread keeps its solves to its own share of the
+/// cores. Nests (the innermost wins) and restores the previous value.
+class ScopedThreadCount {
+public:
+    explicit ScopedThreadCount(int n);
+    ~ScopedThreadCount();
+    ScopedThreadCount(const ScopedThreadCount&) = delete;
+    ScopedThreadCount& operator=(const ScopedThreadCount&) = delete;
+
+private:
+    int previous_;
+};
+
 /// Calls fn(i) for i in [begin, end) over thread_count() threads with a static schedule.
 template <class F>
 void parallel_for(std::int64_t begin, std::int64_t end, F&& fn) {

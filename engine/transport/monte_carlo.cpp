@@ -23,6 +23,10 @@ void check_mc_options(const MonteCarloOptions& o) {
                                                      std::to_string(o.batches));
     if (o.batches < 2)
         throw core::Error("monte_carlo.batches", "must be >= 2 (standard errors), got " + std::to_string(o.batches));
+    if (o.uncollided_only && (o.single_estimator != MonteCarloOptions::SingleEstimator::ExpectedValue ||
+                              o.max_scatterings != 0 || o.tally_multiple))
+        throw core::Error("monte_carlo.uncollided_only",
+                          "needs the expected-value estimator, max_scatterings 0 and no multiple tally");
     if (o.groups < 1 || o.groups > 4096)
         throw core::Error("monte_carlo.groups", "must be in [1, 4096], got " + std::to_string(o.groups));
     if (o.paths < std::uint64_t(o.batches))
@@ -225,20 +229,45 @@ private:
             return;
         }
         if (!same) walk_tally(base, x, d, ta, wk.t, w, true);
-        double tau = 0.0;
+        // Consecutive medium voxels of one tally cell are summed before the (per direction)
+        // deposit: a coarse tally cell is crossed in one run of fine voxels.
+        // T = exp(-tau) is carried along: one exponential per voxel with density.
+        double tau = 0.0, T = 1.0, pending = 0.0;
+        std::size_t pending_cell = tg_->tally_cell(std::size_t(wk.cell));
+        bool cut = false;
         do {
             const double len = wk.t_next() - wk.t;
-            const std::size_t cell = std::size_t(wk.cell);
+            const std::size_t cell = std::size_t(wk.cell), t = tg_->tally_cell(cell);
             const double sigma = kappa_ * double(rho_[cell]);
-            double c = w * (attenuate ? std::exp(-tau) * chord_integral(sigma, len) : len);
+            double c;
+            double decay = 1.0;  // exp(-sigma len)
+            if (!attenuate) {
+                c = w * len;
+            } else if (sigma * len < 1e-12) {
+                c = w * T * len * (1.0 - 0.5 * sigma * len);  // chord_integral's small-argument form
+                decay = 1.0 - sigma * len;
+            } else {
+                decay = std::exp(-sigma * len);
+                c = w * T * (1.0 - decay) / sigma;
+            }
             if (tg_->extinction) c *= tg_->weight[cell];
-            add(base, tg_->tally_cell(cell), c);
+            if (t != pending_cell) {
+                add(base, pending_cell, pending);
+                pending = 0.0;
+                pending_cell = t;
+            }
+            pending += c;
             if (attenuate) {
                 tau += sigma * len;
-                if (tau > cutoff_) return;
+                T *= decay;
+                if (tau > cutoff_) {
+                    cut = true;
+                    break;
+                }
             }
         } while (wk.advance());
-        if (!same) walk_tally(base, x, d, wk.t_end, tb, w * std::exp(-tau), true);
+        add(base, pending_cell, pending);
+        if (!same && !cut) walk_tally(base, x, d, wk.t_end, tb, w * T, true);
     }
 
     const core::GridGeometry* g_;
@@ -369,6 +398,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
     po.roulette_threshold = o.roulette_threshold;
     po.max_collisions = o.max_collisions;
     const bool expected = o.single_estimator == MonteCarloOptions::SingleEstimator::ExpectedValue;
+    po.uncollided_only = o.uncollided_only;
     const bool multiple = o.tally_multiple && o.max_scatterings > 0;
     constexpr double kCutoff = 104.0;  // same optical-depth cutoff as single_scattering's default
 

@@ -272,6 +272,9 @@ struct MonteCarloOptions {
     /// Also tally the uncollided fluence phi1 (W/m^2, voxel averages; expected-value estimator
     /// only), what the lattice takes as first_scattered_fluence.
     bool tally_fluence = false;
+    /// Only the expected-value order-1 estimate: paths are not traced past their emission
+    /// (their weight is counted as truncated). Needs max_scatterings 0 and tally_multiple false.
+    bool uncollided_only = false;
 };
 
 struct MonteCarloResult {

@@ -46,6 +46,7 @@ struct PathOptions {
     bool implicit_capture = true;
     double roulette_threshold = 0.05;
     std::uint64_t max_collisions = 100'000'000;
+    bool uncollided_only = false;  ///< stop after the tally's uncollided() (counted as truncated)
 };
 
 /// Raw sums of one batch (watts, summed over the batch's paths).
@@ -110,6 +111,10 @@ void trace_paths(const Medium& med, const Emitter& em, const PathOptions& o, std
         double w = w0;
         e.emitted += w;
         tally.uncollided(x, d, w);
+        if (o.uncollided_only) {
+            e.truncated += w;
+            continue;
+        }
         int k = 0;  // scatterings so far
         std::uint64_t ncol = 0;
         for (;;) {

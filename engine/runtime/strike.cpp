@@ -1,0 +1,227 @@
+// Per-strike light (runtime.h, docs/presets.md): a strike's strokes solved once, as exact
+// line sources, and the worker thread that solves strikes ahead of their frames.
+#include "runtime/runtime.h"
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <condition_variable>
+#include <deque>
+#include <exception>
+#include <map>
+#include <mutex>
+#include <thread>
+#include <utility>
+
+namespace fulgur::runtime {
+
+namespace {
+
+constexpr std::uint32_t kMain = 0, kBranch = 1;
+
+transport::LightingMedium full_resolution(const scene::Scene& s, const core::Grid3<float>& density) {
+    transport::LightingMedium m;
+    m.density = density;
+    m.optics = s.medium;
+    return m;
+}
+
+// The bolt's segments at unit glow, grouped main channel / branches.
+std::vector<transport::LineSource> channel_lines(const lightning::Bolt& bolt) {
+    std::vector<transport::LineSource> lines;
+    lines.reserve(bolt.segments.size());
+    for (const lightning::Segment& g : bolt.segments)
+        if (g.intensity > 0.0) lines.push_back({g.a, g.b, g.intensity, g.depth == 0 ? kMain : kBranch});
+    return lines;
+}
+
+}  // namespace
+
+StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& density, const bake::Media& media,
+                         const lightning::Bolt& bolt, const StrikeSolveOptions& options) {
+    StrikeLight out;
+    const std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
+    const core::GridGeometry& lighting = media.lighting.density.geom;
+    const core::GridGeometry& grid = media.transport.density.geom;  // where the lattice runs
+    const std::vector<transport::LineSource> lines = channel_lines(bolt);
+    const transport::LightingMedium fine = full_resolution(scene, density);
+    const bool lattice = options.multiple == StrikeSolveOptions::Multiple::Lattice && scene.effects.multiple_scattering;
+    const bool mc = options.multiple == StrikeSolveOptions::Multiple::MonteCarlo && scene.effects.multiple_scattering;
+
+    // Single scattering (and the uncollided fluence the lattice needs), per group, on the
+    // transport grid.
+    transport::MonteCarloOptions so;
+    so.paths = options.single_paths;
+    so.seed = options.seed;
+    so.max_scatterings = 0;
+    so.tally_multiple = false;
+    so.uncollided_only = true;
+    so.groups = 2;
+    so.batches = 8;  // each batch costs a pass over the fields: few, the halves need >= 4
+    so.halves = true;
+    so.tally_fluence = lattice;
+    core::Stopwatch sw;
+    transport::MonteCarloResult s1 = transport::monte_carlo(fine, {}, lines, grid, dirs, so);
+    out.seconds_single = sw.seconds();
+    out.noise.single = s1.noise.single;
+    const bool empty = s1.groups.empty();  // no lit segment: all zero
+    for (std::uint32_t q = 0; q < 2; ++q)
+        out.single[q] = transport::block_average(empty ? transport::SourceField(grid, dirs) : s1.groups[q].single,
+                                                 media.refine);
+
+    sw.reset();
+    if (lattice) {
+        for (std::uint32_t q = 0; q < 2; ++q) {
+            const bool dark = empty || std::all_of(s1.groups[q].fluence.data.begin(), s1.groups[q].fluence.data.end(),
+                                                   [](float v) { return v == 0.0f; });
+            if (dark) {  // no branches, or no light reaches the cloud
+                out.multiple[q] = transport::SourceField(lighting, dirs);
+                continue;
+            }
+            transport::LbSources src;
+            src.first_scattered = &s1.groups[q].single;
+            src.first_scattered_fluence = &s1.groups[q].fluence;
+            transport::LbResult r =
+                transport::solve_lattice_boltzmann(media.transport, src, dirs, bake::lattice_settings(scene));
+            out.multiple[q] = transport::block_average(r.source, media.refine);
+        }
+    } else if (mc) {
+        transport::MonteCarloOptions mo;
+        mo.paths = options.multiple_paths;
+        mo.seed = core::hash_seed(options.seed, 2);
+        mo.groups = 2;
+        mo.batches = 8;
+        mo.halves = true;
+        const transport::MonteCarloResult r = transport::monte_carlo(fine, {}, lines, lighting, dirs, mo);
+        for (std::uint32_t q = 0; q < 2; ++q)
+            out.multiple[q] = r.groups.empty() ? transport::SourceField(lighting, dirs) : r.groups[q].multiple;
+        out.noise.multiple = r.noise.multiple;
+    }
+    out.seconds_multiple = sw.seconds();
+    return out;
+}
+
+// =======================================================================================
+// StrikeSolver
+
+struct StrikeSolver::Impl {
+    using Key = std::pair<std::uint64_t, double>;
+    struct Entry {
+        std::shared_ptr<const StrikeLight> light;
+        std::exception_ptr error;
+        bool done = false;
+        core::Stopwatch requested;
+    };
+    const scene::Scene& scene;
+    const core::Grid3<float>& density;
+    const bake::Media& media;
+    StrikeSolveOptions options;
+    int threads = 1;
+
+    mutable std::mutex mu;
+    std::condition_variable cv, done_cv;
+    std::deque<std::pair<Key, lightning::Bolt>> queue;
+    std::map<Key, Entry> entries;
+    std::vector<double> latencies;
+    bool stop = false;
+    std::thread worker;
+
+    Impl(const scene::Scene& s, const core::Grid3<float>& d, const bake::Media& m, const StrikeSolveOptions& o, int t)
+        : scene(s), density(d), media(m), options(o), threads(t) {
+        worker = std::thread([this] { run(); });
+    }
+    ~Impl() {
+        {
+            std::lock_guard<std::mutex> lock(mu);
+            stop = true;
+        }
+        cv.notify_all();
+        worker.join();
+    }
+
+    void run() {
+        const core::ScopedThreadCount share(threads);
+        for (;;) {
+            std::pair<Key, lightning::Bolt> job;
+            {
+                std::unique_lock<std::mutex> lock(mu);
+                cv.wait(lock, [&] { return stop || !queue.empty(); });
+                if (stop) return;
+                job = std::move(queue.front());
+                queue.pop_front();
+            }
+            std::shared_ptr<const StrikeLight> light;
+            std::exception_ptr error;
+            try {
+                StrikeSolveOptions o = options;
+                o.seed = core::hash_seed(options.seed, job.first.first);
+                light = std::make_shared<const StrikeLight>(solve_strike(scene, density, media, job.second, o));
+            } catch (...) {
+                error = std::current_exception();
+            }
+            {
+                std::lock_guard<std::mutex> lock(mu);
+                const auto it = entries.find(job.first);
+                if (it != entries.end()) {  // not forgotten meanwhile
+                    it->second.light = std::move(light);
+                    it->second.error = error;
+                    it->second.done = true;
+                    latencies.push_back(it->second.requested.seconds());
+                }
+            }
+            done_cv.notify_all();
+        }
+    }
+};
+
+StrikeSolver::StrikeSolver(const scene::Scene& scene, const core::Grid3<float>& density, const bake::Media& media,
+                           const StrikeSolveOptions& options, int threads) {
+    FULGUR_ASSERT(threads >= 1, "StrikeSolver: threads must be >= 1");
+    impl_ = std::make_unique<Impl>(scene, density, media, options, threads);
+}
+
+StrikeSolver::~StrikeSolver() = default;
+
+void StrikeSolver::request(std::uint64_t seed, double time, const lightning::Bolt& bolt) {
+    Impl& im = *impl_;
+    {
+        std::lock_guard<std::mutex> lock(im.mu);
+        const Impl::Key key{seed, time};
+        if (im.entries.count(key)) return;
+        im.entries[key];
+        im.queue.emplace_back(key, bolt);
+    }
+    im.cv.notify_one();
+}
+
+std::shared_ptr<const StrikeLight> StrikeSolver::get(std::uint64_t seed, double time) const {
+    std::lock_guard<std::mutex> lock(impl_->mu);
+    const auto it = impl_->entries.find({seed, time});
+    return it == impl_->entries.end() ? nullptr : it->second.light;
+}
+
+std::shared_ptr<const StrikeLight> StrikeSolver::wait(std::uint64_t seed, double time) {
+    Impl& im = *impl_;
+    std::unique_lock<std::mutex> lock(im.mu);
+    const auto it = im.entries.find({seed, time});
+    FULGUR_ASSERT(it != im.entries.end(), "StrikeSolver::wait: the strike was not requested");
+    im.done_cv.wait(lock, [&] { return it->second.done; });
+    if (it->second.error) std::rethrow_exception(it->second.error);
+    return it->second.light;
+}
+
+void StrikeSolver::forget_before(double time) {
+    std::lock_guard<std::mutex> lock(impl_->mu);
+    for (auto it = impl_->entries.begin(); it != impl_->entries.end();)
+        if (it->first.second < time && it->second.done)
+            it = impl_->entries.erase(it);
+        else
+            ++it;
+}
+
+std::vector<double> StrikeSolver::latencies() const {
+    std::lock_guard<std::mutex> lock(impl_->mu);
+    return impl_->latencies;
+}
+
+}  // namespace fulgur::runtime
