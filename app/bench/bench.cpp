@@ -1,5 +1,7 @@
 #include "bench/bench.h"
 
+#include "common/cli.h"
+
 #include "core/core.h"
 
 #include <algorithm>
@@ -75,31 +77,29 @@ double measure_bandwidth(int threads) {
 }  // namespace fulgur::bench
 
 int main(int argc, char** argv) {
+    using namespace fulgur;
     using namespace fulgur::bench;
     Context ctx;
     std::vector<std::string> names;
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        if (a == "--help" || a == "-h") {
-            std::printf(
-                "usage: fulgur-bench [--quick] [NAME...]\n"
-                "Runs the named benchmarks (all if none), printing one JSON object per line.\n\n");
-            for (const auto& [n, e] : registry()) std::printf("  %-10s %s\n", n.c_str(), e.help.c_str());
+    std::string listing = "Runs the named benchmarks (all if none), printing one JSON object per line.\n";
+    for (const auto& [n, e] : registry()) {
+        char line[256];
+        std::snprintf(line, sizeof line, "\n  %-10s %s", n.c_str(), e.help.c_str());
+        listing += line;
+    }
+    app::CommandLine cli("fulgur-bench", listing);
+    cli.app().add_flag("--quick", ctx.quick, "smaller problems and fewer repeats (smoke runs)");
+    cli.app().add_option("NAME", names, "benchmarks to run (all if none)");
+    try {
+        if (!cli.parse(std::vector<std::string>(argv + 1, argv + argc))) {
+            std::fputs(cli.help().c_str(), stdout);
             return 0;
         }
-        if (a == "--quick") {
-            ctx.quick = true;
-            continue;
-        }
-        if (!a.empty() && a[0] == '-') {
-            std::fprintf(stderr, "fulgur-bench: unknown option '%s' (try --help)\n", a.c_str());
-            return 2;
-        }
-        if (!registry().count(a)) {
-            std::fprintf(stderr, "fulgur-bench: unknown benchmark '%s' (try --help)\n", a.c_str());
-            return 2;
-        }
-        names.push_back(a);
+        for (const std::string& n : names)
+            if (!registry().count(n)) throw core::Error("fulgur-bench", "unknown benchmark '" + n + "' (see --help)");
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "%s\n", e.what());
+        return app::kExitUsage;
     }
     if (names.empty())
         for (const auto& [n, e] : registry()) names.push_back(n);
@@ -107,7 +107,7 @@ int main(int argc, char** argv) {
         for (const auto& n : names) registry()[n].fn(ctx);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur-bench: %s\n", e.what());
-        return 1;
+        return app::kExitFailure;
     }
     return 0;
 }

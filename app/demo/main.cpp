@@ -3,7 +3,8 @@
 #ifdef FULGUR_HAVE_RUNTIME
 #include "common/storm_view.h"
 #endif
-#include "common/args.h"
+#include "common/cli.h"
+#include "common/demo_args.h"
 #include "core/core.h"
 #include "demo/shell.h"
 #include "platform/platform.h"
@@ -27,23 +28,6 @@
 using namespace fulgur;
 
 namespace {
-
-const char* kUsage =
-    "usage: fulgur [SCENE.json] [--headless] [--frames N] [--size WxH] [--synthetic] [--screenshot-after N]\n"
-    "              [--screenshot-at-peak] [--solve-direct] [--seed S] [--time-scale X] [--no-dither]\n"
-    "Interactive storm demo (default scene: content/scenes/storm.json). Bakes the scene first\n"
-    "when no up-to-date .fgb exists. Without a display (or with --headless) it renders N\n"
-    "(default 8) frames headless to out/fulgur_NNN.png.\n"
-    "--synthetic shows the renderer's synthetic storm (no bake, no run time: a procedural cloud\n"
-    "lit by a precomputed bolt). --screenshot-after N writes out/screenshot_000.png after N\n"
-    "frames and quits (for documentation images); --no-dither turns the 8-bit dither off\n"
-    "(smaller PNGs). --seed S: the first strike's seed (default: the scene's). --time-scale X:\n"
-    "storm time per wall-clock second (default 0.25: a flash decays in ~12 ms, slowed down so a\n"
-    "software-rendered frame rate shows it). --screenshot-at-peak: hold the first strike 2 ms after\n"
-    "its return stroke, write out/screenshot_000.png after a few frames and quit. --solve-direct:\n"
-    "press \"Solve this frame directly\" on the second frame (with --screenshot-at-peak: the\n"
-    "screenshot shows the direct solve and its figures).\n"
-    "Mouse: left drag orbits, wheel zooms. Keys: Space strike now, P screenshot, Esc quit.\n";
 
 // Writes frame i of a headless sequence to out/fulgur_NNN.png; returns the name.
 std::string write_sequence_frame(platform::Context& ctx, int i) {
@@ -127,66 +111,25 @@ bool g_dither = true;
 }  // namespace
 
 int main(int argc, char** argv) {
-    std::filesystem::path scene_path = "content/scenes/storm.json";
-    bool force_headless = false, synthetic = false;
-    int screenshot_after = 0;
-    int frames = 8, W = 1280, H = 720;
-    std::optional<std::uint64_t> seed_arg;
-    double time_scale = 0.25;
-    bool at_peak = false, solve_direct_at_start = false;
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        if (a == "--help" || a == "-h") {
-            std::fputs(kUsage, stdout);
-            return 0;
-        } else if (a == "--no-dither") {
-            g_dither = false;
-        } else if (a == "--synthetic") {
-            synthetic = true;
-        } else if (a == "--screenshot-after" && i + 1 < argc) {
-            screenshot_after = std::atoi(argv[++i]);
-            if (screenshot_after < 1) {
-                std::fprintf(stderr, "fulgur: --screenshot-after must be >= 1\n");
-                return 2;
-            }
-        } else if (a == "--seed" && i + 1 < argc) {
-            try {
-                seed_arg = app::parse_number<std::uint64_t>(argv[++i], "fulgur", "--seed");
-            } catch (const std::exception& e) {
-                std::fprintf(stderr, "%s\n", e.what());
-                return 2;
-            }
-        } else if (a == "--time-scale" && i + 1 < argc) {
-            time_scale = std::atof(argv[++i]);
-            if (!(time_scale >= 0.001 && time_scale <= 10.0)) {
-                std::fprintf(stderr, "fulgur: --time-scale must be in 0.001..10\n");
-                return 2;
-            }
-        } else if (a == "--screenshot-at-peak") {
-            at_peak = true;
-            screenshot_after = 4;  // a few frames for the panel to lay itself out
-        } else if (a == "--solve-direct") {
-            solve_direct_at_start = true;
-        } else if (a == "--headless") {
-            force_headless = true;
-        } else if (a == "--frames" && i + 1 < argc) {
-            frames = std::atoi(argv[++i]);
-            if (frames < 1 || frames > 10000) {
-                std::fprintf(stderr, "fulgur: --frames must be 1..10000\n");
-                return 2;
-            }
-        } else if (a == "--size" && i + 1 < argc) {
-            if (std::sscanf(argv[++i], "%dx%d", &W, &H) != 2 || W < 16 || H < 16 || W > 8192 || H > 8192) {
-                std::fprintf(stderr, "fulgur: --size must be WxH (16..8192)\n");
-                return 2;
-            }
-        } else if (!a.empty() && a[0] == '-') {
-            std::fprintf(stderr, "fulgur: unknown option '%s' (see --help)\n", a.c_str());
-            return 2;
-        } else {
-            scene_path = a;
-        }
+    app::DemoArgs args;
+    try {
+        args = app::parse_demo_args(std::vector<std::string>(argv + 1, argv + argc));
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "%s\n", e.what());
+        return app::kExitUsage;
     }
+    if (args.help) {
+        std::fputs(app::demo_usage().c_str(), stdout);
+        return 0;
+    }
+    g_dither = args.dither;
+    const std::filesystem::path scene_path = args.scene;
+    const bool force_headless = args.headless;
+    bool synthetic = args.synthetic;
+    const int screenshot_after = args.screenshot_after, frames = args.frames, W = args.width, H = args.height;
+    const std::optional<std::uint64_t> seed_arg = args.seed;
+    const double time_scale = args.time_scale;
+    const bool at_peak = args.screenshot_at_peak, solve_direct_at_start = args.solve_direct;
 #ifndef FULGUR_HAVE_RUNTIME
     if (!synthetic) {
         // The baked-storm path needs engine/bake and engine/runtime, which are not built yet
@@ -207,7 +150,7 @@ int main(int argc, char** argv) {
             return synthetic_demo(W, H, screenshot_after);
         } catch (const std::exception& e) {
             std::fprintf(stderr, "fulgur: %s\n", e.what());
-            return 1;
+            return app::kExitFailure;
         }
     }
 #ifndef FULGUR_HAVE_RUNTIME
@@ -406,7 +349,7 @@ int main(int argc, char** argv) {
         }
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur: %s\n", e.what());
-        return 1;
+        return app::kExitFailure;
     }
     return 0;
 #endif

@@ -1,4 +1,5 @@
 // fulgur-shot: one frame of a scene's storm, headless (OSMesa), to PNG; timings as JSON.
+#include "common/cli.h"
 #include "common/image_compare.h"
 #include "common/shot_args.h"
 #include "common/storm_view.h"
@@ -88,7 +89,7 @@ int main(int argc, char** argv) {
         a = app::parse_shot_args(std::vector<std::string>(argv + 1, argv + argc));
     } catch (const std::exception& e) {
         std::fprintf(stderr, "%s\n", e.what());
-        return 2;
+        return app::kExitUsage;
     }
     if (a.help) {
         std::fputs(app::shot_usage().c_str(), stdout);
@@ -126,7 +127,7 @@ int main(int argc, char** argv) {
         if (a.reference) render_reference(view, ctx.get(), cam, t, opt, a, px);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur-shot: %s\n", e.what());
-        return 1;
+        return app::kExitFailure;
     }
     return 0;
 }

@@ -1,5 +1,7 @@
 #include "study/study.h"
 
+#include "common/cli.h"
+
 #include "core/core.h"
 
 #include <algorithm>
@@ -234,40 +236,32 @@ void write_svg_plot(const std::filesystem::path& path, const std::vector<Series>
 }  // namespace fulgur::study
 
 int main(int argc, char** argv) {
+    using namespace fulgur;
     using namespace fulgur::study;
     Context ctx;
     std::vector<std::string> names;
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        if (a == "--help" || a == "-h") {
-            std::printf(
-                "usage: fulgur-study [--quick] [-o DIR] NAME...\n"
-                "Runs the named studies (all if none), writing CSV and SVG files into DIR\n"
-                "(default ./study-output) and one JSON summary line per study on stdout.\n\n");
-            for (const auto& [n, e] : registry()) std::printf("  %-16s %s\n", n.c_str(), e.help.c_str());
+    std::string listing =
+        "Runs the named studies (all if none), writing CSV and SVG files into DIR\n"
+        "(default ./study-output) and one JSON summary line per study on stdout.\n";
+    for (const auto& [n, e] : registry()) {
+        char line[256];
+        std::snprintf(line, sizeof line, "\n  %-16s %s", n.c_str(), e.help.c_str());
+        listing += line;
+    }
+    app::CommandLine cli("fulgur-study", listing);
+    cli.app().add_flag("--quick", ctx.quick, "a reduced version of each study (smoke runs)");
+    cli.app().add_option("-o,--output", ctx.output_dir, "output directory (default ./study-output)")->type_name("DIR");
+    cli.app().add_option("NAME", names, "studies to run (all if none)");
+    try {
+        if (!cli.parse(std::vector<std::string>(argv + 1, argv + argc))) {
+            std::fputs(cli.help().c_str(), stdout);
             return 0;
         }
-        if (a == "--quick") {
-            ctx.quick = true;
-            continue;
-        }
-        if (a == "-o" || a == "--output") {
-            if (i + 1 >= argc) {
-                std::fprintf(stderr, "fulgur-study: %s needs a directory\n", a.c_str());
-                return 2;
-            }
-            ctx.output_dir = argv[++i];
-            continue;
-        }
-        if (!a.empty() && a[0] == '-') {
-            std::fprintf(stderr, "fulgur-study: unknown option '%s' (try --help)\n", a.c_str());
-            return 2;
-        }
-        if (!registry().count(a)) {
-            std::fprintf(stderr, "fulgur-study: unknown study '%s' (try --help)\n", a.c_str());
-            return 2;
-        }
-        names.push_back(a);
+        for (const std::string& n : names)
+            if (!registry().count(n)) throw core::Error("fulgur-study", "unknown study '" + n + "' (see --help)");
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "%s\n", e.what());
+        return app::kExitUsage;
     }
     if (names.empty())
         for (const auto& [n, e] : registry()) names.push_back(n);
@@ -275,7 +269,7 @@ int main(int argc, char** argv) {
         for (const auto& n : names) registry()[n].fn(ctx);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur-study: %s\n", e.what());
-        return 1;
+        return app::kExitFailure;
     }
     return 0;
 }
