@@ -1,31 +1,13 @@
 #include "bench/bench.h"
 
-#include "common/cli.h"
-
 #include "core/core.h"
 
 #include <algorithm>
 #include <cstdio>
 #include <iostream>
-#include <map>
 #include <memory>
 
 namespace fulgur::bench {
-
-namespace {
-struct Entry {
-    std::string help;
-    BenchFn fn;
-};
-std::map<std::string, Entry>& registry() {
-    static std::map<std::string, Entry> r;
-    return r;
-}
-}  // namespace
-
-Registration::Registration(const char* name, const char* help, BenchFn fn) {
-    registry()[name] = Entry{help, std::move(fn)};
-}
 
 void Context::emit(const std::string& name, nlohmann::json j) const {
     if (!j.contains("name")) j["name"] = name;
@@ -77,37 +59,10 @@ double measure_bandwidth(int threads) {
 }  // namespace fulgur::bench
 
 int main(int argc, char** argv) {
-    using namespace fulgur;
-    using namespace fulgur::bench;
-    Context ctx;
-    std::vector<std::string> names;
-    std::string listing = "Runs the named benchmarks (all if none), printing one JSON object per line.\n";
-    for (const auto& [n, e] : registry()) {
-        char line[256];
-        std::snprintf(line, sizeof line, "\n  %-10s %s", n.c_str(), e.help.c_str());
-        listing += line;
-    }
-    app::CommandLine cli("fulgur-bench", listing);
-    cli.app().add_flag("--quick", ctx.quick, "smaller problems and fewer repeats (smoke runs)");
-    cli.app().add_option("NAME", names, "benchmarks to run (all if none)");
-    try {
-        if (!cli.parse(std::vector<std::string>(argv + 1, argv + argc))) {
-            std::fputs(cli.help().c_str(), stdout);
-            return 0;
-        }
-        for (const std::string& n : names)
-            if (!registry().count(n)) throw core::Error("fulgur-bench", "unknown benchmark '" + n + "' (see --help)");
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "%s\n", e.what());
-        return app::kExitUsage;
-    }
-    if (names.empty())
-        for (const auto& [n, e] : registry()) names.push_back(n);
-    try {
-        for (const auto& n : names) registry()[n].fn(ctx);
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "fulgur-bench: %s\n", e.what());
-        return app::kExitFailure;
-    }
-    return 0;
+    fulgur::bench::Context ctx;
+    return fulgur::app::registry_main(
+        argc, argv,
+        {"fulgur-bench", "benchmark", "Runs the named benchmarks (all if none), printing one JSON object per line.",
+         10},
+        ctx);
 }

@@ -1,7 +1,5 @@
 #include "study/study.h"
 
-#include "common/cli.h"
-
 #include "core/core.h"
 
 #include <algorithm>
@@ -9,21 +7,11 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
-#include <map>
 #include <sstream>
 
 namespace fulgur::study {
 
 namespace {
-struct Entry {
-    std::string help;
-    StudyFn fn;
-};
-std::map<std::string, Entry>& registry() {
-    static std::map<std::string, Entry> r;
-    return r;
-}
-
 std::string fmt(double v) {
     char b[64];
     std::snprintf(b, sizeof b, "%.9g", v);
@@ -62,10 +50,6 @@ std::vector<double> nice_ticks(double lo, double hi, int target = 6) {
     return t;
 }
 }  // namespace
-
-Registration::Registration(const char* name, const char* help, StudyFn fn) {
-    registry()[name] = Entry{help, std::move(fn)};
-}
 
 void Context::summary(const std::string& name, nlohmann::json j) const {
     if (!j.contains("study")) j["study"] = name;
@@ -236,40 +220,15 @@ void write_svg_plot(const std::filesystem::path& path, const std::vector<Series>
 }  // namespace fulgur::study
 
 int main(int argc, char** argv) {
-    using namespace fulgur;
-    using namespace fulgur::study;
-    Context ctx;
-    std::vector<std::string> names;
-    std::string listing =
-        "Runs the named studies (all if none), writing CSV and SVG files into DIR\n"
-        "(default ./study-output) and one JSON summary line per study on stdout.\n";
-    for (const auto& [n, e] : registry()) {
-        char line[256];
-        std::snprintf(line, sizeof line, "\n  %-16s %s", n.c_str(), e.help.c_str());
-        listing += line;
-    }
-    app::CommandLine cli("fulgur-study", listing);
-    cli.app().add_flag("--quick", ctx.quick, "a reduced version of each study (smoke runs)");
-    cli.app().add_option("-o,--output", ctx.output_dir, "output directory (default ./study-output)")->type_name("DIR");
-    cli.app().add_option("NAME", names, "studies to run (all if none)");
-    try {
-        if (!cli.parse(std::vector<std::string>(argv + 1, argv + argc))) {
-            std::fputs(cli.help().c_str(), stdout);
-            return 0;
-        }
-        for (const std::string& n : names)
-            if (!registry().count(n)) throw core::Error("fulgur-study", "unknown study '" + n + "' (see --help)");
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "%s\n", e.what());
-        return app::kExitUsage;
-    }
-    if (names.empty())
-        for (const auto& [n, e] : registry()) names.push_back(n);
-    try {
-        for (const auto& n : names) registry()[n].fn(ctx);
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "fulgur-study: %s\n", e.what());
-        return app::kExitFailure;
-    }
-    return 0;
+    fulgur::study::Context ctx;
+    return fulgur::app::registry_main(argc, argv,
+                                      {"fulgur-study", "study",
+                                       "Runs the named studies (all if none), writing CSV and SVG files into DIR\n"
+                                       "(default ./study-output) and one JSON summary line per study on stdout.",
+                                       16},
+                                      ctx, [&ctx](CLI::App& app) {
+                                          app.add_option("-o,--output", ctx.output_dir,
+                                                         "output directory (default ./study-output)")
+                                              ->type_name("DIR");
+                                      });
 }
