@@ -1,7 +1,7 @@
 // fulgur: the interactive storm demo (GLFW window + Dear ImGui panel). Without a display it
 // says so and renders a short headless PNG sequence through OSMesa into out/.
 #ifdef FULGUR_HAVE_RUNTIME
-#include "common/storm_view.h"
+#include "common/view_cli.h"
 #endif
 #include "common/cli.h"
 #include "common/demo_args.h"
@@ -84,15 +84,15 @@ std::vector<double> flash_times(const lightning::FlashProfile& f, double start, 
 int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb, int frames, int w,
                       int h, std::uint64_t seed) {
     auto ctx = platform::create_headless({.width = w, .height = h});
-    app::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
+    view::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
     const std::size_t strike = view.pipeline().strike_at(0.0, seed);
     const std::vector<double> times = flash_times(view.pipeline().storm().strike(strike).profile, 0.0, frames);
-    const render::Camera cam = app::default_camera(view.density());
+    const render::Camera cam = view::default_camera(view.density());
     for (int i = 0; i < frames; ++i) {
         const double t = times[std::size_t(i)];
-        app::ViewOptions opt;
+        view::ViewOptions opt;
         opt.settings.frame_index = std::uint32_t(i);
-        const app::FrameReport r = view.render(cam, t, w, h, opt);
+        const view::FrameReport r = view.render(cam, t, w, h, opt);
         ctx->present();
         std::printf("%s  t=%.4f s  %s\n", write_sequence_frame(*ctx, i).c_str(), t,
                     app::timings_json(r, w, h, "fulgur").c_str());
@@ -159,7 +159,7 @@ int main(int argc, char** argv) {
     try {
         scene::Scene s = scene::load_scene(scene_path);
         core::Grid3<float> density = scene::make_density(s);
-        const auto fgb = app::ensure_baked(s, density, std::nullopt, true);
+        const auto fgb = app::ensure_baked(s, density, std::nullopt);
         if (force_headless || !platform::display_available()) {
             if (!force_headless) std::printf(kNoDisplay, frames);
             const std::uint64_t sd = seed_arg.value_or(s.lightning.seed);
@@ -167,17 +167,17 @@ int main(int argc, char** argv) {
                                      sd);
         }
         app::DemoShell shell(W, H, "Fulgur", screenshot_after);
-        app::StormView view(std::move(s), std::move(density), fgb, shell.context().get_proc_address());
+        view::StormView view(std::move(s), std::move(density), fgb, shell.context().get_proc_address());
         const bool separate = view.bases().has_multiple();
 
         app::Orbit orbit{-90, 6, 1.1, 0.4, 5.0};  // distance as a multiple of the cloud size
-        app::ViewOptions opt;
+        view::ViewOptions opt;
         opt.settings.dither = g_dither;
         float rate = float(view.scene().lightning.schedule.strike_rate);
         int seed = int(seed_arg.value_or(view.scene().lightning.seed));
         bool autos = rate > 0;
         double t = 0.0;
-        app::FrameReport rep;
+        view::FrameReport rep;
         // The few GL calls of the slice image, through the window's get-proc-address (the
         // process also links OSMesa, whose gl* symbols must not be called on a GLX context).
         const SliceGL gl = load_slice_gl();
@@ -332,7 +332,7 @@ int main(int argc, char** argv) {
                 std::fprintf(stderr, "fulgur: solving the frame at t = %.4f s directly...\n", t);
                 Reference r;
                 r.components = opt.components;
-                app::StormView::DirectSolve solved = view.solve_direct(t, opt.components);
+                view::StormView::DirectSolve solved = view.solve_direct(t, opt.components);
                 r.field = std::move(solved.field);
                 r.seconds = solved.seconds;
                 r.basis_ms = solved.basis_ms;  // all directions, as the solve
@@ -342,7 +342,7 @@ int main(int argc, char** argv) {
                 reference = std::move(r);
             }
             opt.settings.frame_index++;
-            const render::Camera cam = app::default_camera(view.density(), orbit.az, orbit.el, orbit.dist);
+            const render::Camera cam = view::default_camera(view.density(), orbit.az, orbit.el, orbit.dist);
             rep = view.render(cam, t, shell.width(), shell.height(), opt,
                               reference && reference->show ? &reference->field : nullptr);
             shell.end_frame();

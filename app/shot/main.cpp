@@ -2,7 +2,7 @@
 #include "common/cli.h"
 #include "common/image_compare.h"
 #include "common/shot_args.h"
-#include "common/storm_view.h"
+#include "common/view_cli.h"
 #include "platform/platform.h"
 
 #include <cmath>
@@ -16,10 +16,10 @@ namespace {
 
 // --reference: the same frame lit by the direct solve, its difference image and the errors
 // (S over the cloud; the cloud's in-scattered radiance in the image) and times as JSON.
-void render_reference(app::StormView& view, platform::Context* ctx, const render::Camera& cam, double t,
-                      const app::ViewOptions& opt, const app::ShotArgs& a,
+void render_reference(view::StormView& view, platform::Context* ctx, const render::Camera& cam, double t,
+                      const view::ViewOptions& opt, const app::ShotArgs& a,
                       const std::vector<std::uint8_t>& shown_basis) {
-    const app::StormView::DirectSolve solved = view.solve_direct(t, opt.components);
+    const view::StormView::DirectSolve solved = view.solve_direct(t, opt.components);
     const transport::SourceField& direct = solved.field;
     const double solve_s = solved.seconds;
     // The basis frame's figures now, for all directions (the solve's counterpart): the
@@ -37,7 +37,7 @@ void render_reference(app::StormView& view, platform::Context* ctx, const render
     const app::DisplayDifference shown = app::compare_display(shown_basis, shown_ref);
 
     // The cloud alone (no glow in the march buffer, no jitter), once per field.
-    app::ViewOptions metric = opt;
+    view::ViewOptions metric = opt;
     metric.settings.glow = false;
     metric.settings.jitter = false;
     int w = 0, h = 0;
@@ -98,9 +98,9 @@ int main(int argc, char** argv) {
     try {
         scene::Scene s = scene::load_scene(a.scene);
         core::Grid3<float> density = scene::make_density(s);
-        const auto fgb = app::ensure_baked(s, density, a.fgb, true);
+        const auto fgb = app::ensure_baked(s, density, a.fgb);
         auto ctx = platform::create_headless({.width = a.width, .height = a.height});
-        app::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
+        view::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
         lightning::LightningParams lp = view.scene().lightning;
         lp.schedule.strike_rate = 0.0;  // only the requested strike (after the bake check: same .fgb as the demo)
         view.set_lightning(lp);
@@ -108,18 +108,18 @@ int main(int argc, char** argv) {
         const double t =
             a.time +
             (a.time_after_return_stroke ? view.pipeline().storm().strike(strike).profile.stroke_onset.at(0) : 0.0);
-        app::ViewOptions opt;
+        view::ViewOptions opt;
         opt.settings.exposure *= std::exp2(a.exposure_ev);
-        const render::Camera cam = app::default_camera(view.density());
+        const render::Camera cam = view::default_camera(view.density());
         // Medians over --repeat frames: the first one also compiles shaders and uploads the
         // density; the run time rebuilds the same frame each time (same strike, same t).
-        std::vector<app::FrameReport> reps;
+        std::vector<view::FrameReport> reps;
         for (int k = 0; k < a.repeat; ++k) {
             opt.settings.frame_index = std::uint32_t(k);
             reps.push_back(view.render(cam, t, a.width, a.height, opt));
         }
-        app::FrameReport r = reps.back();
-        if (reps.size() > 1) r = app::median_report(reps);
+        view::FrameReport r = reps.back();
+        if (reps.size() > 1) r = view::median_report(reps);
         ctx->present();
         const auto px = ctx->read_rgba8();
         core::write_png(a.output, a.width, a.height, 4, px);
