@@ -1,10 +1,8 @@
 // fulgur: the interactive storm demo (GLFW window + Dear ImGui panel). Without a display it
 // says so and renders a short headless PNG sequence through OSMesa into out/.
-#ifdef FULGUR_HAVE_RUNTIME
-#include "common/view_cli.h"
-#endif
 #include "common/cli.h"
 #include "common/demo_args.h"
+#include "common/view_cli.h"
 #include "core/core.h"
 #include "demo/shell.h"
 #include "platform/platform.h"
@@ -38,7 +36,6 @@ std::string write_sequence_frame(platform::Context& ctx, int i) {
     return name;
 }
 
-#ifdef FULGUR_HAVE_RUNTIME
 // Pseudo-colour (blue -> cyan -> yellow -> red -> white) of v in [0, 1].
 void pseudo(double v, std::uint8_t* px) {
     v = std::clamp(v, 0.0, 1.0);
@@ -99,7 +96,6 @@ int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::fil
     }
     return 0;
 }
-#endif
 
 int synthetic_demo(int W, int H, int screenshot_after);
 int synthetic_headless(int frames, int W, int H);
@@ -125,22 +121,11 @@ int main(int argc, char** argv) {
     g_dither = args.dither;
     const std::filesystem::path scene_path = args.scene;
     const bool force_headless = args.headless;
-    bool synthetic = args.synthetic;
+    const bool synthetic = args.synthetic;
     const int screenshot_after = args.screenshot_after, frames = args.frames, W = args.width, H = args.height;
     const std::optional<std::uint64_t> seed_arg = args.seed;
     const double time_scale = args.time_scale;
     const bool at_peak = args.screenshot_at_peak, solve_direct_at_start = args.solve_direct;
-#ifndef FULGUR_HAVE_RUNTIME
-    if (!synthetic) {
-        // The baked-storm path needs engine/bake and engine/runtime, which are not built yet
-        // (issues 4 and 5); the main job still shows the renderer on its synthetic storm.
-        std::fprintf(stderr,
-                     "fulgur: built without engine/bake and engine/runtime; showing the renderer's "
-                     "synthetic storm instead of %s\n",
-                     scene_path.string().c_str());
-        synthetic = true;
-    }
-#endif
     if (synthetic) {
         try {
             if (force_headless || !platform::display_available()) {
@@ -153,9 +138,6 @@ int main(int argc, char** argv) {
             return app::kExitFailure;
         }
     }
-#ifndef FULGUR_HAVE_RUNTIME
-    return 1;  // unreachable: synthetic is forced above
-#else
     try {
         scene::Scene s = scene::load_scene(scene_path);
         core::Grid3<float> density = scene::make_density(s);
@@ -352,7 +334,6 @@ int main(int argc, char** argv) {
         return app::kExitFailure;
     }
     return 0;
-#endif
 }
 
 namespace {
