@@ -32,9 +32,6 @@ void declare(CommandLine& cli, DemoArgs& a) {
            },
            "window size (default 1280x720; the headless sequence is at most 640x360)")
         ->type_name("WxH, each 16..8192");
-    app.add_flag("--synthetic", a.synthetic,
-                 "show the renderer's synthetic storm (a procedural cloud lit by a precomputed bolt; no bake, no "
-                 "run time)");
     cli.number("--screenshot-after", a.screenshot_after,
                "write out/screenshot_000.png after N frames and quit (for documentation images)", 1);
     app.add_flag("--screenshot-at-peak", a.screenshot_at_peak,

@@ -11,9 +11,8 @@ namespace fulgur::app {
 
 struct DemoArgs {
     std::filesystem::path scene = "content/scenes/storm.json";
-    bool headless = false;   ///< --headless: the headless PNG sequence even with a display
-    bool synthetic = false;  ///< --synthetic: the renderer's synthetic storm (no bake, no run time)
-    int frames = 8;          ///< --frames N: length of the headless sequence
+    bool headless = false;  ///< --headless: the headless PNG sequence even with a display
+    int frames = 8;         ///< --frames N: length of the headless sequence
     int width = 1280, height = 720;
     int screenshot_after = 0;           ///< --screenshot-after N: write a screenshot after N frames and quit (0: never)
     bool screenshot_at_peak = false;    ///< hold 2 ms after the first return stroke, screenshot after 4 frames

@@ -7,7 +7,6 @@
 #include "demo/shell.h"
 #include "platform/platform.h"
 #include "render/render.h"
-#include "render/synthetic.h"
 
 #include <GLFW/glfw3.h>
 #include <backends/imgui_impl_glfw.h>
@@ -97,12 +96,9 @@ int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::fil
     return 0;
 }
 
-int synthetic_demo(int W, int H, int screenshot_after);
-int synthetic_headless(int frames, int W, int H);
 const char* kNoDisplay =
     "fulgur: no display available (DISPLAY unset or GLFW cannot open it); rendering %d headless frames into out/ "
     "instead\n";
-bool g_dither = true;
 
 }  // namespace
 
@@ -118,26 +114,12 @@ int main(int argc, char** argv) {
         std::fputs(app::demo_usage().c_str(), stdout);
         return 0;
     }
-    g_dither = args.dither;
     const std::filesystem::path scene_path = args.scene;
     const bool force_headless = args.headless;
-    const bool synthetic = args.synthetic;
     const int screenshot_after = args.screenshot_after, frames = args.frames, W = args.width, H = args.height;
     const std::optional<std::uint64_t> seed_arg = args.seed;
     const double time_scale = args.time_scale;
     const bool at_peak = args.screenshot_at_peak, solve_direct_at_start = args.solve_direct;
-    if (synthetic) {
-        try {
-            if (force_headless || !platform::display_available()) {
-                if (!force_headless) std::printf(kNoDisplay, frames);
-                return synthetic_headless(frames, std::min(W, 640), std::min(H, 360));
-            }
-            return synthetic_demo(W, H, screenshot_after);
-        } catch (const std::exception& e) {
-            std::fprintf(stderr, "fulgur: %s\n", e.what());
-            return app::kExitFailure;
-        }
-    }
     try {
         scene::Scene s = scene::load_scene(scene_path);
         core::Grid3<float> density = scene::make_density(s);
@@ -154,7 +136,7 @@ int main(int argc, char** argv) {
 
         app::Orbit orbit{-90, 6, 1.1, 0.4, 5.0};  // distance as a multiple of the cloud size
         view::ViewOptions opt;
-        opt.settings.dither = g_dither;
+        opt.settings.dither = args.dither;
         float rate = float(view.scene().lightning.schedule.strike_rate);
         int seed = int(seed_arg.value_or(view.scene().lightning.seed));
         bool autos = rate > 0;
@@ -335,84 +317,3 @@ int main(int argc, char** argv) {
     }
     return 0;
 }
-
-namespace {
-
-render::synthetic::Storm synthetic_storm(render::Renderer& r) {
-    std::printf("synthetic storm: generating cloud and bolt light...\n");
-    render::synthetic::Storm st = render::synthetic::storm({64, 64, 48}, 200.0);
-    r.set_volume({.density = &st.density, .extinction = st.extinction});
-    render::SourceUpload up;
-    up.geometry = st.lighting;
-    up.direction_count = st.directions;
-    const std::size_t n = st.lighting.cell_count();
-    for (int m = 0; m < st.directions; ++m) {
-        up.directions.push_back(m);
-        up.values.emplace_back(st.source.data() + std::size_t(m) * n, n);
-    }
-    r.upload_source(up);
-    r.set_bolt(st.bolt);
-    return st;
-}
-
-// Headless sequence of the synthetic storm: the camera orbits 4 degrees per frame.
-int synthetic_headless(int frames, int W, int H) {
-    auto ctx = platform::create_headless({.width = W, .height = H});
-    render::Renderer r(ctx->get_proc_address());
-    const render::synthetic::Storm st = synthetic_storm(r);
-    for (int i = 0; i < frames; ++i) {
-        render::Settings set = st.settings;
-        set.frame_index = std::uint32_t(i);
-        set.dither = g_dither;
-        const render::Camera cam =
-            render::Camera::orbit(st.camera.target, 13500.0, -60.0 + 4.0 * i, -6.0, st.camera.vertical_fov_deg);
-        const render::FrameStats fs = r.render(cam, set, W, H);
-        ctx->present();
-        std::printf("%s  render %.1f ms (march %.1f ms)\n", write_sequence_frame(*ctx, i).c_str(), fs.wall.total,
-                    fs.wall.march);
-    }
-    return 0;
-}
-
-// The renderer's synthetic storm in the demo window: camera, effect toggles, exposure,
-// internal scale and pass times work; the lightning controls need the run time.
-int synthetic_demo(int W, int H, int screenshot_after) {
-    app::DemoShell shell(W, H, "Fulgur (synthetic storm)", screenshot_after);
-    render::Renderer r(shell.context().get_proc_address());
-    const render::synthetic::Storm st = synthetic_storm(r);
-    render::Settings set = st.settings;
-    set.dither = g_dither;
-    app::Orbit orbit{-60, -6, 13500, 4000.0, 60000.0};  // distance in metres
-    render::FrameStats fs;
-    while (shell.begin_frame(orbit)) {
-        ImGui::SetNextWindowPos({10, 10}, ImGuiCond_FirstUseEver);
-        ImGui::SetNextWindowSize({360, 0}, ImGuiCond_FirstUseEver);
-        ImGui::Begin("Fulgur (synthetic storm)");
-        ImGui::Text("%.1f fps  (%.1f ms render)", shell.fps(), fs.wall.total);
-        ImGui::TextDisabled("no bake / run time: lightning controls off");
-        ImGui::Separator();
-        ImGui::Checkbox("glow", &set.glow);
-        ImGui::Checkbox("bolt", &set.bolt);
-        ImGui::Checkbox("ground", &set.ground);
-        ImGui::Checkbox("cloud lighting", &set.cloud_lighting);
-        float expo = float(std::log2(set.exposure));
-        if (ImGui::SliderFloat("exposure (EV)", &expo, 0, 12)) set.exposure = std::exp2(expo);
-        float scale = float(set.internal_scale);
-        if (ImGui::SliderFloat("internal scale", &scale, 0.25f, 1.0f)) set.internal_scale = scale;
-        ImGui::Separator();
-        ImGui::TextUnformatted("Pass times (ms)");
-        ImGui::Text("upload %.2f  resolve %.2f  glow %.2f", fs.wall.upload, fs.wall.resolve, fs.wall.glow);
-        ImGui::Text("ray march %.2f  bolt %.2f  composite %.2f", fs.wall.march, fs.wall.bolt, fs.wall.composite);
-        ImGui::Text("internal %d x %d, %d directions", fs.internal_width, fs.internal_height, fs.directions_used);
-        ImGui::End();
-
-        set.frame_index = std::uint32_t(shell.frames());
-        const render::Camera cam =
-            render::Camera::orbit(st.camera.target, orbit.dist, orbit.az, orbit.el, st.camera.vertical_fov_deg);
-        fs = r.render(cam, set, shell.width(), shell.height());
-        shell.end_frame();
-    }
-    return 0;
-}
-
-}  // namespace
