@@ -35,15 +35,6 @@ std::string write_sequence_frame(platform::Context& ctx, int i) {
     return name;
 }
 
-// Pseudo-colour (blue -> cyan -> yellow -> red -> white) of v in [0, 1].
-void pseudo(double v, std::uint8_t* px) {
-    v = std::clamp(v, 0.0, 1.0);
-    const double r = std::clamp(3.0 * v - 1.0, 0.0, 1.0), g = std::clamp(3.0 * v - 0.5, 0.0, 1.0) * (v < 0.9 ? 1 : 1),
-                 b = std::clamp(1.0 - 2.0 * std::abs(v - 0.25) * 2.0, 0.0, 1.0) + std::clamp(3.0 * v - 2.0, 0.0, 1.0);
-    px[0] = std::uint8_t(255 * r), px[1] = std::uint8_t(255 * g), px[2] = std::uint8_t(255 * std::min(b, 1.0)),
-    px[3] = 255;
-}
-
 struct SliceGL {
     void (*GenTextures)(GLsizei, GLuint*);
     void (*BindTexture)(GLenum, GLuint);
@@ -252,9 +243,11 @@ int main(int argc, char** argv) {
                     for (int i = 0; i < g.dims.x; ++i) vmax = std::max(vmax, v[g.index(i, j, k)]);
                 std::vector<std::uint8_t> img(std::size_t(g.dims.x) * g.dims.z * 4);
                 for (int k = 0; k < g.dims.z; ++k)
-                    for (int i = 0; i < g.dims.x; ++i)
-                        pseudo(vmax > 0 ? std::sqrt(v[g.index(i, j, k)] / vmax) : 0.0,
-                               &img[(std::size_t(g.dims.z - 1 - k) * g.dims.x + i) * 4]);
+                    for (int i = 0; i < g.dims.x; ++i) {
+                        std::uint8_t* px = &img[(std::size_t(g.dims.z - 1 - k) * g.dims.x + i) * 4];
+                        core::pseudo_colour(vmax > 0 ? std::sqrt(v[g.index(i, j, k)] / vmax) : 0.0, px);
+                        px[3] = 255;
+                    }
                 gl.BindTexture(GL_TEXTURE_2D, slice_tex);
                 gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
                 gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
