@@ -1,6 +1,7 @@
-// fulgur-preview: the interim main job. Builds the scene's cloud, writes its density and the
-// single-scattering field of the scene's first point light (and the sun, when enabled) as
-// NRRD, plus PNG slices; optionally the Monte Carlo reference (orders 1 and >= 2).
+// fulgur-preview: a look at a scene's cloud and transport without a bake. Builds the scene's
+// cloud, writes its density and the single-scattering field of the scene's first point
+// light (and the sun, when enabled) as NRRD, plus PNG slices; optionally the Monte Carlo
+// reference (orders 1 and >= 2). docs/transport.md's first figure is made with it.
 #include "cloud/cloud.h"
 #include "common/cli.h"
 #include "core/core.h"
