@@ -49,7 +49,9 @@ void declare(CommandLine& cli, ShotArgs& a) {
            "image size in pixels")
         ->type_name("WxH, each 1..8192")
         ->required();
-    cli.number("--repeat", a.repeat, "render the frame N times and report median stage times", 1, 1000);
+    cli.number("--repeat", a.repeat,
+               "render the frame N times and report median stage times (the image written is the same as one render's)",
+               1, 1000);
     cli.number("--exposure", a.exposure_ev, "exposure change in stops from the default (0)", -20.0, 20.0, "stops")
         ->type_name("EV in -20..20");
     app.add_option("-o,--output", a.output, "output PNG")->type_name("OUT.png")->required();

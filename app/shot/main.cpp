@@ -112,12 +112,11 @@ int main(int argc, char** argv) {
         opt.settings.exposure *= std::exp2(a.exposure_ev);
         const render::Camera cam = view::default_camera(view.density());
         // Medians over --repeat frames: the first one also compiles shaders and uploads the
-        // density; the run time rebuilds the same frame each time (same strike, same t).
+        // density; the run time rebuilds the same frame each time (same strike, same t). The
+        // frame index (which varies the ray-march jitter) stays the same too, so the image
+        // written is the one a single render writes: --repeat only times it.
         std::vector<view::FrameReport> reps;
-        for (int k = 0; k < a.repeat; ++k) {
-            opt.settings.frame_index = std::uint32_t(k);
-            reps.push_back(view.render(cam, t, a.width, a.height, opt));
-        }
+        for (int k = 0; k < a.repeat; ++k) reps.push_back(view.render(cam, t, a.width, a.height, opt));
         view::FrameReport r = reps.back();
         if (reps.size() > 1) r = view::median_report(reps);
         ctx->present();
