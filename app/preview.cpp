@@ -53,21 +53,10 @@ void declare(app::CommandLine& cli, Args& a) {
     cli.number("--threads", a.threads, "worker threads (default: all cores)", 1, 1024);
 }
 
-// Parses argv[1..]; throws core::Error with a one-line reason.
-Args parse(const std::vector<std::string>& args, std::string& help) {
-    Args a;
-    app::CommandLine cli("fulgur-preview", kDescription);
-    declare(cli, a);
-    if (!cli.parse(args)) {
-        a.help = true;
-        help = cli.help();
-        return a;
-    }
-    if (!cli.extra_positionals().empty())
-        throw core::Error("fulgur-preview", "unexpected argument '" + cli.extra_positionals().front() +
-                                                "' (one scene file expected; see --help)");
-    return a;
+Args parse(const std::vector<std::string>& args) {
+    return app::parse_args<Args>("fulgur-preview", kDescription, args, declare);
 }
+std::string usage() { return app::usage_of<Args>("fulgur-preview", kDescription, declare); }
 
 /// Mean over the output directions, as a scalar grid.
 core::Grid3<float> direction_mean(const transport::SourceField& f) {
@@ -130,17 +119,7 @@ void write_field(const std::filesystem::path& path, const core::Grid3<float>& g,
 
 int main(int argc, char** argv) {
     Args args;
-    try {
-        std::string help;
-        args = parse(std::vector<std::string>(argv + 1, argv + argc), help);
-        if (args.help) {
-            std::fputs(help.c_str(), stdout);
-            return 0;
-        }
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "%s\n", e.what());
-        return app::kExitUsage;
-    }
+    if (const std::optional<int> status = app::start(argc, argv, args, parse, usage)) return *status;
     try {
         if (args.threads > 0) core::set_thread_count(args.threads);
         core::Stopwatch total;

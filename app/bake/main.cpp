@@ -125,16 +125,8 @@ int run(const app::BakeArgs& a) {
 
 int main(int argc, char** argv) {
     app::BakeArgs a;
-    try {
-        a = app::parse_bake_args(std::vector<std::string>(argv + 1, argv + argc));
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "%s\n", e.what());
-        return app::kExitUsage;
-    }
-    if (a.help) {
-        std::fputs(app::bake_usage().c_str(), stdout);
-        return 0;
-    }
+    if (const std::optional<int> status = app::start(argc, argv, a, app::parse_bake_args, app::bake_usage))
+        return *status;
     try {
         return run(a);
     } catch (const std::exception& e) {

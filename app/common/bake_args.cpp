@@ -72,32 +72,17 @@ constexpr const char* kDescription =
 
 }  // namespace
 
-std::string bake_usage() {
-    BakeArgs a;
-    CommandLine cli(kTool, kDescription);
-    declare(cli, a);
-    return cli.help();
-}
+std::string bake_usage() { return usage_of<BakeArgs>(kTool, kDescription, declare); }
 
 BakeArgs parse_bake_args(const std::vector<std::string>& args) {
-    BakeArgs a;
-    CommandLine cli(kTool, kDescription);
-    declare(cli, a);
-    if (!cli.parse(args)) {
-        a = BakeArgs{};
-        a.help = true;
-        return a;
-    }
-    if (!cli.extra_positionals().empty())
-        throw core::Error(
-            kTool, "more than one scene given ('" + a.scene.string() + "', '" + cli.extra_positionals().front() + "')");
-    const bool have_nrrd = cli.app().count("--nrrd") > 0, have_direction = cli.app().count("--direction") > 0;
-    if (!a.export_lights.empty() && !have_nrrd) throw core::Error(kTool, "--export needs --nrrd PREFIX");
-    if (a.export_lights.empty() && (have_nrrd || have_direction))
-        throw core::Error(kTool, "--nrrd and --direction only go with --export");
-    if (!a.export_lights.empty() && a.dry_run)
-        throw core::Error(kTool, "--export needs a bake; it cannot go with --dry-run");
-    return a;
+    return parse_args<BakeArgs>(kTool, kDescription, args, declare, [](const CommandLine& cli, const BakeArgs& a) {
+        const bool have_nrrd = cli.app().count("--nrrd") > 0, have_direction = cli.app().count("--direction") > 0;
+        if (!a.export_lights.empty() && !have_nrrd) throw core::Error(kTool, "--export needs --nrrd PREFIX");
+        if (a.export_lights.empty() && (have_nrrd || have_direction))
+            throw core::Error(kTool, "--nrrd and --direction only go with --export");
+        if (!a.export_lights.empty() && a.dry_run)
+            throw core::Error(kTool, "--export needs a bake; it cannot go with --dry-run");
+    });
 }
 
 }  // namespace fulgur::app

@@ -43,6 +43,27 @@ void CommandLine::reject_unknown_options() const {
         if (s.size() > 1 && s[0] == '-') throw core::Error(tool_, "unknown option '" + s + "' (see --help)");
 }
 
+CLI::Option* CommandLine::size(const std::string& names, int& width, int& height, const std::string& help, int lo,
+                               int hi) {
+    const std::string name = label(names);
+    const char* tool = tool_;
+    CLI::Option* o = app_.add_option_function<std::string>(
+        names,
+        [&width, &height, tool, name, lo, hi](const std::string& v) {
+            const ImageSize s = parse_size(v, tool, name.c_str(), lo, hi);
+            width = s.width;
+            height = s.height;
+        },
+        help);
+    o->type_name("WxH, each " + std::to_string(lo) + ".." + std::to_string(hi));
+    return o;
+}
+
+void CommandLine::reject_second_scene(const std::filesystem::path& scene) const {
+    if (!extra_.empty())
+        throw core::Error(tool_, "more than one scene given ('" + scene.string() + "', '" + extra_.front() + "')");
+}
+
 bool CommandLine::parse(const std::vector<std::string>& args) {
     extra_.clear();
     std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 consumes from the back

@@ -10,7 +10,11 @@
 
 #include <charconv>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <functional>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <type_traits>
@@ -55,6 +59,7 @@ public:
     CommandLine& operator=(const CommandLine&) = delete;
 
     CLI::App& app() noexcept { return app_; }
+    const CLI::App& app() const noexcept { return app_; }
     const char* tool() const noexcept { return tool_; }
 
     /// An option taking one number, parsed by parse_number (no trailing characters) and
@@ -64,11 +69,17 @@ public:
     CLI::Option* number(const std::string& names, T& target, const std::string& help, T lo,
                         T hi = std::numeric_limits<T>::max(), const char* unit = "");
 
+    /// An option taking an image size "WxH" (parse_size: each side in [lo, hi]).
+    CLI::Option* size(const std::string& names, int& width, int& height, const std::string& help, int lo, int hi);
+
     /// Parses argv[1..]. Returns false when -h/--help was given (print help()). Throws
     /// core::Error(tool, reason) on an invalid command line. Positional arguments that no
     /// option takes are left in extra_positionals() for the tool to judge.
     bool parse(const std::vector<std::string>& args);
     const std::vector<std::string>& extra_positionals() const noexcept { return extra_; }
+    /// For tools taking one scene: throws core::Error(tool, "more than one scene given
+    /// ('<scene>', '<next>')") when a positional argument is left over.
+    void reject_second_scene(const std::filesystem::path& scene) const;
 
     /// The --help text.
     std::string help() const { return app_.help(); }
@@ -83,6 +94,50 @@ private:
     CLI::App app_;
     std::vector<std::string> extra_;
 };
+
+/// A tool's parser and --help text from one declaration: `declare(cli, args)` adds the
+/// options, writing into `args`. parse_args returns Args with help = true on -h/--help,
+/// rejects a second scene and then calls `check(cli, args)` (checks across options); it
+/// throws core::Error(tool, reason) on an invalid command line.
+template <class Args, class Declare>
+std::string usage_of(const char* tool, const std::string& description, Declare declare) {
+    Args a;
+    CommandLine cli(tool, description);
+    declare(cli, a);
+    return cli.help();
+}
+template <class Args, class Declare>
+Args parse_args(const char* tool, const std::string& description, const std::vector<std::string>& args, Declare declare,
+                const std::function<void(const CommandLine&, const Args&)>& check = {}) {
+    Args a;
+    CommandLine cli(tool, description);
+    declare(cli, a);
+    if (!cli.parse(args)) {
+        a = Args{};
+        a.help = true;
+        return a;
+    }
+    cli.reject_second_scene(a.scene);
+    if (check) check(cli, a);
+    return a;
+}
+
+/// The start of a tool's main(): parses argv[1..] with `parse`. Prints the reason and gives
+/// kExitUsage on an invalid command line, prints `usage()` and gives 0 for --help, and
+/// nullopt (go on with `a`) otherwise.
+template <class Args>
+std::optional<int> start(int argc, char** argv, Args& a, Args (*parse)(const std::vector<std::string>&),
+                         std::string (*usage)()) {
+    try {
+        a = parse(std::vector<std::string>(argv + 1, argv + argc));
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "%s\n", e.what());
+        return kExitUsage;
+    }
+    if (!a.help) return std::nullopt;
+    std::fputs(usage().c_str(), stdout);
+    return 0;
+}
 
 template <class T>
 CLI::Option* CommandLine::number(const std::string& names, T& target, const std::string& help, T lo, T hi,

@@ -23,15 +23,8 @@ void declare(CommandLine& cli, DemoArgs& a) {
         ->check(existing_file());
     app.add_flag("--headless", a.headless, "render the headless PNG sequence even when a display is available");
     cli.number("--frames", a.frames, "frames of the headless sequence (default 8)", 1, 10000);
-    app.add_option_function<std::string>(
-           "--size",
-           [&a](const std::string& v) {
-               const ImageSize s = parse_size(v, kTool, "--size", 16, 8192);
-               a.width = s.width;
-               a.height = s.height;
-           },
-           "window size (default 1280x720; the headless sequence is at most 640x360)")
-        ->type_name("WxH, each 16..8192");
+    cli.size("--size", a.width, a.height, "window size (default 1280x720; the headless sequence is at most 640x360)",
+             16, 8192);
     cli.number("--screenshot-after", a.screenshot_after,
                "write out/screenshot_000.png after N frames and quit (for documentation images)", 1);
     app.add_flag("--screenshot-at-peak", a.screenshot_at_peak,
@@ -54,25 +47,10 @@ void declare(CommandLine& cli, DemoArgs& a) {
 
 }  // namespace
 
-std::string demo_usage() {
-    DemoArgs a;
-    CommandLine cli(kTool, kDescription);
-    declare(cli, a);
-    return cli.help();
-}
+std::string demo_usage() { return usage_of<DemoArgs>(kTool, kDescription, declare); }
 
 DemoArgs parse_demo_args(const std::vector<std::string>& args) {
-    DemoArgs a;
-    CommandLine cli(kTool, kDescription);
-    declare(cli, a);
-    if (!cli.parse(args)) {
-        a = DemoArgs{};
-        a.help = true;
-        return a;
-    }
-    if (!cli.extra_positionals().empty())
-        throw core::Error(
-            kTool, "more than one scene given ('" + a.scene.string() + "', '" + cli.extra_positionals().front() + "')");
+    DemoArgs a = parse_args<DemoArgs>(kTool, kDescription, args, declare);
     // A few frames for the panel to lay itself out before the screenshot.
     if (a.screenshot_at_peak && a.screenshot_after == 0) a.screenshot_after = 4;
     return a;

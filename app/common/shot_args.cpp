@@ -39,16 +39,7 @@ void declare(CommandLine& cli, ShotArgs& a) {
            "stepped leader's duration depends on the bolt)")
         ->type_name("[+]T")
         ->required();
-    app.add_option_function<std::string>(
-           "--size",
-           [&a](const std::string& v) {
-               const ImageSize s = parse_size(v, kTool, "--size", 1, 8192);
-               a.width = s.width;
-               a.height = s.height;
-           },
-           "image size in pixels")
-        ->type_name("WxH, each 1..8192")
-        ->required();
+    cli.size("--size", a.width, a.height, "image size in pixels", 1, 8192)->required();
     cli.number("--repeat", a.repeat,
                "render the frame N times and report median stage times (the image written is the same as one render's)",
                1, 1000);
@@ -71,28 +62,13 @@ void declare(CommandLine& cli, ShotArgs& a) {
 
 }  // namespace
 
-std::string shot_usage() {
-    ShotArgs a;
-    CommandLine cli(kTool, kDescription);
-    declare(cli, a);
-    return cli.help();
-}
+std::string shot_usage() { return usage_of<ShotArgs>(kTool, kDescription, declare); }
 
 ShotArgs parse_shot_args(const std::vector<std::string>& args) {
-    ShotArgs a;
-    CommandLine cli(kTool, kDescription);
-    declare(cli, a);
-    if (!cli.parse(args)) {
-        a = ShotArgs{};
-        a.help = true;
-        return a;
-    }
-    if (!cli.extra_positionals().empty())
-        throw core::Error(
-            kTool, "more than one scene given ('" + a.scene.string() + "', '" + cli.extra_positionals().front() + "')");
-    if (a.reference && std::filesystem::absolute(*a.reference) == std::filesystem::absolute(a.output))
-        throw core::Error(kTool, "--reference and -o name the same file");
-    return a;
+    return parse_args<ShotArgs>(kTool, kDescription, args, declare, [](const CommandLine&, const ShotArgs& a) {
+        if (a.reference && std::filesystem::absolute(*a.reference) == std::filesystem::absolute(a.output))
+            throw core::Error(kTool, "--reference and -o name the same file");
+    });
 }
 
 }  // namespace fulgur::app

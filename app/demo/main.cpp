@@ -95,16 +95,8 @@ const char* kNoDisplay =
 
 int main(int argc, char** argv) {
     app::DemoArgs args;
-    try {
-        args = app::parse_demo_args(std::vector<std::string>(argv + 1, argv + argc));
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "%s\n", e.what());
-        return app::kExitUsage;
-    }
-    if (args.help) {
-        std::fputs(app::demo_usage().c_str(), stdout);
-        return 0;
-    }
+    if (const std::optional<int> status = app::start(argc, argv, args, app::parse_demo_args, app::demo_usage))
+        return *status;
     const std::filesystem::path scene_path = args.scene;
     const bool force_headless = args.headless;
     const int screenshot_after = args.screenshot_after, frames = args.frames, W = args.width, H = args.height;

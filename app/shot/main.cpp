@@ -85,16 +85,8 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
 
 int main(int argc, char** argv) {
     app::ShotArgs a;
-    try {
-        a = app::parse_shot_args(std::vector<std::string>(argv + 1, argv + argc));
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "%s\n", e.what());
-        return app::kExitUsage;
-    }
-    if (a.help) {
-        std::fputs(app::shot_usage().c_str(), stdout);
-        return 0;
-    }
+    if (const std::optional<int> status = app::start(argc, argv, a, app::parse_shot_args, app::shot_usage))
+        return *status;
     try {
         scene::Scene s = scene::load_scene(a.scene);
         core::Grid3<float> density = scene::make_density(s);
