@@ -1,7 +1,9 @@
-// fulgur-preview: the interim main job. Builds the scene's cloud, writes its density and the
-// single-scattering field of the scene's first point light (and the sun, when enabled) as
-// NRRD, plus PNG slices; optionally the Monte Carlo reference (orders 1 and >= 2).
+// fulgur-preview: a look at a scene's cloud and transport without a bake. Builds the scene's
+// cloud, writes its density and the single-scattering field of the scene's first point
+// light (and the sun, when enabled) as NRRD, plus PNG slices; optionally the Monte Carlo
+// reference (orders 1 and >= 2). docs/transport.md's first figure is made with it.
 #include "cloud/cloud.h"
+#include "common/cli.h"
 #include "core/core.h"
 #include "scene/scene.h"
 #include "transport/transport.h"
@@ -11,7 +13,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -20,9 +21,7 @@ namespace {
 
 using namespace fulgur;
 
-constexpr const char* kUsage =
-    "usage: fulgur-preview SCENE.json -o DIR [--tolerance T] [--mc PATHS] [--threads N]\n"
-    "\n"
+constexpr const char* kDescription =
     "Builds the scene's cloud and writes into DIR:\n"
     "  density.nrrd                  the cloud density (full resolution, float32)\n"
     "  single_scattering.nrrd        S1 of the scene's first point light on the lighting grid,\n"
@@ -31,68 +30,33 @@ constexpr const char* kUsage =
     "  density_slice.png             vertical slice through the light (x-z plane)\n"
     "  single_scattering_slice.png   the same slice of S1, log-scaled pseudo-colour (8 decades)\n"
     "With --mc PATHS also the Monte Carlo reference of the point light: mc_single.nrrd,\n"
-    "mc_multiple.nrrd (orders >= 2), mc_multiple_se.nrrd and mc_multiple_slice.png.\n"
-    "\n"
-    "  --tolerance T   single-scattering quadrature tolerance (default 1e-3)\n"
-    "  --mc PATHS      also run the Monte Carlo reference with PATHS photon paths\n"
-    "  --threads N     worker threads (default: all cores)\n";
+    "mc_multiple.nrrd (orders >= 2), mc_multiple_se.nrrd and mc_multiple_slice.png.";
 
 struct Args {
     std::filesystem::path scene, out;
     double tolerance = 1e-3;
     std::uint64_t mc_paths = 0;
     int threads = 0;
+    bool help = false;
 };
 
-[[noreturn]] void fail(const std::string& msg) {
-    std::fprintf(stderr, "fulgur-preview: %s\n", msg.c_str());
-    std::exit(2);
+void declare(app::CommandLine& cli, Args& a) {
+    CLI::App& app = cli.app();
+    app.add_option("SCENE.json", a.scene, "the scene (JSON)")
+        ->type_name("FILE")
+        ->required()
+        ->check(app::existing_file());
+    app.add_option("-o,--output", a.out, "output directory")->type_name("DIR")->required();
+    cli.number("--tolerance", a.tolerance, "single-scattering quadrature tolerance (default 1e-3)", 1e-9, 0.5);
+    cli.number("--mc", a.mc_paths, "also run the Monte Carlo reference with PATHS photon paths", std::uint64_t(1000),
+               std::uint64_t(10'000'000'000ULL));
+    cli.number("--threads", a.threads, "worker threads (default: all cores)", 1, 1024);
 }
 
-Args parse(int argc, char** argv) {
-    Args a;
-    auto value = [&](int& i, const std::string& flag) -> std::string {
-        if (i + 1 >= argc) fail(flag + " needs a value (try --help)");
-        return argv[++i];
-    };
-    for (int i = 1; i < argc; ++i) {
-        const std::string s = argv[i];
-        if (s == "--help" || s == "-h") {
-            std::fputs(kUsage, stdout);
-            std::exit(0);
-        } else if (s == "-o" || s == "--output") {
-            a.out = value(i, s);
-        } else if (s == "--tolerance") {
-            const std::string v = value(i, s);
-            char* end = nullptr;
-            a.tolerance = std::strtod(v.c_str(), &end);
-            if (end == v.c_str() || *end || !(a.tolerance >= 1e-9 && a.tolerance <= 0.5))
-                fail("--tolerance must be a number in [1e-9, 0.5], got '" + v + "'");
-        } else if (s == "--mc") {
-            const std::string v = value(i, s);
-            char* end = nullptr;
-            const long long n = std::strtoll(v.c_str(), &end, 10);
-            if (end == v.c_str() || *end || n < 1000 || n > 10'000'000'000LL)
-                fail("--mc must be a path count in [1000, 1e10], got '" + v + "'");
-            a.mc_paths = std::uint64_t(n);
-        } else if (s == "--threads") {
-            const std::string v = value(i, s);
-            char* end = nullptr;
-            const long n = std::strtol(v.c_str(), &end, 10);
-            if (end == v.c_str() || *end || n < 1 || n > 1024) fail("--threads must be in [1, 1024], got '" + v + "'");
-            a.threads = int(n);
-        } else if (!s.empty() && s[0] == '-') {
-            fail("unknown option '" + s + "' (try --help)");
-        } else if (a.scene.empty()) {
-            a.scene = s;
-        } else {
-            fail("unexpected argument '" + s + "' (one scene file expected; try --help)");
-        }
-    }
-    if (a.scene.empty()) fail("missing SCENE.json (try --help)");
-    if (a.out.empty()) fail("missing -o DIR (try --help)");
-    return a;
+Args parse(const std::vector<std::string>& args) {
+    return app::parse_args<Args>("fulgur-preview", kDescription, args, declare);
 }
+std::string usage() { return app::usage_of<Args>("fulgur-preview", kDescription, declare); }
 
 /// Mean over the output directions, as a scalar grid.
 core::Grid3<float> direction_mean(const transport::SourceField& f) {
@@ -154,7 +118,8 @@ void write_field(const std::filesystem::path& path, const core::Grid3<float>& g,
 }  // namespace
 
 int main(int argc, char** argv) {
-    const Args args = parse(argc, argv);
+    Args args;
+    if (const std::optional<int> status = app::start(argc, argv, args, parse, usage)) return *status;
     try {
         if (args.threads > 0) core::set_thread_count(args.threads);
         core::Stopwatch total;
@@ -251,7 +216,7 @@ int main(int argc, char** argv) {
                     total.seconds());
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur-preview: %s\n", e.what());
-        return 1;
+        return app::kExitFailure;
     }
     return 0;
 }

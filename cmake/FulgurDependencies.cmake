@@ -7,6 +7,7 @@ find_package(nlohmann_json 3.10 REQUIRED)           # nlohmann-json3-dev: scene 
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(STB REQUIRED IMPORTED_TARGET stb) # libstb-dev: PNG writing (stb_image_write)
 find_package(ZLIB REQUIRED)                         # zlib1g-dev: CRC-32 of .fgb files
+find_package(CLI11 2.1 REQUIRED)                    # libcli11-dev: the tools' command lines
 
 if(FULGUR_BUILD_TESTS)
   find_package(doctest REQUIRED)                    # doctest-dev

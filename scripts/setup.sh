@@ -10,6 +10,7 @@ PACKAGES=(
   libstb-dev                                     # stb_image_write (PNG)
   zlib1g-dev                                     # CRC-32 (crc32) for the .fgb baked file
   doctest-dev                                    # unit/property tests
+  libcli11-dev                                   # command lines of every tool (CLI11, header-only)
   libomp-dev                                     # (OpenMP headers for clang tooling; g++ uses libgomp)
   libgl-dev libosmesa6-dev libgl1-mesa-dri       # OpenGL through Mesa, OSMesa for headless
   libglfw3-dev                                   # demo window

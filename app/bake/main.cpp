@@ -2,6 +2,7 @@
 // Thin: the work is engine/bake (bake.h); this file parses arguments and prints.
 #include "bake/bake.h"
 #include "common/bake_args.h"
+#include "common/cli.h"
 #include "common/progress.h"
 #include "core/core.h"
 #include "scene/scene.h"
@@ -48,14 +49,13 @@ void export_nrrd(const app::BakeArgs& a, const scene::Scene& s, const core::Grid
                  const bake::Plan& plan, const std::filesystem::path& fgb) {
     const std::size_t nd = plan.output_directions.size();
     if (std::size_t(a.export_direction) >= nd)
-        throw core::Error("fulgur-bake", "--direction " + std::to_string(a.export_direction) +
-                                             " is out of range (the bake has " + std::to_string(nd) + " directions)");
+        throw core::Error("", "--direction " + std::to_string(a.export_direction) + " is out of range (the bake has " +
+                                  std::to_string(nd) + " directions)");
     std::vector<basis::WeightedLight> lights;
     for (const app::ExportLight& e : a.export_lights) {
         if (e.light >= plan.lights.count())
-            throw core::Error("fulgur-bake", "--export: light " + std::to_string(e.light) +
-                                                 " is out of range (the bake has " +
-                                                 std::to_string(plan.lights.count()) + " lights)");
+            throw core::Error("", "--export: light " + std::to_string(e.light) + " is out of range (the bake has " +
+                                      std::to_string(plan.lights.count()) + " lights)");
         lights.push_back({e.light, e.weight});
     }
     const basis::BakedBasis baked = basis::load_fgb(fgb);
@@ -124,18 +124,13 @@ int run(const app::BakeArgs& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    app::BakeArgs a;
+    if (const std::optional<int> status = app::start(argc, argv, a, app::parse_bake_args, app::bake_usage))
+        return *status;
     try {
-        const app::BakeArgs a = app::parse_bake_args(std::vector<std::string>(argv + 1, argv + argc));
-        if (a.help) {
-            std::fputs(app::bake_usage().c_str(), stdout);
-            return 0;
-        }
         return run(a);
-    } catch (const core::Error& e) {
-        std::fprintf(stderr, "fulgur-bake: %s\n", e.what());
-        return 1;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur-bake: %s\n", e.what());
-        return 1;
+        return app::kExitFailure;
     }
 }

@@ -5,25 +5,9 @@
 #include <algorithm>
 #include <cstdio>
 #include <iostream>
-#include <map>
 #include <memory>
 
 namespace fulgur::bench {
-
-namespace {
-struct Entry {
-    std::string help;
-    BenchFn fn;
-};
-std::map<std::string, Entry>& registry() {
-    static std::map<std::string, Entry> r;
-    return r;
-}
-}  // namespace
-
-Registration::Registration(const char* name, const char* help, BenchFn fn) {
-    registry()[name] = Entry{help, std::move(fn)};
-}
 
 void Context::emit(const std::string& name, nlohmann::json j) const {
     if (!j.contains("name")) j["name"] = name;
@@ -75,39 +59,10 @@ double measure_bandwidth(int threads) {
 }  // namespace fulgur::bench
 
 int main(int argc, char** argv) {
-    using namespace fulgur::bench;
-    Context ctx;
-    std::vector<std::string> names;
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        if (a == "--help" || a == "-h") {
-            std::printf(
-                "usage: fulgur-bench [--quick] [NAME...]\n"
-                "Runs the named benchmarks (all if none), printing one JSON object per line.\n\n");
-            for (const auto& [n, e] : registry()) std::printf("  %-10s %s\n", n.c_str(), e.help.c_str());
-            return 0;
-        }
-        if (a == "--quick") {
-            ctx.quick = true;
-            continue;
-        }
-        if (!a.empty() && a[0] == '-') {
-            std::fprintf(stderr, "fulgur-bench: unknown option '%s' (try --help)\n", a.c_str());
-            return 2;
-        }
-        if (!registry().count(a)) {
-            std::fprintf(stderr, "fulgur-bench: unknown benchmark '%s' (try --help)\n", a.c_str());
-            return 2;
-        }
-        names.push_back(a);
-    }
-    if (names.empty())
-        for (const auto& [n, e] : registry()) names.push_back(n);
-    try {
-        for (const auto& n : names) registry()[n].fn(ctx);
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "fulgur-bench: %s\n", e.what());
-        return 1;
-    }
-    return 0;
+    fulgur::bench::Context ctx;
+    return fulgur::app::registry_main(
+        argc, argv,
+        {"fulgur-bench", "benchmark", "Runs the named benchmarks (all if none), printing one JSON object per line.",
+         10},
+        ctx);
 }

@@ -6,6 +6,8 @@
 // so ratios stay meaningful. Timings are never asserted in tests; they live here.
 #pragma once
 
+#include "common/registry.h"
+
 #include <nlohmann/json.hpp>
 
 #include <functional>
@@ -21,20 +23,8 @@ struct Context {
     void emit(const std::string& name, nlohmann::json j) const;
 };
 
-using BenchFn = std::function<void(const Context&)>;
-
-struct Registration {
-    Registration(const char* name, const char* help, BenchFn fn);
-};
-
-#define FULGUR_BENCH_CONCAT2(a, b) a##b
-#define FULGUR_BENCH_CONCAT(a, b) FULGUR_BENCH_CONCAT2(a, b)
 /// FULGUR_BENCH(lb, "help text") { ... uses ctx ... }
-#define FULGUR_BENCH(name, help)                                                           \
-    static void FULGUR_BENCH_CONCAT(bench_fn_, name)(const ::fulgur::bench::Context& ctx); \
-    static const ::fulgur::bench::Registration FULGUR_BENCH_CONCAT(bench_reg_, name)(      \
-        #name, help, &FULGUR_BENCH_CONCAT(bench_fn_, name));                               \
-    static void FULGUR_BENCH_CONCAT(bench_fn_, name)([[maybe_unused]] const ::fulgur::bench::Context& ctx)
+#define FULGUR_BENCH(name, help) FULGUR_REGISTRY_ENTRY(::fulgur::bench::Context, name, #name, help)
 
 /// Median of the samples (copied and partially sorted).
 double median(std::vector<double> v);

@@ -172,7 +172,7 @@ FULGUR_BENCH(
                                     {"paper_ratio", 1137.5 / 86.0}});
     }
 
-    // The bake as the issue sets it (paper's absolute threshold at the xi giving 1%), timed:
+    // The bake at the target setting (paper's absolute threshold at the xi giving 1%), timed:
     // the near-lossless bake above deflates ~7x more coefficients.
     {
         c.scene.compression.mode = basis::ThresholdMode::Absolute;

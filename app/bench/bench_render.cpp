@@ -20,7 +20,7 @@
 #include "core/core.h"
 #include "platform/platform.h"
 #include "render/render.h"
-#include "render/synthetic.h"
+#include "support/synthetic_storm.h"
 
 #include <algorithm>
 #include <cmath>
@@ -80,7 +80,7 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
     auto context = platform::create_headless({.width = W, .height = H});
     const core::Int3 dims = ctx.quick ? core::Int3{64, 64, 48} : core::Int3{128, 128, 96};
     const double voxel = ctx.quick ? 200.0 : 100.0;
-    const render::synthetic::Storm storm = render::synthetic::storm(dims, voxel);
+    const synthetic::Storm storm = synthetic::storm(dims, voxel);
     const core::Grid3<float>& density = storm.density;
     const double kappa = storm.extinction;
     const render::Camera& cam = storm.camera;
@@ -89,7 +89,7 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
     r.set_volume({.density = &density, .extinction = kappa});
     r.set_bolt(storm.bolt);
     // Upload only the directions this view needs, as the run time does.
-    const render::SourceUpload up = render::synthetic::needed_upload(r, storm);
+    const render::SourceUpload up = synthetic::needed_upload(r, storm);
     core::Stopwatch upload_clock;
     r.upload_source(up);
     const double upload_ms = upload_clock.milliseconds();

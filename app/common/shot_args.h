@@ -16,7 +16,7 @@ struct ShotArgs {
     double time = 0.6;
     bool time_after_return_stroke = false;  ///< --time +T: T seconds after the first return stroke's onset
     int width = 640, height = 360;
-    int repeat = 1;            ///< --repeat N: render N times, report medians (the first frame compiles shaders)
+    int repeat = 1;  ///< --repeat N: render N times, report medians (the first frame compiles shaders); same image
     double exposure_ev = 0.0;  ///< --exposure EV: exposure = 2^EV (render::Settings::exposure)
     std::filesystem::path output;
     /// --reference REF.png: also render the frame lit by the direct solve (the reference the

@@ -1,14 +1,12 @@
 // fulgur: the interactive storm demo (GLFW window + Dear ImGui panel). Without a display it
 // says so and renders a short headless PNG sequence through OSMesa into out/.
-#ifdef FULGUR_HAVE_RUNTIME
-#include "common/storm_view.h"
-#endif
-#include "common/args.h"
+#include "common/cli.h"
+#include "common/demo_args.h"
+#include "common/view_cli.h"
 #include "core/core.h"
 #include "demo/shell.h"
 #include "platform/platform.h"
 #include "render/render.h"
-#include "render/synthetic.h"
 
 #include <GLFW/glfw3.h>
 #include <backends/imgui_impl_glfw.h>
@@ -28,23 +26,6 @@ using namespace fulgur;
 
 namespace {
 
-const char* kUsage =
-    "usage: fulgur [SCENE.json] [--headless] [--frames N] [--size WxH] [--synthetic] [--screenshot-after N]\n"
-    "              [--screenshot-at-peak] [--solve-direct] [--seed S] [--time-scale X] [--no-dither]\n"
-    "Interactive storm demo (default scene: content/scenes/storm.json). Bakes the scene first\n"
-    "when no up-to-date .fgb exists. Without a display (or with --headless) it renders N\n"
-    "(default 8) frames headless to out/fulgur_NNN.png.\n"
-    "--synthetic shows the renderer's synthetic storm (no bake, no run time: a procedural cloud\n"
-    "lit by a precomputed bolt). --screenshot-after N writes out/screenshot_000.png after N\n"
-    "frames and quits (for documentation images); --no-dither turns the 8-bit dither off\n"
-    "(smaller PNGs). --seed S: the first strike's seed (default: the scene's). --time-scale X:\n"
-    "storm time per wall-clock second (default 0.25: a flash decays in ~12 ms, slowed down so a\n"
-    "software-rendered frame rate shows it). --screenshot-at-peak: hold the first strike 2 ms after\n"
-    "its return stroke, write out/screenshot_000.png after a few frames and quit. --solve-direct:\n"
-    "press \"Solve this frame directly\" on the second frame (with --screenshot-at-peak: the\n"
-    "screenshot shows the direct solve and its figures).\n"
-    "Mouse: left drag orbits, wheel zooms. Keys: Space strike now, P screenshot, Esc quit.\n";
-
 // Writes frame i of a headless sequence to out/fulgur_NNN.png; returns the name.
 std::string write_sequence_frame(platform::Context& ctx, int i) {
     std::filesystem::create_directories("out");
@@ -52,16 +33,6 @@ std::string write_sequence_frame(platform::Context& ctx, int i) {
     std::snprintf(name, sizeof name, "out/fulgur_%03d.png", i);
     core::write_png(name, ctx.width(), ctx.height(), 4, ctx.read_rgba8());
     return name;
-}
-
-#ifdef FULGUR_HAVE_RUNTIME
-// Pseudo-colour (blue -> cyan -> yellow -> red -> white) of v in [0, 1].
-void pseudo(double v, std::uint8_t* px) {
-    v = std::clamp(v, 0.0, 1.0);
-    const double r = std::clamp(3.0 * v - 1.0, 0.0, 1.0), g = std::clamp(3.0 * v - 0.5, 0.0, 1.0) * (v < 0.9 ? 1 : 1),
-                 b = std::clamp(1.0 - 2.0 * std::abs(v - 0.25) * 2.0, 0.0, 1.0) + std::clamp(3.0 * v - 2.0, 0.0, 1.0);
-    px[0] = std::uint8_t(255 * r), px[1] = std::uint8_t(255 * g), px[2] = std::uint8_t(255 * std::min(b, 1.0)),
-    px[3] = 255;
 }
 
 struct SliceGL {
@@ -100,123 +71,42 @@ std::vector<double> flash_times(const lightning::FlashProfile& f, double start, 
 int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb, int frames, int w,
                       int h, std::uint64_t seed) {
     auto ctx = platform::create_headless({.width = w, .height = h});
-    app::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
+    view::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
     const std::size_t strike = view.pipeline().strike_at(0.0, seed);
     const std::vector<double> times = flash_times(view.pipeline().storm().strike(strike).profile, 0.0, frames);
-    const render::Camera cam = app::default_camera(view.density());
+    const render::Camera cam = view::default_camera(view.density());
     for (int i = 0; i < frames; ++i) {
         const double t = times[std::size_t(i)];
-        app::ViewOptions opt;
+        view::ViewOptions opt;
         opt.settings.frame_index = std::uint32_t(i);
-        const app::FrameReport r = view.render(cam, t, w, h, opt);
+        const view::FrameReport r = view.render(cam, t, w, h, opt);
         ctx->present();
         std::printf("%s  t=%.4f s  %s\n", write_sequence_frame(*ctx, i).c_str(), t,
                     app::timings_json(r, w, h, "fulgur").c_str());
     }
     return 0;
 }
-#endif
 
-int synthetic_demo(int W, int H, int screenshot_after);
-int synthetic_headless(int frames, int W, int H);
 const char* kNoDisplay =
     "fulgur: no display available (DISPLAY unset or GLFW cannot open it); rendering %d headless frames into out/ "
     "instead\n";
-bool g_dither = true;
 
 }  // namespace
 
 int main(int argc, char** argv) {
-    std::filesystem::path scene_path = "content/scenes/storm.json";
-    bool force_headless = false, synthetic = false;
-    int screenshot_after = 0;
-    int frames = 8, W = 1280, H = 720;
-    std::optional<std::uint64_t> seed_arg;
-    double time_scale = 0.25;
-    bool at_peak = false, solve_direct_at_start = false;
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        if (a == "--help" || a == "-h") {
-            std::fputs(kUsage, stdout);
-            return 0;
-        } else if (a == "--no-dither") {
-            g_dither = false;
-        } else if (a == "--synthetic") {
-            synthetic = true;
-        } else if (a == "--screenshot-after" && i + 1 < argc) {
-            screenshot_after = std::atoi(argv[++i]);
-            if (screenshot_after < 1) {
-                std::fprintf(stderr, "fulgur: --screenshot-after must be >= 1\n");
-                return 2;
-            }
-        } else if (a == "--seed" && i + 1 < argc) {
-            try {
-                seed_arg = app::parse_number<std::uint64_t>(argv[++i], "fulgur", "--seed");
-            } catch (const std::exception& e) {
-                std::fprintf(stderr, "%s\n", e.what());
-                return 2;
-            }
-        } else if (a == "--time-scale" && i + 1 < argc) {
-            time_scale = std::atof(argv[++i]);
-            if (!(time_scale >= 0.001 && time_scale <= 10.0)) {
-                std::fprintf(stderr, "fulgur: --time-scale must be in 0.001..10\n");
-                return 2;
-            }
-        } else if (a == "--screenshot-at-peak") {
-            at_peak = true;
-            screenshot_after = 4;  // a few frames for the panel to lay itself out
-        } else if (a == "--solve-direct") {
-            solve_direct_at_start = true;
-        } else if (a == "--headless") {
-            force_headless = true;
-        } else if (a == "--frames" && i + 1 < argc) {
-            frames = std::atoi(argv[++i]);
-            if (frames < 1 || frames > 10000) {
-                std::fprintf(stderr, "fulgur: --frames must be 1..10000\n");
-                return 2;
-            }
-        } else if (a == "--size" && i + 1 < argc) {
-            if (std::sscanf(argv[++i], "%dx%d", &W, &H) != 2 || W < 16 || H < 16 || W > 8192 || H > 8192) {
-                std::fprintf(stderr, "fulgur: --size must be WxH (16..8192)\n");
-                return 2;
-            }
-        } else if (!a.empty() && a[0] == '-') {
-            std::fprintf(stderr, "fulgur: unknown option '%s' (see --help)\n", a.c_str());
-            return 2;
-        } else {
-            scene_path = a;
-        }
-    }
-#ifndef FULGUR_HAVE_RUNTIME
-    if (!synthetic) {
-        // The baked-storm path needs engine/bake and engine/runtime, which are not built yet
-        // (issues 4 and 5); the main job still shows the renderer on its synthetic storm.
-        std::fprintf(stderr,
-                     "fulgur: built without engine/bake and engine/runtime; showing the renderer's "
-                     "synthetic storm instead of %s\n",
-                     scene_path.string().c_str());
-        synthetic = true;
-    }
-#endif
-    if (synthetic) {
-        try {
-            if (force_headless || !platform::display_available()) {
-                if (!force_headless) std::printf(kNoDisplay, frames);
-                return synthetic_headless(frames, std::min(W, 640), std::min(H, 360));
-            }
-            return synthetic_demo(W, H, screenshot_after);
-        } catch (const std::exception& e) {
-            std::fprintf(stderr, "fulgur: %s\n", e.what());
-            return 1;
-        }
-    }
-#ifndef FULGUR_HAVE_RUNTIME
-    return 1;  // unreachable: synthetic is forced above
-#else
+    app::DemoArgs args;
+    if (const std::optional<int> status = app::start(argc, argv, args, app::parse_demo_args, app::demo_usage))
+        return *status;
+    const std::filesystem::path scene_path = args.scene;
+    const bool force_headless = args.headless;
+    const int screenshot_after = args.screenshot_after, frames = args.frames, W = args.width, H = args.height;
+    const std::optional<std::uint64_t> seed_arg = args.seed;
+    const double time_scale = args.time_scale;
+    const bool at_peak = args.screenshot_at_peak, solve_direct_at_start = args.solve_direct;
     try {
         scene::Scene s = scene::load_scene(scene_path);
         core::Grid3<float> density = scene::make_density(s);
-        const auto fgb = app::ensure_baked(s, density, std::nullopt, true);
+        const auto fgb = app::ensure_baked(s, density, std::nullopt);
         if (force_headless || !platform::display_available()) {
             if (!force_headless) std::printf(kNoDisplay, frames);
             const std::uint64_t sd = seed_arg.value_or(s.lightning.seed);
@@ -224,17 +114,17 @@ int main(int argc, char** argv) {
                                      sd);
         }
         app::DemoShell shell(W, H, "Fulgur", screenshot_after);
-        app::StormView view(std::move(s), std::move(density), fgb, shell.context().get_proc_address());
+        view::StormView view(std::move(s), std::move(density), fgb, shell.context().get_proc_address());
         const bool separate = view.bases().has_multiple();
 
         app::Orbit orbit{-90, 6, 1.1, 0.4, 5.0};  // distance as a multiple of the cloud size
-        app::ViewOptions opt;
-        opt.settings.dither = g_dither;
+        view::ViewOptions opt;
+        opt.settings.dither = args.dither;
         float rate = float(view.scene().lightning.schedule.strike_rate);
         int seed = int(seed_arg.value_or(view.scene().lightning.seed));
         bool autos = rate > 0;
         double t = 0.0;
-        app::FrameReport rep;
+        view::FrameReport rep;
         // The few GL calls of the slice image, through the window's get-proc-address (the
         // process also links OSMesa, whose gl* symbols must not be called on a GLX context).
         const SliceGL gl = load_slice_gl();
@@ -345,9 +235,11 @@ int main(int argc, char** argv) {
                     for (int i = 0; i < g.dims.x; ++i) vmax = std::max(vmax, v[g.index(i, j, k)]);
                 std::vector<std::uint8_t> img(std::size_t(g.dims.x) * g.dims.z * 4);
                 for (int k = 0; k < g.dims.z; ++k)
-                    for (int i = 0; i < g.dims.x; ++i)
-                        pseudo(vmax > 0 ? std::sqrt(v[g.index(i, j, k)] / vmax) : 0.0,
-                               &img[(std::size_t(g.dims.z - 1 - k) * g.dims.x + i) * 4]);
+                    for (int i = 0; i < g.dims.x; ++i) {
+                        std::uint8_t* px = &img[(std::size_t(g.dims.z - 1 - k) * g.dims.x + i) * 4];
+                        core::pseudo_colour(vmax > 0 ? std::sqrt(v[g.index(i, j, k)] / vmax) : 0.0, px);
+                        px[3] = 255;
+                    }
                 gl.BindTexture(GL_TEXTURE_2D, slice_tex);
                 gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
                 gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
@@ -389,7 +281,7 @@ int main(int argc, char** argv) {
                 std::fprintf(stderr, "fulgur: solving the frame at t = %.4f s directly...\n", t);
                 Reference r;
                 r.components = opt.components;
-                app::StormView::DirectSolve solved = view.solve_direct(t, opt.components);
+                view::StormView::DirectSolve solved = view.solve_direct(t, opt.components);
                 r.field = std::move(solved.field);
                 r.seconds = solved.seconds;
                 r.basis_ms = solved.basis_ms;  // all directions, as the solve
@@ -399,96 +291,14 @@ int main(int argc, char** argv) {
                 reference = std::move(r);
             }
             opt.settings.frame_index++;
-            const render::Camera cam = app::default_camera(view.density(), orbit.az, orbit.el, orbit.dist);
+            const render::Camera cam = view::default_camera(view.density(), orbit.az, orbit.el, orbit.dist);
             rep = view.render(cam, t, shell.width(), shell.height(), opt,
                               reference && reference->show ? &reference->field : nullptr);
             shell.end_frame();
         }
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur: %s\n", e.what());
-        return 1;
-    }
-    return 0;
-#endif
-}
-
-namespace {
-
-render::synthetic::Storm synthetic_storm(render::Renderer& r) {
-    std::printf("synthetic storm: generating cloud and bolt light...\n");
-    render::synthetic::Storm st = render::synthetic::storm({64, 64, 48}, 200.0);
-    r.set_volume({.density = &st.density, .extinction = st.extinction});
-    render::SourceUpload up;
-    up.geometry = st.lighting;
-    up.direction_count = st.directions;
-    const std::size_t n = st.lighting.cell_count();
-    for (int m = 0; m < st.directions; ++m) {
-        up.directions.push_back(m);
-        up.values.emplace_back(st.source.data() + std::size_t(m) * n, n);
-    }
-    r.upload_source(up);
-    r.set_bolt(st.bolt);
-    return st;
-}
-
-// Headless sequence of the synthetic storm: the camera orbits 4 degrees per frame.
-int synthetic_headless(int frames, int W, int H) {
-    auto ctx = platform::create_headless({.width = W, .height = H});
-    render::Renderer r(ctx->get_proc_address());
-    const render::synthetic::Storm st = synthetic_storm(r);
-    for (int i = 0; i < frames; ++i) {
-        render::Settings set = st.settings;
-        set.frame_index = std::uint32_t(i);
-        set.dither = g_dither;
-        const render::Camera cam =
-            render::Camera::orbit(st.camera.target, 13500.0, -60.0 + 4.0 * i, -6.0, st.camera.vertical_fov_deg);
-        const render::FrameStats fs = r.render(cam, set, W, H);
-        ctx->present();
-        std::printf("%s  render %.1f ms (march %.1f ms)\n", write_sequence_frame(*ctx, i).c_str(), fs.wall.total,
-                    fs.wall.march);
+        return app::kExitFailure;
     }
     return 0;
 }
-
-// The renderer's synthetic storm in the demo window: camera, effect toggles, exposure,
-// internal scale and pass times work; the lightning controls need the run time.
-int synthetic_demo(int W, int H, int screenshot_after) {
-    app::DemoShell shell(W, H, "Fulgur (synthetic storm)", screenshot_after);
-    render::Renderer r(shell.context().get_proc_address());
-    const render::synthetic::Storm st = synthetic_storm(r);
-    render::Settings set = st.settings;
-    set.dither = g_dither;
-    app::Orbit orbit{-60, -6, 13500, 4000.0, 60000.0};  // distance in metres
-    render::FrameStats fs;
-    while (shell.begin_frame(orbit)) {
-        ImGui::SetNextWindowPos({10, 10}, ImGuiCond_FirstUseEver);
-        ImGui::SetNextWindowSize({360, 0}, ImGuiCond_FirstUseEver);
-        ImGui::Begin("Fulgur (synthetic storm)");
-        ImGui::Text("%.1f fps  (%.1f ms render)", shell.fps(), fs.wall.total);
-        ImGui::TextDisabled("no bake / run time: lightning controls off");
-        ImGui::Separator();
-        ImGui::Checkbox("glow", &set.glow);
-        ImGui::Checkbox("bolt", &set.bolt);
-        ImGui::Checkbox("ground", &set.ground);
-        ImGui::Checkbox("cloud lighting", &set.cloud_lighting);
-        float expo = float(std::log2(set.exposure));
-        if (ImGui::SliderFloat("exposure (EV)", &expo, 0, 12)) set.exposure = std::exp2(expo);
-        float scale = float(set.internal_scale);
-        if (ImGui::SliderFloat("internal scale", &scale, 0.25f, 1.0f)) set.internal_scale = scale;
-        ImGui::Separator();
-        ImGui::TextUnformatted("Pass times (ms)");
-        ImGui::Text("upload %.2f  resolve %.2f  glow %.2f", fs.wall.upload, fs.wall.resolve, fs.wall.glow);
-        ImGui::Text("ray march %.2f  bolt %.2f  composite %.2f", fs.wall.march, fs.wall.bolt, fs.wall.composite);
-        ImGui::Text("internal %d x %d, %d directions", fs.internal_width, fs.internal_height, fs.directions_used);
-        ImGui::End();
-
-        set.frame_index = std::uint32_t(shell.frames());
-        const render::Camera cam =
-            render::Camera::orbit(st.camera.target, orbit.dist, orbit.az, orbit.el, st.camera.vertical_fov_deg);
-        fs = r.render(cam, set, shell.width(), shell.height());
-        shell.end_frame();
-    }
-    return 0;
-}
-
-}  // namespace

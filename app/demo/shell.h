@@ -1,6 +1,6 @@
-// The demo's window shell, shared by its two modes (baked storm and synthetic storm): GLFW
-// window + Dear ImGui set-up and teardown, frame timing and smoothed fps, the orbit camera
-// input, key edges (Space, P, Esc) and screenshots (P, or --screenshot-after N).
+// The demo's window shell: GLFW window + Dear ImGui set-up and teardown, frame timing and
+// smoothed fps, the orbit camera input, key edges (Space, P, Esc) and screenshots (P, or
+// --screenshot-after N).
 #pragma once
 
 #include "platform/platform.h"

@@ -1,7 +1,8 @@
 // fulgur-shot: one frame of a scene's storm, headless (OSMesa), to PNG; timings as JSON.
+#include "common/cli.h"
 #include "common/image_compare.h"
 #include "common/shot_args.h"
-#include "common/storm_view.h"
+#include "common/view_cli.h"
 #include "platform/platform.h"
 
 #include <cmath>
@@ -15,10 +16,10 @@ namespace {
 
 // --reference: the same frame lit by the direct solve, its difference image and the errors
 // (S over the cloud; the cloud's in-scattered radiance in the image) and times as JSON.
-void render_reference(app::StormView& view, platform::Context* ctx, const render::Camera& cam, double t,
-                      const app::ViewOptions& opt, const app::ShotArgs& a,
+void render_reference(view::StormView& view, platform::Context* ctx, const render::Camera& cam, double t,
+                      const view::ViewOptions& opt, const app::ShotArgs& a,
                       const std::vector<std::uint8_t>& shown_basis) {
-    const app::StormView::DirectSolve solved = view.solve_direct(t, opt.components);
+    const view::StormView::DirectSolve solved = view.solve_direct(t, opt.components);
     const transport::SourceField& direct = solved.field;
     const double solve_s = solved.seconds;
     // The basis frame's figures now, for all directions (the solve's counterpart): the
@@ -36,7 +37,7 @@ void render_reference(app::StormView& view, platform::Context* ctx, const render
     const app::DisplayDifference shown = app::compare_display(shown_basis, shown_ref);
 
     // The cloud alone (no glow in the march buffer, no jitter), once per field.
-    app::ViewOptions metric = opt;
+    view::ViewOptions metric = opt;
     metric.settings.glow = false;
     metric.settings.jitter = false;
     int w = 0, h = 0;
@@ -84,22 +85,14 @@ void render_reference(app::StormView& view, platform::Context* ctx, const render
 
 int main(int argc, char** argv) {
     app::ShotArgs a;
-    try {
-        a = app::parse_shot_args(std::vector<std::string>(argv + 1, argv + argc));
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "%s\n", e.what());
-        return 2;
-    }
-    if (a.help) {
-        std::fputs(app::shot_usage().c_str(), stdout);
-        return 0;
-    }
+    if (const std::optional<int> status = app::start(argc, argv, a, app::parse_shot_args, app::shot_usage))
+        return *status;
     try {
         scene::Scene s = scene::load_scene(a.scene);
         core::Grid3<float> density = scene::make_density(s);
-        const auto fgb = app::ensure_baked(s, density, a.fgb, true);
+        const auto fgb = app::ensure_baked(s, density, a.fgb);
         auto ctx = platform::create_headless({.width = a.width, .height = a.height});
-        app::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
+        view::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
         lightning::LightningParams lp = view.scene().lightning;
         lp.schedule.strike_rate = 0.0;  // only the requested strike (after the bake check: same .fgb as the demo)
         view.set_lightning(lp);
@@ -107,18 +100,17 @@ int main(int argc, char** argv) {
         const double t =
             a.time +
             (a.time_after_return_stroke ? view.pipeline().storm().strike(strike).profile.stroke_onset.at(0) : 0.0);
-        app::ViewOptions opt;
+        view::ViewOptions opt;
         opt.settings.exposure *= std::exp2(a.exposure_ev);
-        const render::Camera cam = app::default_camera(view.density());
+        const render::Camera cam = view::default_camera(view.density());
         // Medians over --repeat frames: the first one also compiles shaders and uploads the
-        // density; the run time rebuilds the same frame each time (same strike, same t).
-        std::vector<app::FrameReport> reps;
-        for (int k = 0; k < a.repeat; ++k) {
-            opt.settings.frame_index = std::uint32_t(k);
-            reps.push_back(view.render(cam, t, a.width, a.height, opt));
-        }
-        app::FrameReport r = reps.back();
-        if (reps.size() > 1) r = app::median_report(reps);
+        // density; the run time rebuilds the same frame each time (same strike, same t). The
+        // frame index (which varies the ray-march jitter) stays the same too, so the image
+        // written is the one a single render writes: --repeat only times it.
+        std::vector<view::FrameReport> reps;
+        for (int k = 0; k < a.repeat; ++k) reps.push_back(view.render(cam, t, a.width, a.height, opt));
+        view::FrameReport r = reps.back();
+        if (reps.size() > 1) r = view::median_report(reps);
         ctx->present();
         const auto px = ctx->read_rgba8();
         core::write_png(a.output, a.width, a.height, 4, px);
@@ -126,7 +118,7 @@ int main(int argc, char** argv) {
         if (a.reference) render_reference(view, ctx.get(), cam, t, opt, a, px);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur-shot: %s\n", e.what());
-        return 1;
+        return app::kExitFailure;
     }
     return 0;
 }

@@ -7,21 +7,11 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
-#include <map>
 #include <sstream>
 
 namespace fulgur::study {
 
 namespace {
-struct Entry {
-    std::string help;
-    StudyFn fn;
-};
-std::map<std::string, Entry>& registry() {
-    static std::map<std::string, Entry> r;
-    return r;
-}
-
 std::string fmt(double v) {
     char b[64];
     std::snprintf(b, sizeof b, "%.9g", v);
@@ -60,10 +50,6 @@ std::vector<double> nice_ticks(double lo, double hi, int target = 6) {
     return t;
 }
 }  // namespace
-
-Registration::Registration(const char* name, const char* help, StudyFn fn) {
-    registry()[name] = Entry{help, std::move(fn)};
-}
 
 void Context::summary(const std::string& name, nlohmann::json j) const {
     if (!j.contains("study")) j["study"] = name;
@@ -234,48 +220,15 @@ void write_svg_plot(const std::filesystem::path& path, const std::vector<Series>
 }  // namespace fulgur::study
 
 int main(int argc, char** argv) {
-    using namespace fulgur::study;
-    Context ctx;
-    std::vector<std::string> names;
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        if (a == "--help" || a == "-h") {
-            std::printf(
-                "usage: fulgur-study [--quick] [-o DIR] NAME...\n"
-                "Runs the named studies (all if none), writing CSV and SVG files into DIR\n"
-                "(default ./study-output) and one JSON summary line per study on stdout.\n\n");
-            for (const auto& [n, e] : registry()) std::printf("  %-16s %s\n", n.c_str(), e.help.c_str());
-            return 0;
-        }
-        if (a == "--quick") {
-            ctx.quick = true;
-            continue;
-        }
-        if (a == "-o" || a == "--output") {
-            if (i + 1 >= argc) {
-                std::fprintf(stderr, "fulgur-study: %s needs a directory\n", a.c_str());
-                return 2;
-            }
-            ctx.output_dir = argv[++i];
-            continue;
-        }
-        if (!a.empty() && a[0] == '-') {
-            std::fprintf(stderr, "fulgur-study: unknown option '%s' (try --help)\n", a.c_str());
-            return 2;
-        }
-        if (!registry().count(a)) {
-            std::fprintf(stderr, "fulgur-study: unknown study '%s' (try --help)\n", a.c_str());
-            return 2;
-        }
-        names.push_back(a);
-    }
-    if (names.empty())
-        for (const auto& [n, e] : registry()) names.push_back(n);
-    try {
-        for (const auto& n : names) registry()[n].fn(ctx);
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "fulgur-study: %s\n", e.what());
-        return 1;
-    }
-    return 0;
+    fulgur::study::Context ctx;
+    return fulgur::app::registry_main(argc, argv,
+                                      {"fulgur-study", "study",
+                                       "Runs the named studies (all if none), writing CSV and SVG files into DIR\n"
+                                       "(default ./study-output) and one JSON summary line per study on stdout.",
+                                       16},
+                                      ctx, [&ctx](CLI::App& app) {
+                                          app.add_option("-o,--output", ctx.output_dir,
+                                                         "output directory (default ./study-output)")
+                                              ->type_name("DIR");
+                                      });
 }

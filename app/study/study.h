@@ -6,11 +6,12 @@
 // reference. They may take minutes; --quick runs a reduced version for smoke tests.
 #pragma once
 
+#include "common/registry.h"
+
 #include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <filesystem>
-#include <functional>
 #include <string>
 #include <vector>
 
@@ -25,20 +26,8 @@ struct Context {
     std::filesystem::path file(const std::string& name) const;
 };
 
-using StudyFn = std::function<void(const Context&)>;
-
-struct Registration {
-    Registration(const char* name, const char* help, StudyFn fn);
-};
-
-#define FULGUR_STUDY_CONCAT2(a, b) a##b
-#define FULGUR_STUDY_CONCAT(a, b) FULGUR_STUDY_CONCAT2(a, b)
 /// FULGUR_STUDY(lb_convergence, "lb-convergence", "help") { ... uses ctx ... }
-#define FULGUR_STUDY(ident, name, help)                                                     \
-    static void FULGUR_STUDY_CONCAT(study_fn_, ident)(const ::fulgur::study::Context& ctx); \
-    static const ::fulgur::study::Registration FULGUR_STUDY_CONCAT(study_reg_, ident)(      \
-        name, help, &FULGUR_STUDY_CONCAT(study_fn_, ident));                                \
-    static void FULGUR_STUDY_CONCAT(study_fn_, ident)([[maybe_unused]] const ::fulgur::study::Context& ctx)
+#define FULGUR_STUDY(ident, name, help) FULGUR_REGISTRY_ENTRY(::fulgur::study::Context, ident, name, help)
 
 /// A small CSV writer: header once, then rows of numbers or strings; throws core::Error
 /// naming the file if it cannot be written.

@@ -1,4 +1,4 @@
-// Lattice-Boltzmann against the Monte Carlo reference (issue 3's last deliverable).
+// Lattice-Boltzmann against the Monte Carlo reference.
 //   lb-vs-mc: the default storm cloud on its 36x36x20 lighting grid (500 m voxels,
 //   26 output directions, g = 0.6, albedo 0.99), an isotropic 1 W/sr point light 750 m
 //   below the cloud base under the density-weighted centre of the base layer. Reference:

@@ -1,22 +1,27 @@
-// fulgur-shot's argument validation and the tiny test scenes used by the golden tests.
+// fulgur-shot's and fulgur's argument validation and the tiny test scenes used by the golden tests.
+#include "common/demo_args.h"
 #include "common/shot_args.h"
 #include "core/core.h"
 #include "scene/scene.h"
+#include "support/test_support.h"
 
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <fstream>
 
 using namespace fulgur;
 
 namespace {
 app::ShotArgs parse(std::vector<std::string> a) { return app::parse_shot_args(a); }
-const std::vector<std::string> good = {"s.json", "--seed", "7", "--time", "0.05", "--size", "64x32", "-o", "x.png"};
+// The scene must exist (the parser checks): a test scene stands for any scene file.
+const std::string s_json = FULGUR_SOURCE_DIR "/tests/apps/scenes/test_iso_ss_ic.json";
+const std::vector<std::string> good = {s_json, "--seed", "7", "--time", "0.05", "--size", "64x32", "-o", "x.png"};
 }  // namespace
 
 TEST_CASE("fulgur-shot: a complete command line parses") {
     const app::ShotArgs a = parse(good);
-    CHECK(a.scene == "s.json");
+    CHECK(a.scene == s_json);
     CHECK(a.seed == 7);
     CHECK(a.time == doctest::Approx(0.05));
     CHECK_FALSE(a.time_after_return_stroke);
@@ -34,9 +39,13 @@ TEST_CASE("fulgur-shot: a complete command line parses") {
     CHECK(a.height == 32);
     CHECK(a.output == "x.png");
     CHECK_FALSE(a.fgb.has_value());
+    const std::string b_fgb = (test::scratch_dir("app_args") / "b.fgb").string();  // --fgb must exist
+    std::ofstream(b_fgb) << "";
     std::vector<std::string> f = good;
-    f.insert(f.end(), {"--fgb", "b.fgb"});
-    CHECK(parse(f).fgb.value() == "b.fgb");
+    f.insert(f.end(), {"--fgb", b_fgb});
+    CHECK(parse(f).fgb.value() == b_fgb);
+    f.back() = b_fgb + ".missing";
+    CHECK_THROWS_AS(parse(f), core::Error);
     CHECK(parse({"--help"}).help);
     CHECK(app::shot_usage().find("--size") != std::string::npos);
 }
@@ -52,7 +61,7 @@ TEST_CASE("fulgur-shot: invalid command lines are rejected with a reason") {
     CHECK_THROWS_AS(parse(without("--time", 2)), core::Error);
     CHECK_THROWS_AS(parse(without("--size", 2)), core::Error);
     CHECK_THROWS_AS(parse(without("-o", 2)), core::Error);
-    CHECK_THROWS_AS(parse(without("s.json", 1)), core::Error);
+    CHECK_THROWS_AS(parse(without(s_json, 1)), core::Error);
     auto with = [](std::size_t i, const std::string& v) {
         std::vector<std::string> a = good;
         a[i] = v;
@@ -105,4 +114,49 @@ TEST_CASE("fulgur-shot: --reference names a PNG other than -o") {
     CHECK_THROWS_AS(parse(r), core::Error);
     r.pop_back();  // missing value
     CHECK_THROWS_AS(parse(r), core::Error);
+}
+
+TEST_CASE("fulgur: the demo's command line parses strictly") {
+    auto demo = [](std::vector<std::string> a) { return app::parse_demo_args(a); };
+    const app::DemoArgs d = demo({});
+    CHECK(d.scene == "content/scenes/storm.json");
+    CHECK(d.frames == 8);
+    CHECK(d.width == 1280);
+    CHECK(d.height == 720);
+    CHECK(d.time_scale == 0.25);
+    CHECK_FALSE(d.seed.has_value());
+    CHECK(d.dither);
+    const app::DemoArgs e = demo({s_json, "--frames", "3", "--size", "320x180", "--seed", "5", "--time-scale", "0.5",
+                                  "--no-dither", "--headless", "--solve-direct"});
+    CHECK(e.scene == s_json);
+    CHECK(e.frames == 3);
+    CHECK(e.width == 320);
+    CHECK(e.height == 180);
+    CHECK(e.seed.value() == 5);
+    CHECK(e.time_scale == 0.5);
+    CHECK_FALSE(e.dither);
+    CHECK(e.headless);
+    CHECK(e.solve_direct);
+    CHECK(demo({"--screenshot-at-peak"}).screenshot_after == 4);  // a few frames for the panel
+    CHECK(demo({"--screenshot-at-peak", "--screenshot-after", "7"}).screenshot_after == 7);
+    CHECK(demo({"--help"}).help);
+    CHECK(app::demo_usage().find("--time-scale") != std::string::npos);
+
+    auto rejects = [&](std::vector<std::string> a, const char* reason) {
+        CAPTURE(reason);
+        CHECK_THROWS_WITH_AS(demo(a), doctest::Contains(reason), core::Error);
+    };
+    rejects({"--frames", "3x"}, "not a number");  // atoi took the 3
+    rejects({"--frames", "0"}, "1..10000");
+    rejects({"--time-scale", "nan"}, "0.001..10");
+    rejects({"--time-scale", "inf"}, "0.001..10");
+    rejects({"--time-scale", "0.5s"}, "not a number");  // atof took the 0.5
+    rejects({"--size", "320x"}, "not a number");
+    rejects({"--size", "8x8"}, "16..8192");
+    rejects({"--screenshot-after", "0"}, ">= 1");
+    rejects({"--seed", "-1"}, "not a number");
+    rejects({"--seed"}, "needs a value");
+    rejects({"--bogus"}, "unknown option");
+    rejects({"missing.json"}, "missing.json");
+    rejects({s_json, s_json}, "more than one scene");
 }

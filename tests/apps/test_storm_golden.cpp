@@ -1,9 +1,9 @@
-// Golden images of whole storm frames through fulgur-shot's code path (app::StormView):
+// Golden images of whole storm frames through fulgur-shot's code path (view::StormView):
 // tiny scenes baked at test time (tests/apps/scenes), rendered headless at 160x90.
 // Goldens: tests/render/golden/storm_*.png, regenerated only with FULGUR_UPDATE_GOLDENS=1.
-#include "common/storm_view.h"
 #include "golden.h"
 #include "platform/platform.h"
+#include "view/view.h"
 
 #include <doctest/doctest.h>
 
@@ -47,13 +47,13 @@ Shot shoot(const std::string& name, std::uint64_t seed, runtime::Components comp
     core::Grid3<float> d = scene::make_density(s);
     const auto fgb = baked(name, s, d);
     platform::Context& ctx = context();
-    app::StormView view(std::move(s), std::move(d), fgb, ctx.get_proc_address());
+    view::StormView view(std::move(s), std::move(d), fgb, ctx.get_proc_address());
     const std::size_t i = view.pipeline().strike_at(0.0, seed);
     const double t = view.pipeline().storm().strike(i).profile.stroke_onset.at(0) + 0.002;
-    app::ViewOptions opt;
+    view::ViewOptions opt;
     opt.components = comp;
     opt.settings.timing = render::Timing::Off;
-    const app::FrameReport r = view.render(app::default_camera(view.density()), t, W, H, opt);
+    const view::FrameReport r = view.render(view::default_camera(view.density()), t, W, H, opt);
     REQUIRE(r.lit);
     ctx.present();
     Shot out;
@@ -119,11 +119,11 @@ TEST_CASE("storm: a render lit by a given field; the direct-solve reference of t
     core::Grid3<float> d = scene::make_density(s);
     const auto fgb = baked("test_aniso_ms_cg", s, d);
     platform::Context& ctx = context();
-    app::StormView view(std::move(s), std::move(d), fgb, ctx.get_proc_address());
+    view::StormView view(std::move(s), std::move(d), fgb, ctx.get_proc_address());
     const std::size_t i = view.pipeline().strike_at(0.0, 41);
     const double t = view.pipeline().storm().strike(i).profile.stroke_onset.at(0) + 0.002;
-    const render::Camera cam = app::default_camera(view.density());
-    app::ViewOptions opt;
+    const render::Camera cam = view::default_camera(view.density());
+    view::ViewOptions opt;
     opt.settings.timing = render::Timing::Off;
     auto shot = [&](const transport::SourceField* field) {
         REQUIRE(view.render(cam, t, W, H, opt, field).lit);
@@ -144,7 +144,7 @@ TEST_CASE("storm: a render lit by a given field; the direct-solve reference of t
 
     // The direct solve: finite, non-negative energy, and a visibly different image on this
     // coarse test grid (virtual lights 4 km apart: the splat moves light by kilometres).
-    const app::StormView::DirectSolve solved = view.solve_direct(t, {});
+    const view::StormView::DirectSolve solved = view.solve_direct(t, {});
     const transport::SourceField& direct = solved.field;
     CHECK(solved.seconds > 0.0);
     CHECK(solved.basis_ms > 0.0);

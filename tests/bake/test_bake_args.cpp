@@ -8,20 +8,22 @@ using namespace fulgur;
 
 namespace {
 app::BakeArgs parse(std::vector<std::string> a) { return app::parse_bake_args(a); }
+// The scene must exist (the parser checks): a test scene stands for any scene file.
+const std::string s_json = FULGUR_SOURCE_DIR "/tests/apps/scenes/test_iso_ss_ic.json";
 }  // namespace
 
 TEST_CASE("fulgur-bake: valid command lines") {
-    app::BakeArgs a = parse({"s.json"});
-    CHECK(a.scene == "s.json");
+    app::BakeArgs a = parse({s_json});
+    CHECK(a.scene == s_json);
     CHECK_FALSE(a.output.has_value());
     CHECK_FALSE(a.dry_run);
-    a = parse({"s.json", "-o", "x.fgb", "--dry-run", "--threads", "2", "--report", "r.json", "--force"});
+    a = parse({s_json, "-o", "x.fgb", "--dry-run", "--threads", "2", "--report", "r.json", "--force"});
     CHECK(a.output.value() == "x.fgb");
     CHECK(a.dry_run);
     CHECK(a.force);
     CHECK(a.threads == 2);
     CHECK(a.report.value() == "r.json");
-    a = parse({"s.json", "--export", "3,7:0.5,9:-2", "--direction", "4", "--nrrd", "out/x"});
+    a = parse({s_json, "--export", "3,7:0.5,9:-2", "--direction", "4", "--nrrd", "out/x"});
     REQUIRE(a.export_lights.size() == 3);
     CHECK(a.export_lights[0].light == 3);
     CHECK(a.export_lights[0].weight == 1.0);
@@ -29,6 +31,9 @@ TEST_CASE("fulgur-bake: valid command lines") {
     CHECK(a.export_lights[2].weight == -2.0);
     CHECK(a.export_direction == 4);
     CHECK(a.export_prefix == "out/x");
+    a = parse({s_json, "--export", "3", "--export", "7:0.5", "--nrrd", "out/x"});  // repeated lists add up
+    REQUIRE(a.export_lights.size() == 2);
+    CHECK(a.export_lights[1].light == 7);
     CHECK(parse({"--help"}).help);
 }
 
@@ -38,17 +43,20 @@ TEST_CASE("fulgur-bake: invalid command lines are rejected with a reason") {
         CHECK_THROWS_WITH_AS(parse(a), doctest::Contains(reason), core::Error);
     };
     rejects({}, "no SCENE.json");
-    rejects({"a.json", "b.json"}, "more than one scene");
-    rejects({"s.json", "--bogus"}, "unknown option");
-    rejects({"s.json", "-o"}, "needs a value");
-    rejects({"s.json", "--threads", "0"}, "1..1024");
-    rejects({"s.json", "--threads", "two"}, "not a number");
-    rejects({"s.json", "--export", "1,x"}, "not a number");
-    rejects({"s.json", "--export", "1,"}, "not a number");
-    rejects({"s.json", "--export", "1:nan", "--nrrd", "p"}, "finite");
-    rejects({"s.json", "--export", "-1", "--nrrd", "p"}, "not a number");
-    rejects({"s.json", "--export", "1"}, "--nrrd");
-    rejects({"s.json", "--nrrd", "p"}, "only go with --export");
-    rejects({"s.json", "--export", "1", "--nrrd", "p", "--dry-run"}, "--dry-run");
-    rejects({"s.json", "--export", "1", "--nrrd", "p", "--direction", "-3"}, "--direction");
+    rejects({s_json, s_json}, "more than one scene");
+    rejects({"missing.json"}, "missing.json");
+    rejects({s_json, "--bogus"}, "unknown option");
+    rejects({s_json, "-o"}, "needs a value");
+    rejects({s_json, "--threads", "0"}, "1..1024");
+    rejects({s_json, "--threads", "two"}, "not a number");
+    rejects({s_json, "--threads", "0x10"}, "not a number");  // base 10 only
+    rejects({s_json, "--threads", "2.5"}, "not a number");
+    rejects({s_json, "--export", "1,x"}, "not a number");
+    rejects({s_json, "--export", "1,"}, "not a number");
+    rejects({s_json, "--export", "1:nan", "--nrrd", "p"}, "finite");
+    rejects({s_json, "--export", "-1", "--nrrd", "p"}, "not a number");
+    rejects({s_json, "--export", "1"}, "--nrrd");
+    rejects({s_json, "--nrrd", "p"}, "only go with --export");
+    rejects({s_json, "--export", "1", "--nrrd", "p", "--dry-run"}, "--dry-run");
+    rejects({s_json, "--export", "1", "--nrrd", "p", "--direction", "-3"}, "--direction");
 }

@@ -19,7 +19,7 @@ std::string str(Int3 n) { return std::to_string(n.x) + "x" + std::to_string(n.y)
 
 constexpr Decomposition kBoth[] = {Decomposition::NonStandard, Decomposition::Standard};
 
-// The sizes the issue names (1, 2, 3, 5, 33 as cubes), its two grids, and mixed odd/even axes.
+// Odd and even sizes (1, 2, 3, 5, 33 as cubes), larger grids, and mixed odd/even axes.
 const std::vector<Int3> kSizes = {{1, 1, 1},  {2, 2, 2},  {3, 3, 3},   {5, 5, 5},    {33, 33, 33}, {33, 1, 1},
                                   {1, 33, 1}, {1, 1, 33}, {32, 32, 4}, {64, 48, 20}, {5, 2, 3},    {33, 4, 7},
                                   {6, 9, 1},  {1, 7, 2},  {2, 1, 5},   {32, 32, 24}};
@@ -177,7 +177,7 @@ TEST_CASE("lossless round trip at xi = 0 in float32: relative RMS < 3e-7") {
             HaarTransform<float>(n, dec).inverse(h);
             std::vector<double> back(h.begin(), h.end());
             const double rel = test::l2_diff(back, f) / test::l2(f);
-            CHECK(rel < 3e-7);  // the issue's bound for float32 (unit roundoff 6e-8, ~log2(n) levels per axis)
+            CHECK(rel < 3e-7);  // the required bound for float32 (unit roundoff 6e-8, ~log2(n) levels per axis)
             // Pure float forward + inverse stays within the same bound.
             std::vector<float> g(f.begin(), f.end());
             HaarTransform<float> tf(n, dec);
@@ -213,7 +213,7 @@ TEST_CASE("Parseval: the L2 error of a thresholded reconstruction is the norm of
             t.inverse(c);
             const double err = test::l2_diff(c, f), gamma = std::sqrt(dropped.value());
             if (gamma > 0.0) {
-                CHECK(err == doctest::Approx(gamma).epsilon(1e-5));  // the issue's bound; double gives ~1e-12
+                CHECK(err == doctest::Approx(gamma).epsilon(1e-5));  // the required bound; double gives ~1e-12
             } else {
                 CHECK(err < 1e-14 * test::l2(f));
             }

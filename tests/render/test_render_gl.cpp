@@ -3,7 +3,7 @@
 // the cloud, determinism, and error reporting.
 #include "gl_fixture.h"
 
-#include "render/synthetic.h"
+#include "support/synthetic_storm.h"
 #include "support/test_support.h"
 #include "transport/transport.h"
 
@@ -202,14 +202,14 @@ TEST_CASE("an empty volume transmits everything: T = 1 and the sky is unchanged"
 
 TEST_CASE("same inputs give identical pixels; the frame index only moves the jitter") {
     render::Renderer& r = gl_renderer();
-    const auto density = render::synthetic::cumulus({40, 40, 30}, 300.0, 5);
+    const auto density = synthetic::cumulus({40, 40, 30}, 300.0, 5);
     r.set_volume({.density = &density, .extinction = 0.004});
-    const auto lg = render::synthetic::lighting_geometry(density.geom, 4);
-    const auto S = render::synthetic::point_flash_source(density, 0.004, lg, 6, {0, 0, 3000}, 1e6);
+    const auto lg = synthetic::lighting_geometry(density.geom, 4);
+    const auto S = synthetic::point_flash_source(density, 0.004, lg, 6, {0, 0, 3000}, 1e6);
     render::SourceUpload up{lg, 6, {0, 1, 2, 3, 4, 5}, {}};
     for (int m = 0; m < 6; ++m) up.values.emplace_back(S.data() + std::size_t(m) * lg.cell_count(), lg.cell_count());
     r.upload_source(up);
-    r.set_bolt(render::synthetic::bolt(9, {0, 0, 3000}, 300.0));
+    r.set_bolt(synthetic::bolt(9, {0, 0, 3000}, 300.0));
     const render::Camera cam = render::Camera::orbit({0, 0, 4000}, 20000, -60, 8, 50);
     render::Settings st;
     st.exposure = 3000.0;
@@ -273,10 +273,10 @@ TEST_CASE("the GPU resolve matches the CPU direction weights") {
 
 TEST_CASE("uploading only the needed directions gives the same image; a missing one is reported") {
     render::Renderer& r = gl_renderer();
-    const auto density = render::synthetic::cumulus({40, 40, 30}, 300.0, 2);
+    const auto density = synthetic::cumulus({40, 40, 30}, 300.0, 2);
     r.set_volume({.density = &density, .extinction = 0.004});
-    const auto lg = render::synthetic::lighting_geometry(density.geom, 4);
-    const auto S = render::synthetic::point_flash_source(density, 0.004, lg, 26, {500, 0, 3500}, 1e6);
+    const auto lg = synthetic::lighting_geometry(density.geom, 4);
+    const auto S = synthetic::point_flash_source(density, 0.004, lg, 26, {500, 0, 3500}, 1e6);
     const render::Camera cam = render::Camera::orbit({0, 0, 4000}, 22000, 35, 12, 50);
     render::Settings st = test::volume_only();
     st.internal_scale = 0.5;
@@ -325,10 +325,10 @@ TEST_CASE("uploading only the needed directions gives the same image; a missing 
 
 TEST_CASE("empty-space skipping is exact; early exit errs by at most T_min * S_max") {
     render::Renderer& r = gl_renderer();
-    const auto density = render::synthetic::cumulus({48, 48, 36}, 250.0, 3);
+    const auto density = synthetic::cumulus({48, 48, 36}, 250.0, 3);
     r.set_volume({.density = &density, .extinction = 0.006});
-    const auto lg = render::synthetic::lighting_geometry(density.geom, 4);
-    const auto S = render::synthetic::point_flash_source(density, 0.006, lg, 1, {0, 0, 3000}, 1e6);
+    const auto lg = synthetic::lighting_geometry(density.geom, 4);
+    const auto S = synthetic::point_flash_source(density, 0.006, lg, 1, {0, 0, 3000}, 1e6);
     r.upload_source({lg, 1, {0}, {S}});
     const double s_max = *std::max_element(S.begin(), S.end());
     for (const render::Camera& cam : {render::Camera::orbit({0, 0, 4000}, 20000, -60, 8, 50),

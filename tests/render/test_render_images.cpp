@@ -5,7 +5,7 @@
 #include "gl_fixture.h"
 #include "golden.h"
 
-#include "render/synthetic.h"
+#include "support/synthetic_storm.h"
 #include "support/test_support.h"
 
 #include <doctest/doctest.h>
@@ -20,9 +20,9 @@ namespace {
 /// Renders the synthetic storm at w x h and returns the 8-bit frame (rows top to bottom).
 std::vector<std::uint8_t> synthetic_storm(const core::Int3& dims, double voxel, int w, int h, bool dither = true) {
     render::Renderer& r = test::gl_renderer();
-    const render::synthetic::Storm storm = render::synthetic::storm(dims, voxel);
+    const synthetic::Storm storm = synthetic::storm(dims, voxel);
     r.set_volume({.density = &storm.density, .extinction = storm.extinction});
-    r.upload_source(render::synthetic::needed_upload(r, storm));
+    r.upload_source(synthetic::needed_upload(r, storm));
     r.set_bolt(storm.bolt);
     render::Settings st = storm.settings;
     st.dither = dither;

@@ -1,6 +1,6 @@
 // The run time on real bakes of the tiny test scenes (tests/apps/scenes: 32x32x16 density,
 // 8x8x4 lighting grid, virtual lights 4 km apart; each bakes in about a second):
-// determinism, linearity, components, a source on a virtual light, the hard cases
+// determinism, linearity, components, a source on a virtual light, the run time's hard cases
 // (a bolt leaving the grid, sources on nodes and boundaries, zero intensity, 10,000 sources,
 // bolts on the top and bottom light layers), dark frames, and the accuracy of the basis
 // method against the direct solve.

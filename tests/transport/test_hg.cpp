@@ -63,8 +63,8 @@ TEST_CASE("HG integrates to 1 over the sphere and its mean cosine is g") {
         CAPTURE(g);
         const double norm = sphere_integral(g, [](double) { return 1.0; });
         const double mean_cos = sphere_integral(g, [](double mu) { return mu; });
-        CHECK(std::fabs(norm - 1.0) < 1e-4);    // the bound; the quadrature reaches ~1e-12
-        CHECK(std::fabs(mean_cos - g) < 1e-3);  // the bound
+        CHECK(std::fabs(norm - 1.0) < 1e-4);    // the required bound; the quadrature reaches ~1e-12
+        CHECK(std::fabs(mean_cos - g) < 1e-3);  // the required bound
     }
 }
 
@@ -97,7 +97,7 @@ TEST_CASE("HG stays finite for g = +-0.999 and +-1 (|g| clamped to kMaxAbsG)") {
     CHECK(hg_phase(0.3, -1.0) == doctest::Approx(hg_phase(0.3, -transport::kMaxAbsG)).epsilon(1e-13));
     // NaN g is treated as isotropic (never propagates NaN).
     CHECK(hg_phase(0.3, nan) == doctest::Approx(1.0 / (4.0 * std::numbers::pi)).epsilon(1e-15));
-    // The clamped phase function is still normalized (1e-4: the bound).
+    // The clamped phase function is still normalized (1e-4: the required bound).
     CHECK(std::fabs(sphere_integral(1.0, [](double) { return 1.0; }) - 1.0) < 1e-4);
 }
 

@@ -38,7 +38,7 @@ TEST_CASE("diffusion limit: variance grows by 2D per step per axis, D from Eq. 1
             // Least-squares slope over the second half of the run.
             const double slope = test::least_squares_slope(ts, vs);
             INFO("sigma_t " << st << " albedo " << albedo << ": slope " << slope << " vs 2D " << 2.0 * D);
-            // The issue asks for 1% on finite runs; the fitted second-half slope actually
+            // The requirement is 1% on finite runs; the fitted second-half slope actually
             // matches Eq. 19 to ~2e-7 (the transient has decayed; float32 sums), so 1e-4 keeps
             // margin for rounding while catching any error in D or in the collision.
             CHECK(slope == doctest::Approx(2.0 * D).epsilon(0.01));

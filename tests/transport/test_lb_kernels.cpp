@@ -166,7 +166,7 @@ TEST_CASE("naive (Appendix B) and fast kernels agree within 1e-5 after 100 steps
                 worst = std::max(worst, std::fabs(x - y) / std::max({std::fabs(x), std::fabs(y), fl * vmax}));
             }
         MESSAGE("max relative difference after 100 steps: " << worst);
-        CHECK(worst < 1e-5);  // the issue's bound; float32 summation-order differences are ~1e-6
+        CHECK(worst < 1e-5);  // the required bound; float32 summation-order differences are ~1e-6
         CHECK(a.absorbed_total() == doctest::Approx(b.absorbed_total()).epsilon(1e-5));
         CHECK(a.escaped_total() == doctest::Approx(b.escaped_total()).epsilon(1e-5));
     }

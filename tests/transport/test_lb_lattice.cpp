@@ -111,7 +111,7 @@ TEST_CASE("isotropic collision matrix is the paper's Eqs. 4-6 for both forms") {
     }
 }
 
-TEST_CASE("published anisotropic form: the issue's numbers (sigma_t 0.25, albedo 0.9, g 0.85)") {
+TEST_CASE("published anisotropic form: the reference numbers (sigma_t 0.25, albedo 0.9, g 0.85)") {
     const SiteCoefficients c = lattice_unit_coefficients(0.25, 0.9);
     const Matrix19 T = collision_matrix(published_phase(0.85), c, LbAbsorption::Conservative);
     double lo = 1e9, hi = -1e9;
@@ -119,7 +119,7 @@ TEST_CASE("published anisotropic form: the issue's numbers (sigma_t 0.25, albedo
         lo = std::min(lo, column_sum(T, j));
         hi = std::max(hi, column_sum(T, j));
     }
-    CHECK(lo == doctest::Approx(0.947).epsilon(0.0006));  // issue quotes 3 digits: 0.947 .. 1.105
+    CHECK(lo == doctest::Approx(0.947).epsilon(0.0006));  // the reference quotes 3 digits: 0.947 .. 1.105
     CHECK(hi == doctest::Approx(1.105).epsilon(0.0006));
     // Omega = Theta - I has an eigenvalue +0.087: Theta's Perron root exceeds 1, so a closed
     // lattice gains energy every step. This is the instability the corrected form removes.
@@ -141,7 +141,7 @@ TEST_CASE("corrected phase: conserves, keeps isotropy, mean cosine = g per incom
             for (int i = 1; i < kQ; ++i) iso += ph.P[std::size_t(j)][std::size_t(i)] * weight(i);
             CHECK(col == doctest::Approx(1.0).epsilon(1e-12));        // energy: the construction solves this to ~1e-15
             CHECK(iso == doctest::Approx(weight(j)).epsilon(1e-12));  // P w = w, follows from the symmetric K
-            // The issue asks for 0.02; the construction matches to the bisection accuracy.
+            // The requirement is 0.02; the construction matches to the bisection accuracy.
             CHECK(std::fabs(mean_cosine(ph, j) - g) < 1e-6);
         }
     }

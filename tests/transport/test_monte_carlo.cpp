@@ -23,7 +23,7 @@ using namespace fulgur::transport;
 
 namespace {
 
-// |estimate - expect| <= 3 SE and <= 1% of expect (the two conditions).
+// |estimate - expect| <= 3 SE and <= 1% of expect (the two acceptance conditions).
 void check_oracle(const char* what, double estimate, double se, double expect) {
     CAPTURE(what);
     CAPTURE(estimate);

@@ -1,4 +1,4 @@
-// The issue's acceptance check on the DEFAULT cloud: exact single scattering equals the Monte
+// The acceptance check of exact single scattering on the DEFAULT cloud: exact single scattering equals the Monte
 // Carlo order-1 estimate within 3 standard errors for at least 99% of the cloud voxels.
 #include "cloud/cloud.h"
 #include "scene/scene.h"
@@ -51,7 +51,7 @@ TEST_CASE("default storm cloud: single scattering equals the Monte Carlo order-1
     MESSAGE(voxels << " cloud voxels x " << dirs.size() << " directions: " << 100.0 * fraction << "% within 3 SE ("
                    << zero_se << " with zero SE)");
     CHECK(voxels > 1000);
-    // The issue's criterion. With S exact, 32-batch t statistics put ~0.5% beyond 3 SE; the
+    // The acceptance criterion. With S exact, 32-batch t statistics put ~0.5% beyond 3 SE; the
     // measured fraction is ~99.3%, so the quadrature error at the default tolerance is well
     // inside the Monte Carlo noise (docs/transport.md has the dependence on the tolerance).
     CHECK(fraction >= 0.99);

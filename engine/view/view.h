@@ -1,6 +1,8 @@
-// The frame-rendering logic shared by `fulgur` (demo), `fulgur-shot` and the golden-image
-// tests: scene + baked bases -> runtime::FramePipeline -> render::Renderer, in whatever GL
-// context is current. Also: finding (or baking) the scene's .fgb.
+// fulgur::view — one storm frame from a scene: scene + baked bases -> runtime::FramePipeline
+// -> render::Renderer, in whatever GL context is current (as Filament's View: library code
+// the apps drive). Shared by `fulgur` (demo), `fulgur-shot` and the golden-image tests.
+// Also: finding (or baking) the scene's .fgb, the default camera, the direct solve of a frame
+// as its reference.
 #pragma once
 
 #include "bake/bake.h"
@@ -9,17 +11,21 @@
 #include "scene/scene.h"
 
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
-namespace fulgur::app {
+namespace fulgur::view {
 
 /// The scene's .fgb: `explicit_fgb` when given (must exist), else bake::default_fgb_path,
-/// baked first (with a progress bar on stderr when `progress`) when missing or stale.
-std::filesystem::path ensure_baked(const scene::Scene& s, const core::Grid3<float>& density,
-                                   const std::optional<std::filesystem::path>& explicit_fgb, bool progress);
+/// baked first when missing or stale (bake::bake_if_stale). `on_bake(fgb, why)` is told
+/// before such a bake starts, `progress` follows it.
+std::filesystem::path ensure_baked(
+    const scene::Scene& s, const core::Grid3<float>& density, const std::optional<std::filesystem::path>& explicit_fgb,
+    const bake::Progress& progress = {},
+    const std::function<void(const std::filesystem::path& fgb, const std::string& why)>& on_bake = {});
 
 /// A camera framing the scene's cloud from the side, slightly below its centre.
 render::Camera default_camera(const core::Grid3<float>& density, double azimuth_deg = -90.0, double elevation_deg = 6.0,
@@ -31,6 +37,9 @@ struct ViewOptions {
     ViewOptions() { settings.exposure = 0.125; }
     runtime::Components components;
     render::Settings settings;  ///< bolt/glow/ground/exposure/internal scale
+    /// Radius (m) of the drawn lightning channel, the same for every lit segment
+    /// (render::Segment::radius: the core radiance is intensity / (2 radius)). > 0.
+    double bolt_radius = 2.0;
 };
 
 struct FrameReport {
@@ -97,7 +106,4 @@ private:
 /// Per-field medians of several frames' reports (lit taken from the last one).
 FrameReport median_report(const std::vector<FrameReport>& reps);
 
-/// The JSON line fulgur-shot (and the demo's headless frames) print (stage times in ms).
-std::string timings_json(const FrameReport& r, int width, int height, const char* name = "fulgur-shot");
-
-}  // namespace fulgur::app
+}  // namespace fulgur::view

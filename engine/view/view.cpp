@@ -1,31 +1,23 @@
-#include "storm_view.h"
-
-#include "progress.h"
+#include "view/view.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
-#include <sstream>
 
-namespace fulgur::app {
+namespace fulgur::view {
 
-std::filesystem::path ensure_baked(const scene::Scene& s, const core::Grid3<float>& density,
-                                   const std::optional<std::filesystem::path>& explicit_fgb, bool progress) {
+std::filesystem::path ensure_baked(
+    const scene::Scene& s, const core::Grid3<float>& density, const std::optional<std::filesystem::path>& explicit_fgb,
+    const bake::Progress& progress,
+    const std::function<void(const std::filesystem::path& fgb, const std::string& why)>& on_bake) {
     if (explicit_fgb) {
         if (!std::filesystem::exists(*explicit_fgb)) throw core::Error(explicit_fgb->string(), "no such .fgb file");
         return *explicit_fgb;
     }
     const std::filesystem::path fgb = bake::default_fgb_path(s);
-    bake::Progress cb;
     std::function<void(const std::string&)> tell;
-    if (progress) {
-        cb = make_progress_printer(stderr, "lights");
-        tell = [&](const std::string& why) {
-            std::fprintf(stderr, "baking %s (%s)\n", fgb.string().c_str(), why.c_str());
-        };
-    }
-    bake::bake_if_stale(s, density, fgb, cb, tell);
+    if (on_bake) tell = [&](const std::string& why) { on_bake(fgb, why); };
+    bake::bake_if_stale(s, density, fgb, progress, tell);
     return fgb;
 }
 
@@ -125,7 +117,7 @@ FrameReport StormView::render(const render::Camera& camera, double t, int width,
     render::Bolt bolt;
     bolt.segments.reserve(f.segments.size());
     for (const lightning::LitSegment& s : f.segments)
-        bolt.segments.push_back({glm::vec3(s.a), glm::vec3(s.b), float(s.intensity), 2.0f});
+        bolt.segments.push_back({glm::vec3(s.a), glm::vec3(s.b), float(s.intensity), float(options.bolt_radius)});
     renderer_->set_bolt(bolt);
     if (source) {
         check_field(*source, "StormView::render");
@@ -176,19 +168,4 @@ FrameReport median_report(const std::vector<FrameReport>& reps) {
     return m;
 }
 
-std::string timings_json(const FrameReport& r, int width, int height, const char* name) {
-    std::ostringstream o;
-    o.precision(4);
-    o << "{\"name\":\"" << name << "\",\"width\":" << width << ",\"height\":" << height
-      << ",\"lit\":" << (r.lit ? "true" : "false") << ",\"bolt_ms\":" << r.stages.bolt
-      << ",\"sources_ms\":" << r.stages.sources << ",\"splat_ms\":" << r.stages.splat
-      << ",\"accumulate_ms\":" << r.stages.accumulate << ",\"inverse_haar_ms\":" << r.stages.inverse_haar
-      << ",\"upload_ms\":" << r.gpu.wall.upload << ",\"resolve_ms\":" << r.gpu.wall.resolve
-      << ",\"glow_ms\":" << r.gpu.wall.glow << ",\"march_ms\":" << r.gpu.wall.march
-      << ",\"bolt_draw_ms\":" << r.gpu.wall.bolt << ",\"composite_ms\":" << r.gpu.wall.composite
-      << ",\"gpu_total_ms\":" << r.gpu.wall.total << ",\"frame_ms\":" << r.wall_ms
-      << ",\"internal_width\":" << r.gpu.internal_width << ",\"internal_height\":" << r.gpu.internal_height << "}";
-    return o.str();
-}
-
-}  // namespace fulgur::app
+}  // namespace fulgur::view

@@ -1,4 +1,4 @@
-#include "render/synthetic.h"
+#include "support/synthetic_storm.h"
 
 #include "transport/transport.h"
 
@@ -9,7 +9,7 @@
 #include <cmath>
 #include <numbers>
 
-namespace fulgur::render::synthetic {
+namespace fulgur::synthetic {
 
 namespace {
 
@@ -166,12 +166,12 @@ std::vector<float> point_flash_source(const core::Grid3<float>& density, double 
 }
 
 std::vector<float> bolt_source(const core::Grid3<float>& density, double extinction, const core::GridGeometry& lighting,
-                               int direction_count, const Bolt& bolt, double spacing, double albedo, double g) {
+                               int direction_count, const render::Bolt& bolt, double spacing, double albedo, double g) {
     // Merge the bolt into point sources about `spacing` apart (power-weighted centroids).
     std::vector<std::pair<glm::dvec3, double>> points;
     glm::dvec3 acc(0.0);
     double power = 0.0, length = 0.0;
-    for (const Segment& seg : bolt.segments) {
+    for (const render::Segment& seg : bolt.segments) {
         const double len = glm::length(glm::dvec3(seg.b - seg.a));
         const double p = double(seg.intensity) * len;
         if (p <= 0.0) continue;
@@ -194,8 +194,8 @@ std::vector<float> bolt_source(const core::Grid3<float>& density, double extinct
     return S;
 }
 
-Bolt bolt(std::uint64_t seed, const glm::dvec3& start, double intensity, double radius) {
-    Bolt out;
+render::Bolt bolt(std::uint64_t seed, const glm::dvec3& start, double intensity, double radius) {
+    render::Bolt out;
     core::Rng rng(seed, 99);
     struct Channel {
         glm::dvec3 p, dir;
@@ -251,24 +251,24 @@ Storm storm(const core::Int3& dims, double voxel_size) {
     const glm::dvec3 start(300.0, -200.0, 6800.0);
     st.bolt = bolt(3, start, 1e6 / 3000.0);
     st.source = bolt_source(st.density, st.extinction, st.lighting, st.directions, st.bolt, 800.0);
-    st.camera = Camera::orbit({0.0, 0.0, 4300.0}, 13500.0, -60.0, -6.0, 55.0);
+    st.camera = render::Camera::orbit({0.0, 0.0, 4300.0}, 13500.0, -60.0, -6.0, 55.0);
     st.settings.exposure = 110.0;
     st.settings.sky_radiance = 3e-5;  // a long-exposure night sky, visible behind the cloud
     st.settings.star_radiance = 2e-3;
     return st;
 }
 
-SourceUpload needed_upload(const Renderer& renderer, const Storm& storm) {
-    SourceUpload up;
+render::SourceUpload needed_upload(const render::Renderer& renderer, const Storm& storm) {
+    render::SourceUpload up;
     up.geometry = storm.lighting;
     up.direction_count = storm.directions;
     const std::size_t cells = storm.lighting.cell_count();
-    for (const DirectionUse& u : renderer.needed_directions(storm.camera, storm.lighting, storm.directions,
-                                                            storm.settings.direction_min_weight)) {
+    for (const render::DirectionUse& u : renderer.needed_directions(storm.camera, storm.lighting, storm.directions,
+                                                                    storm.settings.direction_min_weight)) {
         up.directions.push_back(u.index);
         up.values.emplace_back(storm.source.data() + std::size_t(u.index) * cells, cells);
     }
     return up;
 }
 
-}  // namespace fulgur::render::synthetic
+}  // namespace fulgur::synthetic

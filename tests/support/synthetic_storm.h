@@ -1,7 +1,8 @@
-// Internal: synthetic-but-plausible renderer inputs for tests, `fulgur-bench render` and the
-// documentation image, so the renderer can be exercised without a bake. Not used by the
-// renderer itself. Coordinates follow cloud::cumulonimbus_geometry: z up, ground at z = 0,
-// grid centred on x = y = 0.
+// The synthetic storm: plausible renderer inputs (a procedural cloud, a bolt and a lighting
+// model standing in for the bake and the run time) for the renderer's tests, its golden and
+// documentation images and `fulgur-bench render`, so the renderer can be exercised without
+// a bake. Test and benchmark support, not engine code. Coordinates follow
+// cloud::cumulonimbus_geometry: z up, ground at z = 0, grid centred on x = y = 0.
 #pragma once
 
 #include "core/core.h"
@@ -10,7 +11,7 @@
 #include <cstdint>
 #include <vector>
 
-namespace fulgur::render::synthetic {
+namespace fulgur::synthetic {
 
 /// A procedural cumulonimbus: a base layer, a tower of convective cells and an anvil built
 /// from smooth blobs, eroded by fractal value noise. Deterministic per seed.
@@ -31,12 +32,12 @@ std::vector<float> point_flash_source(const core::Grid3<float>& density, double 
 /// S for a whole bolt: point flashes every `spacing` metres along its segments, each of
 /// intensity (segment intensity x length share), summed (S is linear in the sources).
 std::vector<float> bolt_source(const core::Grid3<float>& density, double extinction, const core::GridGeometry& lighting,
-                               int direction_count, const Bolt& bolt, double spacing = 400.0, double albedo = 0.99,
-                               double g = 0.6);
+                               int direction_count, const render::Bolt& bolt, double spacing = 400.0,
+                               double albedo = 0.99, double g = 0.6);
 
 /// A branching cloud-to-ground bolt (Reed-Wyvill-style random walk, deterministic per seed)
 /// from `start` to the ground plane z = 0; `intensity` is the main channel's W/sr per metre.
-Bolt bolt(std::uint64_t seed, const glm::dvec3& start, double intensity, double radius = 2.0);
+render::Bolt bolt(std::uint64_t seed, const glm::dvec3& start, double intensity, double radius = 2.0);
 
 /// The synthetic storm used by the renderer's golden test, benchmark and documentation
 /// image: a cumulonimbus (seed 7), a cloud-to-ground bolt from 6.8 km (seed 3) whose channel
@@ -48,15 +49,15 @@ struct Storm {
     core::GridGeometry lighting;
     int directions = 26;
     std::vector<float> source;  ///< transport::SourceField layout
-    Bolt bolt;
-    Camera camera;
-    Settings settings;
+    render::Bolt bolt;
+    render::Camera camera;
+    render::Settings settings;
 };
 
 /// dims/voxel: {128,128,96} x 100 m (full) or e.g. {64,64,48} x 200 m (fast).
 Storm storm(const core::Int3& dims = {128, 128, 96}, double voxel_size = 100.0);
 
 /// An upload of the directions of `storm.source` that `renderer` says the camera needs.
-SourceUpload needed_upload(const Renderer& renderer, const Storm& storm);
+render::SourceUpload needed_upload(const render::Renderer& renderer, const Storm& storm);
 
-}  // namespace fulgur::render::synthetic
+}  // namespace fulgur::synthetic

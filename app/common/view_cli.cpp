@@ -1,0 +1,33 @@
+#include "view_cli.h"
+
+#include "progress.h"
+
+#include <cstdio>
+#include <sstream>
+
+namespace fulgur::app {
+
+std::filesystem::path ensure_baked(const scene::Scene& s, const core::Grid3<float>& density,
+                                   const std::optional<std::filesystem::path>& explicit_fgb) {
+    return view::ensure_baked(s, density, explicit_fgb, make_progress_printer(stderr, "lights"),
+                              [](const std::filesystem::path& fgb, const std::string& why) {
+                                  std::fprintf(stderr, "baking %s (%s)\n", fgb.string().c_str(), why.c_str());
+                              });
+}
+
+std::string timings_json(const view::FrameReport& r, int width, int height, const char* name) {
+    std::ostringstream o;
+    o.precision(4);
+    o << "{\"name\":\"" << name << "\",\"width\":" << width << ",\"height\":" << height
+      << ",\"lit\":" << (r.lit ? "true" : "false") << ",\"bolt_ms\":" << r.stages.bolt
+      << ",\"sources_ms\":" << r.stages.sources << ",\"splat_ms\":" << r.stages.splat
+      << ",\"accumulate_ms\":" << r.stages.accumulate << ",\"inverse_haar_ms\":" << r.stages.inverse_haar
+      << ",\"upload_ms\":" << r.gpu.wall.upload << ",\"resolve_ms\":" << r.gpu.wall.resolve
+      << ",\"glow_ms\":" << r.gpu.wall.glow << ",\"march_ms\":" << r.gpu.wall.march
+      << ",\"bolt_draw_ms\":" << r.gpu.wall.bolt << ",\"composite_ms\":" << r.gpu.wall.composite
+      << ",\"gpu_total_ms\":" << r.gpu.wall.total << ",\"frame_ms\":" << r.wall_ms
+      << ",\"internal_width\":" << r.gpu.internal_width << ",\"internal_height\":" << r.gpu.internal_height << "}";
+    return o.str();
+}
+
+}  // namespace fulgur::app
