@@ -394,7 +394,7 @@ const Frame& FramePipeline::build(double t, std::span<const int> directions, con
 // Direct solve
 
 transport::SourceField direct_solve(const scene::Scene& scene, const transport::LightingMedium& medium,
-                                    std::span<const lightning::PointSource> sources, const Components& components) {
+                                    std::span<const transport::PointSource> sources, const Components& components) {
     const std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
     transport::SourceField out(medium.density.geom, dirs);
     bake::SolveRequest rq;
@@ -404,12 +404,12 @@ transport::SourceField direct_solve(const scene::Scene& scene, const transport::
     if (!rq.single && !rq.multiple) return out;
     std::vector<transport::PointSource> pts;
     pts.reserve(sources.size());
-    for (const lightning::PointSource& q : sources) {
+    for (const transport::PointSource& q : sources) {
         // As the splat: non-finite sources are skipped; zero ones add nothing.
         if (!std::isfinite(q.position.x) || !std::isfinite(q.position.y) || !std::isfinite(q.position.z) ||
             !std::isfinite(q.intensity) || q.intensity == 0.0)
             continue;
-        pts.push_back({q.position, q.intensity});
+        pts.push_back(q);
     }
     if (pts.empty()) return out;
     const bake::Solution s = bake::solve(scene, medium, pts, dirs, rq);

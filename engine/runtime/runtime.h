@@ -144,7 +144,7 @@ struct Frame {
     /// is valid. When false, radiance holds stale buffers and must not be shown.
     bool lit = false;
     std::vector<lightning::LitSegment> segments;  ///< for the renderer's bolt and glow
-    std::vector<lightning::PointSource> sources;
+    std::vector<transport::PointSource> sources;
     lightning::LightWeights weights;
     RadianceField radiance;
     StageTimes times;
@@ -179,6 +179,6 @@ private:
 /// single-scattering tolerance, same lattice-Boltzmann settings, no light drop); a part the
 /// scene does not simulate (effects.*_scattering false) is not added, as in the bake.
 transport::SourceField direct_solve(const scene::Scene& scene, const transport::LightingMedium& medium,
-                                    std::span<const lightning::PointSource> sources, const Components& components = {});
+                                    std::span<const transport::PointSource> sources, const Components& components = {});
 
 }  // namespace fulgur::runtime
