@@ -91,15 +91,6 @@ std::vector<double> side_view(const transport::LightingMedium& m, std::size_t to
     return img;
 }
 
-double rel_l2(const std::vector<double>& a, const std::vector<double>& ref) {
-    double d = 0.0, n = 0.0;
-    for (std::size_t i = 0; i < a.size(); ++i) {
-        d += (a[i] - ref[i]) * (a[i] - ref[i]);
-        n += ref[i] * ref[i];
-    }
-    return n > 0.0 ? std::sqrt(d / n) : std::sqrt(d);
-}
-
 }  // namespace
 
 FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
@@ -192,8 +183,8 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
                 glm::dot(bases.directions()[toward], glm::dvec3(0, -1, 0)))
                 toward = m;
         const double err_image =
-            rel_l2(side_view(medium, toward, [&](std::size_t m, std::size_t i) { return double(R[m][i]); }),
-                   side_view(medium, toward, d_total));
+            core::relative_l2(side_view(medium, toward, [&](std::size_t m, std::size_t i) { return double(R[m][i]); }),
+                              side_view(medium, toward, d_total));
 
         // V: the active virtual lights solved directly; their dropped share.
         std::vector<transport::PointSource> vl, dropped;
