@@ -199,6 +199,9 @@ void parallel_for_dynamic(std::int64_t begin, std::int64_t end, F&& fn, int chun
 std::string format_seconds(double seconds);
 /// A size for people (powers of ten): "512 B", "12.3 kB", "229.4 MB", "1.19 GB".
 std::string format_bytes(double bytes);
+/// A number with `significant_digits` significant digits, printf's "%.*g" in the C locale
+/// ("0.1", "1e+30", "inf"): 6 for messages, 17 to round-trip any double.
+std::string format_number(double v, int significant_digits = 6);
 
 class Stopwatch {
 public:
