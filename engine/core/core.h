@@ -22,6 +22,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace fulgur::core {
@@ -99,6 +100,26 @@ struct Grid3 {
     /// outermost centres (constant extrapolation outside the grid).
     T sample(const glm::dvec3& world) const noexcept;
 };
+
+/// Clips the parameter interval [t0, t1] of the ray o + t d (d need not be unit) against the
+/// closed box [lo, hi] by slabs. Returns false (t0, t1 then unspecified) when the clipped
+/// interval is empty or a coordinate is NaN; an axis-parallel ray (a component of d exactly 0)
+/// is handled without 0 * inf. Used by the voxel traversal, Monte Carlo and the renderer.
+inline bool clip_ray_to_box(const glm::dvec3& o, const glm::dvec3& d, const glm::dvec3& lo, const glm::dvec3& hi,
+                            double& t0, double& t1) noexcept {
+    for (int a = 0; a < 3; ++a) {
+        if (d[a] == 0.0) {
+            if (!(o[a] >= lo[a] && o[a] <= hi[a])) return false;  // also rejects NaN
+            continue;
+        }
+        const double inv = 1.0 / d[a];
+        double ta = (lo[a] - o[a]) * inv, tb = (hi[a] - o[a]) * inv;
+        if (ta > tb) std::swap(ta, tb);
+        if (ta > t0) t0 = ta;
+        if (tb < t1) t1 = tb;
+    }
+    return t0 < t1;  // false for NaN too
+}
 
 /// Validates a geometry (positive dims, finite positive voxel size, finite origin);
 /// throws Error naming `where`.
