@@ -10,9 +10,7 @@
 #endif
 
 #include <algorithm>
-#include <cinttypes>
 #include <cmath>
-#include <cstdio>
 #include <string>
 #include <utility>
 
@@ -31,12 +29,6 @@ inline float half_to_float_fast(std::uint16_t h) noexcept {
 #else
     return basis::half_to_float(h);
 #endif
-}
-
-std::string hex(std::uint64_t v) {
-    char b[24];
-    std::snprintf(b, sizeof b, "%016" PRIx64, v);
-    return b;
 }
 
 // The file in the accumulation layout, streamed light by light (each block validated by
@@ -107,19 +99,9 @@ BakedBases::BakedBases(BakedBases&&) noexcept = default;
 BakedBases& BakedBases::operator=(BakedBases&&) noexcept = default;
 BakedBases::~BakedBases() = default;
 
-BakedBases BakedBases::load(const std::filesystem::path& fgb, std::optional<std::uint64_t> expected_hash) {
+BakedBases BakedBases::load(const std::filesystem::path& fgb, const std::optional<basis::BakeKey>& expected) {
     basis::FgbReader reader(fgb);
-    if (expected_hash && reader.metadata().key.hash != *expected_hash)
-        throw core::Error(fgb.string(),
-                          "stale bake: the file was baked from a scene whose key hash is " +
-                              hex(reader.metadata().key.hash) + ", but the scene now hashes to " + hex(*expected_hash) +
-                              " (a bake-relevant parameter or the cloud changed); rebake it with fulgur-bake");
-    return BakedBases(build_layout(reader));
-}
-
-BakedBases BakedBases::load(const std::filesystem::path& fgb, const basis::BakeKey& expected) {
-    basis::FgbReader reader(fgb);
-    reader.check_key(expected);
+    if (expected) reader.check_key(*expected);
     return BakedBases(build_layout(reader));
 }
 

@@ -57,12 +57,11 @@ struct StageTimes {
 /// uint32) and float32 values (float16 files are expanded at load), in the file's order.
 class BakedBases {
 public:
-    /// Loads and validates `fgb` (basis::load_fgb: every CRC, index and value). If
-    /// `expected_hash` is given and differs from the file's, throws core::Error "stale bake"
-    /// naming both hashes (checked from the header, before the blocks are read).
-    static BakedBases load(const std::filesystem::path& fgb, std::optional<std::uint64_t> expected_hash = {});
-    /// Same, with the scene's full key: the message also names the first parameter that changed.
-    static BakedBases load(const std::filesystem::path& fgb, const basis::BakeKey& expected);
+    /// Loads and validates `fgb` (basis::load_fgb: every CRC, index and value). With the
+    /// scene's key (bake::scene_key), a file baked from other parameters is rejected before
+    /// its blocks are read: core::Error "stale bake" naming both hashes and the first scene
+    /// parameter that changed (basis::FgbReader::check_key).
+    static BakedBases load(const std::filesystem::path& fgb, const std::optional<basis::BakeKey>& expected = {});
 
     const core::GridGeometry& lighting() const noexcept;
     const std::vector<glm::dvec3>& directions() const noexcept;

@@ -44,7 +44,7 @@ const Baked& baked(const std::string& name) {
         bake::bake(b->scene, b->density, b->fgb);
         b->file = basis::load_fgb(b->fgb);
         b->bases = std::make_unique<runtime::BakedBases>(
-            runtime::BakedBases::load(b->fgb, bake::scene_key(b->scene, b->density).hash));
+            runtime::BakedBases::load(b->fgb, bake::scene_key(b->scene, b->density)));
         slot = std::move(b);
     }
     return *slot;
