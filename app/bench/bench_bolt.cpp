@@ -53,7 +53,7 @@ FULGUR_BENCH(bolt, "lightning: bolt generation, point sources, splatting (typica
         lightning::FlashState peak;
         peak.main_glow = peak.branch_glow = 1.0;
         std::vector<lightning::LitSegment> lit;
-        std::vector<lightning::PointSource> q;
+        std::vector<transport::PointSource> q;
         lightning::LightWeights w;
         splatter.reset(w);
         for (int s = 1; s <= bolts; ++s) {
@@ -99,7 +99,7 @@ FULGUR_BENCH(bolt, "lightning: bolt generation, point sources, splatting (typica
     // 10,000 point sources spread over the light grid's box (some outside it).
     {
         core::Rng r(1, 1);
-        std::vector<lightning::PointSource> q(10000);
+        std::vector<transport::PointSource> q(10000);
         for (auto& s : q) {
             // The light grid's box grown by 5% per side: ~10% of the sources fall outside.
             const glm::dvec3 lo(lights.x.front(), lights.y.front(), lights.z.front());

@@ -198,7 +198,7 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
         const basis::VirtualLightGrid& v = bases.lights();
         const glm::dvec3 lo(v.x.front(), v.y.front(), v.z.front()), hi(v.x.back(), v.y.back(), v.z.back());
         core::Rng rng(5, 9);
-        std::vector<lightning::PointSource> q;
+        std::vector<transport::PointSource> q;
         for (int i = 0; i < 10000; ++i)
             q.push_back({lo + (hi - lo) * glm::dvec3(rng.uniform(), rng.uniform(), rng.uniform()), 1e5});
         const lightning::Splatter sp(v);
@@ -244,7 +244,7 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
             const std::size_t i = p.strike_at(0.0, std::uint64_t(2000 + k));
             const double t = p.storm().strike(i).profile.stroke_onset.at(0) + 0.002;
             std::vector<double> b;
-            std::vector<lightning::PointSource> sources;
+            std::vector<transport::PointSource> sources;
             for (int r = 0; r < 5; ++r) {  // the first frame pays the bolt's first query
                 const runtime::Frame& f = p.build(t, {});
                 b.push_back(f.times.total());

@@ -41,21 +41,20 @@ RadianceComparison compare_radiance(std::span<const float> test_rgba, std::span<
     c.threshold = threshold;
     const std::size_t n = check_pair(test_rgba, ref_rgba, c.reference_max);
     const double scale = c.reference_max > 0.0 ? c.reference_max : 1.0;
-    // Double sums: ~10^5-10^6 pixels whose squares span many orders of magnitude.
-    core::CompensatedSum d2, r2;
+    // Compensated double sums: ~10^5-10^6 pixels whose squares span many orders of magnitude.
+    core::RelativeL2 l2;
     std::size_t over = 0;
     double max_d = 0.0;
     for (std::size_t p = 0; p < n; ++p) {
         const double yt = luminance(test_rgba, p), yr = luminance(ref_rgba, p), d = std::abs(yt - yr);
-        d2.add(d * d);
-        r2.add(yr * yr);
+        l2.add(yt, yr);
         max_d = std::max(max_d, d);
         if (std::max(yt, yr) > 0.01 * scale) {
             ++c.lit_pixels;
             if (d > threshold * scale) ++over;
         }
     }
-    c.relative_l2 = std::sqrt(d2.value() / (r2.value() > 0.0 ? r2.value() : 1.0));
+    c.relative_l2 = l2.value();
     c.max_difference = max_d / scale;
     c.fraction_over = c.lit_pixels ? double(over) / double(c.lit_pixels) : 0.0;
     return c;

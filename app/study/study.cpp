@@ -12,11 +12,6 @@
 namespace fulgur::study {
 
 namespace {
-std::string fmt(double v) {
-    char b[64];
-    std::snprintf(b, sizeof b, "%.9g", v);
-    return b;
-}
 
 std::string esc(const std::string& s) {
     std::string o;
@@ -69,7 +64,7 @@ Csv::Csv(const std::filesystem::path& path, const std::vector<std::string>& head
     buffer_ += "\n";
 }
 Csv& Csv::operator<<(double v) {
-    buffer_ += (first_in_row_ ? "" : ",") + fmt(v);
+    buffer_ += (first_in_row_ ? "" : ",") + core::format_number(v, 9);
     first_in_row_ = false;
     ++in_row_;
     return *this;
@@ -165,13 +160,15 @@ void write_svg_plot(const std::filesystem::path& path, const std::vector<Series>
         const double X = px(v);
         o << "<line x1=\"" << X << "\" y1=\"" << T << "\" x2=\"" << X << "\" y2=\"" << T + H
           << "\" stroke=\"#e4e4e4\"/>\n";
-        o << "<text x=\"" << X << "\" y=\"" << T + H + 16 << "\" text-anchor=\"middle\">" << fmt(v) << "</text>\n";
+        o << "<text x=\"" << X << "\" y=\"" << T + H + 16 << "\" text-anchor=\"middle\">" << core::format_number(v, 9)
+          << "</text>\n";
     }
     for (double v : axis_ticks(y0, y1, opt.log_y)) {
         const double Y = py(v);
         o << "<line x1=\"" << L << "\" y1=\"" << Y << "\" x2=\"" << L + W << "\" y2=\"" << Y
           << "\" stroke=\"#e4e4e4\"/>\n";
-        o << "<text x=\"" << L - 6 << "\" y=\"" << Y + 4 << "\" text-anchor=\"end\">" << fmt(v) << "</text>\n";
+        o << "<text x=\"" << L - 6 << "\" y=\"" << Y + 4 << "\" text-anchor=\"end\">" << core::format_number(v, 9)
+          << "</text>\n";
     }
     o << "<rect x=\"" << L << "\" y=\"" << T << "\" width=\"" << W << "\" height=\"" << H
       << "\" fill=\"none\" stroke=\"black\"/>\n";

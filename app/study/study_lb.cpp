@@ -78,7 +78,7 @@ FULGUR_STUDY(lb_convergence, "lb-convergence",
     for (const Run& r : runs) {
         m.optics = transport::Medium{kappa, 0.9, r.g};
         transport::LbSources src;
-        src.sun = transport::LbDirectionalLight{sun, 1.0};
+        src.sun = transport::DirectionalSource{sun, 1.0};
         transport::LbSettings s;
         s.collision = r.collision;
         s.absorption = r.absorption;

@@ -72,14 +72,10 @@ Field coarsen(const SourceField& fine, const core::GridGeometry& coarse, int f, 
 /// [m0, m1) (all directions by default).
 double rel_l2(const Field& x, const Field& ref, const std::vector<std::size_t>& cells, std::size_t ncell, std::size_t M,
               std::size_t m0 = 0, std::size_t m1 = std::size_t(-1)) {
-    double num = 0.0, den = 0.0;
+    core::RelativeL2 e;
     for (std::size_t m = m0; m < std::min(M, m1); ++m)
-        for (std::size_t c : cells) {
-            const double r = ref[m * ncell + c], d = x[m * ncell + c] - r;
-            num += d * d;
-            den += r * r;
-        }
-    return den > 0.0 ? std::sqrt(num / den) : std::nan("");
+        for (std::size_t c : cells) e.add(x[m * ncell + c], ref[m * ncell + c]);
+    return e.reference_norm() > 0.0 ? e.value() : std::nan("");
 }
 
 /// Noise floor ||se|| / ||ref||: the relative L2 error an exact solution shows against the

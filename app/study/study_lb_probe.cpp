@@ -89,7 +89,7 @@ FULGUR_STUDY(lb_probe, "lb-probe", "probe") {
                     density.sample(pos));
         runtime::TruthOptions to;
         to.paths = paths;
-        std::vector<lightning::PointSource> pts = {{pos, 1.0}};
+        std::vector<transport::PointSource> pts = {{pos, 1.0}};
         const runtime::Truth T = runtime::truth(s, density, {}, pts, to);
         std::printf("  truth %.1f s noise %.4f/%.4f\n", T.seconds, T.noise.single, T.noise.multiple);
         for (int r : refines) {

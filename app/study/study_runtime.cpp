@@ -36,11 +36,11 @@ struct Parts {
 };
 
 // bake::solve on point sources, both parts (what runtime::direct_solve sums).
-Parts solve_parts(const scene::Scene& s, const bake::Media& m, std::span<const lightning::PointSource> q,
+Parts solve_parts(const scene::Scene& s, const bake::Media& m, std::span<const transport::PointSource> q,
                   double* seconds = nullptr) {
     std::vector<transport::PointSource> pts;
-    for (const lightning::PointSource& p : q)
-        if (p.intensity != 0.0) pts.push_back({p.position, p.intensity});
+    for (const transport::PointSource& p : q)
+        if (p.intensity != 0.0) pts.push_back(p);
     const std::vector<glm::dvec3> dirs = transport::output_directions(s.effective_directions());
     core::Stopwatch sw;
     bake::Solution sol = bake::solve(s, m, pts, dirs);
@@ -89,15 +89,6 @@ std::vector<double> side_view(const transport::LightingMedium& m, std::size_t to
             img[std::size_t(i) + std::size_t(g.dims.x) * std::size_t(k)] = sum;
         }
     return img;
-}
-
-double rel_l2(const std::vector<double>& a, const std::vector<double>& ref) {
-    double d = 0.0, n = 0.0;
-    for (std::size_t i = 0; i < a.size(); ++i) {
-        d += (a[i] - ref[i]) * (a[i] - ref[i]);
-        n += ref[i] * ref[i];
-    }
-    return n > 0.0 ? std::sqrt(d / n) : std::sqrt(d);
 }
 
 }  // namespace
@@ -149,7 +140,7 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         o.components = {false, true};
         const runtime::Frame& f2 = p.build(t, {}, o);
         const std::vector<std::vector<float>> R2 = f2.radiance.values;
-        const std::vector<lightning::PointSource> sources = f2.sources;
+        const std::vector<transport::PointSource> sources = f2.sources;
         const lightning::LightWeights w = f2.weights;
 
         double direct_s = 0.0;
@@ -175,7 +166,7 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
                     const std::size_t c = g.index(i, j, kz);
                     if (!(medium.density.data[c] > 0.0f)) continue;
                     bool far = true;
-                    for (const lightning::PointSource& q : sources)
+                    for (const transport::PointSource& q : sources)
                         if (glm::length(q.position - g.centre(i, j, kz)) < r_far) {
                             far = false;
                             break;
@@ -193,11 +184,11 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
                 glm::dot(bases.directions()[toward], glm::dvec3(0, -1, 0)))
                 toward = m;
         const double err_image =
-            rel_l2(side_view(medium, toward, [&](std::size_t m, std::size_t i) { return double(R[m][i]); }),
-                   side_view(medium, toward, d_total));
+            core::relative_l2(side_view(medium, toward, [&](std::size_t m, std::size_t i) { return double(R[m][i]); }),
+                              side_view(medium, toward, d_total));
 
         // V: the active virtual lights solved directly; their dropped share.
-        std::vector<lightning::PointSource> vl, dropped;
+        std::vector<transport::PointSource> vl, dropped;
         for (const std::uint32_t l : w.active) {
             vl.push_back({bases.lights().position(l), w.e[l]});
             if (reader.read_light(l).coefficient_count() == 0) dropped.push_back(vl.back());
@@ -301,7 +292,7 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         const std::size_t k = p.strike_at(0.0, seed);
         const double t = p.storm().strike(k).profile.stroke_onset.at(0) + 0.002;
         const std::vector<lightning::LitSegment> lit = p.build(t, std::vector<int>{0}).segments;
-        std::vector<lightning::PointSource> fine;
+        std::vector<transport::PointSource> fine;
         lightning::append_point_sources(lit, 50.0, fine);
         const Parts F = solve_parts(s, media, fine);
         auto f_total = [&](std::size_t m, std::size_t i) {
@@ -317,11 +308,11 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
             vp.h_usr = h;
             const basis::VirtualLightGrid grid = basis::build_virtual_light_grid(density, vp);
             const lightning::Splatter sp(grid);
-            std::vector<lightning::PointSource> q;
+            std::vector<transport::PointSource> q;
             lightning::append_point_sources(lit, sp.source_spacing(), q);
             lightning::LightWeights w;
             sp.splat(q, w);
-            std::vector<lightning::PointSource> vl;
+            std::vector<transport::PointSource> vl;
             for (const std::uint32_t l : w.active) vl.push_back({grid.position(l), w.e[l]});
             double v_s = 0.0;
             const Parts V = solve_parts(s, media, vl, &v_s);

@@ -22,19 +22,6 @@ namespace {
 // 2: the lattice-Boltzmann thick-voxel mapping (transport.lattice_boltzmann.thick_voxels).
 constexpr int kBakeAlgorithm = 2;
 
-std::string num(double v) {
-    char b[40];
-    std::snprintf(b, sizeof b, "%.17g", v);
-    return b;
-}
-
-// For messages: 6 significant digits.
-std::string short_num(double v) {
-    char b[40];
-    std::snprintf(b, sizeof b, "%g", v);
-    return b;
-}
-
 std::uint64_t hash_bytes(const void* data, std::size_t n) noexcept {
     return basis::hash_description(std::string_view(static_cast<const char*>(data), n));
 }
@@ -102,22 +89,23 @@ basis::BakeKey scene_key(const scene::Scene& s, const core::Grid3<float>& densit
     const bool multiple = s.effects.multiple_scattering;
     d << "bake.algorithm=" << kBakeAlgorithm << "\n";
     d << "density.dims=" << density.dims().x << "x" << density.dims().y << "x" << density.dims().z << "\n";
-    d << "density.voxel_size=" << num(density.geom.voxel_size) << "\n";
-    d << "density.origin=" << num(density.geom.origin.x) << "," << num(density.geom.origin.y) << ","
-      << num(density.geom.origin.z) << "\n";
+    d << "density.voxel_size=" << core::format_number(density.geom.voxel_size, 17) << "\n";
+    d << "density.origin=" << core::format_number(density.geom.origin.x, 17) << ","
+      << core::format_number(density.geom.origin.y, 17) << "," << core::format_number(density.geom.origin.z, 17)
+      << "\n";
     char hx[24];
     std::snprintf(
         hx, sizeof hx, "%016llx",
         static_cast<unsigned long long>(hash_bytes(density.data.data(), density.data.size() * sizeof(float))));
     d << "density.hash=" << hx << "\n";
-    d << "medium.extinction=" << num(s.medium.extinction) << "\n";
-    d << "medium.albedo=" << num(s.medium.albedo) << "\n";
-    d << "medium.g=" << num(s.medium.g) << "\n";
+    d << "medium.extinction=" << core::format_number(s.medium.extinction, 17) << "\n";
+    d << "medium.albedo=" << core::format_number(s.medium.albedo, 17) << "\n";
+    d << "medium.g=" << core::format_number(s.medium.g, 17) << "\n";
     d << "lighting.downsample=" << s.lighting_downsample << "\n";
     d << "lighting.directions=" << s.effective_directions() << "\n";
     d << "effects.single_scattering=" << s.effects.single_scattering << "\n";
     d << "effects.multiple_scattering=" << multiple << "\n";
-    d << "transport.single_scattering.tolerance=" << num(s.transport.ss_tolerance) << "\n";
+    d << "transport.single_scattering.tolerance=" << core::format_number(s.transport.ss_tolerance, 17) << "\n";
     if (s.transport.refine != 1) d << "transport.refine=" << s.transport.refine << "\n";
     if (multiple) {
         if (s.transport.solver == scene::TransportSettings::Solver::LatticeBoltzmann) {
@@ -125,7 +113,7 @@ basis::BakeKey scene_key(const scene::Scene& s, const core::Grid3<float>& densit
             d << "transport.lattice_boltzmann.collision=" << s.transport.lb_collision << "\n";
             d << "transport.lattice_boltzmann.absorption=" << s.transport.lb_absorption << "\n";
             d << "transport.lattice_boltzmann.thick_voxels=" << s.transport.lb_thick_voxels << "\n";
-            d << "transport.lattice_boltzmann.tolerance=" << num(s.transport.lb_tolerance) << "\n";
+            d << "transport.lattice_boltzmann.tolerance=" << core::format_number(s.transport.lb_tolerance, 17) << "\n";
             d << "transport.lattice_boltzmann.max_iterations=" << s.transport.lb_max_iterations << "\n";
         } else {
             d << "transport.solver=monte_carlo\n";
@@ -135,15 +123,15 @@ basis::BakeKey scene_key(const scene::Scene& s, const core::Grid3<float>& densit
         }
     }
     const basis::VirtualLightParams& v = s.virtual_lights;
-    d << "virtual_lights.h_usr=" << num(v.h_usr) << "\n";
-    d << "virtual_lights.epsilon=" << num(v.epsilon) << "\n";
-    d << "virtual_lights.margin=" << num(v.margin) << "\n";
-    d << "virtual_lights.ground_height=" << num(v.ground_height) << "\n";
-    d << "virtual_lights.density_threshold=" << num(v.density_threshold) << "\n";
-    d << "virtual_lights.drop_below=" << num(s.drop_below) << "\n";
+    d << "virtual_lights.h_usr=" << core::format_number(v.h_usr, 17) << "\n";
+    d << "virtual_lights.epsilon=" << core::format_number(v.epsilon, 17) << "\n";
+    d << "virtual_lights.margin=" << core::format_number(v.margin, 17) << "\n";
+    d << "virtual_lights.ground_height=" << core::format_number(v.ground_height, 17) << "\n";
+    d << "virtual_lights.density_threshold=" << core::format_number(v.density_threshold, 17) << "\n";
+    d << "virtual_lights.drop_below=" << core::format_number(s.drop_below, 17) << "\n";
     const basis::CompressionParams& c = s.compression;
     d << "compression.threshold=" << basis::to_string(c.mode) << "\n";
-    d << "compression.xi=" << num(c.xi) << "\n";
+    d << "compression.xi=" << core::format_number(c.xi, 17) << "\n";
     d << "compression.precision=" << basis::to_string(c.precision) << "\n";
     d << "compression.decomposition=" << basis::to_string(c.decomposition) << "\n";
     d << "compression.entropy=" << basis::to_string(c.entropy) << "\n";
@@ -302,14 +290,15 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
         why.push_back("g = 0 (isotropic scattering): S does not depend on direction, 1 output direction instead of " +
                       std::to_string(s.directions));
     else
-        why.push_back("g = " + short_num(s.medium.g) + ": " + std::to_string(p.directions) + " output directions");
+        why.push_back("g = " + core::format_number(s.medium.g) + ": " + std::to_string(p.directions) +
+                      " output directions");
     if (!p.multiple)
         why.push_back(
             "effects.multiple_scattering = false: no transport solve, bases hold the exact single scattering");
     else if (p.solver == "lattice_boltzmann")
         why.push_back("multiple scattering by lattice-Boltzmann (" + s.transport.lb_collision + " collision, " +
                       s.transport.lb_absorption + " absorption, " + s.transport.lb_thick_voxels +
-                      " thick voxels, tolerance " + short_num(s.transport.lb_tolerance) +
+                      " thick voxels, tolerance " + core::format_number(s.transport.lb_tolerance) +
                       ") fed with the exact single scattering");
     else
         why.push_back("multiple scattering by Monte Carlo (reference quality, " + std::to_string(s.transport.mc_paths) +
@@ -317,7 +306,7 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
     if (s.transport.refine > 1)
         why.push_back("transport.refine = " + std::to_string(s.transport.refine) + ": single scattering and the " +
                       (p.multiple ? p.solver : std::string("direct term")) + " run on " +
-                      short_num(media.transport.density.geom.voxel_size) + " m voxels (" +
+                      core::format_number(media.transport.density.geom.voxel_size, 6) + " m voxels (" +
                       std::to_string(media.transport.density.dims().x) + " x " +
                       std::to_string(media.transport.density.dims().y) + " x " +
                       std::to_string(media.transport.density.dims().z) +
@@ -333,13 +322,14 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
     if (s.effects.sun || s.sun)
         why.push_back("the sun is not part of the virtual-light bake (it does not change per frame)");
     if (s.drop_below > 0.0)
-        why.push_back("lights scattering less than " + short_num(s.drop_below) +
+        why.push_back("lights scattering less than " + core::format_number(s.drop_below) +
                       " of their power in the cloud are dropped (the count is reported)");
-    why.push_back(std::to_string(p.lights.count()) + " virtual lights: h_usr " + short_num(s.virtual_lights.h_usr) +
-                  " m over the footprint + " + short_num(s.virtual_lights.margin) + " m margin, " +
+    why.push_back(std::to_string(p.lights.count()) + " virtual lights: h_usr " +
+                  core::format_number(s.virtual_lights.h_usr) + " m over the footprint + " +
+                  core::format_number(s.virtual_lights.margin) + " m margin, " +
                   std::to_string(p.lights.z.size() - p.lights.base_layer) + " layers from the cloud base up, " +
                   std::to_string(p.lights.base_layer) + " below (Eq. 4, epsilon " +
-                  short_num(s.virtual_lights.epsilon) + ")");
+                  core::format_number(s.virtual_lights.epsilon) + ")");
 
     p.metadata.key = scene_key(s, density);
     p.metadata.lighting = p.lighting;

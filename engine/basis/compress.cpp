@@ -10,19 +10,11 @@
 #include <cfloat>
 #include <cmath>
 #include <limits>
-#include <sstream>
 #include <string>
 
 namespace fulgur::basis {
 
 namespace {
-
-std::string num(double v) {
-    std::ostringstream s;
-    s.precision(9);
-    s << v;
-    return s.str();
-}
 
 // Float16 values are stored as half * 2^scale_exp. The exponent puts the largest kept
 // magnitude in [2^14, 2^15): 15 binades of headroom below half's maximum (65504) and 28
@@ -119,10 +111,11 @@ void validate(const CompressionParams& p, std::string_view where) {
         throw core::Error(std::string(where) + ".decomposition", "unknown Haar decomposition");
     if (p.entropy != Entropy::None && p.entropy != Entropy::Deflate)
         throw core::Error(std::string(where) + ".entropy", "unknown entropy coding");
-    if (!std::isfinite(p.xi) || p.xi < 0.0) throw core::Error(w, "must be finite and >= 0, got " + num(p.xi));
+    if (!std::isfinite(p.xi) || p.xi < 0.0)
+        throw core::Error(w, "must be finite and >= 0, got " + core::format_number(p.xi, 9));
     if (p.mode == ThresholdMode::Energy && p.xi > 1.0)
-        throw core::Error(
-            w, "is the fraction of energy kept with threshold \"energy\": must be in [0, 1], got " + num(p.xi));
+        throw core::Error(w, "is the fraction of energy kept with threshold \"energy\": must be in [0, 1], got " +
+                                 core::format_number(p.xi, 9));
 }
 
 std::size_t CompressedLight::coefficient_count() const noexcept {
@@ -139,7 +132,8 @@ CompressedBasis compress_coefficients(std::span<const double> c, const Compressi
     for (std::size_t i = 0; i < c.size(); ++i) {
         if (!std::isfinite(c[i]))
             throw core::Error(std::string(where), "Haar coefficient " + std::to_string(i) + " is not finite (" +
-                                                      num(c[i]) + "); the basis holds NaN or infinity");
+                                                      core::format_number(c[i], 9) +
+                                                      "); the basis holds NaN or infinity");
         total.add(c[i] * c[i]);
     }
     CompressedBasis out;
@@ -210,7 +204,7 @@ CompressedBasis compress_coefficients(std::span<const double> c, const Compressi
             const double v = c[items[k].idx];
             if (std::fabs(v) > double(FLT_MAX))
                 throw core::Error(std::string(where), "Haar coefficient " + std::to_string(items[k].idx) + " (" +
-                                                          num(v) + ") exceeds the float32 range");
+                                                          core::format_number(v, 9) + ") exceeds the float32 range");
             out.index[k] = items[k].idx;
             out.value[k] = float(v);
         }
@@ -221,7 +215,8 @@ CompressedBasis compress_coefficients(std::span<const double> c, const Compressi
             const std::uint16_t h = double_to_half(std::ldexp(v, -out.scale_exp));
             if ((h & 0x7c00u) == 0x7c00u)
                 throw core::Error(std::string(where), "Haar coefficient " + std::to_string(items[k].idx) + " (" +
-                                                          num(v) + ") overflows float16 even scaled by 2^" +
+                                                          core::format_number(v, 9) +
+                                                          ") overflows float16 even scaled by 2^" +
                                                           std::to_string(out.scale_exp) + "; use float32");
             out.index[k] = items[k].idx;
             out.value[k] = std::ldexp(half_to_float(h), out.scale_exp);
@@ -247,8 +242,8 @@ CompressedLight compress_light(std::uint32_t light, const transport::SourceField
         const std::span<const float> s = field.direction(m);
         for (std::size_t i = 0; i < s.size(); ++i) {
             if (!std::isfinite(s[i]))
-                throw core::Error(where,
-                                  "cell " + std::to_string(i) + " of the basis is not finite (" + num(s[i]) + ")");
+                throw core::Error(where, "cell " + std::to_string(i) + " of the basis is not finite (" +
+                                             core::format_number(s[i], 9) + ")");
             buf[i] = double(s[i]);
         }
         plan.forward(buf);

@@ -16,7 +16,6 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
-#include <sstream>
 
 namespace fulgur::basis {
 
@@ -109,12 +108,6 @@ std::string describe_range(std::uint32_t a, std::uint32_t b) {
 }
 
 namespace {
-std::string num(double v) {
-    std::ostringstream s;
-    s.precision(17);
-    s << v;
-    return s.str();
-}
 
 std::size_t value_bytes(Precision p) { return p == Precision::Float16 ? 2 : 4; }
 
@@ -258,7 +251,7 @@ FgbMetadata decode_metadata(ByteReader& r, std::uint64_t scene_hash, const std::
         const double len = std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
         if (!(std::fabs(len - 1.0) <= 1e-9))
             throw core::Error(name + " (byte " + std::to_string(at) + ")",
-                              f + ": not a unit vector (length " + num(len) + ")");
+                              f + ": not a unit vector (length " + core::format_number(len, 17) + ")");
     }
     m.content = r.get<std::uint32_t>("metadata.content");
     if (m.content < 1 || m.content > 3)

@@ -6,31 +6,25 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <sstream>
 #include <string>
 
 namespace fulgur::basis {
 
 namespace {
 
-std::string num(double v) {
-    std::ostringstream s;
-    s.precision(6);
-    s << v;
-    return s.str();
-}
-
 void check_field(bool ok, std::string_view where, const char* field, double v, const char* expected) {
     if (!ok)
-        throw core::Error(std::string(where) + "." + field, "must be " + std::string(expected) + ", got " + num(v));
+        throw core::Error(std::string(where) + "." + field,
+                          "must be " + std::string(expected) + ", got " + core::format_number(v));
 }
 
 // Nodes spaced exactly h, centred on [lo, hi] and covering it; at least two.
 std::vector<double> uniform_cover(double lo, double hi, double h, const char* axis) {
     const double intervals_real = std::ceil((hi - lo) / h);
     if (!(intervals_real <= double(kMaxVirtualLights)))
-        throw core::Error("virtual_lights.h_usr", std::string("the ") + axis + " extent " + num(hi - lo) +
-                                                      " m over h_usr " + num(h) + " m needs too many virtual lights");
+        throw core::Error("virtual_lights.h_usr", std::string("the ") + axis + " extent " +
+                                                      core::format_number(hi - lo) + " m over h_usr " +
+                                                      core::format_number(h) + " m needs too many virtual lights");
     const std::size_t intervals = std::max<std::size_t>(1, std::size_t(intervals_real));
     const double centre = 0.5 * (lo + hi);
     std::vector<double> v(intervals + 1);
@@ -75,9 +69,9 @@ VirtualLightGrid build_virtual_light_grid(const core::Grid3<float>& density, con
     if (i1 < 0)
         throw core::Error("virtual_lights", "the cloud is empty: no voxel of the " + std::to_string(n.x) + "x" +
                                                 std::to_string(n.y) + "x" + std::to_string(n.z) +
-                                                " density grid exceeds density_threshold " + num(p.density_threshold) +
-                                                " (largest density " + num(max_density) +
-                                                "); there is nothing to light");
+                                                " density grid exceeds density_threshold " +
+                                                core::format_number(p.density_threshold) + " (largest density " +
+                                                core::format_number(max_density) + "); there is nothing to light");
 
     const core::GridGeometry& g = density.geom;
     const double vs = g.voxel_size, h = p.h_usr;
@@ -94,7 +88,8 @@ VirtualLightGrid build_virtual_light_grid(const core::Grid3<float>& density, con
     const double tiny = 1e-9 * std::max({1.0, std::fabs(z_cld), std::fabs(p.ground_height)});
     if (depth < -tiny)
         throw core::Error("virtual_lights.ground_height",
-                          "the ground (" + num(p.ground_height) + " m) is above the cloud base (" + num(z_cld) +
+                          "the ground (" + core::format_number(p.ground_height) + " m) is above the cloud base (" +
+                              core::format_number(z_cld) +
                               " m); virtual lights go from the ground up through the cloud");
     std::vector<double> below;  // r values, increasing
     if (depth > tiny) {
@@ -126,10 +121,11 @@ VirtualLightGrid build_virtual_light_grid(const core::Grid3<float>& density, con
 
     const double total = double(grid.x.size()) * double(grid.y.size()) * double(grid.z.size());
     if (total > double(kMaxVirtualLights))
-        throw core::Error("virtual_lights.h_usr",
-                          "the grid would have " + num(total) + " virtual lights (" + std::to_string(grid.x.size()) +
-                              "x" + std::to_string(grid.y.size()) + "x" + std::to_string(grid.z.size()) +
-                              "), more than " + std::to_string(kMaxVirtualLights) + "; increase h_usr");
+        throw core::Error("virtual_lights.h_usr", "the grid would have " + core::format_number(total) +
+                                                      " virtual lights (" + std::to_string(grid.x.size()) + "x" +
+                                                      std::to_string(grid.y.size()) + "x" +
+                                                      std::to_string(grid.z.size()) + "), more than " +
+                                                      std::to_string(kMaxVirtualLights) + "; increase h_usr");
     return grid;
 }
 

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
-#include <sstream>
 #include <string>
 
 namespace fulgur::cloud {
@@ -17,12 +16,7 @@ constexpr std::uint64_t kAutomatonTag = 0x6175746f6dULL;  // "autom"
 
 std::string field(const char* name) { return std::string("cloud.generator.") + name; }
 
-std::string metres(double v) {
-    std::ostringstream s;
-    s.precision(6);
-    s << v << " m";
-    return s.str();
-}
+std::string metres(double v) { return core::format_number(v) + " m"; }
 
 [[noreturn]] void fail(const char* name, const std::string& what) { throw core::Error(field(name), what); }
 

@@ -22,6 +22,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace fulgur::core {
@@ -100,6 +101,26 @@ struct Grid3 {
     T sample(const glm::dvec3& world) const noexcept;
 };
 
+/// Clips the parameter interval [t0, t1] of the ray o + t d (d need not be unit) against the
+/// closed box [lo, hi] by slabs. Returns false (t0, t1 then unspecified) when the clipped
+/// interval is empty or a coordinate is NaN; an axis-parallel ray (a component of d exactly 0)
+/// is handled without 0 * inf. Used by the voxel traversal, Monte Carlo and the renderer.
+inline bool clip_ray_to_box(const glm::dvec3& o, const glm::dvec3& d, const glm::dvec3& lo, const glm::dvec3& hi,
+                            double& t0, double& t1) noexcept {
+    for (int a = 0; a < 3; ++a) {
+        if (d[a] == 0.0) {
+            if (!(o[a] >= lo[a] && o[a] <= hi[a])) return false;  // also rejects NaN
+            continue;
+        }
+        const double inv = 1.0 / d[a];
+        double ta = (lo[a] - o[a]) * inv, tb = (hi[a] - o[a]) * inv;
+        if (ta > tb) std::swap(ta, tb);
+        if (ta > t0) t0 = ta;
+        if (tb < t1) t1 = tb;
+    }
+    return t0 < t1;  // false for NaN too
+}
+
 /// Validates a geometry (positive dims, finite positive voxel size, finite origin);
 /// throws Error naming `where`.
 void validate_geometry(const GridGeometry& g, std::string_view where);
@@ -149,6 +170,30 @@ struct CompensatedSum {
     double value() const noexcept { return sum + comp; }
 };
 
+/// Relative L2 difference ||x - ref||_2 / ||ref||_2 of paired values, accumulated pair by
+/// pair in compensated double sums; ||x - ref||_2 when the reference is all zero.
+class RelativeL2 {
+public:
+    void add(double x, double ref) noexcept {
+        const double d = x - ref;
+        diff_.add(d * d);
+        ref_.add(ref * ref);
+    }
+    double value() const noexcept {
+        const double r = ref_.value();
+        return std::sqrt(diff_.value() / (r > 0.0 ? r : 1.0));
+    }
+    /// ||ref||_2 of the pairs added so far.
+    double reference_norm() const noexcept { return std::sqrt(ref_.value()); }
+
+private:
+    CompensatedSum diff_, ref_;
+};
+
+/// RelativeL2 of two arrays of the same length (element i of x against element i of ref).
+double relative_l2(std::span<const float> x, std::span<const float> ref) noexcept;
+double relative_l2(std::span<const double> x, std::span<const double> ref) noexcept;
+
 // ---------------------------------------------------------------------------------------
 // Threads and time
 
@@ -189,6 +234,9 @@ void parallel_for_dynamic(std::int64_t begin, std::int64_t end, F&& fn, int chun
 std::string format_seconds(double seconds);
 /// A size for people (powers of ten): "512 B", "12.3 kB", "229.4 MB", "1.19 GB".
 std::string format_bytes(double bytes);
+/// A number with `significant_digits` significant digits, printf's "%.*g" in the C locale
+/// ("0.1", "1e+30", "inf"): 6 for messages, 17 to round-trip any double.
+std::string format_number(double v, int significant_digits = 6);
 
 class Stopwatch {
 public:

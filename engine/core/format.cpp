@@ -17,6 +17,12 @@ std::string format_seconds(double s) {
     return buf;
 }
 
+std::string format_number(double v, int significant_digits) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.*g", significant_digits, v);
+    return buf;
+}
+
 std::string format_bytes(double b) {
     char buf[48];
     if (b >= 1e9)

@@ -16,7 +16,6 @@
 #include <cmath>
 #include <deque>
 #include <numbers>
-#include <sstream>
 #include <string>
 
 namespace fulgur::lightning {
@@ -38,13 +37,6 @@ void perpendicular_basis(const glm::dvec3& n, glm::dvec3& u, glm::dvec3& v) noex
 glm::dvec3 turn(const glm::dvec3& d, const glm::dvec3& u, const glm::dvec3& v, double theta, double phi) noexcept {
     const glm::dvec3 r = std::cos(theta) * d + std::sin(theta) * (std::cos(phi) * u + std::sin(phi) * v);
     return glm::normalize(r);
-}
-
-std::string fmt(double v) {
-    std::ostringstream os;
-    os.precision(8);
-    os << v;
-    return os.str();
 }
 
 /// The walk's random draws and geometry, shared by the main channel and the branches.
@@ -133,9 +125,9 @@ StartSampler::StartSampler(const core::Grid3<float>& density, double threshold, 
     }
     if (cells_.empty())
         throw core::Error("lightning.start_density_threshold",
-                          "no voxel of the cloud density above z = " + fmt(min_height) +
-                              " m exceeds the start threshold " + fmt(threshold) + " (the maximum density there is " +
-                              fmt(max_density) +
+                          "no voxel of the cloud density above z = " + core::format_number(min_height, 8) +
+                              " m exceeds the start threshold " + core::format_number(threshold, 8) +
+                              " (the maximum density there is " + core::format_number(max_density, 8) +
                               "); a bolt needs cloud to start in: lower the threshold or check the cloud");
 }
 
@@ -164,15 +156,15 @@ Box default_domain(const BoltParams& p, const core::Grid3<float>& density, std::
     // The floor of the domain is the ground: a caller's box reaching below it is cut there;
     // one whose floor is above the ground could not hold a cloud-to-ground bolt.
     if (domain && p.ground_height < b.lo.z)
-        throw core::Error("lightning.ground_height", "the ground (z = " + fmt(p.ground_height) +
-                                                         " m) lies below the domain's floor (z = " + fmt(b.lo.z) +
-                                                         " m)");
+        throw core::Error("lightning.ground_height",
+                          "the ground (z = " + core::format_number(p.ground_height, 8) +
+                              " m) lies below the domain's floor (z = " + core::format_number(b.lo.z, 8) + " m)");
     b.lo.z = p.ground_height;
     if (!(p.ground_height + p.segment_length_mean < b.hi.z))
         throw core::Error("lightning.ground_height",
-                          "the ground (z = " + fmt(p.ground_height) +
-                              " m) must lie more than a segment below the top of the domain (z = " + fmt(b.hi.z) +
-                              " m)");
+                          "the ground (z = " + core::format_number(p.ground_height, 8) +
+                              " m) must lie more than a segment below the top of the domain (z = " +
+                              core::format_number(b.hi.z, 8) + " m)");
     return b;
 }
 

@@ -3,7 +3,7 @@
 //
 // Per frame the run time does:
 //
-//   Storm::point_sources(t)  ──► PointSource list (empty: no flash, skip the frame's lighting)
+//   Storm::point_sources(t)  ──► point sources (empty: no flash, skip the frame's lighting)
 //   Splatter::splat(sources) ──► LightWeights: e_l for every virtual light l of a
 //                                basis::VirtualLightGrid, plus the ascending list of the
 //                                lights with e_l != 0 (Dobashi Eq. 6)
@@ -24,6 +24,7 @@
 
 #include "basis/virtual_lights.h"
 #include "core/core.h"
+#include "transport/sources.h"
 
 #include <glm/vec3.hpp>
 
@@ -224,16 +225,12 @@ void lit_segments(const Bolt& bolt, const FlashState& s, std::vector<LitSegment>
 // ---------------------------------------------------------------------------------------
 // Point sources and splatting
 
-struct PointSource {
-    glm::dvec3 position{0.0};
-    double intensity = 0.0;  ///< W/sr
-};
-
 /// Samples lit stretches with point sources no farther apart than `max_spacing` (each
 /// stretch of length len gets n = ceil(len / max_spacing) sources at the midpoints of n equal
 /// pieces, each carrying intensity * len / n), so the total intensity sum_q L_q equals
 /// sum intensity * len whatever the spacing. Returns that total (compensated sum).
-double append_point_sources(std::span<const LitSegment> lit, double max_spacing, std::vector<PointSource>& out);
+double append_point_sources(std::span<const LitSegment> lit, double max_spacing,
+                            std::vector<transport::PointSource>& out);
 
 /// Virtual-light intensities e_l for one frame.
 struct LightWeights {
@@ -257,15 +254,15 @@ public:
     explicit Splatter(const basis::VirtualLightGrid& grid);
 
     /// Zeroes `out` (sparsely, touching only the previous frame's active lights) and splats.
-    void splat(std::span<const PointSource> sources, LightWeights& out) const;
+    void splat(std::span<const transport::PointSource> sources, LightWeights& out) const;
     /// Adds to `out` without zeroing it (several bolts into one frame). `out` must come from
     /// splat()/reset() on this grid.
-    void accumulate(std::span<const PointSource> sources, LightWeights& out) const;
+    void accumulate(std::span<const transport::PointSource> sources, LightWeights& out) const;
     /// Sizes `out` for this grid and zeroes it sparsely.
     void reset(LightWeights& out) const;
     /// Reference implementation with a binary search per axis (the benchmark's baseline and
     /// the tests' oracle); same result as accumulate().
-    void accumulate_binary_search(std::span<const PointSource> sources, LightWeights& out) const;
+    void accumulate_binary_search(std::span<const transport::PointSource> sources, LightWeights& out) const;
 
     std::size_t light_count() const noexcept { return count_; }
     /// Smallest distance between adjacent nodes on any axis.
@@ -286,7 +283,7 @@ public:
 
 private:
     template <bool kLut>
-    void accumulate_impl(std::span<const PointSource> sources, LightWeights& out) const;
+    void accumulate_impl(std::span<const transport::PointSource> sources, LightWeights& out) const;
     Axis ax_[3];
     std::size_t count_ = 0;
     double min_spacing_ = 0.0;
@@ -328,7 +325,7 @@ public:
     /// Point sources of every active strike at t with the given spacing (see Splatter::
     /// source_spacing()), appended to `out` after clearing it. Returns false (out empty)
     /// when no strike glows at t.
-    bool point_sources(double t, double max_spacing, std::vector<PointSource>& out);
+    bool point_sources(double t, double max_spacing, std::vector<transport::PointSource>& out);
     /// Lit stretches of every active strike at t (for drawing), appended after clearing.
     bool lit(double t, std::vector<LitSegment>& out);
 

@@ -120,21 +120,21 @@ void Splatter::reset(LightWeights& out) const {
     out.sources = out.clamped = out.rejected = 0;
 }
 
-void Splatter::splat(std::span<const PointSource> sources, LightWeights& out) const {
+void Splatter::splat(std::span<const transport::PointSource> sources, LightWeights& out) const {
     reset(out);
     accumulate(sources, out);
 }
 
-void Splatter::accumulate(std::span<const PointSource> sources, LightWeights& out) const {
+void Splatter::accumulate(std::span<const transport::PointSource> sources, LightWeights& out) const {
     accumulate_impl<true>(sources, out);
 }
 
-void Splatter::accumulate_binary_search(std::span<const PointSource> sources, LightWeights& out) const {
+void Splatter::accumulate_binary_search(std::span<const transport::PointSource> sources, LightWeights& out) const {
     accumulate_impl<false>(sources, out);
 }
 
 template <bool kLut>
-void Splatter::accumulate_impl(std::span<const PointSource> sources, LightWeights& out) const {
+void Splatter::accumulate_impl(std::span<const transport::PointSource> sources, LightWeights& out) const {
     FULGUR_ASSERT(out.e.size() == count_ && out.touched.size() == count_,
                   "LightWeights must be sized for this grid (call Splatter::reset or splat first)");
     const std::size_t nx = ax_[0].nodes.size(), nxy = nx * ax_[1].nodes.size();
@@ -145,7 +145,7 @@ void Splatter::accumulate_impl(std::span<const PointSource> sources, LightWeight
     std::uint8_t* touched = out.touched.data();
     core::CompensatedSum total;
     total.add(out.total);
-    for (const PointSource& q : sources) {
+    for (const transport::PointSource& q : sources) {
         const glm::dvec3 p = q.position;
         if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) || !std::isfinite(q.intensity)) {
             ++out.rejected;

@@ -105,7 +105,7 @@ bool Storm::lit(double t, std::vector<LitSegment>& out) {
     return !out.empty();
 }
 
-bool Storm::point_sources(double t, double max_spacing, std::vector<PointSource>& out) {
+bool Storm::point_sources(double t, double max_spacing, std::vector<transport::PointSource>& out) {
     out.clear();
     std::vector<LitSegment> lit_now;
     if (!lit(t, lit_now)) return false;

@@ -113,7 +113,8 @@ void lit_segments(const Bolt& bolt, const FlashState& s, std::vector<LitSegment>
     }
 }
 
-double append_point_sources(std::span<const LitSegment> lit, double max_spacing, std::vector<PointSource>& out) {
+double append_point_sources(std::span<const LitSegment> lit, double max_spacing,
+                            std::vector<transport::PointSource>& out) {
     FULGUR_ASSERT(std::isfinite(max_spacing) && max_spacing > 0.0, "point-source spacing must be finite and positive");
     core::CompensatedSum total;
     for (const LitSegment& l : lit) {

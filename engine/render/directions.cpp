@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 
 namespace fulgur::render {
@@ -171,25 +172,6 @@ std::vector<DirectionUse> view_directions(const glm::dvec3& camera_position, con
     return out;
 }
 
-namespace {
-bool ray_box(const glm::dvec3& o, const glm::dvec3& d, const glm::dvec3& lo, const glm::dvec3& hi, double& t0,
-             double& t1) {
-    t0 = 0.0;
-    t1 = 1e300;
-    for (int a = 0; a < 3; ++a) {
-        if (std::abs(d[a]) < 1e-300) {
-            if (o[a] < lo[a] || o[a] > hi[a]) return false;
-            continue;
-        }
-        double ta = (lo[a] - o[a]) / d[a], tb = (hi[a] - o[a]) / d[a];
-        if (ta > tb) std::swap(ta, tb);
-        t0 = std::max(t0, ta);
-        t1 = std::min(t1, tb);
-    }
-    return t1 > t0;
-}
-}  // namespace
-
 double plain_march_samples(const Camera& camera, const core::GridGeometry& volume, int width, int height,
                            double step_metres) {
     FULGUR_ASSERT(width > 0 && height > 0 && step_metres > 0.0, "plain_march_samples: bad size or step");
@@ -203,8 +185,9 @@ double plain_march_samples(const Camera& camera, const core::GridGeometry& volum
             const double nx = (2.0 * (x + 0.5) / width - 1.0) * th * aspect;
             const double ny = (1.0 - 2.0 * (y + 0.5) / height) * th;
             const glm::dvec3 d = glm::normalize(fwd + nx * right + ny * up);
-            double t0, t1;
-            if (ray_box(camera.position, d, volume.origin, volume.upper(), t0, t1)) total.add((t1 - t0) / step_metres);
+            double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
+            if (core::clip_ray_to_box(camera.position, d, volume.origin, volume.upper(), t0, t1))
+                total.add((t1 - t0) / step_metres);
         }
     return total.value();
 }

@@ -10,9 +10,7 @@
 #endif
 
 #include <algorithm>
-#include <cinttypes>
 #include <cmath>
-#include <cstdio>
 #include <string>
 #include <utility>
 
@@ -31,12 +29,6 @@ inline float half_to_float_fast(std::uint16_t h) noexcept {
 #else
     return basis::half_to_float(h);
 #endif
-}
-
-std::string hex(std::uint64_t v) {
-    char b[24];
-    std::snprintf(b, sizeof b, "%016" PRIx64, v);
-    return b;
 }
 
 // The file in the accumulation layout, streamed light by light (each block validated by
@@ -107,19 +99,9 @@ BakedBases::BakedBases(BakedBases&&) noexcept = default;
 BakedBases& BakedBases::operator=(BakedBases&&) noexcept = default;
 BakedBases::~BakedBases() = default;
 
-BakedBases BakedBases::load(const std::filesystem::path& fgb, std::optional<std::uint64_t> expected_hash) {
+BakedBases BakedBases::load(const std::filesystem::path& fgb, const std::optional<basis::BakeKey>& expected) {
     basis::FgbReader reader(fgb);
-    if (expected_hash && reader.metadata().key.hash != *expected_hash)
-        throw core::Error(fgb.string(),
-                          "stale bake: the file was baked from a scene whose key hash is " +
-                              hex(reader.metadata().key.hash) + ", but the scene now hashes to " + hex(*expected_hash) +
-                              " (a bake-relevant parameter or the cloud changed); rebake it with fulgur-bake");
-    return BakedBases(build_layout(reader));
-}
-
-BakedBases BakedBases::load(const std::filesystem::path& fgb, const basis::BakeKey& expected) {
-    basis::FgbReader reader(fgb);
-    reader.check_key(expected);
+    if (expected) reader.check_key(*expected);
     return BakedBases(build_layout(reader));
 }
 
@@ -394,7 +376,7 @@ const Frame& FramePipeline::build(double t, std::span<const int> directions, con
 // Direct solve
 
 transport::SourceField direct_solve(const scene::Scene& scene, const bake::Media& media,
-                                    std::span<const lightning::PointSource> sources, const Components& components) {
+                                    std::span<const transport::PointSource> sources, const Components& components) {
     const std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
     transport::SourceField out(media.lighting.density.geom, dirs);
     bake::SolveRequest rq;
@@ -404,12 +386,12 @@ transport::SourceField direct_solve(const scene::Scene& scene, const bake::Media
     if (!rq.single && !rq.multiple) return out;
     std::vector<transport::PointSource> pts;
     pts.reserve(sources.size());
-    for (const lightning::PointSource& q : sources) {
+    for (const transport::PointSource& q : sources) {
         // As the splat: non-finite sources are skipped; zero ones add nothing.
         if (!std::isfinite(q.position.x) || !std::isfinite(q.position.y) || !std::isfinite(q.position.z) ||
             !std::isfinite(q.intensity) || q.intensity == 0.0)
             continue;
-        pts.push_back({q.position, q.intensity});
+        pts.push_back(q);
     }
     if (pts.empty()) return out;
     const bake::Solution s = bake::solve(scene, media, pts, dirs, rq);
@@ -433,7 +415,7 @@ transport::SourceField Truth::sum(const Components& c) const {
 }
 
 Truth truth(const scene::Scene& scene, const core::Grid3<float>& density, std::span<const lightning::LitSegment> lit,
-            std::span<const lightning::PointSource> points, const TruthOptions& options) {
+            std::span<const transport::PointSource> points, const TruthOptions& options) {
     transport::LightingMedium fine;
     fine.density = density;
     fine.optics = scene.medium;
@@ -441,8 +423,7 @@ Truth truth(const scene::Scene& scene, const core::Grid3<float>& density, std::s
     const int f = scene.lighting_downsample;
     lighting.voxel_size *= f;
     lighting.dims = {(density.dims().x + f - 1) / f, (density.dims().y + f - 1) / f, (density.dims().z + f - 1) / f};
-    std::vector<transport::PointSource> pts;
-    for (const lightning::PointSource& p : points) pts.push_back({p.position, p.intensity});
+    const std::vector<transport::PointSource> pts(points.begin(), points.end());
     std::vector<transport::LineSource> lines;
     for (const lightning::LitSegment& s : lit) lines.push_back({s.a, s.b, s.intensity});
     transport::MonteCarloOptions mc;

@@ -59,12 +59,11 @@ struct StageTimes {
 /// uint32) and float32 values (float16 files are expanded at load), in the file's order.
 class BakedBases {
 public:
-    /// Loads and validates `fgb` (basis::load_fgb: every CRC, index and value). If
-    /// `expected_hash` is given and differs from the file's, throws core::Error "stale bake"
-    /// naming both hashes (checked from the header, before the blocks are read).
-    static BakedBases load(const std::filesystem::path& fgb, std::optional<std::uint64_t> expected_hash = {});
-    /// Same, with the scene's full key: the message also names the first parameter that changed.
-    static BakedBases load(const std::filesystem::path& fgb, const basis::BakeKey& expected);
+    /// Loads and validates `fgb` (basis::load_fgb: every CRC, index and value). With the
+    /// scene's key (bake::scene_key), a file baked from other parameters is rejected before
+    /// its blocks are read: core::Error "stale bake" naming both hashes and the first scene
+    /// parameter that changed (basis::FgbReader::check_key).
+    static BakedBases load(const std::filesystem::path& fgb, const std::optional<basis::BakeKey>& expected = {});
 
     const core::GridGeometry& lighting() const noexcept;
     const std::vector<glm::dvec3>& directions() const noexcept;
@@ -146,7 +145,7 @@ struct Frame {
     /// is valid. When false, radiance holds stale buffers and must not be shown.
     bool lit = false;
     std::vector<lightning::LitSegment> segments;  ///< for the renderer's bolt and glow
-    std::vector<lightning::PointSource> sources;
+    std::vector<transport::PointSource> sources;
     lightning::LightWeights weights;
     RadianceField radiance;
     StageTimes times;
@@ -181,7 +180,7 @@ private:
 /// single-scattering tolerance, same lattice-Boltzmann settings, no light drop); a part the
 /// scene does not simulate (effects.*_scattering false) is not added, as in the bake.
 transport::SourceField direct_solve(const scene::Scene& scene, const bake::Media& media,
-                                    std::span<const lightning::PointSource> sources, const Components& components = {});
+                                    std::span<const transport::PointSource> sources, const Components& components = {});
 
 // =======================================================================================
 // Per-strike light: what the hybrid, per-strike and reference presets add to the bases.
@@ -279,6 +278,6 @@ struct Truth {
 /// Uses the scene's optics (exact Henyey-Greenstein), independent of its transport settings.
 /// Offline: seconds to minutes.
 Truth truth(const scene::Scene& scene, const core::Grid3<float>& density, std::span<const lightning::LitSegment> lit,
-            std::span<const lightning::PointSource> points = {}, const TruthOptions& options = {});
+            std::span<const transport::PointSource> points = {}, const TruthOptions& options = {});
 
 }  // namespace fulgur::runtime

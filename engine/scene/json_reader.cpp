@@ -2,18 +2,10 @@
 
 #include <cmath>
 #include <limits>
-#include <sstream>
 
 namespace fulgur::scene::detail {
 
 namespace {
-std::string fmt(double v) {
-    std::ostringstream os;
-    os.precision(10);
-    os << v;
-    return os.str();
-}
-
 std::string describe(const nlohmann::json& v) {
     std::string s = v.dump();
     if (s.size() > 60) s = s.substr(0, 57) + "...";
@@ -25,7 +17,7 @@ std::string Range::str() const {
     auto bound = [](double v) {
         if (v == std::numeric_limits<double>::infinity()) return std::string("inf");
         if (v == -std::numeric_limits<double>::infinity()) return std::string("-inf");
-        return fmt(v);
+        return core::format_number(v, 10);
     };
     return std::string(lo_open ? "(" : "[") + bound(lo) + ", " + bound(hi) + (hi_open ? ")" : "]");
 }
@@ -57,7 +49,8 @@ double JsonObject::number(std::string_view key, Range r) {
     if (!v) fail(key, "required number in " + r.str() + " is missing");
     if (!v->is_number()) fail(key, "expected a number in " + r.str() + ", got " + describe(*v));
     const double d = v->get<double>();
-    if (!std::isfinite(d) || !r.contains(d)) fail(key, "value " + fmt(d) + " is outside the allowed range " + r.str());
+    if (!std::isfinite(d) || !r.contains(d))
+        fail(key, "value " + core::format_number(d, 10) + " is outside the allowed range " + r.str());
     return d;
 }
 
@@ -130,7 +123,8 @@ glm::dvec3 JsonObject::vec3(std::string_view key, Range each) {
         if (!e.is_number()) fail(key, "element " + std::to_string(i) + " is not a number: " + describe(e));
         const double d = e.get<double>();
         if (!std::isfinite(d) || !each.contains(d))
-            fail(key, "element " + std::to_string(i) + " = " + fmt(d) + " is outside the allowed range " + each.str());
+            fail(key, "element " + std::to_string(i) + " = " + core::format_number(d, 10) +
+                          " is outside the allowed range " + each.str());
         out[i] = d;
     }
     return out;

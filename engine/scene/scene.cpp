@@ -149,13 +149,13 @@ void parse_lights(JsonObject& root, Scene& s) {
         const std::string type = l.choice_or("type", "", {"point", "sun"});
         if (type.empty()) l.fail("type", "required: \"point\" or \"sun\"");
         if (type == "point") {
-            PointLight p;
+            transport::PointSource p;
             p.position = l.vec3("position", Range{-1e7, 1e7});
             p.intensity = l.number_or("intensity", p.intensity, Range{0.0, kInf, false, true});
             s.point_lights.push_back(p);
         } else {
             if (s.sun) l.fail("type", "a scene has at most one sun");
-            SunLight sun;
+            transport::DirectionalSource sun;
             const glm::dvec3 d = l.vec3("direction", Range{-1e6, 1e6});
             if (glm::length(d) < 1e-9) l.fail("direction", "must be a non-zero vector");
             sun.direction = glm::normalize(d);

@@ -72,16 +72,6 @@ struct TransportSettings {
     int mc_batches = 32;  ///< batches for the per-voxel standard error
 };
 
-struct PointLight {
-    glm::dvec3 position{0.0};
-    double intensity = 1.0;  ///< radiant intensity, W/sr
-};
-
-struct SunLight {
-    glm::dvec3 direction{0.0, 0.0, -1.0};  ///< propagation direction (unit)
-    double irradiance = 1.0;               ///< W/m^2 perpendicular to the direction
-};
-
 struct Scene {
     std::filesystem::path path;  ///< the scene file ("" when parsed from memory)
     std::string name;
@@ -100,8 +90,8 @@ struct Scene {
     /// scattering, sigma_s * uncollided fluence summed over the cloud) is below this fraction
     /// of its emitted power is dropped from the bake (stored with no coefficients). 0 keeps all.
     double drop_below = 1e-4;
-    std::vector<PointLight> point_lights;
-    std::optional<SunLight> sun;
+    std::vector<transport::PointSource> point_lights;  ///< "lights" of type "point"
+    std::optional<transport::DirectionalSource> sun;   ///< the "lights" entry of type "sun"
     Effects effects;
     lightning::LightningParams lightning;  ///< section "lightning": bolt shape, flash timing, schedule
 

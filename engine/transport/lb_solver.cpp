@@ -302,7 +302,7 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
 
     // Point lights.
     for (std::size_t li = 0; li < sources.points.size(); ++li) {
-        const LbPointLight& L = sources.points[li];
+        const PointSource& L = sources.points[li];
         check_finite(L.intensity, "lattice_boltzmann: point light intensity");
         check_finite(L.position.x + L.position.y + L.position.z, "lattice_boltzmann: point light position");
         if (L.intensity < 0.0) throw core::Error("lattice_boltzmann: point light intensity", "must be >= 0");

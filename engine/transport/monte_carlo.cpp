@@ -71,7 +71,7 @@ public:
 
     bool start(Walker& w, const glm::dvec3& x, const glm::dvec3& d) const noexcept {
         double t0 = 0.0, t1 = kInf;
-        if (!clip_box(x, d, g_.origin, g_.upper(), t0, t1)) return false;
+        if (!core::clip_ray_to_box(x, d, g_.origin, g_.upper(), t0, t1)) return false;
         return w.macro.start(macro_, x, d, t0, t1);
     }
     void segment(const Walker& w, double& t0, double& t1, double& sb) const noexcept {
@@ -222,7 +222,7 @@ private:
                  bool attenuate) {
         const bool same = tg_->same();
         double ta = t0, tb = t1;
-        if (!same && !clip_box(x, d, tg_->geom.origin, tg_->geom.upper(), ta, tb)) return;
+        if (!same && !core::clip_ray_to_box(x, d, tg_->geom.origin, tg_->geom.upper(), ta, tb)) return;
         DdaWalker wk;
         if (!wk.start(*g_, x, d, t0, t1)) {
             if (!same) walk_tally(base, x, d, ta, tb, w, true);

@@ -39,31 +39,30 @@ GaussRule gauss_legendre(int n) {
     struct Table {
         std::array<std::array<double, kMaxGaussPoints>, kMaxGaussPoints + 1> x{}, w{};
         Table() {
+            // P_m(z) into p (three-term recurrence); returns P_m'(z).
+            auto legendre = [](int m, double z, double& p) {
+                double p0 = 1.0, p1 = 0.0;
+                for (int j = 1; j <= m; ++j) {
+                    const double p2 = p1;
+                    p1 = p0;
+                    p0 = ((2.0 * j - 1.0) * z * p1 - (j - 1.0) * p2) / j;
+                }
+                p = p0;
+                return m * (z * p0 - p1) / (z * z - 1.0);
+            };
             for (int m = 1; m <= kMaxGaussPoints; ++m) {
                 for (int i = 0; i < m; ++i) {
                     // Newton on P_m from the Tricomi-like initial guess; descending roots.
                     double z = std::cos(std::numbers::pi * (double(i) + 0.75) / (double(m) + 0.5));
-                    double dp = 1.0;
+                    double p = 0.0, dp = 1.0;
                     for (int it = 0; it < 100; ++it) {
-                        double p0 = 1.0, p1 = 0.0;
-                        for (int j = 1; j <= m; ++j) {
-                            const double p2 = p1;
-                            p1 = p0;
-                            p0 = ((2.0 * j - 1.0) * z * p1 - (j - 1.0) * p2) / j;
-                        }
-                        dp = m * (z * p0 - p1) / (z * z - 1.0);
-                        const double dz = p0 / dp;
+                        dp = legendre(m, z, p);
+                        const double dz = p / dp;
                         z -= dz;
                         if (std::fabs(dz) < 1e-15) break;
                     }
                     // Recompute the derivative at the converged root for the weight.
-                    double p0 = 1.0, p1 = 0.0;
-                    for (int j = 1; j <= m; ++j) {
-                        const double p2 = p1;
-                        p1 = p0;
-                        p0 = ((2.0 * j - 1.0) * z * p1 - (j - 1.0) * p2) / j;
-                    }
-                    dp = m * (z * p0 - p1) / (z * z - 1.0);
+                    dp = legendre(m, z, p);
                     // Map [-1, 1] -> [0, 1]: z descends with i, so x = (1 - z)/2 ascends.
                     x[std::size_t(m)][std::size_t(i)] = 0.5 * (1.0 - z);
                     w[std::size_t(m)][std::size_t(i)] = 1.0 / ((1.0 - z * z) * dp * dp);  // 2/((1-z^2)P'^2) / 2

@@ -17,6 +17,7 @@
 #pragma once
 
 #include "core/core.h"
+#include "transport/sources.h"
 
 #include <glm/vec3.hpp>
 
@@ -101,27 +102,7 @@ SourceField block_average(const SourceField& fine, int factor);
 // =======================================================================================
 // Transmittance, single scattering and the Monte Carlo reference
 //
-// Light sources. A point source of radiant intensity I (W/sr) emits 4*pi*I W isotropically;
-// the unit virtual light has I = 1. A directional (sun) source has irradiance E (W/m^2) on a
-// plane perpendicular to its propagation direction, and illuminates the grid from outside.
-
-struct PointSource {
-    glm::dvec3 position{0.0};  ///< metres, anywhere (inside or outside the grid)
-    double intensity = 1.0;    ///< radiant intensity I, W/sr, finite and >= 0
-};
-
-/// An isotropic line source (a lit stretch of a lightning channel): every metre of the
-/// segment a-b emits `intensity` W/sr (power 4 pi I |b - a|).
-struct LineSource {
-    glm::dvec3 a{0.0}, b{0.0};  ///< metres
-    double intensity = 0.0;     ///< W/sr per metre, finite and >= 0
-    std::uint32_t group = 0;    ///< tally group (MonteCarloOptions::groups), e.g. main channel / branches
-};
-
-struct DirectionalSource {
-    glm::dvec3 direction{0.0, 0.0, -1.0};  ///< propagation direction (normalized on use)
-    double irradiance = 1.0;               ///< E, W/m^2, finite and >= 0
-};
+// Light sources: PointSource and DirectionalSource (transport/sources.h).
 
 /// Throws core::Error naming the field when the medium is unusable: extinction not finite
 /// or < 0, albedo outside [0, 1], g not finite, a density that is not finite or outside
@@ -383,24 +364,13 @@ struct LbSettings {
     bool record_history = false;  ///< keep the total lattice density after every step
 };
 
-/// Isotropic point light of radiant intensity `intensity` (W/sr). Inside the grid it is
-/// injected at the 8 nearest sites (trilinear weights); outside, as boundary inflow.
-struct LbPointLight {
-    glm::dvec3 position{0.0};
-    double intensity = 1.0;
-};
-
-/// Directional light (sun): propagation direction (unit) and irradiance perpendicular to
-/// it (W/m^2). Injected at the boundary, direction resolved into lattice directions with
-/// the paper's Appendix A.
-struct LbDirectionalLight {
-    glm::dvec3 direction{0.0, 0.0, -1.0};
-    double irradiance = 1.0;
-};
-
 struct LbSources {
-    std::vector<LbPointLight> points;
-    std::optional<LbDirectionalLight> sun;
+    /// Point sources: inside the grid each is injected at the 8 nearest sites (trilinear
+    /// weights); outside, as boundary inflow.
+    std::vector<PointSource> points;
+    /// The sun: injected at the boundary, its direction resolved into lattice directions with
+    /// the paper's Appendix A.
+    std::optional<DirectionalSource> sun;
     /// First-scattered source S1 on the lighting grid (same geometry): the lattice is fed
     /// with the volume emission of once-scattered light, sigma_t(x) * S1(x, s), and so
     /// computes orders >= 2 only. S1 needs 1 direction (isotropic) or one matching each of

@@ -35,7 +35,7 @@ StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::file
                      render::GetProcAddress gl)
     : scene_(std::move(s)),
       density_(std::move(density)),
-      bases_(runtime::BakedBases::load(fgb, bake::scene_key(scene_, density_).hash)) {
+      bases_(runtime::BakedBases::load(fgb, bake::scene_key(scene_, density_))) {
     pipeline_ = std::make_unique<runtime::FramePipeline>(scene_, density_, bases_);
     renderer_ = std::make_unique<render::Renderer>(gl);
     renderer_->set_volume({.density = &density_, .extinction = scene_.medium.extinction});
@@ -84,17 +84,13 @@ double StormView::reconstruction_error(const transport::SourceField& reference) 
     if (!last_ || !last_->lit) return 0.0;
     const runtime::RadianceField& r = last_->radiance;
     const std::vector<float>& density = media().lighting.density.data;
-    core::CompensatedSum d2, r2;  // ~10^5 terms spanning many orders of magnitude
+    core::RelativeL2 e;  // ~10^5 terms spanning many orders of magnitude: compensated sums
     for (std::size_t k = 0; k < r.directions.size(); ++k) {
         const std::span<const float> ref = reference.direction(std::size_t(r.directions[k]));
         for (std::size_t i = 0; i < ref.size(); ++i)
-            if (density[i] > 0.0f) {
-                const double d = double(r.values[k][i]) - double(ref[i]);
-                d2.add(d * d);
-                r2.add(double(ref[i]) * double(ref[i]));
-            }
+            if (density[i] > 0.0f) e.add(double(r.values[k][i]), double(ref[i]));
     }
-    return std::sqrt(d2.value() / (r2.value() > 0.0 ? r2.value() : 1.0));
+    return e.value();
 }
 
 FrameReport StormView::render(const render::Camera& camera, double t, int width, int height, const ViewOptions& options,

@@ -28,14 +28,14 @@ double sum_e(const LightWeights& w) {
     return s.value();
 }
 
-double sum_l(const std::vector<PointSource>& q) {
+double sum_l(const std::vector<transport::PointSource>& q) {
     core::CompensatedSum s;
-    for (const PointSource& p : q) s.add(p.intensity);
+    for (const transport::PointSource& p : q) s.add(p.intensity);
     return s.value();
 }
 
 /// Independent oracle: the trilinear weights of one source by a linear scan per axis.
-std::map<std::size_t, double> oracle(const basis::VirtualLightGrid& g, const PointSource& q) {
+std::map<std::size_t, double> oracle(const basis::VirtualLightGrid& g, const transport::PointSource& q) {
     auto axis = [](const std::vector<double>& n, double v, std::size_t& i, double& f) {
         v = std::clamp(v, n.front(), n.back());
         if (n.size() == 1) return i = 0, f = 0.0, void();
@@ -60,10 +60,10 @@ std::map<std::size_t, double> oracle(const basis::VirtualLightGrid& g, const Poi
     return w;
 }
 
-std::vector<PointSource> random_sources(std::size_t n, std::uint64_t seed, const Box& box) {
+std::vector<transport::PointSource> random_sources(std::size_t n, std::uint64_t seed, const Box& box) {
     core::Rng r(seed, 3);
-    std::vector<PointSource> q(n);
-    for (PointSource& p : q) {
+    std::vector<transport::PointSource> q(n);
+    for (transport::PointSource& p : q) {
         p.position = box.lo + glm::dvec3(r.uniform(), r.uniform(), r.uniform()) * (box.hi - box.lo);
         p.intensity = 1e5 * (0.1 + r.uniform());
     }
@@ -81,7 +81,7 @@ TEST_CASE("splat: the grid lookup agrees with the binary search and an independe
     CHECK(sp.source_spacing() == 200.0);
     // Inside, outside and on nodes: 2000 random sources over a box larger than the grid.
     const Box wide{glm::dvec3(-9000.0, -9000.0, -2000.0), glm::dvec3(9000.0, 9000.0, 12000.0)};
-    std::vector<PointSource> q = random_sources(2000, 1, wide);
+    std::vector<transport::PointSource> q = random_sources(2000, 1, wide);
     q.push_back({glm::dvec3(-6400.0, 400.0, 700.0), 3.0});   // on a node
     q.push_back({glm::dvec3(6400.0, 6400.0, 9500.0), 5.0});  // the last corner
     LightWeights a, b;
@@ -91,7 +91,7 @@ TEST_CASE("splat: the grid lookup agrees with the binary search and an independe
     REQUIRE(a.active == b.active);
     for (const std::uint32_t l : a.active) CHECK(fixture::same_bits(a.e[l], b.e[l]));  // same arithmetic, same bits
     std::map<std::size_t, double> ref;
-    for (const PointSource& p : q)
+    for (const transport::PointSource& p : q)
         for (const auto& [l, w] : oracle(vgrid(), p)) ref[l] += w;
     for (const auto& [l, w] : ref) CHECK(a.e[l] == doctest::Approx(w).epsilon(1e-12));  // summation order differs
     std::size_t nonzero = 0;
@@ -103,7 +103,7 @@ TEST_CASE("splat: sum of e_l equals sum of L_q (exact energy conservation), in a
     const Splatter sp(vgrid());
     const Box wide{glm::dvec3(-20000.0, -20000.0, -5000.0), glm::dvec3(20000.0, 20000.0, 20000.0)};
     for (const bool inside : {true, false}) {
-        const std::vector<PointSource> q = random_sources(10000, 7, inside ? kInside : wide);
+        const std::vector<transport::PointSource> q = random_sources(10000, 7, inside ? kInside : wide);
         LightWeights w;
         sp.splat(q, w);
         const double in = sum_l(q);
@@ -131,7 +131,7 @@ TEST_CASE("splat: linear - two bolts splatted together equal the sum of each spl
     std::vector<LitSegment> la, lb;
     lit_segments(gen.generate(11), peak, la);
     lit_segments(gen.generate(12), peak, lb);
-    std::vector<PointSource> qa, qb, qab;
+    std::vector<transport::PointSource> qa, qb, qab;
     append_point_sources(la, sp.source_spacing(), qa);
     append_point_sources(lb, sp.source_spacing(), qb);
     qab = qa;
@@ -153,8 +153,8 @@ TEST_CASE("splat: linear - two bolts splatted together equal the sum of each spl
     CHECK(wab.active == wacc.active);
     // Scaling: intensities x 3 give e x 3 exactly (multiplication by 3 is exact in the
     // weights' last step only up to one rounding: 1e-15 relative).
-    std::vector<PointSource> q3 = qa;
-    for (PointSource& p : q3) p.intensity *= 3.0;
+    std::vector<transport::PointSource> q3 = qa;
+    for (transport::PointSource& p : q3) p.intensity *= 3.0;
     LightWeights w3;
     sp.splat(q3, w3);
     for (const std::uint32_t l : wa.active) CHECK(w3.e[l] == doctest::Approx(3.0 * wa.e[l]).epsilon(1e-15));
@@ -168,7 +168,7 @@ TEST_CASE("splat: sources exactly on nodes and on the boundaries get exact weigh
     for (std::size_t i : {std::size_t(0), std::size_t(5), g.x.size() - 1})
         for (std::size_t j : {std::size_t(0), std::size_t(17), g.y.size() - 1})
             for (std::size_t k : {std::size_t(0), std::size_t(1), std::size_t(2), g.z.size() - 1}) {
-                const PointSource q{glm::dvec3(g.x[i], g.y[j], g.z[k]), 7.25};
+                const transport::PointSource q{glm::dvec3(g.x[i], g.y[j], g.z[k]), 7.25};
                 sp.splat(std::span(&q, 1), w);
                 REQUIRE(w.active.size() == 1);  // all the weight on that node, none on neighbours
                 CHECK(w.active[0] == g.index(i, j, k));
@@ -176,13 +176,13 @@ TEST_CASE("splat: sources exactly on nodes and on the boundaries get exact weigh
                 CHECK(w.clamped == 0);
             }
     // Midway on an edge of the last cell: two lights, exactly half each.
-    const PointSource mid{glm::dvec3(g.x.back(), 0.5 * (g.y[3] + g.y[4]), g.z.back()), 2.0};
+    const transport::PointSource mid{glm::dvec3(g.x.back(), 0.5 * (g.y[3] + g.y[4]), g.z.back()), 2.0};
     sp.splat(std::span(&mid, 1), w);
     REQUIRE(w.active.size() == 2);
     CHECK(w.e[w.active[0]] == 1.0);
     CHECK(w.e[w.active[1]] == 1.0);
     // Just inside / outside the last node: nearest boundary lights, energy kept, counted.
-    const PointSource out{glm::dvec3(g.x.back() + 1e-9, g.y.back() + 500.0, g.z.front() - 1e6), 4.0};
+    const transport::PointSource out{glm::dvec3(g.x.back() + 1e-9, g.y.back() + 500.0, g.z.front() - 1e6), 4.0};
     sp.splat(std::span(&out, 1), w);
     CHECK(w.clamped == 1);
     REQUIRE(w.active.size() == 1);
@@ -193,9 +193,10 @@ TEST_CASE("splat: sources exactly on nodes and on the boundaries get exact weigh
 TEST_CASE("splat: non-finite sources are rejected, zero intensity lights nothing, no NaN ever") {
     const Splatter sp(vgrid());
     const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
-    const std::vector<PointSource> q = {{glm::dvec3(nan, 0.0, 1000.0), 1.0}, {glm::dvec3(0.0, inf, 1000.0), 1.0},
-                                        {glm::dvec3(0.0, 0.0, 1000.0), nan}, {glm::dvec3(0.0, 0.0, 1000.0), -inf},
-                                        {glm::dvec3(0.0, 0.0, 1000.0), 0.0}, {glm::dvec3(1e300, -1e300, 1e300), 2.0}};
+    const std::vector<transport::PointSource> q = {
+        {glm::dvec3(nan, 0.0, 1000.0), 1.0}, {glm::dvec3(0.0, inf, 1000.0), 1.0},
+        {glm::dvec3(0.0, 0.0, 1000.0), nan}, {glm::dvec3(0.0, 0.0, 1000.0), -inf},
+        {glm::dvec3(0.0, 0.0, 1000.0), 0.0}, {glm::dvec3(1e300, -1e300, 1e300), 2.0}};
     LightWeights w;
     sp.splat(q, w);
     CHECK(w.rejected == 4);
@@ -214,7 +215,7 @@ TEST_CASE("splat: non-finite sources are rejected, zero intensity lights nothing
     peak.main_glow = peak.branch_glow = 1.0;
     std::vector<LitSegment> lit;
     lit_segments(b, peak, lit);
-    std::vector<PointSource> none;
+    std::vector<transport::PointSource> none;
     CHECK(append_point_sources(lit, 200.0, none) == 0.0);
     CHECK(none.empty());
     sp.splat(none, w);
@@ -227,14 +228,15 @@ TEST_CASE("splat: reuse across frames resets sparsely and leaves no stale weight
     sp.splat(random_sources(500, 1, kInside), w);
     const std::size_t first = w.active.size();
     CHECK(first > 100);
-    const PointSource one{glm::dvec3(0.0, 0.0, 1500.0), 1.0};
+    const transport::PointSource one{glm::dvec3(0.0, 0.0, 1500.0), 1.0};
     sp.splat(std::span(&one, 1), w);
     CHECK(w.active.size() == 1);
     std::size_t nonzero = 0;
     for (const double e : w.e) nonzero += e != 0.0;
     CHECK(nonzero == 1);
     // Opposite sources cancel exactly: the light drops out of the active list.
-    const std::vector<PointSource> pair = {{glm::dvec3(0.0, 0.0, 1500.0), 1.0}, {glm::dvec3(0.0, 0.0, 1500.0), -1.0}};
+    const std::vector<transport::PointSource> pair = {{glm::dvec3(0.0, 0.0, 1500.0), 1.0},
+                                                      {glm::dvec3(0.0, 0.0, 1500.0), -1.0}};
     sp.splat(pair, w);
     CHECK(w.empty());
 }
@@ -251,7 +253,7 @@ TEST_CASE("splat: bolts at the grid's top and bottom layers and a bolt leaving t
         s.main_glow = 1.0;
         std::vector<LitSegment> lit;
         lit_segments(b, s, lit);
-        std::vector<PointSource> q;
+        std::vector<transport::PointSource> q;
         const double total = append_point_sources(lit, sp.source_spacing(), q);
         LightWeights w;
         sp.splat(q, w);
@@ -268,7 +270,7 @@ TEST_CASE("splat: bolts at the grid's top and bottom layers and a bolt leaving t
     s.main_glow = 1.0;
     std::vector<LitSegment> lit;
     lit_segments(b, s, lit);
-    std::vector<PointSource> q;
+    std::vector<transport::PointSource> q;
     const double total = append_point_sources(lit, sp.source_spacing(), q);
     LightWeights w;
     sp.splat(q, w);
@@ -284,7 +286,7 @@ TEST_CASE("splat: degenerate grids - single-layer axes work, invalid axes are re
     flat.z = {1000.0};  // one layer
     const Splatter sp(flat);
     CHECK(sp.min_spacing() == 50.0);
-    const PointSource q{glm::dvec3(150.0, 25.0, 5000.0), 8.0};
+    const transport::PointSource q{glm::dvec3(150.0, 25.0, 5000.0), 8.0};
     LightWeights w;
     sp.splat(std::span(&q, 1), w);
     CHECK(w.clamped == 1);  // above the only layer
@@ -323,7 +325,7 @@ TEST_CASE("point sources: a stroke's energy does not depend on the spacing, and 
     for (const Segment& s : b.segments) exact.add(s.intensity * s.length());
 
     LightWeights fine;
-    std::vector<PointSource> qf;
+    std::vector<transport::PointSource> qf;
     append_point_sources(lit, 2.0, qf);  // 2 m: a near-continuous line
     sp.splat(qf, fine);
     double fine_norm = 0.0;
@@ -331,14 +333,14 @@ TEST_CASE("point sources: a stroke's energy does not depend on the spacing, and 
 
     double previous_err = 1e300;
     for (const double spacing : {400.0, 200.0, 50.0, 10.0}) {
-        std::vector<PointSource> q;
+        std::vector<transport::PointSource> q;
         const double total = append_point_sources(lit, spacing, q);
         // Every source spacing carries the same energy up to rounding (1e-12 relative).
         CHECK(std::fabs(total - exact.value()) <= 1e-12 * exact.value());
         CHECK(std::fabs(sum_l(q) - exact.value()) <= 1e-12 * exact.value());
         // Along each lit stretch: sources at most `spacing` apart, the ends within half of it.
         for (const LitSegment& l : lit) {
-            std::vector<PointSource> one;
+            std::vector<transport::PointSource> one;
             append_point_sources(std::span(&l, 1), spacing, one);
             REQUIRE(!one.empty());
             const double slack = 1e-9 * spacing;  // rounding of the positions
@@ -372,7 +374,7 @@ TEST_CASE("point sources and splat: same bolt and time give bit-identical e_l") 
         Storm storm(p, cloud);
         storm.strike_at(1.0, 99);
         const double t = 1.0 + storm.strike(0).profile.leader_duration + 0.002;
-        std::vector<PointSource> q;
+        std::vector<transport::PointSource> q;
         REQUIRE(storm.point_sources(t, sp.source_spacing(), q));
         LightWeights w;
         sp.splat(q, w);
@@ -385,7 +387,7 @@ TEST_CASE("point sources and splat: same bolt and time give bit-identical e_l") 
 
 TEST_CASE("splat: 10,000 point sources") {
     const Splatter sp(vgrid());
-    const std::vector<PointSource> q = random_sources(10000, 5, kInside);
+    const std::vector<transport::PointSource> q = random_sources(10000, 5, kInside);
     LightWeights w;
     sp.splat(q, w);
     CHECK(w.sources == 10000);

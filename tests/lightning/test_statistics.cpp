@@ -197,7 +197,7 @@ TEST_CASE("storm: the Poisson schedule has the configured rate and is the same i
     Storm forward(p, cloud()), scrambled(p, cloud());
     std::vector<double> times;
     for (int f = 0; f < 600; ++f) times.push_back(f / 60.0);
-    std::vector<std::vector<PointSource>> fq(times.size());
+    std::vector<std::vector<transport::PointSource>> fq(times.size());
     std::vector<bool> fa(times.size());
     for (std::size_t k = 0; k < times.size(); ++k) fa[k] = forward.point_sources(times[k], 200.0, fq[k]);
     std::vector<std::size_t> order(times.size());
@@ -206,7 +206,7 @@ TEST_CASE("storm: the Poisson schedule has the configured rate and is the same i
     for (std::size_t k = order.size(); k > 1; --k) std::swap(order[k - 1], order[r.uniform_below(std::uint32_t(k))]);
     std::size_t active_frames = 0, dark_frames = 0;
     for (const std::size_t k : order) {
-        std::vector<PointSource> q;
+        std::vector<transport::PointSource> q;
         const bool a = scrambled.point_sources(times[k], 200.0, q);
         CHECK(a == fa[k]);
         REQUIRE(q.size() == fq[k].size());

@@ -121,7 +121,7 @@ TEST_CASE("storm: on-demand strikes, dark frames detectable, point sources carry
     LightningParams p;
     p.schedule.strike_rate = 0.0;  // on demand only
     Storm storm(p, cloud());
-    std::vector<PointSource> q;
+    std::vector<transport::PointSource> q;
     CHECK_FALSE(storm.any_active(0.0));
     CHECK_FALSE(storm.point_sources(5.0, 200.0, q));
     CHECK(q.empty());
@@ -135,7 +135,7 @@ TEST_CASE("storm: on-demand strikes, dark frames detectable, point sources carry
     const double tp = 2.0 + s.profile.stroke_onset[0] + p.timing.rise_time;
     REQUIRE(storm.point_sources(tp, 200.0, q));
     core::CompensatedSum sq, expect;
-    for (const PointSource& x : q) sq.add(x.intensity);
+    for (const transport::PointSource& x : q) sq.add(x.intensity);
     const FlashState st = flash_state(s.profile, p.timing, tp - 2.0);
     for (const Segment& g : storm.bolt(i).segments)
         expect.add(g.intensity * g.length() * (g.depth == 0 ? st.main_glow : st.branch_glow));

@@ -68,21 +68,4 @@ inline glm::dvec3 pixel_ray(const render::Camera& c, int x, int y, int w, int h)
     return glm::normalize(fwd + nx * right + ny * up);
 }
 
-inline bool ray_box(const glm::dvec3& o, const glm::dvec3& d, const glm::dvec3& lo, const glm::dvec3& hi, double& t0,
-                    double& t1) {
-    t0 = 0.0;
-    t1 = 1e300;
-    for (int a = 0; a < 3; ++a) {
-        if (std::abs(d[a]) < 1e-300) {
-            if (o[a] < lo[a] || o[a] > hi[a]) return false;
-            continue;
-        }
-        double ta = (lo[a] - o[a]) / d[a], tb = (hi[a] - o[a]) / d[a];
-        if (ta > tb) std::swap(ta, tb);
-        t0 = std::max(t0, ta);
-        t1 = std::min(t1, tb);
-    }
-    return t1 > t0;
-}
-
 }  // namespace fulgur::test

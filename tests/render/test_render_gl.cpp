@@ -93,9 +93,10 @@ TEST_CASE("homogeneous box with constant S: L = S (1 - exp(-tau)) for any step")
         for (int y = 0; y < H; ++y)
             for (int x = 0; x < W; ++x) {
                 const glm::dvec3 d = test::pixel_ray(cam, x, y, W, H);
-                double t0 = 0, t1 = 0;
+                double t0 = 0, t1 = 1e300;  // the ray from the camera on
                 const double chord =
-                    test::ray_box(cam.position, d, density.geom.origin, density.geom.upper(), t0, t1) ? t1 - t0 : 0.0;
+                    core::clip_ray_to_box(cam.position, d, density.geom.origin, density.geom.upper(), t0, t1) ? t1 - t0
+                                                                                                              : 0.0;
                 const double T = std::exp(-kappa * rho * chord);
                 const float* p = im.px(x, y);
                 if (std::abs(double(p[0]) - S * (1.0 - T)) > worst) {
@@ -151,8 +152,9 @@ TEST_CASE("linear density gradient: midpoint-rule error within kappa |rho'| dt^2
         for (int y = 0; y < H; ++y)
             for (int x = 0; x < W; ++x) {
                 const glm::dvec3 d = test::pixel_ray(cam, x, y, W, H);
-                double t0 = 0, t1 = 0;
-                if (!test::ray_box(cam.position, d, density.geom.origin, density.geom.upper(), t0, t1)) continue;
+                double t0 = 0, t1 = 1e300;  // the ray from the camera on
+                if (!core::clip_ray_to_box(cam.position, d, density.geom.origin, density.geom.upper(), t0, t1))
+                    continue;
                 const double x0 = cam.position.x + t0 * d.x, x1 = cam.position.x + t1 * d.x;
                 const double tau = kappa * (F(x1) - F(x0)) / d.x;
                 const double expected = S * (1.0 - std::exp(-tau));

@@ -45,7 +45,7 @@ const Baked& baked(const std::string& name) {
         bake::bake(b->scene, b->density, b->fgb);
         b->file = basis::load_fgb(b->fgb);
         b->bases = std::make_unique<runtime::BakedBases>(
-            runtime::BakedBases::load(b->fgb, bake::scene_key(b->scene, b->density).hash));
+            runtime::BakedBases::load(b->fgb, bake::scene_key(b->scene, b->density)));
         slot = std::move(b);
     }
     return *slot;
@@ -78,8 +78,8 @@ double vs_reference(const Baked& b, const lightning::LightWeights& w, const runt
 // missing or wrong basis.
 constexpr double kFloatTol = 5e-6;
 
-std::vector<lightning::PointSource> line(const glm::dvec3& a, const glm::dvec3& b, int n, double intensity) {
-    std::vector<lightning::PointSource> q;
+std::vector<transport::PointSource> line(const glm::dvec3& a, const glm::dvec3& b, int n, double intensity) {
+    std::vector<transport::PointSource> q;
     for (int i = 0; i < n; ++i) q.push_back({a + (b - a) * (double(i) / double(std::max(1, n - 1))), intensity});
     return q;
 }
@@ -108,7 +108,7 @@ TEST_CASE("frame: same seed and time give bit-identical segments, sources, weigh
     REQUIRE(f2.lit);
     REQUIRE(f1.sources.size() == f2.sources.size());
     REQUIRE(!f1.sources.empty());
-    CHECK(std::memcmp(f1.sources.data(), f2.sources.data(), f1.sources.size() * sizeof(lightning::PointSource)) == 0);
+    CHECK(std::memcmp(f1.sources.data(), f2.sources.data(), f1.sources.size() * sizeof(transport::PointSource)) == 0);
     CHECK(same_bits(f1.weights.e, f2.weights.e));
     CHECK(f1.weights.active == f2.weights.active);
     CHECK(f1.radiance.values == f2.radiance.values);
@@ -117,10 +117,10 @@ TEST_CASE("frame: same seed and time give bit-identical segments, sources, weigh
     // The pipeline's sources are the storm's point_sources at the splatter's spacing, bit for bit.
     lightning::Storm storm(b.scene.lightning, b.density);
     storm.strike_at(0.0, 11);
-    std::vector<lightning::PointSource> q;
+    std::vector<transport::PointSource> q;
     REQUIRE(storm.point_sources(t, lightning::Splatter(b.bases->lights()).source_spacing(), q));
     REQUIRE(q.size() == f1.sources.size());
-    CHECK(std::memcmp(q.data(), f1.sources.data(), q.size() * sizeof(lightning::PointSource)) == 0);
+    CHECK(std::memcmp(q.data(), f1.sources.data(), q.size() * sizeof(transport::PointSource)) == 0);
 
     // A subset of directions gives exactly those directions of the full field.
     const std::vector<int> some = {25, 3, 0};
@@ -136,13 +136,13 @@ TEST_CASE("reconstruct: linear - two bolts together equal the sum of each alone"
     runtime::FramePipeline p(b.scene, b.density, *b.bases);
     // Two bolts at their peaks, taken as two source sets.
     const double ta = peak_time(p, 21);
-    const std::vector<lightning::PointSource> a = p.build(ta, std::vector<int>{0}).sources;
+    const std::vector<transport::PointSource> a = p.build(ta, std::vector<int>{0}).sources;
     runtime::FramePipeline p2(b.scene, b.density, *b.bases);
     const double tb = peak_time(p2, 22);
-    const std::vector<lightning::PointSource> c = p2.build(tb, std::vector<int>{0}).sources;
+    const std::vector<transport::PointSource> c = p2.build(tb, std::vector<int>{0}).sources;
     REQUIRE(!a.empty());
     REQUIRE(!c.empty());
-    std::vector<lightning::PointSource> ac = a;
+    std::vector<transport::PointSource> ac = a;
     ac.insert(ac.end(), c.begin(), c.end());
 
     const lightning::Splatter sp(b.bases->lights());
@@ -204,7 +204,7 @@ TEST_CASE("reconstruct: a point source exactly on a virtual light reproduces tha
     for (const std::size_t l : {g.index(g.x.size() / 2, g.y.size() / 2, mid_k), std::size_t(0), g.index(1, 0, 0)}) {
         CAPTURE(l);
         const double intensity = 3.0e6;
-        const std::vector<lightning::PointSource> q = {{g.position(l), intensity}};
+        const std::vector<transport::PointSource> q = {{g.position(l), intensity}};
         lightning::LightWeights w;
         sp.splat(q, w);
         REQUIRE(w.active == std::vector<std::uint32_t>{std::uint32_t(l)});
@@ -242,7 +242,7 @@ TEST_CASE("hard cases: a bolt leaving the grid, sources on nodes and boundaries,
     }
     SUBCASE("sources exactly on lighting-grid voxel corners and centres, and on the virtual-light grid's faces") {
         const core::GridGeometry& lg = b.bases->lighting();
-        std::vector<lightning::PointSource> q;
+        std::vector<transport::PointSource> q;
         for (int k = 0; k <= lg.dims.z; ++k)
             for (int i = 0; i <= lg.dims.x; i += 2) {
                 q.push_back({lg.origin + glm::dvec3(i, lg.dims.y / 2, k) * lg.voxel_size, 1e4});  // corners
@@ -273,7 +273,7 @@ TEST_CASE("hard cases: a bolt leaving the grid, sources on nodes and boundaries,
     }
     SUBCASE("10,000 point sources, a tenth of them outside the grid") {
         core::Rng rng(99, 3);
-        std::vector<lightning::PointSource> q;
+        std::vector<transport::PointSource> q;
         const glm::dvec3 ext = hi - lo;
         for (int i = 0; i < 10000; ++i) {
             const double s = i % 10 == 0 ? 1.6 : 1.0;  // every tenth in a box 60% larger
@@ -379,7 +379,7 @@ TEST_CASE("accuracy: basis method against the direct solve on a tiny scene") {
         REQUIRE(f.lit);
         const transport::SourceField D = runtime::direct_solve(b.scene, b.media, f.sources);
         REQUIRE(D.directions.size() == 26);
-        std::vector<lightning::PointSource> lights;
+        std::vector<transport::PointSource> lights;
         for (const std::uint32_t l : f.weights.active)
             lights.push_back({b.bases->lights().position(l), f.weights.e[l]});
         const transport::SourceField V = runtime::direct_solve(b.scene, b.media, lights);

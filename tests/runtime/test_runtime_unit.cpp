@@ -245,15 +245,17 @@ TEST_CASE("reconstruct: the result does not depend on the thread count") {
 TEST_CASE("load: stale, corrupt, truncated, partial and missing files are rejected with a message") {
     const basis::FgbMetadata m = test::small_metadata(basis::Precision::Float16);
     const auto path = write_bake("bad", m);
-    CHECK_NOTHROW(runtime::BakedBases::load(path, m.key.hash));
+    CHECK_NOTHROW(runtime::BakedBases::load(path));
     CHECK_NOTHROW(runtime::BakedBases::load(path, m.key));
 
     // Stale by hash: both hashes named.
+    basis::BakeKey rehashed = m.key;
+    rehashed.hash ^= 1;
     char want[24], have[24];
-    std::snprintf(want, sizeof want, "%016llx", static_cast<unsigned long long>(m.key.hash ^ 1));
+    std::snprintf(want, sizeof want, "%016llx", static_cast<unsigned long long>(rehashed.hash));
     std::snprintf(have, sizeof have, "%016llx", static_cast<unsigned long long>(m.key.hash));
     try {
-        (void)runtime::BakedBases::load(path, m.key.hash ^ 1);
+        (void)runtime::BakedBases::load(path, rehashed);
         FAIL("a stale file was accepted");
     } catch (const core::Error& e) {
         const std::string msg = e.what();

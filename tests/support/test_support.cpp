@@ -1,5 +1,7 @@
 #include "support/test_support.h"
 
+#include "core/core.h"
+
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -18,12 +20,7 @@ std::filesystem::path scratch_dir(const std::string& name) {
 
 double relative_l2(std::span<const float> x, std::span<const float> ref) {
     REQUIRE(x.size() == ref.size());
-    double d = 0, n = 0;
-    for (std::size_t i = 0; i < x.size(); ++i) {
-        d += (double(x[i]) - double(ref[i])) * (double(x[i]) - double(ref[i]));
-        n += double(ref[i]) * double(ref[i]);
-    }
-    return n > 0 ? std::sqrt(d / n) : std::sqrt(d);
+    return core::relative_l2(x, ref);
 }
 
 void write_text(const std::filesystem::path& path, const std::string& text) {

@@ -13,8 +13,8 @@ std::filesystem::path source_dir();
 /// A fresh, empty directory under the build tree for this test's files.
 std::filesystem::path scratch_dir(const std::string& name);
 
-/// ||x - ref||_2 / ||ref||_2 in double (the absolute L2 difference when ref is all zero).
-/// Sizes must match (a failed REQUIRE otherwise).
+/// core::relative_l2 (||x - ref||_2 / ||ref||_2, the absolute L2 difference when ref is all
+/// zero); sizes must match (a failed REQUIRE otherwise).
 double relative_l2(std::span<const float> x, std::span<const float> ref);
 
 /// Writes `text` to `path` (overwriting).

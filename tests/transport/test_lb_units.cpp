@@ -20,7 +20,7 @@ TEST_CASE("units: a collimated beam in a pure absorber gives the exact voxel-ave
     m.density = core::Grid3<float>(geom, float(rho));
     m.optics = Medium{kappa, 0.0, 0.3};
     LbSources src;
-    src.sun = LbDirectionalLight{glm::dvec3(1, 0, 0), E};
+    src.sun = DirectionalSource{glm::dvec3(1, 0, 0), E};
     LbSettings s;
     s.tolerance = 1e-12;
     const auto dirs = output_directions(6);

@@ -49,24 +49,24 @@ struct Errors {
 
 Errors compare(const LightingMedium& m, const SourceField& S1, const SourceField& lb, const MonteCarloResult& mc) {
     const std::size_t n = S1.cells(), M = S1.directions.size();
-    double nt = 0, dt = 0, nm = 0, dm = 0, ft = 0, fm = 0, sum_lb = 0, sum_mc = 0;
+    core::RelativeL2 total, multiple;
+    double ft = 0, fm = 0, sum_lb = 0, sum_mc = 0;
     for (std::size_t k = 0; k < M; ++k)
         for (std::size_t c = 0; c < n; ++c) {
             if (!(m.density.data[c] > 0.0f)) continue;  // cloud voxels: density > 0
             const std::size_t i = k * n + c;
             const double ref_m = mc.multiple.data[i], ref_t = ref_m + mc.single.data[i];
             const double got_m = lb.data[i], got_t = got_m + S1.data[i];
-            nt += (got_t - ref_t) * (got_t - ref_t);
-            dt += ref_t * ref_t;
-            nm += (got_m - ref_m) * (got_m - ref_m);
-            dm += ref_m * ref_m;
+            total.add(got_t, ref_t);
+            multiple.add(got_m, ref_m);
             const double s1 = mc.single_se.data[i], sm = mc.multiple_se.data[i];
             ft += s1 * s1 + sm * sm;
             fm += sm * sm;
             sum_lb += got_m;
             sum_mc += ref_m;
         }
-    return {std::sqrt(nt / dt), std::sqrt(nm / dm), std::sqrt(ft / dt), std::sqrt(fm / dm), sum_lb / sum_mc};
+    return {total.value(), multiple.value(), std::sqrt(ft) / total.reference_norm(),
+            std::sqrt(fm) / multiple.reference_norm(), sum_lb / sum_mc};
 }
 
 // What both cases compare the lattice against, for one light and 26 directions: the

@@ -279,11 +279,22 @@ struct SingleSegmentWalker {
     double t0 = 0.0, t1 = 0.0;
 };
 
-struct HomogeneousSphere {
+/// What the analytic media share: one segment [t0, t1) of constant extinction sigma per ray.
+struct HomogeneousSegments {
     using Walker = SingleSegmentWalker;
+    double sigma = 1.0;
+    void segment(const Walker& w, double& t0, double& t1, double& sb) const noexcept {
+        t0 = w.t0;
+        t1 = w.t1;
+        sb = sigma;
+    }
+    bool advance(Walker&) const noexcept { return false; }
+    double sigma_t(const glm::dvec3&, const Walker&) const noexcept { return sigma; }
+};
+
+struct HomogeneousSphere : HomogeneousSegments {
     glm::dvec3 centre{0.0};
     double radius = 1.0;
-    double sigma = 1.0;
     bool start(Walker& w, const glm::dvec3& x, const glm::dvec3& d) const noexcept {
         const glm::dvec3 oc = x - centre;
         const double b = glm::dot(oc, d);
@@ -295,19 +306,10 @@ struct HomogeneousSphere {
         w.t1 = -b + sq;
         return w.t1 > w.t0;
     }
-    void segment(const Walker& w, double& t0, double& t1, double& sb) const noexcept {
-        t0 = w.t0;
-        t1 = w.t1;
-        sb = sigma;
-    }
-    bool advance(Walker&) const noexcept { return false; }
-    double sigma_t(const glm::dvec3&, const Walker&) const noexcept { return sigma; }
 };
 
 /// The half-space z <= 0 filled with a homogeneous medium.
-struct HalfSpace {
-    using Walker = SingleSegmentWalker;
-    double sigma = 1.0;
+struct HalfSpace : HomogeneousSegments {
     bool start(Walker& w, const glm::dvec3& x, const glm::dvec3& d) const noexcept {
         if (x.z > 0.0) {
             if (!(d.z < 0.0)) return false;
@@ -319,31 +321,15 @@ struct HalfSpace {
         w.t1 = d.z > 0.0 ? -x.z / d.z : kInf;
         return w.t1 > w.t0;
     }
-    void segment(const Walker& w, double& t0, double& t1, double& sb) const noexcept {
-        t0 = w.t0;
-        t1 = w.t1;
-        sb = sigma;
-    }
-    bool advance(Walker&) const noexcept { return false; }
-    double sigma_t(const glm::dvec3&, const Walker&) const noexcept { return sigma; }
 };
 
 /// An infinite homogeneous medium (nothing escapes; needs albedo < 1).
-struct InfiniteMedium {
-    using Walker = SingleSegmentWalker;
-    double sigma = 1.0;
+struct InfiniteMedium : HomogeneousSegments {
     bool start(Walker& w, const glm::dvec3&, const glm::dvec3&) const noexcept {
         w.t0 = 0.0;
         w.t1 = kInf;
         return true;
     }
-    void segment(const Walker& w, double& t0, double& t1, double& sb) const noexcept {
-        t0 = w.t0;
-        t1 = w.t1;
-        sb = sigma;
-    }
-    bool advance(Walker&) const noexcept { return false; }
-    double sigma_t(const glm::dvec3&, const Walker&) const noexcept { return sigma; }
 };
 
 /// The tally of energy-only runs.

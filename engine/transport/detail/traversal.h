@@ -32,25 +32,6 @@ namespace fulgur::transport::detail {
 
 inline constexpr double kInf = std::numeric_limits<double>::infinity();
 
-/// Clips the parameter interval [t0, t1] of the ray o + t d against the closed box [lo, hi].
-/// Returns false (and leaves t0, t1 unspecified) when the clipped interval is empty or a
-/// coordinate is NaN. Axis-parallel rays (d component 0) are handled without 0 * inf.
-inline bool clip_box(const glm::dvec3& o, const glm::dvec3& d, const glm::dvec3& lo, const glm::dvec3& hi, double& t0,
-                     double& t1) noexcept {
-    for (int a = 0; a < 3; ++a) {
-        if (d[a] == 0.0) {
-            if (!(o[a] >= lo[a] && o[a] <= hi[a])) return false;  // also rejects NaN
-            continue;
-        }
-        const double inv = 1.0 / d[a];
-        double ta = (lo[a] - o[a]) * inv, tb = (hi[a] - o[a]) * inv;
-        if (ta > tb) std::swap(ta, tb);
-        if (ta > t0) t0 = ta;
-        if (tb < t1) t1 = tb;
-    }
-    return t0 < t1;  // false for NaN too
-}
-
 /// Incremental DDA walker. After a successful start(), the current voxel is (i, j, k) /
 /// `cell`, occupied for t in [t, t_next()]; advance() moves to the next voxel.
 class DdaWalker {
@@ -64,7 +45,7 @@ public:
     /// Returns false when the clipped segment is empty.
     bool start(const core::GridGeometry& g, const glm::dvec3& o, const glm::dvec3& d, double t0, double t1) noexcept {
         if (!(t1 > t0)) return false;
-        if (!clip_box(o, d, g.origin, g.upper(), t0, t1)) return false;
+        if (!core::clip_ray_to_box(o, d, g.origin, g.upper(), t0, t1)) return false;
         n_[0] = g.dims.x;
         n_[1] = g.dims.y;
         n_[2] = g.dims.z;
@@ -158,7 +139,7 @@ inline void traverse(const core::GridGeometry& g, const glm::dvec3& o, const glm
 inline double optical_depth_along(const core::GridGeometry& g, const float* density, double kappa, const glm::dvec3& o,
                                   const glm::dvec3& d, double t0, double t1, double cutoff, const glm::dvec3& lo,
                                   const glm::dvec3& hi) noexcept {
-    if (!(t1 > t0) || !clip_box(o, d, lo, hi, t0, t1)) return 0.0;
+    if (!(t1 > t0) || !core::clip_ray_to_box(o, d, lo, hi, t0, t1)) return 0.0;
     const double h = g.voxel_size;
     const int n[3] = {g.dims.x, g.dims.y, g.dims.z};
     const std::ptrdiff_t stride[3] = {1, g.dims.x, std::ptrdiff_t(g.dims.x) * g.dims.y};
