@@ -53,11 +53,24 @@ void declare(CommandLine& cli, ShotArgs& a) {
                if (a.reference->extension() != ".png")
                    throw core::Error(kTool, "--reference must name a .png file, got '" + s + "'");
            },
-           "also render the frame lit by the direct solve (exact single scattering + the scene's solver on the "
-           "frame's point sources, no basis; seconds) into REF.png, |difference| into REF_diff.png (white = 10% "
-           "of the reference's maximum), basis | direct | difference into REF_compare.png, and print the errors "
-           "and times as JSON")
+           "also render the frame lit by the reference (--against: the truth or the direct solve; seconds to "
+           "minutes) into REF.png, |difference| into REF_diff.png (white = 10% of the reference's maximum), "
+           "frame | reference | difference into REF_compare.png, and print the errors and times as JSON")
         ->type_name("REF.png");
+    app.add_option("--against", a.against,
+                   "what --reference renders: truth (Monte Carlo of the frame's lit channel through the full-resolution "
+                   "density; the default) or direct (the scene's own solvers on the frame's point sources)")
+        ->check(CLI::IsMember({"truth", "direct"}))
+        ->type_name("truth|direct");
+    cli.number("--truth-paths", a.truth_paths, "Monte Carlo paths of the truth (noise ~ 1/sqrt(N))",
+               std::uint64_t(1000), std::uint64_t(1) << 34)
+        ->type_name("N");
+    app.add_option_function<std::string>(
+           "--quality", [&a](const std::string& s) { a.quality = s; },
+           "how the frame is lit: paper, hybrid, per_strike or reference (default: the scene's \"quality\"); a "
+           "strike's own solve is waited for")
+        ->check(CLI::IsMember({"paper", "hybrid", "per_strike", "reference"}))
+        ->type_name("PRESET");
 }
 
 }  // namespace

@@ -14,20 +14,34 @@ using namespace fulgur;
 
 namespace {
 
-// --reference: the same frame lit by the direct solve, its difference image and the errors
+// --reference: the same frame lit by the truth (or the direct solve), its difference image and the errors
 // (S over the cloud; the cloud's in-scattered radiance in the image) and times as JSON.
 void render_reference(view::StormView& view, platform::Context* ctx, const render::Camera& cam, double t,
                       const view::ViewOptions& opt, const app::ShotArgs& a,
                       const std::vector<std::uint8_t>& shown_basis) {
-    const view::StormView::DirectSolve solved = view.solve_direct(t, opt.components);
-    const transport::SourceField& direct = solved.field;
-    const double solve_s = solved.seconds;
+    transport::SourceField direct;
+    double solve_s = 0.0, frame_ms = 0.0;
+    transport::MonteCarloResult::Noise noise;
+    if (a.against == "truth") {
+        runtime::TruthOptions to;
+        to.paths = a.truth_paths;
+        to.seed = a.seed;
+        view::StormView::TruthSolve solved = view.solve_truth(t, opt.components, to);
+        direct = std::move(solved.field);
+        solve_s = solved.seconds;
+        frame_ms = solved.basis_ms;
+        noise = solved.noise;
+    } else {
+        view::StormView::DirectSolve solved = view.solve_direct(t, opt.components);
+        direct = std::move(solved.field);
+        solve_s = solved.seconds;
+        frame_ms = solved.basis_ms;
+    }
     // The basis frame's figures now, for all directions (the solve's counterpart): the
     // renders below rebuild the frame for the view's directions only.
     const runtime::Frame& f = *view.last_frame();
     const bool lit = f.lit;
     const std::size_t sources = f.sources.size(), active = f.weights.active.size();
-    const double frame_ms = solved.basis_ms;
     const double s_err = view.reconstruction_error(direct);
 
     view.render(cam, t, a.width, a.height, opt, &direct);
@@ -70,12 +84,14 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
     core::write_png(both, 3 * W, H, 4, trio);
 
     std::printf(
-        "{\"name\":\"fulgur-shot-reference\",\"lit\":%s,\"sources\":%zu,\"active_lights\":%zu,"
-        "\"direct_solve_s\":%.4g,\"basis_frame_ms_all_directions\":%.4g,\"speedup\":%.4g,"
+        "{\"name\":\"fulgur-shot-reference\",\"against\":\"%s\",\"quality\":\"%s\",\"lit\":%s,"
+        "\"sources\":%zu,\"active_lights\":%zu,\"reference_noise\":%.4g,"
+        "\"reference_s\":%.4g,\"frame_ms_all_directions\":%.4g,\"speedup\":%.4g,"
         "\"source_rel_l2\":%.4g,\"image_rel_l2\":%.4g,\"image_max_difference\":%.4g,"
         "\"image_fraction_over_10pct\":%.4g,\"image_lit_pixels\":%zu,\"image_width\":%d,\"image_height\":%d,"
         "\"shown_mean_levels\":%.4g,\"shown_fraction_over_25_levels\":%.4g}\n",
-        lit ? "true" : "false", sources, active, solve_s, frame_ms, frame_ms > 0.0 ? solve_s * 1e3 / frame_ms : 0.0,
+        a.against.c_str(), std::string(scene::to_string(view.pipeline().quality().preset)).c_str(),
+        lit ? "true" : "false", sources, active, noise.total, solve_s, frame_ms, frame_ms > 0.0 ? solve_s * 1e3 / frame_ms : 0.0,
         s_err, c.relative_l2, c.max_difference, c.fraction_over, c.lit_pixels, w, h, shown.mean_levels,
         shown.fraction_over);
     std::fflush(stdout);
@@ -96,12 +112,14 @@ int main(int argc, char** argv) {
         lightning::LightningParams lp = view.scene().lightning;
         lp.schedule.strike_rate = 0.0;  // only the requested strike (after the bake check: same .fgb as the demo)
         view.set_lightning(lp);
+        if (a.quality) view.set_quality(scene::quality_preset(*a.quality));
         const std::size_t strike = view.pipeline().strike_at(0.0, a.seed);
         const double t =
             a.time +
             (a.time_after_return_stroke ? view.pipeline().storm().strike(strike).profile.stroke_onset.at(0) : 0.0);
         view::ViewOptions opt;
         opt.settings.exposure *= std::exp2(a.exposure_ev);
+        opt.wait_for_strikes = true;  // offline: the preset's own light, never its fallback
         const render::Camera cam = view::default_camera(view.density());
         // Medians over --repeat frames: the first one also compiles shaders and uploads the
         // density; the run time rebuilds the same frame each time (same strike, same t). The

@@ -319,6 +319,9 @@ public:
     /// binary search plus the strikes overlapping t (and scheduling strikes up to t). The
     /// span is valid until the next call. Storm is not thread-safe.
     std::span<const std::size_t> active(double t);
+    /// Indices of the strikes starting in [t0, t1), ascending by start time, scheduling
+    /// strikes up to t1 (the run time solves upcoming strikes ahead of their frames).
+    std::vector<std::size_t> starting(double t0, double t1);
     /// True if any strike glows at t (the run time skips reconstruction when false).
     bool any_active(double t) { return !active(t).empty(); }
 

@@ -84,6 +84,16 @@ std::span<const std::size_t> Storm::active(double t) {
     return active_;
 }
 
+std::vector<std::size_t> Storm::starting(double t0, double t1) {
+    std::vector<std::size_t> out;
+    if (!std::isfinite(t0) || !std::isfinite(t1) || !(t1 > t0)) return out;
+    schedule_until(t1);
+    auto it = std::lower_bound(by_time_.begin(), by_time_.end(), t0,
+                               [&](std::size_t i, double v) { return strikes_[i].strike.time < v; });
+    for (; it != by_time_.end() && strikes_[*it].strike.time < t1; ++it) out.push_back(*it);
+    return out;
+}
+
 const Bolt& Storm::bolt(std::size_t i) {
     FULGUR_ASSERT(i < strikes_.size(), "strike index out of range");
     Entry& e = strikes_[i];

@@ -50,7 +50,8 @@ struct StageTimes {
     double splat = 0.0;       ///< trilinear splat into virtual lights
     double accumulate = 0.0;  ///< sparse sum of basis coefficients (Eq. 9)
     double inverse_haar = 0.0;
-    double total() const noexcept { return bolt + sources + splat + accumulate + inverse_haar; }
+    double strike_light = 0.0;  ///< solved strikes' light scaled by their glow and added
+    double total() const noexcept { return bolt + sources + splat + accumulate + inverse_haar + strike_light; }
 };
 
 /// The baked bases in a layout for fast accumulation (loaded from a .fgb; validated).
@@ -107,6 +108,9 @@ struct ReconstructOptions {
     /// saves, and on a loaded machine a parallel region can cost a scheduler slice (ms).
     /// 0: always use core::thread_count() threads. docs/runtime.md has the measurement.
     std::size_t parallel_min_work = std::size_t(1) << 21;
+    /// Presets that solve strikes (FramePipeline): wait for the solve of every active strike
+    /// instead of falling back to the bases (offline frames: fulgur-shot, studies, tests).
+    bool wait_for_strikes = false;
 };
 
 /// Eq. 8-10: sparse accumulation + inverse Haar. Owns its scratch (one Haar plan per
@@ -149,16 +153,22 @@ struct Frame {
     lightning::LightWeights weights;
     RadianceField radiance;
     StageTimes times;
+    /// Presets that solve strikes: active strikes whose own solve lit this frame, and those
+    /// shown by the bases because their solve was not ready (0 and 0 for the paper preset).
+    std::size_t strikes_solved = 0, strikes_fallback = 0;
 };
+
+class StrikeSolver;
 
 /// Drives a storm over a baked scene: schedule -> bolt -> sources -> splat -> reconstruct.
 class FramePipeline {
 public:
     /// Keeps references to `density` (bolt start points) and `bases`; both must outlive it.
     /// `domain`: the bolts' box (lightning::BoltGenerator; default: the density's box down
-    /// to the ground).
+    /// to the ground). `quality`: how frames are lit (default: the scene's); presets other
+    /// than paper solve strikes on a worker thread (StrikeSolver) ahead of their frames.
     FramePipeline(const scene::Scene& scene, const core::Grid3<float>& density, const BakedBases& bases,
-                  std::optional<lightning::Box> domain = {});
+                  std::optional<lightning::Box> domain = {}, std::optional<scene::Quality> quality = {});
     ~FramePipeline();
     /// Schedules a strike at time t (demo "strike now"); returns its index.
     std::size_t strike_at(double t, std::optional<std::uint64_t> seed = {});
@@ -167,6 +177,9 @@ public:
     /// reconstruction. The returned frame is valid until the next build().
     const Frame& build(double t, std::span<const int> directions, const ReconstructOptions& options = {});
     lightning::Storm& storm() noexcept;
+    const scene::Quality& quality() const noexcept;
+    /// The strike solver (null for the paper preset).
+    StrikeSolver* strike_solver() noexcept;
 
 private:
     struct Impl;
@@ -210,6 +223,9 @@ struct StrikeSolveOptions {
     std::uint64_t multiple_paths = 200'000;
     std::uint64_t seed = 1;
 };
+
+/// The per-strike solve a quality preset asks for (its multiple-scattering solver and paths).
+StrikeSolveOptions strike_solve_options(const scene::Quality& q);
 
 /// Solves one strike's light (seconds; runs on the calling thread with core::thread_count()
 /// threads). Throws core::Error on bad input.

@@ -37,6 +37,16 @@ std::vector<transport::LineSource> channel_lines(const lightning::Bolt& bolt) {
 
 }  // namespace
 
+StrikeSolveOptions strike_solve_options(const scene::Quality& q) {
+    StrikeSolveOptions o;
+    o.single_paths = q.single_paths;
+    o.multiple = q.multiple == "lattice"       ? StrikeSolveOptions::Multiple::Lattice
+                 : q.multiple == "monte_carlo" ? StrikeSolveOptions::Multiple::MonteCarlo
+                                               : StrikeSolveOptions::Multiple::None;
+    o.multiple_paths = q.multiple_paths;
+    return o;
+}
+
 StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& density, const bake::Media& media,
                          const lightning::Bolt& bolt, const StrikeSolveOptions& options) {
     StrikeLight out;

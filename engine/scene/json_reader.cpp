@@ -38,6 +38,11 @@ void JsonObject::fail(std::string_view key, const std::string& what) const {
 
 bool JsonObject::has(std::string_view key) const { return j_.contains(key); }
 
+bool JsonObject::is_string(std::string_view key) const {
+    const auto it = j_.find(key);
+    return it != j_.end() && it->is_string();
+}
+
 const nlohmann::json* JsonObject::find(std::string_view key) {
     known_.emplace(key);
     auto it = j_.find(key);

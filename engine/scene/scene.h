@@ -72,6 +72,33 @@ struct TransportSettings {
     int mc_batches = 32;  ///< batches for the per-voxel standard error
 };
 
+/// "quality": how a frame's lightning S is made, a preset and its knobs (docs/presets.md).
+/// Every preset uses the same bake (the bases are the fallback while a strike's own solve is
+/// not ready); they differ in what the run time computes once per strike, ahead of time, on
+/// a worker thread.
+struct Quality {
+    enum class Preset {
+        Paper,      ///< Dobashi 2007: the splat onto virtual lights and the bases, single + multiple
+        Hybrid,     ///< the bases' multiple scattering + each strike's exact single scattering
+        PerStrike,  ///< each strike solved directly: exact single scattering + the lattice
+        Reference,  ///< each strike by Monte Carlo through the full density (offline quality)
+    };
+    Preset preset = Preset::Paper;
+    /// Per strike (not paper): expected-value Monte Carlo paths of the single scattering.
+    std::uint64_t single_paths = 250'000;
+    /// Per strike: "none" (the bases' multiple scattering: hybrid), "lattice" (per_strike) or
+    /// "monte_carlo" (reference), with multiple_paths paths.
+    std::string multiple = "none";
+    std::uint64_t multiple_paths = 0;
+    /// Strikes scheduled to start within this many seconds are solved ahead of time.
+    double lookahead = 1.0;
+};
+
+/// The preset's name in scene files ("paper", "hybrid", "per_strike", "reference").
+std::string_view to_string(Quality::Preset p) noexcept;
+/// The preset with its default knobs; throws core::Error naming `where` for an unknown name.
+Quality quality_preset(std::string_view name, std::string_view where = "quality");
+
 struct Scene {
     std::filesystem::path path;  ///< the scene file ("" when parsed from memory)
     std::string name;
@@ -94,6 +121,7 @@ struct Scene {
     std::optional<transport::DirectionalSource> sun;   ///< the "lights" entry of type "sun"
     Effects effects;
     lightning::LightningParams lightning;  ///< section "lightning": bolt shape, flash timing, schedule
+    Quality quality;  ///< "quality": how frames are lit (a preset name, or an object with "preset" and knobs)
 
     /// Output directions the bake needs: 1 when scattering is isotropic (g == 0), since S
     /// then does not depend on direction; the scene's count otherwise.

@@ -49,22 +49,46 @@ void StormView::set_lightning(const lightning::LightningParams& p) {
     pipeline_ = std::make_unique<runtime::FramePipeline>(scene_, density_, bases_);
 }
 
+void StormView::set_quality(const scene::Quality& q) {
+    scene_.quality = q;
+    last_ = nullptr;
+    pipeline_.reset();
+    pipeline_ = std::make_unique<runtime::FramePipeline>(scene_, density_, bases_);
+}
+
 const bake::Media& StormView::media() {
     if (!media_) media_ = bake::make_media(scene_, density_);
     return *media_;
 }
 
-StormView::DirectSolve StormView::solve_direct(double t, const runtime::Components& components) {
-    DirectSolve out;
+double StormView::time_all_directions(double t, const runtime::Components& components) {
     runtime::ReconstructOptions ro;
     ro.components = components;
+    ro.wait_for_strikes = true;
     std::vector<double> ms;
     for (int k = 0; k < 5; ++k) {
         last_ = &pipeline_->build(t, {}, ro);
         ms.push_back(last_->times.total());
     }
     std::nth_element(ms.begin(), ms.begin() + 2, ms.end());
-    out.basis_ms = ms[2];
+    return ms[2];
+}
+
+StormView::TruthSolve StormView::solve_truth(double t, const runtime::Components& components,
+                                             const runtime::TruthOptions& options) {
+    TruthSolve out;
+    out.basis_ms = time_all_directions(t, components);
+    core::Stopwatch sw;
+    const runtime::Truth truth = runtime::truth(scene_, density_, last_->segments, {}, options);
+    out.seconds = sw.seconds();
+    out.field = truth.sum(components);
+    out.noise = truth.noise;
+    return out;
+}
+
+StormView::DirectSolve StormView::solve_direct(double t, const runtime::Components& components) {
+    DirectSolve out;
+    out.basis_ms = time_all_directions(t, components);
     const bake::Media& m = media();
     core::Stopwatch sw;
     out.field = runtime::direct_solve(scene_, m, last_->sources, components);
@@ -105,6 +129,7 @@ FrameReport StormView::render(const render::Camera& camera, double t, int width,
         dirs.push_back(u.index);
     runtime::ReconstructOptions ro;
     ro.components = options.components;
+    ro.wait_for_strikes = options.wait_for_strikes;
     const runtime::Frame& f = pipeline_->build(t, dirs, ro);
     last_ = &f;
     rep.stages = f.times;

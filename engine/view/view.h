@@ -40,6 +40,9 @@ struct ViewOptions {
     /// Radius (m) of the drawn lightning channel, the same for every lit segment
     /// (render::Segment::radius: the core radiance is intensity / (2 radius)). > 0.
     double bolt_radius = 2.0;
+    /// Presets that solve strikes: wait for each active strike's solve (offline frames)
+    /// instead of showing the bases until it is ready.
+    bool wait_for_strikes = false;
 };
 
 struct FrameReport {
@@ -74,6 +77,15 @@ public:
         double basis_ms = 0.0;  ///< the basis frame, all directions, median of 5
     };
     DirectSolve solve_direct(double t, const runtime::Components& components);
+    /// The truth of the frame at time t (runtime::truth: Monte Carlo of the frame's lit
+    /// channel through the full-resolution density), the requested components summed, all
+    /// directions; times the frame like solve_direct. `noise` is the truth's own estimate.
+    struct TruthSolve {
+        transport::SourceField field;
+        transport::MonteCarloResult::Noise noise;
+        double seconds = 0.0, basis_ms = 0.0;
+    };
+    TruthSolve solve_truth(double t, const runtime::Components& components, const runtime::TruthOptions& options = {});
     /// The media the direct solve runs in (bake::make_media: the lighting grid and the transport grid).
     const bake::Media& media();
     /// Relative L2 of the last frame's reconstruction against `reference` (a field like
@@ -84,6 +96,8 @@ public:
     /// New lightning parameters (bolt shape, schedule, seed): rebuilds the pipeline's storm,
     /// so bolts are regenerated; the bake is unchanged (it does not depend on them).
     void set_lightning(const lightning::LightningParams& p);
+    /// Another quality preset (scene::Quality): rebuilds the pipeline (the bake is shared).
+    void set_quality(const scene::Quality& q);
 
     runtime::FramePipeline& pipeline() noexcept { return *pipeline_; }
     render::Renderer& renderer() noexcept { return *renderer_; }
@@ -93,6 +107,8 @@ public:
     const runtime::Frame* last_frame() const noexcept { return last_; }
 
 private:
+    /// Builds the all-direction frame at t 5 times (waiting for strike solves); its median ms.
+    double time_all_directions(double t, const runtime::Components& components);
     void check_field(const transport::SourceField& f, const char* where) const;  // throws core::Error
     scene::Scene scene_;
     core::Grid3<float> density_;

@@ -33,6 +33,8 @@ public:
     JsonObject(const nlohmann::json& j, std::string file, std::string path);
 
     bool has(std::string_view key) const;
+    /// The member exists and is a JSON string (for fields that take a name or an object).
+    bool is_string(std::string_view key) const;
 
     double number(std::string_view key, Range r);
     double number_or(std::string_view key, double fallback, Range r);
