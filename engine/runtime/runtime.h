@@ -251,6 +251,9 @@ public:
     std::shared_ptr<const StrikeLight> get(std::uint64_t seed, double time) const;
     /// Blocks until the strike is solved (it must have been requested); rethrows its error.
     std::shared_ptr<const StrikeLight> wait(std::uint64_t seed, double time);
+    /// While paused the worker starts no new solve (a caller that needs the cores, or a test
+    /// that needs a strike to be unsolved); requests still queue.
+    void set_paused(bool paused);
     /// Drops the lights of strikes that started before `time` (memory: ~3.5 MB each).
     void forget_before(double time);
     /// Wall time from request to ready of the strikes solved so far, seconds (in order).

@@ -133,7 +133,7 @@ struct StrikeSolver::Impl {
     std::deque<std::pair<Key, lightning::Bolt>> queue;
     std::map<Key, Entry> entries;
     std::vector<double> latencies;
-    bool stop = false;
+    bool stop = false, paused = false;
     std::thread worker;
 
     Impl(const scene::Scene& s, const core::Grid3<float>& d, const bake::Media& m, const StrikeSolveOptions& o, int t)
@@ -155,7 +155,7 @@ struct StrikeSolver::Impl {
             std::pair<Key, lightning::Bolt> job;
             {
                 std::unique_lock<std::mutex> lock(mu);
-                cv.wait(lock, [&] { return stop || !queue.empty(); });
+                cv.wait(lock, [&] { return stop || (!paused && !queue.empty()); });
                 if (stop) return;
                 job = std::move(queue.front());
                 queue.pop_front();
@@ -218,6 +218,14 @@ std::shared_ptr<const StrikeLight> StrikeSolver::wait(std::uint64_t seed, double
     im.done_cv.wait(lock, [&] { return it->second.done; });
     if (it->second.error) std::rethrow_exception(it->second.error);
     return it->second.light;
+}
+
+void StrikeSolver::set_paused(bool paused) {
+    {
+        std::lock_guard<std::mutex> lock(impl_->mu);
+        impl_->paused = paused;
+    }
+    impl_->cv.notify_all();
 }
 
 void StrikeSolver::forget_before(double time) {
