@@ -58,11 +58,8 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
     const bool lattice = options.multiple == StrikeSolveOptions::Multiple::Lattice && scene.effects.multiple_scattering;
     const bool mc = options.multiple == StrikeSolveOptions::Multiple::MonteCarlo && scene.effects.multiple_scattering;
 
-    // Single scattering per group on the lighting grid, and the uncollided fluence the
-    // lattice needs on its own (transport) grid: the lattice takes its sites' emitted power
-    // from the fluence and only the angular shape from S1, which varies slowly over a
-    // lighting voxel. Tallying S1 itself on the finer grid costs refine^3 times the memory
-    // traffic (26 directions per voxel crossing) for no visible gain.
+    // Single scattering (and the uncollided fluence the lattice needs), per group, on the
+    // transport grid.
     transport::MonteCarloOptions so;
     so.paths = options.single_paths;
     so.seed = options.seed;
@@ -73,14 +70,14 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
     so.batches = 8;  // each batch costs a pass over the fields: few, the halves need >= 4
     so.halves = true;
     so.tally_fluence = lattice;
-    if (lattice && media.refine > 1) so.fluence_grid = grid;
     core::Stopwatch sw;
-    transport::MonteCarloResult s1 = transport::monte_carlo(fine, {}, lines, lighting, dirs, so);
+    transport::MonteCarloResult s1 = transport::monte_carlo(fine, {}, lines, grid, dirs, so);
     out.seconds_single = sw.seconds();
     out.noise.single = s1.noise.single;
     const bool empty = s1.groups.empty();  // no lit segment: all zero
     for (std::uint32_t q = 0; q < 2; ++q)
-        out.single[q] = empty ? transport::SourceField(lighting, dirs) : s1.groups[q].single;
+        out.single[q] = transport::block_average(empty ? transport::SourceField(grid, dirs) : s1.groups[q].single,
+                                                 media.refine);
 
     sw.reset();
     if (lattice) {
@@ -91,10 +88,8 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
                 out.multiple[q] = transport::SourceField(lighting, dirs);
                 continue;
             }
-            const transport::SourceField shape =
-                media.refine > 1 ? transport::block_spread(s1.groups[q].single, grid) : s1.groups[q].single;
             transport::LbSources src;
-            src.first_scattered = &shape;
+            src.first_scattered = &s1.groups[q].single;
             src.first_scattered_fluence = &s1.groups[q].fluence;
             transport::LbResult r =
                 transport::solve_lattice_boltzmann(media.transport, src, dirs, bake::lattice_settings(scene));

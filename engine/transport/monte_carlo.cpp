@@ -115,24 +115,10 @@ struct TallyGrid {
     bool extinction = false;             ///< weight by extinction
     std::vector<double> weight;          ///< per medium cell, when extinction: sigma_t, or 1 off the cloud
     std::vector<double> inv_norm;        ///< per tally cell: 1 / integral of the weight over the cell
-    /// The uncollided fluence's own grid (MonteCarloOptions::fluence_grid), tallied per medium
-    /// voxel inside the medium: medium cell -> fluence cell. Empty: the fluence is on `geom`.
-    core::GridGeometry fluence_geom;
-    std::vector<std::uint32_t> fluence_of_cell;
 
-    TallyGrid(const LightingMedium& m, const core::GridGeometry* coarse, MonteCarloOptions::TallyWeight w,
-              const core::GridGeometry* fluence = nullptr) {
+    TallyGrid(const LightingMedium& m, const core::GridGeometry* coarse, MonteCarloOptions::TallyWeight w) {
         const core::GridGeometry& g = m.density.geom;
         geom = coarse ? *coarse : g;
-        fluence_geom = fluence ? *fluence : geom;
-        if (fluence) {
-            const int ff = int(std::lround(fluence->voxel_size / g.voxel_size));
-            fluence_of_cell.resize(g.cell_count());
-            for (int k = 0; k < g.dims.z; ++k)
-                for (int j = 0; j < g.dims.y; ++j)
-                    for (int i = 0; i < g.dims.x; ++i)
-                        fluence_of_cell[g.index(i, j, k)] = std::uint32_t(fluence->index(i / ff, j / ff, k / ff));
-        }
         extinction = w == MonteCarloOptions::TallyWeight::Extinction;
         cloud.assign(geom.cell_count(), 0);
         if (coarse) of_cell.resize(g.cell_count());
@@ -183,7 +169,7 @@ public:
         const std::size_t cells = tg_->geom.cell_count();
         single_ = single0_ + std::size_t(group) * cells * M_;
         if (multiple0_) multiple_ = multiple0_ + std::size_t(group) * cells * M_;
-        if (fluence0_) fluence_ = fluence0_ + std::size_t(group) * tg_->fluence_geom.cell_count();
+        if (fluence0_) fluence_ = fluence0_ + std::size_t(group) * cells;
     }
 
     /// Expected-value estimator of the uncollided light: the ray deposits its expected track
@@ -216,8 +202,7 @@ private:
     void add(double* base, std::size_t tally_cell, double c) {
         double* a = base + tally_cell * M_;
         for (std::size_t m = 0; m < M_; ++m) a[m] += c * p_[m];
-        // Uncollided fluence (no phase), when it shares the tally grid.
-        if (fluence_ && base == single_ && tg_->fluence_of_cell.empty()) fluence_[tally_cell] += c;
+        if (fluence_ && base == single_) fluence_[tally_cell] += c;  // uncollided fluence: no phase
     }
     /// w * (weighted) length on the tally grid over [t0, t1], outside the medium (empty:
     /// weight 1, and nothing into cloud cells when weighting by extinction).
@@ -272,7 +257,6 @@ private:
                 pending_cell = t;
             }
             pending += c;
-            if (fluence_ && attenuate && !tg_->fluence_of_cell.empty()) fluence_[tg_->fluence_of_cell[cell]] += c;
             if (attenuate) {
                 tau += sigma * len;
                 T *= decay;
@@ -400,7 +384,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
         dirs.push_back(directions[m] / len);
     }
     core::Stopwatch clock;
-    const TallyGrid tg(medium, tally_grid, o.tally_weight, o.fluence_grid ? &*o.fluence_grid : nullptr);
+    const TallyGrid tg(medium, tally_grid, o.tally_weight);
     const core::GridGeometry& g = tg.geom;
     const std::size_t G = std::size_t(o.groups);
     const std::size_t cells = g.cell_count(), M = dirs.size(), size = cells * M * G;
@@ -427,9 +411,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
     FieldStats s1, sm, fl;
     s1.init(size);
     if (multiple) sm.init(size);
-    const std::size_t fcells = tg.fluence_geom.cell_count();
-    const double fvol = std::pow(tg.fluence_geom.voxel_size, 3);
-    if (fluence) fl.init(fcells * G);
+    if (fluence) fl.init(cells * G);
     HalfSums h1, hm;
     if (o.halves) {
         h1.init(size);
@@ -443,7 +425,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
             Buffer& buf = bufs[std::size_t(i)];
             buf.single.assign(size, 0.0);
             if (multiple) buf.multiple.assign(size, 0.0);
-            if (fluence) buf.fluence.assign(fcells * G, 0.0);
+            if (fluence) buf.fluence.assign(cells * G, 0.0);
             buf.energy = EnergyBatch{};
             const int b = b0 + int(i);
             GridTally tally(medium, tg, dirs, expected, !expected, multiple, kCutoff, buf.single.data(),
@@ -458,7 +440,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
                             buf.single[(q * cells + c) * M + m] *= k;
                             if (multiple) buf.multiple[(q * cells + c) * M + m] *= k;
                         }
-                        if (fluence && tg.fluence_of_cell.empty()) buf.fluence[q * cells + c] *= k;
+                        if (fluence) buf.fluence[q * cells + c] *= k;
                     }
         });
         for (int i = 0; i < nb; ++i) {
@@ -466,7 +448,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
             const double scale = medium.optics.albedo / (vol * double(np));
             s1.add(bufs[std::size_t(i)].single, scale);
             if (multiple) sm.add(bufs[std::size_t(i)].multiple, scale);
-            if (fluence) fl.add(bufs[std::size_t(i)].fluence, 1.0 / (fvol * double(np)));
+            if (fluence) fl.add(bufs[std::size_t(i)].fluence, 1.0 / (vol * double(np)));
             if (o.halves) {
                 const bool first = 2 * (b0 + i) < o.batches;
                 h1.add(bufs[std::size_t(i)].single, scale, first);
@@ -481,8 +463,8 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
     r.multiple = SourceField(g, dirs);
     r.multiple_se = SourceField(g, dirs);
     const auto write_fluence = [&](core::Grid3<float>& out, std::size_t q) {
-        out = core::Grid3<float>(tg.fluence_geom, 0.0f);
-        for (std::size_t c = 0; c < fcells; ++c) out.data[c] = float(fl.mean[q * fcells + c]);
+        out = core::Grid3<float>(g, 0.0f);
+        for (std::size_t c = 0; c < cells; ++c) out.data[c] = float(fl.mean[q * cells + c]);
     };
     if (G == 1) {
         s1.write(r.single, &r.single_se);
@@ -490,7 +472,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
         if (fluence) write_fluence(r.fluence, 0);
     } else {  // per group, and their sum (no per-voxel SE for the sum: see MonteCarloResult)
         r.groups.resize(G);
-        std::vector<double> sum(cells * M, 0.0), sum_m(cells * M, 0.0), sum_f(fcells, 0.0);
+        std::vector<double> sum(cells * M, 0.0), sum_m(cells * M, 0.0), sum_f(cells, 0.0);
         for (std::size_t q = 0; q < G; ++q) {
             MonteCarloResult::Group& grp = r.groups[q];
             grp.single = SourceField(g, dirs);
@@ -503,7 +485,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
                 if (multiple) sum_m[i] += sm.mean[q * cells * M + i];
             }
             if (fluence)
-                for (std::size_t c = 0; c < fcells; ++c) sum_f[c] += fl.mean[q * fcells + c];
+                for (std::size_t c = 0; c < cells; ++c) sum_f[c] += fl.mean[q * cells + c];
         }
         for (std::size_t c = 0; c < cells; ++c)
             for (std::size_t m = 0; m < M; ++m) {
@@ -511,8 +493,8 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
                 r.multiple.data[m * cells + c] = float(sum_m[c * M + m]);
             }
         if (fluence) {
-            r.fluence = core::Grid3<float>(tg.fluence_geom, 0.0f);
-            for (std::size_t c = 0; c < fcells; ++c) r.fluence.data[c] = float(sum_f[c]);
+            r.fluence = core::Grid3<float>(g, 0.0f);
+            for (std::size_t c = 0; c < cells; ++c) r.fluence.data[c] = float(sum_f[c]);
         }
     }
     if (o.halves) {
@@ -556,24 +538,6 @@ MonteCarloResult monte_carlo(const LightingMedium& medium, const DirectionalSour
     return detail::run_grid(medium, em, directions, options);
 }
 
-namespace {
-
-// The integer factor by which `coarse` coarsens `fine` (same origin, dims rounded up, as the
-// lighting grid coarsens the density grid); throws core::Error naming `where` otherwise.
-int check_coarsening(const core::GridGeometry& coarse, const core::GridGeometry& fine, const char* where) {
-    core::validate_geometry(coarse, where);
-    const double ratio = coarse.voxel_size / fine.voxel_size;
-    const int f = int(std::lround(ratio));
-    const auto ceil_div = [f](int n) { return (n + f - 1) / f; };
-    if (f < 1 || std::fabs(ratio - f) > 1e-9 * ratio || coarse.origin != fine.origin ||
-        coarse.dims != core::Int3{ceil_div(fine.dims.x), ceil_div(fine.dims.y), ceil_div(fine.dims.z)})
-        throw core::Error(where, "must coarsen the medium's grid by an integer factor (same origin, dims "
-                                 "rounded up), as the lighting grid does");
-    return f;
-}
-
-}  // namespace
-
 MonteCarloResult monte_carlo(const LightingMedium& medium, std::span<const PointSource> points,
                              std::span<const LineSource> lines, const core::GridGeometry& tally_grid,
                              std::span<const glm::dvec3> directions, const MonteCarloOptions& options) {
@@ -596,12 +560,14 @@ MonteCarloResult monte_carlo(const LightingMedium& medium, std::span<const Point
         check_intensity(lines[i].intensity, where);
     }
     const core::GridGeometry& g = medium.density.geom;
-    const int f = check_coarsening(tally_grid, g, "tally_grid");
-    if (options.fluence_grid) {
-        check_coarsening(*options.fluence_grid, g, "monte_carlo.fluence_grid");
-        if (options.tally_weight != MonteCarloOptions::TallyWeight::Volume)
-            throw core::Error("monte_carlo.fluence_grid", "needs tally_weight Volume");
-    }
+    core::validate_geometry(tally_grid, "tally_grid");
+    const double ratio = tally_grid.voxel_size / g.voxel_size;
+    const int f = int(std::lround(ratio));
+    const auto ceil_div = [f](int n) { return (n + f - 1) / f; };
+    if (f < 1 || std::fabs(ratio - f) > 1e-9 * ratio || tally_grid.origin != g.origin ||
+        tally_grid.dims != core::Int3{ceil_div(g.dims.x), ceil_div(g.dims.y), ceil_div(g.dims.z)})
+        throw core::Error("tally_grid", "must coarsen the medium's grid by an integer factor (same origin, dims "
+                                        "rounded up), as the lighting grid does");
     const detail::SourceEmitter em(points, lines);
     if (em.empty() || !std::isfinite(em.power())) {
         if (!std::isfinite(em.power())) throw core::Error("sources", "total intensity overflows");

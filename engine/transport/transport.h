@@ -99,10 +99,6 @@ struct SourceField {
 /// rounded up; a trailing partial block averages the voxels it has, as core::downsample).
 SourceField block_average(const SourceField& fine, int factor);
 
-/// The inverse direction: each voxel of `fine` (a grid that `coarse.geom` coarsens by an
-/// integer factor) gets the value of the coarse voxel holding it.
-SourceField block_spread(const SourceField& coarse, const core::GridGeometry& fine);
-
 // =======================================================================================
 // Transmittance, single scattering and the Monte Carlo reference
 //
@@ -257,10 +253,6 @@ struct MonteCarloOptions {
     /// Also tally the uncollided fluence phi1 (W/m^2, voxel averages; expected-value estimator
     /// only), what the lattice takes as first_scattered_fluence.
     bool tally_fluence = false;
-    /// With tally_fluence: tally the fluence on this grid instead of the tally grid (a
-    /// coarsening of the medium's grid, as the tally grid; inside the medium's box only): a
-    /// lattice finer than the tally grid gets its emission's magnitude per site.
-    std::optional<core::GridGeometry> fluence_grid;
     /// Only the expected-value order-1 estimate: paths are not traced past their emission
     /// (their weight is counted as truncated). Needs max_scatterings 0 and tally_multiple false.
     bool uncollided_only = false;
