@@ -57,9 +57,10 @@ void declare(CommandLine& cli, ShotArgs& a) {
            "minutes) into REF.png, |difference| into REF_diff.png (white = 10% of the reference's maximum), "
            "frame | reference | difference into REF_compare.png, and print the errors and times as JSON")
         ->type_name("REF.png");
-    app.add_option("--against", a.against,
-                   "what --reference renders: truth (Monte Carlo of the frame's lit channel through the full-resolution "
-                   "density; the default) or direct (the scene's own solvers on the frame's point sources)")
+    app.add_option(
+           "--against", a.against,
+           "what --reference renders: truth (Monte Carlo of the frame's lit channel through the full-resolution "
+           "density; the default) or direct (the scene's own solvers on the frame's point sources)")
         ->check(CLI::IsMember({"truth", "direct"}))
         ->type_name("truth|direct");
     cli.number("--truth-paths", a.truth_paths, "Monte Carlo paths of the truth (noise ~ 1/sqrt(N))",

@@ -91,9 +91,9 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
         "\"image_fraction_over_10pct\":%.4g,\"image_lit_pixels\":%zu,\"image_width\":%d,\"image_height\":%d,"
         "\"shown_mean_levels\":%.4g,\"shown_fraction_over_25_levels\":%.4g}\n",
         a.against.c_str(), std::string(scene::to_string(view.pipeline().quality().preset)).c_str(),
-        lit ? "true" : "false", sources, active, noise.total, solve_s, frame_ms, frame_ms > 0.0 ? solve_s * 1e3 / frame_ms : 0.0,
-        s_err, c.relative_l2, c.max_difference, c.fraction_over, c.lit_pixels, w, h, shown.mean_levels,
-        shown.fraction_over);
+        lit ? "true" : "false", sources, active, noise.total, solve_s, frame_ms,
+        frame_ms > 0.0 ? solve_s * 1e3 / frame_ms : 0.0, s_err, c.relative_l2, c.max_difference, c.fraction_over,
+        c.lit_pixels, w, h, shown.mean_levels, shown.fraction_over);
     std::fflush(stdout);
 }
 

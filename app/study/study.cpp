@@ -46,6 +46,32 @@ std::vector<double> nice_ticks(double lo, double hi, int target = 6) {
 }
 }  // namespace
 
+std::vector<double> side_view(const transport::LightingMedium& m, std::size_t toward_camera,
+                              const std::function<double(std::size_t, std::size_t)>& S) {
+    const core::GridGeometry& g = m.density.geom;
+    std::vector<double> img(std::size_t(g.dims.x) * std::size_t(g.dims.z), 0.0);
+    const double h = g.voxel_size;
+    for (int k = 0; k < g.dims.z; ++k)
+        for (int i = 0; i < g.dims.x; ++i) {
+            double tau = 0.0, sum = 0.0;
+            for (int j = 0; j < g.dims.y; ++j) {
+                const std::size_t c = g.index(i, j, k);
+                const double st = m.sigma_t(c);
+                sum += std::exp(-(tau + 0.5 * st * h)) * st * h * S(toward_camera, c);
+                tau += st * h;
+            }
+            img[std::size_t(i) + std::size_t(g.dims.x) * std::size_t(k)] = sum;
+        }
+    return img;
+}
+
+std::size_t toward_side_camera(std::span<const glm::dvec3> dirs) {
+    std::size_t best = 0;
+    for (std::size_t m = 0; m < dirs.size(); ++m)
+        if (dirs[m].y * -1.0 > dirs[best].y * -1.0) best = m;  // largest component along -y
+    return best;
+}
+
 void Context::summary(const std::string& name, nlohmann::json j) const {
     if (!j.contains("study")) j["study"] = name;
     std::cout << j.dump() << std::endl;

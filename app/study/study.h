@@ -7,11 +7,14 @@
 #pragma once
 
 #include "common/registry.h"
+#include "transport/transport.h"
 
 #include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <filesystem>
+#include <functional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -48,6 +51,15 @@ private:
 public:
     ~Csv();
 };
+
+/// A side view on the lighting grid, the quantity an image integrates: a camera far along -y
+/// looking along +y sees per (x, z) column sum_j T_j sigma_t,j S_j(toward the camera) h with
+/// T_j the transmittance from the camera to voxel j (voxel midpoint). The paper compared
+/// images; this is that comparison without the renderer's resampling. S(m, cell).
+std::vector<double> side_view(const transport::LightingMedium& m, std::size_t toward_camera,
+                              const std::function<double(std::size_t, std::size_t)>& S);
+/// The index of the direction in `dirs` closest to -y (toward side_view's camera).
+std::size_t toward_side_camera(std::span<const glm::dvec3> dirs);
 
 // ---------------------------------------------------------------------------------------
 // SVG line plots (self-made, no dependencies)

@@ -68,29 +68,6 @@ struct L2 {
 
 const float* dir_ptr(const transport::SourceField& f, std::size_t m) { return f.data.data() + m * f.cells(); }
 
-// A side view on the lighting grid, the quantity an image integrates: a camera far along -y
-// looking along +y sees per (x, z) column sum_j T_j sigma_t,j S_j(toward the camera) h with
-// T_j the transmittance from the camera to voxel j (voxel midpoint). The paper compared
-// images; this is that comparison without the renderer's resampling.
-std::vector<double> side_view(const transport::LightingMedium& m, std::size_t toward_camera,
-                              const std::function<double(std::size_t, std::size_t)>& S) {
-    const core::GridGeometry& g = m.density.geom;
-    std::vector<double> img(std::size_t(g.dims.x) * std::size_t(g.dims.z), 0.0);
-    const double h = g.voxel_size;
-    for (int k = 0; k < g.dims.z; ++k)
-        for (int i = 0; i < g.dims.x; ++i) {
-            double tau = 0.0, sum = 0.0;
-            for (int j = 0; j < g.dims.y; ++j) {
-                const std::size_t c = g.index(i, j, k);
-                const double st = m.sigma_t(c);
-                sum += std::exp(-(tau + 0.5 * st * h)) * st * h * S(toward_camera, c);
-                tau += st * h;
-            }
-            img[std::size_t(i) + std::size_t(g.dims.x) * std::size_t(k)] = sum;
-        }
-    return img;
-}
-
 }  // namespace
 
 FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
@@ -177,15 +154,10 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         const double err_far =
             l2_far(nd, [&](auto m, auto i) { return double(R[m][i]) - d_total(m, i); }) / l2_far(nd, d_total);
 
-        // The side view (direction toward a camera on -y: the -y face direction).
-        std::size_t toward = 0;
-        for (std::size_t m = 0; m < nd; ++m)
-            if (glm::dot(bases.directions()[m], glm::dvec3(0, -1, 0)) >
-                glm::dot(bases.directions()[toward], glm::dvec3(0, -1, 0)))
-                toward = m;
-        const double err_image =
-            core::relative_l2(side_view(medium, toward, [&](std::size_t m, std::size_t i) { return double(R[m][i]); }),
-                              side_view(medium, toward, d_total));
+        const std::size_t toward = study::toward_side_camera(bases.directions());
+        const double err_image = core::relative_l2(
+            study::side_view(medium, toward, [&](std::size_t m, std::size_t i) { return double(R[m][i]); }),
+            study::side_view(medium, toward, d_total));
 
         // V: the active virtual lights solved directly; their dropped share.
         std::vector<transport::PointSource> vl, dropped;

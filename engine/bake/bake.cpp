@@ -26,7 +26,6 @@ std::uint64_t hash_bytes(const void* data, std::size_t n) noexcept {
     return basis::hash_description(std::string_view(static_cast<const char*>(data), n));
 }
 
-
 void add_into(transport::SourceField& acc, const transport::SourceField& f) {
     if (acc.data.empty()) {
         acc = f;

@@ -74,8 +74,8 @@ transport::LbSettings lattice_settings(const scene::Scene& s);
 /// Single-scattering settings the bake and the direct solve share (scene's tolerance,
 /// far-empty voxels skipped; part of the scene key).
 transport::SingleScatteringOptions single_scattering_options(const scene::Scene& s);
-Solution solve(const scene::Scene& s, const Media& media, std::span<const transport::PointSource> sources, std::span<const glm::dvec3> directions,
-               const SolveRequest& request = {});
+Solution solve(const scene::Scene& s, const Media& media, std::span<const transport::PointSource> sources,
+               std::span<const glm::dvec3> directions, const SolveRequest& request = {});
 
 /// What a bake will do, and why. Printable (to_text) before baking; `--dry-run` prints only this.
 struct Plan {
@@ -107,8 +107,7 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
 
 /// The uncompressed bases of virtual light l as the bake stores them (FgbMetadata order:
 /// component-major, then direction), before the Haar transform. For NRRD export and tests.
-transport::SourceField solve_light(const scene::Scene& s, const Media& media, const Plan& plan,
-                                   std::uint32_t light);
+transport::SourceField solve_light(const scene::Scene& s, const Media& media, const Plan& plan, std::uint32_t light);
 
 /// Progress callback: lights done, lights total, seconds elapsed.
 using Progress = std::function<void(std::size_t done, std::size_t total, double seconds)>;

@@ -76,8 +76,8 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
     out.noise.single = s1.noise.single;
     const bool empty = s1.groups.empty();  // no lit segment: all zero
     for (std::uint32_t q = 0; q < 2; ++q)
-        out.single[q] = transport::block_average(empty ? transport::SourceField(grid, dirs) : s1.groups[q].single,
-                                                 media.refine);
+        out.single[q] =
+            transport::block_average(empty ? transport::SourceField(grid, dirs) : s1.groups[q].single, media.refine);
 
     sw.reset();
     if (lattice) {

@@ -260,18 +260,15 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
     if (auto e = root.optional_object("effects")) parse_effects(*e, s.effects);
     if (auto l = root.optional_object("lightning")) parse_lightning(*l, s.lightning);
     if (root.is_string("quality")) {
-        const std::string name =
-            root.choice_or("quality", "paper", {"paper", "hybrid", "per_strike", "reference"});
+        const std::string name = root.choice_or("quality", "paper", {"paper", "hybrid", "per_strike", "reference"});
         s.quality = quality_preset(name);
     } else if (auto q = root.optional_object("quality")) {
-        s.quality = quality_preset(
-            q->choice_or("preset", "paper", {"paper", "hybrid", "per_strike", "reference"}));
+        s.quality = quality_preset(q->choice_or("preset", "paper", {"paper", "hybrid", "per_strike", "reference"}));
         Quality& k = s.quality;
         constexpr std::int64_t kMaxPaths = std::int64_t(1) << 32;
         k.single_paths = std::uint64_t(q->integer_or("single_paths", std::int64_t(k.single_paths), 1000, kMaxPaths));
         k.multiple = q->choice_or("multiple", k.multiple, {"none", "lattice", "monte_carlo"});
-        k.multiple_paths =
-            std::uint64_t(q->integer_or("multiple_paths", std::int64_t(k.multiple_paths), 0, kMaxPaths));
+        k.multiple_paths = std::uint64_t(q->integer_or("multiple_paths", std::int64_t(k.multiple_paths), 0, kMaxPaths));
         if (k.multiple == "monte_carlo" && k.multiple_paths < 1000)
             q->fail("multiple_paths", "must be >= 1000 with \"multiple\": \"monte_carlo\"");
         k.lookahead = q->number_or("lookahead", k.lookahead, Range{0.0, 60.0});
@@ -299,10 +296,14 @@ Scene load_scene(const std::filesystem::path& path) {
 
 std::string_view to_string(Quality::Preset p) noexcept {
     switch (p) {
-        case Quality::Preset::Paper: return "paper";
-        case Quality::Preset::Hybrid: return "hybrid";
-        case Quality::Preset::PerStrike: return "per_strike";
-        case Quality::Preset::Reference: return "reference";
+        case Quality::Preset::Paper:
+            return "paper";
+        case Quality::Preset::Hybrid:
+            return "hybrid";
+        case Quality::Preset::PerStrike:
+            return "per_strike";
+        case Quality::Preset::Reference:
+            return "reference";
     }
     return "?";
 }
@@ -322,8 +323,8 @@ Quality quality_preset(std::string_view name, std::string_view where) {
         q.multiple = "monte_carlo";
         q.multiple_paths = 4'000'000;
     } else {
-        throw core::Error(std::string(where), "must be one of paper, hybrid, per_strike, reference; got \"" +
-                                                  std::string(name) + "\"");
+        throw core::Error(std::string(where),
+                          "must be one of paper, hybrid, per_strike, reference; got \"" + std::string(name) + "\"");
     }
     return q;
 }

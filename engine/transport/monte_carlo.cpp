@@ -19,8 +19,8 @@ namespace detail {
 
 void check_mc_options(const MonteCarloOptions& o) {
     if (o.halves && o.batches < 4)
-        throw core::Error("monte_carlo.batches", "must be >= 4 for a noise estimate from two halves, got " +
-                                                     std::to_string(o.batches));
+        throw core::Error("monte_carlo.batches",
+                          "must be >= 4 for a noise estimate from two halves, got " + std::to_string(o.batches));
     if (o.batches < 2)
         throw core::Error("monte_carlo.batches", "must be >= 2 (standard errors), got " + std::to_string(o.batches));
     if (o.uncollided_only && (o.single_estimator != MonteCarloOptions::SingleEstimator::ExpectedValue ||
@@ -160,10 +160,24 @@ public:
     GridTally(const LightingMedium& m, const TallyGrid& tg, std::span<const glm::dvec3> dirs, bool expected_single,
               bool track_single, bool tally_multiple, double cutoff, double* single, double* multiple,
               double* fluence = nullptr)
-        : g_(&m.density.geom), tg_(&tg), rho_(m.density.data.data()), kappa_(m.optics.extinction), dirs_(dirs),
-          hg_(m.optics.g), M_(dirs.size()), expected_single_(expected_single), track_single_(track_single),
-          tally_multiple_(tally_multiple), cutoff_(cutoff), single0_(single), multiple0_(multiple), fluence0_(fluence),
-          single_(single), multiple_(multiple), fluence_(fluence), p_(dirs.size()) {}
+        : g_(&m.density.geom),
+          tg_(&tg),
+          rho_(m.density.data.data()),
+          kappa_(m.optics.extinction),
+          dirs_(dirs),
+          hg_(m.optics.g),
+          M_(dirs.size()),
+          expected_single_(expected_single),
+          track_single_(track_single),
+          tally_multiple_(tally_multiple),
+          cutoff_(cutoff),
+          single0_(single),
+          multiple0_(multiple),
+          fluence0_(fluence),
+          single_(single),
+          multiple_(multiple),
+          fluence_(fluence),
+          p_(dirs.size()) {}
 
     void begin_path(std::uint32_t group) {
         const std::size_t cells = tg_->geom.cell_count();
@@ -541,7 +555,9 @@ MonteCarloResult monte_carlo(const LightingMedium& medium, const DirectionalSour
 MonteCarloResult monte_carlo(const LightingMedium& medium, std::span<const PointSource> points,
                              std::span<const LineSource> lines, const core::GridGeometry& tally_grid,
                              std::span<const glm::dvec3> directions, const MonteCarloOptions& options) {
-    const auto finite = [](const glm::dvec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); };
+    const auto finite = [](const glm::dvec3& v) {
+        return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+    };
     const auto check_intensity = [](double v, const std::string& where) {
         if (!std::isfinite(v) || v < 0.0)
             throw core::Error(where + ".intensity", "must be finite and >= 0, got " + std::to_string(v));
@@ -566,8 +582,9 @@ MonteCarloResult monte_carlo(const LightingMedium& medium, std::span<const Point
     const auto ceil_div = [f](int n) { return (n + f - 1) / f; };
     if (f < 1 || std::fabs(ratio - f) > 1e-9 * ratio || tally_grid.origin != g.origin ||
         tally_grid.dims != core::Int3{ceil_div(g.dims.x), ceil_div(g.dims.y), ceil_div(g.dims.z)})
-        throw core::Error("tally_grid", "must coarsen the medium's grid by an integer factor (same origin, dims "
-                                        "rounded up), as the lighting grid does");
+        throw core::Error("tally_grid",
+                          "must coarsen the medium's grid by an integer factor (same origin, dims "
+                          "rounded up), as the lighting grid does");
     const detail::SourceEmitter em(points, lines);
     if (em.empty() || !std::isfinite(em.power())) {
         if (!std::isfinite(em.power())) throw core::Error("sources", "total intensity overflows");

@@ -108,8 +108,8 @@ TEST_CASE("truth: a virtual light's bases against the truth, per component") {
     const std::vector<float>& rho = s.media.lighting.density.data;
     const Error e1 = compare(single, t.single.data, rho), e2 = compare(multiple, t.multiple.data, rho);
     MESSAGE("light " << best << ": single " << e1.l2 << " (sum ratio " << e1.ratio << "), multiple " << e2.l2
-                     << " (sum ratio " << e2.ratio << "); truth noise " << t.noise.single << " / "
-                     << t.noise.multiple << ", " << t.seconds << " s");
+                     << " (sum ratio " << e2.ratio << "); truth noise " << t.noise.single << " / " << t.noise.multiple
+                     << ", " << t.seconds << " s");
     // Single scattering is exact up to the coarse medium (the lighting grid's density is the
     // density averaged over 4^3 voxels) and the truth's noise: measured 0.6%, ratio 1.001.
     // 4% / +-4% leave room for the noise and fail at once for a 25% error.
@@ -132,7 +132,7 @@ TEST_CASE("truth: a frame of each preset against the truth, per component") {
     to.paths = 200'000;  // noise ~0.5%: far below the bounds
     struct Bound {
         scene::Quality::Preset preset;
-        double single, multiple;                           // relative L2 bounds
+        double single, multiple;                                // relative L2 bounds
         double single_lo, single_hi, multiple_lo, multiple_hi;  // sum ratio bands
     };
     // Measured (seed 5; 4 km virtual lights on 2 km lighting voxels, so the splat dominates
@@ -142,10 +142,9 @@ TEST_CASE("truth: a frame of each preset against the truth, per component") {
     // times 1.25 and times 0.75, so a 25% error in either component of any preset fails; the
     // relative L2 bounds sit ~15% above the measurements (the exact single scattering: 4%, its
     // noise is 1-2%), so a change of the splat or of the lattice is noticed.
-    const std::vector<Bound> bounds = {
-        {scene::Quality::Preset::Paper, 0.84, 0.63, 0.68, 0.95, 0.70, 1.00},
-        {scene::Quality::Preset::Hybrid, 0.04, 0.63, 0.96, 1.04, 0.70, 1.00},
-        {scene::Quality::Preset::PerStrike, 0.04, 0.28, 0.96, 1.04, 0.80, 1.15}};
+    const std::vector<Bound> bounds = {{scene::Quality::Preset::Paper, 0.84, 0.63, 0.68, 0.95, 0.70, 1.00},
+                                       {scene::Quality::Preset::Hybrid, 0.04, 0.63, 0.96, 1.04, 0.70, 1.00},
+                                       {scene::Quality::Preset::PerStrike, 0.04, 0.28, 0.96, 1.04, 0.80, 1.15}};
     std::optional<runtime::Truth> truth;
     for (const Bound& b : bounds) {
         CAPTURE(scene::to_string(b.preset));

@@ -130,7 +130,8 @@ TEST_CASE("truth path: groups, the uncollided-only estimate, the fluence tally a
     REQUIRE(r.groups.size() == 2);
     // The sums are the groups' sums (float rounding of a two-term double sum: 1 ulp).
     for (std::size_t i = 0; i < r.single.data.size(); ++i) {
-        CHECK(r.single.data[i] == doctest::Approx(r.groups[0].single.data[i] + r.groups[1].single.data[i]).epsilon(1e-6));
+        CHECK(r.single.data[i] ==
+              doctest::Approx(r.groups[0].single.data[i] + r.groups[1].single.data[i]).epsilon(1e-6));
         CHECK(r.multiple.data[i] ==
               doctest::Approx(r.groups[0].multiple.data[i] + r.groups[1].multiple.data[i]).epsilon(1e-6));
     }
@@ -179,8 +180,8 @@ TEST_CASE("truth path: bad input is refused with the field named") {
     o.batches = 4;
     core::GridGeometry shifted = coarsen(m.density.geom, 2);
     shifted.origin.x += 1.0;
-    CHECK_THROWS_WITH_AS(monte_carlo(m, {}, std::span(&good, 1), shifted, dirs, o),
-                         doctest::Contains("tally_grid"), core::Error);
+    CHECK_THROWS_WITH_AS(monte_carlo(m, {}, std::span(&good, 1), shifted, dirs, o), doctest::Contains("tally_grid"),
+                         core::Error);
     core::GridGeometry fraction = m.density.geom;
     fraction.voxel_size *= 1.5;
     CHECK_THROWS_AS(monte_carlo(m, {}, std::span(&good, 1), fraction, dirs, o), core::Error);
