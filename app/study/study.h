@@ -52,6 +52,10 @@ public:
     ~Csv();
 };
 
+/// The lattice against the truth for lights in the storm's core, at its edge and below its
+/// base, today's lattice and the refined one (part of lb-vs-mc; study_lb_truth.cpp).
+void lb_vs_truth(const Context& ctx);
+
 /// A side view on the lighting grid, the quantity an image integrates: a camera far along -y
 /// looking along +y sees per (x, z) column sum_j T_j sigma_t,j S_j(toward the camera) h with
 /// T_j the transmittance from the camera to voxel j (voxel midpoint). The paper compared

@@ -113,8 +113,8 @@ FULGUR_STUDY(frontier, "frontier",
 
     // --- configurations ---
     std::vector<Config> configs;
-    auto variant = [&](const std::string& name, const std::string& bake_label, auto&& edit, bool own = true) {
-        Config c{name, base, bake_label, own};
+    auto variant = [&](const std::string& name, const std::string& bake_label, auto&& edit) {
+        Config c{name, base, bake_label};
         c.scene.lightning.schedule.strike_rate = 0.0;  // only the study's strikes
         edit(c.scene);
         configs.push_back(std::move(c));
@@ -133,22 +133,17 @@ FULGUR_STUDY(frontier, "frontier",
             s.transport.refine = 2;
             s.quality = scene::quality_preset("per_strike");
         });
-        variant(
-            "per_strike refine 3", "storm",
-            [](scene::Scene& s) {
-                s.transport.refine = 3;
+        for (const int r : {2, 3})
+            variant("per_strike strike refine " + std::to_string(r), "storm", [r](scene::Scene& s) {
                 s.quality = scene::quality_preset("per_strike");
-            },
-            false);
+                s.quality.refine = r;
+            });
         for (const std::uint64_t paths : {200'000ull, 1'000'000ull})
-            variant(
-                "per_strike MC " + std::to_string(paths / 1000) + "k", "storm",
-                [paths](scene::Scene& s) {
-                    s.quality = scene::quality_preset("per_strike");
-                    s.quality.multiple = "monte_carlo";
-                    s.quality.multiple_paths = paths;
-                },
-                false);
+            variant("per_strike MC " + std::to_string(paths / 1000) + "k", "storm", [paths](scene::Scene& s) {
+                s.quality = scene::quality_preset("per_strike");
+                s.quality.multiple = "monte_carlo";
+                s.quality.multiple_paths = paths;
+            });
         for (const std::uint64_t paths : {50'000ull, 1'000'000ull})
             variant("hybrid single " + std::to_string(paths / 1000) + "k", "storm", [paths](scene::Scene& s) {
                 s.quality = scene::quality_preset("hybrid");
@@ -197,9 +192,7 @@ FULGUR_STUDY(frontier, "frontier",
     nlohmann::json rows = nlohmann::json::array();
     for (const Config& c : configs) {
         const scene::Scene& s = c.scene;
-        // The bases: the configuration's own bake, or (per-strike solves whose fallback does
-        // not matter here, every frame waiting for its strike) the scene's.
-        Bake& b = ensure_bake(bakes, c.bake, bakes.count(c.bake) || c.own_fallback ? s : base, density, ctx);
+        Bake& b = ensure_bake(bakes, c.bake, s, density, ctx);
         const bake::Media media = bake::make_media(s, density);
         const std::vector<float>& rho = media.lighting.density.data;
         const std::vector<glm::dvec3> dirs = transport::output_directions(s.effective_directions());
@@ -272,8 +265,9 @@ FULGUR_STUDY(frontier, "frontier",
         const double amortized = fms + 1e3 * ss / kFramesPerStrike;
         const scene::Quality& q = s.quality;
         table << c.name << std::string(scene::to_string(q.preset)) << s.virtual_lights.h_usr
-              << media.lighting.density.geom.voxel_size << double(s.transport.refine) << s.compression.xi
-              << double(dirs.size()) << s.transport.ss_tolerance
+              << media.lighting.density.geom.voxel_size
+              << double(q.preset != scene::Quality::Preset::Paper && q.refine > 0 ? q.refine : s.transport.refine)
+              << s.compression.xi << double(dirs.size()) << s.transport.ss_tolerance
               << double(q.preset == scene::Quality::Preset::Paper ? 0 : q.single_paths) << q.multiple
               << double(q.multiple_paths) << worst << median(err) << *std::max_element(err1.begin(), err1.end())
               << *std::max_element(err2.begin(), err2.end()) << *std::max_element(err_img.begin(), err_img.end()) << fms

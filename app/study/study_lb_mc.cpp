@@ -581,4 +581,6 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
                  {"mc_escaped_fraction_of_scattered", S.mc_escaped / S.mc_scattered},
                  {"runs", js_runs},
                  {"resolution", js_res}});
+    // Against the truth, one light at a time, today's lattice and the refined one.
+    study::lb_vs_truth(ctx);
 }

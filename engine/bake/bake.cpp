@@ -114,6 +114,9 @@ basis::BakeKey scene_key(const scene::Scene& s, const core::Grid3<float>& densit
             d << "transport.lattice_boltzmann.thick_voxels=" << s.transport.lb_thick_voxels << "\n";
             d << "transport.lattice_boltzmann.tolerance=" << core::format_number(s.transport.lb_tolerance, 17) << "\n";
             d << "transport.lattice_boltzmann.max_iterations=" << s.transport.lb_max_iterations << "\n";
+            if (s.transport.lb_exact_orders != 1)
+                d << "transport.lattice_boltzmann.exact_orders=" << s.transport.lb_exact_orders
+                  << "\ntransport.lattice_boltzmann.order2_paths=" << s.transport.lb_order2_paths << "\n";
         } else {
             d << "transport.solver=monte_carlo\n";
             d << "transport.monte_carlo.paths=" << s.transport.mc_paths << "\n";
@@ -153,6 +156,10 @@ Media make_media(const scene::Scene& s, const core::Grid3<float>& density) {
     m.lighting = scene::make_lighting_medium(s, density);
     m.refine = s.transport.refine;
     m.transport = m.refine == 1 ? m.lighting : scene::make_transport_medium(s, density);
+    if (s.transport.lb_exact_orders == 2) {
+        m.full.density = density;
+        m.full.optics = s.medium;
+    }
     return m;
 }
 
@@ -210,8 +217,31 @@ Solution solve(const scene::Scene& s, const Media& media, std::span<const transp
             transport::LbSources src;
             src.first_scattered = &s1;
             src.first_scattered_fluence = &phi1;
+            transport::MonteCarloResult second;
+            if (s.transport.lb_exact_orders == 2) {
+                // Order 2 by the expected-value Monte Carlo of the second flight through the
+                // full-resolution density, tallied on the lattice's grid; the lattice is fed
+                // with it and solves orders >= 3. Seeded by the sources, so a solve is
+                // deterministic.
+                FULGUR_ASSERT(!media.full.density.data.empty(),
+                              "bake::solve: exact_orders 2 needs make_media's full density");
+                transport::MonteCarloOptions mo;
+                mo.paths = s.transport.lb_order2_paths;
+                mo.batches = 4;
+                mo.max_scatterings = 1;
+                mo.expected_second_order = true;
+                mo.tally_fluence = true;
+                mo.seed = core::hash_seed(s.transport.mc_seed,
+                                          hash_bytes(sources.data(), sources.size() * sizeof(transport::PointSource)));
+                second = transport::monte_carlo(media.full, sources, {}, geom, dirs, mo);
+                src.first_scattered = &second.multiple;
+                src.first_scattered_fluence = &second.fluence2;
+            }
             transport::LbResult r = transport::solve_lattice_boltzmann(medium, src, dirs, lattice_settings(s));
             out.multiple = std::move(r.source);
+            if (s.transport.lb_exact_orders == 2)
+                for (std::size_t i = 0; i < out.multiple.data.size(); ++i)
+                    out.multiple.data[i] += second.multiple.data[i];
             out.iterations = r.iterations;
             out.converged = r.converged;
         } else {
@@ -302,6 +332,11 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
     else
         why.push_back("multiple scattering by Monte Carlo (reference quality, " + std::to_string(s.transport.mc_paths) +
                       " paths per light)");
+    if (p.multiple && p.solver == "lattice_boltzmann" && s.transport.lb_exact_orders == 2)
+        why.push_back(
+            "transport.lattice_boltzmann.exact_orders = 2: order 2 by Monte Carlo through the full density (" +
+            std::to_string(s.transport.lb_order2_paths) +
+            " paths per light), the lattice for orders >= 3 (its angular error falls on dimmer, smoother light)");
     if (s.transport.refine > 1)
         why.push_back("transport.refine = " + std::to_string(s.transport.refine) + ": single scattering and the " +
                       (p.multiple ? p.solver : std::string("direct term")) + " run on " +

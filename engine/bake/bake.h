@@ -65,6 +65,9 @@ struct Media {
     transport::LightingMedium lighting;
     transport::LightingMedium transport;
     int refine = 1;
+    /// The full-resolution density (for the Monte Carlo order 2 of
+    /// transport.lattice_boltzmann.exact_orders 2; empty otherwise).
+    transport::LightingMedium full;
 };
 Media make_media(const scene::Scene& s, const core::Grid3<float>& density);
 

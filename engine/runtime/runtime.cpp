@@ -329,7 +329,8 @@ struct FramePipeline::Impl {
     Reconstructor reconstructor;
     Frame frame;
     scene::Quality quality;
-    // Presets that solve strikes.
+    // Presets that solve strikes (the solver keeps references to the scene and the media).
+    scene::Scene solve_scene;
     std::optional<bake::Media> media;
     std::unique_ptr<StrikeSolver> solver;
     std::vector<lightning::LitSegment> basis_segments, multiple_segments;  // what the bases light
@@ -342,9 +343,11 @@ struct FramePipeline::Impl {
          std::optional<lightning::Box> domain, const scene::Quality& q)
         : storm(s.lightning, density, domain), splatter(bases.lights()), reconstructor(bases), quality(q) {
         if (q.preset == scene::Quality::Preset::Paper) return;
-        media = bake::make_media(s, density);
+        solve_scene = s;  // the per-strike transport grid may be finer than the bake's
+        if (q.refine > 0) solve_scene.transport.refine = q.refine;
+        media = bake::make_media(solve_scene, density);
         // The worker takes one core less than the frame's share, at least one.
-        solver = std::make_unique<StrikeSolver>(s, density, *media, strike_solve_options(q),
+        solver = std::make_unique<StrikeSolver>(solve_scene, density, *media, strike_solve_options(q),
                                                 std::max(1, core::thread_count() - 1));
     }
 

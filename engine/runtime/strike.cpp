@@ -60,12 +60,16 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
 
     // Single scattering (and the uncollided fluence the lattice needs), per group, on the
     // transport grid.
+    // With transport.lattice_boltzmann.exact_orders 2 the same paths also give order 2 (the
+    // expected-value second flight) and its fluence: the lattice then solves orders >= 3.
+    const bool order2 = lattice && scene.transport.lb_exact_orders == 2;
     transport::MonteCarloOptions so;
     so.paths = options.single_paths;
     so.seed = options.seed;
-    so.max_scatterings = 0;
-    so.tally_multiple = false;
-    so.uncollided_only = true;
+    so.max_scatterings = order2 ? 1 : 0;
+    so.tally_multiple = order2;
+    so.expected_second_order = order2;
+    so.uncollided_only = !order2;
     so.groups = 2;
     so.batches = 8;  // each batch costs a pass over the fields: few, the halves need >= 4
     so.halves = true;
@@ -88,11 +92,14 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
                 out.multiple[q] = transport::SourceField(lighting, dirs);
                 continue;
             }
+            const transport::MonteCarloResult::Group& part = s1.groups[q];
             transport::LbSources src;
-            src.first_scattered = &s1.groups[q].single;
-            src.first_scattered_fluence = &s1.groups[q].fluence;
+            src.first_scattered = order2 ? &part.multiple : &part.single;
+            src.first_scattered_fluence = order2 ? &part.fluence2 : &part.fluence;
             transport::LbResult r =
                 transport::solve_lattice_boltzmann(media.transport, src, dirs, bake::lattice_settings(scene));
+            if (order2)
+                for (std::size_t i = 0; i < r.source.data.size(); ++i) r.source.data[i] += part.multiple.data[i];
             out.multiple[q] = transport::block_average(r.source, media.refine);
         }
     } else if (mc) {

@@ -87,6 +87,9 @@ void parse_transport(JsonObject o, TransportSettings& t) {
         t.lb_thick_voxels = lb->choice_or("thick_voxels", t.lb_thick_voxels, {"saturate", "diffusion_matched"});
         t.lb_tolerance = lb->number_or("tolerance", t.lb_tolerance, Range{0.0, 0.1, true, false});
         t.lb_max_iterations = int(lb->integer_or("max_iterations", t.lb_max_iterations, 1, 1'000'000));
+        t.lb_exact_orders = int(lb->integer_or("exact_orders", t.lb_exact_orders, 1, 2));
+        t.lb_order2_paths =
+            std::uint64_t(lb->integer_or("order2_paths", std::int64_t(t.lb_order2_paths), 1000, std::int64_t(1) << 32));
         lb->finish();
     }
     t.refine = int(o.integer_or("refine", t.refine, 1, 64));
@@ -272,12 +275,16 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
         if (k.multiple == "monte_carlo" && k.multiple_paths < 1000)
             q->fail("multiple_paths", "must be >= 1000 with \"multiple\": \"monte_carlo\"");
         k.lookahead = q->number_or("lookahead", k.lookahead, Range{0.0, 60.0});
+        k.refine = int(q->integer_or("refine", k.refine, 0, 64));
         if (k.preset == Quality::Preset::Paper && k.multiple != "none")
             q->fail("multiple", "the paper preset solves nothing per strike: must be \"none\"");
         q->finish();
     }
     root.finish();
     if (s.effects.sun && !s.sun) root.fail("effects", "\"sun\": true needs a light of type \"sun\" in \"lights\"");
+    if (s.quality.refine > 0 && s.lighting_downsample % s.quality.refine != 0)
+        root.fail("quality.refine", "must divide lighting.downsample (" + std::to_string(s.lighting_downsample) +
+                                        "), got " + std::to_string(s.quality.refine));
     if (s.lighting_downsample % s.transport.refine != 0)
         root.fail("transport.refine", "must divide lighting.downsample (" + std::to_string(s.lighting_downsample) +
                                           "), got " + std::to_string(s.transport.refine));

@@ -66,6 +66,13 @@ struct TransportSettings {
     std::string lb_thick_voxels = "diffusion_matched";
     double lb_tolerance = 1e-4;  ///< steady state: relative change per step
     int lb_max_iterations = 4000;
+    /// "exact_orders": the scattering orders solved exactly before the lattice takes over. 1:
+    /// exact single scattering, the lattice for orders >= 2 (Geist's coupling). 2: order 2 as
+    /// well, by the expected-value Monte Carlo of the second flight through the full-resolution
+    /// density (lb_order2_paths paths per solve), the lattice for orders >= 3: the lattice's
+    /// angular error falls on the smoother, dimmer higher orders (docs/lattice-boltzmann.md).
+    int lb_exact_orders = 1;
+    std::uint64_t lb_order2_paths = 50'000;
     // monte_carlo
     std::uint64_t mc_paths = 2'000'000;  ///< paths per light
     std::uint64_t mc_seed = 1;
@@ -92,6 +99,10 @@ struct Quality {
     std::uint64_t multiple_paths = 0;
     /// Strikes scheduled to start within this many seconds are solved ahead of time.
     double lookahead = 1.0;
+    /// The per-strike solve's transport grid: the lighting grid refined by this factor (a
+    /// divisor of lighting.downsample); 0: transport.refine, as the bake. A finer per-strike
+    /// lattice buys accuracy at run time without a slower bake.
+    int refine = 0;
 };
 
 /// The preset's name in scene files ("paper", "hybrid", "per_strike", "reference").

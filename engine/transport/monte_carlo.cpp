@@ -23,6 +23,10 @@ void check_mc_options(const MonteCarloOptions& o) {
                           "must be >= 4 for a noise estimate from two halves, got " + std::to_string(o.batches));
     if (o.batches < 2)
         throw core::Error("monte_carlo.batches", "must be >= 2 (standard errors), got " + std::to_string(o.batches));
+    if (o.expected_second_order && (o.single_estimator != MonteCarloOptions::SingleEstimator::ExpectedValue ||
+                                    o.max_scatterings < 1 || !o.tally_multiple || o.uncollided_only))
+        throw core::Error("monte_carlo.expected_second_order",
+                          "needs the expected-value estimator, max_scatterings >= 1 and the multiple tally");
     if (o.uncollided_only && (o.single_estimator != MonteCarloOptions::SingleEstimator::ExpectedValue ||
                               o.max_scatterings != 0 || o.tally_multiple))
         throw core::Error("monte_carlo.uncollided_only",
@@ -159,7 +163,7 @@ public:
     /// hold one block per source group: [group][cell][m] ([group][cell]).
     GridTally(const LightingMedium& m, const TallyGrid& tg, std::span<const glm::dvec3> dirs, bool expected_single,
               bool track_single, bool tally_multiple, double cutoff, double* single, double* multiple,
-              double* fluence = nullptr)
+              double* fluence = nullptr, double* fluence2 = nullptr)
         : g_(&m.density.geom),
           tg_(&tg),
           rho_(m.density.data.data()),
@@ -174,9 +178,11 @@ public:
           single0_(single),
           multiple0_(multiple),
           fluence0_(fluence),
+          fluence20_(fluence2),
           single_(single),
           multiple_(multiple),
           fluence_(fluence),
+          fluence2_(fluence2),
           p_(dirs.size()) {}
 
     void begin_path(std::uint32_t group) {
@@ -184,6 +190,7 @@ public:
         single_ = single0_ + std::size_t(group) * cells * M_;
         if (multiple0_) multiple_ = multiple0_ + std::size_t(group) * cells * M_;
         if (fluence0_) fluence_ = fluence0_ + std::size_t(group) * cells;
+        if (fluence20_) fluence2_ = fluence20_ + std::size_t(group) * cells;
     }
 
     /// Expected-value estimator of the uncollided light: the ray deposits its expected track
@@ -193,6 +200,13 @@ public:
         if (!expected_single_) return;
         phase(d);
         deposit(single_, x, d, 0.0, kInf, w, true);
+    }
+
+    /// Expected-value estimator of the flight after the first scattering (order 2), from the
+    /// collision at x in the new direction d: into `multiple` (and the order-2 fluence).
+    void scattered_expected(const glm::dvec3& x, const glm::dvec3& d, double w) {
+        phase(d);
+        deposit(multiple_, x, d, 0.0, kInf, w, true);
     }
 
     /// Track-length estimator of a sampled flight after k scatterings (t1 = infinity for a
@@ -216,7 +230,10 @@ private:
     void add(double* base, std::size_t tally_cell, double c) {
         double* a = base + tally_cell * M_;
         for (std::size_t m = 0; m < M_; ++m) a[m] += c * p_[m];
-        if (fluence_ && base == single_) fluence_[tally_cell] += c;  // uncollided fluence: no phase
+        // Fluence (no phase): of the uncollided light, and of the second order when its
+        // flights are expected-value estimates.
+        if (fluence_ && base == single_) fluence_[tally_cell] += c;
+        if (fluence2_ && base == multiple_) fluence2_[tally_cell] += c;
     }
     /// w * (weighted) length on the tally grid over [t0, t1], outside the medium (empty:
     /// weight 1, and nothing into cloud cells when weighting by extinction).
@@ -293,8 +310,8 @@ private:
     std::size_t M_;
     bool expected_single_, track_single_, tally_multiple_;
     double cutoff_;
-    double *single0_, *multiple0_, *fluence0_;  // group 0
-    double *single_, *multiple_, *fluence_;     // the current path's group
+    double *single0_, *multiple0_, *fluence0_, *fluence20_;  // group 0
+    double *single_, *multiple_, *fluence_, *fluence2_;      // the current path's group
     std::vector<double> p_;
 };
 
@@ -403,6 +420,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
     const std::size_t G = std::size_t(o.groups);
     const std::size_t cells = g.cell_count(), M = dirs.size(), size = cells * M * G;
     const bool fluence = o.tally_fluence && o.single_estimator == MonteCarloOptions::SingleEstimator::ExpectedValue;
+    const bool fluence2 = fluence && o.expected_second_order;
     const GridMedium gm(medium, o.macro_cell);
     PathOptions po;
     po.albedo = medium.optics.albedo;
@@ -413,19 +431,21 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
     po.max_collisions = o.max_collisions;
     const bool expected = o.single_estimator == MonteCarloOptions::SingleEstimator::ExpectedValue;
     po.uncollided_only = o.uncollided_only;
+    po.expected_second_order = o.expected_second_order;
     const bool multiple = o.tally_multiple && o.max_scatterings > 0;
     constexpr double kCutoff = 104.0;  // same optical-depth cutoff as single_scattering's default
 
     const int T = std::max(1, core::thread_count());
     struct Buffer {
-        std::vector<double> single, multiple, fluence;
+        std::vector<double> single, multiple, fluence, fluence2;
         EnergyBatch energy;
     };
     std::vector<Buffer> bufs(static_cast<std::size_t>(T));
-    FieldStats s1, sm, fl;
+    FieldStats s1, sm, fl, fl2;
     s1.init(size);
     if (multiple) sm.init(size);
     if (fluence) fl.init(cells * G);
+    if (fluence2) fl2.init(cells * G);
     HalfSums h1, hm;
     if (o.halves) {
         h1.init(size);
@@ -440,10 +460,12 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
             buf.single.assign(size, 0.0);
             if (multiple) buf.multiple.assign(size, 0.0);
             if (fluence) buf.fluence.assign(cells * G, 0.0);
+            if (fluence2) buf.fluence2.assign(cells * G, 0.0);
             buf.energy = EnergyBatch{};
             const int b = b0 + int(i);
             GridTally tally(medium, tg, dirs, expected, !expected, multiple, kCutoff, buf.single.data(),
-                            multiple ? buf.multiple.data() : nullptr, fluence ? buf.fluence.data() : nullptr);
+                            multiple ? buf.multiple.data() : nullptr, fluence ? buf.fluence.data() : nullptr,
+                            fluence2 ? buf.fluence2.data() : nullptr);
             trace_paths(gm, em, po, o.seed, batch_first_path(o.paths, o.batches, b), batch_paths(o.paths, o.batches, b),
                         tally, buf.energy);
             if (tg.extinction)  // per-cell normalization (volume: the constant in `scale`)
@@ -455,6 +477,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
                             if (multiple) buf.multiple[(q * cells + c) * M + m] *= k;
                         }
                         if (fluence) buf.fluence[q * cells + c] *= k;
+                        if (fluence2) buf.fluence2[q * cells + c] *= k;
                     }
         });
         for (int i = 0; i < nb; ++i) {
@@ -463,6 +486,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
             s1.add(bufs[std::size_t(i)].single, scale);
             if (multiple) sm.add(bufs[std::size_t(i)].multiple, scale);
             if (fluence) fl.add(bufs[std::size_t(i)].fluence, 1.0 / (vol * double(np)));
+            if (fluence2) fl2.add(bufs[std::size_t(i)].fluence2, 1.0 / (vol * double(np)));  // w holds albedo already
             if (o.halves) {
                 const bool first = 2 * (b0 + i) < o.batches;
                 h1.add(bufs[std::size_t(i)].single, scale, first);
@@ -476,41 +500,45 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
     r.single_se = SourceField(g, dirs);
     r.multiple = SourceField(g, dirs);
     r.multiple_se = SourceField(g, dirs);
-    const auto write_fluence = [&](core::Grid3<float>& out, std::size_t q) {
+    const auto write_fluence = [&](const FieldStats& stats, core::Grid3<float>& out, std::size_t q) {
         out = core::Grid3<float>(g, 0.0f);
-        for (std::size_t c = 0; c < cells; ++c) out.data[c] = float(fl.mean[q * cells + c]);
+        for (std::size_t c = 0; c < cells; ++c) out.data[c] = float(stats.mean[q * cells + c]);
+    };
+    const auto sum_fluence = [&](const FieldStats& stats, core::Grid3<float>& out) {
+        out = core::Grid3<float>(g, 0.0f);
+        for (std::size_t c = 0; c < cells; ++c) {
+            double v = 0.0;
+            for (std::size_t q = 0; q < G; ++q) v += stats.mean[q * cells + c];
+            out.data[c] = float(v);
+        }
     };
     if (G == 1) {
         s1.write(r.single, &r.single_se);
         if (multiple) sm.write(r.multiple, &r.multiple_se);
-        if (fluence) write_fluence(r.fluence, 0);
     } else {  // per group, and their sum (no per-voxel SE for the sum: see MonteCarloResult)
         r.groups.resize(G);
-        std::vector<double> sum(cells * M, 0.0), sum_m(cells * M, 0.0), sum_f(cells, 0.0);
+        std::vector<double> sum(cells * M, 0.0), sum_m(cells * M, 0.0);
         for (std::size_t q = 0; q < G; ++q) {
             MonteCarloResult::Group& grp = r.groups[q];
             grp.single = SourceField(g, dirs);
             grp.multiple = SourceField(g, dirs);
             s1.write(grp.single, nullptr, q);
             if (multiple) sm.write(grp.multiple, nullptr, q);
-            if (fluence) write_fluence(grp.fluence, q);
+            if (fluence) write_fluence(fl, grp.fluence, q);
+            if (fluence2) write_fluence(fl2, grp.fluence2, q);
             for (std::size_t i = 0; i < cells * M; ++i) {
                 sum[i] += s1.mean[q * cells * M + i];
                 if (multiple) sum_m[i] += sm.mean[q * cells * M + i];
             }
-            if (fluence)
-                for (std::size_t c = 0; c < cells; ++c) sum_f[c] += fl.mean[q * cells + c];
         }
         for (std::size_t c = 0; c < cells; ++c)
             for (std::size_t m = 0; m < M; ++m) {
                 r.single.data[m * cells + c] = float(sum[c * M + m]);
                 r.multiple.data[m * cells + c] = float(sum_m[c * M + m]);
             }
-        if (fluence) {
-            r.fluence = core::Grid3<float>(g, 0.0f);
-            for (std::size_t c = 0; c < cells; ++c) r.fluence.data[c] = float(sum_f[c]);
-        }
     }
+    if (fluence) sum_fluence(fl, r.fluence);
+    if (fluence2) sum_fluence(fl2, r.fluence2);
     if (o.halves) {
         r.noise.single = half_noise(h1, nullptr, tg, M, G, true);
         if (multiple) {

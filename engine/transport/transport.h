@@ -256,6 +256,12 @@ struct MonteCarloOptions {
     /// Only the expected-value order-1 estimate: paths are not traced past their emission
     /// (their weight is counted as truncated). Needs max_scatterings 0 and tally_multiple false.
     bool uncollided_only = false;
+    /// Orders 1 and 2 only, both by the expected-value estimator: after the first scattering
+    /// the path's next flight deposits its expected track (no second collision is sampled)
+    /// into `multiple`, which then holds exactly order 2, and the path stops (its weight
+    /// counted as truncated). With tally_fluence, `fluence2` receives the order-2 fluence.
+    /// Needs the expected-value estimator and tally_multiple. For a lattice fed with order 2.
+    bool expected_second_order = false;
 };
 
 struct MonteCarloResult {
@@ -275,14 +281,15 @@ struct MonteCarloResult {
     struct Noise {
         double single = 0.0, multiple = 0.0, total = 0.0;
     } noise;
-    /// With MonteCarloOptions::tally_fluence: the uncollided fluence (sum over the groups).
-    core::Grid3<float> fluence;
+    /// With MonteCarloOptions::tally_fluence: the uncollided fluence (sum over the groups),
+    /// and with expected_second_order the order-2 fluence (W/m^2, voxel averages).
+    core::Grid3<float> fluence, fluence2;
     /// With MonteCarloOptions::groups > 1: each group's part (single, multiple, fluence), in
     /// group order; `single` and `multiple` above are their sums, and the per-voxel SE fields
     /// stay zero (paths are shared out between groups at random: use `noise`).
     struct Group {
         SourceField single, multiple;
-        core::Grid3<float> fluence;
+        core::Grid3<float> fluence, fluence2;
     };
     std::vector<Group> groups;
 };

@@ -13,6 +13,8 @@
 //            path's source group (0 for single sources); double power() const
 //   Tally:   void begin_path(std::uint32_t group)  -- the emitted path's source group
 //            void uncollided(x, d, w)              -- once per emitted path (expected value)
+//            void scattered_expected(x, d, w)      -- the second flight's expected value (when
+//                                                     PathOptions::expected_second_order)
 //            void flight(x, d, t0, t1, w, k)       -- a sampled flight after k scatterings
 //
 // Free flights use delta tracking (Woodcock): tentative collisions at rate sigma_bar of the
@@ -47,6 +49,9 @@ struct PathOptions {
     double roulette_threshold = 0.05;
     std::uint64_t max_collisions = 100'000'000;
     bool uncollided_only = false;  ///< stop after the tally's uncollided() (counted as truncated)
+    /// After the first scattering, hand the new direction to the tally's scattered_expected()
+    /// (the second flight's expected-value estimate) and stop (counted as truncated).
+    bool expected_second_order = false;
 };
 
 /// Raw sums of one batch (watts, summed over the batch's paths).
@@ -152,6 +157,11 @@ void trace_paths(const Medium& med, const Emitter& em, const PathOptions& o, std
             const double u1 = rng.uniform(), u2 = rng.uniform();
             d = hg_sample(d, o.g, u1, u2);
             ++k;
+            if (o.expected_second_order) {
+                tally.scattered_expected(x, d, w);
+                e.truncated += w;
+                break;
+            }
             if (w < w_rr) {
                 if (rng.uniform() * w_rr < w) {
                     e.roulette += w_rr - w;
@@ -336,6 +346,7 @@ struct InfiniteMedium : HomogeneousSegments {
 struct NullTally {
     void begin_path(std::uint32_t) noexcept {}
     void uncollided(const glm::dvec3&, const glm::dvec3&, double) noexcept {}
+    void scattered_expected(const glm::dvec3&, const glm::dvec3&, double) noexcept {}
     void flight(const glm::dvec3&, const glm::dvec3&, double, double, double, int) noexcept {}
 };
 
