@@ -31,8 +31,8 @@ void declare(CommandLine& cli, DemoArgs& a) {
                  "hold the first strike 2 ms after its return stroke, write out/screenshot_000.png after "
                  "--screenshot-after frames (default 4) and quit");
     app.add_flag("--solve-direct", a.solve_direct,
-                 "press \"Solve this frame directly\" on the second frame (with --screenshot-at-peak: the "
-                 "screenshot shows the direct solve and its figures)");
+                 "ask for the second frame's direct solve (on a worker thread; with --screenshot-at-peak the "
+                 "screenshot waits for it and shows the direct solve and its figures)");
     app.add_option_function<std::string>(
            "--seed", [&a](const std::string& s) { a.seed = parse_number<std::uint64_t>(s, kTool, "--seed"); },
            "the first strike's seed (default: the scene's)")
@@ -43,6 +43,11 @@ void declare(CommandLine& cli, DemoArgs& a) {
                0.001, 10.0);
     app.add_flag_callback(
         "--no-dither", [&a] { a.dither = false; }, "turn the 8-bit dither off (smaller PNGs)");
+    app.add_option_function<std::string>(
+           "--quality", [&a](const std::string& s) { a.quality = s; },
+           "how frames are lit: paper, hybrid or per_strike (default: the scene's \"quality\")")
+        ->check(CLI::IsMember({"paper", "hybrid", "per_strike"}))
+        ->type_name("PRESET");
 }
 
 }  // namespace

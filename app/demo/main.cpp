@@ -4,6 +4,7 @@
 #include "common/demo_args.h"
 #include "common/view_cli.h"
 #include "core/core.h"
+#include "demo/accuracy_panel.h"
 #include "demo/shell.h"
 #include "platform/platform.h"
 #include "render/render.h"
@@ -139,20 +140,14 @@ int main(int argc, char** argv) {
         // would see a "changed" rate and rebuild the storm (dropping the first strike).
         lp.schedule.strike_rate = autos ? double(rate) : 0.0;
         bool shape_changed = false;
-        // "Solve this frame directly": the reference the basis method is measured against,
-        // held with the storm time so the view can orbit and switch between the two.
-        struct Reference {
-            transport::SourceField field;
-            double seconds = 0.0, basis_ms = 0.0, error = 0.0;
-            runtime::Components components;
-            bool show = true;
-        };
-        std::optional<Reference> reference;
-        bool solve_now = false;
+        if (args.quality) view.set_quality(scene::quality_preset(*args.quality));
+        // The quality section: preset, its costs, the frame's error against a reference.
+        app::AccuracyPanel accuracy(view);
         while (shell.begin_frame(orbit)) {
-            // --solve-direct: press "Solve this frame directly" on the second frame.
-            if (solve_direct_at_start && shell.frames() == 1) solve_now = true;  // frames() counts finished frames
-            if (!reference) t = at_peak ? peak_time : t + shell.dt() * double(slow);
+            // --solve-direct: ask for the direct solve of the second frame.
+            if (solve_direct_at_start && shell.frames() == 1)
+                accuracy.request(false);  // frames() counts finished frames
+            if (!accuracy.holds_time()) t = at_peak ? peak_time : t + shell.dt() * double(slow);
             bool strike = shell.strike_pressed();
             ImGui::SetNextWindowPos({10, 10}, ImGuiCond_FirstUseEver);
             ImGui::SetNextWindowSize({430, 0}, ImGuiCond_FirstUseEver);
@@ -196,25 +191,7 @@ int main(int argc, char** argv) {
             float scale = float(opt.settings.internal_scale);
             if (ImGui::SliderFloat("internal scale", &scale, 0.25f, 1.0f)) opt.settings.internal_scale = scale;
             ImGui::Separator();
-            ImGui::TextUnformatted("Accuracy: basis method vs direct solve");
-            if (!reference) {
-                const runtime::Frame* lit_frame = view.last_frame();
-                ImGui::BeginDisabled(!(lit_frame && lit_frame->lit));
-                if (ImGui::Button("Solve this frame directly")) solve_now = true;
-                ImGui::EndDisabled();
-                if (ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled))
-                    ImGui::SetTooltip(
-                        "exact single scattering + lattice-Boltzmann on this frame's point sources,\n"
-                        "no virtual lights (the paper's 'previous method'): seconds, the window\n"
-                        "waits; the storm time then holds until Release");
-            } else {
-                ImGui::Text("direct %.2f s, basis %.2f ms: %.0fx", reference->seconds, reference->basis_ms,
-                            reference->basis_ms > 0 ? reference->seconds * 1e3 / reference->basis_ms : 0.0);
-                ImGui::Text("basis S off by %.1f%% (rel. L2, cloud voxels)", 100.0 * reference->error);
-                ImGui::Checkbox("show the direct solve", &reference->show);
-                ImGui::SameLine();
-                if (ImGui::Button("Release")) reference.reset();
-            }
+            accuracy.draw(rep);
             ImGui::Separator();
             ImGui::TextUnformatted("Frame times (ms)");
             ImGui::Text("bolt %.2f  sources %.2f  splat %.2f", rep.stages.bolt, rep.stages.sources, rep.stages.splat);
@@ -265,35 +242,20 @@ int main(int argc, char** argv) {
                 lp.seed = std::uint64_t(seed);
                 view.set_lightning(lp);
                 shape_changed = false;
-                reference.reset();
+                accuracy.reset();
             }
-            if (strike) view.pipeline().strike_at(t, std::uint64_t(seed++));
-            // The reference belongs to one frame and one choice of components.
-            if (reference && (strike || reference->components.single != opt.components.single ||
-                              reference->components.multiple != opt.components.multiple))
-                reference.reset();
-            if (solve_now && !(view.last_frame() && view.last_frame()->lit)) {
-                solve_now = false;  // no flash glows: nothing to compare
-                std::fprintf(stderr, "fulgur: no flash at t = %.4f s: nothing to solve\n", t);
+            if (strike) {
+                view.pipeline().strike_at(t, std::uint64_t(seed++));
+                accuracy.reset();  // the reference belongs to one frame
             }
-            if (solve_now) {
-                solve_now = false;
-                std::fprintf(stderr, "fulgur: solving the frame at t = %.4f s directly...\n", t);
-                Reference r;
-                r.components = opt.components;
-                view::StormView::DirectSolve solved = view.solve_direct(t, opt.components);
-                r.field = std::move(solved.field);
-                r.seconds = solved.seconds;
-                r.basis_ms = solved.basis_ms;  // all directions, as the solve
-                r.error = view.reconstruction_error(r.field);
-                std::fprintf(stderr, "fulgur: direct solve %.2f s, basis %.3f ms, S off by %.1f%%\n", r.seconds,
-                             r.basis_ms, 100.0 * r.error);
-                reference = std::move(r);
-            }
+            accuracy.update(t, opt);
+            // --solve-direct: the screenshot shows its result; --screenshot-at-peak with a
+            // per-strike preset: it shows the strike's own light, not the bases' fallback.
+            const runtime::Frame* shown = view.last_frame();
+            shell.hold_screenshot(accuracy.busy() || (at_peak && shown && shown->strikes_fallback > 0));
             opt.settings.frame_index++;
             const render::Camera cam = view::default_camera(view.density(), orbit.az, orbit.el, orbit.dist);
-            rep = view.render(cam, t, shell.width(), shell.height(), opt,
-                              reference && reference->show ? &reference->field : nullptr);
+            rep = view.render(cam, t, shell.width(), shell.height(), opt, accuracy.shown_field());
             shell.end_frame();
         }
     } catch (const std::exception& e) {

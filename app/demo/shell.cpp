@@ -72,7 +72,10 @@ void DemoShell::end_frame() {
     ImGui::Render();
     ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
     ++frames_;
-    if (screenshot_after_ > 0 && frames_ == screenshot_after_) screenshot_ = true;
+    if (screenshot_after_ > 0 && frames_ >= screenshot_after_ && !hold_ && !auto_shot_) {
+        screenshot_ = true;
+        auto_shot_ = true;
+    }
     if (screenshot_) {
         screenshot_ = false;
         std::filesystem::create_directories("out");

@@ -41,6 +41,8 @@ public:
     double fps() const noexcept { return fps_; }              ///< exponentially smoothed
     bool strike_pressed() const noexcept { return strike_; }  ///< Space went down this frame
     void request_screenshot() noexcept { screenshot_ = true; }
+    /// While held, --screenshot-after waits (e.g. for a reference solve still running).
+    void hold_screenshot(bool hold) noexcept { hold_ = hold; }
     int frames() const noexcept { return frames_; }
 
 private:
@@ -48,7 +50,7 @@ private:
     GLFWwindow* win_ = nullptr;
     int screenshot_after_ = 0, frames_ = 0, shots_ = 0;
     double dt_ = 0, fps_ = 0, mx_ = 0, my_ = 0;
-    bool strike_ = false, screenshot_ = false, space_down_ = false, p_down_ = false;
+    bool strike_ = false, screenshot_ = false, space_down_ = false, p_down_ = false, hold_ = false, auto_shot_ = false;
     double last_ = 0;
 };
 

@@ -339,15 +339,26 @@ struct FramePipeline::Impl {
     RadianceField multiple_radiance;
     double forgotten_before = -1e300;
 
-    Impl(const scene::Scene& s, const core::Grid3<float>& density, const BakedBases& bases,
+    const scene::Scene* scene;
+    const core::Grid3<float>* density;
+
+    Impl(const scene::Scene& s, const core::Grid3<float>& d, const BakedBases& bases,
          std::optional<lightning::Box> domain, const scene::Quality& q)
-        : storm(s.lightning, density, domain), splatter(bases.lights()), reconstructor(bases), quality(q) {
+        : storm(s.lightning, d, domain), splatter(bases.lights()), reconstructor(bases), scene(&s), density(&d) {
+        set_quality(q);
+    }
+
+    void set_quality(const scene::Quality& q) {
+        const scene::Scene& s = *scene;
+        solver.reset();  // joins the worker: nothing refers to the old media any more
+        media.reset();
+        quality = q;
         if (q.preset == scene::Quality::Preset::Paper) return;
         solve_scene = s;  // the per-strike transport grid may be finer than the bake's
         if (q.refine > 0) solve_scene.transport.refine = q.refine;
-        media = bake::make_media(solve_scene, density);
+        media = bake::make_media(solve_scene, *density);
         // The worker takes one core less than the frame's share, at least one.
-        solver = std::make_unique<StrikeSolver>(solve_scene, density, *media, strike_solve_options(q),
+        solver = std::make_unique<StrikeSolver>(solve_scene, *density, *media, strike_solve_options(q),
                                                 std::max(1, core::thread_count() - 1));
     }
 
@@ -367,6 +378,7 @@ std::size_t FramePipeline::strike_at(double t, std::optional<std::uint64_t> seed
 lightning::Storm& FramePipeline::storm() noexcept { return impl_->storm; }
 const scene::Quality& FramePipeline::quality() const noexcept { return impl_->quality; }
 StrikeSolver* FramePipeline::strike_solver() noexcept { return impl_->solver.get(); }
+void FramePipeline::set_quality(const scene::Quality& q) { impl_->set_quality(q); }
 
 const Frame& FramePipeline::build(double t, std::span<const int> directions, const ReconstructOptions& options) {
     return impl_->solver ? impl_->build_solved(t, directions, options) : impl_->build_paper(t, directions, options);

@@ -163,7 +163,8 @@ class StrikeSolver;
 /// Drives a storm over a baked scene: schedule -> bolt -> sources -> splat -> reconstruct.
 class FramePipeline {
 public:
-    /// Keeps references to `density` (bolt start points) and `bases`; both must outlive it.
+    /// Keeps references to `scene`, `density` (bolt start points) and `bases`; they must
+    /// outlive it.
     /// `domain`: the bolts' box (lightning::BoltGenerator; default: the density's box down
     /// to the ground). `quality`: how frames are lit (default: the scene's); presets other
     /// than paper solve strikes on a worker thread (StrikeSolver) ahead of their frames.
@@ -178,6 +179,9 @@ public:
     const Frame& build(double t, std::span<const int> directions, const ReconstructOptions& options = {});
     lightning::Storm& storm() noexcept;
     const scene::Quality& quality() const noexcept;
+    /// Another preset: the strike solver is rebuilt (solved strikes are dropped); the storm,
+    /// its strikes and the bases stay.
+    void set_quality(const scene::Quality& q);
     /// The strike solver (null for the paper preset).
     StrikeSolver* strike_solver() noexcept;
 

@@ -51,9 +51,7 @@ void StormView::set_lightning(const lightning::LightningParams& p) {
 
 void StormView::set_quality(const scene::Quality& q) {
     scene_.quality = q;
-    last_ = nullptr;
-    pipeline_.reset();
-    pipeline_ = std::make_unique<runtime::FramePipeline>(scene_, density_, bases_);
+    pipeline_->set_quality(q);
 }
 
 const bake::Media& StormView::media() {

@@ -96,7 +96,8 @@ public:
     /// New lightning parameters (bolt shape, schedule, seed): rebuilds the pipeline's storm,
     /// so bolts are regenerated; the bake is unchanged (it does not depend on them).
     void set_lightning(const lightning::LightningParams& p);
-    /// Another quality preset (scene::Quality): rebuilds the pipeline (the bake is shared).
+    /// Another quality preset (scene::Quality): the pipeline's strike solver changes; the
+    /// storm and its strikes stay (the bake is shared).
     void set_quality(const scene::Quality& q);
 
     runtime::FramePipeline& pipeline() noexcept { return *pipeline_; }
