@@ -121,10 +121,12 @@ def plot_lb_vs_truth(study, out_dir):
     for ax in axes:
         ax.grid(True, axis="y", color="0.9")
     handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.95), ncol=len(labels), frameon=False)
+    ncol = min(4, len(labels))
+    rows = (len(labels) + ncol - 1) // ncol
+    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.95), ncol=ncol, frameon=False)
     fig.suptitle("Lattice-Boltzmann against the truth, one light at a time (default storm, 750 m lighting grid)",
                  y=0.995)
-    fig.tight_layout(rect=(0, 0, 1, 0.88))
+    fig.tight_layout(rect=(0, 0, 1, 0.9 - 0.05 * rows))
     save(fig, out_dir, "lb_vs_truth")
 
 

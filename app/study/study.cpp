@@ -96,7 +96,14 @@ Csv& Csv::operator<<(double v) {
     return *this;
 }
 Csv& Csv::operator<<(const std::string& v) {
-    buffer_ += (first_in_row_ ? "" : ",") + v;
+    // RFC 4180: a field holding a comma, a quote or a line break is quoted, quotes doubled.
+    std::string field = v;
+    if (field.find_first_of(",\"\n\r") != std::string::npos) {
+        field = "\"";
+        for (const char c : v) field += c == '"' ? std::string("\"\"") : std::string(1, c);
+        field += "\"";
+    }
+    buffer_ += (first_in_row_ ? "" : ",") + field;
     first_in_row_ = false;
     ++in_row_;
     return *this;

@@ -115,29 +115,42 @@ FULGUR_STUDY(frontier, "frontier",
     std::vector<Config> configs;
     auto variant = [&](const std::string& name, const std::string& bake_label, auto&& edit) {
         Config c{name, base, bake_label};
-        c.scene.lightning.schedule.strike_rate = 0.0;  // only the study's strikes
+        c.scene.lightning.schedule.strike_rate = 0.0;      // only the study's strikes
+        c.scene.quality = scene::quality_preset("paper");  // each variant names its own
         edit(c.scene);
         configs.push_back(std::move(c));
     };
     auto preset = [](const char* p) { return [p](scene::Scene& s) { s.quality = scene::quality_preset(p); }; };
+    // The presets on the scene's own bake; the lattices of the bake (today's: refine 1, order 1
+    // by the lattice; the new: a finer transport grid, order 2 exact); the per-strike solve's
+    // knobs; and the paper's knobs, each against today's lattice (cheap bakes: the knob's own
+    // effect, on the same footing as the paper's numbers).
     variant("paper", "storm", preset("paper"));
     variant("hybrid", "storm", preset("hybrid"));
     variant("per_strike", "storm", preset("per_strike"));
     if (!ctx.quick) {
-        variant("paper refine 2", "refine2", [](scene::Scene& s) { s.transport.refine = 2; });
-        variant("hybrid refine 2", "refine2", [](scene::Scene& s) {
-            s.transport.refine = 2;
-            s.quality = scene::quality_preset("hybrid");
-        });
-        variant("per_strike refine 2", "refine2", [](scene::Scene& s) {
-            s.transport.refine = 2;
-            s.quality = scene::quality_preset("per_strike");
-        });
-        for (const int r : {2, 3})
-            variant("per_strike strike refine " + std::to_string(r), "storm", [r](scene::Scene& s) {
-                s.quality = scene::quality_preset("per_strike");
-                s.quality.refine = r;
-            });
+        auto lattice = [](int refine, int orders) {
+            return [refine, orders](scene::Scene& s) {
+                s.transport.refine = refine;
+                s.transport.lb_exact_orders = orders;
+            };
+        };
+        for (const auto& [refine, orders] : {std::pair{1, 1}, std::pair{2, 1}, std::pair{2, 2}}) {
+            const std::string l = "r" + std::to_string(refine) + (orders == 2 ? "o2" : "");
+            for (const char* p : {"paper", "hybrid"})
+                variant(std::string(p) + " lattice " + l, l, [=](scene::Scene& s) {
+                    lattice(refine, orders)(s);
+                    s.quality = scene::quality_preset(p);
+                });
+        }
+        for (const int r : {1, 2, 3})
+            for (const int orders : {1, 2})
+                variant("per_strike strike refine " + std::to_string(r) + (orders == 2 ? " order 2" : ""), "storm",
+                        [r, orders](scene::Scene& s) {
+                            s.quality = scene::quality_preset("per_strike");
+                            s.quality.refine = r;
+                            s.quality.exact_orders = orders;
+                        });
         for (const std::uint64_t paths : {200'000ull, 1'000'000ull})
             variant("per_strike MC " + std::to_string(paths / 1000) + "k", "storm", [paths](scene::Scene& s) {
                 s.quality = scene::quality_preset("per_strike");
@@ -149,13 +162,23 @@ FULGUR_STUDY(frontier, "frontier",
                 s.quality = scene::quality_preset("hybrid");
                 s.quality.single_paths = paths;
             });
-        variant("paper h_usr 3000", "husr3000", [](scene::Scene& s) { s.virtual_lights.h_usr = 3000.0; });
-        variant("paper h_usr 750", "husr750", [](scene::Scene& s) { s.virtual_lights.h_usr = 750.0; });
-        variant("paper xi 0.99", "xi099", [](scene::Scene& s) { s.compression.xi = 0.99; });
-        variant("paper 500 m grid", "ds4", [](scene::Scene& s) { s.lighting_downsample = 4; });
-        variant("paper ss tol 1e-3", "sstol", [](scene::Scene& s) { s.transport.ss_tolerance = 1e-3; });
-        variant("paper 18 dirs", "dirs18", [](scene::Scene& s) { s.directions = 18; });
+        auto knob = [&](const std::string& name, const std::string& label, auto&& edit) {
+            variant("paper r1 " + name, "r1_" + label, [&](scene::Scene& s) {
+                lattice(1, 1)(s);
+                edit(s);
+            });
+        };
+        knob("h_usr 3000", "husr3000", [](scene::Scene& s) { s.virtual_lights.h_usr = 3000.0; });
+        knob("h_usr 750", "husr750", [](scene::Scene& s) { s.virtual_lights.h_usr = 750.0; });
+        knob("xi 0.99", "xi099", [](scene::Scene& s) { s.compression.xi = 0.99; });
+        knob("500 m grid", "ds4", [](scene::Scene& s) { s.lighting_downsample = 4; });
+        knob("ss tol 1e-3", "sstol", [](scene::Scene& s) { s.transport.ss_tolerance = 1e-3; });
+        knob("18 dirs", "dirs18", [](scene::Scene& s) { s.directions = 18; });
     }
+    // A variant whose bake is the scene's own (same key) uses the scene's file.
+    const basis::BakeKey base_key = bake::scene_key(base, density);
+    for (Config& c : configs)
+        if (bake::scene_key(c.scene, density) == base_key) c.bake = "storm";
 
     // --- strikes and their truths (one per lighting grid and direction set) ---
     std::vector<Strike> strikes;

@@ -49,12 +49,14 @@ void lb_vs_truth(const Context& ctx) {
         int refine;
         std::string thick;
         int exact_orders = 1;
+        std::uint64_t order2_paths = 50'000;
     };
     std::vector<Lattice> lattices = {{"refine 1 saturate", 1, "saturate"},
                                      {"refine 1 diffusion_matched", 1, "diffusion_matched"},
                                      {"refine 2", 2, "diffusion_matched"},
                                      {"refine 1, order 2 exact", 1, "diffusion_matched", 2},
-                                     {"refine 2, order 2 exact", 2, "diffusion_matched", 2}};
+                                     {"refine 2, order 2 exact", 2, "diffusion_matched", 2},
+                                     {"refine 2, order 2 exact (20k paths)", 2, "diffusion_matched", 2, 20'000}};
     if (!ctx.quick) {
         lattices.push_back({"refine 3", 3, "diffusion_matched"});
         lattices.push_back({"refine 3, order 2 exact", 3, "diffusion_matched", 2});
@@ -87,6 +89,7 @@ void lb_vs_truth(const Context& ctx) {
             s.transport.refine = l.refine;
             s.transport.lb_thick_voxels = l.thick;
             s.transport.lb_exact_orders = l.exact_orders;
+            s.transport.lb_order2_paths = l.order2_paths;
             const bake::Media media = bake::make_media(s, density);
             core::Stopwatch sw;
             const bake::Solution sol =

@@ -345,6 +345,27 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
                       std::to_string(media.transport.density.dims().y) + " x " +
                       std::to_string(media.transport.density.dims().z) +
                       "), averaged onto the lighting grid: thick voxels and the coarse medium cost less accuracy");
+    {
+        const scene::Quality& q = s.quality;
+        const std::string name(scene::to_string(q.preset));
+        if (q.preset == scene::Quality::Preset::Paper) {
+            why.push_back("quality = paper: every frame from the bases (the splat onto virtual lights)");
+        } else {
+            const int refine = q.refine > 0 ? q.refine : s.transport.refine;
+            const int orders = q.exact_orders > 0 ? q.exact_orders : s.transport.lb_exact_orders;
+            std::string solve = "single scattering by " + std::to_string(q.single_paths) + " paths";
+            if (q.multiple == "none")
+                solve += ", multiple scattering from the bases";
+            else if (q.multiple == "lattice")
+                solve += ", the lattice (exact orders " + std::to_string(orders) + ")";
+            else
+                solve += ", multiple scattering by " + std::to_string(q.multiple_paths) + " Monte Carlo paths";
+            why.push_back("quality = " + name + ": each strike solved once on a worker thread " +
+                          core::format_number(q.lookahead) + " s ahead (" + solve + ", on " +
+                          core::format_number(p.lighting.voxel_size / double(refine), 6) +
+                          " m voxels); the bases light its frames until it is ready");
+        }
+    }
     if (!p.single)
         why.push_back(
             "effects.single_scattering = false: the direct term is solved (it feeds the solver) but not stored");

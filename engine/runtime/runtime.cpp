@@ -356,6 +356,7 @@ struct FramePipeline::Impl {
         if (q.preset == scene::Quality::Preset::Paper) return;
         solve_scene = s;  // the per-strike transport grid may be finer than the bake's
         if (q.refine > 0) solve_scene.transport.refine = q.refine;
+        if (q.exact_orders > 0) solve_scene.transport.lb_exact_orders = q.exact_orders;
         media = bake::make_media(solve_scene, *density);
         // The worker takes one core less than the frame's share, at least one.
         solver = std::make_unique<StrikeSolver>(solve_scene, *density, *media, strike_solve_options(q),

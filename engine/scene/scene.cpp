@@ -276,6 +276,7 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
             q->fail("multiple_paths", "must be >= 1000 with \"multiple\": \"monte_carlo\"");
         k.lookahead = q->number_or("lookahead", k.lookahead, Range{0.0, 60.0});
         k.refine = int(q->integer_or("refine", k.refine, 0, 64));
+        k.exact_orders = int(q->integer_or("exact_orders", k.exact_orders, 0, 2));
         if (k.preset == Quality::Preset::Paper && k.multiple != "none")
             q->fail("multiple", "the paper preset solves nothing per strike: must be \"none\"");
         q->finish();

@@ -103,6 +103,10 @@ struct Quality {
     /// divisor of lighting.downsample); 0: transport.refine, as the bake. A finer per-strike
     /// lattice buys accuracy at run time without a slower bake.
     int refine = 0;
+    /// The per-strike lattice's exactly solved orders (1 or 2, as
+    /// transport.lattice_boltzmann.exact_orders); 0: the scene's, as the bake. Order 2 comes
+    /// from the single scattering's own paths (their expected-value second flight).
+    int exact_orders = 0;
 };
 
 /// The preset's name in scene files ("paper", "hybrid", "per_strike", "reference").

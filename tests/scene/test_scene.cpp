@@ -134,6 +134,13 @@ TEST_CASE("the default storm scene loads") {
     CHECK(s.lighting_downsample == 6);
     CHECK(s.separate_components);
     CHECK(s.transport.ss_tolerance == 1e-2);
+    // docs/lattice-boltzmann.md: the lattice on 375 m voxels with order 2 exact is the first
+    // configuration within 15% of the truth for every test light; 20k order-2 paths measured
+    // as accurate as 50k there.
+    CHECK(s.transport.refine == 2);
+    CHECK(s.transport.lb_exact_orders == 2);
+    CHECK(s.transport.lb_order2_paths == 20'000);
+    CHECK(s.quality.preset == fulgur::scene::Quality::Preset::PerStrike);  // docs/presets.md
     CHECK(s.compression.mode == fulgur::basis::ThresholdMode::Energy);
     CHECK(s.compression.precision == fulgur::basis::Precision::Float16);
     CHECK(s.lightning.bolt.kind == fulgur::lightning::Kind::CloudToGround);
@@ -203,6 +210,58 @@ TEST_CASE("transport.lattice_boltzmann.thick_voxels: default, both values, unkno
         parse_scene(with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "subgrid"}}, "cloud")"),
                     "t.json"),
         doctest::Contains("transport.lattice_boltzmann.thick_voxels"), Error);
+}
+
+TEST_CASE("quality: a preset's name or an object of knobs; bad values name the field") {
+    auto scene = [](const std::string& quality) {
+        return parse_scene(with("\"cloud\"", "\"quality\": " + quality + ", \"cloud\""), "q.json");
+    };
+    CHECK(parse_scene(kMinimal, "min.json").quality.preset == Quality::Preset::Paper);
+    const Quality h = scene(R"("hybrid")").quality;
+    CHECK(h.preset == Quality::Preset::Hybrid);
+    CHECK(h.multiple == "none");
+    const Quality p = scene(R"("per_strike")").quality;
+    CHECK(p.multiple == "lattice");
+    CHECK(p.refine == 0);        // the bake's transport grid
+    CHECK(p.exact_orders == 0);  // the bake's exact orders
+    const Quality r = scene(R"("reference")").quality;
+    CHECK(r.multiple == "monte_carlo");
+    CHECK(r.multiple_paths >= 1000);
+    const Quality k = scene(R"({"preset": "per_strike", "single_paths": 50000, "lookahead": 2.5, "refine": 2,
+                                "exact_orders": 2})")
+                          .quality;
+    CHECK(k.preset == Quality::Preset::PerStrike);
+    CHECK(k.single_paths == 50'000);
+    CHECK(k.lookahead == 2.5);
+    CHECK(k.refine == 2);
+    CHECK(k.exact_orders == 2);
+    CHECK(to_string(k.preset) == "per_strike");
+    CHECK_THROWS_WITH_AS(scene(R"("best")"), doctest::Contains("quality"), Error);
+    CHECK_THROWS_WITH_AS(scene(R"({"preset": "per_strike", "refine": 3})"), doctest::Contains("refine"), Error);
+    CHECK_THROWS_WITH_AS(scene(R"({"preset": "per_strike", "exact_orders": 3})"), doctest::Contains("exact_orders"),
+                         Error);
+    CHECK_THROWS_WITH_AS(scene(R"({"preset": "paper", "multiple": "lattice"})"), doctest::Contains("multiple"), Error);
+    CHECK_THROWS_WITH_AS(scene(R"({"preset": "hybrid", "multiple": "monte_carlo", "multiple_paths": 10})"),
+                         doctest::Contains("multiple_paths"), Error);
+    CHECK_THROWS_WITH_AS(scene(R"({"preset": "hybrid", "speed": 1})"), doctest::Contains("speed"), Error);
+}
+
+TEST_CASE("transport.refine and lattice_boltzmann.exact_orders: values and ranges naming the field") {
+    const Scene d = parse_scene(kMinimal, "min.json");
+    CHECK(d.transport.refine == 1);
+    CHECK(d.transport.lb_exact_orders == 1);
+    const Scene s = parse_scene(with("\"cloud\"", R"("transport": {"refine": 2, "lattice_boltzmann": {"exact_orders": 2,
+        "order2_paths": 20000}}, "cloud")"),
+                                "t.json");
+    CHECK(s.transport.refine == 2);
+    CHECK(s.transport.lb_exact_orders == 2);
+    CHECK(s.transport.lb_order2_paths == 20'000);
+    // The transport grid refines the lighting grid (downsample 4): 3 does not divide it.
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", R"("transport": {"refine": 3}, "cloud")"), "t.json"),
+                         doctest::Contains("transport.refine"), Error);
+    CHECK_THROWS_WITH_AS(
+        parse_scene(with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"exact_orders": 3}}, "cloud")"), "t.json"),
+        doctest::Contains("exact_orders"), Error);
 }
 
 TEST_CASE("lightning section: defaults, every field, and ranges naming the field") {
