@@ -233,6 +233,42 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
         }
     }
 
+    // Each quality preset on the same strikes (return-stroke peak + 2 ms): the frame once the
+    // strike's own solve is ready (the preset's steady cost), the solve's latency, and the
+    // ratio of frame times to the paper preset's in this run.
+    {
+        const int strikes = ctx.quick ? 2 : 5;
+        double paper_ms = 0.0;
+        for (const char* name : {"paper", "hybrid", "per_strike"}) {
+            core::set_thread_count(ctx.max_threads);
+            std::vector<double> frame_ms, solve_s;
+            for (int k = 0; k < strikes; ++k) {
+                runtime::FramePipeline p(s, c.config.density, bases, domain, scene::quality_preset(name));
+                const std::size_t i = p.strike_at(0.0, std::uint64_t(3000 + k));
+                const double t = p.storm().strike(i).profile.stroke_onset.at(0) + 0.002;
+                runtime::ReconstructOptions o;
+                o.wait_for_strikes = true;
+                (void)p.build(t, all_dirs, o);  // waits for the strike's solve
+                std::vector<double> b;
+                for (int r = 0; r < 6; ++r) b.push_back(p.build(t, all_dirs, o).times.total());
+                frame_ms.push_back(bench::median(b));
+                if (runtime::StrikeSolver* solver = p.strike_solver())
+                    for (const double l : solver->latencies()) solve_s.push_back(l);
+            }
+            const double ms = bench::median(frame_ms);
+            if (std::string_view(name) == "paper") paper_ms = ms;
+            nlohmann::json j = base;
+            j["threads"] = ctx.max_threads;
+            j["comparison"] = "quality preset, all directions, strike solved";
+            j["preset"] = name;
+            j["strikes"] = strikes;
+            j["frame_ms"] = ms;
+            j["ratio_to_paper"] = paper_ms > 0.0 ? ms / paper_ms : 0.0;
+            j["strike_solve_s"] = solve_s.empty() ? 0.0 : bench::median(solve_s);
+            ctx.emit("frame", j);
+        }
+    }
+
     // Direct solve vs basis frame on the same frames (return-stroke peak + 2 ms).
     const int direct_frames = ctx.quick ? 1 : 3;
     for (const int threads : {1, 2}) {
