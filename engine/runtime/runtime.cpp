@@ -363,6 +363,15 @@ struct FramePipeline::Impl {
                                                 std::max(1, core::thread_count() - 1));
     }
 
+    // The frame's per-build fields reset; its buffers (segments, sources, weights, radiance)
+    // kept for reuse.
+    Frame& begin_frame(double t) {
+        frame.time = t;
+        frame.lit = false;
+        frame.times = {};
+        frame.strikes_solved = frame.strikes_fallback = 0;
+        return frame;
+    }
     const Frame& build_paper(double t, std::span<const int> directions, const ReconstructOptions& options);
     const Frame& build_solved(double t, std::span<const int> directions, const ReconstructOptions& options);
 };
@@ -387,11 +396,7 @@ const Frame& FramePipeline::build(double t, std::span<const int> directions, con
 
 const Frame& FramePipeline::Impl::build_paper(double t, std::span<const int> directions,
                                               const ReconstructOptions& options) {
-    Frame& f = frame;
-    f.time = t;
-    f.lit = false;
-    f.times = {};
-    f.strikes_solved = f.strikes_fallback = 0;
+    Frame& f = begin_frame(t);
     core::Stopwatch sw;
     const bool glowing = storm.lit(t, f.segments);  // schedule (new bolts), active strikes, lit stretches
     f.times.bolt = sw.milliseconds();
@@ -434,11 +439,7 @@ void add_radiance(RadianceField& a, bool& a_valid, const RadianceField& b) {
 // (the paper frame), never by another strike's light.
 const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> directions,
                                                const ReconstructOptions& options) {
-    Frame& f = frame;
-    f.time = t;
-    f.lit = false;
-    f.times = {};
-    f.strikes_solved = f.strikes_fallback = 0;
+    Frame& f = begin_frame(t);
     core::Stopwatch sw;
     // Strikes starting soon are queued now, so their light is ready by their frames.
     for (const std::size_t i : storm.starting(t - 1.0, t + quality.lookahead)) {
