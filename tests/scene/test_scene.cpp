@@ -4,6 +4,7 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <numbers>
 #include <string>
 
 using fulgur::core::Error;
@@ -134,7 +135,7 @@ TEST_CASE("a sun (or moon): direction or elevation and azimuth, irradiance, colo
     REQUIRE(d.sun.has_value());
     // Light from the sun at 30 degrees above the horizon toward +y travels down and toward -y.
     CHECK(d.sun->direction.x == doctest::Approx(0.0).epsilon(1e-12));  // cos(90 deg) rounding only
-    CHECK(d.sun->direction.y == doctest::Approx(-std::cos(M_PI / 6)).epsilon(1e-12));
+    CHECK(d.sun->direction.y == doctest::Approx(-std::cos(std::numbers::pi / 6)).epsilon(1e-12));
     CHECK(d.sun->direction.z == doctest::Approx(-0.5).epsilon(1e-12));
     CHECK(d.sun->irradiance == 2.5e-3);
     CHECK(d.sun->name == "moon");

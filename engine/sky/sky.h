@@ -1,0 +1,111 @@
+// fulgur::sky — the light of the sky on the cloud: the sun (or the moon, a dim sun) and the
+// sky dome. Unlike lightning it does not change per frame, so it is solved once through the
+// lattice, as Geist et al. 2004 light their clouds (section 5, Appendix A), cached on disk,
+// and solved again only when the sun moves. docs/sky.md explains the model and the checks.
+//
+//   directional light -> exact single scattering S1 (and the uncollided fluence phi1) on the
+//   transport grid -> lattice-Boltzmann fed with S1 for orders >= 2 -> S averaged onto the
+//   lighting grid, per unit irradiance; the sky dome = many directional lights, two bases.
+//
+// Everything here is per unit irradiance (sun) or unit radiance (sky gradient ends): colour,
+// irradiance and radiance scale the stored fields when they are composed (compose()), so a
+// new moon brightness or sky colour needs no new solve; a new sun direction does.
+#pragma once
+
+#include "bake/bake.h"
+#include "core/core.h"
+#include "scene/scene.h"
+#include "transport/transport.h"
+
+#include <glm/vec3.hpp>
+
+#include <span>
+#include <string>
+#include <vector>
+
+namespace fulgur::sky {
+
+/// How a directional light is solved.
+enum class Method {
+    /// Exact single scattering (transport::single_scattering of the directional source, voxel
+    /// averages) and the lattice for orders >= 2, fed with it (first_scattered and
+    /// first_scattered_fluence), as bake::solve does for point lights. The default.
+    Hybrid,
+    /// Geist et al. as published: the light injected at the lattice boundary along the
+    /// Appendix A decomposition of its direction, every order from the lattice (the
+    /// uncollided beam too, on 18 lattice directions). `single` stays empty.
+    Lattice,
+};
+
+/// "hybrid" | "lattice"; throws core::Error naming `where` otherwise.
+Method parse_method(std::string_view s, std::string_view where);
+std::string_view to_string(Method m) noexcept;
+
+struct SolveSettings {
+    Method method = Method::Hybrid;
+    bool single = true;    ///< keep S1 (effects.single_scattering; computed anyway to feed the lattice)
+    bool multiple = true;  ///< run the lattice (effects.multiple_scattering)
+    transport::SingleScatteringOptions single_options;
+    transport::LbSettings lattice;
+    /// Directions sampling the sky dome (equal solid angles over the upper hemisphere). An
+    /// accuracy/time knob: each is one exact single-scattering solve.
+    int sky_samples = 32;
+};
+
+/// The scene's settings: bake::single_scattering_options, bake::lattice_settings and its
+/// effects (the same accuracy knobs as the virtual-light bake).
+SolveSettings solve_settings(const scene::Scene& s);
+
+/// S of one light on the lighting grid, per unit irradiance (a sun) or unit radiance (a sky
+/// basis), in W m^-2 sr^-1 per (W m^-2) or per (W m^-2 sr^-1).
+struct LightField {
+    transport::SourceField single;    ///< order 1 (Hybrid, single on); else empty
+    transport::SourceField multiple;  ///< orders >= 2 (Hybrid) or all orders (Lattice); empty without a lattice solve
+    int iterations = 0;               ///< lattice steps
+    bool converged = true;
+    /// The lattice's energy bookkeeping (transport::LbResult, W per step and W x steps):
+    /// injected_total = absorbed_total + escaped_total + stored.
+    double injected_per_step = 0.0, injected_total = 0.0, absorbed_total = 0.0, escaped_total = 0.0, stored = 0.0;
+    /// Power scattered once in the cloud, sum of sigma_s phi1 h^3 (Hybrid; W per unit light).
+    double first_scattered_power = 0.0;
+    double seconds_single = 0.0, seconds_multiple = 0.0;
+    bool empty() const noexcept { return single.data.empty() && multiple.data.empty(); }
+};
+
+/// Solves directional lights together (the result is linear in them: their sum) on
+/// media.transport and averages S onto media.lighting. `directions`: the output directions
+/// (transport::output_directions of the scene's effective count). Throws core::Error on bad
+/// input (a zero direction, non-finite irradiance).
+LightField solve_directional(const bake::Media& media, std::span<const transport::DirectionalSource> lights,
+                             std::span<const glm::dvec3> directions, const SolveSettings& settings);
+
+/// One direction of the sky dome, seen from the scene: `toward` points at the sky (z > 0).
+struct DomeSample {
+    glm::dvec3 toward{0.0, 0.0, 1.0};
+    double solid_angle = 0.0;  ///< sr; the samples' solid angles sum to 2 pi
+};
+/// `count` directions over the upper hemisphere with equal solid angles (a Fibonacci
+/// spiral in z = sin(elevation)), count >= 1.
+std::vector<DomeSample> dome_samples(int count);
+
+/// The sky dome's light: the response to each end of the gradient (scene::SkyDome), for unit
+/// radiance: L_zenith(el) = zenith_weight(sin el), L_horizon(el) = 1 - zenith_weight(sin el).
+/// A uniform sky has both ends equal, so it needs only their sum: `uniform` then holds it and
+/// zenith/horizon stay empty (one lattice solve instead of two).
+struct SkyField {
+    LightField zenith, horizon, uniform;
+};
+/// The dome as settings.sky_samples directional lights (each an exact single scattering,
+/// shared by both bases), then one lattice solve per basis. `uniform`: solve the sum only.
+SkyField solve_sky(const bake::Media& media, bool uniform, std::span<const glm::dvec3> directions,
+                   const SolveSettings& settings);
+
+/// Transmittance from the sun to every voxel centre of `density` (the full-resolution
+/// cloud) along -direction, through that density (sigma_t = extinction * rho; exact voxel
+/// traversal): what the renderer's single scattering at full resolution multiplies by. Only
+/// the voxels the renderer reads are computed: those within one voxel of the cloud (the ray
+/// march interpolates it where the density is non-zero) and those on the grid's faces (the
+/// ground's shadow looks it up where the ray to the sun enters the grid); the others hold 1.
+core::Grid3<float> sun_transmittance(const core::Grid3<float>& density, double extinction, const glm::dvec3& direction);
+
+}  // namespace fulgur::sky
