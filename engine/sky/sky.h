@@ -19,6 +19,10 @@
 
 #include <glm/vec3.hpp>
 
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -107,5 +111,137 @@ SkyField solve_sky(const bake::Media& media, bool uniform, std::span<const glm::
 /// march interpolates it where the density is non-zero) and those on the grid's faces (the
 /// ground's shadow looks it up where the ray to the sun enters the grid); the others hold 1.
 core::Grid3<float> sun_transmittance(const core::Grid3<float>& density, double extinction, const glm::dvec3& direction);
+
+// ---------------------------------------------------------------------------------------
+// The plan: what a scene's light needs and why
+
+/// Every solve a scene triggers, and why (printable). DESIGN.md: "no lightning means no
+/// virtual-light bake at all; no sun means no sun solve; isotropic scattering needs one
+/// output direction". The run-time effects (glow, ground) are listed too.
+struct ScenePlan {
+    /// The virtual-light bake (lightning on): its own plan. Absent: no bake, no .fgb.
+    std::optional<bake::Plan> lightning;
+    bool sun = false;          ///< a sun (or moon) solve
+    bool sky = false;          ///< the sky dome's solves
+    bool sky_uniform = false;  ///< a uniform sky: one lattice solve instead of two
+    int directions = 1;        ///< output directions of every solve
+    SolveSettings settings;    ///< how the sun and the sky are solved
+    /// Counts: lights the bake solves (each a single scattering + a lattice solve or Monte
+    /// Carlo), sun solves, and the sky's exact single scatterings and lattice solves.
+    std::size_t virtual_lights = 0;
+    int sun_solves = 0, sky_single_solves = 0, sky_lattice_solves = 0;
+    std::vector<std::string> reasons;  ///< one line per decision, in order
+    std::string to_text() const;
+};
+
+/// Plans the scene: throws core::Error naming the file and field when it asks for nothing
+/// that lights the cloud (no lightning, no sun, no sky, or neither single nor multiple
+/// scattering). The bake's part is bake::make_plan (with `options`).
+ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, const bake::PlanOptions& options = {});
+
+// ---------------------------------------------------------------------------------------
+// Solving once: the cache
+
+/// The key of a sun's or the sky's solve: bake::scene_key (density, medium, grids, transport
+/// settings) + what is solved (the sun's direction, or the sky's form and samples) and how.
+/// Irradiance, radiance and colours are not in it (the solves are per unit light).
+basis::BakeKey sun_key(const scene::Scene& s, const core::Grid3<float>& density, const SolveSettings& settings,
+                       const glm::dvec3& direction);
+basis::BakeKey sky_key(const scene::Scene& s, const core::Grid3<float>& density, const SolveSettings& settings,
+                       bool uniform);
+
+/// A field of a light file, by name ("single", "zenith.multiple", ...).
+struct NamedField {
+    std::string name;
+    transport::SourceField field;
+};
+/// Writes fields (one geometry and direction set) with their key, checksummed, atomically.
+/// File format: docs/sky.md.
+void write_light_file(const std::filesystem::path& path, const basis::BakeKey& key, std::span<const NamedField> fields);
+/// Reads a light file, validating every size against the file and the checksum; with
+/// `expected`, a file solved for another key is rejected ("stale": the first differing
+/// line). Errors name the file and the byte offset.
+std::vector<NamedField> read_light_file(const std::filesystem::path& path, const basis::BakeKey* expected = nullptr);
+
+/// The scene's static light, per unit light.
+struct StaticLight {
+    std::optional<LightField> sun;             ///< per unit irradiance
+    glm::dvec3 sun_direction{0.0, 0.0, -1.0};  ///< what `sun` was solved for
+    std::optional<SkyField> sky;               ///< per unit radiance
+};
+
+/// Where solves are cached: `dir` (created when missing), or beside the scene file when
+/// empty; nothing is cached when `enabled` is false or the scene has no file.
+struct CacheOptions {
+    bool enabled = true;
+    std::filesystem::path dir;
+};
+/// The cache file of the scene's sun or sky ("sun" | "sky"): <dir>/<scene stem>.<kind>.fgl.
+std::optional<std::filesystem::path> cache_path(const scene::Scene& s, const CacheOptions& cache,
+                                                std::string_view kind);
+
+/// The plan's solves: each light is read from its cache file when that is fresh, else solved
+/// (and written). `say` is told what happens ("sun: solved in 0.4 s (no cache file)").
+StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& density, const bake::Media& media,
+                          const ScenePlan& plan, const CacheOptions& cache = {},
+                          const std::function<void(const std::string&)>& say = {});
+
+// ---------------------------------------------------------------------------------------
+// Composing the colour the renderer draws
+
+struct ComposeOptions {
+    bool sun = true, sky = true;          ///< include each (run-time switches)
+    bool sun_single = true;               ///< the sun's order 1 (false: drawn at full resolution)
+    bool single = true, multiple = true;  ///< which orders (the sky's and the sun's)
+};
+/// S of the static light in colour on the lighting grid: for each output direction, rgb per
+/// cell (x fastest): irradiance x colour x the sun's field + the sky's ends x their radiance
+/// and colour. Empty (no directions) when nothing is included.
+struct ColourField {
+    core::GridGeometry geom;
+    std::vector<glm::dvec3> directions;
+    std::vector<std::vector<float>> rgb;  ///< per direction, 3 floats per cell
+    bool empty() const noexcept { return rgb.empty(); }
+};
+ColourField compose(const StaticLight& light, const std::optional<scene::Sun>& sun,
+                    const std::optional<scene::SkyDome>& sky, const ComposeOptions& options);
+
+// ---------------------------------------------------------------------------------------
+// Solving again when the sun moves
+
+/// A sun solved for one direction: its field and its full-resolution transmittance.
+struct SunSolve {
+    glm::dvec3 direction{0.0, 0.0, -1.0};
+    LightField field;
+    core::Grid3<float> transmittance;  ///< sun_transmittance of the scene's density
+    double seconds = 0.0;              ///< wall time of the solve (lattice + transmittance)
+};
+/// The scene's sun solve for `direction` (sun_transmittance included). Seconds.
+SunSolve solve_sun(const scene::Scene& s, const core::Grid3<float>& density, const bake::Media& media,
+                   const SolveSettings& settings, const glm::dvec3& direction);
+
+/// Solves the sun again on a worker thread whenever asked (the demo's time-of-day slider):
+/// only the newest request matters, the caller keeps showing the old field until take()
+/// returns the new one. Thread-safe.
+class SunResolver {
+public:
+    /// Keeps references to the arguments; they must outlive it. `threads`: the worker's share
+    /// of the cores (>= 1).
+    SunResolver(const scene::Scene& s, const core::Grid3<float>& density, const bake::Media& media,
+                const SolveSettings& settings, int threads);
+    ~SunResolver();
+    SunResolver(const SunResolver&) = delete;
+    SunResolver& operator=(const SunResolver&) = delete;
+    /// Asks for the sun along `direction`; replaces a request not yet started.
+    void request(const glm::dvec3& direction);
+    /// The newest finished solve not taken yet; rethrows a solve's error.
+    std::optional<SunSolve> take();
+    /// A request is queued or being solved.
+    bool busy() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
 
 }  // namespace fulgur::sky
