@@ -43,8 +43,17 @@ void declare(CommandLine& cli, ShotArgs& a) {
     cli.number("--repeat", a.repeat,
                "render the frame N times and report median stage times (the image written is the same as one render's)",
                1, 1000);
-    cli.number("--exposure", a.exposure_ev, "exposure change in stops from the default (0)", -20.0, 20.0, "stops")
+    cli.number("--exposure", a.exposure_ev, "stops added to the automatic exposure (0)", -20.0, 20.0, "stops")
         ->type_name("EV in -20..20");
+    app.add_option_function<std::string>(
+           "--manual-exposure",
+           [&a](const std::string& v) {
+               a.manual_exposure = parse_number<double>(v, kTool, "--manual-exposure");
+               if (!std::isfinite(*a.manual_exposure) || !(*a.manual_exposure > 0.0))
+                   throw core::Error(kTool, "--manual-exposure must be finite and > 0");
+           },
+           "a fixed exposure (linear multiplier before the tone map) instead of the automatic one")
+        ->type_name("X");
     app.add_option("-o,--output", a.output, "output PNG")->type_name("OUT.png")->required();
     app.add_option_function<std::string>(
            "--reference",

@@ -68,12 +68,16 @@ std::vector<double> flash_times(const lightning::FlashProfile& f, double start, 
     return t;
 }
 
-int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb, int frames, int w,
-                      int h, std::uint64_t seed) {
+int headless_sequence(scene::Scene s, core::Grid3<float> density, const sky::ScenePlan& plan,
+                      const std::optional<std::filesystem::path>& fgb, int frames, int w, int h, std::uint64_t seed) {
     auto ctx = platform::create_headless({.width = w, .height = h});
-    view::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
-    const std::size_t strike = view.pipeline().strike_at(0.0, seed);
-    const std::vector<double> times = flash_times(view.pipeline().storm().strike(strike).profile, 0.0, frames);
+    view::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address(),
+                         app::static_setup(plan, stdout));
+    std::vector<double> times(std::size_t(frames), 0.0);  // without lightning: the same still scene
+    if (view.has_lightning()) {
+        const std::size_t strike = view.pipeline().strike_at(0.0, seed);
+        times = flash_times(view.pipeline().storm().strike(strike).profile, 0.0, frames);
+    }
     const render::Camera cam = view::default_camera(view.density());
     for (int i = 0; i < frames; ++i) {
         const double t = times[std::size_t(i)];
@@ -85,6 +89,25 @@ int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::fil
                     app::timings_json(r, w, h, "fulgur").c_str());
     }
     return 0;
+}
+
+// The exposure controls: automatic (with eye adaptation: at once toward a flash, over
+// seconds back to the night) and its compensation, or a manual exposure starting from the
+// last automatic one.
+void exposure_panel(render::Settings& st, const view::FrameReport& last, double dt) {
+    const bool was_auto = st.auto_exposure;
+    ImGui::Checkbox("automatic exposure", &st.auto_exposure);
+    if (was_auto && !st.auto_exposure && last.gpu.exposure > 0.0) st.exposure = last.gpu.exposure;
+    if (st.auto_exposure) {
+        float ev = float(st.exposure_compensation);
+        if (ImGui::SliderFloat("compensation (EV)", &ev, -4.0f, 4.0f)) st.exposure_compensation = double(ev);
+        ImGui::Text("exposure %.3g (metered %.3g)", last.gpu.exposure, last.gpu.metered_exposure);
+        st.previous_exposure = last.gpu.exposure;
+        st.adaptation_seconds = dt;
+    } else {
+        float expo = float(std::log2(st.exposure));
+        if (ImGui::SliderFloat("exposure (EV)", &expo, -20.0f, 16.0f)) st.exposure = std::exp2(double(expo));
+    }
 }
 
 const char* kNoDisplay =
@@ -106,16 +129,19 @@ int main(int argc, char** argv) {
     try {
         scene::Scene s = scene::load_scene(scene_path);
         core::Grid3<float> density = scene::make_density(s);
-        const auto fgb = app::ensure_baked(s, density, std::nullopt);
+        const sky::ScenePlan plan = app::plan_and_print(s, density, stdout);
+        const auto fgb = app::bases_for(plan, s, density, std::nullopt);
         if (force_headless || !platform::display_available()) {
             if (!force_headless) std::printf(kNoDisplay, frames);
             const std::uint64_t sd = seed_arg.value_or(s.lightning.seed);
-            return headless_sequence(std::move(s), std::move(density), fgb, frames, std::min(W, 640), std::min(H, 360),
-                                     sd);
+            return headless_sequence(std::move(s), std::move(density), plan, fgb, frames, std::min(W, 640),
+                                     std::min(H, 360), sd);
         }
         app::DemoShell shell(W, H, "Fulgur", screenshot_after);
-        view::StormView view(std::move(s), std::move(density), fgb, shell.context().get_proc_address());
-        const bool separate = view.bases().has_multiple();
+        view::StormView view(std::move(s), std::move(density), fgb, shell.context().get_proc_address(),
+                             app::static_setup(plan, stdout));
+        const bool has_lightning = view.has_lightning();
+        const bool separate = has_lightning ? view.bases().has_multiple() : view.scene().effects.multiple_scattering;
 
         app::Orbit orbit{-90, 6, 1.1, 0.4, 5.0};  // distance as a multiple of the cloud size
         view::ViewOptions opt;
@@ -130,9 +156,12 @@ int main(int argc, char** argv) {
         const SliceGL gl = load_slice_gl();
         GLuint slice_tex = 0;
         gl.GenTextures(1, &slice_tex);
-        const std::size_t first = view.pipeline().strike_at(0.2, std::uint64_t(seed));
         // --screenshot-at-peak holds the time 2 ms after the first strike's return stroke.
-        const double peak_time = 0.2 + view.pipeline().storm().strike(first).profile.stroke_onset.at(0) + 0.002;
+        double peak_time = 0.2;
+        if (has_lightning) {
+            const std::size_t first = view.pipeline().strike_at(0.2, std::uint64_t(seed));
+            peak_time += view.pipeline().storm().strike(first).profile.stroke_onset.at(0) + 0.002;
+        }
         float slow = float(time_scale);
         lightning::LightningParams lp = view.scene().lightning;
         // The slider holds a float: compare against what it can represent, or the first frame
@@ -159,7 +188,8 @@ int main(int argc, char** argv) {
             ImGui::Begin("Fulgur", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
             ImGui::Text("%.1f fps  (%.1f ms frame)", shell.fps(), rep.wall_ms);
             ImGui::Separator();
-            ImGui::TextUnformatted("Lightning");
+            ImGui::BeginDisabled(!has_lightning);
+            ImGui::TextUnformatted(has_lightning ? "Lightning" : "Lightning (the scene has none)");
             ImGui::InputInt("seed", &seed);
             if (ImGui::Button("Strike now")) strike = true;
             ImGui::Checkbox("automatic strikes", &autos);
@@ -180,6 +210,7 @@ int main(int argc, char** argv) {
                 b.branch_probability = bp, b.angle_spread_deg = sp, b.intensity = std::pow(10.0, double(ie));
                 if (changed) shape_changed = true;
             }
+            ImGui::EndDisabled();
             ImGui::Separator();
             ImGui::TextUnformatted("Light");
             ImGui::BeginDisabled(!separate);
@@ -191,8 +222,7 @@ int main(int argc, char** argv) {
             ImGui::Checkbox("glow", &opt.settings.glow);
             ImGui::Checkbox("bolt", &opt.settings.bolt);
             ImGui::Checkbox("ground", &opt.settings.ground);
-            float expo = float(std::log2(opt.settings.exposure));
-            if (ImGui::SliderFloat("exposure (EV)", &expo, -6, 6)) opt.settings.exposure = std::exp2(expo);
+            exposure_panel(opt.settings, rep, shell.dt());
             float scale = float(opt.settings.internal_scale);
             if (ImGui::SliderFloat("internal scale", &scale, 0.25f, 1.0f)) opt.settings.internal_scale = scale;
             ImGui::Separator();
@@ -258,7 +288,7 @@ int main(int argc, char** argv) {
             }
 
             const double want_rate = autos ? double(rate) : 0.0;
-            if (shape_changed || want_rate != lp.schedule.strike_rate) {
+            if (has_lightning && (shape_changed || want_rate != lp.schedule.strike_rate)) {
                 // Bolt shape / schedule changed: new storm (bolts regenerate), same bake.
                 lp.schedule.strike_rate = want_rate;
                 lp.schedule.first_strike = t + 0.5;
@@ -267,7 +297,7 @@ int main(int argc, char** argv) {
                 shape_changed = false;
                 reference.reset();
             }
-            if (strike) view.pipeline().strike_at(t, std::uint64_t(seed++));
+            if (strike && has_lightning) view.pipeline().strike_at(t, std::uint64_t(seed++));
             // The reference belongs to one frame and one choice of components.
             if (reference && (strike || reference->components.single != opt.components.single ||
                               reference->components.multiple != opt.components.multiple))

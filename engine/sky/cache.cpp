@@ -243,7 +243,8 @@ std::vector<NamedField> read_light_file(const std::filesystem::path& path, const
 std::optional<std::filesystem::path> cache_path(const scene::Scene& s, const CacheOptions& cache,
                                                 std::string_view kind) {
     if (!cache.enabled || s.path.empty()) return std::nullopt;
-    const std::filesystem::path dir = cache.dir.empty() ? s.path.parent_path() : cache.dir;
+    std::filesystem::path dir = cache.dir.empty() ? s.path.parent_path() : cache.dir;
+    if (dir.empty()) dir = ".";  // a scene named relative to the working directory
     return dir / (s.path.stem().string() + "." + std::string(kind) + ".fgl");
 }
 

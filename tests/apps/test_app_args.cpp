@@ -33,6 +33,12 @@ TEST_CASE("fulgur-shot: a complete command line parses") {
     more.insert(more.end(), {"--repeat", "12", "--exposure", "-2.5"});
     CHECK(parse(more).repeat == 12);
     CHECK(parse(more).exposure_ev == -2.5);
+    CHECK_FALSE(parse(more).manual_exposure.has_value());  // automatic unless asked
+    std::vector<std::string> manual = good;
+    manual.insert(manual.end(), {"--manual-exposure", "0.125"});
+    CHECK(parse(manual).manual_exposure.value() == 0.125);
+    manual.back() = "0";
+    CHECK_THROWS_WITH_AS(parse(manual), doctest::Contains("--manual-exposure must be finite and > 0"), core::Error);
     more[more.size() - 3] = "0";  // --repeat 0
     CHECK_THROWS_AS(parse(more), core::Error);
     CHECK(a.width == 64);
