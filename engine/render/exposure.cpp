@@ -22,13 +22,19 @@ ExposureChoice choose_exposure(std::span<const std::uint32_t> bins, double log2_
     }
     const double L = std::exp2(sum_log2 / n);
     out.log_average = L;
-    const double key = 1.03 - 2.0 / (2.0 + std::log10(683.0 * L + 1.0));
-    double e = key / L;
-    // Highlights: the luminance exceeded by highlight_fraction of the lit pixels (above L).
+    // The lit pixels: those at or above the frame's log-average (a dark sky around a lit
+    // cloud would otherwise pull the key's luminance down and show the cloud too bright).
     const std::size_t first_lit =
         std::size_t(std::clamp(std::floor((std::log2(L) - log2_min) / bin_width), 1.0, double(bins.size() - 1)));
-    double lit = 0.0;
-    for (std::size_t b = first_lit; b < bins.size(); ++b) lit += double(bins[b]);
+    double lit = 0.0, lit_log2 = 0.0;
+    for (std::size_t b = first_lit; b < bins.size(); ++b) {
+        lit += double(bins[b]);
+        lit_log2 += double(bins[b]) * (log2_min + (double(b) + 0.5) * bin_width);
+    }
+    const double L_lit = std::exp2(lit_log2 / lit);
+    const double key = 1.03 - 2.0 / (2.0 + std::log10(683.0 * L_lit + 1.0));
+    double e = key / L_lit;
+    // Highlights: the luminance exceeded by highlight_fraction of the lit pixels.
     double above = 0.0;
     for (std::size_t b = bins.size(); b-- > first_lit;) {
         above += double(bins[b]);

@@ -43,6 +43,14 @@ TEST_CASE("exposure: the key of a uniform frame, dim scenes dimmer; the highligh
     CHECK(key(1e-4) < key(1.0));
     CHECK(key(1.0) < key(100.0));
 
+    // A dark sky around a uniformly lit cloud: the key is the cloud's (the lit pixels, at or
+    // above the frame's log-average), not pulled down by the sky.
+    std::fill(h.begin(), h.end(), 0u);
+    h[bin(1e-7)] = 60000;  // night sky
+    h[bin(1.0)] = 10000;   // cloud
+    CHECK(detail::choose_exposure(h, kMin, kWidth, st).metered ==
+          doctest::Approx(key(centre(1.0)) / centre(1.0)).epsilon(1e-12));
+
     // A dark background with a lit cloud: the key alone would put the cloud far past white;
     // the guard puts the top 2% of the lit pixels at kHighlightExposed.
     std::fill(h.begin(), h.end(), 0u);

@@ -24,11 +24,12 @@ struct ExposureChoice {
 
 /// bins[b] counts pixels of luminance in [2^(log2_min + b w), 2^(log2_min + (b+1) w)), bin 0
 /// also black pixels. The exposure is the lower of
-///   * the key: the frame's log-average luminance L (non-black pixels) mapped to the
-///     Krawczyk, Myszkowski & Seidel 2005 key of its luminance in cd/m^2 (taken as 683 L), so
-///     dim scenes stay dim and bright ones bright;
+///   * the key: the log-average luminance L_lit of the lit pixels (those at or above the
+///     log-average of the non-black ones) mapped to the Krawczyk, Myszkowski & Seidel 2005
+///     key of its luminance in cd/m^2 (taken as 683 L_lit), so dim scenes stay dim and bright
+///     ones bright;
 ///   * the highlights: the luminance exceeded by settings.highlight_fraction of the lit pixels
-///     (those above L) mapped to kHighlightExposed, below the tone curve's white;
+///     mapped to kHighlightExposed, below the tone curve's white;
 /// then the compensation and the adaptation. A frame with no non-black pixel keeps
 /// settings.previous_exposure (else settings.exposure).
 ExposureChoice choose_exposure(std::span<const std::uint32_t> bins, double log2_min, double bin_width,
