@@ -189,3 +189,29 @@ TEST_CASE("the sun solved again on a worker thread: the newest request wins, the
     CHECK(got->field.multiple.data == direct.field.multiple.data);  // the same solve, deterministic
     CHECK_FALSE(r.busy());
 }
+
+TEST_CASE("plan: the three content scenes trigger exactly the solves they call for") {
+    struct Expect {
+        const char* scene;
+        bool bake;
+        int sun, sky_single, sky_lattice, directions;
+        const char* reason;
+    };
+    for (const Expect e : {Expect{"storm", true, 1, 32, 2, 26, "moon (elevation 40 deg, azimuth -130 deg)"},
+                           Expect{"dusk-storm", true, 1, 32, 2, 26, "sun (elevation 5 deg, azimuth -30 deg)"},
+                           Expect{"day-cumulus", false, 1, 32, 2, 26, "no lightning (effects.lightning = false)"}}) {
+        INFO(e.scene);
+        const scene::Scene s =
+            scene::load_scene(test::source_dir() / "content/scenes" / (std::string(e.scene) + ".json"));
+        const core::Grid3<float> d = scene::make_density(s);
+        const sky::ScenePlan p = sky::plan_scene(s, d, quick());
+        CHECK(p.lightning.has_value() == e.bake);
+        if (e.bake) CHECK(p.virtual_lights == 968);  // the default storm's grid (docs/bake.md)
+        if (!e.bake) CHECK(p.virtual_lights == 0);
+        CHECK(p.sun_solves == e.sun);
+        CHECK(p.sky_single_solves == e.sky_single);
+        CHECK(p.sky_lattice_solves == e.sky_lattice);
+        CHECK(p.directions == e.directions);
+        CHECK(mentions(p, e.reason));
+    }
+}
