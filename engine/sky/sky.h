@@ -220,6 +220,27 @@ struct SunSolve {
 SunSolve solve_sun(const scene::Scene& s, const core::Grid3<float>& density, const bake::Media& media,
                    const SolveSettings& settings, const glm::dvec3& direction);
 
+/// The sun's (or the moon's) course over a day, for the time-of-day control: an equinox day
+/// at a latitude whose noon sun stands at least 10 degrees above the scene's (and at least
+/// 50), turned in azimuth so that it passes through the scene's sun in the afternoon (at
+/// scene_hour). Away from the scene's elevation the light crosses another air mass (Kasten &
+/// Young 1989; a clear atmosphere's optical depth per channel): a low sun is dimmer and
+/// redder. docs/sky.md "Time of day".
+struct SunCourse {
+    scene::Sun scene_sun;
+    double scene_elevation = 0.0, scene_azimuth = 0.0;  ///< degrees
+    double latitude = 0.0;                              ///< degrees
+    double azimuth_offset = 0.0;                        ///< degrees
+    double scene_hour = 12.0;                           ///< solar time of the scene's sun
+    double first_hour = 6.0, last_hour = 18.0;          ///< the sun at least 1 degree high
+    /// The sun at solar time `hour` (clamped to [first_hour, last_hour]): direction, colour
+    /// (luminance 1) and irradiance; at(scene_hour) is the scene's sun.
+    scene::Sun at(double hour) const;
+    /// Elevation and azimuth (degrees, the scene's convention) at `hour`.
+    void angles(double hour, double& elevation_deg, double& azimuth_deg) const;
+};
+SunCourse sun_course(const scene::Sun& sun);
+
 /// Solves the sun again on a worker thread whenever asked (the demo's time-of-day slider):
 /// only the newest request matters, the caller keeps showing the old field until take()
 /// returns the new one. Thread-safe.

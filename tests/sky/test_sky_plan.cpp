@@ -9,6 +9,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <glm/geometric.hpp>
+
 #include <chrono>
 #include <fstream>
 #include <thread>
@@ -213,5 +215,38 @@ TEST_CASE("plan: the three content scenes trigger exactly the solves they call f
         CHECK(p.sky_lattice_solves == e.sky_lattice);
         CHECK(p.directions == e.directions);
         CHECK(mentions(p, e.reason));
+    }
+}
+
+TEST_CASE("time of day: the sun's course passes through the scene's sun, redder and dimmer when low") {
+    for (const auto& [el, az] :
+         {std::pair{5.0, -30.0}, std::pair{40.0, -130.0}, std::pair{32.0, 25.0}, std::pair{85.0, 170.0}}) {
+        INFO("elevation " << el << ", azimuth " << az);
+        scene::Sun sun;
+        sun.direction = scene::sun_direction(el, az);
+        sun.irradiance = 60.0;
+        sun.colour = glm::dvec3(1.0, 0.5, 0.22) / scene::luminance({1.0, 0.5, 0.22});
+        const sky::SunCourse c = sky::sun_course(sun);
+        // At its own hour the course is the scene's sun (1e-9: rounding through acos/atan2).
+        const scene::Sun s0 = c.at(c.scene_hour);
+        CHECK(glm::length(s0.direction - sun.direction) < 1e-9);
+        CHECK(s0.irradiance == doctest::Approx(sun.irradiance).epsilon(1e-9));
+        CHECK(glm::length(s0.colour - sun.colour) < 1e-9);
+        CHECK(c.scene_hour > 12.0);  // the afternoon
+        // Noon is the highest, the ends of the course 1 degree above the horizon.
+        double e = 0.0, a = 0.0;
+        c.angles(12.0, e, a);
+        CHECK(e >= std::max(50.0, el) - 1e-9);
+        c.angles(c.first_hour, e, a);
+        CHECK(e == doctest::Approx(1.0).epsilon(1e-9));
+        c.angles(c.last_hour, e, a);
+        CHECK(e == doctest::Approx(1.0).epsilon(1e-9));
+        // Lower: dimmer and redder (blue over red falls), colour of luminance 1.
+        const scene::Sun noon = c.at(12.0), late = c.at(c.last_hour);
+        CHECK(late.irradiance < s0.irradiance);
+        CHECK(noon.irradiance > s0.irradiance);
+        CHECK(late.colour.z / late.colour.x < s0.colour.z / s0.colour.x);
+        CHECK(scene::luminance(late.colour) == doctest::Approx(1.0).epsilon(1e-12));
+        CHECK(c.at(30.0).direction == late.direction);  // clamped to the course
     }
 }
