@@ -20,6 +20,7 @@ struct DemoArgs {
     std::optional<std::uint64_t> seed;  ///< the first strike's seed (default: the scene's)
     double time_scale = 0.25;           ///< storm seconds per wall-clock second
     bool dither = true;                 ///< --no-dither turns the 8-bit dither off
+    std::optional<double> time_of_day;  ///< --time-of-day H: the sun moved to solar time H at the start
     bool help = false;
 };
 

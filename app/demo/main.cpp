@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -69,10 +70,17 @@ std::vector<double> flash_times(const lightning::FlashProfile& f, double start, 
 }
 
 int headless_sequence(scene::Scene s, core::Grid3<float> density, const sky::ScenePlan& plan,
-                      const std::optional<std::filesystem::path>& fgb, int frames, int w, int h, std::uint64_t seed) {
+                      const std::optional<std::filesystem::path>& fgb, int frames, int w, int h, std::uint64_t seed,
+                      std::optional<double> time_of_day) {
     auto ctx = platform::create_headless({.width = w, .height = h});
     view::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address(),
                          app::static_setup(plan, stdout));
+    if (time_of_day && plan.sun) {  // the sun moved along its course, solved here
+        const sky::SunCourse course = sky::sun_course(*view.scene().sun);
+        const scene::Sun sun = course.at(*time_of_day);
+        view.set_sun_solve(sky::solve_sun(view.scene(), view.density(), view.media(), plan.settings, sun.direction));
+        view.set_sun(sun);
+    }
     std::vector<double> times(std::size_t(frames), 0.0);  // without lightning: the same still scene
     if (view.has_lightning()) {
         const std::size_t strike = view.pipeline().strike_at(0.0, seed);
@@ -110,6 +118,84 @@ void exposure_panel(render::Settings& st, const view::FrameReport& last, double 
     }
 }
 
+// The time of day: the scene's sun (or moon) moved along its course (sky::SunCourse). A new
+// direction is solved on a worker thread (sky::SunResolver, one core: the other keeps
+// rendering) while the view keeps showing the field of the last solve; irradiance and colour
+// follow the solve that arrives, so what is shown is always one consistent sun.
+class TimeOfDay {
+public:
+    // Keeps references into `view` (scene, density, media): declared after it.
+    TimeOfDay(view::StormView& view, std::optional<double> start_hour)
+        : view_(view), course_(sky::sun_course(*view.scene().sun)), shown_(course_.scene_hour) {
+        resolver_ =
+            std::make_unique<sky::SunResolver>(view.scene(), view.density(), view.media(), view.plan().settings, 1);
+        hour_ = float(shown_);
+        if (start_hour) {
+            hour_ = float(std::clamp(*start_hour, course_.first_hour, course_.last_hour));
+            request();
+        }
+    }
+    // Takes a finished solve (the newest) and shows it.
+    void update() {
+        std::optional<sky::SunSolve> r = resolver_->take();
+        if (!r) return;
+        // The request it answers (the ones before it were skipped); later ones are still coming.
+        for (std::size_t i = requests_.size(); i-- > 0;)
+            if (requests_[i].second == r->direction) {
+                shown_ = requests_[i].first;
+                requests_.erase(requests_.begin(), requests_.begin() + std::ptrdiff_t(i) + 1);
+                break;
+            }
+        last_seconds_ = r->seconds;
+        double el = 0.0, az = 0.0;
+        course_.angles(shown_, el, az);
+        std::printf("time of day: %.2f h (elevation %.1f deg, azimuth %.0f deg), solved in %.0f ms\n", shown_, el, az,
+                    1e3 * last_seconds_);
+        view_.set_sun_solve(std::move(*r));
+        view_.set_sun(course_.at(shown_));
+    }
+    bool busy() const { return resolver_->busy(); }
+    // The panel section: the slider, where the sun stands, the re-solve's state.
+    void panel() {
+        const std::string& name = view_.scene().sun->name;
+        ImGui::Text("Time of day (the %s)", name.empty() ? "sun" : name.c_str());
+        if (ImGui::SliderFloat("solar time (h)", &hour_, float(course_.first_hour), float(course_.last_hour), "%.2f"))
+            request();
+        double el = 0.0, az = 0.0;
+        course_.angles(shown_, el, az);
+        ImGui::Text("shown: %.2f h, elevation %.1f deg, azimuth %.0f deg", shown_, el, az);
+        if (busy())
+            ImGui::TextUnformatted("solving the new direction (the old light stays shown)...");
+        else if (last_seconds_ > 0.0)
+            ImGui::Text("last re-solve %.0f ms (lattice + full-resolution transmittance)", 1e3 * last_seconds_);
+    }
+
+private:
+    void request() {
+        const glm::dvec3 d = course_.at(double(hour_)).direction;
+        requests_.emplace_back(double(hour_), d);
+        resolver_->request(d);
+    }
+    view::StormView& view_;
+    sky::SunCourse course_;
+    std::unique_ptr<sky::SunResolver> resolver_;
+    std::vector<std::pair<double, glm::dvec3>> requests_;  // not yet shown: hour and direction
+    float hour_ = 12.0f;
+    double shown_ = 12.0, last_seconds_ = 0.0;
+};
+
+// The static light's run-time switches (the scene's effects must call for each).
+void static_light_panel(view::ViewOptions& opt, const sky::ScenePlan& plan) {
+    ImGui::BeginDisabled(!plan.sun);
+    ImGui::Checkbox("sun / moon", &opt.sun);
+    ImGui::SameLine();
+    ImGui::Checkbox("silver lining (full resolution)", &opt.sun_full_resolution);
+    ImGui::EndDisabled();
+    ImGui::BeginDisabled(!plan.sky);
+    ImGui::Checkbox("sky light", &opt.sky);
+    ImGui::EndDisabled();
+}
+
 const char* kNoDisplay =
     "fulgur: no display available (DISPLAY unset or GLFW cannot open it); rendering %d headless frames into out/ "
     "instead\n";
@@ -135,13 +221,15 @@ int main(int argc, char** argv) {
             if (!force_headless) std::printf(kNoDisplay, frames);
             const std::uint64_t sd = seed_arg.value_or(s.lightning.seed);
             return headless_sequence(std::move(s), std::move(density), plan, fgb, frames, std::min(W, 640),
-                                     std::min(H, 360), sd);
+                                     std::min(H, 360), sd, args.time_of_day);
         }
         app::DemoShell shell(W, H, "Fulgur", screenshot_after);
         view::StormView view(std::move(s), std::move(density), fgb, shell.context().get_proc_address(),
                              app::static_setup(plan, stdout));
         const bool has_lightning = view.has_lightning();
         const bool separate = has_lightning ? view.bases().has_multiple() : view.scene().effects.multiple_scattering;
+        std::optional<TimeOfDay> time_of_day;
+        if (view.plan().sun) time_of_day.emplace(view, args.time_of_day);
 
         app::Orbit orbit{-90, 6, 1.1, 0.4, 5.0};  // distance as a multiple of the cloud size
         view::ViewOptions opt;
@@ -222,9 +310,14 @@ int main(int argc, char** argv) {
             ImGui::Checkbox("glow", &opt.settings.glow);
             ImGui::Checkbox("bolt", &opt.settings.bolt);
             ImGui::Checkbox("ground", &opt.settings.ground);
+            static_light_panel(opt, view.plan());
             exposure_panel(opt.settings, rep, shell.dt());
             float scale = float(opt.settings.internal_scale);
             if (ImGui::SliderFloat("internal scale", &scale, 0.25f, 1.0f)) opt.settings.internal_scale = scale;
+            if (time_of_day) {
+                ImGui::Separator();
+                time_of_day->panel();
+            }
             ImGui::Separator();
             ImGui::TextUnformatted("Accuracy: basis method vs direct solve");
             if (!reference) {
@@ -319,6 +412,10 @@ int main(int argc, char** argv) {
                 std::fprintf(stderr, "fulgur: direct solve %.2f s, basis %.3f ms, S off by %.1f%%\n", r.seconds,
                              r.basis_ms, 100.0 * r.error);
                 reference = std::move(r);
+            }
+            if (time_of_day) {
+                time_of_day->update();
+                if (time_of_day->busy()) shell.delay_screenshot();  // a screenshot shows the new sun
             }
             opt.settings.frame_index++;
             const render::Camera cam = view::default_camera(view.density(), orbit.az, orbit.el, orbit.dist);

@@ -41,6 +41,10 @@ public:
     double fps() const noexcept { return fps_; }              ///< exponentially smoothed
     bool strike_pressed() const noexcept { return strike_; }  ///< Space went down this frame
     void request_screenshot() noexcept { screenshot_ = true; }
+    /// Moves a --screenshot-after screenshot due at the end of this frame to the next one.
+    void delay_screenshot() noexcept {
+        if (screenshot_after_ > 0 && frames_ + 1 >= screenshot_after_) screenshot_after_ = frames_ + 2;
+    }
     int frames() const noexcept { return frames_; }
 
 private:

@@ -147,6 +147,8 @@ TEST_CASE("fulgur: the demo's command line parses strictly") {
     CHECK(demo({"--screenshot-at-peak", "--screenshot-after", "7"}).screenshot_after == 7);
     CHECK(demo({"--help"}).help);
     CHECK(app::demo_usage().find("--time-scale") != std::string::npos);
+    CHECK_FALSE(d.time_of_day.has_value());
+    CHECK(demo({"--time-of-day", "17.5"}).time_of_day.value() == 17.5);
 
     auto rejects = [&](std::vector<std::string> a, const char* reason) {
         CAPTURE(reason);
@@ -157,6 +159,9 @@ TEST_CASE("fulgur: the demo's command line parses strictly") {
     rejects({"--time-scale", "nan"}, "0.001..10");
     rejects({"--time-scale", "inf"}, "0.001..10");
     rejects({"--time-scale", "0.5s"}, "not a number");  // atof took the 0.5
+    rejects({"--time-of-day", "25"}, "solar time in [0, 24] hours");
+    rejects({"--time-of-day", "nan"}, "solar time in [0, 24] hours");
+    rejects({"--time-of-day", "5pm"}, "not a number");
     rejects({"--size", "320x"}, "not a number");
     rejects({"--size", "8x8"}, "16..8192");
     rejects({"--screenshot-after", "0"}, ">= 1");
