@@ -113,6 +113,16 @@ int main(int argc, char** argv) {
             opt.settings.auto_exposure = false;
             opt.settings.exposure = *a.manual_exposure;
         }
+        for (const std::string& off : a.off) {
+            opt.sun &= off != "sun";
+            opt.sky &= off != "sky";
+            opt.sun_full_resolution &= off != "silver-lining";
+            opt.settings.glow &= off != "glow";
+            opt.settings.bolt &= off != "bolt";
+            opt.settings.ground &= off != "ground";
+            opt.components.single &= off != "single";
+            opt.components.multiple &= off != "multiple";
+        }
         const render::Camera cam = view::default_camera(view.density());
         // Medians over --repeat frames: the first one also compiles shaders and uploads the
         // density; the run time rebuilds the same frame each time (same strike, same t). The

@@ -54,6 +54,14 @@ TEST_CASE("fulgur-shot: a complete command line parses") {
     CHECK_THROWS_AS(parse(f), core::Error);
     CHECK(parse({"--help"}).help);
     CHECK(app::shot_usage().find("--size") != std::string::npos);
+    CHECK(a.off.empty());
+    std::vector<std::string> off = good;
+    off.insert(off.end(), {"--off", "sun,silver-lining,multiple"});
+    CHECK(parse(off).off == std::vector<std::string>{"sun", "silver-lining", "multiple"});
+    off.back() = "sun,moon";
+    CHECK_THROWS_WITH_AS(parse(off), doctest::Contains("--off: \"moon\" is not one of sun, sky"), core::Error);
+    off.back() = "";
+    CHECK_THROWS_WITH_AS(parse(off), doctest::Contains("--off: \"\" is not one of"), core::Error);
 }
 
 TEST_CASE("fulgur-shot: invalid command lines are rejected with a reason") {
