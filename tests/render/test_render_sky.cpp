@@ -32,6 +32,22 @@ Box box(render::Renderer& r) {
     return b;
 }
 
+// The box with no flash and no sun set (each test sets the terms it checks).
+Box dark_box(render::Renderer& r) {
+    Box b = box(r);
+    r.clear_source();
+    r.clear_sun();
+    return b;
+}
+
+// A coarse 4^3 static-light grid of 400 m cells over the box.
+core::GridGeometry static_grid(const Box& b) {
+    core::GridGeometry lg = b.density.geom;
+    lg.dims = {4, 4, 4};
+    lg.voxel_size = 400.0;
+    return lg;
+}
+
 // The static light: every one of 26 directions holds the same colour everywhere.
 void upload_constant_static(render::Renderer& r, const core::GridGeometry& g, const glm::dvec3& rgb) {
     std::vector<float> one(g.cell_count() * 3);
@@ -54,12 +70,8 @@ double chord(const Box& b, const glm::dvec3& d) {
 
 TEST_CASE("static light in colour: L = S_rgb (1 - exp(-tau)) per channel") {
     render::Renderer& r = gl_renderer();
-    const Box b = box(r);
-    r.clear_source();
-    r.clear_sun();
-    core::GridGeometry lg = b.density.geom;
-    lg.dims = {4, 4, 4};
-    lg.voxel_size = 400.0;
+    const Box b = dark_box(r);
+    const core::GridGeometry lg = static_grid(b);
     const glm::dvec3 S(2.0, 1.0, 0.5);
     upload_constant_static(r, lg, S);
     const int W = 40, H = 30;
@@ -122,19 +134,14 @@ TEST_CASE("the sun at full resolution: albedo p(view . sun) E T_sun, the exact p
 
 TEST_CASE("a switched-off static light or sun costs nothing: the same pixels as never set, no resolve") {
     render::Renderer& r = gl_renderer();
-    const Box b = box(r);
-    r.clear_source();
+    const Box b = dark_box(r);
     r.clear_static();
-    r.clear_sun();
     render::Settings st = test::volume_only();
     st.sky = true;
     const int W = 48, H = 32;
     render_at(r, b.cam, st, W, H);
     const std::vector<std::uint8_t> none = test::gl_context().read_rgba8();
-    core::GridGeometry lg = b.density.geom;
-    lg.dims = {4, 4, 4};
-    lg.voxel_size = 400.0;
-    upload_constant_static(r, lg, {1.0, 1.0, 1.0});
+    upload_constant_static(r, static_grid(b), {1.0, 1.0, 1.0});
     core::Grid3<float> Tsun(b.density.geom, 1.0f);
     render::SunDesc sun;
     sun.irradiance_rgb = {5.0, 5.0, 5.0};
@@ -155,12 +162,8 @@ TEST_CASE("a switched-off static light or sun costs nothing: the same pixels as 
 
 TEST_CASE("automatic exposure: the frame is tone mapped with the exposure it reports; adaptation and compensation") {
     render::Renderer& r = gl_renderer();
-    const Box b = box(r);
-    r.clear_source();
-    r.clear_sun();
-    core::GridGeometry lg = b.density.geom;
-    lg.dims = {4, 4, 4};
-    lg.voxel_size = 400.0;
+    const Box b = dark_box(r);
+    const core::GridGeometry lg = static_grid(b);
     upload_constant_static(r, lg, {40.0, 40.0, 40.0});
     render::Settings st = test::volume_only();
     st.auto_exposure = true;

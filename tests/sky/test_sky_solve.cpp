@@ -1,6 +1,7 @@
 // The sun's and the sky's light through the lattice on a small cloud: energy bookkeeping,
 // what the lattice is fed, linearity, refinement, Monte Carlo, the dome's quadrature and the
 // full-resolution transmittance to the sun.
+#include "mc_errors.h"
 #include "sky/sky.h"
 
 #include <doctest/doctest.h>
@@ -166,15 +167,10 @@ TEST_CASE("isotropic scattering: one output direction; Monte Carlo agrees with b
     const sky::LightField l =
         sky::solve_directional(media_of(m), std::span(&sun, 1), dirs, settings(sky::Method::Lattice));
     REQUIRE(h.single.directions.size() == 1);
-    core::RelativeL2 single, multiple, total_h, total_l;
-    for (std::size_t i = 0; i < m.density.size(); ++i) {
-        if (m.density.data[i] <= 0.05f) continue;  // cloud voxels
-        single.add(h.single.data[i], mc.single.data[i]);
-        multiple.add(h.multiple.data[i], mc.multiple.data[i]);
-        const double ref = double(mc.single.data[i]) + double(mc.multiple.data[i]);
-        total_h.add(double(h.single.data[i]) + double(h.multiple.data[i]), ref);
-        total_l.add(l.multiple.data[i], ref);
-    }
+    test::SunMcErrors e;
+    for (std::size_t i = 0; i < m.density.size(); ++i)
+        if (m.density.data[i] > 0.05f) e.add(h, l, mc, i);  // cloud voxels
+    auto& [single, multiple, total_h, total_l] = e;
     std::printf(
         "blob vs Monte Carlo (2M paths, noise single %.2f%% multiple %.2f%%): hybrid single %.2f%%, multiple "
         "%.2f%%, total %.2f%%; lattice (Geist) total %.2f%%\n",

@@ -2,6 +2,7 @@
 // (content/scenes/storm.json, its lighting grid and settings), at three sun elevations:
 // relative L2 of S over the cloud voxels and all 26 directions, single and multiple
 // scattering apart (the figures docs/sky.md quotes).
+#include "mc_errors.h"
 #include "sky/sky.h"
 
 #include "support/test_support.h"
@@ -35,18 +36,12 @@ TEST_CASE("default storm: the sun solve against Monte Carlo at elevations 60, 25
         mo.seed = 17;
         mo.halves = true;
         const transport::MonteCarloResult mc = transport::monte_carlo(media.transport, sun, dirs, mo);
-        core::RelativeL2 single, multiple, total, total_geist;
+        test::SunMcErrors e;
         const std::size_t cells = media.lighting.density.size();
         for (std::size_t m = 0; m < dirs.size(); ++m)
-            for (std::size_t i = 0; i < cells; ++i) {
-                if (rho[i] <= 0.05f) continue;  // cloud voxels, as fulgur-study lb-vs-mc
-                const std::size_t k = m * cells + i;
-                single.add(h.single.data[k], mc.single.data[k]);
-                multiple.add(h.multiple.data[k], mc.multiple.data[k]);
-                const double ref = double(mc.single.data[k]) + double(mc.multiple.data[k]);
-                total.add(double(h.single.data[k]) + double(h.multiple.data[k]), ref);
-                total_geist.add(l.multiple.data[k], ref);
-            }
+            for (std::size_t i = 0; i < cells; ++i)
+                if (rho[i] > 0.05f) e.add(h, l, mc, m * cells + i);  // cloud voxels, as fulgur-study lb-vs-mc
+        auto& [single, multiple, total, total_geist] = e;
         std::printf(
             "storm, sun at %4.1f deg: hybrid single %.2f%% (MC noise %.2f%%), multiple %.2f%% (noise %.2f%%), "
             "total %.2f%%; Geist's injection total %.2f%%; lattice %d / %d steps\n",
