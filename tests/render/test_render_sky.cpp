@@ -48,6 +48,15 @@ core::GridGeometry static_grid(const Box& b) {
     return lg;
 }
 
+// The march buffer (rgba32f, `w` wide) of the volume alone, without jitter.
+std::vector<float> march(render::Renderer& r, const Box& b, int W, int H, int& w) {
+    render::Settings st = test::volume_only();
+    st.jitter = false;
+    render_at(r, b.cam, st, W, H);
+    int h = 0;
+    return r.read_march(w, h);
+}
+
 // The static light: every one of 26 directions holds the same colour everywhere.
 void upload_constant_static(render::Renderer& r, const core::GridGeometry& g, const glm::dvec3& rgb) {
     std::vector<float> one(g.cell_count() * 3);
@@ -75,11 +84,8 @@ TEST_CASE("static light in colour: L = S_rgb (1 - exp(-tau)) per channel") {
     const glm::dvec3 S(2.0, 1.0, 0.5);
     upload_constant_static(r, lg, S);
     const int W = 40, H = 30;
-    render::Settings st = test::volume_only();
-    st.jitter = false;
-    render_at(r, b.cam, st, W, H);
-    int w = 0, h = 0;
-    const std::vector<float> m = r.read_march(w, h);
+    int w = 0;
+    const std::vector<float> m = march(r, b, W, H, w);
     int inside = 0;
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
@@ -112,11 +118,8 @@ TEST_CASE("the sun at full resolution: albedo p(view . sun) E T_sun, the exact p
     sun.transmittance = &Tsun;
     r.set_sun(sun);
     const int W = 40, H = 30;
-    render::Settings st = test::volume_only();
-    st.jitter = false;
-    render_at(r, b.cam, st, W, H);
-    int w = 0, h = 0;
-    const std::vector<float> m = r.read_march(w, h);
+    int w = 0;
+    const std::vector<float> m = march(r, b, W, H, w);
     for (int y = 2; y < H; y += 5)
         for (int x = 2; x < W; x += 5) {
             const glm::dvec3 d = test::pixel_ray(b.cam, x, y, W, H);
