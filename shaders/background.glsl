@@ -1,14 +1,14 @@
-// What the camera sees behind the cloud: the night sky, or the ground lit by the flash.
+// What the camera sees behind the cloud: the sky (the same dome that lights the cloud), or the
+// ground lit by the flash, the sun and the sky.
 // The smooth part (sky gradient, ground) is evaluated per ray-march pixel (internal
 // resolution); the stars per output pixel (full resolution: they stay pixel-sharp whatever
 // the internal scale). Both are multiplied by the cloud's transmittance.
 
-// Night sky: airglow/light-pollution gradient, brighter and greyer at the horizon.
+// The sky dome: a gradient between the horizon and the zenith in sqrt(sin elevation), the
+// function that lights the cloud (scene::SkyDome); below the horizon its horizon value.
 vec3 sky_gradient(vec3 d) {
     float h = clamp(d.z, 0.0, 1.0);
-    vec3 zenith = vec3(0.45, 0.6, 1.0);
-    vec3 horizon = vec3(2.4, 2.3, 2.6);
-    return sky_params.x * mix(horizon, zenith, sqrt(h));
+    return mix(sky_horizon.rgb, sky_zenith.rgb, sqrt(h));
 }
 
 // Stars: each cell of a cube map (kStarCells per face edge) holds at most one star, placed
@@ -64,9 +64,33 @@ vec3 star_radiance(vec3 o, vec3 d, float pixel_angle) {
     return d.z > 0.0 ? stars(d, pixel_angle) * smoothstep(0.0, 0.08, d.z) : vec3(0.0);
 }
 
+#ifndef SUN_TRANSMITTANCE_DECLARED
+#define SUN_TRANSMITTANCE_DECLARED
+// Transmittance from the sun to each full-resolution voxel (the density grid).
+layout(binding = 7) uniform sampler3D u_sun_t;
+#endif
+
+// Transmittance from p toward the sun: outside the cloud's box nothing absorbs, so it is the
+// full-resolution transmittance where the ray to the sun enters the box (1 if it misses it).
+float sun_visibility(vec3 p) {
+    if (sun_params.y < 0.5 || vol_size.w <= 0.0) return 1.0;
+    vec3 to_sun = -sun_dir.xyz;
+    vec3 lo = vol_min.xyz, hi = vol_min.xyz + vol_size.xyz;
+    vec3 inv = 1.0 / vec3(abs(to_sun.x) < 1e-9 ? 1e-9 : to_sun.x, abs(to_sun.y) < 1e-9 ? 1e-9 : to_sun.y,
+                          abs(to_sun.z) < 1e-9 ? 1e-9 : to_sun.z);
+    vec3 ta = (lo - p) * inv, tb = (hi - p) * inv;
+    vec3 tmin = min(ta, tb), tmax = max(ta, tb);
+    float t0 = max(max(tmin.x, tmin.y), max(tmin.z, 0.0)), t1 = min(min(tmax.x, tmax.y), tmax.z);
+    if (t1 < t0) return 1.0;
+    vec3 q = p + t0 * to_sun;
+    return textureLod(u_sun_t, (q - vol_min.xyz) / vol_size.xyz, 0.0).r;
+}
+
 // Ground: Lambertian, lit by a few point lights standing for the bolt (intensity already
-// multiplied by their visibility through the cloud), plus the night sky's irradiance; hazy
-// with distance (aerial perspective toward the horizon colour).
+// multiplied by their visibility through the cloud), the sun through the cloud (its shadow)
+// and the sky's irradiance on a horizontal plane, pi (0.2 horizon + 0.8 zenith) for the
+// gradient (the sky the cloud hides is not subtracted); hazy with distance (aerial
+// perspective toward the horizon colour).
 vec3 ground_radiance(vec3 p, vec3 d, float t) {
     vec3 E = vec3(0.0);
     int n = int(ground_params.w);
@@ -76,8 +100,8 @@ vec3 ground_radiance(vec3 p, vec3 d, float t) {
         float cos_theta = max(l.z, 0.0) * inversesqrt(r2);
         E += light_colour.rgb * (ground_light[i].w * cos_theta / r2);
     }
-    // Sky irradiance on a horizontal surface: pi * (mean sky radiance), ~ pi * 2 * zenith.
-    E += sky_params.z > 0.5 ? 3.14159265 * 2.0 * sky_params.x * vec3(0.6, 0.65, 0.8) : vec3(0.0);
+    E += sky_params.z > 0.5 ? 3.14159265 * (0.2 * sky_horizon.rgb + 0.8 * sky_zenith.rgb) : vec3(0.0);
+    if (sun_dir.w > 0.5 && sun_dir.z < 0.0) E += sun_rgb.rgb * (-sun_dir.z * sun_visibility(p));
     // Mild, low-frequency variation of the reflectance (fields, forest) so the plane reads as ground.
     vec2 g = p.xy / 1500.0;
     vec2 gi = floor(g), gf = fract(g);

@@ -16,10 +16,17 @@ layout(std140, binding = 0) uniform Frame {
     vec4 sizes;            // xy output size, zw internal (ray-march) size, pixels
     vec4 ground_params;    // x ground height, y albedo / pi, z ground on, w number of ground lights
     vec4 ground_light[8];  // xyz position, w intensity * visibility (W/sr)
-    vec4 sky_params;       // x zenith radiance, y star radiance, z sky on, w exposure
+    vec4 sky_params;       // x unused, y star radiance, z sky on, w exposure
     vec4 glow_params;      // x glow radius (m), y air scattering (1/m), z glow on, w bolt on
     vec4 light_colour;     // rgb colour of the flash (luminance 1), w dither on
     ivec4 counts;          // x max march steps, y frame index, z glow quads, w bolt segments
+    vec4 sky_zenith;       // rgb sky radiance straight up (W m^-2 sr^-1)
+    vec4 sky_horizon;      // rgb sky radiance at the horizon; the gradient is mix(horizon, zenith, sqrt(sin el))
+    vec4 static_min;       // xyz static light's grid lower corner, w = 1 when the static light is present
+    vec4 static_size;      // xyz static light's grid extent
+    vec4 sun_dir;          // xyz direction sunlight travels (unit), w = 1 when the sun lights the scene
+    vec4 sun_rgb;          // rgb sun irradiance x colour (W m^-2), w = albedo of the cloud
+    vec4 sun_params;       // x HG g of the cloud, y = 1 when the full-resolution sun transmittance is bound
 };
 
 const float kBig = 1e30;

@@ -13,10 +13,20 @@ uniform int u_hdr_output;
 
 out vec4 o_colour;
 
-// ACES filmic curve, Krzysztof Narkowicz's 2015 fit of the RRT + ODT (per channel, input
-// already exposed, output display-linear in [0, 1]).
-vec3 aces_filmic(vec3 x) {
-    return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
+// ACES filmic tone curve, Stephen Hill's fit of the RRT + ODT (sRGB, 100 nits): linear
+// sRGB -> the fit's space (input matrix: the RRT's saturation and gamut, grey kept), the
+// rational curve, back (output matrix). Its shoulder is soft: display white (0.996 linear,
+// 8-bit 255) is reached only at ~20x the exposed grey level 1, 2 stops beyond a plain
+// Reinhard-like clip, so bright cloud near the channel keeps its falloff instead of a white
+// plateau. Matrices are column-major (GLSL), Hill's rows transposed.
+const mat3 kAcesInput = mat3(0.59719, 0.07600, 0.02840, 0.35458, 0.90834, 0.13383, 0.04823, 0.01566, 0.83777);
+const mat3 kAcesOutput = mat3(1.60475, -0.10208, -0.00327, -0.53108, 1.10813, -0.07276, -0.07367, -0.00605, 1.07602);
+
+vec3 aces_fitted(vec3 x) {
+    vec3 v = kAcesInput * x;
+    vec3 a = v * (v + 0.0245786) - 0.000090537;
+    vec3 b = v * (0.983729 * v + 0.4329510) + 0.238081;
+    return clamp(kAcesOutput * (a / b), 0.0, 1.0);
 }
 
 // sRGB encoding. The power 1/2.4 is approximated with three square roots (Ian Taylor's
@@ -39,7 +49,7 @@ void main() {
         o_colour = vec4(hdr, 1.0);
         return;
     }
-    vec3 c = srgb_encode(aces_filmic(hdr * sky_params.w));
+    vec3 c = srgb_encode(aces_fitted(hdr * sky_params.w));
     if (light_colour.w > 0.5) {
         // Triangular dither of +-1 LSB (sum of two 16-bit uniforms from one hash), deterministic per frame.
         uint h = hash_u32(uvec3(uvec2(pixel), uint(counts.y)));

@@ -7,7 +7,8 @@
 layout(binding = 2) uniform sampler2D u_glow;
 
 // pixel: internal-resolution pixel centre (x + 0.5, y + 0.5), origin bottom-left.
-// Returns rgb = in-scattered radiance * flash colour + glow * T(camera, glow depth)
+// Returns rgb = in-scattered radiance * flash colour + the static light's and the sun's
+//              in-scattered radiance + glow * T(camera, glow depth)
 //              + smooth background (sky gradient or ground) * T,
 // a = transmittance of the whole ray (the stars are added at full resolution).
 vec4 shade_pixel(vec2 pixel) {
@@ -25,5 +26,6 @@ vec4 shade_pixel(vec2 pixel) {
 #endif
     MarchResult r = march_ray(cam_pos.xyz, d, t_end, jitter, t_emit);
     vec3 bg = background(cam_pos.xyz, d);
-    return vec4(r.in_scattered * light_colour.rgb + r.t_emit * e.rgb + r.transmittance * bg, r.transmittance);
+    return vec4(r.in_scattered * light_colour.rgb + r.in_static + r.t_emit * e.rgb + r.transmittance * bg,
+                r.transmittance);
 }

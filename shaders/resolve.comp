@@ -5,7 +5,8 @@
 // directions of negligible weight harmless). Up to 16 directions per dispatch, one sampler
 // each (the first dispatch writes, later ones accumulate): separate samplers rather than an
 // array, because a dynamically indexed sampler array makes a software rasterizer generate
-// and JIT-compile a fetch path per element.
+// and JIT-compile a fetch path per element. With RGB defined the values are colours (the
+// static light: sun, moon, sky), rgba32f, summed the same way.
 #include "common.glsl"
 #include "directions.glsl"
 
@@ -27,7 +28,11 @@ layout(binding = 12) uniform sampler3D u_src12;
 layout(binding = 13) uniform sampler3D u_src13;
 layout(binding = 14) uniform sampler3D u_src14;
 layout(binding = 15) uniform sampler3D u_src15;
+#ifdef RGB
+layout(rgba32f, binding = 0) uniform image3D u_out;
+#else
 layout(r32f, binding = 0) uniform image3D u_out;
+#endif
 
 uniform ivec3 u_dims;
 uniform ivec4 u_dirs[4];       // baked direction index per sampler (4 per vector), -1 = unused
@@ -54,6 +59,11 @@ void fold(int code, float w) {
     add_weight(fi.z, ff.z);
 }
 
+// Weighted sum of four directions' colours at cell c.
+vec4 fetch4(vec4 w, sampler3D a, sampler3D b, sampler3D d, sampler3D e, ivec3 c) {
+    return w.x * texelFetch(a, c, 0) + w.y * texelFetch(b, c, 0) + w.z * texelFetch(d, c, 0) + w.w * texelFetch(e, c, 0);
+}
+
 void main() {
     ivec3 c = ivec3(gl_GlobalInvocationID);
     if (any(greaterThanEqual(c, u_dims))) return;
@@ -71,6 +81,15 @@ void main() {
     fold(code.z, cw.z);
     fold(code.w, cw.w);
     float inv = w_sum > 0.0 ? 1.0 / w_sum : 0.0;
+#ifdef RGB
+    vec4 s = fetch4(w_batch[0], u_src0, u_src1, u_src2, u_src3, c);
+    if (u_samplers > 4) s += fetch4(w_batch[1], u_src4, u_src5, u_src6, u_src7, c);
+    if (u_samplers > 8) s += fetch4(w_batch[2], u_src8, u_src9, u_src10, u_src11, c);
+    if (u_samplers > 12) s += fetch4(w_batch[3], u_src12, u_src13, u_src14, u_src15, c);
+    s *= inv;
+    if (u_accumulate != 0) s += imageLoad(u_out, c);
+    imageStore(u_out, c, s);
+#else
     float s = dot(w_batch[0], vec4(texelFetch(u_src0, c, 0).r, texelFetch(u_src1, c, 0).r,
                                    texelFetch(u_src2, c, 0).r, texelFetch(u_src3, c, 0).r));
     if (u_samplers > 4)
@@ -85,4 +104,5 @@ void main() {
     s *= inv;
     if (u_accumulate != 0) s += imageLoad(u_out, c).r;
     imageStore(u_out, c, vec4(s));
+#endif
 }

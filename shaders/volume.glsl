@@ -5,6 +5,8 @@
 //   SKIP_EMPTY   1: jump over space the Chebyshev distance field proves empty
 //   EARLY_EXIT   1: stop once the transmittance is below march_params.y
 //   HAS_SOURCE   1: S is present (0: the cloud only absorbs; no S fetch at all)
+//   HAS_STATIC   1: the static light's S in colour (sun, moon, sky: u_static) is present
+//   HAS_SUN      1: the sun's single scattering at full resolution (u_sun_t)
 //   HAS_EMISSION 1: track the transmittance up to the glow's depth
 #ifndef SKIP_EMPTY
 #define SKIP_EMPTY 1
@@ -15,6 +17,12 @@
 #ifndef HAS_SOURCE
 #define HAS_SOURCE 1
 #endif
+#ifndef HAS_STATIC
+#define HAS_STATIC 0
+#endif
+#ifndef HAS_SUN
+#define HAS_SUN 0
+#endif
 #ifndef HAS_EMISSION
 #define HAS_EMISSION 1
 #endif
@@ -24,6 +32,19 @@
 layout(binding = 0) uniform sampler3D u_density;
 // S(x, w_cam(x)) on the lighting grid: the source function toward the camera.
 layout(binding = 1) uniform sampler3D u_scam;
+// The static light (sun, moon, sky) toward the camera, rgb, on its grid.
+layout(binding = 6) uniform sampler3D u_static;
+#ifndef SUN_TRANSMITTANCE_DECLARED
+#define SUN_TRANSMITTANCE_DECLARED
+// Transmittance from the sun to each full-resolution voxel (the density grid).
+layout(binding = 7) uniform sampler3D u_sun_t;
+#endif
+
+// Henyey-Greenstein phase function per steradian (transport::hg_phase).
+float hg_phase(float cos_theta, float g) {
+    float a = (1.0 - g) * (1.0 - g) + 2.0 * g * (1.0 - cos_theta);
+    return (1.0 - g * g) / (4.0 * 3.14159265 * a * sqrt(a));
+}
 
 // Safety margin of the skip distance, in voxels. The trilinear interpolant D~(p) of the
 // distance field satisfies |p - c|_inf >= D~(p) - 1 for every non-zero voxel centre c, and
@@ -47,6 +68,7 @@ bool ray_box(vec3 o, vec3 d, vec3 lo, vec3 hi, out float t0, out float t1) {
 
 struct MarchResult {
     float in_scattered;  // integral of T sigma_t S dt (radiance, before the flash colour)
+    vec3 in_static;      // the same for the static light and the sun's full-resolution single scattering (rgb)
     float transmittance; // T over the whole ray segment
     float t_emit;        // T from the camera to the emission depth
 };
@@ -61,6 +83,7 @@ struct MarchResult {
 MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
     MarchResult r;
     r.in_scattered = 0.0;
+    r.in_static = vec3(0.0);
     r.transmittance = 1.0;
     r.t_emit = 1.0;
     float t0, t1;
@@ -72,6 +95,15 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #if HAS_SOURCE
     vec3 o_lit = (o - lit_min.xyz) / lit_size.xyz, d_lit = d / lit_size.xyz;
 #endif
+#if HAS_STATIC
+    vec3 o_st = (o - static_min.xyz) / static_size.xyz, d_st = d / static_size.xyz;
+#endif
+#if HAS_SUN
+    // Single scattering of the sun toward the camera, the exact phase function for this ray
+    // (light travelling along sun_dir scattered into -d): albedo p(-d . sun_dir) E x colour.
+    vec3 sun_s1 = sun_rgb.w * hg_phase(dot(-d, sun_dir.xyz), sun_params.x) * sun_rgb.rgb;
+#endif
+    vec3 Ls = vec3(0.0);
     float kappa = vol_min.w;
     float voxel = vol_size.w;
     float T = 1.0, L = 0.0, Te = 1.0;
@@ -100,6 +132,12 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #if HAS_SOURCE
         L += T * alpha * textureLod(u_scam, o_lit + t * d_lit, 0.0).r;
 #endif
+#if HAS_STATIC
+        Ls += T * alpha * textureLod(u_static, o_st + t * d_st, 0.0).rgb;
+#endif
+#if HAS_SUN
+        Ls += (T * alpha * textureLod(u_sun_t, o_tex + t * d_tex, 0.0).r) * sun_s1;
+#endif
         T *= 1.0 - alpha;
 #if HAS_EMISSION
         if (t <= t_emit) Te = T;
@@ -108,6 +146,7 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
         k += 1.0;
     }
     r.in_scattered = L;
+    r.in_static = Ls;
     r.transmittance = T;
     r.t_emit = Te;
     return r;

@@ -1,11 +1,13 @@
-// fulgur-bake: scene -> plan -> baked virtual-light bases (.fgb), report and NRRD export.
-// Thin: the work is engine/bake (bake.h); this file parses arguments and prints.
+// fulgur-bake: scene -> plan -> baked virtual-light bases (.fgb), report and NRRD export; the
+// sun's and the sky's solves into their cache files. Thin: the work is engine/bake (bake.h)
+// and engine/sky (sky.h); this file parses arguments and prints.
 #include "bake/bake.h"
 #include "common/bake_args.h"
 #include "common/cli.h"
 #include "common/progress.h"
 #include "core/core.h"
 #include "scene/scene.h"
+#include "sky/sky.h"
 
 #include <nlohmann/json.hpp>
 
@@ -89,14 +91,25 @@ int run(const app::BakeArgs& a) {
     const std::filesystem::path out = a.output ? *a.output : bake::default_fgb_path(s);
 
     std::string why;
-    const bool fresh = bake::up_to_date(s, density, out, &why);
+    const bool fresh = s.effects.lightning && bake::up_to_date(s, density, out, &why);
     bake::PlanOptions po;
     po.estimate = !fresh || a.force || a.dry_run;
-    const bake::Plan plan = bake::make_plan(s, density, po);
-    std::fputs(plan.to_text().c_str(), stdout);
-    std::printf("  output          %s (%s)\n", out.string().c_str(), fresh ? "up to date" : why.c_str());
+    const sky::ScenePlan scene_plan = sky::plan_scene(s, density, po);
+    std::fputs(scene_plan.to_text().c_str(), stdout);
+    if (scene_plan.lightning)
+        std::printf("  output          %s (%s)\n", out.string().c_str(), fresh ? "up to date" : why.c_str());
     std::fflush(stdout);
     if (a.dry_run) return 0;
+    if (scene_plan.sun || scene_plan.sky)
+        (void)sky::load_or_solve(s, density, bake::make_media(s, density), scene_plan, {},
+                                 [](const std::string& m) { std::printf("%s\n", m.c_str()); });
+    if (!scene_plan.lightning) {
+        if (!a.export_lights.empty())
+            throw core::Error(a.scene.string(), "--export: the scene has no lightning to bake");
+        std::printf("no virtual-light bake: the scene has no lightning\n");
+        return 0;
+    }
+    const bake::Plan& plan = *scene_plan.lightning;
 
     if (fresh && !a.force) {
         std::printf("%s is up to date; nothing to bake (--force rebakes)\n", out.string().c_str());

@@ -41,6 +41,16 @@ void declare(CommandLine& cli, DemoArgs& a) {
                "storm time per wall-clock second (default 0.25: a flash decays in ~12 ms, slowed down so a "
                "software-rendered frame rate shows it)",
                0.001, 10.0);
+    app.add_option_function<std::string>(
+           "--time-of-day",
+           [&a](const std::string& s) {
+               a.time_of_day = parse_number<double>(s, kTool, "--time-of-day");
+               if (!(*a.time_of_day >= 0.0 && *a.time_of_day <= 24.0))
+                   throw core::Error(kTool, "--time-of-day: expected a solar time in [0, 24] hours, got " + s);
+           },
+           "start with the scene's sun (or moon) moved along its course to solar time H (hours; clamped to "
+           "the hours it stands above the horizon); a screenshot waits for its solve")
+        ->type_name("H");
     app.add_flag_callback(
         "--no-dither", [&a] { a.dither = false; }, "turn the 8-bit dither off (smaller PNGs)");
     app.add_option_function<std::string>(

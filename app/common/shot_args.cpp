@@ -3,11 +3,17 @@
 #include "cli.h"
 #include "core/core.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <string_view>
 
 namespace fulgur::app {
 
 namespace {
+
+constexpr std::array<std::string_view, 8> kSwitches = {"sun",  "sky",    "silver-lining", "glow",
+                                                       "bolt", "ground", "single",        "multiple"};
 
 constexpr const char* kTool = "fulgur-shot";
 
@@ -43,8 +49,35 @@ void declare(CommandLine& cli, ShotArgs& a) {
     cli.number("--repeat", a.repeat,
                "render the frame N times and report median stage times (the image written is the same as one render's)",
                1, 1000);
-    cli.number("--exposure", a.exposure_ev, "exposure change in stops from the default (0)", -20.0, 20.0, "stops")
+    cli.number("--exposure", a.exposure_ev, "stops added to the automatic exposure (0)", -20.0, 20.0, "stops")
         ->type_name("EV in -20..20");
+    app.add_option_function<std::string>(
+           "--manual-exposure",
+           [&a](const std::string& v) {
+               a.manual_exposure = parse_number<double>(v, kTool, "--manual-exposure");
+               if (!std::isfinite(*a.manual_exposure) || !(*a.manual_exposure > 0.0))
+                   throw core::Error(kTool, "--manual-exposure must be finite and > 0");
+           },
+           "a fixed exposure (linear multiplier before the tone map) instead of the automatic one")
+        ->type_name("X");
+    app.add_option_function<std::string>(
+           "--off",
+           [&a](const std::string& v) {
+               a.off.clear();
+               for (std::size_t b = 0; b <= v.size();) {
+                   const std::size_t e = std::min(v.find(',', b), v.size());
+                   const std::string name = v.substr(b, e - b);
+                   if (std::find(kSwitches.begin(), kSwitches.end(), name) == kSwitches.end())
+                       throw core::Error(kTool, "--off: \"" + name +
+                                                    "\" is not one of sun, sky, silver-lining, glow, bolt, ground, "
+                                                    "single, multiple");
+                   a.off.push_back(name);
+                   b = e + 1;
+               }
+           },
+           "run-time switches to turn off, comma-separated: sun, sky, silver-lining (the sun's single scattering "
+           "at full resolution: on the lighting grid instead), glow, bolt, ground, single, multiple")
+        ->type_name("A,B,..");
     app.add_option("-o,--output", a.output, "output PNG")->type_name("OUT.png")->required();
     app.add_option_function<std::string>(
            "--reference",

@@ -17,7 +17,11 @@ struct ShotArgs {
     bool time_after_return_stroke = false;  ///< --time +T: T seconds after the first return stroke's onset
     int width = 640, height = 360;
     int repeat = 1;  ///< --repeat N: render N times, report medians (the first frame compiles shaders); same image
-    double exposure_ev = 0.0;  ///< --exposure EV: exposure = 2^EV (render::Settings::exposure)
+    double exposure_ev = 0.0;               ///< --exposure EV: stops added to the automatic exposure
+    std::optional<double> manual_exposure;  ///< --manual-exposure X: a fixed exposure X instead of the automatic one
+    /// --off A,B,..: run-time switches turned off (sun, sky, silver-lining, glow, bolt, ground,
+    /// single, multiple), to see or time a frame without them.
+    std::vector<std::string> off;
     std::filesystem::path output;
     /// --reference REF.png: also render the frame lit by the direct solve (the reference the
     /// basis method is measured against) into REF.png, its difference image into

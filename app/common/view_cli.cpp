@@ -15,6 +15,28 @@ std::filesystem::path ensure_baked(const scene::Scene& s, const core::Grid3<floa
                               });
 }
 
+sky::ScenePlan plan_and_print(const scene::Scene& s, const core::Grid3<float>& density, std::FILE* out) {
+    bake::PlanOptions po;
+    po.estimate = false;
+    sky::ScenePlan plan = sky::plan_scene(s, density, po);
+    for (const std::string& r : plan.reasons) std::fprintf(out, "plan: %s\n", r.c_str());
+    return plan;
+}
+
+std::optional<std::filesystem::path> bases_for(const sky::ScenePlan& plan, const scene::Scene& s,
+                                               const core::Grid3<float>& density,
+                                               const std::optional<std::filesystem::path>& explicit_fgb) {
+    if (plan.lightning) return ensure_baked(s, density, explicit_fgb);
+    return view::bases_for(plan, s, density, explicit_fgb);
+}
+
+view::StaticSetup static_setup(const sky::ScenePlan& plan, std::FILE* out) {
+    view::StaticSetup setup;
+    setup.plan = plan;
+    setup.say = [out](const std::string& m) { std::fprintf(out, "%s\n", m.c_str()); };
+    return setup;
+}
+
 std::string timings_json(const view::FrameReport& r, int width, int height, const char* name) {
     std::ostringstream o;
     o.precision(4);
@@ -26,7 +48,8 @@ std::string timings_json(const view::FrameReport& r, int width, int height, cons
       << ",\"glow_ms\":" << r.gpu.wall.glow << ",\"march_ms\":" << r.gpu.wall.march
       << ",\"bolt_draw_ms\":" << r.gpu.wall.bolt << ",\"composite_ms\":" << r.gpu.wall.composite
       << ",\"gpu_total_ms\":" << r.gpu.wall.total << ",\"frame_ms\":" << r.wall_ms
-      << ",\"internal_width\":" << r.gpu.internal_width << ",\"internal_height\":" << r.gpu.internal_height << "}";
+      << ",\"internal_width\":" << r.gpu.internal_width << ",\"internal_height\":" << r.gpu.internal_height
+      << ",\"exposure\":" << r.gpu.exposure << ",\"metered_exposure\":" << r.gpu.metered_exposure << "}";
     return o.str();
 }
 

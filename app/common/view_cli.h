@@ -4,6 +4,7 @@
 
 #include "view/view.h"
 
+#include <cstdio>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -13,6 +14,19 @@ namespace fulgur::app {
 /// view::ensure_baked, saying "baking FILE (why)" and drawing a progress bar on stderr.
 std::filesystem::path ensure_baked(const scene::Scene& s, const core::Grid3<float>& density,
                                    const std::optional<std::filesystem::path>& explicit_fgb);
+
+/// The scene's plan (sky::plan_scene, no estimates), its reasons printed to `out` (one
+/// "plan: ..." line each).
+sky::ScenePlan plan_and_print(const scene::Scene& s, const core::Grid3<float>& density, std::FILE* out);
+
+/// view::bases_for with ensure_baked's messages: the .fgb when the plan bakes, else none.
+std::optional<std::filesystem::path> bases_for(const sky::ScenePlan& plan, const scene::Scene& s,
+                                               const core::Grid3<float>& density,
+                                               const std::optional<std::filesystem::path>& explicit_fgb);
+
+/// What a view of the scene is set up with: its plan, the static light cached beside the
+/// scene, what is solved or read printed to `out`.
+view::StaticSetup static_setup(const sky::ScenePlan& plan, std::FILE* out);
 
 /// The JSON line fulgur-shot (and the demo's headless frames) print (stage times in ms).
 std::string timings_json(const view::FrameReport& r, int width, int height, const char* name = "fulgur-shot");

@@ -22,6 +22,7 @@ double wall_seconds() {
 }  // namespace
 
 AccuracyPanel::AccuracyPanel(view::StormView& view) : view_(view) {
+    if (!view.has_lightning()) return;  // nothing to choose: no flash is lit
     const std::string_view current = scene::to_string(view.pipeline().quality().preset);
     for (std::size_t i = 0; i < kPresets.size(); ++i)
         if (current == kPresets[i]) preset_ = int(i);
@@ -41,6 +42,7 @@ void AccuracyPanel::reset() {
 }
 
 void AccuracyPanel::update(double t, const view::ViewOptions& options) {
+    if (!view_.has_lightning()) return;
     if (pending_.valid() && pending_.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
         Reference r = pending_.get();
         std::fprintf(stderr, "fulgur: %s %.2f s, frame %.3f ms, S off by %.1f%%\n", r.truth ? "truth" : "direct solve",
@@ -113,6 +115,10 @@ void AccuracyPanel::update(double t, const view::ViewOptions& options) {
 }
 
 void AccuracyPanel::draw(const view::FrameReport& rep) {
+    if (!view_.has_lightning()) {
+        ImGui::TextUnformatted("Quality (the scene has no lightning)");
+        return;
+    }
     ImGui::TextUnformatted("Quality");
     ImGui::Combo("preset", &preset_, kPresets.data(), int(kPresets.size()));
     if (ImGui::IsItemHovered())

@@ -19,6 +19,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -69,12 +70,23 @@ std::vector<double> flash_times(const lightning::FlashProfile& f, double start, 
     return t;
 }
 
-int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb, int frames, int w,
-                      int h, std::uint64_t seed) {
+int headless_sequence(scene::Scene s, core::Grid3<float> density, const sky::ScenePlan& plan,
+                      const std::optional<std::filesystem::path>& fgb, int frames, int w, int h, std::uint64_t seed,
+                      std::optional<double> time_of_day) {
     auto ctx = platform::create_headless({.width = w, .height = h});
-    view::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
-    const std::size_t strike = view.pipeline().strike_at(0.0, seed);
-    const std::vector<double> times = flash_times(view.pipeline().storm().strike(strike).profile, 0.0, frames);
+    view::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address(),
+                         app::static_setup(plan, stdout));
+    if (time_of_day && plan.sun) {  // the sun moved along its course, solved here
+        const sky::SunCourse course = sky::sun_course(*view.scene().sun);
+        const scene::Sun sun = course.at(*time_of_day);
+        view.set_sun_solve(sky::solve_sun(view.scene(), view.density(), view.media(), plan.settings, sun.direction));
+        view.set_sun(sun);
+    }
+    std::vector<double> times(std::size_t(frames), 0.0);  // without lightning: the same still scene
+    if (view.has_lightning()) {
+        const std::size_t strike = view.pipeline().strike_at(0.0, seed);
+        times = flash_times(view.pipeline().storm().strike(strike).profile, 0.0, frames);
+    }
     const render::Camera cam = view::default_camera(view.density());
     for (int i = 0; i < frames; ++i) {
         const double t = times[std::size_t(i)];
@@ -86,6 +98,103 @@ int headless_sequence(scene::Scene s, core::Grid3<float> density, const std::fil
                     app::timings_json(r, w, h, "fulgur").c_str());
     }
     return 0;
+}
+
+// The exposure controls: automatic (with eye adaptation: at once toward a flash, over
+// seconds back to the night) and its compensation, or a manual exposure starting from the
+// last automatic one.
+void exposure_panel(render::Settings& st, const view::FrameReport& last, double dt) {
+    const bool was_auto = st.auto_exposure;
+    ImGui::Checkbox("automatic exposure", &st.auto_exposure);
+    if (was_auto && !st.auto_exposure && last.gpu.exposure > 0.0) st.exposure = last.gpu.exposure;
+    if (st.auto_exposure) {
+        float ev = float(st.exposure_compensation);
+        if (ImGui::SliderFloat("compensation (EV)", &ev, -4.0f, 4.0f)) st.exposure_compensation = double(ev);
+        ImGui::Text("exposure %.3g (metered %.3g)", last.gpu.exposure, last.gpu.metered_exposure);
+        st.previous_exposure = last.gpu.exposure;
+        st.adaptation_seconds = dt;
+    } else {
+        float expo = float(std::log2(st.exposure));
+        if (ImGui::SliderFloat("exposure (EV)", &expo, -20.0f, 16.0f)) st.exposure = std::exp2(double(expo));
+    }
+}
+
+// The time of day: the scene's sun (or moon) moved along its course (sky::SunCourse). A new
+// direction is solved on a worker thread (sky::SunResolver, one core: the other keeps
+// rendering) while the view keeps showing the field of the last solve; irradiance and colour
+// follow the solve that arrives, so what is shown is always one consistent sun.
+class TimeOfDay {
+public:
+    // Keeps references into `view` (scene, density, media): declared after it.
+    TimeOfDay(view::StormView& view, std::optional<double> start_hour)
+        : view_(view), course_(sky::sun_course(*view.scene().sun)), shown_(course_.scene_hour) {
+        resolver_ =
+            std::make_unique<sky::SunResolver>(view.scene(), view.density(), view.media(), view.plan().settings, 1);
+        hour_ = float(shown_);
+        if (start_hour) {
+            hour_ = float(std::clamp(*start_hour, course_.first_hour, course_.last_hour));
+            request();
+        }
+    }
+    // Takes a finished solve (the newest) and shows it.
+    void update() {
+        std::optional<sky::SunSolve> r = resolver_->take();
+        if (!r) return;
+        // The request it answers (the ones before it were skipped); later ones are still coming.
+        for (std::size_t i = requests_.size(); i-- > 0;)
+            if (requests_[i].second == r->direction) {
+                shown_ = requests_[i].first;
+                requests_.erase(requests_.begin(), requests_.begin() + std::ptrdiff_t(i) + 1);
+                break;
+            }
+        last_seconds_ = r->seconds;
+        double el = 0.0, az = 0.0;
+        course_.angles(shown_, el, az);
+        std::printf("time of day: %.2f h (elevation %.1f deg, azimuth %.0f deg), solved in %.0f ms\n", shown_, el, az,
+                    1e3 * last_seconds_);
+        view_.set_sun_solve(std::move(*r));
+        view_.set_sun(course_.at(shown_));
+    }
+    bool busy() const { return resolver_->busy(); }
+    // The panel section: the slider, where the sun stands, the re-solve's state.
+    void panel() {
+        const std::string& name = view_.scene().sun->name;
+        ImGui::Text("Time of day (the %s)", name.empty() ? "sun" : name.c_str());
+        if (ImGui::SliderFloat("solar time (h)", &hour_, float(course_.first_hour), float(course_.last_hour), "%.2f"))
+            request();
+        double el = 0.0, az = 0.0;
+        course_.angles(shown_, el, az);
+        ImGui::Text("shown: %.2f h, elevation %.1f deg, azimuth %.0f deg", shown_, el, az);
+        if (busy())
+            ImGui::TextUnformatted("solving the new direction (the old light stays shown)...");
+        else if (last_seconds_ > 0.0)
+            ImGui::Text("last re-solve %.0f ms (lattice + full-resolution transmittance)", 1e3 * last_seconds_);
+    }
+
+private:
+    void request() {
+        const glm::dvec3 d = course_.at(double(hour_)).direction;
+        requests_.emplace_back(double(hour_), d);
+        resolver_->request(d);
+    }
+    view::StormView& view_;
+    sky::SunCourse course_;
+    std::unique_ptr<sky::SunResolver> resolver_;
+    std::vector<std::pair<double, glm::dvec3>> requests_;  // not yet shown: hour and direction
+    float hour_ = 12.0f;
+    double shown_ = 12.0, last_seconds_ = 0.0;
+};
+
+// The static light's run-time switches (the scene's effects must call for each).
+void static_light_panel(view::ViewOptions& opt, const sky::ScenePlan& plan) {
+    ImGui::BeginDisabled(!plan.sun);
+    ImGui::Checkbox("sun / moon", &opt.sun);
+    ImGui::SameLine();
+    ImGui::Checkbox("silver lining (full resolution)", &opt.sun_full_resolution);
+    ImGui::EndDisabled();
+    ImGui::BeginDisabled(!plan.sky);
+    ImGui::Checkbox("sky light", &opt.sky);
+    ImGui::EndDisabled();
 }
 
 const char* kNoDisplay =
@@ -107,16 +216,21 @@ int main(int argc, char** argv) {
     try {
         scene::Scene s = scene::load_scene(scene_path);
         core::Grid3<float> density = scene::make_density(s);
-        const auto fgb = app::ensure_baked(s, density, std::nullopt);
+        const sky::ScenePlan plan = app::plan_and_print(s, density, stdout);
+        const auto fgb = app::bases_for(plan, s, density, std::nullopt);
         if (force_headless || !platform::display_available()) {
             if (!force_headless) std::printf(kNoDisplay, frames);
             const std::uint64_t sd = seed_arg.value_or(s.lightning.seed);
-            return headless_sequence(std::move(s), std::move(density), fgb, frames, std::min(W, 640), std::min(H, 360),
-                                     sd);
+            return headless_sequence(std::move(s), std::move(density), plan, fgb, frames, std::min(W, 640),
+                                     std::min(H, 360), sd, args.time_of_day);
         }
         app::DemoShell shell(W, H, "Fulgur", screenshot_after);
-        view::StormView view(std::move(s), std::move(density), fgb, shell.context().get_proc_address());
-        const bool separate = view.bases().has_multiple();
+        view::StormView view(std::move(s), std::move(density), fgb, shell.context().get_proc_address(),
+                             app::static_setup(plan, stdout));
+        const bool has_lightning = view.has_lightning();
+        const bool separate = has_lightning ? view.bases().has_multiple() : view.scene().effects.multiple_scattering;
+        std::optional<TimeOfDay> time_of_day;
+        if (view.plan().sun) time_of_day.emplace(view, args.time_of_day);
 
         app::Orbit orbit{-90, 6, 1.1, 0.4, 5.0};  // distance as a multiple of the cloud size
         view::ViewOptions opt;
@@ -131,9 +245,12 @@ int main(int argc, char** argv) {
         const SliceGL gl = load_slice_gl();
         GLuint slice_tex = 0;
         gl.GenTextures(1, &slice_tex);
-        const std::size_t first = view.pipeline().strike_at(0.2, std::uint64_t(seed));
         // --screenshot-at-peak holds the time 2 ms after the first strike's return stroke.
-        const double peak_time = 0.2 + view.pipeline().storm().strike(first).profile.stroke_onset.at(0) + 0.002;
+        double peak_time = 0.2;
+        if (has_lightning) {
+            const std::size_t first = view.pipeline().strike_at(0.2, std::uint64_t(seed));
+            peak_time += view.pipeline().storm().strike(first).profile.stroke_onset.at(0) + 0.002;
+        }
         float slow = float(time_scale);
         lightning::LightningParams lp = view.scene().lightning;
         // The slider holds a float: compare against what it can represent, or the first frame
@@ -154,7 +271,8 @@ int main(int argc, char** argv) {
             ImGui::Begin("Fulgur", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
             ImGui::Text("%.1f fps  (%.1f ms frame)", shell.fps(), rep.wall_ms);
             ImGui::Separator();
-            ImGui::TextUnformatted("Lightning");
+            ImGui::BeginDisabled(!has_lightning);
+            ImGui::TextUnformatted(has_lightning ? "Lightning" : "Lightning (the scene has none)");
             ImGui::InputInt("seed", &seed);
             if (ImGui::Button("Strike now")) strike = true;
             ImGui::Checkbox("automatic strikes", &autos);
@@ -175,6 +293,7 @@ int main(int argc, char** argv) {
                 b.branch_probability = bp, b.angle_spread_deg = sp, b.intensity = std::pow(10.0, double(ie));
                 if (changed) shape_changed = true;
             }
+            ImGui::EndDisabled();
             ImGui::Separator();
             ImGui::TextUnformatted("Light");
             ImGui::BeginDisabled(!separate);
@@ -186,10 +305,14 @@ int main(int argc, char** argv) {
             ImGui::Checkbox("glow", &opt.settings.glow);
             ImGui::Checkbox("bolt", &opt.settings.bolt);
             ImGui::Checkbox("ground", &opt.settings.ground);
-            float expo = float(std::log2(opt.settings.exposure));
-            if (ImGui::SliderFloat("exposure (EV)", &expo, -6, 6)) opt.settings.exposure = std::exp2(expo);
+            static_light_panel(opt, view.plan());
+            exposure_panel(opt.settings, rep, shell.dt());
             float scale = float(opt.settings.internal_scale);
             if (ImGui::SliderFloat("internal scale", &scale, 0.25f, 1.0f)) opt.settings.internal_scale = scale;
+            if (time_of_day) {
+                ImGui::Separator();
+                time_of_day->panel();
+            }
             ImGui::Separator();
             accuracy.draw(rep);
             ImGui::Separator();
@@ -235,7 +358,7 @@ int main(int argc, char** argv) {
             }
 
             const double want_rate = autos ? double(rate) : 0.0;
-            if (shape_changed || want_rate != lp.schedule.strike_rate) {
+            if (has_lightning && (shape_changed || want_rate != lp.schedule.strike_rate)) {
                 // Bolt shape / schedule changed: new storm (bolts regenerate), same bake.
                 lp.schedule.strike_rate = want_rate;
                 lp.schedule.first_strike = t + 0.5;
@@ -244,7 +367,7 @@ int main(int argc, char** argv) {
                 shape_changed = false;
                 accuracy.reset();
             }
-            if (strike) {
+            if (strike && has_lightning) {
                 view.pipeline().strike_at(t, std::uint64_t(seed++));
                 accuracy.reset();  // the reference belongs to one frame
             }
@@ -253,6 +376,10 @@ int main(int argc, char** argv) {
             // per-strike preset: it shows the strike's own light, not the bases' fallback.
             const runtime::Frame* shown = view.last_frame();
             shell.hold_screenshot(accuracy.busy() || (at_peak && shown && shown->strikes_fallback > 0));
+            if (time_of_day) {
+                time_of_day->update();
+                if (time_of_day->busy()) shell.delay_screenshot();  // a screenshot shows the new sun
+            }
             opt.settings.frame_index++;
             const render::Camera cam = view::default_camera(view.density(), orbit.az, orbit.el, orbit.dist);
             rep = view.render(cam, t, shell.width(), shell.height(), opt, accuracy.shown_field());

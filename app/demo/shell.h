@@ -43,6 +43,10 @@ public:
     void request_screenshot() noexcept { screenshot_ = true; }
     /// While held, --screenshot-after waits (e.g. for a reference solve still running).
     void hold_screenshot(bool hold) noexcept { hold_ = hold; }
+    /// Moves a --screenshot-after screenshot due at the end of this frame to the next one.
+    void delay_screenshot() noexcept {
+        if (screenshot_after_ > 0 && frames_ + 1 >= screenshot_after_) screenshot_after_ = frames_ + 2;
+    }
     int frames() const noexcept { return frames_; }
 
 private:

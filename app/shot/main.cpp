@@ -106,20 +106,41 @@ int main(int argc, char** argv) {
     try {
         scene::Scene s = scene::load_scene(a.scene);
         core::Grid3<float> density = scene::make_density(s);
-        const auto fgb = app::ensure_baked(s, density, a.fgb);
+        const sky::ScenePlan plan = app::plan_and_print(s, density, stderr);
+        const auto fgb = app::bases_for(plan, s, density, a.fgb);
         auto ctx = platform::create_headless({.width = a.width, .height = a.height});
-        view::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address());
-        lightning::LightningParams lp = view.scene().lightning;
-        lp.schedule.strike_rate = 0.0;  // only the requested strike (after the bake check: same .fgb as the demo)
-        view.set_lightning(lp);
-        if (a.quality) view.set_quality(scene::quality_preset(*a.quality));
-        const std::size_t strike = view.pipeline().strike_at(0.0, a.seed);
-        const double t =
-            a.time +
-            (a.time_after_return_stroke ? view.pipeline().storm().strike(strike).profile.stroke_onset.at(0) : 0.0);
+        view::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address(),
+                             app::static_setup(plan, stderr));
+        double t = a.time;
+        if (view.has_lightning()) {
+            lightning::LightningParams lp = view.scene().lightning;
+            lp.schedule.strike_rate = 0.0;  // only the requested strike (after the bake check: same .fgb as the demo)
+            view.set_lightning(lp);
+            if (a.quality) view.set_quality(scene::quality_preset(*a.quality));
+            const std::size_t strike = view.pipeline().strike_at(0.0, a.seed);
+            if (a.time_after_return_stroke) t += view.pipeline().storm().strike(strike).profile.stroke_onset.at(0);
+        } else if (a.time_after_return_stroke || a.reference) {
+            throw core::Error(a.scene.string(), std::string("the scene has no lightning: ") +
+                                                    (a.reference ? "--reference has no frame to solve"
+                                                                 : "--time +T has no return stroke to follow"));
+        }
         view::ViewOptions opt;
-        opt.settings.exposure *= std::exp2(a.exposure_ev);
         opt.wait_for_strikes = true;  // offline: the preset's own light, never its fallback
+        opt.settings.exposure_compensation = a.exposure_ev;
+        if (a.manual_exposure) {
+            opt.settings.auto_exposure = false;
+            opt.settings.exposure = *a.manual_exposure;
+        }
+        for (const std::string& off : a.off) {
+            opt.sun &= off != "sun";
+            opt.sky &= off != "sky";
+            opt.sun_full_resolution &= off != "silver-lining";
+            opt.settings.glow &= off != "glow";
+            opt.settings.bolt &= off != "bolt";
+            opt.settings.ground &= off != "ground";
+            opt.components.single &= off != "single";
+            opt.components.multiple &= off != "multiple";
+        }
         const render::Camera cam = view::default_camera(view.density());
         // Medians over --repeat frames: the first one also compiles shaders and uploads the
         // density; the run time rebuilds the same frame each time (same strike, same t). The

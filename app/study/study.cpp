@@ -260,5 +260,9 @@ int main(int argc, char** argv) {
                                           app.add_option("-o,--output", ctx.output_dir,
                                                          "output directory (default ./study-output)")
                                               ->type_name("DIR");
+                                          app.add_option("--only", ctx.only,
+                                                         "run only the configurations whose name matches this "
+                                                         "regular expression (frontier)")
+                                              ->type_name("REGEX");
                                       });
 }

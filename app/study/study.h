@@ -23,6 +23,8 @@ namespace fulgur::study {
 struct Context {
     std::filesystem::path output_dir = "study-output";
     bool quick = false;
+    /// --only REGEX: studies with configurations run only those whose name matches.
+    std::string only;
     /// Prints one JSON object on one line (adds "study" if missing) and flushes.
     void summary(const std::string& name, nlohmann::json j) const;
     /// output_dir / file, creating output_dir.

@@ -26,6 +26,7 @@
 #include <fstream>
 #include <map>
 #include <optional>
+#include <regex>
 #include <tuple>
 
 using namespace fulgur;
@@ -157,6 +158,15 @@ FULGUR_STUDY(frontier, "frontier",
                 s.quality.multiple = "monte_carlo";
                 s.quality.multiple_paths = paths;
             });
+        // Monte Carlo for both parts with fewer paths: noise against time.
+        for (const std::uint64_t paths : {25'000ull, 50'000ull, 100'000ull})
+            variant("per_strike MC " + std::to_string(paths / 1000) + "k+" + std::to_string(paths / 1000) + "k",
+                    "storm", [paths](scene::Scene& s) {
+                        s.quality = scene::quality_preset("per_strike");
+                        s.quality.single_paths = paths;
+                        s.quality.multiple = "monte_carlo";
+                        s.quality.multiple_paths = paths;
+                    });
         for (const std::uint64_t paths : {50'000ull, 1'000'000ull})
             variant("hybrid single " + std::to_string(paths / 1000) + "k", "storm", [paths](scene::Scene& s) {
                 s.quality = scene::quality_preset("hybrid");
@@ -174,6 +184,11 @@ FULGUR_STUDY(frontier, "frontier",
         knob("500 m grid", "ds4", [](scene::Scene& s) { s.lighting_downsample = 4; });
         knob("ss tol 1e-3", "sstol", [](scene::Scene& s) { s.transport.ss_tolerance = 1e-3; });
         knob("18 dirs", "dirs18", [](scene::Scene& s) { s.directions = 18; });
+    }
+    if (!ctx.only.empty()) {
+        const std::regex keep(ctx.only);
+        std::erase_if(configs, [&](const Config& c) { return !std::regex_search(c.name, keep); });
+        if (configs.empty()) throw core::Error("--only", "no configuration matches \"" + ctx.only + "\"");
     }
     // A variant whose bake is the scene's own (same key) uses the scene's file.
     const basis::BakeKey base_key = bake::scene_key(base, density);

@@ -40,6 +40,10 @@ struct BakeKey {
 /// 64-bit FNV-1a of the bytes, finished with the SplitMix64 mixer.
 std::uint64_t hash_description(std::string_view text) noexcept;
 
+/// Why two keys differ, for a "stale" message: "first difference at line N: the file has
+/// "a=1", the scene has "a=2"" (or that only the hashes differ). Empty when they are equal.
+std::string key_difference(const BakeKey& file, const BakeKey& expected);
+
 /// Everything in a .fgb file besides the per-light blocks.
 struct FgbMetadata {
     BakeKey key;

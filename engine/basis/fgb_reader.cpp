@@ -209,9 +209,8 @@ bool FgbReader::partial() const noexcept { return impl_->h.flags & fgb::kFlagPar
 std::uint64_t FgbReader::file_size() const noexcept { return impl_->size; }
 const std::string& FgbReader::name() const noexcept { return impl_->name; }
 
-void FgbReader::check_key(const BakeKey& expected) const {
-    const BakeKey& have = impl_->meta.key;
-    if (have == expected) return;
+std::string key_difference(const BakeKey& have, const BakeKey& expected) {
+    if (have == expected) return {};
     // Name the first differing line of the canonical descriptions.
     auto lines = [](const std::string& s) {
         std::vector<std::string> v;
@@ -233,17 +232,24 @@ void FgbReader::check_key(const BakeKey& expected) const {
         const std::string fl = i < f.size() ? "\"" + f[i] + "\"" : "nothing";
         const std::string el = i < e.size() ? "\"" + e[i] + "\"" : "nothing";
         if (fl != el) {
-            diff = "; first difference at line " + std::to_string(i + 1) + ": the file has " + fl + ", the scene has " +
-                   el;
+            diff =
+                "first difference at line " + std::to_string(i + 1) + ": the file has " + fl + ", the scene has " + el;
             break;
         }
     }
     if (diff.empty())
-        diff = "; the descriptions are identical, only the hashes differ (hash function changed?)";
+        diff = "the descriptions are identical, only the hashes differ (hash function changed?)";
     else if (have.hash == expected.hash)
         diff += " (equal hashes: a hash collision)";
+    return diff;
+}
+
+void FgbReader::check_key(const BakeKey& expected) const {
+    const BakeKey& have = impl_->meta.key;
+    if (have == expected) return;
     throw core::Error(impl_->name, "stale bake: baked for scene hash " + hex64(have.hash) +
-                                       ", the scene now hashes to " + hex64(expected.hash) + diff + "; rebake it");
+                                       ", the scene now hashes to " + hex64(expected.hash) + "; " +
+                                       key_difference(have, expected) + "; rebake it");
 }
 
 /// Light l's block bytes after the CRC check (range, entry and CRC errors name the file).

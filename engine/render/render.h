@@ -20,7 +20,13 @@
 //   glow      texture-mapped glow quads along the strokes -> emission buffer (internal res)
 //   march     ray march at internal resolution -> (in-scattered + attenuated glow, T)
 //   bolt      bright HDR core ribbons at full resolution, attenuated per vertex
+//   meter     (automatic exposure) a luminance histogram of the march, read back
 //   composite upsample + background (sky, stars, ground) * T + bolt -> filmic tone map
+//
+// Besides the flash's S (grey; the flash colour tints it) the march draws the static light,
+// S of the sun (or moon) and the sky in colour (upload_static), and the sun's single
+// scattering at full resolution from its transmittance through the full-resolution density
+// (set_sun): the silver lining where the view looks toward the sun.
 #pragma once
 
 #include "core/core.h"
@@ -77,6 +83,29 @@ struct SourceUpload {
     bool keep_others = false;
 };
 
+/// The static light: S of the sun (or moon) and the sky in colour, on a lighting grid, for
+/// every direction of the baked set (it changes only when the sun moves).
+struct StaticUpload {
+    core::GridGeometry geometry;
+    int direction_count = 1;  ///< 1, 6, 18 or 26 (transport::output_directions order)
+    /// One array per direction (all of them, in order): 3 floats (rgb) per cell, x fastest,
+    /// radiance units. Must stay valid during the call only.
+    std::vector<std::span<const float>> rgb;
+};
+
+/// The sun drawn at full resolution: its single scattering
+///   S1(x, w_cam) = albedo p_HG(w_cam . direction; g) E T_sun(x)   (rgb: E x colour)
+/// with T_sun from the sun to x through the full-resolution density (`transmittance`, on
+/// set_volume()'s grid), and the ground's sunlight with the cloud's shadow. Without
+/// `transmittance` only the ground is lit (the static light then carries the cloud's).
+struct SunDesc {
+    glm::dvec3 direction{0.0, 0.0, -1.0};               ///< the direction sunlight travels
+    glm::dvec3 irradiance_rgb{0.0};                     ///< E x colour, W m^-2 per channel
+    double albedo = 0.99, g = 0.0;                      ///< the cloud's single-scattering albedo and HG g
+    const core::Grid3<float>* transmittance = nullptr;  ///< values in [0, 1]; copied
+    bool scatter = true;  ///< draw its single scattering in the cloud (false: the ground's light only)
+};
+
 /// A straight piece of lightning channel at this instant.
 struct Segment {
     glm::vec3 a{0.0f}, b{0.0f};  ///< endpoints (metres, world)
@@ -110,7 +139,19 @@ enum class Timing { Off, Finish, Queries };
 /// Frame settings. Every accuracy/time knob is here with its default.
 struct Settings {
     // Image
-    double exposure = 1.0;        ///< linear multiplier applied before the tone map
+    /// Automatic exposure (docs/render.md "Exposure"): each frame meters its ray march and
+    /// maps its log-average luminance to a key that keeps dim scenes dim, lowered so that at
+    /// most highlight_fraction of the lit pixels lie above the tone curve's shoulder (the
+    /// display's white is reached by far fewer). false: `exposure`.
+    bool auto_exposure = false;
+    double exposure = 1.0;               ///< manual exposure: linear multiplier before the tone map
+    double exposure_compensation = 0.0;  ///< stops added to the automatic exposure
+    double highlight_fraction = 0.02;    ///< lit pixels the automatic exposure lets above its highlight level
+    /// Eye adaptation (automatic exposure): the previous frame's exposure (0: none, the metered
+    /// one applies at once) and the seconds since; the exposure moves toward the metered one
+    /// in log space with these time constants (0: at once).
+    double previous_exposure = 0.0, adaptation_seconds = 0.0;
+    double brighten_seconds = 1.5, darken_seconds = 0.0;
     double internal_scale = 0.5;  ///< ray-march resolution / output resolution, (0, 1]
     bool dither = true;           ///< +-0.5 LSB triangular dither before 8-bit output (no banding)
     // Ray march
@@ -127,14 +168,20 @@ struct Settings {
     bool bolt = true;
     bool glow = true;
     bool cloud_lighting = true;  ///< false: S = 0 (cloud only absorbs the background)
+    bool flash_light = true;     ///< the flash's S (false: not sampled, no resolve)
+    bool static_light = true;    ///< the static light's S (sun, moon, sky; false: not sampled, no resolve)
+    bool sun_light = true;       ///< the sun at full resolution and on the ground (false: not drawn)
     // Scene constants
     double ground_height = 0.0;  ///< z of the ground plane (m)
     double ground_albedo = 0.1;  ///< Lambertian reflectance of the ground (wet fields at night)
     /// Colour of the flash (luminance ~1; bluish white: lightning's spectrum is dominated
     /// by nitrogen and hydrogen lines) applied to S, the bolt, the glow and the ground light.
     glm::dvec3 flash_colour{0.93, 0.97, 1.25};
-    int ground_lights = 6;           ///< representative point lights along the bolt for the ground
-    double sky_radiance = 2e-7;      ///< night sky radiance at the zenith (W m^-2 sr^-1)
+    int ground_lights = 6;  ///< representative point lights along the bolt for the ground
+    /// The sky behind the cloud (rgb radiance, W m^-2 sr^-1): mix(horizon, zenith, sqrt(sin
+    /// elevation)), the scene's sky dome; default: a dark night sky (airglow, greyer at the horizon).
+    glm::dvec3 sky_zenith{9e-8, 1.2e-7, 2e-7};
+    glm::dvec3 sky_horizon{4.8e-7, 4.6e-7, 5.2e-7};
     double star_radiance = 2e-5;     ///< brightest stars (W m^-2 sr^-1, per pixel-sized star)
     double air_scattering = 1.5e-5;  ///< sigma_s of the (rainy) air around the bolt (1/m): glow strength
     double glow_radius = 600.0;      ///< glow quad radius (m); the profile tapers to 0 there
@@ -194,6 +241,7 @@ struct PassTimes {
     double resolve = 0;  ///< S toward the camera (only when S or the camera changed)
     double glow = 0;
     double march = 0;
+    double meter = 0;      ///< exposure metering (automatic exposure only)
     double bolt = 0;       ///< endpoint transmittances + core ribbons
     double composite = 0;  ///< upsampling, background, tone map
     double total = 0;      ///< the whole render() call
@@ -210,6 +258,8 @@ struct FrameStats {
     int directions_used = 0;      ///< directions with non-zero weight in this view
     double missing_weight = 0.0;  ///< largest weight of a needed direction that was not uploaded
     int glow_quads = 0, bolt_segments = 0;
+    double exposure = 0.0;          ///< the exposure the frame was tone mapped with
+    double metered_exposure = 0.0;  ///< what the automatic exposure called for (0: manual)
 };
 
 class Renderer {
@@ -235,6 +285,15 @@ public:
     void upload_source(const SourceUpload& source);
     /// No light in the cloud (no active flash): the march skips S entirely.
     void clear_source();
+    /// Uploads the static light (all directions; see StaticUpload). Throws core::Error on
+    /// inconsistent input (naming the direction and value).
+    void upload_static(const StaticUpload& light);
+    /// No static light: the march does not sample it.
+    void clear_static();
+    /// The sun (see SunDesc). Throws core::Error on bad input or a transmittance on another
+    /// grid than the volume's.
+    void set_sun(const SunDesc& sun);
+    void clear_sun();
     void set_bolt(const Bolt& bolt);
 
     /// Directions of S this camera needs (see view_directions), restricted to lighting nodes
@@ -256,6 +315,8 @@ public:
     /// The last frame's S toward the camera on the lighting grid (x fastest): what the ray
     /// march sampled. Empty when the last frame had no S. For tests and radiance views.
     std::vector<float> read_resolved_source() const;
+    /// The same for the static light (rgb per cell). Empty when the last frame had none.
+    std::vector<float> read_resolved_static() const;
 
     /// GL_RENDERER | GL_VERSION of the context.
     std::string gl_description() const;

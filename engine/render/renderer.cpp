@@ -1,6 +1,7 @@
 #include "render/render.h"
 
 #include "render/detail/directions.h"
+#include "render/detail/exposure.h"
 #include "render/detail/gl_program.h"
 #include "render/detail/volume_prep.h"
 #include "transport/transport.h"
@@ -13,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstdlib>
 #include <limits>
 #include <map>
@@ -40,13 +42,21 @@ struct FrameBlock {
     glm::vec4 ground_light[8]{};
     glm::vec4 sky_params{0.0f}, glow_params{0.0f}, light_colour{0.0f};
     glm::ivec4 counts{0};
+    glm::vec4 sky_zenith{0.0f}, sky_horizon{0.0f};
+    glm::vec4 static_min{0.0f}, static_size{1.0f};
+    glm::vec4 sun_dir{0.0f}, sun_rgb{0.0f}, sun_params{0.0f};
 };
-static_assert(sizeof(FrameBlock) == 64 + 11 * 16 + 8 * 16 + 4 * 16, "FrameBlock must match std140");
+static_assert(sizeof(FrameBlock) == 64 + 11 * 16 + 8 * 16 + 4 * 16 + 7 * 16, "FrameBlock must match std140");
 
 constexpr int kMaxGroundLights = 8;
 constexpr int kGlowProfileSize = 256;
 
-enum Pass { kResolve, kGlow, kMarch, kBolt, kComposite, kPassCount };
+enum Pass { kResolve, kGlow, kMarch, kMeter, kBolt, kComposite, kPassCount };
+
+// Exposure metering: log2 bins of the march's luminance, from 2^-40 to 2^24 (night sky to a
+// lightning channel seen through a thin cloud), a quarter stop each.
+constexpr int kMeterBins = 256;
+constexpr float kMeterLog2Min = -40.0f, kMeterBinWidth = 0.25f;
 
 /// Process CPU time (all threads, including a software rasterizer's), milliseconds.
 double process_cpu_ms() noexcept {
@@ -66,12 +76,21 @@ void validate_settings(const Settings& st) {
     };
     const double inf = std::numeric_limits<double>::max();
     range(st.exposure, 0.0, inf, false, "exposure");
+    range(st.exposure_compensation, -20.0, 20.0, false, "exposure_compensation");
+    range(st.previous_exposure, 0.0, inf, false, "previous_exposure");
+    range(st.adaptation_seconds, 0.0, 1e6, false, "adaptation_seconds");
+    range(st.brighten_seconds, 0.0, 1e6, false, "brighten_seconds");
+    range(st.darken_seconds, 0.0, 1e6, false, "darken_seconds");
+    range(st.highlight_fraction, 0.0, 0.5, true, "highlight_fraction");
     range(st.internal_scale, 0.0, 1.0, true, "internal_scale");
     range(st.step_voxels, 0.01, 64.0, false, "step_voxels");
     range(st.min_transmittance, 0.0, 0.5, false, "min_transmittance");
     range(st.ground_albedo, 0.0, 1.0, false, "ground_albedo");
     range(double(st.ground_lights), 0.0, 8.0, false, "ground_lights");
-    range(st.sky_radiance, 0.0, inf, false, "sky_radiance");
+    for (int c = 0; c < 3; ++c) {
+        range(st.sky_zenith[c], 0.0, inf, false, "sky_zenith");
+        range(st.sky_horizon[c], 0.0, inf, false, "sky_horizon");
+    }
     range(st.star_radiance, 0.0, inf, false, "star_radiance");
     range(st.air_scattering, 0.0, 1.0, false, "air_scattering");
     range(st.glow_radius, 0.0, 1e6, true, "glow_radius");
@@ -150,6 +169,44 @@ struct Buffer {
     }
 };
 
+/// The source function on a lighting grid, one 3D texture per baked direction, and its
+/// resolve toward the camera: the flash's S (R32F) and the static light's (sun, moon, sky;
+/// RGBA32F, colour). Only the directions listed by the latest upload are present.
+struct SourceSet {
+    explicit SourceSet(GLenum f) : format(f) {}
+    GLenum format = GL_R32F;
+    core::GridGeometry geom;
+    int dir_count = 0;
+    std::vector<GLuint> tex;  ///< per baked direction
+    std::vector<bool> present;
+    GLuint cam_tex = 0;  ///< S toward the camera (more than one direction)
+    bool has = false;    ///< some direction is present
+    bool dirty = true;   ///< S changed since the last resolve
+    glm::dvec3 resolved_camera{std::nan("")};
+
+    /// Textures for this grid and direction count (new ones, empty, when either changed).
+    /// Returns true when it (re)allocated.
+    bool ensure(const core::GridGeometry& g, int count) {
+        if (geom == g && dir_count == count && !tex.empty()) return false;
+        release();
+        tex.assign(std::size_t(count), 0);
+        for (GLuint& t : tex) t = make_texture_3d(format, g.dims);
+        if (count > 1) cam_tex = make_texture_3d(format, g.dims);
+        geom = g;
+        dir_count = count;
+        return true;
+    }
+    void release() {
+        for (GLuint& t : tex) delete_texture(t);
+        tex.clear();
+        delete_texture(cam_tex);
+        present.clear();
+        has = false;
+        dirty = true;
+        dir_count = 0;
+    }
+};
+
 /// Everything the passes of one frame share, computed once before the first pass (as
 /// Filament's PerViewUniforms): the std140 block the shaders read and the host-side
 /// decisions taken from the same inputs.
@@ -158,6 +215,8 @@ struct FrameUniforms {
     int width = 0, height = 0;                    ///< output size (pixels)
     int internal_width = 0, internal_height = 0;  ///< ray-march resolution (pixels)
     bool lit = false;                             ///< the march samples S (source, cloud lighting, volume)
+    bool statics = false;                         ///< the march samples the static light (sun, moon, sky)
+    bool sun = false;                             ///< the march draws the sun's full-resolution single scattering
     bool glow = false;                            ///< the glow pass runs
 };
 
@@ -198,8 +257,8 @@ public:
     void end(Pass p) {
         if (mode_ == Timing::Finish) {
             glFinish();
-            wall_[p] = clock_.milliseconds();
-            cpu_[p] = process_cpu_ms() - cpu0_;
+            wall_[p] += clock_.milliseconds();  // a pass may run twice (the two resolves)
+            cpu_[p] += process_cpu_ms() - cpu0_;
         } else if (mode_ == Timing::Queries) {
             glEndQuery(GL_TIME_ELAPSED);
         }
@@ -223,7 +282,7 @@ public:
 
 private:
     static PassTimes times(const double* pass, double upload, double total) noexcept {
-        return {upload, pass[kResolve], pass[kGlow], pass[kMarch], pass[kBolt], pass[kComposite], total};
+        return {upload, pass[kResolve], pass[kGlow], pass[kMarch], pass[kMeter], pass[kBolt], pass[kComposite], total};
     }
     Timing mode_;
     const GLuint* queries_;
@@ -261,15 +320,15 @@ struct Renderer::Impl {
     std::vector<std::uint8_t> distance;  // Chebyshev distance field (voxels)
     double kappa = 0.0;
 
-    // Source
-    core::GridGeometry lit_geom;
-    int dir_count = 0;
-    std::vector<GLuint> src_tex;  // one R32F 3D texture per baked direction
-    std::vector<bool> present;
-    GLuint scam_tex = 0;
-    bool has_source = false;
-    bool resolve_dirty = true;
-    glm::dvec3 resolved_camera{std::nan("")};
+    // Source: the flash's S and the static light's (colour)
+    SourceSet flash = SourceSet(GL_R32F), statics = SourceSet(GL_RGBA32F);
+    // The sun drawn at full resolution (set_sun)
+    GLuint sun_tex = 0;  // transmittance to the sun on the density grid (R16F)
+    bool has_sun = false, sun_fine = false, sun_scatter = false;
+    glm::dvec3 sun_direction{0.0, 0.0, -1.0}, sun_rgb{0.0};
+    double sun_albedo = 0.0, sun_g = 0.0;
+    // Exposure metering
+    Buffer meter_buf;
     double pending_upload_ms = 0.0, pending_upload_cpu_ms = 0.0;
     // Cache of the needed directions for (camera, lighting grid, count).
     mutable std::optional<glm::dvec3> needed_camera;
@@ -291,7 +350,8 @@ struct Renderer::Impl {
     int ground_lights_k = -1;  // -1: to rebuild
     double ground_lights_height = 0.0;
 
-    GLuint last_scam = 0;  // S_cam texture the last frame sampled (0: none)
+    GLuint last_scam = 0;    // S_cam texture the last frame sampled (0: none)
+    GLuint last_static = 0;  // the static light's S_cam the last frame sampled (0: none)
 
     // Targets
     Target glow_target, march_target, core_target, hdr_target;
@@ -306,10 +366,14 @@ struct Renderer::Impl {
         return p;
     }
 
-    static std::string march_defines(bool skip, bool early, bool source, bool emission) {
-        return std::string("#define SKIP_EMPTY ") + (skip ? "1" : "0") + "\n#define EARLY_EXIT " + (early ? "1" : "0") +
-               "\n#define HAS_SOURCE " + (source ? "1" : "0") + "\n#define HAS_EMISSION " + (emission ? "1" : "0") +
-               "\n";
+    static std::string march_defines(bool skip, bool early, bool source, bool emission, bool statics = false,
+                                     bool sun = false) {
+        std::string d = std::string("#define SKIP_EMPTY ") + (skip ? "1" : "0") + "\n#define EARLY_EXIT " +
+                        (early ? "1" : "0") + "\n#define HAS_SOURCE " + (source ? "1" : "0") +
+                        "\n#define HAS_EMISSION " + (emission ? "1" : "0") + "\n";
+        if (statics) d += "#define HAS_STATIC 1\n";
+        if (sun) d += "#define HAS_SUN 1\n";
+        return d;
     }
 
     GLuint march_program(MarchKernel kernel, const std::string& defines) {
@@ -467,8 +531,11 @@ struct Renderer::Impl {
     // ---- one frame: uniforms, then the passes in order (defined below)
     FrameUniforms prepare_frame(const Camera& camera, const Settings& st, int width, int height);
     void bind_frame(const FrameUniforms& u);
+    GLuint resolve_set(SourceSet& set, const glm::dvec3& camera, const std::vector<int>& active, bool must_resolve,
+                       PassTimer& timer);
     void resolve_pass(const glm::dvec3& camera, const Settings& st, const FrameUniforms& u, PassTimer& timer,
                       FrameStats& stats);
+    void meter_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer, FrameStats& stats);
     void glow_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer, FrameStats& stats);
     void march_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer);
     void bolt_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer, FrameStats& stats);
@@ -497,7 +564,6 @@ Renderer::Renderer(GetProcAddress get_proc_address, std::filesystem::path shader
     const float zero = 0.0f;
     m.zero_tex = make_texture_3d(GL_R32F, {1, 1, 1});
     glTextureSubImage3D(m.zero_tex, 0, 0, 0, 0, 1, 1, 1, GL_RED, GL_FLOAT, &zero);
-    m.scam_tex = 0;
     try {
         m.build_default_programs();
     } catch (...) {
@@ -519,8 +585,10 @@ Renderer::~Renderer() {
     delete_texture(m.zero_tex);
     delete_texture(m.profile_tex);
     delete_texture(m.density_tex);
-    delete_texture(m.scam_tex);
-    for (GLuint& t : m.src_tex) delete_texture(t);
+    m.flash.release();
+    m.statics.release();
+    delete_texture(m.sun_tex);
+    m.meter_buf.release();
     m.seg_buf.release();
     m.endpoint_buf.release();
     m.glow_buf.release();
@@ -598,6 +666,10 @@ void Renderer::set_volume(const VolumeDesc& v) {
         }
         glTextureSubImage3D(m.density_tex, 0, 0, 0, 0, d.x, d.y, d.z, GL_RG, GL_FLOAT, packed.data());
     }
+    if (m.sun_tex && !(m.density.geom == v.density->geom)) {
+        delete_texture(m.sun_tex);  // on the old grid
+        m.sun_fine = false;
+    }
     m.density = std::move(copy);
     m.distance = std::move(dist);
     m.kappa = v.extinction;
@@ -610,6 +682,8 @@ void Renderer::set_volume(const VolumeDesc& v) {
 void Renderer::clear_volume() {
     Impl& m = *impl_;
     delete_texture(m.density_tex);
+    delete_texture(m.sun_tex);
+    m.sun_fine = false;
     m.density = {};
     m.distance.clear();
     m.has_volume = false;
@@ -618,61 +692,121 @@ void Renderer::clear_volume() {
     m.ground_lights_k = -1;
 }
 
+namespace {
+
+/// Validates an upload of `channels` floats per cell and writes it into `set` (see
+/// SourceUpload: the listed directions replace the set, or are added with keep_others).
+void upload_into(SourceSet& set, const char* what, const core::GridGeometry& geometry, int direction_count,
+                 const std::vector<int>& directions, const std::vector<std::span<const float>>& values, int channels,
+                 bool keep_others) {
+    const std::string name(what);
+    core::validate_geometry(geometry, name + ": lighting grid");
+    (void)transport::output_directions(direction_count);  // throws for a bad count
+    if (directions.size() != values.size())
+        throw core::Error(name, std::to_string(directions.size()) + " directions but " + std::to_string(values.size()) +
+                                    " value arrays");
+    const std::size_t cells = geometry.cell_count(), n = cells * std::size_t(channels);
+    std::vector<bool> listed(std::size_t(direction_count), false);
+    for (std::size_t k = 0; k < directions.size(); ++k) {
+        const int dir = directions[k];
+        const std::string where = name + ": direction " + std::to_string(dir);
+        if (dir < 0 || dir >= direction_count)
+            throw core::Error(where, "index out of range [0, " + std::to_string(direction_count) + ")");
+        if (listed[std::size_t(dir)]) throw core::Error(where, "listed twice");
+        listed[std::size_t(dir)] = true;
+        if (values[k].size() != n)
+            throw core::Error(where, "has " + std::to_string(values[k].size()) + " values, the lighting grid " +
+                                         std::to_string(cells) + " cells" +
+                                         (channels > 1 ? " x " + std::to_string(channels) : std::string()));
+        for (std::size_t c = 0; c < n; ++c)
+            if (!std::isfinite(values[k][c]))
+                throw core::Error(where, "value of cell " + std::to_string(c / std::size_t(channels)) +
+                                             (channels > 1 ? " channel " + std::to_string(c % std::size_t(channels))
+                                                           : std::string()) +
+                                             " is not finite");
+    }
+    const bool fresh = set.ensure(geometry, direction_count);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    for (std::size_t k = 0; k < directions.size(); ++k)
+        glTextureSubImage3D(set.tex[std::size_t(directions[k])], 0, 0, 0, 0, geometry.dims.x, geometry.dims.y,
+                            geometry.dims.z, channels == 1 ? GL_RED : GL_RGB, GL_FLOAT, values[k].data());
+    if (keep_others && !fresh && set.present.size() == listed.size()) {
+        for (std::size_t d = 0; d < listed.size(); ++d) set.present[d] = set.present[d] || listed[d];
+    } else {
+        set.present = listed;
+    }
+    set.has = std::find(set.present.begin(), set.present.end(), true) != set.present.end();
+    set.dirty = true;
+}
+
+}  // namespace
+
 void Renderer::upload_source(const SourceUpload& s) {
     Impl& m = *impl_;
     core::Stopwatch sw;
     const double cpu0 = process_cpu_ms();
-    core::validate_geometry(s.geometry, "upload_source: lighting grid");
-    (void)transport::output_directions(s.direction_count);  // throws for a bad count
-    if (s.directions.size() != s.values.size())
-        throw core::Error("upload_source", std::to_string(s.directions.size()) + " directions but " +
-                                               std::to_string(s.values.size()) + " value arrays");
-    const std::size_t cells = s.geometry.cell_count();
-    std::vector<bool> listed(std::size_t(s.direction_count), false);
-    for (std::size_t k = 0; k < s.directions.size(); ++k) {
-        const int dir = s.directions[k];
-        const std::string where = "upload_source: direction " + std::to_string(dir);
-        if (dir < 0 || dir >= s.direction_count)
-            throw core::Error(where, "index out of range [0, " + std::to_string(s.direction_count) + ")");
-        if (listed[std::size_t(dir)]) throw core::Error(where, "listed twice");
-        listed[std::size_t(dir)] = true;
-        if (s.values[k].size() != cells)
-            throw core::Error(where, "has " + std::to_string(s.values[k].size()) + " values, the lighting grid " +
-                                         std::to_string(cells) + " cells");
-        for (std::size_t c = 0; c < cells; ++c)
-            if (!std::isfinite(s.values[k][c]))
-                throw core::Error(where, "value of cell " + std::to_string(c) + " is not finite");
-    }
-    bool fresh = false;
-    if (!(m.lit_geom == s.geometry) || m.dir_count != s.direction_count || m.src_tex.empty()) {
-        fresh = true;
-        for (GLuint& t : m.src_tex) delete_texture(t);
-        delete_texture(m.scam_tex);
-        m.src_tex.assign(std::size_t(s.direction_count), 0);
-        for (GLuint& t : m.src_tex) t = make_texture_3d(GL_R32F, s.geometry.dims);
-        if (s.direction_count > 1) m.scam_tex = make_texture_3d(GL_R32F, s.geometry.dims);
-        m.lit_geom = s.geometry;
-        m.dir_count = s.direction_count;
-    }
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-    for (std::size_t k = 0; k < s.directions.size(); ++k)
-        glTextureSubImage3D(m.src_tex[std::size_t(s.directions[k])], 0, 0, 0, 0, s.geometry.dims.x, s.geometry.dims.y,
-                            s.geometry.dims.z, GL_RED, GL_FLOAT, s.values[k].data());
-    if (s.keep_others && !fresh && m.present.size() == listed.size()) {
-        for (std::size_t d = 0; d < listed.size(); ++d) m.present[d] = m.present[d] || listed[d];
-    } else {
-        m.present = listed;
-    }
-    m.has_source = std::find(m.present.begin(), m.present.end(), true) != m.present.end();
-    m.resolve_dirty = true;
+    upload_into(m.flash, "upload_source", s.geometry, s.direction_count, s.directions, s.values, 1, s.keep_others);
     m.pending_upload_ms += sw.milliseconds();
     m.pending_upload_cpu_ms += process_cpu_ms() - cpu0;
 }
 
 void Renderer::clear_source() {
-    impl_->has_source = false;
-    impl_->resolve_dirty = true;
+    impl_->flash.has = false;
+    impl_->flash.dirty = true;
 }
+
+void Renderer::upload_static(const StaticUpload& s) {
+    Impl& m = *impl_;
+    core::Stopwatch sw;
+    const double cpu0 = process_cpu_ms();
+    std::vector<int> all(s.rgb.size());
+    for (std::size_t k = 0; k < all.size(); ++k) all[k] = int(k);
+    if (int(s.rgb.size()) != s.direction_count)
+        throw core::Error("upload_static", "needs all " + std::to_string(s.direction_count) + " directions, got " +
+                                               std::to_string(s.rgb.size()));
+    upload_into(m.statics, "upload_static", s.geometry, s.direction_count, all, s.rgb, 3, false);
+    m.pending_upload_ms += sw.milliseconds();
+    m.pending_upload_cpu_ms += process_cpu_ms() - cpu0;
+}
+
+void Renderer::clear_static() {
+    impl_->statics.has = false;
+    impl_->statics.dirty = true;
+}
+
+void Renderer::set_sun(const SunDesc& sun) {
+    Impl& m = *impl_;
+    const double len = glm::length(sun.direction);
+    if (!std::isfinite(len) || !(len > 0.0))
+        throw core::Error("set_sun: direction", "must be a finite non-zero vector");
+    for (int c = 0; c < 3; ++c)
+        if (!std::isfinite(sun.irradiance_rgb[c]) || sun.irradiance_rgb[c] < 0.0)
+            throw core::Error("set_sun: irradiance_rgb", "must be finite and >= 0");
+    if (!(sun.albedo >= 0.0 && sun.albedo <= 1.0)) throw core::Error("set_sun: albedo", "must be in [0, 1]");
+    if (!(sun.g > -1.0 && sun.g < 1.0)) throw core::Error("set_sun: g", "must be in (-1, 1)");
+    m.sun_direction = sun.direction / len;
+    m.sun_rgb = sun.irradiance_rgb;
+    m.sun_albedo = sun.albedo;
+    m.sun_g = sun.g;
+    m.has_sun = true;
+    m.sun_fine = false;
+    m.sun_scatter = sun.scatter;
+    if (sun.transmittance) {
+        const core::Grid3<float>& t = *sun.transmittance;
+        if (!m.has_volume || !(t.geom == m.density.geom) || t.data.size() != t.geom.cell_count())
+            throw core::Error("set_sun: transmittance", "must be on the density grid of set_volume()");
+        for (std::size_t i = 0; i < t.data.size(); ++i)
+            if (!(t.data[i] >= 0.0f && t.data[i] <= 1.0f))
+                throw core::Error("set_sun: transmittance", "value " + std::to_string(i) + " is outside [0, 1]");
+        if (!m.sun_tex) m.sun_tex = make_texture_3d(GL_R16F, t.geom.dims);
+        glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+        glTextureSubImage3D(m.sun_tex, 0, 0, 0, 0, t.geom.dims.x, t.geom.dims.y, t.geom.dims.z, GL_RED, GL_FLOAT,
+                            t.data.data());
+        m.sun_fine = true;
+    }
+}
+
+void Renderer::clear_sun() { impl_->has_sun = impl_->sun_fine = false; }
 
 void Renderer::set_bolt(const Bolt& bolt) {
     Impl& m = *impl_;
@@ -752,10 +886,24 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
         f.vol_size = glm::vec4(glm::vec3(g.extent()), float(g.voxel_size));
     }
     // Lighting grid
-    u.lit = has_source && st.cloud_lighting && has_volume;
+    u.lit = flash.has && st.cloud_lighting && st.flash_light && has_volume;
     if (u.lit) {
-        f.lit_min = glm::vec4(glm::vec3(lit_geom.origin), 1.0f);
-        f.lit_size = glm::vec4(glm::vec3(lit_geom.extent()), 0.0f);
+        f.lit_min = glm::vec4(glm::vec3(flash.geom.origin), 1.0f);
+        f.lit_size = glm::vec4(glm::vec3(flash.geom.extent()), 0.0f);
+    }
+    // The static light and the sun at full resolution (each switched off costs nothing: no
+    // resolve, no texture fetch in the march)
+    u.statics = statics.has && st.cloud_lighting && st.static_light && has_volume;
+    if (u.statics) {
+        f.static_min = glm::vec4(glm::vec3(statics.geom.origin), 1.0f);
+        f.static_size = glm::vec4(glm::vec3(statics.geom.extent()), 0.0f);
+    }
+    const bool sun_on = has_sun && st.sun_light;
+    u.sun = sun_on && sun_fine && sun_scatter && st.cloud_lighting && has_volume;
+    if (sun_on) {
+        f.sun_dir = glm::vec4(glm::vec3(sun_direction), 1.0f);
+        f.sun_rgb = glm::vec4(glm::vec3(sun_rgb), float(sun_albedo));
+        f.sun_params = glm::vec4(float(sun_g), sun_fine && has_volume ? 1.0f : 0.0f, 0.0f, 0.0f);
     }
     f.march_params = glm::vec4(float(step), float(st.min_transmittance), st.jitter ? 1.0f : 0.0f,
                                float(std::fmod(double(st.frame_index) * 0.6180339887498949, 1.0)));
@@ -772,7 +920,9 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
         f.ground_params = glm::vec4(float(st.ground_height), 0.0f, 0.0f, 0.0f);
     }
     // Sky, glow, bolt, tone map
-    f.sky_params = glm::vec4(float(st.sky_radiance), float(st.star_radiance), st.sky ? 1.0f : 0.0f, float(st.exposure));
+    f.sky_params = glm::vec4(0.0f, float(st.star_radiance), st.sky ? 1.0f : 0.0f, float(st.exposure));
+    f.sky_zenith = glm::vec4(glm::vec3(st.sky_zenith), 0.0f);
+    f.sky_horizon = glm::vec4(glm::vec3(st.sky_horizon), 0.0f);
     f.glow_params =
         glm::vec4(float(st.glow_radius), float(st.air_scattering), st.glow ? 1.0f : 0.0f, st.bolt ? 1.0f : 0.0f);
     f.light_colour = glm::vec4(glm::vec3(st.flash_colour), st.dither ? 1.0f : 0.0f);
@@ -793,76 +943,95 @@ void Renderer::Impl::bind_frame(const FrameUniforms& u) {
     glDisable(GL_BLEND);
 }
 
-/// Resolve: S toward the camera on the lighting grid (only when S or the camera changed;
-/// with one direction S itself). Binds the density (unit 0) and S toward the camera (unit 1).
+/// Resolves a source set toward the camera (only when it or the camera changed): returns the
+/// texture the march samples (the set's own texture with one direction).
+GLuint Renderer::Impl::resolve_set(SourceSet& set, const glm::dvec3& camera, const std::vector<int>& active,
+                                   bool must_resolve, PassTimer& timer) {
+    if (set.dir_count == 1) return set.tex[0];
+    if (!must_resolve) return set.cam_tex;
+    const bool rgb = set.format != GL_R32F;
+    const GLuint p = rgb ? program("resolve_rgb", {{GL_COMPUTE_SHADER, "resolve.comp"}}, "#define RGB 1\n")
+                         : program("resolve", {{GL_COMPUTE_SHADER, "resolve.comp"}});
+    glUseProgram(p);
+    const detail::FoldTable ft = detail::fold_table(set.dir_count);
+    GLint idx[27 * 3];
+    GLfloat frac[27 * 3];
+    for (int c = 0; c < 27; ++c)
+        for (int k = 0; k < 3; ++k) {
+            idx[c * 3 + k] = ft.index[std::size_t(c)][std::size_t(k)];
+            frac[c * 3 + k] = GLfloat(ft.fraction[std::size_t(c)][std::size_t(k)]);
+        }
+    const core::GridGeometry& g = set.geom;
+    glUniform3iv(glGetUniformLocation(p, "u_fold_index"), 27, idx);
+    glUniform3fv(glGetUniformLocation(p, "u_fold_fraction"), 27, frac);
+    glUniform3i(glGetUniformLocation(p, "u_dims"), g.dims.x, g.dims.y, g.dims.z);
+    glBindImageTexture(0, set.cam_tex, 0, GL_TRUE, 0, GL_READ_WRITE, rgb ? GL_RGBA32F : GL_R32F);
+    const GLint loc_dirs = glGetUniformLocation(p, "u_dirs"), loc_acc = glGetUniformLocation(p, "u_accumulate");
+    const GLint loc_n = glGetUniformLocation(p, "u_samplers");
+    GLfloat active_mask[26] = {};
+    for (int d : active) active_mask[d] = 1.0f;
+    glUniform1fv(glGetUniformLocation(p, "u_active"), 26, active_mask);
+    // Up to 16 directions per dispatch (unused samplers read the zero texture with weight 0);
+    // at least one dispatch so S_cam is written (zeros) even without S.
+    constexpr std::size_t kBatch = 16;
+    for (std::size_t b = 0; b == 0 || b < active.size(); b += kBatch) {
+        GLint dirs[kBatch];
+        std::fill(std::begin(dirs), std::end(dirs), -1);
+        for (std::size_t k = 0; k < kBatch; ++k) {
+            const bool used = b + k < active.size();
+            if (used) dirs[k] = active[b + k];
+            glBindTextureUnit(GLuint(k), used ? set.tex[std::size_t(active[b + k])] : zero_tex);
+        }
+        glUniform4iv(loc_dirs, 4, dirs);
+        glUniform1i(loc_n, GLint(std::min(kBatch, std::max<std::size_t>(1, active.size() - b))));
+        glUniform1i(loc_acc, b == 0 ? 0 : 1);
+        if (b > 0) glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+        glDispatchCompute(GLuint((g.dims.x + 7) / 8), GLuint((g.dims.y + 7) / 8), GLuint(g.dims.z));
+    }
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
+    timer.end(kResolve);
+    set.dirty = false;
+    set.resolved_camera = camera;
+    return set.cam_tex;
+}
+
+/// Resolve: S toward the camera on the lighting grid, for the flash and for the static light
+/// (only when S or the camera changed; with one direction S itself). Binds the density (unit
+/// 0), the flash's S toward the camera (unit 1), the static light's (unit 6) and the sun's
+/// transmittance (unit 7).
 void Renderer::Impl::resolve_pass(const glm::dvec3& camera, const Settings& st, const FrameUniforms& u,
                                   PassTimer& timer, FrameStats& stats) {
-    GLuint scam = zero_tex;
+    GLuint scam = zero_tex, stat = zero_tex;
     if (u.lit) {
-        const bool must_resolve = dir_count > 1 && (resolve_dirty || resolved_camera != camera);
+        const bool must_resolve = flash.dir_count > 1 && (flash.dirty || flash.resolved_camera != camera);
         if (must_resolve) timer.begin(kResolve);  // includes the CPU work of finding the needed directions
-        const std::vector<DirectionUse>& need = needed_for(camera, lit_geom, dir_count, st.direction_min_weight);
+        const std::vector<DirectionUse>& need =
+            needed_for(camera, flash.geom, flash.dir_count, st.direction_min_weight);
         stats.directions_used = int(need.size());
         std::vector<int> active;
         for (const DirectionUse& d : need) {
-            if (present[std::size_t(d.index)])
+            if (flash.present[std::size_t(d.index)])
                 active.push_back(d.index);
             else
                 stats.missing_weight = std::max(stats.missing_weight, d.max_weight);
         }
-        if (dir_count == 1) {
-            scam = src_tex[0];
-        } else {
-            scam = scam_tex;
-            if (must_resolve) {
-                const GLuint p = program("resolve", {{GL_COMPUTE_SHADER, "resolve.comp"}});
-                glUseProgram(p);
-                const detail::FoldTable ft = detail::fold_table(dir_count);
-                GLint idx[27 * 3];
-                GLfloat frac[27 * 3];
-                for (int c = 0; c < 27; ++c)
-                    for (int k = 0; k < 3; ++k) {
-                        idx[c * 3 + k] = ft.index[std::size_t(c)][std::size_t(k)];
-                        frac[c * 3 + k] = GLfloat(ft.fraction[std::size_t(c)][std::size_t(k)]);
-                    }
-                glUniform3iv(glGetUniformLocation(p, "u_fold_index"), 27, idx);
-                glUniform3fv(glGetUniformLocation(p, "u_fold_fraction"), 27, frac);
-                glUniform3i(glGetUniformLocation(p, "u_dims"), lit_geom.dims.x, lit_geom.dims.y, lit_geom.dims.z);
-                glBindImageTexture(0, scam_tex, 0, GL_TRUE, 0, GL_READ_WRITE, GL_R32F);
-                const GLint loc_dirs = glGetUniformLocation(p, "u_dirs"),
-                            loc_acc = glGetUniformLocation(p, "u_accumulate");
-                const GLint loc_n = glGetUniformLocation(p, "u_samplers");
-                GLfloat active_mask[26] = {};
-                for (int d : active) active_mask[d] = 1.0f;
-                glUniform1fv(glGetUniformLocation(p, "u_active"), 26, active_mask);
-                // Up to 16 directions per dispatch (unused samplers read the zero texture with
-                // weight 0); at least one dispatch so S_cam is written (zeros) even without S.
-                constexpr std::size_t kBatch = 16;
-                for (std::size_t b = 0; b == 0 || b < active.size(); b += kBatch) {
-                    GLint dirs[kBatch];
-                    std::fill(std::begin(dirs), std::end(dirs), -1);
-                    for (std::size_t k = 0; k < kBatch; ++k) {
-                        const bool used = b + k < active.size();
-                        if (used) dirs[k] = active[b + k];
-                        glBindTextureUnit(GLuint(k), used ? src_tex[std::size_t(active[b + k])] : zero_tex);
-                    }
-                    glUniform4iv(loc_dirs, 4, dirs);
-                    glUniform1i(loc_n, GLint(std::min(kBatch, std::max<std::size_t>(1, active.size() - b))));
-                    glUniform1i(loc_acc, b == 0 ? 0 : 1);
-                    if (b > 0) glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
-                    glDispatchCompute(GLuint((lit_geom.dims.x + 7) / 8), GLuint((lit_geom.dims.y + 7) / 8),
-                                      GLuint(lit_geom.dims.z));
-                }
-                glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
-                timer.end(kResolve);
-                resolve_dirty = false;
-                resolved_camera = camera;
-            }
-        }
+        scam = resolve_set(flash, camera, active, must_resolve, timer);
+    }
+    if (u.statics) {
+        // Every direction is present (upload_static); the view's needed ones are resolved.
+        const bool must_resolve = statics.dir_count > 1 && (statics.dirty || statics.resolved_camera != camera);
+        if (must_resolve) timer.begin(kResolve);
+        std::vector<int> active;
+        for (const DirectionUse& d : needed_for(camera, statics.geom, statics.dir_count, st.direction_min_weight))
+            active.push_back(d.index);
+        stat = resolve_set(statics, camera, active, must_resolve, timer);
     }
     glBindTextureUnit(0, has_volume ? density_tex : zero_tex);
     glBindTextureUnit(1, scam);
+    glBindTextureUnit(6, stat);
+    glBindTextureUnit(7, sun_fine ? sun_tex : zero_tex);
     last_scam = u.lit ? scam : 0;
+    last_static = u.statics ? stat : 0;
 }
 
 /// Glow: additive quads along the strokes into the emission buffer at internal resolution
@@ -893,7 +1062,7 @@ void Renderer::Impl::glow_pass(const Settings& st, const FrameUniforms& u, PassT
 /// Ray march at internal resolution: in-scattered radiance + attenuated glow, and T.
 void Renderer::Impl::march_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer) {
     timer.begin(kMarch);
-    const std::string defines = march_defines(st.skip_empty, st.early_exit, u.lit, u.glow);
+    const std::string defines = march_defines(st.skip_empty, st.early_exit, u.lit, u.glow, u.statics, u.sun);
     const GLuint p = march_program(st.kernel, defines);
     glUseProgram(p);
     if (st.kernel == MarchKernel::Fragment) {
@@ -906,6 +1075,34 @@ void Renderer::Impl::march_pass(const Settings& st, const FrameUniforms& u, Pass
         glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
     }
     timer.end(kMarch);
+}
+
+/// Meter (automatic exposure): a log2 luminance histogram of the march, read back; the chosen
+/// exposure replaces the frame's (the composite reads it from the frame block).
+void Renderer::Impl::meter_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer, FrameStats& stats) {
+    stats.exposure = st.exposure;
+    if (!st.auto_exposure) return;
+    timer.begin(kMeter);
+    const GLuint p = program("meter", {{GL_COMPUTE_SHADER, "meter.comp"}});
+    glUseProgram(p);
+    const std::vector<std::uint32_t> zero(kMeterBins, 0u);
+    meter_buf.upload(zero.data(), zero.size() * sizeof(std::uint32_t));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, meter_buf.id);
+    glBindTextureUnit(3, march_target.tex);
+    glUniform1i(glGetUniformLocation(p, "u_bins"), kMeterBins);
+    glUniform1f(glGetUniformLocation(p, "u_log2_min"), kMeterLog2Min);
+    glUniform1f(glGetUniformLocation(p, "u_bin_width"), kMeterBinWidth);
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
+    glDispatchCompute(GLuint((u.internal_width + 7) / 8), GLuint((u.internal_height + 7) / 8), 1);
+    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    std::vector<std::uint32_t> bins(kMeterBins);
+    glGetNamedBufferSubData(meter_buf.id, 0, GLsizeiptr(bins.size() * sizeof(std::uint32_t)), bins.data());
+    const detail::ExposureChoice c = detail::choose_exposure(bins, kMeterLog2Min, kMeterBinWidth, st);
+    stats.metered_exposure = c.metered;
+    stats.exposure = c.applied;
+    const float e = float(c.applied);
+    glNamedBufferSubData(frame_ubo, GLintptr(offsetof(FrameBlock, sky_params) + 3 * sizeof(float)), sizeof(float), &e);
+    timer.end(kMeter);
 }
 
 /// Bolt: endpoint transmittances, then the HDR core ribbons at full resolution (the core
@@ -966,6 +1163,7 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
     m.resolve_pass(camera.position, st, u, timer, stats);
     m.glow_pass(st, u, timer, stats);
     m.march_pass(st, u, timer);
+    m.meter_pass(st, u, timer, stats);
     m.bolt_pass(st, u, timer, stats);
     m.composite_pass(u, caller, timer);
     timer.finish();
@@ -1010,9 +1208,18 @@ std::vector<float> Renderer::read_hdr() const {
 std::vector<float> Renderer::read_resolved_source() const {
     const Impl& m = *impl_;
     if (!m.last_scam) return {};
-    std::vector<float> v(m.lit_geom.cell_count());
+    std::vector<float> v(m.flash.geom.cell_count());
     glPixelStorei(GL_PACK_ALIGNMENT, 4);
     glGetTextureImage(m.last_scam, 0, GL_RED, GL_FLOAT, GLsizei(v.size() * sizeof(float)), v.data());
+    return v;
+}
+
+std::vector<float> Renderer::read_resolved_static() const {
+    const Impl& m = *impl_;
+    if (!m.last_static) return {};
+    std::vector<float> v(m.statics.geom.cell_count() * 3);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glGetTextureImage(m.last_static, 0, GL_RGB, GL_FLOAT, GLsizei(v.size() * sizeof(float)), v.data());
     return v;
 }
 

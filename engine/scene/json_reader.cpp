@@ -25,12 +25,37 @@ std::string Range::str() const {
 JsonObject::JsonObject(const nlohmann::json& j, std::string file, std::string path)
     : j_(j), file_(std::move(file)), path_(std::move(path)) {
     if (!j_.is_object())
-        throw core::Error(file_ + (path_.empty() ? "" : ": " + path_), "expected a JSON object, got " + describe(j_));
+        throw core::Error(file_ + ": " + (path_.empty() ? std::string("/") : path_),
+                          "expected a JSON object, got " + describe(j_));
 }
 
-std::string JsonObject::field(std::string_view key) const {
-    return path_.empty() ? std::string(key) : path_ + "." + std::string(key);
+std::string json_pointer_token(std::string_view key) {
+    std::string t;
+    for (char c : key) {
+        if (c == '~')
+            t += "~0";
+        else if (c == '/')
+            t += "~1";
+        else
+            t += c;
+    }
+    return t;
 }
+
+std::string dotted_to_pointer(std::string_view dotted) {
+    std::string out;
+    std::size_t start = 0;
+    while (start <= dotted.size()) {
+        const std::size_t dot = dotted.find('.', start);
+        const std::size_t end = dot == std::string_view::npos ? dotted.size() : dot;
+        out += "/" + json_pointer_token(dotted.substr(start, end - start));
+        if (dot == std::string_view::npos) break;
+        start = dot + 1;
+    }
+    return out;
+}
+
+std::string JsonObject::field(std::string_view key) const { return path_ + "/" + json_pointer_token(key); }
 
 void JsonObject::fail(std::string_view key, const std::string& what) const {
     throw core::Error(file_ + ": " + field(key), what);
@@ -183,7 +208,7 @@ std::vector<JsonObject> JsonObject::objects(std::string_view key) {
     if (!v) return out;
     if (!v->is_array()) fail(key, "expected an array of objects, got " + describe(*v));
     for (std::size_t i = 0; i < v->size(); ++i) {
-        const std::string p = field(key) + "[" + std::to_string(i) + "]";
+        const std::string p = field(key) + "/" + std::to_string(i);
         if (!(*v)[i].is_object()) throw core::Error(file_ + ": " + p, "expected an object, got " + describe((*v)[i]));
         out.emplace_back((*v)[i], file_, p);
     }

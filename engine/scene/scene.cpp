@@ -4,8 +4,10 @@
 
 #include <glm/geometric.hpp>
 
+#include <algorithm>
 #include <fstream>
 #include <limits>
+#include <numbers>
 #include <sstream>
 
 namespace fulgur::scene {
@@ -16,6 +18,17 @@ using detail::Range;
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Runs another module's validator, whose errors name a dotted field ("lightning.timing.x"),
+// and rethrows them naming the file and the field as a JSON pointer ("/lightning/timing/x").
+template <class F>
+void validated_as_pointer(const std::string& file, F&& validate) {
+    try {
+        validate();
+    } catch (const core::Error& e) {
+        throw core::Error(file + ": " + detail::dotted_to_pointer(e.where()), e.reason());
+    }
+}
 
 void parse_medium(JsonObject o, transport::Medium& m) {
     // kappa up to 10 1/m: a 1 m voxel at density 1 is then optically 10 deep; anything
@@ -54,12 +67,8 @@ void parse_generator(JsonObject o, cloud::CumulonimbusParams& p) {
     p.smoothing_radius = int(o.integer_or("smoothing_radius", p.smoothing_radius, 0, 16));
     p.density_gain = o.number_or("density_gain", p.density_gain, Range{0.0, 100.0, true, false});
     o.finish();
-    try {
-        cloud::validate_cumulonimbus(p);
-    } catch (const core::Error& e) {
-        // e.where() is the field path ("cloud.generator.top_height"); add the file.
-        throw core::Error(o.file() + ": " + e.where(), e.reason());
-    }
+    // e.where() is the dotted field path ("cloud.generator.top_height").
+    validated_as_pointer(o.file(), [&] { cloud::validate_cumulonimbus(p); });
 }
 
 void parse_cloud(JsonObject o, CloudSource& c, const std::filesystem::path& base_dir) {
@@ -117,7 +126,7 @@ void parse_virtual_lights(JsonObject o, basis::VirtualLightParams& v, double& dr
     v.density_threshold = o.number_or("density_threshold", v.density_threshold, Range{0.0, 1.0, false, true});
     drop_below = o.number_or("drop_below", drop_below, Range{0.0, 1.0});
     o.finish();
-    basis::validate(v, o.file() + ": virtual_lights");
+    validated_as_pointer(o.file(), [&] { basis::validate(v, "virtual_lights"); });
 }
 
 void parse_compression(JsonObject o, basis::CompressionParams& c, bool& separate_components) {
@@ -144,7 +153,41 @@ void parse_compression(JsonObject o, basis::CompressionParams& c, bool& separate
     separate_components = o.choice_or("components", separate_components ? "separate" : "combined",
                                       {"separate", "combined"}) == "separate";
     o.finish();
-    basis::validate(c, o.file() + ": compression");
+    validated_as_pointer(o.file(), [&] { basis::validate(c, "compression"); });
+}
+
+// "colour": linear RGB, each channel in [0, 1000], scaled to luminance 1 (the magnitude is
+// the light's irradiance or radiance); absent: `fallback`.
+glm::dvec3 colour_or(JsonObject& o, std::string_view key, glm::dvec3 fallback) {
+    if (!o.has(key)) return o.vec3_or(key, fallback, Range{0.0, 1e3});
+    const glm::dvec3 c = o.vec3(key, Range{0.0, 1e3});
+    const double y = luminance(c);
+    if (!(y > 1e-9)) o.fail(key, "must have a positive luminance (0.2126 r + 0.7152 g + 0.0722 b > 0)");
+    return c / y;
+}
+
+void parse_sun(JsonObject& l, Scene& s) {
+    if (s.sun) l.fail("type", "a scene has at most one sun (a moon is a dim sun)");
+    Sun sun;
+    const bool has_dir = l.has("direction"), has_el = l.has("elevation"), has_az = l.has("azimuth");
+    if (has_dir == (has_el || has_az))
+        l.fail("direction", "give either \"direction\" [x, y, z] or \"elevation\" and \"azimuth\" (degrees)");
+    if (has_dir) {
+        const glm::dvec3 d = l.vec3("direction", Range{-1e6, 1e6});
+        if (glm::length(d) < 1e-9) l.fail("direction", "must be a non-zero vector");
+        sun.direction = glm::normalize(d);
+    } else {
+        if (!has_el) l.fail("elevation", "required with \"azimuth\": degrees above the horizon in (0, 90]");
+        if (!has_az) l.fail("azimuth", "required with \"elevation\": degrees from +x toward +y in [-360, 360]");
+        // A sun at or below the horizon lights the cloud only through the sky: not a light here.
+        const double el = l.number("elevation", Range{0.0, 90.0, true, false});
+        const double az = l.number("azimuth", Range{-360.0, 360.0});
+        sun.direction = sun_direction(el, az);
+    }
+    sun.irradiance = l.number_or("irradiance", sun.irradiance, Range{0.0, kInf, true, true});
+    sun.colour = colour_or(l, "colour", sun.colour);
+    sun.name = l.string_or("name", "");
+    s.sun = sun;
 }
 
 void parse_lights(JsonObject& root, Scene& s) {
@@ -157,16 +200,37 @@ void parse_lights(JsonObject& root, Scene& s) {
             p.intensity = l.number_or("intensity", p.intensity, Range{0.0, kInf, false, true});
             s.point_lights.push_back(p);
         } else {
-            if (s.sun) l.fail("type", "a scene has at most one sun");
-            transport::DirectionalSource sun;
-            const glm::dvec3 d = l.vec3("direction", Range{-1e6, 1e6});
-            if (glm::length(d) < 1e-9) l.fail("direction", "must be a non-zero vector");
-            sun.direction = glm::normalize(d);
-            sun.irradiance = l.number_or("irradiance", sun.irradiance, Range{0.0, kInf, false, true});
-            s.sun = sun;
+            parse_sun(l, s);
         }
         l.finish();
     }
+}
+
+// "sky": {"radiance": r, "colour": c} (uniform) or {"zenith": {...}, "horizon": {...}}.
+void parse_sky(JsonObject o, Scene& s) {
+    SkyDome sky;
+    // Radiance in W m^-2 sr^-1: up to 1e6 (a clear day sky is ~10^2 in these units).
+    const Range radiance{0.0, 1e6};
+    const bool uniform = o.has("radiance") || o.has("colour"), gradient = o.has("zenith") || o.has("horizon");
+    if (uniform == gradient)
+        o.fail("radiance",
+               "give either \"radiance\" and \"colour\" (a uniform sky) or \"zenith\" and "
+               "\"horizon\" (a gradient), each {\"radiance\": r, \"colour\": [r, g, b]}");
+    if (uniform) {
+        sky.zenith_radiance = sky.horizon_radiance = o.number("radiance", radiance);
+        sky.zenith_colour = sky.horizon_colour = colour_or(o, "colour", sky.zenith_colour);
+    } else {
+        JsonObject z = o.object("zenith"), h = o.object("horizon");
+        sky.zenith_radiance = z.number("radiance", radiance);
+        sky.zenith_colour = colour_or(z, "colour", sky.zenith_colour);
+        z.finish();
+        sky.horizon_radiance = h.number("radiance", radiance);
+        sky.horizon_colour = colour_or(h, "colour", sky.horizon_colour);
+        h.finish();
+    }
+    sky.star_radiance = o.number_or("stars", sky.star_radiance, Range{0.0, 1e6});
+    o.finish();
+    s.sky = sky;
 }
 
 void parse_effects(JsonObject o, Effects& e) {
@@ -174,12 +238,15 @@ void parse_effects(JsonObject o, Effects& e) {
     e.single_scattering = o.boolean_or("single_scattering", e.single_scattering);
     e.multiple_scattering = o.boolean_or("multiple_scattering", e.multiple_scattering);
     e.sun = o.boolean_or("sun", e.sun);
+    e.sky = o.boolean_or("sky", e.sky);
     e.glow = o.boolean_or("glow", e.glow);
     e.ground = o.boolean_or("ground", e.ground);
     o.finish();
 }
 
-void parse_lightning(JsonObject o, lightning::LightningParams& l) {
+void parse_lightning(JsonObject o, Scene& s) {
+    lightning::LightningParams& l = s.lightning;
+    s.lightning_colour = colour_or(o, "colour", s.lightning_colour);
     // Ranges: the same as lightning::validate (engine/lightning/params.cpp).
     lightning::BoltParams& b = l.bolt;
     const std::string kind = o.choice_or("kind", std::string(lightning::kind_name(b.kind)),
@@ -226,7 +293,8 @@ void parse_lightning(JsonObject o, lightning::LightningParams& l) {
     l.schedule.strike_rate = o.number_or("strike_rate", l.schedule.strike_rate, Range{0.0, 100.0});
     l.schedule.first_strike = o.number_or("first_strike", l.schedule.first_strike, Range{0.0, 1e6});
     o.finish();
-    lightning::validate(l, o.file() + ": lightning");  // the same ranges, kept in one place for code users
+    // The same ranges, kept in one place for code users; their dotted field as a JSON pointer.
+    validated_as_pointer(o.file(), [&] { lightning::validate(l, "lightning"); });
 }
 
 }  // namespace
@@ -260,8 +328,12 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
     if (auto v = root.optional_object("virtual_lights")) parse_virtual_lights(*v, s.virtual_lights, s.drop_below);
     if (auto c = root.optional_object("compression")) parse_compression(*c, s.compression, s.separate_components);
     parse_lights(root, s);
+    if (auto sky = root.optional_object("sky")) parse_sky(*sky, s);
+    // What the scene declares is what it calls for, unless "effects" says otherwise.
+    s.effects.sun = s.sun.has_value();
+    s.effects.sky = s.sky.has_value();
     if (auto e = root.optional_object("effects")) parse_effects(*e, s.effects);
-    if (auto l = root.optional_object("lightning")) parse_lightning(*l, s.lightning);
+    if (auto l = root.optional_object("lightning")) parse_lightning(*l, s);
     if (root.is_string("quality")) {
         const std::string name = root.choice_or("quality", "paper", {"paper", "hybrid", "per_strike", "reference"});
         s.quality = quality_preset(name);
@@ -282,14 +354,29 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
         q->finish();
     }
     root.finish();
-    if (s.effects.sun && !s.sun) root.fail("effects", "\"sun\": true needs a light of type \"sun\" in \"lights\"");
+    if (s.effects.sun && !s.sun)
+        throw core::Error(file + ": /effects/sun", "true needs a light of type \"sun\" in \"lights\"");
+    if (s.effects.sky && !s.sky) throw core::Error(file + ": /effects/sky", "true needs a \"sky\" section");
     if (s.quality.refine > 0 && s.lighting_downsample % s.quality.refine != 0)
-        root.fail("quality.refine", "must divide lighting.downsample (" + std::to_string(s.lighting_downsample) +
-                                        "), got " + std::to_string(s.quality.refine));
+        throw core::Error(file + ": /quality/refine", "must divide /lighting/downsample (" +
+                                                          std::to_string(s.lighting_downsample) + "), got " +
+                                                          std::to_string(s.quality.refine));
     if (s.lighting_downsample % s.transport.refine != 0)
-        root.fail("transport.refine", "must divide lighting.downsample (" + std::to_string(s.lighting_downsample) +
-                                          "), got " + std::to_string(s.transport.refine));
+        throw core::Error(file + ": /transport/refine", "must divide /lighting/downsample (" +
+                                                            std::to_string(s.lighting_downsample) + "), got " +
+                                                            std::to_string(s.transport.refine));
     return s;
+}
+
+glm::dvec3 sun_direction(double elevation_deg, double azimuth_deg) noexcept {
+    const double el = elevation_deg * std::numbers::pi / 180.0, az = azimuth_deg * std::numbers::pi / 180.0;
+    return -glm::dvec3(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+}
+
+void sun_angles(const glm::dvec3& direction, double& elevation_deg, double& azimuth_deg) noexcept {
+    const glm::dvec3 to_sun = -direction;
+    elevation_deg = std::asin(std::clamp(to_sun.z, -1.0, 1.0)) * 180.0 / std::numbers::pi;
+    azimuth_deg = std::atan2(to_sun.y, to_sun.x) * 180.0 / std::numbers::pi;
 }
 
 Scene load_scene(const std::filesystem::path& path) {

@@ -16,6 +16,7 @@
 
 #include <glm/vec3.hpp>
 
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -40,9 +41,49 @@ struct Effects {
     bool lightning = true;            ///< lightning bolts and their virtual lights
     bool single_scattering = true;    ///< direct (first-scattered) light in the cloud
     bool multiple_scattering = true;  ///< orders >= 2 (transport solver in the bake)
-    bool sun = false;                 ///< the scene's directional light
+    bool sun = false;                 ///< the scene's sun (or moon); default: on when it has one
+    bool sky = false;                 ///< the sky dome's light; default: on when it has a sky
     bool glow = true;                 ///< glow quads around strokes (render)
     bool ground = true;               ///< ground plane lit by the flash (render)
+};
+
+/// Luminance of a linear-RGB colour (Rec. 709 weights): what the scene's colours are
+/// normalized to (1), so that irradiance and radiance carry the magnitude.
+inline double luminance(const glm::dvec3& c) noexcept { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; }
+
+/// Direction sunlight travels for a sun at `elevation_deg` above the horizon and
+/// `azimuth_deg` (counter-clockwise from +x toward +y, as seen from the scene): minus the
+/// unit vector toward the sun.
+glm::dvec3 sun_direction(double elevation_deg, double azimuth_deg) noexcept;
+/// Elevation and azimuth (degrees) of the sun whose light travels along `direction` (unit).
+void sun_angles(const glm::dvec3& direction, double& elevation_deg, double& azimuth_deg) noexcept;
+
+/// A "lights" entry of type "sun": a directional light from outside the grid. A moon is a
+/// dim sun (its irradiance), usually with a cooler colour.
+struct Sun {
+    glm::dvec3 direction{0.0, 0.0, -1.0};  ///< propagation direction (unit)
+    double irradiance = 1.0;               ///< E, W/m^2 on a plane perpendicular to the light
+    glm::dvec3 colour{1.0};                ///< linear RGB, luminance 1: the light is E * colour
+    std::string name;                      ///< free text ("sun", "moon"); shown by the plan
+    transport::DirectionalSource source() const noexcept { return {direction, irradiance}; }
+};
+
+/// The sky dome: radiance arriving from every direction above the horizon, a gradient in
+/// the elevation el of the direction it comes from,
+///     L(el) = horizon + (zenith - horizon) * sqrt(sin el)        (per colour channel),
+/// uniform when zenith == horizon. The renderer draws the same function as the background,
+/// so the sky the camera sees is the sky that lights the cloud. Below the horizon: nothing
+/// (the ground's reflected light is not part of the sky light).
+struct SkyDome {
+    double zenith_radiance = 0.0;    ///< W m^-2 sr^-1
+    glm::dvec3 zenith_colour{1.0};   ///< linear RGB, luminance 1
+    double horizon_radiance = 0.0;   ///< W m^-2 sr^-1
+    glm::dvec3 horizon_colour{1.0};  ///< linear RGB, luminance 1
+    double star_radiance = 2e-5;     ///< brightest stars drawn in the background (0: none)
+    glm::dvec3 zenith() const noexcept { return zenith_radiance * zenith_colour; }
+    glm::dvec3 horizon() const noexcept { return horizon_radiance * horizon_colour; }
+    /// Profile of the gradient: the weight of the zenith value at elevation sin_el (>= 0).
+    static double zenith_weight(double sin_el) noexcept { return sin_el > 0.0 ? std::sqrt(sin_el) : 0.0; }
 };
 
 /// Multiple-scattering solver settings as written in the scene.
@@ -133,9 +174,14 @@ struct Scene {
     /// of its emitted power is dropped from the bake (stored with no coefficients). 0 keeps all.
     double drop_below = 1e-4;
     std::vector<transport::PointSource> point_lights;  ///< "lights" of type "point"
-    std::optional<transport::DirectionalSource> sun;   ///< the "lights" entry of type "sun"
+    std::optional<Sun> sun;                            ///< the "lights" entry of type "sun" (or moon)
+    std::optional<SkyDome> sky;                        ///< section "sky"
     Effects effects;
     lightning::LightningParams lightning;  ///< section "lightning": bolt shape, flash timing, schedule
+    /// "lightning.colour": the flash's colour (bolt, glow, the light it scatters in the cloud),
+    /// linear RGB of luminance 1; bluish white by default (nitrogen and hydrogen lines).
+    glm::dvec3 lightning_colour = kLightningColour;
+    static constexpr glm::dvec3 kLightningColour{0.9473, 0.9881, 1.2733};
     Quality quality;  ///< "quality": how frames are lit (a preset name, or an object with "preset" and knobs)
 
     /// Output directions the bake needs: 1 when scattering is isotropic (g == 0), since S

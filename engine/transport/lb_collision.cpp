@@ -366,24 +366,34 @@ FactoredPhase factor_phase(const DiscretePhase& phase, double a) {
 }
 
 std::array<double, kQ> resolve_direction(const glm::dvec3& Lin) {
+    std::array<bool, kQ> all;
+    all.fill(true);
+    return resolve_direction(Lin, all);
+}
+
+std::array<double, kQ> resolve_direction(const glm::dvec3& Lin, const std::array<bool, kQ>& allowed) {
     std::array<double, kQ> f{};
     const double len = glm::length(Lin);
     FULGUR_ASSERT(std::isfinite(len) && len > 0.0, "light direction must be a finite non-zero vector");
     const glm::dvec3 L = Lin / len;
     std::array<int, kMoving> dirs;
     std::array<double, kQ> dp{};
+    int n = 0;
     for (int i = 1; i < kQ; ++i) {
+        if (!allowed[std::size_t(i)]) continue;
         const Velocity& c = kVelocity[std::size_t(i)];
         dp[std::size_t(i)] = (c.x * L.x + c.y * L.y + c.z * L.z) / hop_length(i);
-        dirs[std::size_t(i - 1)] = i;
+        dirs[std::size_t(n++)] = i;
     }
     // Stable sort: ties keep table order, so the result is deterministic.
-    std::stable_sort(dirs.begin(), dirs.end(), [&](int a, int b) { return dp[std::size_t(a)] > dp[std::size_t(b)]; });
+    std::stable_sort(dirs.begin(), dirs.begin() + n,
+                     [&](int a, int b) { return dp[std::size_t(a)] > dp[std::size_t(b)]; });
     double intens = 1.0;
-    for (int i : dirs) {
+    for (int k = 0; k < n; ++k) {
+        const int i = dirs[std::size_t(k)];
         if (intens < 1e-12) break;
         const double d = dp[std::size_t(i)];
-        if (d <= 0.0) break;  // never reached for a unit L (positive dots sum to > 1); guards the pseudocode
+        if (d <= 0.0) break;  // for a unit L and all directions never reached (positive dots sum to > 1)
         f[std::size_t(i)] = std::min(d, intens);
         intens -= d;
     }

@@ -208,12 +208,23 @@ void add_boundary_light(Problem& p, const core::GridGeometry& g, const glm::dvec
                         if (cosn <= 0.0) continue;
                         power = irradiance * area * cosn;
                     }
-                    const auto f = resolve_direction(L);
+                    auto f = resolve_direction(L);
                     double sum = 0.0;
+                    std::array<bool, kQ> crossing{};
                     for (int q = 1; q < kQ; ++q) {
                         const Velocity& c = kVelocity[std::size_t(q)];
                         const int cn = axis == 0 ? c.x : (axis == 1 ? c.y : c.z);
-                        if ((side == 0 ? cn : -cn) > 0) sum += f[std::size_t(q)];
+                        crossing[std::size_t(q)] = (side == 0 ? cn : -cn) > 0;
+                        if (crossing[std::size_t(q)]) sum += f[std::size_t(q)];
+                    }
+                    if (sum <= 0.0) {
+                        // The decomposition of L uses no link crossing this face (L grazes it:
+                        // e.g. (0.42, -0.32, -0.85) resolves onto (1,0,-1) and (0,0,-1), none
+                        // entering through a y face): resolve L among this face's in-links, or
+                        // the power crossing the face would be lost.
+                        f = resolve_direction(L, crossing);
+                        for (int q = 1; q < kQ; ++q)
+                            if (crossing[std::size_t(q)]) sum += f[std::size_t(q)];
                     }
                     if (sum <= 0.0) continue;
                     const std::size_t site = p.index(ijk[0], ijk[1], ijk[2]);

@@ -21,6 +21,18 @@ std::filesystem::path ensure_baked(
     return fgb;
 }
 
+std::optional<std::filesystem::path> bases_for(
+    const sky::ScenePlan& plan, const scene::Scene& s, const core::Grid3<float>& density,
+    const std::optional<std::filesystem::path>& explicit_fgb, const bake::Progress& progress,
+    const std::function<void(const std::filesystem::path& fgb, const std::string& why)>& on_bake) {
+    if (plan.lightning) return ensure_baked(s, density, explicit_fgb, progress, on_bake);
+    if (explicit_fgb)
+        throw core::Error(explicit_fgb->string(),
+                          "the scene has no lightning: it renders without a .fgb (plan: no "
+                          "virtual-light bake)");
+    return std::nullopt;
+}
+
 render::Camera default_camera(const core::Grid3<float>& density, double azimuth_deg, double elevation_deg,
                               double distance_factor) {
     const core::GridGeometry& g = density.geom;
@@ -31,27 +43,97 @@ render::Camera default_camera(const core::Grid3<float>& density, double azimuth_
     return render::Camera::orbit(target, distance, azimuth_deg, elevation_deg);
 }
 
-StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb,
-                     render::GetProcAddress gl)
-    : scene_(std::move(s)),
-      density_(std::move(density)),
-      bases_(runtime::BakedBases::load(fgb, bake::scene_key(scene_, density_))) {
-    pipeline_ = std::make_unique<runtime::FramePipeline>(scene_, density_, bases_);
+StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::optional<std::filesystem::path>& fgb,
+                     render::GetProcAddress gl, const StaticSetup& setup)
+    : scene_(std::move(s)), density_(std::move(density)) {
+    bake::PlanOptions po;
+    po.estimate = false;
+    plan_ = setup.plan ? *setup.plan : sky::plan_scene(scene_, density_, po);
+    if (plan_.lightning) {
+        if (!fgb)
+            throw core::Error(scene_.path.string(), "the scene has lightning: its .fgb is needed (view::bases_for)");
+        bases_.emplace(runtime::BakedBases::load(*fgb, bake::scene_key(scene_, density_)));
+        pipeline_ = std::make_unique<runtime::FramePipeline>(scene_, density_, *bases_);
+    } else if (fgb) {
+        throw core::Error(fgb->string(), "the scene has no lightning: it renders without a .fgb");
+    }
+    if (plan_.sun || plan_.sky) static_ = sky::load_or_solve(scene_, density_, media(), plan_, setup.cache, setup.say);
+    if (plan_.sun) {
+        sun_ = scene_.sun;
+        sun_transmittance_ = sky::sun_transmittance(density_, scene_.medium.extinction, static_.sun_direction);
+    }
     renderer_ = std::make_unique<render::Renderer>(gl);
     renderer_->set_volume({.density = &density_, .extinction = scene_.medium.extinction});
 }
 
 void StormView::set_lightning(const lightning::LightningParams& p) {
     lightning::validate(p);
+    if (!pipeline_) throw core::Error(scene_.path.string(), "the scene has no lightning");
     scene_.lightning = p;
     last_ = nullptr;
     pipeline_.reset();
-    pipeline_ = std::make_unique<runtime::FramePipeline>(scene_, density_, bases_);
+    pipeline_ = std::make_unique<runtime::FramePipeline>(scene_, density_, *bases_);
+}
+
+void StormView::set_sun(const scene::Sun& sun) {
+    if (!plan_.sun) throw core::Error(scene_.path.string(), "the scene's plan solves no sun");
+    sun_ = sun;
+    ++static_version_;
+}
+
+void StormView::set_sun_solve(sky::SunSolve&& solve) {
+    if (!plan_.sun) throw core::Error(scene_.path.string(), "the scene's plan solves no sun");
+    static_.sun = std::move(solve.field);
+    static_.sun_direction = solve.direction;
+    sun_transmittance_ = std::move(solve.transmittance);
+    ++static_version_;
+}
+
+void StormView::update_static_light(const ViewOptions& o) {
+    const bool sun = plan_.sun && o.sun && static_.sun.has_value() && sun_.has_value();
+    const bool sky = plan_.sky && o.sky && static_.sky.has_value();
+    // The sun's order 1 at full resolution in the march, or on the lighting grid with the rest.
+    const bool full = o.sun_full_resolution;
+    const Uploaded want{true, sun, sky, !full, o.components.single, o.components.multiple, static_version_};
+    const auto same = [](const Uploaded& a, const Uploaded& b) {
+        return a.valid == b.valid && a.sun == b.sun && a.sky == b.sky && a.sun_single == b.sun_single &&
+               a.single == b.single && a.multiple == b.multiple && a.version == b.version;
+    };
+    if (same(uploaded_, want)) return;
+    sky::ComposeOptions co;
+    co.sun = sun;
+    co.sky = sky;
+    co.sun_single = !full;
+    co.single = o.components.single;
+    co.multiple = o.components.multiple;
+    const sky::ColourField c = sky::compose(static_, sun_, scene_.sky, co);
+    if (c.empty()) {
+        renderer_->clear_static();
+    } else {
+        render::StaticUpload up;
+        up.geometry = c.geom;
+        up.direction_count = int(c.directions.size());
+        for (const std::vector<float>& v : c.rgb) up.rgb.emplace_back(v.data(), v.size());
+        renderer_->upload_static(up);
+    }
+    if (sun) {
+        render::SunDesc d;
+        d.direction = static_.sun_direction;
+        d.irradiance_rgb = sun_->irradiance * sun_->colour;
+        d.albedo = scene_.medium.albedo;
+        d.g = scene_.medium.g;
+        d.transmittance = &sun_transmittance_;
+        d.scatter = full && o.components.single && scene_.effects.single_scattering;
+        renderer_->set_sun(d);
+    } else {
+        renderer_->clear_sun();
+    }
+    uploaded_ = want;
 }
 
 void StormView::set_quality(const scene::Quality& q) {
     scene_.quality = q;
-    pipeline_->set_quality(q);
+    if (pipeline_) pipeline_->set_quality(q);
 }
 
 const bake::Media& StormView::media() {
@@ -60,6 +142,7 @@ const bake::Media& StormView::media() {
 }
 
 double StormView::time_all_directions(double t, const runtime::Components& components) {
+    if (!pipeline_) throw core::Error(scene_.path.string(), "the scene has no lightning: no frame to solve");
     runtime::ReconstructOptions ro;
     ro.components = components;
     ro.wait_for_strikes = true;
@@ -95,10 +178,11 @@ StormView::DirectSolve StormView::solve_direct(double t, const runtime::Componen
 }
 
 void StormView::check_field(const transport::SourceField& f, const char* where) const {
-    if (!(f.geom == bases_.lighting()) || f.directions.size() != bases_.directions().size() ||
+    if (!bases_) throw core::Error(where, "the scene has no lightning: no bases");
+    if (!(f.geom == bases_->lighting()) || f.directions.size() != bases_->directions().size() ||
         f.data.size() != f.cells() * f.directions.size())
         throw core::Error(where, "the field is not on the bases' lighting grid with all " +
-                                     std::to_string(bases_.directions().size()) + " directions");
+                                     std::to_string(bases_->directions().size()) + " directions");
 }
 
 double StormView::reconstruction_error(const transport::SourceField& reference) {
@@ -120,10 +204,36 @@ FrameReport StormView::render(const render::Camera& camera, double t, int width,
     using clock = std::chrono::steady_clock;
     const auto t0 = clock::now();
     FrameReport rep;
-    const int ndir = int(bases_.directions().size());
+    if (pipeline_) {
+        render_lightning(camera, t, options, source, rep);
+    } else {
+        if (source) throw core::Error("StormView::render", "the scene has no lightning: no field to show");
+        renderer_->set_bolt({});
+        renderer_->clear_source();
+    }
+    update_static_light(options);
+    render::Settings st = options.settings;
+    st.ground_height = scene_.lightning.bolt.ground_height;
+    st.flash_colour = scene_.lightning_colour;
+    if (scene_.sky) {
+        st.sky_zenith = scene_.sky->zenith();
+        st.sky_horizon = scene_.sky->horizon();
+        st.star_radiance = scene_.sky->star_radiance;
+    }
+    // What the scene switched off is not drawn whatever the options say.
+    st.glow = st.glow && scene_.effects.glow;
+    st.ground = st.ground && scene_.effects.ground;
+    rep.gpu = renderer_->render(camera, st, width, height);
+    rep.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - t0).count();
+    return rep;
+}
+
+void StormView::render_lightning(const render::Camera& camera, double t, const ViewOptions& options,
+                                 const transport::SourceField* source, FrameReport& rep) {
+    const int ndir = int(bases_->directions().size());
     std::vector<int> dirs;
     for (const render::DirectionUse& u :
-         renderer_->needed_directions(camera, bases_.lighting(), ndir, options.settings.direction_min_weight))
+         renderer_->needed_directions(camera, bases_->lighting(), ndir, options.settings.direction_min_weight))
         dirs.push_back(u.index);
     runtime::ReconstructOptions ro;
     ro.components = options.components;
@@ -156,11 +266,6 @@ FrameReport StormView::render(const render::Camera& camera, double t, int width,
     } else {
         renderer_->clear_source();
     }
-    render::Settings st = options.settings;
-    st.ground_height = scene_.lightning.bolt.ground_height;
-    rep.gpu = renderer_->render(camera, st, width, height);
-    rep.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - t0).count();
-    return rep;
 }
 
 FrameReport median_report(const std::vector<FrameReport>& reps) {

@@ -2,13 +2,16 @@
 // -> render::Renderer, in whatever GL context is current (as Filament's View: library code
 // the apps drive). Shared by `fulgur` (demo), `fulgur-shot` and the golden-image tests.
 // Also: finding (or baking) the scene's .fgb, the default camera, the direct solve of a frame
-// as its reference.
+// as its reference. The scene's static light (sun or moon, sky: engine/sky) is its own term
+// with its own colour, composed beside the lightning's; a scene without lightning has no
+// .fgb and no pipeline at all.
 #pragma once
 
 #include "bake/bake.h"
 #include "render/render.h"
 #include "runtime/runtime.h"
 #include "scene/scene.h"
+#include "sky/sky.h"
 
 #include <filesystem>
 #include <functional>
@@ -27,16 +30,33 @@ std::filesystem::path ensure_baked(
     const bake::Progress& progress = {},
     const std::function<void(const std::filesystem::path& fgb, const std::string& why)>& on_bake = {});
 
+/// The .fgb a scene's frames use: ensure_baked when its plan bakes virtual lights; none when
+/// it has no lightning (an explicit `explicit_fgb` is then an error naming it).
+std::optional<std::filesystem::path> bases_for(
+    const sky::ScenePlan& plan, const scene::Scene& s, const core::Grid3<float>& density,
+    const std::optional<std::filesystem::path>& explicit_fgb, const bake::Progress& progress = {},
+    const std::function<void(const std::filesystem::path& fgb, const std::string& why)>& on_bake = {});
+
 /// A camera framing the scene's cloud from the side, slightly below its centre.
 render::Camera default_camera(const core::Grid3<float>& density, double azimuth_deg = -90.0, double elevation_deg = 6.0,
                               double distance_factor = 1.1);
 
 struct ViewOptions {
-    /// Exposure 2^-3: the default storm's return-stroke peak (1e5 W/sr/m) then fills the
-    /// tone map's shoulder without clipping the cloud (calibrated by eye on fulgur-shot frames).
-    ViewOptions() { settings.exposure = 0.125; }
+    /// Automatic exposure (render::Settings::auto_exposure); the manual exposure, when it is
+    /// switched off, is 2^-3: the default storm's return-stroke peak (1e5 W/sr/m) then fills
+    /// the tone map's shoulder (calibrated by eye on fulgur-shot frames).
+    ViewOptions() {
+        settings.auto_exposure = true;
+        settings.exposure = 0.125;
+    }
     runtime::Components components;
-    render::Settings settings;  ///< bolt/glow/ground/exposure/internal scale
+    /// Run-time switches of the static light (the scene's effects must call for it too): off
+    /// costs nothing per frame (no resolve, no texture fetch in the march).
+    bool sun = true, sky = true;
+    /// The sun's single scattering at full resolution (the silver lining); false: on the
+    /// lighting grid with the rest of the static light.
+    bool sun_full_resolution = true;
+    render::Settings settings;  ///< bolt/glow/ground/exposure/internal scale (and the scene's effects)
     /// Radius (m) of the drawn lightning channel, the same for every lit segment
     /// (render::Segment::radius: the core radiance is intensity / (2 radius)). > 0.
     double bolt_radius = 2.0;
@@ -52,10 +72,20 @@ struct FrameReport {
     double wall_ms = 0.0;  ///< the whole frame: reconstruction + upload + render
 };
 
+/// How a view gets its static light.
+struct StaticSetup {
+    sky::CacheOptions cache;                      ///< where the sun's and the sky's solves are cached
+    std::function<void(const std::string&)> say;  ///< told what is read or solved
+    std::optional<sky::ScenePlan> plan;           ///< the scene's plan when already made (else made here)
+};
+
 /// Owns density, bases, pipeline and renderer for one scene.
 class StormView {
 public:
-    StormView(scene::Scene s, core::Grid3<float> density, const std::filesystem::path& fgb, render::GetProcAddress gl);
+    /// `fgb`: the scene's bases (bases_for); none for a scene without lightning. The static
+    /// light the plan calls for is read from its cache or solved here (seconds).
+    StormView(scene::Scene s, core::Grid3<float> density, const std::optional<std::filesystem::path>& fgb,
+              render::GetProcAddress gl, const StaticSetup& setup = {});
     StormView(const StormView&) = delete;  // the pipeline refers to the members
     StormView& operator=(const StormView&) = delete;
     /// Builds the frame at time t and renders it into the bound framebuffer. With `source`
@@ -100,9 +130,22 @@ public:
     /// storm and its strikes stay (the bake is shared).
     void set_quality(const scene::Quality& q);
 
+    /// The sun's irradiance and colour from now on (no new solve); its direction is the last
+    /// solve's until set_sun_solve() gives one for the new direction (the old field is shown
+    /// until then). Needs a scene whose plan solves a sun.
+    void set_sun(const scene::Sun& sun);
+    /// A sun solved for a new direction (sky::SunResolver, sky::solve_sun).
+    void set_sun_solve(sky::SunSolve&& solve);
+    /// The direction the shown sun field was solved for.
+    const glm::dvec3& sun_solved_direction() const noexcept { return static_.sun_direction; }
+
+    /// A scene without lightning has no bases and no pipeline: has_lightning() is false and
+    /// pipeline() / bases() must not be called.
+    bool has_lightning() const noexcept { return pipeline_ != nullptr; }
     runtime::FramePipeline& pipeline() noexcept { return *pipeline_; }
     render::Renderer& renderer() noexcept { return *renderer_; }
-    const runtime::BakedBases& bases() const noexcept { return bases_; }
+    const runtime::BakedBases& bases() const noexcept { return *bases_; }
+    const sky::ScenePlan& plan() const noexcept { return plan_; }
     const scene::Scene& scene() const noexcept { return scene_; }
     const core::Grid3<float>& density() const noexcept { return density_; }
     const runtime::Frame* last_frame() const noexcept { return last_; }
@@ -111,13 +154,26 @@ private:
     /// Builds the all-direction frame at t 5 times (waiting for strike solves); its median ms.
     double time_all_directions(double t, const runtime::Components& components);
     void check_field(const transport::SourceField& f, const char* where) const;  // throws core::Error
+    void update_static_light(const ViewOptions& options);                        // uploads what changed
+    void render_lightning(const render::Camera& camera, double t, const ViewOptions& options,
+                          const transport::SourceField* source, FrameReport& rep);
     scene::Scene scene_;
     core::Grid3<float> density_;
-    runtime::BakedBases bases_;
+    sky::ScenePlan plan_;
+    std::optional<runtime::BakedBases> bases_;
     std::unique_ptr<runtime::FramePipeline> pipeline_;
     std::unique_ptr<render::Renderer> renderer_;
     const runtime::Frame* last_ = nullptr;
-    std::optional<bake::Media> media_;  // built on first use (solve_direct)
+    std::optional<bake::Media> media_;  // built on first use (solve_direct) or for the static light
+    // The static light: its solves, the sun's full-resolution transmittance, what is uploaded.
+    sky::StaticLight static_;
+    core::Grid3<float> sun_transmittance_;
+    std::optional<scene::Sun> sun_;  // irradiance and colour shown (direction: static_.sun_direction)
+    struct Uploaded {
+        bool valid = false, sun = false, sky = false, sun_single = false, single = false, multiple = false;
+        std::uint64_t version = 0;
+    } uploaded_, sun_uploaded_;
+    std::uint64_t static_version_ = 1;  // bumped when the static light or the sun changes
 };
 
 /// Per-field medians of several frames' reports (lit taken from the last one).

@@ -33,6 +33,12 @@ TEST_CASE("fulgur-shot: a complete command line parses") {
     more.insert(more.end(), {"--repeat", "12", "--exposure", "-2.5"});
     CHECK(parse(more).repeat == 12);
     CHECK(parse(more).exposure_ev == -2.5);
+    CHECK_FALSE(parse(more).manual_exposure.has_value());  // automatic unless asked
+    std::vector<std::string> manual = good;
+    manual.insert(manual.end(), {"--manual-exposure", "0.125"});
+    CHECK(parse(manual).manual_exposure.value() == 0.125);
+    manual.back() = "0";
+    CHECK_THROWS_WITH_AS(parse(manual), doctest::Contains("--manual-exposure must be finite and > 0"), core::Error);
     more[more.size() - 3] = "0";  // --repeat 0
     CHECK_THROWS_AS(parse(more), core::Error);
     CHECK(a.width == 64);
@@ -48,6 +54,14 @@ TEST_CASE("fulgur-shot: a complete command line parses") {
     CHECK_THROWS_AS(parse(f), core::Error);
     CHECK(parse({"--help"}).help);
     CHECK(app::shot_usage().find("--size") != std::string::npos);
+    CHECK(a.off.empty());
+    std::vector<std::string> off = good;
+    off.insert(off.end(), {"--off", "sun,silver-lining,multiple"});
+    CHECK(parse(off).off == std::vector<std::string>{"sun", "silver-lining", "multiple"});
+    off.back() = "sun,moon";
+    CHECK_THROWS_WITH_AS(parse(off), doctest::Contains("--off: \"moon\" is not one of sun, sky"), core::Error);
+    off.back() = "";
+    CHECK_THROWS_WITH_AS(parse(off), doctest::Contains("--off: \"\" is not one of"), core::Error);
 }
 
 TEST_CASE("fulgur-shot: invalid command lines are rejected with a reason") {
@@ -141,6 +155,8 @@ TEST_CASE("fulgur: the demo's command line parses strictly") {
     CHECK(demo({"--screenshot-at-peak", "--screenshot-after", "7"}).screenshot_after == 7);
     CHECK(demo({"--help"}).help);
     CHECK(app::demo_usage().find("--time-scale") != std::string::npos);
+    CHECK_FALSE(d.time_of_day.has_value());
+    CHECK(demo({"--time-of-day", "17.5"}).time_of_day.value() == 17.5);
 
     auto rejects = [&](std::vector<std::string> a, const char* reason) {
         CAPTURE(reason);
@@ -151,6 +167,9 @@ TEST_CASE("fulgur: the demo's command line parses strictly") {
     rejects({"--time-scale", "nan"}, "0.001..10");
     rejects({"--time-scale", "inf"}, "0.001..10");
     rejects({"--time-scale", "0.5s"}, "not a number");  // atof took the 0.5
+    rejects({"--time-of-day", "25"}, "solar time in [0, 24] hours");
+    rejects({"--time-of-day", "nan"}, "solar time in [0, 24] hours");
+    rejects({"--time-of-day", "5pm"}, "not a number");
     rejects({"--size", "320x"}, "not a number");
     rejects({"--size", "8x8"}, "16..8192");
     rejects({"--screenshot-after", "0"}, ">= 1");

@@ -19,7 +19,8 @@ namespace {
 std::vector<std::uint8_t> sky_frame(platform::Context& ctx) {
     render::Renderer r(ctx.get_proc_address());
     render::Settings st;
-    st.sky_radiance = 0.05;  // bright enough to give mid-grey levels
+    st.sky_zenith = 0.05 * glm::dvec3(0.45, 0.6, 1.0);  // bright enough to give mid-grey levels
+    st.sky_horizon = 0.05 * glm::dvec3(2.4, 2.3, 2.6);
     st.star_radiance = 2.0;
     st.dither = false;
     const render::Camera cam = render::Camera::orbit({0, 0, 1000}, 5000, 20, 5, 60);

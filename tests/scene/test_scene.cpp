@@ -3,6 +3,8 @@
 
 #include <doctest/doctest.h>
 
+#include <cmath>
+#include <numbers>
 #include <string>
 
 using fulgur::core::Error;
@@ -47,16 +49,16 @@ TEST_CASE("isotropic scattering needs one output direction") {
 
 TEST_CASE("bad scenes are rejected with the file, the field and the allowed range") {
     CHECK_THROWS_WITH_AS(parse_scene(with("\"albedo\": 0.9", "\"albedo\": 1.5"), "s.json"),
-                         doctest::Contains("s.json: medium.albedo"), Error);
+                         doctest::Contains("s.json: /medium/albedo"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"albedo\": 0.9", "\"albedo\": 1.5"), "s.json"), doctest::Contains("[0, 1]"),
                          Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"g\": 0.5", "\"g\": 1"), "s.json"), doctest::Contains("medium.g"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"g\": 0.5", "\"g\": 1"), "s.json"), doctest::Contains("/medium/g"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"albedo\": 0.9", "\"albedo\": \"high\""), "s.json"),
                          doctest::Contains("expected a number"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"g\": 0.5", "\"g\": 0.5, \"colour\": 1"), "s.json"),
-                         doctest::Contains("medium.colour: unknown key"), Error);
+                         doctest::Contains("/medium/colour: unknown key"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"grid\": [32, 32, 24]", "\"grid\": [32, 0, 24]"), "s.json"),
-                         doctest::Contains("cloud.generator.grid"), Error);
+                         doctest::Contains("/cloud/generator/grid"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"grid\": [32, 32, 24]", "\"grid\": [32, 32]"), "s.json"),
                          doctest::Contains("3 integers"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"fulgur_scene\": 1", "\"fulgur_scene\": 2"), "s.json"),
@@ -88,21 +90,21 @@ TEST_CASE("every cloud generator field is read, range-checked and cross-checked"
     CHECK(g.density_gain == 1.1);
     // Single-field ranges name the field and the range.
     CHECK_THROWS_WITH_AS(parse_scene(with("\"seed\": 3", "\"seed\": 3, \"edge_softness\": 0"), "s.json"),
-                         doctest::Contains("s.json: cloud.generator.edge_softness"), Error);
+                         doctest::Contains("s.json: /cloud/generator/edge_softness"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"seed\": 3", "\"seed\": 3, \"p_act\": 0"), "s.json"),
                          doctest::Contains("(0, 1]"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"seed\": 3", "\"seed\": 3, \"flanking_towers\": 12"), "s.json"),
-                         doctest::Contains("cloud.generator.flanking_towers"), Error);
+                         doctest::Contains("/cloud/generator/flanking_towers"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"anvil_radius\": 4500", "\"anvil_radius\": 1e9"), "s.json"),
-                         doctest::Contains("cloud.generator.anvil_radius"), Error);
+                         doctest::Contains("/cloud/generator/anvil_radius"), Error);
     // Inconsistent fields are caught at load time too, with the file and the field.
     CHECK_THROWS_WITH_AS(parse_scene(with("\"anvil_radius\": 4500", "\"anvil_radius\": 1500"), "s.json"),
-                         doctest::Contains("s.json: cloud.generator.anvil_radius: must be larger than tower_radius"),
+                         doctest::Contains("s.json: /cloud/generator/anvil_radius: must be larger than tower_radius"),
                          Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"base_height\": 1000", "\"base_height\": 9500"), "s.json"),
-                         doctest::Contains("s.json: cloud.generator.top_height"), Error);
+                         doctest::Contains("s.json: /cloud/generator/top_height"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"voxel_size\": 500", "\"voxel_size\": 100"), "s.json"),
-                         doctest::Contains("s.json: cloud.generator.top_height: 9000 m does not fit in the grid"),
+                         doctest::Contains("s.json: /cloud/generator/top_height: 9000 m does not fit in the grid"),
                          Error);
 }
 
@@ -123,7 +125,97 @@ TEST_CASE("lights are points and at most one sun, and the sun effect needs a sun
     CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", "\"effects\": {\"sun\": true}, \"cloud\""), "s.json"),
                          doctest::Contains("sun"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", "\"lights\": [{\"type\": \"laser\"}], \"cloud\""), "s.json"),
-                         doctest::Contains("lights[0].type"), Error);
+                         doctest::Contains("/lights/0/type"), Error);
+}
+
+TEST_CASE("a sun (or moon): direction or elevation and azimuth, irradiance, colour of luminance 1") {
+    const Scene d = parse_scene(with("\"cloud\"", R"("lights": [{"type": "sun", "elevation": 30, "azimuth": 90,
+        "irradiance": 2.5e-3, "colour": [0.5, 0.6, 1.0], "name": "moon"}], "cloud")"),
+                                "m.json");
+    REQUIRE(d.sun.has_value());
+    // Light from the sun at 30 degrees above the horizon toward +y travels down and toward -y.
+    CHECK(d.sun->direction.x == doctest::Approx(0.0).epsilon(1e-12));  // cos(90 deg) rounding only
+    CHECK(d.sun->direction.y == doctest::Approx(-std::cos(std::numbers::pi / 6)).epsilon(1e-12));
+    CHECK(d.sun->direction.z == doctest::Approx(-0.5).epsilon(1e-12));
+    CHECK(d.sun->irradiance == 2.5e-3);
+    CHECK(d.sun->name == "moon");
+    CHECK(luminance(d.sun->colour) == doctest::Approx(1.0).epsilon(1e-12));           // normalized on load
+    CHECK(d.sun->colour.z / d.sun->colour.x == doctest::Approx(2.0).epsilon(1e-12));  // the tint is kept
+    CHECK(d.effects.sun);  // a declared sun is called for unless effects says otherwise
+    CHECK_FALSE(d.effects.sky);
+    double el = 0.0, az = 0.0;
+    sun_angles(d.sun->direction, el, az);
+    CHECK(el == doctest::Approx(30.0).epsilon(1e-12));  // the round trip, rounding only
+    CHECK(az == doctest::Approx(90.0).epsilon(1e-12));
+
+    const Scene off =
+        parse_scene(with("\"cloud\"",
+                         R"("lights": [{"type": "sun", "direction": [1, 0, -1]}], "effects": {"sun": false}, "cloud")"),
+                    "o.json");
+    CHECK(off.sun.has_value());
+    CHECK_FALSE(off.effects.sun);
+    CHECK(off.sun->colour == glm::dvec3(1.0));
+
+    auto bad = [](const std::string& lights, const char* needle) {
+        CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", "\"lights\": [" + lights + "], \"cloud\""), "b.json"),
+                             doctest::Contains(needle), Error);
+    };
+    bad(R"({"type": "sun"})", "b.json: /lights/0/direction: give either");
+    bad(R"({"type": "sun", "direction": [0, 0, -1], "elevation": 10, "azimuth": 0})", "/lights/0/direction");
+    bad(R"({"type": "sun", "elevation": 10})", "/lights/0/azimuth: required");
+    bad(R"({"type": "sun", "elevation": 0, "azimuth": 0})", "/lights/0/elevation: value 0 is outside");
+    bad(R"({"type": "sun", "elevation": 95, "azimuth": 0})", "(0, 90]");
+    bad(R"({"type": "sun", "direction": [0, 0, -1], "colour": [0, 0, 0]})", "/lights/0/colour: must have a positive");
+    bad(R"({"type": "sun", "direction": [0, 0, -1], "colour": [1, -1, 1]})", "/lights/0/colour");
+    bad(R"({"type": "sun", "direction": [0, 0, -1], "irradiance": 0})", "/lights/0/irradiance");
+    bad(R"({"type": "sun", "direction": [0, 0, -1]}, {"type": "sun", "direction": [0, 0, -1]})",
+        "/lights/1/type: a scene has at most one sun");
+    bad(R"({"type": "sun", "direction": [0, 0, -1], "size": 0.5})", "/lights/0/size: unknown key");
+}
+
+TEST_CASE("the sky: uniform or a zenith-horizon gradient, the lightning's colour, effects defaults") {
+    const Scene u =
+        parse_scene(with("\"cloud\"", R"("sky": {"radiance": 0.5, "colour": [1, 1, 1]}, "cloud")"), "u.json");
+    REQUIRE(u.sky.has_value());
+    CHECK(u.sky->zenith() == u.sky->horizon());
+    CHECK(u.sky->zenith_radiance == 0.5);
+    CHECK(u.effects.sky);
+    CHECK_FALSE(u.effects.sun);
+    const Scene g = parse_scene(with("\"cloud\"", R"("sky": {"zenith": {"radiance": 40, "colour": [0.3, 0.5, 1]},
+        "horizon": {"radiance": 90, "colour": [1, 1, 1]}, "stars": 0}, "effects": {"sky": false},
+        "lightning": {"colour": [1, 1, 2]}, "cloud")"),
+                                "g.json");
+    REQUIRE(g.sky.has_value());
+    CHECK(g.sky->zenith_radiance == 40.0);
+    CHECK(g.sky->horizon_radiance == 90.0);
+    CHECK(luminance(g.sky->zenith_colour) == doctest::Approx(1.0).epsilon(1e-12));  // normalized on load
+    CHECK(g.sky->star_radiance == 0.0);
+    CHECK_FALSE(g.effects.sky);
+    CHECK(luminance(g.lightning_colour) == doctest::Approx(1.0).epsilon(1e-12));
+    CHECK(g.lightning_colour.z == doctest::Approx(2.0 * g.lightning_colour.x).epsilon(1e-12));
+    // The default flash is bluish white.
+    const Scene d = parse_scene(kMinimal, "d.json");
+    CHECK(d.lightning_colour.z > d.lightning_colour.x);
+    CHECK(luminance(d.lightning_colour) == doctest::Approx(1.0).epsilon(1e-4));  // 4 decimals in the constant
+    CHECK_FALSE(d.sky.has_value());
+    CHECK(SkyDome::zenith_weight(1.0) == 1.0);
+    CHECK(SkyDome::zenith_weight(0.0) == 0.0);
+
+    auto bad = [](const std::string& section, const char* needle) {
+        CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", section + ", \"cloud\""), "b.json"),
+                             doctest::Contains(needle), Error);
+    };
+    bad(R"("sky": {})", "b.json: /sky/radiance: give either");
+    bad(R"("sky": {"radiance": 1, "zenith": {"radiance": 1}})", "/sky/radiance: give either");
+    bad(R"("sky": {"radiance": -1, "colour": [1, 1, 1]})", "/sky/radiance: value -1");
+    bad(R"("sky": {"zenith": {"radiance": 1}})", "/sky/horizon: required object is missing");
+    bad(R"("sky": {"zenith": {"radiance": 1, "hue": 3}, "horizon": {"radiance": 1}})", "/sky/zenith/hue: unknown key");
+    bad(R"("sky": {"zenith": {"radiance": 1}, "horizon": {"radiance": 1, "colour": [0, 0, 0]}})",
+        "/sky/horizon/colour");
+    bad(R"("effects": {"sky": true})", "b.json: /effects/sky: true needs");
+    bad(R"("effects": {"sun": true})", "b.json: /effects/sun: true needs");
+    bad(R"("lightning": {"colour": [1, 1]})", "/lightning/colour");
+    bad(R"("transport": {"refine": 3}, "lighting": {"downsample": 4})", "/transport/refine: must divide");
 }
 
 TEST_CASE("the default storm scene loads") {
@@ -182,19 +274,19 @@ TEST_CASE("virtual_lights and compression sections: values, defaults and ranges"
         CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", section + ", \"cloud\""), "b.json"),
                              doctest::Contains(needle), Error);
     };
-    bad(R"("virtual_lights": {"h_usr": 0})", "b.json: virtual_lights.h_usr");
+    bad(R"("virtual_lights": {"h_usr": 0})", "b.json: /virtual_lights/h_usr");
     bad(R"("virtual_lights": {"h_usr": -5})", "(0, 1000000]");
-    bad(R"("virtual_lights": {"epsilon": -1e-9})", "virtual_lights.epsilon");
+    bad(R"("virtual_lights": {"epsilon": -1e-9})", "/virtual_lights/epsilon");
     bad(R"("virtual_lights": {"margin": "wide"})", "expected a number");
-    bad(R"("virtual_lights": {"density_threshold": 1})", "virtual_lights.density_threshold");
-    bad(R"("virtual_lights": {"spacing": 3})", "virtual_lights.spacing: unknown key");
-    bad(R"("compression": {"threshold": "energy", "xi": 1.5})", "compression.xi");
-    bad(R"("compression": {"threshold": "absolute"})", "compression.xi: required with threshold \"absolute\"");
-    bad(R"("compression": {"threshold": "lossy", "xi": 1})", "compression.threshold");
-    bad(R"("compression": {"xi": 0.99, "precision": "float8"})", "compression.precision");
-    bad(R"("compression": {"threshold": "relative_l2", "xi": -0.1})", "compression.xi");
-    bad(R"("compression": {"decomposition": "wavelet"})", "compression.decomposition");
-    bad(R"("compression": {"entropy": "zstd"})", "compression.entropy");
+    bad(R"("virtual_lights": {"density_threshold": 1})", "/virtual_lights/density_threshold");
+    bad(R"("virtual_lights": {"spacing": 3})", "/virtual_lights/spacing: unknown key");
+    bad(R"("compression": {"threshold": "energy", "xi": 1.5})", "/compression/xi");
+    bad(R"("compression": {"threshold": "absolute"})", "/compression/xi: required with threshold \"absolute\"");
+    bad(R"("compression": {"threshold": "lossy", "xi": 1})", "/compression/threshold");
+    bad(R"("compression": {"xi": 0.99, "precision": "float8"})", "/compression/precision");
+    bad(R"("compression": {"threshold": "relative_l2", "xi": -0.1})", "/compression/xi");
+    bad(R"("compression": {"decomposition": "wavelet"})", "/compression/decomposition");
+    bad(R"("compression": {"entropy": "zstd"})", "/compression/entropy");
 }
 
 TEST_CASE("transport.lattice_boltzmann.thick_voxels: default, both values, unknown value names the field") {
@@ -209,7 +301,7 @@ TEST_CASE("transport.lattice_boltzmann.thick_voxels: default, both values, unkno
     CHECK_THROWS_WITH_AS(
         parse_scene(with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "subgrid"}}, "cloud")"),
                     "t.json"),
-        doctest::Contains("transport.lattice_boltzmann.thick_voxels"), Error);
+        doctest::Contains("/transport/lattice_boltzmann/thick_voxels"), Error);
 }
 
 TEST_CASE("quality: a preset's name or an object of knobs; bad values name the field") {
@@ -316,24 +408,24 @@ TEST_CASE("lightning section: defaults, every field, and ranges naming the field
         CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", "\"lightning\": " + section + ", \"cloud\""), "s.json"),
                              doctest::Contains(field), Error);
     };
-    bad(R"({"kind": "ball"})", "s.json: lightning.kind");
-    bad(R"({"angle_mean": -3})", "s.json: lightning.angle_mean");
-    bad(R"({"angle_mean": 400})", "lightning.angle_mean");
-    bad(R"({"segment_length_mean": 0})", "lightning.segment_length_mean");
-    bad(R"({"target_bias": 1.2})", "lightning.target_bias");
-    bad(R"({"zigzag": 5})", "lightning.zigzag");
-    bad(R"({"intensity": -1})", "lightning.intensity");
-    bad(R"({"start_density_threshold": 1})", "lightning.start_density_threshold");
-    bad(R"({"max_segments": 0})", "lightning.max_segments");
-    bad(R"({"branches": {"probability": 2}})", "lightning.branches.probability");
-    bad(R"({"branches": {"max_depth": 50}})", "lightning.branches.max_depth");
-    bad(R"({"branches": {"length_fraction": 0}})", "lightning.branches.length_fraction");
-    bad(R"({"timing": {"decay_time": 0}})", "lightning.timing.decay_time");
-    bad(R"({"timing": {"leader_speed": 1e12}})", "lightning.timing.leader_speed");
-    bad(R"({"timing": {"restrikes": 1e9}})", "lightning.timing.restrikes");
-    bad(R"({"timing": {"restrikes_max": 2.5}})", "lightning.timing.restrikes_max");
-    bad(R"({"strike_rate": -1})", "lightning.strike_rate");
-    bad(R"({"first_strike": "soon"})", "lightning.first_strike");
-    bad(R"({"thunder": true})", "lightning.thunder: unknown key");
-    bad(R"({"timing": {"boom": 1}})", "lightning.timing.boom: unknown key");
+    bad(R"({"kind": "ball"})", "s.json: /lightning/kind");
+    bad(R"({"angle_mean": -3})", "s.json: /lightning/angle_mean");
+    bad(R"({"angle_mean": 400})", "/lightning/angle_mean");
+    bad(R"({"segment_length_mean": 0})", "/lightning/segment_length_mean");
+    bad(R"({"target_bias": 1.2})", "/lightning/target_bias");
+    bad(R"({"zigzag": 5})", "/lightning/zigzag");
+    bad(R"({"intensity": -1})", "/lightning/intensity");
+    bad(R"({"start_density_threshold": 1})", "/lightning/start_density_threshold");
+    bad(R"({"max_segments": 0})", "/lightning/max_segments");
+    bad(R"({"branches": {"probability": 2}})", "/lightning/branches/probability");
+    bad(R"({"branches": {"max_depth": 50}})", "/lightning/branches/max_depth");
+    bad(R"({"branches": {"length_fraction": 0}})", "/lightning/branches/length_fraction");
+    bad(R"({"timing": {"decay_time": 0}})", "/lightning/timing/decay_time");
+    bad(R"({"timing": {"leader_speed": 1e12}})", "/lightning/timing/leader_speed");
+    bad(R"({"timing": {"restrikes": 1e9}})", "/lightning/timing/restrikes");
+    bad(R"({"timing": {"restrikes_max": 2.5}})", "/lightning/timing/restrikes_max");
+    bad(R"({"strike_rate": -1})", "/lightning/strike_rate");
+    bad(R"({"first_strike": "soon"})", "/lightning/first_strike");
+    bad(R"({"thunder": true})", "/lightning/thunder: unknown key");
+    bad(R"({"timing": {"boom": 1}})", "/lightning/timing/boom: unknown key");
 }

@@ -253,7 +253,9 @@ Storm storm(const core::Int3& dims, double voxel_size) {
     st.source = bolt_source(st.density, st.extinction, st.lighting, st.directions, st.bolt, 800.0);
     st.camera = render::Camera::orbit({0.0, 0.0, 4300.0}, 13500.0, -60.0, -6.0, 55.0);
     st.settings.exposure = 110.0;
-    st.settings.sky_radiance = 3e-5;  // a long-exposure night sky, visible behind the cloud
+    // A long-exposure night sky, visible behind the cloud: airglow, greyer at the horizon.
+    st.settings.sky_zenith = 3e-5 * glm::dvec3(0.45, 0.6, 1.0);
+    st.settings.sky_horizon = 3e-5 * glm::dvec3(2.4, 2.3, 2.6);
     st.settings.star_radiance = 2e-3;
     return st;
 }

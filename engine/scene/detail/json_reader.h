@@ -1,6 +1,7 @@
 // Internal to fulgur::scene: a strict reader over nlohmann::json that tracks the field path,
 // checks types and ranges, and rejects unknown keys. Every error names the file and the
-// field (e.g. "storm.json: medium.albedo") and the allowed range or values.
+// field as a JSON pointer (RFC 6901, e.g. "storm.json: /medium/albedo", "/lights/0/type")
+// and the allowed range or values.
 #pragma once
 
 #include "core/core.h"
@@ -27,9 +28,16 @@ struct Range {
     std::string str() const;
 };
 
+/// A member name as a JSON pointer reference token ("~" -> "~0", "/" -> "~1").
+std::string json_pointer_token(std::string_view key);
+
+/// A dotted field path as other modules' validators write it ("lightning.timing.rise_time")
+/// as a JSON pointer ("/lightning/timing/rise_time").
+std::string dotted_to_pointer(std::string_view dotted);
+
 class JsonObject {
 public:
-    /// `path` is the dotted field path of this object ("" for the root).
+    /// `path` is the JSON pointer of this object ("" for the root).
     JsonObject(const nlohmann::json& j, std::string file, std::string path);
 
     bool has(std::string_view key) const;
@@ -59,7 +67,7 @@ public:
     void finish() const;
 
     const std::string& file() const noexcept { return file_; }
-    std::string field(std::string_view key) const;  // dotted path of a member
+    std::string field(std::string_view key) const;  // JSON pointer of a member
     [[noreturn]] void fail(std::string_view key, const std::string& what) const;
 
 private:

@@ -137,6 +137,8 @@ FactoredPhase factor_phase(const DiscretePhase& phase, double albedo);
 /// to 1): repeatedly take the unused direction with the largest dot product n_i . L and
 /// give it min(dot, remaining); stop when nothing remains. Uses normalized directions.
 std::array<double, kQ> resolve_direction(const glm::dvec3& L);
+/// The same among the directions q with allowed[q] only (e.g. the in-links of one face).
+std::array<double, kQ> resolve_direction(const glm::dvec3& L, const std::array<bool, kQ>& allowed);
 
 /// Discrete phase for an arbitrary output direction s: q_j = HG(s . n_j; g_s) /
 /// (4 pi sum_k w_k HG(s . n_k; g_s)), so that sum_j 4 pi w_j q_j = 1, with g_s fitted so that

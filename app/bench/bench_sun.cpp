@@ -1,0 +1,52 @@
+// The sun solved again when it moves (the demo's time-of-day slider): on the default storm
+// (content/scenes/storm.json: its moon moved along its course to three elevations), the wall
+// time of one re-solve (sky::solve_sun: exact single scattering + the lattice for orders >= 2
+// on the transport grid, and the full-resolution transmittance), split into its parts, on 1
+// and max_threads threads. One solve per case: each takes seconds, and it is what the user
+// waits for.
+#include "bench/bench.h"
+
+#include "core/core.h"
+#include "sky/sky.h"
+
+#include <filesystem>
+
+using namespace fulgur;
+
+FULGUR_BENCH(sun, "sun re-solve on the default storm at three elevations (time of day), 1 and N threads") {
+    const scene::Scene s = scene::load_scene(std::filesystem::path(FULGUR_SOURCE_ROOT) / "content/scenes/storm.json");
+    FULGUR_ASSERT(s.sun.has_value(), "the default storm has a moon");
+    const core::Grid3<float> density = scene::make_density(s);
+    const bake::Media media = bake::make_media(s, density);
+    const sky::SolveSettings settings = sky::solve_settings(s);
+    const sky::SunCourse course = sky::sun_course(*s.sun);
+    std::vector<double> hours = {course.last_hour - 0.25, course.scene_hour, 12.0};  // ~4, 40, 50 degrees
+    if (ctx.quick) hours = {course.scene_hour};
+    std::vector<int> threads = {1};
+    if (ctx.max_threads > 1 && !ctx.quick) threads.push_back(ctx.max_threads);
+    for (int t : threads) {
+        const core::ScopedThreadCount share(t);
+        for (double hour : hours) {
+            const scene::Sun sun = course.at(hour);
+            double el = 0.0, az = 0.0;
+            course.angles(hour, el, az);
+            const sky::SunSolve r = sky::solve_sun(s, density, media, settings, sun.direction);
+            const double rest = r.seconds - r.field.seconds_single - r.field.seconds_multiple;
+            ctx.emit("sun", {{"scene", "content/scenes/storm.json"},
+                             {"threads", t},
+                             {"hour", hour},
+                             {"elevation_deg", el},
+                             {"azimuth_deg", az},
+                             {"transport_grid",
+                              {media.transport.density.dims().x, media.transport.density.dims().y,
+                               media.transport.density.dims().z}},
+                             {"directions", s.effective_directions()},
+                             {"lattice_steps", r.field.iterations},
+                             {"converged", r.field.converged},
+                             {"seconds", r.seconds},
+                             {"seconds_single", r.field.seconds_single},
+                             {"seconds_lattice", r.field.seconds_multiple},
+                             {"seconds_transmittance_and_rest", rest}});
+        }
+    }
+}

@@ -1,0 +1,60 @@
+// The automatic exposure (detail/exposure.h, docs/render.md "Exposure").
+#include "render/detail/exposure.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace fulgur::render::detail {
+
+ExposureChoice choose_exposure(std::span<const std::uint32_t> bins, double log2_min, double bin_width,
+                               const Settings& st) {
+    ExposureChoice out;
+    const double fallback = st.previous_exposure > 0.0 ? st.previous_exposure : st.exposure;
+    // Log-average over the non-black pixels (bin 0 holds black and anything darker).
+    double n = 0.0, sum_log2 = 0.0;
+    for (std::size_t b = 1; b < bins.size(); ++b) {
+        n += double(bins[b]);
+        sum_log2 += double(bins[b]) * (log2_min + (double(b) + 0.5) * bin_width);
+    }
+    if (n <= 0.0) {
+        out.metered = out.applied = fallback;
+        return out;
+    }
+    const double L = std::exp2(sum_log2 / n);
+    out.log_average = L;
+    // The lit pixels: those at or above the frame's log-average (a dark sky around a lit
+    // cloud would otherwise pull the key's luminance down and show the cloud too bright).
+    const std::size_t first_lit =
+        std::size_t(std::clamp(std::floor((std::log2(L) - log2_min) / bin_width), 1.0, double(bins.size() - 1)));
+    double lit = 0.0, lit_log2 = 0.0;
+    for (std::size_t b = first_lit; b < bins.size(); ++b) {
+        lit += double(bins[b]);
+        lit_log2 += double(bins[b]) * (log2_min + (double(b) + 0.5) * bin_width);
+    }
+    const double L_lit = std::exp2(lit_log2 / lit);
+    const double key = 1.03 - 2.0 / (2.0 + std::log10(683.0 * L_lit + 1.0));
+    double e = key / L_lit;
+    // Highlights: the luminance exceeded by highlight_fraction of the lit pixels.
+    double above = 0.0;
+    for (std::size_t b = bins.size(); b-- > first_lit;) {
+        above += double(bins[b]);
+        if (above > st.highlight_fraction * lit) {
+            // The bin's upper edge: at most the fraction lies above it.
+            const double Lq = std::exp2(log2_min + double(b + 1) * bin_width);
+            e = std::min(e, kHighlightExposed / Lq);
+            break;
+        }
+    }
+    out.metered = e * std::exp2(st.exposure_compensation);
+    out.applied = out.metered;
+    if (st.previous_exposure > 0.0 && st.adaptation_seconds > 0.0) {
+        // Eye adaptation in log exposure: toward a brighter scene (lower exposure) with
+        // darken_seconds, toward a darker one with brighten_seconds.
+        const double tau = out.metered < st.previous_exposure ? st.darken_seconds : st.brighten_seconds;
+        const double a = tau > 0.0 ? 1.0 - std::exp(-st.adaptation_seconds / tau) : 1.0;
+        out.applied = st.previous_exposure * std::pow(out.metered / st.previous_exposure, a);
+    }
+    return out;
+}
+
+}  // namespace fulgur::render::detail

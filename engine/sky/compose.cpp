@@ -1,0 +1,153 @@
+// The static light in colour for the renderer, and solving the sun again when it moves
+// (sky.h).
+#include "sky/sky.h"
+
+#include <condition_variable>
+#include <exception>
+#include <mutex>
+#include <thread>
+
+namespace fulgur::sky {
+
+namespace {
+
+// Adds rgb * f (per unit light) into out (rgb per cell, per direction).
+void add_coloured(ColourField& out, const transport::SourceField& f, const glm::dvec3& rgb) {
+    if (f.data.empty()) return;
+    if (out.rgb.empty()) {
+        out.geom = f.geom;
+        out.directions = f.directions;
+        out.rgb.assign(f.directions.size(), std::vector<float>(f.cells() * 3, 0.0f));
+    }
+    FULGUR_ASSERT(out.geom == f.geom && out.directions.size() == f.directions.size(),
+                  "compose: the sun and the sky must share the lighting grid and directions");
+    for (std::size_t m = 0; m < f.directions.size(); ++m) {
+        const std::span<const float> v = f.direction(m);
+        std::vector<float>& dst = out.rgb[m];
+        for (std::size_t i = 0; i < v.size(); ++i)
+            for (int c = 0; c < 3; ++c) dst[3 * i + std::size_t(c)] += float(rgb[c] * double(v[i]));
+    }
+}
+
+void add_light(ColourField& out, const LightField& f, const glm::dvec3& rgb, bool single, bool multiple) {
+    if (single) add_coloured(out, f.single, rgb);
+    if (multiple) add_coloured(out, f.multiple, rgb);
+}
+
+}  // namespace
+
+ColourField compose(const StaticLight& light, const std::optional<scene::Sun>& sun,
+                    const std::optional<scene::SkyDome>& sky, const ComposeOptions& o) {
+    ColourField out;
+    if (o.sun && sun && light.sun)
+        add_light(out, *light.sun, sun->irradiance * sun->colour, o.single && o.sun_single, o.multiple);
+    if (o.sky && sky && light.sky) {
+        add_light(out, light.sky->zenith, sky->zenith(), o.single, o.multiple);
+        add_light(out, light.sky->horizon, sky->horizon(), o.single, o.multiple);
+        add_light(out, light.sky->uniform, sky->zenith(), o.single, o.multiple);
+    }
+    return out;
+}
+
+SunSolve solve_sun(const scene::Scene& s, const core::Grid3<float>& density, const bake::Media& media,
+                   const SolveSettings& settings, const glm::dvec3& direction) {
+    core::Stopwatch sw;
+    SunSolve out;
+    out.direction = direction;
+    const transport::DirectionalSource unit{direction, 1.0};
+    out.field =
+        solve_directional(media, std::span(&unit, 1), transport::output_directions(s.effective_directions()), settings);
+    out.transmittance = sun_transmittance(density, s.medium.extinction, direction);
+    out.seconds = sw.seconds();
+    return out;
+}
+
+struct SunResolver::Impl {
+    const scene::Scene& scene;
+    const core::Grid3<float>& density;
+    const bake::Media& media;
+    SolveSettings settings;
+    int threads = 1;
+
+    mutable std::mutex mu;
+    std::condition_variable cv;
+    std::optional<glm::dvec3> pending;
+    std::optional<SunSolve> ready;
+    std::exception_ptr error;
+    bool working = false, stop = false;
+    std::thread worker;
+
+    Impl(const scene::Scene& s, const core::Grid3<float>& d, const bake::Media& m, const SolveSettings& st, int t)
+        : scene(s), density(d), media(m), settings(st), threads(t) {
+        worker = std::thread([this] { run(); });
+    }
+    ~Impl() {
+        {
+            std::lock_guard<std::mutex> lock(mu);
+            stop = true;
+        }
+        cv.notify_all();
+        worker.join();
+    }
+
+    void run() {
+        const core::ScopedThreadCount share(threads);
+        for (;;) {
+            glm::dvec3 d;
+            {
+                std::unique_lock<std::mutex> lock(mu);
+                cv.wait(lock, [&] { return stop || pending.has_value(); });
+                if (stop) return;
+                d = *pending;
+                pending.reset();
+                working = true;
+            }
+            std::optional<SunSolve> result;
+            std::exception_ptr e;
+            try {
+                result = solve_sun(scene, density, media, settings, d);
+            } catch (...) {
+                e = std::current_exception();
+            }
+            std::lock_guard<std::mutex> lock(mu);
+            working = false;
+            if (e)
+                error = e;
+            else
+                ready = std::move(result);  // a newer finished solve replaces an untaken older one
+        }
+    }
+};
+
+SunResolver::SunResolver(const scene::Scene& s, const core::Grid3<float>& density, const bake::Media& media,
+                         const SolveSettings& settings, int threads)
+    : impl_(std::make_unique<Impl>(s, density, media, settings, std::max(1, threads))) {}
+
+SunResolver::~SunResolver() = default;
+
+void SunResolver::request(const glm::dvec3& direction) {
+    {
+        std::lock_guard<std::mutex> lock(impl_->mu);
+        impl_->pending = direction;
+    }
+    impl_->cv.notify_all();
+}
+
+std::optional<SunSolve> SunResolver::take() {
+    std::lock_guard<std::mutex> lock(impl_->mu);
+    if (impl_->error) {
+        std::exception_ptr e = impl_->error;
+        impl_->error = nullptr;
+        std::rethrow_exception(e);
+    }
+    std::optional<SunSolve> out = std::move(impl_->ready);
+    impl_->ready.reset();
+    return out;
+}
+
+bool SunResolver::busy() const {
+    std::lock_guard<std::mutex> lock(impl_->mu);
+    return impl_->working || impl_->pending.has_value();
+}
+
+}  // namespace fulgur::sky

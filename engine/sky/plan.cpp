@@ -1,0 +1,117 @@
+// The plan of every light a scene calls for, and why (sky.h).
+#include "sky/sky.h"
+
+#include <sstream>
+
+namespace fulgur::sky {
+
+namespace {
+
+std::string angles(const glm::dvec3& direction) {
+    double el = 0.0, az = 0.0;
+    scene::sun_angles(direction, el, az);
+    return "elevation " + core::format_number(el, 3) + " deg, azimuth " + core::format_number(az, 3) + " deg";
+}
+
+}  // namespace
+
+ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, const bake::PlanOptions& options) {
+    const std::string file = s.path.empty() ? std::string("scene") : s.path.string();
+    const scene::Effects& e = s.effects;
+    const bool lightning = e.lightning, sun = e.sun && s.sun, sky = e.sky && s.sky;
+    if (!lightning && !sun && !sky)
+        throw core::Error(file + ": /effects",
+                          "the scene asks for nothing that lights the cloud: no lightning, no sun "
+                          "and no sky (declare one, or switch one on in \"effects\")");
+    if (!e.single_scattering && !e.multiple_scattering)
+        throw core::Error(file + ": /effects",
+                          "single_scattering and multiple_scattering are both false: no light "
+                          "reaches the cloud, nothing to simulate");
+    ScenePlan p;
+    p.settings = solve_settings(s);
+    p.directions = s.effective_directions();
+    auto& why = p.reasons;
+    if (s.medium.g == 0.0)
+        why.push_back(
+            "g = 0 (isotropic scattering): S does not depend on direction, 1 output direction for every "
+            "solve instead of " +
+            std::to_string(s.directions));
+    else
+        why.push_back("g = " + core::format_number(s.medium.g) + ": " + std::to_string(p.directions) +
+                      " output directions for every solve");
+
+    // Lightning: the virtual-light bake.
+    if (lightning) {
+        p.lightning = bake::make_plan(s, density, options);
+        p.virtual_lights = p.lightning->lights.count();
+        why.push_back("lightning: a virtual-light bake of " + std::to_string(p.virtual_lights) +
+                      " lights (the bake plan below), its bases in the .fgb");
+    } else {
+        why.push_back("no lightning (effects.lightning = false): no virtual-light bake, no .fgb");
+    }
+
+    // How the sun and the sky are solved.
+    const std::string how =
+        !e.multiple_scattering
+            ? std::string("exact single scattering only (effects.multiple_scattering = false: no lattice solve)")
+            : "exact single scattering + lattice-Boltzmann for orders >= 2 (" + s.transport.lb_collision +
+                  " collision, " + s.transport.lb_thick_voxels + " thick voxels, tolerance " +
+                  core::format_number(s.transport.lb_tolerance) + ")";
+    const bake::Media grid = bake::make_media(s, density);
+    const core::Int3 td = grid.transport.density.dims();
+    const std::string where = "on the " + std::to_string(td.x) + " x " + std::to_string(td.y) + " x " +
+                              std::to_string(td.z) + " transport grid (" +
+                              core::format_number(grid.transport.density.geom.voxel_size, 6) + " m voxels)";
+
+    // The sun (or moon).
+    if (sun) {
+        p.sun = true;
+        p.sun_solves = 1;
+        const std::string name = s.sun->name.empty() ? std::string("the sun") : s.sun->name;
+        why.push_back(name + " (" + angles(s.sun->direction) + "): one solve per direction, " + how + " " + where +
+                      ", per unit irradiance (irradiance and colour need no new solve); the renderer draws its "
+                      "single scattering at full resolution");
+    } else if (s.sun) {
+        why.push_back("a sun is declared but effects.sun = false: no sun solve, no sunlight");
+    } else {
+        why.push_back("no sun in the scene: no sun solve");
+    }
+
+    // The sky dome.
+    if (sky) {
+        p.sky = true;
+        p.sky_uniform = s.sky->zenith() == s.sky->horizon();
+        p.sky_single_solves = p.settings.sky_samples;
+        p.sky_lattice_solves = e.multiple_scattering ? (p.sky_uniform ? 1 : 2) : 0;
+        why.push_back(std::string("sky dome (") + (p.sky_uniform ? "uniform" : "zenith-horizon gradient") +
+                      "): " + std::to_string(p.sky_single_solves) + " directions' exact single scattering, " +
+                      std::to_string(p.sky_lattice_solves) + " lattice solve" + (p.sky_lattice_solves == 1 ? "" : "s") +
+                      (p.sky_uniform ? "" : " (one per gradient end)") + " " + where +
+                      ", per unit radiance; the background is the same sky");
+    } else if (s.sky) {
+        why.push_back("a sky is declared but effects.sky = false: it is the background only, no sky light");
+    } else {
+        why.push_back("no sky in the scene: no sky solve; the background is the default dark night sky");
+    }
+
+    // Run-time effects.
+    if (!e.glow) why.push_back("effects.glow = false: no glow pass");
+    if (!e.ground) why.push_back("effects.ground = false: no ground plane");
+    return p;
+}
+
+std::string ScenePlan::to_text() const {
+    std::ostringstream o;
+    o << "scene plan\n";
+    o << "  virtual-light bake  " << (lightning ? std::to_string(virtual_lights) + " lights" : std::string("none"))
+      << "\n";
+    o << "  sun solves          " << sun_solves << "\n";
+    o << "  sky solves          " << sky_single_solves << " single scattering, " << sky_lattice_solves << " lattice\n";
+    o << "  directions          " << directions << "\n";
+    o << "  why:\n";
+    for (const std::string& r : reasons) o << "    - " << r << "\n";
+    if (lightning) o << lightning->to_text();
+    return o.str();
+}
+
+}  // namespace fulgur::sky

@@ -1,0 +1,268 @@
+// fulgur::sky — the light of the sky on the cloud: the sun (or the moon, a dim sun) and the
+// sky dome. Unlike lightning it does not change per frame, so it is solved once through the
+// lattice, as Geist et al. 2004 light their clouds (section 5, Appendix A), cached on disk,
+// and solved again only when the sun moves. docs/sky.md explains the model and the checks.
+//
+//   directional light -> exact single scattering S1 (and the uncollided fluence phi1) on the
+//   transport grid -> lattice-Boltzmann fed with S1 for orders >= 2 -> S averaged onto the
+//   lighting grid, per unit irradiance; the sky dome = many directional lights, two bases.
+//
+// Everything here is per unit irradiance (sun) or unit radiance (sky gradient ends): colour,
+// irradiance and radiance scale the stored fields when they are composed (compose()), so a
+// new moon brightness or sky colour needs no new solve; a new sun direction does.
+#pragma once
+
+#include "bake/bake.h"
+#include "core/core.h"
+#include "scene/scene.h"
+#include "transport/transport.h"
+
+#include <glm/vec3.hpp>
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace fulgur::sky {
+
+/// How a directional light is solved.
+enum class Method {
+    /// Exact single scattering (transport::single_scattering of the directional source, voxel
+    /// averages) and the lattice for orders >= 2, fed with it (first_scattered and
+    /// first_scattered_fluence), as bake::solve does for point lights. The default.
+    Hybrid,
+    /// Geist et al. as published: the light injected at the lattice boundary along the
+    /// Appendix A decomposition of its direction, every order from the lattice (the
+    /// uncollided beam too, on 18 lattice directions). `single` stays empty.
+    Lattice,
+};
+
+/// "hybrid" | "lattice"; throws core::Error naming `where` otherwise.
+Method parse_method(std::string_view s, std::string_view where);
+std::string_view to_string(Method m) noexcept;
+
+struct SolveSettings {
+    Method method = Method::Hybrid;
+    bool single = true;    ///< keep S1 (effects.single_scattering; computed anyway to feed the lattice)
+    bool multiple = true;  ///< run the lattice (effects.multiple_scattering)
+    transport::SingleScatteringOptions single_options;
+    transport::LbSettings lattice;
+    /// Directions sampling the sky dome (equal solid angles over the upper hemisphere). An
+    /// accuracy/time knob: each is one exact single-scattering solve.
+    int sky_samples = 32;
+};
+
+/// The scene's settings: bake::single_scattering_options, bake::lattice_settings and its
+/// effects (the same accuracy knobs as the virtual-light bake).
+SolveSettings solve_settings(const scene::Scene& s);
+
+/// S of one light on the lighting grid, per unit irradiance (a sun) or unit radiance (a sky
+/// basis), in W m^-2 sr^-1 per (W m^-2) or per (W m^-2 sr^-1).
+struct LightField {
+    transport::SourceField single;    ///< order 1 (Hybrid, single on); else empty
+    transport::SourceField multiple;  ///< orders >= 2 (Hybrid) or all orders (Lattice); empty without a lattice solve
+    int iterations = 0;               ///< lattice steps
+    bool converged = true;
+    /// The lattice's energy bookkeeping (transport::LbResult, W per step and W x steps):
+    /// injected_total = absorbed_total + escaped_total + stored.
+    double injected_per_step = 0.0, injected_total = 0.0, absorbed_total = 0.0, escaped_total = 0.0, stored = 0.0;
+    /// Power scattered once in the cloud, sum of sigma_s phi1 h^3 (Hybrid; W per unit light).
+    double first_scattered_power = 0.0;
+    double seconds_single = 0.0, seconds_multiple = 0.0;
+    bool empty() const noexcept { return single.data.empty() && multiple.data.empty(); }
+};
+
+/// Solves directional lights together (the result is linear in them: their sum) on
+/// media.transport and averages S onto media.lighting. `directions`: the output directions
+/// (transport::output_directions of the scene's effective count). Throws core::Error on bad
+/// input (a zero direction, non-finite irradiance).
+LightField solve_directional(const bake::Media& media, std::span<const transport::DirectionalSource> lights,
+                             std::span<const glm::dvec3> directions, const SolveSettings& settings);
+
+/// One direction of the sky dome, seen from the scene: `toward` points at the sky (z > 0).
+struct DomeSample {
+    glm::dvec3 toward{0.0, 0.0, 1.0};
+    double solid_angle = 0.0;  ///< sr; the samples' solid angles sum to 2 pi
+};
+/// `count` directions over the upper hemisphere with equal solid angles (a Fibonacci
+/// spiral in z = sin(elevation)), count >= 1.
+std::vector<DomeSample> dome_samples(int count);
+
+/// The sky dome's light: the response to each end of the gradient (scene::SkyDome), for unit
+/// radiance: L_zenith(el) = zenith_weight(sin el), L_horizon(el) = 1 - zenith_weight(sin el).
+/// A uniform sky has both ends equal, so it needs only their sum: `uniform` then holds it and
+/// zenith/horizon stay empty (one lattice solve instead of two).
+struct SkyField {
+    LightField zenith, horizon, uniform;
+};
+/// The dome as settings.sky_samples directional lights (each an exact single scattering,
+/// shared by both bases), then one lattice solve per basis. `uniform`: solve the sum only.
+SkyField solve_sky(const bake::Media& media, bool uniform, std::span<const glm::dvec3> directions,
+                   const SolveSettings& settings);
+
+/// Transmittance from the sun to every voxel centre of `density` (the full-resolution
+/// cloud) along -direction, through that density (sigma_t = extinction * rho; exact voxel
+/// traversal): what the renderer's single scattering at full resolution multiplies by. Only
+/// the voxels the renderer reads are computed: those within one voxel of the cloud (the ray
+/// march interpolates it where the density is non-zero) and those on the grid's faces (the
+/// ground's shadow looks it up where the ray to the sun enters the grid); the others hold 1.
+core::Grid3<float> sun_transmittance(const core::Grid3<float>& density, double extinction, const glm::dvec3& direction);
+
+// ---------------------------------------------------------------------------------------
+// The plan: what a scene's light needs and why
+
+/// Every solve a scene triggers, and why (printable). DESIGN.md: "no lightning means no
+/// virtual-light bake at all; no sun means no sun solve; isotropic scattering needs one
+/// output direction". The run-time effects (glow, ground) are listed too.
+struct ScenePlan {
+    /// The virtual-light bake (lightning on): its own plan. Absent: no bake, no .fgb.
+    std::optional<bake::Plan> lightning;
+    bool sun = false;          ///< a sun (or moon) solve
+    bool sky = false;          ///< the sky dome's solves
+    bool sky_uniform = false;  ///< a uniform sky: one lattice solve instead of two
+    int directions = 1;        ///< output directions of every solve
+    SolveSettings settings;    ///< how the sun and the sky are solved
+    /// Counts: lights the bake solves (each a single scattering + a lattice solve or Monte
+    /// Carlo), sun solves, and the sky's exact single scatterings and lattice solves.
+    std::size_t virtual_lights = 0;
+    int sun_solves = 0, sky_single_solves = 0, sky_lattice_solves = 0;
+    std::vector<std::string> reasons;  ///< one line per decision, in order
+    std::string to_text() const;
+};
+
+/// Plans the scene: throws core::Error naming the file and field when it asks for nothing
+/// that lights the cloud (no lightning, no sun, no sky, or neither single nor multiple
+/// scattering). The bake's part is bake::make_plan (with `options`).
+ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, const bake::PlanOptions& options = {});
+
+// ---------------------------------------------------------------------------------------
+// Solving once: the cache
+
+/// The key of a sun's or the sky's solve: bake::scene_key (density, medium, grids, transport
+/// settings) + what is solved (the sun's direction, or the sky's form and samples) and how.
+/// Irradiance, radiance and colours are not in it (the solves are per unit light).
+basis::BakeKey sun_key(const scene::Scene& s, const core::Grid3<float>& density, const SolveSettings& settings,
+                       const glm::dvec3& direction);
+basis::BakeKey sky_key(const scene::Scene& s, const core::Grid3<float>& density, const SolveSettings& settings,
+                       bool uniform);
+
+/// A field of a light file, by name ("single", "zenith.multiple", ...).
+struct NamedField {
+    std::string name;
+    transport::SourceField field;
+};
+/// Writes fields (one geometry and direction set) with their key, checksummed, atomically.
+/// File format: docs/sky.md.
+void write_light_file(const std::filesystem::path& path, const basis::BakeKey& key, std::span<const NamedField> fields);
+/// Reads a light file, validating every size against the file and the checksum; with
+/// `expected`, a file solved for another key is rejected ("stale": the first differing
+/// line). Errors name the file and the byte offset.
+std::vector<NamedField> read_light_file(const std::filesystem::path& path, const basis::BakeKey* expected = nullptr);
+
+/// The scene's static light, per unit light.
+struct StaticLight {
+    std::optional<LightField> sun;             ///< per unit irradiance
+    glm::dvec3 sun_direction{0.0, 0.0, -1.0};  ///< what `sun` was solved for
+    std::optional<SkyField> sky;               ///< per unit radiance
+};
+
+/// Where solves are cached: `dir` (created when missing), or beside the scene file when
+/// empty; nothing is cached when `enabled` is false or the scene has no file.
+struct CacheOptions {
+    bool enabled = true;
+    std::filesystem::path dir;
+};
+/// The cache file of the scene's sun or sky ("sun" | "sky"): <dir>/<scene stem>.<kind>.fgl.
+std::optional<std::filesystem::path> cache_path(const scene::Scene& s, const CacheOptions& cache,
+                                                std::string_view kind);
+
+/// The plan's solves: each light is read from its cache file when that is fresh, else solved
+/// (and written). `say` is told what happens ("sun: solved in 0.4 s (no cache file)").
+StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& density, const bake::Media& media,
+                          const ScenePlan& plan, const CacheOptions& cache = {},
+                          const std::function<void(const std::string&)>& say = {});
+
+// ---------------------------------------------------------------------------------------
+// Composing the colour the renderer draws
+
+struct ComposeOptions {
+    bool sun = true, sky = true;          ///< include each (run-time switches)
+    bool sun_single = true;               ///< the sun's order 1 (false: drawn at full resolution)
+    bool single = true, multiple = true;  ///< which orders (the sky's and the sun's)
+};
+/// S of the static light in colour on the lighting grid: for each output direction, rgb per
+/// cell (x fastest): irradiance x colour x the sun's field + the sky's ends x their radiance
+/// and colour. Empty (no directions) when nothing is included.
+struct ColourField {
+    core::GridGeometry geom;
+    std::vector<glm::dvec3> directions;
+    std::vector<std::vector<float>> rgb;  ///< per direction, 3 floats per cell
+    bool empty() const noexcept { return rgb.empty(); }
+};
+ColourField compose(const StaticLight& light, const std::optional<scene::Sun>& sun,
+                    const std::optional<scene::SkyDome>& sky, const ComposeOptions& options);
+
+// ---------------------------------------------------------------------------------------
+// Solving again when the sun moves
+
+/// A sun solved for one direction: its field and its full-resolution transmittance.
+struct SunSolve {
+    glm::dvec3 direction{0.0, 0.0, -1.0};
+    LightField field;
+    core::Grid3<float> transmittance;  ///< sun_transmittance of the scene's density
+    double seconds = 0.0;              ///< wall time of the solve (lattice + transmittance)
+};
+/// The scene's sun solve for `direction` (sun_transmittance included). Seconds.
+SunSolve solve_sun(const scene::Scene& s, const core::Grid3<float>& density, const bake::Media& media,
+                   const SolveSettings& settings, const glm::dvec3& direction);
+
+/// The sun's (or the moon's) course over a day, for the time-of-day control: an equinox day
+/// at a latitude whose noon sun stands at least 10 degrees above the scene's (and at least
+/// 50), turned in azimuth so that it passes through the scene's sun in the afternoon (at
+/// scene_hour). Away from the scene's elevation the light crosses another air mass (Kasten &
+/// Young 1989; a clear atmosphere's optical depth per channel): a low sun is dimmer and
+/// redder. docs/sky.md "Time of day".
+struct SunCourse {
+    scene::Sun scene_sun;
+    double scene_elevation = 0.0, scene_azimuth = 0.0;  ///< degrees
+    double latitude = 0.0;                              ///< degrees
+    double azimuth_offset = 0.0;                        ///< degrees
+    double scene_hour = 12.0;                           ///< solar time of the scene's sun
+    double first_hour = 6.0, last_hour = 18.0;          ///< the sun at least 1 degree high
+    /// The sun at solar time `hour` (clamped to [first_hour, last_hour]): direction, colour
+    /// (luminance 1) and irradiance; at(scene_hour) is the scene's sun.
+    scene::Sun at(double hour) const;
+    /// Elevation and azimuth (degrees, the scene's convention) at `hour`.
+    void angles(double hour, double& elevation_deg, double& azimuth_deg) const;
+};
+SunCourse sun_course(const scene::Sun& sun);
+
+/// Solves the sun again on a worker thread whenever asked (the demo's time-of-day slider):
+/// only the newest request matters, the caller keeps showing the old field until take()
+/// returns the new one. Thread-safe.
+class SunResolver {
+public:
+    /// Keeps references to the arguments; they must outlive it. `threads`: the worker's share
+    /// of the cores (>= 1).
+    SunResolver(const scene::Scene& s, const core::Grid3<float>& density, const bake::Media& media,
+                const SolveSettings& settings, int threads);
+    ~SunResolver();
+    SunResolver(const SunResolver&) = delete;
+    SunResolver& operator=(const SunResolver&) = delete;
+    /// Asks for the sun along `direction`; replaces a request not yet started.
+    void request(const glm::dvec3& direction);
+    /// The newest finished solve not taken yet; rethrows a solve's error.
+    std::optional<SunSolve> take();
+    /// A request is queued or being solved.
+    bool busy() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace fulgur::sky

@@ -1,0 +1,245 @@
+// The sun's and the sky's light through the lattice (sky.h, docs/sky.md).
+#include "sky/sky.h"
+
+#include <glm/geometric.hpp>
+
+#include <cmath>
+#include <numbers>
+
+namespace fulgur::sky {
+
+namespace {
+
+void add_scaled(transport::SourceField& acc, const transport::SourceField& f, double w) {
+    for (std::size_t i = 0; i < acc.data.size(); ++i) acc.data[i] += float(w * double(f.data[i]));
+}
+
+void add_scaled(core::Grid3<float>& acc, const core::Grid3<float>& f, double w) {
+    for (std::size_t i = 0; i < acc.data.size(); ++i) acc.data[i] += float(w * double(f.data[i]));
+}
+
+void check_light(const transport::DirectionalSource& l) {
+    const double len = glm::length(l.direction);
+    if (!std::isfinite(len) || !(len > 0.0)) throw core::Error("sun.direction", "must be a finite non-zero vector");
+    if (!std::isfinite(l.irradiance) || l.irradiance < 0.0)
+        throw core::Error("sun.irradiance", "must be finite and >= 0, got " + std::to_string(l.irradiance));
+}
+
+/// The first-scattered light of a set of directional lights (each weighted): S1 and the
+/// uncollided fluence phi1 on the transport grid.
+struct FirstScattered {
+    transport::SourceField s1;
+    core::Grid3<float> phi1;
+    double seconds = 0.0;
+};
+
+FirstScattered first_scattered(const transport::LightingMedium& medium,
+                               std::span<const transport::DirectionalSource> lights,
+                               std::span<const glm::dvec3> directions, const SolveSettings& settings) {
+    core::Stopwatch sw;
+    const core::GridGeometry& geom = medium.density.geom;
+    const std::vector<glm::dvec3> dirs(directions.begin(), directions.end());
+    FirstScattered out{transport::SourceField(geom, dirs), core::Grid3<float>(geom, 0.0f)};
+    transport::SourceField tmp(geom, dirs);
+    core::Grid3<float> phi_one;
+    transport::SingleScatteringOptions ss = settings.single_options;
+    ss.uncollided_fluence = &phi_one;
+    for (const transport::DirectionalSource& l : lights) {
+        check_light(l);
+        if (l.irradiance == 0.0) continue;
+        transport::single_scattering(medium, l, tmp, ss);
+        add_scaled(out.s1, tmp, 1.0);
+        add_scaled(out.phi1, phi_one, 1.0);
+    }
+    out.seconds = sw.seconds();
+    return out;
+}
+
+double first_scattered_power(const transport::LightingMedium& medium, const core::Grid3<float>& phi1) {
+    const core::GridGeometry& g = medium.density.geom;
+    const double vol = g.voxel_size * g.voxel_size * g.voxel_size;
+    core::CompensatedSum p;  // ~10^5 terms of very different sizes
+    for (std::size_t i = 0; i < phi1.size(); ++i)
+        p.add(medium.optics.albedo * medium.sigma_t(i) * double(phi1.data[i]) * vol);
+    return p.value();
+}
+
+void take_lattice(LightField& out, transport::LbResult&& r) {
+    out.multiple = std::move(r.source);
+    out.iterations = r.iterations;
+    out.converged = r.converged;
+    out.injected_per_step = r.injected_per_step;
+    out.injected_total = r.injected_total;
+    out.absorbed_total = r.absorbed_total;
+    out.escaped_total = r.escaped_total;
+    out.stored = r.stored;
+    out.seconds_multiple = r.seconds;
+}
+
+/// Hybrid: S1 kept (when asked) and the lattice fed with it for orders >= 2.
+LightField hybrid(const bake::Media& media, FirstScattered&& fs, std::span<const glm::dvec3> directions,
+                  const SolveSettings& settings) {
+    const transport::LightingMedium& medium = media.transport;
+    LightField out;
+    out.seconds_single = fs.seconds;
+    out.first_scattered_power = first_scattered_power(medium, fs.phi1);
+    if (settings.multiple) {
+        transport::LbSources src;
+        src.first_scattered = &fs.s1;
+        src.first_scattered_fluence = &fs.phi1;
+        take_lattice(out, transport::solve_lattice_boltzmann(medium, src, directions, settings.lattice));
+    }
+    if (settings.single) out.single = std::move(fs.s1);
+    return out;
+}
+
+void average_onto_lighting(LightField& f, int refine) {
+    if (refine <= 1) return;
+    if (!f.single.data.empty()) f.single = transport::block_average(f.single, refine);
+    if (!f.multiple.data.empty()) f.multiple = transport::block_average(f.multiple, refine);
+}
+
+void check_media(const bake::Media& media) {
+    FULGUR_ASSERT(media.refine >= 1 &&
+                      media.lighting.density.geom.voxel_size == media.transport.density.geom.voxel_size * media.refine,
+                  "sky: media from bake::make_media");
+}
+
+}  // namespace
+
+Method parse_method(std::string_view s, std::string_view where) {
+    if (s == "hybrid") return Method::Hybrid;
+    if (s == "lattice") return Method::Lattice;
+    throw core::Error(std::string(where), "\"" + std::string(s) + "\" is not one of \"hybrid\", \"lattice\"");
+}
+
+std::string_view to_string(Method m) noexcept { return m == Method::Hybrid ? "hybrid" : "lattice"; }
+
+SolveSettings solve_settings(const scene::Scene& s) {
+    SolveSettings st;
+    st.single = s.effects.single_scattering;
+    st.multiple = s.effects.multiple_scattering;
+    st.single_options = bake::single_scattering_options(s);
+    st.lattice = bake::lattice_settings(s);
+    return st;
+}
+
+LightField solve_directional(const bake::Media& media, std::span<const transport::DirectionalSource> lights,
+                             std::span<const glm::dvec3> directions, const SolveSettings& settings) {
+    check_media(media);
+    for (const transport::DirectionalSource& l : lights) check_light(l);
+    LightField out;
+    if (settings.method == Method::Lattice && settings.multiple) {
+        // Geist et al.: each light injected at the boundary (Appendix A), every order from
+        // the lattice; several lights are solved one by one and summed (the lattice is linear).
+        for (const transport::DirectionalSource& l : lights) {
+            if (l.irradiance == 0.0) continue;
+            transport::LbSources src;
+            src.sun = l;
+            transport::LbResult r =
+                transport::solve_lattice_boltzmann(media.transport, src, directions, settings.lattice);
+            if (out.multiple.data.empty()) {
+                take_lattice(out, std::move(r));
+                continue;
+            }
+            add_scaled(out.multiple, r.source, 1.0);
+            out.iterations = std::max(out.iterations, r.iterations);
+            out.converged = out.converged && r.converged;
+            out.injected_per_step += r.injected_per_step;
+            out.injected_total += r.injected_total;
+            out.absorbed_total += r.absorbed_total;
+            out.escaped_total += r.escaped_total;
+            out.stored += r.stored;
+            out.seconds_multiple += r.seconds;
+        }
+    } else {
+        out = hybrid(media, first_scattered(media.transport, lights, directions, settings), directions, settings);
+    }
+    average_onto_lighting(out, media.refine);
+    return out;
+}
+
+std::vector<DomeSample> dome_samples(int count) {
+    FULGUR_ASSERT(count >= 1, "dome_samples: count must be >= 1");
+    std::vector<DomeSample> out(static_cast<std::size_t>(count));
+    const double golden_angle = std::numbers::pi * (3.0 - std::sqrt(5.0));
+    for (int k = 0; k < count; ++k) {
+        // z uniform in (0, 1): equal solid angles (Archimedes); azimuths on the golden spiral.
+        const double z = 1.0 - (k + 0.5) / count, r = std::sqrt(std::max(0.0, 1.0 - z * z));
+        const double phi = golden_angle * k;
+        out[std::size_t(k)] = {{r * std::cos(phi), r * std::sin(phi), z}, 2.0 * std::numbers::pi / count};
+    }
+    return out;
+}
+
+SkyField solve_sky(const bake::Media& media, bool uniform, std::span<const glm::dvec3> directions,
+                   const SolveSettings& settings) {
+    check_media(media);
+    const std::vector<DomeSample> samples = dome_samples(settings.sky_samples);
+    const core::GridGeometry& geom = media.transport.density.geom;
+    const std::vector<glm::dvec3> dirs(directions.begin(), directions.end());
+    // Each sample's exact single scattering once; both bases are weighted sums of them.
+    FirstScattered z{transport::SourceField(geom, dirs), core::Grid3<float>(geom, 0.0f)};
+    FirstScattered h{transport::SourceField(geom, dirs), core::Grid3<float>(geom, 0.0f)};
+    for (const DomeSample& d : samples) {
+        // Radiance L over a solid angle dOmega arriving from `toward`: a directional light
+        // of irradiance L dOmega travelling along -toward.
+        const transport::DirectionalSource light{-d.toward, d.solid_angle};
+        FirstScattered one = first_scattered(media.transport, std::span(&light, 1), directions, settings);
+        const double w = uniform ? 1.0 : scene::SkyDome::zenith_weight(d.toward.z);
+        add_scaled(z.s1, one.s1, w);
+        add_scaled(z.phi1, one.phi1, w);
+        z.seconds += one.seconds;
+        if (!uniform) {
+            add_scaled(h.s1, one.s1, 1.0 - w);
+            add_scaled(h.phi1, one.phi1, 1.0 - w);
+        }
+    }
+    SkyField out;
+    LightField& first = uniform ? out.uniform : out.zenith;
+    first = hybrid(media, std::move(z), directions, settings);
+    average_onto_lighting(first, media.refine);
+    if (!uniform) {
+        out.horizon = hybrid(media, std::move(h), directions, settings);
+        average_onto_lighting(out.horizon, media.refine);
+    }
+    return out;
+}
+
+core::Grid3<float> sun_transmittance(const core::Grid3<float>& density, double extinction,
+                                     const glm::dvec3& direction) {
+    const double len = glm::length(direction);
+    if (!std::isfinite(len) || !(len > 0.0))
+        throw core::Error("sun_transmittance: direction", "must be a finite non-zero vector");
+    if (!std::isfinite(extinction) || extinction < 0.0)
+        throw core::Error("sun_transmittance: extinction", "must be finite and >= 0");
+    const glm::dvec3 d = direction / len;
+    transport::LightingMedium m;
+    m.density = density;
+    m.optics.extinction = extinction;
+    const core::GridGeometry& g = density.geom;
+    const core::Int3 n = g.dims;
+    core::Grid3<float> out(g, 1.0f);
+    // Voxels the renderer reads: within one voxel of density, or on a face of the grid.
+    std::vector<std::uint8_t> need(g.cell_count(), 0);
+    for (int k = 0; k < n.z; ++k)
+        for (int j = 0; j < n.y; ++j)
+            for (int i = 0; i < n.x; ++i) {
+                const bool face = i == 0 || j == 0 || k == 0 || i == n.x - 1 || j == n.y - 1 || k == n.z - 1;
+                if (face) need[g.index(i, j, k)] = 1;
+                if (density.at(i, j, k) <= 0.0f) continue;
+                for (int c = std::max(0, k - 1); c <= std::min(n.z - 1, k + 1); ++c)
+                    for (int b = std::max(0, j - 1); b <= std::min(n.y - 1, j + 1); ++b)
+                        for (int a = std::max(0, i - 1); a <= std::min(n.x - 1, i + 1); ++a) need[g.index(a, b, c)] = 1;
+            }
+    core::parallel_for_dynamic(0, std::int64_t(n.y) * n.z, [&](std::int64_t row) {
+        const int j = int(row % n.y), k = int(row / n.y);
+        for (int i = 0; i < n.x; ++i) {
+            const std::size_t c = g.index(i, j, k);
+            if (need[c]) out.data[c] = float(std::exp(-transport::optical_depth_to_sun(m, g.centre(i, j, k), d)));
+        }
+    });
+    return out;
+}
+
+}  // namespace fulgur::sky

@@ -1,0 +1,252 @@
+// The plan decides from the scene (and says why): no lightning -> no bake, no sun -> no sun
+// solve, isotropic -> one direction, nothing that lights the cloud -> an error; the solves
+// are cached and done again only when their key changes; the composed colour.
+#include "sky/sky.h"
+
+#include "support/test_support.h"
+
+#include <doctest/doctest.h>
+
+#include <nlohmann/json.hpp>
+
+#include <glm/geometric.hpp>
+
+#include <chrono>
+#include <fstream>
+#include <thread>
+
+using namespace fulgur;
+
+namespace {
+
+// The tiny anisotropic test scene with `patch` merged into it (RFC 7396), written to `dir`.
+scene::Scene variant(const std::filesystem::path& dir, const std::string& name, const std::string& patch) {
+    std::ifstream in(test::source_dir() / "tests/apps/scenes/test_aniso_ms_cg.json");
+    nlohmann::json j = nlohmann::json::parse(in);
+    j.merge_patch(nlohmann::json::parse(patch));
+    const auto path = dir / (name + ".json");
+    test::write_text(path, j.dump(1));
+    return scene::load_scene(path);
+}
+
+bake::PlanOptions quick() {
+    bake::PlanOptions o;
+    o.estimate = false;
+    return o;
+}
+
+bool mentions(const sky::ScenePlan& p, const std::string& needle) {
+    for (const std::string& r : p.reasons)
+        if (r.find(needle) != std::string::npos) return true;
+    return false;
+}
+
+const char* kSunSky = R"({"lights": [{"type": "sun", "name": "moon", "elevation": 40, "azimuth": 30,
+    "irradiance": 0.01, "colour": [0.8, 0.9, 1]}], "sky": {"zenith": {"radiance": 1e-3, "colour": [0.4, 0.5, 1]},
+    "horizon": {"radiance": 3e-3, "colour": [1, 1, 1]}}, "effects": {"sun": true, "sky": true}})";
+
+}  // namespace
+
+TEST_CASE("plan: the solves each kind of scene triggers, counted, and the reasons naming them") {
+    const auto dir = test::scratch_dir("sky_plan");
+    const scene::Scene night = variant(dir, "night", kSunSky);
+    const core::Grid3<float> d = scene::make_density(night);
+    const sky::ScenePlan all = sky::plan_scene(night, d, quick());
+    REQUIRE(all.lightning.has_value());
+    CHECK(all.virtual_lights == all.lightning->lights.count());
+    CHECK(all.sun_solves == 1);
+    CHECK(all.sky_single_solves == 32);
+    CHECK(all.sky_lattice_solves == 2);  // a gradient: one per end
+    CHECK(all.directions == 26);
+    CHECK(mentions(all, "moon (elevation 40 deg, azimuth 30 deg): one solve per direction"));
+    CHECK(mentions(all, "zenith-horizon gradient"));
+    CHECK(all.to_text().find("bake plan") != std::string::npos);
+
+    const scene::Scene day_sun = variant(
+        dir, "day_sun", R"({"effects": {"lightning": false, "sun": true}, "medium": {"g": 0}, "lights": [{"type": "sun",
+        "elevation": 50, "azimuth": -60, "irradiance": 800}], "sky": {"radiance": 2, "colour": [0.5, 0.6, 1]}})");
+    const sky::ScenePlan p = sky::plan_scene(day_sun, d, quick());
+    CHECK_FALSE(p.lightning.has_value());
+    CHECK(p.virtual_lights == 0);
+    CHECK(p.sun_solves == 1);
+    CHECK(p.sky_lattice_solves == 1);  // uniform: the sum only
+    CHECK(p.directions == 1);          // isotropic
+    CHECK(mentions(p, "no lightning (effects.lightning = false): no virtual-light bake, no .fgb"));
+    CHECK(mentions(p, "g = 0 (isotropic scattering): S does not depend on direction, 1 output direction"));
+    CHECK(p.to_text().find("bake plan") == std::string::npos);
+
+    const sky::ScenePlan storm = sky::plan_scene(variant(dir, "storm", "{}"), d, quick());
+    CHECK(storm.lightning.has_value());
+    CHECK(storm.sun_solves == 0);
+    CHECK(storm.sky_single_solves == 0);
+    CHECK(storm.sky_lattice_solves == 0);
+    CHECK(mentions(storm, "no sun in the scene: no sun solve"));
+    CHECK(mentions(storm, "no sky in the scene: no sky solve"));
+
+    const sky::ScenePlan off = sky::plan_scene(
+        variant(dir, "off",
+                std::string(kSunSky).replace(std::string(kSunSky).find("\"sun\": true"), 11, "\"sun\": false")),
+        d, quick());
+    CHECK(off.sun_solves == 0);
+    CHECK(mentions(off, "a sun is declared but effects.sun = false: no sun solve"));
+
+    const sky::ScenePlan single = sky::plan_scene(
+        variant(dir, "single",
+                R"({"effects": {"multiple_scattering": false, "lightning": false}, "sky": {"radiance": 1}})"),
+        d, quick());
+    CHECK(single.sky_lattice_solves == 0);
+    CHECK(single.sky_single_solves == 32);
+
+    // Nothing that lights the cloud: a clear error naming the file and the field.
+    CHECK_THROWS_WITH_AS(sky::plan_scene(variant(dir, "dark", R"({"effects": {"lightning": false}})"), d, quick()),
+                         doctest::Contains("dark.json: /effects: the scene asks for nothing that lights the cloud"),
+                         core::Error);
+    CHECK_THROWS_WITH_AS(
+        sky::plan_scene(
+            variant(dir, "none", R"({"effects": {"single_scattering": false, "multiple_scattering": false}})"), d,
+            quick()),
+        doctest::Contains("/effects: single_scattering and multiple_scattering are both false"), core::Error);
+}
+
+TEST_CASE("solved once: the cache is read while fresh, solved again when the sun moves; colour rides on the fields") {
+    const auto dir = test::scratch_dir("sky_load");
+    const scene::Scene s = variant(dir, "night", kSunSky);
+    const core::Grid3<float> d = scene::make_density(s);
+    const bake::Media media = bake::make_media(s, d);
+    const sky::ScenePlan plan = sky::plan_scene(s, d, quick());
+    std::vector<std::string> said;
+    auto say = [&](const std::string& m) { said.push_back(m); };
+    const sky::CacheOptions cache{true, dir / "cache"};
+    const sky::StaticLight a = sky::load_or_solve(s, d, media, plan, cache, say);
+    REQUIRE(said.size() == 2);
+    CHECK(said[0].find("sun: solved") == 0);
+    CHECK(said[1].find("sky: solved") == 0);
+    CHECK(std::filesystem::exists(dir / "cache/night.sun.fgl"));
+    CHECK(std::filesystem::exists(dir / "cache/night.sky.fgl"));
+    said.clear();
+    const sky::StaticLight b = sky::load_or_solve(s, d, media, plan, cache, say);
+    REQUIRE(said.size() == 2);
+    CHECK(said[0].find("sun: read from") == 0);
+    CHECK(said[1].find("sky: read from") == 0);
+    CHECK(b.sun->multiple.data == a.sun->multiple.data);
+    CHECK(b.sky->zenith.single.data == a.sky->zenith.single.data);
+
+    // A brighter, redder moon: no new solve (the solves are per unit light).
+    const scene::Scene brighter =
+        variant(dir, "night", std::string(kSunSky).replace(std::string(kSunSky).find("0.01"), 4, "0.05"));
+    said.clear();
+    (void)sky::load_or_solve(brighter, d, media, sky::plan_scene(brighter, d, quick()), cache, say);
+    CHECK(said[0].find("sun: read from") == 0);
+    // The moon moved: solved again, and the message says which parameter changed.
+    const scene::Scene moved =
+        variant(dir, "night",
+                std::string(kSunSky).replace(std::string(kSunSky).find("\"elevation\": 40"), 15, "\"elevation\": 20"));
+    said.clear();
+    (void)sky::load_or_solve(moved, d, media, sky::plan_scene(moved, d, quick()), cache, say);
+    CHECK(said[0].find("sun: solved") == 0);
+    CHECK(said[0].find("sky.sun.direction") != std::string::npos);
+    CHECK(said[1].find("sky: read from") == 0);  // the sky did not change
+
+    // Colour: the composed field is irradiance x colour x the unit field (plus the sky's).
+    sky::ComposeOptions only_sun;
+    only_sun.sky = false;
+    const sky::ColourField c = sky::compose(a, s.sun, s.sky, only_sun);
+    REQUIRE(c.directions.size() == 26);
+    const std::size_t cells = c.geom.cell_count();
+    for (std::size_t i = 0; i < cells; i += 7) {
+        const double unit = double(a.sun->single.data[i]) + double(a.sun->multiple.data[i]);
+        for (int ch = 0; ch < 3; ++ch)
+            CHECK(c.rgb[0][3 * i + std::size_t(ch)] ==
+                  doctest::Approx(s.sun->irradiance * s.sun->colour[ch] * unit).epsilon(1e-5));  // float products
+    }
+    sky::ComposeOptions full_res = only_sun;
+    full_res.sun_single = false;  // the renderer draws the sun's order 1 itself
+    const sky::ColourField m = sky::compose(a, s.sun, s.sky, full_res);
+    CHECK(m.rgb[0][3] == doctest::Approx(s.sun->irradiance * s.sun->colour[0] * a.sun->multiple.data[1]).epsilon(1e-5));
+    sky::ComposeOptions none;
+    none.sun = none.sky = false;
+    CHECK(sky::compose(a, s.sun, s.sky, none).empty());
+}
+
+TEST_CASE("the sun solved again on a worker thread: the newest request wins, the old field until then") {
+    const auto dir = test::scratch_dir("sky_resolver");
+    const scene::Scene s = variant(dir, "night", kSunSky);
+    const core::Grid3<float> d = scene::make_density(s);
+    const bake::Media media = bake::make_media(s, d);
+    sky::SunResolver r(s, d, media, sky::solve_settings(s), 1);
+    CHECK_FALSE(r.take().has_value());
+    const glm::dvec3 first = scene::sun_direction(30.0, 0.0), last = scene::sun_direction(10.0, 90.0);
+    r.request(first);
+    r.request(last);  // replaces the first unless it has started
+    std::optional<sky::SunSolve> got;
+    for (int i = 0; i < 6000 && !(got && got->direction == last); ++i) {
+        if (auto t = r.take()) got = std::move(t);
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    REQUIRE(got.has_value());
+    CHECK(got->direction == last);
+    CHECK(got->seconds > 0.0);
+    CHECK(got->transmittance.geom == d.geom);
+    const sky::SunSolve direct = sky::solve_sun(s, d, media, sky::solve_settings(s), last);
+    CHECK(got->field.multiple.data == direct.field.multiple.data);  // the same solve, deterministic
+    CHECK_FALSE(r.busy());
+}
+
+TEST_CASE("plan: the three content scenes trigger exactly the solves they call for") {
+    struct Expect {
+        const char* scene;
+        bool bake;
+        int sun, sky_single, sky_lattice, directions;
+        const char* reason;
+    };
+    for (const Expect e : {Expect{"storm", true, 1, 32, 2, 26, "moon (elevation 40 deg, azimuth -130 deg)"},
+                           Expect{"dusk-storm", true, 1, 32, 2, 26, "sun (elevation 5 deg, azimuth -30 deg)"},
+                           Expect{"day-cumulus", false, 1, 32, 2, 26, "no lightning (effects.lightning = false)"}}) {
+        INFO(e.scene);
+        const scene::Scene s =
+            scene::load_scene(test::source_dir() / "content/scenes" / (std::string(e.scene) + ".json"));
+        const core::Grid3<float> d = scene::make_density(s);
+        const sky::ScenePlan p = sky::plan_scene(s, d, quick());
+        CHECK(p.lightning.has_value() == e.bake);
+        if (e.bake) CHECK(p.virtual_lights == 968);  // the default storm's grid (docs/bake.md)
+        if (!e.bake) CHECK(p.virtual_lights == 0);
+        CHECK(p.sun_solves == e.sun);
+        CHECK(p.sky_single_solves == e.sky_single);
+        CHECK(p.sky_lattice_solves == e.sky_lattice);
+        CHECK(p.directions == e.directions);
+        CHECK(mentions(p, e.reason));
+    }
+}
+
+TEST_CASE("time of day: the sun's course passes through the scene's sun, redder and dimmer when low") {
+    for (const auto& [el, az] :
+         {std::pair{5.0, -30.0}, std::pair{40.0, -130.0}, std::pair{32.0, 25.0}, std::pair{85.0, 170.0}}) {
+        INFO("elevation " << el << ", azimuth " << az);
+        scene::Sun sun;
+        sun.direction = scene::sun_direction(el, az);
+        sun.irradiance = 60.0;
+        sun.colour = glm::dvec3(1.0, 0.5, 0.22) / scene::luminance({1.0, 0.5, 0.22});
+        const sky::SunCourse c = sky::sun_course(sun);
+        // At its own hour the course is the scene's sun (1e-9: rounding through acos/atan2).
+        const scene::Sun s0 = c.at(c.scene_hour);
+        CHECK(glm::length(s0.direction - sun.direction) < 1e-9);
+        CHECK(s0.irradiance == doctest::Approx(sun.irradiance).epsilon(1e-9));
+        CHECK(glm::length(s0.colour - sun.colour) < 1e-9);
+        CHECK(c.scene_hour > 12.0);  // the afternoon
+        // Noon is the highest, the ends of the course 1 degree above the horizon.
+        double e = 0.0, a = 0.0;
+        c.angles(12.0, e, a);
+        CHECK(e >= std::max(50.0, el) - 1e-9);
+        c.angles(c.first_hour, e, a);
+        CHECK(e == doctest::Approx(1.0).epsilon(1e-9));
+        c.angles(c.last_hour, e, a);
+        CHECK(e == doctest::Approx(1.0).epsilon(1e-9));
+        // Lower: dimmer and redder (blue over red falls), colour of luminance 1.
+        const scene::Sun noon = c.at(12.0), late = c.at(c.last_hour);
+        CHECK(late.irradiance < s0.irradiance);
+        CHECK(noon.irradiance > s0.irradiance);
+        CHECK(late.colour.z / late.colour.x < s0.colour.z / s0.colour.x);
+        CHECK(scene::luminance(late.colour) == doctest::Approx(1.0).epsilon(1e-12));
+        CHECK(c.at(30.0).direction == late.direction);  // clamped to the course
+    }
+}
