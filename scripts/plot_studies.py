@@ -57,14 +57,21 @@ def pareto(points):
     return front
 
 
-def frontier_panel(ax, rows, cost_key, xlabel):
+def frontier_panel(ax, rows, cost_key, xlabel, targets=()):
+    """One marker per configuration; the Pareto front dashed and its points named (the others
+    would bury each other's labels: the CSV names every point)."""
     pts = [(float(r[cost_key]), float(r["error_vs_truth"])) for r in rows]
-    for r, (x, y) in zip(rows, pts):
-        marker, colour = PRESET_STYLE.get(r["preset"], ("x", "black"))
-        ax.scatter(x, 100 * y, marker=marker, color=colour, s=46, zorder=3)
-        ax.annotate(r["config"], (x, 100 * y), textcoords="offset points", xytext=(5, 4), fontsize=7)
     front = pareto(pts)
+    for i, (r, (x, y)) in enumerate(zip(rows, pts)):
+        marker, colour = PRESET_STYLE.get(r["preset"], ("x", "black"))
+        ax.scatter(x, 100 * y, marker=marker, color=colour, s=46, zorder=3, alpha=1.0 if i in front else 0.45)
+        if i in front or r["config"] in PRESET_STYLE:
+            ax.annotate(r["config"], (x, 100 * y), textcoords="offset points", xytext=(5, 4), fontsize=7)
     ax.plot([pts[i][0] for i in front], [100 * pts[i][1] for i in front], color="0.4", lw=1.2, ls="--", zorder=2)
+    for x, y, text in targets:  # the aims: error at most y at a cost of at most x
+        ax.plot([ax.get_xlim()[0] if x is None else x] * 2, [0, y], color="tab:red", lw=0.8, ls=":")
+        ax.axhline(y, color="tab:red", lw=0.8, ls=":")
+        ax.annotate(text, (x, y), textcoords="offset points", xytext=(3, -10), fontsize=7, color="tab:red")
     ax.set_xscale("log")
     ax.set_xlabel(xlabel)
     ax.set_ylabel("worst error against the truth (% relative L2 of S)")
@@ -76,8 +83,9 @@ def plot_frontier(study, out_dir):
     rows = read(study / "frontier.csv")
     strikes = len({r["seed"] for r in read(study / "frontier_strikes.csv")})
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
-    frontier_panel(axes[0], rows, "amortized_frame_ms", "frame cost, ms (frame + strike solve / 60 frames), log")
-    frontier_panel(axes[1], rows, "bake_s", "bake time, s (log)")
+    frontier_panel(axes[0], rows, "amortized_frame_ms", "frame cost, ms (frame + strike solve / 60 frames), log",
+                   [(2.0, 20.0, "20% at 2 ms"), (16.0, 10.0, "10% at 16 ms")])
+    frontier_panel(axes[1], rows, "bake_s", "bake time, s (log)", [(300.0, 20.0, "bake 5 min")])
     handles = [plt.Line2D([], [], marker=m, color=c, ls="", label=p) for p, (m, c) in PRESET_STYLE.items()]
     handles.append(plt.Line2D([], [], color="0.4", ls="--", label="Pareto front"))
     fig.suptitle(f"Default storm, {strikes} strikes: what accuracy costs", y=0.985)

@@ -55,8 +55,8 @@ void declare(CommandLine& cli, DemoArgs& a) {
         "--no-dither", [&a] { a.dither = false; }, "turn the 8-bit dither off (smaller PNGs)");
     app.add_option_function<std::string>(
            "--quality", [&a](const std::string& s) { a.quality = s; },
-           "how frames are lit: paper, hybrid or per_strike (default: the scene's \"quality\")")
-        ->check(CLI::IsMember({"paper", "hybrid", "per_strike"}))
+           "how frames are lit: paper, hybrid, per_strike or per_strike_mc (default: the scene's \"quality\")")
+        ->check(CLI::IsMember({"paper", "hybrid", "per_strike", "per_strike_mc"}))
         ->type_name("PRESET");
 }
 

@@ -101,9 +101,10 @@ void declare(CommandLine& cli, ShotArgs& a) {
         ->type_name("N");
     app.add_option_function<std::string>(
            "--quality", [&a](const std::string& s) { a.quality = s; },
-           "how the frame is lit: paper, hybrid, per_strike or reference (default: the scene's \"quality\"); a "
+           "how the frame is lit: paper, hybrid, per_strike, per_strike_mc or reference (default: the scene's "
+           "\"quality\"); a "
            "strike's own solve is waited for")
-        ->check(CLI::IsMember({"paper", "hybrid", "per_strike", "reference"}))
+        ->check(CLI::IsMember({"paper", "hybrid", "per_strike", "per_strike_mc", "reference"}))
         ->type_name("PRESET");
 }
 

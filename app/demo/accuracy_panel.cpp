@@ -13,7 +13,7 @@ namespace fulgur::app {
 
 namespace {
 
-constexpr std::array<const char*, 3> kPresets = {"paper", "hybrid", "per_strike"};
+constexpr std::array<const char*, 4> kPresets = {"paper", "hybrid", "per_strike", "per_strike_mc"};
 
 double wall_seconds() {
     return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -126,6 +126,7 @@ void AccuracyPanel::draw(const view::FrameReport& rep) {
             "paper: the bases (Dobashi 2007)\n"
             "hybrid: the bases' multiple scattering + each strike's exact single scattering\n"
             "per_strike: each strike solved once on a worker thread (single + lattice)\n"
+            "per_strike_mc: each strike by Monte Carlo on a worker thread (single + multiple)\n"
             "docs/presets.md has the error against the truth and the cost of each");
     ImGui::Text("frame %.2f ms (strike light %.2f ms)", rep.stages.total(), rep.stages.strike_light);
     if (const runtime::StrikeSolver* solver = view_.pipeline().strike_solver()) {

@@ -129,6 +129,7 @@ FULGUR_STUDY(frontier, "frontier",
     variant("paper", "storm", preset("paper"));
     variant("hybrid", "storm", preset("hybrid"));
     variant("per_strike", "storm", preset("per_strike"));
+    variant("per_strike_mc", "storm", preset("per_strike_mc"));
     if (!ctx.quick) {
         auto lattice = [](int refine, int orders) {
             return [refine, orders](scene::Scene& s) {

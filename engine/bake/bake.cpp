@@ -351,7 +351,8 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
         if (q.preset == scene::Quality::Preset::Paper) {
             why.push_back("quality = paper: every frame from the bases (the splat onto virtual lights)");
         } else {
-            const int refine = q.refine > 0 ? q.refine : s.transport.refine;
+            const int refine =
+                q.refine > s.transport.refine && s.lighting_downsample % q.refine == 0 ? q.refine : s.transport.refine;
             const int orders = q.exact_orders > 0 ? q.exact_orders : s.transport.lb_exact_orders;
             std::string solve = "single scattering by " + std::to_string(q.single_paths) + " paths";
             if (q.multiple == "none")

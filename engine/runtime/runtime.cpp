@@ -355,7 +355,10 @@ struct FramePipeline::Impl {
         quality = q;
         if (q.preset == scene::Quality::Preset::Paper) return;
         solve_scene = s;  // the per-strike transport grid may be finer than the bake's
-        if (q.refine > 0) solve_scene.transport.refine = q.refine;
+        // At least the bake's refinement; a preset's default applies where it divides the
+        // lighting grid's downsample (a scene's own quality.refine is checked when read).
+        if (q.refine > s.transport.refine && s.lighting_downsample % q.refine == 0)
+            solve_scene.transport.refine = q.refine;
         if (q.exact_orders > 0) solve_scene.transport.lb_exact_orders = q.exact_orders;
         media = bake::make_media(solve_scene, *density);
         // The worker takes one core less than the frame's share, at least one.

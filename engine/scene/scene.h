@@ -126,10 +126,11 @@ struct TransportSettings {
 /// a worker thread.
 struct Quality {
     enum class Preset {
-        Paper,      ///< Dobashi 2007: the splat onto virtual lights and the bases, single + multiple
-        Hybrid,     ///< the bases' multiple scattering + each strike's exact single scattering
-        PerStrike,  ///< each strike solved directly: exact single scattering + the lattice
-        Reference,  ///< each strike by Monte Carlo through the full density (offline quality)
+        Paper,        ///< Dobashi 2007: the splat onto virtual lights and the bases, single + multiple
+        Hybrid,       ///< the bases' multiple scattering + each strike's exact single scattering
+        PerStrike,    ///< each strike solved directly: exact single scattering + the lattice
+        PerStrikeMc,  ///< each strike by Monte Carlo, single and multiple, at modest path counts
+        Reference,    ///< each strike by Monte Carlo through the full density (offline quality)
     };
     Preset preset = Preset::Paper;
     /// Per strike (not paper): expected-value Monte Carlo paths of the single scattering.
@@ -140,9 +141,9 @@ struct Quality {
     std::uint64_t multiple_paths = 0;
     /// Strikes scheduled to start within this many seconds are solved ahead of time.
     double lookahead = 1.0;
-    /// The per-strike solve's transport grid: the lighting grid refined by this factor (a
-    /// divisor of lighting.downsample); 0: transport.refine, as the bake. A finer per-strike
-    /// lattice buys accuracy at run time without a slower bake.
+    /// The per-strike solve's transport grid: the lighting grid refined by at least this factor
+    /// (a divisor of lighting.downsample; transport.refine when that is finer); 0: as the
+    /// bake. A finer per-strike lattice buys accuracy at run time without a slower bake.
     int refine = 0;
     /// The per-strike lattice's exactly solved orders (1 or 2, as
     /// transport.lattice_boltzmann.exact_orders); 0: the scene's, as the bake. Order 2 comes
@@ -150,7 +151,7 @@ struct Quality {
     int exact_orders = 0;
 };
 
-/// The preset's name in scene files ("paper", "hybrid", "per_strike", "reference").
+/// The preset's name in scene files ("paper", "hybrid", "per_strike", "per_strike_mc", "reference").
 std::string_view to_string(Quality::Preset p) noexcept;
 /// The preset with its default knobs; throws core::Error naming `where` for an unknown name.
 Quality quality_preset(std::string_view name, std::string_view where = "quality");
