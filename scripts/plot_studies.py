@@ -26,6 +26,7 @@ PRESET_STYLE = {
     "paper": ("o", "tab:blue"),
     "hybrid": ("s", "tab:orange"),
     "per_strike": ("^", "tab:green"),
+    "per_strike_mc": ("v", "tab:purple"),
     "reference": ("D", "tab:red"),
 }
 
