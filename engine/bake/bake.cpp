@@ -26,7 +26,6 @@ std::uint64_t hash_bytes(const void* data, std::size_t n) noexcept {
     return basis::hash_description(std::string_view(static_cast<const char*>(data), n));
 }
 
-
 void add_into(transport::SourceField& acc, const transport::SourceField& f) {
     if (acc.data.empty()) {
         acc = f;
@@ -552,6 +551,10 @@ std::optional<Report> bake_if_stale(const scene::Scene& s, const core::Grid3<flo
                                     const std::filesystem::path& fgb, const Progress& progress,
                                     const std::function<void(const std::string& why)>& on_stale) {
     std::string why;
+    if (up_to_date(s, density, fgb, &why)) return std::nullopt;
+    // Another process may be baking the same file (two fulgur-shot runs of one scene): wait
+    // for it, then look again before baking.
+    const core::FileLock lock(fgb);
     if (up_to_date(s, density, fgb, &why)) return std::nullopt;
     if (on_stale) on_stale(why);
     return bake(s, density, fgb, progress);

@@ -25,6 +25,9 @@ inline constexpr std::uint32_t kFgbVersion = 3;
 /// Largest lighting grid a .fgb may describe (2^26 cells = 256 MiB per float32 field):
 /// loaders and the run time allocate per-cell arrays from it, so it is bounded by the format.
 inline constexpr std::size_t kMaxFgbCells = std::size_t(1) << 26;
+/// Largest .fgb file opened (256 GiB, far above any bake one machine writes): the reader
+/// allocates only what it has bounded by the file size, so this is a sanity bound on input.
+inline constexpr std::uint64_t kMaxFgbBytes = std::uint64_t(1) << 38;
 
 /// What the file was baked from: a 64-bit hash of every bake-relevant scene parameter and
 /// the canonical description it was computed from (one "key=value" per line), both stored
@@ -88,9 +91,10 @@ EncodedBlock encode_block(const CompressedLight& light, const FgbMetadata& m);
 /// Writes a .fgb for lights [light_begin, light_end) of the metadata's light grid: the
 /// whole grid (a complete file) or a part of it (a partial file, the output of one bake
 /// job). Blocks may be added in any order and from several threads; each light exactly
-/// once. The file is streamed to "<path>.tmp" and renamed to `path` by finish(), so a
-/// crashed job never leaves a file that looks valid. Destroying an unfinished writer
-/// removes the temporary file.
+/// once. The file is streamed to a temporary beside it and renamed to `path` by finish()
+/// (core::AtomicFile: locked against other writers of `path`, checked writes, temporary
+/// removed on exceptions and signals), so a crashed job never leaves a file that looks
+/// valid. Destroying an unfinished writer removes the temporary file.
 class FgbWriter {
 public:
     FgbWriter(std::filesystem::path path, FgbMetadata meta, std::uint32_t light_begin, std::uint32_t light_end);

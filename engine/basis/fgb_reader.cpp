@@ -181,9 +181,7 @@ void FgbReader::Impl::open() {
 
 FgbReader::FgbReader(const std::filesystem::path& path) : impl_(std::make_unique<Impl>()) {
     impl_->name = path.string();
-    std::error_code ec;
-    const auto sz = std::filesystem::file_size(path, ec);
-    if (ec) throw core::Error(impl_->name, "cannot open baked file: " + ec.message());
+    const std::uint64_t sz = core::check_readable_file(path, kMaxFgbBytes, ".fgb");
     impl_->file.open(path, std::ios::binary);
     if (!impl_->file) throw core::Error(impl_->name, "cannot open baked file");
     impl_->size = sz;

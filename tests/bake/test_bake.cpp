@@ -279,7 +279,7 @@ TEST_CASE("up_to_date: missing, fresh, stale (names the parameter), corrupt, par
 
     bake::bake(s, d, f);
     CHECK(bake::up_to_date(s, d, f, &why));
-    CHECK_FALSE(std::filesystem::exists(dir / "s.fgb.tmp"));
+    CHECK(test::temporaries(dir).empty());
 
     scene::Scene t = s;
     t.medium.albedo = 0.5;

@@ -99,7 +99,7 @@ TEST_CASE(".fgb round trip is bit-exact, float32 and float16, plain and deflated
                 w.finish();
             }
             CHECK(slurp(path) == slurp(dir / "b.fgb"));
-            CHECK_FALSE(std::filesystem::exists(dir / "a.fgb.tmp"));
+            CHECK(test::temporaries(dir).empty());
         }
     // Two components (single and multiple stored apart): 2 x 3 bases per light.
     {
@@ -198,7 +198,7 @@ TEST_CASE("blocks from independent jobs: any order, several threads, partial fil
     const std::vector<std::filesystem::path> mixed = {parts[1], dir / "other.fgb", parts[2]};
     CHECK_THROWS_WITH_AS(basis::merge_fgb(dir / "x.fgb", mixed), doctest::Contains("metadata"), core::Error);
     CHECK_FALSE(std::filesystem::exists(dir / "x.fgb"));
-    CHECK_FALSE(std::filesystem::exists(dir / "x.fgb.tmp"));
+    CHECK(test::temporaries(dir).empty());
 }
 
 TEST_CASE("writer misuse by data: missing, duplicate and out-of-range lights") {
@@ -210,8 +210,8 @@ TEST_CASE("writer misuse by data: missing, duplicate and out-of-range lights") {
         CHECK_THROWS_WITH_AS(w.add(test::small_light(m, 0)), doctest::Contains("added twice"), core::Error);
         CHECK_THROWS_WITH_AS(w.finish(), doctest::Contains("first: light 1"), core::Error);
     }
-    CHECK_FALSE(std::filesystem::exists(dir / "w.fgb"));      // never looks finished
-    CHECK_FALSE(std::filesystem::exists(dir / "w.fgb.tmp"));  // and leaves nothing behind
+    CHECK_FALSE(std::filesystem::exists(dir / "w.fgb"));  // never looks finished
+    CHECK(test::temporaries(dir).empty());                // and leaves nothing behind
     basis::FgbWriter w(dir / "p.fgb", m, 2, 4);
     CHECK_THROWS_WITH_AS(w.add(test::small_light(m, 4)), doctest::Contains("outside this file's range [2, 4)"),
                          core::Error);

@@ -23,6 +23,15 @@ double relative_l2(std::span<const float> x, std::span<const float> ref) {
     return core::relative_l2(x, ref);
 }
 
+std::vector<std::string> temporaries(const std::filesystem::path& dir) {
+    std::vector<std::string> out;
+    for (const auto& e : std::filesystem::directory_iterator(dir)) {
+        const std::string n = e.path().filename().string();
+        if (n.ends_with(".tmp") || n.ends_with(".lock")) out.push_back(n);
+    }
+    return out;
+}
+
 void write_text(const std::filesystem::path& path, const std::string& text) {
     std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
 }

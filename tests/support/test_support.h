@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <span>
 #include <string>
+#include <vector>
 
 namespace fulgur::test {
 
@@ -16,6 +17,10 @@ std::filesystem::path scratch_dir(const std::string& name);
 /// core::relative_l2 (||x - ref||_2 / ||ref||_2, the absolute L2 difference when ref is all
 /// zero); sizes must match (a failed REQUIRE otherwise).
 double relative_l2(std::span<const float> x, std::span<const float> ref);
+
+/// Names of the temporaries and lock files ("*.tmp", "*.lock") in `dir`: a writer that
+/// failed or finished leaves none (core::AtomicFile).
+std::vector<std::string> temporaries(const std::filesystem::path& dir);
 
 /// Writes `text` to `path` (overwriting).
 void write_text(const std::filesystem::path& path, const std::string& text);
