@@ -230,13 +230,7 @@ void parse_lightning(JsonObject o, lightning::LightningParams& l) {
 
 Scene parse_scene(std::string_view json_text, std::string_view file_name, const std::filesystem::path& base_dir) {
     const std::string file(file_name);
-    nlohmann::json j;
-    try {
-        j = nlohmann::json::parse(json_text);
-    } catch (const nlohmann::json::parse_error& e) {
-        // e.byte is the 1-based position of the offending character.
-        throw core::Error(file + " (byte " + std::to_string(e.byte) + ")", std::string("invalid JSON: ") + e.what());
-    }
+    const nlohmann::json j = detail::parse_json(json_text, file);
     JsonObject root(j, file, "");
     Scene s;
     const auto version = root.integer("fulgur_scene", 1, 1000);
@@ -261,6 +255,12 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
     if (auto l = root.optional_object("lightning")) parse_lightning(*l, s.lightning);
     root.finish();
     if (s.effects.sun && !s.sun) root.fail("effects", "\"sun\": true needs a light of type \"sun\" in \"lights\"");
+    // The lattice carries S on its own directions: 6 output directions are not a lattice set.
+    if (s.effects.multiple_scattering && s.transport.solver == TransportSettings::Solver::LatticeBoltzmann &&
+        s.effective_directions() == 6)
+        root.fail("lighting.directions",
+                  "6 output directions do not go with the lattice-Boltzmann solver, which needs 1, 18 or 26 "
+                  "(its own directions); choose 18 or 26, or transport.solver \"monte_carlo\"");
     if (s.lighting_downsample % s.transport.refine != 0)
         root.fail("transport.refine", "must divide lighting.downsample (" + std::to_string(s.lighting_downsample) +
                                           "), got " + std::to_string(s.transport.refine));
@@ -268,11 +268,8 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
 }
 
 Scene load_scene(const std::filesystem::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw core::Error(path.string(), "cannot open scene file");
-    std::ostringstream text;
-    text << in.rdbuf();
-    Scene s = parse_scene(text.str(), path.string(), path.parent_path());
+    const std::string text = core::read_file(path, kMaxSceneBytes, "scene");
+    Scene s = parse_scene(text, path.string(), path.parent_path());
     s.path = path;
     return s;
 }

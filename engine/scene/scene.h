@@ -26,6 +26,8 @@
 namespace fulgur::scene {
 
 inline constexpr int kFormatVersion = 1;
+/// Largest scene file read (1 MiB; the default storm is 2 kB): checked before reading.
+inline constexpr std::uint64_t kMaxSceneBytes = std::uint64_t(1) << 20;
 
 struct CloudSource {
     enum class Kind { Generator, File };

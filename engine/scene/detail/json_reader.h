@@ -27,6 +27,15 @@ struct Range {
     std::string str() const;
 };
 
+/// Deepest nesting of arrays and objects a scene file may hold (a scene needs 4 levels).
+inline constexpr int kMaxJsonDepth = 32;
+
+/// Parses JSON text strictly: nesting deeper than kMaxJsonDepth, a key repeated in one
+/// object, a number outside double's range (1e400) and a UTF-16/32 byte-order mark are errors
+/// that name `file` and the field path (or byte offset) where they occur; a UTF-8 byte-order
+/// mark is skipped. Nothing recurses with the input's depth.
+nlohmann::json parse_json(std::string_view text, const std::string& file);
+
 class JsonObject {
 public:
     /// `path` is the dotted field path of this object ("" for the root).
