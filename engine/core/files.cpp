@@ -188,8 +188,11 @@ void check_finite(const Grid3<float>& grid, std::string_view where) {
 
 void check_distinct_files(std::span<const NamedPath> inputs, std::span<const NamedPath> outputs) {
     auto same = [](const std::filesystem::path& a, const std::filesystem::path& b) {
+        // Absolute first: for a relative path none of whose parts exists, weakly_canonical
+        // returns it unchanged, so "x" and "./sub/../x" would compare different.
         std::error_code ea, eb;
-        const auto ca = std::filesystem::weakly_canonical(a, ea), cb = std::filesystem::weakly_canonical(b, eb);
+        const auto ca = std::filesystem::weakly_canonical(std::filesystem::absolute(a, ea), ea),
+                   cb = std::filesystem::weakly_canonical(std::filesystem::absolute(b, eb), eb);
         if (!ea && !eb && ca == cb) return true;
         std::error_code ee;
         return std::filesystem::exists(a, ee) && std::filesystem::exists(b, ee) &&

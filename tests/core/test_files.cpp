@@ -257,6 +257,9 @@ TEST_CASE("outputs never alias an input or each other: paths, dot segments, symb
     const NamedPath two[2] = {{"image", dir / "a.png"}, {"reference", dir / "." / "a.png"}};
     CHECK_THROWS_WITH_AS(check_distinct_files(std::span(&scene, 1), two), doctest::Contains("are the same file"),
                          Error);
+    // Relative paths none of whose parts exist (weakly_canonical alone leaves them unchanged).
+    const NamedPath rel[2] = {{"baked file", "no_such_out.fgb"}, {"report", "./no_such_dir/../no_such_out.fgb"}};
+    CHECK_THROWS_WITH_AS(check_distinct_files({}, rel), doctest::Contains("are the same file"), Error);
     const NamedPath fine[2] = {{"image", dir / "a.png"}, {"reference", dir / "b.png"}};
     CHECK_NOTHROW(check_distinct_files(std::span(&scene, 1), fine));
 }
