@@ -254,10 +254,15 @@ std::string Plan::to_text() const {
     o << "  threads         " << threads << "\n";
     o << "  raw size        " << core::format_bytes(double(raw_bytes))
       << " (float32, every light, direction and component)\n";
+    o << "  memory          " << core::format_bytes(double(cost.memory_bytes)) << " estimated peak (" << cost.threads
+      << " worker(s) x " << core::format_bytes(double(cost.per_thread_bytes)) << ")\n";
+    o << "  time at least   " << core::format_seconds(cost.seconds) << " (from the grid sizes)\n";
     if (expected_bytes)
-        o << "  expected file   " << core::format_bytes(double(expected_bytes)) << " (from 16 sample lights)\n";
+        o << "  expected file   " << core::format_bytes(double(expected_bytes)) << " (from " << sample_lights
+          << " sample lights)\n";
     if (expected_seconds > 0.0)
-        o << "  expected time   " << core::format_seconds(expected_seconds) << " (from 16 sample lights)\n";
+        o << "  expected time   " << core::format_seconds(expected_seconds) << " (from " << sample_lights
+          << " sample lights)\n";
     o << "  why:\n";
     for (const std::string& r : reasons) o << "    - " << r << "\n";
     return o.str();
@@ -283,6 +288,10 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
                : s.transport.solver == scene::TransportSettings::Solver::LatticeBoltzmann ? "lattice_boltzmann"
                                                                                           : "monte_carlo";
     p.threads = worker_threads(options.threads);
+    // Memory and a lower bound on time, known from the grids and the light count: a scene
+    // past its limits is refused here, before any light (even a sample) is solved.
+    p.cost = scene::estimate_cost(s, p.lights.count(), p.threads);
+    scene::check_cost(s, p.cost);
 
     auto& why = p.reasons;
     if (s.medium.g == 0.0)
@@ -345,8 +354,13 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
     if (options.estimate) {
         // Sample lights: 16 spread over the grid by a golden-ratio sequence in each axis
         // (inside, below and beside the cloud), each solved single-threaded as a bake worker
-        // does. Light costs and sizes vary by ~3x between in-cloud and far lights.
-        constexpr int kSamples = 16;
+        // does. Light costs and sizes vary by ~3x between in-cloud and far lights. Fewer
+        // (at least one) when their lower-bound cost passes a minute: on a large grid one
+        // light can take minutes.
+        constexpr double kSampleBudgetSeconds = 60.0;
+        const int kSamples =
+            int(std::clamp(kSampleBudgetSeconds / std::max(p.cost.seconds_per_light, 1e-9), 1.0, 16.0));
+        p.sample_lights = kSamples;
         std::vector<std::uint32_t> samples;
         const basis::VirtualLightGrid& g = p.lights;
         for (int k = 0; k < kSamples; ++k) {
@@ -378,6 +392,12 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
         const double ns = double(samples.size());
         p.expected_seconds = seconds / ns * n / double(p.threads);
         p.expected_bytes = std::uint64_t(block_bytes / ns * n);
+        if (p.expected_seconds > s.limits.bake_seconds)
+            throw core::Error((s.path.empty() ? std::string("scene") : s.path.string()) + ": limits.bake_hours",
+                              "the bake would take about " + core::format_seconds(p.expected_seconds) + " (from " +
+                                  std::to_string(samples.size()) + " sample light(s)), over the limit of " +
+                                  core::format_seconds(s.limits.bake_seconds) +
+                                  "; raise \"limits\": {\"bake_hours\": ...} or ask for less");
     }
     return p;
 }

@@ -74,8 +74,8 @@ transport::LbSettings lattice_settings(const scene::Scene& s);
 /// Single-scattering settings the bake and the direct solve share (scene's tolerance,
 /// far-empty voxels skipped; part of the scene key).
 transport::SingleScatteringOptions single_scattering_options(const scene::Scene& s);
-Solution solve(const scene::Scene& s, const Media& media, std::span<const transport::PointSource> sources, std::span<const glm::dvec3> directions,
-               const SolveRequest& request = {});
+Solution solve(const scene::Scene& s, const Media& media, std::span<const transport::PointSource> sources,
+               std::span<const glm::dvec3> directions, const SolveRequest& request = {});
 
 /// What a bake will do, and why. Printable (to_text) before baking; `--dry-run` prints only this.
 struct Plan {
@@ -92,11 +92,14 @@ struct Plan {
     std::uint64_t expected_bytes = 0;           ///< estimated compressed size (0: not estimated)
     double expected_seconds = 0.0;              ///< estimated wall time on this machine (0: not estimated)
     int threads = 1;                            ///< worker threads the bake will use
+    scene::Cost cost;                           ///< memory and a lower bound on time, before solving
+    int sample_lights = 0;                      ///< lights solved for expected_* (16, fewer on large grids)
     basis::FgbMetadata metadata;                ///< what the file will hold (key, grids, directions)
     std::string to_text() const;
 };
 struct PlanOptions {
-    /// Time and compress 16 sample lights spread over the grid to estimate the bake's time
+    /// Time and compress 16 sample lights (fewer when their lower-bound cost, Plan::cost,
+    /// passes a minute) spread over the grid to estimate the bake's time
     /// and size; about a second. false: expected_* stay 0.
     bool estimate = true;
     int threads = 0;  ///< 0: core::thread_count()
@@ -107,8 +110,7 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
 
 /// The uncompressed bases of virtual light l as the bake stores them (FgbMetadata order:
 /// component-major, then direction), before the Haar transform. For NRRD export and tests.
-transport::SourceField solve_light(const scene::Scene& s, const Media& media, const Plan& plan,
-                                   std::uint32_t light);
+transport::SourceField solve_light(const scene::Scene& s, const Media& media, const Plan& plan, std::uint32_t light);
 
 /// Progress callback: lights done, lights total, seconds elapsed.
 using Progress = std::function<void(std::size_t done, std::size_t total, double seconds)>;

@@ -253,6 +253,12 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
     parse_lights(root, s);
     if (auto e = root.optional_object("effects")) parse_effects(*e, s.effects);
     if (auto l = root.optional_object("lightning")) parse_lightning(*l, s.lightning);
+    if (auto l = root.optional_object("limits")) {
+        s.limits.memory_bytes = l->number_or("memory_gib", 0.0, Range{0.0, 1e6}) * double(1ull << 30);
+        s.limits.bake_seconds =
+            l->number_or("bake_hours", s.limits.bake_seconds / 3600.0, Range{0.0, 1e6, true}) * 3600.0;
+        l->finish();
+    }
     root.finish();
     if (s.effects.sun && !s.sun) root.fail("effects", "\"sun\": true needs a light of type \"sun\" in \"lights\"");
     // The lattice carries S on its own directions: 6 output directions are not a lattice set.
@@ -275,6 +281,7 @@ Scene load_scene(const std::filesystem::path& path) {
 }
 
 core::Grid3<float> make_density(const Scene& s) {
+    check_cost(s, estimate_cost(s));
     if (s.cloud.kind == CloudSource::Kind::File) return cloud::load_density(s.cloud.file);
     return cloud::generate_cumulonimbus(s.cloud.generator);
 }

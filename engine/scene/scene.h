@@ -74,6 +74,13 @@ struct TransportSettings {
     int mc_batches = 32;  ///< batches for the per-voxel standard error
 };
 
+/// "limits": what a bake of the scene may cost before it is refused (docs/scene-format.md).
+struct Limits {
+    /// Peak memory, bytes; 0: three quarters of the machine's physical memory.
+    double memory_bytes = 0.0;
+    double bake_seconds = 24.0 * 3600.0;  ///< the bake's estimated wall time
+};
+
 struct Scene {
     std::filesystem::path path;  ///< the scene file ("" when parsed from memory)
     std::string name;
@@ -96,6 +103,7 @@ struct Scene {
     std::optional<transport::DirectionalSource> sun;   ///< the "lights" entry of type "sun"
     Effects effects;
     lightning::LightningParams lightning;  ///< section "lightning": bolt shape, flash timing, schedule
+    Limits limits;                         ///< section "limits"
 
     /// Output directions the bake needs: 1 when scattering is isotropic (g == 0), since S
     /// then does not depend on direction; the scene's count otherwise.
@@ -109,7 +117,32 @@ Scene load_scene(const std::filesystem::path& path);
 /// resolves relative paths.
 Scene parse_scene(std::string_view json_text, std::string_view file_name, const std::filesystem::path& base_dir = {});
 
-/// The cloud density the scene describes (generated or loaded).
+/// What baking the scene costs, estimated from the scene alone (for a cloud file, from its
+/// NRRD header): nothing is allocated or solved. Memory is an upper estimate of the peak;
+/// time is a lower bound (per-cell and per-path costs measured on a 2-core machine, the
+/// fastest case each: the real bake takes 1-4x longer), so a refusal is never a guess.
+struct Cost {
+    core::Int3 density_dims, lighting_dims, transport_dims;
+    std::uint64_t density_bytes = 0;     ///< density grid and the generator's working arrays
+    std::uint64_t media_bytes = 0;       ///< lighting and transport media
+    std::uint64_t per_thread_bytes = 0;  ///< one bake worker: solver state, bases, Haar transform
+    std::uint64_t memory_bytes = 0;      ///< peak: density + media + threads x per_thread
+    double seconds_per_light = 0.0;      ///< lower bound, one worker
+    double seconds = 0.0;                ///< lower bound: lights x per light / threads
+    std::size_t lights = 1;
+    int threads = 1;
+};
+/// `lights`: the virtual-light count when known (the plan knows it; 1 before the density
+/// exists); `threads`: bake workers (0: core::thread_count()).
+Cost estimate_cost(const Scene& s, std::size_t lights = 1, int threads = 0);
+/// The memory limit in bytes (limits.memory_bytes, or 3/4 of physical memory when 0).
+double memory_limit(const Scene& s);
+/// Throws core::Error naming "limits.memory_gib" or "limits.bake_hours", the estimate and
+/// how to raise the limit, when the cost exceeds a limit.
+void check_cost(const Scene& s, const Cost& c);
+
+/// The cloud density the scene describes (generated or loaded). Refuses (check_cost) before
+/// allocating when the scene's estimated cost exceeds its limits.
 core::Grid3<float> make_density(const Scene& s);
 
 /// The transport medium on the lighting grid (density box-filtered by lighting_downsample).

@@ -335,3 +335,25 @@ TEST_CASE("bake_if_stale: bakes a missing or stale file once, says why, then lea
     CHECK(reasons[1].find("medium.albedo") != std::string::npos);
     CHECK(bake::up_to_date(t, d, f));
 }
+
+TEST_CASE("plan: memory and a lower bound on time are known before any light is solved; past a limit, refused") {
+    scene::Scene s = tiny("test_aniso_ms_cg");
+    const core::Grid3<float> d = scene::make_density(s);
+    const bake::Plan p = bake::make_plan(s, d, no_estimate());
+    CHECK(p.cost.lights == p.lights.count());
+    CHECK(p.cost.memory_bytes > p.cost.per_thread_bytes);
+    CHECK(p.cost.seconds > 0.0);
+    CHECK(p.to_text().find("estimated peak") != std::string::npos);
+    // 2^40 Monte Carlo paths per light once hung the plan's sample lights: refused before any
+    // sample is solved, naming the limit (this test would not finish otherwise).
+    s.transport.solver = scene::TransportSettings::Solver::MonteCarlo;
+    s.transport.mc_paths = std::uint64_t(1) << 40;
+    CHECK_THROWS_WITH_AS(bake::make_plan(s, d), doctest::Contains("limits.bake_hours"), core::Error);
+    // The user can raise the limit (no estimate: nothing is solved here either).
+    s.limits.bake_seconds = 1e12;
+    CHECK_NOTHROW(bake::make_plan(s, d, no_estimate()));
+    // A memory limit below the estimate.
+    s.limits.memory_bytes = double(p.cost.memory_bytes) / 2.0;
+    s.transport.solver = scene::TransportSettings::Solver::LatticeBoltzmann;
+    CHECK_THROWS_WITH_AS(bake::make_plan(s, d, no_estimate()), doctest::Contains("limits.memory_gib"), core::Error);
+}

@@ -120,3 +120,50 @@ TEST_CASE("documented values that the solver cannot run are refused at parse tim
     const std::string iso = with("\"g\": 0.5}", "\"g\": 0}, \"lighting\": {\"directions\": 6}");
     CHECK(parse_scene(iso, "iso.json").effective_directions() == 1);
 }
+
+TEST_CASE("the cost of a scene is known before anything is allocated, and refused past its limits") {
+    // A 1024^3 generator grid (documented as allowed) once died with std::bad_alloc after 8.4 GB.
+    const std::string huge = with("\"grid\": [32, 32, 24]", "\"grid\": [1024, 1024, 1024]");
+    const Scene big = parse_scene(with("\"lights\"", "\"limits\": {\"memory_gib\": 8}, \"lights\""), "big.json");
+    CHECK(big.limits.memory_bytes == 8.0 * (1ull << 30));
+    Scene s = parse_scene(huge, "huge.json");
+    const Cost c = estimate_cost(s, 1, 1);
+    // 16 bytes per cell while generating: 2^30 cells need at least 16 GiB.
+    CHECK(c.density_bytes >= (std::uint64_t(16) << 30));
+    s.limits.memory_bytes = 8.0 * (1ull << 30);
+    CHECK_THROWS_WITH_AS(make_density(s), doctest::Contains("limits.memory_gib: the bake would need about"), Error);
+    CHECK_THROWS_WITH_AS(make_density(s), doctest::Contains("raise \"limits\""), Error);
+    // The limit can be raised: the estimate then passes (nothing is allocated by the check).
+    s.limits.memory_bytes = 1e15;
+    CHECK_NOTHROW(check_cost(s, c));
+
+    // "paths": 2^40 once hung the plan's sample lights; refused by the lower bound on time.
+    const std::string mc = with("\"lights\"",
+                                "\"transport\": {\"solver\": \"monte_carlo\", \"monte_carlo\": {\"paths\": "
+                                "1099511627776}}, \"lights\"");
+    const Scene m = parse_scene(mc, "mc.json");
+    CHECK_THROWS_WITH_AS(make_density(m), doctest::Contains("limits.bake_hours: the bake would take at least"), Error);
+    // The same scene with a tiny time limit for an ordinary bake.
+    Scene small = parse_scene(kScene, "small.json");
+    CHECK_NOTHROW(check_cost(small, estimate_cost(small)));
+    small.limits.bake_seconds = 1e-9;
+    CHECK_THROWS_WITH_AS(check_cost(small, estimate_cost(small)), doctest::Contains("limits.bake_hours"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"lights\"", "\"limits\": {\"bake_hours\": 0}, \"lights\""), "z.json"),
+                         doctest::Contains("z.json: limits.bake_hours"), Error);
+}
+
+TEST_CASE("a cloud file is sized from its header: a header promising more data than the file holds is refused") {
+    const auto dir = fulgur::test::scratch_dir("scene_hostile_cost");
+    // A NRRD header claiming 1024^3 voxels over 16 bytes of data: refused by the size check,
+    // never allocated (it once asked the allocator for 4 GB).
+    fulgur::test::write_text(dir / "liar.nrrd",
+                             "NRRD0004\ntype: float\ndimension: 3\nsizes: 1024 1024 1024\nendian: little\n"
+                             "encoding: raw\n\n" +
+                                 std::string(16, '\0'));
+    fulgur::test::write_text(dir / "s.json",
+                             R"({"fulgur_scene": 1, "medium": {"extinction": 0.01}, "cloud": {"file": "liar.nrrd"},
+        "lights": [{"type": "point", "position": [0, 0, 1000]}]})");
+    const Scene s = load_scene(dir / "s.json");
+    CHECK_THROWS_WITH_AS(make_density(s), doctest::Contains("liar.nrrd (byte "), Error);
+    CHECK_THROWS_WITH_AS(make_density(s), doctest::Contains("data truncated"), Error);
+}
