@@ -549,6 +549,12 @@ std::filesystem::path default_fgb_path(const scene::Scene& s) {
     return p;
 }
 
+basis::FgbMetadata expected_metadata(const scene::Scene& s, const core::Grid3<float>& density) {
+    PlanOptions po;
+    po.estimate = false;
+    return make_plan(s, density, po).metadata;
+}
+
 bool up_to_date(const scene::Scene& s, const core::Grid3<float>& density, const std::filesystem::path& fgb,
                 std::string* why) {
     auto fail = [&](const std::string& m) {
@@ -560,7 +566,7 @@ bool up_to_date(const scene::Scene& s, const core::Grid3<float>& density, const 
     try {
         basis::FgbReader r(fgb);
         if (r.partial()) return fail(fgb.string() + ": a partial file (one bake job's lights), not a complete bake");
-        r.check_key(scene_key(s, density));
+        r.check_metadata(expected_metadata(s, density));
     } catch (const core::Error& e) {
         return fail(e.what());
     }

@@ -138,7 +138,12 @@ Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan
 /// The scene's default .fgb path (next to the scene: <scene>.fgb).
 std::filesystem::path default_fgb_path(const scene::Scene& s);
 
-/// True if `fgb` exists, is valid and was baked from this scene (hash matches). `why`
+/// What a .fgb baked from this scene must hold in its header (the plan's metadata: key,
+/// grids, directions, lights, compression), for basis::FgbReader::check_metadata.
+basis::FgbMetadata expected_metadata(const scene::Scene& s, const core::Grid3<float>& density);
+
+/// True if `fgb` exists, is valid and was baked from this scene (hash and header geometry
+/// match the plan's). `why`
 /// receives the reason when false (missing, corrupt, stale: which parameter changed).
 bool up_to_date(const scene::Scene& s, const core::Grid3<float>& density, const std::filesystem::path& fgb,
                 std::string* why = nullptr);

@@ -35,7 +35,7 @@ StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::file
                      render::GetProcAddress gl)
     : scene_(std::move(s)),
       density_(std::move(density)),
-      bases_(runtime::BakedBases::load(fgb, bake::scene_key(scene_, density_))) {
+      bases_(runtime::BakedBases::load(fgb, bake::expected_metadata(scene_, density_))) {
     pipeline_ = std::make_unique<runtime::FramePipeline>(scene_, density_, bases_);
     renderer_ = std::make_unique<render::Renderer>(gl);
     renderer_->set_volume({.density = &density_, .extinction = scene_.medium.extinction});

@@ -357,3 +357,25 @@ TEST_CASE("plan: memory and a lower bound on time are known before any light is 
     s.transport.solver = scene::TransportSettings::Solver::LatticeBoltzmann;
     CHECK_THROWS_WITH_AS(bake::make_plan(s, d, no_estimate()), doctest::Contains("limits.memory_gib"), core::Error);
 }
+
+TEST_CASE("up_to_date: a file whose header disagrees with the plan under the right key is not trusted") {
+    const scene::Scene s = tiny("test_iso_ss_ic");
+    const core::Grid3<float> d = scene::make_density(s);
+    const auto dir = test::scratch_dir("bake_consistent_wrong");
+    const auto f = dir / "s.fgb";
+    bake::bake(s, d, f);
+    std::string why;
+    REQUIRE(bake::up_to_date(s, d, f, &why));
+    // Rewrite the same blocks under a header whose origin moved, keeping the key (a consistent
+    // edit with every checksum recomputed): it once loaded and rendered the cloud displaced.
+    const basis::BakedBasis b = basis::load_fgb(f);
+    basis::FgbMetadata m = b.meta;
+    m.lighting.origin.z += m.lighting.voxel_size;
+    {
+        basis::FgbWriter w(dir / "moved.fgb", m);
+        for (const basis::CompressedLight& l : b.lights) w.add(l);
+        w.finish();
+    }
+    CHECK_FALSE(bake::up_to_date(s, d, dir / "moved.fgb", &why));
+    CHECK(why.find("header.lighting.origin") != std::string::npos);
+}

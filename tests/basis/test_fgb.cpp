@@ -490,3 +490,60 @@ TEST_CASE("corruptions that get past the CRCs reach the structural checks and ne
         CHECK(rejected > 1000);  // most structural damage is caught; the rest changes only values
     }
 }
+
+TEST_CASE("a consistent but wrong file: its header is checked against the plan, and values that overflow when lit") {
+    const auto dir = test::scratch_dir("fgb_consistent");
+    const basis::FgbMetadata m = small_meta(basis::Precision::Float16, basis::Entropy::Deflate);
+    const auto path = write_small(dir / "m.fgb", basis::Precision::Float16);
+    CHECK_NOTHROW(FgbReader(path).check_metadata(m));
+    // The same key over other geometry (what a header edited with its checksums recomputed
+    // says): each field is named.
+    auto refused = [&](basis::FgbMetadata other, const char* field) {
+        CAPTURE(field);
+        const auto p = dir / "other.fgb";
+        basis::FgbWriter w(p, other);
+        for (std::uint32_t l = 0; l < other.light_count(); ++l) w.add(test::small_light(other, l));
+        w.finish();
+        CHECK_THROWS_WITH_AS(FgbReader(p).check_metadata(m), doctest::Contains(field), core::Error);
+    };
+    basis::FgbMetadata o = m;
+    o.lighting.origin.x += 1.0;
+    refused(o, "header.lighting.origin");
+    o = m;
+    o.lighting.voxel_size *= 2.0;
+    refused(o, "header.lighting.voxel_size");
+    o = m;
+    o.lights.x[0] -= 1.0;
+    refused(o, "metadata.lights");
+    o = m;
+    o.compression.xi = 0.5;
+    refused(o, "metadata.compression");
+
+    // scale_exp 112 is legal for the format but its values reach 2^128: refused at load, not
+    // when a bolt lights the basis.
+    basis::CompressedLight big = test::small_light(m, 0);
+    basis::CompressedBasis& b = big.directions[0];
+    REQUIRE(b.size() > 0);
+    for (float& v : b.value) v = std::ldexp(v, 112 - b.scale_exp);
+    b.scale_exp = 112;
+    {
+        basis::FgbWriter w(dir / "big.fgb", m);
+        w.add(big);
+        for (std::uint32_t l = 1; l < m.light_count(); ++l) w.add(test::small_light(m, l));
+        w.finish();
+    }
+    CHECK_THROWS_WITH_AS(basis::load_fgb(dir / "big.fgb"), doctest::Contains("scale_exp: 112"), core::Error);
+    CHECK_THROWS_WITH_AS(basis::load_fgb(dir / "big.fgb"), doctest::Contains("overflow float32 once lit"), core::Error);
+    // Float32 values beyond 2^64 likewise.
+    const basis::FgbMetadata m32 = small_meta(basis::Precision::Float32, basis::Entropy::None);
+    basis::CompressedLight big32 = test::small_light(m32, 0);
+    REQUIRE(big32.directions[0].size() > 0);
+    big32.directions[0].value[0] = 1e30f;
+    {
+        basis::FgbWriter w(dir / "big32.fgb", m32);
+        w.add(big32);
+        for (std::uint32_t l = 1; l < m32.light_count(); ++l) w.add(test::small_light(m32, l));
+        w.finish();
+    }
+    CHECK_THROWS_WITH_AS(basis::load_fgb(dir / "big32.fgb"), doctest::Contains("beyond 2^64"), core::Error);
+}
