@@ -379,3 +379,36 @@ TEST_CASE("up_to_date: a file whose header disagrees with the plan under the rig
     CHECK_FALSE(bake::up_to_date(s, d, dir / "moved.fgb", &why));
     CHECK(why.find("header.lighting.origin") != std::string::npos);
 }
+
+TEST_CASE("the raw lattice S dips below zero by a bounded amount (the renderer clamps it)") {
+    // The corrected collision fits the phase function with weights of both signs on the 18
+    // lattice directions, so the raw lattice S dips below zero in cloud cells (a probe
+    // measured -1.5% of the maximum on the default storm; -9.1% here). The bases keep it
+    // (clamping each light would break the bake's linearity, the sum of bases being one
+    // solve); the renderer clamps S toward the camera at zero where it consumes it
+    // (test_render_gl). The raw dip is pinned at 12% of the light's maximum (the measured
+    // -9.1% with margin for the solver's tolerance): beyond it the lattice itself changed.
+    const scene::Scene s = tiny("test_aniso_ms_cg");
+    const core::Grid3<float> d = scene::make_density(s);
+    const bake::Plan p = bake::make_plan(s, d, no_estimate());
+    const bake::Media media = bake::make_media(s, d);
+    double worst_raw = 0.0;
+    for (std::uint32_t l = 0; l < p.lights.count(); l += 7) {
+        const transport::PointSource src{p.lights.position(l), 1.0};
+        core::Grid3<float> phi1;
+        transport::SingleScatteringOptions so;
+        so.tolerance = s.transport.ss_tolerance;
+        so.uncollided_fluence = &phi1;
+        const transport::SourceField s1 = transport::single_scattering(media.transport, src, p.output_directions, so);
+        transport::LbSources lb;
+        lb.first_scattered = &s1;
+        lb.first_scattered_fluence = &phi1;
+        const transport::LbResult r =
+            transport::solve_lattice_boltzmann(media.transport, lb, p.output_directions, bake::lattice_settings(s));
+        const float mx = *std::max_element(r.source.data.begin(), r.source.data.end());
+        const float mn = *std::min_element(r.source.data.begin(), r.source.data.end());
+        if (mx > 0.0f) worst_raw = std::min(worst_raw, double(mn) / double(mx));
+    }
+    MESSAGE("most negative raw lattice S: " << 100.0 * worst_raw << "% of the maximum");
+    CHECK(worst_raw >= -0.12);
+}
