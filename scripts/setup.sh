@@ -17,6 +17,7 @@ PACKAGES=(
   libimgui-dev                                   # demo panel (Dear ImGui)
   python3-glad                                   # GL loader generator (glad2), run at build time
   xvfb xauth                                     # virtual display for the demo screenshot
+  clang libclang-rt-14-dev                       # libFuzzer harnesses (fuzz preset, fuzz/)
 )
 
 missing=()
