@@ -524,6 +524,18 @@ Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan
     }
     omp_set_max_active_levels(saved_levels);
     if (failure) std::rethrow_exception(failure);
+    // A bake that would render an unlit cloud is refused (no file is written): the settings
+    // that made it so are named.
+    const std::string where = s.path.empty() ? std::string("scene") : s.path.string();
+    if (rep.lights_dropped == n)
+        throw core::Error(where + ": virtual_lights.drop_below",
+                          "every one of the " + std::to_string(n) + " virtual lights scatters less than " +
+                              core::format_number(s.drop_below) +
+                              " of its power (largest: " + core::format_number(rep.max_dropped_fraction) +
+                              ") and was dropped; the bake would light nothing: lower drop_below");
+    if (rep.coefficients_kept == 0)
+        throw core::Error(where + ": compression.xi",
+                          "the threshold keeps no coefficient of any basis; the bake would light nothing: lower xi");
 
     core::Stopwatch sw;
     writer.finish();

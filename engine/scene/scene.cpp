@@ -112,7 +112,8 @@ void parse_virtual_lights(JsonObject o, basis::VirtualLightParams& v, double& dr
     v.margin = o.number_or("margin", v.margin, Range{0.0, 1e6});
     v.ground_height = o.number_or("ground_height", v.ground_height, Range{-1e6, 1e6});
     v.density_threshold = o.number_or("density_threshold", v.density_threshold, Range{0.0, 1.0, false, true});
-    drop_below = o.number_or("drop_below", drop_below, Range{0.0, 1.0});
+    // A light scatters at most its whole power (fraction <= albedo <= 1): 1 drops every light.
+    drop_below = o.number_or("drop_below", drop_below, Range{0.0, 1.0, false, true});
     o.finish();
     basis::validate(v, o.file() + ": virtual_lights");
 }
@@ -124,9 +125,12 @@ void parse_compression(JsonObject o, basis::CompressionParams& c, bool& separate
              : mode == "relative_l2" ? basis::ThresholdMode::RelativeL2
                                      : basis::ThresholdMode::Energy;
     if (c.mode == basis::ThresholdMode::Energy)
-        c.xi = o.number_or("xi", c.xi, Range{0.0, 1.0});  // fraction of each basis' energy kept
+        c.xi =
+            o.number_or("xi", c.xi, Range{0.0, 1.0, true, false});  // fraction of each basis' energy kept; 0 keeps none
     else if (o.has("xi"))
-        c.xi = o.number("xi", Range{0.0, 1e30});  // absolute: units of S; relative_l2: fraction of ||B||
+        // absolute: units of S; relative_l2: fraction of ||B||, and no |B| exceeds ||B||: 1 keeps none
+        c.xi = o.number("xi",
+                        c.mode == basis::ThresholdMode::RelativeL2 ? Range{0.0, 1.0, false, true} : Range{0.0, 1e30});
     else
         o.fail("xi", std::string("required with threshold \"") + mode + "\" (the default xi belongs to \"energy\")");
     const std::string prec =
@@ -267,6 +271,12 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
         root.fail("lighting.directions",
                   "6 output directions do not go with the lattice-Boltzmann solver, which needs 1, 18 or 26 "
                   "(its own directions); choose 18 or 26, or transport.solver \"monte_carlo\"");
+    // A light scatters at most the albedo's fraction of its power into the cloud.
+    if (s.drop_below > 0.0 && s.drop_below >= s.medium.albedo)
+        root.fail("virtual_lights.drop_below", core::format_number(s.drop_below) +
+                                                   " drops every light: no light scatters more than medium.albedo (" +
+                                                   core::format_number(s.medium.albedo) +
+                                                   ") of its power; the bake would light nothing");
     if (s.lighting_downsample % s.transport.refine != 0)
         root.fail("transport.refine", "must divide lighting.downsample (" + std::to_string(s.lighting_downsample) +
                                           "), got " + std::to_string(s.transport.refine));

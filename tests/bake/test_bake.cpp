@@ -412,3 +412,21 @@ TEST_CASE("the raw lattice S dips below zero by a bounded amount (the renderer c
     MESSAGE("most negative raw lattice S: " << 100.0 * worst_raw << "% of the maximum");
     CHECK(worst_raw >= -0.12);
 }
+
+TEST_CASE("a bake that would light nothing is refused and writes no file, naming the setting") {
+    const auto dir = test::scratch_dir("bake_useless");
+    scene::Scene s = tiny("test_iso_ss_ic");
+    const core::Grid3<float> d = scene::make_density(s);
+    // Every light scatters less than 0.95 of its power here (largest 0.92): all dropped.
+    s.drop_below = 0.95;
+    CHECK_THROWS_WITH_AS(bake::bake(s, d, dir / "dropped.fgb"), doctest::Contains("virtual_lights.drop_below"),
+                         core::Error);
+    CHECK_FALSE(std::filesystem::exists(dir / "dropped.fgb"));
+    // An absolute threshold above every coefficient keeps none.
+    s = tiny("test_iso_ss_ic");
+    s.compression.mode = basis::ThresholdMode::Absolute;
+    s.compression.xi = 1e30;
+    CHECK_THROWS_WITH_AS(bake::bake(s, d, dir / "empty.fgb"), doctest::Contains("compression.xi"), core::Error);
+    CHECK_FALSE(std::filesystem::exists(dir / "empty.fgb"));
+    CHECK(test::temporaries(dir).empty());
+}

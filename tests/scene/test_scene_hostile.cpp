@@ -167,3 +167,22 @@ TEST_CASE("a cloud file is sized from its header: a header promising more data t
     CHECK_THROWS_WITH_AS(make_density(s), doctest::Contains("liar.nrrd (byte "), Error);
     CHECK_THROWS_WITH_AS(make_density(s), doctest::Contains("data truncated"), Error);
 }
+
+TEST_CASE("settings that would make a bake useless are refused at parse time, naming the field") {
+    // No light scatters more than the albedo's fraction of its power: drop_below at or above
+    // it drops every light.
+    CHECK_THROWS_WITH_AS(
+        parse_scene(with("\"lights\"", "\"virtual_lights\": {\"drop_below\": 1}, \"lights\""), "d.json"),
+        doctest::Contains("d.json: virtual_lights.drop_below"), Error);
+    CHECK_THROWS_WITH_AS(
+        parse_scene(with("\"lights\"", "\"virtual_lights\": {\"drop_below\": 0.95}, \"lights\""), "d.json"),
+        doctest::Contains("drops every light"), Error);
+    CHECK_NOTHROW(parse_scene(with("\"lights\"", "\"virtual_lights\": {\"drop_below\": 0.5}, \"lights\""), "d.json"));
+    // xi keeping no coefficient: energy 0, relative_l2 1 (no |B| exceeds ||B||).
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"lights\"", "\"compression\": {\"xi\": 0}, \"lights\""), "x.json"),
+                         doctest::Contains("x.json: compression.xi"), Error);
+    CHECK_THROWS_WITH_AS(
+        parse_scene(with("\"lights\"", "\"compression\": {\"threshold\": \"relative_l2\", \"xi\": 1}, \"lights\""),
+                    "x.json"),
+        doctest::Contains("x.json: compression.xi"), Error);
+}
