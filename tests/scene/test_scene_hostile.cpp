@@ -23,11 +23,7 @@ const std::string kScene = R"({
 })";
 
 std::string with(const std::string& from, const std::string& to) {
-    std::string s = kScene;
-    const auto at = s.find(from);
-    REQUIRE(at != std::string::npos);
-    s.replace(at, from.size(), to);
-    return s;
+    return fulgur::test::replace_once(kScene, from, to);
 }
 }  // namespace
 

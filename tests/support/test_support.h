@@ -22,6 +22,10 @@ double relative_l2(std::span<const float> x, std::span<const float> ref);
 /// failed or finished leaves none (core::AtomicFile).
 std::vector<std::string> temporaries(const std::filesystem::path& dir);
 
+/// `text` with the first occurrence of `from` replaced by `to` (a failed REQUIRE when absent):
+/// for scene variants written as edits of one scene text.
+std::string replace_once(std::string text, const std::string& from, const std::string& to);
+
 /// Writes `text` to `path` (overwriting).
 void write_text(const std::filesystem::path& path, const std::string& text);
 
