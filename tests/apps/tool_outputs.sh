@@ -45,6 +45,18 @@ test $r1 -eq 0 && test $r2 -eq 0 || fail "concurrent bakes: exit $r1 $r2: $(cat 
 n=$(cat d1 d2 | grep -c "same.fgb (up to date)")
 test "$n" -eq 1 || fail "after concurrent bakes exactly one scene should find same.fgb up to date: $(grep output d1 d2)"
 
+# Two renders of one scene that both need its bake at once: one bakes, the other waits for
+# the lock and finds the file fresh; both render.
+rm -f s.fgb
+"$shot" s.json --seed 1 --time +0.002 --size 32x18 -o a.png > oa 2>&1 &
+pa=$!
+"$shot" s.json --seed 1 --time +0.002 --size 32x18 -o b.png > ob 2>&1
+rb=$?
+wait $pa
+ra=$?
+test $ra -eq 0 && test $rb -eq 0 || fail "concurrent shots: exit $ra $rb: $(cat oa ob)"
+cmp -s a.png b.png || fail "concurrent shots of one frame differ"
+
 left=$(ls -a | grep -E '\.(tmp|lock)$')
 test -z "$left" || fail "left behind: $left"
 echo "tool outputs: all checks passed"
