@@ -431,7 +431,7 @@ TEST_CASE("every truncation and 6000 random byte corruptions are rejected withou
             CHECK(rejected == good.size());
             // Random single-byte corruptions (any value but the original) anywhere in the file:
             // every byte is covered by a CRC, so each must be rejected.
-            core::Rng rng(42, std::uint64_t(prec) + 2 * std::uint64_t(entropy));
+            core::Rng rng(test::run_seed(), std::uint64_t(prec) + 2 * std::uint64_t(entropy));
             for (int t = 0; t < 1500; ++t) {
                 auto b = good;
                 const std::size_t at = rng.uniform_below(std::uint32_t(b.size()));
@@ -452,7 +452,7 @@ TEST_CASE("corruptions that get past the CRCs reach the structural checks and ne
     for (const auto entropy : {basis::Entropy::None, basis::Entropy::Deflate}) {
         INFO(basis::to_string(entropy));
         const std::vector<std::uint8_t> good = slurp(write_small(dir / "f.fgb", basis::Precision::Float16, entropy));
-        core::Rng rng(7, 3 + std::uint64_t(entropy));
+        core::Rng rng(test::run_seed(), 3 + std::uint64_t(entropy));
         int rejected = 0, accepted = 0;
         for (int t = 0; t < 3000; ++t) {
             auto b = good;
@@ -487,7 +487,9 @@ TEST_CASE("corruptions that get past the CRCs reach the structural checks and ne
         }
         MESSAGE("CRC-patched corruptions (" << basis::to_string(entropy) << "): " << rejected << " rejected, "
                                             << accepted << " accepted as valid data");
-        CHECK(rejected > 1000);  // most structural damage is caught; the rest changes only values
+        // Most structural damage is caught; the rest changes only values (2240-2580 of 3000
+        // rejected over random seeds: 1000 leaves room for any seed).
+        CHECK(rejected > 1000);
     }
 }
 

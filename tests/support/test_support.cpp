@@ -5,7 +5,10 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <fstream>
+#include <random>
 
 namespace fulgur::test {
 
@@ -37,6 +40,20 @@ std::string replace_once(std::string text, const std::string& from, const std::s
     REQUIRE(at != std::string::npos);
     text.replace(at, from.size(), to);
     return text;
+}
+
+std::uint64_t run_seed() {
+    static const std::uint64_t seed = [] {
+        std::uint64_t v = 0;
+        if (const char* e = std::getenv("FULGUR_TEST_SEED"))
+            v = std::strtoull(e, nullptr, 10);
+        else
+            v = (std::uint64_t(std::random_device{}()) << 32) ^ std::random_device{}();
+        std::printf("randomized loops: seed %llu (replay with FULGUR_TEST_SEED=%llu)\n", (unsigned long long)v,
+                    (unsigned long long)v);
+        return v;
+    }();
+    return seed;
 }
 
 void write_text(const std::filesystem::path& path, const std::string& text) {

@@ -1,6 +1,7 @@
 // Shared helpers for Fulgur's tests.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <span>
 #include <string>
@@ -25,6 +26,11 @@ std::vector<std::string> temporaries(const std::filesystem::path& dir);
 /// `text` with the first occurrence of `from` replaced by `to` (a failed REQUIRE when absent):
 /// for scene variants written as edits of one scene text.
 std::string replace_once(std::string text, const std::string& from, const std::string& to);
+
+/// The seed of this run's randomized (fuzz-style) loops: FULGUR_TEST_SEED when set (to replay
+/// a failure), otherwise a fresh random one; printed once per process so any failure can be
+/// replayed.
+std::uint64_t run_seed();
 
 /// Writes `text` to `path` (overwriting).
 void write_text(const std::filesystem::path& path, const std::string& text);
