@@ -75,6 +75,7 @@ core::Grid3<float> direction_mean(const transport::SourceField& f) {
 template <class Map>
 void write_slice(const std::filesystem::path& path, const core::Grid3<float>& g, double y, int scale, Map map,
                  const glm::dvec3* marker) {
+    core::check_finite(g, path.string());  // an infinite field would map to a plausible colour
     const core::Int3 d = g.dims();
     const int j = std::clamp(int(std::floor((y - g.geom.origin.y) / g.geom.voxel_size)), 0, d.y - 1);
     const int W = d.x * scale, H = d.z * scale;
@@ -124,6 +125,17 @@ int main(int argc, char** argv) {
         if (args.threads > 0) core::set_thread_count(args.threads);
         core::Stopwatch total;
         const scene::Scene sc = scene::load_scene(args.scene);
+        {
+            // The files this tool may write into DIR never replace the scene or its cloud.
+            std::vector<core::NamedPath> inputs{{"scene", args.scene}};
+            if (sc.cloud.kind == scene::CloudSource::Kind::File) inputs.push_back({"cloud file", sc.cloud.file});
+            std::vector<core::NamedPath> outputs;
+            for (const char* n : {"density.nrrd", "density_slice.png", "single_scattering.nrrd",
+                                  "single_scattering_slice.png", "mc_single.nrrd", "mc_multiple.nrrd",
+                                  "mc_multiple_se.nrrd", "mc_multiple_slice.png", "single_scattering_sun.nrrd"})
+                outputs.push_back({std::string("output ") + n, args.out / n});
+            core::check_distinct_files(inputs, outputs);
+        }
         std::filesystem::create_directories(args.out);
 
         core::Stopwatch w;

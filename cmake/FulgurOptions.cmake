@@ -4,6 +4,7 @@ option(FULGUR_NATIVE "Optimize for the build machine (-march=native); the binari
 option(FULGUR_SANITIZE "Build with AddressSanitizer and UndefinedBehaviorSanitizer" OFF)
 option(FULGUR_BUILD_TESTS "Build the test suite" ON)
 option(FULGUR_BUILD_GL "Build the OpenGL renderer and the executables that need it" ON)
+option(FULGUR_FUZZ "Build the libFuzzer harnesses (clang; fuzz/): the engine is instrumented for them" OFF)
 
 if(NOT CMAKE_BUILD_TYPE AND NOT CMAKE_CONFIGURATION_TYPES)
   set(CMAKE_BUILD_TYPE Release CACHE STRING "Build type" FORCE)
@@ -24,6 +25,15 @@ target_compile_options(fulgur_options INTERFACE
 if(FULGUR_SANITIZE)
   target_compile_options(fulgur_options INTERFACE
     -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all)
+  target_link_options(fulgur_options INTERFACE -fsanitize=address,undefined)
+endif()
+
+if(FULGUR_FUZZ)
+  if(NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
+    message(FATAL_ERROR "FULGUR_FUZZ needs clang (libFuzzer): use the fuzz preset")
+  endif()
+  target_compile_options(fulgur_options INTERFACE
+    -fsanitize=fuzzer-no-link,address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all)
   target_link_options(fulgur_options INTERFACE -fsanitize=address,undefined)
 endif()
 

@@ -18,6 +18,7 @@ PACKAGES=(
   python3-glad                                   # GL loader generator (glad2), run at build time
   xvfb xauth                                     # virtual display for the demo screenshot
   python3-matplotlib                             # charts of the studies' CSV (scripts/plot_studies.py)
+  clang libclang-rt-14-dev                       # libFuzzer harnesses (fuzz preset, fuzz/)
 )
 
 missing=()

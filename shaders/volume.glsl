@@ -130,7 +130,9 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #endif
         float alpha = 1.0 - exp(-kappa * dv.r * (b - a));
 #if HAS_SOURCE
-        L += T * alpha * textureLod(u_scam, o_lit + t * d_lit, 0.0).r;
+        // Radiance is never negative: S from the lattice (its signed phase fit) and from
+        // truncated Haar coefficients can dip below zero; clamped where it is consumed.
+        L += T * alpha * max(textureLod(u_scam, o_lit + t * d_lit, 0.0).r, 0.0);
 #endif
 #if HAS_STATIC
         Ls += T * alpha * textureLod(u_static, o_st + t * d_st, 0.0).rgb;

@@ -12,8 +12,8 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdio>
-#include <fstream>
 #include <map>
+#include <vector>
 
 using namespace fulgur;
 
@@ -84,11 +84,25 @@ void export_nrrd(const app::BakeArgs& a, const scene::Scene& s, const core::Grid
     std::printf("exported %s and %s\n", raw.string().c_str(), comp.string().c_str());
 }
 
+// Every file the bake writes is new or its own, never an input or another output.
+void check_outputs(const app::BakeArgs& a, const scene::Scene& s, const std::filesystem::path& out) {
+    std::vector<core::NamedPath> inputs{{"scene", a.scene}};
+    if (s.cloud.kind == scene::CloudSource::Kind::File) inputs.push_back({"cloud file", s.cloud.file});
+    std::vector<core::NamedPath> outputs{{"baked file", out}};
+    if (a.report) outputs.push_back({"report", *a.report});
+    if (!a.export_lights.empty()) {
+        outputs.push_back({"raw export", a.export_prefix.string() + "_raw.nrrd"});
+        outputs.push_back({"compressed export", a.export_prefix.string() + "_compressed.nrrd"});
+    }
+    core::check_distinct_files(inputs, outputs);
+}
+
 int run(const app::BakeArgs& a) {
     if (a.threads > 0) core::set_thread_count(a.threads);
     const scene::Scene s = scene::load_scene(a.scene);
-    const core::Grid3<float> density = scene::make_density(s);
     const std::filesystem::path out = a.output ? *a.output : bake::default_fgb_path(s);
+    check_outputs(a, s, out);
+    const core::Grid3<float> density = scene::make_density(s);
 
     std::string why;
     const bool fresh = s.effects.lightning && bake::up_to_date(s, density, out, &why);
@@ -123,12 +137,7 @@ int run(const app::BakeArgs& a) {
             static_cast<unsigned long long>(r.coefficients_kept), 100.0 * r.relative_l2_error, r.mean_solver_iterations,
             r.max_solver_iterations,
             r.unconverged ? (", " + std::to_string(r.unconverged) + " lights hit the iteration cap").c_str() : "");
-        if (a.report) {
-            std::ofstream f(*a.report);
-            if (!f) throw core::Error(a.report->string(), "cannot write the report");
-            f << report_json(plan, r, out).dump(2) << "\n";
-            if (!f) throw core::Error(a.report->string(), "write failed");
-        }
+        if (a.report) core::write_file(*a.report, report_json(plan, r, out).dump(2) + "\n");
     }
     if (!a.export_lights.empty()) export_nrrd(a, s, density, plan, out);
     return 0;

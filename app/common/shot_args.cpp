@@ -114,9 +114,29 @@ std::string shot_usage() { return usage_of<ShotArgs>(kTool, kDescription, declar
 
 ShotArgs parse_shot_args(const std::vector<std::string>& args) {
     return parse_args<ShotArgs>(kTool, kDescription, args, declare, [](const CommandLine&, const ShotArgs& a) {
-        if (a.reference && std::filesystem::absolute(*a.reference) == std::filesystem::absolute(a.output))
-            throw core::Error(kTool, "--reference and -o name the same file");
+        if (!a.reference) return;
+        const core::NamedPath outputs[] = {{"image (-o)", a.output},
+                                           {"reference image", *a.reference},
+                                           {"difference image", reference_diff_path(*a.reference)},
+                                           {"comparison image", reference_compare_path(*a.reference)}};
+        try {
+            core::check_distinct_files({}, outputs);
+        } catch (const core::Error& e) {
+            throw core::Error(kTool, e.what());
+        }
     });
+}
+
+std::filesystem::path reference_diff_path(const std::filesystem::path& reference) {
+    std::filesystem::path p = reference;
+    p.replace_filename(reference.stem().string() + "_diff.png");
+    return p;
+}
+
+std::filesystem::path reference_compare_path(const std::filesystem::path& reference) {
+    std::filesystem::path p = reference;
+    p.replace_filename(reference.stem().string() + "_compare.png");
+    return p;
 }
 
 }  // namespace fulgur::app

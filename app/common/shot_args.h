@@ -42,7 +42,12 @@ struct ShotArgs {
 std::string shot_usage();
 
 /// Parses argv[1..]. Throws core::Error with a one-line reason on any invalid input
-/// (unknown option, missing value, malformed number, non-positive size, missing -o).
+/// (unknown option, missing value, malformed number, non-positive size, missing -o, two of
+/// the images -o, REF.png, REF_diff.png and REF_compare.png being one file).
 ShotArgs parse_shot_args(const std::vector<std::string>& args);
+
+/// The images --reference REF.png derives: REF_diff.png and REF_compare.png beside it.
+std::filesystem::path reference_diff_path(const std::filesystem::path& reference);
+std::filesystem::path reference_compare_path(const std::filesystem::path& reference);
 
 }  // namespace fulgur::app

@@ -60,13 +60,10 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
     view.render(cam, t, a.width, a.height, metric, &direct);
     const std::vector<float> ref = view.renderer().read_march(w, h);
     const app::RadianceComparison c = app::compare_radiance(basis, ref);
-    std::filesystem::path diff = *a.reference;
-    diff.replace_filename(a.reference->stem().string() + "_diff.png");
     const std::vector<std::uint8_t> diff_px = app::difference_image(basis, ref);
-    core::write_png(diff, w, h, 4, diff_px);
+    core::write_png(app::reference_diff_path(*a.reference), w, h, 4, diff_px);
     // Side by side for a quick look: basis | direct | difference (nearest-upsampled).
-    std::filesystem::path both = *a.reference;
-    both.replace_filename(a.reference->stem().string() + "_compare.png");
+    const std::filesystem::path both = app::reference_compare_path(*a.reference);
     const int W = a.width, H = a.height;
     std::vector<std::uint8_t> trio(std::size_t(3 * W) * std::size_t(H) * 4);
     for (int y = 0; y < H; ++y)
@@ -105,6 +102,17 @@ int main(int argc, char** argv) {
         return *status;
     try {
         scene::Scene s = scene::load_scene(a.scene);
+        // The images never overwrite the scene, its cloud or its baked file, nor each other.
+        std::vector<core::NamedPath> inputs{{"scene", a.scene},
+                                            {"baked file", a.fgb ? *a.fgb : bake::default_fgb_path(s)}};
+        if (s.cloud.kind == scene::CloudSource::Kind::File) inputs.push_back({"cloud file", s.cloud.file});
+        std::vector<core::NamedPath> outputs{{"image (-o)", a.output}};
+        if (a.reference) {
+            outputs.push_back({"reference image", *a.reference});
+            outputs.push_back({"difference image", app::reference_diff_path(*a.reference)});
+            outputs.push_back({"comparison image", app::reference_compare_path(*a.reference)});
+        }
+        core::check_distinct_files(inputs, outputs);
         core::Grid3<float> density = scene::make_density(s);
         const sky::ScenePlan plan = app::plan_and_print(s, density, stderr);
         const auto fgb = app::bases_for(plan, s, density, a.fgb);

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <iostream>
 #include <sstream>
 
@@ -114,11 +113,7 @@ void Csv::end_row() {
     first_in_row_ = true;
     in_row_ = 0;
 }
-void Csv::flush() {
-    std::ofstream out(path_, std::ios::binary);
-    if (!out) throw core::Error(path_.string(), "cannot write CSV file");
-    out << buffer_;
-}
+void Csv::flush() { core::write_file(path_, buffer_); }
 Csv::~Csv() {
     try {
         flush();
@@ -242,9 +237,7 @@ void write_svg_plot(const std::filesystem::path& path, const std::vector<Series>
         o << "<text x=\"" << L + W - 200 << "\" y=\"" << ly + 4 << "\">" << esc(s.label) << "</text>\n";
     }
     o << "</svg>\n";
-    std::ofstream f(path, std::ios::binary);
-    if (!f) throw core::Error(path.string(), "cannot write SVG file");
-    f << o.str();
+    core::write_file(path, o.str());
 }
 
 }  // namespace fulgur::study

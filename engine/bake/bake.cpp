@@ -284,10 +284,15 @@ std::string Plan::to_text() const {
     o << "  threads         " << threads << "\n";
     o << "  raw size        " << core::format_bytes(double(raw_bytes))
       << " (float32, every light, direction and component)\n";
+    o << "  memory          " << core::format_bytes(double(cost.memory_bytes)) << " estimated peak (" << cost.threads
+      << " worker(s) x " << core::format_bytes(double(cost.per_thread_bytes)) << ")\n";
+    o << "  time at least   " << core::format_seconds(cost.seconds) << " (from the grid sizes)\n";
     if (expected_bytes)
-        o << "  expected file   " << core::format_bytes(double(expected_bytes)) << " (from 16 sample lights)\n";
+        o << "  expected file   " << core::format_bytes(double(expected_bytes)) << " (from " << sample_lights
+          << " sample lights)\n";
     if (expected_seconds > 0.0)
-        o << "  expected time   " << core::format_seconds(expected_seconds) << " (from 16 sample lights)\n";
+        o << "  expected time   " << core::format_seconds(expected_seconds) << " (from " << sample_lights
+          << " sample lights)\n";
     o << "  why:\n";
     for (const std::string& r : reasons) o << "    - " << r << "\n";
     return o.str();
@@ -313,6 +318,10 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
                : s.transport.solver == scene::TransportSettings::Solver::LatticeBoltzmann ? "lattice_boltzmann"
                                                                                           : "monte_carlo";
     p.threads = worker_threads(options.threads);
+    // Memory and a lower bound on time, known from the grids and the light count: a scene
+    // past its limits is refused here, before any light (even a sample) is solved.
+    p.cost = scene::estimate_cost(s, p.lights.count(), p.threads);
+    scene::check_cost(s, p.cost);
 
     auto& why = p.reasons;
     if (s.medium.g == 0.0)
@@ -402,8 +411,13 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
     if (options.estimate) {
         // Sample lights: 16 spread over the grid by a golden-ratio sequence in each axis
         // (inside, below and beside the cloud), each solved single-threaded as a bake worker
-        // does. Light costs and sizes vary by ~3x between in-cloud and far lights.
-        constexpr int kSamples = 16;
+        // does. Light costs and sizes vary by ~3x between in-cloud and far lights. Fewer
+        // (at least one) when their lower-bound cost passes a minute: on a large grid one
+        // light can take minutes.
+        constexpr double kSampleBudgetSeconds = 60.0;
+        const int kSamples =
+            int(std::clamp(kSampleBudgetSeconds / std::max(p.cost.seconds_per_light, 1e-9), 1.0, 16.0));
+        p.sample_lights = kSamples;
         std::vector<std::uint32_t> samples;
         const basis::VirtualLightGrid& g = p.lights;
         for (int k = 0; k < kSamples; ++k) {
@@ -435,6 +449,12 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
         const double ns = double(samples.size());
         p.expected_seconds = seconds / ns * n / double(p.threads);
         p.expected_bytes = std::uint64_t(block_bytes / ns * n);
+        if (p.expected_seconds > s.limits.bake_seconds)
+            throw core::Error((s.path.empty() ? std::string("scene") : s.path.string()) + ": limits.bake_hours",
+                              "the bake would take about " + core::format_seconds(p.expected_seconds) + " (from " +
+                                  std::to_string(samples.size()) + " sample light(s)), over the limit of " +
+                                  core::format_seconds(s.limits.bake_seconds) +
+                                  "; raise \"limits\": {\"bake_hours\": ...} or ask for less");
     }
     return p;
 }
@@ -561,6 +581,18 @@ Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan
     }
     omp_set_max_active_levels(saved_levels);
     if (failure) std::rethrow_exception(failure);
+    // A bake that would render an unlit cloud is refused (no file is written): the settings
+    // that made it so are named.
+    const std::string where = s.path.empty() ? std::string("scene") : s.path.string();
+    if (rep.lights_dropped == n)
+        throw core::Error(where + ": virtual_lights.drop_below",
+                          "every one of the " + std::to_string(n) + " virtual lights scatters less than " +
+                              core::format_number(s.drop_below) +
+                              " of its power (largest: " + core::format_number(rep.max_dropped_fraction) +
+                              ") and was dropped; the bake would light nothing: lower drop_below");
+    if (rep.coefficients_kept == 0)
+        throw core::Error(where + ": compression.xi",
+                          "the threshold keeps no coefficient of any basis; the bake would light nothing: lower xi");
 
     core::Stopwatch sw;
     writer.finish();
@@ -586,6 +618,12 @@ std::filesystem::path default_fgb_path(const scene::Scene& s) {
     return p;
 }
 
+basis::FgbMetadata expected_metadata(const scene::Scene& s, const core::Grid3<float>& density) {
+    PlanOptions po;
+    po.estimate = false;
+    return make_plan(s, density, po).metadata;
+}
+
 bool up_to_date(const scene::Scene& s, const core::Grid3<float>& density, const std::filesystem::path& fgb,
                 std::string* why) {
     auto fail = [&](const std::string& m) {
@@ -597,7 +635,7 @@ bool up_to_date(const scene::Scene& s, const core::Grid3<float>& density, const 
     try {
         basis::FgbReader r(fgb);
         if (r.partial()) return fail(fgb.string() + ": a partial file (one bake job's lights), not a complete bake");
-        r.check_key(scene_key(s, density));
+        r.check_metadata(expected_metadata(s, density));
     } catch (const core::Error& e) {
         return fail(e.what());
     }
@@ -608,6 +646,10 @@ std::optional<Report> bake_if_stale(const scene::Scene& s, const core::Grid3<flo
                                     const std::filesystem::path& fgb, const Progress& progress,
                                     const std::function<void(const std::string& why)>& on_stale) {
     std::string why;
+    if (up_to_date(s, density, fgb, &why)) return std::nullopt;
+    // Another process may be baking the same file (two fulgur-shot runs of one scene): wait
+    // for it, then look again before baking.
+    const core::FileLock lock(fgb);
     if (up_to_date(s, density, fgb, &why)) return std::nullopt;
     if (on_stale) on_stale(why);
     return bake(s, density, fgb, progress);

@@ -95,11 +95,14 @@ struct Plan {
     std::uint64_t expected_bytes = 0;           ///< estimated compressed size (0: not estimated)
     double expected_seconds = 0.0;              ///< estimated wall time on this machine (0: not estimated)
     int threads = 1;                            ///< worker threads the bake will use
+    scene::Cost cost;                           ///< memory and a lower bound on time, before solving
+    int sample_lights = 0;                      ///< lights solved for expected_* (16, fewer on large grids)
     basis::FgbMetadata metadata;                ///< what the file will hold (key, grids, directions)
     std::string to_text() const;
 };
 struct PlanOptions {
-    /// Time and compress 16 sample lights spread over the grid to estimate the bake's time
+    /// Time and compress 16 sample lights (fewer when their lower-bound cost, Plan::cost,
+    /// passes a minute) spread over the grid to estimate the bake's time
     /// and size; about a second. false: expected_* stay 0.
     bool estimate = true;
     int threads = 0;  ///< 0: core::thread_count()
@@ -138,7 +141,12 @@ Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan
 /// The scene's default .fgb path (next to the scene: <scene>.fgb).
 std::filesystem::path default_fgb_path(const scene::Scene& s);
 
-/// True if `fgb` exists, is valid and was baked from this scene (hash matches). `why`
+/// What a .fgb baked from this scene must hold in its header (the plan's metadata: key,
+/// grids, directions, lights, compression), for basis::FgbReader::check_metadata.
+basis::FgbMetadata expected_metadata(const scene::Scene& s, const core::Grid3<float>& density);
+
+/// True if `fgb` exists, is valid and was baked from this scene (hash and header geometry
+/// match the plan's). `why`
 /// receives the reason when false (missing, corrupt, stale: which parameter changed).
 bool up_to_date(const scene::Scene& s, const core::Grid3<float>& density, const std::filesystem::path& fgb,
                 std::string* why = nullptr);

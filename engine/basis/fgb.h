@@ -25,6 +25,14 @@ inline constexpr std::uint32_t kFgbVersion = 3;
 /// Largest lighting grid a .fgb may describe (2^26 cells = 256 MiB per float32 field):
 /// loaders and the run time allocate per-cell arrays from it, so it is bounded by the format.
 inline constexpr std::size_t kMaxFgbCells = std::size_t(1) << 26;
+/// Largest .fgb file opened (256 GiB, far above any bake one machine writes): the reader
+/// allocates only what it has bounded by the file size, so this is a sanity bound on input.
+inline constexpr std::uint64_t kMaxFgbBytes = std::uint64_t(1) << 38;
+/// Largest coefficient magnitude a .fgb may hold, 2^64 per unit light intensity: the run time
+/// multiplies bases by weights up to the brightest bolt (1e12 W/sr, about 2^40) and sums lights
+/// and Haar levels in float32 (at most 2^128), so larger values would turn to Inf once lit.
+/// (A physical basis is many orders below it.) Float16 blocks: scale_exp <= 64 - 16 = 48.
+inline constexpr int kMaxLitExponent = 64;
 
 /// What the file was baked from: a 64-bit hash of every bake-relevant scene parameter and
 /// the canonical description it was computed from (one "key=value" per line), both stored
@@ -92,9 +100,10 @@ EncodedBlock encode_block(const CompressedLight& light, const FgbMetadata& m);
 /// Writes a .fgb for lights [light_begin, light_end) of the metadata's light grid: the
 /// whole grid (a complete file) or a part of it (a partial file, the output of one bake
 /// job). Blocks may be added in any order and from several threads; each light exactly
-/// once. The file is streamed to "<path>.tmp" and renamed to `path` by finish(), so a
-/// crashed job never leaves a file that looks valid. Destroying an unfinished writer
-/// removes the temporary file.
+/// once. The file is streamed to a temporary beside it and renamed to `path` by finish()
+/// (core::AtomicFile: locked against other writers of `path`, checked writes, temporary
+/// removed on exceptions and signals), so a crashed job never leaves a file that looks
+/// valid. Destroying an unfinished writer removes the temporary file.
 class FgbWriter {
 public:
     FgbWriter(std::filesystem::path path, FgbMetadata meta, std::uint32_t light_begin, std::uint32_t light_end);
@@ -140,6 +149,11 @@ public:
     /// Throws core::Error "stale bake" unless the file's key equals `expected`; the message
     /// names both hashes and the first differing description line.
     void check_key(const BakeKey& expected) const;
+    /// check_key, then the file's geometry against what the scene's plan expects: lighting
+    /// grid (dims, voxel size, origin), output directions, content and components, the
+    /// virtual-light grid and the compression settings. A header edited consistently (its
+    /// checksums recomputed) with the key left alone is refused here, naming the field.
+    void check_metadata(const FgbMetadata& expected) const;
 
     /// Order of the coefficients read_light() returns within each basis.
     enum class Order {

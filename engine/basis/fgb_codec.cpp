@@ -581,6 +581,11 @@ CompressedLight decode_block(const std::uint8_t* data, std::size_t size, std::ui
         if (m.compression.precision == Precision::Float32 ? b.scale_exp != 0
                                                           : (b.scale_exp < -125 || b.scale_exp > 112))
             fail_at(at + 4, f + "scale_exp: " + std::to_string(b.scale_exp) + " is out of range");
+        // Legal for the format, but values up to 2^(scale_exp + 16) would overflow once lit.
+        if (b.scale_exp + 16 > kMaxLitExponent)
+            fail_at(at + 4, f + "scale_exp: " + std::to_string(b.scale_exp) + " allows coefficients up to 2^" +
+                                std::to_string(b.scale_exp + 16) + ", beyond 2^" + std::to_string(kMaxLitExponent) +
+                                ": they would overflow float32 once lit by a bolt");
         if (counts[d] == 0 && b.scale_exp != 0) fail_at(at + 4, f + "scale_exp: must be 0 for an empty basis");
         b.gamma = r.get<double>(f + "gamma");
         b.norm = r.get<double>(f + "norm");
@@ -591,6 +596,13 @@ CompressedLight decode_block(const std::uint8_t* data, std::size_t size, std::ui
         decode_deflated(r, counts, m, out, canonical, fail_at);
     else
         decode_plain(r, counts, m, out, fail_at);
+    const float lit_max = std::ldexp(1.0f, kMaxLitExponent);
+    for (std::size_t d = 0; d < out.directions.size(); ++d)
+        for (const float v : out.directions[d].value)
+            if (!(std::fabs(v) <= lit_max))
+                fail_at(file_offset, "block.direction[" + std::to_string(d) + "]: a coefficient of " +
+                                         core::format_number(v) + " is beyond 2^" + std::to_string(kMaxLitExponent) +
+                                         ": it would overflow float32 once lit by a bolt");
     return out;
 }
 

@@ -181,9 +181,7 @@ void FgbReader::Impl::open() {
 
 FgbReader::FgbReader(const std::filesystem::path& path) : impl_(std::make_unique<Impl>()) {
     impl_->name = path.string();
-    std::error_code ec;
-    const auto sz = std::filesystem::file_size(path, ec);
-    if (ec) throw core::Error(impl_->name, "cannot open baked file: " + ec.message());
+    const std::uint64_t sz = core::check_readable_file(path, kMaxFgbBytes, ".fgb");
     impl_->file.open(path, std::ios::binary);
     if (!impl_->file) throw core::Error(impl_->name, "cannot open baked file");
     impl_->size = sz;
@@ -208,6 +206,44 @@ std::uint32_t FgbReader::light_end() const noexcept { return impl_->h.light_end;
 bool FgbReader::partial() const noexcept { return impl_->h.flags & fgb::kFlagPartial; }
 std::uint64_t FgbReader::file_size() const noexcept { return impl_->size; }
 const std::string& FgbReader::name() const noexcept { return impl_->name; }
+
+void FgbReader::check_metadata(const FgbMetadata& expected) const {
+    check_key(expected.key);
+    const FgbMetadata& have = impl_->meta;
+    const std::string& n = impl_->name;
+    auto refuse = [&](const std::string& field, const std::string& file_has, const std::string& plan_has) {
+        throw core::Error(n + ": " + field,
+                          "the file has " + file_has + ", the scene's plan has " + plan_has +
+                              " (a header that does not match its own key: not a bake of this scene; rebake)");
+    };
+    auto dims = [](core::Int3 d) {
+        return std::to_string(d.x) + "x" + std::to_string(d.y) + "x" + std::to_string(d.z);
+    };
+    auto vec = [](const glm::dvec3& v) {
+        return "(" + core::format_number(v.x, 17) + ", " + core::format_number(v.y, 17) + ", " +
+               core::format_number(v.z, 17) + ")";
+    };
+    if (have.lighting.dims != expected.lighting.dims)
+        refuse("header.lighting.dims", dims(have.lighting.dims), dims(expected.lighting.dims));
+    if (have.lighting.voxel_size != expected.lighting.voxel_size)
+        refuse("header.lighting.voxel_size", core::format_number(have.lighting.voxel_size, 17),
+               core::format_number(expected.lighting.voxel_size, 17));
+    if (have.lighting.origin != expected.lighting.origin)
+        refuse("header.lighting.origin", vec(have.lighting.origin), vec(expected.lighting.origin));
+    if (have.directions != expected.directions)
+        refuse("metadata.directions", std::to_string(have.directions.size()) + " directions",
+               std::to_string(expected.directions.size()) + " (or different ones)");
+    if (have.content != expected.content || have.components != expected.components)
+        refuse("metadata.content",
+               "content " + std::to_string(have.content) + " in " + std::to_string(have.components) + " component(s)",
+               "content " + std::to_string(expected.content) + " in " + std::to_string(expected.components));
+    if (!(have.lights == expected.lights))
+        refuse("metadata.lights", std::to_string(have.lights.count()) + " virtual lights",
+               std::to_string(expected.lights.count()) + " (or at other positions)");
+    if (!(have.compression == expected.compression))
+        refuse("metadata.compression", "other compression settings (decomposition, precision, threshold)",
+               "the scene's");
+}
 
 std::string key_difference(const BakeKey& have, const BakeKey& expected) {
     if (have == expected) return {};

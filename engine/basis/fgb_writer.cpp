@@ -1,13 +1,10 @@
-// The .fgb writer: streams blocks (any order, several threads) to "<path>.tmp", then writes
-// index and header and renames the file into place; and the merge of partial files, which
+// The .fgb writer: streams blocks (any order, several threads) to a temporary beside the
+// file (core::AtomicFile), then writes index and header and renames the file into place; and the merge of partial files, which
 // copies their checked blocks unchanged. Encoding is in fgb_codec.cpp.
 #include "basis/detail/fgb_codec.h"
 #include "basis/fgb.h"
 
 #include <algorithm>
-#include <cerrno>
-#include <cstdio>
-#include <cstring>
 #include <mutex>
 
 namespace fulgur::basis {
@@ -22,22 +19,19 @@ struct FgbWriter::Impl {
         std::uint32_t crc = 0;
         bool present = false;
     };
-    std::filesystem::path path, tmp;
+    std::filesystem::path path;
     FgbMetadata meta;
     std::vector<std::uint8_t> meta_bytes;
     std::uint32_t begin = 0, end = 0;
     std::vector<Entry> entries;
     std::uint64_t cursor = 0;
-    std::FILE* file = nullptr;
+    std::unique_ptr<core::AtomicFile> file;
     std::mutex mutex;
     bool finished = false;
 
-    [[noreturn]] void io_fail(const std::string& what) const {
-        throw core::Error(tmp.string(), what + ": " + std::strerror(errno));
-    }
     void write_at(std::uint64_t offset, const void* p, std::size_t n) {
-        if (std::fseek(file, long(offset), SEEK_SET) != 0) io_fail("seek failed");
-        if (n && std::fwrite(p, 1, n, file) != n) io_fail("write failed");
+        file->seek(offset);
+        file->write(p, n);
     }
     std::uint64_t index_offset() const { return fgb::kHeaderSize + meta_bytes.size(); }
     std::uint64_t blocks_offset() const { return index_offset() + std::uint64_t(end - begin) * fgb::kIndexEntrySize; }
@@ -55,29 +49,19 @@ FgbWriter::FgbWriter(std::filesystem::path path, FgbMetadata meta, std::uint32_t
                                              " is empty or outside the " + std::to_string(meta.light_count()) +
                                              " virtual lights");
     w.path = std::move(path);
-    w.tmp = w.path;
-    w.tmp += ".tmp";
     w.meta = std::move(meta);
     w.meta_bytes = fgb::encode_metadata(w.meta);
     w.begin = light_begin;
     w.end = light_end;
     w.entries.resize(light_end - light_begin);
-    w.file = std::fopen(w.tmp.c_str(), "wb");
-    if (!w.file) w.io_fail("cannot open for writing");
+    w.file = std::make_unique<core::AtomicFile>(w.path);
     // Placeholder header and index, filled by finish().
     const std::vector<std::uint8_t> zeros(std::size_t(w.blocks_offset()), 0);
     w.write_at(0, zeros.data(), zeros.size());
     w.cursor = w.blocks_offset();
 }
 
-FgbWriter::~FgbWriter() {
-    if (!impl_) return;
-    if (impl_->file) std::fclose(impl_->file);
-    if (!impl_->finished) {
-        std::error_code ec;
-        std::filesystem::remove(impl_->tmp, ec);
-    }
-}
+FgbWriter::~FgbWriter() = default;  // an unfinished file's temporary goes with its AtomicFile
 
 const FgbMetadata& FgbWriter::metadata() const noexcept { return impl_->meta; }
 
@@ -137,13 +121,7 @@ void FgbWriter::finish() {
     head.insert(head.end(), index.bytes.begin(), index.bytes.end());
     fgb::poke(head, fgb::kOffHeaderCrc, fgb::header_crc(head, h.blocks_offset));
     w.write_at(0, head.data(), head.size());
-    if (std::fflush(w.file) != 0) w.io_fail("flush failed");
-    const int rc = std::fclose(w.file);
-    w.file = nullptr;
-    if (rc != 0) w.io_fail("close failed");
-    std::error_code ec;
-    std::filesystem::rename(w.tmp, w.path, ec);
-    if (ec) throw core::Error(w.path.string(), "cannot move the finished file into place: " + ec.message());
+    w.file->commit();
     w.finished = true;
 }
 

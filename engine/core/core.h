@@ -17,7 +17,9 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -121,8 +123,14 @@ inline bool clip_ray_to_box(const glm::dvec3& o, const glm::dvec3& d, const glm:
     return t0 < t1;  // false for NaN too
 }
 
-/// Validates a geometry (positive dims, finite positive voxel size, finite origin);
-/// throws Error naming `where`.
+/// Voxel sizes a grid may have, in metres: below a micrometre a voxel's volume and 1/r^2 near
+/// a source leave double precision's comfortable range; above 1000 km no cloud is meant.
+inline constexpr double kMinVoxelSize = 1e-6, kMaxVoxelSize = 1e6;
+/// Largest |origin| coordinate of a grid, in metres.
+inline constexpr double kMaxOrigin = 1e9;
+
+/// Validates a geometry (dims in [1, 4096], voxel size in [kMinVoxelSize, kMaxVoxelSize],
+/// |origin| <= kMaxOrigin); throws Error naming `where`.
 void validate_geometry(const GridGeometry& g, std::string_view where);
 
 /// Box-filter downsample by an integer factor per axis (dims must divide exactly, or the
@@ -252,15 +260,112 @@ private:
 };
 
 // ---------------------------------------------------------------------------------------
-// Files
+// Files: bounded reads, safe writes (files.cpp)
+//
+// Every file the engine reads is checked first: a regular file (a FIFO would block, /dev/zero
+// never ends, a directory is no file) no larger than a limit the format states. Every file it
+// writes goes through AtomicFile: never half-written, never through a device, never mixed by
+// two writers, and its temporary never left behind by an exception or a signal.
+
+/// Throws Error naming `path` unless it is a regular file of at most `max_bytes`; returns its
+/// size. `what` names the kind of file in messages ("scene", "NRRD", ".fgb").
+std::uint64_t check_readable_file(const std::filesystem::path& path, std::uint64_t max_bytes, std::string_view what);
+
+/// The whole file after check_readable_file (also fails if the file changes while read).
+std::string read_file(const std::filesystem::path& path, std::uint64_t max_bytes, std::string_view what);
+
+/// Throws Error(where, "<what> <i> is NaN|infinite; refusing to write ...") at the first
+/// non-finite value: called before any value reaches a file or an image.
+void check_finite(std::span<const float> values, std::string_view where, std::string_view what = "value");
+/// The same for a grid; the message names the voxel (i,j,k).
+void check_finite(const Grid3<float>& grid, std::string_view where);
+
+/// A file a tool reads or writes, with its role in messages ("scene", "output", "report").
+struct NamedPath {
+    std::string role;
+    std::filesystem::path path;
+};
+/// Throws Error naming the output when an output is one of the inputs or another output (the
+/// same path after resolving ".", ".." and symbolic links, or the same file through a hard
+/// link), or exists and is not a regular file (a directory, /dev/full): called by the tools
+/// before any work, so a bad output costs no bake.
+void check_distinct_files(std::span<const NamedPath> inputs, std::span<const NamedPath> outputs);
+
+/// An exclusive advisory lock (flock) on "<target>.lock" for writers of `target` in different
+/// processes; waits for the current holder. The lock file is removed on release (and on the
+/// signals AtomicFile handles). Nested locks on one target in one process are allowed (the
+/// inner one is a no-op): it serializes processes, not the threads of one process.
+class FileLock {
+public:
+    explicit FileLock(const std::filesystem::path& target);
+    ~FileLock();
+    FileLock(const FileLock&) = delete;
+    FileLock& operator=(const FileLock&) = delete;
+
+private:
+    std::filesystem::path lock_path_;
+};
+
+/// Writes `target` safely: holds its FileLock, writes "<target>.<pid>.tmp" in the same
+/// directory, and commit() flushes, syncs, closes (each checked: a full disk or a file-size
+/// limit is an Error, not a short file) and renames the temporary over the target atomically.
+/// Destroyed without commit() (an exception), or on SIGINT, SIGTERM or SIGHUP, the temporary
+/// is removed; temporaries a killed process left for the same target are removed on open. A
+/// target that exists but is not a regular file (a directory, a device such as /dev/full) is
+/// refused; a symbolic link is followed. Errors name the target.
+class AtomicFile {
+public:
+    explicit AtomicFile(std::filesystem::path target);
+    ~AtomicFile();
+    AtomicFile(const AtomicFile&) = delete;
+    AtomicFile& operator=(const AtomicFile&) = delete;
+
+    void write(const void* data, std::size_t n);
+    void write(std::string_view bytes) { write(bytes.data(), bytes.size()); }
+    /// Moves the write position (for formats whose header is written last).
+    void seek(std::uint64_t offset);
+    /// The temporary's stream, for writers that need one (stb_image_write, fseek); check
+    /// their results and call fail() on error.
+    std::FILE* stream();
+    [[noreturn]] void fail(const std::string& what);
+    void commit();
+
+    const std::filesystem::path& target() const noexcept { return target_; }
+    const std::filesystem::path& temp_path() const noexcept { return temp_; }
+
+private:
+    void discard() noexcept;
+    std::filesystem::path target_, temp_;
+    std::unique_ptr<FileLock> lock_;
+    std::FILE* file_ = nullptr;
+    int slot_ = -1;
+    bool committed_ = false;
+};
+
+/// `bytes` into `path` through AtomicFile (reports, CSV, SVG).
+void write_file(const std::filesystem::path& path, std::string_view bytes);
 
 /// Writes a float32 grid as NRRD (attached header, raw little-endian data) with space
-/// origin and spacing in metres, so ParaView / 3D Slicer place it correctly.
+/// origin and spacing in metres, so ParaView / 3D Slicer place it correctly. Refuses a
+/// non-finite value (check_finite) before writing; writes through AtomicFile.
 void write_nrrd(const std::filesystem::path& path, const Grid3<float>& grid, std::string_view content = {});
 
-/// Reads a NRRD written by write_nrrd or any 3D float32 raw/attached NRRD. Validates the
-/// header and the data size; every error names the file and the field or byte offset.
-Grid3<float> read_nrrd(const std::filesystem::path& path);
+/// The geometry and data layout of a NRRD, from its header alone (nothing is allocated from
+/// the file's numbers): sizes, spacing in [kMinVoxelSize, kMaxVoxelSize], origin, and a file
+/// size that matches the float32 data exactly. For sizing a load before doing it.
+struct NrrdHeader {
+    GridGeometry geom;
+    std::uint64_t data_offset = 0;
+    std::uint64_t file_size = 0;
+};
+/// Largest NRRD read by default (4 GiB: a 1024^3 float32 grid plus its header).
+inline constexpr std::uint64_t kMaxNrrdBytes = (std::uint64_t(1) << 32) + (1 << 16);
+NrrdHeader read_nrrd_header(const std::filesystem::path& path, std::uint64_t max_bytes = kMaxNrrdBytes);
+
+/// Reads a NRRD written by write_nrrd or any 3D float32 raw/attached NRRD of at most
+/// `max_bytes` (a regular file: check_readable_file). Validates the header and the data
+/// size before allocating; every error names the file and the field or byte offset.
+Grid3<float> read_nrrd(const std::filesystem::path& path, std::uint64_t max_bytes = kMaxNrrdBytes);
 
 /// Writes an 8-bit RGB or RGBA PNG (channels 3 or 4), rows top to bottom.
 void write_png(const std::filesystem::path& path, int width, int height, int channels,

@@ -25,10 +25,13 @@ void validate_geometry(const GridGeometry& g, std::string_view where) {
                            std::to_string(g.dims.y) + "x" + std::to_string(g.dims.z));
     if (g.cell_count() > (std::size_t(1) << 31))
         throw Error(w, "grid has " + std::to_string(g.cell_count()) + " cells; at most 2^31 are supported");
-    if (!std::isfinite(g.voxel_size) || !(g.voxel_size > 0.0))
-        throw Error(w, "voxel size must be a finite positive length in metres, got " + std::to_string(g.voxel_size));
-    if (!std::isfinite(g.origin.x) || !std::isfinite(g.origin.y) || !std::isfinite(g.origin.z))
-        throw Error(w, "grid origin must be finite");
+    if (!(g.voxel_size >= kMinVoxelSize && g.voxel_size <= kMaxVoxelSize))
+        throw Error(w, "voxel size must be in [" + format_number(kMinVoxelSize) + ", " + format_number(kMaxVoxelSize) +
+                           "] m, got " + format_number(g.voxel_size, 17));
+    for (int a = 0; a < 3; ++a)
+        if (!(std::fabs(g.origin[a]) <= kMaxOrigin))
+            throw Error(w, "grid origin must be finite and within " + format_number(kMaxOrigin) + " m of 0, got " +
+                               format_number(g.origin[a], 17));
 }
 
 Grid3<float> downsample(const Grid3<float>& src, int factor) {

@@ -2,6 +2,7 @@
 // 3D, float32, raw encoding, little endian, attached data, axis-aligned uniform spacing.
 #include "core/core.h"
 
+#include <algorithm>
 #include <bit>
 #include <charconv>
 #include <cstring>
@@ -16,8 +17,8 @@ static_assert(std::endian::native == std::endian::little, "Fulgur's file formats
 void write_nrrd(const std::filesystem::path& path, const Grid3<float>& grid, std::string_view content) {
     const GridGeometry& g = grid.geom;
     FULGUR_ASSERT(grid.data.size() == g.cell_count(), "grid data size does not match its dimensions");
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    if (!out) throw Error(path.string(), "cannot open for writing");
+    validate_geometry(g, path.string());
+    check_finite(grid, path.string());
     std::ostringstream h;
     h.precision(17);
     h << "NRRD0004\n"
@@ -40,10 +41,10 @@ void write_nrrd(const std::filesystem::path& path, const Grid3<float>& grid, std
     }
     h << "endian: little\n"
       << "encoding: raw\n\n";
-    const std::string header = h.str();
-    out.write(header.data(), std::streamsize(header.size()));
-    out.write(reinterpret_cast<const char*>(grid.data.data()), std::streamsize(grid.data.size() * sizeof(float)));
-    if (!out) throw Error(path.string(), "write failed");
+    AtomicFile out(path);
+    out.write(h.str());
+    out.write(grid.data.data(), grid.data.size() * sizeof(float));
+    out.commit();
 }
 
 namespace {
@@ -67,32 +68,46 @@ bool parse_vector(std::string_view s, double v[3]) {
 
 }  // namespace
 
-Grid3<float> read_nrrd(const std::filesystem::path& path) {
+NrrdHeader read_nrrd_header(const std::filesystem::path& path, std::uint64_t max_bytes) {
     const std::string file = path.string();
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw Error(file, "cannot open for reading");
-    in.seekg(0, std::ios::end);
-    const auto file_size = std::uint64_t(in.tellg());
-    in.seekg(0);
-
-    std::string line;
-    std::uint64_t offset = 0;
+    NrrdHeader out;
+    out.file_size = check_readable_file(path, max_bytes, "NRRD");
+    // The header is at most 64 KiB: read that much (or the file) and parse lines from it, so a
+    // file without newlines costs 64 KiB, not its size.
+    constexpr std::size_t kMaxHeader = 1 << 16;
+    std::string head;
+    {
+        std::ifstream in(path, std::ios::binary);
+        if (!in) throw Error(file, "cannot open for reading");
+        head.resize(std::size_t(std::min<std::uint64_t>(out.file_size, kMaxHeader)));
+        in.read(head.data(), std::streamsize(head.size()));
+        if (std::uint64_t(in.gcount()) != head.size()) throw Error(file, "read failed");
+    }
     auto where = [&](std::uint64_t at) { return file + " (byte " + std::to_string(at) + ")"; };
-    if (!std::getline(in, line) || line.rfind("NRRD000", 0) != 0)
+    std::size_t offset = 0;
+    // One header line (without its '\n'); false when the buffer ends before a newline.
+    auto next_line = [&](std::string& line) {
+        const std::size_t nl = head.find('\n', offset);
+        if (nl == std::string::npos) return false;
+        line = head.substr(offset, nl - offset);
+        offset = nl + 1;
+        return true;
+    };
+    std::string line;
+    if (!next_line(line) || line.rfind("NRRD000", 0) != 0)
         throw Error(where(0), "not a NRRD file (expected magic 'NRRD000x')");
-    offset += line.size() + 1;
 
     std::map<std::string, std::pair<std::string, std::uint64_t>> fields;
-    constexpr std::size_t kMaxHeader = 1 << 16;
     for (;;) {
         const std::uint64_t line_start = offset;
-        if (!std::getline(in, line))
-            throw Error(where(offset), "header ends before the blank line that starts the data");
-        offset += line.size() + 1;
-        if (offset > kMaxHeader) throw Error(where(line_start), "header longer than 64 KiB");
+        if (!next_line(line))
+            throw Error(where(offset), head.size() == kMaxHeader && out.file_size > kMaxHeader
+                                           ? "header longer than 64 KiB"
+                                           : "header ends before the blank line that starts the data");
         if (!line.empty() && line.back() == '\r') line.pop_back();
         if (line.empty()) break;
         if (line[0] == '#') continue;
+        if (line.find('\0') != std::string::npos) throw Error(where(line_start), "NUL byte in a header line");
         const auto colon = line.find(": ");
         if (colon == std::string::npos) {
             if (line.find(":=") != std::string::npos) continue;  // key/value pairs are ignored
@@ -100,7 +115,7 @@ Grid3<float> read_nrrd(const std::filesystem::path& path) {
         }
         fields[trim(line.substr(0, colon))] = {trim(line.substr(colon + 2)), line_start};
     }
-    const std::uint64_t data_start = offset;
+    out.data_offset = offset;
 
     auto need = [&](const char* key) -> const std::pair<std::string, std::uint64_t>& {
         auto it = fields.find(key);
@@ -122,7 +137,7 @@ Grid3<float> read_nrrd(const std::filesystem::path& path) {
     if (fields.count("data file") || fields.count("datafile"))
         throw Error(file, "detached data files are not supported; data must follow the header");
 
-    GridGeometry g;
+    GridGeometry& g = out.geom;
     {
         const auto& [value, at] = need("sizes");
         std::istringstream is(value);
@@ -137,8 +152,10 @@ Grid3<float> read_nrrd(const std::filesystem::path& path) {
         g.dims = {int(n[0]), int(n[1]), int(n[2])};
     }
     double spacing = 1.0;
+    std::uint64_t spacing_at = 0;
     if (auto it = fields.find("space directions"); it != fields.end()) {
         const auto& [value, at] = it->second;
+        spacing_at = at;
         std::istringstream is(value);
         std::string tok[3];
         is >> tok[0] >> tok[1] >> tok[2];
@@ -152,20 +169,22 @@ Grid3<float> read_nrrd(const std::filesystem::path& path) {
         for (int a = 0; a < 3; ++a)
             for (int b = 0; b < 3; ++b) {
                 const double expected = a == b ? spacing : 0.0;
-                if (std::fabs(d[a][b] - expected) > tol)
+                if (!(std::fabs(d[a][b] - expected) <= tol))
                     throw Error(where(at), "only axis-aligned, isotropic spacing is supported, got '" + value + "'");
             }
     } else if (auto sp = fields.find("spacings"); sp != fields.end()) {
         const auto& [value, at] = sp->second;
+        spacing_at = at;
         std::istringstream is(value);
         double s[3];
         is >> s[0] >> s[1] >> s[2];
-        if (is.fail() || std::fabs(s[0] - s[1]) > 1e-6 * s[0] || std::fabs(s[0] - s[2]) > 1e-6 * s[0])
+        if (is.fail() || !(std::fabs(s[0] - s[1]) <= 1e-6 * s[0]) || !(std::fabs(s[0] - s[2]) <= 1e-6 * s[0]))
             throw Error(where(at), "field 'spacings' must hold three equal spacings, got '" + value + "'");
         spacing = s[0];
     }
-    if (!std::isfinite(spacing) || !(spacing > 0.0))
-        throw Error(file, "voxel spacing must be finite and positive, got " + std::to_string(spacing));
+    if (!(spacing >= kMinVoxelSize && spacing <= kMaxVoxelSize))
+        throw Error(where(spacing_at), "voxel spacing must be in [" + format_number(kMinVoxelSize) + ", " +
+                                           format_number(kMaxVoxelSize) + "] m, got " + format_number(spacing, 17));
     g.voxel_size = spacing;
     if (auto it = fields.find("space origin"); it != fields.end()) {
         double o[3];
@@ -177,19 +196,30 @@ Grid3<float> read_nrrd(const std::filesystem::path& path) {
     validate_geometry(g, file);
 
     const std::uint64_t bytes = std::uint64_t(g.cell_count()) * sizeof(float);
-    if (file_size < data_start + bytes)
-        throw Error(where(data_start), "data truncated: expected " + std::to_string(bytes) +
-                                           " bytes of float32, file has " + std::to_string(file_size - data_start));
-    if (file_size > data_start + bytes)
-        throw Error(where(data_start + bytes), std::to_string(file_size - data_start - bytes) +
-                                                   " unexpected trailing bytes after the float32 data");
-    Grid3<float> grid(g);
-    in.seekg(std::streamoff(data_start));
+    if (out.file_size < out.data_offset + bytes)
+        throw Error(where(out.data_offset), "data truncated: expected " + std::to_string(bytes) +
+                                                " bytes of float32, file has " +
+                                                std::to_string(out.file_size - out.data_offset));
+    if (out.file_size > out.data_offset + bytes)
+        throw Error(where(out.data_offset + bytes), std::to_string(out.file_size - out.data_offset - bytes) +
+                                                        " unexpected trailing bytes after the float32 data");
+    return out;
+}
+
+Grid3<float> read_nrrd(const std::filesystem::path& path, std::uint64_t max_bytes) {
+    const NrrdHeader h = read_nrrd_header(path, max_bytes);
+    const std::string file = path.string();
+    auto where = [&](std::uint64_t at) { return file + " (byte " + std::to_string(at) + ")"; };
+    const std::uint64_t bytes = std::uint64_t(h.geom.cell_count()) * sizeof(float);
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw Error(file, "cannot open for reading");
+    Grid3<float> grid(h.geom);
+    in.seekg(std::streamoff(h.data_offset));
     in.read(reinterpret_cast<char*>(grid.data.data()), std::streamsize(bytes));
-    if (!in) throw Error(where(data_start), "read failed");
+    if (!in || std::uint64_t(in.gcount()) != bytes) throw Error(where(h.data_offset), "read failed");
     for (std::size_t i = 0; i < grid.data.size(); ++i)
         if (!std::isfinite(grid.data[i]))
-            throw Error(where(data_start + i * sizeof(float)),
+            throw Error(where(h.data_offset + i * sizeof(float)),
                         "non-finite value (NaN or Inf) at voxel " + std::to_string(i));
     return grid;
 }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <vector>
 
 #include <stb_image_write.h>
 
@@ -12,8 +13,18 @@ void write_png(const std::filesystem::path& path, int width, int height, int cha
     FULGUR_ASSERT(width > 0 && height > 0 && (channels == 3 || channels == 4), "bad PNG dimensions");
     FULGUR_ASSERT(pixels.size() == std::size_t(width) * std::size_t(height) * std::size_t(channels),
                   "pixel buffer size does not match the image");
-    if (!stbi_write_png(path.string().c_str(), width, height, channels, pixels.data(), width * channels))
-        throw Error(path.string(), "cannot write PNG");
+    // Encoded in memory, then written through AtomicFile (checked, atomic, never half a PNG).
+    std::vector<std::uint8_t> png;
+    auto append = [](void* ctx, void* data, int size) {
+        auto* out = static_cast<std::vector<std::uint8_t>*>(ctx);
+        const auto* p = static_cast<const std::uint8_t*>(data);
+        out->insert(out->end(), p, p + size);
+    };
+    if (!stbi_write_png_to_func(append, &png, width, height, channels, pixels.data(), width * channels))
+        throw Error(path.string(), "cannot encode the PNG");
+    AtomicFile out(path);
+    out.write(png.data(), png.size());
+    out.commit();
 }
 
 void pseudo_colour(double t, std::uint8_t rgb[3]) noexcept {

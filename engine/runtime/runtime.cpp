@@ -105,6 +105,12 @@ BakedBases BakedBases::load(const std::filesystem::path& fgb, const std::optiona
     return BakedBases(build_layout(reader));
 }
 
+BakedBases BakedBases::load(const std::filesystem::path& fgb, const basis::FgbMetadata& expected) {
+    basis::FgbReader reader(fgb);
+    reader.check_metadata(expected);
+    return BakedBases(build_layout(reader));
+}
+
 const core::GridGeometry& BakedBases::lighting() const noexcept { return impl_->meta.lighting; }
 const std::vector<glm::dvec3>& BakedBases::directions() const noexcept { return impl_->meta.directions; }
 const basis::VirtualLightGrid& BakedBases::lights() const noexcept { return impl_->meta.lights; }

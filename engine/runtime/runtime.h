@@ -65,6 +65,9 @@ public:
     /// its blocks are read: core::Error "stale bake" naming both hashes and the first scene
     /// parameter that changed (basis::FgbReader::check_key).
     static BakedBases load(const std::filesystem::path& fgb, const std::optional<basis::BakeKey>& expected = {});
+    /// The same, checking the file's whole header against the scene's plan
+    /// (basis::FgbReader::check_metadata: key, grids, directions, lights, compression).
+    static BakedBases load(const std::filesystem::path& fgb, const basis::FgbMetadata& expected);
 
     const core::GridGeometry& lighting() const noexcept;
     const std::vector<glm::dvec3>& directions() const noexcept;

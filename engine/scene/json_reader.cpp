@@ -6,12 +6,106 @@
 namespace fulgur::scene::detail {
 
 namespace {
+
+// A short description of a value for messages. Containers are summarized, never dumped: a
+// value's text can be megabytes long.
 std::string describe(const nlohmann::json& v) {
-    std::string s = v.dump();
+    if (v.is_array()) return "an array of " + std::to_string(v.size()) + " element(s)";
+    if (v.is_object()) return "an object with " + std::to_string(v.size()) + " key(s)";
+    std::string s = v.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
     if (s.size() > 60) s = s.substr(0, 57) + "...";
     return s + " (" + v.type_name() + ")";
 }
+
+// The field path of the value being parsed, kept from the parser's events ("a.b[2].c"), with
+// the keys each open object has seen.
+class PathTracker {
+public:
+    explicit PathTracker(const std::string& file) : file_(file) {}
+
+    bool event(int depth, nlohmann::json::parse_event_t e, const nlohmann::json& parsed) {
+        using E = nlohmann::json::parse_event_t;
+        switch (e) {
+            case E::object_start:
+            case E::array_start:
+                if (depth >= kMaxJsonDepth)
+                    throw core::Error(where(), "nesting deeper than " + std::to_string(kMaxJsonDepth) +
+                                                   " levels of arrays and objects; a scene needs a few");
+                frames_.push_back({e == E::array_start, false, {}, 0, {}});
+                break;
+            case E::key: {
+                Frame& f = frames_.back();
+                f.key = parsed.get<std::string>();
+                f.has_key = true;
+                if (!f.keys.insert(f.key).second)
+                    throw core::Error(where(),
+                                      "duplicate key (the same key twice in one object; which one was "
+                                      "meant is unclear)");
+                break;
+            }
+            case E::value:
+                done_element();
+                break;
+            case E::object_end:
+            case E::array_end:
+                frames_.pop_back();
+                done_element();
+                break;
+        }
+        return true;
+    }
+
+    /// "file: path" of the value being parsed (the file alone at the top level).
+    std::string where() const {
+        std::string p;
+        for (const Frame& f : frames_) {
+            if (f.array)
+                p += "[" + std::to_string(f.index) + "]";
+            else if (f.has_key)
+                p += (p.empty() ? "" : ".") + f.key;
+        }
+        return p.empty() ? file_ : file_ + ": " + p;
+    }
+
+private:
+    struct Frame {
+        bool array;
+        bool has_key;                             // objects: a key has been read
+        std::string key;                          // objects: the key being parsed
+        std::size_t index;                        // arrays: the element being parsed
+        std::set<std::string, std::less<>> keys;  // objects: keys seen so far
+    };
+    void done_element() {
+        if (!frames_.empty() && frames_.back().array) ++frames_.back().index;
+    }
+    const std::string& file_;
+    std::vector<Frame> frames_;
+};
+
 }  // namespace
+
+nlohmann::json parse_json(std::string_view text, const std::string& file) {
+    auto starts = [&](std::string_view p) { return text.substr(0, p.size()) == p; };
+    if (starts("\xEF\xBB\xBF"))
+        text.remove_prefix(3);  // a UTF-8 byte-order mark carries no meaning
+    else if (starts("\xFF\xFE") || starts("\xFE\xFF") || starts(std::string_view("\0\0\xFE\xFF", 4)))
+        throw core::Error(file + " (byte 0)", "UTF-16 or UTF-32 text (byte-order mark); scene files are UTF-8");
+    PathTracker path(file);
+    try {
+        return nlohmann::json::parse(text, [&path](int depth, nlohmann::json::parse_event_t e, nlohmann::json& v) {
+            return path.event(depth, e, v);
+        });
+    } catch (const nlohmann::json::parse_error& e) {
+        // e.byte is the 1-based position of the offending character.
+        // The message quotes the last token read, which can be as long as the file: cut it.
+        std::string what = e.what();
+        if (what.size() > 240) what = what.substr(0, 237) + "...";
+        throw core::Error(file + " (byte " + std::to_string(e.byte) + ")", "invalid JSON: " + what);
+    } catch (const nlohmann::json::out_of_range&) {
+        // The parser's only range error: a number too large for a double (e.g. 1e400).
+        throw core::Error(path.where(), "number out of range (beyond +-1.8e308, the largest double)");
+    }
+}
 
 std::string Range::str() const {
     auto bound = [](double v) {
@@ -123,7 +217,11 @@ std::string JsonObject::string(std::string_view key) {
     const nlohmann::json* v = find(key);
     if (!v) fail(key, "required string is missing");
     if (!v->is_string()) fail(key, "expected a string, got " + describe(*v));
-    return v->get<std::string>();
+    std::string s = v->get<std::string>();
+    // "\u0000" is valid JSON, but a NUL ends a C string: a path would be cut short silently.
+    if (const auto nul = s.find('\0'); nul != std::string::npos)
+        fail(key, "the string holds a NUL character (\\u0000) at position " + std::to_string(nul));
+    return s;
 }
 
 std::string JsonObject::string_or(std::string_view key, std::string fallback) {

@@ -124,7 +124,8 @@ void parse_virtual_lights(JsonObject o, basis::VirtualLightParams& v, double& dr
     v.margin = o.number_or("margin", v.margin, Range{0.0, 1e6});
     v.ground_height = o.number_or("ground_height", v.ground_height, Range{-1e6, 1e6});
     v.density_threshold = o.number_or("density_threshold", v.density_threshold, Range{0.0, 1.0, false, true});
-    drop_below = o.number_or("drop_below", drop_below, Range{0.0, 1.0});
+    // A light scatters at most its whole power (fraction <= albedo <= 1): 1 drops every light.
+    drop_below = o.number_or("drop_below", drop_below, Range{0.0, 1.0, false, true});
     o.finish();
     validated_as_pointer(o.file(), [&] { basis::validate(v, "virtual_lights"); });
 }
@@ -136,9 +137,12 @@ void parse_compression(JsonObject o, basis::CompressionParams& c, bool& separate
              : mode == "relative_l2" ? basis::ThresholdMode::RelativeL2
                                      : basis::ThresholdMode::Energy;
     if (c.mode == basis::ThresholdMode::Energy)
-        c.xi = o.number_or("xi", c.xi, Range{0.0, 1.0});  // fraction of each basis' energy kept
+        c.xi =
+            o.number_or("xi", c.xi, Range{0.0, 1.0, true, false});  // fraction of each basis' energy kept; 0 keeps none
     else if (o.has("xi"))
-        c.xi = o.number("xi", Range{0.0, 1e30});  // absolute: units of S; relative_l2: fraction of ||B||
+        // absolute: units of S; relative_l2: fraction of ||B||, and no |B| exceeds ||B||: 1 keeps none
+        c.xi = o.number("xi",
+                        c.mode == basis::ThresholdMode::RelativeL2 ? Range{0.0, 1.0, false, true} : Range{0.0, 1e30});
     else
         o.fail("xi", std::string("required with threshold \"") + mode + "\" (the default xi belongs to \"energy\")");
     const std::string prec =
@@ -301,13 +305,7 @@ void parse_lightning(JsonObject o, Scene& s) {
 
 Scene parse_scene(std::string_view json_text, std::string_view file_name, const std::filesystem::path& base_dir) {
     const std::string file(file_name);
-    nlohmann::json j;
-    try {
-        j = nlohmann::json::parse(json_text);
-    } catch (const nlohmann::json::parse_error& e) {
-        // e.byte is the 1-based position of the offending character.
-        throw core::Error(file + " (byte " + std::to_string(e.byte) + ")", std::string("invalid JSON: ") + e.what());
-    }
+    const nlohmann::json j = detail::parse_json(json_text, file);
     JsonObject root(j, file, "");
     Scene s;
     const auto version = root.integer("fulgur_scene", 1, 1000);
@@ -355,6 +353,12 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
             q->fail("multiple", "the paper preset solves nothing per strike: must be \"none\"");
         q->finish();
     }
+    if (auto l = root.optional_object("limits")) {
+        s.limits.memory_bytes = l->number_or("memory_gib", 0.0, Range{0.0, 1e6}) * double(1ull << 30);
+        s.limits.bake_seconds =
+            l->number_or("bake_hours", s.limits.bake_seconds / 3600.0, Range{0.0, 1e6, true}) * 3600.0;
+        l->finish();
+    }
     root.finish();
     if (s.effects.sun && !s.sun)
         throw core::Error(file + ": /effects/sun", "true needs a light of type \"sun\" in \"lights\"");
@@ -363,6 +367,18 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
         throw core::Error(file + ": /quality/refine", "must divide /lighting/downsample (" +
                                                           std::to_string(s.lighting_downsample) + "), got " +
                                                           std::to_string(s.quality.refine));
+    // The lattice carries S on its own directions: 6 output directions are not a lattice set.
+    if (s.effects.multiple_scattering && s.transport.solver == TransportSettings::Solver::LatticeBoltzmann &&
+        s.effective_directions() == 6)
+        throw core::Error(file + ": /lighting/directions",
+                          "6 output directions do not go with the lattice-Boltzmann solver, which needs 1, 18 or 26 "
+                          "(its own directions); choose 18 or 26, or transport.solver \"monte_carlo\"");
+    // A light scatters at most the albedo's fraction of its power into the cloud.
+    if (s.drop_below > 0.0 && s.drop_below >= s.medium.albedo)
+        throw core::Error(file + ": /virtual_lights/drop_below",
+                          core::format_number(s.drop_below) +
+                              " drops every light: no light scatters more than medium.albedo (" +
+                              core::format_number(s.medium.albedo) + ") of its power; the bake would light nothing");
     if (s.lighting_downsample % s.transport.refine != 0)
         throw core::Error(file + ": /transport/refine", "must divide /lighting/downsample (" +
                                                             std::to_string(s.lighting_downsample) + "), got " +
@@ -382,11 +398,8 @@ void sun_angles(const glm::dvec3& direction, double& elevation_deg, double& azim
 }
 
 Scene load_scene(const std::filesystem::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw core::Error(path.string(), "cannot open scene file");
-    std::ostringstream text;
-    text << in.rdbuf();
-    Scene s = parse_scene(text.str(), path.string(), path.parent_path());
+    const std::string text = core::read_file(path, kMaxSceneBytes, "scene");
+    Scene s = parse_scene(text, path.string(), path.parent_path());
     s.path = path;
     return s;
 }
@@ -442,6 +455,7 @@ Quality quality_preset(std::string_view name, std::string_view where) {
 }
 
 core::Grid3<float> make_density(const Scene& s) {
+    check_cost(s, estimate_cost(s));
     if (s.cloud.kind == CloudSource::Kind::File) return cloud::load_density(s.cloud.file);
     return cloud::generate_cumulonimbus(s.cloud.generator);
 }

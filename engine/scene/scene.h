@@ -27,6 +27,8 @@
 namespace fulgur::scene {
 
 inline constexpr int kFormatVersion = 1;
+/// Largest scene file read (1 MiB; the default storm is 2 kB): checked before reading.
+inline constexpr std::uint64_t kMaxSceneBytes = std::uint64_t(1) << 20;
 
 struct CloudSource {
     enum class Kind { Generator, File };
@@ -156,6 +158,13 @@ std::string_view to_string(Quality::Preset p) noexcept;
 /// The preset with its default knobs; throws core::Error naming `where` for an unknown name.
 Quality quality_preset(std::string_view name, std::string_view where = "quality");
 
+/// "limits": what a bake of the scene may cost before it is refused (docs/scene-format.md).
+struct Limits {
+    /// Peak memory, bytes; 0: three quarters of the machine's physical memory.
+    double memory_bytes = 0.0;
+    double bake_seconds = 24.0 * 3600.0;  ///< the bake's estimated wall time
+};
+
 struct Scene {
     std::filesystem::path path;  ///< the scene file ("" when parsed from memory)
     std::string name;
@@ -184,6 +193,7 @@ struct Scene {
     glm::dvec3 lightning_colour = kLightningColour;
     static constexpr glm::dvec3 kLightningColour{0.9473, 0.9881, 1.2733};
     Quality quality;  ///< "quality": how frames are lit (a preset name, or an object with "preset" and knobs)
+    Limits limits;    ///< section "limits"
 
     /// Output directions the bake needs: 1 when scattering is isotropic (g == 0), since S
     /// then does not depend on direction; the scene's count otherwise.
@@ -197,7 +207,32 @@ Scene load_scene(const std::filesystem::path& path);
 /// resolves relative paths.
 Scene parse_scene(std::string_view json_text, std::string_view file_name, const std::filesystem::path& base_dir = {});
 
-/// The cloud density the scene describes (generated or loaded).
+/// What baking the scene costs, estimated from the scene alone (for a cloud file, from its
+/// NRRD header): nothing is allocated or solved. Memory is an upper estimate of the peak;
+/// time is a lower bound (per-cell and per-path costs measured on a 2-core machine, the
+/// fastest case each: the real bake takes 1-4x longer), so a refusal is never a guess.
+struct Cost {
+    core::Int3 density_dims, lighting_dims, transport_dims;
+    std::uint64_t density_bytes = 0;     ///< density grid and the generator's working arrays
+    std::uint64_t media_bytes = 0;       ///< lighting and transport media
+    std::uint64_t per_thread_bytes = 0;  ///< one bake worker: solver state, bases, Haar transform
+    std::uint64_t memory_bytes = 0;      ///< peak: density + media + threads x per_thread
+    double seconds_per_light = 0.0;      ///< lower bound, one worker
+    double seconds = 0.0;                ///< lower bound: lights x per light / threads
+    std::size_t lights = 1;
+    int threads = 1;
+};
+/// `lights`: the virtual-light count when known (the plan knows it; 1 before the density
+/// exists); `threads`: bake workers (0: core::thread_count()).
+Cost estimate_cost(const Scene& s, std::size_t lights = 1, int threads = 0);
+/// The memory limit in bytes (limits.memory_bytes, or 3/4 of physical memory when 0).
+double memory_limit(const Scene& s);
+/// Throws core::Error naming "limits.memory_gib" or "limits.bake_hours", the estimate and
+/// how to raise the limit, when the cost exceeds a limit.
+void check_cost(const Scene& s, const Cost& c);
+
+/// The cloud density the scene describes (generated or loaded). Refuses (check_cost) before
+/// allocating when the scene's estimated cost exceeds its limits.
 core::Grid3<float> make_density(const Scene& s);
 
 /// The transport medium on the lighting grid (density box-filtered by lighting_downsample).

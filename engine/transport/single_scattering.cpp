@@ -67,7 +67,15 @@ void integrate_box_point(const PointCtx& c, const Box& b, double sigma, int dept
         return;
     }
     bool thick = false;
-    int n = dmin < s ? 0 : plan.tensor_order(s, (1.0 + plan.k_g) / dmin, sigma, thick);
+    int n = 0;
+    if (dmin >= s) {
+        // The cone in which the source sees the box: about its centre, half-angle from the
+        // half-diagonal (dmin >= s keeps it below 60 degrees).
+        const glm::dvec3 to = 0.5 * (b.lo + b.hi) - c.xl;
+        const double dist = glm::length(to);
+        const double alpha = std::asin(std::min(1.0, 0.5 * std::sqrt(3.0) * s / dist));
+        n = plan.tensor_order(s, (1.0 + plan.phase_variation(to / dist, alpha)) / dmin, sigma, thick);
+    }
     // A one-node rule cannot see transmittance varying across the box (a shadow edge, rays
     // grazing a cloud base): it is only used when no ray from the source to the box can
     // meet density (the bounding box of source and box misses the density bounds, T == 1).
@@ -226,7 +234,7 @@ void single_scattering(const LightingMedium& medium, const PointSource& light, S
         options.optical_depth_cutoff,
         density_bounds(medium),
         medium.optics.extinction * double(*std::max_element(medium.density.data.begin(), medium.density.data.end()))};
-    const Plan plan(options.tolerance, medium.optics.g, options.optical_depth_cutoff);
+    const Plan plan(options.tolerance, medium.optics.g, options.optical_depth_cutoff, out.directions);
     const double vol = g.voxel_size * g.voxel_size * g.voxel_size;
     const double factor = medium.optics.albedo * light.intensity / vol;
     const auto need = needed_mask(medium, options);

@@ -52,7 +52,7 @@ StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::opti
     if (plan_.lightning) {
         if (!fgb)
             throw core::Error(scene_.path.string(), "the scene has lightning: its .fgb is needed (view::bases_for)");
-        bases_.emplace(runtime::BakedBases::load(*fgb, bake::scene_key(scene_, density_)));
+        bases_.emplace(runtime::BakedBases::load(*fgb, bake::expected_metadata(scene_, density_)));
         pipeline_ = std::make_unique<runtime::FramePipeline>(scene_, density_, *bases_);
     } else if (fgb) {
         throw core::Error(fgb->string(), "the scene has no lightning: it renders without a .fgb");

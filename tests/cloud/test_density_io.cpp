@@ -5,6 +5,7 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <fstream>
 #include <limits>
 
 using namespace fulgur;
@@ -68,8 +69,14 @@ TEST_CASE("load_density rejects densities outside [0, 1], naming the file and th
         CHECK_THROWS_WITH_AS(cloud::load_density(dir / "neg.nrrd"), doctest::Contains("voxel (5,4,0)"), core::Error);
     }
     SUBCASE("NaN (caught by the NRRD reader with its byte offset)") {
-        d.at(1, 0, 0) = std::numeric_limits<float>::quiet_NaN();
+        // write_nrrd refuses NaN: patch the written file's bytes.
         core::write_nrrd(dir / "nan.nrrd", d);
+        const std::uint64_t at = core::read_nrrd_header(dir / "nan.nrrd").data_offset + d.geom.index(1, 0, 0) * 4;
+        std::fstream f(dir / "nan.nrrd", std::ios::in | std::ios::out | std::ios::binary);
+        const float nan = std::numeric_limits<float>::quiet_NaN();
+        f.seekp(std::streamoff(at));
+        f.write(reinterpret_cast<const char*>(&nan), sizeof nan);
+        f.close();
         CHECK_THROWS_WITH_AS(cloud::load_density(dir / "nan.nrrd"), doctest::Contains("non-finite"), core::Error);
     }
     SUBCASE("missing file") {

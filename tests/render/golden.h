@@ -13,7 +13,8 @@
 // On failure it writes <name>.actual.png, <name>.expected.png and <name>.diff.png (d scaled
 // x8, pseudo-coloured) into the output directory. Goldens are (re)generated only when the
 // environment variable FULGUR_UPDATE_GOLDENS=1 is set: the actual image is then written as
-// the expected one and the comparison reports `regenerated`.
+// the expected one and the comparison reports `regenerated` and fails (nothing was checked).
+// Under CI (the environment variable CI set, not "0" or "false") the switch is refused.
 #pragma once
 
 #include <cstdint>
@@ -40,7 +41,7 @@ struct GoldenResult {
     std::string message;  ///< one line: figures, or why it failed, and where the images are
 };
 
-/// True when FULGUR_UPDATE_GOLDENS=1.
+/// True when FULGUR_UPDATE_GOLDENS=1; throws core::Error when it is set under CI.
 bool update_goldens_requested();
 
 /// Compares `rgba` (width x height x 4, rows top to bottom) with the PNG `expected`.

@@ -7,6 +7,8 @@
 #include <doctest/doctest.h>
 
 #include <cstdlib>
+#include <optional>
+#include <string>
 #include <vector>
 
 using namespace fulgur;
@@ -70,24 +72,38 @@ TEST_CASE("golden comparison: identical passes, perturbed fails and writes image
     CHECK(!test::compare_golden(dir / "ref.png", 32, 32, other, tol, dir / "out").passed);
 }
 
-TEST_CASE("golden regeneration only with FULGUR_UPDATE_GOLDENS=1") {
+TEST_CASE("golden regeneration only with FULGUR_UPDATE_GOLDENS=1, never under CI, never reported as a pass") {
     const auto dir = test::scratch_dir("golden_update");
     const auto img = gradient(16, 16);
-    const char* old = std::getenv("FULGUR_UPDATE_GOLDENS");
-    const std::string saved = old ? old : "";
+    // Saved and restored: the suite may itself run under CI.
+    auto saved = [](const char* n) -> std::optional<std::string> {
+        const char* v = std::getenv(n);
+        return v ? std::optional<std::string>(v) : std::nullopt;
+    };
+    const auto old_update = saved("FULGUR_UPDATE_GOLDENS"), old_ci = saved("CI");
     ::setenv("FULGUR_UPDATE_GOLDENS", "0", 1);
+    ::unsetenv("CI");
     CHECK(!test::update_goldens_requested());
     CHECK(!test::compare_golden(dir / "new.png", 16, 16, img, {}, dir / "out").passed);
     CHECK(!std::filesystem::exists(dir / "new.png"));
     ::setenv("FULGUR_UPDATE_GOLDENS", "1", 1);
     const auto r = test::compare_golden(dir / "new.png", 16, 16, img, {}, dir / "out");
-    CHECK(r.passed);
+    CHECK_FALSE(r.passed);  // it wrote the reference; it checked nothing
     CHECK(r.regenerated);
     CHECK(std::filesystem::exists(dir / "new.png"));
-    if (old)
-        ::setenv("FULGUR_UPDATE_GOLDENS", saved.c_str(), 1);
-    else
-        ::unsetenv("FULGUR_UPDATE_GOLDENS");
+    // Under CI the switch is refused and nothing is written.
+    ::setenv("CI", "true", 1);
+    CHECK_THROWS_WITH_AS(test::compare_golden(dir / "ci.png", 16, 16, img, {}, dir / "out"),
+                         doctest::Contains("refused under CI"), core::Error);
+    CHECK(!std::filesystem::exists(dir / "ci.png"));
+    auto restore = [](const char* n, const std::optional<std::string>& v) {
+        if (v)
+            ::setenv(n, v->c_str(), 1);
+        else
+            ::unsetenv(n);
+    };
+    restore("FULGUR_UPDATE_GOLDENS", old_update);
+    restore("CI", old_ci);
     int w = 0, h = 0;
     CHECK(test::read_png_rgba(dir / "new.png", w, h) == img);
 }

@@ -116,6 +116,35 @@ TEST_CASE("homogeneous box with constant S: L = S (1 - exp(-tau)) for any step")
     }
 }
 
+TEST_CASE("negative S (the lattice's signed phase fit, truncated Haar coefficients) renders as zero") {
+    render::Renderer& r = gl_renderer();
+    const auto density = test::make_grid({16, 16, 16}, 100.0, {0, 0, 0}, [&](int, int, int) { return 0.5f; });
+    r.set_volume({.density = &density, .extinction = 1.25e-3, .precision = render::DensityPrecision::F16});
+    core::GridGeometry lg = density.geom;
+    lg.dims = {4, 4, 4};
+    lg.voxel_size = 400.0;
+    render::Camera cam;
+    cam.position = {-1500.0, -2600.0, 2300.0};
+    cam.target = {800.0, 800.0, 800.0};
+    cam.vertical_fov_deg = 45.0;
+    render::Settings st = test::volume_only();
+    st.jitter = false;
+    auto frame = [&](float S) {
+        upload_all(r, lg, 26, [&](int, std::size_t) { return S; });
+        render_at(r, cam, st, 40, 30);
+        return read_march(r);
+    };
+    const Image zero = frame(0.0f), negative = frame(-3.0f);
+    // Clamped at zero where the march consumes S: the same pixels exactly (radiance 0,
+    // transmittance unchanged), never a dark cloud with negative radiance.
+    REQUIRE(zero.w == negative.w);
+    int differ = 0;
+    for (int y = 0; y < zero.h; ++y)
+        for (int x = 0; x < zero.w; ++x)
+            for (int c = 0; c < 4; ++c) differ += zero.px(x, y)[c] != negative.px(x, y)[c];
+    CHECK(differ == 0);
+}
+
 TEST_CASE("linear density gradient: midpoint-rule error within kappa |rho'| dt^2 bounds") {
     render::Renderer& r = gl_renderer();
     const int n = 32;

@@ -19,11 +19,7 @@ const std::string kMinimal = R"({
 })";
 
 std::string with(const std::string& from, const std::string& to) {
-    std::string s = kMinimal;
-    const auto at = s.find(from);
-    REQUIRE(at != std::string::npos);
-    s.replace(at, from.size(), to);
-    return s;
+    return fulgur::test::replace_once(kMinimal, from, to);
 }
 }  // namespace
 

@@ -5,7 +5,10 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <fstream>
+#include <random>
 
 namespace fulgur::test {
 
@@ -21,6 +24,36 @@ std::filesystem::path scratch_dir(const std::string& name) {
 double relative_l2(std::span<const float> x, std::span<const float> ref) {
     REQUIRE(x.size() == ref.size());
     return core::relative_l2(x, ref);
+}
+
+std::vector<std::string> temporaries(const std::filesystem::path& dir) {
+    std::vector<std::string> out;
+    for (const auto& e : std::filesystem::directory_iterator(dir)) {
+        const std::string n = e.path().filename().string();
+        if (n.ends_with(".tmp") || n.ends_with(".lock")) out.push_back(n);
+    }
+    return out;
+}
+
+std::string replace_once(std::string text, const std::string& from, const std::string& to) {
+    const auto at = text.find(from);
+    REQUIRE(at != std::string::npos);
+    text.replace(at, from.size(), to);
+    return text;
+}
+
+std::uint64_t run_seed() {
+    static const std::uint64_t seed = [] {
+        std::uint64_t v = 0;
+        if (const char* e = std::getenv("FULGUR_TEST_SEED"))
+            v = std::strtoull(e, nullptr, 10);
+        else
+            v = (std::uint64_t(std::random_device{}()) << 32) ^ std::random_device{}();
+        std::printf("randomized loops: seed %llu (replay with FULGUR_TEST_SEED=%llu)\n", (unsigned long long)v,
+                    (unsigned long long)v);
+        return v;
+    }();
+    return seed;
 }
 
 void write_text(const std::filesystem::path& path, const std::string& text) {

@@ -34,6 +34,14 @@ std::string json_pointer_token(std::string_view key);
 /// A dotted field path as other modules' validators write it ("lightning.timing.rise_time")
 /// as a JSON pointer ("/lightning/timing/rise_time").
 std::string dotted_to_pointer(std::string_view dotted);
+/// Deepest nesting of arrays and objects a scene file may hold (a scene needs 4 levels).
+inline constexpr int kMaxJsonDepth = 32;
+
+/// Parses JSON text strictly: nesting deeper than kMaxJsonDepth, a key repeated in one
+/// object, a number outside double's range (1e400) and a UTF-16/32 byte-order mark are errors
+/// that name `file` and the field path (or byte offset) where they occur; a UTF-8 byte-order
+/// mark is skipped. Nothing recurses with the input's depth.
+nlohmann::json parse_json(std::string_view text, const std::string& file);
 
 class JsonObject {
 public:

@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <numbers>
 #include <span>
 #include <vector>
 
@@ -144,15 +145,28 @@ struct PointCtx {
 /// used; if attenuation alone cannot meet it the box is optically thick and gets the face
 /// rule (exact radial integral); if geometry cannot, the box is split 2^3.
 
+///
+/// k_g bounds the phase function's variation over all scattering angles; near |g| = 1 it
+/// grows as 1.5/(1-|g|) (150 at g = 0.99) and would split every box near the source to the
+/// deepest level. phase_variation() bounds it over the angles a box actually presents: the
+/// box is seen from the source within a cone, and for each output direction the scattering
+/// angle stays in [theta_m - alpha, theta_m + alpha]; only boxes whose cone holds a direction's
+/// forward peak (a thin pencil along each output direction) keep the full bound.
 struct Plan {
     double eps;  // tolerance
     int n_face;  // points per axis of each face-rule piece
     double k_g;  // phase-function variation bound
     double cutoff;
+    double g_ = 0.0;                                         // phase asymmetry (clamped to kMaxAbsG)
+    double f_max_ = 0.0;                                     // max over theta of |d ln p / d theta| = 3|g|/(1-g^2)
+    std::span<const glm::dvec3> dirs_;                       // unit output directions (empty: the global bound)
     std::array<double, kMaxTensorOrder + 1> geo_{}, att_{};  // a_n and c_n of the model
-    Plan(double tolerance, double g, double cut) : eps(tolerance), cutoff(cut) {
+    Plan(double tolerance, double g, double cut, std::span<const glm::dvec3> directions = {})
+        : eps(tolerance), cutoff(cut), dirs_(directions) {
         const double ag = std::min(std::fabs(g), kMaxAbsG);
         k_g = 1.5 * ag / (1.0 - ag);
+        g_ = std::clamp(g, -kMaxAbsG, kMaxAbsG);
+        f_max_ = 3.0 * ag / (1.0 - ag * ag);
         for (int n = 1; n <= kMaxTensorOrder; ++n) {
             const double lf = std::lgamma(n + 1.0), l2f = std::lgamma(2.0 * n + 1.0);
             geo_[std::size_t(n)] = std::exp(4.0 * lf - 2.0 * l2f);
@@ -160,6 +174,30 @@ struct Plan {
         }
         // Face rule: ~1.5 digits per extra point per axis (measured, docs/transport.md).
         n_face = std::clamp(2 + int(std::ceil(-std::log10(tolerance) / 1.5)), 3, 12);
+    }
+    /// |d ln p / d theta| of HG at scattering angle theta (|g|; theta from the peak).
+    double phase_slope(double theta) const noexcept {
+        const double ag = std::fabs(g_);
+        return 3.0 * ag * std::sin(theta) / (1.0 + ag * ag - 2.0 * ag * std::cos(theta));
+    }
+    /// The model's phase-variation constant for a box seen from the source within a cone of
+    /// half-angle alpha about the unit vector `axis`: k_g scaled by the largest slope over
+    /// the scattering angles the box presents to any output direction, relative to the
+    /// largest slope over all angles (k_g itself when a direction's steepest angle is inside).
+    double phase_variation(const glm::dvec3& axis, double alpha) const noexcept {
+        if (g_ == 0.0 || dirs_.empty() || !(alpha < 0.5 * std::numbers::pi)) return k_g;
+        const double ag = std::fabs(g_), steepest = std::acos(2.0 * ag / (1.0 + ag * ag));
+        double worst = 0.0;
+        for (const glm::dvec3& d : dirs_) {
+            // For g < 0 the peak is backward: HG(theta; g) = HG(pi - theta; -g).
+            const double c = std::clamp((g_ > 0.0 ? 1.0 : -1.0) * glm::dot(d, axis), -1.0, 1.0);
+            const double theta = std::acos(c);
+            const double lo = std::max(0.0, theta - alpha), hi = std::min(std::numbers::pi, theta + alpha);
+            const double f = (lo <= steepest && steepest <= hi) ? f_max_ : std::max(phase_slope(lo), phase_slope(hi));
+            worst = std::max(worst, f);
+            if (worst >= f_max_) break;
+        }
+        return k_g * std::min(1.0, worst / f_max_);
     }
     /// Largest residual of the upstream optical depth about its linear fit over a box's nodes
     /// (a kink) accepted by the tensor rule; calibrated against the Monte Carlo reference on the

@@ -1,0 +1,103 @@
+// What a bake costs, from the scene alone (scene.h, Cost): memory per stage and a lower bound
+// on time, checked against the scene's limits before anything is allocated or solved.
+#include "scene/scene.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace fulgur::scene {
+
+namespace {
+
+// Bytes per density cell while the generator runs: its weights, two automaton states and the
+// averaged counts (1 byte each), the smoothing's two float passes and the density (4 each).
+constexpr double kGeneratorBytesPerCell = 16.0;
+// A loaded NRRD: the density and the copy the range check and downsampling may make.
+constexpr double kFileBytesPerCell = 8.0;
+// Lattice-Boltzmann: D3Q19, float distributions, the next step's and the inflow (3 x 19),
+// plus per-site extinctions and sources (8 floats).
+constexpr double kLbBytesPerCell = (3.0 * 19.0 + 8.0) * 4.0;
+// Monte Carlo tallies: single, multiple and fluence sums plus the batch mean and M2 (double).
+constexpr double kMcBytesPerCellDirection = 6.0 * 8.0;
+
+// Lower bounds on time, one thread of a 2-core x86-64 (the fastest measured case of each:
+// the default storm at downsample 6 costs 4x more per cell-direction in single scattering,
+// 2x per site-step in the lattice and 8x per path in Monte Carlo; docs/hostile-inputs.md).
+constexpr double kSingleSecondsPerCellDirection = 1e-7;
+constexpr double kLbSecondsPerSiteStep = 0.5e-9;  // per site and lattice direction
+constexpr double kMcSecondsPerPath = 2e-7;
+
+core::Int3 divided(core::Int3 d, int f) { return {std::max(1, d.x / f), std::max(1, d.y / f), std::max(1, d.z / f)}; }
+double volume(core::Int3 d) { return double(d.x) * double(d.y) * double(d.z); }
+
+}  // namespace
+
+Cost estimate_cost(const Scene& s, std::size_t lights, int threads) {
+    Cost c;
+    c.lights = std::max<std::size_t>(lights, 1);
+    c.threads = threads > 0 ? threads : core::thread_count();
+    const bool file = s.cloud.kind == CloudSource::Kind::File;
+    // The NRRD header alone (bounded, checked): no voxel is read.
+    c.density_dims = file ? core::read_nrrd_header(s.cloud.file).geom.dims : s.cloud.generator.grid;
+    c.lighting_dims = divided(c.density_dims, s.lighting_downsample);
+    c.transport_dims = divided(c.density_dims, s.lighting_downsample / std::max(1, s.transport.refine));
+    const double nd = volume(c.density_dims), nl = volume(c.lighting_dims), nt = volume(c.transport_dims);
+    const double dirs = double(s.effective_directions());
+    const bool multiple = s.effects.multiple_scattering;
+    const bool lb = s.transport.solver == TransportSettings::Solver::LatticeBoltzmann;
+
+    c.density_bytes = std::uint64_t(nd * (file ? kFileBytesPerCell : kGeneratorBytesPerCell));
+    c.media_bytes = std::uint64_t((nl + nt) * 4.0 * 2.0);
+    // A worker holds its light's single and multiple S on the transport grid (float), the
+    // stored bases on the lighting grid and the Haar transform's double buffers.
+    double worker = 2.0 * dirs * nt * 4.0 + 2.0 * dirs * nl * 4.0 + 2.0 * nl * 8.0;
+    if (multiple) worker += lb ? nt * kLbBytesPerCell : nt * dirs * kMcBytesPerCellDirection;
+    c.per_thread_bytes = std::uint64_t(worker);
+    c.memory_bytes = c.density_bytes + c.media_bytes + std::uint64_t(c.threads) * c.per_thread_bytes;
+
+    double t = nt * dirs * kSingleSecondsPerCellDirection;
+    if (multiple) {
+        // The lattice needs at least as many steps as the grid is cells across for light to
+        // cross it; Monte Carlo costs at least its paths.
+        const double steps = double(std::max({c.transport_dims.x, c.transport_dims.y, c.transport_dims.z}));
+        t += lb ? nt * 19.0 * steps * kLbSecondsPerSiteStep : double(s.transport.mc_paths) * kMcSecondsPerPath;
+    }
+    c.seconds_per_light = t;
+    c.seconds = t * double(c.lights) / double(std::min<std::size_t>(std::size_t(c.threads), c.lights));
+    return c;
+}
+
+double memory_limit(const Scene& s) {
+    if (s.limits.memory_bytes > 0.0) return s.limits.memory_bytes;
+    const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
+    return pages > 0 && page > 0 ? 0.75 * double(pages) * double(page) : double(std::uint64_t(8) << 30);
+}
+
+void check_cost(const Scene& s, const Cost& c) {
+    const std::string file = s.path.empty() ? std::string("scene") : s.path.string();
+    auto dims = [](core::Int3 d) {
+        return std::to_string(d.x) + " x " + std::to_string(d.y) + " x " + std::to_string(d.z);
+    };
+    const double mem = memory_limit(s);
+    if (double(c.memory_bytes) > mem)
+        throw core::Error(
+            file + ": limits.memory_gib",
+            "the bake would need about " + core::format_bytes(double(c.memory_bytes)) + " (density " +
+                dims(c.density_dims) + ": " + core::format_bytes(double(c.density_bytes)) + "; lighting " +
+                dims(c.lighting_dims) + " and transport " + dims(c.transport_dims) +
+                " media: " + core::format_bytes(double(c.media_bytes)) + "; " + std::to_string(c.threads) +
+                " worker(s) x " + core::format_bytes(double(c.per_thread_bytes)) + "), over the limit of " +
+                core::format_bytes(mem) + (s.limits.memory_bytes > 0.0 ? "" : " (3/4 of physical memory)") +
+                "; raise \"limits\": {\"memory_gib\": ...}, use fewer threads, or a coarser grid or downsample");
+    if (c.seconds > s.limits.bake_seconds)
+        throw core::Error(file + ": limits.bake_hours",
+                          "the bake would take at least " + core::format_seconds(c.seconds) + " (" +
+                              std::to_string(c.lights) + " light(s) x " + core::format_seconds(c.seconds_per_light) +
+                              " on " + std::to_string(c.threads) + " thread(s)), over the limit of " +
+                              core::format_seconds(s.limits.bake_seconds) +
+                              "; raise \"limits\": {\"bake_hours\": ...} or ask for less (paths, grid, directions)");
+}
+
+}  // namespace fulgur::scene

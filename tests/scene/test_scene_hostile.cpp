@@ -1,0 +1,184 @@
+// Hostile scene files: each input class is refused with the file and the field (or byte) named,
+// in bounded time and memory, or handled as documented (docs/scene-format.md).
+#include "scene/scene.h"
+#include "support/test_support.h"
+
+#include <doctest/doctest.h>
+
+#include <sys/stat.h>
+
+#include <string>
+
+using fulgur::core::Error;
+using namespace fulgur::scene;
+
+namespace {
+const std::string kScene = R"({
+  "fulgur_scene": 1,
+  "name": "hostile",
+  "medium": {"extinction": 0.01, "albedo": 0.9, "g": 0.5},
+  "cloud": {"generator": {"seed": 3, "grid": [32, 32, 24], "voxel_size": 500, "base_height": 1000,
+                          "tower_radius": 2000, "anvil_radius": 4500, "anvil_offset": 500}},
+  "lights": [{"type": "point", "position": [0, 0, 1000], "intensity": 1}]
+})";
+
+std::string with(const std::string& from, const std::string& to) {
+    return fulgur::test::replace_once(kScene, from, to);
+}
+}  // namespace
+
+TEST_CASE("deeply nested JSON is refused at a fixed depth, naming the field, without recursing") {
+    // 100,000 levels once overflowed the stack in the error description (value dump).
+    const std::string deep = std::string(100000, '[') + std::string(100000, ']');
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"hostile\"", deep), "d.json"), doctest::Contains("d.json: name[0][0]"),
+                         Error);
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"hostile\"", deep), "d.json"), doctest::Contains("nesting deeper than 32"),
+                         Error);
+    const std::string objects = [] {
+        std::string s;
+        for (int i = 0; i < 100000; ++i) s += "{\"a\":";
+        return s + "1" + std::string(100000, '}');
+    }();
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"hostile\"", objects), "d.json"), doctest::Contains("name.a.a.a"), Error);
+    // A container that is merely the wrong type is described by its size, not dumped.
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"hostile\"", "[[1, 2], [3]]"), "d.json"),
+                         doctest::Contains("an array of 2 element(s)"), Error);
+}
+
+TEST_CASE("a key given twice in one object is refused, naming the field") {
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"albedo\": 0.9", "\"albedo\": 0.9, \"albedo\": 0.5"), "k.json"),
+                         doctest::Contains("k.json: medium.albedo: duplicate key"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"type\": \"point\"", "\"type\": \"point\", \"type\": \"sun\""), "k.json"),
+                         doctest::Contains("k.json: lights[0].type: duplicate key"), Error);
+    // The same key in two different objects is fine.
+    CHECK_NOTHROW(parse_scene(with("\"name\": \"hostile\"", "\"name\": \"seed\""), "k.json"));
+}
+
+TEST_CASE("a number beyond the range of a double is refused, naming the field") {
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"albedo\": 0.9", "\"albedo\": 1e400"), "n.json"),
+                         doctest::Contains("n.json: medium.albedo: number out of range"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"position\": [0, 0, 1000]", "\"position\": [0, -1e400, 1000]"), "n.json"),
+                         doctest::Contains("n.json: lights[0].position[1]: number out of range"), Error);
+    // Never nlohmann's raw text.
+    try {
+        parse_scene(with("\"albedo\": 0.9", "\"albedo\": 1e400"), "n.json");
+        FAIL("1e400 was accepted");
+    } catch (const Error& e) {
+        CHECK(std::string(e.what()).find("json.exception") == std::string::npos);
+    }
+}
+
+TEST_CASE("byte-order marks: UTF-8 is skipped, UTF-16 is refused; a NUL in a string is refused") {
+    const Scene s = parse_scene("\xEF\xBB\xBF" + kScene, "bom.json");
+    CHECK(s.name == "hostile");
+    CHECK_THROWS_WITH_AS(parse_scene("\xFF\xFE" + kScene, "u16.json"), doctest::Contains("u16.json (byte 0): UTF-16"),
+                         Error);
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"hostile\"", "\"a\\u0000b\""), "z.json"),
+                         doctest::Contains("z.json: name: the string holds a NUL"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"generator\": {", "\"file\": \"x\\u0000.nrrd\", \"nope\": {"), "z.json"),
+                         doctest::Contains("z.json: cloud.file: the string holds a NUL"), Error);
+    // A raw NUL byte is invalid JSON: the byte offset is named.
+    std::string raw = kScene;
+    raw[raw.find("hostile")] = '\0';
+    CHECK_THROWS_WITH_AS(parse_scene(raw, "raw.json"), doctest::Contains("raw.json (byte "), Error);
+}
+
+TEST_CASE("a scene is read only from a regular file of bounded size") {
+    const auto dir = fulgur::test::scratch_dir("scene_hostile_files");
+    const auto fifo = dir / "fifo.json";
+    REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
+    // A FIFO would block the reader forever; it is refused before it is opened.
+    CHECK_THROWS_WITH_AS(load_scene(fifo), doctest::Contains("is a FIFO, expected a regular scene file"), Error);
+    CHECK_THROWS_WITH_AS(load_scene(dir), doctest::Contains("is a directory"), Error);
+    // /dev/zero never ends: refused before a byte is read (it once grew to 4.7 GB).
+    CHECK_THROWS_WITH_AS(load_scene("/dev/zero"), doctest::Contains("is a character device"), Error);
+    const auto big = dir / "big.json";
+    fulgur::test::write_text(big, kScene + std::string(kMaxSceneBytes, ' '));
+    CHECK_THROWS_WITH_AS(load_scene(big), doctest::Contains("the limit is 1048576 bytes"), Error);
+    fulgur::test::write_text(dir / "ok.json", kScene);
+    CHECK(load_scene(dir / "ok.json").name == "hostile");
+}
+
+TEST_CASE("documented values that the solver cannot run are refused at parse time, naming the field") {
+    // 6 output directions are not lattice directions: the lattice-Boltzmann solver used to fail
+    // deep in the bake with no file or field named.
+    const std::string six = with("\"g\": 0.5}", "\"g\": 0.5}, \"lighting\": {\"directions\": 6}");
+    CHECK_THROWS_WITH_AS(parse_scene(six, "six.json"), doctest::Contains("six.json: lighting.directions"), Error);
+    // ... but run with Monte Carlo, without multiple scattering, or when g = 0 needs one direction.
+    const std::string mc = with("\"g\": 0.5}",
+                                "\"g\": 0.5}, \"lighting\": {\"directions\": 6}, "
+                                "\"transport\": {\"solver\": \"monte_carlo\"}");
+    CHECK(parse_scene(mc, "mc.json").effective_directions() == 6);
+    const std::string ss = with("\"g\": 0.5}",
+                                "\"g\": 0.5}, \"lighting\": {\"directions\": 6}, "
+                                "\"effects\": {\"multiple_scattering\": false}");
+    CHECK(parse_scene(ss, "ss.json").effective_directions() == 6);
+    const std::string iso = with("\"g\": 0.5}", "\"g\": 0}, \"lighting\": {\"directions\": 6}");
+    CHECK(parse_scene(iso, "iso.json").effective_directions() == 1);
+}
+
+TEST_CASE("the cost of a scene is known before anything is allocated, and refused past its limits") {
+    // A 1024^3 generator grid (documented as allowed) once died with std::bad_alloc after 8.4 GB.
+    const std::string huge = with("\"grid\": [32, 32, 24]", "\"grid\": [1024, 1024, 1024]");
+    const Scene big = parse_scene(with("\"lights\"", "\"limits\": {\"memory_gib\": 8}, \"lights\""), "big.json");
+    CHECK(big.limits.memory_bytes == 8.0 * (1ull << 30));
+    Scene s = parse_scene(huge, "huge.json");
+    const Cost c = estimate_cost(s, 1, 1);
+    // 16 bytes per cell while generating: 2^30 cells need at least 16 GiB.
+    CHECK(c.density_bytes >= (std::uint64_t(16) << 30));
+    s.limits.memory_bytes = 8.0 * (1ull << 30);
+    CHECK_THROWS_WITH_AS(make_density(s), doctest::Contains("limits.memory_gib: the bake would need about"), Error);
+    CHECK_THROWS_WITH_AS(make_density(s), doctest::Contains("raise \"limits\""), Error);
+    // The limit can be raised: the estimate then passes (nothing is allocated by the check).
+    s.limits.memory_bytes = 1e15;
+    CHECK_NOTHROW(check_cost(s, c));
+
+    // "paths": 2^40 once hung the plan's sample lights; refused by the lower bound on time.
+    const std::string mc = with("\"lights\"",
+                                "\"transport\": {\"solver\": \"monte_carlo\", \"monte_carlo\": {\"paths\": "
+                                "1099511627776}}, \"lights\"");
+    const Scene m = parse_scene(mc, "mc.json");
+    CHECK_THROWS_WITH_AS(make_density(m), doctest::Contains("limits.bake_hours: the bake would take at least"), Error);
+    // The same scene with a tiny time limit for an ordinary bake.
+    Scene small = parse_scene(kScene, "small.json");
+    CHECK_NOTHROW(check_cost(small, estimate_cost(small)));
+    small.limits.bake_seconds = 1e-9;
+    CHECK_THROWS_WITH_AS(check_cost(small, estimate_cost(small)), doctest::Contains("limits.bake_hours"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"lights\"", "\"limits\": {\"bake_hours\": 0}, \"lights\""), "z.json"),
+                         doctest::Contains("z.json: limits.bake_hours"), Error);
+}
+
+TEST_CASE("a cloud file is sized from its header: a header promising more data than the file holds is refused") {
+    const auto dir = fulgur::test::scratch_dir("scene_hostile_cost");
+    // A NRRD header claiming 1024^3 voxels over 16 bytes of data: refused by the size check,
+    // never allocated (it once asked the allocator for 4 GB).
+    fulgur::test::write_text(dir / "liar.nrrd",
+                             "NRRD0004\ntype: float\ndimension: 3\nsizes: 1024 1024 1024\nendian: little\n"
+                             "encoding: raw\n\n" +
+                                 std::string(16, '\0'));
+    fulgur::test::write_text(dir / "s.json",
+                             R"({"fulgur_scene": 1, "medium": {"extinction": 0.01}, "cloud": {"file": "liar.nrrd"},
+        "lights": [{"type": "point", "position": [0, 0, 1000]}]})");
+    const Scene s = load_scene(dir / "s.json");
+    CHECK_THROWS_WITH_AS(make_density(s), doctest::Contains("liar.nrrd (byte "), Error);
+    CHECK_THROWS_WITH_AS(make_density(s), doctest::Contains("data truncated"), Error);
+}
+
+TEST_CASE("settings that would make a bake useless are refused at parse time, naming the field") {
+    // No light scatters more than the albedo's fraction of its power: drop_below at or above
+    // it drops every light.
+    CHECK_THROWS_WITH_AS(
+        parse_scene(with("\"lights\"", "\"virtual_lights\": {\"drop_below\": 1}, \"lights\""), "d.json"),
+        doctest::Contains("d.json: virtual_lights.drop_below"), Error);
+    CHECK_THROWS_WITH_AS(
+        parse_scene(with("\"lights\"", "\"virtual_lights\": {\"drop_below\": 0.95}, \"lights\""), "d.json"),
+        doctest::Contains("drops every light"), Error);
+    CHECK_NOTHROW(parse_scene(with("\"lights\"", "\"virtual_lights\": {\"drop_below\": 0.5}, \"lights\""), "d.json"));
+    // xi keeping no coefficient: energy 0, relative_l2 1 (no |B| exceeds ||B||).
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"lights\"", "\"compression\": {\"xi\": 0}, \"lights\""), "x.json"),
+                         doctest::Contains("x.json: compression.xi"), Error);
+    CHECK_THROWS_WITH_AS(
+        parse_scene(with("\"lights\"", "\"compression\": {\"threshold\": \"relative_l2\", \"xi\": 1}, \"lights\""),
+                    "x.json"),
+        doctest::Contains("x.json: compression.xi"), Error);
+}
