@@ -17,7 +17,8 @@ std::string describe(const nlohmann::json& v) {
     return s + " (" + v.type_name() + ")";
 }
 
-// The field path of the value being parsed, kept from the parser's events ("a.b[2].c"), with
+// The field path of the value being parsed as a JSON pointer, kept from the parser's events
+// ("/a/b/2/c"), with
 // the keys each open object has seen.
 class PathTracker {
 public:
@@ -55,14 +56,14 @@ public:
         return true;
     }
 
-    /// "file: path" of the value being parsed (the file alone at the top level).
+    /// "file: pointer" of the value being parsed (the file alone at the top level).
     std::string where() const {
         std::string p;
         for (const Frame& f : frames_) {
             if (f.array)
-                p += "[" + std::to_string(f.index) + "]";
+                p += "/" + std::to_string(f.index);
             else if (f.has_key)
-                p += (p.empty() ? "" : ".") + f.key;
+                p += "/" + json_pointer_token(f.key);
         }
         return p.empty() ? file_ : file_ + ": " + p;
     }
