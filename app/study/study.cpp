@@ -254,8 +254,8 @@ int main(int argc, char** argv) {
                                                          "output directory (default ./study-output)")
                                               ->type_name("DIR");
                                           app.add_option("--only", ctx.only,
-                                                         "run only the configurations whose name matches this "
-                                                         "regular expression (frontier)")
-                                              ->type_name("REGEX");
+                                                         "run only the named configurations, comma-separated; "
+                                                         "\"P*\" names every one starting with P (frontier)")
+                                              ->type_name("NAMES");
                                       });
 }

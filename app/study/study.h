@@ -23,7 +23,7 @@ namespace fulgur::study {
 struct Context {
     std::filesystem::path output_dir = "study-output";
     bool quick = false;
-    /// --only REGEX: studies with configurations run only those whose name matches.
+    /// --only A,B,P*: studies with configurations run only those named (P*: names starting with P).
     std::string only;
     /// Prints one JSON object on one line (adds "study" if missing) and flushes.
     void summary(const std::string& name, nlohmann::json j) const;

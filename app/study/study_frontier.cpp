@@ -26,7 +26,6 @@
 #include <fstream>
 #include <map>
 #include <optional>
-#include <regex>
 #include <tuple>
 
 using namespace fulgur;
@@ -187,9 +186,21 @@ FULGUR_STUDY(frontier, "frontier",
         knob("18 dirs", "dirs18", [](scene::Scene& s) { s.directions = 18; });
     }
     if (!ctx.only.empty()) {
-        const std::regex keep(ctx.only);
-        std::erase_if(configs, [&](const Config& c) { return !std::regex_search(c.name, keep); });
-        if (configs.empty()) throw core::Error("--only", "no configuration matches \"" + ctx.only + "\"");
+        // Comma-separated names; "prefix*" keeps every name that starts with the prefix.
+        const auto keep = [&](const std::string& name) {
+            std::size_t a = 0;
+            while (a <= ctx.only.size()) {
+                const std::size_t b = std::min(ctx.only.find(',', a), ctx.only.size());
+                const std::string want = ctx.only.substr(a, b - a);
+                if (!want.empty() && want.back() == '*' ? name.starts_with(want.substr(0, want.size() - 1))
+                                                        : name == want)
+                    return true;
+                a = b + 1;
+            }
+            return false;
+        };
+        std::erase_if(configs, [&](const Config& c) { return !keep(c.name); });
+        if (configs.empty()) throw core::Error("--only", "no configuration is named \"" + ctx.only + "\"");
     }
     // A variant whose bake is the scene's own (same key) uses the scene's file.
     const basis::BakeKey base_key = bake::scene_key(base, density);
