@@ -136,7 +136,7 @@ FULGUR_STUDY(frontier, "frontier",
                 s.transport.lb_exact_orders = orders;
             };
         };
-        for (const std::pair<int, int> ro : {std::pair{1, 1}, std::pair{2, 1}, std::pair{2, 2}}) {
+        for (const std::pair<int, int>& ro : {std::pair{1, 1}, std::pair{2, 1}, std::pair{2, 2}}) {
             const int refine = ro.first, orders = ro.second;  // named copies: lambdas capture them
             const std::string l = "r" + std::to_string(refine) + (orders == 2 ? "o2" : "");
             for (const char* p : {"paper", "hybrid"})
