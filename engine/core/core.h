@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <span>
 #include <stdexcept>
@@ -222,6 +223,31 @@ public:
 
 private:
     int previous_;
+};
+
+/// One background thread that runs submitted jobs one at a time, in the order submitted,
+/// each with its parallel regions kept to `threads` threads (ScopedThreadCount): the run
+/// time's solves ahead of the frame (strikes, the sun) share the cores with the frame loop
+/// this way. A job handles its own errors (an exception escaping a job is a programmer error
+/// and terminates). Destruction lets the running job finish, drops queued ones and joins.
+class Worker {
+public:
+    explicit Worker(int threads);
+    ~Worker();
+    Worker(const Worker&) = delete;
+    Worker& operator=(const Worker&) = delete;
+
+    /// Queues `job`. With `latest_only`, jobs queued and not yet started are dropped first:
+    /// only the newest request matters (a sun that moved again before its solve began).
+    void submit(std::function<void()> job, bool latest_only = false);
+    /// While paused, no queued job starts; the running one finishes.
+    void set_paused(bool paused);
+    /// True while a job runs or is queued.
+    bool busy() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
 };
 
 /// Calls fn(i) for i in [begin, end) over thread_count() threads with a static schedule.

@@ -6,11 +6,9 @@
 
 #include <algorithm>
 #include <condition_variable>
-#include <deque>
 #include <exception>
 #include <map>
 #include <mutex>
-#include <thread>
 #include <utility>
 
 namespace fulgur::runtime {
@@ -133,61 +131,37 @@ struct StrikeSolver::Impl {
     const core::Grid3<float>& density;
     const bake::Media& media;
     StrikeSolveOptions options;
-    int threads = 1;
 
     mutable std::mutex mu;
-    std::condition_variable cv, done_cv;
-    std::deque<std::pair<Key, lightning::Bolt>> queue;
+    std::condition_variable done_cv;
     std::map<Key, Entry> entries;
     std::vector<double> latencies;
-    bool stop = false, paused = false;
-    std::thread worker;
+    core::Worker worker;  // last: its jobs use the members above until it is joined
 
     Impl(const scene::Scene& s, const core::Grid3<float>& d, const bake::Media& m, const StrikeSolveOptions& o, int t)
-        : scene(s), density(d), media(m), options(o), threads(t) {
-        worker = std::thread([this] { run(); });
-    }
-    ~Impl() {
+        : scene(s), density(d), media(m), options(o), worker(t) {}
+
+    void solve(const Key& key, const lightning::Bolt& bolt) {
+        std::shared_ptr<const StrikeLight> light;
+        std::exception_ptr error;
+        try {
+            StrikeSolveOptions o = options;
+            o.seed = core::hash_seed(options.seed, key.first);
+            light = std::make_shared<const StrikeLight>(solve_strike(scene, density, media, bolt, o));
+        } catch (...) {
+            error = std::current_exception();
+        }
         {
             std::lock_guard<std::mutex> lock(mu);
-            stop = true;
+            const auto it = entries.find(key);
+            if (it != entries.end()) {  // not forgotten meanwhile
+                it->second.light = std::move(light);
+                it->second.error = error;
+                it->second.done = true;
+                latencies.push_back(it->second.requested.seconds());
+            }
         }
-        cv.notify_all();
-        worker.join();
-    }
-
-    void run() {
-        const core::ScopedThreadCount share(threads);
-        for (;;) {
-            std::pair<Key, lightning::Bolt> job;
-            {
-                std::unique_lock<std::mutex> lock(mu);
-                cv.wait(lock, [&] { return stop || (!paused && !queue.empty()); });
-                if (stop) return;
-                job = std::move(queue.front());
-                queue.pop_front();
-            }
-            std::shared_ptr<const StrikeLight> light;
-            std::exception_ptr error;
-            try {
-                StrikeSolveOptions o = options;
-                o.seed = core::hash_seed(options.seed, job.first.first);
-                light = std::make_shared<const StrikeLight>(solve_strike(scene, density, media, job.second, o));
-            } catch (...) {
-                error = std::current_exception();
-            }
-            {
-                std::lock_guard<std::mutex> lock(mu);
-                const auto it = entries.find(job.first);
-                if (it != entries.end()) {  // not forgotten meanwhile
-                    it->second.light = std::move(light);
-                    it->second.error = error;
-                    it->second.done = true;
-                    latencies.push_back(it->second.requested.seconds());
-                }
-            }
-            done_cv.notify_all();
-        }
+        done_cv.notify_all();
     }
 };
 
@@ -201,14 +175,13 @@ StrikeSolver::~StrikeSolver() = default;
 
 void StrikeSolver::request(std::uint64_t seed, double time, const lightning::Bolt& bolt) {
     Impl& im = *impl_;
+    const Impl::Key key{seed, time};
     {
         std::lock_guard<std::mutex> lock(im.mu);
-        const Impl::Key key{seed, time};
         if (im.entries.count(key)) return;
         im.entries[key];
-        im.queue.emplace_back(key, bolt);
     }
-    im.cv.notify_one();
+    im.worker.submit([&im, key, bolt] { im.solve(key, bolt); });
 }
 
 std::shared_ptr<const StrikeLight> StrikeSolver::get(std::uint64_t seed, double time) const {
@@ -227,13 +200,7 @@ std::shared_ptr<const StrikeLight> StrikeSolver::wait(std::uint64_t seed, double
     return it->second.light;
 }
 
-void StrikeSolver::set_paused(bool paused) {
-    {
-        std::lock_guard<std::mutex> lock(impl_->mu);
-        impl_->paused = paused;
-    }
-    impl_->cv.notify_all();
-}
+void StrikeSolver::set_paused(bool paused) { impl_->worker.set_paused(paused); }
 
 void StrikeSolver::forget_before(double time) {
     std::lock_guard<std::mutex> lock(impl_->mu);

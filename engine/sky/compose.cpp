@@ -2,10 +2,8 @@
 // (sky.h).
 #include "sky/sky.h"
 
-#include <condition_variable>
 #include <exception>
 #include <mutex>
-#include <thread>
 
 namespace fulgur::sky {
 
@@ -67,55 +65,28 @@ struct SunResolver::Impl {
     const core::Grid3<float>& density;
     const bake::Media& media;
     SolveSettings settings;
-    int threads = 1;
 
     mutable std::mutex mu;
-    std::condition_variable cv;
-    std::optional<glm::dvec3> pending;
     std::optional<SunSolve> ready;
     std::exception_ptr error;
-    bool working = false, stop = false;
-    std::thread worker;
+    core::Worker worker;  // last: its jobs use the members above until it is joined
 
     Impl(const scene::Scene& s, const core::Grid3<float>& d, const bake::Media& m, const SolveSettings& st, int t)
-        : scene(s), density(d), media(m), settings(st), threads(t) {
-        worker = std::thread([this] { run(); });
-    }
-    ~Impl() {
-        {
-            std::lock_guard<std::mutex> lock(mu);
-            stop = true;
-        }
-        cv.notify_all();
-        worker.join();
-    }
+        : scene(s), density(d), media(m), settings(st), worker(t) {}
 
-    void run() {
-        const core::ScopedThreadCount share(threads);
-        for (;;) {
-            glm::dvec3 d;
-            {
-                std::unique_lock<std::mutex> lock(mu);
-                cv.wait(lock, [&] { return stop || pending.has_value(); });
-                if (stop) return;
-                d = *pending;
-                pending.reset();
-                working = true;
-            }
-            std::optional<SunSolve> result;
-            std::exception_ptr e;
-            try {
-                result = solve_sun(scene, density, media, settings, d);
-            } catch (...) {
-                e = std::current_exception();
-            }
-            std::lock_guard<std::mutex> lock(mu);
-            working = false;
-            if (e)
-                error = e;
-            else
-                ready = std::move(result);  // a newer finished solve replaces an untaken older one
+    void solve(const glm::dvec3& d) {
+        std::optional<SunSolve> result;
+        std::exception_ptr e;
+        try {
+            result = solve_sun(scene, density, media, settings, d);
+        } catch (...) {
+            e = std::current_exception();
         }
+        std::lock_guard<std::mutex> lock(mu);
+        if (e)
+            error = e;
+        else
+            ready = std::move(result);  // a newer finished solve replaces an untaken older one
     }
 };
 
@@ -126,11 +97,8 @@ SunResolver::SunResolver(const scene::Scene& s, const core::Grid3<float>& densit
 SunResolver::~SunResolver() = default;
 
 void SunResolver::request(const glm::dvec3& direction) {
-    {
-        std::lock_guard<std::mutex> lock(impl_->mu);
-        impl_->pending = direction;
-    }
-    impl_->cv.notify_all();
+    Impl& im = *impl_;
+    im.worker.submit([&im, direction] { im.solve(direction); }, /*latest_only=*/true);
 }
 
 std::optional<SunSolve> SunResolver::take() {
@@ -145,9 +113,6 @@ std::optional<SunSolve> SunResolver::take() {
     return out;
 }
 
-bool SunResolver::busy() const {
-    std::lock_guard<std::mutex> lock(impl_->mu);
-    return impl_->working || impl_->pending.has_value();
-}
+bool SunResolver::busy() const { return impl_->worker.busy(); }
 
 }  // namespace fulgur::sky
