@@ -239,7 +239,7 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
     {
         const int strikes = ctx.quick ? 2 : 5;
         double paper_ms = 0.0;
-        for (const char* name : {"paper", "hybrid", "per_strike", "per_strike_mc"}) {
+        for (std::string_view name : scene::kInteractiveQualityPresets) {
             core::set_thread_count(ctx.max_threads);
             std::vector<double> frame_ms, solve_s;
             for (int k = 0; k < strikes; ++k) {

@@ -99,4 +99,14 @@ bool CommandLine::parse(const std::vector<std::string>& args) {
     return true;
 }
 
+CLI::Option* add_choice(CLI::App& app, const std::string& option, std::function<void(const std::string&)> set,
+                        std::span<const std::string_view> names, const std::string& help) {
+    std::vector<std::string> allowed(names.begin(), names.end());
+    std::string list;
+    for (std::size_t i = 0; i < allowed.size(); ++i)
+        list += (i == 0 ? "" : i + 1 == allowed.size() ? " or " : ", ") + allowed[i];
+    return app.add_option_function<std::string>(option, std::move(set), help + ": " + list)
+        ->check(CLI::IsMember(std::move(allowed)));
+}
+
 }  // namespace fulgur::app

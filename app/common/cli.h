@@ -15,8 +15,10 @@
 #include <functional>
 #include <limits>
 #include <optional>
+#include <span>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <type_traits>
 #include <vector>
 
@@ -46,6 +48,11 @@ ImageSize parse_size(const std::string& v, const char* tool, const char* what, i
 
 /// CLI::ExistingFile without its ":FILE" suffix in --help (the option's type name says FILE).
 inline CLI::Validator existing_file() { return CLI::Validator(CLI::ExistingFile).description(""); }
+
+/// An option whose value is one of `names` (e.g. scene::kQualityPresets); `help` is followed
+/// by the list, and any other value is a usage error naming the option.
+CLI::Option* add_choice(CLI::App& app, const std::string& option, std::function<void(const std::string&)> set,
+                        std::span<const std::string_view> names, const std::string& help);
 
 /// A tool's command line over CLI::App: -h/--help, the exit statuses in the --help footer,
 /// the last value of a repeated option wins, and every error is a core::Error(tool, reason)

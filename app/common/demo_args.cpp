@@ -2,6 +2,7 @@
 
 #include "cli.h"
 #include "core/core.h"
+#include "scene/scene.h"
 
 namespace fulgur::app {
 
@@ -53,10 +54,9 @@ void declare(CommandLine& cli, DemoArgs& a) {
         ->type_name("H");
     app.add_flag_callback(
         "--no-dither", [&a] { a.dither = false; }, "turn the 8-bit dither off (smaller PNGs)");
-    app.add_option_function<std::string>(
-           "--quality", [&a](const std::string& s) { a.quality = s; },
-           "how frames are lit: paper, hybrid, per_strike or per_strike_mc (default: the scene's \"quality\")")
-        ->check(CLI::IsMember({"paper", "hybrid", "per_strike", "per_strike_mc"}))
+    add_choice(
+        app, "--quality", [&a](const std::string& s) { a.quality = s; }, scene::kInteractiveQualityPresets,
+        "how frames are lit (default: the scene's \"quality\")")
         ->type_name("PRESET");
 }
 

@@ -2,6 +2,7 @@
 
 #include "cli.h"
 #include "core/core.h"
+#include "scene/scene.h"
 
 #include <algorithm>
 #include <array>
@@ -99,12 +100,9 @@ void declare(CommandLine& cli, ShotArgs& a) {
     cli.number("--truth-paths", a.truth_paths, "Monte Carlo paths of the truth (noise ~ 1/sqrt(N))",
                std::uint64_t(1000), std::uint64_t(1) << 34)
         ->type_name("N");
-    app.add_option_function<std::string>(
-           "--quality", [&a](const std::string& s) { a.quality = s; },
-           "how the frame is lit: paper, hybrid, per_strike, per_strike_mc or reference (default: the scene's "
-           "\"quality\"); a "
-           "strike's own solve is waited for")
-        ->check(CLI::IsMember({"paper", "hybrid", "per_strike", "per_strike_mc", "reference"}))
+    add_choice(
+        app, "--quality", [&a](const std::string& s) { a.quality = s; }, scene::kQualityPresets,
+        "how the frame is lit, its strike's own solve waited for (default: the scene's \"quality\")")
         ->type_name("PRESET");
 }
 

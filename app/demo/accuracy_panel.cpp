@@ -13,7 +13,12 @@ namespace fulgur::app {
 
 namespace {
 
-constexpr std::array<const char*, 4> kPresets = {"paper", "hybrid", "per_strike", "per_strike_mc"};
+// ImGui::Combo's item list: the run-time presets' names (NUL-terminated views into literals).
+const std::array<const char*, scene::kInteractiveQualityPresets.size()> kPresets = [] {
+    std::array<const char*, scene::kInteractiveQualityPresets.size()> names{};
+    for (std::size_t i = 0; i < names.size(); ++i) names[i] = scene::kInteractiveQualityPresets[i].data();
+    return names;
+}();
 
 double wall_seconds() {
     return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();

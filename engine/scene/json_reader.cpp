@@ -230,7 +230,7 @@ std::string JsonObject::string_or(std::string_view key, std::string fallback) {
 }
 
 std::string JsonObject::choice_or(std::string_view key, std::string fallback,
-                                  std::initializer_list<std::string_view> allowed) {
+                                  std::span<const std::string_view> allowed) {
     std::string list;
     for (auto a : allowed) list += (list.empty() ? "\"" : ", \"") + std::string(a) + "\"";
     const nlohmann::json* v = find(key);

@@ -333,12 +333,10 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
     if (auto e = root.optional_object("effects")) parse_effects(*e, s.effects);
     if (auto l = root.optional_object("lightning")) parse_lightning(*l, s);
     if (root.is_string("quality")) {
-        const std::string name =
-            root.choice_or("quality", "paper", {"paper", "hybrid", "per_strike", "per_strike_mc", "reference"});
+        const std::string name = root.choice_or("quality", "paper", kQualityPresets);
         s.quality = quality_preset(name);
     } else if (auto q = root.optional_object("quality")) {
-        s.quality = quality_preset(
-            q->choice_or("preset", "paper", {"paper", "hybrid", "per_strike", "per_strike_mc", "reference"}));
+        s.quality = quality_preset(q->choice_or("preset", "paper", kQualityPresets));
         Quality& k = s.quality;
         constexpr std::int64_t kMaxPaths = std::int64_t(1) << 32;
         k.single_paths = std::uint64_t(q->integer_or("single_paths", std::int64_t(k.single_paths), 1000, kMaxPaths));
@@ -405,19 +403,8 @@ Scene load_scene(const std::filesystem::path& path) {
 }
 
 std::string_view to_string(Quality::Preset p) noexcept {
-    switch (p) {
-        case Quality::Preset::Paper:
-            return "paper";
-        case Quality::Preset::Hybrid:
-            return "hybrid";
-        case Quality::Preset::PerStrike:
-            return "per_strike";
-        case Quality::Preset::PerStrikeMc:
-            return "per_strike_mc";
-        case Quality::Preset::Reference:
-            return "reference";
-    }
-    return "?";
+    const auto i = std::size_t(p);
+    return i < kQualityPresets.size() ? kQualityPresets[i] : "?";
 }
 
 Quality quality_preset(std::string_view name, std::string_view where) {
@@ -447,9 +434,9 @@ Quality quality_preset(std::string_view name, std::string_view where) {
         q.multiple = "monte_carlo";
         q.multiple_paths = 4'000'000;
     } else {
-        throw core::Error(
-            std::string(where),
-            "must be one of paper, hybrid, per_strike, per_strike_mc, reference; got \"" + std::string(name) + "\"");
+        std::string list;
+        for (std::string_view n : kQualityPresets) list += (list.empty() ? "" : ", ") + std::string(n);
+        throw core::Error(std::string(where), "must be one of " + list + "; got \"" + std::string(name) + "\"");
     }
     return q;
 }

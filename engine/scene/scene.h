@@ -16,10 +16,12 @@
 
 #include <glm/vec3.hpp>
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -153,7 +155,15 @@ struct Quality {
     int exact_orders = 0;
 };
 
-/// The preset's name in scene files ("paper", "hybrid", "per_strike", "per_strike_mc", "reference").
+/// Every preset's name in scene files, indexed by Quality::Preset, cheapest first.
+inline constexpr std::array<std::string_view, 5> kQualityPresets = {"paper", "hybrid", "per_strike", "per_strike_mc",
+                                                                    "reference"};
+/// The presets a running frame loop can switch to: all but reference, whose per-strike solve
+/// takes minutes.
+inline constexpr std::span<const std::string_view> kInteractiveQualityPresets{kQualityPresets.data(), 4};
+static_assert(std::size_t(Quality::Preset::Reference) == kQualityPresets.size() - 1);
+
+/// The preset's name in scene files (kQualityPresets).
 std::string_view to_string(Quality::Preset p) noexcept;
 /// The preset with its default knobs; throws core::Error naming `where` for an unknown name.
 Quality quality_preset(std::string_view name, std::string_view where = "quality");

@@ -14,6 +14,7 @@
 #include <initializer_list>
 #include <optional>
 #include <set>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -61,7 +62,10 @@ public:
     std::string string(std::string_view key);
     std::string string_or(std::string_view key, std::string fallback);
     /// One of `allowed`; the error lists them.
-    std::string choice_or(std::string_view key, std::string fallback, std::initializer_list<std::string_view> allowed);
+    std::string choice_or(std::string_view key, std::string fallback, std::span<const std::string_view> allowed);
+    std::string choice_or(std::string_view key, std::string fallback, std::initializer_list<std::string_view> allowed) {
+        return choice_or(key, std::move(fallback), std::span(allowed.begin(), allowed.size()));
+    }
     glm::dvec3 vec3(std::string_view key, Range each);
     glm::dvec3 vec3_or(std::string_view key, glm::dvec3 fallback, Range each);
     core::Int3 int3(std::string_view key, int lo, int hi);
