@@ -47,8 +47,9 @@ namespace fulgur::render {
 using GLProc = void (*)();
 using GetProcAddress = GLProc (*)(const char* name);
 
-/// The shader directory: $FULGUR_SHADER_DIR when set, else the source tree's shaders/
-/// (compile-time default).
+/// The shader directory: $FULGUR_SHADER_DIR when set, else the source tree's shaders/ when it
+/// exists, else the installed <prefix>/share/fulgur/shaders (both fixed at compile time; an
+/// installed package moved elsewhere passes Fulgur_SHADER_DIR from its CMake config).
 std::filesystem::path default_shader_dir();
 
 // ---------------------------------------------------------------------------------------

@@ -27,7 +27,11 @@ namespace fulgur::render {
 
 std::filesystem::path default_shader_dir() {
     if (const char* env = std::getenv("FULGUR_SHADER_DIR"); env && *env) return env;
-    return FULGUR_SHADER_DIR;
+    // The source tree's shaders while it exists (the build tree's tools and tests), else
+    // where `cmake --install` put them (an installed engine used from another project).
+    std::error_code ec;
+    if (std::filesystem::is_directory(FULGUR_SHADER_DIR, ec)) return FULGUR_SHADER_DIR;
+    return FULGUR_INSTALLED_SHADER_DIR;
 }
 
 namespace {

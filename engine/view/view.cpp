@@ -62,7 +62,8 @@ StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::opti
         sun_ = scene_.sun;
         sun_transmittance_ = sky::sun_transmittance(density_, scene_.medium.extinction, static_.sun_direction);
     }
-    renderer_ = std::make_unique<render::Renderer>(gl);
+    renderer_ = std::make_unique<render::Renderer>(
+        gl, setup.shader_dir.empty() ? render::default_shader_dir() : setup.shader_dir);
     renderer_->set_volume({.density = &density_, .extinction = scene_.medium.extinction});
 }
 

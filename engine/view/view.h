@@ -72,8 +72,11 @@ struct FrameReport {
     double wall_ms = 0.0;  ///< the whole frame: reconstruction + upload + render
 };
 
-/// How a view gets its static light.
+/// How a view gets its static light, and its renderer's shaders.
 struct StaticSetup {
+    /// The renderer's shaders (empty: render::default_shader_dir()); an installed engine's
+    /// users pass the package's Fulgur_SHADER_DIR.
+    std::filesystem::path shader_dir;
     sky::CacheOptions cache;                      ///< where the sun's and the sky's solves are cached
     std::function<void(const std::string&)> say;  ///< told what is read or solved
     std::optional<sky::ScenePlan> plan;           ///< the scene's plan when already made (else made here)
