@@ -5,6 +5,7 @@
 #include "common/view_cli.h"
 #include "core/core.h"
 #include "demo/accuracy_panel.h"
+#include "demo/plots.h"
 #include "demo/shell.h"
 #include "platform/platform.h"
 #include "render/render.h"
@@ -260,6 +261,8 @@ int main(int argc, char** argv) {
         if (args.quality) view.set_quality(scene::quality_preset(*args.quality));
         // The quality section: preset, its costs, the frame's error against a reference.
         app::AccuracyPanel accuracy(view);
+        app::FrameTimePlots frame_plots;
+        app::FlashPlot flash_plot;
         while (shell.begin_frame(orbit)) {
             // --solve-direct: ask for the direct solve of the second frame.
             if (solve_direct_at_start && shell.frames() == 1)
@@ -280,6 +283,7 @@ int main(int argc, char** argv) {
             ImGui::SliderFloat("time scale", &slow, 0.01f, 1.0f, "%.2f", ImGuiSliderFlags_Logarithmic);
             if (ImGui::IsItemHovered())
                 ImGui::SetTooltip("storm seconds per wall second (slow motion: a flash decays in ~12 ms)");
+            if (has_lightning) flash_plot.draw(view.pipeline().storm(), t);
             {
                 lightning::BoltParams& b = lp.bolt;
                 int kind = int(b.kind);
@@ -316,11 +320,17 @@ int main(int argc, char** argv) {
             ImGui::Separator();
             accuracy.draw(rep);
             ImGui::Separator();
-            ImGui::TextUnformatted("Frame times (ms)");
-            ImGui::Text("bolt %.2f  sources %.2f  splat %.2f", rep.stages.bolt, rep.stages.sources, rep.stages.splat);
-            ImGui::Text("accumulate %.2f  inverse Haar %.2f", rep.stages.accumulate, rep.stages.inverse_haar);
-            ImGui::Text("upload %.2f  ray march %.2f  GPU total %.2f", rep.gpu.wall.upload, rep.gpu.wall.march,
-                        rep.gpu.wall.total);
+            ImGui::TextUnformatted("Frame times, last 240 frames (ms)");
+            frame_plots.draw();
+            if (ImGui::TreeNode("this frame's stages")) {
+                ImGui::Text("bolt %.2f  sources %.2f  splat %.2f", rep.stages.bolt, rep.stages.sources,
+                            rep.stages.splat);
+                ImGui::Text("accumulate %.2f  inverse Haar %.2f  strike light %.2f", rep.stages.accumulate,
+                            rep.stages.inverse_haar, rep.stages.strike_light);
+                ImGui::Text("upload %.2f  ray march %.2f  GPU total %.2f", rep.gpu.wall.upload, rep.gpu.wall.march,
+                            rep.gpu.wall.total);
+                ImGui::TreePop();
+            }
             ImGui::End();
             // Cross-section of the radiance S (paper Fig. 6(b,d)), in its own window at the
             // bottom right (the panel fills a 720-pixel-high window already).
@@ -383,6 +393,7 @@ int main(int argc, char** argv) {
             opt.settings.frame_index++;
             const render::Camera cam = view::default_camera(view.density(), orbit.az, orbit.el, orbit.dist);
             rep = view.render(cam, t, shell.width(), shell.height(), opt, accuracy.shown_field());
+            frame_plots.add(rep);
             shell.end_frame();
         }
     } catch (const std::exception& e) {
