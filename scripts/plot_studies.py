@@ -11,9 +11,18 @@ OUT_DIR (default: docs/images):
   lb_vs_truth.csv  -> lb_vs_truth.{png,svg}: the lattice's multiple-scattering error and ratio
                       of totals against the truth per light and lattice, and per band of hop
                       optical depth.
+  lb_convergence.csv -> lb_convergence.{png,svg}: the sun-lit lattice's total density per site
+                      and its relative change per step (log), against 2N steps.
+  lb_vs_mc_profile.csv -> lb_vs_mc_profile.{png,svg}: S in the light's column against height,
+                      Monte Carlo and the lattice's variants (log).
+  runtime_accuracy.csv -> runtime_accuracy.{png,svg}: the basis method against the direct solve
+                      per strike, split into splat and basis errors (log).
+  runtime_accuracy_spacing.csv -> runtime_accuracy_spacing.{png,svg}: the splat's error against
+                      the virtual-light spacing (log-log).
 Run with /usr/bin/python3 (Debian's matplotlib lives there).
 """
 import csv
+import math
 import sys
 from pathlib import Path
 
@@ -21,6 +30,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
 
 PRESET_STYLE = {
     "paper": ("o", "tab:blue"),
@@ -42,6 +52,22 @@ def save(fig, out_dir, name):
         fig.savefig(out_dir / f"{name}.{ext}", dpi=130)
     plt.close(fig)
     print(f"wrote {out_dir / name}.png and .svg")
+
+
+def finish_single(fig, ax, title, out_dir, name, plain_ticks=()):
+    """Grid, legend outside the data on the right, title, and save; `plain_ticks` lists the
+    log axes ("x", "y") whose ticks read as plain numbers (5, 10, 50) instead of powers of 10."""
+    for axis in plain_ticks:
+        plain = matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}")
+        getattr(ax, axis + "axis").set_major_formatter(plain)
+        getattr(ax, axis + "axis").set_minor_formatter(matplotlib.ticker.NullFormatter())
+        if axis == "y" and ax.get_yscale() == "log":  # 5, 10, 20, 50, 100: ticks on a short span
+            ax.yaxis.set_major_locator(matplotlib.ticker.LogLocator(subs=(1.0, 2.0, 5.0)))
+    ax.grid(True, which="both" if plain_ticks else "major", color="0.9")
+    ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False, fontsize=8)
+    ax.set_title(title)
+    fig.tight_layout()
+    save(fig, out_dir, name)
 
 
 # --- frontier -----------------------------------------------------------------------------
@@ -139,18 +165,150 @@ def plot_lb_vs_truth(study, out_dir):
     save(fig, out_dir, "lb_vs_truth")
 
 
+# --- lattice convergence -----------------------------------------------------------------
+
+
+def plot_lb_convergence(study, out_dir):
+    with open(study / "lb_convergence.csv", newline="") as f:
+        reader = csv.reader(f)
+        header = next(reader)
+        data = [[float(v) for v in row] for row in reader]
+    steps = [row[0] for row in data]
+    two_n = None
+    summary = study / "lb_convergence_summary.csv"
+    if summary.exists():
+        two_n = float(read(summary)[0]["two_N"])
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.8))
+    ymax = 0.0
+    for k, label in enumerate(header[1:], start=1):
+        ys = [row[k] for row in data]
+        style = "--" if "0.85" in label else "-"
+        axes[0].plot(steps, ys, style, lw=1.3, label=label)
+        if "published" not in label:  # the published collision may blow up: keep the others readable
+            ymax = max([ymax] + [y for y in ys if math.isfinite(y)])
+        change = [abs(ys[t] - ys[t - 2]) / (2 * abs(ys[t])) if t >= 2 and ys[t] else float("nan") for t in range(len(ys))]
+        axes[1].plot(steps, change, style, lw=1.1, label=label)
+    axes[0].set_ylim(0, 1.15 * ymax)
+    axes[0].set_ylabel("total lattice density per site")
+    axes[1].set_yscale("log")
+    axes[1].set_ylim(bottom=1e-8)
+    axes[1].axhline(1e-4, color="tab:red", lw=0.8, ls=":")
+    axes[1].annotate("default tolerance 1e-4", (steps[-1], 1e-4), textcoords="offset points", xytext=(-120, 4),
+                     fontsize=8, color="tab:red")
+    axes[1].set_ylabel("|M(t) - M(t-2)| / 2M(t)")
+    for ax in axes:
+        ax.set_xlabel("lattice step")
+        ax.set_xlim(left=0)
+        ax.grid(True, which="major", color="0.9")
+        if two_n:
+            ax.axvline(two_n, color="0.5", lw=0.8, ls="--")
+            ax.annotate("2N", (two_n, ax.get_ylim()[1]), textcoords="offset points", xytext=(3, -12), fontsize=8)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.93), ncol=3, frameon=False, fontsize=8)
+    fig.suptitle("Sun-lit lattice on the study cloud: convergence (cf. Geist 2004, Fig. 5)", y=0.99)
+    fig.tight_layout(rect=(0, 0, 1, 0.87))
+    save(fig, out_dir, "lb_convergence")
+
+
+# --- S in the light's column ---------------------------------------------------------------
+
+
+def plot_lb_vs_mc_profile(study, out_dir):
+    rows = read(study / "lb_vs_mc_profile.csv")
+    z = [float(r["z_m"]) / 1000 for r in rows]
+    cloud = [float(r["density"]) > 0 for r in rows]
+    base = min((zz for zz, c in zip(z, cloud) if c), default=None)
+    fig, ax = plt.subplots(figsize=(9, 5.2))
+
+    def col(name):
+        return [float(r[name]) if c else float("nan") for r, c in zip(rows, cloud)]
+
+    mc1, mcm, s1 = col("mc_single"), col("mc_multiple"), col("S1")
+    ax.plot(z, [a + b for a, b in zip(mc1, mcm)], "o-", color="black", ms=3, label="Monte Carlo total")
+    ax.plot(z, mcm, "o-", color="0.5", ms=3, label="Monte Carlo multiple")
+    ax.plot(z, s1, "--", color="tab:blue", label="exact single S1")
+    for name, colour, label in (("lb_multiple_physical", "tab:red", "physical"),
+                                ("lb_multiple_conservative", "tab:green", "conservative")):
+        ax.plot(z, [a + b for a, b in zip(s1, col(name))], "-", color=colour, label=f"S1 + LB {label}")
+    ax.plot(z, col("lb_multiple_physical"), ":", color="tab:red", label="LB physical multiple")
+    for name in [k for k in rows[0] if k.startswith("lb_multiple_physical_")]:
+        ax.plot(z, col(name), ":", lw=1.2, label="LB physical multiple, " + name[len("lb_multiple_physical_"):]
+                .replace("_", " "))
+    ax.set_yscale("log")
+    ax.set_ylim(bottom=1e-11)  # S1 falls to ~1e-20 at the top: keep the multiple scattering readable
+    if base is not None:
+        ax.axvline(base, color="0.5", lw=0.8, ls="--")
+        ax.annotate("cloud base", (base, 1e-11), textcoords="offset points", xytext=(3, 6), fontsize=8)
+    ax.set_xlabel("height (km)")
+    ax.set_ylabel("S, mean over directions (W m$^{-2}$ sr$^{-1}$)")
+    finish_single(fig, ax, "S in the light's column (default storm, 500 m voxels)", out_dir, "lb_vs_mc_profile")
+
+
+# --- the basis method against the direct solve ----------------------------------------------
+
+
+def plot_runtime_accuracy(study, out_dir):
+    rows = read(study / "runtime_accuracy.csv")
+    seeds = [int(float(r["seed"])) for r in rows]
+    fig, ax = plt.subplots(figsize=(9, 4.8))
+    for key, label, style in (("err_single", "single scattering", "s--"),
+                              ("err_multiple", "multiple scattering", "^--"),
+                              ("splat_V_vs_D", "splat (virtual lights vs sources, both solved directly)", "D-"),
+                              ("basis_R_vs_V", "basis (reconstruction vs virtual lights solved directly)", "v:")):
+        ax.plot(seeds, [100 * float(r[key]) for r in rows], style, label=label)
+    # The total last, hollow, over the splat it nearly equals.
+    ax.plot(seeds, [100 * float(r["err_total"]) for r in rows], "o-", color="black", mfc="none", ms=9, lw=0.8,
+            label="total", zorder=4)
+    ax.set_yscale("log")
+    ax.axhline(5, color="tab:red", lw=0.8, ls=":")
+    ax.annotate("aim 5%", (seeds[0], 5), textcoords="offset points", xytext=(2, 3), fontsize=8, color="tab:red")
+    ax.set_xticks(seeds)
+    ax.set_xlabel("strike (seed)")
+    ax.set_ylabel("relative L2 error of S over the cloud (%)")
+    finish_single(fig, ax, "Basis method against the direct solve, default storm, return stroke", out_dir,
+                  "runtime_accuracy", plain_ticks=("y",))
+
+
+def plot_runtime_accuracy_spacing(study, out_dir):
+    rows = read(study / "runtime_accuracy_spacing.csv")
+    fig, ax = plt.subplots(figsize=(9, 4.8))
+    for seed in dict.fromkeys(r["seed"] for r in rows):
+        sel = [r for r in rows if r["seed"] == seed]
+        ax.plot([float(r["h_usr"]) for r in sel], [100 * float(r["splat_total"]) for r in sel], "o-",
+                label=f"strike {int(float(seed))}")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.axhline(5, color="tab:red", lw=0.8, ls=":")
+    ax.annotate("aim 5%", (min(float(r["h_usr"]) for r in rows), 5), textcoords="offset points", xytext=(2, 3),
+                fontsize=8, color="tab:red")
+    for key, text in (("scene_h_usr", "scene's h_usr"), ("lighting_voxel_m", "lighting voxel")):
+        if key in rows[0]:
+            x = float(rows[0][key])
+            ax.axvline(x, color="0.5", lw=0.8, ls="--")
+            ax.annotate(text, (x, ax.get_ylim()[1]), textcoords="offset points", xytext=(3, -12), fontsize=8)
+    ax.set_xticks(sorted({float(r["h_usr"]) for r in rows}))  # the spacings measured
+    ax.set_xlabel("virtual-light spacing h_usr (m)")
+    ax.set_ylabel("splat error: relative L2 of S over the cloud (%)")
+    finish_single(fig, ax, "Splat error against virtual-light spacing (lights solved directly, no compression)",
+                  out_dir, "runtime_accuracy_spacing", plain_ticks=("x", "y"))
+
+
 def main():
     if len(sys.argv) < 2:
         sys.exit(__doc__)
     study = Path(sys.argv[1])
     out_dir = Path(sys.argv[2]) if len(sys.argv) > 2 else Path(__file__).resolve().parent.parent / "docs/images"
     drawn = 0
-    for name, fn in (("frontier.csv", plot_frontier), ("lb_vs_truth.csv", plot_lb_vs_truth)):
+    tables = (("frontier.csv", plot_frontier), ("lb_vs_truth.csv", plot_lb_vs_truth),
+              ("lb_convergence.csv", plot_lb_convergence), ("lb_vs_mc_profile.csv", plot_lb_vs_mc_profile),
+              ("runtime_accuracy.csv", plot_runtime_accuracy),
+              ("runtime_accuracy_spacing.csv", plot_runtime_accuracy_spacing))
+    for name, fn in tables:
         if (study / name).exists():
             fn(study, out_dir)
             drawn += 1
     if drawn == 0:
-        sys.exit(f"{study}: no table this script draws (frontier.csv, lb_vs_truth.csv)")
+        sys.exit(f"{study}: no table this script draws ({', '.join(name for name, _ in tables)})")
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
-// fulgur-study: accuracy/time studies that write CSV tables and SVG plots.
+// fulgur-study: accuracy/time studies that write CSV tables (scripts/plot_studies.py draws them).
 //
 // Each study file registers itself with FULGUR_STUDY(name, "help") { ... } and writes its
-// results into ctx.output_dir (CSV + SVG, and a one-line JSON summary on stdout). Studies
+// results into ctx.output_dir (CSV, and a one-line JSON summary on stdout; scripts/plot_studies.py draws the figures). Studies
 // are the "accuracy costs time" evidence of DESIGN.md: every knob measured against a
 // reference. They may take minutes; --quick runs a reduced version for smoke tests.
 #pragma once
@@ -66,32 +66,5 @@ std::vector<double> side_view(const transport::LightingMedium& m, std::size_t to
                               const std::function<double(std::size_t, std::size_t)>& S);
 /// The index of the direction in `dirs` closest to -y (toward side_view's camera).
 std::size_t toward_side_camera(std::span<const glm::dvec3> dirs);
-
-// ---------------------------------------------------------------------------------------
-// SVG line plots (self-made, no dependencies)
-
-struct Series {
-    std::string label;
-    std::vector<double> x, y;
-    std::string color;  ///< CSS colour; "" picks from a palette
-    bool dashed = false;
-    bool markers = false;
-};
-
-struct PlotOptions {
-    std::string title, x_label, y_label;
-    bool log_x = false, log_y = false;
-    int width = 760, height = 460;
-    /// Vertical reference lines (x value, label), drawn dashed grey.
-    std::vector<std::pair<double, std::string>> vlines;
-    /// Horizontal reference lines (y value, label).
-    std::vector<std::pair<double, std::string>> hlines;
-    /// Optional fixed ranges (NaN = automatic).
-    double x_min = std::nan(""), x_max = std::nan(""), y_min = std::nan(""), y_max = std::nan("");
-};
-
-/// Writes an SVG line plot with axes, "nice" ticks, a legend and the reference lines.
-/// Non-finite points (and non-positive ones on log axes) are skipped.
-void write_svg_plot(const std::filesystem::path& path, const std::vector<Series>& series, const PlotOptions& opt);
 
 }  // namespace fulgur::study

@@ -72,7 +72,6 @@ FULGUR_STUDY(lb_convergence, "lb-convergence",
          0.85, true},
     };
     const int max_steps = 6 * n;
-    std::vector<study::Series> curves, changes;
     study::Csv summary(ctx.file("lb_convergence_summary.csv"),
                        {"run", "steps_to_1e-3", "steps_to_1e-4", "steps_to_1e-5", "converged_1e-6", "steps_run",
                         "two_N", "seconds", "MLUPS", "final_total"});
@@ -92,17 +91,6 @@ FULGUR_STUDY(lb_convergence, "lb-convergence",
         const transport::LbResult res = transport::solve_lattice_boltzmann(m, src, dirs, s);
         const auto& tot = res.total_density;
         const double final_total = tot.empty() ? 0.0 : tot.back();
-        study::Series c{r.label, {}, {}, "", r.dashed, false}, d{r.label, {}, {}, "", r.dashed, false};
-        for (std::size_t t = 0; t < tot.size(); ++t) {
-            c.x.push_back(double(t + 1));
-            c.y.push_back(tot[t] / double(m.density.size()));
-            if (t >= 2) {
-                d.x.push_back(double(t + 1));
-                d.y.push_back(std::fabs(tot[t] - tot[t - 2]) / (2.0 * std::fabs(tot[t])));
-            }
-        }
-        curves.push_back(c);
-        changes.push_back(d);
         histories.push_back(tot);
         const double mlups = double(m.density.size()) * res.iterations / res.seconds / 1e6;
         summary << ("\"" + r.label + "\"") << double(first_below(tot, 1e-3)) << double(first_below(tot, 1e-4))
@@ -124,32 +112,11 @@ FULGUR_STUDY(lb_convergence, "lb-convergence",
         study::Csv csv(ctx.file("lb_convergence.csv"), header);
         for (int t = 0; t < max_steps; ++t) {
             csv << double(t + 1);
-            for (const auto& h2 : histories) csv << (std::size_t(t) < h2.size() ? h2[std::size_t(t)] : std::nan(""));
+            for (const auto& h2 : histories)
+                csv << (std::size_t(t) < h2.size() ? h2[std::size_t(t)] / double(m.density.size()) : std::nan(""));
             csv.end_row();
         }
     }
-    study::PlotOptions po;
-    po.title = "Total lattice density per step (" + std::to_string(n) + "^3 sun-lit cloud; cf. Geist 2004 Fig. 5)";
-    po.x_label = "step";
-    po.y_label = "total density / site";
-    po.vlines = {{2.0 * n, "2N"}};
-    po.y_min = 0.0;
-    po.x_min = 0.0;
-    double ymax = 0.0;
-    for (std::size_t k = 0; k + 1 < curves.size(); ++k)
-        for (double v : curves[k].y) ymax = std::max(ymax, v);
-    po.y_max = 1.15 * ymax;  // the published run may blow up: keep the others readable
-    study::write_svg_plot(ctx.file("lb_convergence.svg"), curves, po);
-    study::PlotOptions pc;
-    pc.title = "Relative change of the total density per step";
-    pc.x_label = "step";
-    pc.y_label = "|M(t) - M(t-2)| / 2M(t)";
-    pc.log_y = true;
-    pc.vlines = {{2.0 * n, "2N"}};
-    pc.hlines = {{1e-4, "default tolerance 1e-4"}};
-    pc.y_min = 1e-8;
-    pc.x_min = 0.0;
-    study::write_svg_plot(ctx.file("lb_convergence_change.svg"), changes, pc);
     ctx.summary("lb-convergence",
                 {{"grid", n}, {"voxel_m", h}, {"cloud_seconds", gen_s}, {"two_N", 2 * n}, {"runs", js}});
 }

@@ -510,27 +510,15 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
 
     // --- Vertical profile through the light's column (direction-mean S, 500 m) ----------------------
     {
-        std::vector<study::Series> series = {
-            {"Monte Carlo total", {}, {}, "#000000", false, true},
-            {"Monte Carlo multiple", {}, {}, "#777777", false, true},
-            {"exact single S1", {}, {}, "#1f77b4", true, false},
-            {"S1 + LB physical", {}, {}, "#d62728", false, false},
-            {"S1 + LB conservative", {}, {}, "#2ca02c", false, false},
-            {"LB physical multiple", {}, {}, "#d62728", true, false},
-        };
+        // The lattice's multiple scattering on the other grids and with the third mapping, by
+        // their labels (the plot script draws every column).
+        std::vector<std::string> header = {"k",         "z_m",         "density",
+                                           "S1",        "mc_single",   "mc_multiple",
+                                           "mc_multiple_se", "lb_multiple_physical", "lb_multiple_conservative"};
         for (std::size_t q = 1; q < solves.size(); ++q)
-            series.push_back({"LB physical multiple, " + std::to_string(int(solves[q].geom.voxel_size)) + " m grid",
-                              {},
-                              {},
-                              q == 1 ? "#ff7f0e" : "#9467bd",
-                              true,
-                              false});
-        const std::size_t other_series = series.size();
-        series.push_back(
-            {"LB physical multiple, " + runs[2].label.substr(9) + " mapping", {}, {}, "#8c564b", true, false});
-        study::Csv pcsv(ctx.file("lb_vs_mc_profile.csv"),
-                        {"k", "z_m", "density", "S1", "mc_single", "mc_multiple", "mc_multiple_se",
-                         "lb_multiple_physical", "lb_multiple_conservative"});
+            header.push_back("lb_multiple_physical_" + std::to_string(int(solves[q].geom.voxel_size)) + "m");
+        header.push_back("lb_multiple_physical_" + runs[2].label.substr(9) + "_mapping");
+        study::Csv pcsv(ctx.file("lb_vs_mc_profile.csv"), header);
         for (int k = 0; k < g.dims.z; ++k) {
             const std::size_t c = g.index(li, lj, k);
             const double z = g.centre(li, lj, k).z / 1000.0;
@@ -538,22 +526,10 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
             const double lp = dir_mean(S.runs[0].mult, c, n, M), lc = dir_mean(S.runs[1].mult, c, n, M);
             pcsv << double(k) << 1000.0 * z << double(m.density.data[c]) << a1 << b1 << bm << dir_mean(S.sem, c, n, M)
                  << lp << lc;
+            for (std::size_t q = 1; q < solves.size(); ++q) pcsv << dir_mean(solves[q].runs[0].mult, c, n, M);
+            pcsv << dir_mean(S.runs[2].mult, c, n, M);
             pcsv.end_row();
-            if (!(m.density.data[c] > 0.0f)) continue;
-            const double ys[] = {b1 + bm, bm, a1, a1 + lp, a1 + lc, lp};
-            for (std::size_t q = 0; q < 6; ++q) series[q].x.push_back(z), series[q].y.push_back(ys[q]);
-            for (std::size_t q = 1; q < solves.size(); ++q)
-                series[5 + q].x.push_back(z), series[5 + q].y.push_back(dir_mean(solves[q].runs[0].mult, c, n, M));
-            series[other_series].x.push_back(z), series[other_series].y.push_back(dir_mean(S.runs[2].mult, c, n, M));
         }
-        study::PlotOptions po;
-        po.title = "S (mean over 26 directions, 500 m voxels) in the light's column";
-        po.x_label = "height (km)";
-        po.y_label = "S (W m^-2 sr^-1)";
-        po.log_y = true;
-        po.y_min = 1e-11;  // S1 falls to ~1e-20 at the top: keep the multiple-scattering curves readable
-        po.vlines = {{base / 1000.0, "cloud base"}};
-        study::write_svg_plot(ctx.file("lb_vs_mc_profile.svg"), series, po);
     }
 
     // --- Summary -----------------------------------------------------------------------------------

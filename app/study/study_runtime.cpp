@@ -102,7 +102,6 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
                     "err_total_far", "err_side_view", "splat_V_vs_D", "basis_R_vs_V", "dropped_share",
                     "nonlinear_U_vs_V", "compression_R_vs_U", "multiple_share", "basis_frame_ms", "direct_solve_s"});
     nlohmann::json rows = nlohmann::json::array();
-    std::vector<double> xs, e_tot, e_single, e_mult, e_splat, e_basis;
     for (const std::uint64_t seed : seeds) {
         runtime::FramePipeline p(s, density, bases);
         const std::size_t k = p.strike_at(0.0, seed);
@@ -229,12 +228,6 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
                      "splat %.4f, basis %.4f (nonlinear %.4f, compression %.4f); frame %.3f ms, direct %.2f s\n",
                      static_cast<unsigned long long>(seed), sources.size(), w.active.size(), err, err1, err2, err_far,
                      err_image, splat, basis_err, nonlinear, compression, frame, direct_s);
-        xs.push_back(double(seed));
-        e_tot.push_back(err);
-        e_single.push_back(err1);
-        e_mult.push_back(err2);
-        e_splat.push_back(splat);
-        e_basis.push_back(basis_err);
     }
     // Splat error against the virtual-light spacing h, no bake needed: the frame's lit
     // stretches sampled at h/2 (as the pipeline would) and splatted onto the scene's grid
@@ -247,7 +240,8 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         ctx.quick ? std::vector<std::uint64_t>{1} : std::vector<std::uint64_t>{1, 3};
     study::Csv sweep(ctx.file("runtime_accuracy_spacing.csv"),
                      {"seed", "h_usr", "virtual_lights", "active_lights", "sources", "splat_total", "splat_single",
-                      "splat_multiple", "sources_only_total", "V_solve_s", "bake_estimate_s", "file_estimate_MB"});
+                      "splat_multiple", "sources_only_total", "V_solve_s", "bake_estimate_s", "file_estimate_MB",
+                      "scene_h_usr", "lighting_voxel_m"});
     // What each spacing costs to bake: the plan's estimate (16 sample lights solved and
     // encoded as the bake would, ~1-2 s each), so the sweep shows accuracy against cost.
     std::vector<std::pair<double, double>> bake_cost;  // (seconds, MB) per spacing
@@ -257,7 +251,6 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         const bake::Plan hp = bake::make_plan(sh, density);
         bake_cost.emplace_back(hp.expected_seconds, double(hp.expected_bytes) / 1e6);
     }
-    std::vector<study::Series> sweep_series;
     nlohmann::json sweep_rows = nlohmann::json::array();
     for (const std::uint64_t seed : sweep_seeds) {
         runtime::FramePipeline p(s, density, bases);
@@ -273,7 +266,6 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         const double nF = l2(nd, f_total),
                      nF1 = l2(nd, [&](auto m, auto i) { return double(dir_ptr(F.single, m)[i]); }),
                      nF2 = l2(nd, [&](auto m, auto i) { return double(dir_ptr(F.multiple, m)[i]); });
-        study::Series ser{"seed " + std::to_string(seed), {}, {}, "", false, true};
         for (std::size_t hi = 0; hi < spacings.size(); ++hi) {
             const double h = spacings[hi];
             basis::VirtualLightParams vp = s.virtual_lights;
@@ -310,7 +302,8 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
                    }) /
                 nF;
             sweep << double(seed) << h << double(grid.count()) << double(w.active.size()) << double(q.size()) << e << e1
-                  << e2 << eq << v_s << bake_cost[hi].first << bake_cost[hi].second;
+                  << e2 << eq << v_s << bake_cost[hi].first << bake_cost[hi].second << s.virtual_lights.h_usr
+                  << medium.density.geom.voxel_size;
             sweep.end_row();
             sweep_rows.push_back({{"seed", seed},
                                   {"h_usr", h},
@@ -328,33 +321,8 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
                          "%.4f single %.4f multiple %.4f; sources at h/2 alone %.4f; bake ~%.0f s, ~%.0f MB\n",
                          static_cast<unsigned long long>(seed), h, grid.count(), w.active.size(), q.size(), e, e1, e2,
                          eq, bake_cost[hi].first, bake_cost[hi].second);
-            ser.x.push_back(h);
-            ser.y.push_back(e);
         }
-        sweep_series.push_back(ser);
     }
-    study::PlotOptions ps;
-    ps.title = "Splat error vs virtual-light spacing (default storm, lights solved directly, no compression)";
-    ps.x_label = "h_usr (m)";
-    ps.y_label = "relative L2 error of S over the cloud";
-    ps.log_x = ps.log_y = true;
-    ps.hlines = {{0.05, "aim 5%"}};
-    ps.vlines = {{s.virtual_lights.h_usr, "scene's h_usr"}, {medium.density.geom.voxel_size, "lighting voxel"}};
-    study::write_svg_plot(ctx.file("runtime_accuracy_spacing.svg"), sweep_series, ps);
-
-    study::PlotOptions po_plot;
-    po_plot.title = "Basis method vs direct solve, default storm (relative L2 of S over the cloud)";
-    po_plot.x_label = "seed";
-    po_plot.y_label = "relative L2 error";
-    po_plot.log_y = true;
-    po_plot.hlines = {{0.05, "aim 5%"}};
-    study::write_svg_plot(ctx.file("runtime_accuracy.svg"),
-                          {{"total", xs, e_tot, "", false, true},
-                           {"single scattering", xs, e_single, "", true, true},
-                           {"multiple scattering", xs, e_mult, "", true, true},
-                           {"splat (virtual lights vs sources, both solved directly)", xs, e_splat, "", false, true},
-                           {"basis (reconstruction vs virtual lights solved directly)", xs, e_basis, "", true, true}},
-                          po_plot);
     ctx.summary(
         "runtime-accuracy",
         {{"scene", scene_path.string()},
