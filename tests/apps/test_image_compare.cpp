@@ -2,6 +2,7 @@
 // direct-solve reference (fulgur-shot --reference).
 #include "common/image_compare.h"
 #include "core/core.h"
+#include "support/test_support.h"
 
 #include <doctest/doctest.h>
 
@@ -26,8 +27,8 @@ TEST_CASE("compare_radiance: identical images differ by nothing") {
     CHECK(c.relative_l2 == 0.0);
     CHECK(c.max_difference == 0.0);
     CHECK(c.fraction_over == 0.0);
-    CHECK(c.reference_max == doctest::Approx(4.0).epsilon(1e-6));  // Rec. 709 weights sum to 1 within float rounding
-    CHECK(c.lit_pixels == 3);                                      // the black pixel is below 1% of the maximum
+    CHECK(c.reference_max == test::rel(4.0, 1e-6));  // Rec. 709 weights sum to 1 within float rounding
+    CHECK(c.lit_pixels == 3);                        // the black pixel is below 1% of the maximum
 }
 
 TEST_CASE("compare_radiance: figures of a known perturbation") {
@@ -36,8 +37,8 @@ TEST_CASE("compare_radiance: figures of a known perturbation") {
     const std::vector<float> test = grey({12.0f, 9.5f, 10.0f, 10.0f, 0.0f});
     const app::RadianceComparison c = app::compare_radiance(test, ref);
     // sqrt(2^2 + 0.5^2) / sqrt(4 * 10^2); the 1e-6 allows the float luminance weights.
-    CHECK(c.relative_l2 == doctest::Approx(std::sqrt(4.25) / 20.0).epsilon(1e-6));
-    CHECK(c.max_difference == doctest::Approx(0.2).epsilon(1e-6));
+    CHECK(c.relative_l2 == test::rel(std::sqrt(4.25) / 20.0, 1e-6));
+    CHECK(c.max_difference == test::rel(0.2, 1e-6));
     CHECK(c.lit_pixels == 4);
     CHECK(c.fraction_over == doctest::Approx(0.25));  // only the 20% pixel exceeds 10%
     CHECK(app::compare_radiance(test, ref, 0.01).fraction_over == doctest::Approx(0.5));
@@ -65,7 +66,7 @@ TEST_CASE("compare_radiance: bad input is rejected with a reason") {
     const std::vector<float> black = grey({0.0f, 0.0f});
     const app::RadianceComparison c = app::compare_radiance(a, black);
     CHECK(std::isfinite(c.relative_l2));
-    CHECK(c.max_difference == doctest::Approx(2.0).epsilon(1e-6));
+    CHECK(c.max_difference == test::rel(2.0, 1e-6));
 }
 
 TEST_CASE("compare_display: mean levels and pixels beyond the threshold") {

@@ -85,8 +85,8 @@ TEST_CASE("threshold forms hit their targets") {
             for (double v : c) expect += std::fabs(v) > xi;
             CHECK(b.size() == expect);
             for (std::uint32_t i : b.index) CHECK(std::fabs(c[i]) > xi);
-            CHECK(b.gamma == doctest::Approx(std::sqrt(sumsq_dropped(c, b))).epsilon(1e-12));
-            CHECK(b.norm == doctest::Approx(norm).epsilon(1e-12));
+            CHECK(b.gamma == test::rel(std::sqrt(sumsq_dropped(c, b)), 1e-12));
+            CHECK(b.norm == test::rel(norm, 1e-12));
             check_order(b);
         }
     }
@@ -139,7 +139,7 @@ TEST_CASE("xi = 0 keeps every non-zero coefficient; xi huge drops everything and
                                       CompressionParams{ThresholdMode::Energy, 0.0, Precision::Float16}}) {
         const auto b = basis::compress_coefficients(c, p);
         CHECK(b.size() == 0);
-        CHECK(b.gamma == doctest::Approx(norm).epsilon(1e-14));
+        CHECK(b.gamma == test::rel(norm, 1e-14));
         CHECK(b.scale_exp == 0);
     }
 }
@@ -274,7 +274,7 @@ TEST_CASE("retruncate: a prefix of the stored order is the basis at a stricter t
     CHECK(r.index == direct.index);
     CHECK(r.value == direct.value);
     // gamma from float32 values vs from the double originals: 1e-6 relative (float rounding).
-    CHECK(r.gamma == doctest::Approx(direct.gamma).epsilon(1e-6));
+    CHECK(r.gamma == test::rel(direct.gamma, 1e-6));
     // Energy retruncation meets its target.
     CompressedBasis e = lossless;
     basis::retruncate(e, ThresholdMode::Energy, 0.999);
@@ -287,7 +287,7 @@ TEST_CASE("retruncate: a prefix of the stored order is the basis at a stricter t
     // Everything.
     basis::retruncate(same, ThresholdMode::Absolute, 1e30);
     CHECK(same.size() == 0);
-    CHECK(same.gamma == doctest::Approx(direct.norm).epsilon(1e-6));
+    CHECK(same.gamma == test::rel(direct.norm, 1e-6));
 }
 
 TEST_CASE("compress_light: every direction of a field, and linearity of the reconstruction") {

@@ -1,6 +1,7 @@
 #include "basis/basis.h"
 #include "basis/detail/haar_reference.h"
 #include "fields.h"
+#include "support/test_support.h"
 
 #include <doctest/doctest.h>
 
@@ -64,14 +65,14 @@ TEST_CASE("textbook Haar on powers of two") {
     const double r = std::sqrt(0.5);
     const std::vector<double> w2 = matrix_1d(2, 0);
     // Exact up to the rounding of 1/sqrt(2) itself (1 ulp).
-    CHECK(w2[0] == doctest::Approx(r).epsilon(1e-15));
-    CHECK(w2[1] == doctest::Approx(r).epsilon(1e-15));
-    CHECK(w2[2] == doctest::Approx(r).epsilon(1e-15));
-    CHECK(w2[3] == doctest::Approx(-r).epsilon(1e-15));
+    CHECK(w2[0] == test::rel(r, 1e-15));
+    CHECK(w2[1] == test::rel(r, 1e-15));
+    CHECK(w2[2] == test::rel(r, 1e-15));
+    CHECK(w2[3] == test::rel(-r, 1e-15));
     // n = 4: rows (1,1,1,1)/2, (1,1,-1,-1)/2, (1,-1,0,0)/sqrt2, (0,0,1,-1)/sqrt2.
     const std::vector<double> w4 = matrix_1d(4, 0);
     const double expect[16] = {0.5, 0.5, 0.5, 0.5, 0.5, 0.5, -0.5, -0.5, r, -r, 0, 0, 0, 0, r, -r};
-    for (int i = 0; i < 16; ++i) CHECK(w4[std::size_t(i)] == doctest::Approx(expect[i]).epsilon(1e-15));
+    for (int i = 0; i < 16; ++i) CHECK(w4[std::size_t(i)] == test::rel(expect[i], 1e-15));
 }
 
 TEST_CASE("a constant is one coefficient on any size (unbalanced Haar)") {
@@ -82,7 +83,7 @@ TEST_CASE("a constant is one coefficient on any size (unbalanced Haar)") {
             t.forward(v);
             INFO(str(n) << " " << basis::to_string(dec));
             // coefficient 0 = sum / sqrt(N); rounding of ~3*log2(n) rotations, relative 1e-13.
-            CHECK(v[0] == doctest::Approx(2.5 * std::sqrt(double(n.volume()))).epsilon(1e-13));
+            CHECK(v[0] == test::rel(2.5 * std::sqrt(double(n.volume())), 1e-13));
             double rest = 0.0;
             for (std::size_t i = 1; i < v.size(); ++i) rest = std::max(rest, std::fabs(v[i]));
             CHECK(rest < 1e-12);
@@ -198,7 +199,7 @@ TEST_CASE("Parseval: the L2 error of a thresholded reconstruction is the norm of
             HaarTransform<double> t(n, dec);
             t.forward(c);
             // Energy of the signal is preserved.
-            CHECK(test::l2(c) == doctest::Approx(test::l2(f)).epsilon(1e-12));
+            CHECK(test::l2(c) == test::rel(test::l2(f), 1e-12));
             // Drop every coefficient below the median magnitude.
             std::vector<double> mags;
             for (double v : c) mags.push_back(std::fabs(v));
@@ -213,7 +214,7 @@ TEST_CASE("Parseval: the L2 error of a thresholded reconstruction is the norm of
             t.inverse(c);
             const double err = test::l2_diff(c, f), gamma = std::sqrt(dropped.value());
             if (gamma > 0.0) {
-                CHECK(err == doctest::Approx(gamma).epsilon(1e-5));  // the required bound; double gives ~1e-12
+                CHECK(err == test::rel(gamma, 1e-5));  // the required bound; double gives ~1e-12
             } else {
                 CHECK(err < 1e-14 * test::l2(f));
             }

@@ -2,6 +2,7 @@
 // neighbourhood's shape, the extinction and supply probabilities, thread independence, and
 // the space-time smoothing.
 #include "cloud/detail/automaton.h"
+#include "support/test_support.h"
 
 #include <doctest/doctest.h>
 
@@ -186,8 +187,7 @@ TEST_CASE("smoothing: constant in, constant out; flat base; mass conserved; gain
         const std::vector<float> rho = cloud::detail::smooth_density(d, counts, window, 2, base, 1.0);
         // Interior column (2 voxels from the x/y faces: beyond the kernel's reach) at the
         // base layer and above: exactly 1 up to float rounding of the normalized weights.
-        for (int k = base; k < d.z - 2; ++k)
-            CHECK(rho[8 + 16 * 8 + 256 * std::size_t(k)] == doctest::Approx(1.0).epsilon(1e-6));
+        for (int k = base; k < d.z - 2; ++k) CHECK(rho[8 + 16 * 8 + 256 * std::size_t(k)] == test::rel(1.0, 1e-6));
         for (int k = 0; k < base; ++k) CHECK(rho[8 + 16 * 8 + 256 * std::size_t(k)] == 0.0f);
     }
     SUBCASE("an isolated impulse spreads but keeps its mass, gain scales and clamps") {
@@ -196,7 +196,7 @@ TEST_CASE("smoothing: constant in, constant out; flat base; mass conserved; gain
         std::vector<float> rho = cloud::detail::smooth_density(d, counts, window, 2, 0, 1.0);
         double sum = 0.0;
         for (float v : rho) sum += v;
-        CHECK(sum == doctest::Approx(0.5).epsilon(1e-6));  // normalized kernel, away from all faces
+        CHECK(sum == test::rel(0.5, 1e-6));  // normalized kernel, away from all faces
         CHECK(rho[8 + 16 * 8 + 256 * 10] < 0.5f);
         CHECK(rho[9 + 16 * 8 + 256 * 10] > 0.0f);
         rho = cloud::detail::smooth_density(d, counts, window, 0, 0, 3.0);

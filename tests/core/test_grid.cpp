@@ -1,4 +1,5 @@
 #include "core/core.h"
+#include "support/test_support.h"
 
 #include <doctest/doctest.h>
 
@@ -47,7 +48,7 @@ TEST_CASE("trilinear sampling reproduces a linear field exactly inside the centr
     for (double t : {0.0, 0.13, 0.5, 0.77, 1.0}) {
         const glm::dvec3 p = lo + t * (hi - lo);
         // float storage: values near 1 carry ~1e-7 relative rounding
-        CHECK(grid.sample(p) == doctest::Approx(f(p)).epsilon(1e-6));
+        CHECK(grid.sample(p) == fulgur::test::rel(f(p), 1e-6));
     }
 }
 
@@ -71,7 +72,7 @@ TEST_CASE("downsample preserves the mean when dimensions divide") {
     double dsum = 0.0;
     for (float v : d.data) dsum += v;
     // each coarse value is a float-rounded mean of 8 values: relative error ~1e-7 each
-    CHECK(dsum * 8.0 == doctest::Approx(sum).epsilon(1e-6));
+    CHECK(dsum * 8.0 == fulgur::test::rel(sum, 1e-6));
 }
 
 TEST_CASE("validate_geometry names the problem") {

@@ -1,4 +1,5 @@
 #include "core/core.h"
+#include "support/test_support.h"
 
 #include <doctest/doctest.h>
 
@@ -44,7 +45,7 @@ TEST_CASE("uniform draws lie in [0,1) with the right mean and variance") {
     }
     const double mean = s.value() / n, var = s2.value() / n - mean * mean;
     // standard error of the mean is sqrt(1/12/n) = 6.5e-4; 5 sigma = 3.2e-3
-    CHECK(mean == doctest::Approx(0.5).epsilon(0.0065));
+    CHECK(mean == fulgur::test::rel(0.5, 0.0065));
     // variance of the sample variance ~ (1/180)/n -> sd 1.7e-4; 5 sigma ~ 1e-3 absolute
     CHECK(std::fabs(var - 1.0 / 12.0) < 1e-3);
 }

@@ -1,5 +1,6 @@
 // Reed-Wyvill bolt generator: determinism, turn-angle statistics, kinds, branches, hard cases.
 #include "lightning/lightning.h"
+#include "support/test_support.h"
 #include "synthetic.h"
 
 #include <doctest/doctest.h>
@@ -84,7 +85,7 @@ TEST_CASE("generator: branches hang together, decay with depth and respect max_d
             const Segment& q = b.segments[std::size_t(s.parent)];
             CHECK(std::size_t(s.parent) < i);
             CHECK(s.a == q.b);  // connected: a branch starts where its parent segment ends
-            CHECK(s.path_start == doctest::Approx(q.path_start + q.length()).epsilon(1e-12));
+            CHECK(s.path_start == test::rel(q.path_start + q.length(), 1e-12));
             CHECK((s.depth == q.depth || s.depth == q.depth + 1));
         }
     }

@@ -1,6 +1,7 @@
 // Trilinear splatting into virtual lights (Dobashi Eq. 6) and point sources along segments:
 // exact energy conservation, linearity, determinism and the hard cases.
 #include "lightning/lightning.h"
+#include "support/test_support.h"
 #include "synthetic.h"
 
 #include <doctest/doctest.h>
@@ -93,7 +94,7 @@ TEST_CASE("splat: the grid lookup agrees with the binary search and an independe
     std::map<std::size_t, double> ref;
     for (const transport::PointSource& p : q)
         for (const auto& [l, w] : oracle(vgrid(), p)) ref[l] += w;
-    for (const auto& [l, w] : ref) CHECK(a.e[l] == doctest::Approx(w).epsilon(1e-12));  // summation order differs
+    for (const auto& [l, w] : ref) CHECK(a.e[l] == test::rel(w, 1e-12));  // summation order differs
     std::size_t nonzero = 0;
     for (const auto& [l, w] : ref) nonzero += w != 0.0;
     CHECK(a.active.size() == nonzero);
@@ -107,7 +108,7 @@ TEST_CASE("splat: sum of e_l equals sum of L_q (exact energy conservation), in a
         LightWeights w;
         sp.splat(q, w);
         const double in = sum_l(q);
-        CHECK(w.total == doctest::Approx(in).epsilon(1e-15));
+        CHECK(w.total == test::rel(in, 1e-15));
         // Each source's eight weights sum to 1 up to ~3 roundings; the double accumulation of
         // 10^4 sources adds ~1e-16 relative each: 1e-12 relative is a generous bound that a
         // lost or duplicated weight (>= 1e-4 relative here) can never pass.
@@ -157,7 +158,7 @@ TEST_CASE("splat: linear - two bolts splatted together equal the sum of each spl
     for (transport::PointSource& p : q3) p.intensity *= 3.0;
     LightWeights w3;
     sp.splat(q3, w3);
-    for (const std::uint32_t l : wa.active) CHECK(w3.e[l] == doctest::Approx(3.0 * wa.e[l]).epsilon(1e-15));
+    for (const std::uint32_t l : wa.active) CHECK(w3.e[l] == test::rel(3.0 * wa.e[l], 1e-15));
 }
 
 TEST_CASE("splat: sources exactly on nodes and on the boundaries get exact weights") {

@@ -2,6 +2,7 @@
 // intra-cloud paths, restrike counts and intervals, the strike rate. Bounds are a few
 // standard errors; the seeds are fixed, so the outcome is deterministic.
 #include "lightning/lightning.h"
+#include "support/test_support.h"
 #include "synthetic.h"
 
 #include <doctest/doctest.h>
@@ -170,7 +171,7 @@ TEST_CASE("timing: restrike counts are Poisson with the configured mean, interva
     const double median = intervals[intervals.size() / 2];
     // The median of a log-normal with sigma 0.4 from ~10^4 draws: standard error ~0.5%; 4%
     // leaves room while failing a wrong median (e.g. the mean exp(0.08) = +8%).
-    CHECK(median == doctest::Approx(p.restrike_interval).epsilon(0.04));
+    CHECK(median == test::rel(p.restrike_interval, 0.04));
     // Same seed, same profile.
     const FlashProfile a = make_flash_profile(bolt_of_length(5000.0), p, 77),
                        b = make_flash_profile(bolt_of_length(5000.0), p, 77);

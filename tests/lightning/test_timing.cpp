@@ -1,5 +1,6 @@
 // Flash timing (leader, return stroke, decay, restrikes) and strike scheduling.
 #include "lightning/lightning.h"
+#include "support/test_support.h"
 #include "synthetic.h"
 
 #include <doctest/doctest.h>
@@ -104,7 +105,7 @@ TEST_CASE("timing: the glow decays exponentially and restrikes relight the main 
     const double t0 = f.stroke_onset[0] + p.rise_time + 0.002;
     REQUIRE(t0 + p.decay_time < f.stroke_end[0]);
     CHECK(flash_state(f, p, t0 + p.decay_time).branch_glow ==
-          doctest::Approx(flash_state(f, p, t0).branch_glow / std::exp(1.0)).epsilon(1e-9));
+          test::rel(flash_state(f, p, t0).branch_glow / std::exp(1.0), 1e-9));
     // Zero after the last stroke has decayed below the threshold.
     CHECK(f.duration == doctest::Approx(f.stroke_end.back()));
     CHECK(flash_state(f, p, f.duration - 1e-9).main_glow < 2.0 * p.dark_threshold);
@@ -139,7 +140,7 @@ TEST_CASE("storm: on-demand strikes, dark frames detectable, point sources carry
     const FlashState st = flash_state(s.profile, p.timing, tp - 2.0);
     for (const Segment& g : storm.bolt(i).segments)
         expect.add(g.intensity * g.length() * (g.depth == 0 ? st.main_glow : st.branch_glow));
-    CHECK(sq.value() == doctest::Approx(expect.value()).epsilon(1e-12));  // a few roundings per source
+    CHECK(sq.value() == test::rel(expect.value(), 1e-12));  // a few roundings per source
     CHECK(st.main_glow == doctest::Approx(1.0));
     // Two overlapping strikes: both active.
     storm.strike_at(2.01);

@@ -1,6 +1,7 @@
 // Direction interpolation of S between the baked output directions.
 #include "render/detail/directions.h"
 #include "render/render.h"
+#include "support/test_support.h"
 #include "transport/transport.h"
 
 #include <doctest/doctest.h>
@@ -40,7 +41,7 @@ TEST_CASE("direction weights: partition of unity, non-negative, at most four") {
                 sum += w.weight[std::size_t(k)];
             }
             // Weights are products and sums of a handful of doubles: 1e-12 is rounding only.
-            CHECK(sum == doctest::Approx(1.0).epsilon(1e-12));
+            CHECK(sum == test::rel(1.0, 1e-12));
         }
 }
 
@@ -51,7 +52,7 @@ TEST_CASE("direction weights reproduce every baked direction exactly") {
             const render::DirectionWeights w = render::direction_weights(dirs[std::size_t(m)], count);
             // At a node the smoothstep weights are exactly 0 and 1 up to the rounding of
             // normalize() (components like 1/sqrt(3) give |u| = 1 -+ 1 ulp).
-            CHECK(weight_of(w, m) == doctest::Approx(1.0).epsilon(1e-12));
+            CHECK(weight_of(w, m) == test::rel(1.0, 1e-12));
         }
     }
     const render::DirectionWeights one = render::direction_weights({0.3, -0.2, 0.9}, 1);
@@ -94,7 +95,7 @@ TEST_CASE("fold tables hand all weight to present directions") {
             double sum = 0.0;
             for (int k = 0; k < 3; ++k)
                 if (t.index[std::size_t(c)][std::size_t(k)] >= 0) sum += t.fraction[std::size_t(c)][std::size_t(k)];
-            CHECK(sum == doctest::Approx(1.0).epsilon(1e-15));  // thirds and halves in double
+            CHECK(sum == test::rel(1.0, 1e-15));  // thirds and halves in double
         }
     }
     CHECK_THROWS_AS(render::detail::fold_table(7), core::Error);

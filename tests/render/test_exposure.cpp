@@ -1,5 +1,6 @@
 // The automatic exposure's choice from a luminance histogram (render/detail/exposure.h).
 #include "render/detail/exposure.h"
+#include "support/test_support.h"
 
 #include <doctest/doctest.h>
 
@@ -36,8 +37,8 @@ TEST_CASE("exposure: the key of a uniform frame, dim scenes dimmer; the highligh
         std::fill(h.begin(), h.end(), 0u);
         h[bin(L)] = 5000;
         const detail::ExposureChoice c = detail::choose_exposure(h, kMin, kWidth, st);
-        CHECK(c.log_average == doctest::Approx(centre(L)).epsilon(1e-12));
-        CHECK(c.metered == doctest::Approx(key(centre(L)) / centre(L)).epsilon(1e-12));
+        CHECK(c.log_average == fulgur::test::rel(centre(L), 1e-12));
+        CHECK(c.metered == fulgur::test::rel(key(centre(L)) / centre(L), 1e-12));
     }
     // Dim scenes are shown dimmer: the exposed log-average (the key) grows with luminance.
     CHECK(key(1e-4) < key(1.0));
@@ -49,7 +50,7 @@ TEST_CASE("exposure: the key of a uniform frame, dim scenes dimmer; the highligh
     h[bin(1e-7)] = 60000;  // night sky
     h[bin(1.0)] = 10000;   // cloud
     CHECK(detail::choose_exposure(h, kMin, kWidth, st).metered ==
-          doctest::Approx(key(centre(1.0)) / centre(1.0)).epsilon(1e-12));
+          fulgur::test::rel(key(centre(1.0)) / centre(1.0), 1e-12));
 
     // A dark background with a lit cloud: the key alone would put the cloud far past white;
     // the guard puts the top 2% of the lit pixels at kHighlightExposed.
@@ -62,20 +63,20 @@ TEST_CASE("exposure: the key of a uniform frame, dim scenes dimmer; the highligh
     // The 50-bin is where more than 2% of the lit pixels lie above: its upper edge is mapped
     // to the highlight level, so at most 2% of the lit pixels are brighter.
     CHECK(g.metered ==
-          doctest::Approx(detail::kHighlightExposed / std::exp2(kMin + double(bin(50.0) + 1) * kWidth)).epsilon(1e-12));
+          fulgur::test::rel(detail::kHighlightExposed / std::exp2(kMin + double(bin(50.0) + 1) * kWidth), 1e-12));
     CHECK(g.metered * centre(1.0) < detail::kHighlightExposed);
     CHECK(g.metered * centre(400.0) < 10.0 * detail::kWhiteExposed);  // a single pixel may clip
 
     // Compensation in stops; adaptation: at once toward a brighter scene, over
     // brighten_seconds toward a darker one (in log exposure).
     st.exposure_compensation = -1.0;
-    CHECK(detail::choose_exposure(h, kMin, kWidth, st).metered == doctest::Approx(0.5 * g.metered).epsilon(1e-12));
+    CHECK(detail::choose_exposure(h, kMin, kWidth, st).metered == fulgur::test::rel(0.5 * g.metered, 1e-12));
     st.exposure_compensation = 0.0;
     st.previous_exposure = 10.0 * g.metered;  // coming from a darker frame
     st.adaptation_seconds = 0.016;
-    CHECK(detail::choose_exposure(h, kMin, kWidth, st).applied == doctest::Approx(g.metered).epsilon(1e-12));
+    CHECK(detail::choose_exposure(h, kMin, kWidth, st).applied == fulgur::test::rel(g.metered, 1e-12));
     st.previous_exposure = 0.1 * g.metered;  // after a flash
     const double a = 1.0 - std::exp(-0.016 / st.brighten_seconds);
     CHECK(detail::choose_exposure(h, kMin, kWidth, st).applied ==
-          doctest::Approx(st.previous_exposure * std::pow(10.0, a)).epsilon(1e-12));
+          fulgur::test::rel(st.previous_exposure * std::pow(10.0, a), 1e-12));
 }

@@ -288,7 +288,7 @@ TEST_CASE("the GPU resolve matches the CPU direction weights") {
                 for (int k = 0; k < w.count; ++k)
                     expected[c] += w.weight[std::size_t(k)] * value(w.index[std::size_t(k)], c);
                 // float weights (smoothstep, normalize) vs double: ~1e-6 relative.
-                CHECK(gpu[c] == doctest::Approx(expected[c]).epsilon(2e-5));
+                CHECK(gpu[c] == test::rel(expected[c], 2e-5));
             }
             // With the default threshold, directions of weight < 1e-3 are left out and the rest
             // renormalized: the error is below 1e-3 times the spread of S over directions
@@ -468,10 +468,10 @@ TEST_CASE("bolt core and glow are attenuated by the cloud in front of them, not 
     // Behind the slab: both the core (per-vertex T) and the glow (per-pixel T at the glow
     // depth) see T = exp(-1) along rays within 6 degrees of the axis (chord factor <= 1.006).
     const double behind = energy(2000.0, true) / energy(2000.0, false);
-    CHECK(behind == doctest::Approx(std::exp(-1.0)).epsilon(0.02));
+    CHECK(behind == test::rel(std::exp(-1.0), 0.02));
     // In front of the slab: unattenuated (the cloud does not emit: S is absent).
     const double front = energy(-2000.0, true) / energy(-2000.0, false);
-    CHECK(front == doctest::Approx(1.0).epsilon(0.002));
+    CHECK(front == test::rel(1.0, 0.002));
     MESSAGE("bolt behind a tau = 1 slab keeps " << behind << " of its light (exp(-1) = " << std::exp(-1.0) << ")");
     r.set_bolt({});
 }

@@ -2,6 +2,7 @@
 // boxes, a switched-off effect costing nothing (the same pixels as never having set it), the
 // automatic exposure applied as a manual one would be, bad inputs named.
 #include "gl_fixture.h"
+#include "support/test_support.h"
 
 #include "transport/transport.h"
 
@@ -100,7 +101,7 @@ TEST_CASE("static light in colour: L = S_rgb (1 - exp(-tau)) per channel") {
     CHECK(inside > W * H / 5);
     const std::vector<float> resolved = r.read_resolved_static();
     REQUIRE(resolved.size() == lg.cell_count() * 3);
-    CHECK(resolved[4] == doctest::Approx(1.0).epsilon(1e-6));  // green of cell 1: the partition of unity
+    CHECK(resolved[4] == test::rel(1.0, 1e-6));  // green of cell 1: the partition of unity
     r.clear_static();
 }
 
@@ -185,12 +186,12 @@ TEST_CASE("automatic exposure: the frame is tone mapped with the exposure it rep
     // Compensation: +1 stop doubles it; adaptation from a darker previous exposure: partway.
     render::Settings plus = st;
     plus.exposure_compensation = 1.0;
-    CHECK(render_at(r, b.cam, plus, W, H).exposure == doctest::Approx(2.0 * a.exposure).epsilon(1e-12));
+    CHECK(render_at(r, b.cam, plus, W, H).exposure == test::rel(2.0 * a.exposure, 1e-12));
     render::Settings adapt = st;
     adapt.previous_exposure = 0.5 * a.metered_exposure;
     adapt.adaptation_seconds = adapt.brighten_seconds;  // one time constant: 1 - 1/e of the way in log
     const render::FrameStats ad = render_at(r, b.cam, adapt, W, H);
-    CHECK(std::log2(ad.exposure / adapt.previous_exposure) == doctest::Approx(1.0 - std::exp(-1.0)).epsilon(1e-9));
+    CHECK(std::log2(ad.exposure / adapt.previous_exposure) == test::rel(1.0 - std::exp(-1.0), 1e-9));
     r.clear_static();
 }
 

@@ -157,12 +157,12 @@ TEST_CASE("solved once: the cache is read while fresh, solved again when the sun
         const double unit = double(a.sun->single.data[i]) + double(a.sun->multiple.data[i]);
         for (int ch = 0; ch < 3; ++ch)
             CHECK(c.rgb[0][3 * i + std::size_t(ch)] ==
-                  doctest::Approx(s.sun->irradiance * s.sun->colour[ch] * unit).epsilon(1e-5));  // float products
+                  test::rel(s.sun->irradiance * s.sun->colour[ch] * unit, 1e-5));  // float products
     }
     sky::ComposeOptions full_res = only_sun;
     full_res.sun_single = false;  // the renderer draws the sun's order 1 itself
     const sky::ColourField m = sky::compose(a, s.sun, s.sky, full_res);
-    CHECK(m.rgb[0][3] == doctest::Approx(s.sun->irradiance * s.sun->colour[0] * a.sun->multiple.data[1]).epsilon(1e-5));
+    CHECK(m.rgb[0][3] == test::rel(s.sun->irradiance * s.sun->colour[0] * a.sun->multiple.data[1], 1e-5));
     sky::ComposeOptions none;
     none.sun = none.sky = false;
     CHECK(sky::compose(a, s.sun, s.sky, none).empty());
@@ -230,7 +230,7 @@ TEST_CASE("time of day: the sun's course passes through the scene's sun, redder 
         // At its own hour the course is the scene's sun (1e-9: rounding through acos/atan2).
         const scene::Sun s0 = c.at(c.scene_hour);
         CHECK(glm::length(s0.direction - sun.direction) < 1e-9);
-        CHECK(s0.irradiance == doctest::Approx(sun.irradiance).epsilon(1e-9));
+        CHECK(s0.irradiance == test::rel(sun.irradiance, 1e-9));
         CHECK(glm::length(s0.colour - sun.colour) < 1e-9);
         CHECK(c.scene_hour > 12.0);  // the afternoon
         // Noon is the highest, the ends of the course 1 degree above the horizon.
@@ -238,15 +238,15 @@ TEST_CASE("time of day: the sun's course passes through the scene's sun, redder 
         c.angles(12.0, e, a);
         CHECK(e >= std::max(50.0, el) - 1e-9);
         c.angles(c.first_hour, e, a);
-        CHECK(e == doctest::Approx(1.0).epsilon(1e-9));
+        CHECK(e == test::rel(1.0, 1e-9));
         c.angles(c.last_hour, e, a);
-        CHECK(e == doctest::Approx(1.0).epsilon(1e-9));
+        CHECK(e == test::rel(1.0, 1e-9));
         // Lower: dimmer and redder (blue over red falls), colour of luminance 1.
         const scene::Sun noon = c.at(12.0), late = c.at(c.last_hour);
         CHECK(late.irradiance < s0.irradiance);
         CHECK(noon.irradiance > s0.irradiance);
         CHECK(late.colour.z / late.colour.x < s0.colour.z / s0.colour.x);
-        CHECK(scene::luminance(late.colour) == doctest::Approx(1.0).epsilon(1e-12));
+        CHECK(scene::luminance(late.colour) == test::rel(1.0, 1e-12));
         CHECK(c.at(30.0).direction == late.direction);  // clamped to the course
     }
 }

@@ -3,6 +3,7 @@
 // full-resolution transmittance to the sun.
 #include "mc_errors.h"
 #include "sky/sky.h"
+#include "support/test_support.h"
 
 #include <doctest/doctest.h>
 
@@ -63,14 +64,14 @@ TEST_CASE("energy: injected = absorbed + escaped + stored, both methods, two sun
             CHECK(relative_energy_error(f) < 1e-6);
             if (method == sky::Method::Hybrid) {
                 // The lattice is fed exactly the power scattered once: sigma_s phi1 h^3 summed.
-                CHECK(f.injected_per_step == doctest::Approx(f.first_scattered_power).epsilon(1e-5));  // float emission
+                CHECK(f.injected_per_step == test::rel(f.first_scattered_power, 1e-5));  // float emission
                 CHECK(!f.single.data.empty());
             } else {
                 // Geist's injection: E times the grid's projected area enters every step.
                 const glm::dvec3 u = glm::normalize(d), ext = m.density.geom.extent();
                 const double area =
                     ext.y * ext.z * std::fabs(u.x) + ext.x * ext.z * std::fabs(u.y) + ext.x * ext.y * std::fabs(u.z);
-                CHECK(f.injected_per_step == doctest::Approx(area).epsilon(1e-6));  // float32 link values
+                CHECK(f.injected_per_step == test::rel(area, 1e-6));  // float32 link values
                 CHECK(f.single.data.empty());
             }
         }
@@ -100,11 +101,9 @@ TEST_CASE("linearity and units: two suns together, irradiance scaling, the unifo
     const transport::DirectionalSource a2{a.direction, 2.0};
     const sky::LightField f2 = sky::solve_directional(media_of(m), std::span(&a2, 1), dirs, st);
     for (std::size_t i = 0; i < f2.multiple.data.size(); ++i)
-        CHECK(f2.multiple.data[i] ==
-              doctest::Approx(2.0 * fa.multiple.data[i]).epsilon(1e-4));  // steady state 1e-6/step
+        CHECK(f2.multiple.data[i] == test::rel(2.0 * fa.multiple.data[i], 1e-4));  // steady state 1e-6/step
     for (std::size_t i = 0; i < fab.single.data.size(); ++i)
-        CHECK(fab.single.data[i] ==
-              doctest::Approx(fa.single.data[i] + fb.single.data[i]).epsilon(1e-5));  // float sums
+        CHECK(fab.single.data[i] == test::rel(fa.single.data[i] + fb.single.data[i], 1e-5));  // float sums
 
     sky::SolveSettings few = st;
     few.sky_samples = 8;
@@ -115,7 +114,7 @@ TEST_CASE("linearity and units: two suns together, irradiance scaling, the unifo
     REQUIRE(!g.horizon.empty());
     for (std::size_t i = 0; i < u.uniform.single.data.size(); ++i)
         CHECK(u.uniform.single.data[i] ==
-              doctest::Approx(g.zenith.single.data[i] + g.horizon.single.data[i]).epsilon(1e-5));  // float sums
+              test::rel(g.zenith.single.data[i] + g.horizon.single.data[i], 1e-5));  // float sums
     // The zenith basis carries more of the light at the top of the cloud, the horizon basis
     // more at its sides (the gradient weights the directions it comes from).
     CHECK(g.zenith.first_scattered_power > 0.0);
@@ -128,13 +127,13 @@ TEST_CASE("dome samples: equal solid angles summing to 2 pi, exact irradiance of
         double omega = 0.0, cos_weighted = 0.0;
         for (const sky::DomeSample& s : d) {
             CHECK(s.toward.z > 0.0);
-            CHECK(glm::length(s.toward) == doctest::Approx(1.0).epsilon(1e-12));  // unit, rounding only
+            CHECK(glm::length(s.toward) == test::rel(1.0, 1e-12));  // unit, rounding only
             omega += s.solid_angle;
             cos_weighted += s.solid_angle * s.toward.z;
         }
-        CHECK(omega == doctest::Approx(2.0 * std::numbers::pi).epsilon(1e-12));
+        CHECK(omega == test::rel(2.0 * std::numbers::pi, 1e-12));
         // The midpoint rule in z = cos(zenith angle) integrates z exactly: E = pi L.
-        CHECK(cos_weighted == doctest::Approx(std::numbers::pi).epsilon(1e-12));
+        CHECK(cos_weighted == test::rel(std::numbers::pi, 1e-12));
     }
 }
 
@@ -204,7 +203,7 @@ TEST_CASE("sun transmittance at full resolution: exact where the renderer reads 
                 const bool face =
                     i == 0 || j == 0 || k == 0 || i == g.dims.x - 1 || j == g.dims.y - 1 || k == g.dims.z - 1;
                 if (face || m.density.at(i, j, k) > 0.0f) {
-                    CHECK(double(t) == doctest::Approx(exact).epsilon(1e-6));  // float storage of the exact value
+                    CHECK(double(t) == test::rel(exact, 1e-6));  // float storage of the exact value
                     ++computed;
                 }
             }

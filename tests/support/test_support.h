@@ -1,8 +1,11 @@
 // Shared helpers for Fulgur's tests.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <ostream>
 #include <span>
 #include <string>
 #include <vector>
@@ -18,6 +21,25 @@ std::filesystem::path scratch_dir(const std::string& name);
 /// core::relative_l2 (||x - ref||_2 / ||ref||_2, the absolute L2 difference when ref is all
 /// zero); sizes must match (a failed REQUIRE otherwise).
 double relative_l2(std::span<const float> x, std::span<const float> ref);
+
+/// A relative comparison, CHECK(x == test::rel(expected, tolerance)):
+///   x == expected, or |x - expected| <= tolerance * max(|x|, |expected|).
+/// doctest::Approx(e).epsilon(t) compares |x - e| < t * (1 + max(|x|, |e|)) instead: below 1
+/// its tolerance is absolute, so on a quantity like S (1e-6 W m^-2 sr^-1) it passes anything.
+/// A quantity expected to be 0 is checked against an absolute bound (|x| < b), with its reason.
+struct Rel {
+    double expected = 0.0, tolerance = 0.0;
+};
+inline Rel rel(double expected, double tolerance) { return {expected, tolerance}; }
+inline bool operator==(double x, const Rel& r) {
+    return x == r.expected || std::fabs(x - r.expected) <= r.tolerance * std::max(std::fabs(x), std::fabs(r.expected));
+}
+inline bool operator==(const Rel& r, double x) { return x == r; }
+inline bool operator!=(double x, const Rel& r) { return !(x == r); }
+inline bool operator!=(const Rel& r, double x) { return !(x == r); }
+inline std::ostream& operator<<(std::ostream& os, const Rel& r) {
+    return os << r.expected << " (relative " << r.tolerance << ")";
+}
 
 /// Names of the temporaries and lock files ("*.tmp", "*.lock") in `dir`: a writer that
 /// failed or finished leaves none (core::AtomicFile).

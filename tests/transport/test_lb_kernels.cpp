@@ -1,5 +1,6 @@
 // Lattice-Boltzmann kernels: exact streaming, naive == fast, energy bookkeeping at every
 // step, hard cases (numeric).
+#include "support/test_support.h"
 #include "transport/detail/lb_solver.h"
 
 #include <doctest/doctest.h>
@@ -167,8 +168,8 @@ TEST_CASE("naive (Appendix B) and fast kernels agree within 1e-5 after 100 steps
             }
         MESSAGE("max relative difference after 100 steps: " << worst);
         CHECK(worst < 1e-5);  // the required bound; float32 summation-order differences are ~1e-6
-        CHECK(a.absorbed_total() == doctest::Approx(b.absorbed_total()).epsilon(1e-5));
-        CHECK(a.escaped_total() == doctest::Approx(b.escaped_total()).epsilon(1e-5));
+        CHECK(a.absorbed_total() == test::rel(b.absorbed_total(), 1e-5));
+        CHECK(a.escaped_total() == test::rel(b.escaped_total(), 1e-5));
     }
 }
 
@@ -213,7 +214,7 @@ TEST_CASE("the published anisotropic form creates energy; the corrected one does
         if (form == LbCollision::Published) {
             CHECK(ratio > 100.0);  // growth rate 1.087 per step asymptotically: ~1e6 after 200 steps
         } else {
-            CHECK(ratio == doctest::Approx(1.0).epsilon(1e-5));  // conserved up to float rounding
+            CHECK(ratio == test::rel(1.0, 1e-5));  // conserved up to float rounding
         }
     }
 }
@@ -262,7 +263,7 @@ TEST_CASE("hard cases stay finite and converge") {
                               << " floor " << 1e-6 * r.injected_per_step / r.stored);
         CHECK(r.converged);
         // Steady state: injected = absorbed + escaped per step (to the tolerance).
-        CHECK(r.absorbed_last_step + r.escaped_last_step == doctest::Approx(r.injected_per_step).epsilon(1e-3));
+        CHECK(r.absorbed_last_step + r.escaped_last_step == test::rel(r.injected_per_step, 1e-3));
         return r;
     };
     SUBCASE("albedo 1, one collision per hop (sigma_t -> 1)") { run(10.0, 1.0, 0.0, 1.0f, LbAbsorption::Physical); }
@@ -314,15 +315,15 @@ TEST_CASE("point lights outside the grid and on its faces inject the power they 
     src.points.push_back({glm::dvec3(22.5, 17.5, 30.0), 2.0});
     LbResult r = solve_lattice_boltzmann(m, src, dirs, s);
     const double face = r.injected_per_step;
-    CHECK(face == doctest::Approx(2.0 * 2.0 * std::numbers::pi).epsilon(1e-6));  // float inflow values
+    CHECK(face == test::rel(2.0 * 2.0 * std::numbers::pi, 1e-6));  // float inflow values
     // On the bottom face (inclusive lower bound) the light is inside: all 4 pi I is injected.
     src.points[0].position = glm::dvec3(22.5, 17.5, 0.0);
     r = solve_lattice_boltzmann(m, src, dirs, s);
-    CHECK(r.injected_per_step == doctest::Approx(4.0 * 2.0 * std::numbers::pi).epsilon(1e-12));  // double sum of w_q
+    CHECK(r.injected_per_step == test::rel(4.0 * 2.0 * std::numbers::pi, 1e-12));  // double sum of w_q
     // Far below the grid: the bottom face's solid angle ~ A / d^2.
     src.points[0].position = glm::dvec3(25.0, 20.0, -1000.0);
     r = solve_lattice_boltzmann(m, src, dirs, s);
-    CHECK(r.injected_per_step == doctest::Approx(2.0 * 50.0 * 40.0 / 1e6).epsilon(1e-3));  // (A/d^2)(1 + O(A/d^2))
+    CHECK(r.injected_per_step == test::rel(2.0 * 50.0 * 40.0 / 1e6, 1e-3));  // (A/d^2)(1 + O(A/d^2))
 }
 
 TEST_CASE("bad input is rejected with an error naming the parameter") {

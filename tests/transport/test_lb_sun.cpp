@@ -3,6 +3,7 @@
 // lit at normal incidence against the exact values the Monte Carlo oracle test carries
 // (test_monte_carlo.cpp, "semi-infinite slab"), both for Geist's boundary injection (every
 // order on the lattice) and for exact single scattering + the lattice for orders >= 2.
+#include "support/test_support.h"
 #include "transport/detail/lb_solver.h"
 #include "transport_test_util.h"
 
@@ -63,7 +64,7 @@ TEST_CASE("boundary injection: the power entering per step is E times the grid's
         const LbResult r = solve_lattice_boltzmann(m, src, output_directions(1), s);
         const double area =
             ext.y * ext.z * std::fabs(d.x) + ext.x * ext.z * std::fabs(d.y) + ext.x * ext.y * std::fabs(d.z);
-        CHECK(r.injected_per_step == doctest::Approx(2.5 * area).epsilon(1e-6));  // float32 link values
+        CHECK(r.injected_per_step == test::rel(2.5 * area, 1e-6));  // float32 link values
     }
 }
 
@@ -127,7 +128,7 @@ TEST_CASE("half-space reflectance at normal incidence: Geist's injection and the
         // parallel to the surface, c_z = 0, so first-scattered light near the top escapes
         // less than in the continuum: the error shrinks as multiple scattering dominates);
         // Geist's injection +1.8%, +2.5%, +1.5%. The bounds keep those with a margin.
-        CHECK(r.hybrid == doctest::Approx(c.exact).epsilon(0.10));
-        CHECK(r.geist == doctest::Approx(c.exact).epsilon(0.04));
+        CHECK(r.hybrid == test::rel(c.exact, 0.10));
+        CHECK(r.geist == test::rel(c.exact, 0.04));
     }
 }

@@ -5,6 +5,7 @@
 // of the 1% bound: "within 1%" is then implied by "within 3 SE" up to a <1e-4 chance per
 // check, and the seeds are fixed, so the suite is deterministic. Total runtime ~5 s in
 // release on 2 cores (~8 s under the sanitizers).
+#include "support/test_support.h"
 #include "transport/detail/monte_carlo_core.h"
 #include "transport/transport.h"
 #include "transport_test_util.h"
@@ -147,7 +148,7 @@ TEST_CASE("oracle: semi-infinite slab, isotropic scattering, normal incidence") 
         CHECK(r.energy.escaped_by_order[0].mean == 0.0);  // nothing leaves a half-space uncollided
         // Per path exactly: emitted + roulette = absorbed + escaped (+ truncated = 0).
         CHECK(r.energy.emitted.mean + r.energy.roulette.mean ==
-              doctest::Approx(r.energy.absorbed.mean + r.energy.escaped.mean).epsilon(1e-12));
+              test::rel(r.energy.absorbed.mean + r.energy.escaped.mean, 1e-12));
     }
 }
 
@@ -169,7 +170,7 @@ TEST_CASE("oracle: infinite medium absorbs everything it receives") {
     // Analog absorption: every path ends absorbed, exactly.
     o.implicit_capture = false;
     const auto a = detail::run_energy(inf, em, 0.7, 0.5, o);
-    CHECK(a.energy.absorbed.mean == doctest::Approx(a.energy.emitted.mean).epsilon(1e-12));
+    CHECK(a.energy.absorbed.mean == test::rel(a.energy.emitted.mean, 1e-12));
     // A bounded sphere with HG(0.8) and the same core: energy closes per path.
     detail::HomogeneousSphere sph;
     sph.sigma = 3.0;
@@ -177,7 +178,7 @@ TEST_CASE("oracle: infinite medium absorbs everything it receives") {
     o.paths = 100'000;
     const auto s = detail::run_energy(sph, em, 0.9, 0.8, o);
     CHECK(s.energy.emitted.mean + s.energy.roulette.mean ==
-          doctest::Approx(s.energy.absorbed.mean + s.energy.escaped.mean).epsilon(1e-12));
+          test::rel(s.energy.absorbed.mean + s.energy.escaped.mean, 1e-12));
 }
 
 TEST_CASE("delta tracking in a heterogeneous grid: uncollided escape equals the DDA transmittance") {
@@ -259,7 +260,7 @@ TEST_CASE("sun: Monte Carlo order 1 agrees with exact single scattering") {
     const glm::dvec3 ext = m.density.geom.extent();
     const double area = ext.y * ext.z * std::fabs(sun.direction.x) + ext.x * ext.z * std::fabs(sun.direction.y) +
                         ext.x * ext.y * std::fabs(sun.direction.z);
-    CHECK(r.energy.emitted.mean == doctest::Approx(2.0 * area).epsilon(1e-12));
+    CHECK(r.energy.emitted.mean == test::rel(2.0 * area, 1e-12));
 }
 
 TEST_CASE("full transport in a grid: energy closes per path, roulette is unbiased, orders add up") {
@@ -270,10 +271,9 @@ TEST_CASE("full transport in a grid: energy closes per path, roulette is unbiase
     o.roulette_threshold = 0.3;  // low albedo + high threshold: roulette is exercised
     const MonteCarloResult r = monte_carlo(m, PointSource{{0, 0, 900}, 1.0}, dirs, o);
     const EnergyTally& e = r.energy;
-    CHECK(e.emitted.mean == doctest::Approx(4.0 * std::numbers::pi).epsilon(1e-12));
+    CHECK(e.emitted.mean == test::rel(4.0 * std::numbers::pi, 1e-12));
     // Exact per path (round-off only).
-    CHECK(e.emitted.mean + e.roulette.mean ==
-          doctest::Approx(e.absorbed.mean + e.escaped.mean + e.truncated.mean).epsilon(1e-12));
+    CHECK(e.emitted.mean + e.roulette.mean == test::rel(e.absorbed.mean + e.escaped.mean + e.truncated.mean, 1e-12));
     CHECK(e.truncated.mean == 0.0);
     CHECK(std::fabs(e.roulette.mean) <= 3.0 * e.roulette.se);  // expectation 0
     CHECK(e.roulette.se > 0.0);                                // roulette did happen
@@ -282,14 +282,14 @@ TEST_CASE("full transport in a grid: energy closes per path, roulette is unbiase
         esc += e.escaped_by_order[std::size_t(k)].mean;
         abs += e.absorbed_by_order[std::size_t(k)].mean;
     }
-    CHECK(esc == doctest::Approx(e.escaped.mean).epsilon(1e-12));
-    CHECK(abs == doctest::Approx(e.absorbed.mean).epsilon(1e-12));
+    CHECK(esc == test::rel(e.escaped.mean, 1e-12));
+    CHECK(abs == test::rel(e.absorbed.mean, 1e-12));
     // What was scattered at least once is what the source put in minus what left or was
     // absorbed uncollided (energy closes per path; round-off only).
     CHECK(e.scattered_mean() ==
           doctest::Approx(e.emitted.mean + e.roulette.mean - e.escaped_by_order[0].mean - e.absorbed_by_order[0].mean)
               .epsilon(1e-12));
-    CHECK(e.escaped_scattered_mean() == doctest::Approx(e.escaped.mean - e.escaped_by_order[0].mean).epsilon(1e-12));
+    CHECK(e.escaped_scattered_mean() == test::rel(e.escaped.mean - e.escaped_by_order[0].mean, 1e-12));
     // Multiple scattering is positive where there is cloud and its SE is finite.
     for (std::size_t c = 0; c < r.multiple.cells(); ++c)
         if (m.density.data[c] > 0.3f) {
@@ -305,7 +305,7 @@ TEST_CASE("full transport in a grid: energy closes per path, roulette is unbiase
         CHECK(t.energy.escaped_by_order[std::size_t(k)].mean == e.escaped_by_order[std::size_t(k)].mean);
     CHECK(t.energy.truncated.mean > 0.0);
     CHECK(t.energy.emitted.mean + t.energy.roulette.mean ==
-          doctest::Approx(t.energy.absorbed.mean + t.energy.escaped.mean + t.energy.truncated.mean).epsilon(1e-12));
+          test::rel(t.energy.absorbed.mean + t.energy.escaped.mean + t.energy.truncated.mean, 1e-12));
 }
 
 TEST_CASE("results depend on the seed, not on the thread count") {
@@ -340,7 +340,7 @@ TEST_CASE("hard inputs: empty cloud, single voxel, dense voxel around the source
     SUBCASE("empty cloud: everything escapes uncollided, S1 is the unattenuated value, no multiple") {
         const LightingMedium m = test::uniform_medium({4, 4, 4}, 1.0, {0, 0, 0}, 0.0f, {1.0, 0.9, 0.0});
         const MonteCarloResult r = monte_carlo(m, PointSource{{1.5, 2.5, 0.5}, 1.0}, dirs, o);
-        CHECK(r.energy.escaped_by_order[0].mean == doctest::Approx(r.energy.emitted.mean).epsilon(1e-12));
+        CHECK(r.energy.escaped_by_order[0].mean == test::rel(r.energy.emitted.mean, 1e-12));
         CHECK(r.collisions == 0);
         const SourceField S = single_scattering(m, PointSource{{1.5, 2.5, 0.5}, 1.0}, dirs);
         CHECK(agreement(m, S, nullptr, r.single, r.single_se) == 0.0);  // no cloud voxel to compare...
@@ -356,7 +356,7 @@ TEST_CASE("hard inputs: empty cloud, single voxel, dense voxel around the source
         const MonteCarloResult r = monte_carlo(m, PointSource{{2.5, 2.5, 0.2}, 1.0}, dirs, o);
         const EnergyTally& e = r.energy;
         CHECK(e.absorbed.mean > 0.0);
-        CHECK(e.emitted.mean + e.roulette.mean == doctest::Approx(e.absorbed.mean + e.escaped.mean).epsilon(1e-12));
+        CHECK(e.emitted.mean + e.roulette.mean == test::rel(e.absorbed.mean + e.escaped.mean, 1e-12));
         for (float v : r.multiple.data) CHECK(std::isfinite(v));
     }
     SUBCASE("source inside a dense voxel (sigma h = 100), albedo 1: nothing absorbed, all escapes") {
@@ -365,7 +365,7 @@ TEST_CASE("hard inputs: empty cloud, single voxel, dense voxel around the source
         o.paths = 2'000;  // ~600 collisions per path
         const MonteCarloResult r = monte_carlo(m, PointSource{{1.5, 1.5, 1.5}, 1.0}, dirs, o);
         CHECK(r.energy.absorbed.mean == 0.0);
-        CHECK(r.energy.escaped.mean == doctest::Approx(r.energy.emitted.mean).epsilon(1e-12));
+        CHECK(r.energy.escaped.mean == test::rel(r.energy.emitted.mean, 1e-12));
         CHECK(r.energy.escaped_by_order[0].mean < 1e-12 * r.energy.emitted.mean);  // e^{-50}
         // Order 1 in the source voxel: S = albedo I / (V sigma) (see the single-scattering
         // test), estimated here with the expected-value estimator: within 3 SE.
@@ -378,7 +378,7 @@ TEST_CASE("hard inputs: empty cloud, single voxel, dense voxel around the source
         const SourceField S = single_scattering(m, PointSource{{2, 2, 2}, 1.0}, dirs);
         CHECK(agreement(m, S, nullptr, r.single, r.single_se) >= 0.95);  // 64 voxels: t_31 tails
         CHECK(r.energy.emitted.mean + r.energy.roulette.mean ==
-              doctest::Approx(r.energy.absorbed.mean + r.energy.escaped.mean).epsilon(1e-12));
+              test::rel(r.energy.absorbed.mean + r.energy.escaped.mean, 1e-12));
     }
     SUBCASE("very thick (optical depth 1000 across): reflectance of the semi-infinite slab") {
         // 10 x 10 x 10 voxels of sigma h = 100, sun at normal incidence on the top, isotropic

@@ -1,4 +1,5 @@
 // Exact voxel traversal (3D DDA) and transmittance through the piecewise-constant medium.
+#include "support/test_support.h"
 #include "transport/detail/traversal.h"
 #include "transport/transport.h"
 
@@ -96,7 +97,7 @@ TEST_CASE("segment lengths tile the clipped segment exactly") {
             return true;
         });
         // Both endpoints are inside: the pieces must add up to the length (round-off).
-        CHECK(sum == doctest::Approx(len).epsilon(1e-12));
+        CHECK(sum == test::rel(len, 1e-12));
         // A straight segment crosses at most |di|+|dj|+|dk|+1 voxels.
         const glm::dvec3 ua = g.to_voxel(a), ub = g.to_voxel(b);
         const int bound =
@@ -139,45 +140,45 @@ TEST_CASE("axis-parallel rays, rays along faces and edges, endpoints on corners"
     {
         double expect = 0.0;
         for (int i = 0; i < 4; ++i) expect += rho(i, 1, 2) * h;
-        CHECK(transport::optical_depth(m, {-1, 3, 5}, {9, 3, 5}) == doctest::Approx(expect).epsilon(1e-14));
-        CHECK(transport::optical_depth(m, {9, 3, 5}, {-1, 3, 5}) == doctest::Approx(expect).epsilon(1e-14));
+        CHECK(transport::optical_depth(m, {-1, 3, 5}, {9, 3, 5}) == test::rel(expect, 1e-14));
+        CHECK(transport::optical_depth(m, {9, 3, 5}, {-1, 3, 5}) == test::rel(expect, 1e-14));
     }
     // Along x exactly on the face y = 4 (between j = 1 and j = 2): documented convention,
     // the + side (j = 2) is sampled, whatever the direction of travel.
     {
         double expect = 0.0;
         for (int i = 0; i < 4; ++i) expect += rho(i, 2, 0) * h;
-        CHECK(transport::optical_depth(m, {0, 4, 1}, {8, 4, 1}) == doctest::Approx(expect).epsilon(1e-14));
-        CHECK(transport::optical_depth(m, {8, 4, 1}, {0, 4, 1}) == doctest::Approx(expect).epsilon(1e-14));
+        CHECK(transport::optical_depth(m, {0, 4, 1}, {8, 4, 1}) == test::rel(expect, 1e-14));
+        CHECK(transport::optical_depth(m, {8, 4, 1}, {0, 4, 1}) == test::rel(expect, 1e-14));
     }
     // Along z on the edge x = 2, y = 6 (four voxels meet): the + side in both x and y.
     {
         double expect = 0.0;
         for (int k = 0; k < 4; ++k) expect += rho(1, 3, k) * h;
-        CHECK(transport::optical_depth(m, {2, 6, -1}, {2, 6, 9}) == doctest::Approx(expect).epsilon(1e-14));
+        CHECK(transport::optical_depth(m, {2, 6, -1}, {2, 6, 9}) == test::rel(expect, 1e-14));
     }
     // On the grid's upper face x = 8: the last (inside) voxel layer is sampled.
     {
         double expect = 0.0;
         for (int j = 0; j < 4; ++j) expect += rho(3, j, 3) * h;
-        CHECK(transport::optical_depth(m, {8, 0, 7}, {8, 8, 7}) == doctest::Approx(expect).epsilon(1e-14));
+        CHECK(transport::optical_depth(m, {8, 0, 7}, {8, 8, 7}) == test::rel(expect, 1e-14));
     }
     // From a corner (2,2,2) to the corner (6,6,6): the diagonal crosses voxels (1,1,1) and
     // (2,2,2) only (it passes exactly through the shared corner (4,4,4)).
     {
         const double expect = (rho(1, 1, 1) + rho(2, 2, 2)) * h * std::sqrt(3.0);
-        CHECK(transport::optical_depth(m, {2, 2, 2}, {6, 6, 6}) == doctest::Approx(expect).epsilon(1e-13));
-        CHECK(transport::optical_depth(m, {6, 6, 6}, {2, 2, 2}) == doctest::Approx(expect).epsilon(1e-13));
+        CHECK(transport::optical_depth(m, {2, 2, 2}, {6, 6, 6}) == test::rel(expect, 1e-13));
+        CHECK(transport::optical_depth(m, {6, 6, 6}, {2, 2, 2}) == test::rel(expect, 1e-13));
     }
     // Starting on a face and moving away from it into the lower voxel.
     {
         const double expect = rho(0, 0, 0) * 1.5;
-        CHECK(transport::optical_depth(m, {2, 1, 1}, {0.5, 1, 1}) == doctest::Approx(expect).epsilon(1e-14));
+        CHECK(transport::optical_depth(m, {2, 1, 1}, {0.5, 1, 1}) == test::rel(expect, 1e-14));
     }
     // Segment from the grid's far corner to a point outside along the diagonal.
     {
         const double expect = rho(3, 3, 3) * h * std::sqrt(3.0);
-        CHECK(transport::optical_depth(m, {6, 6, 6}, {20, 20, 20}) == doctest::Approx(expect).epsilon(1e-13));
+        CHECK(transport::optical_depth(m, {6, 6, 6}, {20, 20, 20}) == test::rel(expect, 1e-13));
     }
 }
 
@@ -186,6 +187,6 @@ TEST_CASE("optical depth to the sun goes backwards to the grid boundary") {
     const glm::dvec3 x(2.3, 1.7, 0.6), d = glm::normalize(glm::dvec3(0.3, -0.2, -1.0));
     // Reference: the segment from x to a point far up-sun (outside the grid).
     const double ref = transport::optical_depth(m, x, x - 100.0 * d);
-    CHECK(transport::optical_depth_to_sun(m, x, d) == doctest::Approx(ref).epsilon(1e-14));
-    CHECK(transport::optical_depth_to_sun(m, x, 5.0 * d) == doctest::Approx(ref).epsilon(1e-14));
+    CHECK(transport::optical_depth_to_sun(m, x, d) == test::rel(ref, 1e-14));
+    CHECK(transport::optical_depth_to_sun(m, x, 5.0 * d) == test::rel(ref, 1e-14));
 }

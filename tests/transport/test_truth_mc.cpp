@@ -3,6 +3,7 @@
 // noise estimate): where the grids coincide it is the lighting-grid Monte Carlo bit for bit;
 // where the tally is coarser it averages the finer medium's S; energy closes; a line source
 // is the limit of points along it; the noise estimate agrees with the batch standard errors.
+#include "support/test_support.h"
 #include "transport/transport.h"
 #include "transport_test_util.h"
 
@@ -85,8 +86,7 @@ TEST_CASE("truth path: a coarser tally of a homogeneous block agrees with the Mo
     CHECK(rel(b.multiple, a.multiple) < 3.0 * floor_multiple);
     // Energy closes per path through this path too (the same bookkeeping: round-off only).
     const EnergyTally& e = b.energy;
-    CHECK(e.emitted.mean + e.roulette.mean ==
-          doctest::Approx(e.absorbed.mean + e.escaped.mean + e.truncated.mean).epsilon(1e-12));
+    CHECK(e.emitted.mean + e.roulette.mean == test::rel(e.absorbed.mean + e.escaped.mean + e.truncated.mean, 1e-12));
 }
 
 TEST_CASE("truth path: a line source is the limit of point sources along it") {
@@ -105,7 +105,7 @@ TEST_CASE("truth path: a line source is the limit of point sources along it") {
     const MonteCarloResult a = monte_carlo(m, {}, std::span(&line, 1), m.density.geom, dirs, o);
     o.seed = 9;
     const MonteCarloResult b = monte_carlo(m, points, {}, m.density.geom, dirs, o);
-    CHECK(a.energy.emitted.mean == doctest::Approx(4.0 * std::numbers::pi * line.intensity * len).epsilon(1e-12));
+    CHECK(a.energy.emitted.mean == test::rel(4.0 * std::numbers::pi * line.intensity * len, 1e-12));
     const double floor_single = std::hypot(a.noise.single, b.noise.single);
     const double floor_multiple = std::hypot(a.noise.multiple, b.noise.multiple);
     MESSAGE("single " << rel(a.single, b.single) << " (noise " << floor_single << "), multiple "
@@ -130,10 +130,8 @@ TEST_CASE("truth path: groups, the uncollided-only estimate, the fluence tally a
     REQUIRE(r.groups.size() == 2);
     // The sums are the groups' sums (float rounding of a two-term double sum: 1 ulp).
     for (std::size_t i = 0; i < r.single.data.size(); ++i) {
-        CHECK(r.single.data[i] ==
-              doctest::Approx(r.groups[0].single.data[i] + r.groups[1].single.data[i]).epsilon(1e-6));
-        CHECK(r.multiple.data[i] ==
-              doctest::Approx(r.groups[0].multiple.data[i] + r.groups[1].multiple.data[i]).epsilon(1e-6));
+        CHECK(r.single.data[i] == test::rel(r.groups[0].single.data[i] + r.groups[1].single.data[i], 1e-6));
+        CHECK(r.multiple.data[i] == test::rel(r.groups[0].multiple.data[i] + r.groups[1].multiple.data[i], 1e-6));
     }
     // The noise from two halves and the noise from 32 batch errors estimate the same thing; a
     // batch-error estimate from 32 batches scatters by ~13%, the halves' by ~70% (one degree of
@@ -167,8 +165,7 @@ TEST_CASE("truth path: groups, the uncollided-only estimate, the fluence tally a
     const std::vector<glm::dvec3> up = output_directions(1);
     const MonteCarloResult f = monte_carlo(iso, {}, ungrouped, tally, up, u);
     for (std::size_t c = 0; c < f.fluence.data.size(); ++c)
-        CHECK(f.single.data[c] ==
-              doctest::Approx(iso.optics.albedo * f.fluence.data[c] / (4.0 * std::numbers::pi)).epsilon(1e-5));
+        CHECK(f.single.data[c] == test::rel(iso.optics.albedo * f.fluence.data[c] / (4.0 * std::numbers::pi), 1e-5));
 }
 
 TEST_CASE("truth path: bad input is refused with the field named") {
