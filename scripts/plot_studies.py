@@ -231,14 +231,15 @@ def plot_lb_vs_mc_profile(study, out_dir):
                                 ("lb_multiple_conservative", "tab:green", "conservative")):
         ax.plot(z, [a + b for a, b in zip(s1, col(name))], "-", color=colour, label=f"S1 + LB {label}")
     ax.plot(z, col("lb_multiple_physical"), ":", color="tab:red", label="LB physical multiple")
-    for name in [k for k in rows[0] if k.startswith("lb_multiple_physical_")]:
-        ax.plot(z, col(name), ":", lw=1.2, label="LB physical multiple, " + name[len("lb_multiple_physical_"):]
-                .replace("_", " "))
+    extra = [k for k in rows[0] if k.startswith("lb_multiple_physical_")]
+    for name, colour in zip(extra, ("tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive")):
+        ax.plot(z, col(name), ":", lw=1.4, color=colour,
+                label="LB physical multiple, " + name[len("lb_multiple_physical_"):].replace("_", " "))
     ax.set_yscale("log")
     ax.set_ylim(bottom=1e-11)  # S1 falls to ~1e-20 at the top: keep the multiple scattering readable
     if base is not None:
         ax.axvline(base, color="0.5", lw=0.8, ls="--")
-        ax.annotate("cloud base", (base, 1e-11), textcoords="offset points", xytext=(3, 6), fontsize=8)
+        ax.annotate("lowest cloud voxel", (base, 1e-11), textcoords="offset points", xytext=(3, 6), fontsize=8)
     ax.set_xlabel("height (km)")
     ax.set_ylabel("S, mean over directions (W m$^{-2}$ sr$^{-1}$)")
     finish_single(fig, ax, "S in the light's column (default storm, 500 m voxels)", out_dir, "lb_vs_mc_profile")
