@@ -106,6 +106,16 @@ void declare(CommandLine& cli, ShotArgs& a) {
            "strike's own solve is waited for")
         ->check(CLI::IsMember({"paper", "hybrid", "per_strike", "per_strike_mc", "reference"}))
         ->type_name("PRESET");
+    app.add_option_function<std::string>(
+           "--vdb",
+           [&a](const std::string& s) {
+               a.vdb = s;
+               if (a.vdb->extension() != ".vdb")
+                   throw core::Error(kTool, "--vdb must name a .vdb file, got '" + s + "'");
+           },
+           "also write the density and the frame's lightning S in every direction (grids density, S_00, S_01, "
+           "...) as OUT.vdb (OpenVDB, metres), for Houdini, Blender or ParaView")
+        ->type_name("OUT.vdb");
 }
 
 }  // namespace
