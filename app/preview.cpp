@@ -128,7 +128,7 @@ int main(int argc, char** argv) {
         {
             // The files this tool may write into DIR never replace the scene or its cloud.
             std::vector<core::NamedPath> inputs{{"scene", args.scene}};
-            if (sc.cloud.kind == scene::CloudSource::Kind::File) inputs.push_back({"cloud file", sc.cloud.file});
+            if (sc.cloud.kind != scene::CloudSource::Kind::Generator) inputs.push_back({"cloud file", sc.cloud.file});
             std::vector<core::NamedPath> outputs;
             for (const char* n : {"density.nrrd", "density_slice.png", "single_scattering.nrrd",
                                   "single_scattering_slice.png", "mc_single.nrrd", "mc_multiple.nrrd",

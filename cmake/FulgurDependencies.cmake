@@ -8,6 +8,15 @@ find_package(PkgConfig REQUIRED)
 pkg_check_modules(STB REQUIRED IMPORTED_TARGET stb) # libstb-dev: PNG writing (stb_image_write)
 find_package(ZLIB REQUIRED)                         # zlib1g-dev: CRC-32 of .fgb files
 find_package(CLI11 2.1 REQUIRED)                    # libcli11-dev: the tools' command lines
+# libopenvdb-dev: OpenVDB clouds in and out (engine/cloud/vdb.cpp only), as OpenVDB::openvdb.
+# Debian ships its FindOpenVDB.cmake beside the library, not in CMake's module directory; the
+# module asks for Boost.Iostreams (libboost-iostreams-dev) and sets BUILD_SHARED_LIBS, so it
+# runs inside a function: its variables stay there, its imported targets are directory-wide.
+function(fulgur_find_openvdb)
+  list(APPEND CMAKE_MODULE_PATH /usr/lib/${CMAKE_LIBRARY_ARCHITECTURE}/cmake/OpenVDB)
+  find_package(OpenVDB REQUIRED)
+endfunction()
+fulgur_find_openvdb()
 
 if(FULGUR_BUILD_TESTS)
   find_package(doctest REQUIRED)                    # doctest-dev
@@ -18,8 +27,12 @@ if(FULGUR_BUILD_GL)
   find_package(glfw3 3.3 REQUIRED)                  # libglfw3-dev: demo window
   pkg_check_modules(OSMESA REQUIRED IMPORTED_TARGET osmesa)   # libosmesa6-dev: headless GL
   pkg_check_modules(IMGUI REQUIRED IMPORTED_TARGET imgui)     # libimgui-dev: demo panel
-  # glad2 (python3-glad) generates the GL 4.5 core loader at build time from the Khronos
-  # XML it ships; the generated loader takes the current context's get-proc-address.
+endif()
+
+# Debian's python3 first (its packages are there): glad2 (python3-glad) generates the GL 4.5
+# core loader at build time from the Khronos XML it ships (the loader takes the current
+# context's get-proc-address); python3-openvdb writes the VDB test files at test time.
+if(FULGUR_BUILD_GL OR FULGUR_BUILD_TESTS)
   find_program(FULGUR_PYTHON3 NAMES python3 PATHS /usr/bin NO_DEFAULT_PATH)
   if(NOT FULGUR_PYTHON3)
     find_program(FULGUR_PYTHON3 NAMES python3 REQUIRED)

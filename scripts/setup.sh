@@ -18,6 +18,9 @@ PACKAGES=(
   python3-glad                                   # GL loader generator (glad2), run at build time
   xvfb xauth                                     # virtual display for the demo screenshot
   python3-matplotlib                             # charts of the studies' CSV (scripts/plot_studies.py)
+  libopenvdb-dev                                 # OpenVDB clouds in (scene "cloud": {"vdb": ...}) and out (--vdb)
+  libboost-iostreams-dev                         # (asked for by libopenvdb-dev's FindOpenVDB.cmake)
+  python3-openvdb                                # writes the VDB test files and content/clouds (scripts/make_vdb_cloud.py)
   clang libclang-rt-14-dev                       # libFuzzer harnesses (fuzz preset, fuzz/)
 )
 

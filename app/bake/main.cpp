@@ -4,6 +4,7 @@
 #include "bake/bake.h"
 #include "common/bake_args.h"
 #include "common/cli.h"
+#include "common/lighting_vdb.h"
 #include "common/progress.h"
 #include "core/core.h"
 #include "scene/scene.h"
@@ -47,12 +48,8 @@ nlohmann::json report_json(const bake::Plan& plan, const bake::Report& r, const 
     return j;
 }
 
-void export_nrrd(const app::BakeArgs& a, const scene::Scene& s, const core::Grid3<float>& density,
-                 const bake::Plan& plan, const std::filesystem::path& fgb) {
-    const std::size_t nd = plan.output_directions.size();
-    if (std::size_t(a.export_direction) >= nd)
-        throw core::Error("", "--direction " + std::to_string(a.export_direction) + " is out of range (the bake has " +
-                                  std::to_string(nd) + " directions)");
+// --export's lights, checked against the plan.
+std::vector<basis::WeightedLight> export_lights(const app::BakeArgs& a, const bake::Plan& plan) {
     std::vector<basis::WeightedLight> lights;
     for (const app::ExportLight& e : a.export_lights) {
         if (e.light >= plan.lights.count())
@@ -60,6 +57,39 @@ void export_nrrd(const app::BakeArgs& a, const scene::Scene& s, const core::Grid
                                       std::to_string(plan.lights.count()) + " lights)");
         lights.push_back({e.light, e.weight});
     }
+    return lights;
+}
+
+// --vdb: the density and --export's sum from the .fgb, every direction, as PREFIX.vdb.
+void export_vdb(const app::BakeArgs& a, const scene::Scene& s, const core::Grid3<float>& density,
+                const bake::Plan& plan, const std::filesystem::path& fgb) {
+    const std::vector<basis::WeightedLight> lights = export_lights(a, plan);
+    const basis::BakedBasis baked = basis::load_fgb(fgb);
+    app::LightingVdb v;
+    v.scene = s.name + " (" + a.scene.string() + ")";
+    v.extinction = s.medium.extinction;
+    v.density = &density;
+    std::string list;
+    for (const basis::WeightedLight& w : lights)
+        list += (list.empty() ? "" : ", ") + std::to_string(w.light) + ":" + core::format_number(w.weight, 6);
+    v.source_meaning = "sum of virtual lights (index:weight) " + list + " of " + fgb.filename().string() +
+                       ", each of unit radiant intensity (1 W/sr), reconstructed from the compressed bases";
+    for (std::size_t m = 0; m < plan.output_directions.size(); ++m) {
+        v.source.push_back(basis::reconstruct(baked, lights, m));
+        v.directions.push_back(plan.output_directions[m]);
+    }
+    const std::filesystem::path out = a.vdb_prefix.string() + ".vdb";
+    app::write_lighting_vdb(out, v);
+    std::printf("exported %s (density and S in %zu directions)\n", out.string().c_str(), v.source.size());
+}
+
+void export_nrrd(const app::BakeArgs& a, const scene::Scene& s, const core::Grid3<float>& density,
+                 const bake::Plan& plan, const std::filesystem::path& fgb) {
+    const std::size_t nd = plan.output_directions.size();
+    if (std::size_t(a.export_direction) >= nd)
+        throw core::Error("", "--direction " + std::to_string(a.export_direction) + " is out of range (the bake has " +
+                                  std::to_string(nd) + " directions)");
+    const std::vector<basis::WeightedLight> lights = export_lights(a, plan);
     const basis::BakedBasis baked = basis::load_fgb(fgb);
     const std::filesystem::path comp = a.export_prefix.string() + "_compressed.nrrd";
     basis::export_compressed_nrrd(comp, baked, lights, std::size_t(a.export_direction));
@@ -87,13 +117,14 @@ void export_nrrd(const app::BakeArgs& a, const scene::Scene& s, const core::Grid
 // Every file the bake writes is new or its own, never an input or another output.
 void check_outputs(const app::BakeArgs& a, const scene::Scene& s, const std::filesystem::path& out) {
     std::vector<core::NamedPath> inputs{{"scene", a.scene}};
-    if (s.cloud.kind == scene::CloudSource::Kind::File) inputs.push_back({"cloud file", s.cloud.file});
+    if (s.cloud.kind != scene::CloudSource::Kind::Generator) inputs.push_back({"cloud file", s.cloud.file});
     std::vector<core::NamedPath> outputs{{"baked file", out}};
     if (a.report) outputs.push_back({"report", *a.report});
-    if (!a.export_lights.empty()) {
+    if (!a.export_lights.empty() && !a.export_prefix.empty()) {
         outputs.push_back({"raw export", a.export_prefix.string() + "_raw.nrrd"});
         outputs.push_back({"compressed export", a.export_prefix.string() + "_compressed.nrrd"});
     }
+    if (!a.vdb_prefix.empty()) outputs.push_back({"VDB export", a.vdb_prefix.string() + ".vdb"});
     core::check_distinct_files(inputs, outputs);
 }
 
@@ -139,7 +170,8 @@ int run(const app::BakeArgs& a) {
             r.unconverged ? (", " + std::to_string(r.unconverged) + " lights hit the iteration cap").c_str() : "");
         if (a.report) core::write_file(*a.report, report_json(plan, r, out).dump(2) + "\n");
     }
-    if (!a.export_lights.empty()) export_nrrd(a, s, density, plan, out);
+    if (!a.export_lights.empty() && !a.export_prefix.empty()) export_nrrd(a, s, density, plan, out);
+    if (!a.vdb_prefix.empty()) export_vdb(a, s, density, plan, out);
     return 0;
 }
 

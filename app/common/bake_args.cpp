@@ -64,6 +64,10 @@ void declare(CommandLine& cli, BakeArgs& a) {
         ->type_name("L[:W],..");
     cli.number("--direction", a.export_direction, "output direction index for --export (default 0)", 0);
     app.add_option("--nrrd", a.export_prefix, "output prefix for --export")->type_name("PREFIX");
+    app.add_option("--vdb", a.vdb_prefix,
+                   "write --export's sum from the .fgb for every direction (grids S_00, S_01, ...) with the "
+                   "density as PREFIX.vdb (OpenVDB, metres), for Houdini, Blender or ParaView")
+        ->type_name("PREFIX");
 }
 
 constexpr const char* kDescription =
@@ -77,9 +81,13 @@ std::string bake_usage() { return usage_of<BakeArgs>(kTool, kDescription, declar
 BakeArgs parse_bake_args(const std::vector<std::string>& args) {
     return parse_args<BakeArgs>(kTool, kDescription, args, declare, [](const CommandLine& cli, const BakeArgs& a) {
         const bool have_nrrd = cli.app().count("--nrrd") > 0, have_direction = cli.app().count("--direction") > 0;
-        if (!a.export_lights.empty() && !have_nrrd) throw core::Error(kTool, "--export needs --nrrd PREFIX");
-        if (a.export_lights.empty() && (have_nrrd || have_direction))
-            throw core::Error(kTool, "--nrrd and --direction only go with --export");
+        const bool have_vdb = cli.app().count("--vdb") > 0;
+        if (!a.export_lights.empty() && !have_nrrd && !have_vdb)
+            throw core::Error(kTool, "--export needs --nrrd PREFIX or --vdb PREFIX");
+        if (a.export_lights.empty() && (have_nrrd || have_direction || have_vdb))
+            throw core::Error(kTool, "--nrrd, --vdb and --direction only go with --export");
+        if (have_direction && !have_nrrd)
+            throw core::Error(kTool, "--direction only goes with --nrrd (--vdb writes every direction)");
         if (!a.export_lights.empty() && a.dry_run)
             throw core::Error(kTool, "--export needs a bake; it cannot go with --dry-run");
     });

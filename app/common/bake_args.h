@@ -24,6 +24,7 @@ struct BakeArgs {
     std::vector<ExportLight> export_lights;       ///< --export L[:W],...
     int export_direction = 0;                     ///< --direction M
     std::filesystem::path export_prefix;          ///< --nrrd PREFIX -> PREFIX_raw.nrrd, PREFIX_compressed.nrrd
+    std::filesystem::path vdb_prefix;             ///< --vdb PREFIX -> PREFIX.vdb (density + S, every direction)
     bool help = false;
 };
 

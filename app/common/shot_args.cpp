@@ -22,6 +22,19 @@ constexpr const char* kDescription =
     "Renders one frame of SCENE's storm headless (OSMesa) to OUT.png and prints the per-stage\n"
     "timings as one JSON line.";
 
+// An option naming a file that must end in `extension` ("--vdb must name a .vdb file").
+CLI::Option* path_option(CLI::App& app, const std::string& name, std::optional<std::filesystem::path>& target,
+                         const std::string& extension, const std::string& help) {
+    return app.add_option_function<std::string>(
+        name,
+        [&target, name, extension](const std::string& s) {
+            target = s;
+            if (target->extension() != extension)
+                throw core::Error(kTool, name + " must name a " + extension + " file, got '" + s + "'");
+        },
+        help);
+}
+
 // fulgur-shot's options, writing into `a`.
 void declare(CommandLine& cli, ShotArgs& a) {
     CLI::App& app = cli.app();
@@ -80,16 +93,10 @@ void declare(CommandLine& cli, ShotArgs& a) {
            "at full resolution: on the lighting grid instead), glow, bolt, ground, single, multiple")
         ->type_name("A,B,..");
     app.add_option("-o,--output", a.output, "output PNG")->type_name("OUT.png")->required();
-    app.add_option_function<std::string>(
-           "--reference",
-           [&a](const std::string& s) {
-               a.reference = s;
-               if (a.reference->extension() != ".png")
-                   throw core::Error(kTool, "--reference must name a .png file, got '" + s + "'");
-           },
-           "also render the frame lit by the reference (--against: the truth or the direct solve; seconds to "
-           "minutes) into REF.png, |difference| into REF_diff.png (white = 10% of the reference's maximum), "
-           "frame | reference | difference into REF_compare.png, and print the errors and times as JSON")
+    path_option(app, "--reference", a.reference, ".png",
+                "also render the frame lit by the reference (--against: the truth or the direct solve; seconds to "
+                "minutes) into REF.png, |difference| into REF_diff.png (white = 10% of the reference's maximum), "
+                "frame | reference | difference into REF_compare.png, and print the errors and times as JSON")
         ->type_name("REF.png");
     app.add_option(
            "--against", a.against,
@@ -104,6 +111,10 @@ void declare(CommandLine& cli, ShotArgs& a) {
         app, "--quality", [&a](const std::string& s) { a.quality = s; }, scene::kQualityPresets,
         "how the frame is lit, its strike's own solve waited for (default: the scene's \"quality\")")
         ->type_name("PRESET");
+    path_option(app, "--vdb", a.vdb, ".vdb",
+                "also write the density and the frame's lightning S in every direction (grids density, S_00, S_01, "
+                "...) as OUT.vdb (OpenVDB, metres), for Houdini, Blender or ParaView")
+        ->type_name("OUT.vdb");
 }
 
 }  // namespace

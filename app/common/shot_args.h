@@ -35,6 +35,9 @@ struct ShotArgs {
     /// --quality PRESET: how the frame is lit (paper, hybrid, per_strike, reference; default:
     /// the scene's "quality"); a strike's own solve is waited for.
     std::optional<std::string> quality;
+    /// --vdb OUT.vdb: also write the density and the frame's lightning S (every direction, on
+    /// the lighting grid) as OpenVDB.
+    std::optional<std::filesystem::path> vdb;
     bool help = false;
 };
 

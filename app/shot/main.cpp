@@ -1,6 +1,7 @@
 // fulgur-shot: one frame of a scene's storm, headless (OSMesa), to PNG; timings as JSON.
 #include "common/cli.h"
 #include "common/image_compare.h"
+#include "common/lighting_vdb.h"
 #include "common/shot_args.h"
 #include "common/view_cli.h"
 #include "platform/platform.h"
@@ -94,6 +95,33 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
     std::fflush(stdout);
 }
 
+// --vdb: the density and the frame's lightning S at t in every baked direction (zeros when no
+// flash glows at t; none without lightning), on the lighting grid.
+void write_frame_vdb(view::StormView& view, double t, const view::ViewOptions& opt, const app::ShotArgs& a) {
+    app::LightingVdb v;
+    const scene::Scene& s = view.scene();
+    v.scene = s.name + " (" + a.scene.string() + ")";
+    v.extinction = s.medium.extinction;
+    v.density = &view.density();
+    if (view.has_lightning()) {
+        runtime::ReconstructOptions ro;
+        ro.components = opt.components;
+        ro.wait_for_strikes = true;
+        const runtime::Frame& f = view.pipeline().build(t, {}, ro);
+        const std::vector<glm::dvec3>& dirs = view.bases().directions();
+        v.source.assign(dirs.size(), core::Grid3<float>(view.bases().lighting()));
+        v.directions = dirs;
+        if (f.lit)
+            for (std::size_t i = 0; i < f.radiance.directions.size(); ++i)
+                v.source.at(std::size_t(f.radiance.directions[i])).data = f.radiance.values[i];
+        v.source_meaning = "the lightning's S of the frame at t = " + core::format_number(t, 9) + " s, seed " +
+                           std::to_string(a.seed) + ", quality " +
+                           std::string(scene::to_string(view.pipeline().quality().preset)) +
+                           (f.lit ? "" : " (no flash glows at t: zero)");
+    }
+    app::write_lighting_vdb(*a.vdb, v);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -105,8 +133,9 @@ int main(int argc, char** argv) {
         // The images never overwrite the scene, its cloud or its baked file, nor each other.
         std::vector<core::NamedPath> inputs{{"scene", a.scene},
                                             {"baked file", a.fgb ? *a.fgb : bake::default_fgb_path(s)}};
-        if (s.cloud.kind == scene::CloudSource::Kind::File) inputs.push_back({"cloud file", s.cloud.file});
+        if (s.cloud.kind != scene::CloudSource::Kind::Generator) inputs.push_back({"cloud file", s.cloud.file});
         std::vector<core::NamedPath> outputs{{"image (-o)", a.output}};
+        if (a.vdb) outputs.push_back({"VDB (--vdb)", *a.vdb});
         if (a.reference) {
             outputs.push_back({"reference image", *a.reference});
             outputs.push_back({"difference image", app::reference_diff_path(*a.reference)});
@@ -162,6 +191,7 @@ int main(int argc, char** argv) {
         const auto px = ctx->read_rgba8();
         core::write_png(a.output, a.width, a.height, 4, px);
         std::cout << app::timings_json(r, a.width, a.height) << std::endl;
+        if (a.vdb) write_frame_vdb(view, t, opt, a);
         if (a.reference) render_reference(view, ctx.get(), cam, t, opt, a, px);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur-shot: %s\n", e.what());

@@ -324,6 +324,8 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
     scene::check_cost(s, p.cost);
 
     auto& why = p.reasons;
+    if (s.cloud.kind == scene::CloudSource::Kind::Vdb)
+        why.push_back("cloud from " + s.cloud.file.filename().string() + ": " + scene::inspect_vdb_cloud(s).describe());
     if (s.medium.g == 0.0)
         why.push_back("g = 0 (isotropic scattering): S does not depend on direction, 1 output direction instead of " +
                       std::to_string(s.directions));

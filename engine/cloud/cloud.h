@@ -18,10 +18,14 @@
 
 #include "core/core.h"
 
+#include <glm/vec3.hpp>
+
 #include <cstdint>
 #include <filesystem>
 #include <span>
+#include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace fulgur::cloud {
@@ -108,6 +112,91 @@ core::Grid3<float> load_density(const std::filesystem::path& path);
 /// Throws core::Error (naming the voxel) if a value is outside [0, 1] or not finite, so a
 /// saved density always loads.
 void save_density(const std::filesystem::path& path, const core::Grid3<float>& density);
+
+// ---------------------------------------------------------------------------------------
+// OpenVDB import and export (vdb.cpp). OpenVDB stays inside vdb.cpp: nothing here names one
+// of its types. docs/cloud.md, "OpenVDB clouds", explains the mapping and the filter.
+
+/// How a float grid of a .vdb file becomes the engine's density grid (the scene file's
+/// "cloud": {"vdb": ...} object sets these by the same names).
+///
+/// Geometry: the grid's index-to-world transform must be linear and axis-aligned (a scale
+/// per axis, possibly different, and a translation); rotated, sheared, mirrored and
+/// non-linear (frustum) transforms are refused. World units become metres times `scale`
+/// (or the voxel is `voxel_size` metres along its smallest axis), `up` "y" turns a y-up file
+/// (Houdini, EmberGen) to the engine's z-up (x stays, y becomes z, z becomes -y), then
+/// `offset` moves it. The density grid covers the active voxels' bounding box (active tiles
+/// included) with cubic voxels of `density_voxel_size` metres (default: the file's voxel in
+/// metres, its smallest axis when anisotropic).
+///
+/// Filter: each density voxel is the average of the VDB's piecewise-constant field over the
+/// voxel's box (a box filter, separable, weights = overlap lengths): it keeps the cloud's
+/// total extinction (its integral) at any resolution and, unlike point sampling, does not
+/// alias when the density grid is coarser; with the file's own voxel size and grid it is an
+/// exact copy.
+/// Largest .vdb file read (4 GiB), checked (core::check_readable_file) before opening.
+inline constexpr std::uint64_t kMaxVdbFileBytes = std::uint64_t(1) << 32;
+/// Default peak memory of a VDB load (16 GiB) when the caller gives none.
+inline constexpr std::uint64_t kMaxVdbLoadBytes = std::uint64_t(16) << 30;
+
+struct VdbImport {
+    /// The float grid's name; empty: the float grid "density", or else the first float grid
+    /// by name (OpenVDB lists a file's grids by name; the plan says which was taken).
+    std::string grid;
+    double scale = 1.0;               ///< metres per world unit of the file
+    double voxel_size = 0.0;          ///< metres per file voxel (its smallest axis); 0: from scale
+    double density_voxel_size = 0.0;  ///< the density grid's voxel, metres; 0: the file's voxel
+    double density_scale = 1.0;       ///< multiplies every value; the result must lie in [0, 1]
+    bool y_up = false;                ///< the file's +y is up
+    glm::dvec3 offset{0.0};           ///< metres, added last
+    /// Refuse a load whose peak memory (VdbInfo::load_bytes) exceeds this; the scene
+    /// passes its memory limit ("limits.memory_gib").
+    std::uint64_t max_bytes = kMaxVdbLoadBytes;
+};
+
+/// What load_vdb would read and make, from the file's grid descriptors and metadata alone
+/// (no voxel is read): for sizing a load before doing it, and for the bake plan.
+struct VdbInfo {
+    std::string grid;                 ///< the chosen grid's name
+    bool first_float_grid = false;    ///< chosen without a name ("density", or the first float grid)
+    std::vector<std::string> grids;   ///< every grid of the file, "name (type)", by name
+    core::Int3 source_dims;           ///< the active voxels' bounding box, in file voxels
+    glm::dvec3 source_voxel{0.0};     ///< metres per file voxel along the engine's x, y, z
+    std::uint64_t active_voxels = 0;  ///< the file's count (file_voxel_count)
+    core::GridGeometry density;       ///< the density grid load_vdb returns
+    std::uint64_t load_bytes = 0;     ///< peak memory of load_vdb (tree + dense copies)
+    /// One line for the plan: the grid, why it was chosen, source and density grids, filter.
+    std::string describe() const;
+};
+
+/// Reads the file's descriptors and metadata; throws core::Error naming the file (and the
+/// grid) when the file is missing or not a VDB, the grid is missing or not float, empty, or
+/// its transform cannot be mapped (see VdbImport), or the options do not fit the engine's
+/// grid limits (core::validate_geometry).
+VdbInfo inspect_vdb(const std::filesystem::path& path, const VdbImport& options);
+
+/// The density grid of the file's grid (inspect_vdb's checks, then the voxels). Refuses
+/// before allocating when inspect_vdb's load_bytes exceed options.max_bytes, and when the
+/// tree turns out larger than its metadata said; values (after density_scale) outside
+/// [0, 1] and a background other than 0 are refused naming the voxel or the grid.
+core::Grid3<float> load_vdb(const std::filesystem::path& path, const VdbImport& options);
+
+/// A grid save_vdb writes: a float grid on `values`' geometry (voxel (i,j,k)'s centre at
+/// values.geom.centre(i,j,k), metres), every voxel active (constant blocks stored as tiles),
+/// so its active bounding box is the whole grid and load_vdb returns `values` exactly.
+struct VdbOutputGrid {
+    std::string name;
+    const core::Grid3<float>* values = nullptr;
+    bool fog_volume = false;                                  ///< grid class fog volume (a density) instead of unknown
+    std::vector<std::pair<std::string, std::string>> text;    ///< string metadata
+    std::vector<std::pair<std::string, glm::dvec3>> vectors;  ///< vec3d metadata
+    std::vector<std::pair<std::string, double>> numbers;      ///< double metadata
+};
+
+/// Writes the grids into one .vdb (atomically: core::AtomicFile) with `file_text` as
+/// file-level metadata. Refuses non-finite values (core::check_finite) before writing.
+void save_vdb(const std::filesystem::path& path, std::span<const VdbOutputGrid> grids,
+              const std::vector<std::pair<std::string, std::string>>& file_text = {});
 
 /// Height (z, metres) of the lowest voxel layer whose maximum density exceeds `threshold`;
 /// the grid's top if none does.

@@ -38,9 +38,16 @@ Cost estimate_cost(const Scene& s, std::size_t lights, int threads) {
     Cost c;
     c.lights = std::max<std::size_t>(lights, 1);
     c.threads = threads > 0 ? threads : core::thread_count();
-    const bool file = s.cloud.kind == CloudSource::Kind::File;
-    // The NRRD header alone (bounded, checked): no voxel is read.
-    c.density_dims = file ? core::read_nrrd_header(s.cloud.file).geom.dims : s.cloud.generator.grid;
+    const bool file = s.cloud.kind != CloudSource::Kind::Generator;
+    // The NRRD header or the VDB's metadata alone (bounded, checked): no voxel is read.
+    std::uint64_t vdb_load_bytes = 0;
+    if (s.cloud.kind == CloudSource::Kind::Vdb) {
+        const cloud::VdbInfo v = inspect_vdb_cloud(s);
+        c.density_dims = v.density.dims;
+        vdb_load_bytes = v.load_bytes;
+    } else {
+        c.density_dims = file ? core::read_nrrd_header(s.cloud.file).geom.dims : s.cloud.generator.grid;
+    }
     c.lighting_dims = divided(c.density_dims, s.lighting_downsample);
     c.transport_dims = divided(c.density_dims, s.lighting_downsample / std::max(1, s.transport.refine));
     const double nd = volume(c.density_dims), nl = volume(c.lighting_dims), nt = volume(c.transport_dims);
@@ -48,7 +55,8 @@ Cost estimate_cost(const Scene& s, std::size_t lights, int threads) {
     const bool multiple = s.effects.multiple_scattering;
     const bool lb = s.transport.solver == TransportSettings::Solver::LatticeBoltzmann;
 
-    c.density_bytes = std::uint64_t(nd * (file ? kFileBytesPerCell : kGeneratorBytesPerCell));
+    // A VDB load peaks with its sparse tree and dense copies (cloud::VdbInfo::load_bytes).
+    c.density_bytes = std::max(vdb_load_bytes, std::uint64_t(nd * (file ? kFileBytesPerCell : kGeneratorBytesPerCell)));
     c.media_bytes = std::uint64_t((nl + nt) * 4.0 * 2.0);
     // A worker holds its light's single and multiple S on the transport grid (float), the
     // stored bases on the lighting grid and the Haar transform's double buffers.

@@ -71,17 +71,44 @@ void parse_generator(JsonObject o, cloud::CumulonimbusParams& p) {
     validated_as_pointer(o.file(), [&] { cloud::validate_cumulonimbus(p); });
 }
 
+// "cloud": {"vdb": "file.vdb", ...}: the options of cloud::VdbImport by the same names.
+void parse_vdb(JsonObject& o, CloudSource& c) {
+    cloud::VdbImport& v = c.vdb;
+    if (o.has("grid")) {
+        v.grid = o.string("grid");
+        if (v.grid.empty()) o.fail("grid", "must name a grid (leave it out for the file's first float grid)");
+    }
+    if (o.has("scale") && o.has("voxel_size"))
+        o.fail("voxel_size",
+               "give at most one of \"scale\" (metres per file unit) and \"voxel_size\" (metres per file voxel)");
+    const Range length{core::kMinVoxelSize, core::kMaxVoxelSize};
+    v.scale = o.number_or("scale", v.scale, Range{0.0, 1e9, true, false});
+    v.voxel_size = o.number_or("voxel_size", 0.0, length);
+    v.density_voxel_size = o.number_or("density_voxel_size", 0.0, length);
+    v.density_scale = o.number_or("density_scale", v.density_scale, Range{0.0, 1e9, true, false});
+    v.y_up = o.choice_or("up", "z", {"z", "y"}) == "y";
+    v.offset = o.vec3_or("offset", v.offset, Range{-core::kMaxOrigin / 10.0, core::kMaxOrigin / 10.0});
+}
+
 void parse_cloud(JsonObject o, CloudSource& c, const std::filesystem::path& base_dir) {
-    const bool has_gen = o.has("generator"), has_file = o.has("file");
-    if (has_gen == has_file)
-        o.fail("generator", "give exactly one of \"generator\" (an object) or \"file\" (a NRRD path)");
-    if (has_gen) {
+    const int sources = int(o.has("generator")) + int(o.has("file")) + int(o.has("vdb"));
+    if (sources != 1)
+        o.fail("generator",
+               "give exactly one of \"generator\" (an object), \"file\" (a NRRD path) or \"vdb\" (an OpenVDB path)");
+    auto path = [&](std::string_view key) {
+        const std::filesystem::path f = o.string(key);
+        return f.is_absolute() ? f : base_dir / f;
+    };
+    if (o.has("generator")) {
         c.kind = CloudSource::Kind::Generator;
         parse_generator(o.object("generator"), c.generator);
-    } else {
+    } else if (o.has("file")) {
         c.kind = CloudSource::Kind::File;
-        const std::filesystem::path f = o.string("file");
-        c.file = f.is_absolute() ? f : base_dir / f;
+        c.file = path("file");
+    } else {
+        c.kind = CloudSource::Kind::Vdb;
+        c.file = path("vdb");
+        parse_vdb(o, c);
     }
     o.finish();
 }
@@ -441,9 +468,38 @@ Quality quality_preset(std::string_view name, std::string_view where) {
     return q;
 }
 
+namespace {
+
+// Runs a VDB read, naming the scene file and the cloud's field in its errors.
+template <class F>
+auto vdb_cloud_errors(const Scene& s, F&& f) {
+    try {
+        return f();
+    } catch (const core::Error& e) {
+        const std::string scene_file = s.path.empty() ? std::string("scene") : s.path.string();
+        // Errors about the grid the scene names (missing, not float, empty, its transform or
+        // values) are the "grid" field's; the others (file missing or not a VDB) the "vdb" field's.
+        const std::string named = s.cloud.file.string() + ": grid \"" + s.cloud.vdb.grid + "\"";
+        const bool grid = !s.cloud.vdb.grid.empty() && e.where().starts_with(named);
+        throw core::Error(scene_file + (grid ? ": /cloud/grid" : ": /cloud/vdb"), e.what());
+    }
+}
+
+}  // namespace
+
+cloud::VdbInfo inspect_vdb_cloud(const Scene& s) {
+    FULGUR_ASSERT(s.cloud.kind == CloudSource::Kind::Vdb, "inspect_vdb_cloud needs a VDB cloud");
+    return vdb_cloud_errors(s, [&] { return cloud::inspect_vdb(s.cloud.file, s.cloud.vdb); });
+}
+
 core::Grid3<float> make_density(const Scene& s) {
     check_cost(s, estimate_cost(s));
     if (s.cloud.kind == CloudSource::Kind::File) return cloud::load_density(s.cloud.file);
+    if (s.cloud.kind == CloudSource::Kind::Vdb) {
+        cloud::VdbImport v = s.cloud.vdb;
+        v.max_bytes = std::uint64_t(memory_limit(s));
+        return vdb_cloud_errors(s, [&] { return cloud::load_vdb(s.cloud.file, v); });
+    }
     return cloud::generate_cumulonimbus(s.cloud.generator);
 }
 

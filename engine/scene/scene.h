@@ -33,10 +33,12 @@ inline constexpr int kFormatVersion = 1;
 inline constexpr std::uint64_t kMaxSceneBytes = std::uint64_t(1) << 20;
 
 struct CloudSource {
-    enum class Kind { Generator, File };
+    enum class Kind { Generator, File, Vdb };
     Kind kind = Kind::Generator;
     cloud::CumulonimbusParams generator;  ///< used when kind == Generator
-    std::filesystem::path file;           ///< NRRD density, used when kind == File (absolute)
+    /// The NRRD density (kind == File) or the .vdb file (kind == Vdb), absolute.
+    std::filesystem::path file;
+    cloud::VdbImport vdb;  ///< used when kind == Vdb: grid, scale, resampling ("cloud": {"vdb": ...})
 };
 
 /// Effects the scene calls for. Work for an effect that is off is not done (no solve, no
@@ -218,7 +220,7 @@ Scene load_scene(const std::filesystem::path& path);
 Scene parse_scene(std::string_view json_text, std::string_view file_name, const std::filesystem::path& base_dir = {});
 
 /// What baking the scene costs, estimated from the scene alone (for a cloud file, from its
-/// NRRD header): nothing is allocated or solved. Memory is an upper estimate of the peak;
+/// NRRD header or VDB metadata): nothing is allocated or solved. Memory is an upper estimate of the peak;
 /// time is a lower bound (per-cell and per-path costs measured on a 2-core machine, the
 /// fastest case each: the real bake takes 1-4x longer), so a refusal is never a guess.
 struct Cost {
@@ -240,6 +242,11 @@ double memory_limit(const Scene& s);
 /// Throws core::Error naming "limits.memory_gib" or "limits.bake_hours", the estimate and
 /// how to raise the limit, when the cost exceeds a limit.
 void check_cost(const Scene& s, const Cost& c);
+
+/// The scene's VDB cloud (cloud.kind must be Vdb) as cloud::inspect_vdb sees it, from the
+/// file's metadata alone; errors name the scene file and the field ("/cloud/vdb", or
+/// "/cloud/grid" for a named grid that is missing or not float).
+cloud::VdbInfo inspect_vdb_cloud(const Scene& s);
 
 /// The cloud density the scene describes (generated or loaded). Refuses (check_cost) before
 /// allocating when the scene's estimated cost exceeds its limits.

@@ -130,6 +130,15 @@ TEST_CASE("fulgur-shot: --reference names a PNG other than -o") {
     CHECK_THROWS_AS(parse(r), core::Error);
 }
 
+TEST_CASE("fulgur-shot: --vdb names a .vdb file") {
+    std::vector<std::string> r = good;
+    CHECK_FALSE(parse(r).vdb.has_value());
+    r.insert(r.end(), {"--vdb", "lit.vdb"});
+    CHECK(parse(r).vdb.value() == "lit.vdb");
+    r.back() = "lit.nrrd";
+    CHECK_THROWS_WITH_AS(parse(r), doctest::Contains("--vdb must name a .vdb file, got 'lit.nrrd'"), core::Error);
+}
+
 TEST_CASE("fulgur: the demo's command line parses strictly") {
     auto demo = [](std::vector<std::string> a) { return app::parse_demo_args(a); };
     const app::DemoArgs d = demo({});

@@ -1,9 +1,10 @@
 // Golden images of the three content scenes through fulgur-shot's code path (view::StormView,
 // OSMesa): the night storm (moon, sky, lightning) at a flash and between flashes, the dusk
-// storm (a low warm sun and lightning) and the day cumulus (sun and sky, no lightning: no
-// .fgb). And the automatic exposure at the return-stroke peak of the default storm, seeds
-// 1-5, as `fulgur-shot content/scenes/storm.json --seed S --time +0.0005` renders it: fewer
-// than 2% of the lit pixels at the display's white.
+// storm (a low warm sun and lightning), the day cumulus (sun and sky, no lightning: no .fgb)
+// and a small scene over the OpenVDB cloud of content/clouds. And the automatic exposure at
+// the return-stroke peak of the default storm, seeds 1-5, as `fulgur-shot
+// content/scenes/storm.json --seed S --time +0.0005` renders it: fewer than 2% of the lit
+// pixels at the display's white.
 // Goldens: tests/apps/golden/*.png, written only with FULGUR_UPDATE_GOLDENS=1.
 #include "golden.h"
 #include "platform/platform.h"
@@ -19,6 +20,7 @@ using namespace fulgur;
 namespace {
 
 const std::filesystem::path kScenes = std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes";
+const std::filesystem::path kTestScenes = std::filesystem::path(FULGUR_SOURCE_DIR) / "tests/apps/scenes";
 const std::filesystem::path kGoldens = std::filesystem::path(FULGUR_SOURCE_DIR) / "tests/apps/golden";
 const std::filesystem::path kOut = std::filesystem::path(FULGUR_TEST_OUTPUT_DIR) / "scene_golden";
 
@@ -36,7 +38,9 @@ view::StormView& scene_view(const std::string& name) {
     static std::map<std::string, std::unique_ptr<view::StormView>> views;
     if (auto it = views.find(name); it != views.end()) return *it->second;
     std::filesystem::create_directories(kOut);
-    scene::Scene s = scene::load_scene(kScenes / (name + ".json"));
+    // "test_*" scenes are the small test scenes (tests/apps/scenes), the others content scenes.
+    const std::filesystem::path dir = name.starts_with("test_") ? kTestScenes : kScenes;
+    scene::Scene s = scene::load_scene(dir / (name + ".json"));
     // The goldens check how the frame composes its terms (moon, sky, sun, flash, exposure, tone
     // curve) on the paper preset (the basis frame): the presets that solve strikes are checked
     // against the Monte Carlo truth by test_truth.
@@ -112,6 +116,10 @@ TEST_CASE("golden: the night storm at a flash and under the moon between flashes
 
 TEST_CASE("golden: the dusk storm (a low warm sun and a decaying flash)") {
     check_golden("dusk-storm", shoot("dusk-storm", 1, 0.008, true, W, H), W, H);
+}
+
+TEST_CASE("golden: a cloud from an OpenVDB file (content/clouds/storm-cell.vdb, box-filtered onto 375 m voxels)") {
+    check_golden("vdb-cloud", shoot("test_vdb_cloud", 1, 0.002, true, W, H), W, H);
 }
 
 TEST_CASE("exposure: at the return-stroke peak of seeds 1-5, fewer than 2% of the lit pixels at the display's white") {

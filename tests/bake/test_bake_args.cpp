@@ -34,6 +34,9 @@ TEST_CASE("fulgur-bake: valid command lines") {
     a = parse({s_json, "--export", "3", "--export", "7:0.5", "--nrrd", "out/x"});  // repeated lists add up
     REQUIRE(a.export_lights.size() == 2);
     CHECK(a.export_lights[1].light == 7);
+    a = parse({s_json, "--export", "3", "--vdb", "out/lit"});  // --vdb alone: every direction, no NRRD
+    CHECK(a.vdb_prefix == "out/lit");
+    CHECK(a.export_prefix.empty());
     CHECK(parse({"--help"}).help);
 }
 
@@ -55,8 +58,10 @@ TEST_CASE("fulgur-bake: invalid command lines are rejected with a reason") {
     rejects({s_json, "--export", "1,"}, "not a number");
     rejects({s_json, "--export", "1:nan", "--nrrd", "p"}, "finite");
     rejects({s_json, "--export", "-1", "--nrrd", "p"}, "not a number");
-    rejects({s_json, "--export", "1"}, "--nrrd");
+    rejects({s_json, "--export", "1"}, "--export needs --nrrd PREFIX or --vdb PREFIX");
     rejects({s_json, "--nrrd", "p"}, "only go with --export");
+    rejects({s_json, "--vdb", "p"}, "only go with --export");
+    rejects({s_json, "--export", "1", "--vdb", "p", "--direction", "2"}, "--direction only goes with --nrrd");
     rejects({s_json, "--export", "1", "--nrrd", "p", "--dry-run"}, "--dry-run");
     rejects({s_json, "--export", "1", "--nrrd", "p", "--direction", "-3"}, "--direction");
 }
