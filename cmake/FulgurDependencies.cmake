@@ -8,6 +8,16 @@ find_package(PkgConfig REQUIRED)
 pkg_check_modules(STB REQUIRED IMPORTED_TARGET stb) # libstb-dev: PNG writing (stb_image_write)
 find_package(ZLIB REQUIRED)                         # zlib1g-dev: CRC-32 of .fgb files
 find_package(CLI11 2.1 REQUIRED)                    # libcli11-dev: the tools' command lines
+# libopenmpi-dev + openmpi-bin: the bake and the lattice over several processes (engine/distributed,
+# docs/distributed.md). Optional: on by default where MPI is found; without it every process is
+# rank 0 of 1.
+set(MPI_CXX_SKIP_MPICXX ON)  # the C API only (no deprecated C++ bindings)
+find_package(MPI COMPONENTS CXX)
+option(FULGUR_MPI "Build the distributed bake over MPI (Open MPI)" ${MPI_CXX_FOUND})
+if(FULGUR_MPI AND NOT MPI_CXX_FOUND)
+  message(FATAL_ERROR "FULGUR_MPI is on but no MPI was found: install libopenmpi-dev openmpi-bin "
+                      "(scripts/setup.sh) or configure with -DFULGUR_MPI=OFF")
+endif()
 
 if(FULGUR_BUILD_TESTS)
   find_package(doctest REQUIRED)                    # doctest-dev

@@ -19,6 +19,7 @@ PACKAGES=(
   xvfb xauth                                     # virtual display for the demo screenshot
   python3-matplotlib                             # charts of the studies' CSV (scripts/plot_studies.py)
   clang libclang-rt-14-dev                       # libFuzzer harnesses (fuzz preset, fuzz/)
+  libopenmpi-dev openmpi-bin                     # the bake over several processes (MPI; docs/distributed.md)
 )
 
 missing=()

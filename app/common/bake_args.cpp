@@ -64,11 +64,19 @@ void declare(CommandLine& cli, BakeArgs& a) {
         ->type_name("L[:W],..");
     cli.number("--direction", a.export_direction, "output direction index for --export (default 0)", 0);
     app.add_option("--nrrd", a.export_prefix, "output prefix for --export")->type_name("PREFIX");
+    app.add_flag_callback(
+        "--no-checkpoint", [&a] { a.checkpoint = false; },
+        "do not keep finished lights in OUT.fgb.ckpt/ (by default a killed bake resumes from it)");
+    app.add_flag("--fresh", a.fresh, "discard the checkpoint OUT.fgb.ckpt/ and bake from scratch");
+    cli.number("--stop-after", a.stop_after,
+               "testing restarts: kill the process (SIGKILL) once the checkpoint holds N lights", std::size_t(1));
 }
 
 constexpr const char* kDescription =
     "Bakes SCENE's virtual-light bases (Dobashi 2007 sections 5-6) into a .fgb file. Prints the\n"
-    "plan first (what is simulated and why, light count, expected size and time).";
+    "plan first (what is simulated and why, light count, expected size and time). Finished lights\n"
+    "are kept in OUT.fgb.ckpt/ until the file is written, so a killed bake resumes where it\n"
+    "stopped. Under mpirun or srun the ranks share the lights (docs/distributed.md).";
 
 }  // namespace
 
@@ -80,6 +88,7 @@ BakeArgs parse_bake_args(const std::vector<std::string>& args) {
         if (!a.export_lights.empty() && !have_nrrd) throw core::Error(kTool, "--export needs --nrrd PREFIX");
         if (a.export_lights.empty() && (have_nrrd || have_direction))
             throw core::Error(kTool, "--nrrd and --direction only go with --export");
+        if (a.stop_after && !a.checkpoint) throw core::Error(kTool, "--stop-after needs the checkpoint");
         if (!a.export_lights.empty() && a.dry_run)
             throw core::Error(kTool, "--export needs a bake; it cannot go with --dry-run");
     });

@@ -24,6 +24,9 @@ struct BakeArgs {
     std::vector<ExportLight> export_lights;       ///< --export L[:W],...
     int export_direction = 0;                     ///< --direction M
     std::filesystem::path export_prefix;          ///< --nrrd PREFIX -> PREFIX_raw.nrrd, PREFIX_compressed.nrrd
+    bool checkpoint = true;                       ///< keep finished lights in OUT.fgb.ckpt/ (--no-checkpoint: not)
+    bool fresh = false;                           ///< --fresh: discard OUT.fgb.ckpt/ and bake from scratch
+    std::size_t stop_after = 0;                   ///< --stop-after N: SIGKILL itself once N lights are kept (tests)
     bool help = false;
 };
 
