@@ -605,8 +605,9 @@ Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan
     rep.lights = plan.lights.count();
     rep.raw_bytes = plan.raw_bytes;
     const Media media = make_media(s, density);
-    // Opened first: it holds the output's lock for the whole bake (one bake per output, so
-    // also one user of its checkpoint).
+    // The output's lock for the whole bake, the checkpoint's removal included: one bake per
+    // output, so one user of its checkpoint (the writer's own lock is then a no-op).
+    const core::FileLock output_lock(out);
     basis::FgbWriter writer(out, plan.metadata);
     std::unique_ptr<detail::Checkpoint> checkpoint;
     if (!options.checkpoint.empty()) checkpoint = std::make_unique<detail::Checkpoint>(options.checkpoint, plan);
