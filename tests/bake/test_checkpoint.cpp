@@ -4,6 +4,7 @@
 // Scenes: the tiny golden-test scenes (32x32x16 density, 8x8x4 lighting grid).
 #include "bake/bake.h"
 #include "bake/detail/checkpoint.h"
+#include "support/stop_hook.h"
 #include "support/test_support.h"
 
 #include <doctest/doctest.h>
@@ -41,22 +42,12 @@ bake::Plan plan_of(const scene::Scene& s, const core::Grid3<float>& d, int threa
     return p;
 }
 
-// Thrown by the checkpoint hook: the bake stops as a killed one would (no file written),
-// leaving its checkpoint behind.
-struct Stop {};
-
 // Bakes with a checkpoint and stops it once `after` lights are kept; returns the lights kept.
 std::size_t bake_until(const scene::Scene& s, const core::Grid3<float>& d, const bake::Plan& plan, const fs::path& out,
                        std::size_t after) {
-    bake::BakeOptions o;
-    o.checkpoint = bake::checkpoint_path(out);
-    o.chunk = 2;
     std::size_t kept = 0;
-    o.on_checkpoint = [&](std::size_t lights) {
-        kept = lights;
-        if (lights >= after) throw Stop{};
-    };
-    CHECK_THROWS_AS(bake::bake(s, d, plan, out, o), Stop);
+    const bake::BakeOptions o = test::stop_after(out, after, kept);
+    CHECK_THROWS_AS(bake::bake(s, d, plan, out, o), test::Stop);
     return kept;
 }
 

@@ -7,6 +7,7 @@
 #include "bake/bake.h"
 #include "distributed/distributed.h"
 #include "distributed/lattice.h"
+#include "support/stop_hook.h"
 #include "support/test_support.h"
 
 #include <fstream>
@@ -42,8 +43,6 @@ bake::Plan plan_of(const scene::Scene& s, const core::Grid3<float>& d) {
 fs::path dir_of(const std::string& name) {
     return g_session->rank() == 0 ? test::scratch_dir(name) : fs::path("/nonexistent-rank-dir");
 }
-
-struct Stop {};
 
 }  // namespace
 
@@ -84,17 +83,11 @@ TEST_CASE("distributed bake: stopped after some lights, resumed on 2 ranks, the 
     (void)session.broadcast(0);
 
     const fs::path out = dir / "two.fgb";
-    bake::BakeOptions o;
-    o.checkpoint = bake::checkpoint_path(out);
-    o.chunk = 2;
     std::size_t kept = 0;
-    o.on_checkpoint = [&](std::size_t lights) {
-        kept = lights;
-        if (lights >= 6) throw Stop{};
-    };
+    bake::BakeOptions o = test::stop_after(out, 6, kept);
     // Rank 0 stops; it releases the other ranks first, so every rank returns.
     if (session.rank() == 0) {
-        CHECK_THROWS_AS(distributed::bake(session, s, d, plan, out, o), Stop);
+        CHECK_THROWS_AS(distributed::bake(session, s, d, plan, out, o), test::Stop);
     } else {
         CHECK_FALSE(distributed::bake(session, s, d, plan, out, o).has_value());
     }
