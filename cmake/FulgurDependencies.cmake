@@ -17,6 +17,16 @@ function(fulgur_find_openvdb)
   find_package(OpenVDB REQUIRED)
 endfunction()
 fulgur_find_openvdb()
+# libopenmpi-dev + openmpi-bin: the bake and the lattice over several processes (engine/distributed,
+# docs/distributed.md). Optional: on by default where MPI is found; without it every process is
+# rank 0 of 1.
+set(MPI_CXX_SKIP_MPICXX ON)  # the C API only (no deprecated C++ bindings)
+find_package(MPI COMPONENTS CXX)
+option(FULGUR_MPI "Build the distributed bake over MPI (Open MPI)" ${MPI_CXX_FOUND})
+if(FULGUR_MPI AND NOT MPI_CXX_FOUND)
+  message(FATAL_ERROR "FULGUR_MPI is on but no MPI was found: install libopenmpi-dev openmpi-bin "
+                      "(scripts/setup.sh) or configure with -DFULGUR_MPI=OFF")
+endif()
 
 if(FULGUR_BUILD_TESTS)
   find_package(doctest REQUIRED)                    # doctest-dev

@@ -7,12 +7,15 @@
 #include "common/lighting_vdb.h"
 #include "common/progress.h"
 #include "core/core.h"
+#include "distributed/distributed.h"
 #include "scene/scene.h"
 #include "sky/sky.h"
 
 #include <nlohmann/json.hpp>
 
+#include <csignal>
 #include <cstdio>
+#include <exception>
 #include <map>
 #include <vector>
 
@@ -20,9 +23,10 @@ using namespace fulgur;
 
 namespace {
 
-nlohmann::json report_json(const bake::Plan& plan, const bake::Report& r, const std::filesystem::path& out) {
+nlohmann::json report_json(const bake::Plan& plan, const bake::Report& r, const std::filesystem::path& out, int ranks) {
     nlohmann::json j;
     j["file"] = out.string();
+    j["ranks"] = ranks;
     j["lighting_grid"] = {plan.lighting.dims.x, plan.lighting.dims.y, plan.lighting.dims.z};
     j["virtual_lights"] = {plan.lights.x.size(), plan.lights.y.size(), plan.lights.z.size()};
     j["directions"] = plan.directions;
@@ -36,6 +40,7 @@ nlohmann::json report_json(const bake::Plan& plan, const bake::Report& r, const 
                     {"write", r.seconds_write}};
     j["lights"] = r.lights;
     j["lights_dropped"] = r.lights_dropped;
+    j["lights_resumed"] = r.lights_resumed;
     j["max_dropped_fraction"] = r.max_dropped_fraction;
     j["raw_bytes"] = r.raw_bytes;
     j["file_bytes"] = r.file_bytes;
@@ -128,12 +133,58 @@ void check_outputs(const app::BakeArgs& a, const scene::Scene& s, const std::fil
     core::check_distinct_files(inputs, outputs);
 }
 
-int run(const app::BakeArgs& a) {
+// A rank other than 0 of a distributed bake: waits for rank 0's decision, then solves the
+// chunks it is handed (rank 0 prints, solves the sun and the sky, and writes every file).
+int help_bake(const distributed::Session& session, const scene::Scene& s, const core::Grid3<float>& density) {
+    if (!session.broadcast(0)) return 0;
+    bake::PlanOptions po;
+    po.estimate = false;
+    (void)distributed::bake(session, s, density, bake::make_plan(s, density, po), {});
+    return 0;
+}
+
+// Rank 0 tells the other ranks whether it bakes, once, on every path.
+struct Decision {
+    const distributed::Session& session;
+    bool told = false;
+    void tell(bool bake) {
+        if (!told) (void)session.broadcast(bake ? 1 : 0);
+        told = true;
+    }
+    ~Decision() {
+        if (!told && std::uncaught_exceptions() == 0) tell(false);
+    }
+};
+
+bake::BakeOptions bake_options(const app::BakeArgs& a, const std::filesystem::path& out) {
+    bake::BakeOptions o;
+    if (!a.checkpoint) return o;
+    o.checkpoint = bake::checkpoint_path(out);
+    std::error_code ec;
+    if (a.fresh) {
+        std::filesystem::remove_all(o.checkpoint, ec);
+        if (ec) throw core::Error(o.checkpoint.string(), "--fresh: cannot remove the checkpoint: " + ec.message());
+    } else if (std::filesystem::exists(o.checkpoint, ec)) {
+        std::printf("resuming from the checkpoint %s (--fresh discards it)\n", o.checkpoint.string().c_str());
+    }
+    if (a.stop_after)
+        o.on_checkpoint = [n = a.stop_after](std::size_t lights) {
+            if (lights < n) return;
+            std::fflush(stdout);
+            std::fflush(stderr);
+            std::raise(SIGKILL);  // as a lost node or a time limit would: no clean-up at all
+        };
+    return o;
+}
+
+int run(const app::BakeArgs& a, const distributed::Session& session) {
     if (a.threads > 0) core::set_thread_count(a.threads);
     const scene::Scene s = scene::load_scene(a.scene);
     const std::filesystem::path out = a.output ? *a.output : bake::default_fgb_path(s);
     check_outputs(a, s, out);
     const core::Grid3<float> density = scene::make_density(s);
+    if (session.rank() != 0) return help_bake(session, s, density);
+    Decision decision{session};
 
     std::string why;
     const bool fresh = s.effects.lightning && bake::up_to_date(s, density, out, &why);
@@ -157,9 +208,17 @@ int run(const app::BakeArgs& a) {
     const bake::Plan& plan = *scene_plan.lightning;
 
     if (fresh && !a.force) {
+        decision.tell(false);
         std::printf("%s is up to date; nothing to bake (--force rebakes)\n", out.string().c_str());
     } else {
-        const bake::Report r = bake::bake(s, density, plan, out, app::make_progress_printer(stderr, "lights"));
+        decision.tell(true);
+        const bake::BakeOptions options = bake_options(a, out);
+        if (session.distributed())
+            std::printf("distributed over %d ranks, %d thread(s) on rank 0\n", session.size(), plan.threads);
+        std::fflush(stdout);
+        const bake::Report r =
+            *distributed::bake(session, s, density, plan, out, options, app::make_progress_printer(stderr, "lights"));
+        if (r.lights_resumed) std::printf("%zu lights came from the checkpoint\n", r.lights_resumed);
         std::printf(
             "baked %s in %s: %zu lights (%zu dropped), %.1f MB raw -> %.2f MB file (1/%.0f), "
             "%llu coefficients, relative L2 error %.3g%%, solver iterations mean %.0f max %.0f%s\n",
@@ -168,7 +227,7 @@ int run(const app::BakeArgs& a) {
             static_cast<unsigned long long>(r.coefficients_kept), 100.0 * r.relative_l2_error, r.mean_solver_iterations,
             r.max_solver_iterations,
             r.unconverged ? (", " + std::to_string(r.unconverged) + " lights hit the iteration cap").c_str() : "");
-        if (a.report) core::write_file(*a.report, report_json(plan, r, out).dump(2) + "\n");
+        if (a.report) core::write_file(*a.report, report_json(plan, r, out, session.size()).dump(2) + "\n");
     }
     if (!a.export_lights.empty() && !a.export_prefix.empty()) export_nrrd(a, s, density, plan, out);
     if (!a.vdb_prefix.empty()) export_vdb(a, s, density, plan, out);
@@ -178,13 +237,20 @@ int run(const app::BakeArgs& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    // First: under mpirun or srun this joins the other ranks (a plain run never touches MPI).
+    const distributed::Session session(argc, argv);
     app::BakeArgs a;
     if (const std::optional<int> status = app::start(argc, argv, a, app::parse_bake_args, app::bake_usage))
         return *status;
     try {
-        return run(a);
+        return run(a, session);
     } catch (const std::exception& e) {
-        std::fprintf(stderr, "fulgur-bake: %s\n", e.what());
-        return app::kExitFailure;
+        if (!session.distributed()) {
+            std::fprintf(stderr, "fulgur-bake: %s\n", e.what());
+            return app::kExitFailure;
+        }
+        // One rank's failure ends the run: the others may be waiting for it.
+        std::fprintf(stderr, "fulgur-bake (rank %d of %d): %s\n", session.rank(), session.size(), e.what());
+        session.abort(app::kExitFailure);
     }
 }

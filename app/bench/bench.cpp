@@ -1,6 +1,7 @@
 #include "bench/bench.h"
 
 #include "core/core.h"
+#include "distributed/distributed.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -10,6 +11,7 @@
 namespace fulgur::bench {
 
 void Context::emit(const std::string& name, nlohmann::json j) const {
+    if (session && session->rank() != 0) return;
     if (!j.contains("name")) j["name"] = name;
     std::cout << j.dump() << std::endl;
 }
@@ -59,7 +61,10 @@ double measure_bandwidth(int threads) {
 }  // namespace fulgur::bench
 
 int main(int argc, char** argv) {
+    // Under mpirun the ranks run the named benchmarks together (bench_mpi.cpp); rank 0 prints.
+    const fulgur::distributed::Session session(argc, argv);
     fulgur::bench::Context ctx;
+    ctx.session = &session;
     return fulgur::app::registry_main(
         argc, argv,
         {"fulgur-bench", "benchmark", "Runs the named benchmarks (all if none), printing one JSON object per line.",

@@ -14,11 +14,17 @@
 #include <string>
 #include <vector>
 
+namespace fulgur::distributed {
+class Session;
+}
+
 namespace fulgur::bench {
 
 struct Context {
     bool quick = false;  ///< --quick: smaller problems / fewer repeats (smoke runs)
     int max_threads = 2;
+    /// The MPI ranks fulgur-bench runs on (under mpirun; one otherwise): only rank 0 emits.
+    const distributed::Session* session = nullptr;
     /// Prints one JSON object on one line (adds "name" if missing) and flushes.
     void emit(const std::string& name, nlohmann::json j) const;
 };

@@ -2,6 +2,7 @@
 // 128^3 on 1 and 2 threads, fast and naive (Appendix B) kernels, with the memory bandwidth
 // measured in the same run and the bandwidth the fast kernel implies.
 #include "bench/bench.h"
+#include "bench/lb_problem.h"
 
 #include "core/core.h"
 #include "transport/detail/lb_solver.h"
@@ -42,6 +43,10 @@ double load_average() {
 }
 
 }  // namespace
+
+transport::lb::Problem fulgur::bench::lb_problem(int n, LbAbsorption absorption) {
+    return bench_problem(n, absorption);
+}
 
 FULGUR_BENCH(lb, "lattice-Boltzmann MLUPS at 128^3, fast vs naive kernel, 1 and 2 threads, vs memory bandwidth") {
     const int n = ctx.quick ? 64 : 128;

@@ -68,11 +68,19 @@ void declare(CommandLine& cli, BakeArgs& a) {
                    "write --export's sum from the .fgb for every direction (grids S_00, S_01, ...) with the "
                    "density as PREFIX.vdb (OpenVDB, metres), for Houdini, Blender or ParaView")
         ->type_name("PREFIX");
+    app.add_flag_callback(
+        "--no-checkpoint", [&a] { a.checkpoint = false; },
+        "do not keep finished lights in OUT.fgb.ckpt/ (by default a killed bake resumes from it)");
+    app.add_flag("--fresh", a.fresh, "discard the checkpoint OUT.fgb.ckpt/ and bake from scratch");
+    cli.number("--stop-after", a.stop_after,
+               "testing restarts: kill the process (SIGKILL) once the checkpoint holds N lights", std::size_t(1));
 }
 
 constexpr const char* kDescription =
     "Bakes SCENE's virtual-light bases (Dobashi 2007 sections 5-6) into a .fgb file. Prints the\n"
-    "plan first (what is simulated and why, light count, expected size and time).";
+    "plan first (what is simulated and why, light count, expected size and time). Finished lights\n"
+    "are kept in OUT.fgb.ckpt/ until the file is written, so a killed bake resumes where it\n"
+    "stopped. Under mpirun or srun the ranks share the lights (docs/distributed.md).";
 
 }  // namespace
 
@@ -88,6 +96,7 @@ BakeArgs parse_bake_args(const std::vector<std::string>& args) {
             throw core::Error(kTool, "--nrrd, --vdb and --direction only go with --export");
         if (have_direction && !have_nrrd)
             throw core::Error(kTool, "--direction only goes with --nrrd (--vdb writes every direction)");
+        if (a.stop_after && !a.checkpoint) throw core::Error(kTool, "--stop-after needs the checkpoint");
         if (!a.export_lights.empty() && a.dry_run)
             throw core::Error(kTool, "--export needs a bake; it cannot go with --dry-run");
     });

@@ -25,6 +25,9 @@ struct BakeArgs {
     int export_direction = 0;                     ///< --direction M
     std::filesystem::path export_prefix;          ///< --nrrd PREFIX -> PREFIX_raw.nrrd, PREFIX_compressed.nrrd
     std::filesystem::path vdb_prefix;             ///< --vdb PREFIX -> PREFIX.vdb (density + S, every direction)
+    bool checkpoint = true;                       ///< keep finished lights in OUT.fgb.ckpt/ (--no-checkpoint: not)
+    bool fresh = false;                           ///< --fresh: discard OUT.fgb.ckpt/ and bake from scratch
+    std::size_t stop_after = 0;                   ///< --stop-after N: SIGKILL itself once N lights are kept (tests)
     bool help = false;
 };
 

@@ -1,5 +1,6 @@
 // The baker: plan, per-light solve + compression, checksummed file (bake.h, docs/bake.md).
 #include "bake/bake.h"
+#include "bake/detail/checkpoint.h"
 
 #include <omp.h>
 #include <glm/geometric.hpp>
@@ -13,6 +14,7 @@
 #include <mutex>
 #include <numbers>
 #include <sstream>
+#include <thread>
 
 namespace fulgur::bake {
 
@@ -482,110 +484,242 @@ Report bake(const scene::Scene& s, const core::Grid3<float>& density, const std:
 
 Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan& plan,
             const std::filesystem::path& out, const Progress& progress) {
+    return bake(s, density, plan, out, BakeOptions{}, progress);
+}
+
+std::filesystem::path checkpoint_path(const std::filesystem::path& out) { return out.string() + ".ckpt"; }
+
+namespace {
+
+// Light l solved, compressed and encoded on the calling thread: one job of the bake.
+LightResult bake_one(const scene::Scene& s, const Media& media, const Plan& plan, basis::HaarTransform<double>& haar,
+                     std::uint32_t l) {
+    LightResult out;
+    const transport::PointSource src{plan.lights.position(l), 1.0};
+    SolveRequest rq;
+    rq.single = true;
+    rq.multiple = plan.multiple;
+    rq.skip_below = s.drop_below;
+    Solution sol = solve(s, media, std::span(&src, 1), plan.output_directions, rq);
+    out.seconds_single = sol.seconds_single;
+    out.seconds_multiple = sol.seconds_multiple;
+    const double fraction = sol.first_scattered_power / (4.0 * std::numbers::pi);
+    core::Stopwatch sw;
+    basis::CompressedLight c;
+    if (s.drop_below > 0.0 && fraction < s.drop_below) {
+        c.light = l;
+        c.directions.resize(plan.metadata.bases());
+        out.dropped_fraction = fraction;
+    } else {
+        const int iterations = sol.iterations;
+        const bool converged = sol.converged;
+        const transport::SourceField f = stored_bases(plan, std::move(sol));
+        c = basis::compress_light(l, f, s.compression, haar);
+        compression_error(c, f, haar, out.ref2, out.err2);
+        if (plan.multiple && plan.solver == "lattice_boltzmann") {
+            out.iterations = iterations;
+            out.converged = converged;
+        }
+    }
+    out.coefficients = c.coefficient_count();
+    out.seconds_compress = sw.seconds();
+    out.block = basis::encode_block(c, plan.metadata);  // as the file stores it
+    return out;
+}
+
+// The Report's sums over the lights' figures.
+struct Totals {
+    double single = 0.0, multiple = 0.0, compress = 0.0, ref2 = 0.0, err2 = 0.0, iterations = 0.0, max_iterations = 0.0,
+           max_dropped = 0.0;
+    std::size_t lattice_lights = 0, dropped = 0, unconverged = 0;
+    std::uint64_t kept = 0;
+    void add(const LightResult& r) {
+        single += r.seconds_single;
+        multiple += r.seconds_multiple;
+        compress += r.seconds_compress;
+        ref2 += r.ref2;
+        err2 += r.err2;
+        kept += r.coefficients;
+        if (r.dropped_fraction >= 0.0) {
+            ++dropped;
+            max_dropped = std::max(max_dropped, r.dropped_fraction);
+        }
+        if (r.iterations >= 0) {
+            ++lattice_lights;
+            iterations += r.iterations;
+            max_iterations = std::max(max_iterations, double(r.iterations));
+            if (!r.converged) ++unconverged;
+        }
+    }
+};
+
+// Runs body(haar) on `threads` threads with the solvers' own parallel regions nested inside
+// single-threaded (max-active-levels 1), each thread with its Haar plan; rethrows the first
+// exception once all have stopped. `failed` tells the bodies to stop early. With `serve`,
+// the calling thread (the team's thread 0) runs serve() instead, beside `threads` workers.
+template <class Body, class Serve>
+void run_team(const Plan& plan, const scene::Scene& s, int threads, std::atomic<bool>& failed, Body&& body,
+              Serve* serve) {
+    std::exception_ptr failure;
+    std::mutex mu;
+    const int saved_levels = omp_get_max_active_levels();
+    omp_set_max_active_levels(1);
+#pragma omp parallel num_threads(threads + (serve ? 1 : 0))
+    {
+        try {
+            if (serve && omp_get_thread_num() == 0) {
+                (*serve)();
+            } else {
+                basis::HaarTransform<double> haar(plan.lighting.dims, s.compression.decomposition);
+                body(haar);
+            }
+        } catch (...) {
+            std::lock_guard lock(mu);
+            if (!failure) failure = std::current_exception();
+            failed = true;
+        }
+    }
+    omp_set_max_active_levels(saved_levels);
+    if (failure) std::rethrow_exception(failure);
+}
+
+}  // namespace
+
+std::vector<LightResult> bake_lights(const scene::Scene& s, const Media& media, const Plan& plan, std::uint32_t begin,
+                                     std::uint32_t end) {
+    FULGUR_ASSERT(begin <= end && end <= plan.lights.count(), "bake_lights: light range outside the plan");
+    std::vector<LightResult> out(end - begin);
+    std::atomic<std::uint32_t> next{begin};
+    std::atomic<bool> failed{false};
+    auto body = [&](basis::HaarTransform<double>& haar) {
+        for (std::uint32_t l = next.fetch_add(1); l < end && !failed.load(); l = next.fetch_add(1))
+            out[l - begin] = bake_one(s, media, plan, haar, l);
+    };
+    run_team(plan, s, plan.threads, failed, body, static_cast<std::function<void()>*>(nullptr));
+    return out;
+}
+
+Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan& plan,
+            const std::filesystem::path& out, const BakeOptions& options, const Progress& progress) {
     core::Stopwatch total;
     Report rep;
     rep.threads = plan.threads;
     rep.lights = plan.lights.count();
     rep.raw_bytes = plan.raw_bytes;
     const Media media = make_media(s, density);
+    // The output's lock for the whole bake, the checkpoint's removal included: one bake per
+    // output, so one user of its checkpoint (the writer's own lock is then a no-op).
+    const core::FileLock output_lock(out);
     basis::FgbWriter writer(out, plan.metadata);
+    std::unique_ptr<detail::Checkpoint> checkpoint;
+    if (!options.checkpoint.empty()) checkpoint = std::make_unique<detail::Checkpoint>(options.checkpoint, plan);
 
-    const std::size_t n = plan.lights.count();
-    std::atomic<std::size_t> next{0}, done{0};
-    std::mutex mu, write_mu;
-    std::map<std::size_t, basis::EncodedBlock> pending;
-    std::size_t next_write = 0;
-    std::exception_ptr failure;
-    std::atomic<bool> failed{false};
-    // Totals (double, merged under the mutex).
-    double t_single = 0.0, t_multiple = 0.0, t_compress = 0.0, ref2 = 0.0, err2 = 0.0, iters = 0.0, max_iters = 0.0;
-    std::size_t solved = 0;
-
-    // Lights in parallel, each solved single-threaded: the solvers' own parallel regions
-    // run nested inside this one and so get one thread each (max-active-levels 1).
-    const int saved_levels = omp_get_max_active_levels();
-    omp_set_max_active_levels(1);
-#pragma omp parallel num_threads(plan.threads)
+    // The chunks to solve: the lights the checkpoint lacks, cut into chunks small enough to
+    // keep every worker busy to the end (light costs vary ~3x) and few enough to keep the
+    // checkpoint's files and the messages few. Alone and without a checkpoint: one light.
+    const std::uint32_t n = std::uint32_t(plan.lights.count());
+    Totals totals;
+    std::vector<Chunk> todo;
     {
-        basis::HaarTransform<double> haar(plan.lighting.dims, s.compression.decomposition);
-        double my_single = 0, my_multiple = 0, my_compress = 0, my_ref2 = 0, my_err2 = 0, my_iters = 0, my_max = 0;
-        std::size_t my_solved = 0, my_dropped = 0, my_unconverged = 0, my_kept = 0;
-        double my_max_drop = 0.0;
-        for (;;) {
-            const std::size_t l = next.fetch_add(1);
-            if (l >= n || failed.load()) break;
-            try {
-                const transport::PointSource src{plan.lights.position(l), 1.0};
-                SolveRequest rq;
-                rq.single = true;
-                rq.multiple = plan.multiple;
-                rq.skip_below = s.drop_below;
-                Solution sol = solve(s, media, std::span(&src, 1), plan.output_directions, rq);
-                my_single += sol.seconds_single;
-                my_multiple += sol.seconds_multiple;
-                const double fraction = sol.first_scattered_power / (4.0 * std::numbers::pi);
-                core::Stopwatch sw;
-                basis::CompressedLight c;
-                if (s.drop_below > 0.0 && fraction < s.drop_below) {
-                    c.light = std::uint32_t(l);
-                    c.directions.resize(plan.metadata.bases());
-                    ++my_dropped;
-                    my_max_drop = std::max(my_max_drop, fraction);
-                } else {
-                    const transport::SourceField f = stored_bases(plan, std::move(sol));
-                    c = basis::compress_light(std::uint32_t(l), f, s.compression, haar);
-                    compression_error(c, f, haar, my_ref2, my_err2);
-                    if (plan.multiple && plan.solver == "lattice_boltzmann") {
-                        my_iters += sol.iterations;
-                        my_max = std::max(my_max, double(sol.iterations));
-                        if (!sol.converged) ++my_unconverged;
-                    }
-                    ++my_solved;
-                }
-                my_kept += c.coefficient_count();
-                my_compress += sw.seconds();
-                // Blocks are written in light order (the file is byte-identical for any
-                // thread count): a finished light waits until all lights before it are in.
-                basis::EncodedBlock block = basis::encode_block(c, plan.metadata);  // outside the lock
-                {
-                    std::lock_guard lock(write_mu);
-                    pending.emplace(l, std::move(block));
-                    while (!pending.empty() && pending.begin()->first == next_write) {
-                        writer.add(pending.begin()->second);
-                        pending.erase(pending.begin());
-                        ++next_write;
-                    }
-                }
-                const std::size_t d = done.fetch_add(1) + 1;
-                if (progress) {
-                    std::lock_guard lock(mu);
-                    progress(d, n, total.seconds());
-                }
-            } catch (...) {
+        const std::uint32_t workers = std::uint32_t(plan.threads + (options.helpers ? options.helpers->threads() : 0));
+        std::uint32_t size = options.chunk;
+        if (size == 0)
+            size = (!checkpoint && !options.helpers) ? 1u : std::clamp(n / (4u * std::max(workers, 1u)), 1u, 64u);
+        std::uint32_t l = 0;
+        auto cut = [&](std::uint32_t to) {
+            for (; l < to; l = std::min(to, l + size)) todo.push_back({l, std::min(to, l + size)});
+        };
+        if (checkpoint)
+            for (const detail::Checkpoint::Held& h : checkpoint->held()) {
+                cut(h.chunk.begin);
+                for (const LightResult& r : h.figures) totals.add(r);
+                l = h.chunk.end;
+            }
+        cut(n);
+        rep.lights_resumed = checkpoint ? checkpoint->lights() : 0;
+    }
+
+    std::mutex mu;  // guards totals, pending, done and the progress callback
+    std::map<std::uint32_t, std::vector<LightResult>> pending;  // finished out of order (no checkpoint)
+    std::uint32_t next_write = 0;
+    std::size_t done = 0;
+    const std::size_t to_do = n - rep.lights_resumed;
+    auto advance = [&](std::size_t lights) {  // under mu
+        done += lights;
+        if (progress) progress(done, to_do, total.seconds());
+    };
+    // A finished chunk: into the checkpoint, or into the file once every light before it is
+    // in (blocks go in light order: the file is the same however the work was split).
+    auto deliver = [&](Chunk c, std::vector<LightResult>&& results) {
+        if (checkpoint) checkpoint->add(c, results);
+        std::lock_guard lock(mu);
+        for (const LightResult& r : results) totals.add(r);
+        if (checkpoint) {
+            if (options.on_checkpoint) options.on_checkpoint(checkpoint->lights());
+            return;
+        }
+        pending.emplace(c.begin, std::move(results));
+        while (!pending.empty() && pending.begin()->first == next_write) {
+            for (const LightResult& r : pending.begin()->second) writer.add(r.block);
+            next_write += std::uint32_t(pending.begin()->second.size());
+            pending.erase(pending.begin());
+        }
+    };
+    std::atomic<std::size_t> next{0};
+    std::atomic<bool> failed{false};
+    auto take = [&]() -> std::optional<Chunk> {
+        if (failed.load()) return std::nullopt;
+        const std::size_t i = next.fetch_add(1);
+        return i < todo.size() ? std::optional<Chunk>(todo[i]) : std::nullopt;
+    };
+    auto body = [&](basis::HaarTransform<double>& haar) {
+        while (const std::optional<Chunk> c = take()) {
+            std::vector<LightResult> results;
+            results.reserve(c->size());
+            for (std::uint32_t l = c->begin; l < c->end && !failed.load(); ++l) {
+                results.push_back(bake_one(s, media, plan, haar, l));
                 std::lock_guard lock(mu);
-                if (!failure) failure = std::current_exception();
+                advance(1);
+            }
+            if (failed.load()) break;
+            deliver(*c, std::move(results));
+        }
+    };
+    // The calling thread serves the helpers (a message layer such as MPI is then called from
+    // one thread only), polling every millisecond when idle. After a failure here it goes on
+    // serving until every helper is released (no chunk is handed out any more), so the other
+    // processes end with this one; only a failure of the messages themselves ends it at once.
+    std::exception_ptr delivery_failure;
+    std::function<void()> serve = [&] {
+        const std::function<std::optional<Chunk>()> next_chunk = take;
+        const std::function<void(Chunk, std::vector<LightResult> &&)> remote = [&](Chunk c,
+                                                                                   std::vector<LightResult>&& r) {
+            if (failed.load()) return;
+            try {
+                deliver(c, std::move(r));
+                std::lock_guard lock(mu);
+                advance(c.size());
+            } catch (...) {
+                if (!delivery_failure) delivery_failure = std::current_exception();
                 failed = true;
             }
+        };
+        for (bool released = false; !released;) {
+            bool busy = false;
+            released = options.helpers->poll(next_chunk, remote, busy);
+            if (!busy) std::this_thread::sleep_for(std::chrono::milliseconds(1));
         }
-        std::lock_guard lock(mu);
-        t_single += my_single;
-        t_multiple += my_multiple;
-        t_compress += my_compress;
-        ref2 += my_ref2;
-        err2 += my_err2;
-        iters += my_iters;
-        max_iters = std::max(max_iters, my_max);
-        solved += my_solved;
-        rep.lights_dropped += my_dropped;
-        rep.coefficients_kept += my_kept;
-        rep.unconverged += my_unconverged;
-        rep.max_dropped_fraction = std::max(rep.max_dropped_fraction, my_max_drop);
-    }
-    omp_set_max_active_levels(saved_levels);
-    if (failure) std::rethrow_exception(failure);
+    };
+    run_team(plan, s, plan.threads, failed, body, options.helpers ? &serve : nullptr);
+    if (delivery_failure) std::rethrow_exception(delivery_failure);
+
     // A bake that would render an unlit cloud is refused (no file is written): the settings
     // that made it so are named.
     const std::string where = s.path.empty() ? std::string("scene") : s.path.string();
+    rep.lights_dropped = totals.dropped;
+    rep.coefficients_kept = totals.kept;
+    rep.unconverged = totals.unconverged;
+    rep.max_dropped_fraction = totals.max_dropped;
     if (rep.lights_dropped == n)
         throw core::Error(where + ": virtual_lights.drop_below",
                           "every one of the " + std::to_string(n) + " virtual lights scatters less than " +
@@ -597,18 +731,19 @@ Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan
                           "the threshold keeps no coefficient of any basis; the bake would light nothing: lower xi");
 
     core::Stopwatch sw;
+    if (checkpoint) checkpoint->copy_blocks(writer);
     writer.finish();
+    if (checkpoint) checkpoint->remove();
     rep.seconds_write = sw.seconds();
     // Per-stage times are summed over the worker threads (CPU seconds); the total is wall time.
-    rep.seconds_single = t_single;
-    rep.seconds_multiple = t_multiple;
-    rep.seconds_compress = t_compress;
+    rep.seconds_single = totals.single;
+    rep.seconds_multiple = totals.multiple;
+    rep.seconds_compress = totals.compress;
     rep.file_bytes = std::filesystem::file_size(out);
     rep.compression_ratio = rep.file_bytes ? double(rep.raw_bytes) / double(rep.file_bytes) : 0.0;
-    rep.relative_l2_error = ref2 > 0.0 ? std::sqrt(err2 / ref2) : 0.0;
-    const std::size_t lb_lights = plan.solver == "lattice_boltzmann" ? solved : 0;
-    rep.mean_solver_iterations = lb_lights ? iters / double(lb_lights) : 0.0;
-    rep.max_solver_iterations = max_iters;
+    rep.relative_l2_error = totals.ref2 > 0.0 ? std::sqrt(totals.err2 / totals.ref2) : 0.0;
+    rep.mean_solver_iterations = totals.lattice_lights ? totals.iterations / double(totals.lattice_lights) : 0.0;
+    rep.max_solver_iterations = totals.max_iterations;
     rep.seconds_total = total.seconds();
     return rep;
 }

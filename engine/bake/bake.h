@@ -130,13 +130,85 @@ struct Report {
     std::size_t unconverged = 0;        ///< lights whose solver hit its iteration cap
     double max_dropped_fraction = 0.0;  ///< largest first-scattered power fraction of a dropped light
     int threads = 1;
+    std::size_t lights_resumed = 0;  ///< lights taken from a checkpoint (their figures included)
 };
+
+// ---------------------------------------------------------------------------------------
+// A bake in parts (docs/distributed.md): the plan's lights are solved in chunks of
+// consecutive lights by this process's threads and, through Helpers, by other processes; a
+// checkpoint keeps finished chunks so a killed bake resumes; the file is written in light
+// order, so it is byte-identical however the work was split.
+
+/// What one virtual light's job produced: its block as the file stores it and the figures
+/// the Report sums.
+struct LightResult {
+    basis::EncodedBlock block;
+    double seconds_single = 0.0, seconds_multiple = 0.0, seconds_compress = 0.0;  ///< CPU seconds
+    double ref2 = 0.0, err2 = 0.0;   ///< squared L2 of the stored bases and of their compression error
+    double dropped_fraction = -1.0;  ///< first-scattered power fraction of a dropped light; -1: kept
+    std::uint64_t coefficients = 0;  ///< coefficients kept
+    std::int32_t iterations = -1;    ///< lattice steps (-1: no lattice solve)
+    bool converged = true;
+};
+
+/// Solves, compresses and encodes lights [begin, end) of the plan with plan.threads threads
+/// (each light single-threaded, as in bake()): a distributed bake's unit of work. In light
+/// order.
+std::vector<LightResult> bake_lights(const scene::Scene& s, const Media& media, const Plan& plan, std::uint32_t begin,
+                                     std::uint32_t end);
+
+/// Serialized results (the figures, and the blocks when `with_blocks`), for messages between
+/// processes and the checkpoint. decode_results checks every length and that the lights are
+/// begin, begin+1, ...; errors name `where` and the byte offset.
+std::vector<std::uint8_t> encode_results(std::span<const LightResult> results, bool with_blocks);
+std::vector<LightResult> decode_results(std::span<const std::uint8_t> bytes, bool with_blocks, std::uint32_t begin,
+                                        std::uint32_t end, const std::string& where);
+
+/// Consecutive lights [begin, end).
+struct Chunk {
+    std::uint32_t begin = 0, end = 0;
+    std::uint32_t size() const noexcept { return end - begin; }
+};
+
+/// Other processes taking part in a bake (distributed::bake implements it over MPI). bake()
+/// calls poll() from the thread that called it, repeatedly, while its worker threads solve.
+class Helpers {
+public:
+    virtual ~Helpers() = default;
+    /// Worker threads of all helpers together (for the chunk size).
+    virtual int threads() const = 0;
+    /// Serves the helpers without blocking: hands out the chunks `next` gives (nullopt: no
+    /// work left, the helper is released) and passes the chunks they finished to `deliver`.
+    /// Returns true once every helper is released (all their results delivered); sets `busy`
+    /// when it did anything.
+    virtual bool poll(const std::function<std::optional<Chunk>()>& next,
+                      const std::function<void(Chunk, std::vector<LightResult>&&)>& deliver, bool& busy) = 0;
+};
+
+struct BakeOptions {
+    /// Keeps finished chunks in this directory (each a partial .fgb and its figures) and
+    /// resumes from the chunks it holds, after checking them (checksums, the scene key, the
+    /// plan's metadata, the light ranges): a corrupt or foreign checkpoint is refused with a
+    /// core::Error naming the file. Removed once the file is written. Empty: no checkpoint.
+    std::filesystem::path checkpoint;
+    /// Called after each chunk is stored in the checkpoint, with the lights it then holds.
+    std::function<void(std::size_t lights)> on_checkpoint;
+    Helpers* helpers = nullptr;  ///< other processes solving chunks (none: this one alone)
+    std::uint32_t chunk = 0;     ///< lights per chunk (0: from the thread count, at most 64)
+};
+
+/// The checkpoint directory beside `out`: "<out>.ckpt".
+std::filesystem::path checkpoint_path(const std::filesystem::path& out);
 
 /// Bakes the scene into `out` (atomically: a partial file never replaces a good one).
 Report bake(const scene::Scene& s, const core::Grid3<float>& density, const std::filesystem::path& out,
             const Progress& progress = {});
 Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan& plan,
             const std::filesystem::path& out, const Progress& progress = {});
+/// The same with a checkpoint and helpers. Progress counts this run's lights (a resumed bake
+/// starts from the lights the checkpoint lacks).
+Report bake(const scene::Scene& s, const core::Grid3<float>& density, const Plan& plan,
+            const std::filesystem::path& out, const BakeOptions& options, const Progress& progress = {});
 
 /// The scene's default .fgb path (next to the scene: <scene>.fgb).
 std::filesystem::path default_fgb_path(const scene::Scene& s);

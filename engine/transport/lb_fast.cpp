@@ -270,7 +270,7 @@ void group_by_row(std::size_t rows, const std::vector<std::pair<std::size_t, T>>
     for (std::size_t r = 0; r < rows; ++r) begin[r + 1] += begin[r];
 }
 
-class FastKernel final : public Kernel {
+class FastKernel final : public SlabKernel {
 public:
     explicit FastKernel(const Problem& p) : p_(p), conservative_(p.absorption == LbAbsorption::Conservative) {
         const core::Int3 d = p.dims;
@@ -445,6 +445,82 @@ public:
         last_absorbed_ = a + p_.source_absorbed_per_step;
         last_escaped_ = e;
         last_total_ = t - last_escaped_ + inflow_sum_;
+        ++steps_;
+    }
+
+    // --- a z-slab of a decomposed lattice (SlabKernel) ----------------------------------
+    void update_planes(bool odd, int z0, int z1) override {
+        const std::int64_t ny = p_.dims.y, r0 = std::int64_t(z0) * ny, r1 = std::int64_t(z1) * ny;
+#pragma omp parallel for schedule(static) num_threads(core::thread_count()) if (parallel())
+        for (std::int64_t r = r0; r < r1; ++r) {
+            if (odd)
+                update_row<true>(r, 0);
+            else
+                update_row<false>(r, 0);
+        }
+    }
+    // The links of a face, plane position (x, y) and direction q, y then x then q: through
+    // face `side` outgoing (c_z pointing out of the slab) or incoming, with x + c_x and
+    // y + c_y inside (a link leaving through an x or y face too is an open link).
+    template <class F>
+    void face_links(int side, bool outgoing, F&& f) const {
+        const core::Int3 d = p_.dims;
+        const int cz = (side == 1) == outgoing ? 1 : -1;
+        for (int y = 0; y < d.y; ++y)
+            for (int x = 0; x < d.x; ++x)
+                for (int q = 1; q < kQ; ++q) {
+                    const Velocity& c = kVelocity[std::size_t(q)];
+                    if (c.z != cz || x + c.x < 0 || x + c.x >= d.x || y + c.y < 0 || y + c.y >= d.y) continue;
+                    f(x, y, q, c);
+                }
+    }
+    // Face plane and ghost plane of a side.
+    int face_z(int side) const { return side == 0 ? 0 : p_.dims.z - 1; }
+    int ghost_z(int side) const { return side == 0 ? -1 : p_.dims.z; }
+    void pack(bool odd, int side, std::vector<float>& out) const override {
+        out.clear();
+        const int zf = face_z(side), zg = ghost_z(side);
+        // Even half: the collided density heading out, in the site's swapped slot. Odd half:
+        // what the face plane streamed into the ghost plane.
+        face_links(side, true, [&](int x, int y, int q, const Velocity& c) {
+            out.push_back(odd ? data_[std::size_t(q) * stride_ + pad(x + c.x, y + c.y, zg)]
+                              : data_[std::size_t(opposite(q)) * stride_ + pad(x, y, zf)]);
+        });
+    }
+    void unpack(bool odd, int side, std::span<const float> in) override {
+        const int zf = face_z(side), zg = ghost_z(side);
+        std::size_t i = 0;
+        // (x, y) are the neighbour's face-plane position: the same plane coordinates.
+        face_links(side, false, [&](int x, int y, int q, const Velocity& c) {
+            FULGUR_ASSERT(i < in.size(), "SlabKernel::unpack: fewer values than links");
+            if (odd)
+                slot(q, pad(x + c.x, y + c.y, zf)) = in[i++];
+            else
+                slot(opposite(q), pad(x, y, zg)) = in[i++];
+        });
+        FULGUR_ASSERT(i == in.size(), "SlabKernel::unpack: more values than links");
+    }
+    std::size_t halo_size() const override {
+        std::size_t n = 0;
+        face_links(0, true, [&](int, int, int, const Velocity&) { ++n; });
+        return n;
+    }
+    Sums add_rows(Sums from) const override {
+        for (const RowSums& s : row_sums_[0]) {
+            from.absorbed += s.absorbed;
+            from.total += s.total;
+            from.escaped += s.escaped;
+        }
+        return from;
+    }
+    double add_inflow(double from) const override {
+        for (const OpenLink& l : open_) from += double(l.in);
+        return from;
+    }
+    void end_step(double absorbed, double escaped, double total) override {
+        last_absorbed_ = absorbed;
+        last_escaped_ = escaped;
+        last_total_ = total;
         ++steps_;
     }
 
@@ -641,16 +717,19 @@ private:
                     for (int q = 1; q < kQ; ++q) {
                         const Velocity& c = kVelocity[std::size_t(q)];
                         int n[3] = {x + c.x, y + c.y, z + c.z};
-                        bool outside = false, open = false;
+                        bool outside = false, open = false, halo = false;
                         for (int a = 0; a < 3; ++a) {
                             if (n[a] >= 0 && n[a] < dd[a]) continue;
                             outside = true;
                             if (p_.boundary[std::size_t(a)] == Boundary::Periodic)
                                 n[a] = (n[a] + dd[a]) % dd[a];
+                            else if (a == 2 && p_.halo_z[n[2] < 0 ? 0 : 1])
+                                halo = true;
                             else
                                 open = true;
                         }
                         if (!outside) continue;
+                        if (halo && !open) continue;  // exchanged by the caller (pack, unpack)
                         if (open) {
                             const std::size_t row = std::size_t(y) + std::size_t(d.y) * std::size_t(z);
                             const float in = inflow[p_.index(x, y, z) * kQ + std::size_t(opposite(q))];
@@ -733,5 +812,12 @@ private:
 }  // namespace
 
 std::unique_ptr<Kernel> make_fast_kernel(const Problem& p) { return std::make_unique<FastKernel>(p); }
+
+std::unique_ptr<SlabKernel> make_slab_kernel(const Problem& p) {
+    FULGUR_ASSERT(p.boundary[0] == Boundary::Open && p.boundary[1] == Boundary::Open && p.boundary[2] == Boundary::Open,
+                  "make_slab_kernel: open faces (halo_z marks those bordering another slab)");
+    FULGUR_ASSERT(p.dims.z >= 2, "make_slab_kernel: a slab has at least 2 planes (face planes apart)");
+    return std::make_unique<FastKernel>(p);
+}
 
 }  // namespace fulgur::transport::lb

@@ -70,6 +70,10 @@ Simulation::Simulation(const Problem& p, LbKernel kind) : problem_(p), kernel_(m
     injected_ = problem_.inflow_per_step;  // the first inflow is in place at t = 0
 }
 
+Simulation::Simulation(const Problem& p, std::unique_ptr<Kernel> kernel) : problem_(p), kernel_(std::move(kernel)) {
+    injected_ = problem_.inflow_per_step;
+}
+
 void Simulation::step() {
     kernel_->step();
     injected_ += problem_.emission_per_step + problem_.inflow_per_step;

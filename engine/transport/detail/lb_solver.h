@@ -12,6 +12,7 @@
 #include "transport/detail/lb_collision.h"
 
 #include <memory>
+#include <span>
 #include <vector>
 
 namespace fulgur::transport::lb {
@@ -21,6 +22,10 @@ enum class Boundary { Open, Periodic };
 struct Problem {
     core::Int3 dims{1, 1, 1};
     std::array<Boundary, 3> boundary{Boundary::Open, Boundary::Open, Boundary::Open};
+    /// The z faces (low, high) of a slab that border another slab of a lattice decomposed over
+    /// processes (make_slab_kernel): links crossing them are neither open nor periodic, the
+    /// caller exchanges their densities with the neighbouring slab.
+    std::array<bool, 2> halo_z{false, false};
     LbAbsorption absorption = LbAbsorption::Physical;
     double albedo = 1.0;
     DiscretePhase phase;
@@ -106,10 +111,45 @@ std::unique_ptr<Kernel> make_naive_kernel(const Problem& p);
 std::unique_ptr<Kernel> make_fast_kernel(const Problem& p);
 std::unique_ptr<Kernel> make_kernel(const Problem& p, LbKernel kind);
 
+/// The fast kernel on one z-slab of a lattice decomposed over processes: `p` is the slab (open
+/// faces, and halo_z on the z faces another slab follows). Its
+/// step is done in parts so that the caller exchanges the halo links between them and
+/// overlaps the exchange with the interior planes, for each half (even, then odd):
+///   update_planes(odd, 0, 1), update_planes(odd, nz - 1, nz)   the two face planes
+///   pack(odd, side) -> send; receive -> ...                    while
+///   update_planes(odd, 1, nz - 1)                              the interior planes
+///   ... -> unpack(odd, side)                                   before the next half
+/// then add_rows() chained over the slabs in z order and end_step() with the lattice's
+/// figures. Every site computes exactly what it does in the undivided fast kernel, and the
+/// chained sums add the same rows in the same order, so the lattice is bit-identical.
+class SlabKernel : public Kernel {
+public:
+    virtual void update_planes(bool odd, int z0, int z1) = 0;
+    /// The halo values leaving through face `side` (0: z = 0, 1: z = nz - 1) after a half,
+    /// in the order the neighbour's unpack(odd, other side) takes them.
+    virtual void pack(bool odd, int side, std::vector<float>& out) const = 0;
+    virtual void unpack(bool odd, int side, std::span<const float> in) = 0;
+    /// Values crossing a face in one direction per half.
+    virtual std::size_t halo_size() const = 0;
+    struct Sums {
+        double absorbed = 0.0, total = 0.0, escaped = 0.0;
+    };
+    /// `from` continued over this slab's per-row sums of the last half, in row order.
+    virtual Sums add_rows(Sums from) const = 0;
+    /// `from` continued over this slab's constant inflow, in the undivided kernel's order.
+    virtual double add_inflow(double from) const = 0;
+    /// Ends a step with the lattice's figures (absorbed includes the sources' own).
+    virtual void end_step(double absorbed, double escaped, double total) = 0;
+};
+std::unique_ptr<SlabKernel> make_slab_kernel(const Problem& p);
+
 /// Steps a kernel with energy bookkeeping (double) and the steady-state test.
 class Simulation {
 public:
     Simulation(const Problem& p, LbKernel kind);
+    /// With a kernel made elsewhere for `p` (a slab of a decomposed lattice: the kernel steps
+    /// its part, the figures are the whole lattice's).
+    Simulation(const Problem& p, std::unique_ptr<Kernel> kernel);
     Simulation(const Simulation&) = delete;  // the kernel refers to problem_
     Simulation& operator=(const Simulation&) = delete;
     void step();
