@@ -165,7 +165,9 @@ bake::BakeOptions bake_options(const app::BakeArgs& a, const std::filesystem::pa
         std::filesystem::remove_all(o.checkpoint, ec);
         if (ec) throw core::Error(o.checkpoint.string(), "--fresh: cannot remove the checkpoint: " + ec.message());
     } else if (std::filesystem::exists(o.checkpoint, ec)) {
-        std::printf("resuming from the checkpoint %s (--fresh discards it)\n", o.checkpoint.string().c_str());
+        // Said before the checks: the bake reports how many lights it took once they passed.
+        std::printf("found the checkpoint %s: the lights that pass its checks are reused (--fresh discards it)\n",
+                    o.checkpoint.string().c_str());
     }
     if (a.stop_after)
         o.on_checkpoint = [n = a.stop_after](std::size_t lights) {

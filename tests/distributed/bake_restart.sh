@@ -21,7 +21,7 @@ fail() {
 [ -e two.fgb ] && fail "the killed bake left two.fgb"
 ls two.fgb.ckpt/lights-*.fgb > /dev/null 2>&1 || fail "the killed bake left no chunk in two.fgb.ckpt/"
 "$@" "$bake" "$scene" --threads 1 -o two.fgb > log3.txt 2>&1 || fail "the resumed bake failed"
-grep -q "resuming from the checkpoint" log3.txt || fail "the second run did not resume"
+grep -q "lights came from the checkpoint" log3.txt || fail "the second run did not resume"
 grep -q "lights came from the checkpoint" log3.txt || fail "the second run took no light from the checkpoint"
 cmp one.fgb two.fgb || fail "the resumed file differs from the one-process bake"
 [ -e two.fgb.ckpt ] && fail "the checkpoint was left after a successful bake"
