@@ -100,7 +100,7 @@ void export_nrrd(const app::BakeArgs& a, const scene::Scene& s, const core::Grid
     basis::export_compressed_nrrd(comp, baked, lights, std::size_t(a.export_direction));
     // Raw: solve the listed lights again; the stored components are summed, as in the
     // compressed export.
-    const bake::Media media = bake::make_media(s, density);
+    const solve::Media media = solve::make_media(s, density);
     std::map<std::uint32_t, transport::SourceField> fields;
     for (const basis::WeightedLight& w : lights) {
         if (fields.count(w.light)) continue;
@@ -199,7 +199,7 @@ int run(const app::BakeArgs& a, const distributed::Session& session) {
     std::fflush(stdout);
     if (a.dry_run) return 0;
     if (scene_plan.sun || scene_plan.sky)
-        (void)sky::load_or_solve(s, density, bake::make_media(s, density), scene_plan, {},
+        (void)sky::load_or_solve(s, density, solve::make_media(s, density), scene_plan, {},
                                  [](const std::string& m) { std::printf("%s\n", m.c_str()); });
     if (!scene_plan.lightning) {
         if (!a.export_lights.empty())

@@ -83,7 +83,7 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
     s.lightning.schedule.strike_rate = 0.0;  // strikes on demand, one per seed
     const core::GridGeometry& g = c.config.density.geom;
     const lightning::Box domain{glm::dvec3(g.origin.x, g.origin.y, s.lightning.bolt.ground_height), g.upper()};
-    const bake::Media media = bake::make_media(s, c.config.density);
+    const solve::Media media = solve::make_media(s, c.config.density);
 
     const int seeds = ctx.quick ? 4 : 24;
     const int per_flash = ctx.quick ? 8 : 24;  // frame times spread over each flash

@@ -17,7 +17,7 @@
 
 #include "core/core.h"
 #include "distributed/distributed.h"
-#include "distributed/lattice.h"
+#include "distributed/detail/lattice.h"
 
 #include <filesystem>
 #include <fstream>

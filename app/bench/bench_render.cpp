@@ -87,7 +87,7 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
 
     render::Renderer r(context->get_proc_address());
     r.set_volume({.density = &density, .extinction = kappa});
-    r.set_bolt(storm.bolt);
+    r.set_channel(storm.bolt);
     // Upload only the directions this view needs, as the run time does.
     const render::SourceUpload up = synthetic::needed_upload(r, storm);
     core::Stopwatch upload_clock;

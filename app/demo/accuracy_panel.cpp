@@ -88,7 +88,7 @@ void AccuracyPanel::update(double t, const view::ViewOptions& options) {
     std::sort(ms.begin(), ms.end());
     std::vector<float> shown;
     for (const std::vector<float>& v : f->radiance.values) shown.insert(shown.end(), v.begin(), v.end());
-    const bake::Media& media = view_.media();
+    const solve::Media& media = view_.media();
     std::fprintf(stderr, "fulgur: solving the frame at t = %.4f s against the %s on a worker thread...\n", t,
                  truth ? "truth" : "direct solve");
     started_ = wall_seconds();

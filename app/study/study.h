@@ -2,7 +2,7 @@
 //
 // Each study file registers itself with FULGUR_STUDY(name, "help") { ... } and writes its
 // results into ctx.output_dir (CSV, and a one-line JSON summary on stdout; scripts/plot_studies.py draws the figures). Studies
-// are the "accuracy costs time" evidence of DESIGN.md: every knob measured against a
+// are the "accuracy costs time" evidence (docs/design.md#accuracy-costs-time): every knob measured against a
 // reference. They may take minutes; --quick runs a reduced version for smoke tests.
 #pragma once
 

@@ -244,7 +244,7 @@ FULGUR_STUDY(frontier, "frontier",
     for (const Config& c : configs) {
         const scene::Scene& s = c.scene;
         Bake& b = ensure_bake(bakes, c.bake, s, density, ctx);
-        const bake::Media media = bake::make_media(s, density);
+        const solve::Media media = solve::make_media(s, density);
         const std::vector<float>& rho = media.lighting.density.data;
         const std::vector<glm::dvec3> dirs = transport::output_directions(s.effective_directions());
         const std::size_t toward = study::toward_side_camera(dirs);

@@ -1,7 +1,7 @@
 // The lattice against the truth, one light at a time (part of lb-vs-mc): the default storm,
 // an isotropic 1 W/sr light in the core (the cloud's density-weighted centre), at its edge
 // (the last point with density > 0.02 on the way out along +x at the core's height) and
-// 1.5 km below its base; each solved by bake::solve (exact single scattering + the lattice on
+// 1.5 km below its base; each solved by solve::solve (exact single scattering + the lattice on
 // the transport grid) with today's lattice (transport.refine 1, thick voxels saturate or
 // diffusion_matched) and the new ones (refine 2, 3; order 2 by Monte Carlo, the lattice for
 // orders >= 3), against the truth (Monte Carlo
@@ -62,7 +62,7 @@ void lb_vs_truth(const Context& ctx) {
         lattices.push_back({"refine 3, order 2 exact", 3, "diffusion_matched", 2});
     }
 
-    const bake::Media lighting_media = bake::make_media(base, density);
+    const solve::Media lighting_media = solve::make_media(base, density);
     const transport::LightingMedium& lm = lighting_media.lighting;
     const std::vector<float>& rho = lm.density.data;
     const std::size_t cells = rho.size();
@@ -90,10 +90,10 @@ void lb_vs_truth(const Context& ctx) {
             s.transport.lb_thick_voxels = l.thick;
             s.transport.lb_exact_orders = l.exact_orders;
             s.transport.lb_order2_paths = l.order2_paths;
-            const bake::Media media = bake::make_media(s, density);
+            const solve::Media media = solve::make_media(s, density);
             core::Stopwatch sw;
-            const bake::Solution sol =
-                bake::solve(s, media, std::span(&p, 1), transport::output_directions(s.effective_directions()));
+            const solve::Solution sol =
+                solve::solve(s, media, std::span(&p, 1), transport::output_directions(s.effective_directions()));
             const double seconds = sw.seconds();
             for (const Band& band : bands) {
                 core::RelativeL2 e1, e2, et;

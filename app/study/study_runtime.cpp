@@ -35,15 +35,15 @@ struct Parts {
     transport::SourceField single, multiple;
 };
 
-// bake::solve on point sources, both parts (what runtime::direct_solve sums).
-Parts solve_parts(const scene::Scene& s, const bake::Media& m, std::span<const transport::PointSource> q,
+// solve::solve on point sources, both parts (what runtime::direct_solve sums).
+Parts solve_parts(const scene::Scene& s, const solve::Media& m, std::span<const transport::PointSource> q,
                   double* seconds = nullptr) {
     std::vector<transport::PointSource> pts;
     for (const transport::PointSource& p : q)
         if (p.intensity != 0.0) pts.push_back(p);
     const std::vector<glm::dvec3> dirs = transport::output_directions(s.effective_directions());
     core::Stopwatch sw;
-    bake::Solution sol = bake::solve(s, m, pts, dirs);
+    solve::Solution sol = solve::solve(s, m, pts, dirs);
     if (seconds) *seconds = sw.seconds();
     return {std::move(sol.single), std::move(sol.multiple)};
 }
@@ -87,7 +87,7 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
     }
     const runtime::BakedBases bases = runtime::BakedBases::load(fgb, bake::scene_key(s, density));
     basis::FgbReader reader(fgb);  // per-light coefficient counts (dropped lights)
-    const bake::Media media = bake::make_media(s, density);
+    const solve::Media media = solve::make_media(s, density);
     const transport::LightingMedium& medium = media.lighting;
     const std::size_t nd = bases.directions().size(), cells = medium.density.size();
     const L2 l2{medium.density.data, cells};

@@ -7,7 +7,8 @@
 // will be simulated and why (isotropic scattering: one output direction; no multiple
 // scattering: no transport solve; no sun: no sun solve; lights whose contribution to the
 // cloud is negligible: dropped and counted). Execution is a list of independent per-light
-// jobs followed by a merge (DESIGN.md, "Scaling past one machine").
+// jobs followed by a merge (docs/design.md#scaling-past-one-machine). A light's S comes from the
+// solver layer (solve/solve.h), which the run time and the sky share.
 //
 // THIS HEADER IS THE CONTRACT between the bake module and the apps (fulgur-bake, the demo,
 // fulgur-shot, benchmarks). Changing it is fine when the implementation needs it; keep it
@@ -17,6 +18,7 @@
 #include "basis/basis.h"
 #include "core/core.h"
 #include "scene/scene.h"
+#include "solve/solve.h"
 #include "transport/transport.h"
 
 #include <cstdint>
@@ -34,51 +36,6 @@ namespace fulgur::bake {
 /// and explained. A density loaded from a file contributes a hash of its bytes.
 /// (basis::BakeKey: hash = hash_description(description).)
 basis::BakeKey scene_key(const scene::Scene& s, const core::Grid3<float>& density);
-
-/// S of point sources in the scene's medium, split into its two parts: the exact single
-/// scattering (transport::single_scattering, voxel averages) and the multiple scattering
-/// by the scene's solver (lattice-Boltzmann fed with the exact S1 as its first-scattered
-/// source, or Monte Carlo orders >= 2). This is the one function the bake (per virtual
-/// light) and the run time's direct solve (per frame, all sources at once) both use, so
-/// the two are comparable by construction.
-struct Solution {
-    transport::SourceField single;    ///< order 1 (empty data when not requested)
-    transport::SourceField multiple;  ///< orders >= 2 (empty data when not requested)
-    /// Power scattered once by the cloud, sum over voxels of sigma_s phi1 h^3 (W), where
-    /// phi1 is the uncollided fluence: the drop criterion for virtual lights.
-    double first_scattered_power = 0.0;
-    int iterations = 0;  ///< lattice steps (0 for Monte Carlo or no solve)
-    bool converged = true;
-    double seconds_single = 0.0, seconds_multiple = 0.0;
-};
-struct SolveRequest {
-    bool single = true;    ///< return S1 (it is computed anyway when multiple is requested)
-    bool multiple = true;  ///< run the scene's multiple-scattering solver
-    /// Skip the multiple-scattering solve when first_scattered_power is below this fraction
-    /// of the sources' emitted power (the bake's drop test; 0 never skips).
-    double skip_below = 0.0;
-};
-/// The media a solve runs in: `lighting`, the grid S is stored on, and `transport`, the grid
-/// the solvers run on: the lighting grid refined by the scene's transport.refine (the same
-/// grid when refine is 1), S averaged back onto the lighting grid.
-struct Media {
-    transport::LightingMedium lighting;
-    transport::LightingMedium transport;
-    int refine = 1;
-    /// The full-resolution density (for the Monte Carlo order 2 of
-    /// transport.lattice_boltzmann.exact_orders 2; empty otherwise).
-    transport::LightingMedium full;
-};
-Media make_media(const scene::Scene& s, const core::Grid3<float>& density);
-
-/// The scene's lattice-Boltzmann settings (transport.lattice_boltzmann).
-transport::LbSettings lattice_settings(const scene::Scene& s);
-
-/// Single-scattering settings the bake and the direct solve share (scene's tolerance,
-/// far-empty voxels skipped; part of the scene key).
-transport::SingleScatteringOptions single_scattering_options(const scene::Scene& s);
-Solution solve(const scene::Scene& s, const Media& media, std::span<const transport::PointSource> sources,
-               std::span<const glm::dvec3> directions, const SolveRequest& request = {});
 
 /// What a bake will do, and why. Printable (to_text) before baking; `--dry-run` prints only this.
 struct Plan {
@@ -113,7 +70,8 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
 
 /// The uncompressed bases of virtual light l as the bake stores them (FgbMetadata order:
 /// component-major, then direction), before the Haar transform. For NRRD export and tests.
-transport::SourceField solve_light(const scene::Scene& s, const Media& media, const Plan& plan, std::uint32_t light);
+transport::SourceField solve_light(const scene::Scene& s, const solve::Media& media, const Plan& plan,
+                                   std::uint32_t light);
 
 /// Progress callback: lights done, lights total, seconds elapsed.
 using Progress = std::function<void(std::size_t done, std::size_t total, double seconds)>;
@@ -154,8 +112,8 @@ struct LightResult {
 /// Solves, compresses and encodes lights [begin, end) of the plan with plan.threads threads
 /// (each light single-threaded, as in bake()): a distributed bake's unit of work. In light
 /// order.
-std::vector<LightResult> bake_lights(const scene::Scene& s, const Media& media, const Plan& plan, std::uint32_t begin,
-                                     std::uint32_t end);
+std::vector<LightResult> bake_lights(const scene::Scene& s, const solve::Media& media, const Plan& plan,
+                                     std::uint32_t begin, std::uint32_t end);
 
 /// Serialized results (the figures, and the blocks when `with_blocks`), for messages between
 /// processes and the checkpoint. decode_results checks every length and that the lights are

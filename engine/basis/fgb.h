@@ -1,7 +1,7 @@
 // fulgur::basis — the .fgb baked file (docs/fgb-format.md specifies it byte by byte): its
 // metadata, per-light blocks, a writer for whole or partial files, a validating reader and
 // the merge of partial files. A bake is a list of per-light jobs, each writing its range of
-// lights, then merge_fgb() (DESIGN.md "Scaling past one machine").
+// lights, then merge_fgb() (docs/design.md#scaling-past-one-machine).
 #pragma once
 
 #include "basis/compression.h"

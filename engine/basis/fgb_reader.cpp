@@ -50,7 +50,15 @@ struct FgbReader::Impl {
         return out;
     }
 
+    /// Validates the file when opened: the fixed header, the section layout, the header CRC,
+    /// the light range, the metadata and the index, in that order.
     void open();
+    void check_fixed_header(const std::vector<std::uint8_t>& head);
+    void check_layout() const;
+    std::vector<std::uint8_t> checked_region();
+    std::uint64_t checked_light_range() const;
+    void read_metadata(const std::vector<std::uint8_t>& region);
+    void read_index(const std::vector<std::uint8_t>& region, std::uint64_t n);
     std::vector<std::uint8_t> checked_block(std::uint32_t l, std::uint64_t& offset);
 };
 
@@ -60,6 +68,17 @@ void FgbReader::Impl::open() {
         throw core::Error(name, "truncated: the file has " + std::to_string(size) +
                                     " bytes, the fixed header alone is " + std::to_string(kHeaderSize));
     const std::vector<std::uint8_t> head = read(0, kHeaderSize);
+    check_fixed_header(head);
+    check_layout();
+    const std::vector<std::uint8_t> region = checked_region();
+    const std::uint64_t n = checked_light_range();
+    read_metadata(region);
+    read_index(region, n);
+}
+
+/// The fixed header: magic, version, endianness, file size, flags and the reserved field.
+void FgbReader::Impl::check_fixed_header(const std::vector<std::uint8_t>& head) {
+    using namespace fgb;
     if (std::memcmp(head.data(), kMagic, 8) != 0) {
         if (head[1] == 'F' && head[2] == 'G' && head[3] == 'B')
             throw core::Error(at(0),
@@ -80,8 +99,11 @@ void FgbReader::Impl::open() {
                                                 " bytes, the file has " + std::to_string(size));
     if (h.flags & ~kFlagPartial) throw core::Error(at(kOffFlags), "header.flags: unknown bits " + hex32(h.flags));
     if (h.reserved != 0) throw core::Error(at(kOffReserved), "header.reserved: must be 0");
+}
 
-    // Section layout: header | metadata | index | blocks, contiguous, ending at the file end.
+/// Section layout: header | metadata | index | blocks, contiguous, ending at the file end.
+void FgbReader::Impl::check_layout() const {
+    using namespace fgb;
     // Each comparison is written so that no addition can overflow.
     if (h.meta_offset != kHeaderSize)
         throw core::Error(at(kOffMetaOffset), "header.meta_offset: " + std::to_string(h.meta_offset) + ", expected " +
@@ -104,7 +126,11 @@ void FgbReader::Impl::open() {
         throw core::Error(at(kOffBlocksSize), "header.blocks_size: " + std::to_string(h.blocks_size) +
                                                   ", the blocks span " + std::to_string(size - h.blocks_offset) +
                                                   " bytes to the end of the file");
+}
 
+/// Header, metadata and index (bytes [0, blocks_offset)), checked against the header CRC.
+std::vector<std::uint8_t> FgbReader::Impl::checked_region() {
+    using namespace fgb;
     // Header CRC over header + metadata + index (bounded by the file size above).
     std::vector<std::uint8_t> region = read(0, h.blocks_offset);
     const std::uint32_t crc = header_crc(region, h.blocks_offset);
@@ -112,8 +138,13 @@ void FgbReader::Impl::open() {
         throw core::Error(at(kOffHeaderCrc), "header CRC mismatch: stored " + hex32(h.header_crc) + ", computed " +
                                                  hex32(crc) + " over bytes [0, " + std::to_string(h.blocks_offset) +
                                                  ") (header, metadata or index is corrupt)");
+    return region;
+}
 
-    // Light range and index.
+/// The light range: the light count, the range and the partial flag, and the index size for
+/// the range. Returns the number of lights in the file.
+std::uint64_t FgbReader::Impl::checked_light_range() const {
+    using namespace fgb;
     if (h.light_count == 0 || h.light_count > kMaxVirtualLights)
         throw core::Error(at(kOffLightCount),
                           "header.light_count: " + std::to_string(h.light_count) + " is out of range");
@@ -129,8 +160,12 @@ void FgbReader::Impl::open() {
         throw core::Error(at(kOffIndexSize), "header.index_size: " + std::to_string(h.index_size) + " bytes for " +
                                                  std::to_string(n) + " lights of " + std::to_string(kIndexEntrySize) +
                                                  " bytes each");
+    return n;
+}
 
-    // Metadata.
+/// The metadata, checked against the header's light count.
+void FgbReader::Impl::read_metadata(const std::vector<std::uint8_t>& region) {
+    using namespace fgb;
     meta_bytes.assign(region.begin() + std::ptrdiff_t(h.meta_offset), region.begin() + std::ptrdiff_t(h.index_offset));
     fgb::ByteReader mr(meta_bytes.data(), meta_bytes.size(), h.meta_offset, name);
     meta = fgb::decode_metadata(mr, h.scene_hash, name);
@@ -138,8 +173,12 @@ void FgbReader::Impl::open() {
         throw core::Error(at(kOffLightCount), "header.light_count: " + std::to_string(h.light_count) +
                                                   ", the virtual-light grid in the metadata has " +
                                                   std::to_string(meta.light_count()));
+}
 
-    // Index: every block inside the block section; together they tile it without overlap.
+/// The index of the n lights: every block inside the block section; together they tile it
+/// without overlap.
+void FgbReader::Impl::read_index(const std::vector<std::uint8_t>& region, std::uint64_t n) {
+    using namespace fgb;
     entries.resize(std::size_t(n));
     struct Span {
         std::uint64_t offset, size;

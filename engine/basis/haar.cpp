@@ -39,9 +39,9 @@ namespace {
 #endif
 
 template <class T>
-using Level = typename HaarTransform<T>::Level;
+using Level = detail::HaarLevel<T>;
 template <class T>
-using Axis = typename HaarTransform<T>::Axis;
+using Axis = detail::HaarAxis<T>;
 
 double powk(int e) { return std::pow(0.5, 0.5 * e); }  // k^e, exact for even e
 

@@ -22,6 +22,30 @@ enum class Decomposition : std::uint32_t {
 /// "standard" / "nonstandard" (the names used in scene files and reports).
 std::string_view to_string(Decomposition d) noexcept;
 
+namespace detail {
+
+// The transform's plan per axis (internal to HaarTransform and haar.cpp).
+/// One level of the 1D plan on the m current approximations.
+template <class T>
+struct HaarLevel {
+    int m = 0;      ///< length transformed at this level
+    int pairs = 0;  ///< floor(m/2)
+    int half = 0;   ///< ceil(m/2): approximations that go on to the next level
+    /// When m is even, the last pair's step: x0 = u00 a + u01 d, x1 = u10 a + u11 d.
+    T u00 = T(1), u01 = T(1), u10 = T(1), u11 = T(-1);
+};
+template <class T>
+struct HaarAxis {
+    std::vector<HaarLevel<T>> levels;  ///< finest first; J = levels.size()
+    std::vector<int> t;                ///< t[l]: factor exponent of the last node entering level l (t[0] = 0)
+    std::vector<int> detail_level;     ///< per position: the level whose detail it is (INT_MAX for 0)
+    std::vector<int> exponent;         ///< standard decomposition: e of k^e in P per position
+    /// Runs of equal exponent along the axis: [begin, end) and e.
+    std::vector<int> run_begin, run_end, run_exponent;
+};
+
+}  // namespace detail
+
 /// Orthonormal 3D Haar transform of a dense grid (x fastest), any size per axis (1 included).
 /// Exact for constants on any length: coefficient 0 is sum(x) / sqrt(n) in both
 /// decompositions, every other basis function has zero mean, Parseval holds exactly.
@@ -43,24 +67,8 @@ public:
     /// Coefficients -> samples, in place. data.size() must equal size().
     void inverse(std::span<T> data);
 
-    /// One level of the 1D plan on the m current approximations.
-    struct Level {
-        int m = 0;      ///< length transformed at this level
-        int pairs = 0;  ///< floor(m/2)
-        int half = 0;   ///< ceil(m/2): approximations that go on to the next level
-        /// When m is even, the last pair's step: x0 = u00 a + u01 d, x1 = u10 a + u11 d.
-        T u00 = T(1), u01 = T(1), u10 = T(1), u11 = T(-1);
-    };
-    struct Axis {
-        std::vector<Level> levels;      ///< finest first; J = levels.size()
-        std::vector<int> t;             ///< t[l]: factor exponent of the last node entering level l (t[0] = 0)
-        std::vector<int> detail_level;  ///< per position: the level whose detail it is (INT_MAX for 0)
-        std::vector<int> exponent;      ///< standard decomposition: e of k^e in P per position
-        /// Runs of equal exponent along the axis: [begin, end) and e.
-        std::vector<int> run_begin, run_end, run_exponent;
-    };
-
 private:
+    using Axis = detail::HaarAxis<T>;
     void scale(T* d) const noexcept;
 
     core::Int3 dims_;

@@ -66,24 +66,50 @@ bool parse_vector(std::string_view s, double v[3]) {
     return !is.fail() && !(is >> rest);
 }
 
-}  // namespace
+// The header is at most 64 KiB.
+constexpr std::size_t kMaxHeader = 1 << 16;
 
-NrrdHeader read_nrrd_header(const std::filesystem::path& path, std::uint64_t max_bytes) {
-    const std::string file = path.string();
-    NrrdHeader out;
-    out.file_size = check_readable_file(path, max_bytes, "NRRD");
-    // The header is at most 64 KiB: read that much (or the file) and parse lines from it, so a
-    // file without newlines costs 64 KiB, not its size.
-    constexpr std::size_t kMaxHeader = 1 << 16;
+// The first 64 KiB of the file (or the whole file), where the header lines are parsed from, so
+// a file without newlines costs 64 KiB, not its size.
+std::string read_head(const std::filesystem::path& path, const std::string& file, std::uint64_t file_size) {
     std::string head;
     {
         std::ifstream in(path, std::ios::binary);
         if (!in) throw Error(file, "cannot open for reading");
-        head.resize(std::size_t(std::min<std::uint64_t>(out.file_size, kMaxHeader)));
+        head.resize(std::size_t(std::min<std::uint64_t>(file_size, kMaxHeader)));
         in.read(head.data(), std::streamsize(head.size()));
         if (std::uint64_t(in.gcount()) != head.size()) throw Error(file, "read failed");
     }
-    auto where = [&](std::uint64_t at) { return file + " (byte " + std::to_string(at) + ")"; };
+    return head;
+}
+
+// The header's fields (value and the byte offset of its line, by field name), with errors
+// naming the file and the byte.
+struct HeaderFields {
+    std::string file;
+    std::map<std::string, std::pair<std::string, std::uint64_t>> fields;
+
+    std::string where(std::uint64_t at) const { return file + " (byte " + std::to_string(at) + ")"; }
+
+    const std::pair<std::string, std::uint64_t>& need(const char* key) const {
+        auto it = fields.find(key);
+        if (it == fields.end()) throw Error(file, std::string("missing header field '") + key + "'");
+        return it->second;
+    }
+
+    void expect(const char* key, std::initializer_list<const char*> allowed) const {
+        const auto& [value, at] = need(key);
+        for (const char* a : allowed)
+            if (value == a) return;
+        std::string list;
+        for (const char* a : allowed) list += std::string(list.empty() ? "" : ", ") + a;
+        throw Error(where(at), std::string("field '") + key + "' is '" + value + "'; supported: " + list);
+    }
+};
+
+// Checks the magic and reads the header lines up to the blank line that starts the data
+// into h.fields (comments and key/value pairs skipped); returns the data offset.
+std::uint64_t parse_header_lines(const std::string& head, std::uint64_t file_size, HeaderFields& h) {
     std::size_t offset = 0;
     // One header line (without its '\n'); false when the buffer ends before a newline.
     auto next_line = [&](std::string& line) {
@@ -95,65 +121,49 @@ NrrdHeader read_nrrd_header(const std::filesystem::path& path, std::uint64_t max
     };
     std::string line;
     if (!next_line(line) || line.rfind("NRRD000", 0) != 0)
-        throw Error(where(0), "not a NRRD file (expected magic 'NRRD000x')");
+        throw Error(h.where(0), "not a NRRD file (expected magic 'NRRD000x')");
 
-    std::map<std::string, std::pair<std::string, std::uint64_t>> fields;
     for (;;) {
         const std::uint64_t line_start = offset;
         if (!next_line(line))
-            throw Error(where(offset), head.size() == kMaxHeader && out.file_size > kMaxHeader
-                                           ? "header longer than 64 KiB"
-                                           : "header ends before the blank line that starts the data");
+            throw Error(h.where(offset), head.size() == kMaxHeader && file_size > kMaxHeader
+                                             ? "header longer than 64 KiB"
+                                             : "header ends before the blank line that starts the data");
         if (!line.empty() && line.back() == '\r') line.pop_back();
         if (line.empty()) break;
         if (line[0] == '#') continue;
-        if (line.find('\0') != std::string::npos) throw Error(where(line_start), "NUL byte in a header line");
+        if (line.find('\0') != std::string::npos) throw Error(h.where(line_start), "NUL byte in a header line");
         const auto colon = line.find(": ");
         if (colon == std::string::npos) {
             if (line.find(":=") != std::string::npos) continue;  // key/value pairs are ignored
-            throw Error(where(line_start), "malformed header line '" + line + "' (expected 'field: value')");
+            throw Error(h.where(line_start), "malformed header line '" + line + "' (expected 'field: value')");
         }
-        fields[trim(line.substr(0, colon))] = {trim(line.substr(colon + 2)), line_start};
+        h.fields[trim(line.substr(0, colon))] = {trim(line.substr(colon + 2)), line_start};
     }
-    out.data_offset = offset;
+    return offset;
+}
 
-    auto need = [&](const char* key) -> const std::pair<std::string, std::uint64_t>& {
-        auto it = fields.find(key);
-        if (it == fields.end()) throw Error(file, std::string("missing header field '") + key + "'");
-        return it->second;
-    };
-    auto expect = [&](const char* key, std::initializer_list<const char*> allowed) {
-        const auto& [value, at] = need(key);
-        for (const char* a : allowed)
-            if (value == a) return;
-        std::string list;
-        for (const char* a : allowed) list += std::string(list.empty() ? "" : ", ") + a;
-        throw Error(where(at), std::string("field '") + key + "' is '" + value + "'; supported: " + list);
-    };
-    expect("type", {"float", "float32"});
-    expect("dimension", {"3"});
-    expect("encoding", {"raw"});
-    if (fields.count("endian")) expect("endian", {"little"});
-    if (fields.count("data file") || fields.count("datafile"))
-        throw Error(file, "detached data files are not supported; data must follow the header");
+// The field 'sizes': three sizes in [1, 4096].
+Int3 parse_sizes(const HeaderFields& h) {
+    const auto& [value, at] = h.need("sizes");
+    std::istringstream is(value);
+    long long n[3] = {0, 0, 0};
+    is >> n[0] >> n[1] >> n[2];
+    std::string rest;
+    if (is.fail() || (is >> rest))
+        throw Error(h.where(at), "field 'sizes' must hold three integers, got '" + value + "'");
+    for (long long v : n)
+        if (v < 1 || v > 4096)
+            throw Error(h.where(at), "field 'sizes': each size must be in [1, 4096], got '" + value + "'");
+    return {int(n[0]), int(n[1]), int(n[2])};
+}
 
-    GridGeometry& g = out.geom;
-    {
-        const auto& [value, at] = need("sizes");
-        std::istringstream is(value);
-        long long n[3] = {0, 0, 0};
-        is >> n[0] >> n[1] >> n[2];
-        std::string rest;
-        if (is.fail() || (is >> rest))
-            throw Error(where(at), "field 'sizes' must hold three integers, got '" + value + "'");
-        for (long long v : n)
-            if (v < 1 || v > 4096)
-                throw Error(where(at), "field 'sizes': each size must be in [1, 4096], got '" + value + "'");
-        g.dims = {int(n[0]), int(n[1]), int(n[2])};
-    }
+// The voxel spacing from 'space directions' (axis-aligned and isotropic) or 'spacings' (three
+// equal), 1 without either; within [kMinVoxelSize, kMaxVoxelSize].
+double parse_spacing(const HeaderFields& h) {
     double spacing = 1.0;
     std::uint64_t spacing_at = 0;
-    if (auto it = fields.find("space directions"); it != fields.end()) {
+    if (auto it = h.fields.find("space directions"); it != h.fields.end()) {
         const auto& [value, at] = it->second;
         spacing_at = at;
         std::istringstream is(value);
@@ -162,7 +172,7 @@ NrrdHeader read_nrrd_header(const std::filesystem::path& path, std::uint64_t max
         double d[3][3];
         for (int a = 0; a < 3; ++a)
             if (!parse_vector(tok[a], d[a]))
-                throw Error(where(at),
+                throw Error(h.where(at),
                             "field 'space directions' must hold three vectors '(x,y,z)', got '" + value + "'");
         spacing = d[0][0];
         const double tol = 1e-6 * std::fabs(spacing);  // text round-off of the written spacing
@@ -170,26 +180,49 @@ NrrdHeader read_nrrd_header(const std::filesystem::path& path, std::uint64_t max
             for (int b = 0; b < 3; ++b) {
                 const double expected = a == b ? spacing : 0.0;
                 if (!(std::fabs(d[a][b] - expected) <= tol))
-                    throw Error(where(at), "only axis-aligned, isotropic spacing is supported, got '" + value + "'");
+                    throw Error(h.where(at), "only axis-aligned, isotropic spacing is supported, got '" + value + "'");
             }
-    } else if (auto sp = fields.find("spacings"); sp != fields.end()) {
+    } else if (auto sp = h.fields.find("spacings"); sp != h.fields.end()) {
         const auto& [value, at] = sp->second;
         spacing_at = at;
         std::istringstream is(value);
         double s[3];
         is >> s[0] >> s[1] >> s[2];
         if (is.fail() || !(std::fabs(s[0] - s[1]) <= 1e-6 * s[0]) || !(std::fabs(s[0] - s[2]) <= 1e-6 * s[0]))
-            throw Error(where(at), "field 'spacings' must hold three equal spacings, got '" + value + "'");
+            throw Error(h.where(at), "field 'spacings' must hold three equal spacings, got '" + value + "'");
         spacing = s[0];
     }
     if (!(spacing >= kMinVoxelSize && spacing <= kMaxVoxelSize))
-        throw Error(where(spacing_at), "voxel spacing must be in [" + format_number(kMinVoxelSize) + ", " +
-                                           format_number(kMaxVoxelSize) + "] m, got " + format_number(spacing, 17));
+        throw Error(h.where(spacing_at), "voxel spacing must be in [" + format_number(kMinVoxelSize) + ", " +
+                                             format_number(kMaxVoxelSize) + "] m, got " + format_number(spacing, 17));
+    return spacing;
+}
+
+}  // namespace
+
+NrrdHeader read_nrrd_header(const std::filesystem::path& path, std::uint64_t max_bytes) {
+    HeaderFields h{path.string(), {}};
+    const std::string& file = h.file;
+    NrrdHeader out;
+    out.file_size = check_readable_file(path, max_bytes, "NRRD");
+    const std::string head = read_head(path, file, out.file_size);
+    out.data_offset = parse_header_lines(head, out.file_size, h);
+
+    h.expect("type", {"float", "float32"});
+    h.expect("dimension", {"3"});
+    h.expect("encoding", {"raw"});
+    if (h.fields.count("endian")) h.expect("endian", {"little"});
+    if (h.fields.count("data file") || h.fields.count("datafile"))
+        throw Error(file, "detached data files are not supported; data must follow the header");
+
+    GridGeometry& g = out.geom;
+    g.dims = parse_sizes(h);
+    const double spacing = parse_spacing(h);
     g.voxel_size = spacing;
-    if (auto it = fields.find("space origin"); it != fields.end()) {
+    if (auto it = h.fields.find("space origin"); it != h.fields.end()) {
         double o[3];
         if (!parse_vector(it->second.first, o))
-            throw Error(where(it->second.second),
+            throw Error(h.where(it->second.second),
                         "field 'space origin' must be '(x,y,z)', got '" + it->second.first + "'");
         g.origin = glm::dvec3(o[0], o[1], o[2]) - 0.5 * spacing;
     }
@@ -197,12 +230,12 @@ NrrdHeader read_nrrd_header(const std::filesystem::path& path, std::uint64_t max
 
     const std::uint64_t bytes = std::uint64_t(g.cell_count()) * sizeof(float);
     if (out.file_size < out.data_offset + bytes)
-        throw Error(where(out.data_offset), "data truncated: expected " + std::to_string(bytes) +
-                                                " bytes of float32, file has " +
-                                                std::to_string(out.file_size - out.data_offset));
+        throw Error(h.where(out.data_offset), "data truncated: expected " + std::to_string(bytes) +
+                                                  " bytes of float32, file has " +
+                                                  std::to_string(out.file_size - out.data_offset));
     if (out.file_size > out.data_offset + bytes)
-        throw Error(where(out.data_offset + bytes), std::to_string(out.file_size - out.data_offset - bytes) +
-                                                        " unexpected trailing bytes after the float32 data");
+        throw Error(h.where(out.data_offset + bytes), std::to_string(out.file_size - out.data_offset - bytes) +
+                                                          " unexpected trailing bytes after the float32 data");
     return out;
 }
 

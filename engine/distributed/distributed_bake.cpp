@@ -91,7 +91,7 @@ private:
 
 // A helper rank: requests, solves and returns chunks until rank 0 releases it.
 void help(const scene::Scene& s, const core::Grid3<float>& density, const bake::Plan& plan) {
-    const bake::Media media = bake::make_media(s, density);
+    const solve::Media media = solve::make_media(s, density);
     std::vector<std::uint8_t> result = chunk_header({});
     for (;;) {
         detail::send_bytes(result, 0, detail::kTagResult);

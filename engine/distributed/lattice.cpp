@@ -6,7 +6,7 @@
 // which its next even half reads). The per-row sums go from rank 0 up the chain of ranks and
 // the last one broadcasts the totals: the undivided kernel's sums, bit for bit, at the cost of
 // one latency per rank per step.
-#include "distributed/lattice.h"
+#include "distributed/detail/lattice.h"
 
 #ifdef FULGUR_HAVE_MPI
 #include "distributed/detail/mpi.h"

@@ -25,15 +25,6 @@ namespace {
 constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr std::uint64_t kStartStream = 0x5354415254ULL;  // "START"
 
-/// Orthonormal (u, v) perpendicular to unit n (Duff et al. 2017, branchless).
-void perpendicular_basis(const glm::dvec3& n, glm::dvec3& u, glm::dvec3& v) noexcept {
-    const double s = std::copysign(1.0, n.z);
-    const double a = -1.0 / (s + n.z);
-    const double b = n.x * n.y * a;
-    u = glm::dvec3(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
-    v = glm::dvec3(b, s + n.y * n.y * a, -n.y);
-}
-
 glm::dvec3 turn(const glm::dvec3& d, const glm::dvec3& u, const glm::dvec3& v, double theta, double phi) noexcept {
     const glm::dvec3 r = std::cos(theta) * d + std::sin(theta) * (std::cos(phi) * u + std::sin(phi) * v);
     return glm::normalize(r);
@@ -44,6 +35,11 @@ struct Walk {
     const BoltParams& p;
     const Box& box;
     const core::Grid3<float>& density;
+    double theta_mean = 0.0, theta_sd = 0.0;  ///< turn angle's mean and spread (radians)
+    /// Candidate turns per step: intra-cloud bolts try several and keep the first whose end
+    /// lies in cloud denser than follow_threshold (else the densest); others take the first.
+    int follow_tries = 1;
+    double follow_threshold = 0.0;
 
     double length(core::Rng& r) const {
         const double m = p.segment_length_mean, s = p.segment_length_spread;
@@ -76,6 +72,12 @@ struct Walk {
         const double b = bias;
         return phi_t + (1.0 - b) * std::numbers::pi * (2.0 * x - 1.0);
     }
+
+    /// One turn of the walk at `pos` before a step of `len`: the heading `d` turns by a drawn
+    /// angle toward `aim` (azimuth biased by `bias`), following the cloud's density as
+    /// follow_tries says; `side` is the previous turn's sideways direction, updated.
+    void turn_toward(core::Rng& r, const glm::dvec3& pos, double len, const glm::dvec3& aim, double bias, glm::dvec3& d,
+                     glm::dvec3& side) const;
 };
 
 /// Unit sideways component of the turn from d0 to d1 (zero for no turn).
@@ -83,6 +85,23 @@ glm::dvec3 side_of(const glm::dvec3& d0, const glm::dvec3& d1) noexcept {
     const glm::dvec3 w = d1 - glm::dot(d1, d0) * d0;
     const double l = glm::length(w);
     return l > 1e-12 ? w / l : glm::dvec3(0.0);
+}
+
+void Walk::turn_toward(core::Rng& r, const glm::dvec3& pos, double len, const glm::dvec3& aim, double bias,
+                       glm::dvec3& d, glm::dvec3& side) const {
+    glm::dvec3 u, v;
+    core::orthonormal_basis(d, u, v);
+    const double theta = angle(r, theta_mean, theta_sd);
+    glm::dvec3 best_d = d;
+    double best_rho = -1.0;
+    for (int k = 0; k < follow_tries; ++k) {
+        const glm::dvec3 c = turn(d, u, v, theta, azimuth(r, d, u, v, aim, bias, side));
+        const double rho = follow_tries > 1 ? double(density.sample(pos + len * c)) : 0.0;
+        if (rho > best_rho) best_rho = rho, best_d = c;
+        if (rho >= follow_threshold) break;
+    }
+    side = side_of(d, best_d);
+    d = best_d;
 }
 
 /// Parameter t in (0, 1] where the segment from `a` (inside) along `delta` leaves the box,
@@ -190,82 +209,98 @@ Bolt BoltGenerator::generate(std::uint64_t seed) const {
     return generate_from(s, seed);
 }
 
-Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) const {
-    FULGUR_ASSERT(domain_.contains(start), "generate_from: the start point must lie inside the domain");
-    const BoltParams& p = p_;
-    const Box& box = domain_;
-    const Walk walk{p, box, *density_};
-    const double theta_mean = p.angle_mean_deg * kDeg, theta_sd = p.angle_spread_deg * kDeg;
+namespace {
+
+glm::dvec3 toward(const glm::dvec3& from, const glm::dvec3& to) noexcept {
+    const glm::dvec3 t = to - from;
+    const double l = glm::length(t);
+    return l > 0.0 ? t / l : glm::dvec3(0.0, 0.0, -1.0);
+}
+
+/// One bolt's construction, step by step: its target, the waypoints of its main channel,
+/// the main channel's walk, then the branches. Each step draws from its own RNG stream in a
+/// fixed order, so a seed gives the same bolt bit for bit.
+struct BoltBuilder {
+    const BoltParams& p;
+    const Box& box;
+    const core::Grid3<float>& density;
+    const StartSampler& sampler;
+    const Walk& walk;
+    const glm::dvec3 start;
+    Bolt& bolt;
     const bool cg = p.kind == Kind::CloudToGround;
-    const double ground = p.ground_height;
-    const double follow_threshold = std::max(0.5 * p.start_density_threshold, 1e-3);
-    const std::size_t cap = std::size_t(p.max_segments);
-
-    Bolt bolt;
-    bolt.kind = p.kind;
-    bolt.seed = seed;
-    bolt.start = start;
-    core::Rng rng(seed, 0);
-
-    // --- target
     const glm::dvec3 inset = 0.01 * (box.hi - box.lo);
+
+    void choose_target(core::Rng& rng);
+    std::vector<glm::dvec3> waypoints(core::Rng& rng) const;
+    void main_channel(core::Rng& rng, const std::vector<glm::dvec3>& waypoints);
+    void close_to_ground(const glm::dvec3& pos, double& path);
+    void branches(std::uint64_t seed);
+};
+
+// Cloud-to-ground: a ground point scattered about the start by ~0.35 of its height.
+// Intra-cloud: a far point of the cloud at a similar height; cloud-to-cloud: a far point
+// reached through clear air. The best of 24 draws from the start sampler.
+void BoltBuilder::choose_target(core::Rng& rng) {
+    const double ground = p.ground_height;
     if (cg) {
         const double h = start.z - ground;
         const double r = std::fabs(0.35 * h * rng.normal());
         const double a = 2.0 * std::numbers::pi * rng.uniform();
         bolt.target = glm::dvec3(std::clamp(start.x + r * std::cos(a), box.lo.x + inset.x, box.hi.x - inset.x),
                                  std::clamp(start.y + r * std::sin(a), box.lo.y + inset.y, box.hi.y - inset.y), ground);
-    } else {
-        // IC: a far point of the cloud at a similar height; CC: a far point reached through
-        // clear air. The best of 24 draws from the start sampler.
-        double best = -1e300;
-        bolt.target = start;
-        for (int i = 0; i < 24; ++i) {
-            const glm::dvec3 c = clamp_to(box, sampler_.sample(rng));
-            const double hd = std::hypot(c.x - start.x, c.y - start.y), dz = std::fabs(c.z - start.z);
-            double score = hd - dz;
-            if (p.kind == Kind::CloudToCloud) {
-                // Prefer a target across clear air: another cloud, or another part of a
-                // concave one (tower to anvil); a convex lone cloud falls back to distance.
-                int air = 0;
-                for (int k = 1; k < 16; ++k) air += density_->sample(start + (k / 16.0) * (c - start)) < 0.01f;
-                score = hd * (0.25 + air / 15.0);
-            }
-            if (score > best) best = score, bolt.target = c;
-        }
-        if (glm::length(bolt.target - start) < 2.0 * p.segment_length_mean)  // a one-voxel cloud
-            bolt.target = clamp_to(box, start + glm::dvec3(4.0 * p.segment_length_mean, 0.0, 0.0));
+        return;
     }
+    double best = -1e300;
+    bolt.target = start;
+    for (int i = 0; i < 24; ++i) {
+        const glm::dvec3 c = clamp_to(box, sampler.sample(rng));
+        const double hd = std::hypot(c.x - start.x, c.y - start.y), dz = std::fabs(c.z - start.z);
+        double score = hd - dz;
+        if (p.kind == Kind::CloudToCloud) {
+            // Prefer a target across clear air: another cloud, or another part of a
+            // concave one (tower to anvil); a convex lone cloud falls back to distance.
+            int air = 0;
+            for (int k = 1; k < 16; ++k) air += density.sample(start + (k / 16.0) * (c - start)) < 0.01f;
+            score = hd * (0.25 + air / 15.0);
+        }
+        if (score > best) best = score, bolt.target = c;
+    }
+    if (glm::length(bolt.target - start) < 2.0 * p.segment_length_mean)  // a one-voxel cloud
+        bolt.target = clamp_to(box, start + glm::dvec3(4.0 * p.segment_length_mean, 0.0, 0.0));
+}
 
-    // --- main channel
-    auto toward = [](const glm::dvec3& from, const glm::dvec3& to) {
-        const glm::dvec3 t = to - from;
-        const double l = glm::length(t);
-        return l > 0.0 ? t / l : glm::dvec3(0.0, 0.0, -1.0);
-    };
-    auto toward_target = [&](const glm::dvec3& pos) { return toward(pos, bolt.target); };
-    const double direct = glm::length(bolt.target - start);
-    // Waypoints: the walk aims at points spaced kWaypointSegments segments along the straight
-    // line to the target, each displaced sideways by N(0, wander * spacing) — the channel's
-    // kilometre-scale bends. The last waypoint is the target itself.
+// The walk aims at points spaced kWaypointSegments segments along the straight line to the
+// target, each displaced sideways by N(0, wander * spacing) — the channel's kilometre-scale
+// bends. The last waypoint is the target itself.
+std::vector<glm::dvec3> BoltBuilder::waypoints(core::Rng& rng) const {
     constexpr double kWaypointSegments = 4.0;
-    std::vector<glm::dvec3> waypoints;
-    {
-        const double spacing = kWaypointSegments * p.segment_length_mean;
-        const int n = std::max(1, int(direct / spacing));
-        const glm::dvec3 axis = toward_target(start);
-        glm::dvec3 u, v;
-        perpendicular_basis(axis, u, v);
-        for (int k = 1; k < n; ++k) {
-            const double f = double(k) / n;
-            const glm::dvec3 w =
-                start + f * (bolt.target - start) + p.wander * spacing * (rng.normal() * u + rng.normal() * v);
-            glm::dvec3 lo = box.lo + inset, hi = box.hi - inset;
-            lo.z = std::max(lo.z, ground + p.segment_length_mean);
-            waypoints.push_back(glm::clamp(w, lo, glm::max(lo, hi)));
-        }
-        waypoints.push_back(bolt.target);
+    const double direct = glm::length(bolt.target - start);
+    const double spacing = kWaypointSegments * p.segment_length_mean;
+    const int n = std::max(1, int(direct / spacing));
+    const glm::dvec3 axis = toward(start, bolt.target);
+    glm::dvec3 u, v;
+    core::orthonormal_basis(axis, u, v);
+    std::vector<glm::dvec3> out;
+    for (int k = 1; k < n; ++k) {
+        const double f = double(k) / n;
+        const glm::dvec3 w =
+            start + f * (bolt.target - start) + p.wander * spacing * (rng.normal() * u + rng.normal() * v);
+        glm::dvec3 lo = box.lo + inset, hi = box.hi - inset;
+        lo.z = std::max(lo.z, p.ground_height + p.segment_length_mean);
+        out.push_back(glm::clamp(w, lo, glm::max(lo, hi)));
     }
+    out.push_back(bolt.target);
+    return out;
+}
+
+// The main channel: a walk of drawn segment lengths and turns toward the waypoints, mirrored
+// at the domain's walls, until it reaches the ground (cloud-to-ground), its target, the
+// segment cap or (intra-cloud, cloud-to-cloud) wanders too far.
+void BoltBuilder::main_channel(core::Rng& rng, const std::vector<glm::dvec3>& waypoints) {
+    const double ground = p.ground_height;
+    const std::size_t cap = std::size_t(p.max_segments);
+    const double direct = glm::length(bolt.target - start);
     std::size_t next_wp = 0;
     // A walk turning ~angle_mean per segment circles with radius ~ L / angle: an aim point is
     // "reached" within that radius or once passed along the line of flight, else the walk
@@ -278,35 +313,21 @@ Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) c
     glm::dvec3 d;
     {
         glm::dvec3 u, v;
-        const glm::dvec3 t0 = toward_target(start);
-        perpendicular_basis(t0, u, v);
-        d = turn(t0, u, v, Walk::angle(rng, theta_mean, theta_sd), 2.0 * std::numbers::pi * rng.uniform());
+        const glm::dvec3 t0 = toward(start, bolt.target);
+        core::orthonormal_basis(t0, u, v);
+        d = turn(t0, u, v, Walk::angle(rng, walk.theta_mean, walk.theta_sd), 2.0 * std::numbers::pi * rng.uniform());
     }
     double path = 0.0;
     glm::dvec3 side(0.0);  // sideways direction of the previous turn (zig-zag preference)
-    const int follow_tries = p.kind == Kind::IntraCloud ? 4 : 1;
     for (std::size_t n = 0; n + 1 < cap; ++n) {
         const double len = walk.length(rng);
         if (n > 0) {
-            glm::dvec3 u, v;
-            perpendicular_basis(d, u, v);
-            const double theta = Walk::angle(rng, theta_mean, theta_sd);
             const double bias = path > bias_ramp ? 1.0 : p.target_bias;
             // Move on once the current waypoint is near, or behind along the line of flight.
             while (next_wp + 1 < waypoints.size() &&
                    (glm::length(waypoints[next_wp] - pos) < reach || glm::dot(waypoints[next_wp] - pos, line) < 0.0))
                 ++next_wp;
-            const glm::dvec3 tt = toward(pos, waypoints[next_wp]);
-            glm::dvec3 best_d = d;
-            double best_rho = -1.0;
-            for (int k = 0; k < follow_tries; ++k) {
-                const glm::dvec3 c = turn(d, u, v, theta, walk.azimuth(rng, d, u, v, tt, bias, side));
-                const double rho = follow_tries > 1 ? double(density_->sample(pos + len * c)) : 0.0;
-                if (rho > best_rho) best_rho = rho, best_d = c;
-                if (rho >= follow_threshold) break;
-            }
-            side = side_of(d, best_d);
-            d = best_d;
+            walk.turn_toward(rng, pos, len, toward(pos, waypoints[next_wp]), bias, d, side);
         }
         // Walls: mirror the direction at each wall the step would cross (the ground is a wall
         // only for intra-cloud and cloud-to-cloud bolts).
@@ -352,24 +373,31 @@ Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) c
         }
         if (!cg && path > 2.0 * bias_ramp) break;  // wandered off: end the channel here
     }
-    if (cg && !bolt.reached_target) {
-        // Segment cap reached above the ground: close with a straight leg down (documented).
-        Segment s;
-        s.a = pos;
-        s.b = glm::dvec3(pos.x, pos.y, ground);
-        s.intensity = p.intensity;
-        s.path_start = path;
-        s.parent = bolt.segments.empty() ? -1 : std::int32_t(bolt.segments.size() - 1);
-        bolt.segments.push_back(s);
-        path += s.length();
-        bolt.reached_target = true;
-        bolt.forced = true;
-    }
+    if (cg && !bolt.reached_target) close_to_ground(pos, path);
     bolt.main_count = bolt.segments.size();
     bolt.main_length = path;
-    if (bolt.main_count == 0) return bolt;
+}
 
-    // --- branches (breadth first, so a low segment cap keeps the big branches)
+// Segment cap reached above the ground: close with a straight leg down (documented).
+void BoltBuilder::close_to_ground(const glm::dvec3& pos, double& path) {
+    Segment s;
+    s.a = pos;
+    s.b = glm::dvec3(pos.x, pos.y, p.ground_height);
+    s.intensity = p.intensity;
+    s.path_start = path;
+    s.parent = bolt.segments.empty() ? -1 : std::int32_t(bolt.segments.size() - 1);
+    bolt.segments.push_back(s);
+    path += s.length();
+    bolt.reached_target = true;
+    bolt.forced = true;
+}
+
+// Branches, breadth first (so a low segment cap keeps the big branches): each segment may
+// spawn one with branch_probability, with a share of the length left below it; a branch
+// walks toward its parent's drift and stops at its budget, where the main leader attaches
+// (its path position main_length), or at the domain's walls and the ground.
+void BoltBuilder::branches(std::uint64_t seed) {
+    const std::size_t cap = std::size_t(p.max_segments);
     struct Request {
         std::int32_t parent;
         std::int32_t depth;
@@ -378,7 +406,7 @@ Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) c
     };
     std::deque<Request> queue;
     core::Rng decide(seed, 1);
-    const glm::dvec3 main_drift = toward_target(start);
+    const glm::dvec3 main_drift = toward(start, bolt.target);
     auto consider_spawn = [&](std::size_t seg_index, std::int32_t depth, const glm::dvec3& drift, double remaining) {
         if (depth >= p.max_depth || !(p.branch_probability > 0.0)) return;
         if (decide.uniform() >= p.branch_probability) return;
@@ -393,14 +421,13 @@ Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) c
         consider_spawn(i, 0, main_drift, bolt.main_length - (bolt.segments[i].path_start + bolt.segments[i].length()));
 
     std::uint64_t branch_no = 0;
-    const double branch_bias = p.target_bias;
     while (!queue.empty() && bolt.segments.size() < cap) {
         const Request q = queue.front();
         queue.pop_front();
         core::Rng r(seed, 2 + branch_no++);
         glm::dvec3 u, v;
-        perpendicular_basis(q.dir, u, v);
-        glm::dvec3 dd = turn(q.dir, u, v, Walk::angle(r, p.branch_angle_mean_deg * kDeg, theta_sd),
+        core::orthonormal_basis(q.dir, u, v);
+        glm::dvec3 dd = turn(q.dir, u, v, Walk::angle(r, p.branch_angle_mean_deg * kDeg, walk.theta_sd),
                              2.0 * std::numbers::pi * r.uniform());
         const glm::dvec3 drift = glm::normalize(dd + q.drift);
         glm::dvec3 bpos = q.origin;
@@ -409,23 +436,8 @@ Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) c
         std::int32_t parent = q.parent;
         for (bool first = true; bolt.segments.size() < cap; first = false) {
             double len = walk.length(r);
-            if (!first) {
-                perpendicular_basis(dd, u, v);
-                const double theta = Walk::angle(r, theta_mean, theta_sd);
-                glm::dvec3 best_d = dd;
-                double best_rho = -1.0;
-                for (int k = 0; k < follow_tries; ++k) {
-                    const glm::dvec3 c = turn(dd, u, v, theta, walk.azimuth(r, dd, u, v, drift, branch_bias, bside));
-                    const double rho = follow_tries > 1 ? double(density_->sample(bpos + len * c)) : 0.0;
-                    if (rho > best_rho) best_rho = rho, best_d = c;
-                    if (rho >= follow_threshold) break;
-                }
-                bside = side_of(dd, best_d);
-                dd = best_d;
-            }
+            if (!first) walk.turn_toward(r, bpos, len, drift, p.target_bias, dd, bside);
             bool stop = false;
-            // The branch stops growing when it has used its length, when the main leader
-            // attaches (path position main_length), or at the domain's walls / the ground.
             if (travelled + len >= q.budget) len = q.budget - travelled, stop = true;
             if (bpath + len >= bolt.main_length) len = bolt.main_length - bpath, stop = true;
             if (!(len > 1e-9)) break;
@@ -455,6 +467,29 @@ Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) c
             consider_spawn(bolt.segments.size() - 1, q.depth, drift, q.budget - travelled);
         }
     }
+}
+
+}  // namespace
+
+Bolt BoltGenerator::generate_from(const glm::dvec3& start, std::uint64_t seed) const {
+    FULGUR_ASSERT(domain_.contains(start), "generate_from: the start point must lie inside the domain");
+    const BoltParams& p = p_;
+    const Walk walk{p,
+                    domain_,
+                    *density_,
+                    p.angle_mean_deg * kDeg,
+                    p.angle_spread_deg * kDeg,
+                    p.kind == Kind::IntraCloud ? 4 : 1,
+                    std::max(0.5 * p.start_density_threshold, 1e-3)};
+    Bolt bolt;
+    bolt.kind = p.kind;
+    bolt.seed = seed;
+    bolt.start = start;
+    BoltBuilder build{p, domain_, *density_, sampler_, walk, start, bolt};
+    core::Rng rng(seed, 0);
+    build.choose_target(rng);
+    build.main_channel(rng, build.waypoints(rng));
+    if (bolt.main_count > 0) build.branches(seed);
     return bolt;
 }
 

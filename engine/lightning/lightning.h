@@ -211,6 +211,16 @@ struct FlashState {
 
 FlashState flash_state(const FlashProfile& f, const TimingParams& p, double t) noexcept;
 
+/// The two parts of a flash whose light is made differently: the leaders (stepped and dart,
+/// creeping down a channel before each stroke) and the strokes (the return strokes lighting
+/// the main channel and, with the first, its branches). Each part is a FlashState with the
+/// other's glow zero, so lit_segments of the two parts together give the whole flash.
+struct FlashParts {
+    FlashState leaders;
+    FlashState strokes;
+};
+FlashParts split_leaders(const FlashState& s) noexcept;
+
 /// A lit stretch of channel with uniform brightness: what the renderer draws and what point
 /// sources sample.
 struct LitSegment {

@@ -134,4 +134,11 @@ double append_point_sources(std::span<const LitSegment> lit, double max_spacing,
     return total.value();
 }
 
+FlashParts split_leaders(const FlashState& s) noexcept {
+    FlashParts p{s, s};
+    p.leaders.main_glow = p.leaders.branch_glow = 0.0;
+    p.strokes.leader_glow = 0.0;
+    return p;
+}
+
 }  // namespace fulgur::lightning

@@ -6,7 +6,7 @@
 // app/platform). Inputs are plain structs; the renderer does not know about bakes, bolts'
 // generators or scenes.
 //
-// Physics (DESIGN.md): sigma_t(x) = kappa * rho(x) from the full-resolution density;
+// Physics (docs/design.md#source-function): sigma_t(x) = kappa * rho(x) from the full-resolution density;
 // S(x, s) is the source function (radiance scattered INTO direction s) on the lighting grid,
 // for the baked output directions (transport::output_directions order). The camera sees
 //     L_cam = integral_0^D T(0, t) sigma_t(x_t) S(x_t, w_cam(x_t)) dt + T(0, D) L_background
@@ -108,14 +108,17 @@ struct SunDesc {
 };
 
 /// A straight piece of lightning channel at this instant.
-struct Segment {
+struct ChannelSegment {
     glm::vec3 a{0.0f}, b{0.0f};  ///< endpoints (metres, world)
     float intensity = 0.0f;      ///< radiant intensity per metre of channel (W sr^-1 m^-1), >= 0
     float radius = 1.0f;         ///< channel radius (m): core radiance = intensity / (2 radius)
 };
 
-struct Bolt {
-    std::vector<Segment> segments;
+/// What the renderer draws of the lightning this frame: the lit stretches of channel with their
+/// instant intensity (the view builds it from lightning::LitSegment). Not lightning::Bolt,
+/// which is a bolt's whole geometry over its flash.
+struct LitChannel {
+    std::vector<ChannelSegment> segments;
 };
 
 struct Camera {
@@ -273,9 +276,6 @@ public:
     Renderer(const Renderer&) = delete;
     Renderer& operator=(const Renderer&) = delete;
 
-    /// Recompiles every shader from disk (hot reload); on error keeps the old programs and throws.
-    void reload_shaders();
-
     /// Uploads the density (full resolution) and derives the empty-space distance field.
     /// Throws core::Error for an invalid geometry or a null density.
     void set_volume(const VolumeDesc& volume);
@@ -295,7 +295,7 @@ public:
     /// grid than the volume's.
     void set_sun(const SunDesc& sun);
     void clear_sun();
-    void set_bolt(const Bolt& bolt);
+    void set_channel(const LitChannel& bolt);
 
     /// Directions of S this camera needs (see view_directions), restricted to lighting nodes
     /// near non-empty density (all nodes before set_volume()). Pass the min_weight of the
@@ -318,9 +318,6 @@ public:
     std::vector<float> read_resolved_source() const;
     /// The same for the static light (rgb per cell). Empty when the last frame had none.
     std::vector<float> read_resolved_static() const;
-
-    /// GL_RENDERER | GL_VERSION of the context.
-    std::string gl_description() const;
 
     struct Impl;
 

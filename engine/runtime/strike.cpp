@@ -45,7 +45,7 @@ StrikeSolveOptions strike_solve_options(const scene::Quality& q) {
     return o;
 }
 
-StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& density, const bake::Media& media,
+StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& density, const solve::Media& media,
                          const lightning::Bolt& bolt, const StrikeSolveOptions& options) {
     StrikeLight out;
     const std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
@@ -95,7 +95,7 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
             src.first_scattered = order2 ? &part.multiple : &part.single;
             src.first_scattered_fluence = order2 ? &part.fluence2 : &part.fluence;
             transport::LbResult r =
-                transport::solve_lattice_boltzmann(media.transport, src, dirs, bake::lattice_settings(scene));
+                transport::solve_lattice_boltzmann(media.transport, src, dirs, solve::lattice_settings(scene));
             if (order2)
                 for (std::size_t i = 0; i < r.source.data.size(); ++i) r.source.data[i] += part.multiple.data[i];
             out.multiple[q] = transport::block_average(r.source, media.refine);
@@ -129,7 +129,7 @@ struct StrikeSolver::Impl {
     };
     const scene::Scene& scene;
     const core::Grid3<float>& density;
-    const bake::Media& media;
+    const solve::Media& media;
     StrikeSolveOptions options;
 
     mutable std::mutex mu;
@@ -138,7 +138,7 @@ struct StrikeSolver::Impl {
     std::vector<double> latencies;
     core::Worker worker;  // last: its jobs use the members above until it is joined
 
-    Impl(const scene::Scene& s, const core::Grid3<float>& d, const bake::Media& m, const StrikeSolveOptions& o, int t)
+    Impl(const scene::Scene& s, const core::Grid3<float>& d, const solve::Media& m, const StrikeSolveOptions& o, int t)
         : scene(s), density(d), media(m), options(o), worker(t) {}
 
     void solve(const Key& key, const lightning::Bolt& bolt) {
@@ -165,7 +165,7 @@ struct StrikeSolver::Impl {
     }
 };
 
-StrikeSolver::StrikeSolver(const scene::Scene& scene, const core::Grid3<float>& density, const bake::Media& media,
+StrikeSolver::StrikeSolver(const scene::Scene& scene, const core::Grid3<float>& density, const solve::Media& media,
                            const StrikeSolveOptions& options, int threads) {
     FULGUR_ASSERT(threads >= 1, "StrikeSolver: threads must be >= 1");
     impl_ = std::make_unique<Impl>(scene, density, media, options, threads);

@@ -42,7 +42,7 @@ struct CloudSource {
 };
 
 /// Effects the scene calls for. Work for an effect that is off is not done (no solve, no
-/// texture, no pass); DESIGN.md "Simulate only what the scene calls for".
+/// texture, no pass); docs/design.md#simulate-only-what-the-scene-calls-for.
 struct Effects {
     bool lightning = true;            ///< lightning bolts and their virtual lights
     bool single_scattering = true;    ///< direct (first-scattered) light in the cloud

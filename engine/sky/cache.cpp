@@ -248,7 +248,7 @@ std::optional<std::filesystem::path> cache_path(const scene::Scene& s, const Cac
     return dir / (s.path.stem().string() + "." + std::string(kind) + ".fgl");
 }
 
-StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& density, const bake::Media& media,
+StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& density, const solve::Media& media,
                           const ScenePlan& plan, const CacheOptions& cache,
                           const std::function<void(const std::string&)>& say) {
     StaticLight out;

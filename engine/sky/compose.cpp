@@ -47,7 +47,7 @@ ColourField compose(const StaticLight& light, const std::optional<scene::Sun>& s
     return out;
 }
 
-SunSolve solve_sun(const scene::Scene& s, const core::Grid3<float>& density, const bake::Media& media,
+SunSolve solve_sun(const scene::Scene& s, const core::Grid3<float>& density, const solve::Media& media,
                    const SolveSettings& settings, const glm::dvec3& direction) {
     core::Stopwatch sw;
     SunSolve out;
@@ -63,7 +63,7 @@ SunSolve solve_sun(const scene::Scene& s, const core::Grid3<float>& density, con
 struct SunResolver::Impl {
     const scene::Scene& scene;
     const core::Grid3<float>& density;
-    const bake::Media& media;
+    const solve::Media& media;
     SolveSettings settings;
 
     mutable std::mutex mu;
@@ -71,7 +71,7 @@ struct SunResolver::Impl {
     std::exception_ptr error;
     core::Worker worker;  // last: its jobs use the members above until it is joined
 
-    Impl(const scene::Scene& s, const core::Grid3<float>& d, const bake::Media& m, const SolveSettings& st, int t)
+    Impl(const scene::Scene& s, const core::Grid3<float>& d, const solve::Media& m, const SolveSettings& st, int t)
         : scene(s), density(d), media(m), settings(st), worker(t) {}
 
     void solve(const glm::dvec3& d) {
@@ -90,7 +90,7 @@ struct SunResolver::Impl {
     }
 };
 
-SunResolver::SunResolver(const scene::Scene& s, const core::Grid3<float>& density, const bake::Media& media,
+SunResolver::SunResolver(const scene::Scene& s, const core::Grid3<float>& density, const solve::Media& media,
                          const SolveSettings& settings, int threads)
     : impl_(std::make_unique<Impl>(s, density, media, settings, std::max(1, threads))) {}
 

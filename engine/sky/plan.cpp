@@ -57,7 +57,7 @@ ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, c
             : "exact single scattering + lattice-Boltzmann for orders >= 2 (" + s.transport.lb_collision +
                   " collision, " + s.transport.lb_thick_voxels + " thick voxels, tolerance " +
                   core::format_number(s.transport.lb_tolerance) + ")";
-    const bake::Media grid = bake::make_media(s, density);
+    const solve::Media grid = solve::make_media(s, density);
     const core::Int3 td = grid.transport.density.dims();
     const std::string where = "on the " + std::to_string(td.x) + " x " + std::to_string(td.y) + " x " +
                               std::to_string(td.z) + " transport grid (" +

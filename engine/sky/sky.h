@@ -33,7 +33,7 @@ namespace fulgur::sky {
 enum class Method {
     /// Exact single scattering (transport::single_scattering of the directional source, voxel
     /// averages) and the lattice for orders >= 2, fed with it (first_scattered and
-    /// first_scattered_fluence), as bake::solve does for point lights. The default.
+    /// first_scattered_fluence), as solve::solve does for point lights. The default.
     Hybrid,
     /// Geist et al. as published: the light injected at the lattice boundary along the
     /// Appendix A decomposition of its direction, every order from the lattice (the
@@ -56,7 +56,7 @@ struct SolveSettings {
     int sky_samples = 32;
 };
 
-/// The scene's settings: bake::single_scattering_options, bake::lattice_settings and its
+/// The scene's settings: solve::single_scattering_options, solve::lattice_settings and its
 /// effects (the same accuracy knobs as the virtual-light bake).
 SolveSettings solve_settings(const scene::Scene& s);
 
@@ -80,7 +80,7 @@ struct LightField {
 /// media.transport and averages S onto media.lighting. `directions`: the output directions
 /// (transport::output_directions of the scene's effective count). Throws core::Error on bad
 /// input (a zero direction, non-finite irradiance).
-LightField solve_directional(const bake::Media& media, std::span<const transport::DirectionalSource> lights,
+LightField solve_directional(const solve::Media& media, std::span<const transport::DirectionalSource> lights,
                              std::span<const glm::dvec3> directions, const SolveSettings& settings);
 
 /// One direction of the sky dome, seen from the scene: `toward` points at the sky (z > 0).
@@ -101,7 +101,7 @@ struct SkyField {
 };
 /// The dome as settings.sky_samples directional lights (each an exact single scattering,
 /// shared by both bases), then one lattice solve per basis. `uniform`: solve the sum only.
-SkyField solve_sky(const bake::Media& media, bool uniform, std::span<const glm::dvec3> directions,
+SkyField solve_sky(const solve::Media& media, bool uniform, std::span<const glm::dvec3> directions,
                    const SolveSettings& settings);
 
 /// Transmittance from the sun to every voxel centre of `density` (the full-resolution
@@ -115,7 +115,7 @@ core::Grid3<float> sun_transmittance(const core::Grid3<float>& density, double e
 // ---------------------------------------------------------------------------------------
 // The plan: what a scene's light needs and why
 
-/// Every solve a scene triggers, and why (printable). DESIGN.md: "no lightning means no
+/// Every solve a scene triggers, and why (printable; docs/design.md#simulate-only-what-the-scene-calls-for): "no lightning means no
 /// virtual-light bake at all; no sun means no sun solve; isotropic scattering needs one
 /// output direction". The run-time effects (glow, ground) are listed too.
 struct ScenePlan {
@@ -182,7 +182,7 @@ std::optional<std::filesystem::path> cache_path(const scene::Scene& s, const Cac
 
 /// The plan's solves: each light is read from its cache file when that is fresh, else solved
 /// (and written). `say` is told what happens ("sun: solved in 0.4 s (no cache file)").
-StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& density, const bake::Media& media,
+StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& density, const solve::Media& media,
                           const ScenePlan& plan, const CacheOptions& cache = {},
                           const std::function<void(const std::string&)>& say = {});
 
@@ -217,7 +217,7 @@ struct SunSolve {
     double seconds = 0.0;              ///< wall time of the solve (lattice + transmittance)
 };
 /// The scene's sun solve for `direction` (sun_transmittance included). Seconds.
-SunSolve solve_sun(const scene::Scene& s, const core::Grid3<float>& density, const bake::Media& media,
+SunSolve solve_sun(const scene::Scene& s, const core::Grid3<float>& density, const solve::Media& media,
                    const SolveSettings& settings, const glm::dvec3& direction);
 
 /// The sun's (or the moon's) course over a day, for the time-of-day control: an equinox day
@@ -248,7 +248,7 @@ class SunResolver {
 public:
     /// Keeps references to the arguments; they must outlive it. `threads`: the worker's share
     /// of the cores (>= 1).
-    SunResolver(const scene::Scene& s, const core::Grid3<float>& density, const bake::Media& media,
+    SunResolver(const scene::Scene& s, const core::Grid3<float>& density, const solve::Media& media,
                 const SolveSettings& settings, int threads);
     ~SunResolver();
     SunResolver(const SunResolver&) = delete;

@@ -77,7 +77,7 @@ void take_lattice(LightField& out, transport::LbResult&& r) {
 }
 
 /// Hybrid: S1 kept (when asked) and the lattice fed with it for orders >= 2.
-LightField hybrid(const bake::Media& media, FirstScattered&& fs, std::span<const glm::dvec3> directions,
+LightField hybrid(const solve::Media& media, FirstScattered&& fs, std::span<const glm::dvec3> directions,
                   const SolveSettings& settings) {
     const transport::LightingMedium& medium = media.transport;
     LightField out;
@@ -99,10 +99,10 @@ void average_onto_lighting(LightField& f, int refine) {
     if (!f.multiple.data.empty()) f.multiple = transport::block_average(f.multiple, refine);
 }
 
-void check_media(const bake::Media& media) {
+void check_media(const solve::Media& media) {
     FULGUR_ASSERT(media.refine >= 1 &&
                       media.lighting.density.geom.voxel_size == media.transport.density.geom.voxel_size * media.refine,
-                  "sky: media from bake::make_media");
+                  "sky: media from solve::make_media");
 }
 
 }  // namespace
@@ -119,12 +119,12 @@ SolveSettings solve_settings(const scene::Scene& s) {
     SolveSettings st;
     st.single = s.effects.single_scattering;
     st.multiple = s.effects.multiple_scattering;
-    st.single_options = bake::single_scattering_options(s);
-    st.lattice = bake::lattice_settings(s);
+    st.single_options = solve::single_scattering_options(s);
+    st.lattice = solve::lattice_settings(s);
     return st;
 }
 
-LightField solve_directional(const bake::Media& media, std::span<const transport::DirectionalSource> lights,
+LightField solve_directional(const solve::Media& media, std::span<const transport::DirectionalSource> lights,
                              std::span<const glm::dvec3> directions, const SolveSettings& settings) {
     check_media(media);
     for (const transport::DirectionalSource& l : lights) check_light(l);
@@ -172,7 +172,7 @@ std::vector<DomeSample> dome_samples(int count) {
     return out;
 }
 
-SkyField solve_sky(const bake::Media& media, bool uniform, std::span<const glm::dvec3> directions,
+SkyField solve_sky(const solve::Media& media, bool uniform, std::span<const glm::dvec3> directions,
                    const SolveSettings& settings) {
     check_media(media);
     const std::vector<DomeSample> samples = dome_samples(settings.sky_samples);

@@ -35,20 +35,12 @@ double hg_sample_cos(double g, double u) noexcept {
     return std::clamp(1.0 - one_minus_cos, -1.0, 1.0);
 }
 
-void orthonormal_basis(const glm::dvec3& n, glm::dvec3& t, glm::dvec3& b) noexcept {
-    const double sign = std::copysign(1.0, n.z);
-    const double a = -1.0 / (sign + n.z);
-    const double c = n.x * n.y * a;
-    t = glm::dvec3(1.0 + sign * n.x * n.x * a, sign * c, -sign * n.x);
-    b = glm::dvec3(c, sign + n.y * n.y * a, -n.y);
-}
-
 glm::dvec3 hg_sample(const glm::dvec3& forward, double g, double u1, double u2) noexcept {
     const double cos_t = hg_sample_cos(g, u1);
     const double sin_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t));
     const double phi = 2.0 * std::numbers::pi * u2;
     glm::dvec3 t, b;
-    orthonormal_basis(forward, t, b);
+    core::orthonormal_basis(forward, t, b);
     return glm::normalize(sin_t * std::cos(phi) * t + sin_t * std::sin(phi) * b + cos_t * forward);
 }
 

@@ -259,8 +259,10 @@ LbResult solve_lattice_boltzmann(const LightingMedium& medium, const LbSources& 
 
 namespace fulgur::transport::lb {
 
-LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span<const glm::dvec3> directions,
-               const LbSettings& settings, std::array<Boundary, 3> boundary) {
+namespace {
+
+/// Rejects an invalid medium, settings or output direction with an error naming the field.
+void validate_inputs(const LightingMedium& medium, std::span<const glm::dvec3> directions, const LbSettings& settings) {
     const core::GridGeometry& g = medium.density.geom;
     core::validate_geometry(g, "lattice_boltzmann: lighting grid");
     if (medium.density.data.size() != g.cell_count())
@@ -279,9 +281,14 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
     for (const auto& d : directions)
         if (!(glm::length(d) > 0.0) || !std::isfinite(glm::length(d)))
             throw core::Error("lattice_boltzmann: directions", "output directions must be finite non-zero vectors");
+}
 
+/// The lattice problem of the medium (extinction per site, albedo, phase) and the
+/// coefficients of each site (`coef`, one per voxel).
+Problem make_problem(const LightingMedium& medium, const LbSettings& settings, std::array<Boundary, 3> boundary,
+                     std::vector<SiteCoefficients>& coef) {
+    const core::GridGeometry& g = medium.density.geom;
     const double h = g.voxel_size;
-    const double V = h * h * h;
     const std::size_t n = g.cell_count();
     Problem p;
     p.dims = g.dims;
@@ -292,7 +299,7 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
     p.ext_axis.resize(n);
     p.ext_diag.resize(n);
     const ThickVoxelModel thick = make_thick_voxel_model(settings.thick_voxels, p.phase, p.albedo, settings.absorption);
-    std::vector<SiteCoefficients> coef(n);
+    coef = std::vector<SiteCoefficients>(n);
     for (std::size_t i = 0; i < n; ++i) {
         const float rho = medium.density.data[i];
         if (!std::isfinite(rho) || rho < 0.0f)
@@ -302,65 +309,83 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
         p.ext_axis[i] = float(coef[i].extinction[kAxis]);
         p.ext_diag[i] = float(coef[i].extinction[kDiagonal]);
     }
+    return p;
+}
 
-    // Own-voxel tracks of the sources (m * W per direction), for the fluence.
-    std::vector<std::pair<std::size_t, std::array<double, kQ>>> source_tracks;
+/// Own-voxel tracks of the sources (m * W per direction), for the fluence: (site, tracks).
+using SourceTracks = std::vector<std::pair<std::size_t, std::array<double, kQ>>>;
+
+/// The light sources' emission, accumulated per site and lattice direction before it enters
+/// the problem: point lights inside the grid and the first-scattered source emit at sites;
+/// point lights outside the grid and the sun enter as boundary inflow.
+struct Emission {
+    Problem& p;
+    const core::GridGeometry& g;
     std::vector<std::array<double, kQ>> emission;  // accumulated raw emission per site
-    std::vector<std::int64_t> emission_index(n, -1);
-    auto emit = [&](std::size_t site, int q, double power) {
+    std::vector<std::int64_t> emission_index;
+
+    Emission(Problem& problem, const core::GridGeometry& grid)
+        : p(problem), g(grid), emission_index(grid.cell_count(), -1) {}
+
+    void emit(std::size_t site, int q, double power) {
         if (emission_index[site] < 0) {
             emission_index[site] = std::int64_t(emission.size());
             emission.push_back({});
         }
         emission[std::size_t(emission_index[site])][std::size_t(q)] += power;
-    };
+    }
 
-    // Point lights.
-    for (std::size_t li = 0; li < sources.points.size(); ++li) {
-        const PointSource& L = sources.points[li];
-        check_finite(L.intensity, "lattice_boltzmann: point light intensity");
-        check_finite(L.position.x + L.position.y + L.position.z, "lattice_boltzmann: point light position");
-        if (L.intensity < 0.0) throw core::Error("lattice_boltzmann: point light intensity", "must be >= 0");
-        if (L.intensity == 0.0) continue;
-        if (g.contains(L.position)) {
-            // Trilinear weights over the 8 nearest voxel centres (clamped at the faces).
-            const glm::dvec3 u = g.to_voxel(L.position) - 0.5;
-            int i0[3];
-            double fr[3];
-            const int dd[3] = {g.dims.x, g.dims.y, g.dims.z};
-            for (int a = 0; a < 3; ++a) {
-                const double v = std::clamp(u[a], 0.0, double(dd[a] - 1));
-                i0[a] = std::min(int(std::floor(v)), dd[a] - 1);
-                fr[a] = v - double(i0[a]);
-            }
-            const double power = 4.0 * std::numbers::pi * L.intensity;
-            for (int c = 0; c < 8; ++c) {
-                int ijk[3];
-                double wgt = 1.0;
+    void add_point_lights(const std::vector<PointSource>& points) {
+        for (std::size_t li = 0; li < points.size(); ++li) {
+            const PointSource& L = points[li];
+            check_finite(L.intensity, "lattice_boltzmann: point light intensity");
+            check_finite(L.position.x + L.position.y + L.position.z, "lattice_boltzmann: point light position");
+            if (L.intensity < 0.0) throw core::Error("lattice_boltzmann: point light intensity", "must be >= 0");
+            if (L.intensity == 0.0) continue;
+            if (g.contains(L.position)) {
+                // Trilinear weights over the 8 nearest voxel centres (clamped at the faces).
+                const glm::dvec3 u = g.to_voxel(L.position) - 0.5;
+                int i0[3];
+                double fr[3];
+                const int dd[3] = {g.dims.x, g.dims.y, g.dims.z};
                 for (int a = 0; a < 3; ++a) {
-                    const int bit = (c >> a) & 1;
-                    ijk[a] = std::min(i0[a] + bit, dd[a] - 1);
-                    wgt *= bit ? fr[a] : 1.0 - fr[a];
+                    const double v = std::clamp(u[a], 0.0, double(dd[a] - 1));
+                    i0[a] = std::min(int(std::floor(v)), dd[a] - 1);
+                    fr[a] = v - double(i0[a]);
                 }
-                if (wgt <= 0.0) continue;
-                const std::size_t site = p.index(ijk[0], ijk[1], ijk[2]);
-                for (int q = 1; q < kQ; ++q) emit(site, q, wgt * power * weight(q));
+                const double power = 4.0 * std::numbers::pi * L.intensity;
+                for (int c = 0; c < 8; ++c) {
+                    int ijk[3];
+                    double wgt = 1.0;
+                    for (int a = 0; a < 3; ++a) {
+                        const int bit = (c >> a) & 1;
+                        ijk[a] = std::min(i0[a] + bit, dd[a] - 1);
+                        wgt *= bit ? fr[a] : 1.0 - fr[a];
+                    }
+                    if (wgt <= 0.0) continue;
+                    const std::size_t site = p.index(ijk[0], ijk[1], ijk[2]);
+                    for (int q = 1; q < kQ; ++q) emit(site, q, wgt * power * weight(q));
+                }
+            } else {
+                add_boundary_light(p, g, &L.position, L.intensity, nullptr, 0.0);
             }
-        } else {
-            add_boundary_light(p, g, &L.position, L.intensity, nullptr, 0.0);
         }
     }
-    if (sources.sun) {
-        const glm::dvec3 dir = sources.sun->direction;
-        check_finite(sources.sun->irradiance, "lattice_boltzmann: sun irradiance");
+
+    void add_sun(const DirectionalSource& sun) {
+        const glm::dvec3 dir = sun.direction;
+        check_finite(sun.irradiance, "lattice_boltzmann: sun irradiance");
         if (!(glm::length(dir) > 0.0) || !std::isfinite(glm::length(dir)))
             throw core::Error("lattice_boltzmann: sun direction", "must be a finite non-zero vector");
         const glm::dvec3 L = glm::normalize(dir);
-        add_boundary_light(p, g, nullptr, 0.0, &L, sources.sun->irradiance);
+        add_boundary_light(p, g, nullptr, 0.0, &L, sun.irradiance);
     }
-    // First-scattered source: emission sigma_t S1 h^3 4 pi w_q per lattice direction.
-    if (sources.first_scattered) {
-        const SourceField& S1 = *sources.first_scattered;
+
+    /// First-scattered source: emission sigma_t S1 h^3 4 pi w_q per lattice direction (V = h^3),
+    /// rescaled to sigma_s phi1 V per site when the uncollided fluence phi1 is given.
+    void add_first_scattered(const SourceField& S1, const core::Grid3<float>* phi1,
+                             const std::vector<SiteCoefficients>& coef, double V) {
+        const std::size_t n = g.cell_count();
         if (!(S1.geom == g))
             throw core::Error("lattice_boltzmann: first_scattered", "source field grid differs from the lighting grid");
         if (S1.data.size() != S1.cells() * S1.directions.size() || S1.directions.empty())
@@ -375,7 +400,6 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
                                   "needs 1 direction or one equal to each lattice direction (the 18 or 26 set), got " +
                                       std::to_string(S1.directions.size()));
         }
-        const core::Grid3<float>* phi1 = sources.first_scattered_fluence;
         if (phi1 && !(phi1->geom == g && phi1->data.size() == n))
             throw core::Error("lattice_boltzmann: first_scattered_fluence", "grid differs from the lighting grid");
         for (std::size_t i = 0; i < n; ++i) {
@@ -399,14 +423,22 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
             for (int q = 1; q < kQ; ++q) emit(i, q, e[std::size_t(q)]);
         }
     }
-    for (std::size_t i = 0; i < n; ++i)
-        if (emission_index[i] >= 0)
-            source_tracks.emplace_back(i, p.add_source(i, emission[std::size_t(emission_index[i])], coef[i]));
 
-    // Iterate.
-    LbResult res;
-    core::Stopwatch watch;
-    Simulation sim(p, settings.kernel);
+    /// Adds the accumulated emission to the problem as sources, in site order; returns their
+    /// own-voxel tracks.
+    SourceTracks add_to_problem(const std::vector<SiteCoefficients>& coef) {
+        SourceTracks source_tracks;
+        for (std::size_t i = 0; i < emission_index.size(); ++i)
+            if (emission_index[i] >= 0)
+                source_tracks.emplace_back(i, p.add_source(i, emission[std::size_t(emission_index[i])], coef[i]));
+        return source_tracks;
+    }
+};
+
+/// Steps `sim` to steady state (an even number of steps) and records the iteration and the
+/// energy balance in `res` (`watch` started before the kernel was built).
+void iterate(Simulation& sim, const Problem& p, const LbSettings& settings, const core::Stopwatch& watch,
+             LbResult& res) {
     sim.run(settings.tolerance, std::max(2, settings.max_iterations),
             settings.record_history ? &res.total_density : nullptr);
     if (sim.steps() % 2) sim.step();  // (run() already stops on even steps)
@@ -422,8 +454,13 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
     res.absorbed_total = sim.absorbed_total();
     res.escaped_total = sim.escaped_total();
     res.stored = sim.kernel().stored();
+}
 
-    // Densities -> tracks -> fluence and S (docs/lattice-boltzmann.md, "Units").
+/// Densities -> tracks -> fluence and S (docs/lattice-boltzmann.md, "Units"), into `res`.
+void read_out(const Kernel& K, const Problem& p, const LightingMedium& medium, std::span<const glm::dvec3> directions,
+              const std::vector<SiteCoefficients>& coef, const SourceTracks& source_tracks, double V, LbResult& res) {
+    const core::GridGeometry& g = medium.density.geom;
+    const std::size_t n = g.cell_count();
     std::vector<std::array<double, kQ>> out_phase(directions.size());
     for (std::size_t m = 0; m < directions.size(); ++m) out_phase[m] = output_phase(directions[m], medium.optics.g);
     res.source = SourceField(g, std::vector<glm::dvec3>(directions.begin(), directions.end()));
@@ -431,7 +468,6 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
     res.fluence = core::Grid3<float>(g, 0.0f);
     std::vector<std::int64_t> track_index(n, -1);
     for (std::size_t k = 0; k < source_tracks.size(); ++k) track_index[source_tracks[k].first] = std::int64_t(k);
-    const Kernel& K = sim.kernel();
     const double inv_V = 1.0 / V;
     const std::int64_t total = std::int64_t(n);
     core::parallel_for(0, total, [&](std::int64_t ii) {
@@ -451,6 +487,31 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
             res.source.data[m * n + i] = float(p.albedo * s * inv_V);
         }
     });
+}
+
+}  // namespace
+
+LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span<const glm::dvec3> directions,
+               const LbSettings& settings, std::array<Boundary, 3> boundary) {
+    validate_inputs(medium, directions, settings);
+    const core::GridGeometry& g = medium.density.geom;
+    const double h = g.voxel_size;
+    const double V = h * h * h;
+    std::vector<SiteCoefficients> coef;
+    Problem p = make_problem(medium, settings, boundary, coef);
+
+    Emission emission(p, g);
+    emission.add_point_lights(sources.points);
+    if (sources.sun) emission.add_sun(*sources.sun);
+    if (sources.first_scattered)
+        emission.add_first_scattered(*sources.first_scattered, sources.first_scattered_fluence, coef, V);
+    const SourceTracks source_tracks = emission.add_to_problem(coef);
+
+    LbResult res;
+    core::Stopwatch watch;
+    Simulation sim(p, settings.kernel);
+    iterate(sim, p, settings, watch, res);
+    read_out(sim.kernel(), p, medium, directions, coef, source_tracks, V, res);
     return res;
 }
 

@@ -401,9 +401,10 @@ struct FieldStats {
     }
 };
 
-template <class Emitter>
-MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::span<const glm::dvec3> directions,
-                          const MonteCarloOptions& o, const core::GridGeometry* tally_grid = nullptr) {
+/// run_grid's output directions, normalized, after validating the medium, the options and
+/// the directions.
+std::vector<glm::dvec3> unit_directions(const LightingMedium& medium, std::span<const glm::dvec3> directions,
+                                        const MonteCarloOptions& o) {
     validate_medium(medium);
     check_mc_options(o);
     if (directions.empty()) throw core::Error("directions", "at least one output direction is needed");
@@ -414,6 +415,106 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
             throw core::Error("directions[" + std::to_string(m) + "]", "must be a finite non-zero vector");
         dirs.push_back(directions[m] / len);
     }
+    return dirs;
+}
+
+/// The path tracer's options: the medium's albedo and phase, the options' scattering limits.
+PathOptions path_options(const LightingMedium& medium, const MonteCarloOptions& o) {
+    PathOptions po;
+    po.albedo = medium.optics.albedo;
+    po.g = medium.optics.g;
+    po.max_scatterings = o.max_scatterings;
+    po.implicit_capture = o.implicit_capture;
+    po.roulette_threshold = o.roulette_threshold;
+    po.max_collisions = o.max_collisions;
+    po.uncollided_only = o.uncollided_only;
+    po.expected_second_order = o.expected_second_order;
+    return po;
+}
+
+/// What run_grid accumulated over its batches: the statistics of S single and multiple
+/// ([group][cell][m]) and of the fluences ([group][cell]), and the half sums of the noise
+/// estimate; and which of them were tallied.
+struct BatchTallies {
+    const FieldStats &s1, &sm, &fl, &fl2;
+    const HalfSums &h1, &hm;
+    bool multiple, fluence, fluence2;
+};
+
+/// Per group, and their sum (no per-voxel SE for the sum: see MonteCarloResult).
+void write_groups(const BatchTallies& t, const core::GridGeometry& g, const std::vector<glm::dvec3>& dirs,
+                  std::size_t G, MonteCarloResult& r) {
+    const std::size_t cells = g.cell_count(), M = dirs.size();
+    const auto write_fluence = [&](const FieldStats& stats, core::Grid3<float>& out, std::size_t q) {
+        out = core::Grid3<float>(g, 0.0f);
+        for (std::size_t c = 0; c < cells; ++c) out.data[c] = float(stats.mean[q * cells + c]);
+    };
+    r.groups.resize(G);
+    std::vector<double> sum(cells * M, 0.0), sum_m(cells * M, 0.0);
+    for (std::size_t q = 0; q < G; ++q) {
+        MonteCarloResult::Group& grp = r.groups[q];
+        grp.single = SourceField(g, dirs);
+        grp.multiple = SourceField(g, dirs);
+        t.s1.write(grp.single, nullptr, q);
+        if (t.multiple) t.sm.write(grp.multiple, nullptr, q);
+        if (t.fluence) write_fluence(t.fl, grp.fluence, q);
+        if (t.fluence2) write_fluence(t.fl2, grp.fluence2, q);
+        for (std::size_t i = 0; i < cells * M; ++i) {
+            sum[i] += t.s1.mean[q * cells * M + i];
+            if (t.multiple) sum_m[i] += t.sm.mean[q * cells * M + i];
+        }
+    }
+    for (std::size_t c = 0; c < cells; ++c)
+        for (std::size_t m = 0; m < M; ++m) {
+            r.single.data[m * cells + c] = float(sum[c * M + m]);
+            r.multiple.data[m * cells + c] = float(sum_m[c * M + m]);
+        }
+}
+
+/// run_grid's result without the energy balance: S single and multiple with their standard
+/// errors (per group and summed with groups), the fluences and the noise of the halves.
+MonteCarloResult grid_result(const BatchTallies& t, const TallyGrid& tg, const std::vector<glm::dvec3>& dirs,
+                             const MonteCarloOptions& o) {
+    const core::GridGeometry& g = tg.geom;
+    const std::size_t G = std::size_t(o.groups);
+    const std::size_t cells = g.cell_count(), M = dirs.size();
+    MonteCarloResult r;
+    r.single = SourceField(g, dirs);
+    r.single_se = SourceField(g, dirs);
+    r.multiple = SourceField(g, dirs);
+    r.multiple_se = SourceField(g, dirs);
+    const auto sum_fluence = [&](const FieldStats& stats, core::Grid3<float>& out) {
+        out = core::Grid3<float>(g, 0.0f);
+        for (std::size_t c = 0; c < cells; ++c) {
+            double v = 0.0;
+            for (std::size_t q = 0; q < G; ++q) v += stats.mean[q * cells + c];
+            out.data[c] = float(v);
+        }
+    };
+    if (G == 1) {
+        t.s1.write(r.single, &r.single_se);
+        if (t.multiple) t.sm.write(r.multiple, &r.multiple_se);
+    } else {
+        write_groups(t, g, dirs, G, r);
+    }
+    if (t.fluence) sum_fluence(t.fl, r.fluence);
+    if (t.fluence2) sum_fluence(t.fl2, r.fluence2);
+    if (o.halves) {
+        r.noise.single = half_noise(t.h1, nullptr, tg, M, G, true);
+        if (t.multiple) {
+            r.noise.multiple = half_noise(t.hm, nullptr, tg, M, G, true);
+            r.noise.total = half_noise(t.h1, &t.hm, tg, M, G, true);
+        } else {
+            r.noise.total = r.noise.single;
+        }
+    }
+    return r;
+}
+
+template <class Emitter>
+MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::span<const glm::dvec3> directions,
+                          const MonteCarloOptions& o, const core::GridGeometry* tally_grid = nullptr) {
+    const std::vector<glm::dvec3> dirs = unit_directions(medium, directions, o);
     core::Stopwatch clock;
     const TallyGrid tg(medium, tally_grid, o.tally_weight);
     const core::GridGeometry& g = tg.geom;
@@ -422,16 +523,8 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
     const bool fluence = o.tally_fluence && o.single_estimator == MonteCarloOptions::SingleEstimator::ExpectedValue;
     const bool fluence2 = fluence && o.expected_second_order;
     const GridMedium gm(medium, o.macro_cell);
-    PathOptions po;
-    po.albedo = medium.optics.albedo;
-    po.g = medium.optics.g;
-    po.max_scatterings = o.max_scatterings;
-    po.implicit_capture = o.implicit_capture;
-    po.roulette_threshold = o.roulette_threshold;
-    po.max_collisions = o.max_collisions;
+    const PathOptions po = path_options(medium, o);
     const bool expected = o.single_estimator == MonteCarloOptions::SingleEstimator::ExpectedValue;
-    po.uncollided_only = o.uncollided_only;
-    po.expected_second_order = o.expected_second_order;
     const bool multiple = o.tally_multiple && o.max_scatterings > 0;
     constexpr double kCutoff = 104.0;  // same optical-depth cutoff as single_scattering's default
 
@@ -495,59 +588,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
             es.add(bufs[std::size_t(i)].energy, np);
         }
     }
-    MonteCarloResult r;
-    r.single = SourceField(g, dirs);
-    r.single_se = SourceField(g, dirs);
-    r.multiple = SourceField(g, dirs);
-    r.multiple_se = SourceField(g, dirs);
-    const auto write_fluence = [&](const FieldStats& stats, core::Grid3<float>& out, std::size_t q) {
-        out = core::Grid3<float>(g, 0.0f);
-        for (std::size_t c = 0; c < cells; ++c) out.data[c] = float(stats.mean[q * cells + c]);
-    };
-    const auto sum_fluence = [&](const FieldStats& stats, core::Grid3<float>& out) {
-        out = core::Grid3<float>(g, 0.0f);
-        for (std::size_t c = 0; c < cells; ++c) {
-            double v = 0.0;
-            for (std::size_t q = 0; q < G; ++q) v += stats.mean[q * cells + c];
-            out.data[c] = float(v);
-        }
-    };
-    if (G == 1) {
-        s1.write(r.single, &r.single_se);
-        if (multiple) sm.write(r.multiple, &r.multiple_se);
-    } else {  // per group, and their sum (no per-voxel SE for the sum: see MonteCarloResult)
-        r.groups.resize(G);
-        std::vector<double> sum(cells * M, 0.0), sum_m(cells * M, 0.0);
-        for (std::size_t q = 0; q < G; ++q) {
-            MonteCarloResult::Group& grp = r.groups[q];
-            grp.single = SourceField(g, dirs);
-            grp.multiple = SourceField(g, dirs);
-            s1.write(grp.single, nullptr, q);
-            if (multiple) sm.write(grp.multiple, nullptr, q);
-            if (fluence) write_fluence(fl, grp.fluence, q);
-            if (fluence2) write_fluence(fl2, grp.fluence2, q);
-            for (std::size_t i = 0; i < cells * M; ++i) {
-                sum[i] += s1.mean[q * cells * M + i];
-                if (multiple) sum_m[i] += sm.mean[q * cells * M + i];
-            }
-        }
-        for (std::size_t c = 0; c < cells; ++c)
-            for (std::size_t m = 0; m < M; ++m) {
-                r.single.data[m * cells + c] = float(sum[c * M + m]);
-                r.multiple.data[m * cells + c] = float(sum_m[c * M + m]);
-            }
-    }
-    if (fluence) sum_fluence(fl, r.fluence);
-    if (fluence2) sum_fluence(fl2, r.fluence2);
-    if (o.halves) {
-        r.noise.single = half_noise(h1, nullptr, tg, M, G, true);
-        if (multiple) {
-            r.noise.multiple = half_noise(hm, nullptr, tg, M, G, true);
-            r.noise.total = half_noise(h1, &hm, tg, M, G, true);
-        } else {
-            r.noise.total = r.noise.single;
-        }
-    }
+    MonteCarloResult r = grid_result({s1, sm, fl, fl2, h1, hm, multiple, fluence, fluence2}, tg, dirs, o);
     r.energy = es.tally();
     r.paths = o.paths;
     r.collisions = es.collisions;

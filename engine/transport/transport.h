@@ -1,4 +1,5 @@
-// fulgur::transport — light transport in the cloud, following DESIGN.md's physics contract.
+// fulgur::transport — light transport in the cloud, following the physics contract
+// (docs/design.md#physics-contract).
 //
 // Physical parameterization (the only one in Fulgur):
 //   density rho(x) in [0,1] on a voxel grid of spacing h (metres), piecewise constant per
@@ -64,9 +65,6 @@ double hg_sample_cos(double g, double u) noexcept;
 
 /// Samples a new propagation direction around `forward` (unit) with HG(g).
 glm::dvec3 hg_sample(const glm::dvec3& forward, double g, double u1, double u2) noexcept;
-
-/// Builds an orthonormal basis (t, b) perpendicular to unit n (Duff et al. 2017).
-void orthonormal_basis(const glm::dvec3& n, glm::dvec3& t, glm::dvec3& b) noexcept;
 
 // ---------------------------------------------------------------------------------------
 // Output directions
@@ -151,7 +149,7 @@ struct SingleScatteringOptions {
     core::Grid3<float>* uncollided_fluence = nullptr;
 };
 
-/// Exact single scattering (DESIGN.md's direct term) from a point source,
+/// Exact single scattering (docs/design.md#direct-term) from a point source,
 ///   S1(x, s) = albedo * p(s . w_lx) * I * T(x_l, x) / |x - x_l|^2   [W m^-2 sr^-1],
 /// averaged over each voxel: the voxel average is finite everywhere, including the voxel
 /// holding the source (docs/transport.md, "The regularization of 1/r^2 is the voxel

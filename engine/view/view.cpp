@@ -137,8 +137,8 @@ void StormView::set_quality(const scene::Quality& q) {
     if (pipeline_) pipeline_->set_quality(q);
 }
 
-const bake::Media& StormView::media() {
-    if (!media_) media_ = bake::make_media(scene_, density_);
+const solve::Media& StormView::media() {
+    if (!media_) media_ = solve::make_media(scene_, density_);
     return *media_;
 }
 
@@ -171,7 +171,7 @@ StormView::TruthSolve StormView::solve_truth(double t, const runtime::Components
 StormView::DirectSolve StormView::solve_direct(double t, const runtime::Components& components) {
     DirectSolve out;
     out.basis_ms = time_all_directions(t, components);
-    const bake::Media& m = media();
+    const solve::Media& m = media();
     core::Stopwatch sw;
     out.field = runtime::direct_solve(scene_, m, last_->sources, components);
     out.seconds = sw.seconds();
@@ -209,7 +209,7 @@ FrameReport StormView::render(const render::Camera& camera, double t, int width,
         render_lightning(camera, t, options, source, rep);
     } else {
         if (source) throw core::Error("StormView::render", "the scene has no lightning: no field to show");
-        renderer_->set_bolt({});
+        renderer_->set_channel({});
         renderer_->clear_source();
     }
     update_static_light(options);
@@ -244,11 +244,11 @@ void StormView::render_lightning(const render::Camera& camera, double t, const V
     rep.stages = f.times;
     rep.lit = f.lit;
 
-    render::Bolt bolt;
+    render::LitChannel bolt;
     bolt.segments.reserve(f.segments.size());
     for (const lightning::LitSegment& s : f.segments)
         bolt.segments.push_back({glm::vec3(s.a), glm::vec3(s.b), float(s.intensity), float(options.bolt_radius)});
-    renderer_->set_bolt(bolt);
+    renderer_->set_channel(bolt);
     if (source) {
         check_field(*source, "StormView::render");
         render::SourceUpload up;

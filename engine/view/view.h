@@ -58,7 +58,7 @@ struct ViewOptions {
     bool sun_full_resolution = true;
     render::Settings settings;  ///< bolt/glow/ground/exposure/internal scale (and the scene's effects)
     /// Radius (m) of the drawn lightning channel, the same for every lit segment
-    /// (render::Segment::radius: the core radiance is intensity / (2 radius)). > 0.
+    /// (render::ChannelSegment::radius: the core radiance is intensity / (2 radius)). > 0.
     double bolt_radius = 2.0;
     /// Presets that solve strikes: wait for each active strike's solve (offline frames)
     /// instead of showing the bases until it is ready.
@@ -119,8 +119,8 @@ public:
         double seconds = 0.0, basis_ms = 0.0;
     };
     TruthSolve solve_truth(double t, const runtime::Components& components, const runtime::TruthOptions& options = {});
-    /// The media the direct solve runs in (bake::make_media: the lighting grid and the transport grid).
-    const bake::Media& media();
+    /// The media the direct solve runs in (solve::make_media: the lighting grid and the transport grid).
+    const solve::Media& media();
     /// Relative L2 of the last frame's reconstruction against `reference` (a field like
     /// solve_direct's) over cloud voxels (lighting-grid density > 0), every direction the
     /// frame holds (after solve_direct: all). 0 when the last frame is dark.
@@ -167,7 +167,7 @@ private:
     std::unique_ptr<runtime::FramePipeline> pipeline_;
     std::unique_ptr<render::Renderer> renderer_;
     const runtime::Frame* last_ = nullptr;
-    std::optional<bake::Media> media_;  // built on first use (solve_direct) or for the static light
+    std::optional<solve::Media> media_;  // built on first use (solve_direct) or for the static light
     // The static light: its solves, the sun's full-resolution transmittance, what is uploaded.
     sky::StaticLight static_;
     core::Grid3<float> sun_transmittance_;

@@ -167,11 +167,11 @@ TEST_CASE("bake: the file holds the solved bases within the compression error, b
     // exactly on it: the basis is reproduced within the compression error.
     const basis::BakedBasis baked = basis::load_fgb(dir / "a.fgb");
     CHECK(baked.meta == plan.metadata);
-    const bake::Media media = bake::make_media(s, d);
+    const solve::Media media = solve::make_media(s, d);
     double worst = 0.0;
     for (std::uint32_t l = 0; l < plan.lights.count(); l += 3) {
         const transport::PointSource src{plan.lights.position(l), 1.0};
-        bake::Solution sol = bake::solve(s, media, std::span(&src, 1), plan.output_directions);
+        solve::Solution sol = solve::solve(s, media, std::span(&src, 1), plan.output_directions);
         for (std::size_t i = 0; i < sol.single.data.size(); ++i) sol.single.data[i] += sol.multiple.data[i];
         for (std::size_t m = 0; m < plan.output_directions.size(); m += 5) {
             const basis::WeightedLight w{l, 1.0};
@@ -193,7 +193,7 @@ TEST_CASE("linearity: the sum of every light's basis equals one solve with all l
     s.transport.lb_tolerance = 1e-7;
     const core::Grid3<float> d = scene::make_density(s);
     const bake::Plan plan = bake::make_plan(s, d, no_estimate());
-    const bake::Media media = bake::make_media(s, d);
+    const solve::Media media = solve::make_media(s, d);
     std::vector<transport::PointSource> all;
     transport::SourceField sum;
     for (std::uint32_t l = 0; l < plan.lights.count(); ++l) {
@@ -204,15 +204,15 @@ TEST_CASE("linearity: the sum of every light's basis equals one solve with all l
         else
             for (std::size_t i = 0; i < f.data.size(); ++i) sum.data[i] += f.data[i];
     }
-    bake::Solution one = bake::solve(s, media, all, plan.output_directions);
+    solve::Solution one = solve::solve(s, media, all, plan.output_directions);
     // Single scattering is a sum of per-source solves in both cases: float rounding only.
     transport::SourceField single_sum;
     {
         for (std::uint32_t l = 0; l < plan.lights.count(); ++l) {
             const transport::PointSource src{plan.lights.position(l), 1.0};
-            bake::SolveRequest rq;
+            solve::SolveRequest rq;
             rq.multiple = false;
-            const bake::Solution sl = bake::solve(s, media, std::span(&src, 1), plan.output_directions, rq);
+            const solve::Solution sl = solve::solve(s, media, std::span(&src, 1), plan.output_directions, rq);
             if (single_sum.data.empty())
                 single_sum = sl.single;
             else
@@ -243,14 +243,14 @@ TEST_CASE("dropped lights: counted, empty in the file, and none at drop_below = 
     // A threshold between the weakest and the strongest light's scattered fraction: the
     // median of the lights' fractions.
     const bake::Plan plan = bake::make_plan(s, d, no_estimate());
-    const bake::Media media = bake::make_media(s, d);
+    const solve::Media media = solve::make_media(s, d);
     std::vector<double> fractions;
     for (std::uint32_t l = 0; l < plan.lights.count(); ++l) {
         const transport::PointSource src{plan.lights.position(l), 1.0};
-        bake::SolveRequest rq;
+        solve::SolveRequest rq;
         rq.multiple = false;
         fractions.push_back(
-            bake::solve(s, media, std::span(&src, 1), plan.output_directions, rq).first_scattered_power /
+            solve::solve(s, media, std::span(&src, 1), plan.output_directions, rq).first_scattered_power /
             (4.0 * std::numbers::pi));
     }
     std::sort(fractions.begin(), fractions.end());
@@ -391,7 +391,7 @@ TEST_CASE("the raw lattice S dips below zero by a bounded amount (the renderer c
     const scene::Scene s = tiny("test_aniso_ms_cg");
     const core::Grid3<float> d = scene::make_density(s);
     const bake::Plan p = bake::make_plan(s, d, no_estimate());
-    const bake::Media media = bake::make_media(s, d);
+    const solve::Media media = solve::make_media(s, d);
     double worst_raw = 0.0;
     for (std::uint32_t l = 0; l < p.lights.count(); l += 7) {
         const transport::PointSource src{p.lights.position(l), 1.0};
@@ -404,7 +404,7 @@ TEST_CASE("the raw lattice S dips below zero by a bounded amount (the renderer c
         lb.first_scattered = &s1;
         lb.first_scattered_fluence = &phi1;
         const transport::LbResult r =
-            transport::solve_lattice_boltzmann(media.transport, lb, p.output_directions, bake::lattice_settings(s));
+            transport::solve_lattice_boltzmann(media.transport, lb, p.output_directions, solve::lattice_settings(s));
         const float mx = *std::max_element(r.source.data.begin(), r.source.data.end());
         const float mn = *std::min_element(r.source.data.begin(), r.source.data.end());
         if (mx > 0.0f) worst_raw = std::min(worst_raw, double(mn) / double(mx));

@@ -1,6 +1,6 @@
 // The refined transport grid (transport.refine): the solvers run on the lighting grid
 // refined r times and S is averaged back. On a homogeneous sphere and a slab whose lighting
-// voxels have hop optical depths 0.5, 2 and 8, bake::solve's multiple scattering at refine 1
+// voxels have hop optical depths 0.5, 2 and 8, solve::solve's multiple scattering at refine 1
 // and 4 against the truth (Monte Carlo through the full-resolution medium, tallied on the
 // lighting grid); energy bookkeeping and finite, bounded values on the refined lattice.
 #include "bake/bake.h"
@@ -59,14 +59,14 @@ glm::dvec3 light_position(Shape shape) {
                                   : glm::dvec3(mid + 37.0, mid - 21.0, 0.25 * kFine * kH - 1200.0);
 }
 
-// bake::solve's multiple part at `refine` and the truth's, compared on the lighting grid.
+// solve::solve's multiple part at `refine` and the truth's, compared on the lighting grid.
 Result run(const Case& c, int refine) {
     scene::Scene s;
     s.medium = {c.tau / (kDown * kH), 0.99, 0.6};  // sigma_t at density 1: tau per lighting voxel
     s.lighting_downsample = kDown;
     s.transport.refine = refine;
     const core::Grid3<float> density = shape_density(c.shape);
-    bake::Media media;
+    solve::Media media;
     media.lighting.density = core::downsample(density, kDown);
     media.lighting.optics = s.medium;
     media.transport.density = core::downsample(density, kDown / refine);
@@ -74,7 +74,7 @@ Result run(const Case& c, int refine) {
     media.refine = refine;
     const std::vector<glm::dvec3> dirs = transport::output_directions(26);
     const transport::PointSource p{light_position(c.shape), 1.0};
-    const bake::Solution sol = bake::solve(s, media, std::span(&p, 1), dirs);
+    const solve::Solution sol = solve::solve(s, media, std::span(&p, 1), dirs);
 
     transport::LightingMedium fine;
     fine.density = density;

@@ -6,7 +6,7 @@
 
 #include "bake/bake.h"
 #include "distributed/distributed.h"
-#include "distributed/lattice.h"
+#include "distributed/detail/lattice.h"
 #include "support/stop_hook.h"
 #include "support/test_support.h"
 

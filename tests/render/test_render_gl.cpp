@@ -240,7 +240,7 @@ TEST_CASE("same inputs give identical pixels; the frame index only moves the jit
     render::SourceUpload up{lg, 6, {0, 1, 2, 3, 4, 5}, {}};
     for (int m = 0; m < 6; ++m) up.values.emplace_back(S.data() + std::size_t(m) * lg.cell_count(), lg.cell_count());
     r.upload_source(up);
-    r.set_bolt(synthetic::bolt(9, {0, 0, 3000}, 300.0));
+    r.set_channel(synthetic::bolt(9, {0, 0, 3000}, 300.0));
     const render::Camera cam = render::Camera::orbit({0, 0, 4000}, 20000, -60, 8, 50);
     render::Settings st;
     st.exposure = 3000.0;
@@ -451,11 +451,11 @@ TEST_CASE("bolt core and glow are attenuated by the cloud in front of them, not 
     st.glow_radius = 300.0;
     st.air_scattering = 1e-3;
     auto energy = [&](double bolt_y, bool with_cloud) {
-        render::Bolt b;
+        render::LitChannel b;
         for (int i = 0; i < 20; ++i)
             b.segments.push_back(
                 {{0.0f, float(bolt_y), float(2500 + 50 * i)}, {0.0f, float(bolt_y), float(2550 + 50 * i)}, 1.0f, 2.0f});
-        r.set_bolt(b);
+        r.set_channel(b);
         if (with_cloud)
             r.set_volume({.density = &slab, .extinction = 1e-3, .precision = render::DensityPrecision::F16});
         else
@@ -473,7 +473,7 @@ TEST_CASE("bolt core and glow are attenuated by the cloud in front of them, not 
     const double front = energy(-2000.0, true) / energy(-2000.0, false);
     CHECK(front == test::rel(1.0, 0.002));
     MESSAGE("bolt behind a tau = 1 slab keeps " << behind << " of its light (exp(-1) = " << std::exp(-1.0) << ")");
-    r.set_bolt({});
+    r.set_channel({});
 }
 
 TEST_CASE("hard cases give finite images") {
@@ -489,12 +489,12 @@ TEST_CASE("hard cases give finite images") {
     const auto one = test::make_grid({1, 1, 1}, 500.0, {-250, -250, 1000}, [](int, int, int) { return 1.0f; });
     r.set_volume({.density = &one, .extinction = 0.05});
     upload_all(r, one.geom, 26, [](int m, std::size_t) { return float(m); });
-    render::Bolt b;
+    render::LitChannel b;
     b.segments.push_back({{0, 0, 1200}, {0, 0, 1200}, 5.0f, 1.0f});  // zero length
     b.segments.push_back({{0, 0, 1200}, {10, 0, 900}, 0.0f, 1.0f});  // zero intensity
     b.segments.push_back({{0, 0, 1100}, {0, 0, 0}, 100.0f, 1e-3f});  // very thin, to the ground
     b.segments.push_back({{0, 0, -50}, {0, 0, -20}, 100.0f, 1.0f});  // under the ground
-    r.set_bolt(b);
+    r.set_channel(b);
     render::Camera inside;
     inside.position = {0, 0, 1250};
     inside.target = {100, 0, 1250};
@@ -514,7 +514,7 @@ TEST_CASE("hard cases give finite images") {
     // No volume, no source, no bolt at all.
     r.clear_volume();
     r.clear_source();
-    r.set_bolt({});
+    r.set_channel({});
     render_at(r, inside, st, 48, 32);
     CHECK(finite());
 }
@@ -570,9 +570,9 @@ TEST_CASE("bad inputs are rejected with errors naming the field") {
     CHECK_THROWS_AS(r.upload_source({lg, 7, {0}, {values}}), core::Error);              // bad direction count
     values[5] = std::numeric_limits<float>::infinity();
     CHECK_THROWS_WITH_AS(r.upload_source({lg, 1, {0}, {values}}), doctest::Contains("cell 5"), core::Error);
-    render::Bolt b;
+    render::LitChannel b;
     b.segments.push_back({{0, 0, 0}, {0, 0, 10}, -1.0f, 1.0f});
-    CHECK_THROWS_WITH_AS(r.set_bolt(b), doctest::Contains("segment 0"), core::Error);
+    CHECK_THROWS_WITH_AS(r.set_channel(b), doctest::Contains("segment 0"), core::Error);
     const render::Camera cam;
     render::Settings st;
     st.internal_scale = 0.0;

@@ -23,12 +23,12 @@ std::vector<std::uint8_t> synthetic_storm(const core::Int3& dims, double voxel, 
     const synthetic::Storm storm = synthetic::storm(dims, voxel);
     r.set_volume({.density = &storm.density, .extinction = storm.extinction});
     r.upload_source(synthetic::needed_upload(r, storm));
-    r.set_bolt(storm.bolt);
+    r.set_channel(storm.bolt);
     render::Settings st = storm.settings;
     st.dither = dither;
     test::render_at(r, storm.camera, st, w, h);
     std::vector<std::uint8_t> rgba = test::gl_context().read_rgba8();
-    r.set_bolt({});
+    r.set_channel({});
     r.clear_source();
     return rgba;
 }

@@ -25,7 +25,7 @@ namespace {
 struct Baked {
     scene::Scene scene;
     core::Grid3<float> density;
-    bake::Media media;
+    solve::Media media;
     const transport::LightingMedium& medium() const { return media.lighting; }
     std::filesystem::path fgb;
     basis::BakedBasis file;
@@ -40,7 +40,7 @@ const Baked& baked(const std::string& name) {
         auto b = std::make_unique<Baked>();
         b->scene = scene::load_scene(test::source_dir() / "tests/apps/scenes" / (name + ".json"));
         b->density = scene::make_density(b->scene);
-        b->media = bake::make_media(b->scene, b->density);
+        b->media = solve::make_media(b->scene, b->density);
         b->fgb = test::scratch_dir("runtime_" + name) / (name + ".fgb");
         bake::bake(b->scene, b->density, b->fgb);
         b->file = basis::load_fgb(b->fgb);
@@ -358,7 +358,7 @@ TEST_CASE("frame: a single-scattering, isotropic bake (1 direction) reconstructs
 
 TEST_CASE("accuracy: basis method against the direct solve on a tiny scene") {
     // R: the frame's reconstruction (splat onto virtual lights + compressed bases, xi = 0.9999,
-    // float16). D: the direct solve of the frame's point sources (bake::solve, no virtual
+    // float16). D: the direct solve of the frame's point sources (solve::solve, no virtual
     // lights). V: the direct solve of the active virtual lights with their weights e_l, i.e.
     // what R would be with uncompressed bases and a perfectly linear solver. R - V is the
     // basis machinery's own error; V - D the error of replacing each source by the 8 virtual

@@ -53,7 +53,7 @@ TEST_CASE("bases: the accumulation layout holds every coefficient of the file") 
         CHECK(b.separate() == (comps == 2));
         CHECK(b.has_multiple());
         CHECK(b.memory_bytes() > 0);
-        const runtime::BakedBases::Impl& im = b.impl();
+        const runtime::BakedBases::Impl& im = runtime::bases_impl(b);
         CHECK(im.narrow);  // 60 cells: 16-bit indices
         CHECK(im.index32.empty());
         for (std::uint32_t l = 0; l < m.light_count(); ++l)

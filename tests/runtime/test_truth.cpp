@@ -24,7 +24,7 @@ namespace {
 struct Setup {
     scene::Scene scene;
     core::Grid3<float> density;
-    bake::Media media;
+    solve::Media media;
     bake::Plan plan;
     std::unique_ptr<runtime::BakedBases> bases;
 };
@@ -36,7 +36,7 @@ const Setup& setup() {
         s->scene = scene::load_scene(test::source_dir() / "tests/apps/scenes/test_aniso_ms_cg.json");
         s->scene.transport.refine = 4;
         s->density = scene::make_density(s->scene);
-        s->media = bake::make_media(s->scene, s->density);
+        s->media = solve::make_media(s->scene, s->density);
         bake::PlanOptions po;
         po.estimate = false;
         s->plan = bake::make_plan(s->scene, s->density, po);

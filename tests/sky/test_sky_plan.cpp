@@ -112,7 +112,7 @@ TEST_CASE("solved once: the cache is read while fresh, solved again when the sun
     const auto dir = test::scratch_dir("sky_load");
     const scene::Scene s = variant(dir, "night", kSunSky);
     const core::Grid3<float> d = scene::make_density(s);
-    const bake::Media media = bake::make_media(s, d);
+    const solve::Media media = solve::make_media(s, d);
     const sky::ScenePlan plan = sky::plan_scene(s, d, quick());
     std::vector<std::string> said;
     auto say = [&](const std::string& m) { said.push_back(m); };
@@ -172,7 +172,7 @@ TEST_CASE("the sun solved again on a worker thread: the newest request wins, the
     const auto dir = test::scratch_dir("sky_resolver");
     const scene::Scene s = variant(dir, "night", kSunSky);
     const core::Grid3<float> d = scene::make_density(s);
-    const bake::Media media = bake::make_media(s, d);
+    const solve::Media media = solve::make_media(s, d);
     sky::SunResolver r(s, d, media, sky::solve_settings(s), 1);
     CHECK_FALSE(r.take().has_value());
     const glm::dvec3 first = scene::sun_direction(30.0, 0.0), last = scene::sun_direction(10.0, 90.0);

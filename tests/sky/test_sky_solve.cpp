@@ -34,7 +34,7 @@ transport::LightingMedium blob(transport::Medium optics = {0.015, 0.95, 0.6}) {
     return m;
 }
 
-bake::Media media_of(const transport::LightingMedium& m) { return bake::Media{m, m, 1, {}}; }
+solve::Media media_of(const transport::LightingMedium& m) { return solve::Media{m, m, 1, {}}; }
 
 sky::SolveSettings settings(sky::Method method = sky::Method::Hybrid) {
     sky::SolveSettings s;
@@ -139,7 +139,7 @@ TEST_CASE("dome samples: equal solid angles summing to 2 pi, exact irradiance of
 
 TEST_CASE("refinement: a refined transport grid is averaged onto the lighting grid") {
     const transport::LightingMedium fine = blob();
-    bake::Media media;
+    solve::Media media;
     media.transport = fine;
     media.lighting.density = core::downsample(fine.density, 2);
     media.lighting.optics = fine.optics;

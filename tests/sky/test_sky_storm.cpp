@@ -17,7 +17,7 @@ using namespace fulgur;
 TEST_CASE("default storm: the sun solve against Monte Carlo at elevations 60, 25 and 5 degrees") {
     const scene::Scene s = scene::load_scene(test::source_dir() / "content/scenes/storm.json");
     const core::Grid3<float> density = scene::make_density(s);
-    const bake::Media media = bake::make_media(s, density);
+    const solve::Media media = solve::make_media(s, density);
     const auto dirs = transport::output_directions(s.effective_directions());
     sky::SolveSettings hybrid = sky::solve_settings(s);
     hybrid.single = hybrid.multiple = true;

@@ -166,12 +166,12 @@ std::vector<float> point_flash_source(const core::Grid3<float>& density, double 
 }
 
 std::vector<float> bolt_source(const core::Grid3<float>& density, double extinction, const core::GridGeometry& lighting,
-                               int direction_count, const render::Bolt& bolt, double spacing, double albedo, double g) {
+                               int direction_count, const render::LitChannel& bolt, double spacing, double albedo, double g) {
     // Merge the bolt into point sources about `spacing` apart (power-weighted centroids).
     std::vector<std::pair<glm::dvec3, double>> points;
     glm::dvec3 acc(0.0);
     double power = 0.0, length = 0.0;
-    for (const render::Segment& seg : bolt.segments) {
+    for (const render::ChannelSegment& seg : bolt.segments) {
         const double len = glm::length(glm::dvec3(seg.b - seg.a));
         const double p = double(seg.intensity) * len;
         if (p <= 0.0) continue;
@@ -194,8 +194,8 @@ std::vector<float> bolt_source(const core::Grid3<float>& density, double extinct
     return S;
 }
 
-render::Bolt bolt(std::uint64_t seed, const glm::dvec3& start, double intensity, double radius) {
-    render::Bolt out;
+render::LitChannel bolt(std::uint64_t seed, const glm::dvec3& start, double intensity, double radius) {
+    render::LitChannel out;
     core::Rng rng(seed, 99);
     struct Channel {
         glm::dvec3 p, dir;
@@ -212,7 +212,7 @@ render::Bolt bolt(std::uint64_t seed, const glm::dvec3& start, double intensity,
             // Reed & Wyvill: turn by a normally distributed angle about a random axis; the main
             // channel is pulled toward the ground.
             glm::dvec3 t, b;
-            transport::orthonormal_basis(ch.dir, t, b);
+            core::orthonormal_basis(ch.dir, t, b);
             const double angle = std::abs(mean_angle + 0.5 * mean_angle * rng.normal());
             const double phi = 2.0 * std::numbers::pi * rng.uniform();
             glm::dvec3 nd = std::cos(angle) * ch.dir + std::sin(angle) * (std::cos(phi) * t + std::sin(phi) * b);
@@ -232,7 +232,7 @@ render::Bolt bolt(std::uint64_t seed, const glm::dvec3& start, double intensity,
                                     float(radius * std::sqrt(ch.intensity / intensity))});
             if (ch.depth < 2 && rng.uniform() < (ch.depth == 0 ? 0.07 : 0.04)) {
                 glm::dvec3 bt, bb;
-                transport::orthonormal_basis(nd, bt, bb);
+                core::orthonormal_basis(nd, bt, bb);
                 const glm::dvec3 bd = glm::normalize(nd + 0.9 * (rng.uniform() < 0.5 ? bt : -bt));
                 todo.push_back({q, bd, ch.intensity * 0.3, ch.depth + 1, 8 + int(rng.uniform_below(24))});
             }

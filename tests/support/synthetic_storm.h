@@ -32,12 +32,12 @@ std::vector<float> point_flash_source(const core::Grid3<float>& density, double 
 /// S for a whole bolt: point flashes every `spacing` metres along its segments, each of
 /// intensity (segment intensity x length share), summed (S is linear in the sources).
 std::vector<float> bolt_source(const core::Grid3<float>& density, double extinction, const core::GridGeometry& lighting,
-                               int direction_count, const render::Bolt& bolt, double spacing = 400.0,
+                               int direction_count, const render::LitChannel& bolt, double spacing = 400.0,
                                double albedo = 0.99, double g = 0.6);
 
 /// A branching cloud-to-ground bolt (Reed-Wyvill-style random walk, deterministic per seed)
 /// from `start` to the ground plane z = 0; `intensity` is the main channel's W/sr per metre.
-render::Bolt bolt(std::uint64_t seed, const glm::dvec3& start, double intensity, double radius = 2.0);
+render::LitChannel bolt(std::uint64_t seed, const glm::dvec3& start, double intensity, double radius = 2.0);
 
 /// The synthetic storm used by the renderer's golden test, benchmark and documentation
 /// image: a cumulonimbus (seed 7), a cloud-to-ground bolt from 6.8 km (seed 3) whose channel
@@ -49,7 +49,7 @@ struct Storm {
     core::GridGeometry lighting;
     int directions = 26;
     std::vector<float> source;  ///< transport::SourceField layout
-    render::Bolt bolt;
+    render::LitChannel bolt;
     render::Camera camera;
     render::Settings settings;
 };

@@ -4,10 +4,24 @@
 
 #include "runtime/runtime.h"
 
+#if defined(__F16C__)
+#include <immintrin.h>
+#endif
+
 #include <cstdint>
 #include <vector>
 
 namespace fulgur::runtime {
+
+/// Exact binary16 -> binary32: the F16C instruction where the build targets it, else the
+/// portable bit-level conversion (same result).
+inline float half_to_float_fast(std::uint16_t h) noexcept {
+#if defined(__F16C__)
+    return _cvtsh_ss(h);
+#else
+    return basis::half_to_float(h);
+#endif
+}
 
 struct BakedBases::Impl {
     basis::FgbMetadata meta;
@@ -32,5 +46,8 @@ struct BakedBases::Impl {
 
     std::size_t run(std::size_t light, std::size_t basis) const noexcept { return light * bases_per_light + basis; }
 };
+
+/// The storage of `b` (for the reconstruction and the module's tests).
+inline const BakedBases::Impl& bases_impl(const BakedBases& b) noexcept { return *b.impl_; }
 
 }  // namespace fulgur::runtime

@@ -59,7 +59,7 @@ struct SiteCoefficients {
     double hop[3] = {0, 0, 0};         ///< hop length (m): 0, h, sqrt(2) h
 };
 
-/// THE mapping from the physical medium to lattice coefficients (DESIGN.md): per direction
+/// THE mapping from the physical medium to lattice coefficients (docs/design.md#lattice-coefficients): per direction
 /// class, interaction probability e_j = 1 - exp(-kappa rho l_j) over the hop length l_j
 /// (h or sqrt(2) h) and collision-estimator track e_j / sigma_t (m; l_j when rho = 0).
 /// docs/lattice-boltzmann.md, "Physical mapping".

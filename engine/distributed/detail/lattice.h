@@ -3,8 +3,8 @@
 // the streaming links that cross a slab face with its neighbours (non-blocking, while it
 // updates its interior planes) and chaining the per-row sums of the convergence test in the
 // undivided lattice's order, so the lattice is bit-identical to the single-process one.
-// For the lattice's own users (lb::Simulation, benchmarks, tests): it speaks the transport
-// module's internal lattice types.
+// Internal (not installed): it speaks the transport module's internal lattice types
+// (transport/detail/lb_solver.h), for the lattice's own drivers, benchmarks and tests.
 #pragma once
 
 #include "distributed/distributed.h"

@@ -1,0 +1,143 @@
+// Internal to fulgur::render: the renderer's state (GL objects, the uploaded inputs, the
+// caches derived from them) and its frame as a list of passes. The frame setup is in
+// frame_setup.cpp, each pass in pass_<name>.cpp, the public API in renderer.cpp.
+#pragma once
+
+#include "core/core.h"
+#include "render/detail/frame.h"
+#include "render/detail/gl_program.h"
+#include "render/detail/gl_resources.h"
+#include "render/render.h"
+
+#include <glad/gl.h>
+
+#include <glm/glm.hpp>
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace fulgur::render {
+
+struct Renderer::Impl {
+    std::filesystem::path shader_dir;
+    std::map<std::string, GLuint> programs;
+    GLuint vao = 0, frame_ubo = 0, zero_tex = 0, profile_tex = 0;
+    GLuint queries[detail::kPassCount] = {};
+
+    // Volume
+    bool has_volume = false;
+    GLuint density_tex = 0;
+    core::Grid3<float> density;          // CPU copy (clamped), for ground-light visibility
+    std::vector<std::uint8_t> distance;  // Chebyshev distance field (voxels)
+    double kappa = 0.0;
+
+    // Source: the flash's S and the static light's (colour)
+    detail::SourceSet flash = detail::SourceSet(GL_R32F), statics = detail::SourceSet(GL_RGBA32F);
+    // The sun drawn at full resolution (set_sun)
+    GLuint sun_tex = 0;  // transmittance to the sun on the density grid (R16F)
+    bool has_sun = false, sun_fine = false, sun_scatter = false;
+    glm::dvec3 sun_direction{0.0, 0.0, -1.0}, sun_rgb{0.0};
+    double sun_albedo = 0.0, sun_g = 0.0;
+    // Exposure metering
+    detail::Buffer meter_buf;
+    double pending_upload_ms = 0.0, pending_upload_cpu_ms = 0.0;
+    // Cache of the needed directions for (camera, lighting grid, count).
+    mutable std::optional<glm::dvec3> needed_camera;
+    mutable core::GridGeometry needed_geom;
+    mutable int needed_count = 0;
+    mutable double needed_min_weight = -1.0;
+    mutable std::vector<DirectionUse> needed;
+    mutable std::vector<std::uint8_t> lit_active;  // lighting nodes near non-empty density
+    mutable core::GridGeometry lit_active_geom;
+    mutable bool lit_active_valid = false;
+
+    // Bolt
+    LitChannel bolt;
+    detail::Buffer seg_buf, endpoint_buf, glow_buf;
+    int seg_count = 0, glow_count = 0;
+    double glow_built_radius = -1.0;
+    double profile_radius = -1.0, profile_sigma = -1.0;
+    std::vector<glm::vec4> ground_lights;
+    int ground_lights_k = -1;  // -1: to rebuild
+    double ground_lights_height = 0.0;
+
+    GLuint last_scam = 0;    // S_cam texture the last frame sampled (0: none)
+    GLuint last_static = 0;  // the static light's S_cam the last frame sampled (0: none)
+
+    // Targets
+    detail::Target glow_target, march_target, core_target, hdr_target;
+    int out_w = 0, out_h = 0;
+
+    // ----------------------------------------------------------------------------------
+    GLuint program(const std::string& key, const std::vector<detail::Stage>& stages, const std::string& defines = {}) {
+        const std::string full = key + "|" + defines;
+        if (auto it = programs.find(full); it != programs.end()) return it->second;
+        const GLuint p = detail::build_program(shader_dir, stages, defines);
+        programs[full] = p;
+        return p;
+    }
+
+    static std::string march_defines(bool skip, bool early, bool source, bool emission, bool statics = false,
+                                     bool sun = false) {
+        std::string d = std::string("#define SKIP_EMPTY ") + (skip ? "1" : "0") + "\n#define EARLY_EXIT " +
+                        (early ? "1" : "0") + "\n#define HAS_SOURCE " + (source ? "1" : "0") +
+                        "\n#define HAS_EMISSION " + (emission ? "1" : "0") + "\n";
+        if (statics) d += "#define HAS_STATIC 1\n";
+        if (sun) d += "#define HAS_SUN 1\n";
+        return d;
+    }
+
+    GLuint march_program(MarchKernel kernel, const std::string& defines) {
+        if (kernel == MarchKernel::Fragment)
+            return program("march.frag", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "march.frag"}},
+                           defines);
+        return program("march.comp", {{GL_COMPUTE_SHADER, "march.comp"}}, defines);
+    }
+
+    void build_default_programs() {
+        program("resolve", {{GL_COMPUTE_SHADER, "resolve.comp"}});
+        program("bolt_t", {{GL_COMPUTE_SHADER, "bolt_transmittance.comp"}});
+        program("glow", {{GL_VERTEX_SHADER, "glow.vert"}, {GL_FRAGMENT_SHADER, "glow.frag"}});
+        program("bolt", {{GL_VERTEX_SHADER, "bolt.vert"}, {GL_FRAGMENT_SHADER, "bolt.frag"}});
+        program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}});
+        march_program(MarchKernel::Fragment, march_defines(true, true, true, true));
+    }
+
+    void release_programs() {
+        for (auto& [k, p] : programs) glDeleteProgram(p);
+        programs.clear();
+    }
+
+    // ---- the view's needed directions (pass_resolve.cpp)
+    /// Lighting nodes near non-empty density (all nodes without a volume), cached per grid.
+    const std::vector<std::uint8_t>& active_mask(const core::GridGeometry& lg) const;
+    /// The directions the view from `cam` needs, cached per camera, grid, count and threshold.
+    const std::vector<DirectionUse>& needed_for(const glm::dvec3& cam, const core::GridGeometry& lg, int count,
+                                                double min_weight) const;
+
+    // ---- the glow's quads and radial profile (pass_glow.cpp)
+    void rebuild_glow_quads(double radius);
+    void rebuild_profile(double radius, double sigma);
+
+    // ---- the ground lights (frame_setup.cpp)
+    double vertical_transmittance(const glm::dvec3& p, double ground) const;
+    void rebuild_ground_lights(int k, double ground);
+
+    // ---- one frame: uniforms, then the passes in the order Renderer::render() runs them
+    detail::FrameUniforms prepare_frame(const Camera& camera, const Settings& st, int width, int height);
+    void bind_frame(const detail::FrameUniforms& u);
+    GLuint resolve_set(detail::SourceSet& set, const glm::dvec3& camera, const std::vector<int>& active,
+                       bool must_resolve, detail::PassTimer& timer);
+    void resolve_pass(const glm::dvec3& camera, const Settings& st, const detail::FrameUniforms& u,
+                      detail::PassTimer& timer, FrameStats& stats);
+    void glow_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats);
+    void march_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer);
+    void meter_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats);
+    void bolt_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats);
+    void composite_pass(const detail::FrameUniforms& u, const detail::CallerTarget& caller, detail::PassTimer& timer);
+};
+
+}  // namespace fulgur::render

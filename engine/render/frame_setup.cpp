@@ -1,0 +1,172 @@
+// One frame's setup, before the passes: the targets at the frame's sizes, the frame
+// uniforms (and the ground lights they carry), and the GL state every pass starts from.
+#include "render/detail/renderer_impl.h"
+
+#include <glad/gl.h>
+
+#include <glm/geometric.hpp>
+#include <glm/glm.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <numbers>
+
+namespace fulgur::render {
+
+using detail::FrameBlock;
+using detail::FrameUniforms;
+
+namespace {
+
+constexpr int kMaxGroundLights = 8;
+
+}  // namespace
+
+/// Transmittance straight down from p to the ground through the density.
+double Renderer::Impl::vertical_transmittance(const glm::dvec3& p, double ground) const {
+    if (!has_volume || p.z <= ground) return 1.0;
+    const double h = 0.5 * density.geom.voxel_size;
+    const double lo = std::max(ground, density.geom.origin.z), hi = std::min(p.z, density.geom.upper().z);
+    if (hi <= lo) return 1.0;
+    const int n = int(std::ceil((hi - lo) / h));
+    double tau = 0.0;
+    for (int i = 0; i < n; ++i) tau += double(density.sample({p.x, p.y, lo + (hi - lo) * (i + 0.5) / n}));
+    return std::exp(-kappa * tau * (hi - lo) / n);
+}
+
+/// Representative point lights for the ground: the bolt split into k runs of equal
+/// power (sum of intensity x length, in segment order); each light sits at its run's
+/// power-weighted centroid with the run's intensity, times its visibility.
+void Renderer::Impl::rebuild_ground_lights(int k, double ground) {
+    ground_lights.clear();
+    ground_lights_k = k;
+    ground_lights_height = ground;
+    double total = 0.0;
+    for (const ChannelSegment& s : bolt.segments) total += double(s.intensity) * glm::length(glm::dvec3(s.b - s.a));
+    if (total <= 0.0 || k <= 0) return;
+    const double per = total / k;
+    double acc = 0.0, wsum = 0.0;
+    glm::dvec3 centroid(0.0);
+    for (const ChannelSegment& s : bolt.segments) {
+        const double p = double(s.intensity) * glm::length(glm::dvec3(s.b - s.a));
+        if (p <= 0.0) continue;
+        centroid += p * 0.5 * (glm::dvec3(s.a) + glm::dvec3(s.b));
+        wsum += p;
+        acc += p;
+        if (acc >= per * double(ground_lights.size() + 1) - 1e-9 * total || &s == &bolt.segments.back()) {
+            glm::dvec3 c = centroid / wsum;
+            c.z = std::max(c.z, ground + 1.0);
+            ground_lights.emplace_back(glm::vec3(c), float(wsum * vertical_transmittance(c, ground)));
+            centroid = glm::dvec3(0.0);
+            wsum = 0.0;
+            if (int(ground_lights.size()) == k) break;
+        }
+    }
+    if (wsum > 0.0 && int(ground_lights.size()) < k) {
+        glm::dvec3 c = centroid / wsum;
+        c.z = std::max(c.z, ground + 1.0);
+        ground_lights.emplace_back(glm::vec3(c), float(wsum * vertical_transmittance(c, ground)));
+    }
+}
+
+/// Targets at the frame's sizes, and the frame uniforms: camera, volume and march step,
+/// lighting grid, ground lights, sky, glow and bolt switches. Rebuilds the ground lights
+/// and glow quads when their settings changed.
+FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings& st, int width, int height) {
+    FrameUniforms u;
+    u.width = width;
+    u.height = height;
+    u.internal_width = std::max(1, int(std::lround(width * st.internal_scale)));
+    u.internal_height = std::max(1, int(std::lround(height * st.internal_scale)));
+    const int iw = u.internal_width, ih = u.internal_height;
+    out_w = width;
+    out_h = height;
+    glow_target.ensure(iw, ih);
+    march_target.ensure(iw, ih);
+    core_target.ensure(width, height);
+
+    FrameBlock& f = u.block;
+    // Camera
+    const glm::dvec3 fwd = glm::normalize(camera.target - camera.position);
+    const glm::dvec3 right = glm::normalize(glm::cross(fwd, camera.up));
+    const glm::dvec3 up = glm::cross(right, fwd);
+    const double tan_half = std::tan(glm::radians(camera.vertical_fov_deg) * 0.5);
+    const double aspect = double(width) / double(height);
+    const glm::dmat4 view = glm::lookAt(camera.position, camera.target, up);
+    const glm::dmat4 proj = glm::perspective(glm::radians(camera.vertical_fov_deg), aspect, 0.5, 1e6);
+    f.view_proj = glm::mat4(proj * view);
+    f.cam_pos = glm::vec4(glm::vec3(camera.position), float(tan_half));
+    f.cam_fwd = glm::vec4(glm::vec3(fwd), float(aspect));
+    f.cam_right = glm::vec4(glm::vec3(right), 0.0f);
+    f.cam_up = glm::vec4(glm::vec3(up), 0.0f);
+    // Volume and march step
+    double step = 1.0;
+    int max_steps = 1;
+    if (has_volume) {
+        const core::GridGeometry& g = density.geom;
+        step = st.step_voxels * g.voxel_size;
+        max_steps = int(std::ceil(glm::length(g.extent()) / step)) + 2;
+        f.vol_min = glm::vec4(glm::vec3(g.origin), float(kappa));
+        f.vol_size = glm::vec4(glm::vec3(g.extent()), float(g.voxel_size));
+    }
+    // Lighting grid
+    u.lit = flash.has && st.cloud_lighting && st.flash_light && has_volume;
+    if (u.lit) {
+        f.lit_min = glm::vec4(glm::vec3(flash.geom.origin), 1.0f);
+        f.lit_size = glm::vec4(glm::vec3(flash.geom.extent()), 0.0f);
+    }
+    // The static light and the sun at full resolution (each switched off costs nothing: no
+    // resolve, no texture fetch in the march)
+    u.statics = statics.has && st.cloud_lighting && st.static_light && has_volume;
+    if (u.statics) {
+        f.static_min = glm::vec4(glm::vec3(statics.geom.origin), 1.0f);
+        f.static_size = glm::vec4(glm::vec3(statics.geom.extent()), 0.0f);
+    }
+    const bool sun_on = has_sun && st.sun_light;
+    u.sun = sun_on && sun_fine && sun_scatter && st.cloud_lighting && has_volume;
+    if (sun_on) {
+        f.sun_dir = glm::vec4(glm::vec3(sun_direction), 1.0f);
+        f.sun_rgb = glm::vec4(glm::vec3(sun_rgb), float(sun_albedo));
+        f.sun_params = glm::vec4(float(sun_g), sun_fine && has_volume ? 1.0f : 0.0f, 0.0f, 0.0f);
+    }
+    f.march_params = glm::vec4(float(step), float(st.min_transmittance), st.jitter ? 1.0f : 0.0f,
+                               float(std::fmod(double(st.frame_index) * 0.6180339887498949, 1.0)));
+    f.sizes = glm::vec4(float(width), float(height), float(iw), float(ih));
+    // Ground
+    if (st.ground) {
+        if (ground_lights_k != st.ground_lights || ground_lights_height != st.ground_height)
+            rebuild_ground_lights(st.ground_lights, st.ground_height);
+        for (std::size_t i = 0; i < ground_lights.size() && i < kMaxGroundLights; ++i)
+            f.ground_light[i] = ground_lights[i];
+        f.ground_params = glm::vec4(float(st.ground_height), float(st.ground_albedo / std::numbers::pi), 1.0f,
+                                    float(ground_lights.size()));
+    } else {
+        f.ground_params = glm::vec4(float(st.ground_height), 0.0f, 0.0f, 0.0f);
+    }
+    // Sky, glow, bolt, tone map
+    f.sky_params = glm::vec4(0.0f, float(st.star_radiance), st.sky ? 1.0f : 0.0f, float(st.exposure));
+    f.sky_zenith = glm::vec4(glm::vec3(st.sky_zenith), 0.0f);
+    f.sky_horizon = glm::vec4(glm::vec3(st.sky_horizon), 0.0f);
+    f.glow_params =
+        glm::vec4(float(st.glow_radius), float(st.air_scattering), st.glow ? 1.0f : 0.0f, st.bolt ? 1.0f : 0.0f);
+    f.light_colour = glm::vec4(glm::vec3(st.flash_colour), st.dither ? 1.0f : 0.0f);
+    u.glow = st.glow && seg_count > 0 && st.air_scattering > 0.0;
+    if (u.glow && glow_built_radius != st.glow_radius) rebuild_glow_quads(st.glow_radius);
+    f.counts = glm::ivec4(max_steps, int(st.frame_index & 0x7fffffff), u.glow ? glow_count : 0, seg_count);
+    return u;
+}
+
+/// Uploads the frame uniforms (binding 0) and sets the state every pass starts from.
+void Renderer::Impl::bind_frame(const FrameUniforms& u) {
+    glNamedBufferSubData(frame_ubo, 0, sizeof(FrameBlock), &u.block);
+    glBindBufferBase(GL_UNIFORM_BUFFER, 0, frame_ubo);
+    glBindVertexArray(vao);
+    glDisable(GL_DEPTH_TEST);
+    glDisable(GL_CULL_FACE);
+    glDisable(GL_SCISSOR_TEST);
+    glDisable(GL_BLEND);
+}
+
+}  // namespace fulgur::render

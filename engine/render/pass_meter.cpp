@@ -1,0 +1,56 @@
+// The meter pass (automatic exposure): a log2 luminance histogram of the march, read back,
+// and the exposure chosen from it written into the frame block.
+#include "render/detail/exposure.h"
+#include "render/detail/renderer_impl.h"
+
+#include <glad/gl.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace fulgur::render {
+
+using detail::FrameBlock;
+using detail::FrameUniforms;
+using detail::kMeter;
+using detail::PassTimer;
+
+namespace {
+
+// Exposure metering: log2 bins of the march's luminance, from 2^-40 to 2^24 (night sky to a
+// lightning channel seen through a thin cloud), a quarter stop each.
+constexpr int kMeterBins = 256;
+constexpr float kMeterLog2Min = -40.0f, kMeterBinWidth = 0.25f;
+
+}  // namespace
+
+/// Meter (automatic exposure): a log2 luminance histogram of the march, read back; the chosen
+/// exposure replaces the frame's (the composite reads it from the frame block).
+void Renderer::Impl::meter_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer, FrameStats& stats) {
+    stats.exposure = st.exposure;
+    if (!st.auto_exposure) return;
+    timer.begin(kMeter);
+    const GLuint p = program("meter", {{GL_COMPUTE_SHADER, "meter.comp"}});
+    glUseProgram(p);
+    const std::vector<std::uint32_t> zero(kMeterBins, 0u);
+    meter_buf.upload(zero.data(), zero.size() * sizeof(std::uint32_t));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, meter_buf.id);
+    glBindTextureUnit(3, march_target.tex);
+    glUniform1i(glGetUniformLocation(p, "u_bins"), kMeterBins);
+    glUniform1f(glGetUniformLocation(p, "u_log2_min"), kMeterLog2Min);
+    glUniform1f(glGetUniformLocation(p, "u_bin_width"), kMeterBinWidth);
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
+    glDispatchCompute(GLuint((u.internal_width + 7) / 8), GLuint((u.internal_height + 7) / 8), 1);
+    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    std::vector<std::uint32_t> bins(kMeterBins);
+    glGetNamedBufferSubData(meter_buf.id, 0, GLsizeiptr(bins.size() * sizeof(std::uint32_t)), bins.data());
+    const detail::ExposureChoice c = detail::choose_exposure(bins, kMeterLog2Min, kMeterBinWidth, st);
+    stats.metered_exposure = c.metered;
+    stats.exposure = c.applied;
+    const float e = float(c.applied);
+    glNamedBufferSubData(frame_ubo, GLintptr(offsetof(FrameBlock, sky_params) + 3 * sizeof(float)), sizeof(float), &e);
+    timer.end(kMeter);
+}
+
+}  // namespace fulgur::render

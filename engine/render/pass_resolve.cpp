@@ -1,0 +1,155 @@
+// The resolve pass: S toward the camera on the lighting grid, for the flash and for the
+// static light, over the directions the view needs (found on the CPU and cached per camera
+// and lighting grid; Renderer::needed_directions() reads the same cache).
+#include "render/detail/directions.h"
+#include "render/detail/renderer_impl.h"
+
+#include <glad/gl.h>
+
+#include <glm/glm.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <iterator>
+#include <vector>
+
+namespace fulgur::render {
+
+using detail::FrameUniforms;
+using detail::kResolve;
+using detail::PassTimer;
+using detail::SourceSet;
+
+const std::vector<std::uint8_t>& Renderer::Impl::active_mask(const core::GridGeometry& lg) const {
+    if (lit_active_valid && lit_active_geom == lg) return lit_active;
+    lit_active.assign(lg.cell_count(), 1);
+    if (has_volume) {
+        const core::GridGeometry& dg = density.geom;
+        // A lighting node is read by samples within one lighting voxel of it; those
+        // samples see density within one more density voxel.
+        const int reach = int(std::ceil(lg.voxel_size / dg.voxel_size)) + 1;
+        for (std::size_t c = 0; c < lit_active.size(); ++c) {
+            const core::Int3 n = lg.unindex(c);
+            const glm::dvec3 v = dg.to_voxel(lg.centre(n.x, n.y, n.z));
+            const int i = std::clamp(int(std::floor(v.x)), 0, dg.dims.x - 1);
+            const int j = std::clamp(int(std::floor(v.y)), 0, dg.dims.y - 1);
+            const int k = std::clamp(int(std::floor(v.z)), 0, dg.dims.z - 1);
+            // Outside the density grid, the distance to the grid adds to the reach.
+            const glm::dvec3 outside =
+                glm::max(glm::dvec3(0.0), glm::max(-v, v - glm::dvec3(dg.dims.x, dg.dims.y, dg.dims.z)));
+            const double extra = std::max({outside.x, outside.y, outside.z});
+            lit_active[c] = double(distance[dg.index(i, j, k)]) <= reach + 1.0 - extra ? 1 : 0;
+        }
+    }
+    lit_active_geom = lg;
+    lit_active_valid = true;
+    return lit_active;
+}
+
+const std::vector<DirectionUse>& Renderer::Impl::needed_for(const glm::dvec3& cam, const core::GridGeometry& lg,
+                                                            int count, double min_weight) const {
+    if (needed_camera && *needed_camera == cam && needed_geom == lg && needed_count == count &&
+        needed_min_weight == min_weight)
+        return needed;
+    needed = view_directions(cam, lg, count, active_mask(lg), min_weight);
+    needed_min_weight = min_weight;
+    needed_camera = cam;
+    needed_geom = lg;
+    needed_count = count;
+    return needed;
+}
+
+/// Resolves a source set toward the camera (only when it or the camera changed): returns the
+/// texture the march samples (the set's own texture with one direction).
+GLuint Renderer::Impl::resolve_set(SourceSet& set, const glm::dvec3& camera, const std::vector<int>& active,
+                                   bool must_resolve, PassTimer& timer) {
+    if (set.dir_count == 1) return set.tex[0];
+    if (!must_resolve) return set.cam_tex;
+    const bool rgb = set.format != GL_R32F;
+    const GLuint p = rgb ? program("resolve_rgb", {{GL_COMPUTE_SHADER, "resolve.comp"}}, "#define RGB 1\n")
+                         : program("resolve", {{GL_COMPUTE_SHADER, "resolve.comp"}});
+    glUseProgram(p);
+    const detail::FoldTable ft = detail::fold_table(set.dir_count);
+    GLint idx[27 * 3];
+    GLfloat frac[27 * 3];
+    for (int c = 0; c < 27; ++c)
+        for (int k = 0; k < 3; ++k) {
+            idx[c * 3 + k] = ft.index[std::size_t(c)][std::size_t(k)];
+            frac[c * 3 + k] = GLfloat(ft.fraction[std::size_t(c)][std::size_t(k)]);
+        }
+    const core::GridGeometry& g = set.geom;
+    glUniform3iv(glGetUniformLocation(p, "u_fold_index"), 27, idx);
+    glUniform3fv(glGetUniformLocation(p, "u_fold_fraction"), 27, frac);
+    glUniform3i(glGetUniformLocation(p, "u_dims"), g.dims.x, g.dims.y, g.dims.z);
+    glBindImageTexture(0, set.cam_tex, 0, GL_TRUE, 0, GL_READ_WRITE, rgb ? GL_RGBA32F : GL_R32F);
+    const GLint loc_dirs = glGetUniformLocation(p, "u_dirs"), loc_acc = glGetUniformLocation(p, "u_accumulate");
+    const GLint loc_n = glGetUniformLocation(p, "u_samplers");
+    GLfloat active_mask[26] = {};
+    for (int d : active) active_mask[d] = 1.0f;
+    glUniform1fv(glGetUniformLocation(p, "u_active"), 26, active_mask);
+    // Up to 16 directions per dispatch (unused samplers read the zero texture with weight 0);
+    // at least one dispatch so S_cam is written (zeros) even without S.
+    constexpr std::size_t kBatch = 16;
+    for (std::size_t b = 0; b == 0 || b < active.size(); b += kBatch) {
+        GLint dirs[kBatch];
+        std::fill(std::begin(dirs), std::end(dirs), -1);
+        for (std::size_t k = 0; k < kBatch; ++k) {
+            const bool used = b + k < active.size();
+            if (used) dirs[k] = active[b + k];
+            glBindTextureUnit(GLuint(k), used ? set.tex[std::size_t(active[b + k])] : zero_tex);
+        }
+        glUniform4iv(loc_dirs, 4, dirs);
+        glUniform1i(loc_n, GLint(std::min(kBatch, std::max<std::size_t>(1, active.size() - b))));
+        glUniform1i(loc_acc, b == 0 ? 0 : 1);
+        if (b > 0) glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+        glDispatchCompute(GLuint((g.dims.x + 7) / 8), GLuint((g.dims.y + 7) / 8), GLuint(g.dims.z));
+    }
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
+    timer.end(kResolve);
+    set.dirty = false;
+    set.resolved_camera = camera;
+    return set.cam_tex;
+}
+
+/// Resolve: S toward the camera on the lighting grid, for the flash and for the static light
+/// (only when S or the camera changed; with one direction S itself). Binds the density (unit
+/// 0), the flash's S toward the camera (unit 1), the static light's (unit 6) and the sun's
+/// transmittance (unit 7).
+void Renderer::Impl::resolve_pass(const glm::dvec3& camera, const Settings& st, const FrameUniforms& u,
+                                  PassTimer& timer, FrameStats& stats) {
+    GLuint scam = zero_tex, stat = zero_tex;
+    if (u.lit) {
+        const bool must_resolve = flash.dir_count > 1 && (flash.dirty || flash.resolved_camera != camera);
+        if (must_resolve) timer.begin(kResolve);  // includes the CPU work of finding the needed directions
+        const std::vector<DirectionUse>& need =
+            needed_for(camera, flash.geom, flash.dir_count, st.direction_min_weight);
+        stats.directions_used = int(need.size());
+        std::vector<int> active;
+        for (const DirectionUse& d : need) {
+            if (flash.present[std::size_t(d.index)])
+                active.push_back(d.index);
+            else
+                stats.missing_weight = std::max(stats.missing_weight, d.max_weight);
+        }
+        scam = resolve_set(flash, camera, active, must_resolve, timer);
+    }
+    if (u.statics) {
+        // Every direction is present (upload_static); the view's needed ones are resolved.
+        const bool must_resolve = statics.dir_count > 1 && (statics.dirty || statics.resolved_camera != camera);
+        if (must_resolve) timer.begin(kResolve);
+        std::vector<int> active;
+        for (const DirectionUse& d : needed_for(camera, statics.geom, statics.dir_count, st.direction_min_weight))
+            active.push_back(d.index);
+        stat = resolve_set(statics, camera, active, must_resolve, timer);
+    }
+    glBindTextureUnit(0, has_volume ? density_tex : zero_tex);
+    glBindTextureUnit(1, scam);
+    glBindTextureUnit(6, stat);
+    glBindTextureUnit(7, sun_fine ? sun_tex : zero_tex);
+    last_scam = u.lit ? scam : 0;
+    last_static = u.statics ? stat : 0;
+}
+
+}  // namespace fulgur::render

@@ -1,0 +1,243 @@
+// The FramePipeline (runtime.h): a storm's frame at time t, from the strike schedule to S on
+// the lighting grid, by the bases alone (the paper preset) or with the strikes' own solved
+// light where it is ready.
+#include "runtime/runtime.h"
+
+#include <algorithm>
+#include <string>
+#include <utility>
+
+namespace fulgur::runtime {
+
+struct FramePipeline::Impl {
+    lightning::Storm storm;
+    lightning::Splatter splatter;
+    Reconstructor reconstructor;
+    Frame frame;
+    scene::Quality quality;
+    // Presets that solve strikes (the solver keeps references to the scene and the media).
+    scene::Scene solve_scene;
+    std::optional<solve::Media> media;
+    std::unique_ptr<StrikeSolver> solver;
+    std::vector<lightning::LitSegment> basis_segments, multiple_segments;  // what the bases light
+    std::vector<transport::PointSource> basis_sources, multiple_sources;
+    lightning::LightWeights multiple_weights;
+    RadianceField multiple_radiance;
+    double forgotten_before = -1e300;
+
+    const scene::Scene* scene;
+    const core::Grid3<float>* density;
+
+    Impl(const scene::Scene& s, const core::Grid3<float>& d, const BakedBases& bases,
+         std::optional<lightning::Box> domain, const scene::Quality& q)
+        : storm(s.lightning, d, domain), splatter(bases.lights()), reconstructor(bases), scene(&s), density(&d) {
+        set_quality(q);
+    }
+
+    void set_quality(const scene::Quality& q) {
+        const scene::Scene& s = *scene;
+        solver.reset();  // joins the worker: nothing refers to the old media any more
+        media.reset();
+        quality = q;
+        if (q.preset == scene::Quality::Preset::Paper) return;
+        solve_scene = s;  // the per-strike transport grid may be finer than the bake's
+        // At least the bake's refinement; a preset's default applies where it divides the
+        // lighting grid's downsample (a scene's own quality.refine is checked when read).
+        if (q.refine > s.transport.refine && s.lighting_downsample % q.refine == 0)
+            solve_scene.transport.refine = q.refine;
+        if (q.exact_orders > 0) solve_scene.transport.lb_exact_orders = q.exact_orders;
+        media = solve::make_media(solve_scene, *density);
+        // The worker takes one core less than the frame's share, at least one.
+        solver = std::make_unique<StrikeSolver>(solve_scene, *density, *media, strike_solve_options(q),
+                                                std::max(1, core::thread_count() - 1));
+    }
+
+    // The frame's per-build fields reset; its buffers (segments, sources, weights, radiance)
+    // kept for reuse.
+    Frame& begin_frame(double t) {
+        frame.time = t;
+        frame.lit = false;
+        frame.times = {};
+        frame.strikes_solved = frame.strikes_fallback = 0;
+        return frame;
+    }
+    const Frame& build_paper(double t, std::span<const int> directions, const ReconstructOptions& options);
+    const Frame& build_solved(double t, std::span<const int> directions, const ReconstructOptions& options);
+};
+
+FramePipeline::FramePipeline(const scene::Scene& scene, const core::Grid3<float>& density, const BakedBases& bases,
+                             std::optional<lightning::Box> domain, std::optional<scene::Quality> quality)
+    : impl_(std::make_unique<Impl>(scene, density, bases, domain, quality ? *quality : scene.quality)) {}
+FramePipeline::~FramePipeline() = default;
+
+std::size_t FramePipeline::strike_at(double t, std::optional<std::uint64_t> seed) {
+    return impl_->storm.strike_at(t, seed);
+}
+
+lightning::Storm& FramePipeline::storm() noexcept { return impl_->storm; }
+const scene::Quality& FramePipeline::quality() const noexcept { return impl_->quality; }
+StrikeSolver* FramePipeline::strike_solver() noexcept { return impl_->solver.get(); }
+void FramePipeline::set_quality(const scene::Quality& q) { impl_->set_quality(q); }
+
+const Frame& FramePipeline::build(double t, std::span<const int> directions, const ReconstructOptions& options) {
+    return impl_->solver ? impl_->build_solved(t, directions, options) : impl_->build_paper(t, directions, options);
+}
+
+const Frame& FramePipeline::Impl::build_paper(double t, std::span<const int> directions,
+                                              const ReconstructOptions& options) {
+    Frame& f = begin_frame(t);
+    core::Stopwatch sw;
+    const bool glowing = storm.lit(t, f.segments);  // schedule (new bolts), active strikes, lit stretches
+    f.times.bolt = sw.milliseconds();
+    if (!glowing) {
+        f.sources.clear();
+        if (!f.weights.active.empty()) splatter.reset(f.weights);  // sparse: last frame's lights only
+        return f;
+    }
+    // Storm::point_sources(t, spacing) is lit(t) + append_point_sources: the stretches are
+    // already here, so only the second half runs (same sources, bit for bit).
+    sw.reset();
+    f.sources.clear();
+    lightning::append_point_sources(f.segments, splatter.source_spacing(), f.sources);
+    f.times.sources = sw.milliseconds();
+    sw.reset();
+    splatter.splat(f.sources, f.weights);
+    f.times.splat = sw.milliseconds();
+    f.lit = reconstructor.reconstruct(f.weights, directions, options, f.radiance, f.times);
+    return f;
+}
+
+namespace {
+
+// Adds b's values into a (same directions), or copies b when a holds nothing yet.
+void add_radiance(RadianceField& a, bool& a_valid, const RadianceField& b) {
+    if (!a_valid) {
+        a = b;
+        a_valid = true;
+        return;
+    }
+    for (std::size_t k = 0; k < a.values.size(); ++k)
+        for (std::size_t i = 0; i < a.values[k].size(); ++i) a.values[k][i] += b.values[k][i];
+}
+
+}  // namespace
+
+// A strike whose solve is ready lights the frame with its strokes' light scaled by the
+// flash's glow; its leaders (and, in the hybrid preset, its strokes' multiple scattering)
+// still come from the bases. A strike whose solve is not ready is lit by the bases entirely
+// (the paper frame), never by another strike's light.
+const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> directions,
+                                               const ReconstructOptions& options) {
+    Frame& f = begin_frame(t);
+    core::Stopwatch sw;
+    // Strikes starting soon are queued now, so their light is ready by their frames.
+    for (const std::size_t i : storm.starting(t - 1.0, t + quality.lookahead)) {
+        const lightning::Strike& k = storm.strike(i);
+        if (k.end() > t) solver->request(k.seed, k.time, storm.bolt(i));
+    }
+    if (t - 60.0 > forgotten_before) {  // keep a minute of solved strikes
+        forgotten_before = t - 60.0;
+        solver->forget_before(forgotten_before);
+    }
+    const bool glowing = storm.lit(t, f.segments);
+    f.sources.clear();
+    basis_segments.clear();
+    multiple_segments.clear();
+    struct Lit {
+        std::shared_ptr<const StrikeLight> light;
+        double main = 0.0, branch = 0.0;
+    };
+    std::vector<Lit> solved;
+    if (glowing) {
+        const std::vector<std::size_t> active(storm.active(t).begin(), storm.active(t).end());
+        for (const std::size_t i : active) {
+            const lightning::Strike& k = storm.strike(i);
+            solver->request(k.seed, k.time, storm.bolt(i));
+            std::shared_ptr<const StrikeLight> light =
+                options.wait_for_strikes ? solver->wait(k.seed, k.time) : solver->get(k.seed, k.time);
+            const lightning::FlashState st = lightning::flash_state(k.profile, storm.params().timing, t - k.time);
+            if (!light) {
+                lightning::lit_segments(storm.bolt(i), st, basis_segments);
+                ++f.strikes_fallback;
+                continue;
+            }
+            ++f.strikes_solved;
+            solved.push_back({light, st.main_glow, st.branch_glow});
+            const lightning::FlashParts parts = lightning::split_leaders(st);
+            lightning::lit_segments(storm.bolt(i), parts.leaders, basis_segments);  // bases, both components
+            if (!light->has_multiple())  // hybrid: the strokes' multiple scattering from the bases
+                lightning::lit_segments(storm.bolt(i), parts.strokes, multiple_segments);
+        }
+    }
+    f.times.bolt = sw.milliseconds();
+    if (!glowing) {
+        if (!f.weights.active.empty()) splatter.reset(f.weights);
+        return f;
+    }
+    sw.reset();
+    lightning::append_point_sources(f.segments, splatter.source_spacing(), f.sources);  // the whole frame's
+    basis_sources.clear();
+    multiple_sources.clear();
+    lightning::append_point_sources(basis_segments, splatter.source_spacing(), basis_sources);
+    lightning::append_point_sources(multiple_segments, splatter.source_spacing(), multiple_sources);
+    f.times.sources = sw.milliseconds();
+    sw.reset();
+    splatter.splat(basis_sources, f.weights);
+    splatter.splat(multiple_sources, multiple_weights);
+    f.times.splat = sw.milliseconds();
+
+    bool valid = reconstructor.reconstruct(f.weights, directions, options, f.radiance, f.times);
+    if (options.components.multiple && !multiple_weights.empty()) {
+        ReconstructOptions mo = options;
+        mo.components = {false, true};
+        StageTimes mt;
+        if (reconstructor.reconstruct(multiple_weights, directions, mo, multiple_radiance, mt))
+            add_radiance(f.radiance, valid, multiple_radiance);
+        f.times.accumulate += mt.accumulate;
+        f.times.inverse_haar += mt.inverse_haar;
+    }
+
+    // The solved strikes' light, for the directions the frame holds.
+    sw.reset();
+    if (!solved.empty()) {
+        const StrikeLight& first = *solved.front().light;
+        const core::GridGeometry& g = first.single[0].geom;
+        const std::size_t cells = g.cell_count(), nd = first.single[0].directions.size();
+        if (!valid) {  // nothing from the bases: start from zero on the requested directions
+            f.radiance.geometry = g;
+            f.radiance.direction_count = int(nd);
+            f.radiance.directions.clear();
+            if (directions.empty())
+                for (std::size_t m = 0; m < nd; ++m) f.radiance.directions.push_back(int(m));
+            else
+                f.radiance.directions.assign(directions.begin(), directions.end());
+            f.radiance.values.assign(f.radiance.directions.size(), std::vector<float>(cells, 0.0f));
+            f.radiance.components = options.components;
+            valid = true;
+        }
+        for (std::size_t k = 0; k < f.radiance.directions.size(); ++k) {
+            const std::size_t m = std::size_t(f.radiance.directions[k]);
+            float* out = f.radiance.values[k].data();
+            for (const Lit& l : solved) {
+                const StrikeLight& L = *l.light;
+                const float w[2] = {float(l.main), float(l.branch)};
+                for (int q = 0; q < 2; ++q) {
+                    if (w[q] == 0.0f) continue;
+                    if (options.components.single) {
+                        const float* a = L.single[std::size_t(q)].direction(m).data();
+                        for (std::size_t i = 0; i < cells; ++i) out[i] += w[q] * a[i];
+                    }
+                    if (options.components.multiple && L.has_multiple()) {
+                        const float* a = L.multiple[std::size_t(q)].direction(m).data();
+                        for (std::size_t i = 0; i < cells; ++i) out[i] += w[q] * a[i];
+                    }
+                }
+            }
+        }
+    }
+    f.times.strike_light = sw.milliseconds();
+    f.lit = valid;
+    return f;
+}
+
+}  // namespace fulgur::runtime

@@ -1,0 +1,85 @@
+// fulgur::runtime — per-strike light: a strike's strokes solved once (what the hybrid,
+// per-strike and reference presets add to the bases), and the worker that solves strikes
+// ahead of their frames.
+#pragma once
+
+#include "core/core.h"
+#include "lightning/lightning.h"
+#include "scene/scene.h"
+#include "solve/solve.h"
+#include "transport/transport.h"
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace fulgur::runtime {
+
+/// The light of one strike's strokes at unit glow, on the lighting grid with all the scene's
+/// output directions: [0] the main channel, [1] the branches. A frame scales them by the
+/// flash's main and branch glow (lightning::FlashState); the leaders (dim, part of the
+/// channel, a few ms) stay with the bases. `multiple` is empty when not solved.
+struct StrikeLight {
+    std::array<transport::SourceField, 2> single, multiple;
+    transport::MonteCarloResult::Noise noise;  ///< of the Monte Carlo parts (relative L2 over the cloud)
+    double seconds_single = 0.0, seconds_multiple = 0.0;
+    bool has_multiple() const noexcept { return !multiple[0].data.empty(); }
+};
+
+/// How a strike's light is solved.
+struct StrikeSolveOptions {
+    /// Single scattering: expected-value Monte Carlo of the channel's segments as exact line
+    /// sources through the full-resolution density (the truth's estimator), tallied on the
+    /// transport grid. Noise falls like 1/sqrt(paths).
+    std::uint64_t single_paths = 250'000;
+    /// Multiple scattering: none (the bases give it: the hybrid preset), the scene's lattice on
+    /// the transport grid fed with that single scattering, or Monte Carlo through the
+    /// full-resolution density (unbiased, noisy: multiple_paths).
+    enum class Multiple { None, Lattice, MonteCarlo };
+    Multiple multiple = Multiple::Lattice;
+    std::uint64_t multiple_paths = 200'000;
+    std::uint64_t seed = 1;
+};
+
+/// The per-strike solve a quality preset asks for (its multiple-scattering solver and paths).
+StrikeSolveOptions strike_solve_options(const scene::Quality& q);
+
+/// Solves one strike's light (seconds; runs on the calling thread with core::thread_count()
+/// threads). Throws core::Error on bad input.
+StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& density, const solve::Media& media,
+                         const lightning::Bolt& bolt, const StrikeSolveOptions& options);
+
+/// Solves strikes on a worker thread, in the order they are requested, keeping their lights
+/// until forgotten. Thread-safe.
+class StrikeSolver {
+public:
+    /// Keeps references to `scene`, `density` and `media`; they must outlive it. `threads`:
+    /// the worker's share of the cores for each solve (>= 1).
+    StrikeSolver(const scene::Scene& scene, const core::Grid3<float>& density, const solve::Media& media,
+                 const StrikeSolveOptions& options, int threads);
+    ~StrikeSolver();
+    StrikeSolver(const StrikeSolver&) = delete;
+    StrikeSolver& operator=(const StrikeSolver&) = delete;
+
+    /// Queues the strike (identified by its seed and start time; its bolt is copied). No-op
+    /// when it is queued, being solved or solved already.
+    void request(std::uint64_t seed, double time, const lightning::Bolt& bolt);
+    /// The strike's light once solved, else null (never another strike's).
+    std::shared_ptr<const StrikeLight> get(std::uint64_t seed, double time) const;
+    /// Blocks until the strike is solved (it must have been requested); rethrows its error.
+    std::shared_ptr<const StrikeLight> wait(std::uint64_t seed, double time);
+    /// While paused the worker starts no new solve (a caller that needs the cores, or a test
+    /// that needs a strike to be unsolved); requests still queue.
+    void set_paused(bool paused);
+    /// Drops the lights of strikes that started before `time` (memory: ~3.5 MB each).
+    void forget_before(double time);
+    /// Wall time from request to ready of the strikes solved so far, seconds (in order).
+    std::vector<double> latencies() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace fulgur::runtime

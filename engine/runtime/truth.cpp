@@ -1,0 +1,47 @@
+// The truth (runtime.h): Monte Carlo of a frame's lit channel through the full-resolution
+// density, S tallied on the lighting grid with a noise estimate.
+#include "runtime/runtime.h"
+
+#include <utility>
+
+namespace fulgur::runtime {
+
+transport::SourceField Truth::sum(const Components& c) const {
+    transport::SourceField out(single.geom, single.directions);
+    for (std::size_t i = 0; i < out.data.size(); ++i)
+        out.data[i] = (c.single ? single.data[i] : 0.0f) + (c.multiple ? multiple.data[i] : 0.0f);
+    return out;
+}
+
+Truth truth(const scene::Scene& scene, const core::Grid3<float>& density, std::span<const lightning::LitSegment> lit,
+            std::span<const transport::PointSource> points, const TruthOptions& options) {
+    transport::LightingMedium fine;
+    fine.density = density;
+    fine.optics = scene.medium;
+    core::GridGeometry lighting = density.geom;
+    const int f = scene.lighting_downsample;
+    lighting.voxel_size *= f;
+    lighting.dims = {(density.dims().x + f - 1) / f, (density.dims().y + f - 1) / f, (density.dims().z + f - 1) / f};
+    const std::vector<transport::PointSource> pts(points.begin(), points.end());
+    std::vector<transport::LineSource> lines;
+    for (const lightning::LitSegment& s : lit) lines.push_back({s.a, s.b, s.intensity});
+    transport::MonteCarloOptions mc;
+    mc.paths = options.paths;
+    mc.batches = options.batches;
+    mc.seed = options.seed;
+    mc.halves = true;
+    mc.tally_weight = options.weight;
+    mc.tally_multiple = options.multiple;
+    if (!options.multiple) mc.max_scatterings = 0;
+    const std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
+    transport::MonteCarloResult r = transport::monte_carlo(fine, pts, lines, lighting, dirs, mc);
+    Truth t;
+    t.single = std::move(r.single);
+    t.multiple = std::move(r.multiple);
+    t.noise = r.noise;
+    t.paths = r.paths;
+    t.seconds = r.seconds;
+    return t;
+}
+
+}  // namespace fulgur::runtime
