@@ -9,7 +9,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     try {
         fulgur::basis::FgbReader r(std::vector<std::uint8_t>(data, data + size), "fuzz.fgb");
         (void)fulgur::basis::load_fgb(r, {});
-    } catch (const fulgur::core::Error&) {
-    }
+    } catch (const fulgur::core::Error&) {}
     return 0;
 }

@@ -16,7 +16,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (fd < 0 || ::ftruncate(fd, 0) != 0 || ::pwrite(fd, data, size, 0) != ssize_t(size)) std::abort();
     try {
         (void)fulgur::core::read_nrrd(path);
-    } catch (const fulgur::core::Error&) {
-    }
+    } catch (const fulgur::core::Error&) {}
     return 0;
 }

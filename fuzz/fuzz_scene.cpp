@@ -9,7 +9,6 @@
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
     try {
         (void)fulgur::scene::parse_scene(std::string_view(reinterpret_cast<const char*>(data), size), "fuzz.json");
-    } catch (const fulgur::core::Error&) {
-    }
+    } catch (const fulgur::core::Error&) {}
     return 0;
 }

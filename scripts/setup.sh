@@ -22,6 +22,7 @@ PACKAGES=(
   libboost-iostreams-dev                         # (asked for by libopenvdb-dev's FindOpenVDB.cmake)
   python3-openvdb                                # writes the VDB test files and content/clouds (scripts/make_vdb_cloud.py)
   clang libclang-rt-14-dev                       # libFuzzer harnesses (fuzz preset, fuzz/)
+  clang-format                                   # the formatting check (scripts/check_format.sh)
   libopenmpi-dev openmpi-bin                     # the bake over several processes (MPI; docs/distributed.md)
 )
 

@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
-# Sets up (Debian packages), builds and runs every test: the full suite in the optimized
-# build, then the `asan`-labelled tests (parsers, file loaders, corruption fuzzing) under
-# AddressSanitizer + UndefinedBehaviorSanitizer, then short libFuzzer runs (label fuzz).
+# Sets up (Debian packages), checks the formatting, builds and runs every test: the full
+# suite in the optimized build, then the `asan`-labelled tests (parsers, file loaders,
+# corruption fuzzing) under AddressSanitizer + UndefinedBehaviorSanitizer, then short
+# libFuzzer runs (label fuzz).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/setup.sh
+# Formatting first: a deviation fails in seconds, before the build.
+./scripts/check_format.sh
 jobs=$(nproc)
 
 cmake --preset release

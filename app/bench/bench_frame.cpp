@@ -66,73 +66,107 @@ struct Case {
     bench::PaperConfig config;
 };
 
-void run_config(const bench::Context& ctx, Case& c, const lightning::LightningParams& storm_lightning, double bw) {
+// A configuration baked into a temporary file and loaded back, with what the bake cost.
+struct Baked {
+    bake::Report report;
+    runtime::BakedBases bases;
+    double bake_s = 0.0, load_s = 0.0, file_mb = 0.0;
+};
+
+Baked bake_and_load(const bench::Context& ctx, Case& c) {
     const std::filesystem::path fgb = std::filesystem::temp_directory_path() / "fulgur_bench_frame.fgb";
     c.config.plan.threads = ctx.max_threads;
     core::Stopwatch bake_sw;
-    const bake::Report rep = bake::bake(c.config.scene, c.config.density, c.config.plan, fgb);
+    bake::Report rep = bake::bake(c.config.scene, c.config.density, c.config.plan, fgb);
     const double bake_s = bake_sw.seconds();
     core::Stopwatch load_sw;
-    const runtime::BakedBases bases = runtime::BakedBases::load(fgb);
+    runtime::BakedBases bases = runtime::BakedBases::load(fgb);
     const double load_s = load_sw.seconds();
     const double file_mb = double(std::filesystem::file_size(fgb)) / 1e6;
     std::filesystem::remove(fgb);
+    return {std::move(rep), std::move(bases), bake_s, load_s, file_mb};
+}
 
-    scene::Scene s = c.config.scene;
-    s.lightning = storm_lightning;
-    s.lightning.schedule.strike_rate = 0.0;  // strikes on demand, one per seed
-    const core::GridGeometry& g = c.config.density.geom;
-    const lightning::Box domain{glm::dvec3(g.origin.x, g.origin.y, s.lightning.bolt.ground_height), g.upper()};
-    const solve::Media media = solve::make_media(s, c.config.density);
+// What every step of a configuration's run shares: the layer's scene with the storm's
+// lightning (strikes on demand), the bolts' domain, the direction sets and the strike plan.
+struct Run {
+    const bench::Context& ctx;
+    const Case& c;
+    const runtime::BakedBases& bases;
+    scene::Scene s;
+    lightning::Box domain;
+    solve::Media media;
+    int seeds = 0;
+    int per_flash = 0;                // frame times spread over each flash
+    double spacing = 10.0;            // s between strikes: flashes never overlap
+    std::vector<int> all_dirs, side;  // all_dirs is empty: every baked direction
 
-    const int seeds = ctx.quick ? 4 : 24;
-    const int per_flash = ctx.quick ? 8 : 24;  // frame times spread over each flash
-    const double spacing = 10.0;               // s between strikes: flashes never overlap
-    const std::vector<int> all_dirs, side = side_view_directions(bases.directions());
+    Run(const bench::Context& context, const Case& cs, const runtime::BakedBases& b,
+        const lightning::LightningParams& storm_lightning)
+        : ctx(context), c(cs), bases(b), s(cs.config.scene) {
+        s.lightning = storm_lightning;
+        s.lightning.schedule.strike_rate = 0.0;  // strikes on demand, one per seed
+        const core::GridGeometry& g = c.config.density.geom;
+        domain = lightning::Box{glm::dvec3(g.origin.x, g.origin.y, s.lightning.bolt.ground_height), g.upper()};
+        media = solve::make_media(s, c.config.density);
+        seeds = ctx.quick ? 4 : 24;
+        per_flash = ctx.quick ? 8 : 24;
+        side = side_view_directions(bases.directions());
+    }
+    runtime::FramePipeline pipeline() const { return runtime::FramePipeline(s, c.config.density, bases, domain); }
+};
 
-    // Bolt generation, once per strike (20-60 us on the default storm; amortized over frames).
+// Bolt generation, once per strike (20-60 us on the default storm; amortized over frames).
+std::vector<double> bolt_generation_ms(const Run& r) {
     std::vector<double> gen_ms;
-    {
-        core::set_thread_count(1);
-        runtime::FramePipeline p(s, c.config.density, bases, domain);
-        for (int k = 0; k < seeds; ++k) {
-            core::Stopwatch sw;
-            (void)p.storm().generator().generate(std::uint64_t(1000 + k));
-            gen_ms.push_back(sw.milliseconds());
-        }
+    core::set_thread_count(1);
+    runtime::FramePipeline p = r.pipeline();
+    for (int k = 0; k < r.seeds; ++k) {
+        core::Stopwatch sw;
+        (void)p.storm().generator().generate(std::uint64_t(1000 + k));
+        gen_ms.push_back(sw.milliseconds());
     }
+    return gen_ms;
+}
 
-    // A dark frame (between flashes): the whole build() call, wall time.
+// A dark frame (between flashes): the whole build() call, wall time.
+std::vector<double> dark_frame_us(const Run& r) {
     std::vector<double> dark_us;
-    {
-        core::set_thread_count(1);
-        runtime::FramePipeline p(s, c.config.density, bases, domain);
-        for (int k = 0; k < seeds; ++k) p.strike_at(spacing * k, std::uint64_t(1000 + k));
-        for (int k = 0; k < seeds; ++k)
-            for (int j = 0; j < 50; ++j) {
-                core::Stopwatch sw;
-                const runtime::Frame& f = p.build(spacing * k + 5.0 + 0.01 * j, all_dirs);
-                dark_us.push_back(sw.seconds() * 1e6);
-                if (f.lit) dark_us.pop_back();  // not dark after all (never with 10 s between strikes)
-            }
-    }
+    core::set_thread_count(1);
+    runtime::FramePipeline p = r.pipeline();
+    for (int k = 0; k < r.seeds; ++k) p.strike_at(r.spacing * k, std::uint64_t(1000 + k));
+    for (int k = 0; k < r.seeds; ++k)
+        for (int j = 0; j < 50; ++j) {
+            core::Stopwatch sw;
+            const runtime::Frame& f = p.build(r.spacing * k + 5.0 + 0.01 * j, r.all_dirs);
+            dark_us.push_back(sw.seconds() * 1e6);
+            if (f.lit) dark_us.pop_back();  // not dark after all (never with 10 s between strikes)
+        }
+    return dark_us;
+}
 
-    nlohmann::json base = {{"config", c.label},
-                           {"lighting_grid", {g.dims.x, g.dims.y, g.dims.z}},
-                           {"virtual_lights", bases.lights().count()},
-                           {"lights_dropped", rep.lights_dropped},
-                           {"baked_directions", bases.directions().size()},
-                           {"coefficients", bases.coefficient_count()},
-                           {"bases_MB", double(bases.memory_bytes()) / 1e6},
-                           {"bake_seconds", bake_s},
-                           {"file_MB", file_mb},
-                           {"load_seconds", load_s},
-                           {"bolt_generation_ms_per_strike", bench::median(gen_ms)},
-                           {"dark_frame_us", bench::median(dark_us)},
-                           {"baseline_triad_GBps", bw}};
+// The fields every JSON line of the configuration repeats.
+nlohmann::json base_fields(const Run& r, const Baked& baked, double bw) {
+    const core::GridGeometry& g = r.c.config.density.geom;
+    const runtime::BakedBases& bases = baked.bases;
+    return {{"config", r.c.label},
+            {"lighting_grid", {g.dims.x, g.dims.y, g.dims.z}},
+            {"virtual_lights", bases.lights().count()},
+            {"lights_dropped", baked.report.lights_dropped},
+            {"baked_directions", bases.directions().size()},
+            {"coefficients", bases.coefficient_count()},
+            {"bases_MB", double(bases.memory_bytes()) / 1e6},
+            {"bake_seconds", baked.bake_s},
+            {"file_MB", baked.file_mb},
+            {"load_seconds", baked.load_s},
+            {"bolt_generation_ms_per_strike", bench::median(bolt_generation_ms(r))},
+            {"dark_frame_us", bench::median(dark_frame_us(r))},
+            {"baseline_triad_GBps", bw}};
+}
 
-    // Frame stage times, per thread count and direction set. Two threads twice: forced
-    // (every frame split over the threads) and with the default work threshold.
+// Frame stage times, per thread count and direction set. Two threads twice: forced (every
+// frame split over the threads) and with the default work threshold.
+void stage_times(const Run& r, const nlohmann::json& base) {
     struct Mode {
         int threads;
         std::size_t min_work;
@@ -140,25 +174,25 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
     const std::size_t default_min_work = runtime::ReconstructOptions{}.parallel_min_work;
     for (const Mode mode : {Mode{1, 0}, Mode{2, 0}, Mode{2, default_min_work}}) {
         const int threads = mode.threads;
-        if (threads > ctx.max_threads) continue;
+        if (threads > r.ctx.max_threads) continue;
         core::set_thread_count(threads);
         runtime::ReconstructOptions ro;
         ro.parallel_min_work = mode.min_work;
         for (const bool subset : {false, true}) {
-            runtime::FramePipeline p(s, c.config.density, bases, domain);
+            runtime::FramePipeline p = r.pipeline();
             std::vector<double> times;
-            for (int k = 0; k < seeds; ++k) {
-                const std::size_t i = p.strike_at(spacing * k, std::uint64_t(1000 + k));
+            for (int k = 0; k < r.seeds; ++k) {
+                const std::size_t i = p.strike_at(r.spacing * k, std::uint64_t(1000 + k));
                 const double d = p.storm().strike(i).profile.duration;
-                for (int j = 0; j < per_flash; ++j) times.push_back(spacing * k + d * (j + 0.5) / per_flash);
+                for (int j = 0; j < r.per_flash; ++j) times.push_back(r.spacing * k + d * (j + 0.5) / r.per_flash);
             }
             std::vector<double> bolt, src, splat, acc, inv, total, nsrc, nact;
-            const std::span<const int> dirs = subset ? std::span<const int>(side) : std::span<const int>(all_dirs);
-            for (int rep_i = 0; rep_i < (ctx.quick ? 1 : 2); ++rep_i) {
+            const std::span<const int> dirs = subset ? std::span<const int>(r.side) : std::span<const int>(r.all_dirs);
+            for (int rep_i = 0; rep_i < (r.ctx.quick ? 1 : 2); ++rep_i) {
                 // Repeat pass: the bolts were dropped after their flash; rebuild the pipeline
                 // so no regeneration lands in the timed frames.
-                runtime::FramePipeline q(s, c.config.density, bases, domain);
-                for (int k = 0; k < seeds; ++k) q.strike_at(spacing * k, std::uint64_t(1000 + k));
+                runtime::FramePipeline q = r.pipeline();
+                for (int k = 0; k < r.seeds; ++k) q.strike_at(r.spacing * k, std::uint64_t(1000 + k));
                 for (const double t : times) {
                     const runtime::Frame& f = q.build(t, dirs, ro);
                     if (!f.lit) continue;
@@ -175,8 +209,8 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
             nlohmann::json j = base;
             j["threads"] = threads;
             if (threads > 1) j["parallel_min_work"] = mode.min_work;
-            j["directions"] = subset ? int(side.size()) : int(bases.directions().size());
-            if (subset) j["direction_indices"] = side;
+            j["directions"] = subset ? int(r.side.size()) : int(r.bases.directions().size());
+            if (subset) j["direction_indices"] = r.side;
             j["lit_frames"] = total.size();
             j["median_ms"] = {{"bolt", bench::median(bolt)},        {"sources", bench::median(src)},
                               {"splat", bench::median(splat)},      {"accumulate", bench::median(acc)},
@@ -186,102 +220,104 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
             j["median_active_lights"] = bench::median(nact);
             j["paper_seconds"] = 0.06;
             j["paper_machine"] = "Pentium 4 3.5 GHz, all 26 directions (Dobashi 2007, Table 2)";
-            j["target_ms_one_core"] = c.label.rfind("paper", 0) == 0 ? 1.0 : 10.0;
-            ctx.emit("frame", j);
+            j["target_ms_one_core"] = r.c.label.rfind("paper", 0) == 0 ? 1.0 : 10.0;
+            r.ctx.emit("frame", j);
         }
     }
+}
 
-    // Worst case: every virtual light active (10,000 sources spread over the light grid's
-    // box: many simultaneous strikes). The paper's cost argument: the frame's cost is bounded
-    // by the number of lights, not of strokes.
-    {
-        const basis::VirtualLightGrid& v = bases.lights();
-        const glm::dvec3 lo(v.x.front(), v.y.front(), v.z.front()), hi(v.x.back(), v.y.back(), v.z.back());
-        core::Rng rng(5, 9);
-        std::vector<transport::PointSource> q;
-        for (int i = 0; i < 10000; ++i)
-            q.push_back({lo + (hi - lo) * glm::dvec3(rng.uniform(), rng.uniform(), rng.uniform()), 1e5});
-        const lightning::Splatter sp(v);
-        lightning::LightWeights w;
-        for (const int threads : {1, 2}) {
-            if (threads > ctx.max_threads) continue;
-            core::set_thread_count(threads);
-            runtime::Reconstructor rec(bases);
-            for (const bool subset : {false, true}) {
-                std::vector<double> sp_ms, acc, inv;
-                runtime::RadianceField out;
-                for (int r = 0; r < (ctx.quick ? 3 : 9); ++r) {
-                    core::Stopwatch sw;
-                    sp.splat(q, w);
-                    sp_ms.push_back(sw.milliseconds());
-                    runtime::StageTimes st;
-                    rec.reconstruct(w, subset ? std::span<const int>(side) : std::span<const int>(all_dirs), {}, out,
-                                    st);
-                    acc.push_back(st.accumulate);
-                    inv.push_back(st.inverse_haar);
-                }
-                nlohmann::json j = base;
-                j["case"] = "every light active (10,000 sources)";
-                j["threads"] = threads;
-                j["directions"] = subset ? int(side.size()) : int(bases.directions().size());
-                j["active_lights"] = w.active.size();
-                j["median_ms"] = {{"splat", bench::median(sp_ms)},
-                                  {"accumulate", bench::median(acc)},
-                                  {"inverse_haar", bench::median(inv)}};
-                ctx.emit("frame", j);
-            }
-        }
-    }
-
-    // Each quality preset on the same strikes (return-stroke peak + 2 ms): the frame once the
-    // strike's own solve is ready (the preset's steady cost), the solve's latency, and the
-    // ratio of frame times to the paper preset's in this run.
-    {
-        const int strikes = ctx.quick ? 2 : 5;
-        double paper_ms = 0.0;
-        for (std::string_view name : scene::kInteractiveQualityPresets) {
-            core::set_thread_count(ctx.max_threads);
-            std::vector<double> frame_ms, solve_s;
-            for (int k = 0; k < strikes; ++k) {
-                runtime::FramePipeline p(s, c.config.density, bases, domain, scene::quality_preset(name));
-                const std::size_t i = p.strike_at(0.0, std::uint64_t(3000 + k));
-                const double t = p.storm().strike(i).profile.stroke_onset.at(0) + 0.002;
-                runtime::ReconstructOptions o;
-                o.wait_for_strikes = true;
-                (void)p.build(t, all_dirs, o);  // waits for the strike's solve
-                std::vector<double> b;
-                for (int r = 0; r < 6; ++r) b.push_back(p.build(t, all_dirs, o).times.total());
-                frame_ms.push_back(bench::median(b));
-                if (runtime::StrikeSolver* solver = p.strike_solver())
-                    for (const double l : solver->latencies()) solve_s.push_back(l);
-            }
-            const double ms = bench::median(frame_ms);
-            if (std::string_view(name) == "paper") paper_ms = ms;
-            nlohmann::json j = base;
-            j["threads"] = ctx.max_threads;
-            j["comparison"] = "quality preset, all directions, strike solved";
-            j["preset"] = name;
-            j["strikes"] = strikes;
-            j["frame_ms"] = ms;
-            j["ratio_to_paper"] = paper_ms > 0.0 ? ms / paper_ms : 0.0;
-            j["strike_solve_s"] = solve_s.empty() ? 0.0 : bench::median(solve_s);
-            ctx.emit("frame", j);
-        }
-    }
-
-    // Direct solve vs basis frame on the same frames (return-stroke peak + 2 ms).
-    const int direct_frames = ctx.quick ? 1 : 3;
+// Worst case: every virtual light active (10,000 sources spread over the light grid's box:
+// many simultaneous strikes). The paper's cost argument: the frame's cost is bounded by the
+// number of lights, not of strokes.
+void every_light_active(const Run& r, const nlohmann::json& base) {
+    const basis::VirtualLightGrid& v = r.bases.lights();
+    const glm::dvec3 lo(v.x.front(), v.y.front(), v.z.front()), hi(v.x.back(), v.y.back(), v.z.back());
+    core::Rng rng(5, 9);
+    std::vector<transport::PointSource> q;
+    for (int i = 0; i < 10000; ++i)
+        q.push_back({lo + (hi - lo) * glm::dvec3(rng.uniform(), rng.uniform(), rng.uniform()), 1e5});
+    const lightning::Splatter sp(v);
+    lightning::LightWeights w;
     for (const int threads : {1, 2}) {
-        if (threads > ctx.max_threads) continue;
+        if (threads > r.ctx.max_threads) continue;
+        core::set_thread_count(threads);
+        runtime::Reconstructor rec(r.bases);
+        for (const bool subset : {false, true}) {
+            std::vector<double> sp_ms, acc, inv;
+            runtime::RadianceField out;
+            for (int repeat = 0; repeat < (r.ctx.quick ? 3 : 9); ++repeat) {
+                core::Stopwatch sw;
+                sp.splat(q, w);
+                sp_ms.push_back(sw.milliseconds());
+                runtime::StageTimes st;
+                rec.reconstruct(w, subset ? std::span<const int>(r.side) : std::span<const int>(r.all_dirs), {}, out,
+                                st);
+                acc.push_back(st.accumulate);
+                inv.push_back(st.inverse_haar);
+            }
+            nlohmann::json j = base;
+            j["case"] = "every light active (10,000 sources)";
+            j["threads"] = threads;
+            j["directions"] = subset ? int(r.side.size()) : int(r.bases.directions().size());
+            j["active_lights"] = w.active.size();
+            j["median_ms"] = {{"splat", bench::median(sp_ms)},
+                              {"accumulate", bench::median(acc)},
+                              {"inverse_haar", bench::median(inv)}};
+            r.ctx.emit("frame", j);
+        }
+    }
+}
+
+// Each quality preset on the same strikes (return-stroke peak + 2 ms): the frame once the
+// strike's own solve is ready (the preset's steady cost), the solve's latency, and the ratio
+// of frame times to the paper preset's in this run.
+void quality_presets(const Run& r, const nlohmann::json& base) {
+    const int strikes = r.ctx.quick ? 2 : 5;
+    double paper_ms = 0.0;
+    for (std::string_view name : scene::kInteractiveQualityPresets) {
+        core::set_thread_count(r.ctx.max_threads);
+        std::vector<double> frame_ms, solve_s;
+        for (int k = 0; k < strikes; ++k) {
+            runtime::FramePipeline p(r.s, r.c.config.density, r.bases, r.domain, scene::quality_preset(name));
+            const std::size_t i = p.strike_at(0.0, std::uint64_t(3000 + k));
+            const double t = p.storm().strike(i).profile.stroke_onset.at(0) + 0.002;
+            runtime::ReconstructOptions o;
+            o.wait_for_strikes = true;
+            (void)p.build(t, r.all_dirs, o);  // waits for the strike's solve
+            std::vector<double> b;
+            for (int repeat = 0; repeat < 6; ++repeat) b.push_back(p.build(t, r.all_dirs, o).times.total());
+            frame_ms.push_back(bench::median(b));
+            if (runtime::StrikeSolver* solver = p.strike_solver())
+                for (const double l : solver->latencies()) solve_s.push_back(l);
+        }
+        const double ms = bench::median(frame_ms);
+        if (std::string_view(name) == "paper") paper_ms = ms;
+        nlohmann::json j = base;
+        j["threads"] = r.ctx.max_threads;
+        j["comparison"] = "quality preset, all directions, strike solved";
+        j["preset"] = name;
+        j["strikes"] = strikes;
+        j["frame_ms"] = ms;
+        j["ratio_to_paper"] = paper_ms > 0.0 ? ms / paper_ms : 0.0;
+        j["strike_solve_s"] = solve_s.empty() ? 0.0 : bench::median(solve_s);
+        r.ctx.emit("frame", j);
+    }
+}
+
+// Direct solve vs basis frame on the same frames (return-stroke peak + 2 ms).
+void direct_vs_basis(const Run& r, const nlohmann::json& base) {
+    const int direct_frames = r.ctx.quick ? 1 : 3;
+    for (const int threads : {1, 2}) {
+        if (threads > r.ctx.max_threads) continue;
         core::set_thread_count(threads);
         std::vector<double> direct_s, basis_ms, nsrc;
         for (int k = 0; k < direct_frames; ++k) {
-            runtime::FramePipeline p(s, c.config.density, bases, domain);
+            runtime::FramePipeline p = r.pipeline();
             const std::size_t i = p.strike_at(0.0, std::uint64_t(2000 + k));
             const double t = p.storm().strike(i).profile.stroke_onset.at(0) + 0.002;
             std::vector<double> b;
             std::vector<transport::PointSource> sources;
-            for (int r = 0; r < 5; ++r) {  // the first frame pays the bolt's first query
+            for (int repeat = 0; repeat < 5; ++repeat) {  // the first frame pays the bolt's first query
                 const runtime::Frame& f = p.build(t, {});
                 b.push_back(f.times.total());
                 sources = f.sources;
@@ -289,7 +325,7 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
             basis_ms.push_back(bench::median(b));
             nsrc.push_back(double(sources.size()));
             core::Stopwatch sw;
-            const transport::SourceField ref = runtime::direct_solve(s, media, sources);
+            const transport::SourceField ref = runtime::direct_solve(r.s, r.media, sources);
             direct_s.push_back(sw.seconds());
         }
         nlohmann::json j = base;
@@ -302,8 +338,19 @@ void run_config(const bench::Context& ctx, Case& c, const lightning::LightningPa
         j["speedup"] = bench::median(direct_s) * 1e3 / bench::median(basis_ms);
         j["paper_speedup"] = "30-60 (0.06 s vs 2.1-3.4 s)";
         j["target_speedup"] = 300;
-        ctx.emit("frame", j);
+        r.ctx.emit("frame", j);
     }
+}
+
+// One configuration: bake, then each measurement in turn, all on the same bases and strikes.
+void run_config(const bench::Context& ctx, Case& c, const lightning::LightningParams& storm_lightning, double bw) {
+    const Baked baked = bake_and_load(ctx, c);
+    const Run r(ctx, c, baked.bases, storm_lightning);
+    const nlohmann::json base = base_fields(r, baked, bw);
+    stage_times(r, base);
+    every_light_active(r, base);
+    quality_presets(r, base);
+    direct_vs_basis(r, base);
 }
 
 }  // namespace

@@ -21,7 +21,7 @@ struct DemoArgs {
     double time_scale = 0.25;           ///< storm seconds per wall-clock second
     bool dither = true;                 ///< --no-dither turns the 8-bit dither off
     std::optional<std::string> quality;  ///< --quality PRESET: paper, hybrid or per_strike (default: the scene's)
-    std::optional<double> time_of_day;  ///< --time-of-day H: the sun moved to solar time H at the start
+    std::optional<double> time_of_day;   ///< --time-of-day H: the sun moved to solar time H at the start
     bool help = false;
 };
 

@@ -512,9 +512,15 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
     {
         // The lattice's multiple scattering on the other grids and with the third mapping, by
         // their labels (the plot script draws every column).
-        std::vector<std::string> header = {"k",         "z_m",         "density",
-                                           "S1",        "mc_single",   "mc_multiple",
-                                           "mc_multiple_se", "lb_multiple_physical", "lb_multiple_conservative"};
+        std::vector<std::string> header = {"k",
+                                           "z_m",
+                                           "density",
+                                           "S1",
+                                           "mc_single",
+                                           "mc_multiple",
+                                           "mc_multiple_se",
+                                           "lb_multiple_physical",
+                                           "lb_multiple_conservative"};
         for (std::size_t q = 1; q < solves.size(); ++q)
             header.push_back("lb_multiple_physical_" + std::to_string(int(solves[q].geom.voxel_size)) + "m");
         header.push_back("lb_multiple_physical_" + runs[2].label.substr(9) + "_mapping");

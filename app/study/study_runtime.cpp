@@ -238,10 +238,10 @@ FULGUR_STUDY(runtime_accuracy, "runtime-accuracy",
         ctx.quick ? std::vector<double>{1500.0, 750.0} : std::vector<double>{3000.0, 1500.0, 750.0, 375.0};
     const std::vector<std::uint64_t> sweep_seeds =
         ctx.quick ? std::vector<std::uint64_t>{1} : std::vector<std::uint64_t>{1, 3};
-    study::Csv sweep(ctx.file("runtime_accuracy_spacing.csv"),
-                     {"seed", "h_usr", "virtual_lights", "active_lights", "sources", "splat_total", "splat_single",
-                      "splat_multiple", "sources_only_total", "V_solve_s", "bake_estimate_s", "file_estimate_MB",
-                      "scene_h_usr", "lighting_voxel_m"});
+    study::Csv sweep(
+        ctx.file("runtime_accuracy_spacing.csv"),
+        {"seed", "h_usr", "virtual_lights", "active_lights", "sources", "splat_total", "splat_single", "splat_multiple",
+         "sources_only_total", "V_solve_s", "bake_estimate_s", "file_estimate_MB", "scene_h_usr", "lighting_voxel_m"});
     // What each spacing costs to bake: the plan's estimate (16 sample lights solved and
     // encoded as the bake would, ~1-2 s each), so the sweep shows accuracy against cost.
     std::vector<std::pair<double, double>> bake_cost;  // (seconds, MB) per spacing

@@ -1,6 +1,7 @@
 #include "basis/basis.h"
 #include "basis/detail/haar_reference.h"
 #include "fields.h"
+#include "support/grids.h"
 #include "support/test_support.h"
 
 #include <doctest/doctest.h>
@@ -97,21 +98,16 @@ TEST_CASE("the 3D transform is the tensor product of the 1D transforms (standard
         std::vector<double> fast = f;
         HaarTransform<double>(n, Decomposition::Standard).forward(fast);
         double worst = 0.0;
-        for (int c = 0; c < n.z; ++c)
-            for (int b = 0; b < n.y; ++b)
-                for (int a = 0; a < n.x; ++a) {
-                    double s = 0.0;
-                    for (int k = 0; k < n.z; ++k)
-                        for (int j = 0; j < n.y; ++j)
-                            for (int i = 0; i < n.x; ++i)
-                                s += wx[std::size_t(a) * n.x + i] * wy[std::size_t(b) * n.y + j] *
-                                     wz[std::size_t(c) * n.z + k] *
-                                     f[std::size_t(i) + std::size_t(n.x) * (std::size_t(j) + std::size_t(n.y) * k)];
-                    worst = std::max(
-                        worst,
-                        std::fabs(s -
-                                  fast[std::size_t(a) + std::size_t(n.x) * (std::size_t(b) + std::size_t(n.y) * c)]));
-                }
+        test::for_each_cell(n, [&](int a, int b, int c) {
+            double s = 0.0;
+            test::for_each_cell(n, [&](int i, int j, int k) {
+                s += wx[std::size_t(a) * n.x + i] * wy[std::size_t(b) * n.y + j] * wz[std::size_t(c) * n.z + k] *
+                     f[std::size_t(i) + std::size_t(n.x) * (std::size_t(j) + std::size_t(n.y) * k)];
+            });
+            worst = std::max(
+                worst,
+                std::fabs(s - fast[std::size_t(a) + std::size_t(n.x) * (std::size_t(b) + std::size_t(n.y) * c)]));
+        });
         INFO(str(n));
         CHECK(worst < 1e-13);  // values O(1), sums of <= 120 products: rounding ~1e-15 each
     }

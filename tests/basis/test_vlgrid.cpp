@@ -1,4 +1,5 @@
 #include "basis/basis.h"
+#include "support/grids.h"
 #include "support/test_support.h"
 
 #include <doctest/doctest.h>
@@ -15,11 +16,7 @@ namespace {
 // An ellipsoidal cloud in a 40x40x30 grid of 100 m voxels, origin (-2000, -2000, 0):
 // voxels i in [ci-rx, ci+rx] etc. above `k0` up to `k1`.
 core::Grid3<float> blob(int k0 = 10, int k1 = 24, int i0 = 8, int i1 = 29, int j0 = 12, int j1 = 27) {
-    core::GridGeometry g;
-    g.dims = {40, 40, 30};
-    g.voxel_size = 100.0;
-    g.origin = {-2000.0, -2000.0, 0.0};
-    core::Grid3<float> d(g, 0.0f);
+    core::Grid3<float> d = test::uniform_grid({40, 40, 30}, 100.0, {-2000.0, -2000.0, 0.0});
     const double ci = 0.5 * (i0 + i1), cj = 0.5 * (j0 + j1), ck = 0.5 * (k0 + k1);
     const double ri = 0.5 * (i1 - i0) + 0.5, rj = 0.5 * (j1 - j0) + 0.5, rk = 0.5 * (k1 - k0) + 0.5;
     for (int k = k0; k <= k1; ++k)
@@ -212,11 +209,7 @@ TEST_CASE("virtual-light grid hard cases") {
         check_grid(v, d, p, -1200, 1000, -800, 800, 1000, 2500);
     }
     SUBCASE("a single-voxel cloud") {
-        core::GridGeometry g;
-        g.dims = {5, 5, 5};
-        g.voxel_size = 100.0;
-        core::Grid3<float> d(g, 0.0f);
-        d.at(2, 2, 3) = 1.0f;
+        const core::Grid3<float> d = test::single_voxel_cloud({5, 5, 5}, 100.0, {2, 2, 3});
         const auto v = basis::build_virtual_light_grid(d, p);
         check_grid(v, d, p, 200, 300, 200, 300, 300, 400);
     }

@@ -1,5 +1,6 @@
 // Density import/export, base/top measurements and previews.
 #include "cloud/cloud.h"
+#include "support/grids.h"
 #include "support/test_support.h"
 
 #include <doctest/doctest.h>
@@ -13,11 +14,7 @@ using fulgur::test::scratch_dir;
 
 namespace {
 core::Grid3<float> ramp_grid() {
-    core::GridGeometry g;
-    g.dims = {6, 5, 4};
-    g.voxel_size = 50.0;
-    g.origin = {-150.0, -125.0, 0.0};
-    core::Grid3<float> d(g);
+    core::Grid3<float> d = test::uniform_grid({6, 5, 4}, 50.0, {-150.0, -125.0, 0.0});
     for (std::size_t i = 0; i < d.size(); ++i) d.data[i] = float(i) / float(d.size() - 1);  // 0 .. 1 inclusive
     return d;
 }
@@ -110,11 +107,7 @@ TEST_CASE("cloud base and top heights") {
 }
 
 TEST_CASE("previews have the documented sizes and show the cloud") {
-    core::GridGeometry g;
-    g.dims = {12, 8, 6};
-    g.voxel_size = 100.0;
-    core::Grid3<float> d(g, 0.0f);
-    d.at(6, 4, 2) = 1.0f;
+    const core::Grid3<float> d = test::single_voxel_cloud({12, 8, 6}, 100.0, {6, 4, 2});
     const cloud::Image slice = cloud::render_preview(d, cloud::PreviewKind::SliceXZ, 0.004, 2);
     CHECK(slice.width == 24);
     CHECK(slice.height == 12);

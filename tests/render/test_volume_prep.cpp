@@ -1,5 +1,6 @@
 // CPU preparation of the density texture: quantization and the empty-space distance field.
 #include "render/detail/volume_prep.h"
+#include "support/grids.h"
 
 #include <doctest/doctest.h>
 
@@ -17,18 +18,14 @@ TEST_CASE("Chebyshev distance equals brute force") {
         const int n = trial == 3 ? 0 : 1 + trial * 3;  // the last trial: nothing occupied
         for (int i = 0; i < n; ++i) occ[rng.uniform_below(std::uint32_t(occ.size()))] = 1;
         const auto dist = render::detail::chebyshev_distance(occ, d);
-        for (int z = 0; z < d.z; ++z)
-            for (int y = 0; y < d.y; ++y)
-                for (int x = 0; x < d.x; ++x) {
-                    int best = 255;
-                    for (int qz = 0; qz < d.z; ++qz)
-                        for (int qy = 0; qy < d.y; ++qy)
-                            for (int qx = 0; qx < d.x; ++qx)
-                                if (occ[std::size_t(qx + d.x * (qy + d.y * qz))])
-                                    best = std::min(best,
-                                                    std::max({std::abs(qx - x), std::abs(qy - y), std::abs(qz - z)}));
-                    REQUIRE(int(dist[std::size_t(x + d.x * (y + d.y * z))]) == best);
-                }
+        test::for_each_cell(d, [&](int x, int y, int z) {
+            int best = 255;
+            test::for_each_cell(d, [&](int qx, int qy, int qz) {
+                if (occ[std::size_t(qx + d.x * (qy + d.y * qz))])
+                    best = std::min(best, std::max({std::abs(qx - x), std::abs(qy - y), std::abs(qz - z)}));
+            });
+            REQUIRE(int(dist[std::size_t(x + d.x * (y + d.y * z))]) == best);
+        });
     }
 }
 

@@ -1,0 +1,157 @@
+#include "demo/panel.h"
+
+#include <imgui.h>
+
+#include <cmath>
+
+namespace fulgur::app {
+
+namespace {
+
+// The exposure controls: automatic (with eye adaptation: at once toward a flash, over
+// seconds back to the night) and its compensation, or a manual exposure starting from the
+// last automatic one.
+void exposure_panel(render::Settings& st, const view::FrameReport& last, double dt) {
+    const bool was_auto = st.auto_exposure;
+    ImGui::Checkbox("automatic exposure", &st.auto_exposure);
+    if (was_auto && !st.auto_exposure && last.gpu.exposure > 0.0) st.exposure = last.gpu.exposure;
+    if (st.auto_exposure) {
+        float ev = float(st.exposure_compensation);
+        if (ImGui::SliderFloat("compensation (EV)", &ev, -4.0f, 4.0f)) st.exposure_compensation = double(ev);
+        ImGui::Text("exposure %.3g (metered %.3g)", last.gpu.exposure, last.gpu.metered_exposure);
+        st.previous_exposure = last.gpu.exposure;
+        st.adaptation_seconds = dt;
+    } else {
+        float expo = float(std::log2(st.exposure));
+        if (ImGui::SliderFloat("exposure (EV)", &expo, -20.0f, 16.0f)) st.exposure = std::exp2(double(expo));
+    }
+}
+
+// The static light's run-time switches (the scene's effects must call for each).
+void static_light_panel(view::ViewOptions& opt, const sky::ScenePlan& plan) {
+    ImGui::BeginDisabled(!plan.sun);
+    ImGui::Checkbox("sun / moon", &opt.sun);
+    ImGui::SameLine();
+    ImGui::Checkbox("silver lining (full resolution)", &opt.sun_full_resolution);
+    ImGui::EndDisabled();
+    ImGui::BeginDisabled(!plan.sky);
+    ImGui::Checkbox("sky light", &opt.sky);
+    ImGui::EndDisabled();
+}
+
+}  // namespace
+
+DemoPanel::DemoPanel(view::StormView& view, AccuracyPanel& accuracy, TimeOfDay* time_of_day, int seed,
+                     double time_scale)
+    : view_(view),
+      accuracy_(accuracy),
+      time_of_day_(time_of_day),
+      has_lightning_(view.has_lightning()),
+      separate_(has_lightning_ ? view.bases().has_multiple() : view.scene().effects.multiple_scattering),
+      rate_(float(view.scene().lightning.schedule.strike_rate)),
+      seed_(seed),
+      autos_(rate_ > 0),
+      slow_(float(time_scale)),
+      lp_(view.scene().lightning) {
+    // The slider holds a float: compare against what it can represent, or the first frame
+    // would see a "changed" rate and rebuild the storm (dropping the first strike).
+    lp_.schedule.strike_rate = autos_ ? double(rate_) : 0.0;
+}
+
+bool DemoPanel::draw(const DemoShell& shell, double t, const view::FrameReport& rep, view::ViewOptions& opt) {
+    bool strike = shell.strike_pressed();
+    ImGui::SetNextWindowPos({10, 10}, ImGuiCond_FirstUseEver);
+    ImGui::SetNextWindowSize({430, 0}, ImGuiCond_FirstUseEver);
+    ImGui::Begin("Fulgur", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
+    ImGui::Text("%.1f fps  (%.1f ms frame)", shell.fps(), rep.wall_ms);
+    ImGui::Separator();
+    if (lightning_section(t)) strike = true;
+    ImGui::Separator();
+    light_section(opt, rep, shell.dt());
+    if (time_of_day_) {
+        ImGui::Separator();
+        time_of_day_->panel();
+    }
+    ImGui::Separator();
+    accuracy_.draw(rep);
+    ImGui::Separator();
+    frame_times(rep);
+    ImGui::End();
+    return strike;
+}
+
+// The lightning section; true when "Strike now" was pressed.
+bool DemoPanel::lightning_section(double t) {
+    bool strike = false;
+    ImGui::BeginDisabled(!has_lightning_);
+    ImGui::TextUnformatted(has_lightning_ ? "Lightning" : "Lightning (the scene has none)");
+    ImGui::InputInt("seed", &seed_);
+    if (ImGui::Button("Strike now")) strike = true;
+    ImGui::Checkbox("automatic strikes", &autos_);
+    ImGui::SliderFloat("rate (1/s)", &rate_, 0.01f, 2.0f);
+    ImGui::SliderFloat("time scale", &slow_, 0.01f, 1.0f, "%.2f", ImGuiSliderFlags_Logarithmic);
+    if (ImGui::IsItemHovered())
+        ImGui::SetTooltip("storm seconds per wall second (slow motion: a flash decays in ~12 ms)");
+    if (has_lightning_) flash_plot_.draw(view_.pipeline().storm(), t);
+    lightning::BoltParams& b = lp_.bolt;
+    int kind = int(b.kind);
+    bool changed = ImGui::Combo("kind", &kind, "cloud to ground\0intra-cloud\0cloud to cloud\0");
+    b.kind = lightning::Kind(kind);
+    float bp = float(b.branch_probability), sp = float(b.angle_spread_deg), ie = float(std::log10(b.intensity));
+    changed |= ImGui::SliderFloat("branch probability", &bp, 0.0f, 0.6f);
+    changed |= ImGui::SliderFloat("angle spread (deg)", &sp, 0.0f, 40.0f);
+    changed |= ImGui::SliderFloat("intensity (log10 W/sr/m)", &ie, 3.0f, 7.0f);
+    b.branch_probability = bp, b.angle_spread_deg = sp, b.intensity = std::pow(10.0, double(ie));
+    if (changed) shape_changed_ = true;
+    ImGui::EndDisabled();
+    return strike;
+}
+
+void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& rep, double dt) {
+    ImGui::TextUnformatted("Light");
+    ImGui::BeginDisabled(!separate_);
+    ImGui::Checkbox("single scattering", &opt.components.single);
+    ImGui::Checkbox("multiple scattering", &opt.components.multiple);
+    ImGui::EndDisabled();
+    if (!separate_ && ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled))
+        ImGui::SetTooltip("this bake has no separate multiple-scattering component");
+    ImGui::Checkbox("glow", &opt.settings.glow);
+    ImGui::Checkbox("bolt", &opt.settings.bolt);
+    ImGui::Checkbox("ground", &opt.settings.ground);
+    static_light_panel(opt, view_.plan());
+    exposure_panel(opt.settings, rep, dt);
+    float scale = float(opt.settings.internal_scale);
+    if (ImGui::SliderFloat("internal scale", &scale, 0.25f, 1.0f)) opt.settings.internal_scale = scale;
+}
+
+void DemoPanel::frame_times(const view::FrameReport& rep) {
+    ImGui::TextUnformatted("Frame times, last 240 frames (ms)");
+    frame_plots_.draw();
+    if (ImGui::TreeNode("this frame's stages")) {
+        ImGui::Text("bolt %.2f  sources %.2f  splat %.2f", rep.stages.bolt, rep.stages.sources, rep.stages.splat);
+        ImGui::Text("accumulate %.2f  inverse Haar %.2f  strike light %.2f", rep.stages.accumulate,
+                    rep.stages.inverse_haar, rep.stages.strike_light);
+        ImGui::Text("upload %.2f  ray march %.2f  GPU total %.2f", rep.gpu.wall.upload, rep.gpu.wall.march,
+                    rep.gpu.wall.total);
+        ImGui::TreePop();
+    }
+}
+
+void DemoPanel::apply(double t, bool strike) {
+    const double want_rate = autos_ ? double(rate_) : 0.0;
+    if (has_lightning_ && (shape_changed_ || want_rate != lp_.schedule.strike_rate)) {
+        // Bolt shape / schedule changed: new storm (bolts regenerate), same bake.
+        lp_.schedule.strike_rate = want_rate;
+        lp_.schedule.first_strike = t + 0.5;
+        lp_.seed = std::uint64_t(seed_);
+        view_.set_lightning(lp_);
+        shape_changed_ = false;
+        accuracy_.reset();
+    }
+    if (strike && has_lightning_) {
+        view_.pipeline().strike_at(t, std::uint64_t(seed_++));
+        accuracy_.reset();  // the reference belongs to one frame
+    }
+}
+
+}  // namespace fulgur::app
