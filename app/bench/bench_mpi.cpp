@@ -16,8 +16,8 @@
 #include "bench/paper_config.h"
 
 #include "core/core.h"
-#include "distributed/distributed.h"
 #include "distributed/detail/lattice.h"
+#include "distributed/distributed.h"
 
 #include <filesystem>
 #include <fstream>

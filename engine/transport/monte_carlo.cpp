@@ -420,16 +420,14 @@ std::vector<glm::dvec3> unit_directions(const LightingMedium& medium, std::span<
 
 /// The path tracer's options: the medium's albedo and phase, the options' scattering limits.
 PathOptions path_options(const LightingMedium& medium, const MonteCarloOptions& o) {
-    PathOptions po;
-    po.albedo = medium.optics.albedo;
-    po.g = medium.optics.g;
-    po.max_scatterings = o.max_scatterings;
-    po.implicit_capture = o.implicit_capture;
-    po.roulette_threshold = o.roulette_threshold;
-    po.max_collisions = o.max_collisions;
-    po.uncollided_only = o.uncollided_only;
-    po.expected_second_order = o.expected_second_order;
-    return po;
+    return {.albedo = medium.optics.albedo,
+            .g = medium.optics.g,
+            .max_scatterings = o.max_scatterings,
+            .implicit_capture = o.implicit_capture,
+            .roulette_threshold = o.roulette_threshold,
+            .max_collisions = o.max_collisions,
+            .uncollided_only = o.uncollided_only,
+            .expected_second_order = o.expected_second_order};
 }
 
 /// What run_grid accumulated over its batches: the statistics of S single and multiple

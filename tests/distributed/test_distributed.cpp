@@ -5,8 +5,8 @@
 #include <doctest/doctest.h>
 
 #include "bake/bake.h"
-#include "distributed/distributed.h"
 #include "distributed/detail/lattice.h"
+#include "distributed/distributed.h"
 #include "support/stop_hook.h"
 #include "support/test_support.h"
 

@@ -166,7 +166,8 @@ std::vector<float> point_flash_source(const core::Grid3<float>& density, double 
 }
 
 std::vector<float> bolt_source(const core::Grid3<float>& density, double extinction, const core::GridGeometry& lighting,
-                               int direction_count, const render::LitChannel& bolt, double spacing, double albedo, double g) {
+                               int direction_count, const render::LitChannel& bolt, double spacing, double albedo,
+                               double g) {
     // Merge the bolt into point sources about `spacing` apart (power-weighted centroids).
     std::vector<std::pair<glm::dvec3, double>> points;
     glm::dvec3 acc(0.0);
