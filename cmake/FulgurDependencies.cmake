@@ -8,7 +8,7 @@ find_package(PkgConfig REQUIRED)
 pkg_check_modules(STB REQUIRED IMPORTED_TARGET stb) # libstb-dev: PNG writing (stb_image_write)
 find_package(ZLIB REQUIRED)                         # zlib1g-dev: CRC-32 of .fgb files
 find_package(CLI11 2.1 REQUIRED)                    # libcli11-dev: the tools' command lines
-# libopenvdb-dev: OpenVDB clouds in and out (engine/cloud/vdb.cpp only), as OpenVDB::openvdb.
+# libopenvdb-dev: OpenVDB clouds in and out (engine/cloud/vdb_child.cpp and vdb.cpp only), as OpenVDB::openvdb.
 # Debian ships its FindOpenVDB.cmake beside the library, not in CMake's module directory; the
 # module asks for Boost.Iostreams (libboost-iostreams-dev) and sets BUILD_SHARED_LIBS, so it
 # runs inside a function: its variables stay there, its imported targets are directory-wide.

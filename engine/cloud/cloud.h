@@ -114,8 +114,9 @@ core::Grid3<float> load_density(const std::filesystem::path& path);
 void save_density(const std::filesystem::path& path, const core::Grid3<float>& density);
 
 // ---------------------------------------------------------------------------------------
-// OpenVDB import and export (vdb.cpp). OpenVDB stays inside vdb.cpp: nothing here names one
-// of its types. docs/cloud.md, "OpenVDB clouds", explains the mapping and the filter.
+// OpenVDB import and export (vdb*.cpp). A file is read by OpenVDB in a child process under
+// memory and time limits (vdb_child.cpp), its records checked by this one (vdb_parent.cpp);
+// OpenVDB stays inside vdb_child.cpp and vdb.cpp's writer: nothing here names one of its types. docs/cloud.md, "OpenVDB clouds", explains the mapping and the filter.
 
 /// How a float grid of a .vdb file becomes the engine's density grid (the scene file's
 /// "cloud": {"vdb": ...} object sets these by the same names).

@@ -18,7 +18,7 @@ void check_range(const core::Grid3<float>& g, const std::string& where) {
         const float v = g.data[i];
         if (!(v >= 0.0f && v <= 1.0f))
             throw core::Error(where + ": " + voxel_name(g.geom, i),
-                              "density " + std::to_string(v) + " is outside [0, 1]");
+                              "density " + core::format_number(v, 9) + " is outside [0, 1]");
     }
 }
 

@@ -1,44 +1,44 @@
 // OpenVDB import (a float grid -> the engine's density grid, box-filtered) and export (dense
-// grids -> a .vdb with their world transforms and metadata). The only file that includes
-// OpenVDB: cloud.h names none of its types.
+// grids -> a .vdb with their world transforms and metadata). cloud.h names no OpenVDB type.
+//
+// Reading is contained. OpenVDB's reader trusts its input: a flipped bit in a tree's topology
+// corrupts its heap (glibc aborts the process), a truncated file makes it allocate gigabytes,
+// and no check after the read can help. So every read runs in a forked child process
+// (detail/vdb_child.h) under a memory and a time limit, which sends what it read over a pipe
+// in small fixed-layout records (detail/vdb_records.h): the grids' descriptors, then, for a
+// load, the chosen grid's background, active box, leaves and non-background tiles. The parent
+// (detail/vdb_parent.h) takes nothing on trust: it reads every record with bounded sizes,
+// checks the descriptors itself (the same inspect() the child ran, detail/vdb_layout.h),
+// fills only the cells of the box it allocated (here), checks every value, and turns a crash,
+// a kill, an overrun or a malformed record into core::Error naming the file. Writing
+// (save_vdb: trusted data) stays in the process; it is the only OpenVDB use here.
 #include "cloud/cloud.h"
+
+#include "cloud/detail/vdb_child.h"
+#include "cloud/detail/vdb_layout.h"
+#include "cloud/detail/vdb_parent.h"
+#include "cloud/detail/vdb_records.h"
 
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Prune.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
-#include <limits>
-#include <mutex>
+#include <cstdint>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace fulgur::cloud {
 
+using namespace detail::vdb;
+
 namespace {
 
-void initialize_openvdb() {
-    static std::once_flag once;
-    std::call_once(once, [] { openvdb::initialize(); });
-}
-
-std::string in_quotes(const std::string& s) { return "\"" + s + "\""; }
-
-std::string dims_text(core::Int3 d) {
-    return std::to_string(d.x) + " x " + std::to_string(d.y) + " x " + std::to_string(d.z);
-}
-
-// "density (float), vel (vec3s)"
-std::string list_grids(const std::vector<std::string>& grids) {
-    if (grids.empty()) return "no grid";
-    std::string s;
-    for (const std::string& g : grids) s += (s.empty() ? "" : ", ") + g;
-    return s;
-}
-
-// Runs `f`, turning OpenVDB's exceptions (a truncated or foreign file, an unknown grid type,
-// a failed write) into core::Error naming the file; `what` says what failed.
+// Runs `f`, turning OpenVDB's exceptions (a failed write) into core::Error naming the file;
+// `what` says what failed.
 template <class F>
 auto guarded(const std::filesystem::path& path, const char* what, F&& f) {
     try {
@@ -47,22 +47,6 @@ auto guarded(const std::filesystem::path& path, const char* what, F&& f) {
         throw core::Error(path.string(), std::string(what) + " (OpenVDB: " + e.what() + ")");
     }
 }
-
-// The open file's grid descriptors (metadata and transforms, no voxels).
-struct OpenFile {
-    openvdb::io::File file;
-    openvdb::GridPtrVecPtr grids;
-    explicit OpenFile(const std::filesystem::path& path) : file(path.string()) {
-        core::check_readable_file(path, kMaxVdbFileBytes, "OpenVDB");
-        guarded(path, "not a readable OpenVDB file", [&] {
-            file.open(/*delayLoad=*/false);  // no memory-mapped leaves: every voxel is read once, here
-            grids = file.readAllGridMetadata();
-        });
-    }
-    ~OpenFile() {
-        if (file.isOpen()) file.close();
-    }
-};
 
 // io::Archive's seekable write into any stream (io::File writes it only to a path, io::Stream
 // only without grid offsets): a file with offsets lets readers take its descriptors and
@@ -73,136 +57,6 @@ public:
         openvdb::io::Archive::write(os, grids, /*seekable=*/true, meta);
     }
 };
-
-// What inspect() learns, with the OpenVDB-side numbers load() needs.
-struct Layout {
-    VdbInfo info;
-    openvdb::CoordBBox bbox;               // the file's active-voxel box (index space)
-    int src_axis[3] = {0, 1, 2};           // engine axis a reads file axis src_axis[a] ...
-    bool flip[3] = {false, false, false};  // ... reversed (y-up: the engine's y is the file's -z)
-    glm::dvec3 source_origin{0.0};         // engine coordinates of the box's lower corner, metres
-};
-
-Layout inspect(OpenFile& f, const std::filesystem::path& path, const VdbImport& o) {
-    FULGUR_ASSERT(o.scale > 0.0 && o.voxel_size >= 0.0 && o.density_voxel_size >= 0.0 && o.density_scale > 0.0,
-                  "VdbImport sizes must be positive (0: default)");
-    Layout L;
-    VdbInfo& info = L.info;
-    // OpenVDB lists a file's grids by name. Without a name: the float grid "density" (the
-    // name Houdini, Blender and EmberGen give it), or else the first float grid by name.
-    openvdb::GridBase::Ptr chosen;
-    for (const openvdb::GridBase::Ptr& g : *f.grids) {
-        info.grids.push_back(g->getName() + " (" + g->valueType() + ")");
-        if (o.grid.empty() ? g->isType<openvdb::FloatGrid>() && (!chosen || g->getName() == "density")
-                           : !chosen && g->getName() == o.grid)
-            chosen = g;
-    }
-    const std::string file = path.string();
-    if (!chosen) {
-        if (o.grid.empty())
-            throw core::Error(file, "no float grid in the file (it holds " + list_grids(info.grids) + ")");
-        throw core::Error(file + ": grid " + in_quotes(o.grid),
-                          "no such grid (the file holds " + list_grids(info.grids) + ")");
-    }
-    info.grid = chosen->getName();
-    info.first_float_grid = o.grid.empty();
-    const std::string where = file + ": grid " + in_quotes(info.grid);
-    if (!chosen->isType<openvdb::FloatGrid>())
-        throw core::Error(where, "holds " + chosen->valueType() + " values; expected a float grid (a scalar density)");
-
-    // The active voxels' box and count, from the statistics OpenVDB writes with every grid
-    // (io::File's default): the load is sized before any voxel is read.
-    const auto bmin = chosen->getMetadata<openvdb::Vec3IMetadata>(openvdb::GridBase::META_FILE_BBOX_MIN);
-    const auto bmax = chosen->getMetadata<openvdb::Vec3IMetadata>(openvdb::GridBase::META_FILE_BBOX_MAX);
-    const auto count = chosen->getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_VOXEL_COUNT);
-    const auto mem = chosen->getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_MEM_BYTES);
-    if (!bmin || !bmax || !count)
-        throw core::Error(where,
-                          "has no file_bbox_min / file_bbox_max / file_voxel_count metadata (written with grid "
-                          "statistics off); save it again with OpenVDB's defaults so its size is known before loading");
-    if (count->value() <= 0) throw core::Error(where, "has no active voxels: the cloud is empty");
-    L.bbox = openvdb::CoordBBox(openvdb::Coord(bmin->value()), openvdb::Coord(bmax->value()));
-    if (L.bbox.empty()) throw core::Error(where, "has an empty active bounding box (file_bbox_min > file_bbox_max)");
-    for (int a = 0; a < 3; ++a) {
-        // 2^20 voxels along an axis is far past any cloud (and keeps index arithmetic in int);
-        // the memory check below refuses most boxes well before this.
-        const long long n = (long long)L.bbox.max()[a] - (long long)L.bbox.min()[a] + 1;
-        if (n > (1LL << 20))
-            throw core::Error(where, "its active voxels span " + std::to_string(n) + " voxels along axis " +
-                                         std::to_string(a) + "; at most 1048576 are read");
-    }
-    info.active_voxels = std::uint64_t(count->value());
-
-    // The transform: linear and axis-aligned, positive scales.
-    const openvdb::math::Transform& xf = chosen->transform();
-    if (!xf.isLinear())
-        throw core::Error(where, "has a non-linear (" + xf.mapType() +
-                                     ") transform; resample it onto a linear, axis-aligned grid before importing");
-    const openvdb::Mat4d m = xf.baseMap()->getAffineMap()->getConstMat4();
-    double largest = 0.0;
-    for (int r = 0; r < 3; ++r) largest = std::max(largest, std::abs(m(r, r)));
-    for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c)
-            // Off-diagonal terms within 1e-9 of the scale are rounding of an axis-aligned
-            // transform written through a matrix; anything larger is a rotation or a shear.
-            if (r != c && std::abs(m(r, c)) > 1e-9 * largest)
-                throw core::Error(where, "has a rotated or sheared transform (matrix element (" + std::to_string(r) +
-                                             "," + std::to_string(c) + ") = " + core::format_number(m(r, c), 6) +
-                                             "); resample it onto an axis-aligned grid before importing");
-    for (int a = 0; a < 3; ++a)
-        if (!(m(a, a) > 0.0) || !std::isfinite(m(a, a)))
-            throw core::Error(where, "has a mirrored or degenerate transform (scale " +
-                                         core::format_number(m(a, a), 6) + " along axis " + std::to_string(a) +
-                                         "); expected positive scales");
-    const openvdb::Vec3d t = m.getTranslation();
-
-    // File axes -> engine axes (y-up: engine x = x, engine y = -z, engine z = y).
-    if (o.y_up) {
-        L.src_axis[1] = 2;
-        L.src_axis[2] = 1;
-        L.flip[1] = true;
-    }
-    const double smallest_file = std::min({m(0, 0), m(1, 1), m(2, 2)});
-    const double metres = o.voxel_size > 0.0 ? o.voxel_size / smallest_file : o.scale;
-    int dims[3];
-    double spacing[3], lower[3];
-    for (int a = 0; a < 3; ++a) {
-        const int s = L.src_axis[a];
-        const double h = m(s, s) * metres;
-        dims[a] = L.bbox.max()[s] - L.bbox.min()[s] + 1;
-        spacing[a] = h;
-        // Voxel i of the file is centred on t + i h: its box is [t + (i - 1/2) h, t + (i + 1/2) h].
-        const double lo = (t[s] + (double(L.bbox.min()[s]) - 0.5) * m(s, s)) * metres;
-        const double hi = (t[s] + (double(L.bbox.max()[s]) + 0.5) * m(s, s)) * metres;
-        lower[a] = (L.flip[a] ? -hi : lo) + o.offset[a];
-    }
-    info.source_dims = {dims[0], dims[1], dims[2]};
-    info.source_voxel = {spacing[0], spacing[1], spacing[2]};
-    L.source_origin = {lower[0], lower[1], lower[2]};
-
-    core::GridGeometry& g = info.density;
-    g.voxel_size = o.density_voxel_size > 0.0 ? o.density_voxel_size : std::min({spacing[0], spacing[1], spacing[2]});
-    g.origin = L.source_origin;
-    int out[3];
-    for (int a = 0; a < 3; ++a) {
-        // The density grid covers the file's box; 1e-9 keeps an exact multiple from growing a
-        // voxel through rounding. Clamped past 2^30 so validate_geometry names the size.
-        const double n = std::ceil(double(dims[a]) * spacing[a] / g.voxel_size - 1e-9);
-        out[a] = int(std::clamp(n, 1.0, double(1 << 30)));
-    }
-    g.dims = {out[0], out[1], out[2]};
-    core::validate_geometry(g, where + " (as a density grid)");
-
-    // Peak memory of load(): the sparse tree as OpenVDB holds it, the dense copy of the file's
-    // box, the two intermediate passes of the separable filter and the density.
-    const double tree = mem ? double(mem->value()) : double(info.active_voxels) * 4.0 * 1.25;
-    const double src = double(dims[0]) * double(dims[1]) * double(dims[2]);
-    const double pass1 = double(out[0]) * double(dims[1]) * double(dims[2]);
-    const double pass2 = double(out[0]) * double(out[1]) * double(dims[2]);
-    const double bytes = tree + 4.0 * (src + pass1 + pass2 + double(g.cell_count()));
-    info.load_bytes = bytes >= 1.8e19 ? std::numeric_limits<std::uint64_t>::max() : std::uint64_t(bytes);
-    return L;
-}
 
 // Box-filter weights along one axis: target cell t covers [t r, (t + 1) r] in source cells
 // (r = target / source spacing, both boxes starting at the same corner); its weight on
@@ -258,81 +112,92 @@ std::vector<float> resample_axis(const std::vector<float>& in, int dims[3], int 
     return out;
 }
 
-}  // namespace
-
-std::string VdbInfo::describe() const {
-    std::ostringstream o;
-    o << "grid " << in_quotes(grid)
-      << (!first_float_grid   ? " (named"
-          : grid == "density" ? " (no grid named: the float grid \"density\""
-                              : " (no grid named and none called \"density\": the first float grid by name")
-      << "; the file holds " << list_grids(grids) << "): " << dims_text(source_dims) << " file voxels of "
-      << core::format_number(source_voxel.x, 4) << " x " << core::format_number(source_voxel.y, 4) << " x "
-      << core::format_number(source_voxel.z, 4) << " m (" << active_voxels << " active), ";
-    const bool same = source_voxel.x == density.voxel_size && source_voxel.y == density.voxel_size &&
-                      source_voxel.z == density.voxel_size;
-    o << (same ? "copied onto " : "box-filtered onto ") << dims_text(density.dims) << " density voxels of "
-      << core::format_number(density.voxel_size, 4) << " m";
-    return o.str();
-}
-
-VdbInfo inspect_vdb(const std::filesystem::path& path, const VdbImport& options) {
-    initialize_openvdb();
-    OpenFile f(path);
-    return inspect(f, path, options).info;
-}
-
-core::Grid3<float> load_vdb(const std::filesystem::path& path, const VdbImport& options) {
-    initialize_openvdb();
-    OpenFile f(path);
-    const Layout L = inspect(f, path, options);
-    const VdbInfo& info = L.info;
-    const std::string where = path.string() + ": grid " + in_quotes(info.grid);
-    if (info.load_bytes > options.max_bytes)
-        throw core::Error(where, "loading it would need about " + core::format_bytes(double(info.load_bytes)) + " (" +
-                                     dims_text(info.source_dims) + " file voxels onto " + dims_text(info.density.dims) +
-                                     "), over the limit of " + core::format_bytes(double(options.max_bytes)));
-
-    const openvdb::FloatGrid::Ptr grid = guarded(path, "its grid could not be read", [&] {
-        return openvdb::gridPtrCast<openvdb::FloatGrid>(f.file.readGrid(info.grid));
-    });
-    FULGUR_ASSERT(grid, "inspect() checked the grid's type");
-    if (grid->background() != 0.0f)
-        throw core::Error(where, "has background " + core::format_number(grid->background(), 6) +
+// The grid's background and active box, checked: the statistics sized the load, so a tree
+// reaching beyond them is refused, not allocated.
+void receive_background_and_box(Reader& reader, const Layout& L, const std::string& where) {
+    reader.expect(kBackground, "the background");
+    const auto background = reader.get<float>();
+    if (background != 0.0f)
+        throw core::Error(where, "has background " + core::format_number(background, 6) +
                                      "; a density grid's background (its value outside the active voxels) must be 0");
-    // The statistics sized the load: a tree reaching beyond them is refused, not allocated.
-    const openvdb::CoordBBox actual = grid->evalActiveVoxelBoundingBox();
-    if (!actual.empty() && !L.bbox.isInside(actual)) {
+    reader.expect(kActiveBox, "the active box");
+    const bool empty = reader.get<std::uint8_t>() != 0;
+    const auto box = reader.get<std::array<std::int32_t, 6>>();
+    const Box actual{{box[0], box[1], box[2]}, {box[3], box[4], box[5]}};
+    if (!empty && !actual.empty() && !L.bbox.contains(actual)) {
         std::ostringstream m;
-        m << "its active voxels span " << actual << ", beyond the box its metadata states (" << L.bbox
+        m << "its active voxels span " << actual.text() << ", beyond the box its metadata states (" << L.bbox.text()
           << "); refusing to load a file whose size was misstated";
         throw core::Error(where, m.str());
     }
+}
 
-    // The file's box as a dense array in the engine's axis order (tile values included: the
-    // accessor returns a tile's value for each of its voxels).
-    int dims[3] = {info.source_dims.x, info.source_dims.y, info.source_dims.z};
+// The file's box as a dense array in the engine's axis order, from the child's leaves and
+// tiles (the background, 0, everywhere else), times `gain`. Only cells inside the box are
+// written, whatever the records say.
+std::vector<float> receive_voxels(Reader& reader, const Layout& L, float gain) {
+    const int dims[3] = {L.info.source_dims.x, L.info.source_dims.y, L.info.source_dims.z};
     std::vector<float> dense(std::size_t{1} * std::size_t(dims[0]) * std::size_t(dims[1]) * std::size_t(dims[2]));
-    const openvdb::Coord lo = L.bbox.min(), hi = L.bbox.max();
-    const float gain = float(options.density_scale);
-#pragma omp parallel
-    {
-        openvdb::FloatGrid::ConstAccessor acc = grid->getConstAccessor();
-#pragma omp for schedule(static)
-        for (int k = 0; k < dims[2]; ++k)
-            for (int j = 0; j < dims[1]; ++j)
-                for (int i = 0; i < dims[0]; ++i) {
-                    const int e[3] = {i, j, k};
-                    openvdb::Coord c;
-                    for (int a = 0; a < 3; ++a) {
-                        const int s = L.src_axis[a];
-                        c[s] = L.flip[a] ? hi[s] - e[a] : lo[s] + e[a];
+    const std::array<std::int32_t, 3>& lo = L.bbox.min;
+    const std::array<std::int32_t, 3>& hi = L.bbox.max;
+    // The engine's cell of file voxel c (inside the box).
+    auto cell = [&](const std::int64_t c[3]) {
+        std::size_t e[3];
+        for (int a = 0; a < 3; ++a) {
+            const int s = L.src_axis[a];
+            e[a] = std::size_t(L.flip[a] ? hi[s] - c[s] : c[s] - lo[s]);
+        }
+        return e[0] + std::size_t(dims[0]) * (e[1] + std::size_t(dims[1]) * e[2]);
+    };
+    std::array<float, kLeafValues> leaf;
+    for (;;) {
+        const std::uint8_t tag = reader.get_tag();
+        if (tag == kDone) break;
+        if (tag == kLeaf) {
+            const auto o = reader.get<std::array<std::int32_t, 3>>();
+            reader.get_bytes(leaf.data(), sizeof leaf);
+            std::int64_t c[3];
+            for (int x = 0; x < kLeafEdge; ++x)
+                for (int y = 0; y < kLeafEdge; ++y)
+                    for (int z = 0; z < kLeafEdge; ++z) {
+                        c[0] = std::int64_t(o[0]) + x;
+                        c[1] = std::int64_t(o[1]) + y;
+                        c[2] = std::int64_t(o[2]) + z;
+                        if (c[0] < lo[0] || c[0] > hi[0] || c[1] < lo[1] || c[1] > hi[1] || c[2] < lo[2] ||
+                            c[2] > hi[2])
+                            continue;
+                        dense[cell(c)] = leaf[std::size_t(x << 6 | y << 3 | z)] * gain;
                     }
-                    dense[std::size_t(i) + std::size_t(dims[0]) * (std::size_t(j) + std::size_t(dims[1]) * k)] =
-                        acc.getValue(c) * gain;
-                }
+        } else if (tag == kTile) {
+            const auto t = reader.get<std::array<std::int32_t, 4>>();
+            const float v = reader.get<float>() * gain;
+            if (t[3] != kLeafEdge && t[3] != kLowerEdge && t[3] != kUpperEdge)
+                reader.malformed("a tile of " + std::to_string(t[3]) + " voxels");
+            std::int64_t from[3], to[3];
+            bool inside = true;
+            for (int a = 0; a < 3; ++a) {
+                from[a] = std::max<std::int64_t>(t[a], lo[a]);
+                to[a] = std::min<std::int64_t>(std::int64_t(t[a]) + t[3] - 1, hi[a]);
+                inside = inside && from[a] <= to[a];
+            }
+            if (!inside) continue;
+            std::int64_t c[3];
+            for (c[2] = from[2]; c[2] <= to[2]; ++c[2])
+                for (c[1] = from[1]; c[1] <= to[1]; ++c[1])
+                    for (c[0] = from[0]; c[0] <= to[0]; ++c[0]) dense[cell(c)] = v;
+        } else {
+            reader.malformed("record " + std::to_string(int(tag)) + " among the voxels");
+        }
     }
-    // Values in [0, 1], named by the file's own voxel index.
+    return dense;
+}
+
+// Values in [0, 1], named by the file's own voxel index.
+void check_values(const std::vector<float>& dense, const Layout& L, const std::string& where,
+                  const VdbImport& options) {
+    const int dims[3] = {L.info.source_dims.x, L.info.source_dims.y, L.info.source_dims.z};
+    const std::array<std::int32_t, 3>& lo = L.bbox.min;
+    const std::array<std::int32_t, 3>& hi = L.bbox.max;
     for (std::size_t n = 0; n < dense.size(); ++n) {
         const float v = dense[n];
         if (v >= 0.0f && v <= 1.0f) continue;
@@ -346,12 +211,44 @@ core::Grid3<float> load_vdb(const std::filesystem::path& path, const VdbImport& 
         }
         throw core::Error(
             where + ": voxel (" + std::to_string(c[0]) + "," + std::to_string(c[1]) + "," + std::to_string(c[2]) + ")",
-            "density " + core::format_number(v, 6) + (options.density_scale != 1.0 ? " (after density_scale)" : "") +
+            "density " + core::format_number(v, 9) + (options.density_scale != 1.0 ? " (after density_scale)" : "") +
                 " is outside [0, 1]; scale the grid with \"density_scale\"");
     }
-    f.file.close();
+}
+
+}  // namespace
+
+VdbInfo inspect_vdb(const std::filesystem::path& path, const VdbImport& options) {
+    check_options(options);
+    const std::uint64_t size = core::check_readable_file(path, kMaxVdbFileBytes, "OpenVDB");
+    Reader reader(path, size, options.max_bytes, [&](Out& out) { child_inspect(path, out); });
+    const std::vector<GridFacts> facts = receive_facts(reader);
+    reader.expect(kDone, "the end");
+    reader.finish();
+    return inspect(facts, path, options).info;
+}
+
+core::Grid3<float> load_vdb(const std::filesystem::path& path, const VdbImport& options) {
+    check_options(options);
+    const std::uint64_t size = core::check_readable_file(path, kMaxVdbFileBytes, "OpenVDB");
+    Reader reader(path, size, options.max_bytes, [&](Out& out) { child_load(path, options, out); });
+    const Layout L = inspect(receive_facts(reader), path, options);
+    const VdbInfo& info = L.info;
+    const std::string where = path.string() + ": grid " + in_quotes(info.grid);
+    reader.set_where(where);
+    if (info.load_bytes > options.max_bytes)
+        throw core::Error(where, "loading it would need about " + core::format_bytes(double(info.load_bytes)) + " (" +
+                                     dims_text(info.source_dims) + " file voxels onto " + dims_text(info.density.dims) +
+                                     "), over the limit of " + core::format_bytes(double(options.max_bytes)));
+    reader.lower_budget(options.max_bytes - (info.load_bytes - L.tree_bytes));
+
+    receive_background_and_box(reader, L, where);
+    std::vector<float> dense = receive_voxels(reader, L, float(options.density_scale));
+    reader.finish();
+    check_values(dense, L, where, options);
 
     // Separable box filter onto the density grid (axes whose voxels already match are copies).
+    int dims[3] = {info.source_dims.x, info.source_dims.y, info.source_dims.z};
     const core::GridGeometry& g = info.density;
     const int out[3] = {g.dims.x, g.dims.y, g.dims.z};
     for (int a = 0; a < 3; ++a) {
