@@ -122,7 +122,19 @@ void check_and_sum(const scene::Scene& s, const Totals& totals, std::uint32_t n,
     rep.coefficients_kept = totals.kept;
     rep.unconverged = totals.unconverged;
     rep.max_dropped_fraction = totals.max_dropped;
-    if (rep.lights_dropped == n)
+    // Nothing scattered by any light (every light dropped at a fraction of 0, or every kept
+    // light's bases zero): the medium's setting is named, not the threshold that then found
+    // nothing.
+    const bool all_dropped = rep.lights_dropped == n;
+    if ((all_dropped && !(rep.max_dropped_fraction > 0.0)) ||
+        (!all_dropped && rep.coefficients_kept == 0 && !(totals.ref2 > 0.0))) {
+        const bool dark = s.medium.albedo == 0.0;
+        throw core::Error(where + (dark ? ": medium.albedo" : ": medium.extinction"),
+                          std::string(dark ? "0: the cloud absorbs all light and scatters none"
+                                           : "the cloud scatters no light from any virtual light") +
+                              ", so every basis is zero and the bake would light nothing");
+    }
+    if (all_dropped)
         throw core::Error(where + ": virtual_lights.drop_below",
                           "every one of the " + std::to_string(n) + " virtual lights scatters less than " +
                               core::format_number(s.drop_below) +

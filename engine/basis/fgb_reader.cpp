@@ -314,6 +314,8 @@ std::string key_difference(const BakeKey& have, const BakeKey& expected) {
     }
     if (diff.empty())
         diff = "the descriptions are identical, only the hashes differ (hash function changed?)";
+    else if (hash_description(have.description) != have.hash)
+        diff += " (the file's description does not hash to the file's own key: it was edited after the bake)";
     else if (have.hash == expected.hash)
         diff += " (equal hashes: a hash collision)";
     return diff;

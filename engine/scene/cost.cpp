@@ -32,6 +32,26 @@ constexpr double kMcSecondsPerPath = 2e-7;
 core::Int3 divided(core::Int3 d, int f) { return {std::max(1, d.x / f), std::max(1, d.y / f), std::max(1, d.z / f)}; }
 double volume(core::Int3 d) { return double(d.x) * double(d.y) * double(d.z); }
 
+// A strike's solve at run time (runtime::solve_strike): its single scattering's paths, then
+// its multiple scattering by Monte Carlo paths or by the lattice on the per-strike transport
+// grid (order 2 from the single scattering's own paths when exact).
+double strike_seconds(const Scene& s, const Cost& c) {
+    const Quality& q = s.quality;
+    if (q.preset == Quality::Preset::Paper) return 0.0;
+    double t = double(q.single_paths) * kMcSecondsPerPath;
+    if (q.multiple == "monte_carlo") {
+        t += double(q.multiple_paths) * kMcSecondsPerPath;
+    } else if (q.multiple == "lattice") {
+        const int refine = q.refine > s.transport.refine && s.lighting_downsample % std::max(q.refine, 1) == 0
+                               ? q.refine
+                               : s.transport.refine;
+        const core::Int3 d = divided(c.density_dims, s.lighting_downsample / std::max(1, refine));
+        const double steps = double(std::max({d.x, d.y, d.z}));
+        t += volume(d) * 19.0 * steps * kLbSecondsPerSiteStep;
+    }
+    return t;
+}
+
 }  // namespace
 
 Cost estimate_cost(const Scene& s, std::size_t lights, int threads) {
@@ -71,9 +91,12 @@ Cost estimate_cost(const Scene& s, std::size_t lights, int threads) {
         // cross it; Monte Carlo costs at least its paths.
         const double steps = double(std::max({c.transport_dims.x, c.transport_dims.y, c.transport_dims.z}));
         t += lb ? nt * 19.0 * steps * kLbSecondsPerSiteStep : double(s.transport.mc_paths) * kMcSecondsPerPath;
+        // Order 2 exact: its expected-value paths through the full density, per light.
+        if (lb && s.transport.lb_exact_orders == 2) t += double(s.transport.lb_order2_paths) * kMcSecondsPerPath;
     }
     c.seconds_per_light = t;
     c.seconds = t * double(c.lights) / double(std::min<std::size_t>(std::size_t(c.threads), c.lights));
+    c.seconds_per_strike = strike_seconds(s, c);
     return c;
 }
 
@@ -106,6 +129,17 @@ void check_cost(const Scene& s, const Cost& c) {
                               " on " + std::to_string(c.threads) + " thread(s)), over the limit of " +
                               core::format_seconds(s.limits.bake_seconds) +
                               "; raise \"limits\": {\"bake_hours\": ...} or ask for less (paths, grid, directions)");
+    if (c.seconds_per_strike > s.limits.strike_seconds)
+        throw core::Error(file + ": limits.strike_minutes",
+                          "each strike's solve (quality \"" + std::string(to_string(s.quality.preset)) +
+                              "\": " + std::to_string(s.quality.single_paths) + " single-scattering paths" +
+                              (s.quality.multiple == "monte_carlo"
+                                   ? " + " + std::to_string(s.quality.multiple_paths) + " multiple-scattering paths"
+                                   : std::string()) +
+                              ") would take at least " + core::format_seconds(c.seconds_per_strike) +
+                              " on one thread, over the limit of " + core::format_seconds(s.limits.strike_seconds) +
+                              "; lower quality.single_paths / multiple_paths or raise \"limits\": "
+                              "{\"strike_minutes\": ...}");
 }
 
 }  // namespace fulgur::scene

@@ -1,6 +1,7 @@
 #include "scene/detail/json_reader.h"
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 namespace fulgur::scene::detail {
@@ -127,12 +128,19 @@ JsonObject::JsonObject(const nlohmann::json& j, std::string file, std::string pa
 std::string json_pointer_token(std::string_view key) {
     std::string t;
     for (char c : key) {
-        if (c == '~')
+        if (c == '~') {
             t += "~0";
-        else if (c == '/')
+        } else if (c == '/') {
             t += "~1";
-        else
+        } else if ((unsigned char)c < 0x20 || c == 0x7f) {
+            // A control character (a NUL would end the message where it is printed as a C
+            // string) is shown as its JSON escape.
+            char esc[8];
+            std::snprintf(esc, sizeof esc, "\\u%04x", unsigned((unsigned char)c));
+            t += esc;
+        } else {
             t += c;
+        }
     }
     return t;
 }

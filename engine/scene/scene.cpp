@@ -207,6 +207,12 @@ void parse_sun(JsonObject& l, Scene& s) {
         const glm::dvec3 d = l.vec3("direction", Range{-1e6, 1e6});
         if (glm::length(d) < 1e-9) l.fail("direction", "must be a non-zero vector");
         sun.direction = glm::normalize(d);
+        // The propagation direction: a sun above the horizon sends its light downward, as
+        // "elevation" in (0, 90] requires.
+        if (!(sun.direction.z < 0.0))
+            l.fail("direction",
+                   "points along or above the horizon (z >= 0); it is the direction the light travels, "
+                   "so a sun above the horizon has z < 0 (below it, the cloud is lit by the sky only)");
     } else {
         if (!has_el) l.fail("elevation", "required with \"azimuth\": degrees above the horizon in (0, 90]");
         if (!has_az) l.fail("azimuth", "required with \"elevation\": degrees from +x toward +y in [-360, 360]");
@@ -382,6 +388,8 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
         s.limits.memory_bytes = l->number_or("memory_gib", 0.0, Range{0.0, 1e6}) * double(1ull << 30);
         s.limits.bake_seconds =
             l->number_or("bake_hours", s.limits.bake_seconds / 3600.0, Range{0.0, 1e6, true}) * 3600.0;
+        s.limits.strike_seconds =
+            l->number_or("strike_minutes", s.limits.strike_seconds / 60.0, Range{0.0, 1e6, true}) * 60.0;
         l->finish();
     }
     root.finish();
@@ -493,8 +501,23 @@ cloud::VdbInfo inspect_vdb_cloud(const Scene& s) {
     return vdb_cloud_errors(s, [&] { return cloud::inspect_vdb(s.cloud.file, s.cloud.vdb); });
 }
 
-core::Grid3<float> make_density(const Scene& s) {
-    check_cost(s, estimate_cost(s));
+namespace {
+
+// The bolts run between the ground and the top of the density grid (lightning::BoltGenerator):
+// a ground the scene puts at or above that top is named here, with the file, rather than when
+// the first bolt is made.
+void check_ground_fits(const Scene& s, const core::GridGeometry& density) {
+    if (!s.effects.lightning) return;
+    const lightning::BoltParams& b = s.lightning.bolt;
+    const double top = density.upper().z;
+    if (!(b.ground_height + b.segment_length_mean < top))
+        throw core::Error((s.path.empty() ? std::string("scene") : s.path.string()) + ": /lightning/ground_height",
+                          core::format_number(b.ground_height, 8) + " m: the ground must lie more than a segment (" +
+                              core::format_number(b.segment_length_mean, 8) +
+                              " m) below the top of the cloud's grid (z = " + core::format_number(top, 8) + " m)");
+}
+
+core::Grid3<float> load_or_generate(const Scene& s) {
     if (s.cloud.kind == CloudSource::Kind::File) return cloud::load_density(s.cloud.file);
     if (s.cloud.kind == CloudSource::Kind::Vdb) {
         cloud::VdbImport v = s.cloud.vdb;
@@ -502,6 +525,15 @@ core::Grid3<float> make_density(const Scene& s) {
         return vdb_cloud_errors(s, [&] { return cloud::load_vdb(s.cloud.file, v); });
     }
     return cloud::generate_cumulonimbus(s.cloud.generator);
+}
+
+}  // namespace
+
+core::Grid3<float> make_density(const Scene& s) {
+    check_cost(s, estimate_cost(s));
+    core::Grid3<float> d = load_or_generate(s);
+    check_ground_fits(s, d.geom);
+    return d;
 }
 
 transport::LightingMedium make_lighting_medium(const Scene& s, const core::Grid3<float>& density) {

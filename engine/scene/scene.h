@@ -175,6 +175,9 @@ struct Limits {
     /// Peak memory, bytes; 0: three quarters of the machine's physical memory.
     double memory_bytes = 0.0;
     double bake_seconds = 24.0 * 3600.0;  ///< the bake's estimated wall time
+    /// One strike's solve at run time (quality presets other than paper), estimated on one
+    /// thread: a frame loop waits for it, so a runaway path count is refused before it starts.
+    double strike_seconds = 600.0;
 };
 
 struct Scene {
@@ -231,6 +234,7 @@ struct Cost {
     std::uint64_t memory_bytes = 0;      ///< peak: density + media + threads x per_thread
     double seconds_per_light = 0.0;      ///< lower bound, one worker
     double seconds = 0.0;                ///< lower bound: lights x per light / threads
+    double seconds_per_strike = 0.0;     ///< lower bound of one strike's solve, one thread (0: paper)
     std::size_t lights = 1;
     int threads = 1;
 };
@@ -239,8 +243,9 @@ struct Cost {
 Cost estimate_cost(const Scene& s, std::size_t lights = 1, int threads = 0);
 /// The memory limit in bytes (limits.memory_bytes, or 3/4 of physical memory when 0).
 double memory_limit(const Scene& s);
-/// Throws core::Error naming "limits.memory_gib" or "limits.bake_hours", the estimate and
-/// how to raise the limit, when the cost exceeds a limit.
+/// Throws core::Error naming "limits.memory_gib", "limits.bake_hours" or
+/// "limits.strike_minutes", the estimate and how to raise the limit, when the cost exceeds a
+/// limit.
 void check_cost(const Scene& s, const Cost& c);
 
 /// The scene's VDB cloud (cloud.kind must be Vdb) as cloud::inspect_vdb sees it, from the

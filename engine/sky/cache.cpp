@@ -19,6 +19,16 @@ constexpr char kMagic[8] = {'F', 'G', 'L', 'I', 'G', 'H', 'T', '1'};
 constexpr std::uint32_t kVersion = 1;
 constexpr std::uint32_t kMaxDirections = 64, kMaxFields = 16, kMaxName = 64;
 constexpr std::uint32_t kMaxDescription = 1u << 20;
+/// Bytes of everything but the fields: magic, version, key, description, grid, directions,
+/// counts, checksum.
+constexpr std::uint64_t kMaxHeaderBytes = 64 + kMaxDescription + 24 * kMaxDirections;
+/// A file read without a shape to check it against (a tool inspecting one): 4 GiB, as NRRD.
+constexpr std::uint64_t kMaxUncheckedBytes = std::uint64_t(1) << 32;
+/// The largest |S| a light file may hold, per unit light (1/sr). S is at most the albedo times
+/// the Henyey-Greenstein peak, (1 + g) / (4 pi (1 - g)^2) (1.6e3 at g = 0.99), times the
+/// fluence per unit light, which in a cloud is of order one (a few under a bright top); 1e6
+/// leaves three decades above that and still refuses values no solve writes (3e38, 1e30).
+constexpr double kMaxUnitS = 1e6;
 
 std::string settings_lines(const SolveSettings& st) {
     std::ostringstream d;
@@ -71,6 +81,49 @@ struct Reader {
         return s;
     }
 };
+
+/// Refuses a light file solved on another grid or for other directions than the scene's plan
+/// asks for (it would be composed with the other lights' fields cell by cell).
+void check_shape(const std::string& name, const core::GridGeometry& g, const std::vector<glm::dvec3>& dirs,
+                 const LightFileShape& shape) {
+    const core::GridGeometry& want = shape.grid;
+    if (!(g == want))
+        throw core::Error(name, "solved on a " + std::to_string(g.dims.x) + " x " + std::to_string(g.dims.y) + " x " +
+                                    std::to_string(g.dims.z) + " grid of " + core::format_number(g.voxel_size) +
+                                    " m voxels, not this scene's lighting grid (" + std::to_string(want.dims.x) +
+                                    " x " + std::to_string(want.dims.y) + " x " + std::to_string(want.dims.z) + " of " +
+                                    core::format_number(want.voxel_size) + " m)");
+    bool same = dirs.size() == shape.directions.size();
+    for (std::size_t m = 0; same && m < dirs.size(); ++m)
+        same = glm::length(dirs[m] - glm::normalize(shape.directions[m])) < 1e-9;
+    if (!same)
+        throw core::Error(name, "holds " + std::to_string(dirs.size()) + " output directions, not the scene's " +
+                                    std::to_string(shape.directions.size()));
+}
+
+/// Every value finite and within what a solve writes: |S| <= kMaxUnitS, and no negative value
+/// deeper than the field's largest positive one (the lattice's over-relaxed collision can
+/// undershoot a little near a steep source; it never inverts a field).
+void check_values(Reader& r, const NamedField& nf) {
+    const std::vector<float>& v = nf.field.data;
+    float lo = 0.0f, hi = 0.0f;
+    std::size_t lo_at = 0;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+        if (!std::isfinite(v[i]) || std::fabs(v[i]) > kMaxUnitS) {
+            r.at += i * sizeof(float);
+            r.fail("field \"" + nf.name + "\": value " + std::to_string(i) + " (" + core::format_number(v[i]) +
+                   ") is not finite or beyond the " + core::format_number(kMaxUnitS) + " a solve can write");
+        }
+        if (v[i] < lo) lo = v[i], lo_at = i;
+        hi = std::max(hi, v[i]);
+    }
+    if (-lo > hi) {
+        r.at += lo_at * sizeof(float);
+        r.fail("field \"" + nf.name + "\": value " + std::to_string(lo_at) + " (" + core::format_number(lo) +
+               ") is more negative than the field's largest value (" + core::format_number(hi) +
+               ") is positive: not a solve's output");
+    }
+}
 
 std::vector<NamedField> light_fields(const LightField& f, const std::string& prefix) {
     std::vector<NamedField> out;
@@ -147,26 +200,19 @@ void write_light_file(const std::filesystem::path& path, const basis::BakeKey& k
         out.append(reinterpret_cast<const char*>(f.field.data.data()), f.field.data.size() * sizeof(float));
     }
     put(out, crc_of(out, out.size()));
-    // Atomically: a partial file never replaces a good one.
-    std::filesystem::path tmp = path;
-    tmp += ".tmp";
-    {
-        std::ofstream o(tmp, std::ios::binary | std::ios::trunc);
-        if (!o) throw core::Error(tmp.string(), "cannot open for writing");
-        o.write(out.data(), std::streamsize(out.size()));
-        if (!o) throw core::Error(tmp.string(), "write failed (disk full?)");
-    }
-    std::error_code ec;
-    std::filesystem::rename(tmp, path, ec);
-    if (ec) throw core::Error(path.string(), "cannot rename " + tmp.string() + " into place: " + ec.message());
+    core::write_file(path, out);  // atomically, under the file's lock: a partial file never replaces a good one
 }
 
-std::vector<NamedField> read_light_file(const std::filesystem::path& path, const basis::BakeKey* expected) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw core::Error(path.string(), "cannot open light file");
-    std::ostringstream buf;
-    buf << in.rdbuf();
-    const std::string bytes = buf.str();
+std::vector<NamedField> read_light_file(const std::filesystem::path& path, const basis::BakeKey* expected,
+                                        const LightFileShape* shape) {
+    // Sized before it is read: a FIFO, a device or a file larger than the shape allows is
+    // refused by the file check, never read into memory.
+    std::uint64_t max_bytes = kMaxUncheckedBytes;
+    if (shape) {
+        const std::uint64_t floats = std::uint64_t(shape->grid.cell_count()) * shape->directions.size();
+        max_bytes = kMaxHeaderBytes + shape->names.size() * (4 + kMaxName + 4 * floats);
+    }
+    const std::string bytes = core::read_file(path, max_bytes, "light");
     const std::string name = path.string();
     if (bytes.size() < sizeof kMagic + 4 || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
         throw core::Error(name + " (byte 0)", "not a Fulgur light file (expected the magic \"FGLIGHT1\")");
@@ -207,6 +253,7 @@ std::vector<NamedField> read_light_file(const std::filesystem::path& path, const
         v.z = r.get<double>("a direction");
         if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) r.fail("a direction is not finite");
     }
+    if (shape) check_shape(name, g, dirs, *shape);
     const auto nfields = r.get<std::uint32_t>("the field count");
     if (nfields > kMaxFields) r.fail(std::to_string(nfields) + " fields (at most 16)");
     if (nfields > 0) {
@@ -221,6 +268,10 @@ std::vector<NamedField> read_light_file(const std::filesystem::path& path, const
         const auto len = r.get<std::uint32_t>("a field name's length");
         if (len == 0 || len > kMaxName) r.fail("field name of " + std::to_string(len) + " bytes (1..64)");
         NamedField nf{r.text(len, "a field name"), transport::SourceField()};
+        for (const NamedField& seen : out)
+            if (seen.name == nf.name) r.fail("field \"" + nf.name + "\" appears twice");
+        if (shape && std::find(shape->names.begin(), shape->names.end(), nf.name) == shape->names.end())
+            r.fail("field \"" + nf.name + "\" is not one this light has");
         const std::size_t n = g.cell_count() * ndirs;
         if ((r.end - r.at) / sizeof(float) < n)
             r.fail("truncated: field \"" + nf.name + "\" needs " + std::to_string(n) + " floats");
@@ -228,11 +279,7 @@ std::vector<NamedField> read_light_file(const std::filesystem::path& path, const
         nf.field.directions = dirs;
         nf.field.data.resize(n);
         std::memcpy(nf.field.data.data(), bytes.data() + r.at, n * sizeof(float));
-        for (std::size_t i = 0; i < n; ++i)
-            if (!std::isfinite(nf.field.data[i])) {
-                r.at += i * sizeof(float);
-                r.fail("field \"" + nf.name + "\": value " + std::to_string(i) + " is not finite");
-            }
+        check_values(r, nf);
         r.at += n * sizeof(float);
         out.push_back(std::move(nf));
     }
@@ -257,13 +304,21 @@ StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& densi
         if (say) say(m);
     };
     // Reads the cache file when it is fresh; returns why not otherwise.
+    // Reads the cache file when it is fresh and holds this scene's grid and directions;
+    // returns why not otherwise. A path that exists but is no regular file (a directory, a
+    // FIFO, a device) is refused before any solve: the solve's result could not be kept.
     auto cached = [&](const std::optional<std::filesystem::path>& p, const basis::BakeKey& key,
-                      std::vector<NamedField>& fields) -> std::string {
+                      const LightFileShape& shape, std::vector<NamedField>& fields) -> std::string {
         if (!p) return "no cache";
         std::error_code ec;
-        if (!std::filesystem::exists(*p, ec)) return "no cache file " + p->string();
+        const std::filesystem::file_status st = std::filesystem::status(*p, ec);
+        if (!std::filesystem::exists(st)) return "no cache file " + p->string();
+        if (!std::filesystem::is_regular_file(st))
+            throw core::Error(p->string(),
+                              "is not a regular file, so the light cache cannot be kept there: remove it "
+                              "or point the cache elsewhere");
         try {
-            fields = read_light_file(*p, &key);
+            fields = read_light_file(*p, &key, &shape);
         } catch (const core::Error& e) {
             return e.what();
         }
@@ -275,12 +330,13 @@ StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& densi
         std::filesystem::create_directories(p->parent_path());
         write_light_file(*p, key, fields);
     };
+    const core::GridGeometry& grid = media.lighting.density.geom;
     if (plan.sun) {
         const glm::dvec3 d = s.sun->direction;
         const basis::BakeKey key = sun_key(s, density, plan.settings, d);
         const auto p = cache_path(s, cache, "sun");
         std::vector<NamedField> fields;
-        const std::string why = cached(p, key, fields);
+        const std::string why = cached(p, key, {grid, dirs, {"single", "multiple"}}, fields);
         if (why.empty()) {
             out.sun = field_of(fields, "");
             tell("sun: read from " + p->string());
@@ -297,7 +353,11 @@ StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& densi
         const basis::BakeKey key = sky_key(s, density, plan.settings, plan.sky_uniform);
         const auto p = cache_path(s, cache, "sky");
         std::vector<NamedField> fields;
-        const std::string why = cached(p, key, fields);
+        const LightFileShape shape{grid,
+                                   dirs,
+                                   {"zenith.single", "zenith.multiple", "horizon.single", "horizon.multiple",
+                                    "uniform.single", "uniform.multiple"}};
+        const std::string why = cached(p, key, shape, fields);
         SkyField sky;
         if (why.empty()) {
             sky.zenith = field_of(fields, "zenith.");

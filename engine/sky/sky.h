@@ -158,10 +158,20 @@ struct NamedField {
 /// Writes fields (one geometry and direction set) with their key, checksummed, atomically.
 /// File format: docs/sky.md.
 void write_light_file(const std::filesystem::path& path, const basis::BakeKey& key, std::span<const NamedField> fields);
-/// Reads a light file, validating every size against the file and the checksum; with
-/// `expected`, a file solved for another key is rejected ("stale": the first differing
-/// line). Errors name the file and the byte offset.
-std::vector<NamedField> read_light_file(const std::filesystem::path& path, const basis::BakeKey* expected = nullptr);
+/// What a light file must hold to stand in for a solve: the scene's lighting grid, its output
+/// directions, and the names its fields may have.
+struct LightFileShape {
+    core::GridGeometry grid;
+    std::vector<glm::dvec3> directions;
+    std::vector<std::string> names;
+};
+/// Reads a light file: a regular file no larger than the shape allows (4 GiB without one),
+/// every size validated against the file, the checksum, every value finite and within what a
+/// solve writes. With `expected`, a file solved for another key is rejected ("stale": the
+/// first differing line); with `shape`, one for another grid, other directions or with fields
+/// the light does not have. Errors name the file and the byte offset.
+std::vector<NamedField> read_light_file(const std::filesystem::path& path, const basis::BakeKey* expected = nullptr,
+                                        const LightFileShape* shape = nullptr);
 
 /// The scene's static light, per unit light.
 struct StaticLight {

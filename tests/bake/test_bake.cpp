@@ -428,5 +428,10 @@ TEST_CASE("a bake that would light nothing is refused and writes no file, naming
     s.compression.xi = 1e30;
     CHECK_THROWS_WITH_AS(bake::bake(s, d, dir / "empty.fgb"), doctest::Contains("compression.xi"), core::Error);
     CHECK_FALSE(std::filesystem::exists(dir / "empty.fgb"));
+    // A medium that scatters nothing lights nothing: the albedo is named, not the threshold.
+    s = tiny("test_iso_ss_ic");
+    s.medium.albedo = 0.0;
+    CHECK_THROWS_WITH_AS(bake::bake(s, d, dir / "dark.fgb"), doctest::Contains("medium.albedo: 0"), core::Error);
+    CHECK_FALSE(std::filesystem::exists(dir / "dark.fgb"));
     CHECK(test::temporaries(dir).empty());
 }

@@ -158,6 +158,9 @@ TEST_CASE("a sun (or moon): direction or elevation and azimuth, irradiance, colo
     };
     bad(R"({"type": "sun"})", "b.json: /lights/0/direction: give either");
     bad(R"({"type": "sun", "direction": [0, 0, -1], "elevation": 10, "azimuth": 0})", "/lights/0/direction");
+    // A propagation direction along or above the horizon: the sun would stand at or below it.
+    bad(R"({"type": "sun", "direction": [1, 0, 0]})", "/lights/0/direction: points along or above the horizon");
+    bad(R"({"type": "sun", "direction": [0, 1, 0.2]})", "/lights/0/direction: points along or above the horizon");
     bad(R"({"type": "sun", "elevation": 10})", "/lights/0/azimuth: required");
     bad(R"({"type": "sun", "elevation": 0, "azimuth": 0})", "/lights/0/elevation: value 0 is outside");
     bad(R"({"type": "sun", "elevation": 95, "azimuth": 0})", "(0, 90]");

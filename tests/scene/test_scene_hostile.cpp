@@ -77,6 +77,10 @@ TEST_CASE("byte-order marks: UTF-8 is skipped, UTF-16 is refused; a NUL in a str
                          doctest::Contains("z.json: /name: the string holds a NUL"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"generator\": {", "\"file\": \"x\\u0000.nrrd\", \"nope\": {"), "z.json"),
                          doctest::Contains("z.json: /cloud/file: the string holds a NUL"), Error);
+    // An escaped NUL in a key: the whole key is named, the NUL shown as its escape (a NUL in
+    // the message would cut it where it is printed).
+    CHECK_THROWS_WITH_AS(parse_scene(with("\"name\"", "\"na\\u0000me\": 1, \"name\""), "k.json"),
+                         doctest::Contains("k.json: /na\\u0000me: unknown key"), Error);
     // A raw NUL byte is invalid JSON: the byte offset is named.
     std::string raw = kScene;
     raw[raw.find("hostile")] = '\0';
@@ -146,6 +150,48 @@ TEST_CASE("the cost of a scene is known before anything is allocated, and refuse
     CHECK_THROWS_WITH_AS(check_cost(small, estimate_cost(small)), doctest::Contains("limits.bake_hours"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"lights\"", "\"limits\": {\"bake_hours\": 0}, \"lights\""), "z.json"),
                          doctest::Contains("z.json: /limits/bake_hours"), Error);
+}
+
+TEST_CASE("a ground at or above the top of the cloud's grid is refused with the file, before any bolt") {
+    // The hostile scene's grid is 24 voxels of 500 m: its top is at z = 12000 m.
+    const Scene s = parse_scene(with("\"lights\"", "\"lightning\": {\"ground_height\": 50000}, \"lights\""), "g.json");
+    CHECK_THROWS_WITH_AS(make_density(s), doctest::Contains("scene: /lightning/ground_height: 50000 m: the ground"),
+                         Error);
+    CHECK_NOTHROW(make_density(parse_scene(kScene, "ok.json")));
+}
+
+TEST_CASE("every knob that scales a solve's work is in the cost: order-2 paths, a preset's per-strike paths") {
+    // order2_paths 2^32 with exact_orders 2 once ran with no output and no end: its paths are
+    // part of each light's lower bound (2e-7 s per path: 859 s a light).
+    const Scene o = parse_scene(with("\"lights\"",
+                                     "\"transport\": {\"lattice_boltzmann\": {\"exact_orders\": 2, "
+                                     "\"order2_paths\": 4294967296}}, \"lights\""),
+                                "o2.json");
+    const Scene plain = parse_scene(kScene, "plain.json");
+    CHECK(estimate_cost(o, 1, 1).seconds_per_light - estimate_cost(plain, 1, 1).seconds_per_light >=
+          4294967296.0 * 2e-7 * (1.0 - 1e-12));
+    CHECK_THROWS_WITH_AS(check_cost(o, estimate_cost(o, 1000, 2)), doctest::Contains("scene: limits.bake_hours"),
+                         Error);
+    // A preset's paths at 2^32: each strike's solve would run for hours while a frame waits.
+    const Scene q = parse_scene(
+        with("\"lights\"", "\"quality\": {\"preset\": \"per_strike_mc\", \"single_paths\": 4294967296}, \"lights\""),
+        "q.json");
+    CHECK_THROWS_WITH_AS(check_cost(q, estimate_cost(q)), doctest::Contains("scene: limits.strike_minutes"), Error);
+    CHECK_THROWS_WITH_AS(check_cost(q, estimate_cost(q)), doctest::Contains("4294967296 single-scattering paths"),
+                         Error);
+    // The shipped presets pass, the paper preset costs nothing per strike, and the limit is a key.
+    for (const char* p : {"paper", "hybrid", "per_strike", "per_strike_mc", "reference"}) {
+        CAPTURE(p);
+        const Scene k =
+            parse_scene(with("\"lights\"", std::string("\"quality\": \"") + p + "\", \"lights\""), "k.json");
+        const Cost c = estimate_cost(k);
+        CHECK_NOTHROW(check_cost(k, c));
+        CHECK((c.seconds_per_strike == 0.0) == (std::string(p) == "paper"));
+    }
+    const Scene tight = parse_scene(
+        with("\"lights\"", "\"quality\": \"per_strike_mc\", \"limits\": {\"strike_minutes\": 1e-9}, \"lights\""),
+        "t.json");
+    CHECK_THROWS_WITH_AS(check_cost(tight, estimate_cost(tight)), doctest::Contains("limits.strike_minutes"), Error);
 }
 
 TEST_CASE("a cloud file is sized from its header: a header promising more data than the file holds is refused") {
