@@ -28,9 +28,11 @@ std::string Plan::to_text() const {
     if (expected_bytes)
         o << "  expected file   " << core::format_bytes(double(expected_bytes)) << " (from " << sample_lights
           << " sample lights)\n";
-    if (expected_seconds > 0.0)
+    if (expected_seconds > 0.0 && sample_lights > 0)
         o << "  expected time   " << core::format_seconds(expected_seconds) << " (from " << sample_lights
           << " sample lights)\n";
+    else if (expected_seconds > 0.0)
+        o << "  expected time   " << core::format_seconds(expected_seconds) << " (the lower bound: no sample light)\n";
     o << "  why:\n";
     for (const std::string& r : reasons) o << "    - " << r << "\n";
     return o.str();
@@ -140,6 +142,17 @@ void estimate_from_samples(const scene::Scene& s, const solve::Media& media, Pla
     // (at least one) when their lower-bound cost passes a minute: on a large grid one
     // light can take minutes.
     constexpr double kSampleBudgetSeconds = 60.0;
+    if (p.cost.seconds_per_light > kSampleBudgetSeconds) {
+        // Not even one sample fits the budget: a plan (and --dry-run) must not run for minutes
+        // with no output, so the estimate is the lower bound itself, said to be one.
+        p.sample_lights = 0;
+        p.expected_seconds = p.cost.seconds;
+        p.reasons.push_back("no sample light solved: one light's lower bound, " +
+                            core::format_seconds(p.cost.seconds_per_light) + ", is over the " +
+                            core::format_seconds(kSampleBudgetSeconds) +
+                            " the plan may spend on samples; the expected time is that lower bound");
+        return;
+    }
     const int kSamples = int(std::clamp(kSampleBudgetSeconds / std::max(p.cost.seconds_per_light, 1e-9), 1.0, 16.0));
     p.sample_lights = kSamples;
     std::vector<std::uint32_t> samples;

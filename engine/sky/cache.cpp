@@ -120,8 +120,8 @@ void check_values(Reader& r, const NamedField& nf) {
     if (-lo > hi) {
         r.at += lo_at * sizeof(float);
         r.fail("field \"" + nf.name + "\": value " + std::to_string(lo_at) + " (" + core::format_number(lo) +
-               ") is more negative than the field's largest value (" + core::format_number(hi) +
-               ") is positive: not a solve's output");
+               ") lies further below zero than the field's largest value (" + core::format_number(hi) +
+               ") lies above it: not a solve's output");
     }
 }
 

@@ -435,3 +435,19 @@ TEST_CASE("a bake that would light nothing is refused and writes no file, naming
     CHECK_FALSE(std::filesystem::exists(dir / "dark.fgb"));
     CHECK(test::temporaries(dir).empty());
 }
+
+TEST_CASE("a plan whose lights each cost more than its sampling budget solves no sample light and says so") {
+    // transport.lattice_boltzmann.order2_paths 2^32 with exact_orders 2 once kept a --dry-run
+    // solving one sample light for many minutes with no output; its lower bound (about 14 min
+    // a light) now stands for the expected time, and no light is solved.
+    scene::Scene s = tiny("test_iso_ms_cg");
+    s.transport.lb_exact_orders = 2;
+    s.transport.lb_order2_paths = std::uint64_t(1) << 32;
+    const core::Grid3<float> d = scene::make_density(s);
+    const bake::Plan p = bake::make_plan(s, d);
+    CHECK(p.sample_lights == 0);
+    CHECK(p.cost.seconds_per_light > 60.0);
+    CHECK(p.expected_seconds == p.cost.seconds);
+    CHECK(p.to_text().find("no sample light solved") != std::string::npos);
+    CHECK(p.to_text().find("(the lower bound: no sample light)") != std::string::npos);
+}

@@ -549,3 +549,15 @@ TEST_CASE("a consistent but wrong file: its header is checked against the plan, 
     }
     CHECK_THROWS_WITH_AS(basis::load_fgb(dir / "big32.fgb"), doctest::Contains("beyond 2^64"), core::Error);
 }
+
+TEST_CASE("a stale key names the first differing line; an edited description is told from a collision") {
+    const basis::BakeKey scene = basis::BakeKey::from_description("a=1\nb=2\n");
+    const basis::BakeKey other = basis::BakeKey::from_description("a=1\nb=3\n");
+    CHECK(basis::key_difference(other, scene) ==
+          "first difference at line 2: the file has \"b=3\", the scene has \"b=2\"");
+    // The file's description edited after the bake, its hash left as the scene's: not a collision.
+    basis::BakeKey edited = scene;
+    edited.description = "a=1\nb=3\n";
+    CHECK(basis::key_difference(edited, scene).find("it was edited after the bake") != std::string::npos);
+    CHECK(basis::key_difference(edited, scene).find("collision") == std::string::npos);
+}
