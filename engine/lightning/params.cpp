@@ -2,6 +2,7 @@
 // applies (engine/scene/scene.cpp); both reject NaN/Inf.
 #include "lightning/lightning.h"
 
+#include <array>
 #include <cmath>
 #include <sstream>
 #include <string>
@@ -9,15 +10,11 @@
 namespace fulgur::lightning {
 
 std::string_view kind_name(Kind k) noexcept {
-    switch (k) {
-        case Kind::CloudToGround:
-            return "cloud_to_ground";
-        case Kind::IntraCloud:
-            return "intra_cloud";
-        case Kind::CloudToCloud:
-            return "cloud_to_cloud";
-    }
-    return "unknown";
+    // Indexed by Kind, in its declaration order.
+    constexpr std::array<std::string_view, 3> kNames = {"cloud_to_ground", "intra_cloud", "cloud_to_cloud"};
+    static_assert(std::size_t(Kind::CloudToCloud) == kNames.size() - 1);
+    const auto i = std::size_t(k);
+    return i < kNames.size() ? kNames[i] : "unknown";
 }
 
 namespace {
