@@ -22,6 +22,7 @@
 #include <glm/vec2.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -32,6 +33,12 @@ using namespace fulgur;
 using namespace fulgur::transport;
 
 namespace {
+
+// The columns every per-voxel and profile row carries after its position and density: the direction-mean
+// exact single scattering, Monte Carlo's single and multiple scattering with the latter's
+// standard error, and the lattice's multiple scattering under both absorption mappings.
+const std::array<std::string, 6> kSolverColumns = {
+    "S1", "mc_single", "mc_multiple", "mc_multiple_se", "lb_multiple_physical", "lb_multiple_conservative"};
 
 /// A field S[m * cells + c] in double.
 using Field = std::vector<double>;
@@ -480,17 +487,8 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
 
     // --- Per voxel (direction means, 500 m) ---------------------------------------------------------
     {
-        std::vector<std::string> header = {"i",
-                                           "j",
-                                           "k",
-                                           "density",
-                                           "tau_hop",
-                                           "S1",
-                                           "mc_single",
-                                           "mc_multiple",
-                                           "mc_multiple_se",
-                                           "lb_multiple_physical",
-                                           "lb_multiple_conservative"};
+        std::vector<std::string> header = {"i", "j", "k", "density", "tau_hop"};
+        header.insert(header.end(), kSolverColumns.begin(), kSolverColumns.end());
         for (std::size_t q = 1; q < solves.size(); ++q) {
             const std::string v = std::to_string(int(solves[q].geom.voxel_size)) + "m";
             header.push_back("mc_multiple_" + v);
@@ -512,15 +510,8 @@ FULGUR_STUDY(lb_vs_mc, "lb-vs-mc",
     {
         // The lattice's multiple scattering on the other grids and with the third mapping, by
         // their labels (the plot script draws every column).
-        std::vector<std::string> header = {"k",
-                                           "z_m",
-                                           "density",
-                                           "S1",
-                                           "mc_single",
-                                           "mc_multiple",
-                                           "mc_multiple_se",
-                                           "lb_multiple_physical",
-                                           "lb_multiple_conservative"};
+        std::vector<std::string> header = {"k", "z_m", "density"};
+        header.insert(header.end(), kSolverColumns.begin(), kSolverColumns.end());
         for (std::size_t q = 1; q < solves.size(); ++q)
             header.push_back("lb_multiple_physical_" + std::to_string(int(solves[q].geom.voxel_size)) + "m");
         header.push_back("lb_multiple_physical_" + runs[2].label.substr(9) + "_mapping");
