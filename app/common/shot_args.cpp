@@ -111,6 +111,16 @@ void declare(CommandLine& cli, ShotArgs& a) {
         app, "--quality", [&a](const std::string& s) { a.quality = s; }, scene::kQualityPresets,
         "how the frame is lit, its strike's own solve waited for (default: the scene's \"quality\")")
         ->type_name("PRESET");
+    app.add_option_function<std::string>(
+           "--since-known",
+           [&a](const std::string& v) {
+               a.since_known_ms = parse_number<double>(v, kTool, "--since-known");
+               if (!std::isfinite(*a.since_known_ms) || *a.since_known_ms < 0.0 || *a.since_known_ms > 600'000.0)
+                   throw core::Error(kTool, "--since-known must be a number of milliseconds in [0, 600000]");
+           },
+           "the frame as a strike nobody scheduled shows it MS ms of wall time after it became known (0: its first "
+           "lit frame; frames at 60 fps meanwhile, lookahead 0); without it the strike's own solve is waited for")
+        ->type_name("MS");
     path_option(app, "--vdb", a.vdb, ".vdb",
                 "also write the density and the frame's lightning S in every direction (grids density, S_00, S_01, "
                 "...) as OUT.vdb (OpenVDB, metres), for Houdini, Blender or ParaView")

@@ -35,6 +35,11 @@ struct ShotArgs {
     /// --quality PRESET: how the frame is lit (paper, hybrid, per_strike, reference; default:
     /// the scene's "quality"); a strike's own solve is waited for.
     std::optional<std::string> quality;
+    /// --since-known MS: the frame as a strike nobody scheduled shows it MS milliseconds of wall
+    /// time after it became known (runtime::build_since_known: lookahead 0, frames at 60 fps
+    /// meanwhile, then the per-strike work stops and the frame is what exists); 0 is its first
+    /// lit frame. Without it the strike's own solve is waited for.
+    std::optional<double> since_known_ms;
     /// --vdb OUT.vdb: also write the density and the frame's lightning S (every direction, on
     /// the lighting grid) as OpenVDB.
     std::optional<std::filesystem::path> vdb;

@@ -6,20 +6,57 @@
 #include "common/view_cli.h"
 #include "platform/platform.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 #include <vector>
 
 using namespace fulgur;
 
 namespace {
 
+// Relative L2 of `field` against `reference` over the cloud voxels, every direction.
+double field_error(view::StormView& view, const transport::SourceField& field, const transport::SourceField& reference) {
+    const std::vector<float>& density = view.media().lighting.density.data;
+    core::RelativeL2 e;
+    for (std::size_t i = 0; i < reference.data.size(); ++i)
+        if (density[i % density.size()] > 0.0f) e.add(double(field.data[i]), double(reference.data[i]));
+    return e.value();
+}
+
+// --since-known: the frame an unscheduled strike shows MS ms after it became known, all
+// directions, as a field the renders show; the per-strike work is stopped there. Prints what
+// the frames cost meanwhile and how the strike was lit as JSON.
+transport::SourceField since_known_field(view::StormView& view, double t, const view::ViewOptions& opt,
+                                         const app::ShotArgs& a) {
+    runtime::FramePipeline& p = view.pipeline();
+    runtime::ReconstructOptions ro;
+    ro.components = opt.components;
+    runtime::SinceKnown seen;
+    const runtime::Frame& f = runtime::build_since_known(p, t, *a.since_known_ms, {}, ro, &seen);
+    if (runtime::InstantStrikes* is = p.instant_strikes()) is->set_paused(true);
+    if (runtime::StrikeSolver* ss = p.strike_solver()) ss->set_paused(true);
+    transport::SourceField field(view.bases().lighting(), view.bases().directions());
+    if (f.lit)
+        for (std::size_t k = 0; k < f.radiance.directions.size(); ++k)
+            std::copy(f.radiance.values[k].begin(), f.radiance.values[k].end(),
+                      field.direction(std::size_t(f.radiance.directions[k])).begin());
+    std::printf("{\"name\":\"fulgur-shot-since-known\",\"quality\":\"%s\",\"since_known_ms\":%.4g,"
+                "\"frames_meanwhile\":%d,\"frame_ms_median\":%.4g,\"frame_ms_max\":%.4g,"
+                "\"strikes_solved\":%zu,\"strikes_fallback\":%zu,\"instant_weight\":%.4g}\n",
+                std::string(scene::to_string(p.quality().preset)).c_str(), *a.since_known_ms, seen.frames,
+                seen.median_frame_ms, seen.max_frame_ms, f.strikes_solved, f.strikes_fallback, f.instant_weight);
+    std::fflush(stdout);
+    return field;
+}
+
 // --reference: the same frame lit by the truth (or the direct solve), its difference image and the errors
 // (S over the cloud; the cloud's in-scattered radiance in the image) and times as JSON.
 void render_reference(view::StormView& view, platform::Context* ctx, const render::Camera& cam, double t,
-                      const view::ViewOptions& opt, const app::ShotArgs& a,
-                      const std::vector<std::uint8_t>& shown_basis) {
+                      const view::ViewOptions& opt, const app::ShotArgs& a, const std::vector<std::uint8_t>& shown_basis,
+                      const transport::SourceField* shown_field) {
     transport::SourceField direct;
     double solve_s = 0.0, frame_ms = 0.0;
     transport::MonteCarloResult::Noise noise;
@@ -27,13 +64,13 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
         runtime::TruthOptions to;
         to.paths = a.truth_paths;
         to.seed = a.seed;
-        view::StormView::TruthSolve solved = view.solve_truth(t, opt.components, to);
+        view::StormView::TruthSolve solved = view.solve_truth(t, opt.components, to, !shown_field);
         direct = std::move(solved.field);
         solve_s = solved.seconds;
         frame_ms = solved.basis_ms;
         noise = solved.noise;
     } else {
-        view::StormView::DirectSolve solved = view.solve_direct(t, opt.components);
+        view::StormView::DirectSolve solved = view.solve_direct(t, opt.components, !shown_field);
         direct = std::move(solved.field);
         solve_s = solved.seconds;
         frame_ms = solved.basis_ms;
@@ -43,7 +80,7 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
     const runtime::Frame& f = *view.last_frame();
     const bool lit = f.lit;
     const std::size_t sources = f.sources.size(), active = f.weights.active.size();
-    const double s_err = view.reconstruction_error(direct);
+    const double s_err = shown_field ? field_error(view, *shown_field, direct) : view.reconstruction_error(direct);
 
     view.render(cam, t, a.width, a.height, opt, &direct);
     ctx->present();
@@ -56,7 +93,7 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
     metric.settings.glow = false;
     metric.settings.jitter = false;
     int w = 0, h = 0;
-    view.render(cam, t, a.width, a.height, metric);
+    view.render(cam, t, a.width, a.height, metric, shown_field);
     const std::vector<float> basis = view.renderer().read_march(w, h);
     view.render(cam, t, a.width, a.height, metric, &direct);
     const std::vector<float> ref = view.renderer().read_march(w, h);
@@ -97,27 +134,39 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
 
 // --vdb: the density and the frame's lightning S at t in every baked direction (zeros when no
 // flash glows at t; none without lightning), on the lighting grid.
-void write_frame_vdb(view::StormView& view, double t, const view::ViewOptions& opt, const app::ShotArgs& a) {
+void write_frame_vdb(view::StormView& view, double t, const view::ViewOptions& opt, const app::ShotArgs& a,
+                     const transport::SourceField* shown_field) {
     app::LightingVdb v;
     const scene::Scene& s = view.scene();
     v.scene = s.name + " (" + a.scene.string() + ")";
     v.extinction = s.medium.extinction;
     v.density = &view.density();
     if (view.has_lightning()) {
-        runtime::ReconstructOptions ro;
-        ro.components = opt.components;
-        ro.wait_for_strikes = true;
-        const runtime::Frame& f = view.pipeline().build(t, {}, ro);
         const std::vector<glm::dvec3>& dirs = view.bases().directions();
         v.source.assign(dirs.size(), core::Grid3<float>(view.bases().lighting()));
         v.directions = dirs;
-        if (f.lit)
-            for (std::size_t i = 0; i < f.radiance.directions.size(); ++i)
-                v.source.at(std::size_t(f.radiance.directions[i])).data = f.radiance.values[i];
+        bool lit = true;
+        if (shown_field) {  // --since-known: the frame as it was shown then
+            for (std::size_t m = 0; m < dirs.size(); ++m) {
+                const std::span<const float> d = shown_field->direction(m);
+                v.source[m].data.assign(d.begin(), d.end());
+            }
+        } else {
+            runtime::ReconstructOptions ro;
+            ro.components = opt.components;
+            ro.wait_for_strikes = true;
+            const runtime::Frame& f = view.pipeline().build(t, {}, ro);
+            lit = f.lit;
+            if (f.lit)
+                for (std::size_t i = 0; i < f.radiance.directions.size(); ++i)
+                    v.source.at(std::size_t(f.radiance.directions[i])).data = f.radiance.values[i];
+        }
         v.source_meaning = "the lightning's S of the frame at t = " + core::format_number(t, 9) + " s, seed " +
                            std::to_string(a.seed) + ", quality " +
                            std::string(scene::to_string(view.pipeline().quality().preset)) +
-                           (f.lit ? "" : " (no flash glows at t: zero)");
+                           (a.since_known_ms ? ", " + core::format_number(*a.since_known_ms, 6) + " ms after it became known"
+                                             : std::string()) +
+                           (lit ? "" : " (no flash glows at t: zero)");
     }
     app::write_lighting_vdb(*a.vdb, v);
 }
@@ -153,13 +202,16 @@ int main(int argc, char** argv) {
             lightning::LightningParams lp = view.scene().lightning;
             lp.schedule.strike_rate = 0.0;  // only the requested strike (after the bake check: same .fgb as the demo)
             view.set_lightning(lp);
-            if (a.quality) view.set_quality(scene::quality_preset(*a.quality));
+            scene::Quality q = a.quality ? scene::quality_preset(*a.quality) : view.scene().quality;
+            if (a.since_known_ms) q.lookahead = 0.0;  // nobody scheduled it
+            if (a.quality || a.since_known_ms) view.set_quality(q);
             const std::size_t strike = view.pipeline().strike_at(0.0, a.seed);
             if (a.time_after_return_stroke) t += view.pipeline().storm().strike(strike).profile.stroke_onset.at(0);
-        } else if (a.time_after_return_stroke || a.reference) {
+        } else if (a.time_after_return_stroke || a.reference || a.since_known_ms) {
             throw core::Error(a.scene.string(), std::string("the scene has no lightning: ") +
-                                                    (a.reference ? "--reference has no frame to solve"
-                                                                 : "--time +T has no return stroke to follow"));
+                                                    (a.reference        ? "--reference has no frame to solve"
+                                                     : a.since_known_ms ? "--since-known has no strike to wait for"
+                                                                        : "--time +T has no return stroke to follow"));
         }
         view::ViewOptions opt;
         opt.wait_for_strikes = true;  // offline: the preset's own light, never its fallback
@@ -179,20 +231,26 @@ int main(int argc, char** argv) {
             opt.components.multiple &= off != "multiple";
         }
         const render::Camera cam = view::default_camera(view.density());
+        std::optional<transport::SourceField> shown;  // --since-known: the frame as it was then
+        if (a.since_known_ms) {
+            opt.wait_for_strikes = false;
+            shown = since_known_field(view, t, opt, a);
+        }
+        const transport::SourceField* shown_field = shown ? &*shown : nullptr;
         // Medians over --repeat frames: the first one also compiles shaders and uploads the
         // density; the run time rebuilds the same frame each time (same strike, same t). The
         // frame index (which varies the ray-march jitter) stays the same too, so the image
         // written is the one a single render writes: --repeat only times it.
         std::vector<view::FrameReport> reps;
-        for (int k = 0; k < a.repeat; ++k) reps.push_back(view.render(cam, t, a.width, a.height, opt));
+        for (int k = 0; k < a.repeat; ++k) reps.push_back(view.render(cam, t, a.width, a.height, opt, shown_field));
         view::FrameReport r = reps.back();
         if (reps.size() > 1) r = view::median_report(reps);
         ctx->present();
         const auto px = ctx->read_rgba8();
         core::write_png(a.output, a.width, a.height, 4, px);
         std::cout << app::timings_json(r, a.width, a.height) << std::endl;
-        if (a.vdb) write_frame_vdb(view, t, opt, a);
-        if (a.reference) render_reference(view, ctx.get(), cam, t, opt, a, px);
+        if (a.vdb) write_frame_vdb(view, t, opt, a, shown_field);
+        if (a.reference) render_reference(view, ctx.get(), cam, t, opt, a, px, shown_field);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur-shot: %s\n", e.what());
         return app::kExitFailure;

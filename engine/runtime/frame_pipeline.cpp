@@ -4,6 +4,10 @@
 #include "runtime/runtime.h"
 
 #include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <thread>
+#include <map>
 #include <string>
 #include <utility>
 
@@ -19,6 +23,14 @@ struct FramePipeline::Impl {
     scene::Scene solve_scene;
     std::optional<solve::Media> media;
     std::unique_ptr<StrikeSolver> solver;
+    std::unique_ptr<InstantStrikes> instant;
+    // The instant preset's shown estimate of each active strike: a cross-fade from `from`
+    // (null: the bases alone) to `to`, `fade` of the way (1: done, a newer estimate may come).
+    struct Shown {
+        std::shared_ptr<const StrikeEstimate> from, to;
+        double fade = 1.0;
+    };
+    std::map<std::pair<std::uint64_t, double>, Shown> shown;
     std::vector<lightning::LitSegment> basis_segments, multiple_segments;  // what the bases light
     std::vector<transport::PointSource> basis_sources, multiple_sources;
     lightning::LightWeights multiple_weights;
@@ -28,15 +40,24 @@ struct FramePipeline::Impl {
     const scene::Scene* scene;
     const core::Grid3<float>* density;
 
-    Impl(const scene::Scene& s, const core::Grid3<float>& d, const BakedBases& bases,
-         std::optional<lightning::Box> domain, const scene::Quality& q)
-        : storm(s.lightning, d, domain), splatter(bases.lights()), reconstructor(bases), scene(&s), density(&d) {
+    const BakedBases* bases;
+
+    Impl(const scene::Scene& s, const core::Grid3<float>& d, const BakedBases& b, std::optional<lightning::Box> domain,
+         const scene::Quality& q)
+        : storm(s.lightning, d, domain),
+          splatter(b.lights()),
+          reconstructor(b),
+          scene(&s),
+          density(&d),
+          bases(&b) {
         set_quality(q);
     }
 
     void set_quality(const scene::Quality& q) {
         const scene::Scene& s = *scene;
-        solver.reset();  // joins the worker: nothing refers to the old media any more
+        solver.reset();  // joins the workers: nothing refers to the old media any more
+        instant.reset();
+        shown.clear();
         media.reset();
         quality = q;
         if (q.preset == scene::Quality::Preset::Paper) return;
@@ -47,6 +68,13 @@ struct FramePipeline::Impl {
             solve_scene.transport.refine = q.refine;
         if (q.exact_orders > 0) solve_scene.transport.lb_exact_orders = q.exact_orders;
         media = solve::make_media(solve_scene, *density);
+        if (q.preset == scene::Quality::Preset::Instant) {
+            // Every core: a frame of this preset costs about a millisecond of the frame thread,
+            // and the first estimate's latency is the round's paths over the cores.
+            instant = std::make_unique<InstantStrikes>(solve_scene, *density, *media, bases, instant_options(q),
+                                                       core::thread_count());
+            return;
+        }
         // The worker takes one core less than the frame's share, at least one.
         solver = std::make_unique<StrikeSolver>(solve_scene, *density, *media, strike_solve_options(q),
                                                 std::max(1, core::thread_count() - 1));
@@ -59,8 +87,16 @@ struct FramePipeline::Impl {
         frame.lit = false;
         frame.times = {};
         frame.strikes_solved = frame.strikes_fallback = 0;
+        frame.instant_weight = 1.0;
         return frame;
     }
+    // A solved strike's light in a frame, scaled by its glow (and, instant, by its weight).
+    struct Lit {
+        std::shared_ptr<const StrikeLight> light;
+        double main = 0.0, branch = 0.0;
+    };
+    void add_instant(const lightning::Strike& k, const lightning::Bolt& bolt, double t,
+                     const ReconstructOptions& options, std::vector<Lit>& solved);
     const Frame& build_paper(double t, std::span<const int> directions, const ReconstructOptions& options);
     const Frame& build_solved(double t, std::span<const int> directions, const ReconstructOptions& options);
 };
@@ -77,10 +113,12 @@ std::size_t FramePipeline::strike_at(double t, std::optional<std::uint64_t> seed
 lightning::Storm& FramePipeline::storm() noexcept { return impl_->storm; }
 const scene::Quality& FramePipeline::quality() const noexcept { return impl_->quality; }
 StrikeSolver* FramePipeline::strike_solver() noexcept { return impl_->solver.get(); }
+InstantStrikes* FramePipeline::instant_strikes() noexcept { return impl_->instant.get(); }
 void FramePipeline::set_quality(const scene::Quality& q) { impl_->set_quality(q); }
 
 const Frame& FramePipeline::build(double t, std::span<const int> directions, const ReconstructOptions& options) {
-    return impl_->solver ? impl_->build_solved(t, directions, options) : impl_->build_paper(t, directions, options);
+    return impl_->solver || impl_->instant ? impl_->build_solved(t, directions, options)
+                                           : impl_->build_paper(t, directions, options);
 }
 
 const Frame& FramePipeline::Impl::build_paper(double t, std::span<const int> directions,
@@ -107,6 +145,44 @@ const Frame& FramePipeline::Impl::build_paper(double t, std::span<const int> dir
     return f;
 }
 
+// The instant preset's strike: its strokes' light from its latest estimate with weight w (the
+// estimate's against the bases, cross-faded from the previous estimate over blend_frames
+// builds) and from the bases with 1 - w; its leaders from the bases. No estimate yet: the
+// bases alone, as a strike whose solve is not ready.
+void FramePipeline::Impl::add_instant(const lightning::Strike& k, const lightning::Bolt& bolt, double t,
+                                      const ReconstructOptions& options, std::vector<Lit>& solved) {
+    Frame& f = frame;
+    const lightning::FlashState st = lightning::flash_state(k.profile, storm.params().timing, t - k.time);
+    Shown& s = shown[{k.seed, k.time}];
+    std::shared_ptr<const StrikeEstimate> latest =
+        options.wait_for_strikes ? instant->wait_final(k.seed, k.time) : instant->get(k.seed, k.time);
+    if (options.wait_for_strikes) {  // offline: the converged estimate, no cross-fade
+        s = {nullptr, latest, 1.0};
+    } else if (latest && latest != s.to && s.fade >= 1.0) {
+        s = {s.to, latest, 0.0};
+    }
+    if (s.fade < 1.0) s.fade = std::min(1.0, s.fade + 1.0 / double(std::max(1, quality.blend_frames)));
+    if (!s.to) {
+        lightning::lit_segments(bolt, st, basis_segments);
+        ++f.strikes_fallback;
+        f.instant_weight = 0.0;
+        return;
+    }
+    ++f.strikes_solved;
+    const double w_from = s.from ? (1.0 - s.fade) * s.from->weight() : 0.0, w_to = s.fade * s.to->weight();
+    const double w = w_from + w_to;
+    f.instant_weight = std::min(f.instant_weight, w);
+    lightning::FlashState bases_part = st;  // the leaders, and the strokes' share of the bases
+    bases_part.main_glow *= 1.0 - w;
+    bases_part.branch_glow *= 1.0 - w;
+    lightning::lit_segments(bolt, bases_part, basis_segments);
+    const auto light = [](const std::shared_ptr<const StrikeEstimate>& e) {
+        return std::shared_ptr<const StrikeLight>(e, &e->light);
+    };
+    if (w_from > 0.0) solved.push_back({light(s.from), st.main_glow * w_from, st.branch_glow * w_from});
+    if (w_to > 0.0) solved.push_back({light(s.to), st.main_glow * w_to, st.branch_glow * w_to});
+}
+
 namespace {
 
 // Adds b's values into a (same directions), or copies b when a holds nothing yet.
@@ -131,28 +207,38 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
     Frame& f = begin_frame(t);
     core::Stopwatch sw;
     // Strikes starting soon are queued now, so their light is ready by their frames.
-    for (const std::size_t i : storm.starting(t - 1.0, t + quality.lookahead)) {
+    const auto request = [&](std::size_t i) {
         const lightning::Strike& k = storm.strike(i);
-        if (k.end() > t) solver->request(k.seed, k.time, storm.bolt(i));
-    }
+        if (instant)
+            instant->request(k.seed, k.time, storm.bolt(i));
+        else
+            solver->request(k.seed, k.time, storm.bolt(i));
+    };
+    for (const std::size_t i : storm.starting(t - 1.0, t + quality.lookahead))
+        if (storm.strike(i).end() > t) request(i);
     if (t - 60.0 > forgotten_before) {  // keep a minute of solved strikes
         forgotten_before = t - 60.0;
-        solver->forget_before(forgotten_before);
+        if (instant) {
+            instant->forget_before(forgotten_before);
+            std::erase_if(shown, [&](const auto& kv) { return kv.first.second < forgotten_before; });
+        } else {
+            solver->forget_before(forgotten_before);
+        }
     }
     const bool glowing = storm.lit(t, f.segments);
     f.sources.clear();
     basis_segments.clear();
     multiple_segments.clear();
-    struct Lit {
-        std::shared_ptr<const StrikeLight> light;
-        double main = 0.0, branch = 0.0;
-    };
     std::vector<Lit> solved;
     if (glowing) {
         const std::vector<std::size_t> active(storm.active(t).begin(), storm.active(t).end());
         for (const std::size_t i : active) {
             const lightning::Strike& k = storm.strike(i);
-            solver->request(k.seed, k.time, storm.bolt(i));
+            request(i);
+            if (instant) {
+                add_instant(k, storm.bolt(i), t, options, solved);
+                continue;
+            }
             std::shared_ptr<const StrikeLight> light =
                 options.wait_for_strikes ? solver->wait(k.seed, k.time) : solver->get(k.seed, k.time);
             const lightning::FlashState st = lightning::flash_state(k.profile, storm.params().timing, t - k.time);
@@ -238,6 +324,33 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
     f.times.strike_light = sw.milliseconds();
     f.lit = valid;
     return f;
+}
+
+const Frame& build_since_known(FramePipeline& pipeline, double t, double since_known_ms,
+                               std::span<const int> directions, const ReconstructOptions& options, SinceKnown* seen) {
+    FULGUR_ASSERT(std::isfinite(since_known_ms) && since_known_ms >= 0.0,
+                  "build_since_known: since_known_ms must be finite and >= 0");
+    FULGUR_ASSERT(!options.wait_for_strikes, "build_since_known: waiting for the strikes defeats the point");
+    const core::Stopwatch known;
+    constexpr double kFrameMs = 1000.0 / 60.0;
+    std::vector<double> ms;
+    for (int n = 0;; ++n) {
+        const double next = double(n) * kFrameMs;  // this frame's slot since the strike became known
+        if (next >= since_known_ms && n > 0) break;
+        const double wait = std::min(next, since_known_ms) - known.milliseconds();
+        if (wait > 0.0) std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(wait));
+        ms.push_back(pipeline.build(t, directions, options).times.total());
+    }
+    const double wait = since_known_ms - known.milliseconds();
+    if (wait > 0.0) std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(wait));
+    if (seen) {
+        seen->frames = int(ms.size());
+        std::vector<double> sorted = ms;
+        std::sort(sorted.begin(), sorted.end());
+        seen->median_frame_ms = sorted[sorted.size() / 2];
+        seen->max_frame_ms = sorted.back();
+    }
+    return pipeline.build(t, directions, options);
 }
 
 }  // namespace fulgur::runtime

@@ -4,6 +4,7 @@
 
 #include "core/core.h"
 #include "lightning/lightning.h"
+#include "runtime/instant_strikes.h"
 #include "runtime/reconstructor.h"
 #include "runtime/strike_solver.h"
 #include "scene/scene.h"
@@ -31,6 +32,9 @@ struct Frame {
     /// Presets that solve strikes: active strikes whose own solve lit this frame, and those
     /// shown by the bases because their solve was not ready (0 and 0 for the paper preset).
     std::size_t strikes_solved = 0, strikes_fallback = 0;
+    /// The instant preset: the smallest weight any active strike's own estimate had against the
+    /// bases in this frame (StrikeEstimate::weight, cross-fades included; 1 for other presets).
+    double instant_weight = 1.0;
 };
 
 class StrikeSolver;
@@ -42,7 +46,9 @@ public:
     /// outlive it.
     /// `domain`: the bolts' box (lightning::BoltGenerator; default: the density's box down
     /// to the ground). `quality`: how frames are lit (default: the scene's); presets other
-    /// than paper solve strikes on a worker thread (StrikeSolver) ahead of their frames.
+    /// than paper solve strikes on a worker thread (StrikeSolver) ahead of their frames, the
+    /// instant preset from the moment they are known (InstantStrikes), blended with the
+    /// bases by their estimated errors and cross-faded over quality.blend_frames builds.
     FramePipeline(const scene::Scene& scene, const core::Grid3<float>& density, const BakedBases& bases,
                   std::optional<lightning::Box> domain = {}, std::optional<scene::Quality> quality = {});
     ~FramePipeline();
@@ -57,12 +63,31 @@ public:
     /// Another preset: the strike solver is rebuilt (solved strikes are dropped); the storm,
     /// its strikes and the bases stay.
     void set_quality(const scene::Quality& q);
-    /// The strike solver (null for the paper preset).
+    /// The strike solver (null for the paper and instant presets).
     StrikeSolver* strike_solver() noexcept;
+    /// The progressive strike solver (the instant preset; else null).
+    InstantStrikes* instant_strikes() noexcept;
 
 private:
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };
+
+/// What build_since_known() saw while the strike's light was being solved.
+struct SinceKnown {
+    int frames = 0;                      ///< builds before the one returned (at 60 fps)
+    double median_frame_ms = 0.0;        ///< their median StageTimes::total(), the frame thread's cost
+    double max_frame_ms = 0.0;
+};
+
+/// The frame at storm time t as a strike nobody scheduled shows it `since_known_ms` of wall
+/// time after it became known: `pipeline` (fresh: never built, its quality's lookahead 0, so
+/// the strike becomes known at the first build) is built at t once, then at 60 fps (sleeping
+/// in between, as a frame loop would) until since_known_ms have passed, and once more; that
+/// last frame is returned (valid until the next build). The per-strike work runs meanwhile on
+/// its worker; what is not ready by then is not shown. `seen` (optional) gets the frames' cost.
+const Frame& build_since_known(FramePipeline& pipeline, double t, double since_known_ms,
+                               std::span<const int> directions, const ReconstructOptions& options = {},
+                               SinceKnown* seen = nullptr);
 
 }  // namespace fulgur::runtime

@@ -11,8 +11,8 @@
 // (single-scattering) and the multiple-scattering parts of each basis separately; the
 // caller chooses which to sum (both linear, so both go into the same H, one transform).
 //
-// One concept per header: baked_bases.h, reconstructor.h, strike_solver.h, frame_pipeline.h,
-// references.h (direct solve, truth); this umbrella includes them all.
+// One concept per header: baked_bases.h, reconstructor.h, strike_solver.h, instant_strikes.h,
+// frame_pipeline.h, references.h (direct solve, truth); this umbrella includes them all.
 //
 // THESE HEADERS ARE THE CONTRACT between the run-time module and the apps (demo, shot tool,
 // benchmarks). Changing them is fine when the implementation needs it; keep it small,
@@ -21,6 +21,7 @@
 
 #include "runtime/baked_bases.h"
 #include "runtime/frame_pipeline.h"
+#include "runtime/instant_strikes.h"
 #include "runtime/reconstructor.h"
 #include "runtime/references.h"
 #include "runtime/strike_solver.h"

@@ -24,16 +24,15 @@ transport::LightingMedium full_resolution(const scene::Scene& s, const core::Gri
     return m;
 }
 
-// The bolt's segments at unit glow, grouped main channel / branches.
-std::vector<transport::LineSource> channel_lines(const lightning::Bolt& bolt) {
+}  // namespace
+
+std::vector<transport::LineSource> strike_line_sources(const lightning::Bolt& bolt) {
     std::vector<transport::LineSource> lines;
     lines.reserve(bolt.segments.size());
     for (const lightning::Segment& g : bolt.segments)
         if (g.intensity > 0.0) lines.push_back({g.a, g.b, g.intensity, g.depth == 0 ? kMain : kBranch});
     return lines;
 }
-
-}  // namespace
 
 StrikeSolveOptions strike_solve_options(const scene::Quality& q) {
     StrikeSolveOptions o;
@@ -51,7 +50,7 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
     const std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
     const core::GridGeometry& lighting = media.lighting.density.geom;
     const core::GridGeometry& grid = media.transport.density.geom;  // where the lattice runs
-    const std::vector<transport::LineSource> lines = channel_lines(bolt);
+    const std::vector<transport::LineSource> lines = strike_line_sources(bolt);
     const transport::LightingMedium fine = full_resolution(scene, density);
     const bool lattice = options.multiple == StrikeSolveOptions::Multiple::Lattice && scene.effects.multiple_scattering;
     const bool mc = options.multiple == StrikeSolveOptions::Multiple::MonteCarlo && scene.effects.multiple_scattering;

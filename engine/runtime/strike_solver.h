@@ -27,6 +27,10 @@ struct StrikeLight {
     bool has_multiple() const noexcept { return !multiple[0].data.empty(); }
 };
 
+/// The bolt's segments at unit glow as exact line sources, in StrikeLight's groups: 0 the
+/// main channel, 1 the branches.
+std::vector<transport::LineSource> strike_line_sources(const lightning::Bolt& bolt);
+
 /// How a strike's light is solved.
 struct StrikeSolveOptions {
     /// Single scattering: expected-value Monte Carlo of the channel's segments as exact line

@@ -136,6 +136,7 @@ struct Quality {
         Hybrid,       ///< the bases' multiple scattering + each strike's exact single scattering
         PerStrike,    ///< each strike solved directly: exact single scattering + the lattice
         PerStrikeMc,  ///< each strike by Monte Carlo, single and multiple, at modest path counts
+        Instant,      ///< each strike by Monte Carlo started when it is known, blended in as it converges
         Reference,    ///< each strike by Monte Carlo through the full density (offline quality)
     };
     Preset preset = Preset::Paper;
@@ -155,14 +156,21 @@ struct Quality {
     /// transport.lattice_boltzmann.exact_orders); 0: the scene's, as the bake. Order 2 comes
     /// from the single scattering's own paths (their expected-value second flight).
     int exact_orders = 0;
+    /// Instant: the progressive solve of a strike stops once the relative noise of its S
+    /// (single + multiple, over the cloud) is at most this, or at single_paths /
+    /// multiple_paths paths, whichever comes first.
+    double target_noise = 0.02;
+    /// Instant: frames over which a newer estimate of a strike's light replaces the shown one
+    /// (a linear cross-fade, so S never jumps by more than 1/blend_frames of the change).
+    int blend_frames = 3;
 };
 
 /// Every preset's name in scene files, indexed by Quality::Preset, cheapest first.
-inline constexpr std::array<std::string_view, 5> kQualityPresets = {"paper", "hybrid", "per_strike", "per_strike_mc",
-                                                                    "reference"};
+inline constexpr std::array<std::string_view, 6> kQualityPresets = {"paper",         "hybrid",  "per_strike",
+                                                                    "per_strike_mc", "instant", "reference"};
 /// The presets a running frame loop can switch to: all but reference, whose per-strike solve
 /// takes minutes.
-inline constexpr std::span<const std::string_view> kInteractiveQualityPresets{kQualityPresets.data(), 4};
+inline constexpr std::span<const std::string_view> kInteractiveQualityPresets{kQualityPresets.data(), 5};
 static_assert(std::size_t(Quality::Preset::Reference) == kQualityPresets.size() - 1);
 
 /// The preset's name in scene files (kQualityPresets).

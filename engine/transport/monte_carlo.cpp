@@ -48,6 +48,8 @@ void check_mc_options(const MonteCarloOptions& o) {
 
 namespace {
 
+constexpr double kPathCutoff = 104.0;  // same optical-depth cutoff as single_scattering's default
+
 /// The LightingMedium as a delta-tracking medium: the majorant is constant per macro-cell
 /// (F^3 voxels, the max of sigma_t inside it); density lookups are clamped to the current
 /// macro-cell so round-off at a macro-cell face can never exceed its majorant.
@@ -319,14 +321,16 @@ private:
 /// estimate that needs no per-voxel variance model: two independent estimates).
 struct HalfSums {
     std::vector<double> a, b;
-    int na = 0, nb = 0;
+    std::int64_t na = 0, nb = 0;
     void init(std::size_t size) {
         a.assign(size, 0.0);
         b.assign(size, 0.0);
     }
-    void add(const std::vector<double>& x, double scale, bool first) {
+    void add(const std::vector<double>& x, double scale, bool first) { add_paths(x, scale, first, 1); }
+    /// Pooled halves: `count` paths' raw sums (na, nb then count paths, not batches).
+    void add_paths(const std::vector<double>& x, double scale, bool first, std::uint64_t count) {
         std::vector<double>& h = first ? a : b;
-        (first ? na : nb) += 1;
+        (first ? na : nb) += std::int64_t(count);
         for (std::size_t i = 0; i < h.size(); ++i) h[i] += x[i] * scale;
     }
 };
@@ -337,8 +341,8 @@ struct HalfSums {
 double half_noise(const HalfSums& s1, const HalfSums* sm, const TallyGrid& tg, std::size_t M, std::size_t groups,
                   bool use_single) {
     core::CompensatedSum diff2, ref2;
-    const double ka = 1.0 / std::max(1, s1.na), kb = 1.0 / std::max(1, s1.nb);
-    const double kall = 1.0 / std::max(1, s1.na + s1.nb);
+    const double ka = 1.0 / double(std::max<std::int64_t>(1, s1.na)), kb = 1.0 / double(std::max<std::int64_t>(1, s1.nb));
+    const double kall = 1.0 / double(std::max<std::int64_t>(1, s1.na + s1.nb));
     const std::size_t size = tg.cloud.size() * M;
     for (std::size_t c = 0; c < tg.cloud.size(); ++c) {
         if (!tg.cloud[c]) continue;
@@ -361,7 +365,7 @@ double half_noise(const HalfSums& s1, const HalfSums* sm, const TallyGrid& tg, s
         }
     }
     if (!(ref2.value() > 0.0)) return 0.0;
-    const double na = s1.na, nb = s1.nb;
+    const double na = double(s1.na), nb = double(s1.nb);
     return std::sqrt(diff2.value() / ref2.value()) * std::sqrt(na * nb) / (na + nb);
 }
 
@@ -524,7 +528,6 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
     const PathOptions po = path_options(medium, o);
     const bool expected = o.single_estimator == MonteCarloOptions::SingleEstimator::ExpectedValue;
     const bool multiple = o.tally_multiple && o.max_scatterings > 0;
-    constexpr double kCutoff = 104.0;  // same optical-depth cutoff as single_scattering's default
 
     const int T = std::max(1, core::thread_count());
     struct Buffer {
@@ -554,7 +557,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
             if (fluence2) buf.fluence2.assign(cells * G, 0.0);
             buf.energy = EnergyBatch{};
             const int b = b0 + int(i);
-            GridTally tally(medium, tg, dirs, expected, !expected, multiple, kCutoff, buf.single.data(),
+            GridTally tally(medium, tg, dirs, expected, !expected, multiple, kPathCutoff, buf.single.data(),
                             multiple ? buf.multiple.data() : nullptr, fluence ? buf.fluence.data() : nullptr,
                             fluence2 ? buf.fluence2.data() : nullptr);
             trace_paths(gm, em, po, o.seed, batch_first_path(o.paths, o.batches, b), batch_paths(o.paths, o.batches, b),
@@ -619,9 +622,14 @@ MonteCarloResult monte_carlo(const LightingMedium& medium, const DirectionalSour
     return detail::run_grid(medium, em, directions, options);
 }
 
-MonteCarloResult monte_carlo(const LightingMedium& medium, std::span<const PointSource> points,
-                             std::span<const LineSource> lines, const core::GridGeometry& tally_grid,
-                             std::span<const glm::dvec3> directions, const MonteCarloOptions& options) {
+namespace detail {
+namespace {
+
+/// Validates a frame's sources and the tally grid (a coarsening of the medium's grid by an
+/// integer factor); returns the factor.
+int check_sources(const LightingMedium& medium, std::span<const PointSource> points,
+                  std::span<const LineSource> lines, const core::GridGeometry& tally_grid,
+                  const MonteCarloOptions& options) {
     const auto finite = [](const glm::dvec3& v) {
         return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
     };
@@ -652,15 +660,200 @@ MonteCarloResult monte_carlo(const LightingMedium& medium, std::span<const Point
         throw core::Error("tally_grid",
                           "must coarsen the medium's grid by an integer factor (same origin, dims "
                           "rounded up), as the lighting grid does");
+    return f;
+}
+
+/// All-zero S on the tally grid (no light).
+MonteCarloResult dark_result(const core::GridGeometry& tally_grid, std::span<const glm::dvec3> directions,
+                             int groups) {
+    MonteCarloResult r;
+    const std::vector<glm::dvec3> dirs(directions.begin(), directions.end());
+    r.single = r.multiple = r.single_se = r.multiple_se = SourceField(tally_grid, dirs);
+    if (groups > 1) r.groups.assign(std::size_t(groups), {r.single, r.multiple, {}, {}});
+    return r;
+}
+
+}  // namespace
+}  // namespace detail
+
+MonteCarloResult monte_carlo(const LightingMedium& medium, std::span<const PointSource> points,
+                             std::span<const LineSource> lines, const core::GridGeometry& tally_grid,
+                             std::span<const glm::dvec3> directions, const MonteCarloOptions& options) {
+    const int f = detail::check_sources(medium, points, lines, tally_grid, options);
     const detail::SourceEmitter em(points, lines);
-    if (em.empty() || !std::isfinite(em.power())) {
-        if (!std::isfinite(em.power())) throw core::Error("sources", "total intensity overflows");
-        MonteCarloResult r;  // no light: S is zero everywhere, with no noise
-        std::vector<glm::dvec3> dirs(directions.begin(), directions.end());
-        r.single = r.multiple = r.single_se = r.multiple_se = SourceField(tally_grid, dirs);
-        return r;
+    if (!std::isfinite(em.power())) throw core::Error("sources", "total intensity overflows");
+    if (em.empty()) {  // no light: S is zero everywhere, with no noise
+        return detail::dark_result(tally_grid, directions, 1);
     }
     return detail::run_grid(medium, em, directions, options, f == 1 ? nullptr : &tally_grid);
 }
+
+// =======================================================================================
+// MonteCarloMedium, ProgressiveMonteCarlo
+
+struct MonteCarloMedium::Impl {
+    const LightingMedium& medium;
+    core::GridGeometry tally_grid;
+    detail::TallyGrid tg;
+    detail::GridMedium gm;
+    Impl(const LightingMedium& m, const core::GridGeometry& t, int f, int macro_cell)
+        : medium(m),
+          tally_grid(t),
+          tg(m, f == 1 ? nullptr : &t, MonteCarloOptions::TallyWeight::Volume),
+          gm(m, macro_cell) {}
+};
+
+MonteCarloMedium::MonteCarloMedium(const LightingMedium& medium, const core::GridGeometry& tally_grid,
+                                   int macro_cell) {
+    validate_medium(medium);
+    if (macro_cell < 0)
+        throw core::Error("monte_carlo.macro_cell", "must be >= 0, got " + std::to_string(macro_cell));
+    const int f = detail::check_sources(medium, {}, {}, tally_grid, MonteCarloOptions{});
+    impl_ = std::make_unique<Impl>(medium, tally_grid, f, macro_cell);
+}
+MonteCarloMedium::~MonteCarloMedium() = default;
+const LightingMedium& MonteCarloMedium::medium() const noexcept { return impl_->medium; }
+const core::GridGeometry& MonteCarloMedium::tally_grid() const noexcept { return impl_->tally_grid; }
+const std::vector<std::uint8_t>& MonteCarloMedium::cloud() const noexcept { return impl_->tg.cloud; }
+
+struct ProgressiveMonteCarlo::Impl {
+    const MonteCarloMedium::Impl& med;
+    MonteCarloOptions o;
+    std::vector<glm::dvec3> dirs;
+    detail::SourceEmitter em;
+    detail::PathOptions po;
+    bool multiple = false, fluence = false, fluence2 = false;
+    std::size_t G = 1, cells = 0, M = 0, size = 0;
+    // Raw tallies of each half (scaled by albedo / voxel volume, not yet by paths).
+    detail::HalfSums h1, hm, hf, hf2;
+    std::uint64_t traced = 0;
+    struct Buffer {
+        std::vector<double> single, multiple, fluence, fluence2;
+        detail::EnergyBatch energy;
+    };
+    std::array<Buffer, 2> bufs;
+
+    Impl(const MonteCarloMedium::Impl& m, std::span<const PointSource> points, std::span<const LineSource> lines,
+         std::span<const glm::dvec3> directions, const MonteCarloOptions& opt)
+        : med(m),
+          o(opt),
+          dirs(detail::unit_directions(m.medium, directions, batch_free(opt))),
+          em(points, lines),
+          po(detail::path_options(m.medium, opt)) {
+        if (!std::isfinite(em.power())) throw core::Error("sources", "total intensity overflows");
+        multiple = o.tally_multiple && o.max_scatterings > 0;
+        fluence = o.tally_fluence && o.single_estimator == MonteCarloOptions::SingleEstimator::ExpectedValue;
+        fluence2 = fluence && o.expected_second_order;
+        G = std::size_t(o.groups);
+        cells = med.tg.geom.cell_count();
+        M = dirs.size();
+        size = cells * M * G;
+        h1.init(size);
+        if (multiple) hm.init(size);
+        if (fluence) hf.init(cells * G);
+        if (fluence2) hf2.init(cells * G);
+    }
+    // The batch settings are advance()'s business: only the options that shape paths are checked.
+    static MonteCarloOptions batch_free(MonteCarloOptions o) {
+        o.paths = 4;
+        o.batches = 4;
+        o.halves = true;
+        o.macro_cell = 0;
+        return o;
+    }
+
+    void advance(std::uint64_t n) {
+        const std::uint64_t half[2] = {n / 2, n - n / 2};
+        const std::uint64_t first = traced;
+        const bool expected = o.single_estimator == MonteCarloOptions::SingleEstimator::ExpectedValue;
+        core::parallel_for(0, 2, [&](std::int64_t h) {
+            Buffer& buf = bufs[std::size_t(h)];
+            buf.single.assign(size, 0.0);
+            if (multiple) buf.multiple.assign(size, 0.0);
+            if (fluence) buf.fluence.assign(cells * G, 0.0);
+            if (fluence2) buf.fluence2.assign(cells * G, 0.0);
+            buf.energy = detail::EnergyBatch{};
+            detail::GridTally tally(med.medium, med.tg, dirs, expected, !expected, multiple, detail::kPathCutoff,
+                                    buf.single.data(), multiple ? buf.multiple.data() : nullptr,
+                                    fluence ? buf.fluence.data() : nullptr, fluence2 ? buf.fluence2.data() : nullptr);
+            detail::trace_paths(med.gm, em, po, o.seed, first + (h == 0 ? 0 : half[0]), half[h], tally, buf.energy);
+        });
+        const double vol = med.tg.geom.voxel_size * med.tg.geom.voxel_size * med.tg.geom.voxel_size;
+        const double s = med.medium.optics.albedo / vol, sf = 1.0 / vol;
+        for (std::size_t h = 0; h < 2; ++h) {
+            const Buffer& buf = bufs[h];
+            const bool a = h == 0;
+            h1.add_paths(buf.single, s, a, half[h]);
+            if (multiple) hm.add_paths(buf.multiple, s, a, half[h]);
+            if (fluence) hf.add_paths(buf.fluence, sf, a, half[h]);
+            if (fluence2) hf2.add_paths(buf.fluence2, sf, a, half[h]);
+        }
+        traced += n;
+    }
+
+    MonteCarloResult result() const {
+        const core::GridGeometry& g = med.tg.geom;
+        MonteCarloResult r;
+        r.paths = traced;
+        const bool traced_any = traced > 0 && !em.empty();
+        const double k = traced_any ? 1.0 / double(traced) : 0.0;
+        const auto mean = [&](const detail::HalfSums& h, std::size_t i) {
+            return traced_any ? (h.a[i] + h.b[i]) * k : 0.0;
+        };
+        r.single = r.multiple = r.single_se = r.multiple_se = SourceField(g, dirs);
+        if (G > 1) r.groups.resize(G);
+        for (std::size_t q = 0; q < G; ++q) {
+            SourceField* s1 = G > 1 ? &r.groups[q].single : &r.single;
+            SourceField* sm = G > 1 ? &r.groups[q].multiple : &r.multiple;
+            if (G > 1) *s1 = *sm = SourceField(g, dirs);
+            for (std::size_t c = 0; c < cells; ++c)
+                for (std::size_t m = 0; m < M; ++m) {
+                    const std::size_t i = (q * cells + c) * M + m;
+                    s1->data[m * cells + c] = float(mean(h1, i));
+                    if (multiple) sm->data[m * cells + c] = float(mean(hm, i));
+                }
+            if (G > 1)
+                for (std::size_t i = 0; i < s1->data.size(); ++i) {
+                    r.single.data[i] += s1->data[i];
+                    r.multiple.data[i] += sm->data[i];
+                }
+            const auto write_fluence = [&](const detail::HalfSums& h, core::Grid3<float>& out) {
+                out = core::Grid3<float>(g, 0.0f);
+                for (std::size_t c = 0; c < cells; ++c) out.data[c] = float(mean(h, q * cells + c));
+            };
+            if (G > 1 && fluence) write_fluence(hf, r.groups[q].fluence);
+            if (G > 1 && fluence2) write_fluence(hf2, r.groups[q].fluence2);
+        }
+        if (traced_any) {
+            r.noise.single = detail::half_noise(h1, nullptr, med.tg, M, G, true);
+            r.noise.multiple = multiple ? detail::half_noise(hm, nullptr, med.tg, M, G, true) : 0.0;
+            r.noise.total = multiple ? detail::half_noise(h1, &hm, med.tg, M, G, true) : r.noise.single;
+        }
+        return r;
+    }
+};
+
+ProgressiveMonteCarlo::ProgressiveMonteCarlo(const MonteCarloMedium& medium, std::span<const PointSource> points,
+                                             std::span<const LineSource> lines,
+                                             std::span<const glm::dvec3> directions,
+                                             const MonteCarloOptions& options) {
+    detail::check_sources(medium.medium(), points, lines, medium.tally_grid(), options);
+    impl_ = std::make_unique<Impl>(*medium.impl_, points, lines, directions, options);
+}
+
+ProgressiveMonteCarlo::~ProgressiveMonteCarlo() = default;
+
+void ProgressiveMonteCarlo::advance(std::uint64_t paths) {
+    FULGUR_ASSERT(paths >= 2, "ProgressiveMonteCarlo::advance: at least one path per half");
+    if (impl_->em.empty()) {  // no light: nothing to trace, S stays zero
+        impl_->traced += paths;
+        return;
+    }
+    impl_->advance(paths);
+}
+
+std::uint64_t ProgressiveMonteCarlo::paths() const noexcept { return impl_->traced; }
+
+MonteCarloResult ProgressiveMonteCarlo::result() const { return impl_->result(); }
 
 }  // namespace fulgur::transport

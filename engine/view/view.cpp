@@ -142,11 +142,11 @@ const solve::Media& StormView::media() {
     return *media_;
 }
 
-double StormView::time_all_directions(double t, const runtime::Components& components) {
+double StormView::time_all_directions(double t, const runtime::Components& components, bool wait_for_strikes) {
     if (!pipeline_) throw core::Error(scene_.path.string(), "the scene has no lightning: no frame to solve");
     runtime::ReconstructOptions ro;
     ro.components = components;
-    ro.wait_for_strikes = true;
+    ro.wait_for_strikes = wait_for_strikes;
     std::vector<double> ms;
     for (int k = 0; k < 5; ++k) {
         last_ = &pipeline_->build(t, {}, ro);
@@ -157,9 +157,9 @@ double StormView::time_all_directions(double t, const runtime::Components& compo
 }
 
 StormView::TruthSolve StormView::solve_truth(double t, const runtime::Components& components,
-                                             const runtime::TruthOptions& options) {
+                                             const runtime::TruthOptions& options, bool wait_for_strikes) {
     TruthSolve out;
-    out.basis_ms = time_all_directions(t, components);
+    out.basis_ms = time_all_directions(t, components, wait_for_strikes);
     core::Stopwatch sw;
     const runtime::Truth truth = runtime::truth(scene_, density_, last_->segments, {}, options);
     out.seconds = sw.seconds();
@@ -168,9 +168,10 @@ StormView::TruthSolve StormView::solve_truth(double t, const runtime::Components
     return out;
 }
 
-StormView::DirectSolve StormView::solve_direct(double t, const runtime::Components& components) {
+StormView::DirectSolve StormView::solve_direct(double t, const runtime::Components& components,
+                                               bool wait_for_strikes) {
     DirectSolve out;
-    out.basis_ms = time_all_directions(t, components);
+    out.basis_ms = time_all_directions(t, components, wait_for_strikes);
     const solve::Media& m = media();
     core::Stopwatch sw;
     out.field = runtime::direct_solve(scene_, m, last_->sources, components);

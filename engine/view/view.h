@@ -109,7 +109,7 @@ public:
         double seconds = 0.0;   ///< wall time of the direct solve
         double basis_ms = 0.0;  ///< the basis frame, all directions, median of 5
     };
-    DirectSolve solve_direct(double t, const runtime::Components& components);
+    DirectSolve solve_direct(double t, const runtime::Components& components, bool wait_for_strikes = true);
     /// The truth of the frame at time t (runtime::truth: Monte Carlo of the frame's lit
     /// channel through the full-resolution density), the requested components summed, all
     /// directions; times the frame like solve_direct. `noise` is the truth's own estimate.
@@ -118,7 +118,10 @@ public:
         transport::MonteCarloResult::Noise noise;
         double seconds = 0.0, basis_ms = 0.0;
     };
-    TruthSolve solve_truth(double t, const runtime::Components& components, const runtime::TruthOptions& options = {});
+    /// `wait_for_strikes` false: the basis frame is timed with what the strike solvers have
+    /// (a caller that stopped them to show a frame as it was at some moment).
+    TruthSolve solve_truth(double t, const runtime::Components& components, const runtime::TruthOptions& options = {},
+                           bool wait_for_strikes = true);
     /// The media the direct solve runs in (solve::make_media: the lighting grid and the transport grid).
     const solve::Media& media();
     /// Relative L2 of the last frame's reconstruction against `reference` (a field like
@@ -155,7 +158,7 @@ public:
 
 private:
     /// Builds the all-direction frame at t 5 times (waiting for strike solves); its median ms.
-    double time_all_directions(double t, const runtime::Components& components);
+    double time_all_directions(double t, const runtime::Components& components, bool wait_for_strikes);
     void check_field(const transport::SourceField& f, const char* where) const;  // throws core::Error
     void update_static_light(const ViewOptions& options);                        // uploads what changed
     void render_lightning(const render::Camera& camera, double t, const ViewOptions& options,

@@ -1,0 +1,190 @@
+// How soon a strike nobody scheduled is lit right.
+//   latency: for the default storm (5 strikes), dusk-storm and vdb-cloud (3 strikes each), each
+//   strike at its first return stroke + 2 ms, each preset's frame as it is shown X ms of wall
+//   time after the strike became known (X = 0, 16, 50, 100, 300, 1000; lookahead 0; frames
+//   built at 60 fps meanwhile: runtime::build_since_known), against the truth of that frame
+//   (runtime::truth): relative L2 of S over the cloud voxels, all directions. Also the frame
+//   thread's cost while the strike is being solved (median build), the instant preset's
+//   weight of its own estimate, and the worker's wall and CPU time so far.
+//   Outputs: latency.csv (one row per scene, preset, strike and X), latency_summary.csv
+//   (worst strike per scene, preset and X); scripts/plot_studies.py draws the curves.
+//   --quick: the default storm, 2 strikes, 3 latencies, fewer truth paths.
+#include "study/study.h"
+
+#include "bake/bake.h"
+#include "core/core.h"
+#include "runtime/runtime.h"
+#include "scene/scene.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <map>
+
+using namespace fulgur;
+
+namespace {
+
+std::vector<float> flat(const runtime::RadianceField& r) {
+    std::vector<float> v;
+    for (const auto& d : r.values) v.insert(v.end(), d.begin(), d.end());
+    return v;
+}
+
+double cloud_error(std::span<const float> x, std::span<const float> ref, const std::vector<float>& rho) {
+    core::RelativeL2 e;
+    const std::size_t cells = rho.size();
+    for (std::size_t i = 0; i < ref.size(); ++i)
+        if (rho[i % cells] > 0.0f) e.add(x[i], ref[i]);
+    return e.value();
+}
+
+// The truth of a frame, kept in the study's folder keyed by the scene, the strike and a
+// checksum of the lit channel (a changed bolt or timing recomputes it).
+runtime::Truth cached_truth(const scene::Scene& s, const core::Grid3<float>& density,
+                            std::span<const lightning::LitSegment> lit, const runtime::TruthOptions& to,
+                            const std::filesystem::path& file) {
+    std::uint64_t sum = core::hash_seed(to.paths, to.seed);
+    for (const lightning::LitSegment& g : lit)
+        for (const double v : {g.a.x, g.a.y, g.a.z, g.b.x, g.b.y, g.b.z, g.intensity})
+            sum = core::hash_seed(sum, std::uint64_t(std::llround(v * 1e3)));
+    const std::vector<glm::dvec3> dirs = transport::output_directions(s.effective_directions());
+    core::GridGeometry g = density.geom;
+    const int f = s.lighting_downsample;
+    g.voxel_size *= f;
+    g.dims = {(g.dims.x + f - 1) / f, (g.dims.y + f - 1) / f, (g.dims.z + f - 1) / f};
+    runtime::Truth t;
+    t.single = t.multiple = transport::SourceField(g, dirs);
+    if (std::ifstream in(file, std::ios::binary); in) {
+        std::uint64_t key = 0;
+        in.read(reinterpret_cast<char*>(&key), sizeof key);
+        in.read(reinterpret_cast<char*>(&t.noise), sizeof t.noise);
+        in.read(reinterpret_cast<char*>(t.single.data.data()), std::streamsize(t.single.data.size() * sizeof(float)));
+        in.read(reinterpret_cast<char*>(t.multiple.data.data()),
+                std::streamsize(t.multiple.data.size() * sizeof(float)));
+        if (in && key == sum) return t;
+    }
+    t = runtime::truth(s, density, lit, {}, to);
+    std::ofstream out(file, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(&sum), sizeof sum);
+    out.write(reinterpret_cast<const char*>(&t.noise), sizeof t.noise);
+    out.write(reinterpret_cast<const char*>(t.single.data.data()), std::streamsize(t.single.data.size() * sizeof(float)));
+    out.write(reinterpret_cast<const char*>(t.multiple.data.data()),
+              std::streamsize(t.multiple.data.size() * sizeof(float)));
+    if (!out) throw core::Error(file.string(), "cannot write the truth cache");
+    return t;
+}
+
+}  // namespace
+
+FULGUR_STUDY(latency, "latency",
+             "each preset's error against the truth as a function of wall time since an unscheduled strike became "
+             "known (0-1000 ms, lookahead 0, frames at 60 fps meanwhile), default storm, dusk-storm and vdb-cloud; "
+             "the frame thread's cost and the solver's time") {
+    const std::filesystem::path scenes = std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes";
+    struct Case {
+        std::string file;
+        int strikes;
+    };
+    std::vector<Case> cases = {{"storm.json", 5}, {"dusk-storm.json", 3}, {"vdb-cloud.json", 3}};
+    std::vector<double> latencies = {0, 16, 50, 100, 300, 1000};
+    std::vector<std::string> presets = {"paper", "per_strike_mc", "instant"};
+    std::uint64_t truth_paths = 2'000'000;
+    if (ctx.quick) {
+        cases = {{"storm.json", 2}};
+        latencies = {0, 100, 300};
+        truth_paths = 300'000;
+    }
+    if (!ctx.only.empty()) {
+        std::erase_if(presets, [&](const std::string& p) { return ctx.only.find(p) == std::string::npos; });
+        if (presets.empty()) throw core::Error("--only", "names no preset of paper, per_strike_mc, instant");
+    }
+
+    study::Csv rows(ctx.file("latency.csv"), {"scene", "preset", "seed", "since_known_ms", "error_vs_truth",
+                                              "frame_ms_median", "frame_ms_max", "frames", "instant_weight",
+                                              "worker_s", "single_paths", "multiple_paths", "estimate_noise",
+                                              "bases_error", "truth_noise"});
+    study::Csv summary(ctx.file("latency_summary.csv"),
+                       {"scene", "preset", "since_known_ms", "worst_error", "median_error", "frame_ms_median"});
+    nlohmann::json out = nlohmann::json::array();
+    for (const Case& c : cases) {
+        const scene::Scene base = scene::load_scene(scenes / c.file);
+        const core::Grid3<float> density = scene::make_density(base);
+        std::fprintf(stderr, "latency: %s: bake\n", c.file.c_str());
+        bake::bake_if_stale(base, density, bake::default_fgb_path(base));
+        const runtime::BakedBases bases =
+            runtime::BakedBases::load(bake::default_fgb_path(base), bake::scene_key(base, density));
+        scene::Scene s = base;
+        s.lightning.schedule.strike_rate = 0.0;  // only the study's strikes
+        const solve::Media media = solve::make_media(s, density);
+        const std::vector<float>& rho = media.lighting.density.data;
+        std::map<std::pair<std::string, double>, std::vector<double>> errors, frame_ms;
+        for (int k = 0; k < c.strikes; ++k) {
+            const std::uint64_t seed = std::uint64_t(k + 1);
+            // The truth of the frame (from a paper pipeline: the lit channel does not depend on
+            // the preset).
+            runtime::FramePipeline probe(s, density, bases, {}, scene::quality_preset("paper"));
+            const std::size_t i = probe.strike_at(0.0, seed);
+            const double t = probe.storm().strike(i).profile.stroke_onset.at(0) + 0.002;
+            const runtime::Frame& pf = probe.build(t, {});
+            runtime::TruthOptions to;
+            to.paths = truth_paths;
+            to.seed = seed;
+            std::fprintf(stderr, "latency: %s: truth of strike %llu\n", c.file.c_str(),
+                         static_cast<unsigned long long>(seed));
+            const runtime::Truth truth =
+                cached_truth(s, density, pf.segments, to,
+                             ctx.file("truth-" + std::filesystem::path(c.file).stem().string() + "-" +
+                                      std::to_string(seed) + "-" + std::to_string(truth_paths) + ".bin"));
+            const transport::SourceField tt = truth.sum();
+            for (const std::string& name : presets) {
+                scene::Quality q = scene::quality_preset(name);
+                q.lookahead = 0.0;  // nobody scheduled it
+                for (const double x : latencies) {
+                    runtime::FramePipeline p(s, density, bases, {}, q);
+                    const double start = p.storm().strike(p.strike_at(0.0, seed)).time;
+                    runtime::SinceKnown seen;
+                    const runtime::Frame& f = runtime::build_since_known(p, t, x, {}, {}, &seen);
+                    const double e = cloud_error(flat(f.radiance), tt.data, rho);
+                    double worker_s = 0.0, noise = 0.0, eb = -1.0, sp = 0.0, mp = 0.0;
+                    if (runtime::InstantStrikes* is = p.instant_strikes()) {
+                        if (const auto est = is->get(seed, start)) {
+                            worker_s = est->worker_seconds;
+                            noise = est->light.noise.total;
+                            eb = est->bases_error;
+                            sp = double(est->single_paths);
+                            mp = double(est->multiple_paths);
+                        }
+                        is->set_paused(true);
+                    } else if (runtime::StrikeSolver* ss = p.strike_solver()) {
+                        if (const auto L = ss->get(seed, start))
+                            worker_s = L->seconds_single + L->seconds_multiple;
+                        ss->set_paused(true);
+                    }
+                    rows << std::filesystem::path(c.file).stem().string() << name << double(seed) << x << e
+                         << seen.median_frame_ms << seen.max_frame_ms << double(seen.frames) << f.instant_weight
+                         << worker_s << sp << mp << noise << eb << truth.noise.total;
+                    rows.end_row();
+                    errors[{name, x}].push_back(e);
+                    frame_ms[{name, x}].push_back(seen.median_frame_ms);
+                    std::fprintf(stderr,
+                                 "latency: %-16s %-14s seed %llu at %5.0f ms: error %.3f (weight %.2f, noise %.3f, "
+                                 "bases %.3f), frame %.2f ms\n",
+                                 c.file.c_str(), name.c_str(), static_cast<unsigned long long>(seed), x, e,
+                                 f.instant_weight, noise, eb, seen.median_frame_ms);
+                }
+            }
+        }
+        for (const std::string& name : presets)
+            for (const double x : latencies) {
+                std::vector<double> v = errors[{name, x}], ms = frame_ms[{name, x}];
+                std::sort(v.begin(), v.end());
+                std::sort(ms.begin(), ms.end());
+                summary << std::filesystem::path(c.file).stem().string() << name << x << v.back() << v[v.size() / 2]
+                        << ms[ms.size() / 2];
+                summary.end_row();
+                out.push_back({{"scene", c.file}, {"preset", name}, {"since_known_ms", x}, {"worst_error", v.back()}});
+            }
+    }
+    ctx.summary("latency", {{"rows", out}, {"truth_paths", truth_paths}});
+}

@@ -1,0 +1,322 @@
+// InstantStrikes (instant_strikes.h): progressive Monte Carlo of each strike's strokes, from
+// the moment the strike is known, published round by round with its noise and the bases'
+// estimated error.
+#include "runtime/instant_strikes.h"
+
+#include "runtime/reconstructor.h"
+
+#include <algorithm>
+#include <cmath>
+#include <condition_variable>
+#include <exception>
+#include <map>
+#include <mutex>
+#include <thread>
+#include <utility>
+
+namespace fulgur::runtime {
+
+double StrikeEstimate::weight() const noexcept {
+    if (bases_error < 0.0) return 1.0;
+    const double eb2 = bases_error * bases_error, n2 = light.noise.total * light.noise.total;
+    return eb2 + n2 > 0.0 ? eb2 / (eb2 + n2) : 1.0;
+}
+
+InstantOptions instant_options(const scene::Quality& q) {
+    InstantOptions o;
+    o.max_single_paths = q.single_paths;
+    o.max_multiple_paths = q.multiple_paths;
+    o.target_noise = q.target_noise;
+    return o;
+}
+
+namespace {
+
+// Sums over the cloud cells (every direction) of a field's square, and of a difference's.
+struct CloudNorms {
+    const std::vector<std::uint8_t>& cloud;
+    double norm2(const std::vector<float>& a, const std::vector<float>* b = nullptr) const {
+        core::CompensatedSum s;
+        const std::size_t cells = cloud.size();
+        for (std::size_t i = 0; i < a.size(); ++i) {
+            if (!cloud[i % cells]) continue;
+            const double v = double(a[i]) - (b ? double((*b)[i]) : 0.0);
+            s.add(v * v);
+        }
+        return s.value();
+    }
+};
+
+}  // namespace
+
+struct InstantStrikes::Impl {
+    using Key = std::pair<std::uint64_t, double>;
+    struct Entry {
+        lightning::Bolt bolt;
+        core::Stopwatch requested;
+        // The worker's alone (touched only while it traces this entry).
+        std::unique_ptr<transport::ProgressiveMonteCarlo> single, multiple;
+        std::uint64_t next_single = 0, next_multiple = 0;
+        double seconds_single = 0.0, seconds_multiple = 0.0;
+        int round = 0;
+        // Under the mutex.
+        double seconds = 0.0;  // the worker's time on it: who goes next
+        std::shared_ptr<const StrikeEstimate> estimate;
+        std::exception_ptr error;
+        bool final = false;
+    };
+
+    const scene::Scene& scene;
+    const solve::Media& media;
+    const BakedBases* bases;
+    InstantOptions options;
+    int threads;
+    transport::LightingMedium fine;  // the full-resolution density the truth traces
+    transport::MonteCarloMedium tracing;
+    std::vector<glm::dvec3> dirs;
+
+    mutable std::mutex mu;
+    std::condition_variable cv;  // work to do, an estimate published, stop
+    std::map<Key, std::shared_ptr<Entry>> entries;
+    bool paused = false, stop = false;
+    std::thread worker;  // last: started once the members above exist
+
+    Impl(const scene::Scene& s, const core::Grid3<float>& density, const solve::Media& m, const BakedBases* b,
+         const InstantOptions& o, int t)
+        : scene(s),
+          media(m),
+          bases(b),
+          options(o),
+          threads(t),
+          fine{density, s.medium},
+          tracing(fine, m.lighting.density.geom),
+          dirs(transport::output_directions(s.effective_directions())),
+          worker([this] { run(); }) {}
+
+    ~Impl() {
+        {
+            std::lock_guard<std::mutex> lock(mu);
+            stop = true;
+        }
+        cv.notify_all();
+        worker.join();
+    }
+
+    // The unfinished entry that has had the least of the worker's time (null: none).
+    std::shared_ptr<Entry> next() const {
+        std::shared_ptr<Entry> best;
+        for (const auto& [key, e] : entries)
+            if (!e->final && (!best || e->seconds < best->seconds)) best = e;
+        return best;
+    }
+
+    void run() {
+        const core::ScopedThreadCount share(threads);
+        // The bases' frame of a strike's strokes, for their estimated error (worker's own).
+        std::unique_ptr<lightning::Splatter> splatter;
+        std::unique_ptr<Reconstructor> reconstructor;
+        if (bases) {
+            splatter = std::make_unique<lightning::Splatter>(bases->lights());
+            reconstructor = std::make_unique<Reconstructor>(*bases);
+        }
+        for (;;) {
+            std::shared_ptr<Entry> e;
+            {
+                std::unique_lock<std::mutex> lock(mu);
+                cv.wait(lock, [&] { return stop || (!paused && next()); });
+                if (stop) return;
+                e = next();
+            }
+            core::Stopwatch sw;
+            std::shared_ptr<const StrikeEstimate> estimate;
+            std::exception_ptr error;
+            try {
+                estimate = round(*e, splatter.get(), reconstructor.get());
+            } catch (...) {
+                error = std::current_exception();
+            }
+            {
+                std::lock_guard<std::mutex> lock(mu);
+                e->seconds += sw.seconds();
+                // Paused meanwhile: what exists at the pause is what is shown (the round's paths
+                // stay in the tracers and count in the next estimate).
+                if (estimate && !paused) {
+                    e->estimate = estimate;
+                    e->final = estimate->final;
+                }
+                if (error) {
+                    e->error = error;
+                    e->final = true;
+                }
+            }
+            cv.notify_all();
+        }
+    }
+
+    // One round of an entry: more paths for each part (the first round fixed, later ones sized
+    // by time and split between the parts to shrink the total noise fastest), then the
+    // estimate.
+    std::shared_ptr<const StrikeEstimate> round(Entry& e, lightning::Splatter* splatter, Reconstructor* rec) {
+        if (!e.single) {
+            const std::vector<transport::LineSource> lines = strike_line_sources(e.bolt);
+            transport::MonteCarloOptions so;
+            so.groups = 2;
+            so.seed = core::hash_seed(options.seed, 1);
+            so.max_scatterings = 0;
+            so.tally_multiple = false;
+            so.uncollided_only = true;
+            e.single = std::make_unique<transport::ProgressiveMonteCarlo>(tracing, std::span<const transport::PointSource>{},
+                                                                          lines, dirs, so);
+            transport::MonteCarloOptions mo;
+            mo.groups = 2;
+            mo.seed = core::hash_seed(options.seed, 2);
+            e.multiple = std::make_unique<transport::ProgressiveMonteCarlo>(
+                tracing, std::span<const transport::PointSource>{}, lines, dirs, mo);
+            e.next_single = options.first_single_paths;
+            e.next_multiple = scene.effects.multiple_scattering ? options.first_multiple_paths : 0;
+        }
+        const auto advance = [](transport::ProgressiveMonteCarlo& p, std::uint64_t n, std::uint64_t cap, double& s) {
+            n = std::min(n, cap > p.paths() ? cap - p.paths() : 0);
+            if (n < 2) return;
+            core::Stopwatch sw;
+            p.advance(n);
+            s += sw.seconds();
+        };
+        advance(*e.single, e.next_single, options.max_single_paths, e.seconds_single);
+        advance(*e.multiple, e.next_multiple, options.max_multiple_paths, e.seconds_multiple);
+        ++e.round;
+
+        const transport::MonteCarloResult rs = e.single->result(), rm = e.multiple->result();
+        auto est = std::make_shared<StrikeEstimate>();
+        StrikeLight& L = est->light;
+        for (std::size_t q = 0; q < 2; ++q) {
+            L.single[q] = rs.groups[q].single;
+            L.multiple[q] = scene.effects.multiple_scattering ? rm.groups[q].multiple
+                                                              : transport::SourceField(rs.single.geom, dirs);
+        }
+        L.seconds_single = e.seconds_single;
+        L.seconds_multiple = e.seconds_multiple;
+        est->single_paths = e.single->paths();
+        est->multiple_paths = e.multiple->paths();
+        est->worker_seconds = e.seconds_single + e.seconds_multiple;
+        est->since_request = e.requested.seconds();
+        est->round = e.round;
+
+        // Noise of the sum: the parts are independent, so their absolute noises add in
+        // quadrature.
+        const CloudNorms norms{tracing.cloud()};
+        const bool with_multiple = scene.effects.multiple_scattering;
+        const double n1 = norms.norm2(rs.single.data), nm = with_multiple ? norms.norm2(rm.multiple.data) : 0.0;
+        std::vector<float> total = rs.single.data;
+        if (with_multiple)
+            for (std::size_t i = 0; i < total.size(); ++i) total[i] += rm.multiple.data[i];
+        const double nt = norms.norm2(total);
+        L.noise.single = rs.noise.single;
+        L.noise.multiple = with_multiple ? rm.noise.multiple : 0.0;
+        const double abs1 = L.noise.single * std::sqrt(n1), absm = L.noise.multiple * std::sqrt(nm);
+        L.noise.total = nt > 0.0 ? std::sqrt(abs1 * abs1 + absm * absm) / std::sqrt(nt) : 0.0;
+
+        if (splatter && rec && nt > 0.0) est->bases_error = bases_error(e.bolt, total, nt, L.noise.total, *splatter, *rec);
+
+        const bool capped = e.single->paths() >= options.max_single_paths &&
+                            (!with_multiple || e.multiple->paths() >= options.max_multiple_paths);
+        est->final = capped || nt == 0.0 || (L.noise.total > 0.0 && L.noise.total <= options.target_noise);
+
+        // The next round: max(round_seconds, growth x time so far), split between the parts in
+        // proportion to noise x norm x sqrt(time spent) (what minimizes the total noise for a
+        // given time when each part's variance falls like 1/paths).
+        const double budget = std::max(options.round_seconds, options.growth * est->worker_seconds);
+        const double xs = abs1 * std::sqrt(e.seconds_single), xm = with_multiple ? absm * std::sqrt(e.seconds_multiple) : 0.0;
+        const double share = xs + xm > 0.0 ? xs / (xs + xm) : 0.5;
+        const auto paths_for = [&](double seconds, const transport::ProgressiveMonteCarlo& p, double spent) {
+            const double per_path = spent / double(std::max<std::uint64_t>(1, p.paths()));
+            return per_path > 0.0 ? std::uint64_t(std::clamp(seconds / per_path, 2.0, 1e9)) : std::uint64_t(2);
+        };
+        // Each part keeps at least a tenth of the round: a noise estimate that happens to be
+        // low early cannot starve its part.
+        const double s1 = std::clamp(share, 0.1, 0.9);
+        e.next_single = paths_for(budget * s1, *e.single, e.seconds_single);
+        e.next_multiple = with_multiple ? paths_for(budget * (1.0 - s1), *e.multiple, e.seconds_multiple) : 0;
+        return est;
+    }
+
+    // || bases(strokes at unit glow) - estimate ||^2 / ||estimate||^2 over the cloud, less the
+    // estimate's own noise^2 (its expected contribution), as a relative error.
+    double bases_error(const lightning::Bolt& bolt, const std::vector<float>& estimate, double estimate_norm2,
+                       double noise, lightning::Splatter& splatter, Reconstructor& rec) const {
+        lightning::FlashState unit;
+        unit.main_glow = 1.0;
+        unit.branch_glow = 1.0;
+        std::vector<lightning::LitSegment> lit;
+        lightning::lit_segments(bolt, unit, lit);
+        std::vector<transport::PointSource> sources;
+        lightning::append_point_sources(lit, splatter.source_spacing(), sources);
+        lightning::LightWeights w;
+        splatter.splat(sources, w);
+        RadianceField r;
+        StageTimes times;
+        ReconstructOptions o;
+        o.parallel_min_work = ~std::size_t(0);  // this thread only: the tracing has the other cores
+        if (!rec.reconstruct(w, {}, o, r, times)) return 1.0;  // the bases show nothing
+        std::vector<float> b;
+        b.reserve(estimate.size());
+        for (const std::vector<float>& d : r.values) b.insert(b.end(), d.begin(), d.end());
+        if (b.size() != estimate.size()) return -1.0;  // another direction set: not comparable
+        const double d2 = CloudNorms{tracing.cloud()}.norm2(b, &estimate) / estimate_norm2;
+        return std::sqrt(std::max(0.0, d2 - noise * noise));
+    }
+};
+
+InstantStrikes::InstantStrikes(const scene::Scene& scene, const core::Grid3<float>& density, const solve::Media& media,
+                               const BakedBases* bases, const InstantOptions& options, int threads) {
+    FULGUR_ASSERT(threads >= 1, "InstantStrikes: threads must be >= 1");
+    FULGUR_ASSERT(options.first_single_paths >= 2 && options.first_multiple_paths >= 2,
+                  "InstantStrikes: the first round needs at least two paths per part");
+    impl_ = std::make_unique<Impl>(scene, density, media, bases, options, threads);
+}
+
+InstantStrikes::~InstantStrikes() = default;
+
+void InstantStrikes::request(std::uint64_t seed, double time, const lightning::Bolt& bolt) {
+    {
+        std::lock_guard<std::mutex> lock(impl_->mu);
+        std::shared_ptr<Impl::Entry>& e = impl_->entries[{seed, time}];
+        if (e) return;
+        e = std::make_shared<Impl::Entry>();
+        e->bolt = bolt;
+    }
+    impl_->cv.notify_all();
+}
+
+std::shared_ptr<const StrikeEstimate> InstantStrikes::get(std::uint64_t seed, double time) const {
+    std::lock_guard<std::mutex> lock(impl_->mu);
+    const auto it = impl_->entries.find({seed, time});
+    return it == impl_->entries.end() ? nullptr : it->second->estimate;
+}
+
+std::shared_ptr<const StrikeEstimate> InstantStrikes::wait_final(std::uint64_t seed, double time) {
+    Impl& im = *impl_;
+    std::unique_lock<std::mutex> lock(im.mu);
+    const auto it = im.entries.find({seed, time});
+    FULGUR_ASSERT(it != im.entries.end(), "InstantStrikes::wait_final: the strike was not requested");
+    const std::shared_ptr<Impl::Entry> e = it->second;
+    FULGUR_ASSERT(!im.paused, "InstantStrikes::wait_final: the solver is paused");
+    im.cv.wait(lock, [&] { return e->final; });
+    if (e->error) std::rethrow_exception(e->error);
+    return e->estimate;
+}
+
+void InstantStrikes::set_paused(bool paused) {
+    {
+        std::lock_guard<std::mutex> lock(impl_->mu);
+        impl_->paused = paused;
+    }
+    impl_->cv.notify_all();
+}
+
+void InstantStrikes::forget_before(double time) {
+    std::lock_guard<std::mutex> lock(impl_->mu);
+    std::erase_if(impl_->entries, [time](const auto& kv) { return kv.first.second < time; });
+}
+
+}  // namespace fulgur::runtime

@@ -1,0 +1,84 @@
+// fulgur::runtime — strikes lit right from the moment they are known: each strike's light
+// traced by Monte Carlo a little at a time on a worker thread and published as it improves,
+// with the error of the bases' frame estimated against it, so a frame can blend the two by
+// their errors (the `instant` preset, docs/presets.md).
+#pragma once
+
+#include "core/core.h"
+#include "lightning/lightning.h"
+#include "runtime/baked_bases.h"
+#include "runtime/strike_solver.h"
+#include "scene/scene.h"
+#include "solve/solve.h"
+
+#include <cstdint>
+#include <memory>
+
+namespace fulgur::runtime {
+
+/// A strike's light as far as its progressive solve has got: StrikeLight's fields (per
+/// group, at unit glow), what they cost and how far they are from converged.
+struct StrikeEstimate {
+    StrikeLight light;  ///< light.noise: single, multiple and total relative L2 noise over the cloud
+    /// Relative L2 error of the bases' S for the same strokes (the paper frame) over the cloud,
+    /// estimated against this estimate with its own noise taken out; < 0: unknown (no bases).
+    double bases_error = -1.0;
+    std::uint64_t single_paths = 0, multiple_paths = 0;
+    double worker_seconds = 0.0;  ///< wall time the worker spent tracing this strike so far
+    double since_request = 0.0;   ///< wall time from the request to this estimate, seconds
+    int round = 0;                ///< 1 for the first estimate
+    bool final = false;           ///< the solve has stopped (target noise or path caps reached)
+    /// How much of the strokes' light a frame takes from this estimate rather than the bases:
+    /// inverse-variance weights, e_b^2 / (e_b^2 + noise^2); 1 when the bases' error is unknown.
+    double weight() const noexcept;
+};
+
+/// How the progressive solves run (instant_options: from a quality preset).
+struct InstantOptions {
+    std::uint64_t max_single_paths = 1'000'000, max_multiple_paths = 1'000'000;
+    double target_noise = 0.02;  ///< a strike stops once its total noise is at most this
+    /// The first round's paths: they set the first estimate's latency (about 15 ms for the
+    /// default storm on 2 cores, docs/presets.md).
+    std::uint64_t first_single_paths = 8'000, first_multiple_paths = 1'000;
+    /// Later rounds take max(round_seconds, growth x the time spent so far): estimates at
+    /// roughly geometric intervals, so publishing stays a small share of the work.
+    double round_seconds = 0.02, growth = 0.5;
+    std::uint64_t seed = 1;
+};
+
+/// The instant preset's options (target_noise, path caps) from a quality preset.
+InstantOptions instant_options(const scene::Quality& q);
+
+/// Traces strikes progressively on one worker thread (its parallel regions on `threads`
+/// threads), the strike that has had the least time first, so a new strike's first estimate
+/// comes a round after its request whatever else is converging. Thread-safe.
+class InstantStrikes {
+public:
+    /// Keeps references to `scene`, `density`, `media` and `bases` (may be null: no bases
+    /// error); they must outlive it.
+    InstantStrikes(const scene::Scene& scene, const core::Grid3<float>& density, const solve::Media& media,
+                   const BakedBases* bases, const InstantOptions& options, int threads);
+    ~InstantStrikes();
+    InstantStrikes(const InstantStrikes&) = delete;
+    InstantStrikes& operator=(const InstantStrikes&) = delete;
+
+    /// Starts tracing the strike (identified by its seed and start time; its bolt is copied).
+    /// No-op when it is known already.
+    void request(std::uint64_t seed, double time, const lightning::Bolt& bolt);
+    /// The strike's latest estimate, else null (never another strike's).
+    std::shared_ptr<const StrikeEstimate> get(std::uint64_t seed, double time) const;
+    /// Blocks until the strike's solve has stopped (it must have been requested); rethrows its
+    /// error.
+    std::shared_ptr<const StrikeEstimate> wait_final(std::uint64_t seed, double time);
+    /// While paused the worker starts no round and a round that ends publishes nothing: what
+    /// get() returns at the pause stays (the time a caller gives the solve is exact).
+    void set_paused(bool paused);
+    /// Drops strikes that started before `time` (their tracing stops).
+    void forget_before(double time);
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace fulgur::runtime
