@@ -25,10 +25,11 @@ struct FramePipeline::Impl {
     std::unique_ptr<StrikeSolver> solver;
     std::unique_ptr<InstantStrikes> instant;
     // The instant preset's shown estimate of each active strike: a cross-fade from `from`
-    // (null: the bases alone) to `to`, `fade` of the way (1: done, a newer estimate may come).
+    // (null: the bases alone) to `to`, `fade` of the way in steps of `step` (1: done, a newer
+    // estimate may come).
     struct Shown {
         std::shared_ptr<const StrikeEstimate> from, to;
-        double fade = 1.0;
+        double fade = 1.0, step = 1.0;
     };
     std::map<std::pair<std::uint64_t, double>, Shown> shown;
     std::vector<lightning::LitSegment> basis_segments, multiple_segments;  // what the bases light
@@ -146,9 +147,10 @@ const Frame& FramePipeline::Impl::build_paper(double t, std::span<const int> dir
 }
 
 // The instant preset's strike: its strokes' light from its latest estimate with weight w (the
-// estimate's against the bases, cross-faded from the previous estimate over blend_frames
-// builds) and from the bases with 1 - w; its leaders from the bases. No estimate yet: the
-// bases alone, as a strike whose solve is not ready.
+// estimate's against the bases, cross-faded from the previous estimate so the shown light
+// changes by at most quality.max_change_per_frame per build) and from the bases with 1 - w;
+// its leaders from the bases. No estimate yet: the bases alone, as a strike whose solve is
+// not ready.
 void FramePipeline::Impl::add_instant(const lightning::Strike& k, const lightning::Bolt& bolt, double t,
                                       const ReconstructOptions& options, std::vector<Lit>& solved) {
     Frame& f = frame;
@@ -157,11 +159,12 @@ void FramePipeline::Impl::add_instant(const lightning::Strike& k, const lightnin
     std::shared_ptr<const StrikeEstimate> latest =
         options.wait_for_strikes ? instant->wait_final(k.seed, k.time) : instant->get(k.seed, k.time);
     if (options.wait_for_strikes) {  // offline: the converged estimate, no cross-fade
-        s = {nullptr, latest, 1.0};
+        s = {nullptr, latest, 1.0, 1.0};
     } else if (latest && latest != s.to && s.fade >= 1.0) {
-        s = {s.to, latest, 0.0};
+        const double frames = std::ceil(latest->change / quality.max_change_per_frame - 1e-9);
+        s = {s.to, latest, 0.0, 1.0 / std::clamp(frames, 1.0, 600.0)};
     }
-    if (s.fade < 1.0) s.fade = std::min(1.0, s.fade + 1.0 / double(std::max(1, quality.blend_frames)));
+    if (s.fade < 1.0) s.fade = std::min(1.0, s.fade + s.step);
     if (!s.to) {
         lightning::lit_segments(bolt, st, basis_segments);
         ++f.strikes_fallback;
@@ -214,8 +217,13 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
         else
             solver->request(k.seed, k.time, storm.bolt(i));
     };
-    for (const std::size_t i : storm.starting(t - 1.0, t + quality.lookahead))
-        if (storm.strike(i).end() > t) request(i);
+    for (const std::size_t i : storm.starting(t - 1.0, t + quality.lookahead)) {
+        const lightning::Strike& k = storm.strike(i);
+        if (k.end() > t)
+            request(i);
+        else if (instant)  // its flash is over: no more paths for it
+            instant->stop(k.seed, k.time);
+    }
     if (t - 60.0 > forgotten_before) {  // keep a minute of solved strikes
         forgotten_before = t - 60.0;
         if (instant) {

@@ -48,7 +48,7 @@ public:
     /// to the ground). `quality`: how frames are lit (default: the scene's); presets other
     /// than paper solve strikes on a worker thread (StrikeSolver) ahead of their frames, the
     /// instant preset from the moment they are known (InstantStrikes), blended with the
-    /// bases by their estimated errors and cross-faded over quality.blend_frames builds.
+    /// bases by their estimated errors and cross-faded (quality.max_change_per_frame per build).
     FramePipeline(const scene::Scene& scene, const core::Grid3<float>& density, const BakedBases& bases,
                   std::optional<lightning::Box> domain = {}, std::optional<scene::Quality> quality = {});
     ~FramePipeline();

@@ -35,15 +35,20 @@ namespace {
 // Sums over the cloud cells (every direction) of a field's square, and of a difference's.
 struct CloudNorms {
     const std::vector<std::uint8_t>& cloud;
+    // Direction-major fields ([m][cell]); one double sum per direction, then added: a few
+    // thousand terms each, of one sign, so plain double sums lose nothing that matters here.
     double norm2(const std::vector<float>& a, const std::vector<float>* b = nullptr) const {
-        core::CompensatedSum s;
         const std::size_t cells = cloud.size();
-        for (std::size_t i = 0; i < a.size(); ++i) {
-            if (!cloud[i % cells]) continue;
-            const double v = double(a[i]) - (b ? double((*b)[i]) : 0.0);
-            s.add(v * v);
+        double total = 0.0;
+        for (std::size_t m0 = 0; m0 < a.size(); m0 += cells) {
+            double s = 0.0;
+            for (std::size_t c = 0; c < cells; ++c) {
+                const double v = double(a[m0 + c]) - (b ? double((*b)[m0 + c]) : 0.0);
+                s += cloud[c] ? v * v : 0.0;
+            }
+            total += s;
         }
-        return s.value();
+        return total;
     }
 };
 
@@ -59,6 +64,8 @@ struct InstantStrikes::Impl {
         std::uint64_t next_single = 0, next_multiple = 0;
         double seconds_single = 0.0, seconds_multiple = 0.0;
         int round = 0;
+        double bases_error = -1.0;
+        std::vector<float> bases_frame, shown;  // [m][cell], the strokes at unit glow
         // Under the mutex.
         double seconds = 0.0;  // the worker's time on it: who goes next
         std::shared_ptr<const StrikeEstimate> estimate;
@@ -142,7 +149,7 @@ struct InstantStrikes::Impl {
                 // stay in the tracers and count in the next estimate).
                 if (estimate && !paused) {
                     e->estimate = estimate;
-                    e->final = estimate->final;
+                    e->final = e->final || estimate->final;  // stop() meanwhile stays stopped
                 }
                 if (error) {
                     e->error = error;
@@ -169,6 +176,7 @@ struct InstantStrikes::Impl {
                                                                           lines, dirs, so);
             transport::MonteCarloOptions mo;
             mo.groups = 2;
+            mo.tally_single = false;  // the single tracer's expected-value order 1 is far cheaper
             mo.seed = core::hash_seed(options.seed, 2);
             e.multiple = std::make_unique<transport::ProgressiveMonteCarlo>(
                 tracing, std::span<const transport::PointSource>{}, lines, dirs, mo);
@@ -216,7 +224,27 @@ struct InstantStrikes::Impl {
         const double abs1 = L.noise.single * std::sqrt(n1), absm = L.noise.multiple * std::sqrt(nm);
         L.noise.total = nt > 0.0 ? std::sqrt(abs1 * abs1 + absm * absm) / std::sqrt(nt) : 0.0;
 
-        if (splatter && rec && nt > 0.0) est->bases_error = bases_error(e.bolt, total, nt, L.noise.total, *splatter, *rec);
+        // The bases' frame of the strokes is made once; their error against the estimate barely
+        // moves once the estimate is within a few tens of percent: two rounds measure it.
+        if (splatter && rec && e.round == 1) e.bases_frame = bases_frame(e.bolt, *splatter, *rec);
+        const bool comparable = e.bases_frame.size() == total.size();
+        if (comparable && nt > 0.0 && e.round <= 2)
+            e.bases_error = std::sqrt(std::max(0.0, norms.norm2(e.bases_frame, &total) / nt -
+                                                        L.noise.total * L.noise.total));
+        est->bases_error = e.bases_error;
+        // What a frame shows of the strokes at unit glow, w M + (1 - w) B, against what it
+        // showed from the previous estimate (the bases alone before the first).
+        {
+            const double w = est->weight();
+            std::vector<float> shown(total.size());
+            for (std::size_t i = 0; i < total.size(); ++i)
+                shown[i] = float(w * double(total[i]) + (comparable ? (1.0 - w) * double(e.bases_frame[i]) : 0.0));
+            const double ns = norms.norm2(shown);
+            const std::vector<float>& before = e.shown.empty() ? e.bases_frame : e.shown;
+            if (ns > 0.0 && before.size() == shown.size()) est->change = std::sqrt(norms.norm2(shown, &before) / ns);
+            else if (ns > 0.0) est->change = 1.0;
+            e.shown = std::move(shown);
+        }
 
         const bool capped = e.single->paths() >= options.max_single_paths &&
                             (!with_multiple || e.multiple->paths() >= options.max_multiple_paths);
@@ -240,10 +268,10 @@ struct InstantStrikes::Impl {
         return est;
     }
 
-    // || bases(strokes at unit glow) - estimate ||^2 / ||estimate||^2 over the cloud, less the
-    // estimate's own noise^2 (its expected contribution), as a relative error.
-    double bases_error(const lightning::Bolt& bolt, const std::vector<float>& estimate, double estimate_norm2,
-                       double noise, lightning::Splatter& splatter, Reconstructor& rec) const {
+    // The bases' S of the strokes at unit glow, every direction ([m][cell]); empty when the
+    // bases show nothing.
+    static std::vector<float> bases_frame(const lightning::Bolt& bolt, lightning::Splatter& splatter,
+                                          Reconstructor& rec) {
         lightning::FlashState unit;
         unit.main_glow = 1.0;
         unit.branch_glow = 1.0;
@@ -257,13 +285,10 @@ struct InstantStrikes::Impl {
         StageTimes times;
         ReconstructOptions o;
         o.parallel_min_work = ~std::size_t(0);  // this thread only: the tracing has the other cores
-        if (!rec.reconstruct(w, {}, o, r, times)) return 1.0;  // the bases show nothing
         std::vector<float> b;
-        b.reserve(estimate.size());
+        if (!rec.reconstruct(w, {}, o, r, times)) return b;
         for (const std::vector<float>& d : r.values) b.insert(b.end(), d.begin(), d.end());
-        if (b.size() != estimate.size()) return -1.0;  // another direction set: not comparable
-        const double d2 = CloudNorms{tracing.cloud()}.norm2(b, &estimate) / estimate_norm2;
-        return std::sqrt(std::max(0.0, d2 - noise * noise));
+        return b;
     }
 };
 
@@ -310,6 +335,15 @@ void InstantStrikes::set_paused(bool paused) {
     {
         std::lock_guard<std::mutex> lock(impl_->mu);
         impl_->paused = paused;
+    }
+    impl_->cv.notify_all();
+}
+
+void InstantStrikes::stop(std::uint64_t seed, double time) {
+    {
+        std::lock_guard<std::mutex> lock(impl_->mu);
+        const auto it = impl_->entries.find({seed, time});
+        if (it != impl_->entries.end()) it->second->final = true;
     }
     impl_->cv.notify_all();
 }

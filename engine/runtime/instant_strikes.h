@@ -23,6 +23,11 @@ struct StrikeEstimate {
     /// Relative L2 error of the bases' S for the same strokes (the paper frame) over the cloud,
     /// estimated against this estimate with its own noise taken out; < 0: unknown (no bases).
     double bases_error = -1.0;
+    /// Relative L2 change over the cloud of what a frame shows of the strokes at unit glow
+    /// (weight() x this estimate + the rest from the bases) from the previous estimate (or
+    /// from the bases alone, before the first): how far a frame may be faded over
+    /// (scene::Quality::max_change_per_frame).
+    double change = 0.0;
     std::uint64_t single_paths = 0, multiple_paths = 0;
     double worker_seconds = 0.0;  ///< wall time the worker spent tracing this strike so far
     double since_request = 0.0;   ///< wall time from the request to this estimate, seconds
@@ -37,9 +42,9 @@ struct StrikeEstimate {
 struct InstantOptions {
     std::uint64_t max_single_paths = 1'000'000, max_multiple_paths = 1'000'000;
     double target_noise = 0.02;  ///< a strike stops once its total noise is at most this
-    /// The first round's paths: they set the first estimate's latency (about 15 ms for the
-    /// default storm on 2 cores, docs/presets.md).
-    std::uint64_t first_single_paths = 8'000, first_multiple_paths = 1'000;
+    /// The first round's paths: they set the first estimate's latency (docs/presets.md gives
+    /// it for the default storm on 2 cores).
+    std::uint64_t first_single_paths = 1'500, first_multiple_paths = 400;
     /// Later rounds take max(round_seconds, growth x the time spent so far): estimates at
     /// roughly geometric intervals, so publishing stays a small share of the work.
     double round_seconds = 0.02, growth = 0.5;
@@ -73,6 +78,9 @@ public:
     /// While paused the worker starts no round and a round that ends publishes nothing: what
     /// get() returns at the pause stays (the time a caller gives the solve is exact).
     void set_paused(bool paused);
+    /// Stops tracing the strike (its flash is over: more paths would light nothing); its
+    /// latest estimate stays. No-op for a strike not requested.
+    void stop(std::uint64_t seed, double time);
     /// Drops strikes that started before `time` (their tracing stops).
     void forget_before(double time);
 

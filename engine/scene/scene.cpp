@@ -381,7 +381,7 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
         k.refine = int(q->integer_or("refine", k.refine, 0, 64));
         k.exact_orders = int(q->integer_or("exact_orders", k.exact_orders, 0, 2));
         k.target_noise = q->number_or("target_noise", k.target_noise, Range{1e-4, 1.0});
-        k.blend_frames = int(q->integer_or("blend_frames", k.blend_frames, 1, 600));
+        k.max_change_per_frame = q->number_or("max_change_per_frame", k.max_change_per_frame, Range{1e-3, 1e3});
         if (k.preset == Quality::Preset::Instant && k.multiple != "monte_carlo")
             q->fail("multiple", "the instant preset traces multiple scattering by Monte Carlo: must be \"monte_carlo\"");
         if (k.preset == Quality::Preset::Paper && k.multiple != "none")

@@ -160,9 +160,12 @@ struct Quality {
     /// (single + multiple, over the cloud) is at most this, or at single_paths /
     /// multiple_paths paths, whichever comes first.
     double target_noise = 0.02;
-    /// Instant: frames over which a newer estimate of a strike's light replaces the shown one
-    /// (a linear cross-fade, so S never jumps by more than 1/blend_frames of the change).
-    int blend_frames = 3;
+    /// Instant: the largest relative change (L2 over the cloud) of a strike's shown light from
+    /// one frame to the next when a newer estimate replaces the shown one: the replacement is a
+    /// linear cross-fade over ceil(change / this) frames. 0.15 is well below what the flash's
+    /// own intensity does between two frames at 60 fps (a return stroke's 12 ms decay: -75%),
+    /// and fades the first estimate in over 2-5 frames on the default storm (docs/presets.md).
+    double max_change_per_frame = 0.15;
 };
 
 /// Every preset's name in scene files, indexed by Quality::Preset, cheapest first.

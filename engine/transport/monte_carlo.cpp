@@ -189,7 +189,7 @@ public:
 
     void begin_path(std::uint32_t group) {
         const std::size_t cells = tg_->geom.cell_count();
-        single_ = single0_ + std::size_t(group) * cells * M_;
+        if (single0_) single_ = single0_ + std::size_t(group) * cells * M_;
         if (multiple0_) multiple_ = multiple0_ + std::size_t(group) * cells * M_;
         if (fluence0_) fluence_ = fluence0_ + std::size_t(group) * cells;
         if (fluence20_) fluence2_ = fluence20_ + std::size_t(group) * cells;
@@ -748,10 +748,16 @@ struct ProgressiveMonteCarlo::Impl {
         cells = med.tg.geom.cell_count();
         M = dirs.size();
         size = cells * M * G;
-        h1.init(size);
+        if (o.tally_single) h1.init(size);
         if (multiple) hm.init(size);
         if (fluence) hf.init(cells * G);
         if (fluence2) hf2.init(cells * G);
+        if (!o.tally_single && !multiple)
+            throw core::Error("monte_carlo.tally_single", "false needs the multiple tally: nothing would be estimated");
+        for (std::size_t h = 0; h < 2; ++h) {
+            half_seed[h] = core::hash_seed(o.seed, h);
+            emission[h] = detail::KroneckerSequence(half_seed[h]);
+        }
     }
     // The batch settings are advance()'s business: only the options that shape paths are checked.
     static MonteCarloOptions batch_free(MonteCarloOptions o) {
@@ -762,28 +768,35 @@ struct ProgressiveMonteCarlo::Impl {
         return o;
     }
 
+    // Each half is its own run: its own seed, its own shifted emission sequence, its own count.
+    std::array<std::uint64_t, 2> half_seed{}, half_traced{};
+    std::array<detail::KroneckerSequence, 2> emission{detail::KroneckerSequence(0), detail::KroneckerSequence(0)};
+
     void advance(std::uint64_t n) {
         const std::uint64_t half[2] = {n / 2, n - n / 2};
-        const std::uint64_t first = traced;
         const bool expected = o.single_estimator == MonteCarloOptions::SingleEstimator::ExpectedValue;
         core::parallel_for(0, 2, [&](std::int64_t h) {
             Buffer& buf = bufs[std::size_t(h)];
-            buf.single.assign(size, 0.0);
+            if (o.tally_single) buf.single.assign(size, 0.0);
             if (multiple) buf.multiple.assign(size, 0.0);
             if (fluence) buf.fluence.assign(cells * G, 0.0);
             if (fluence2) buf.fluence2.assign(cells * G, 0.0);
             buf.energy = detail::EnergyBatch{};
-            detail::GridTally tally(med.medium, med.tg, dirs, expected, !expected, multiple, detail::kPathCutoff,
-                                    buf.single.data(), multiple ? buf.multiple.data() : nullptr,
+            detail::GridTally tally(med.medium, med.tg, dirs, expected && o.tally_single, !expected && o.tally_single,
+                                    multiple, detail::kPathCutoff, o.tally_single ? buf.single.data() : nullptr,
+                                    multiple ? buf.multiple.data() : nullptr,
                                     fluence ? buf.fluence.data() : nullptr, fluence2 ? buf.fluence2.data() : nullptr);
-            detail::trace_paths(med.gm, em, po, o.seed, first + (h == 0 ? 0 : half[0]), half[h], tally, buf.energy);
+            detail::trace_paths(med.gm, em, po, half_seed[std::size_t(h)], half_traced[std::size_t(h)], half[h], tally,
+                                buf.energy, &emission[std::size_t(h)]);
         });
+        half_traced[0] += half[0];
+        half_traced[1] += half[1];
         const double vol = med.tg.geom.voxel_size * med.tg.geom.voxel_size * med.tg.geom.voxel_size;
         const double s = med.medium.optics.albedo / vol, sf = 1.0 / vol;
         for (std::size_t h = 0; h < 2; ++h) {
             const Buffer& buf = bufs[h];
             const bool a = h == 0;
-            h1.add_paths(buf.single, s, a, half[h]);
+            if (o.tally_single) h1.add_paths(buf.single, s, a, half[h]);
             if (multiple) hm.add_paths(buf.multiple, s, a, half[h]);
             if (fluence) hf.add_paths(buf.fluence, sf, a, half[h]);
             if (fluence2) hf2.add_paths(buf.fluence2, sf, a, half[h]);
@@ -806,12 +819,16 @@ struct ProgressiveMonteCarlo::Impl {
             SourceField* s1 = G > 1 ? &r.groups[q].single : &r.single;
             SourceField* sm = G > 1 ? &r.groups[q].multiple : &r.multiple;
             if (G > 1) *s1 = *sm = SourceField(g, dirs);
-            for (std::size_t c = 0; c < cells; ++c)
-                for (std::size_t m = 0; m < M; ++m) {
+            // Direction-major output from cell-major sums: sequential writes, strided reads;
+            // directions over the threads.
+            core::parallel_for(0, std::int64_t(M), [&](std::int64_t mi) {
+                const std::size_t m = std::size_t(mi);
+                for (std::size_t c = 0; c < cells; ++c) {
                     const std::size_t i = (q * cells + c) * M + m;
-                    s1->data[m * cells + c] = float(mean(h1, i));
+                    if (o.tally_single) s1->data[m * cells + c] = float(mean(h1, i));
                     if (multiple) sm->data[m * cells + c] = float(mean(hm, i));
                 }
+            });
             if (G > 1)
                 for (std::size_t i = 0; i < s1->data.size(); ++i) {
                     r.single.data[i] += s1->data[i];
@@ -825,9 +842,11 @@ struct ProgressiveMonteCarlo::Impl {
             if (G > 1 && fluence2) write_fluence(hf2, r.groups[q].fluence2);
         }
         if (traced_any) {
-            r.noise.single = detail::half_noise(h1, nullptr, med.tg, M, G, true);
-            r.noise.multiple = multiple ? detail::half_noise(hm, nullptr, med.tg, M, G, true) : 0.0;
-            r.noise.total = multiple ? detail::half_noise(h1, &hm, med.tg, M, G, true) : r.noise.single;
+            if (o.tally_single) r.noise.single = detail::half_noise(h1, nullptr, med.tg, M, G, true);
+            if (multiple) r.noise.multiple = detail::half_noise(hm, nullptr, med.tg, M, G, true);
+            r.noise.total = !multiple        ? r.noise.single
+                            : !o.tally_single ? r.noise.multiple
+                                              : detail::half_noise(h1, &hm, med.tg, M, G, true);
         }
         return r;
     }

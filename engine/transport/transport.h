@@ -238,6 +238,10 @@ struct MonteCarloOptions {
     std::uint64_t max_collisions = 100'000'000;
     /// Estimate orders >= 2 (the `multiple` field). false: only order 1 is tallied.
     bool tally_multiple = true;
+    /// Estimate order 1 (the `single` field). false: a run for orders >= 2 only, whose paths
+    /// then skip order 1's expected-value deposit (about a third of a path's cost in a storm
+    /// cloud). Only ProgressiveMonteCarlo honours it; monte_carlo() always tallies order 1.
+    bool tally_single = true;
     /// Also estimate the noise of the result from two independent halves of the batches
     /// (MonteCarloResult::noise; needs batches >= 4; two more fields of memory).
     bool halves = false;
@@ -338,13 +342,16 @@ private:
 };
 
 /// Monte Carlo of a set of sources traced a little at a time, for an estimate that improves
-/// while it is shown (a strike nobody scheduled: runtime::InstantStrikes). Same paths and
-/// tallies as monte_carlo(medium, points, lines, tally_grid, ...), with three differences:
-/// tallies are pooled over all paths traced so far (every path weighs the same, whatever the
-/// size of the call that traced it); each advance() traces two batches, one per half of the
-/// noise estimate, so result().noise exists after the first call; the result depends on the
-/// seed and the sequence of advance() sizes, not on the thread count. Volume-weighted tallies
-/// only. Keeps a reference to `medium`; copies the sources.
+/// while it is shown (a strike nobody scheduled: runtime::InstantStrikes). The tallies of
+/// monte_carlo(medium, points, lines, tally_grid, ...), with four differences: the noise's two
+/// halves are two independent runs (own seeds), each advance() adding half its paths to each,
+/// so result().noise exists after the first call; tallies are pooled over all paths so far
+/// (every path weighs the same, whatever the call that traced it); each half's emissions
+/// (source, place along a line, direction) follow a randomly shifted low-discrepancy sequence
+/// (detail::KroneckerSequence) rather than independent draws, unbiased and far less noisy for
+/// order 1, whose deposit is a deterministic function of the emission; the result depends on
+/// the seed and the sequence of advance() sizes, not on the thread count. Volume-weighted
+/// tallies only. Keeps a reference to `medium`; copies the sources.
 class ProgressiveMonteCarlo {
 public:
     /// Validates like monte_carlo() (core::Error names the bad field); options.paths,

@@ -102,17 +102,49 @@ inline core::Rng path_rng(std::uint64_t seed, std::uint64_t path) noexcept {
     return core::Rng(core::hash_seed(seed, path), path);
 }
 
+/// A randomly shifted Kronecker sequence in [0,1)^4 (Roberts' generalized golden ratio:
+/// alpha_j = g^-j with g the root of x^5 = x + 1): point i is frac(shift + i alpha). Used for
+/// what a path's emission draws (source, place, direction), it spreads a run's first flights
+/// evenly where independent draws clump; each shift gives an unbiased estimate, two shifts
+/// two independent ones (the noise estimate's halves).
+struct KroneckerSequence {
+    std::array<double, 4> shift{};
+    explicit KroneckerSequence(std::uint64_t seed) noexcept {
+        core::Rng r(core::hash_seed(seed, 0x9e3779b97f4a7c15ull), 7);
+        for (double& v : shift) v = r.uniform();
+    }
+    std::array<double, 4> point(std::uint64_t i) const noexcept {
+        static constexpr double kG = 1.1673039782614187;  // x^5 = x + 1
+        static constexpr double kAlpha[4] = {1.0 / kG, 1.0 / (kG * kG), 1.0 / (kG * kG * kG),
+                                             1.0 / (kG * kG * kG * kG)};
+        std::array<double, 4> u{};
+        const double di = double(i);
+        for (std::size_t j = 0; j < 4; ++j) {
+            const double v = shift[j] + di * kAlpha[j];
+            u[j] = v - std::floor(v);
+        }
+        return u;
+    }
+};
+
 /// Traces paths [first, first + n) from the emitter, accumulating into the tally and the
-/// energy sums.
+/// energy sums. With `emission` (and an emitter that can use it: emit_at), each path's
+/// emission takes point first + p of that sequence instead of random numbers.
 template <class Medium, class Emitter, class Tally>
 void trace_paths(const Medium& med, const Emitter& em, const PathOptions& o, std::uint64_t seed, std::uint64_t first,
-                 std::uint64_t n, Tally& tally, EnergyBatch& e) {
+                 std::uint64_t n, Tally& tally, EnergyBatch& e, const KroneckerSequence* emission = nullptr) {
     const double w0 = em.power();
     const double w_rr = o.roulette_threshold * w0;
     for (std::uint64_t p = 0; p < n; ++p) {
         core::Rng rng = path_rng(seed, first + p);
         glm::dvec3 x, d;
-        tally.begin_path(em.emit(rng, x, d));
+        std::uint32_t group = 0;
+        if constexpr (requires { em.emit_at(std::array<double, 4>{}, x, d); }) {
+            group = emission ? em.emit_at(emission->point(first + p), x, d) : em.emit(rng, x, d);
+        } else {
+            group = em.emit(rng, x, d);
+        }
+        tally.begin_path(group);
         double w = w0;
         e.emitted += w;
         tally.uncollided(x, d, w);
@@ -223,6 +255,23 @@ struct SourceEmitter {
         x = from[i];
         if (to[i] != from[i]) x += rng.uniform() * (to[i] - from[i]);
         d = uniform_sphere(rng);
+        return group[i];
+    }
+    /// The same from a point of [0,1)^4: u[0] picks the source along the running sums (its
+    /// fractional position inside the source's share places the point on a line, so lines
+    /// are covered evenly), u[2], u[3] the direction. u[1] is unused.
+    std::uint32_t emit_at(const std::array<double, 4>& u, glm::dvec3& x, glm::dvec3& d) const {
+        const double v = u[0] * total;
+        std::size_t i = std::size_t(std::upper_bound(cumulative.begin(), cumulative.end(), v) - cumulative.begin());
+        i = std::min(i, from.size() - 1);
+        const double lo = i == 0 ? 0.0 : cumulative[i - 1], share = cumulative[i] - lo;
+        const double f = share > 0.0 ? std::clamp((v - lo) / share, 0.0, 1.0) : 0.5;
+        x = from[i];
+        if (to[i] != from[i]) x += f * (to[i] - from[i]);
+        const double z = 1.0 - 2.0 * u[2];
+        const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
+        const double phi = 2.0 * std::numbers::pi * u[3];
+        d = {r * std::cos(phi), r * std::sin(phi), z};
         return group[i];
     }
     double power() const noexcept { return 4.0 * std::numbers::pi * total; }

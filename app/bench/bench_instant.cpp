@@ -1,0 +1,165 @@
+// fulgur-bench instant: the instant preset's progressive strike solve on the default storm
+// (content/scenes/storm.json, baked beside the scene if stale).
+//
+//   paths: Monte Carlo cost per path of each part (single: expected-value uncollided only;
+//     multiple: whole paths), 1 and 2 threads, and the cost of one estimate (result()).
+//   timeline: strikes nobody scheduled (seeds 1-3, lookahead 0): wall time from the request
+//     to the first estimate, and the estimate's noise and weight against the bases at 16, 50,
+//     100, 300 and 1000 ms.
+//   frame: the frame thread's cost (wall and the thread's own CPU time, median) while the
+//     strike is being solved, instant against paper in the same run, all 26 directions and
+//     the 8 a side view needs.
+#include "bench/bench.h"
+
+#include "bake/bake.h"
+#include "core/core.h"
+#include "runtime/runtime.h"
+#include "scene/scene.h"
+
+#include <time.h>
+
+#include <chrono>
+#include <filesystem>
+#include <thread>
+
+using namespace fulgur;
+
+namespace {
+
+double thread_cpu_ms() {
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
+}
+
+}  // namespace
+
+FULGUR_BENCH(instant, "instant preset on the default storm: Monte Carlo cost per path (1, 2 threads), first-estimate "
+                      "latency and noise over time for unscheduled strikes, the frame thread's cost against paper") {
+    const std::filesystem::path path = std::filesystem::path(FULGUR_SOURCE_ROOT) / "content/scenes/storm.json";
+    scene::Scene s = scene::load_scene(path);
+    s.lightning.schedule.strike_rate = 0.0;
+    const core::Grid3<float> density = scene::make_density(s);
+    bake::bake_if_stale(s, density, bake::default_fgb_path(s));
+    const runtime::BakedBases bases = runtime::BakedBases::load(bake::default_fgb_path(s), bake::scene_key(s, density));
+    const solve::Media media = solve::make_media(s, density);
+    const int strikes = ctx.quick ? 1 : 3;
+    const nlohmann::json base = {{"scene", "storm.json"}};
+
+    // --- paths ---
+    {
+        runtime::FramePipeline probe(s, density, bases, {}, scene::quality_preset("paper"));
+        const lightning::Bolt bolt = probe.storm().bolt(probe.strike_at(0.0, 1));
+        const std::vector<transport::LineSource> lines = runtime::strike_line_sources(bolt);
+        const transport::LightingMedium fine{density, s.medium};
+        const transport::MonteCarloMedium tracing(fine, media.lighting.density.geom);
+        const std::vector<glm::dvec3> dirs = transport::output_directions(s.effective_directions());
+        for (const int threads : {1, 2}) {
+            if (threads > ctx.max_threads) continue;
+            core::set_thread_count(threads);
+            for (const bool whole : {false, true}) {
+                transport::MonteCarloOptions o;
+                o.groups = 2;
+                if (!whole) {
+                    o.max_scatterings = 0;
+                    o.tally_multiple = false;
+                    o.uncollided_only = true;
+                } else {
+                    o.tally_single = false;  // as InstantStrikes traces them
+                }
+                transport::ProgressiveMonteCarlo p(tracing, {}, lines, dirs, o);
+                const std::uint64_t n = (whole ? 4'000 : 20'000) / (ctx.quick ? 4 : 1);
+                p.advance(n);  // warm: first touch of the buffers
+                std::vector<double> us, result_ms;
+                for (int r = 0; r < 3; ++r) {
+                    core::Stopwatch sw;
+                    p.advance(n);
+                    us.push_back(sw.seconds() * 1e6 / double(n));
+                    sw.reset();
+                    (void)p.result();
+                    result_ms.push_back(sw.milliseconds());
+                }
+                nlohmann::json j = base;
+                j["part"] = whole ? "multiple (whole paths, order 1 not tallied)" : "single (uncollided)";
+                j["threads"] = threads;
+                j["us_per_path_median"] = bench::median(us);
+                j["result_ms_median"] = bench::median(result_ms);
+                ctx.emit("instant_paths", j);
+            }
+        }
+        core::set_thread_count(ctx.max_threads);
+    }
+
+    // --- timeline ---
+    for (int k = 0; k < strikes; ++k) {
+        const std::uint64_t seed = std::uint64_t(k + 1);
+        runtime::FramePipeline probe(s, density, bases, {}, scene::quality_preset("paper"));
+        const std::size_t i = probe.strike_at(0.0, seed);
+        const lightning::Bolt bolt = probe.storm().bolt(i);
+        const double start = probe.storm().strike(i).time;
+        const runtime::InstantOptions io = runtime::instant_options(scene::quality_preset("instant"));
+        runtime::InstantStrikes is(s, density, media, &bases, io, ctx.max_threads);
+        core::Stopwatch sw;
+        is.request(seed, start, bolt);
+        double first_ms = -1.0;
+        nlohmann::json at = nlohmann::json::array();
+        const double marks[] = {16, 50, 100, 300, 1000};
+        std::size_t next = 0;
+        while (next < std::size(marks)) {
+            std::this_thread::sleep_for(std::chrono::microseconds(500));
+            const double now = sw.milliseconds();
+            const auto e = is.get(seed, start);
+            if (e && first_ms < 0.0) first_ms = now;
+            if (now >= marks[next]) {
+                at.push_back({{"ms", marks[next]},
+                              {"noise", e ? e->light.noise.total : -1.0},
+                              {"weight", e ? e->weight() : 0.0},
+                              {"bases_error", e ? e->bases_error : -1.0},
+                              {"single_paths", e ? e->single_paths : 0},
+                              {"multiple_paths", e ? e->multiple_paths : 0}});
+                ++next;
+            }
+        }
+        nlohmann::json j = base;
+        j["seed"] = seed;
+        j["threads"] = ctx.max_threads;
+        j["first_estimate_ms"] = first_ms;
+        j["at"] = at;
+        ctx.emit("instant_timeline", j);
+    }
+
+    // --- frame ---
+    for (const bool side : {false, true}) {
+        const std::vector<int> dirs = side ? std::vector<int>{0, 1, 2, 3, 4, 5, 6, 7} : std::vector<int>{};
+        double paper_cpu = 0.0;
+        for (const char* name : {"paper", "instant"}) {
+            std::vector<double> wall, cpu;
+            for (int k = 0; k < strikes; ++k) {
+                scene::Quality q = scene::quality_preset(name);
+                q.lookahead = 0.0;
+                runtime::FramePipeline p(s, density, bases, {}, q);
+                const std::size_t i = p.strike_at(0.0, std::uint64_t(k + 1));
+                const double t = p.storm().strike(i).profile.stroke_onset.at(0) + 0.002;
+                core::Stopwatch sw;
+                for (int f = 0; f < (ctx.quick ? 12 : 30); ++f) {  // 60 fps while the strike is solved
+                    const double c0 = thread_cpu_ms();
+                    core::Stopwatch fw;
+                    (void)p.build(t, dirs);
+                    wall.push_back(fw.milliseconds());
+                    cpu.push_back(thread_cpu_ms() - c0);
+                    const double wait = double(f + 1) * 1000.0 / 60.0 - sw.milliseconds();
+                    if (wait > 0.0) std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(wait));
+                }
+            }
+            nlohmann::json j = base;
+            j["preset"] = name;
+            j["directions"] = side ? 8 : 26;
+            j["threads"] = ctx.max_threads;
+            j["frame_wall_ms_median"] = bench::median(wall);
+            j["frame_thread_cpu_ms_median"] = bench::median(cpu);
+            if (std::string_view(name) == "paper") paper_cpu = bench::median(cpu);
+            j["cpu_ratio_to_paper"] = paper_cpu > 0.0 ? bench::median(cpu) / paper_cpu : 0.0;
+            ctx.emit("instant_frame", j);
+        }
+    }
+}
