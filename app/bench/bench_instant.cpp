@@ -34,8 +34,9 @@ double thread_cpu_ms() {
 
 }  // namespace
 
-FULGUR_BENCH(instant, "instant preset on the default storm: Monte Carlo cost per path (1, 2 threads), first-estimate "
-                      "latency and noise over time for unscheduled strikes, the frame thread's cost against paper") {
+FULGUR_BENCH(instant,
+             "instant preset on the default storm: Monte Carlo cost per path (1, 2 threads), first-estimate "
+             "latency and noise over time for unscheduled strikes, the frame thread's cost against paper") {
     const std::filesystem::path path = std::filesystem::path(FULGUR_SOURCE_ROOT) / "content/scenes/storm.json";
     scene::Scene s = scene::load_scene(path);
     s.lightning.schedule.strike_rate = 0.0;

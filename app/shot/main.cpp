@@ -18,7 +18,8 @@ using namespace fulgur;
 namespace {
 
 // Relative L2 of `field` against `reference` over the cloud voxels, every direction.
-double field_error(view::StormView& view, const transport::SourceField& field, const transport::SourceField& reference) {
+double field_error(view::StormView& view, const transport::SourceField& field,
+                   const transport::SourceField& reference) {
     const std::vector<float>& density = view.media().lighting.density.data;
     core::RelativeL2 e;
     for (std::size_t i = 0; i < reference.data.size(); ++i)
@@ -43,11 +44,12 @@ transport::SourceField since_known_field(view::StormView& view, double t, const 
         for (std::size_t k = 0; k < f.radiance.directions.size(); ++k)
             std::copy(f.radiance.values[k].begin(), f.radiance.values[k].end(),
                       field.direction(std::size_t(f.radiance.directions[k])).begin());
-    std::printf("{\"name\":\"fulgur-shot-since-known\",\"quality\":\"%s\",\"since_known_ms\":%.4g,"
-                "\"frames_meanwhile\":%d,\"frame_ms_median\":%.4g,\"frame_ms_max\":%.4g,"
-                "\"strikes_solved\":%zu,\"strikes_fallback\":%zu,\"instant_weight\":%.4g}\n",
-                std::string(scene::to_string(p.quality().preset)).c_str(), *a.since_known_ms, seen.frames,
-                seen.median_frame_ms, seen.max_frame_ms, f.strikes_solved, f.strikes_fallback, f.instant_weight);
+    std::printf(
+        "{\"name\":\"fulgur-shot-since-known\",\"quality\":\"%s\",\"since_known_ms\":%.4g,"
+        "\"frames_meanwhile\":%d,\"frame_ms_median\":%.4g,\"frame_ms_max\":%.4g,"
+        "\"strikes_solved\":%zu,\"strikes_fallback\":%zu,\"instant_weight\":%.4g}\n",
+        std::string(scene::to_string(p.quality().preset)).c_str(), *a.since_known_ms, seen.frames, seen.median_frame_ms,
+        seen.max_frame_ms, f.strikes_solved, f.strikes_fallback, f.instant_weight);
     std::fflush(stdout);
     return field;
 }
@@ -55,8 +57,8 @@ transport::SourceField since_known_field(view::StormView& view, double t, const 
 // --reference: the same frame lit by the truth (or the direct solve), its difference image and the errors
 // (S over the cloud; the cloud's in-scattered radiance in the image) and times as JSON.
 void render_reference(view::StormView& view, platform::Context* ctx, const render::Camera& cam, double t,
-                      const view::ViewOptions& opt, const app::ShotArgs& a, const std::vector<std::uint8_t>& shown_basis,
-                      const transport::SourceField* shown_field) {
+                      const view::ViewOptions& opt, const app::ShotArgs& a,
+                      const std::vector<std::uint8_t>& shown_basis, const transport::SourceField* shown_field) {
     transport::SourceField direct;
     double solve_s = 0.0, frame_ms = 0.0;
     transport::MonteCarloResult::Noise noise;
@@ -161,12 +163,12 @@ void write_frame_vdb(view::StormView& view, double t, const view::ViewOptions& o
                 for (std::size_t i = 0; i < f.radiance.directions.size(); ++i)
                     v.source.at(std::size_t(f.radiance.directions[i])).data = f.radiance.values[i];
         }
-        v.source_meaning = "the lightning's S of the frame at t = " + core::format_number(t, 9) + " s, seed " +
-                           std::to_string(a.seed) + ", quality " +
-                           std::string(scene::to_string(view.pipeline().quality().preset)) +
-                           (a.since_known_ms ? ", " + core::format_number(*a.since_known_ms, 6) + " ms after it became known"
-                                             : std::string()) +
-                           (lit ? "" : " (no flash glows at t: zero)");
+        v.source_meaning =
+            "the lightning's S of the frame at t = " + core::format_number(t, 9) + " s, seed " +
+            std::to_string(a.seed) + ", quality " + std::string(scene::to_string(view.pipeline().quality().preset)) +
+            (a.since_known_ms ? ", " + core::format_number(*a.since_known_ms, 6) + " ms after it became known"
+                              : std::string()) +
+            (lit ? "" : " (no flash glows at t: zero)");
     }
     app::write_lighting_vdb(*a.vdb, v);
 }

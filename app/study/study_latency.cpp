@@ -68,7 +68,8 @@ runtime::Truth cached_truth(const scene::Scene& s, const core::Grid3<float>& den
     std::ofstream out(file, std::ios::binary);
     out.write(reinterpret_cast<const char*>(&sum), sizeof sum);
     out.write(reinterpret_cast<const char*>(&t.noise), sizeof t.noise);
-    out.write(reinterpret_cast<const char*>(t.single.data.data()), std::streamsize(t.single.data.size() * sizeof(float)));
+    out.write(reinterpret_cast<const char*>(t.single.data.data()),
+              std::streamsize(t.single.data.size() * sizeof(float)));
     out.write(reinterpret_cast<const char*>(t.multiple.data.data()),
               std::streamsize(t.multiple.data.size() * sizeof(float)));
     if (!out) throw core::Error(file.string(), "cannot write the truth cache");
@@ -100,10 +101,10 @@ FULGUR_STUDY(latency, "latency",
         if (presets.empty()) throw core::Error("--only", "names no preset of paper, per_strike_mc, instant");
     }
 
-    study::Csv rows(ctx.file("latency.csv"), {"scene", "preset", "seed", "since_known_ms", "error_vs_truth",
-                                              "frame_ms_median", "frame_ms_max", "frames", "instant_weight",
-                                              "worker_s", "single_paths", "multiple_paths", "estimate_noise",
-                                              "bases_error", "truth_noise"});
+    study::Csv rows(ctx.file("latency.csv"),
+                    {"scene", "preset", "seed", "since_known_ms", "error_vs_truth", "frame_ms_median", "frame_ms_max",
+                     "frames", "instant_weight", "worker_s", "single_paths", "multiple_paths", "estimate_noise",
+                     "bases_error", "truth_noise"});
     study::Csv summary(ctx.file("latency_summary.csv"),
                        {"scene", "preset", "since_known_ms", "worst_error", "median_error", "frame_ms_median"});
     nlohmann::json out = nlohmann::json::array();
@@ -157,8 +158,7 @@ FULGUR_STUDY(latency, "latency",
                         }
                         is->set_paused(true);
                     } else if (runtime::StrikeSolver* ss = p.strike_solver()) {
-                        if (const auto L = ss->get(seed, start))
-                            worker_s = L->seconds_single + L->seconds_multiple;
+                        if (const auto L = ss->get(seed, start)) worker_s = L->seconds_single + L->seconds_multiple;
                         ss->set_paused(true);
                     }
                     rows << std::filesystem::path(c.file).stem().string() << name << double(seed) << x << e

@@ -6,9 +6,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <thread>
 #include <map>
 #include <string>
+#include <thread>
 #include <utility>
 
 namespace fulgur::runtime {
@@ -24,12 +24,16 @@ struct FramePipeline::Impl {
     std::optional<solve::Media> media;
     std::unique_ptr<StrikeSolver> solver;
     std::unique_ptr<InstantStrikes> instant;
-    // The instant preset's shown estimate of each active strike: a cross-fade from `from`
-    // (null: the bases alone) to `to`, `fade` of the way in steps of `step` (1: done, a newer
-    // estimate may come).
+    // The instant preset's shown light of each active strike's strokes: `light` (its own
+    // estimate's share, at unit glow) plus `bases` x the bases' frame. Each frame moves it
+    // toward the latest estimate (weight w: w M + (1 - w) bases) by at most
+    // quality.max_change_per_frame of the shown light (relative L2 over the cloud).
     struct Shown {
-        std::shared_ptr<const StrikeEstimate> from, to;
-        double fade = 1.0, step = 1.0;
+        std::shared_ptr<const StrikeEstimate> target;
+        std::shared_ptr<StrikeLight> light;  // null: nothing of the estimate yet
+        std::vector<float> total;            // light's single + multiple over the groups, [m][cell]
+        double bases = 1.0;
+        bool settled = false;  // equal to the target's blend: nothing to move
     };
     std::map<std::pair<std::uint64_t, double>, Shown> shown;
     std::vector<lightning::LitSegment> basis_segments, multiple_segments;  // what the bases light
@@ -45,12 +49,7 @@ struct FramePipeline::Impl {
 
     Impl(const scene::Scene& s, const core::Grid3<float>& d, const BakedBases& b, std::optional<lightning::Box> domain,
          const scene::Quality& q)
-        : storm(s.lightning, d, domain),
-          splatter(b.lights()),
-          reconstructor(b),
-          scene(&s),
-          density(&d),
-          bases(&b) {
+        : storm(s.lightning, d, domain), splatter(b.lights()), reconstructor(b), scene(&s), density(&d), bases(&b) {
         set_quality(q);
     }
 
@@ -98,6 +97,7 @@ struct FramePipeline::Impl {
     };
     void add_instant(const lightning::Strike& k, const lightning::Bolt& bolt, double t,
                      const ReconstructOptions& options, std::vector<Lit>& solved);
+    void move_toward_target(Shown& s, double step);
     const Frame& build_paper(double t, std::span<const int> directions, const ReconstructOptions& options);
     const Frame& build_solved(double t, std::span<const int> directions, const ReconstructOptions& options);
 };
@@ -156,34 +156,68 @@ void FramePipeline::Impl::add_instant(const lightning::Strike& k, const lightnin
     Frame& f = frame;
     const lightning::FlashState st = lightning::flash_state(k.profile, storm.params().timing, t - k.time);
     Shown& s = shown[{k.seed, k.time}];
-    std::shared_ptr<const StrikeEstimate> latest =
+    const std::shared_ptr<const StrikeEstimate> latest =
         options.wait_for_strikes ? instant->wait_final(k.seed, k.time) : instant->get(k.seed, k.time);
-    if (options.wait_for_strikes) {  // offline: the converged estimate, no cross-fade
-        s = {nullptr, latest, 1.0, 1.0};
-    } else if (latest && latest != s.to && s.fade >= 1.0) {
-        const double frames = std::ceil(latest->change / quality.max_change_per_frame - 1e-9);
-        s = {s.to, latest, 0.0, 1.0 / std::clamp(frames, 1.0, 600.0)};
+    if (latest && latest != s.target) {
+        s.target = latest;
+        s.settled = false;
     }
-    if (s.fade < 1.0) s.fade = std::min(1.0, s.fade + s.step);
-    if (!s.to) {
+    if (s.target && !s.settled) move_toward_target(s, options.wait_for_strikes ? 1e300 : quality.max_change_per_frame);
+    if (!s.light) {
         lightning::lit_segments(bolt, st, basis_segments);
         ++f.strikes_fallback;
         f.instant_weight = 0.0;
         return;
     }
     ++f.strikes_solved;
-    const double w_from = s.from ? (1.0 - s.fade) * s.from->weight() : 0.0, w_to = s.fade * s.to->weight();
-    const double w = w_from + w_to;
-    f.instant_weight = std::min(f.instant_weight, w);
+    f.instant_weight = std::min(f.instant_weight, 1.0 - s.bases);
     lightning::FlashState bases_part = st;  // the leaders, and the strokes' share of the bases
-    bases_part.main_glow *= 1.0 - w;
-    bases_part.branch_glow *= 1.0 - w;
+    bases_part.main_glow *= s.bases;
+    bases_part.branch_glow *= s.bases;
     lightning::lit_segments(bolt, bases_part, basis_segments);
-    const auto light = [](const std::shared_ptr<const StrikeEstimate>& e) {
-        return std::shared_ptr<const StrikeLight>(e, &e->light);
+    solved.push_back({s.light, st.main_glow, st.branch_glow});
+}
+
+// One frame's step of a strike's shown light toward its target's blend w M + (1 - w) B: the
+// whole way when the change is at most `step` of the target's norm, else that much of it.
+void FramePipeline::Impl::move_toward_target(Shown& s, double step) {
+    const StrikeEstimate& e = *s.target;
+    const double w = e.weight();
+    const std::vector<float>& rho = media->lighting.density.data;
+    const std::size_t cells = rho.size(), n = e.total.size();
+    const std::vector<float>* B = e.bases && e.bases->size() == n ? e.bases.get() : nullptr;
+    if (!s.light) {  // start from the bases alone
+        s.light = std::make_shared<StrikeLight>(e.light);
+        for (std::uint32_t q = 0; q < 2; ++q) {
+            std::fill(s.light->single[q].data.begin(), s.light->single[q].data.end(), 0.0f);
+            std::fill(s.light->multiple[q].data.begin(), s.light->multiple[q].data.end(), 0.0f);
+        }
+        s.total.assign(n, 0.0f);
+        s.bases = 1.0;
+    }
+    // |target - shown| and |target| over the cloud, every direction.
+    double d2 = 0.0, t2 = 0.0;
+    for (std::size_t m0 = 0; m0 < n; m0 += cells)
+        for (std::size_t c = 0; c < cells; ++c) {
+            if (!(rho[c] > 0.0f)) continue;
+            const std::size_t i = m0 + c;
+            const double b = B ? double((*B)[i]) : 0.0;
+            const double target = w * double(e.total[i]) + (1.0 - w) * b;
+            const double shown_now = double(s.total[i]) + s.bases * b;
+            d2 += (target - shown_now) * (target - shown_now);
+            t2 += target * target;
+        }
+    const double a = d2 > 0.0 ? std::min(1.0, step * std::sqrt(t2 / d2)) : 1.0;
+    const auto lerp = [a](std::vector<float>& x, const std::vector<float>& y, double wy) {
+        for (std::size_t i = 0; i < x.size(); ++i) x[i] = float(double(x[i]) + a * (wy * double(y[i]) - double(x[i])));
     };
-    if (w_from > 0.0) solved.push_back({light(s.from), st.main_glow * w_from, st.branch_glow * w_from});
-    if (w_to > 0.0) solved.push_back({light(s.to), st.main_glow * w_to, st.branch_glow * w_to});
+    for (std::uint32_t q = 0; q < 2; ++q) {
+        lerp(s.light->single[q].data, e.light.single[q].data, w);
+        lerp(s.light->multiple[q].data, e.light.multiple[q].data, w);
+    }
+    lerp(s.total, e.total, w);
+    s.bases += a * ((1.0 - w) - s.bases);
+    s.settled = a >= 1.0;
 }
 
 namespace {

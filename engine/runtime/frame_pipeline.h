@@ -75,8 +75,8 @@ private:
 
 /// What build_since_known() saw while the strike's light was being solved.
 struct SinceKnown {
-    int frames = 0;                      ///< builds before the one returned (at 60 fps)
-    double median_frame_ms = 0.0;        ///< their median StageTimes::total(), the frame thread's cost
+    int frames = 0;                ///< builds before the one returned (at 60 fps)
+    double median_frame_ms = 0.0;  ///< their median StageTimes::total(), the frame thread's cost
     double max_frame_ms = 0.0;
 };
 

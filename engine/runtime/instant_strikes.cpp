@@ -65,7 +65,7 @@ struct InstantStrikes::Impl {
         double seconds_single = 0.0, seconds_multiple = 0.0;
         int round = 0;
         double bases_error = -1.0;
-        std::vector<float> bases_frame, shown;  // [m][cell], the strokes at unit glow
+        std::shared_ptr<const std::vector<float>> bases_frame;  // [m][cell], the strokes at unit glow
         // Under the mutex.
         double seconds = 0.0;  // the worker's time on it: who goes next
         std::shared_ptr<const StrikeEstimate> estimate;
@@ -172,8 +172,8 @@ struct InstantStrikes::Impl {
             so.max_scatterings = 0;
             so.tally_multiple = false;
             so.uncollided_only = true;
-            e.single = std::make_unique<transport::ProgressiveMonteCarlo>(tracing, std::span<const transport::PointSource>{},
-                                                                          lines, dirs, so);
+            e.single = std::make_unique<transport::ProgressiveMonteCarlo>(
+                tracing, std::span<const transport::PointSource>{}, lines, dirs, so);
             transport::MonteCarloOptions mo;
             mo.groups = 2;
             mo.tally_single = false;  // the single tracer's expected-value order 1 is far cheaper
@@ -226,25 +226,16 @@ struct InstantStrikes::Impl {
 
         // The bases' frame of the strokes is made once; their error against the estimate barely
         // moves once the estimate is within a few tens of percent: two rounds measure it.
-        if (splatter && rec && e.round == 1) e.bases_frame = bases_frame(e.bolt, *splatter, *rec);
-        const bool comparable = e.bases_frame.size() == total.size();
-        if (comparable && nt > 0.0 && e.round <= 2)
-            e.bases_error = std::sqrt(std::max(0.0, norms.norm2(e.bases_frame, &total) / nt -
-                                                        L.noise.total * L.noise.total));
-        est->bases_error = e.bases_error;
-        // What a frame shows of the strokes at unit glow, w M + (1 - w) B, against what it
-        // showed from the previous estimate (the bases alone before the first).
-        {
-            const double w = est->weight();
-            std::vector<float> shown(total.size());
-            for (std::size_t i = 0; i < total.size(); ++i)
-                shown[i] = float(w * double(total[i]) + (comparable ? (1.0 - w) * double(e.bases_frame[i]) : 0.0));
-            const double ns = norms.norm2(shown);
-            const std::vector<float>& before = e.shown.empty() ? e.bases_frame : e.shown;
-            if (ns > 0.0 && before.size() == shown.size()) est->change = std::sqrt(norms.norm2(shown, &before) / ns);
-            else if (ns > 0.0) est->change = 1.0;
-            e.shown = std::move(shown);
+        if (splatter && rec && e.round == 1) {
+            std::vector<float> b = bases_frame(e.bolt, *splatter, *rec);
+            if (b.size() == total.size()) e.bases_frame = std::make_shared<const std::vector<float>>(std::move(b));
         }
+        if (e.bases_frame && nt > 0.0 && e.round <= 2)
+            e.bases_error =
+                std::sqrt(std::max(0.0, norms.norm2(*e.bases_frame, &total) / nt - L.noise.total * L.noise.total));
+        est->bases_error = e.bases_error;
+        est->total = std::move(total);
+        est->bases = e.bases_frame;
 
         const bool capped = e.single->paths() >= options.max_single_paths &&
                             (!with_multiple || e.multiple->paths() >= options.max_multiple_paths);
@@ -254,7 +245,8 @@ struct InstantStrikes::Impl {
         // proportion to noise x norm x sqrt(time spent) (what minimizes the total noise for a
         // given time when each part's variance falls like 1/paths).
         const double budget = std::max(options.round_seconds, options.growth * est->worker_seconds);
-        const double xs = abs1 * std::sqrt(e.seconds_single), xm = with_multiple ? absm * std::sqrt(e.seconds_multiple) : 0.0;
+        const double xs = abs1 * std::sqrt(e.seconds_single),
+                     xm = with_multiple ? absm * std::sqrt(e.seconds_multiple) : 0.0;
         const double share = xs + xm > 0.0 ? xs / (xs + xm) : 0.5;
         const auto paths_for = [&](double seconds, const transport::ProgressiveMonteCarlo& p, double spent) {
             const double per_path = spent / double(std::max<std::uint64_t>(1, p.paths()));

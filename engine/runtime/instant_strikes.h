@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 namespace fulgur::runtime {
 
@@ -23,11 +24,11 @@ struct StrikeEstimate {
     /// Relative L2 error of the bases' S for the same strokes (the paper frame) over the cloud,
     /// estimated against this estimate with its own noise taken out; < 0: unknown (no bases).
     double bases_error = -1.0;
-    /// Relative L2 change over the cloud of what a frame shows of the strokes at unit glow
-    /// (weight() x this estimate + the rest from the bases) from the previous estimate (or
-    /// from the bases alone, before the first): how far a frame may be faded over
-    /// (scene::Quality::max_change_per_frame).
-    double change = 0.0;
+    /// The strokes at unit glow in both groups, single + multiple ([m][cell], every
+    /// direction), and the bases' frame of the same (null: no bases): what a frame measures the
+    /// change of its shown light with (FramePipeline's cross-fade).
+    std::vector<float> total;
+    std::shared_ptr<const std::vector<float>> bases;
     std::uint64_t single_paths = 0, multiple_paths = 0;
     double worker_seconds = 0.0;  ///< wall time the worker spent tracing this strike so far
     double since_request = 0.0;   ///< wall time from the request to this estimate, seconds

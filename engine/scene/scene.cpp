@@ -383,7 +383,8 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
         k.target_noise = q->number_or("target_noise", k.target_noise, Range{1e-4, 1.0});
         k.max_change_per_frame = q->number_or("max_change_per_frame", k.max_change_per_frame, Range{1e-3, 1e3});
         if (k.preset == Quality::Preset::Instant && k.multiple != "monte_carlo")
-            q->fail("multiple", "the instant preset traces multiple scattering by Monte Carlo: must be \"monte_carlo\"");
+            q->fail("multiple",
+                    "the instant preset traces multiple scattering by Monte Carlo: must be \"monte_carlo\"");
         if (k.preset == Quality::Preset::Paper && k.multiple != "none")
             q->fail("multiple", "the paper preset solves nothing per strike: must be \"none\"");
         q->finish();

@@ -161,11 +161,11 @@ struct Quality {
     /// multiple_paths paths, whichever comes first.
     double target_noise = 0.02;
     /// Instant: the largest relative change (L2 over the cloud) of a strike's shown light from
-    /// one frame to the next when a newer estimate replaces the shown one: the replacement is a
-    /// linear cross-fade over ceil(change / this) frames. 0.15 is well below what the flash's
+    /// one frame to the next as newer estimates replace older ones: each frame moves the shown
+    /// light toward the latest estimate by at most this. 0.25 stays well below what the flash's
     /// own intensity does between two frames at 60 fps (a return stroke's 12 ms decay: -75%),
-    /// and fades the first estimate in over 2-5 frames on the default storm (docs/presets.md).
-    double max_change_per_frame = 0.15;
+    /// and fades the first estimate in over about 3 frames (docs/presets.md measures the cost).
+    double max_change_per_frame = 0.25;
 };
 
 /// Every preset's name in scene files, indexed by Quality::Preset, cheapest first.

@@ -341,7 +341,8 @@ struct HalfSums {
 double half_noise(const HalfSums& s1, const HalfSums* sm, const TallyGrid& tg, std::size_t M, std::size_t groups,
                   bool use_single) {
     core::CompensatedSum diff2, ref2;
-    const double ka = 1.0 / double(std::max<std::int64_t>(1, s1.na)), kb = 1.0 / double(std::max<std::int64_t>(1, s1.nb));
+    const double ka = 1.0 / double(std::max<std::int64_t>(1, s1.na)),
+                 kb = 1.0 / double(std::max<std::int64_t>(1, s1.nb));
     const double kall = 1.0 / double(std::max<std::int64_t>(1, s1.na + s1.nb));
     const std::size_t size = tg.cloud.size() * M;
     for (std::size_t c = 0; c < tg.cloud.size(); ++c) {
@@ -627,9 +628,8 @@ namespace {
 
 /// Validates a frame's sources and the tally grid (a coarsening of the medium's grid by an
 /// integer factor); returns the factor.
-int check_sources(const LightingMedium& medium, std::span<const PointSource> points,
-                  std::span<const LineSource> lines, const core::GridGeometry& tally_grid,
-                  const MonteCarloOptions& options) {
+int check_sources(const LightingMedium& medium, std::span<const PointSource> points, std::span<const LineSource> lines,
+                  const core::GridGeometry& tally_grid, const MonteCarloOptions& options) {
     const auto finite = [](const glm::dvec3& v) {
         return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
     };
@@ -664,8 +664,7 @@ int check_sources(const LightingMedium& medium, std::span<const PointSource> poi
 }
 
 /// All-zero S on the tally grid (no light).
-MonteCarloResult dark_result(const core::GridGeometry& tally_grid, std::span<const glm::dvec3> directions,
-                             int groups) {
+MonteCarloResult dark_result(const core::GridGeometry& tally_grid, std::span<const glm::dvec3> directions, int groups) {
     MonteCarloResult r;
     const std::vector<glm::dvec3> dirs(directions.begin(), directions.end());
     r.single = r.multiple = r.single_se = r.multiple_se = SourceField(tally_grid, dirs);
@@ -703,11 +702,9 @@ struct MonteCarloMedium::Impl {
           gm(m, macro_cell) {}
 };
 
-MonteCarloMedium::MonteCarloMedium(const LightingMedium& medium, const core::GridGeometry& tally_grid,
-                                   int macro_cell) {
+MonteCarloMedium::MonteCarloMedium(const LightingMedium& medium, const core::GridGeometry& tally_grid, int macro_cell) {
     validate_medium(medium);
-    if (macro_cell < 0)
-        throw core::Error("monte_carlo.macro_cell", "must be >= 0, got " + std::to_string(macro_cell));
+    if (macro_cell < 0) throw core::Error("monte_carlo.macro_cell", "must be >= 0, got " + std::to_string(macro_cell));
     const int f = detail::check_sources(medium, {}, {}, tally_grid, MonteCarloOptions{});
     impl_ = std::make_unique<Impl>(medium, tally_grid, f, macro_cell);
 }
@@ -784,8 +781,8 @@ struct ProgressiveMonteCarlo::Impl {
             buf.energy = detail::EnergyBatch{};
             detail::GridTally tally(med.medium, med.tg, dirs, expected && o.tally_single, !expected && o.tally_single,
                                     multiple, detail::kPathCutoff, o.tally_single ? buf.single.data() : nullptr,
-                                    multiple ? buf.multiple.data() : nullptr,
-                                    fluence ? buf.fluence.data() : nullptr, fluence2 ? buf.fluence2.data() : nullptr);
+                                    multiple ? buf.multiple.data() : nullptr, fluence ? buf.fluence.data() : nullptr,
+                                    fluence2 ? buf.fluence2.data() : nullptr);
             detail::trace_paths(med.gm, em, po, half_seed[std::size_t(h)], half_traced[std::size_t(h)], half[h], tally,
                                 buf.energy, &emission[std::size_t(h)]);
         });
@@ -844,7 +841,7 @@ struct ProgressiveMonteCarlo::Impl {
         if (traced_any) {
             if (o.tally_single) r.noise.single = detail::half_noise(h1, nullptr, med.tg, M, G, true);
             if (multiple) r.noise.multiple = detail::half_noise(hm, nullptr, med.tg, M, G, true);
-            r.noise.total = !multiple        ? r.noise.single
+            r.noise.total = !multiple         ? r.noise.single
                             : !o.tally_single ? r.noise.multiple
                                               : detail::half_noise(h1, &hm, med.tg, M, G, true);
         }
@@ -853,8 +850,7 @@ struct ProgressiveMonteCarlo::Impl {
 };
 
 ProgressiveMonteCarlo::ProgressiveMonteCarlo(const MonteCarloMedium& medium, std::span<const PointSource> points,
-                                             std::span<const LineSource> lines,
-                                             std::span<const glm::dvec3> directions,
+                                             std::span<const LineSource> lines, std::span<const glm::dvec3> directions,
                                              const MonteCarloOptions& options) {
     detail::check_sources(medium.medium(), points, lines, medium.tally_grid(), options);
     impl_ = std::make_unique<Impl>(*medium.impl_, points, lines, directions, options);

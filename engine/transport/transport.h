@@ -24,8 +24,8 @@
 
 #include <array>
 #include <cstdint>
-#include <memory>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string_view>

@@ -168,8 +168,7 @@ StormView::TruthSolve StormView::solve_truth(double t, const runtime::Components
     return out;
 }
 
-StormView::DirectSolve StormView::solve_direct(double t, const runtime::Components& components,
-                                               bool wait_for_strikes) {
+StormView::DirectSolve StormView::solve_direct(double t, const runtime::Components& components, bool wait_for_strikes) {
     DirectSolve out;
     out.basis_ms = time_all_directions(t, components, wait_for_strikes);
     const solve::Media& m = media();

@@ -1,13 +1,11 @@
 // The bake and the run time against the truth (runtime::truth: Monte Carlo through the
 // full-resolution density), on the tiny anisotropic test scene with a refined transport grid
-// (transport.refine 4: the solvers run on the density grid itself, 500 m, hop optical depth
-// <= 2): a virtual light's bases and a frame of each quality preset, per component, with
+// (truth_scene.h): a virtual light's bases and a frame of each quality preset, per component, with
 // bounds tight enough that a 25% error in either component fails. Also: a strike whose solve
 // is not ready is shown by the bases, never by another strike's light.
 #include "runtime/runtime.h"
 
-#include "bake/bake.h"
-#include "support/test_support.h"
+#include "truth_scene.h"
 
 #include <doctest/doctest.h>
 
@@ -18,71 +16,12 @@
 #include <memory>
 
 using namespace fulgur;
-
-namespace {
-
-struct Setup {
-    scene::Scene scene;
-    core::Grid3<float> density;
-    solve::Media media;
-    bake::Plan plan;
-    std::unique_ptr<runtime::BakedBases> bases;
-};
-
-const Setup& setup() {
-    static std::unique_ptr<Setup> s;
-    if (!s) {
-        s = std::make_unique<Setup>();
-        s->scene = scene::load_scene(test::source_dir() / "tests/apps/scenes/test_aniso_ms_cg.json");
-        s->scene.transport.refine = 4;
-        s->density = scene::make_density(s->scene);
-        s->media = solve::make_media(s->scene, s->density);
-        bake::PlanOptions po;
-        po.estimate = false;
-        s->plan = bake::make_plan(s->scene, s->density, po);
-        const std::filesystem::path fgb = test::scratch_dir("truth_refine4") / "scene.fgb";
-        bake::bake(s->scene, s->density, s->plan, fgb);
-        s->bases = std::make_unique<runtime::BakedBases>(
-            runtime::BakedBases::load(fgb, bake::scene_key(s->scene, s->density)));
-    }
-    return *s;
-}
-
-// Relative L2 of x against ref and the ratio of their sums, over cloud voxels (lighting-grid
-// density > 0), every direction.
-struct Error {
-    double l2 = 0.0, ratio = 0.0;
-};
-Error compare(std::span<const float> x, std::span<const float> ref, const std::vector<float>& density) {
-    core::RelativeL2 e;
-    double sx = 0.0, sr = 0.0;
-    const std::size_t cells = density.size();
-    for (std::size_t i = 0; i < ref.size(); ++i)
-        if (density[i % cells] > 0.0f) {
-            e.add(x[i], ref[i]);
-            sx += x[i];
-            sr += ref[i];
-        }
-    return {e.value(), sx / sr};
-}
-
-// The strike at t = 0 with `seed`, its first return stroke + 2 ms.
-double peak_time(runtime::FramePipeline& p, std::uint64_t seed) {
-    const std::size_t i = p.strike_at(0.0, seed);
-    return p.storm().strike(i).profile.stroke_onset.at(0) + 0.002;
-}
-
-// The frame's radiance for all directions as one array (direction-major).
-std::vector<float> flat(const runtime::RadianceField& r) {
-    std::vector<float> v;
-    for (const auto& d : r.values) v.insert(v.end(), d.begin(), d.end());
-    return v;
-}
-
-}  // namespace
+using test::compare_fields;
+using test::flat;
+using test::peak_time;
 
 TEST_CASE("truth: a virtual light's bases against the truth, per component") {
-    const Setup& s = setup();
+    const test::TruthScene& s = test::truth_scene();
     // The virtual light nearest the cloud's density-weighted centre: inside the cloud.
     const core::GridGeometry& g = s.density.geom;
     glm::dvec3 centre(0.0);
@@ -106,7 +45,8 @@ TEST_CASE("truth: a virtual light's bases against the truth, per component") {
     const transport::PointSource p{s.plan.lights.position(best), 1.0};
     const runtime::Truth t = runtime::truth(s.scene, s.density, {}, std::span(&p, 1), to);
     const std::vector<float>& rho = s.media.lighting.density.data;
-    const Error e1 = compare(single, t.single.data, rho), e2 = compare(multiple, t.multiple.data, rho);
+    const test::FieldError e1 = compare_fields(single, t.single.data, rho),
+                           e2 = compare_fields(multiple, t.multiple.data, rho);
     MESSAGE("light " << best << ": single " << e1.l2 << " (sum ratio " << e1.ratio << "), multiple " << e2.l2
                      << " (sum ratio " << e2.ratio << "); truth noise " << t.noise.single << " / " << t.noise.multiple
                      << ", " << t.seconds << " s");
@@ -126,7 +66,7 @@ TEST_CASE("truth: a virtual light's bases against the truth, per component") {
 }
 
 TEST_CASE("truth: a frame of each preset against the truth, per component") {
-    const Setup& s = setup();
+    const test::TruthScene& s = test::truth_scene();
     const std::vector<float>& rho = s.media.lighting.density.data;
     runtime::TruthOptions to;
     to.paths = 200'000;  // noise ~0.5%: far below the bounds
@@ -166,7 +106,8 @@ TEST_CASE("truth: a frame of each preset against the truth, per component") {
         CHECK(f.strikes_fallback == 0);
         const std::vector<float> multiple = flat(f.radiance);
         if (!truth) truth = runtime::truth(s.scene, s.density, f.segments, {}, to);
-        const Error e1 = compare(single, truth->single.data, rho), e2 = compare(multiple, truth->multiple.data, rho);
+        const test::FieldError e1 = compare_fields(single, truth->single.data, rho),
+                               e2 = compare_fields(multiple, truth->multiple.data, rho);
         MESSAGE(scene::to_string(b.preset) << ": single " << e1.l2 << " (ratio " << e1.ratio << "), multiple " << e2.l2
                                            << " (ratio " << e2.ratio << ")");
         CHECK(e1.l2 < b.single);
@@ -189,7 +130,7 @@ TEST_CASE("truth: a frame of each preset against the truth, per component") {
 }
 
 TEST_CASE("truth: a strike whose solve is not ready is shown by the bases, never by another strike's light") {
-    const Setup& s = setup();
+    const test::TruthScene& s = test::truth_scene();
     scene::Quality q = scene::quality_preset("per_strike");
     q.single_paths = 20'000;
     q.lookahead = 0.0;  // nothing is solved ahead: the second strike is requested by its frame
