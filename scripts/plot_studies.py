@@ -19,6 +19,9 @@ OUT_DIR (default: docs/images):
                       per strike, split into splat and basis errors (log).
   runtime_accuracy_spacing.csv -> runtime_accuracy_spacing.{png,svg}: the splat's error against
                       the virtual-light spacing (log-log).
+  latency_summary.csv -> latency.{png,svg}: each preset's worst-strike error against the truth
+                      versus wall time since an unscheduled strike became known, one panel per
+                      scene, the targets dotted.
 Run with /usr/bin/python3 (Debian's matplotlib lives there).
 """
 import csv
@@ -37,6 +40,7 @@ PRESET_STYLE = {
     "hybrid": ("s", "tab:orange"),
     "per_strike": ("^", "tab:green"),
     "per_strike_mc": ("v", "tab:purple"),
+    "instant": ("*", "tab:brown"),
     "reference": ("D", "tab:red"),
 }
 
@@ -294,6 +298,36 @@ def plot_runtime_accuracy_spacing(study, out_dir):
                   out_dir, "runtime_accuracy_spacing", plain_ticks=("x", "y"))
 
 
+# --- latency ------------------------------------------------------------------------------
+
+
+def plot_latency(study, out_dir):
+    rows = read(study / "latency_summary.csv")
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    fig, axes = plt.subplots(1, len(scenes), figsize=(4.2 * len(scenes) + 1.5, 3.8), squeeze=False)
+    for ax, scene in zip(axes[0], scenes):
+        mine = [r for r in rows if r["scene"] == scene]
+        for preset in dict.fromkeys(r["preset"] for r in mine):
+            pts = sorted((float(r["since_known_ms"]), 100.0 * float(r["worst_error"]))
+                         for r in mine if r["preset"] == preset)
+            # 0 ms on a log axis: drawn at 5 ms, the axis says so.
+            xs = [max(x, 5.0) for x, _ in pts]
+            marker, colour = PRESET_STYLE.get(preset, ("x", "0.3"))
+            ax.plot(xs, [y for _, y in pts], marker=marker, color=colour, label=preset)
+        for ms, pct in ((5.0, 20.0), (100.0, 10.0), (300.0, 7.0)):
+            ax.plot([ms], [pct], marker="_", markersize=18, color="0.4")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("wall time since the strike became known, ms (0 drawn at 5)")
+        ax.set_ylabel("worst strike: S error against the truth, %")
+        ax.set_title(scene)
+        ax.grid(True, which="both", color="0.9")
+    axes[0][-1].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False, fontsize=8)
+    fig.suptitle("Unscheduled strikes: error against time (grey bars: the targets 20% / 10% / 7%)")
+    fig.tight_layout()
+    save(fig, out_dir, "latency")
+
+
 def main():
     if len(sys.argv) < 2:
         sys.exit(__doc__)
@@ -303,7 +337,8 @@ def main():
     tables = (("frontier.csv", plot_frontier), ("lb_vs_truth.csv", plot_lb_vs_truth),
               ("lb_convergence.csv", plot_lb_convergence), ("lb_vs_mc_profile.csv", plot_lb_vs_mc_profile),
               ("runtime_accuracy.csv", plot_runtime_accuracy),
-              ("runtime_accuracy_spacing.csv", plot_runtime_accuracy_spacing))
+              ("runtime_accuracy_spacing.csv", plot_runtime_accuracy_spacing),
+              ("latency_summary.csv", plot_latency))
     for name, fn in tables:
         if (study / name).exists():
             fn(study, out_dir)

@@ -149,7 +149,9 @@ void DemoPanel::apply(double t, bool strike) {
         accuracy_.reset();
     }
     if (strike && has_lightning_) {
-        view_.pipeline().strike_at(t, std::uint64_t(seed_++));
+        // Nobody scheduled it: under a preset that solves strikes ahead it is lit the instant
+        // way, its own progressive solve blended in from its first frame.
+        view_.pipeline().strike_at(t, std::uint64_t(seed_++), /*known_ahead=*/false);
         accuracy_.reset();  // the reference belongs to one frame
     }
 }

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <set>
 #include <string>
 #include <thread>
 #include <utility>
@@ -24,6 +25,7 @@ struct FramePipeline::Impl {
     std::optional<solve::Media> media;
     std::unique_ptr<StrikeSolver> solver;
     std::unique_ptr<InstantStrikes> instant;
+    std::set<std::pair<std::uint64_t, double>> unscheduled;  // strike_at(..., known_ahead = false)
     // The instant preset's shown light of each active strike's strokes: `light` (its own
     // estimate's share, at unit glow) plus `bases` x the bases' frame. Each frame moves it
     // toward the latest estimate (weight w: w M + (1 - w) bases) by at most
@@ -69,15 +71,26 @@ struct FramePipeline::Impl {
         if (q.exact_orders > 0) solve_scene.transport.lb_exact_orders = q.exact_orders;
         media = solve::make_media(solve_scene, *density);
         if (q.preset == scene::Quality::Preset::Instant) {
-            // Every core: a frame of this preset costs about a millisecond of the frame thread,
-            // and the first estimate's latency is the round's paths over the cores.
-            instant = std::make_unique<InstantStrikes>(solve_scene, *density, *media, bases, instant_options(q),
-                                                       core::thread_count());
+            make_instant(q);
             return;
         }
         // The worker takes one core less than the frame's share, at least one.
         solver = std::make_unique<StrikeSolver>(solve_scene, *density, *media, strike_solve_options(q),
                                                 std::max(1, core::thread_count() - 1));
+        if (!unscheduled.empty()) make_instant(scene::quality_preset("instant"));
+    }
+
+    // The progressive solver (the instant preset's, or the one unscheduled strikes take under
+    // a preset that solves ahead). Every core: a frame costs about a millisecond of the frame
+    // thread, and the first estimate's latency is the first round's paths over the cores.
+    void make_instant(const scene::Quality& q) {
+        instant = std::make_unique<InstantStrikes>(solve_scene, *density, *media, bases, instant_options(q),
+                                                   core::thread_count());
+    }
+
+    // Whether the strike is lit the instant way.
+    bool lit_instantly(const lightning::Strike& k) const {
+        return instant && (quality.preset == scene::Quality::Preset::Instant || unscheduled.count({k.seed, k.time}));
     }
 
     // The frame's per-build fields reset; its buffers (segments, sources, weights, radiance)
@@ -107,8 +120,15 @@ FramePipeline::FramePipeline(const scene::Scene& scene, const core::Grid3<float>
     : impl_(std::make_unique<Impl>(scene, density, bases, domain, quality ? *quality : scene.quality)) {}
 FramePipeline::~FramePipeline() = default;
 
-std::size_t FramePipeline::strike_at(double t, std::optional<std::uint64_t> seed) {
-    return impl_->storm.strike_at(t, seed);
+std::size_t FramePipeline::strike_at(double t, std::optional<std::uint64_t> seed, bool known_ahead) {
+    Impl& im = *impl_;
+    const std::size_t i = im.storm.strike_at(t, seed);
+    if (!known_ahead && im.quality.preset != scene::Quality::Preset::Paper) {
+        const lightning::Strike& k = im.storm.strike(i);
+        im.unscheduled.insert({k.seed, k.time});
+        if (!im.instant) im.make_instant(scene::quality_preset("instant"));
+    }
+    return i;
 }
 
 lightning::Storm& FramePipeline::storm() noexcept { return impl_->storm; }
@@ -246,7 +266,7 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
     // Strikes starting soon are queued now, so their light is ready by their frames.
     const auto request = [&](std::size_t i) {
         const lightning::Strike& k = storm.strike(i);
-        if (instant)
+        if (lit_instantly(k))
             instant->request(k.seed, k.time, storm.bolt(i));
         else
             solver->request(k.seed, k.time, storm.bolt(i));
@@ -255,17 +275,16 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
         const lightning::Strike& k = storm.strike(i);
         if (k.end() > t)
             request(i);
-        else if (instant)  // its flash is over: no more paths for it
+        else if (lit_instantly(k))  // its flash is over: no more paths for it
             instant->stop(k.seed, k.time);
     }
     if (t - 60.0 > forgotten_before) {  // keep a minute of solved strikes
         forgotten_before = t - 60.0;
-        if (instant) {
-            instant->forget_before(forgotten_before);
-            std::erase_if(shown, [&](const auto& kv) { return kv.first.second < forgotten_before; });
-        } else {
-            solver->forget_before(forgotten_before);
-        }
+        if (instant) instant->forget_before(forgotten_before);
+        if (solver) solver->forget_before(forgotten_before);
+        const auto old = [&](const auto& key) { return key.second < forgotten_before; };
+        std::erase_if(shown, [&](const auto& kv) { return old(kv.first); });
+        std::erase_if(unscheduled, old);
     }
     const bool glowing = storm.lit(t, f.segments);
     f.sources.clear();
@@ -277,7 +296,7 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
         for (const std::size_t i : active) {
             const lightning::Strike& k = storm.strike(i);
             request(i);
-            if (instant) {
+            if (lit_instantly(k)) {
                 add_instant(k, storm.bolt(i), t, options, solved);
                 continue;
             }

@@ -52,8 +52,12 @@ public:
     FramePipeline(const scene::Scene& scene, const core::Grid3<float>& density, const BakedBases& bases,
                   std::optional<lightning::Box> domain = {}, std::optional<scene::Quality> quality = {});
     ~FramePipeline();
-    /// Schedules a strike at time t (demo "strike now"); returns its index.
-    std::size_t strike_at(double t, std::optional<std::uint64_t> seed = {});
+    /// Schedules a strike at time t; returns its index. `known_ahead` false: nobody knew it
+    /// was coming (a game event, the demo's "Strike now"): under a preset that solves strikes
+    /// ahead of their frames (hybrid, per_strike, per_strike_mc) it is lit the instant
+    /// preset's way (InstantStrikes, from its first frame on), since its own solve would be
+    /// ready only most of a flash later. The paper preset lights every strike alike.
+    std::size_t strike_at(double t, std::optional<std::uint64_t> seed = {}, bool known_ahead = true);
     /// Builds the frame at time t for the requested directions (all when empty). A dark
     /// frame (no strike glows at t) costs the strike lookup only: no sources, no splat, no
     /// reconstruction. The returned frame is valid until the next build().
@@ -65,7 +69,8 @@ public:
     void set_quality(const scene::Quality& q);
     /// The strike solver (null for the paper and instant presets).
     StrikeSolver* strike_solver() noexcept;
-    /// The progressive strike solver (the instant preset; else null).
+    /// The progressive strike solver (the instant preset, or unscheduled strikes under a preset
+    /// that solves ahead; else null).
     InstantStrikes* instant_strikes() noexcept;
 
 private:

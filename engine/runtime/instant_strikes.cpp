@@ -57,6 +57,7 @@ struct CloudNorms {
 struct InstantStrikes::Impl {
     using Key = std::pair<std::uint64_t, double>;
     struct Entry {
+        std::uint64_t seed = 0;
         lightning::Bolt bolt;
         core::Stopwatch requested;
         // The worker's alone (touched only while it traces this entry).
@@ -86,7 +87,7 @@ struct InstantStrikes::Impl {
     std::condition_variable cv;  // work to do, an estimate published, stop
     std::map<Key, std::shared_ptr<Entry>> entries;
     bool paused = false, stop = false;
-    std::thread worker;  // last: started once the members above exist
+    std::thread worker;  // started in the constructor's body, once the members above exist
 
     Impl(const scene::Scene& s, const core::Grid3<float>& density, const solve::Media& m, const BakedBases* b,
          const InstantOptions& o, int t)
@@ -97,8 +98,10 @@ struct InstantStrikes::Impl {
           threads(t),
           fine{density, s.medium},
           tracing(fine, m.lighting.density.geom),
-          dirs(transport::output_directions(s.effective_directions())),
-          worker([this] { run(); }) {}
+          dirs(transport::output_directions(s.effective_directions())) {
+        spare.push_back(spare_tracers());  // the first strike's memory, touched before it comes
+        worker = std::thread([this] { run(); });
+    }
 
     ~Impl() {
         {
@@ -117,6 +120,46 @@ struct InstantStrikes::Impl {
         return best;
     }
 
+    // A strike's two tracers: order 1 by expected-value emissions only, orders >= 2 by whole
+    // paths that leave order 1 to the other (far cheaper there).
+    struct Tracers {
+        std::unique_ptr<transport::ProgressiveMonteCarlo> single, multiple;
+    };
+    std::vector<Tracers> spare;  // the worker's: tracers of finished strikes, their memory kept
+
+    Tracers spare_tracers() {
+        if (!spare.empty()) {
+            Tracers t = std::move(spare.back());
+            spare.pop_back();
+            return t;
+        }
+        transport::MonteCarloOptions so;
+        so.groups = 2;
+        so.max_scatterings = 0;
+        so.tally_multiple = false;
+        so.uncollided_only = true;
+        transport::MonteCarloOptions mo;
+        mo.groups = 2;
+        mo.tally_single = false;
+        const std::span<const transport::LineSource> none;
+        return {std::make_unique<transport::ProgressiveMonteCarlo>(tracing, std::span<const transport::PointSource>{},
+                                                                   none, dirs, so),
+                std::make_unique<transport::ProgressiveMonteCarlo>(tracing, std::span<const transport::PointSource>{},
+                                                                   none, dirs, mo)};
+    }
+
+    // Tracers of strikes that will not be traced again go back to the pool, up to two pairs
+    // (~25 MB each on the default storm); the others are freed. Under the lock; only the
+    // worker touches tracers.
+    void recycle() {
+        for (auto& [key, e] : entries)
+            if (e->final && e->single) {
+                if (spare.size() < 2) spare.push_back({std::move(e->single), std::move(e->multiple)});
+                e->single.reset();
+                e->multiple.reset();
+            }
+    }
+
     void run() {
         const core::ScopedThreadCount share(threads);
         // The bases' frame of a strike's strokes, for their estimated error (worker's own).
@@ -132,6 +175,7 @@ struct InstantStrikes::Impl {
                 std::unique_lock<std::mutex> lock(mu);
                 cv.wait(lock, [&] { return stop || (!paused && next()); });
                 if (stop) return;
+                recycle();
                 e = next();
             }
             core::Stopwatch sw;
@@ -166,20 +210,12 @@ struct InstantStrikes::Impl {
     std::shared_ptr<const StrikeEstimate> round(Entry& e, lightning::Splatter* splatter, Reconstructor* rec) {
         if (!e.single) {
             const std::vector<transport::LineSource> lines = strike_line_sources(e.bolt);
-            transport::MonteCarloOptions so;
-            so.groups = 2;
-            so.seed = core::hash_seed(options.seed, 1);
-            so.max_scatterings = 0;
-            so.tally_multiple = false;
-            so.uncollided_only = true;
-            e.single = std::make_unique<transport::ProgressiveMonteCarlo>(
-                tracing, std::span<const transport::PointSource>{}, lines, dirs, so);
-            transport::MonteCarloOptions mo;
-            mo.groups = 2;
-            mo.tally_single = false;  // the single tracer's expected-value order 1 is far cheaper
-            mo.seed = core::hash_seed(options.seed, 2);
-            e.multiple = std::make_unique<transport::ProgressiveMonteCarlo>(
-                tracing, std::span<const transport::PointSource>{}, lines, dirs, mo);
+            const std::uint64_t seed = core::hash_seed(options.seed, e.seed);
+            Tracers t = spare_tracers();
+            t.single->restart({}, lines, core::hash_seed(seed, 1));
+            t.multiple->restart({}, lines, core::hash_seed(seed, 2));
+            e.single = std::move(t.single);
+            e.multiple = std::move(t.multiple);
             e.next_single = options.first_single_paths;
             e.next_multiple = scene.effects.multiple_scattering ? options.first_multiple_paths : 0;
         }
@@ -300,6 +336,7 @@ void InstantStrikes::request(std::uint64_t seed, double time, const lightning::B
         std::shared_ptr<Impl::Entry>& e = impl_->entries[{seed, time}];
         if (e) return;
         e = std::make_shared<Impl::Entry>();
+        e->seed = seed;
         e->bolt = bolt;
     }
     impl_->cv.notify_all();

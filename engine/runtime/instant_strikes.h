@@ -45,10 +45,10 @@ struct InstantOptions {
     double target_noise = 0.02;  ///< a strike stops once its total noise is at most this
     /// The first round's paths: they set the first estimate's latency (docs/presets.md gives
     /// it for the default storm on 2 cores).
-    std::uint64_t first_single_paths = 1'500, first_multiple_paths = 400;
+    std::uint64_t first_single_paths = 800, first_multiple_paths = 200;
     /// Later rounds take max(round_seconds, growth x the time spent so far): estimates at
     /// roughly geometric intervals, so publishing stays a small share of the work.
-    double round_seconds = 0.02, growth = 0.5;
+    double round_seconds = 0.015, growth = 0.5;
     std::uint64_t seed = 1;
 };
 

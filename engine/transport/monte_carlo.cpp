@@ -321,16 +321,14 @@ private:
 /// estimate that needs no per-voxel variance model: two independent estimates).
 struct HalfSums {
     std::vector<double> a, b;
-    std::int64_t na = 0, nb = 0;
+    std::int64_t na = 0, nb = 0;  ///< batches (ProgressiveMonteCarlo: paths) summed into a, b
     void init(std::size_t size) {
         a.assign(size, 0.0);
         b.assign(size, 0.0);
     }
-    void add(const std::vector<double>& x, double scale, bool first) { add_paths(x, scale, first, 1); }
-    /// Pooled halves: `count` paths' raw sums (na, nb then count paths, not batches).
-    void add_paths(const std::vector<double>& x, double scale, bool first, std::uint64_t count) {
+    void add(const std::vector<double>& x, double scale, bool first) {
         std::vector<double>& h = first ? a : b;
-        (first ? na : nb) += std::int64_t(count);
+        (first ? na : nb) += 1;
         for (std::size_t i = 0; i < h.size(); ++i) h[i] += x[i] * scale;
     }
 };
@@ -721,14 +719,9 @@ struct ProgressiveMonteCarlo::Impl {
     detail::PathOptions po;
     bool multiple = false, fluence = false, fluence2 = false;
     std::size_t G = 1, cells = 0, M = 0, size = 0;
-    // Raw tallies of each half (scaled by albedo / voxel volume, not yet by paths).
+    // Raw tallies of each half (the deposits' sums; scaled in result()), with its path counts.
     detail::HalfSums h1, hm, hf, hf2;
     std::uint64_t traced = 0;
-    struct Buffer {
-        std::vector<double> single, multiple, fluence, fluence2;
-        detail::EnergyBatch energy;
-    };
-    std::array<Buffer, 2> bufs;
 
     Impl(const MonteCarloMedium::Impl& m, std::span<const PointSource> points, std::span<const LineSource> lines,
          std::span<const glm::dvec3> directions, const MonteCarloOptions& opt)
@@ -745,14 +738,23 @@ struct ProgressiveMonteCarlo::Impl {
         cells = med.tg.geom.cell_count();
         M = dirs.size();
         size = cells * M * G;
+        if (!o.tally_single && !multiple)
+            throw core::Error("monte_carlo.tally_single", "false needs the multiple tally: nothing would be estimated");
+        reset(o.seed);
+    }
+
+    // Zero tallies and counts, new seeds (the allocations stay).
+    void reset(std::uint64_t seed) {
+        o.seed = seed;
         if (o.tally_single) h1.init(size);
         if (multiple) hm.init(size);
         if (fluence) hf.init(cells * G);
         if (fluence2) hf2.init(cells * G);
-        if (!o.tally_single && !multiple)
-            throw core::Error("monte_carlo.tally_single", "false needs the multiple tally: nothing would be estimated");
+        for (detail::HalfSums* h : {&h1, &hm, &hf, &hf2}) h->na = h->nb = 0;
+        traced = 0;
         for (std::size_t h = 0; h < 2; ++h) {
-            half_seed[h] = core::hash_seed(o.seed, h);
+            half_seed[h] = core::hash_seed(seed, h);
+            half_traced[h] = 0;
             emission[h] = detail::KroneckerSequence(half_seed[h]);
         }
     }
@@ -769,34 +771,24 @@ struct ProgressiveMonteCarlo::Impl {
     std::array<std::uint64_t, 2> half_seed{}, half_traced{};
     std::array<detail::KroneckerSequence, 2> emission{detail::KroneckerSequence(0), detail::KroneckerSequence(0)};
 
+    // Each half's thread deposits straight into its half's sums (raw: scaled in result()).
     void advance(std::uint64_t n) {
         const std::uint64_t half[2] = {n / 2, n - n / 2};
         const bool expected = o.single_estimator == MonteCarloOptions::SingleEstimator::ExpectedValue;
-        core::parallel_for(0, 2, [&](std::int64_t h) {
-            Buffer& buf = bufs[std::size_t(h)];
-            if (o.tally_single) buf.single.assign(size, 0.0);
-            if (multiple) buf.multiple.assign(size, 0.0);
-            if (fluence) buf.fluence.assign(cells * G, 0.0);
-            if (fluence2) buf.fluence2.assign(cells * G, 0.0);
-            buf.energy = detail::EnergyBatch{};
+        const auto sums = [](detail::HalfSums& h, bool used, std::size_t half_index) {
+            return used ? (half_index == 0 ? h.a.data() : h.b.data()) : nullptr;
+        };
+        core::parallel_for(0, 2, [&](std::int64_t hi) {
+            const std::size_t h = std::size_t(hi);
+            detail::EnergyBatch energy;  // not reported: the energy balance is monte_carlo()'s
             detail::GridTally tally(med.medium, med.tg, dirs, expected && o.tally_single, !expected && o.tally_single,
-                                    multiple, detail::kPathCutoff, o.tally_single ? buf.single.data() : nullptr,
-                                    multiple ? buf.multiple.data() : nullptr, fluence ? buf.fluence.data() : nullptr,
-                                    fluence2 ? buf.fluence2.data() : nullptr);
-            detail::trace_paths(med.gm, em, po, half_seed[std::size_t(h)], half_traced[std::size_t(h)], half[h], tally,
-                                buf.energy, &emission[std::size_t(h)]);
+                                    multiple, detail::kPathCutoff, sums(h1, o.tally_single, h), sums(hm, multiple, h),
+                                    sums(hf, fluence, h), sums(hf2, fluence2, h));
+            detail::trace_paths(med.gm, em, po, half_seed[h], half_traced[h], half[h], tally, energy, &emission[h]);
         });
-        half_traced[0] += half[0];
-        half_traced[1] += half[1];
-        const double vol = med.tg.geom.voxel_size * med.tg.geom.voxel_size * med.tg.geom.voxel_size;
-        const double s = med.medium.optics.albedo / vol, sf = 1.0 / vol;
         for (std::size_t h = 0; h < 2; ++h) {
-            const Buffer& buf = bufs[h];
-            const bool a = h == 0;
-            if (o.tally_single) h1.add_paths(buf.single, s, a, half[h]);
-            if (multiple) hm.add_paths(buf.multiple, s, a, half[h]);
-            if (fluence) hf.add_paths(buf.fluence, sf, a, half[h]);
-            if (fluence2) hf2.add_paths(buf.fluence2, sf, a, half[h]);
+            half_traced[h] += half[h];
+            for (detail::HalfSums* s : {&h1, &hm, &hf, &hf2}) (h == 0 ? s->na : s->nb) += std::int64_t(half[h]);
         }
         traced += n;
     }
@@ -806,25 +798,29 @@ struct ProgressiveMonteCarlo::Impl {
         MonteCarloResult r;
         r.paths = traced;
         const bool traced_any = traced > 0 && !em.empty();
-        const double k = traced_any ? 1.0 / double(traced) : 0.0;
-        const auto mean = [&](const detail::HalfSums& h, std::size_t i) {
-            return traced_any ? (h.a[i] + h.b[i]) * k : 0.0;
-        };
-        r.single = r.multiple = r.single_se = r.multiple_se = SourceField(g, dirs);
+        // Raw sums per path -> S (albedo / voxel volume) and fluence (1 / voxel volume).
+        const double vol = g.voxel_size * g.voxel_size * g.voxel_size;
+        const double ks = traced_any ? med.medium.optics.albedo / (vol * double(traced)) : 0.0;
+        const double kf = traced_any ? 1.0 / (vol * double(traced)) : 0.0;
+        const auto mean = [&](const detail::HalfSums& h, std::size_t i) { return (h.a[i] + h.b[i]) * ks; };
+        const auto mean_fluence = [&](const detail::HalfSums& h, std::size_t i) { return (h.a[i] + h.b[i]) * kf; };
+        r.single = r.multiple = SourceField(g, dirs);
         if (G > 1) r.groups.resize(G);
         for (std::size_t q = 0; q < G; ++q) {
             SourceField* s1 = G > 1 ? &r.groups[q].single : &r.single;
             SourceField* sm = G > 1 ? &r.groups[q].multiple : &r.multiple;
             if (G > 1) *s1 = *sm = SourceField(g, dirs);
-            // Direction-major output from cell-major sums: sequential writes, strided reads;
-            // directions over the threads.
-            core::parallel_for(0, std::int64_t(M), [&](std::int64_t mi) {
-                const std::size_t m = std::size_t(mi);
-                for (std::size_t c = 0; c < cells; ++c) {
-                    const std::size_t i = (q * cells + c) * M + m;
-                    if (o.tally_single) s1->data[m * cells + c] = float(mean(h1, i));
-                    if (multiple) sm->data[m * cells + c] = float(mean(hm, i));
-                }
+            // Direction-major output from cell-major sums, in blocks of cells whose sums fit in
+            // the L1 cache (a direction at a time over all cells would stream the sums M times).
+            constexpr std::size_t kBlock = 64;
+            core::parallel_for(0, std::int64_t((cells + kBlock - 1) / kBlock), [&](std::int64_t bi) {
+                const std::size_t c0 = std::size_t(bi) * kBlock, c1 = std::min(cells, c0 + kBlock);
+                for (std::size_t m = 0; m < M; ++m)
+                    for (std::size_t c = c0; c < c1; ++c) {
+                        const std::size_t i = (q * cells + c) * M + m;
+                        if (o.tally_single) s1->data[m * cells + c] = float(mean(h1, i));
+                        if (multiple) sm->data[m * cells + c] = float(mean(hm, i));
+                    }
             });
             if (G > 1)
                 for (std::size_t i = 0; i < s1->data.size(); ++i) {
@@ -833,7 +829,7 @@ struct ProgressiveMonteCarlo::Impl {
                 }
             const auto write_fluence = [&](const detail::HalfSums& h, core::Grid3<float>& out) {
                 out = core::Grid3<float>(g, 0.0f);
-                for (std::size_t c = 0; c < cells; ++c) out.data[c] = float(mean(h, q * cells + c));
+                for (std::size_t c = 0; c < cells; ++c) out.data[c] = float(mean_fluence(h, q * cells + c));
             };
             if (G > 1 && fluence) write_fluence(hf, r.groups[q].fluence);
             if (G > 1 && fluence2) write_fluence(hf2, r.groups[q].fluence2);
@@ -857,6 +853,16 @@ ProgressiveMonteCarlo::ProgressiveMonteCarlo(const MonteCarloMedium& medium, std
 }
 
 ProgressiveMonteCarlo::~ProgressiveMonteCarlo() = default;
+
+void ProgressiveMonteCarlo::restart(std::span<const PointSource> points, std::span<const LineSource> lines,
+                                    std::uint64_t seed) {
+    Impl& im = *impl_;
+    detail::check_sources(im.med.medium, points, lines, im.med.tally_grid, im.o);
+    detail::SourceEmitter em(points, lines);
+    if (!std::isfinite(em.power())) throw core::Error("sources", "total intensity overflows");
+    im.em = std::move(em);
+    im.reset(seed);
+}
 
 void ProgressiveMonteCarlo::advance(std::uint64_t paths) {
     FULGUR_ASSERT(paths >= 2, "ProgressiveMonteCarlo::advance: at least one path per half");

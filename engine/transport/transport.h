@@ -363,12 +363,17 @@ public:
     ~ProgressiveMonteCarlo();
     ProgressiveMonteCarlo(const ProgressiveMonteCarlo&) = delete;
     ProgressiveMonteCarlo& operator=(const ProgressiveMonteCarlo&) = delete;
+    /// Starts over with other sources and seed (same medium, directions and options), keeping
+    /// the memory: what a solver that traces one strike after another reuses (a fresh run
+    /// touches ~tens of MB for the first time, which costs more than its first paths).
+    void restart(std::span<const PointSource> points, std::span<const LineSource> lines, std::uint64_t seed);
     /// Traces `paths` more paths (>= 2): two batches, over core::thread_count() threads.
     void advance(std::uint64_t paths);
     std::uint64_t paths() const noexcept;
     /// The estimate from every path so far: groups (with options.groups > 1; all of them, zero
     /// where no source emits), single and multiple, and their noise from the two halves; no
-    /// per-voxel standard errors. All zero before the first advance() or when nothing emits.
+    /// per-voxel standard errors (single_se, multiple_se empty). All zero before the first
+    /// advance() or when nothing emits.
     MonteCarloResult result() const;
 
 private:

@@ -179,3 +179,29 @@ TEST_CASE("instant: while estimates replace each other the shown light changes b
     // (up to ~30%): 1.5x leaves room for both and still fails a step taken whole.
     CHECK(largest <= 1.5 * q.max_change_per_frame);
 }
+
+TEST_CASE("instant: under a preset that solves ahead, an unscheduled strike is lit the instant way") {
+    const test::TruthScene& s = test::truth_scene();
+    scene::Quality q = scene::quality_preset("per_strike_mc");
+    q.single_paths = q.multiple_paths = 20'000;
+    runtime::FramePipeline p(s.scene, s.density, *s.bases, {}, q);
+    CHECK(p.instant_strikes() == nullptr);
+    const std::size_t a = p.strike_at(0.0, 21);                          // scheduled
+    const std::size_t b = p.strike_at(10.0, 22, /*known_ahead=*/false);  // "Strike now"
+    REQUIRE(p.instant_strikes() != nullptr);
+    REQUIRE(p.strike_solver() != nullptr);
+    runtime::ReconstructOptions wait;
+    wait.wait_for_strikes = true;
+    const double ta = p.storm().strike(a).profile.stroke_onset.at(0) + 0.002;
+    const double tb = 10.0 + p.storm().strike(b).profile.stroke_onset.at(0) + 0.002;
+    CHECK(p.build(ta, {}, wait).strikes_solved == 1);
+    CHECK(p.strike_solver()->get(21, p.storm().strike(a).time) != nullptr);
+    CHECK(p.instant_strikes()->get(21, p.storm().strike(a).time) == nullptr);
+    CHECK(p.build(tb, {}, wait).strikes_solved == 1);
+    CHECK(p.instant_strikes()->get(22, p.storm().strike(b).time) != nullptr);
+    CHECK(p.strike_solver()->get(22, p.storm().strike(b).time) == nullptr);
+    // The paper preset lights every strike alike: no solver at all.
+    runtime::FramePipeline paper(s.scene, s.density, *s.bases, {}, scene::quality_preset("paper"));
+    paper.strike_at(0.0, 23, /*known_ahead=*/false);
+    CHECK(paper.instant_strikes() == nullptr);
+}

@@ -339,6 +339,19 @@ TEST_CASE("quality: a preset's name or an object of knobs; bad values name the f
     CHECK_THROWS_WITH_AS(scene(R"({"preset": "hybrid", "multiple": "monte_carlo", "multiple_paths": 10})"),
                          doctest::Contains("multiple_paths"), Error);
     CHECK_THROWS_WITH_AS(scene(R"({"preset": "hybrid", "speed": 1})"), doctest::Contains("speed"), Error);
+    const Quality i = scene(R"("instant")").quality;
+    CHECK(i.preset == Quality::Preset::Instant);
+    CHECK(i.multiple == "monte_carlo");
+    CHECK(to_string(i.preset) == "instant");
+    const Quality ik = scene(R"({"preset": "instant", "target_noise": 0.05, "max_change_per_frame": 0.5})").quality;
+    CHECK(ik.target_noise == 0.05);
+    CHECK(ik.max_change_per_frame == 0.5);
+    CHECK_THROWS_WITH_AS(scene(R"({"preset": "instant", "multiple": "lattice"})"), doctest::Contains("multiple"),
+                         Error);
+    CHECK_THROWS_WITH_AS(scene(R"({"preset": "instant", "target_noise": 0})"), doctest::Contains("target_noise"),
+                         Error);
+    CHECK_THROWS_WITH_AS(scene(R"({"preset": "instant", "max_change_per_frame": -1})"),
+                         doctest::Contains("max_change_per_frame"), Error);
 }
 
 TEST_CASE("transport.refine and lattice_boltzmann.exact_orders: values and ranges naming the field") {
