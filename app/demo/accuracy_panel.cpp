@@ -132,6 +132,8 @@ void AccuracyPanel::draw(const view::FrameReport& rep) {
             "hybrid: the bases' multiple scattering + each strike's exact single scattering\n"
             "per_strike: each strike solved once on a worker thread (single + lattice)\n"
             "per_strike_mc: each strike by Monte Carlo on a worker thread (single + multiple)\n"
+            "instant: the same Monte Carlo from the moment a strike is known, blended in as it converges\n"
+            "(\"Strike now\" strikes are lit this way under every preset that solves ahead)\n"
             "docs/presets.md has the error against the truth and the cost of each");
     ImGui::Text("frame %.2f ms (strike light %.2f ms)", rep.stages.total(), rep.stages.strike_light);
     if (const runtime::StrikeSolver* solver = view_.pipeline().strike_solver()) {
@@ -140,6 +142,11 @@ void AccuracyPanel::draw(const view::FrameReport& rep) {
         ImGui::Text("strike solves: %zu, last %.2f s", lat.size(), lat.empty() ? 0.0 : lat.back());
         if (f && f->lit)
             ImGui::Text("this frame: %zu solved, %zu from the bases", f->strikes_solved, f->strikes_fallback);
+    }
+    if (view_.pipeline().instant_strikes()) {
+        const runtime::Frame* f = view_.last_frame();
+        if (f && f->lit)
+            ImGui::Text("instant: own estimate's share %.0f%% (the rest from the bases)", 100.0 * f->instant_weight);
     }
     if (requested_ >= 0) {
         ImGui::TextUnformatted("waiting for the strike's own solve...");

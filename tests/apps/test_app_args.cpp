@@ -39,6 +39,14 @@ TEST_CASE("fulgur-shot: a complete command line parses") {
     CHECK(parse(manual).manual_exposure.value() == 0.125);
     manual.back() = "0";
     CHECK_THROWS_WITH_AS(parse(manual), doctest::Contains("--manual-exposure must be finite and > 0"), core::Error);
+    CHECK_FALSE(parse(good).since_known_ms.has_value());  // the strike's own solve is waited for
+    std::vector<std::string> known = good;
+    known.insert(known.end(), {"--since-known", "100"});
+    CHECK(parse(known).since_known_ms.value() == 100.0);
+    for (const char* bad : {"-1", "nan", "inf", "1e9"}) {
+        known.back() = bad;
+        CHECK_THROWS_WITH_AS(parse(known), doctest::Contains("--since-known must be"), core::Error);
+    }
     more[more.size() - 3] = "0";  // --repeat 0
     CHECK_THROWS_AS(parse(more), core::Error);
     CHECK(a.width == 64);
