@@ -289,6 +289,9 @@ void quality_presets(const Run& r, const nlohmann::json& base) {
             frame_ms.push_back(bench::median(b));
             if (runtime::StrikeSolver* solver = p.strike_solver())
                 for (const double l : solver->latencies()) solve_s.push_back(l);
+            if (runtime::InstantStrikes* is = p.instant_strikes())  // to its noise target
+                if (const auto e = is->get(std::uint64_t(3000 + k), p.storm().strike(i).time))
+                    solve_s.push_back(e->since_request);
         }
         const double ms = bench::median(frame_ms);
         if (std::string_view(name) == "paper") paper_ms = ms;

@@ -19,7 +19,10 @@ namespace fulgur::runtime {
 double StrikeEstimate::weight() const noexcept {
     if (bases_error < 0.0) return 1.0;
     const double eb2 = bases_error * bases_error, n2 = light.noise.total * light.noise.total;
-    return eb2 + n2 > 0.0 ? eb2 / (eb2 + n2) : 1.0;
+    const double w = eb2 + n2 > 0.0 ? eb2 / (eb2 + n2) : 1.0;
+    // A bases share under 1% means noise < e_b / 10: dropping it moves S by less than the
+    // estimate's own noise, and spares the frame a reconstruction of the strokes for it.
+    return w > 0.99 ? 1.0 : w;
 }
 
 InstantOptions instant_options(const scene::Quality& q) {

@@ -35,7 +35,8 @@ struct StrikeEstimate {
     int round = 0;                ///< 1 for the first estimate
     bool final = false;           ///< the solve has stopped (target noise or path caps reached)
     /// How much of the strokes' light a frame takes from this estimate rather than the bases:
-    /// inverse-variance weights, e_b^2 / (e_b^2 + noise^2); 1 when the bases' error is unknown.
+    /// inverse-variance weights, e_b^2 / (e_b^2 + noise^2); 1 when the bases' error is unknown
+    /// or the bases' share would be under 1%.
     double weight() const noexcept;
 };
 
