@@ -205,3 +205,33 @@ TEST_CASE("instant: under a preset that solves ahead, an unscheduled strike is l
     paper.strike_at(0.0, 23, /*known_ahead=*/false);
     CHECK(paper.instant_strikes() == nullptr);
 }
+
+TEST_CASE("instant: a scene that does not simulate multiple scattering traces none and shows none") {
+    const test::TruthScene& s = test::truth_scene();
+    scene::Scene single_only = s.scene;
+    single_only.effects.multiple_scattering = false;
+    runtime::FramePipeline p(single_only, s.density, *s.bases, {}, instant_quality());
+    const double t = peak_time(p, 5);
+    runtime::ReconstructOptions o;
+    o.wait_for_strikes = true;
+    o.components = {false, true};
+    const runtime::Frame& f = p.build(t, {}, o);
+    CHECK(f.strikes_solved == 1);
+    const auto est = p.instant_strikes()->get(5, p.storm().strike(0).time);
+    REQUIRE(est);
+    CHECK(est->multiple_paths == 0);  // no path traced for a part the scene does not call for
+    CHECK(est->light.noise.multiple == 0.0);
+    for (std::uint32_t q = 0; q < 2; ++q)
+        for (const float v : est->light.multiple[q].data) REQUIRE(v == 0.0f);
+    // Its single scattering is the truth's (order 1 only), within 3.5% as in the first case.
+    o.components = {true, false};
+    const std::vector<float> single = flat(p.build(t, {}, o).radiance);
+    runtime::TruthOptions to;
+    to.paths = 400'000;
+    to.multiple = false;
+    const runtime::Truth truth = runtime::truth(s.scene, s.density, f.segments, {}, to);
+    const test::FieldError e1 = compare_fields(single, truth.single.data, s.media.lighting.density.data);
+    MESSAGE("single scattering only: " << e1.l2 << " (ratio " << e1.ratio << "), noise " << est->light.noise.single);
+    CHECK(e1.l2 < 0.035);
+    CHECK(std::fabs(e1.ratio - 1.0) < 0.03);
+}
