@@ -41,7 +41,7 @@ double cloud_norm(const std::vector<float>& a, const std::vector<float>* b, cons
 }  // namespace
 
 TEST_CASE("instant: the first lit frame is the bases' frame, the converged one the truth's within its noise") {
-    const test::TruthScene& s = test::truth_scene();
+    const test::TruthScene& s = test::truth_scene("instant_refine4");
     const std::vector<float>& rho = s.media.lighting.density.data;
     scene::Quality q = instant_quality();
     // Run to the path caps (not the preset's noise target): 100k + 400k paths leave ~0.6% /
@@ -120,7 +120,7 @@ TEST_CASE("instant: the first lit frame is the bases' frame, the converged one t
 }
 
 TEST_CASE("instant: a strike with no estimate yet is shown by the bases, never by another strike's light") {
-    const test::TruthScene& s = test::truth_scene();
+    const test::TruthScene& s = test::truth_scene("instant_refine4");
     runtime::FramePipeline p(s.scene, s.density, *s.bases, {}, instant_quality());
     runtime::FramePipeline paper(s.scene, s.density, *s.bases, {}, scene::quality_preset("paper"));
     const std::size_t a = p.strike_at(0.0, 11), b = p.strike_at(10.0, 12);
@@ -143,7 +143,7 @@ TEST_CASE("instant: a strike with no estimate yet is shown by the bases, never b
 }
 
 TEST_CASE("instant: while estimates replace each other the shown light changes by at most the set step per frame") {
-    const test::TruthScene& s = test::truth_scene();
+    const test::TruthScene& s = test::truth_scene("instant_refine4");
     const std::vector<float>& rho = s.media.lighting.density.data;
     scene::Quality q = instant_quality();
     q.target_noise = 0.01;
@@ -181,7 +181,7 @@ TEST_CASE("instant: while estimates replace each other the shown light changes b
 }
 
 TEST_CASE("instant: under a preset that solves ahead, an unscheduled strike is lit the instant way") {
-    const test::TruthScene& s = test::truth_scene();
+    const test::TruthScene& s = test::truth_scene("instant_refine4");
     scene::Quality q = scene::quality_preset("per_strike_mc");
     q.single_paths = q.multiple_paths = 20'000;
     runtime::FramePipeline p(s.scene, s.density, *s.bases, {}, q);
@@ -207,7 +207,7 @@ TEST_CASE("instant: under a preset that solves ahead, an unscheduled strike is l
 }
 
 TEST_CASE("instant: a scene that does not simulate multiple scattering traces none and shows none") {
-    const test::TruthScene& s = test::truth_scene();
+    const test::TruthScene& s = test::truth_scene("instant_refine4");
     scene::Scene single_only = s.scene;
     single_only.effects.multiple_scattering = false;
     runtime::FramePipeline p(single_only, s.density, *s.bases, {}, instant_quality());

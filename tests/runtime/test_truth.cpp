@@ -21,7 +21,7 @@ using test::flat;
 using test::peak_time;
 
 TEST_CASE("truth: a virtual light's bases against the truth, per component") {
-    const test::TruthScene& s = test::truth_scene();
+    const test::TruthScene& s = test::truth_scene("truth_refine4");
     // The virtual light nearest the cloud's density-weighted centre: inside the cloud.
     const core::GridGeometry& g = s.density.geom;
     glm::dvec3 centre(0.0);
@@ -66,7 +66,7 @@ TEST_CASE("truth: a virtual light's bases against the truth, per component") {
 }
 
 TEST_CASE("truth: a frame of each preset against the truth, per component") {
-    const test::TruthScene& s = test::truth_scene();
+    const test::TruthScene& s = test::truth_scene("truth_refine4");
     const std::vector<float>& rho = s.media.lighting.density.data;
     runtime::TruthOptions to;
     to.paths = 200'000;  // noise ~0.5%: far below the bounds
@@ -130,7 +130,7 @@ TEST_CASE("truth: a frame of each preset against the truth, per component") {
 }
 
 TEST_CASE("truth: a strike whose solve is not ready is shown by the bases, never by another strike's light") {
-    const test::TruthScene& s = test::truth_scene();
+    const test::TruthScene& s = test::truth_scene("truth_refine4");
     scene::Quality q = scene::quality_preset("per_strike");
     q.single_paths = 20'000;
     q.lookahead = 0.0;  // nothing is solved ahead: the second strike is requested by its frame

@@ -10,6 +10,7 @@
 
 #include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace fulgur::test {
@@ -22,10 +23,13 @@ struct TruthScene {
     std::unique_ptr<runtime::BakedBases> bases;
 };
 
-inline const TruthScene& truth_scene() {
-    static std::unique_ptr<TruthScene> s;
-    if (!s) {
-        s = std::make_unique<TruthScene>();
+/// The scene, baked on first use into `scratch` (a folder of the calling test program's own:
+/// test programs run in parallel, and two bakes into one folder would collide). A bake that
+/// throws leaves nothing half-built behind: the next call tries again.
+inline const TruthScene& truth_scene(const std::string& scratch) {
+    static std::unique_ptr<TruthScene> cached;
+    if (!cached) {
+        auto s = std::make_unique<TruthScene>();
         s->scene = scene::load_scene(source_dir() / "tests/apps/scenes/test_aniso_ms_cg.json");
         s->scene.transport.refine = 4;
         s->density = scene::make_density(s->scene);
@@ -33,12 +37,13 @@ inline const TruthScene& truth_scene() {
         bake::PlanOptions po;
         po.estimate = false;
         s->plan = bake::make_plan(s->scene, s->density, po);
-        const std::filesystem::path fgb = scratch_dir("truth_refine4") / "scene.fgb";
+        const std::filesystem::path fgb = scratch_dir(scratch) / "scene.fgb";
         bake::bake(s->scene, s->density, s->plan, fgb);
         s->bases = std::make_unique<runtime::BakedBases>(
             runtime::BakedBases::load(fgb, bake::scene_key(s->scene, s->density)));
+        cached = std::move(s);
     }
-    return *s;
+    return *cached;
 }
 
 /// Relative L2 of x against ref and the ratio of their sums, over cloud voxels (lighting-grid
