@@ -28,6 +28,20 @@ std::vector<double> side_view(const transport::LightingMedium& m, std::size_t to
     return img;
 }
 
+double cloud_error(std::span<const float> x, std::span<const float> ref, const std::vector<float>& rho) {
+    core::RelativeL2 e;
+    const std::size_t cells = rho.size();
+    for (std::size_t i = 0; i < ref.size(); ++i)
+        if (rho[i % cells] > 0.0f) e.add(x[i], ref[i]);
+    return e.value();
+}
+
+std::vector<float> flat(const runtime::RadianceField& r) {
+    std::vector<float> v;
+    for (const auto& d : r.values) v.insert(v.end(), d.begin(), d.end());
+    return v;
+}
+
 std::size_t toward_side_camera(std::span<const glm::dvec3> dirs) {
     std::size_t best = 0;
     for (std::size_t m = 0; m < dirs.size(); ++m)

@@ -7,6 +7,7 @@
 #pragma once
 
 #include "common/registry.h"
+#include "runtime/reconstructor.h"
 #include "transport/transport.h"
 
 #include <nlohmann/json.hpp>
@@ -64,6 +65,13 @@ void lb_vs_truth(const Context& ctx);
 /// images; this is that comparison without the renderer's resampling. S(m, cell).
 std::vector<double> side_view(const transport::LightingMedium& m, std::size_t toward_camera,
                               const std::function<double(std::size_t, std::size_t)>& S);
+/// Relative L2 of x against ref over the cloud voxels (lighting-grid density `rho` > 0), every
+/// direction (direction-major fields).
+double cloud_error(std::span<const float> x, std::span<const float> ref, const std::vector<float>& rho);
+
+/// A frame's radiance for all its directions as one direction-major array.
+std::vector<float> flat(const runtime::RadianceField& r);
+
 /// The index of the direction in `dirs` closest to -y (toward side_view's camera).
 std::size_t toward_side_camera(std::span<const glm::dvec3> dirs);
 

@@ -29,6 +29,8 @@
 #include <tuple>
 
 using namespace fulgur;
+using study::cloud_error;
+using study::flat;
 
 namespace {
 
@@ -52,21 +54,6 @@ struct Strike {
     std::uint64_t seed = 0;
     double t = 0.0;
 };
-
-// Relative L2 over cloud voxels (lighting-grid density > 0), every direction.
-double cloud_error(std::span<const float> x, std::span<const float> ref, const std::vector<float>& rho) {
-    core::RelativeL2 e;
-    const std::size_t cells = rho.size();
-    for (std::size_t i = 0; i < ref.size(); ++i)
-        if (rho[i % cells] > 0.0f) e.add(x[i], ref[i]);
-    return e.value();
-}
-
-std::vector<float> flat(const runtime::RadianceField& r) {
-    std::vector<float> v;
-    for (const auto& d : r.values) v.insert(v.end(), d.begin(), d.end());
-    return v;
-}
 
 double median(std::vector<double> v) {
     std::sort(v.begin(), v.end());

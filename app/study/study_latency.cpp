@@ -22,22 +22,10 @@
 #include <map>
 
 using namespace fulgur;
+using study::cloud_error;
+using study::flat;
 
 namespace {
-
-std::vector<float> flat(const runtime::RadianceField& r) {
-    std::vector<float> v;
-    for (const auto& d : r.values) v.insert(v.end(), d.begin(), d.end());
-    return v;
-}
-
-double cloud_error(std::span<const float> x, std::span<const float> ref, const std::vector<float>& rho) {
-    core::RelativeL2 e;
-    const std::size_t cells = rho.size();
-    for (std::size_t i = 0; i < ref.size(); ++i)
-        if (rho[i % cells] > 0.0f) e.add(x[i], ref[i]);
-    return e.value();
-}
 
 // The truth of a frame, kept in the study's folder keyed by the scene, the strike and a
 // checksum of the lit channel (a changed bolt or timing recomputes it).

@@ -661,13 +661,11 @@ int check_sources(const LightingMedium& medium, std::span<const PointSource> poi
     return f;
 }
 
-/// All-zero S on the tally grid (no light).
-MonteCarloResult dark_result(const core::GridGeometry& tally_grid, std::span<const glm::dvec3> directions, int groups) {
-    MonteCarloResult r;
-    const std::vector<glm::dvec3> dirs(directions.begin(), directions.end());
-    r.single = r.multiple = r.single_se = r.multiple_se = SourceField(tally_grid, dirs);
-    if (groups > 1) r.groups.assign(std::size_t(groups), {r.single, r.multiple, {}, {}});
-    return r;
+/// The emitter of already checked sources, refused when their total intensity overflows.
+SourceEmitter checked_emitter(std::span<const PointSource> points, std::span<const LineSource> lines) {
+    SourceEmitter em(points, lines);
+    if (!std::isfinite(em.power())) throw core::Error("sources", "total intensity overflows");
+    return em;
 }
 
 }  // namespace
@@ -677,10 +675,12 @@ MonteCarloResult monte_carlo(const LightingMedium& medium, std::span<const Point
                              std::span<const LineSource> lines, const core::GridGeometry& tally_grid,
                              std::span<const glm::dvec3> directions, const MonteCarloOptions& options) {
     const int f = detail::check_sources(medium, points, lines, tally_grid, options);
-    const detail::SourceEmitter em(points, lines);
-    if (!std::isfinite(em.power())) throw core::Error("sources", "total intensity overflows");
+    const detail::SourceEmitter em = detail::checked_emitter(points, lines);
     if (em.empty()) {  // no light: S is zero everywhere, with no noise
-        return detail::dark_result(tally_grid, directions, 1);
+        MonteCarloResult r;
+        const std::vector<glm::dvec3> dirs(directions.begin(), directions.end());
+        r.single = r.multiple = r.single_se = r.multiple_se = SourceField(tally_grid, dirs);
+        return r;
     }
     return detail::run_grid(medium, em, directions, options, f == 1 ? nullptr : &tally_grid);
 }
@@ -728,9 +728,8 @@ struct ProgressiveMonteCarlo::Impl {
         : med(m),
           o(opt),
           dirs(detail::unit_directions(m.medium, directions, batch_free(opt))),
-          em(points, lines),
+          em(detail::checked_emitter(points, lines)),
           po(detail::path_options(m.medium, opt)) {
-        if (!std::isfinite(em.power())) throw core::Error("sources", "total intensity overflows");
         multiple = o.tally_multiple && o.max_scatterings > 0;
         fluence = o.tally_fluence && o.single_estimator == MonteCarloOptions::SingleEstimator::ExpectedValue;
         fluence2 = fluence && o.expected_second_order;
@@ -858,9 +857,7 @@ void ProgressiveMonteCarlo::restart(std::span<const PointSource> points, std::sp
                                     std::uint64_t seed) {
     Impl& im = *impl_;
     detail::check_sources(im.med.medium, points, lines, im.med.tally_grid, im.o);
-    detail::SourceEmitter em(points, lines);
-    if (!std::isfinite(em.power())) throw core::Error("sources", "total intensity overflows");
-    im.em = std::move(em);
+    im.em = detail::checked_emitter(points, lines);
     im.reset(seed);
 }
 

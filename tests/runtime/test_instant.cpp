@@ -109,37 +109,20 @@ TEST_CASE("instant: the first lit frame is the bases' frame, the converged one t
     CHECK(std::fabs(e2.ratio - 1.0) < 0.03);
     // Finite; negative S only from the bases' share (the Haar compression's ringing), which
     // is ~1/1000 of the shown light once converged: at most 0.1% of the maximum.
-    float lo = 0.0f, hi = 0.0f;
-    for (const std::vector<float>* v : {&single, &multiple})
-        for (const float x : *v) {
-            REQUIRE(std::isfinite(x));
-            lo = std::min(lo, x);
-            hi = std::max(hi, x);
-        }
-    CHECK(lo >= -0.001f * hi);
+    const test::ValueRange r = test::finite_range({&single, &multiple});
+    CHECK(r.lo >= -0.001f * r.hi);
 }
 
 TEST_CASE("instant: a strike with no estimate yet is shown by the bases, never by another strike's light") {
-    const test::TruthScene& s = test::truth_scene("instant_refine4");
-    runtime::FramePipeline p(s.scene, s.density, *s.bases, {}, instant_quality());
-    runtime::FramePipeline paper(s.scene, s.density, *s.bases, {}, scene::quality_preset("paper"));
-    const std::size_t a = p.strike_at(0.0, 11), b = p.strike_at(10.0, 12);
-    paper.strike_at(0.0, 11);
-    paper.strike_at(10.0, 12);
-    const double ta = p.storm().strike(a).profile.stroke_onset.at(0) + 0.002;
-    const double tb = 10.0 + p.storm().strike(b).profile.stroke_onset.at(0) + 0.002;
-    runtime::ReconstructOptions wait;
-    wait.wait_for_strikes = true;
-    CHECK(p.build(ta, {}, wait).strikes_solved == 1);
-    p.instant_strikes()->set_paused(true);
-    const runtime::Frame& fb = p.build(tb, {});
-    CHECK(fb.strikes_solved == 0);
-    CHECK(fb.strikes_fallback == 1);
-    CHECK(flat(fb.radiance) == flat(paper.build(tb, {}).radiance));  // nothing of strike a
-    CHECK(p.instant_strikes()->get(12, p.storm().strike(b).time) == nullptr);
-    p.instant_strikes()->set_paused(false);
-    const runtime::Frame& fb2 = p.build(tb, {}, wait);
-    CHECK(fb2.strikes_solved == 1);
+    test::check_unsolved_strike_shows_the_bases(
+        test::truth_scene("instant_refine4"), instant_quality(),
+        [](runtime::FramePipeline& p, bool paused) {
+            REQUIRE(p.instant_strikes() != nullptr);
+            p.instant_strikes()->set_paused(paused);
+        },
+        [](runtime::FramePipeline& p, const lightning::Strike& b) {
+            CHECK(p.instant_strikes()->get(b.seed, b.time) == nullptr);  // nothing traced for it yet
+        });
 }
 
 TEST_CASE("instant: while estimates replace each other the shown light changes by at most the set step per frame") {

@@ -118,44 +118,18 @@ TEST_CASE("truth: a frame of each preset against the truth, per component") {
         CHECK(e2.ratio < b.multiple_hi);
         // No NaN or Inf; negative S only from the lattice's over-relaxed sites, at most 0.5% of
         // the field's maximum (docs/lattice-boltzmann.md "Negative values": 0.4% on the storm).
-        float lo = 0.0f, hi = 0.0f;
-        for (const std::vector<float>* v : {&single, &multiple})
-            for (const float x : *v) {
-                REQUIRE(std::isfinite(x));
-                lo = std::min(lo, x);
-                hi = std::max(hi, x);
-            }
-        CHECK(lo >= -0.005f * hi);
+        const test::ValueRange r = test::finite_range({&single, &multiple});
+        CHECK(r.lo >= -0.005f * r.hi);
     }
 }
 
 TEST_CASE("truth: a strike whose solve is not ready is shown by the bases, never by another strike's light") {
-    const test::TruthScene& s = test::truth_scene("truth_refine4");
     scene::Quality q = scene::quality_preset("per_strike");
     q.single_paths = 20'000;
     q.lookahead = 0.0;  // nothing is solved ahead: the second strike is requested by its frame
-    runtime::FramePipeline p(s.scene, s.density, *s.bases, {}, q);
-    runtime::FramePipeline paper(s.scene, s.density, *s.bases, {}, scene::quality_preset("paper"));
-    const std::size_t a = p.strike_at(0.0, 11), b = p.strike_at(10.0, 12);
-    paper.strike_at(0.0, 11);
-    paper.strike_at(10.0, 12);
-    const double ta = p.storm().strike(a).profile.stroke_onset.at(0) + 0.002;
-    const double tb = 10.0 + p.storm().strike(b).profile.stroke_onset.at(0) + 0.002;
-    runtime::ReconstructOptions wait;
-    wait.wait_for_strikes = true;
-    const runtime::Frame& fa = p.build(ta, {}, wait);
-    CHECK(fa.strikes_solved == 1);
-    CHECK(fa.strikes_fallback == 0);
-    REQUIRE(p.strike_solver() != nullptr);
-    p.strike_solver()->set_paused(true);  // strike b cannot be solved before its frame
-    const runtime::Frame& fb = p.build(tb, {});
-    CHECK(fb.strikes_solved == 0);
-    CHECK(fb.strikes_fallback == 1);
-    const std::vector<float> shown = flat(fb.radiance);
-    const std::vector<float> bases_only = flat(paper.build(tb, {}).radiance);
-    CHECK(shown == bases_only);  // the paper frame, bit for bit: nothing of strike a's light
-    p.strike_solver()->set_paused(false);
-    const runtime::Frame& fb2 = p.build(tb, {}, wait);
-    CHECK(fb2.strikes_solved == 1);
-    CHECK(flat(fb2.radiance) != bases_only);
+    test::check_unsolved_strike_shows_the_bases(test::truth_scene("truth_refine4"), q,
+                                                [](runtime::FramePipeline& p, bool paused) {
+                                                    REQUIRE(p.strike_solver() != nullptr);
+                                                    p.strike_solver()->set_paused(paused);
+                                                });
 }

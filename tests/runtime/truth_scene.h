@@ -8,6 +8,12 @@
 #include "bake/bake.h"
 #include "support/test_support.h"
 
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <initializer_list>
 #include <memory>
 #include <span>
 #include <string>
@@ -76,6 +82,54 @@ inline std::vector<float> flat(const runtime::RadianceField& r) {
     std::vector<float> v;
     for (const auto& d : r.values) v.insert(v.end(), d.begin(), d.end());
     return v;
+}
+
+/// The smallest (<= 0) and largest (>= 0) value of the fields; each value must be finite.
+struct ValueRange {
+    float lo = 0.0f, hi = 0.0f;
+};
+inline ValueRange finite_range(std::initializer_list<const std::vector<float>*> fields) {
+    ValueRange r;
+    for (const std::vector<float>* v : fields)
+        for (const float x : *v) {
+            REQUIRE(std::isfinite(x));
+            r.lo = std::min(r.lo, x);
+            r.hi = std::max(r.hi, x);
+        }
+    return r;
+}
+
+/// Two strikes 10 s apart (seeds 11, 12) under `q`, which must not solve them ahead: the first
+/// is waited for; with the per-strike work paused (`pause(p, true)`) the second's frame must be
+/// the paper frame bit for bit, nothing of the first strike's light; `while_paused` may check
+/// more then; resumed, the second is lit by its own light.
+inline void check_unsolved_strike_shows_the_bases(
+    const TruthScene& s, const scene::Quality& q, const std::function<void(runtime::FramePipeline&, bool)>& pause,
+    const std::function<void(runtime::FramePipeline&, const lightning::Strike&)>& while_paused = {}) {
+    runtime::FramePipeline p(s.scene, s.density, *s.bases, {}, q);
+    runtime::FramePipeline paper(s.scene, s.density, *s.bases, {}, scene::quality_preset("paper"));
+    const std::size_t a = p.strike_at(0.0, 11), b = p.strike_at(10.0, 12);
+    paper.strike_at(0.0, 11);
+    paper.strike_at(10.0, 12);
+    const double ta = p.storm().strike(a).profile.stroke_onset.at(0) + 0.002;
+    const double tb = 10.0 + p.storm().strike(b).profile.stroke_onset.at(0) + 0.002;
+    runtime::ReconstructOptions wait;
+    wait.wait_for_strikes = true;
+    const runtime::Frame& fa = p.build(ta, {}, wait);
+    CHECK(fa.strikes_solved == 1);
+    CHECK(fa.strikes_fallback == 0);
+    pause(p, true);  // strike b cannot be solved before its frame
+    const runtime::Frame& fb = p.build(tb, {});
+    CHECK(fb.strikes_solved == 0);
+    CHECK(fb.strikes_fallback == 1);
+    const std::vector<float> shown = flat(fb.radiance);
+    const std::vector<float> bases_only = flat(paper.build(tb, {}).radiance);
+    CHECK(shown == bases_only);  // the paper frame, bit for bit: nothing of strike a's light
+    if (while_paused) while_paused(p, p.storm().strike(b));
+    pause(p, false);
+    const runtime::Frame& fb2 = p.build(tb, {}, wait);
+    CHECK(fb2.strikes_solved == 1);
+    CHECK(flat(fb2.radiance) != bases_only);
 }
 
 }  // namespace fulgur::test

@@ -45,6 +45,21 @@ core::GridGeometry coarsen(const core::GridGeometry& g, int f) {
     return c;
 }
 
+// A bent channel of two line sources in two groups through a uniform 12^3 block, tallied
+// on a 3x coarser grid.
+struct TwoLines {
+    LightingMedium medium = test::uniform_medium({12, 12, 12}, 100.0, glm::dvec3(0.0), 0.6f, kOptics);
+    std::vector<LineSource> lines = {{{200.0, 600.0, 100.0}, {600.0, 600.0, 900.0}, 0.02, 0},
+                                     {{600.0, 600.0, 900.0}, {1000.0, 300.0, 1100.0}, 0.01, 1}};
+    core::GridGeometry tally = coarsen(medium.density.geom, 3);
+    /// The same lines in one group.
+    std::vector<LineSource> ungrouped() const {
+        std::vector<LineSource> u = lines;
+        for (LineSource& l : u) l.group = 0;
+        return u;
+    }
+};
+
 }  // namespace
 
 TEST_CASE("truth path: one point source tallied on the medium's own grid is the grid Monte Carlo, bit for bit") {
@@ -116,10 +131,11 @@ TEST_CASE("truth path: a line source is the limit of point sources along it") {
 }
 
 TEST_CASE("truth path: groups, the uncollided-only estimate, the fluence tally and the noise estimate") {
-    const LightingMedium m = test::uniform_medium({12, 12, 12}, 100.0, glm::dvec3(0.0), 0.6f, kOptics);
-    const std::vector<LineSource> lines = {{{200.0, 600.0, 100.0}, {600.0, 600.0, 900.0}, 0.02, 0},
-                                           {{600.0, 600.0, 900.0}, {1000.0, 300.0, 1100.0}, 0.01, 1}};
-    const core::GridGeometry tally = coarsen(m.density.geom, 3);
+    const TwoLines setup;
+    const LightingMedium& m = setup.medium;
+    const std::vector<LineSource>& lines = setup.lines;
+    const std::vector<LineSource> ungrouped = setup.ungrouped();
+    const core::GridGeometry& tally = setup.tally;
     const std::vector<glm::dvec3> dirs = output_directions(26);
     MonteCarloOptions o;
     o.paths = 100'000;
@@ -138,8 +154,6 @@ TEST_CASE("truth path: groups, the uncollided-only estimate, the fluence tally a
     // batch-error estimate from 32 batches scatters by ~13%, the halves' by ~70% (one degree of
     // freedom per entry, but ~10^4 entries average it): a factor 2 either way is generous.
     o.groups = 1;
-    std::vector<LineSource> ungrouped = lines;
-    for (LineSource& l : ungrouped) l.group = 0;
     const MonteCarloResult one = monte_carlo(m, {}, ungrouped, tally, dirs, o);
     const double se_single = se_noise(one.single, one.single_se), se_multiple = se_noise(one.multiple, one.multiple_se);
     MESSAGE("noise single: halves " << one.noise.single << ", batch errors " << se_single << "; multiple: halves "
@@ -206,10 +220,11 @@ TEST_CASE("truth path: bad input is refused with the field named") {
 }
 
 TEST_CASE("progressive Monte Carlo: the truth path's estimate, pooled over calls, with an honest noise estimate") {
-    const LightingMedium m = test::uniform_medium({12, 12, 12}, 100.0, glm::dvec3(0.0), 0.6f, kOptics);
-    const std::vector<LineSource> lines = {{{200.0, 600.0, 100.0}, {600.0, 600.0, 900.0}, 0.02, 0},
-                                           {{600.0, 600.0, 900.0}, {1000.0, 300.0, 1100.0}, 0.01, 1}};
-    const core::GridGeometry tally = coarsen(m.density.geom, 3);
+    const TwoLines setup;
+    const LightingMedium& m = setup.medium;
+    const std::vector<LineSource>& lines = setup.lines;
+    const std::vector<LineSource> ungrouped = setup.ungrouped();
+    const core::GridGeometry& tally = setup.tally;
     const std::vector<glm::dvec3> dirs = output_directions(26);
     const MonteCarloMedium tracing(m, tally);
     CHECK(tracing.cloud().size() == tally.cell_count());
@@ -232,8 +247,6 @@ TEST_CASE("progressive Monte Carlo: the truth path's estimate, pooled over calls
     ro.paths = 400'000;
     ro.batches = 32;
     ro.halves = true;
-    std::vector<LineSource> ungrouped = lines;
-    for (LineSource& l : ungrouped) l.group = 0;
     const MonteCarloResult ref = monte_carlo(m, {}, ungrouped, tally, dirs, ro);
     const double d1 = rel(r.single, ref.single), dm = rel(r.multiple, ref.multiple);
     const double s1 = std::hypot(r.noise.single, ref.noise.single),
