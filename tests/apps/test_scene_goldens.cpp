@@ -8,6 +8,7 @@
 // Goldens: tests/apps/golden/*.png, written only with FULGUR_UPDATE_GOLDENS=1.
 #include "golden.h"
 #include "platform/platform.h"
+#include "support/test_support.h"
 #include "view/view.h"
 
 #include <doctest/doctest.h>
@@ -22,7 +23,12 @@ namespace {
 const std::filesystem::path kScenes = std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes";
 const std::filesystem::path kTestScenes = std::filesystem::path(FULGUR_SOURCE_DIR) / "tests/apps/scenes";
 const std::filesystem::path kGoldens = std::filesystem::path(FULGUR_SOURCE_DIR) / "tests/apps/golden";
-const std::filesystem::path kOut = std::filesystem::path(FULGUR_TEST_OUTPUT_DIR) / "scene_golden";
+// The bakes and sun/sky caches of the run: kept across runs of one build (each takes seconds
+// to minutes), never across builds whose engine or shaders differ (test::code_cache_dir).
+const std::filesystem::path& out_dir() {
+    static const std::filesystem::path dir = test::code_cache_dir("scene_golden");
+    return dir;
+}
 
 platform::Context& context(int w, int h) {
     static std::unique_ptr<platform::Context> ctx = platform::create_headless({.width = w, .height = h});
@@ -31,13 +37,12 @@ platform::Context& context(int w, int h) {
     return *ctx;
 }
 
-// One view per scene for the whole test run: the storm's bases are baked once into the test
-// output directory (the storm and the dusk storm share the cloud, so they share the file: it
-// is named by the bake key), the static light is cached there too (never beside the scene).
+// One view per scene for the whole test run: the storm's bases are baked into out_dir() (the
+// storm and the dusk storm share the cloud, so they share the file: it is named by the bake
+// key), the static light is cached there too (never beside the scene).
 view::StormView& scene_view(const std::string& name) {
     static std::map<std::string, std::unique_ptr<view::StormView>> views;
     if (auto it = views.find(name); it != views.end()) return *it->second;
-    std::filesystem::create_directories(kOut);
     // "test_*" scenes are the small test scenes (tests/apps/scenes), the others content scenes.
     const std::filesystem::path dir = name.starts_with("test_") ? kTestScenes : kScenes;
     scene::Scene s = scene::load_scene(dir / (name + ".json"));
@@ -53,12 +58,12 @@ view::StormView& scene_view(const std::string& name) {
     if (plan.lightning) {
         char hash[32];
         std::snprintf(hash, sizeof hash, "%016llx", static_cast<unsigned long long>(bake::scene_key(s, d).hash));
-        fgb = kOut / ("bases-" + std::string(hash) + ".fgb");
+        fgb = out_dir() / ("bases-" + std::string(hash) + ".fgb");
         if (!bake::up_to_date(s, d, *fgb)) bake::bake(s, d, plan.lightning.value(), *fgb);
     }
     view::StaticSetup setup;
     setup.plan = plan;
-    setup.cache.dir = kOut;
+    setup.cache.dir = out_dir();
     platform::Context& ctx = context(64, 36);
     auto v = std::make_unique<view::StormView>(std::move(s), std::move(d), fgb, ctx.get_proc_address(), setup);
     if (v->has_lightning()) {
@@ -94,7 +99,7 @@ void check_golden(const std::string& name, const std::vector<std::uint8_t>& rgba
     // slightly between CPUs (a few pixels by a few levels); a changed light, exposure or tone
     // curve moves most of the image.
     const test::GoldenResult r =
-        test::compare_golden(kGoldens / (name + ".png"), w, h, rgba, test::GoldenTolerance{}, kOut);
+        test::compare_golden(kGoldens / (name + ".png"), w, h, rgba, test::GoldenTolerance{}, out_dir());
     MESSAGE(r.message);
     CHECK(r.passed);
 }

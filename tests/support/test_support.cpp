@@ -1,5 +1,6 @@
 #include "support/test_support.h"
 
+#include "code_version.h"
 #include "core/core.h"
 
 #include <doctest/doctest.h>
@@ -19,6 +20,16 @@ std::filesystem::path scratch_dir(const std::string& name) {
     std::filesystem::remove_all(p);
     std::filesystem::create_directories(p);
     return p;
+}
+
+std::filesystem::path code_cache_dir(const std::string& name) {
+    const std::filesystem::path root = std::filesystem::path(FULGUR_TEST_OUTPUT_DIR) / name;
+    const std::string version = std::string(FULGUR_CODE_VERSION).substr(0, 16);
+    std::filesystem::create_directories(root);
+    for (const auto& e : std::filesystem::directory_iterator(root))
+        if (e.path().filename() != version) std::filesystem::remove_all(e.path());
+    std::filesystem::create_directories(root / version);
+    return root / version;
 }
 
 double relative_l2(std::span<const float> x, std::span<const float> ref) {

@@ -18,6 +18,12 @@ std::filesystem::path source_dir();
 /// A fresh, empty directory under the build tree for this test's files.
 std::filesystem::path scratch_dir(const std::string& name);
 
+/// A directory under the build tree for artefacts a test caches across runs (bakes, sun/sky
+/// caches), keyed by the code version: <output>/<name>/<hash of the engine's and shaders'
+/// sources>. Made on first use; the versions made by other code are deleted, so an artefact
+/// is never reused by a build whose solvers or shaders differ from the one that made it.
+std::filesystem::path code_cache_dir(const std::string& name);
+
 /// core::relative_l2 (||x - ref||_2 / ||ref||_2, the absolute L2 difference when ref is all
 /// zero); sizes must match (a failed REQUIRE otherwise).
 double relative_l2(std::span<const float> x, std::span<const float> ref);
