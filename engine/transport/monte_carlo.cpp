@@ -404,6 +404,18 @@ struct FieldStats {
     }
 };
 
+/// The sum of a batch's tally (any group, cell, direction: [group][cell][m]) over the cloud
+/// cells, times `scale`.
+double cloud_sum(const std::vector<double>& x, const TallyGrid& tg, std::size_t M, double scale) {
+    core::CompensatedSum s;
+    const std::size_t cells = tg.cloud.size(), G = x.size() / (cells * M);
+    for (std::size_t q = 0; q < G; ++q)
+        for (std::size_t c = 0; c < cells; ++c)
+            if (tg.cloud[c])
+                for (std::size_t m = 0; m < M; ++m) s.add(x[(q * cells + c) * M + m]);
+    return s.value() * scale;
+}
+
 /// run_grid's output directions, normalized, after validating the medium, the options and
 /// the directions.
 std::vector<glm::dvec3> unit_directions(const LightingMedium& medium, std::span<const glm::dvec3> directions,
@@ -545,6 +557,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
         if (multiple) hm.init(size);
     }
     EnergyStats es;
+    ScalarStats sum1, summ;  // the cloud sums of single and multiple, per batch
     const double vol = g.voxel_size * g.voxel_size * g.voxel_size;
     for (int b0 = 0; b0 < o.batches; b0 += T) {
         const int nb = std::min(T, o.batches - b0);
@@ -586,9 +599,12 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
                 if (multiple) hm.add(bufs[std::size_t(i)].multiple, scale, first);
             }
             es.add(bufs[std::size_t(i)].energy, np);
+            sum1.add(cloud_sum(bufs[std::size_t(i)].single, tg, M, scale));
+            if (multiple) summ.add(cloud_sum(bufs[std::size_t(i)].multiple, tg, M, scale));
         }
     }
     MonteCarloResult r = grid_result({s1, sm, fl, fl2, h1, hm, multiple, fluence, fluence2}, tg, dirs, o);
+    r.sums = {sum1.estimate(), summ.estimate()};
     r.energy = es.tally();
     r.paths = o.paths;
     r.collisions = es.collisions;

@@ -284,6 +284,13 @@ struct MonteCarloResult {
     struct Noise {
         double single = 0.0, multiple = 0.0, total = 0.0;
     } noise;
+    /// The sums of `single` and of `multiple` over the cloud (tally cells holding density > 0)
+    /// and every direction, each with its standard error from the batches: the noise of a
+    /// whole-cloud total (a ratio of totals), which the relative L2 noise overstates.
+    /// monte_carlo() only (zero from ProgressiveMonteCarlo).
+    struct CloudSums {
+        Estimate single, multiple;
+    } sums;
     /// With MonteCarloOptions::tally_fluence: the uncollided fluence (sum over the groups),
     /// and with expected_second_order the order-2 fluence (W/m^2, voxel averages).
     core::Grid3<float> fluence, fluence2;

@@ -137,6 +137,31 @@ TEST_CASE("dome samples: equal solid angles summing to 2 pi, exact irradiance of
     }
 }
 
+TEST_CASE("the sky against physics: a uniform sky of radiance 1 over an optically thin cloud") {
+    // Isotropic scattering in a cloud too thin to shadow itself: every voxel sees the whole
+    // upper hemisphere of radiance L = 1, so S1 = albedo / (4 pi) * 2 pi L = albedo / 2, and
+    // nothing is scattered twice. The dome's quadrature is exact here (its solid angles sum to
+    // 2 pi exactly); the cloud's optical depth (1e-6 across, <= 1e-4 along the most grazing
+    // sample's path) bounds what the transmittance takes away: 1e-4 relative.
+    core::GridGeometry g{{8, 8, 6}, 100.0, {-400.0, -400.0, 0.0}};
+    transport::LightingMedium m;
+    m.density = core::Grid3<float>(g, 1.0f);
+    m.optics = {1.25e-9, 0.9, 0.0};  // sigma_t 800 m = 1e-6
+    const auto dirs = transport::output_directions(1);
+    const sky::SkyField f = sky::solve_sky(media_of(m), true, dirs, settings());
+    float lo = 1e30f, hi = -1e30f, most_multiple = 0.0f;
+    for (std::size_t i = 0; i < g.cell_count(); ++i) {
+        lo = std::min(lo, f.uniform.single.data[i]);
+        hi = std::max(hi, f.uniform.single.data[i]);
+        most_multiple = std::max(most_multiple, std::fabs(f.uniform.multiple.data[i]));
+    }
+    MESSAGE("uniform sky over a thin cloud: S1 in [" << lo << ", " << hi
+                                                     << "], physics 0.45; |S_multiple| <= " << most_multiple);
+    CHECK(double(lo) == test::rel(0.45, 1e-4));
+    CHECK(double(hi) == test::rel(0.45, 1e-4));
+    CHECK(most_multiple <= 1e-5f);  // order 2 is of the order of the optical depth (1e-6) times S1
+}
+
 TEST_CASE("refinement: a refined transport grid is averaged onto the lighting grid") {
     const transport::LightingMedium fine = blob();
     solve::Media media;

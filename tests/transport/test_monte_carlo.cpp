@@ -333,6 +333,55 @@ TEST_CASE("results depend on the seed, not on the thread count") {
     CHECK(d.multiple.data != a.multiple.data);
 }
 
+TEST_CASE("cloud sums: the fields' totals over the cloud, with standard errors the spread of seeds confirms") {
+    // A coarser tally weighted by extinction (the truth's setting) on a cloud with empty margins.
+    const LightingMedium m = test::synthetic_cloud({12, 12, 8}, 200.0, {0.004, 0.95, 0.6});
+    core::GridGeometry coarse = m.density.geom;
+    coarse.voxel_size *= 2.0;
+    coarse.dims = {6, 6, 4};
+    const auto dirs = output_directions(6);
+    const std::vector<LineSource> lines = {{{-300.0, 0.0, 300.0}, {200.0, 100.0, 1200.0}, 0.01, 0}};
+    std::vector<double> single, multiple;
+    double se_single = 0.0, se_multiple = 0.0;
+    for (std::uint64_t seed = 1; seed <= 8; ++seed) {
+        MonteCarloOptions o;
+        o.paths = 20'000;
+        o.seed = seed;
+        o.tally_weight = MonteCarloOptions::TallyWeight::Extinction;
+        const MonteCarloResult r = monte_carlo(m, {}, lines, coarse, dirs, o);
+        // The sums are those of the fields over the cells holding density (float fields:
+        // rounding of ~1e-7 per value).
+        double s1 = 0.0, sm = 0.0;
+        const core::Grid3<float> coarse_rho = core::downsample(m.density, 2);
+        for (std::size_t c = 0; c < r.single.cells(); ++c)
+            if (coarse_rho.data[c] > 0.0f)
+                for (std::size_t k = 0; k < dirs.size(); ++k) {
+                    s1 += r.single.data[k * r.single.cells() + c];
+                    sm += r.multiple.data[k * r.single.cells() + c];
+                }
+        CHECK(r.sums.single.mean == test::rel(s1, 1e-6));
+        CHECK(r.sums.multiple.mean == test::rel(sm, 1e-6));
+        single.push_back(s1);
+        multiple.push_back(sm);
+        se_single += r.sums.single.se / 8.0;
+        se_multiple += r.sums.multiple.se / 8.0;
+    }
+    // The standard deviation of 8 seeds' sums against the mean standard error: for 7 degrees of
+    // freedom their ratio lies in [0.36, 1.93] with probability 0.999.
+    const auto spread = [](const std::vector<double>& x) {
+        double mean = 0.0, var = 0.0;
+        for (double v : x) mean += v / double(x.size());
+        for (double v : x) var += (v - mean) * (v - mean) / double(x.size() - 1);
+        return std::sqrt(var);
+    };
+    MESSAGE("cloud sums: spread / SE single " << spread(single) / se_single << ", multiple "
+                                              << spread(multiple) / se_multiple);
+    CHECK(spread(single) / se_single > 0.36);
+    CHECK(spread(single) / se_single < 1.93);
+    CHECK(spread(multiple) / se_multiple > 0.36);
+    CHECK(spread(multiple) / se_multiple < 1.93);
+}
+
 TEST_CASE("hard inputs: empty cloud, single voxel, dense voxel around the source, albedo 1, thick, thin") {
     const auto dirs = output_directions(1);
     MonteCarloOptions o;
