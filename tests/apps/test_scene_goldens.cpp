@@ -77,7 +77,7 @@ view::StormView& scene_view(const std::string& name) {
 // The frame fulgur-shot renders: a strike with `seed` at t = 0 and the time after its first
 // return stroke's onset (`after_return_stroke`), or `t` itself.
 std::vector<std::uint8_t> shoot(const std::string& name, std::uint64_t seed, double t, bool after_return_stroke, int w,
-                                int h) {
+                                int h, bool wait_for_strikes = false) {
     view::StormView& v = scene_view(name);
     platform::Context& ctx = context(w, h);
     if (v.has_lightning()) {
@@ -87,6 +87,7 @@ std::vector<std::uint8_t> shoot(const std::string& name, std::uint64_t seed, dou
     }
     view::ViewOptions opt;
     opt.settings.timing = render::Timing::Off;
+    opt.wait_for_strikes = wait_for_strikes;
     const view::FrameReport r = v.render(view::default_camera(v.density()), t, w, h, opt);
     MESSAGE(name << " seed " << seed << " t " << t << ": exposure " << r.gpu.exposure
                  << std::string(r.lit ? ", flash" : ", no flash"));
@@ -117,6 +118,16 @@ TEST_CASE("golden: the day cumulus (sun and sky, no lightning, no .fgb)") {
 TEST_CASE("golden: the night storm at a flash and under the moon between flashes") {
     check_golden("storm", shoot("storm", 1, 0.002, true, W, H), W, H);
     check_golden("storm-moonlit", shoot("storm", 1, 0.0, false, W, H), W, H);
+}
+
+TEST_CASE("golden: the night storm's flash with its own preset, per_strike_mc (each strike solved by Monte Carlo)") {
+    // The storm scene's preset: the strike's multiple scattering by Monte Carlo through the
+    // full-resolution density (deterministic per strike), waited for as fulgur-shot does.
+    view::StormView& v = scene_view("storm");
+    v.set_quality(scene::quality_preset("per_strike_mc"));
+    const std::vector<std::uint8_t> rgba = shoot("storm", 1, 0.002, true, W, H, true);
+    v.set_quality(scene::quality_preset("paper"));
+    check_golden("storm-per-strike-mc", rgba, W, H);
 }
 
 TEST_CASE("golden: the dusk storm (a low warm sun and a decaying flash)") {
