@@ -13,8 +13,11 @@
 
 #include <doctest/doctest.h>
 
+#include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <map>
+#include <optional>
 
 using namespace fulgur;
 
@@ -74,10 +77,16 @@ view::StormView& scene_view(const std::string& name) {
     return *views.emplace(name, std::move(v)).first->second;
 }
 
+struct Shot {
+    std::vector<std::uint8_t> rgba;
+    double exposure = 0.0;  ///< the exposure the frame was tone mapped with
+};
+
 // The frame fulgur-shot renders: a strike with `seed` at t = 0 and the time after its first
-// return stroke's onset (`after_return_stroke`), or `t` itself.
-std::vector<std::uint8_t> shoot(const std::string& name, std::uint64_t seed, double t, bool after_return_stroke, int w,
-                                int h, bool wait_for_strikes = false) {
+// return stroke's onset (`after_return_stroke`), or `t` itself; with the automatic exposure,
+// or the given one.
+Shot shoot(const std::string& name, std::uint64_t seed, double t, bool after_return_stroke, int w, int h,
+           bool wait_for_strikes = false, std::optional<double> exposure = std::nullopt) {
     view::StormView& v = scene_view(name);
     platform::Context& ctx = context(w, h);
     if (v.has_lightning()) {
@@ -88,36 +97,67 @@ std::vector<std::uint8_t> shoot(const std::string& name, std::uint64_t seed, dou
     view::ViewOptions opt;
     opt.settings.timing = render::Timing::Off;
     opt.wait_for_strikes = wait_for_strikes;
+    if (exposure) {
+        opt.settings.auto_exposure = false;
+        opt.settings.exposure = *exposure;
+    }
     const view::FrameReport r = v.render(view::default_camera(v.density()), t, w, h, opt);
     MESSAGE(name << " seed " << seed << " t " << t << ": exposure " << r.gpu.exposure
                  << std::string(r.lit ? ", flash" : ", no flash"));
     ctx.present();
-    return ctx.read_rgba8();
+    return {ctx.read_rgba8(), r.gpu.exposure};
 }
 
-void check_golden(const std::string& name, const std::vector<std::uint8_t>& rgba, int w, int h) {
-    // The renderer's golden metric and tolerance (tests/render/golden.h): llvmpipe differs
-    // slightly between CPUs (a few pixels by a few levels); a changed light, exposure or tone
-    // curve moves most of the image.
-    const test::GoldenResult r =
-        test::compare_golden(kGoldens / (name + ".png"), w, h, rgba, test::GoldenTolerance{}, out_dir());
+// The exposure a golden is compared at, stored beside it (<name>.exposure, written with the
+// image when the goldens are regenerated: the automatic exposure of that frame).
+double golden_exposure(const std::string& name, double metered) {
+    const std::filesystem::path path = kGoldens / (name + ".exposure");
+    if (test::update_goldens_requested()) {
+        char text[64];
+        std::snprintf(text, sizeof text, "%.17g\n", metered);
+        test::write_text(path, text);
+        return metered;
+    }
+    std::ifstream in(path);
+    double e = 0.0;
+    REQUIRE_MESSAGE(bool(in >> e), "no exposure beside the golden: " << path);
+    return e;
+}
+
+// The golden `name` of the frame shoot() renders, compared at the golden's own exposure: the
+// automatic exposure would meter a change of the light away (a uniform 5% change of all light
+// moves the image by 0.33 levels on average at a fixed exposure, by nothing under the meter).
+// The tolerance: the same frame rendered twice on this machine is identical (max 0), and with
+// its exposure written as text and read back differs by at most 1 level in 0.07% of the
+// channels (mean 0.0007 levels); llvmpipe on another CPU may round a few pixels differently.
+// So a pixel fails above 2 levels, at most 0.5% of them may, and the mean stays below 0.05
+// levels: a 5% change of all light fails both (8% of the pixels above 2 levels, mean 0.33),
+// and so does a 5% change of a part that carries 15% of the cloud's light (mean ~0.05).
+// The automatic exposure is checked too: within one meter bin (0.25 stop) of the golden's.
+void golden(const std::string& name, const std::string& scene, std::uint64_t seed, double t, bool after_return_stroke,
+            bool wait_for_strikes = false) {
+    constexpr int W = 320, H = 180;
+    const Shot metered = shoot(scene, seed, t, after_return_stroke, W, H, wait_for_strikes);
+    const double e = golden_exposure(name, metered.exposure);
+    const Shot shot = shoot(scene, seed, t, after_return_stroke, W, H, wait_for_strikes, e);
+    const test::GoldenTolerance tol{.pixel_threshold = 2, .max_failing_fraction = 0.005, .max_mean_diff = 0.05};
+    const test::GoldenResult r = test::compare_golden(kGoldens / (name + ".png"), W, H, shot.rgba, tol, out_dir());
     MESSAGE(r.message);
     CHECK(r.passed);
+    CHECK(std::fabs(std::log2(metered.exposure / e)) <= 0.25 + 1e-9);
 }
-
-constexpr int W = 320, H = 180;
 
 }  // namespace
 
 TEST_CASE("golden: the day cumulus (sun and sky, no lightning, no .fgb)") {
     view::StormView& v = scene_view("day-cumulus");
     CHECK_FALSE(v.has_lightning());
-    check_golden("day-cumulus", shoot("day-cumulus", 1, 0.0, false, W, H), W, H);
+    golden("day-cumulus", "day-cumulus", 1, 0.0, false);
 }
 
 TEST_CASE("golden: the night storm at a flash and under the moon between flashes") {
-    check_golden("storm", shoot("storm", 1, 0.002, true, W, H), W, H);
-    check_golden("storm-moonlit", shoot("storm", 1, 0.0, false, W, H), W, H);
+    golden("storm", "storm", 1, 0.002, true);
+    golden("storm-moonlit", "storm", 1, 0.0, false);
 }
 
 TEST_CASE("golden: the night storm's flash with its own preset, per_strike_mc (each strike solved by Monte Carlo)") {
@@ -125,22 +165,22 @@ TEST_CASE("golden: the night storm's flash with its own preset, per_strike_mc (e
     // full-resolution density (deterministic per strike), waited for as fulgur-shot does.
     view::StormView& v = scene_view("storm");
     v.set_quality(scene::quality_preset("per_strike_mc"));
-    const std::vector<std::uint8_t> rgba = shoot("storm", 1, 0.002, true, W, H, true);
+    golden("storm-per-strike-mc", "storm", 1, 0.002, true, true);
     v.set_quality(scene::quality_preset("paper"));
-    check_golden("storm-per-strike-mc", rgba, W, H);
 }
 
 TEST_CASE("golden: the dusk storm (a low warm sun and a decaying flash)") {
-    check_golden("dusk-storm", shoot("dusk-storm", 1, 0.008, true, W, H), W, H);
+    golden("dusk-storm", "dusk-storm", 1, 0.008, true);
 }
 
 TEST_CASE("golden: a cloud from an OpenVDB file (content/clouds/storm-cell.vdb, box-filtered onto 375 m voxels)") {
-    check_golden("vdb-cloud", shoot("test_vdb_cloud", 1, 0.002, true, W, H), W, H);
+    golden("vdb-cloud", "test_vdb_cloud", 1, 0.002, true);
 }
 
 TEST_CASE("exposure: at the return-stroke peak of seeds 1-5, fewer than 2% of the lit pixels at the display's white") {
     for (std::uint64_t seed = 1; seed <= 5; ++seed) {
-        const std::vector<std::uint8_t> px = shoot("storm", seed, 0.0005, true, 640, 360);  // fulgur-shot's defaults
+        const std::vector<std::uint8_t> px =
+            shoot("storm", seed, 0.0005, true, 640, 360).rgba;  // fulgur-shot's defaults
         std::size_t lit = 0, white = 0, clipped = 0;
         for (std::size_t p = 0; p < px.size(); p += 4) {
             const int lo = std::min({px[p], px[p + 1], px[p + 2]}), hi = std::max({px[p], px[p + 1], px[p + 2]});
