@@ -88,14 +88,15 @@ for m in "${mutations[@]}"; do
     if build; then
         failing=$(suite)
         [ -n "$failing" ] || missed=1
-        row="${failing:-**none**}"
+        row=$(echo $failing | sed 's/ /, /g')
+        row="${row:-**none**}"
     else
         row="**does not build** (see $scratch/build.log)"
         missed=1
     fi
     git -C "$src" checkout -q -- .
-    table+=$'\n'"| $m | $(echo $row | sed 's/ /, /g') | $(( $(date +%s) - t0 )) |"
-    echo "mutation_table: $m: $(echo $row)" >&2
+    table+=$'\n'"| $m | $row | $(( $(date +%s) - t0 )) |"
+    echo "mutation_table: $m: $row" >&2
 done
 build || true  # leave the scratch build at HEAD
 
