@@ -341,6 +341,7 @@ TEST_CASE("cloud sums: the fields' totals over the cloud, with standard errors t
     coarse.dims = {6, 6, 4};
     const auto dirs = output_directions(6);
     const std::vector<LineSource> lines = {{{-300.0, 0.0, 300.0}, {200.0, 100.0, 1200.0}, 0.01, 0}};
+    const core::Grid3<float> coarse_rho = core::downsample(m.density, 2);  // > 0: the cloud's tally cells
     std::vector<double> single, multiple;
     double se_single = 0.0, se_multiple = 0.0;
     for (std::uint64_t seed = 1; seed <= 8; ++seed) {
@@ -352,7 +353,6 @@ TEST_CASE("cloud sums: the fields' totals over the cloud, with standard errors t
         // The sums are those of the fields over the cells holding density (float fields:
         // rounding of ~1e-7 per value).
         double s1 = 0.0, sm = 0.0;
-        const core::Grid3<float> coarse_rho = core::downsample(m.density, 2);
         for (std::size_t c = 0; c < r.single.cells(); ++c)
             if (coarse_rho.data[c] > 0.0f)
                 for (std::size_t k = 0; k < dirs.size(); ++k) {

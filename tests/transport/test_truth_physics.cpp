@@ -43,39 +43,16 @@ constexpr int kRuns = 8;
 
 double e1(double x) { return -std::expint(-x); }  // E1(x) = -Ei(-x), x > 0
 
-// n-point Gauss-Legendre nodes and weights on [-1, 1] (Newton on P_n).
-struct GaussLegendre {
-    std::vector<double> x, w;
-    explicit GaussLegendre(int n) : x(std::size_t(n)), w(std::size_t(n)) {
-        for (int i = 0; i < n; ++i) {
-            double z = std::cos(kPi * (i + 0.75) / (n + 0.5)), dp = 0.0;
-            for (int it = 0; it < 100; ++it) {
-                double p0 = 1.0, p1 = z;
-                for (int k = 2; k <= n; ++k) {
-                    const double p2 = ((2.0 * k - 1.0) * z * p1 - (k - 1.0) * p0) / k;
-                    p0 = p1;
-                    p1 = p2;
-                }
-                dp = n * (z * p1 - p0) / (z * z - 1.0);
-                const double dz = p1 / dp;
-                z -= dz;
-                if (std::fabs(dz) < 1e-15) break;
-            }
-            x[std::size_t(i)] = z;
-            w[std::size_t(i)] = 2.0 / ((1.0 - z * z) * dp * dp);
-        }
-    }
-    // Composite rule: `panels` equal panels on [a, b].
-    double integrate(const std::function<double(double)>& f, double a, double b, int panels) const {
-        double sum = 0.0;
-        const double h = (b - a) / panels;
-        for (int p = 0; p < panels; ++p) {
-            const double m = a + (p + 0.5) * h;
-            for (std::size_t i = 0; i < x.size(); ++i) sum += w[i] * f(m + 0.5 * h * x[i]);
-        }
-        return 0.5 * h * sum;
-    }
-};
+// Composite 16-point Gauss-Legendre rule: `panels` equal panels on [a, b] (the solver's
+// quadrature nodes; the Monte Carlo under test uses none).
+double integrate(const std::function<double(double)>& f, double a, double b, int panels) {
+    const detail::GaussRule gl = detail::gauss_legendre(16);  // nodes and weights on [0, 1]
+    double sum = 0.0;
+    const double h = (b - a) / panels;
+    for (int p = 0; p < panels; ++p)
+        for (std::size_t i = 0; i < gl.x.size(); ++i) sum += gl.w[i] * f(a + (p + gl.x[i]) * h);
+    return h * sum;
+}
 
 // Henyey-Greenstein, written here from its definition (the reference must not share code
 // with what it checks): (1 - g^2) / (4 pi (1 + g^2 - 2 g cos)^{3/2}).
@@ -89,10 +66,9 @@ double k1(double r) { return std::exp(-r) / (4.0 * kPi * r * r); }
 // at s = r out of the integrand: s = r (1 - v^2) on [0, r] and s = r + w^2 beyond (E1(w^2) w
 // is bounded; the tail past w = 7 is below e^{-49}).
 double k2_direct(double r) {
-    static const GaussLegendre gl(16);
     const auto inner = [r](double s) { return std::exp(-s) / s * (e1(std::fabs(r - s)) - e1(r + s)); };
-    const double near = gl.integrate([&](double v) { return inner(r * (1.0 - v * v)) * 2.0 * r * v; }, 0.0, 1.0, 16);
-    const double far = gl.integrate([&](double w) { return inner(r + w * w) * 2.0 * w; }, 0.0, 7.0, 32);
+    const double near = integrate([&](double v) { return inner(r * (1.0 - v * v)) * 2.0 * r * v; }, 0.0, 1.0, 16);
+    const double far = integrate([&](double w) { return inner(r + w * w) * 2.0 * w; }, 0.0, 7.0, 32);
     return (near + far) / (8.0 * kPi * r);
 }
 
@@ -130,15 +106,14 @@ const K2Table& k2() {
 // are at least 1 optical depth from the source, where f is smooth on a half-depth voxel).
 double voxel_average(const core::GridGeometry& g, int i, int j, int k, glm::dvec3 source,
                      const std::function<double(const glm::dvec3&)>& f) {
-    static const GaussLegendre gl(4);
-    const glm::dvec3 c = g.centre(i, j, k) - source;
-    const double h = g.voxel_size;
+    const detail::GaussRule gl = detail::gauss_legendre(4);  // on [0, 1]
+    const glm::dvec3 lo = g.centre(i, j, k) - 0.5 * g.voxel_size - source;
     double sum = 0.0;
     for (std::size_t a = 0; a < 4; ++a)
         for (std::size_t b = 0; b < 4; ++b)
             for (std::size_t d = 0; d < 4; ++d)
-                sum += gl.w[a] * gl.w[b] * gl.w[d] * f(c + 0.5 * h * glm::dvec3(gl.x[a], gl.x[b], gl.x[d]));
-    return sum / 8.0;
+                sum += gl.w[a] * gl.w[b] * gl.w[d] * f(lo + g.voxel_size * glm::dvec3(gl.x[a], gl.x[b], gl.x[d]));
+    return sum;
 }
 
 // A homogeneous cube of 40^3 voxels, 0.5 optical depths each (20 across), sigma_t = 1/m, the
@@ -232,16 +207,15 @@ TEST_CASE("physics reference: k_2 integrates to one collision with mean square d
     // (two independent exponential flights in independent isotropic directions). The radial
     // integrals from 0.05 to 12 miss what lies outside (k_2 ~ 1 / (8 r) near 0: ~3e-3 of the
     // mass below 0.05, added analytically; below 1e-4 beyond 12).
-    static const GaussLegendre gl(16);
     const double inner = 4.0 * kPi * 0.05 * 0.05 / (2.0 * 8.0);  // int_0^0.05 4 pi r^2 / (8 r) dr
-    const double mass = inner + gl.integrate([](double r) { return 4.0 * kPi * r * r * k2()(r); }, 0.05, 12.0, 200);
-    const double msd = gl.integrate([](double r) { return 4.0 * kPi * r * r * r * r * k2()(r); }, 0.05, 12.0, 200);
+    const double mass = inner + integrate([](double r) { return 4.0 * kPi * r * r * k2()(r); }, 0.05, 12.0, 200);
+    const double msd = integrate([](double r) { return 4.0 * kPi * r * r * r * r * k2()(r); }, 0.05, 12.0, 200);
     CHECK(mass == test::rel(1.0, 2e-3));  // the near-origin approximation 1/(8r) is good to ~5%
     CHECK(msd == test::rel(4.0, 2e-3));   // of its 3e-3 share; the tail beyond 12 adds ~1e-3
     // The table against direct evaluation between its nodes.
     for (double r : {0.3013, 1.2345, 2.7182, 3.9999, 7.777}) CHECK(k2()(r) == test::rel(k2_direct(r), 1e-5));
     // The order-1 density integrates to the same collision: int 4 pi r^2 k_1 = 1.
-    CHECK(gl.integrate([](double r) { return 4.0 * kPi * r * r * k1(r); }, 0.0, 40.0, 40) == test::rel(1.0, 1e-9));
+    CHECK(integrate([](double r) { return 4.0 * kPi * r * r * k1(r); }, 0.0, 40.0, 40) == test::rel(1.0, 1e-9));
 }
 
 TEST_CASE("truth against physics: order 1 and order 2 around a point source in a homogeneous medium") {
