@@ -5,9 +5,47 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <iostream>
 
 namespace fulgur::study {
+
+// The truth of a frame, kept in the study's folder keyed by the scene, the strike and a
+// checksum of the lit channel (a changed bolt or timing recomputes it).
+runtime::Truth cached_truth(const scene::Scene& s, const core::Grid3<float>& density,
+                            std::span<const lightning::LitSegment> lit, const runtime::TruthOptions& to,
+                            const std::filesystem::path& file) {
+    std::uint64_t sum = core::hash_seed(to.paths, to.seed);
+    for (const lightning::LitSegment& g : lit)
+        for (const double v : {g.a.x, g.a.y, g.a.z, g.b.x, g.b.y, g.b.z, g.intensity})
+            sum = core::hash_seed(sum, std::uint64_t(std::llround(v * 1e3)));
+    const std::vector<glm::dvec3> dirs = transport::output_directions(s.effective_directions());
+    core::GridGeometry g = density.geom;
+    const int f = s.lighting_downsample;
+    g.voxel_size *= f;
+    g.dims = {(g.dims.x + f - 1) / f, (g.dims.y + f - 1) / f, (g.dims.z + f - 1) / f};
+    runtime::Truth t;
+    t.single = t.multiple = transport::SourceField(g, dirs);
+    if (std::ifstream in(file, std::ios::binary); in) {
+        std::uint64_t key = 0;
+        in.read(reinterpret_cast<char*>(&key), sizeof key);
+        in.read(reinterpret_cast<char*>(&t.noise), sizeof t.noise);
+        in.read(reinterpret_cast<char*>(t.single.data.data()), std::streamsize(t.single.data.size() * sizeof(float)));
+        in.read(reinterpret_cast<char*>(t.multiple.data.data()),
+                std::streamsize(t.multiple.data.size() * sizeof(float)));
+        if (in && key == sum) return t;
+    }
+    t = runtime::truth(s, density, lit, {}, to);
+    std::ofstream out(file, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(&sum), sizeof sum);
+    out.write(reinterpret_cast<const char*>(&t.noise), sizeof t.noise);
+    out.write(reinterpret_cast<const char*>(t.single.data.data()),
+              std::streamsize(t.single.data.size() * sizeof(float)));
+    out.write(reinterpret_cast<const char*>(t.multiple.data.data()),
+              std::streamsize(t.multiple.data.size() * sizeof(float)));
+    if (!out) throw core::Error(file.string(), "cannot write the truth cache");
+    return t;
+}
 
 std::vector<double> side_view(const transport::LightingMedium& m, std::size_t toward_camera,
                               const std::function<double(std::size_t, std::size_t)>& S) {

@@ -8,6 +8,8 @@
 
 #include "common/registry.h"
 #include "runtime/reconstructor.h"
+#include "runtime/references.h"
+#include "scene/scene.h"
 #include "transport/transport.h"
 
 #include <nlohmann/json.hpp>
@@ -58,6 +60,12 @@ public:
 /// The lattice against the truth for lights in the storm's core, at its edge and below its
 /// base, today's lattice and the refined one (part of lb-vs-mc; study_lb_truth.cpp).
 void lb_vs_truth(const Context& ctx);
+
+/// The truth of a frame (runtime::truth), kept in `file` keyed by the options and a checksum of
+/// the lit channel (a changed bolt or timing recomputes it).
+runtime::Truth cached_truth(const scene::Scene& s, const core::Grid3<float>& density,
+                            std::span<const lightning::LitSegment> lit, const runtime::TruthOptions& to,
+                            const std::filesystem::path& file);
 
 /// A side view on the lighting grid, the quantity an image integrates: a camera far along -y
 /// looking along +y sees per (x, z) column sum_j T_j sigma_t,j S_j(toward the camera) h with

@@ -1,0 +1,187 @@
+// What a strike's very first frame can be lit with, before any per-strike work has run.
+//   first-frame: the default storm's strikes 1-5 at their first return stroke + 2 ms, each
+//   candidate estimate against the truth of that frame, single and multiple scattering apart:
+//   the paper frame (the splat), exact single scattering of the frame's point sources on the
+//   lighting grid, and the bases' multiple scattering with virtual-light weights fitted to the
+//   strike's first-scattered field (non-negative least squares) instead of the splat's.
+//   Outputs: first_frame.csv (one row per strike and candidate).
+#include "study/study.h"
+
+#include "bake/bake.h"
+#include "core/core.h"
+#include "runtime/runtime.h"
+#include "scene/scene.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <glm/geometric.hpp>
+
+using namespace fulgur;
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Non-negative least squares min |A c - b|^2, c >= 0, by cyclic coordinate descent on the
+// normal equations (G = A^T A, r = A^T b); n is small (the lights near one bolt).
+std::vector<double> nnls(const std::vector<double>& G, const std::vector<double>& r, std::size_t n, int sweeps) {
+    std::vector<double> c(n, 0.0), g(n, 0.0);  // g = G c
+    for (int s = 0; s < sweeps; ++s)
+        for (std::size_t i = 0; i < n; ++i) {
+            const double gii = G[i * n + i];
+            if (gii <= 0.0) continue;
+            const double next = std::max(0.0, c[i] + (r[i] - g[i]) / gii);
+            const double d = next - c[i];
+            if (d == 0.0) continue;
+            c[i] = next;
+            for (std::size_t j = 0; j < n; ++j) g[j] += G[j * n + i] * d;
+        }
+    return c;
+}
+
+}  // namespace
+
+FULGUR_STUDY(first_frame, "first-frame",
+             "a strike's first frame before any per-strike work: the splat, exact single scattering of the point "
+             "sources on the lighting grid, and the bases' multiple scattering with fitted virtual-light weights, "
+             "against the truth (default storm, 5 strikes)") {
+    const std::filesystem::path scenes = std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes";
+    const scene::Scene base = scene::load_scene(scenes / "storm.json");
+    const core::Grid3<float> density = scene::make_density(base);
+    bake::bake_if_stale(base, density, bake::default_fgb_path(base));
+    const runtime::BakedBases bases =
+        runtime::BakedBases::load(bake::default_fgb_path(base), bake::scene_key(base, density));
+    scene::Scene s = base;
+    s.lightning.schedule.strike_rate = 0.0;
+    const solve::Media media = solve::make_media(s, density);
+    const std::vector<float>& rho = media.lighting.density.data;
+    const std::size_t cells = rho.size();
+    const std::uint64_t truth_paths = ctx.quick ? 300'000 : 2'000'000;
+    const int strikes = ctx.quick ? 2 : 5;
+
+    // Isotropic copy of the medium: the scalar first-scattered field (albedo/(4 pi) x voxel
+    // average of I T / r^2), what the multiple scattering of a source depends on.
+    transport::LightingMedium iso = media.transport;
+    iso.optics.g = 0.0;
+    const std::vector<glm::dvec3> one = {glm::dvec3(0, 0, 1)};
+    transport::SingleScatteringOptions sso = solve::single_scattering_options(s);
+    auto scalar_s1 = [&](std::span<const transport::PointSource> src) {
+        std::vector<double> out(cells, 0.0);
+        for (const transport::PointSource& q : src) {
+            const transport::SourceField f = transport::single_scattering(iso, q, one, sso);
+            for (std::size_t c = 0; c < cells; ++c) out[c] += double(f.data[c]);
+        }
+        return out;
+    };
+
+    const basis::VirtualLightGrid& vl = bases.lights();
+    const lightning::Splatter splatter(vl);
+    study::Csv rows(ctx.file("first_frame.csv"),
+                    {"seed", "candidate", "single_error", "multiple_error", "total_error", "seconds"});
+    for (int k = 0; k < strikes; ++k) {
+        const std::uint64_t seed = std::uint64_t(k + 1);
+        runtime::FramePipeline probe(s, density, bases, {}, scene::quality_preset("paper"));
+        const std::size_t i = probe.strike_at(0.0, seed);
+        const double t = probe.storm().strike(i).profile.stroke_onset.at(0) + 0.002;
+        const runtime::Frame pf = probe.build(t, {});
+        runtime::TruthOptions to;
+        to.paths = truth_paths;
+        to.seed = seed;
+        const runtime::Truth truth = study::cached_truth(
+            s, density, pf.segments, to,
+            ctx.file("truth-storm-" + std::to_string(seed) + "-" + std::to_string(truth_paths) + ".bin"));
+        const transport::SourceField tt = truth.sum();
+
+        runtime::Reconstructor rec(bases);
+        auto part = [&](const lightning::LightWeights& w, bool single) {
+            runtime::ReconstructOptions o;
+            o.components = {single, !single};
+            runtime::RadianceField r;
+            runtime::StageTimes st;
+            if (!rec.reconstruct(w, {}, o, r, st)) return std::vector<float>(tt.data.size(), 0.0f);
+            return study::flat(r);
+        };
+        auto report = [&](const std::string& name, const std::vector<float>& s1, const std::vector<float>& sm,
+                          double secs) {
+            std::vector<float> sum(s1.size());
+            for (std::size_t j = 0; j < sum.size(); ++j) sum[j] = s1[j] + sm[j];
+            const double e1 = study::cloud_error(s1, truth.single.data, rho);
+            const double em = study::cloud_error(sm, truth.multiple.data, rho);
+            const double et = study::cloud_error(sum, tt.data, rho);
+            rows << double(seed) << name << e1 << em << et << secs;
+            rows.end_row();
+            std::fprintf(stderr, "first-frame: seed %llu %-28s single %6.3f multiple %6.3f total %6.3f (%.4f s)\n",
+                         static_cast<unsigned long long>(seed), name.c_str(), e1, em, et, secs);
+        };
+        const std::vector<float> paper1 = part(pf.weights, true), paperm = part(pf.weights, false);
+        report("paper", paper1, paperm, 0.0);
+
+        auto t0 = std::chrono::steady_clock::now();
+        const transport::SourceField d1 = runtime::direct_solve(s, media, pf.sources, {true, false});
+        const double direct_s = seconds_since(t0);
+        report("direct single + paper multiple", d1.data, paperm, direct_s);
+        const transport::SourceField dm = runtime::direct_solve(s, media, pf.sources, {false, true});
+        report("direct single + direct multiple", d1.data, dm.data, direct_s);
+
+        // Fitted weights: the lights within two spacings of a source.
+        t0 = std::chrono::steady_clock::now();
+        const double reach = 2.0 * 1500.0;
+        std::vector<std::uint32_t> near;
+        for (std::uint32_t l = 0; l < vl.count(); ++l) {
+            const glm::dvec3 p = vl.position(l);
+            for (const transport::PointSource& q : pf.sources)
+                if (glm::length(q.position - p) <= reach) {
+                    near.push_back(l);
+                    break;
+                }
+        }
+        std::vector<std::vector<double>> A;
+        for (const std::uint32_t l : near) {
+            const transport::PointSource q{vl.position(l), 1.0};
+            A.push_back(scalar_s1(std::span(&q, 1)));
+        }
+        const double basis_s = seconds_since(t0);
+        t0 = std::chrono::steady_clock::now();
+        const std::vector<double> b = scalar_s1(pf.sources);
+        const double target_s = seconds_since(t0);
+        const std::size_t n = near.size();
+        std::vector<double> G(n * n, 0.0), r(n, 0.0);
+        for (std::size_t a = 0; a < n; ++a) {
+            for (std::size_t c = 0; c < cells; ++c)
+                if (rho[c] > 0.0f) r[a] += A[a][c] * b[c];
+            for (std::size_t bb = 0; bb <= a; ++bb) {
+                double v = 0.0;
+                for (std::size_t c = 0; c < cells; ++c)
+                    if (rho[c] > 0.0f) v += A[a][c] * A[bb][c];
+                G[a * n + bb] = G[bb * n + a] = v;
+            }
+        }
+        const std::vector<double> coef = nnls(G, r, n, 400);
+        const double fit_s = seconds_since(t0);
+        lightning::LightWeights w;
+        splatter.reset(w);
+        for (std::size_t a = 0; a < n; ++a)
+            if (coef[a] > 0.0) {
+                w.e[near[a]] = coef[a];
+                w.active.push_back(near[a]);
+                w.touched[near[a]] = 1;
+                w.total += coef[a];
+            }
+        std::vector<double> fitted(cells, 0.0);
+        for (std::size_t a = 0; a < n; ++a)
+            for (std::size_t c = 0; c < cells; ++c) fitted[c] += coef[a] * A[a][c];
+        std::vector<float> fa(fitted.begin(), fitted.end());
+        std::vector<float> ba(b.begin(), b.end());
+        std::fprintf(stderr,
+                     "first-frame: seed %llu: %zu lights near, %zu fitted, scalar S1 fit error %.3f, splat total %.4g "
+                     "fitted total %.4g; times basis %.2f s target %.3f s fit %.3f s\n",
+                     static_cast<unsigned long long>(seed), n, w.active.size(), study::cloud_error(fa, ba, rho),
+                     pf.weights.total, w.total, basis_s, target_s, fit_s);
+        const std::vector<float> fitm = part(w, false), fit1 = part(w, true);
+        report("fitted single + fitted multiple", fit1, fitm, fit_s);
+        report("direct single + fitted multiple", d1.data, fitm, direct_s + fit_s);
+    }
+}
