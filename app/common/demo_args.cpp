@@ -1,5 +1,6 @@
 #include "demo_args.h"
 
+#include "camera_arg.h"
 #include "cli.h"
 #include "core/core.h"
 #include "scene/scene.h"
@@ -52,6 +53,7 @@ void declare(CommandLine& cli, DemoArgs& a) {
            "start with the scene's sun (or moon) moved along its course to solar time H (hours; clamped to "
            "the hours it stands above the horizon); a screenshot waits for its solve")
         ->type_name("H");
+    add_camera_option(app, a.camera, kTool);
     app.add_flag_callback(
         "--no-dither", [&a] { a.dither = false; }, "turn the 8-bit dither off (smaller PNGs)");
     add_choice(

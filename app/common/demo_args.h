@@ -1,6 +1,8 @@
 // fulgur's (the demo's) command line (kept apart from main so tests can check the validation).
 #pragma once
 
+#include "scene/scene.h"
+
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -22,6 +24,9 @@ struct DemoArgs {
     bool dither = true;                 ///< --no-dither turns the 8-bit dither off
     std::optional<std::string> quality;  ///< --quality PRESET: paper, hybrid or per_strike (default: the scene's)
     std::optional<double> time_of_day;   ///< --time-of-day H: the sun moved to solar time H at the start
+    /// --camera JSON|FILE: the first view (a scene's "camera" object, as JSON text or a file
+    /// holding it); default: the scene's camera, else the default view.
+    std::optional<scene::CameraSpec> camera;
     bool help = false;
 };
 

@@ -1,5 +1,6 @@
 #include "shot_args.h"
 
+#include "camera_arg.h"
 #include "cli.h"
 #include "core/core.h"
 #include "scene/scene.h"
@@ -44,6 +45,7 @@ void declare(CommandLine& cli, ShotArgs& a) {
            "baked bases to use (default: the scene's .fgb, baked first if missing or stale)")
         ->type_name("FILE")
         ->check(existing_file());
+    add_camera_option(app, a.camera, kTool);
     cli.number("--seed", a.seed, "strike seed (unsigned integer); a strike starts at t = 0", std::uint64_t(0))
         ->type_name("S")
         ->required();

@@ -1,6 +1,8 @@
 // fulgur-shot's command line (kept apart from main so tests can check the validation).
 #pragma once
 
+#include "scene/scene.h"
+
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -43,6 +45,9 @@ struct ShotArgs {
     /// --vdb OUT.vdb: also write the density and the frame's lightning S (every direction, on
     /// the lighting grid) as OpenVDB.
     std::optional<std::filesystem::path> vdb;
+    /// --camera JSON|FILE: the view (a scene's "camera" object, as JSON text or a file holding
+    /// it); default: the scene's camera, else the default view.
+    std::optional<scene::CameraSpec> camera;
     bool help = false;
 };
 

@@ -11,6 +11,8 @@
 #include "platform/platform.h"
 #include "render/render.h"
 
+#include <imgui.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -62,7 +64,7 @@ int headless_sequence(scene::Scene s, core::Grid3<float> density, const sky::Sce
         const std::size_t strike = view.pipeline().strike_at(0.0, seed);
         times = flash_times(view.pipeline().storm().strike(strike).profile, 0.0, frames);
     }
-    const render::Camera cam = view::default_camera(view.density());
+    const render::Camera cam = view::scene_camera(view.scene().camera, view.density());
     for (int i = 0; i < frames; ++i) {
         const double t = times[std::size_t(i)];
         view::ViewOptions opt;
@@ -93,6 +95,7 @@ int main(int argc, char** argv) {
     const bool at_peak = args.screenshot_at_peak, solve_direct_at_start = args.solve_direct;
     try {
         scene::Scene s = scene::load_scene(scene_path);
+        if (args.camera) s.camera = args.camera;
         core::Grid3<float> density = scene::make_density(s);
         const sky::ScenePlan plan = app::plan_and_print(s, density, stdout);
         const auto fgb = app::bases_for(plan, s, density, std::nullopt);
@@ -108,7 +111,13 @@ int main(int argc, char** argv) {
         std::optional<app::TimeOfDay> time_of_day;
         if (view.plan().sun) time_of_day.emplace(view, args.time_of_day);
 
-        app::Orbit orbit{-90, 6, 1.1, 0.4, 5.0};  // distance as a multiple of the cloud size
+        // The scene's camera as an orbit the mouse turns; the wheel's range spans 0.4-5 cloud sizes
+        // (and the scene's own distance).
+        scene::CameraSpec view_spec = view::explicit_orbit(view.scene().camera, view.density());
+        const glm::dvec3 extent = view.density().geom.extent();
+        const double size = std::max({extent.x, extent.y, extent.z});
+        app::Orbit orbit{view_spec.azimuth_deg, view_spec.elevation_deg, *view_spec.distance,
+                         std::min(0.4 * size, *view_spec.distance), std::max(5.0 * size, *view_spec.distance)};
         view::ViewOptions opt;
         opt.settings.dither = args.dither;
         const int seed = int(seed_arg.value_or(view.scene().lightning.seed));
@@ -145,7 +154,16 @@ int main(int argc, char** argv) {
                 if (time_of_day->busy()) shell.delay_screenshot();  // a screenshot shows the new sun
             }
             opt.settings.frame_index++;
-            const render::Camera cam = view::default_camera(view.density(), orbit.az, orbit.el, orbit.dist);
+            view_spec.azimuth_deg = orbit.az;
+            view_spec.elevation_deg = orbit.el;
+            view_spec.distance = orbit.dist;
+            if (shell.camera_pressed() || panel.take_camera_request()) {
+                const std::string json = scene::camera_json(view_spec, 8);  // ~mm at storm distances
+                std::printf("camera: %s\n", json.c_str());
+                std::fflush(stdout);
+                ImGui::SetClipboardText(json.c_str());
+            }
+            const render::Camera cam = view::scene_camera(view_spec, view.density());
             rep = view.render(cam, t, shell.width(), shell.height(), opt, accuracy.shown_field());
             panel.add_frame(rep);
             shell.end_frame();

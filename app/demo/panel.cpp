@@ -64,6 +64,11 @@ bool DemoPanel::draw(const DemoShell& shell, double t, const view::FrameReport& 
     ImGui::SetNextWindowSize({430, 0}, ImGuiCond_FirstUseEver);
     ImGui::Begin("Fulgur", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
     ImGui::Text("%.1f fps  (%.1f ms frame)", shell.fps(), rep.wall_ms);
+    if (ImGui::Button("Print camera (C)")) camera_request_ = true;
+    if (ImGui::IsItemHovered())
+        ImGui::SetTooltip(
+            "prints the view as a scene's \"camera\" (stdout and the clipboard): for the scene file, "
+            "fulgur-shot --camera or fulgur --camera; drag to turn, wheel to move closer");
     ImGui::Separator();
     if (lightning_section(t)) strike = true;
     ImGui::Separator();

@@ -4,6 +4,8 @@
 // and applies it to the view between frames.
 #pragma once
 
+#include <utility>
+
 #include "demo/accuracy_panel.h"
 #include "demo/plots.h"
 #include "demo/shell.h"
@@ -25,6 +27,8 @@ public:
     /// After drawing: a changed bolt shape or strike rate makes a new storm (bolts regenerate,
     /// same bake); a requested strike starts at t with the next seed.
     void apply(double t, bool strike);
+    /// "Print camera" was pressed since the last call.
+    bool take_camera_request() noexcept { return std::exchange(camera_request_, false); }
     /// Records a rendered frame in the frame-time plots.
     void add_frame(const view::FrameReport& rep) { frame_plots_.add(rep); }
     /// Storm seconds per wall second (the slider).
@@ -39,6 +43,7 @@ private:
     AccuracyPanel& accuracy_;
     TimeOfDay* time_of_day_;
     bool has_lightning_, separate_;
+    bool camera_request_ = false;
     float rate_;
     int seed_;
     bool autos_;

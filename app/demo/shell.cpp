@@ -47,19 +47,21 @@ bool DemoShell::begin_frame(Orbit& orbit) {
     if (!io.WantCaptureMouse) {
         if (glfwGetMouseButton(win_, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
             orbit.az -= 0.3 * (cx - mx_);
-            orbit.el = std::clamp(orbit.el + 0.3 * (cy - my_), -10.0, 80.0);
+            orbit.el = std::clamp(orbit.el + 0.3 * (cy - my_), -89.0, 89.0);
         }
         if (io.MouseWheel != 0)
             orbit.dist = std::clamp(orbit.dist * std::pow(0.9, io.MouseWheel), orbit.dist_min, orbit.dist_max);
     }
     mx_ = cx, my_ = cy;
 
-    strike_ = false;
+    strike_ = camera_ = false;
     if (!io.WantCaptureKeyboard) {
-        const bool sp = glfwGetKey(win_, GLFW_KEY_SPACE) == GLFW_PRESS, pk = glfwGetKey(win_, GLFW_KEY_P) == GLFW_PRESS;
+        const bool sp = glfwGetKey(win_, GLFW_KEY_SPACE) == GLFW_PRESS, pk = glfwGetKey(win_, GLFW_KEY_P) == GLFW_PRESS,
+                   ck = glfwGetKey(win_, GLFW_KEY_C) == GLFW_PRESS;
         strike_ = sp && !space_down_;
+        camera_ = ck && !c_down_;
         if (pk && !p_down_) screenshot_ = true;
-        space_down_ = sp, p_down_ = pk;
+        space_down_ = sp, p_down_ = pk, c_down_ = ck;
         if (glfwGetKey(win_, GLFW_KEY_ESCAPE) == GLFW_PRESS) glfwSetWindowShouldClose(win_, 1);
     }
     ImGui_ImplOpenGL3_NewFrame();

@@ -1,5 +1,5 @@
 // The demo's window shell: GLFW window + Dear ImGui set-up and teardown, frame timing and
-// smoothed fps, the orbit camera input, key edges (Space, P, Esc) and screenshots (P, or
+// smoothed fps, the orbit camera input, key edges (Space, C, P, Esc) and screenshots (P, or
 // --screenshot-after N).
 #pragma once
 
@@ -12,9 +12,9 @@ struct GLFWwindow;
 
 namespace fulgur::app {
 
-/// Orbit camera from the mouse: left-drag turns (azimuth; elevation clamped to -10..80
-/// degrees), the wheel scales the distance within [dist_min, dist_max]. ImGui keeps the
-/// mouse while it is over the panel.
+/// Orbit camera from the mouse: left-drag turns (azimuth; elevation clamped to -89..89
+/// degrees, as a scene's camera), the wheel scales the distance (metres) within
+/// [dist_min, dist_max]. ImGui keeps the mouse while it is over the panel.
 struct Orbit {
     double az = 0, el = 0, dist = 1, dist_min = 0.1, dist_max = 10;
 };
@@ -40,6 +40,7 @@ public:
     double dt() const noexcept { return dt_; }                ///< seconds since the previous frame
     double fps() const noexcept { return fps_; }              ///< exponentially smoothed
     bool strike_pressed() const noexcept { return strike_; }  ///< Space went down this frame
+    bool camera_pressed() const noexcept { return camera_; }  ///< C went down this frame
     void request_screenshot() noexcept { screenshot_ = true; }
     /// While held, --screenshot-after waits (e.g. for a reference solve still running).
     void hold_screenshot(bool hold) noexcept { hold_ = hold; }
@@ -54,7 +55,8 @@ private:
     GLFWwindow* win_ = nullptr;
     int screenshot_after_ = 0, frames_ = 0, shots_ = 0;
     double dt_ = 0, fps_ = 0, mx_ = 0, my_ = 0;
-    bool strike_ = false, screenshot_ = false, space_down_ = false, p_down_ = false, hold_ = false, auto_shot_ = false;
+    bool strike_ = false, camera_ = false, screenshot_ = false, space_down_ = false, p_down_ = false, c_down_ = false,
+         hold_ = false, auto_shot_ = false;
     double last_ = 0;
 };
 

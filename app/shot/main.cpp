@@ -232,7 +232,12 @@ int main(int argc, char** argv) {
             opt.components.single &= off != "single";
             opt.components.multiple &= off != "multiple";
         }
-        const render::Camera cam = view::default_camera(view.density());
+        // The view: --camera, else the scene's, else the default; printed with every part explicit.
+        const std::optional<scene::CameraSpec> chosen = a.camera ? a.camera : view.scene().camera;
+        const render::Camera cam = view::scene_camera(chosen, view.density());
+        const scene::CameraSpec stated = chosen && chosen->kind == scene::CameraSpec::Kind::LookAt
+                                             ? *chosen
+                                             : view::explicit_orbit(chosen, view.density());
         std::optional<transport::SourceField> shown;  // --since-known: the frame as it was then
         if (a.since_known_ms) {
             opt.wait_for_strikes = false;
@@ -250,7 +255,9 @@ int main(int argc, char** argv) {
         ctx->present();
         const auto px = ctx->read_rgba8();
         core::write_png(a.output, a.width, a.height, 4, px);
-        std::cout << app::timings_json(r, a.width, a.height) << std::endl;
+        std::string line = app::timings_json(r, a.width, a.height);
+        line.pop_back();  // the object's closing brace: the camera joins it
+        std::cout << line << ",\"camera\":" << scene::camera_json(stated) << "}" << std::endl;
         if (a.vdb) write_frame_vdb(view, t, opt, a, shown_field);
         if (a.reference) render_reference(view, ctx.get(), cam, t, opt, a, px, shown_field);
     } catch (const std::exception& e) {

@@ -5,6 +5,7 @@
 #include <glm/geometric.hpp>
 
 #include <algorithm>
+#include <charconv>
 #include <fstream>
 #include <limits>
 #include <numbers>
@@ -334,6 +335,39 @@ void parse_lightning(JsonObject o, Scene& s) {
     validated_as_pointer(o.file(), [&] { lightning::validate(l, "lightning"); });
 }
 
+// "camera": {"position", "target", "up"?, "vertical_fov"?} or {"orbit": {"azimuth",
+// "elevation", "distance"?, "target"?}, "vertical_fov"?}.
+CameraSpec parse_camera_object(JsonObject o) {
+    CameraSpec c;
+    const Range coordinate{-1e7, 1e7};
+    c.vertical_fov_deg = o.number_or("vertical_fov", c.vertical_fov_deg, Range{1.0, 170.0});
+    if (auto orbit = o.optional_object("orbit")) {
+        for (const char* k : {"position", "target", "up"})
+            if (o.has(k))
+                o.fail(k,
+                       "does not go with \"orbit\" (an orbit's target is orbit.target; its position follows "
+                       "from azimuth, elevation and distance)");
+        c.kind = CameraSpec::Kind::Orbit;
+        c.azimuth_deg = orbit->number("azimuth", Range{-360.0, 360.0});
+        c.elevation_deg = orbit->number("elevation", Range{-89.0, 89.0});
+        if (orbit->has("distance")) c.distance = orbit->number("distance", Range{1.0, 1e7});
+        if (orbit->has("target")) c.orbit_target = orbit->vec3("target", coordinate);
+        orbit->finish();
+    } else {
+        c.kind = CameraSpec::Kind::LookAt;
+        c.position = o.vec3("position", coordinate);
+        c.target = o.vec3("target", coordinate);
+        c.up = o.vec3_or("up", c.up, coordinate);
+        const glm::dvec3 view = c.target - c.position;
+        if (glm::length(view) < 1e-3) o.fail("target", "is the camera's position: the camera looks nowhere");
+        if (glm::length(c.up) == 0.0) o.fail("up", "is the zero vector");
+        if (glm::length(glm::cross(glm::normalize(view), glm::normalize(c.up))) < 1e-3)
+            o.fail("up", "is parallel to the view direction (target - position): the image has no up");
+    }
+    o.finish();
+    return c;
+}
+
 }  // namespace
 
 Scene parse_scene(std::string_view json_text, std::string_view file_name, const std::filesystem::path& base_dir) {
@@ -389,6 +423,7 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
             q->fail("multiple", "the paper preset solves nothing per strike: must be \"none\"");
         q->finish();
     }
+    if (auto c = root.optional_object("camera")) s.camera = parse_camera_object(*c);
     if (auto l = root.optional_object("limits")) {
         s.limits.memory_bytes = l->number_or("memory_gib", 0.0, Range{0.0, 1e6}) * double(1ull << 30);
         s.limits.bake_seconds =
@@ -562,6 +597,47 @@ transport::LightingMedium make_transport_medium(const Scene& s, const core::Grid
     m.density = core::downsample(density, s.lighting_downsample / s.transport.refine);
     m.optics = s.medium;
     return m;
+}
+
+CameraSpec parse_camera(std::string_view json_text, std::string_view source) {
+    const std::string file(source);
+    const nlohmann::json j = detail::parse_json(json_text, file);
+    if (!j.is_object()) throw core::Error(file, "expected a JSON object (a scene's \"camera\")");
+    return parse_camera_object(JsonObject(j, file, ""));
+}
+
+CameraSpec camera_argument(std::string_view value, std::string_view option) {
+    const std::size_t first = value.find_first_not_of(" \t\r\n");
+    if (first != std::string_view::npos && value[first] == '{') return parse_camera(value, option);
+    if (value.empty()) throw core::Error(std::string(option), "needs a camera: JSON text or a file holding it");
+    const std::filesystem::path file(value);
+    const std::string named = std::string(option) + " " + file.string();
+    try {
+        return parse_camera(core::read_file(file, kMaxSceneBytes, "camera"), named);
+    } catch (const core::Error& e) {
+        if (std::string_view(e.what()).starts_with(named)) throw;
+        throw core::Error(std::string(option), e.what());  // the file could not be read
+    }
+}
+
+std::string camera_json(const CameraSpec& c, int digits) {
+    auto num = [digits](double v) {
+        if (digits > 0) return core::format_number(v, digits);
+        char buf[32];
+        const auto r = std::to_chars(buf, buf + sizeof buf, v);  // shortest text that reads back exactly
+        return std::string(buf, r.ptr);
+    };
+    auto vec = [&](const glm::dvec3& v) { return "[" + num(v.x) + ", " + num(v.y) + ", " + num(v.z) + "]"; };
+    std::string out = "{";
+    if (c.kind == CameraSpec::Kind::Orbit) {
+        out += "\"orbit\": {";
+        if (c.orbit_target) out += "\"target\": " + vec(*c.orbit_target) + ", ";
+        if (c.distance) out += "\"distance\": " + num(*c.distance) + ", ";
+        out += "\"azimuth\": " + num(c.azimuth_deg) + ", \"elevation\": " + num(c.elevation_deg) + "}";
+    } else {
+        out += "\"position\": " + vec(c.position) + ", \"target\": " + vec(c.target) + ", \"up\": " + vec(c.up);
+    }
+    return out + ", \"vertical_fov\": " + num(c.vertical_fov_deg) + "}";
 }
 
 }  // namespace fulgur::scene

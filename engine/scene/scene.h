@@ -181,6 +181,35 @@ std::string_view to_string(Quality::Preset p) noexcept;
 /// The preset with its default knobs; throws core::Error naming `where` for an unknown name.
 Quality quality_preset(std::string_view name, std::string_view where = "quality");
 
+/// "camera": where the scene is seen from. Only the view depends on it: no bake, solve or cache
+/// does (it is not part of the scene key). Either a look-at camera (position, target, up) or an
+/// orbit around a target (azimuth counter-clockwise from +x toward +y, elevation above the
+/// horizontal, distance); an orbit's unset target and distance are the default view's
+/// (view::scene_camera: the cloud's centre at a third of its height, 1.1 x the cloud's largest
+/// extent away). docs/scene-format.md, "camera".
+struct CameraSpec {
+    enum class Kind { LookAt, Orbit };
+    Kind kind = Kind::Orbit;
+    glm::dvec3 position{0.0}, target{0.0};            ///< LookAt: metres
+    glm::dvec3 up{0.0, 0.0, 1.0};                     ///< LookAt: not parallel to target - position
+    double azimuth_deg = -90.0, elevation_deg = 6.0;  ///< Orbit
+    std::optional<glm::dvec3> orbit_target;           ///< Orbit: default, the cloud's centre
+    std::optional<double> distance;                   ///< Orbit: metres; default, 1.1 x the cloud's extent
+    double vertical_fov_deg = 50.0;
+    bool operator==(const CameraSpec&) const = default;
+};
+
+/// Parses a "camera" object given on its own (fulgur-shot --camera, the demo's --camera): JSON
+/// text holding one object, validated as a scene's "camera"; errors name `source` and the field.
+CameraSpec parse_camera(std::string_view json_text, std::string_view source);
+/// A camera as a command line gives it (`option`, e.g. "--camera"): JSON text holding the
+/// object (first non-blank character '{'), else the name of a file holding it (read up to
+/// kMaxSceneBytes). Errors name the option or the file, and the field.
+CameraSpec camera_argument(std::string_view value, std::string_view option);
+/// The camera as the JSON object a scene's "camera" holds: numbers as the shortest text that
+/// reads back exactly (digits 0), or to `digits` significant digits.
+std::string camera_json(const CameraSpec& c, int digits = 0);
+
 /// "limits": what a bake of the scene may cost before it is refused (docs/scene-format.md).
 struct Limits {
     /// Peak memory, bytes; 0: three quarters of the machine's physical memory.
@@ -220,6 +249,7 @@ struct Scene {
     static constexpr glm::dvec3 kLightningColour{0.9473, 0.9881, 1.2733};
     Quality quality;  ///< "quality": how frames are lit (a preset name, or an object with "preset" and knobs)
     Limits limits;    ///< section "limits"
+    std::optional<CameraSpec> camera;  ///< section "camera" (unset: the default view)
 
     /// Output directions the bake needs: 1 when scattering is isotropic (g == 0), since S
     /// then does not depend on direction; the scene's count otherwise.

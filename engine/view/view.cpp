@@ -1,5 +1,8 @@
 #include "view/view.h"
 
+#include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -33,14 +36,56 @@ std::optional<std::filesystem::path> bases_for(
     return std::nullopt;
 }
 
-render::Camera default_camera(const core::Grid3<float>& density, double azimuth_deg, double elevation_deg,
-                              double distance_factor) {
+namespace {
+
+// The default view's orbit centre (the cloud's centre at a third of its height) and distance
+// (distance_factor x the cloud's largest extent).
+void default_orbit(const core::Grid3<float>& density, double distance_factor, glm::dvec3& target, double& distance) {
     const core::GridGeometry& g = density.geom;
     const glm::dvec3 ext = g.extent();
-    glm::dvec3 target = g.origin + 0.5 * ext;
+    target = g.origin + 0.5 * ext;
     target.z = g.origin.z + 0.33 * ext.z;
-    const double distance = distance_factor * std::max({ext.x, ext.y, ext.z});
+    distance = distance_factor * std::max({ext.x, ext.y, ext.z});
+}
+
+}  // namespace
+
+render::Camera default_camera(const core::Grid3<float>& density, double azimuth_deg, double elevation_deg,
+                              double distance_factor) {
+    glm::dvec3 target;
+    double distance = 0.0;
+    default_orbit(density, distance_factor, target, distance);
     return render::Camera::orbit(target, distance, azimuth_deg, elevation_deg);
+}
+
+render::Camera scene_camera(const std::optional<scene::CameraSpec>& spec, const core::Grid3<float>& density) {
+    if (!spec) return default_camera(density);
+    if (spec->kind == scene::CameraSpec::Kind::LookAt)
+        return render::Camera{spec->position, spec->target, spec->up, spec->vertical_fov_deg};
+    const scene::CameraSpec o = explicit_orbit(spec, density);
+    return render::Camera::orbit(*o.orbit_target, *o.distance, o.azimuth_deg, o.elevation_deg, o.vertical_fov_deg);
+}
+
+scene::CameraSpec explicit_orbit(const std::optional<scene::CameraSpec>& spec, const core::Grid3<float>& density) {
+    scene::CameraSpec o = spec.value_or(scene::CameraSpec{});
+    if (o.kind == scene::CameraSpec::Kind::LookAt) {
+        const glm::dvec3 v = o.position - o.target;  // from the target toward the camera
+        const double r = glm::length(v);
+        o.kind = scene::CameraSpec::Kind::Orbit;
+        o.orbit_target = o.target;
+        o.distance = r;
+        o.elevation_deg = glm::degrees(std::asin(std::clamp(v.z / r, -1.0, 1.0)));
+        o.azimuth_deg = glm::degrees(std::atan2(v.y, v.x));
+        o.up = {0.0, 0.0, 1.0};
+        o.position = o.target = glm::dvec3(0.0);
+        return o;
+    }
+    glm::dvec3 target;
+    double distance = 0.0;
+    default_orbit(density, 1.1, target, distance);
+    if (!o.orbit_target) o.orbit_target = target;
+    if (!o.distance) o.distance = distance;
+    return o;
 }
 
 StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::optional<std::filesystem::path>& fgb,

@@ -41,6 +41,14 @@ std::optional<std::filesystem::path> bases_for(
 render::Camera default_camera(const core::Grid3<float>& density, double azimuth_deg = -90.0, double elevation_deg = 6.0,
                               double distance_factor = 1.1);
 
+/// The scene's camera (its "camera" section, fulgur-shot's or the demo's --camera): an orbit's
+/// unset target and distance are default_camera's; no camera at all is default_camera().
+render::Camera scene_camera(const std::optional<scene::CameraSpec>& spec, const core::Grid3<float>& density);
+/// The same camera as an orbit with every part explicit (target, distance, azimuth,
+/// elevation): what the demo turns with the mouse and prints. A look-at camera becomes the
+/// orbit around its target through its position (its `up` is dropped: an orbit's is +z).
+scene::CameraSpec explicit_orbit(const std::optional<scene::CameraSpec>& spec, const core::Grid3<float>& density);
+
 struct ViewOptions {
     /// Automatic exposure (render::Settings::auto_exposure); the manual exposure, when it is
     /// switched off, is 2^-3: the default storm's return-stroke peak (1e5 W/sr/m) then fills

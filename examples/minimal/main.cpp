@@ -91,7 +91,7 @@ int main(int argc, char** argv) {
         const double stroke =
             storm.pipeline().storm().strike(strike).profile.stroke_onset.at(0);  // after the strike starts
 
-        const render::Camera camera = view::default_camera(storm.density());
+        const render::Camera camera = view::scene_camera(storm.scene().camera, storm.density());  // the scene's view
         view::ViewOptions options;
         options.wait_for_strikes = true;  // offline frames: the preset's own light, never its fallback
         const std::string prefix = argv[2];

@@ -101,7 +101,7 @@ Shot shoot(const std::string& name, std::uint64_t seed, double t, bool after_ret
         opt.settings.auto_exposure = false;
         opt.settings.exposure = *exposure;
     }
-    const view::FrameReport r = v.render(view::default_camera(v.density()), t, w, h, opt);
+    const view::FrameReport r = v.render(view::scene_camera(v.scene().camera, v.density()), t, w, h, opt);
     MESSAGE(name << " seed " << seed << " t " << t << ": exposure " << r.gpu.exposure
                  << std::string(r.lit ? ", flash" : ", no flash"));
     ctx.present();

@@ -60,7 +60,7 @@ Shot shoot(const std::string& name, std::uint64_t seed, runtime::Components comp
     view::ViewOptions opt;
     opt.components = comp;
     opt.settings.timing = render::Timing::Off;
-    const view::FrameReport r = view.render(view::default_camera(view.density()), t, W, H, opt);
+    const view::FrameReport r = view.render(view::scene_camera(view.scene().camera, view.density()), t, W, H, opt);
     REQUIRE(r.lit);
     ctx.present();
     Shot out;
@@ -142,7 +142,7 @@ TEST_CASE("storm: a render lit by a given field; the direct-solve reference of t
     view::StormView view(std::move(s), std::move(d), fgb, ctx.get_proc_address());
     const std::size_t i = view.pipeline().strike_at(0.0, 41);
     const double t = view.pipeline().storm().strike(i).profile.stroke_onset.at(0) + 0.002;
-    const render::Camera cam = view::default_camera(view.density());
+    const render::Camera cam = view::scene_camera(view.scene().camera, view.density());
     view::ViewOptions opt;
     opt.settings.timing = render::Timing::Off;
     auto shot = [&](const transport::SourceField* field) {

@@ -3,7 +3,12 @@
 
 #include <doctest/doctest.h>
 
+#include "core/core.h"
+
+#include <glm/vec3.hpp>
+
 #include <cmath>
+#include <filesystem>
 #include <numbers>
 #include <string>
 
@@ -444,4 +449,84 @@ TEST_CASE("lightning section: defaults, every field, and ranges naming the field
     bad(R"({"first_strike": "soon"})", "/lightning/first_strike");
     bad(R"({"thunder": true})", "/lightning/thunder: unknown key");
     bad(R"({"timing": {"boom": 1}})", "/lightning/timing/boom: unknown key");
+}
+
+TEST_CASE("camera: an orbit or a look-at camera; bad values name the field") {
+    CHECK_FALSE(parse_scene(kMinimal, "s.json").camera.has_value());  // the default view
+    const std::string fields = "\"medium\":";
+    auto camera = [&](const std::string& c) {
+        return parse_scene(with(fields, "\"camera\": " + c + ",\n  " + fields), "s.json").camera;
+    };
+    const auto orbit = camera(R"({"orbit": {"azimuth": -60, "elevation": 12}})");
+    REQUIRE(orbit.has_value());
+    CHECK(orbit->kind == CameraSpec::Kind::Orbit);
+    CHECK(orbit->azimuth_deg == -60.0);
+    CHECK(orbit->elevation_deg == 12.0);
+    CHECK_FALSE(orbit->orbit_target.has_value());  // the cloud's centre, resolved by the view
+    CHECK_FALSE(orbit->distance.has_value());
+    CHECK(orbit->vertical_fov_deg == 50.0);
+    const auto full = camera(R"({"orbit": {"target": [1, 2, 3], "distance": 9000, "azimuth": 5, "elevation": -4},
+                                 "vertical_fov": 35})");
+    CHECK(full->orbit_target.value() == glm::dvec3(1, 2, 3));
+    CHECK(full->distance.value() == 9000.0);
+    CHECK(full->vertical_fov_deg == 35.0);
+    const auto look = camera(R"({"position": [0, -9000, 300], "target": [0, 0, 4000]})");
+    CHECK(look->kind == CameraSpec::Kind::LookAt);
+    CHECK(look->position == glm::dvec3(0, -9000, 300));
+    CHECK(look->target == glm::dvec3(0, 0, 4000));
+    CHECK(look->up == glm::dvec3(0, 0, 1));
+
+    auto rejects = [&](const std::string& c, const char* reason) {
+        CAPTURE(c);
+        CHECK_THROWS_WITH_AS(camera(c), doctest::Contains(reason), Error);
+    };
+    rejects(R"({"orbit": {"azimuth": 0, "elevation": 90}})", "s.json: /camera/orbit/elevation");
+    rejects(R"({"orbit": {"azimuth": 0}})", "/camera/orbit/elevation: required");
+    rejects(R"({"orbit": {"azimuth": 0, "elevation": 0, "distance": 0}})", "/camera/orbit/distance");
+    rejects(R"({"orbit": {"azimuth": 0, "elevation": 0}, "target": [0, 0, 0]})", "/camera/target: does not go");
+    rejects(R"({"orbit": {"azimuth": 0, "elevation": 0}, "vertical_fov": 180})", "/camera/vertical_fov");
+    rejects(R"({"orbit": {"azimuth": 0, "elevation": 0, "radius": 5}})", "/camera/orbit/radius: unknown key");
+    rejects(R"({"position": [0, 0, 0]})", "/camera/target: required");
+    rejects(R"({"position": [0, 0, 0], "target": [0, 0, 0]})", "/camera/target: is the camera's position");
+    rejects(R"({"position": [0, 0, 0], "target": [0, 0, 10]})", "/camera/up: is parallel");
+    rejects(R"({"position": [0, 0, 0], "target": [0, 10, 0], "up": [0, 0, 0]})", "/camera/up: is the zero vector");
+    rejects(R"({"position": [0, 0, 1e300], "target": [0, 10, 0]})", "/camera/position");
+    rejects(R"({"position": [0, 0, 0], "target": [0, 10, 0], "zoom": 2})", "/camera/zoom: unknown key");
+}
+
+TEST_CASE("camera: camera_json reads back exactly; a command line gives JSON text or a file") {
+    fulgur::core::Rng rng(11);
+    for (int i = 0; i < 200; ++i) {
+        CameraSpec c;
+        c.vertical_fov_deg = 1.0 + 169.0 * rng.uniform();
+        if (i % 2) {
+            c.kind = CameraSpec::Kind::LookAt;
+            c.position = {rng.uniform() * 2e4 - 1e4, rng.uniform() * 2e4 - 1e4, rng.uniform() * 1e4};
+            c.target = c.position + glm::dvec3(1.0 + rng.uniform(), rng.uniform(), rng.uniform());
+            c.up = {rng.uniform() * 0.1, rng.uniform() * 0.1, 1.0};
+        } else {
+            c.azimuth_deg = rng.uniform() * 720.0 - 360.0;
+            c.elevation_deg = rng.uniform() * 178.0 - 89.0;
+            if (i % 4 == 0) c.orbit_target = glm::dvec3(rng.uniform(), -rng.uniform() * 1e3, 1e3 * rng.uniform());
+            if (i % 8 == 0) c.distance = 1.0 + 1e5 * rng.uniform();
+        }
+        const std::string j = camera_json(c);
+        CAPTURE(j);
+        CHECK(parse_camera(j, "--camera") == c);
+        CHECK(camera_argument("  " + j, "--camera") == c);
+    }
+    CameraSpec c;
+    c.azimuth_deg = -87.30000000000001;
+    CHECK(camera_json(c, 8).find("-87.3,") != std::string::npos);  // the demo's rounding
+
+    const std::filesystem::path file = fulgur::test::scratch_dir("scene_camera") / "camera.json";
+    fulgur::core::write_file(file, R"({"orbit": {"azimuth": 30, "elevation": 10}, "vertical_fov": 40})");
+    CHECK(camera_argument(file.string(), "--camera").vertical_fov_deg == 40.0);
+    fulgur::core::write_file(file, R"({"orbit": {"azimuth": 30}})");
+    const std::string named = "--camera " + file.string() + ": /orbit/elevation";
+    CHECK_THROWS_WITH_AS(camera_argument(file.string(), "--camera"), doctest::Contains(named.c_str()), Error);
+    CHECK_THROWS_WITH_AS(camera_argument((file.parent_path() / "none.json").string(), "--camera"),
+                         doctest::Contains("--camera"), Error);
+    CHECK_THROWS_WITH_AS(camera_argument("", "--camera"), doctest::Contains("needs a camera"), Error);
+    CHECK_THROWS_WITH_AS(parse_camera("[1, 2]", "--camera"), doctest::Contains("expected a JSON object"), Error);
 }
