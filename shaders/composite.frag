@@ -1,6 +1,6 @@
 #version 450 core
 // Full-resolution composite: bilinear upsampling of the ray-march result (cloud, glow and
-// smooth background), the stars through the cloud's transmittance, the bolt core; then
+// smooth background), the stars through the cloud's transmittance, the bolt core, the glare; then
 // exposure, the filmic tone map and the sRGB encoding (u_hdr_output = 1 writes the
 // radiance instead, for read-back).
 #include "common.glsl"
@@ -8,8 +8,11 @@
 
 layout(binding = 3) uniform sampler2D u_march;   // internal res: rgb radiance, a transmittance
 layout(binding = 4) uniform sampler2D u_core;    // full res: bolt core radiance
+layout(binding = 5) uniform sampler2D u_glare_sum;  // internal res: the glare pyramid's sum (when u_glare is 1)
 
 uniform int u_hdr_output;
+uniform int u_glare;         // 1: the frame's light spread by the eye's point-spread function
+uniform float u_glare_keep;  // the share of march + core left in place (render::GlareFit::keep)
 
 out vec4 o_colour;
 
@@ -45,6 +48,9 @@ void main() {
     vec3 d = camera_ray(uv * 2.0 - 1.0);
     float pixel_angle = 2.0 * cam_pos.w / sizes.y;
     vec3 hdr = m.rgb + m.a * star_radiance(cam_pos.xyz, d, pixel_angle) + texelFetch(u_core, ivec2(pixel), 0).rgb;
+    if (u_glare != 0)
+        hdr = u_glare_keep * (m.rgb + texelFetch(u_core, ivec2(pixel), 0).rgb) +
+              m.a * star_radiance(cam_pos.xyz, d, pixel_angle) + textureLod(u_glare_sum, uv, 0.0).rgb;
     if (u_hdr_output != 0) {
         o_colour = vec4(hdr, 1.0);
         return;

@@ -14,7 +14,7 @@ namespace fulgur::app {
 
 namespace {
 
-constexpr std::array<std::string_view, 8> kSwitches = {"sun",  "sky",    "silver-lining", "glow",
+constexpr std::array<std::string_view, 9> kSwitches = {"sun",  "sky",    "silver-lining", "glow",    "glare",
                                                        "bolt", "ground", "single",        "multiple"};
 
 constexpr const char* kTool = "fulgur-shot";
@@ -84,15 +84,16 @@ void declare(CommandLine& cli, ShotArgs& a) {
                    const std::size_t e = std::min(v.find(',', b), v.size());
                    const std::string name = v.substr(b, e - b);
                    if (std::find(kSwitches.begin(), kSwitches.end(), name) == kSwitches.end())
-                       throw core::Error(kTool, "--off: \"" + name +
-                                                    "\" is not one of sun, sky, silver-lining, glow, bolt, ground, "
-                                                    "single, multiple");
+                       throw core::Error(kTool,
+                                         "--off: \"" + name +
+                                             "\" is not one of sun, sky, silver-lining, glow, glare, bolt, ground, "
+                                             "single, multiple");
                    a.off.push_back(name);
                    b = e + 1;
                }
            },
            "run-time switches to turn off, comma-separated: sun, sky, silver-lining (the sun's single scattering "
-           "at full resolution: on the lighting grid instead), glow, bolt, ground, single, multiple")
+           "at full resolution: on the lighting grid instead), glow, glare, bolt, ground, single, multiple")
         ->type_name("A,B,..");
     app.add_option("-o,--output", a.output, "output PNG")->type_name("OUT.png")->required();
     path_option(app, "--reference", a.reference, ".png",

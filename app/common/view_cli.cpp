@@ -46,10 +46,11 @@ std::string timings_json(const view::FrameReport& r, int width, int height, cons
       << ",\"accumulate_ms\":" << r.stages.accumulate << ",\"inverse_haar_ms\":" << r.stages.inverse_haar
       << ",\"upload_ms\":" << r.gpu.wall.upload << ",\"resolve_ms\":" << r.gpu.wall.resolve
       << ",\"glow_ms\":" << r.gpu.wall.glow << ",\"march_ms\":" << r.gpu.wall.march
-      << ",\"bolt_draw_ms\":" << r.gpu.wall.bolt << ",\"composite_ms\":" << r.gpu.wall.composite
-      << ",\"gpu_total_ms\":" << r.gpu.wall.total << ",\"frame_ms\":" << r.wall_ms
-      << ",\"internal_width\":" << r.gpu.internal_width << ",\"internal_height\":" << r.gpu.internal_height
-      << ",\"exposure\":" << r.gpu.exposure << ",\"metered_exposure\":" << r.gpu.metered_exposure << "}";
+      << ",\"bolt_draw_ms\":" << r.gpu.wall.bolt << ",\"glare_ms\":" << r.gpu.wall.glare
+      << ",\"composite_ms\":" << r.gpu.wall.composite << ",\"gpu_total_ms\":" << r.gpu.wall.total
+      << ",\"frame_ms\":" << r.wall_ms << ",\"internal_width\":" << r.gpu.internal_width
+      << ",\"internal_height\":" << r.gpu.internal_height << ",\"exposure\":" << r.gpu.exposure
+      << ",\"metered_exposure\":" << r.gpu.metered_exposure << "}";
     return o.str();
 }
 

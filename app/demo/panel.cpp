@@ -121,6 +121,8 @@ void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& r
     if (!separate_ && ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled))
         ImGui::SetTooltip("this bake has no separate multiple-scattering component");
     ImGui::Checkbox("glow", &opt.settings.glow);
+    ImGui::SameLine();
+    ImGui::Checkbox("glare", &opt.settings.glare);
     ImGui::Checkbox("bolt", &opt.settings.bolt);
     ImGui::Checkbox("ground", &opt.settings.ground);
     static_light_panel(opt, view_.plan());

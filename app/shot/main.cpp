@@ -227,6 +227,7 @@ int main(int argc, char** argv) {
             opt.sky &= off != "sky";
             opt.sun_full_resolution &= off != "silver-lining";
             opt.settings.glow &= off != "glow";
+            opt.settings.glare &= off != "glare";
             opt.settings.bolt &= off != "bolt";
             opt.settings.ground &= off != "ground";
             opt.components.single &= off != "single";

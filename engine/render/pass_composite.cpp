@@ -1,5 +1,5 @@
-// The composite pass: the upsampled march over the background, plus the bolt, tone mapped
-// into the caller's framebuffer.
+// The composite pass: the upsampled march over the background, plus the bolt and the glare,
+// tone mapped into the caller's framebuffer.
 #include "render/detail/renderer_impl.h"
 
 #include <glad/gl.h>
@@ -18,13 +18,20 @@ void Renderer::Impl::composite_pass(const FrameUniforms& u, const CallerTarget& 
     const GLuint p =
         program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}});
     glUseProgram(p);
-    glUniform1i(glGetUniformLocation(p, "u_hdr_output"), 0);
-    glBindTextureUnit(3, march_target.tex);
-    glBindTextureUnit(4, core_target.tex);
+    bind_composite_inputs(p, false);
     glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(caller.fbo));
     glViewport(0, 0, u.width, u.height);
     glDrawArrays(GL_TRIANGLES, 0, 3);
     timer.end(kComposite);
+}
+
+void Renderer::Impl::bind_composite_inputs(GLuint p, bool hdr) const {
+    glUniform1i(glGetUniformLocation(p, "u_hdr_output"), hdr ? 1 : 0);
+    glUniform1i(glGetUniformLocation(p, "u_glare"), glare_ran ? 1 : 0);
+    glUniform1f(glGetUniformLocation(p, "u_glare_keep"), glare_ran ? float(glare_fit.keep) : 1.0f);
+    glBindTextureUnit(3, march_target.tex);
+    glBindTextureUnit(4, core_target.tex);
+    glBindTextureUnit(5, glare_ran ? glare_up[0].tex : march_target.tex);
 }
 
 }  // namespace fulgur::render

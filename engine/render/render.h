@@ -190,6 +190,11 @@ struct Settings {
     double air_scattering = 1.5e-5;  ///< sigma_s of the (rainy) air around the bolt (1/m): glow strength
     double glow_radius = 600.0;      ///< glow quad radius (m); the profile tapers to 0 there
     double bolt_min_width_px = 1.5;  ///< thinner ribbons are widened and dimmed (flux conserved)
+    /// The eye's glare around the channel (glare_psf, Spencer et al. 1995): the frame's light
+    /// spread by P through a pyramid (GlareFit), energy conserving, so a channel 10^4-10^6
+    /// times the cloud veils its surround while an even area keeps its radiance. Runs only in
+    /// frames that draw the channel (bolt on, lit segments); off: no pass, the same pixels.
+    bool glare = false;
     /// Directions with smaller interpolation weights are not needed (see view_directions);
     /// 0 uses every direction with a non-zero weight.
     double direction_min_weight = kDirectionMinWeight;
@@ -237,6 +242,41 @@ double plain_march_samples(const Camera& camera, const core::GridGeometry& volum
                            double step_metres);
 
 // ---------------------------------------------------------------------------------------
+// Glare
+
+/// The eye's glare: the photopic point-spread function of Spencer et al. 1995 (Eqs. 4-7),
+///   P(theta) = 0.384 f0 + 0.478 f1 + 0.138 f2,     theta in degrees,
+///   f0 = 2.61e6 exp(-(theta / 0.02)^2),  f1 = 20.91 / (theta + 0.02)^3,  f2 = 72.37 / (theta + 0.02)^2,
+/// per steradian: f0 and f1 each hold one unit of energy over the sphere, f2 (its log tail)
+/// reaches one unit at ~80 degrees. The scattering in the cornea, lens and retina that makes a
+/// source far brighter than its surround veil them: what a display cannot show by luminance,
+/// the renderer adds as the veil (Settings::glare).
+double glare_psf(double theta_deg) noexcept;
+/// The fraction of a point's light P puts within `theta_deg` of it (closed form; small angles,
+/// dOmega = 2 pi theta dtheta).
+double glare_energy_within(double theta_deg) noexcept;
+
+/// P approximated by the renderer's glare pyramid, which starts at the ray march's resolution:
+/// a frame keeps `keep` of its light in place (P's energy within half a ray-march pixel: the
+/// core of f0 and f1) and spreads the rest by a sum of Gaussians, one per pyramid level (sigma
+/// doubling per level), with non-negative weights fitted to P's energy-within-radius curve
+/// from one ray-march pixel to `reach_deg` (the frame's half diagonal: light P sends farther
+/// leaves the frame).
+struct GlareFit {
+    double keep = 1.0;
+    std::vector<double> weights;   ///< per level
+    std::vector<double> sigma_px;  ///< per level: the Gaussian's width in internal (ray-march) pixels
+    double reach_deg = 0.0;
+    double max_error = 0.0;  ///< largest |model - P| of the energy within a radius, over the fitted radii
+};
+/// The fit for a frame whose output pixels span `output_pixel_deg` and whose ray march runs at
+/// `internal_scale` of the output resolution, with `levels` pyramid levels (>= 1).
+GlareFit fit_glare(double output_pixel_deg, double internal_scale, int levels, double reach_deg);
+/// The Gaussian width (internal pixels) of pyramid level k's contribution: the variance of its
+/// box downsamples, tent upsamples and bilinear resampling (docs/render.md, "Glare").
+double glare_level_sigma(int k) noexcept;
+
+// ---------------------------------------------------------------------------------------
 // Output
 
 /// Times of one frame's passes, milliseconds (0 for passes that did not run).
@@ -247,6 +287,7 @@ struct PassTimes {
     double march = 0;
     double meter = 0;      ///< exposure metering (automatic exposure only)
     double bolt = 0;       ///< endpoint transmittances + core ribbons
+    double glare = 0;      ///< the glare pyramid (frames that draw the channel with Settings::glare)
     double composite = 0;  ///< upsampling, background, tone map
     double total = 0;      ///< the whole render() call
 };
@@ -264,6 +305,7 @@ struct FrameStats {
     int glow_quads = 0, bolt_segments = 0;
     double exposure = 0.0;          ///< the exposure the frame was tone mapped with
     double metered_exposure = 0.0;  ///< what the automatic exposure called for (0: manual)
+    double glare_keep = 1.0;        ///< the share of the frame's light the glare left in place (1: no glare)
 };
 
 class Renderer {

@@ -72,6 +72,8 @@ void validate_settings(const Settings& st) {
     range(st.air_scattering, 0.0, 1.0, false, "air_scattering");
     range(st.glow_radius, 0.0, 1e6, true, "glow_radius");
     range(st.bolt_min_width_px, 0.0, 64.0, true, "bolt_min_width_px");
+    // Glare: the pyramid's first level averages at most 8x8 output pixels per internal one.
+    if (st.glare) range(st.internal_scale, 0.125, 1.0, false, "internal_scale (with glare)");
     range(st.ground_height, -1e6, 1e6, false, "ground_height");
     for (int c = 0; c < 3; ++c) range(st.flash_colour[c], 0.0, inf, false, "flash_colour");
     range(st.direction_min_weight, 0.0, 0.5, false, "direction_min_weight");
@@ -150,6 +152,8 @@ Renderer::~Renderer() {
     m.march_target.release();
     m.core_target.release();
     m.hdr_target.release();
+    for (detail::Target& t : m.glare_down) t.release();
+    for (detail::Target& t : m.glare_up) t.release();
 }
 
 void Renderer::set_volume(const VolumeDesc& v) {
@@ -349,6 +353,7 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
     m.march_pass(st, u, timer);
     m.meter_pass(st, u, timer, stats);
     m.bolt_pass(st, u, timer, stats);
+    m.glare_pass(camera, st, u, timer, stats);
     m.composite_pass(u, caller, timer);
     timer.finish();
     caller.restore();
@@ -367,11 +372,9 @@ std::vector<float> Renderer::read_hdr() const {
     const GLuint p =
         m.program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}});
     glUseProgram(p);
-    glUniform1i(glGetUniformLocation(p, "u_hdr_output"), 1);
     glBindBufferBase(GL_UNIFORM_BUFFER, 0, m.frame_ubo);
     glBindVertexArray(m.vao);
-    glBindTextureUnit(3, m.march_target.tex);
-    glBindTextureUnit(4, m.core_target.tex);
+    m.bind_composite_inputs(p, true);
     glDisable(GL_BLEND);
     glBindFramebuffer(GL_FRAMEBUFFER, m.hdr_target.fbo);
     glViewport(0, 0, m.out_w, m.out_h);

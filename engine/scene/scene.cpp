@@ -278,6 +278,7 @@ void parse_effects(JsonObject o, Effects& e) {
     e.sun = o.boolean_or("sun", e.sun);
     e.sky = o.boolean_or("sky", e.sky);
     e.glow = o.boolean_or("glow", e.glow);
+    e.glare = o.boolean_or("glare", e.glare);
     e.ground = o.boolean_or("ground", e.ground);
     o.finish();
 }

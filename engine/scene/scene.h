@@ -50,6 +50,7 @@ struct Effects {
     bool sun = false;                 ///< the scene's sun (or moon); default: on when it has one
     bool sky = false;                 ///< the sky dome's light; default: on when it has a sky
     bool glow = true;                 ///< glow quads around strokes (render)
+    bool glare = true;                ///< the eye's glare around the drawn channel (render::Settings::glare)
     bool ground = true;               ///< ground plane lit by the flash (render)
 };
 

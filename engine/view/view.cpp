@@ -268,6 +268,7 @@ FrameReport StormView::render(const render::Camera& camera, double t, int width,
     }
     // What the scene switched off is not drawn whatever the options say.
     st.glow = st.glow && scene_.effects.glow;
+    st.glare = st.glare && scene_.effects.glare;
     st.ground = st.ground && scene_.effects.ground;
     rep.gpu = renderer_->render(camera, st, width, height);
     rep.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - t0).count();
@@ -332,6 +333,7 @@ FrameReport median_report(const std::vector<FrameReport>& reps) {
     m.gpu.wall.glow = med([](const FrameReport& r) { return r.gpu.wall.glow; });
     m.gpu.wall.march = med([](const FrameReport& r) { return r.gpu.wall.march; });
     m.gpu.wall.bolt = med([](const FrameReport& r) { return r.gpu.wall.bolt; });
+    m.gpu.wall.glare = med([](const FrameReport& r) { return r.gpu.wall.glare; });
     m.gpu.wall.composite = med([](const FrameReport& r) { return r.gpu.wall.composite; });
     m.gpu.wall.total = med([](const FrameReport& r) { return r.gpu.wall.total; });
     m.wall_ms = med([](const FrameReport& r) { return r.wall_ms; });

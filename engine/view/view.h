@@ -56,6 +56,7 @@ struct ViewOptions {
     ViewOptions() {
         settings.auto_exposure = true;
         settings.exposure = 0.125;
+        settings.glare = true;  // where the scene calls for it (effects.glare) and a channel is drawn
     }
     runtime::Components components;
     /// Run-time switches of the static light (the scene's effects must call for it too): off

@@ -85,8 +85,10 @@ struct Shot {
 // The frame fulgur-shot renders: a strike with `seed` at t = 0 and the time after its first
 // return stroke's onset (`after_return_stroke`), or `t` itself; with the automatic exposure,
 // or the given one.
+// `glare`: the eye's glare around the channel (on in fulgur-shot); the goldens of how the
+// frame composes its terms leave it off, so they are the frames of a renderer without it.
 Shot shoot(const std::string& name, std::uint64_t seed, double t, bool after_return_stroke, int w, int h,
-           bool wait_for_strikes = false, std::optional<double> exposure = std::nullopt) {
+           bool wait_for_strikes = false, std::optional<double> exposure = std::nullopt, bool glare = false) {
     view::StormView& v = scene_view(name);
     platform::Context& ctx = context(w, h);
     if (v.has_lightning()) {
@@ -97,6 +99,7 @@ Shot shoot(const std::string& name, std::uint64_t seed, double t, bool after_ret
     view::ViewOptions opt;
     opt.settings.timing = render::Timing::Off;
     opt.wait_for_strikes = wait_for_strikes;
+    opt.settings.glare = glare;
     if (exposure) {
         opt.settings.auto_exposure = false;
         opt.settings.exposure = *exposure;
@@ -135,11 +138,11 @@ double golden_exposure(const std::string& name, double metered) {
 // and so does a 5% change of a part that carries 15% of the cloud's light (mean ~0.05).
 // The automatic exposure is checked too: within one meter bin (0.25 stop) of the golden's.
 void golden(const std::string& name, const std::string& scene, std::uint64_t seed, double t, bool after_return_stroke,
-            bool wait_for_strikes = false) {
+            bool wait_for_strikes = false, bool glare = false) {
     constexpr int W = 320, H = 180;
-    const Shot metered = shoot(scene, seed, t, after_return_stroke, W, H, wait_for_strikes);
+    const Shot metered = shoot(scene, seed, t, after_return_stroke, W, H, wait_for_strikes, std::nullopt, glare);
     const double e = golden_exposure(name, metered.exposure);
-    const Shot shot = shoot(scene, seed, t, after_return_stroke, W, H, wait_for_strikes, e);
+    const Shot shot = shoot(scene, seed, t, after_return_stroke, W, H, wait_for_strikes, e, glare);
     const test::GoldenTolerance tol{.pixel_threshold = 2, .max_failing_fraction = 0.005, .max_mean_diff = 0.05};
     const test::GoldenResult r = test::compare_golden(kGoldens / (name + ".png"), W, H, shot.rgba, tol, out_dir());
     MESSAGE(r.message);
@@ -158,6 +161,13 @@ TEST_CASE("golden: the day cumulus (sun and sky, no lightning, no .fgb)") {
 TEST_CASE("golden: the night storm at a flash and under the moon between flashes") {
     golden("storm", "storm", 1, 0.002, true);
     golden("storm-moonlit", "storm", 1, 0.0, false);
+}
+
+TEST_CASE("golden: the night storm's flash with the eye's glare around the channel") {
+    // The same frame as "storm": with glare the channel veils the dark sky and the cloud's edge
+    // around it (render::glare_psf); between flashes nothing changes (storm-moonlit is the
+    // frame with glare on or off: no channel, no glare pass).
+    golden("storm-glare", "storm", 1, 0.002, true, false, true);
 }
 
 TEST_CASE("golden: the night storm's flash with its own preset, per_strike_mc (each strike solved by Monte Carlo)") {
@@ -180,7 +190,7 @@ TEST_CASE("golden: a cloud from an OpenVDB file (content/clouds/storm-cell.vdb, 
 TEST_CASE("exposure: at the return-stroke peak of seeds 1-5, fewer than 2% of the lit pixels at the display's white") {
     for (std::uint64_t seed = 1; seed <= 5; ++seed) {
         const std::vector<std::uint8_t> px =
-            shoot("storm", seed, 0.0005, true, 640, 360).rgba;  // fulgur-shot's defaults
+            shoot("storm", seed, 0.0005, true, 640, 360, false, std::nullopt, true).rgba;  // fulgur-shot's defaults
         std::size_t lit = 0, white = 0, clipped = 0;
         for (std::size_t p = 0; p < px.size(); p += 4) {
             const int lo = std::min({px[p], px[p + 1], px[p + 2]}), hi = std::max({px[p], px[p + 1], px[p + 2]});

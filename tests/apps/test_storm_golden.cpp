@@ -60,6 +60,7 @@ Shot shoot(const std::string& name, std::uint64_t seed, runtime::Components comp
     view::ViewOptions opt;
     opt.components = comp;
     opt.settings.timing = render::Timing::Off;
+    opt.settings.glare = false;  // how the frame composes its terms (the glare has its own golden)
     const view::FrameReport r = view.render(view::scene_camera(view.scene().camera, view.density()), t, W, H, opt);
     REQUIRE(r.lit);
     ctx.present();
@@ -145,6 +146,7 @@ TEST_CASE("storm: a render lit by a given field; the direct-solve reference of t
     const render::Camera cam = view::scene_camera(view.scene().camera, view.density());
     view::ViewOptions opt;
     opt.settings.timing = render::Timing::Off;
+    opt.settings.glare = false;
     auto shot = [&](const transport::SourceField* field) {
         REQUIRE(view.render(cam, t, W, H, opt, field).lit);
         ctx.present();

@@ -31,7 +31,7 @@ struct FrameBlock {
 static_assert(sizeof(FrameBlock) == 64 + 11 * 16 + 8 * 16 + 4 * 16 + 7 * 16, "FrameBlock must match std140");
 
 /// The passes of a frame in the order render() runs them (the timer's slots).
-enum Pass { kResolve, kGlow, kMarch, kMeter, kBolt, kComposite, kPassCount };
+enum Pass { kResolve, kGlow, kMarch, kMeter, kBolt, kGlare, kComposite, kPassCount };
 
 /// Process CPU time (all threads, including a software rasterizer's), milliseconds.
 inline double process_cpu_ms() noexcept {
@@ -115,7 +115,8 @@ public:
 
 private:
     static PassTimes times(const double* pass, double upload, double total) noexcept {
-        return {upload, pass[kResolve], pass[kGlow], pass[kMarch], pass[kMeter], pass[kBolt], pass[kComposite], total};
+        return {upload,      pass[kResolve], pass[kGlow],      pass[kMarch], pass[kMeter],
+                pass[kBolt], pass[kGlare],   pass[kComposite], total};
     }
     Timing mode_;
     const GLuint* queries_;

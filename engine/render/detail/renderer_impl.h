@@ -69,6 +69,10 @@ struct Renderer::Impl {
 
     // Targets
     detail::Target glow_target, march_target, core_target, hdr_target;
+    std::vector<detail::Target> glare_down, glare_up;  // the glare pyramid's levels (pass_glare.cpp)
+    GlareFit glare_fit;
+    double glare_key[3] = {-1.0, -1.0, -1.0};  // pixel size, internal scale, reach the fit was made for
+    bool glare_ran = false;                    // this frame's composite adds glare_up[0]
     int out_w = 0, out_h = 0;
 
     // ----------------------------------------------------------------------------------
@@ -103,6 +107,9 @@ struct Renderer::Impl {
         program("glow", {{GL_VERTEX_SHADER, "glow.vert"}, {GL_FRAGMENT_SHADER, "glow.frag"}});
         program("bolt", {{GL_VERTEX_SHADER, "bolt.vert"}, {GL_FRAGMENT_SHADER, "bolt.frag"}});
         program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}});
+        program("glare_first", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_first.frag"}});
+        program("glare_down", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_down.frag"}});
+        program("glare_up", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_up.frag"}});
         march_program(MarchKernel::Fragment, march_defines(true, true, true, true));
     }
 
@@ -137,7 +144,11 @@ struct Renderer::Impl {
     void march_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer);
     void meter_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats);
     void bolt_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats);
+    void glare_pass(const Camera& camera, const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer,
+                    FrameStats& stats);
     void composite_pass(const detail::FrameUniforms& u, const detail::CallerTarget& caller, detail::PassTimer& timer);
+    /// Binds what composite.frag reads (march, core, glare) to program `p`; `hdr`: radiance out.
+    void bind_composite_inputs(GLuint p, bool hdr) const;
 };
 
 }  // namespace fulgur::render
