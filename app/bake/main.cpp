@@ -199,7 +199,7 @@ int run(const app::BakeArgs& a, const distributed::Session& session) {
     std::fflush(stdout);
     if (a.dry_run) return 0;
     if (scene_plan.sun || scene_plan.sky)
-        (void)sky::load_or_solve(s, density, solve::make_media(s, density), scene_plan, {},
+        (void)sky::load_or_solve(s, density, sky::static_media(s, density), scene_plan, {},
                                  [](const std::string& m) { std::printf("%s\n", m.c_str()); });
     if (!scene_plan.lightning) {
         if (!a.export_lights.empty())

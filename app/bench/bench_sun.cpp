@@ -17,7 +17,7 @@ FULGUR_BENCH(sun, "sun re-solve on the default storm at three elevations (time o
     const scene::Scene s = scene::load_scene(std::filesystem::path(FULGUR_SOURCE_ROOT) / "content/scenes/storm.json");
     FULGUR_ASSERT(s.sun.has_value(), "the default storm has a moon");
     const core::Grid3<float> density = scene::make_density(s);
-    const solve::Media media = solve::make_media(s, density);
+    const solve::Media media = sky::static_media(s, density);
     const sky::SolveSettings settings = sky::solve_settings(s);
     const sky::SunCourse course = sky::sun_course(*s.sun);
     std::vector<double> hours = {course.last_hour - 0.25, course.scene_hour, 12.0};  // ~4, 40, 50 degrees

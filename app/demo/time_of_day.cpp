@@ -10,7 +10,7 @@ namespace fulgur::app {
 
 TimeOfDay::TimeOfDay(view::StormView& view, std::optional<double> start_hour)
     : view_(view), course_(sky::sun_course(*view.scene().sun)), shown_(course_.scene_hour) {
-    resolver_ = std::make_unique<sky::SunResolver>(view.scene(), view.density(), view.media(), view.plan().settings, 1);
+    resolver_ = std::make_unique<sky::SunResolver>(view.scene(), view.density(), view.static_media(), view.plan().settings, 1);
     hour_ = float(shown_);
     if (start_hour) {
         hour_ = float(std::clamp(*start_hour, course_.first_hour, course_.last_hour));

@@ -130,6 +130,14 @@ void parse_transport(JsonObject o, TransportSettings& t) {
         lb->finish();
     }
     t.refine = int(o.integer_or("refine", t.refine, 1, 64));
+    if (auto st = o.optional_object("static_light")) {
+        t.static_refine = int(st->integer_or("refine", t.static_refine, 0, 64));
+        t.static_exact_orders = int(st->integer_or("exact_orders", t.static_exact_orders, 0, 2));
+        // Bounded so a solve ends: 2^27 paths are ~2 min on one core of this machine.
+        t.static_order2_paths = std::uint64_t(
+            st->integer_or("order2_paths", std::int64_t(t.static_order2_paths), 1000, std::int64_t(1) << 27));
+        st->finish();
+    }
     if (auto ss = o.optional_object("single_scattering")) {
         // transport::SingleScatteringOptions accepts [1e-9, 0.5].
         t.ss_tolerance = ss->number_or("tolerance", t.ss_tolerance, Range{1e-9, 0.5});
@@ -453,6 +461,11 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
                           core::format_number(s.drop_below) +
                               " drops every light: no light scatters more than medium.albedo (" +
                               core::format_number(s.medium.albedo) + ") of its power; the bake would light nothing");
+    if (s.transport.static_refine > 0 && s.lighting_downsample % s.transport.static_refine != 0)
+        throw core::Error(file + ": /transport/static_light/refine", "must divide /lighting/downsample (" +
+                                                                          std::to_string(s.lighting_downsample) +
+                                                                          "), got " +
+                                                                          std::to_string(s.transport.static_refine));
     if (s.lighting_downsample % s.transport.refine != 0)
         throw core::Error(file + ": /transport/refine", "must divide /lighting/downsample (" +
                                                             std::to_string(s.lighting_downsample) + "), got " +

@@ -121,6 +121,15 @@ struct TransportSettings {
     /// angular error falls on the smoother, dimmer higher orders (docs/lattice-boltzmann.md).
     int lb_exact_orders = 1;
     std::uint64_t lb_order2_paths = 50'000;
+    /// "static_light": how the sun's, moon's and sky's light is solved (once per scene and
+    /// direction, cached): its own transport-grid refinement and exactly solved orders, as
+    /// `refine` and lattice_boltzmann.exact_orders are for the bake's lights; 0 takes the bake's.
+    /// docs/sky.md measures them against the static light's truth.
+    int static_refine = 0;
+    int static_exact_orders = 0;
+    /// Order-2 Monte Carlo paths of a static solve with exact orders 2 (a sun; the sky's dome
+    /// samples share them by their weights).
+    std::uint64_t static_order2_paths = 400'000;
     // monte_carlo
     std::uint64_t mc_paths = 2'000'000;  ///< paths per light
     std::uint64_t mc_seed = 1;

@@ -36,6 +36,10 @@ std::string settings_lines(const SolveSettings& st) {
     d << "sky.method=" << to_string(st.method) << "\n";
     d << "sky.single=" << st.single << "\n";
     d << "sky.multiple=" << st.multiple << "\n";
+    d << "sky.refine=" << st.refine << "\n";
+    d << "sky.exact_orders=" << st.exact_orders << "\n";
+    if (st.multiple && st.exact_orders == 2)
+        d << "sky.order2_paths=" << st.order2_paths << "\nsky.order2_seed=" << st.seed << "\n";
     return d.str();
 }
 

@@ -51,13 +51,17 @@ ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, c
     }
 
     // How the sun and the sky are solved.
+    const std::string lattice = " (" + s.transport.lb_collision + " collision, " + s.transport.lb_thick_voxels +
+                                " thick voxels, tolerance " + core::format_number(s.transport.lb_tolerance) + ")";
     const std::string how =
         !e.multiple_scattering
             ? std::string("exact single scattering only (effects.multiple_scattering = false: no lattice solve)")
-            : "exact single scattering + lattice-Boltzmann for orders >= 2 (" + s.transport.lb_collision +
-                  " collision, " + s.transport.lb_thick_voxels + " thick voxels, tolerance " +
-                  core::format_number(s.transport.lb_tolerance) + ")";
-    const solve::Media grid = solve::make_media(s, density);
+        : p.settings.exact_orders == 2
+            ? "exact single scattering + order 2 by " + std::to_string(p.settings.order2_paths) +
+                  " Monte Carlo paths through the full-resolution density + lattice-Boltzmann for orders >= 3" +
+                  lattice
+            : "exact single scattering + lattice-Boltzmann for orders >= 2" + lattice;
+    const solve::Media grid = static_media(s, density);
     const core::Int3 td = grid.transport.density.dims();
     const std::string where = "on the " + std::to_string(td.x) + " x " + std::to_string(td.y) + " x " +
                               std::to_string(td.z) + " transport grid (" +

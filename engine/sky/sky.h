@@ -54,11 +54,25 @@ struct SolveSettings {
     /// Directions sampling the sky dome (equal solid angles over the upper hemisphere). An
     /// accuracy/time knob: each is one exact single-scattering solve.
     int sky_samples = 32;
+    /// The transport grid the solve runs on: the lighting grid refined by this (the media
+    /// passed to the solves must be static_media's, whose refine it is).
+    int refine = 1;
+    /// 2: order 2 by the expected-value Monte Carlo of the second flight through the
+    /// full-resolution density (order2_paths per sun; the sky's dome samples share them), the
+    /// lattice for orders >= 3, as transport.lattice_boltzmann.exact_orders does for point
+    /// lights. 1: the lattice for orders >= 2 (Hybrid only).
+    int exact_orders = 1;
+    std::uint64_t order2_paths = 400'000;
+    std::uint64_t seed = 1;  ///< of the order-2 Monte Carlo (a solve is deterministic)
 };
 
 /// The scene's settings: solve::single_scattering_options, solve::lattice_settings and its
-/// effects (the same accuracy knobs as the virtual-light bake).
+/// effects (the same accuracy knobs as the virtual-light bake), with transport.static_light's
+/// refine and exact orders (the bake's where it leaves them 0).
 SolveSettings solve_settings(const scene::Scene& s);
+/// The media static solves run in: the lighting grid refined by solve_settings(s).refine, with
+/// the full-resolution density when they solve order 2 exactly.
+solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density);
 
 /// S of one light on the lighting grid, per unit irradiance (a sun) or unit radiance (a sky
 /// basis), in W m^-2 sr^-1 per (W m^-2) or per (W m^-2 sr^-1).

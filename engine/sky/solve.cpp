@@ -3,6 +3,7 @@
 
 #include <glm/geometric.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -26,12 +27,41 @@ void check_light(const transport::DirectionalSource& l) {
 }
 
 /// The first-scattered light of a set of directional lights (each weighted): S1 and the
-/// uncollided fluence phi1 on the transport grid.
+/// uncollided fluence phi1 on the transport grid; with exact orders 2 also order 2 (S2, phi2).
 struct FirstScattered {
     transport::SourceField s1;
     core::Grid3<float> phi1;
     double seconds = 0.0;
+    transport::SourceField s2;  ///< empty unless exact orders 2
+    core::Grid3<float> phi2;
 };
+
+/// Order 2 of directional lights by the expected-value Monte Carlo of the second flight through
+/// the full-resolution density, tallied on the transport grid (as solve::solve does for point
+/// lights): each light `paths` paths, seeded by `seed` and its index.
+void second_order(const solve::Media& media, std::span<const transport::DirectionalSource> lights,
+                  std::span<const glm::dvec3> directions, std::uint64_t paths, std::uint64_t seed, FirstScattered& fs) {
+    FULGUR_ASSERT(!media.full.density.data.empty(), "sky: exact orders 2 needs static_media's full density");
+    core::Stopwatch sw;
+    const core::GridGeometry& geom = media.transport.density.geom;
+    const std::vector<glm::dvec3> dirs(directions.begin(), directions.end());
+    fs.s2 = transport::SourceField(geom, dirs);
+    fs.phi2 = core::Grid3<float>(geom, 0.0f);
+    for (std::size_t i = 0; i < lights.size(); ++i) {
+        if (lights[i].irradiance == 0.0) continue;
+        transport::MonteCarloOptions mo;
+        mo.paths = paths;
+        mo.batches = 4;
+        mo.max_scatterings = 1;
+        mo.expected_second_order = true;
+        mo.tally_fluence = true;
+        mo.seed = core::hash_seed(seed, i);
+        const transport::MonteCarloResult r = transport::monte_carlo(media.full, lights[i], geom, dirs, mo);
+        add_scaled(fs.s2, r.multiple, 1.0);
+        add_scaled(fs.phi2, r.fluence2, 1.0);
+    }
+    fs.seconds += sw.seconds();
+}
 
 FirstScattered first_scattered(const transport::LightingMedium& medium,
                                std::span<const transport::DirectionalSource> lights,
@@ -39,7 +69,7 @@ FirstScattered first_scattered(const transport::LightingMedium& medium,
     core::Stopwatch sw;
     const core::GridGeometry& geom = medium.density.geom;
     const std::vector<glm::dvec3> dirs(directions.begin(), directions.end());
-    FirstScattered out{transport::SourceField(geom, dirs), core::Grid3<float>(geom, 0.0f)};
+    FirstScattered out{transport::SourceField(geom, dirs), core::Grid3<float>(geom, 0.0f), 0.0, {}, {}};
     transport::SourceField tmp(geom, dirs);
     core::Grid3<float> phi_one;
     transport::SingleScatteringOptions ss = settings.single_options;
@@ -76,7 +106,8 @@ void take_lattice(LightField& out, transport::LbResult&& r) {
     out.seconds_multiple = r.seconds;
 }
 
-/// Hybrid: S1 kept (when asked) and the lattice fed with it for orders >= 2.
+/// Hybrid: S1 kept (when asked) and the lattice fed with it for orders >= 2, or with S2 for
+/// orders >= 3 (S2 then added) when fs holds order 2.
 LightField hybrid(const solve::Media& media, FirstScattered&& fs, std::span<const glm::dvec3> directions,
                   const SolveSettings& settings) {
     const transport::LightingMedium& medium = media.transport;
@@ -84,10 +115,12 @@ LightField hybrid(const solve::Media& media, FirstScattered&& fs, std::span<cons
     out.seconds_single = fs.seconds;
     out.first_scattered_power = first_scattered_power(medium, fs.phi1);
     if (settings.multiple) {
+        const bool two = !fs.s2.data.empty();
         transport::LbSources src;
-        src.first_scattered = &fs.s1;
-        src.first_scattered_fluence = &fs.phi1;
+        src.first_scattered = two ? &fs.s2 : &fs.s1;
+        src.first_scattered_fluence = two ? &fs.phi2 : &fs.phi1;
         take_lattice(out, transport::solve_lattice_boltzmann(medium, src, directions, settings.lattice));
+        if (two) add_scaled(out.multiple, fs.s2, 1.0);
     }
     if (settings.single) out.single = std::move(fs.s1);
     return out;
@@ -99,11 +132,14 @@ void average_onto_lighting(LightField& f, int refine) {
     if (!f.multiple.data.empty()) f.multiple = transport::block_average(f.multiple, refine);
 }
 
-void check_media(const solve::Media& media) {
+void check_media(const solve::Media& media, const SolveSettings& settings) {
     FULGUR_ASSERT(media.refine >= 1 &&
                       media.lighting.density.geom.voxel_size == media.transport.density.geom.voxel_size * media.refine,
                   "sky: media from solve::make_media");
+    FULGUR_ASSERT(media.refine == settings.refine, "sky: the media's refine must be the settings' (static_media)");
 }
+
+bool exact_two(const SolveSettings& settings) { return settings.multiple && settings.exact_orders == 2; }
 
 }  // namespace
 
@@ -121,12 +157,23 @@ SolveSettings solve_settings(const scene::Scene& s) {
     st.multiple = s.effects.multiple_scattering;
     st.single_options = solve::single_scattering_options(s);
     st.lattice = solve::lattice_settings(s);
+    st.refine = s.transport.static_refine > 0 ? s.transport.static_refine : s.transport.refine;
+    st.exact_orders = s.transport.static_exact_orders > 0 ? s.transport.static_exact_orders : s.transport.lb_exact_orders;
+    st.order2_paths = s.transport.static_order2_paths;
+    st.seed = s.transport.mc_seed;
+    // Every fine voxel of a needed lighting voxel is computed (as the bake's single scattering).
+    st.single_options.skip_block = st.refine;
     return st;
+}
+
+solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density) {
+    const SolveSettings st = solve_settings(s);
+    return solve::make_media(s, density, st.refine, exact_two(st));
 }
 
 LightField solve_directional(const solve::Media& media, std::span<const transport::DirectionalSource> lights,
                              std::span<const glm::dvec3> directions, const SolveSettings& settings) {
-    check_media(media);
+    check_media(media, settings);
     for (const transport::DirectionalSource& l : lights) check_light(l);
     LightField out;
     if (settings.method == Method::Lattice && settings.multiple) {
@@ -153,7 +200,9 @@ LightField solve_directional(const solve::Media& media, std::span<const transpor
             out.seconds_multiple += r.seconds;
         }
     } else {
-        out = hybrid(media, first_scattered(media.transport, lights, directions, settings), directions, settings);
+        FirstScattered fs = first_scattered(media.transport, lights, directions, settings);
+        if (exact_two(settings)) second_order(media, lights, directions, settings.order2_paths, settings.seed, fs);
+        out = hybrid(media, std::move(fs), directions, settings);
     }
     average_onto_lighting(out, media.refine);
     return out;
@@ -174,25 +223,45 @@ std::vector<DomeSample> dome_samples(int count) {
 
 SkyField solve_sky(const solve::Media& media, bool uniform, std::span<const glm::dvec3> directions,
                    const SolveSettings& settings) {
-    check_media(media);
+    check_media(media, settings);
     const std::vector<DomeSample> samples = dome_samples(settings.sky_samples);
+    const bool two = exact_two(settings);
+    // The dome's order 2: the sun's paths shared by the samples (equal solid angles).
+    const std::uint64_t paths2 =
+        std::max<std::uint64_t>(1000, settings.order2_paths / std::uint64_t(samples.size()));
     const core::GridGeometry& geom = media.transport.density.geom;
     const std::vector<glm::dvec3> dirs(directions.begin(), directions.end());
     // Each sample's exact single scattering once; both bases are weighted sums of them.
-    FirstScattered z{transport::SourceField(geom, dirs), core::Grid3<float>(geom, 0.0f)};
-    FirstScattered h{transport::SourceField(geom, dirs), core::Grid3<float>(geom, 0.0f)};
-    for (const DomeSample& d : samples) {
+    FirstScattered z{transport::SourceField(geom, dirs), core::Grid3<float>(geom, 0.0f), 0.0, {}, {}};
+    FirstScattered h{transport::SourceField(geom, dirs), core::Grid3<float>(geom, 0.0f), 0.0, {}, {}};
+    if (two) {
+        for (FirstScattered* f : {&z, &h}) {
+            f->s2 = transport::SourceField(geom, dirs);
+            f->phi2 = core::Grid3<float>(geom, 0.0f);
+        }
+    }
+    for (std::size_t k = 0; k < samples.size(); ++k) {
+        const DomeSample& d = samples[k];
         // Radiance L over a solid angle dOmega arriving from `toward`: a directional light
         // of irradiance L dOmega travelling along -toward.
         const transport::DirectionalSource light{-d.toward, d.solid_angle};
         FirstScattered one = first_scattered(media.transport, std::span(&light, 1), directions, settings);
+        if (two) second_order(media, std::span(&light, 1), directions, paths2, core::hash_seed(settings.seed, k), one);
         const double w = uniform ? 1.0 : scene::SkyDome::zenith_weight(d.toward.z);
         add_scaled(z.s1, one.s1, w);
         add_scaled(z.phi1, one.phi1, w);
+        if (two) {
+            add_scaled(z.s2, one.s2, w);
+            add_scaled(z.phi2, one.phi2, w);
+        }
         z.seconds += one.seconds;
         if (!uniform) {
             add_scaled(h.s1, one.s1, 1.0 - w);
             add_scaled(h.phi1, one.phi1, 1.0 - w);
+            if (two) {
+                add_scaled(h.s2, one.s2, 1.0 - w);
+                add_scaled(h.phi2, one.phi2, 1.0 - w);
+            }
         }
     }
     SkyField out;

@@ -41,11 +41,23 @@ transport::LbSettings lattice_settings(const scene::Scene& s) {
 }
 
 Media make_media(const scene::Scene& s, const core::Grid3<float>& density) {
+    return make_media(s, density, s.transport.refine, s.transport.lb_exact_orders == 2);
+}
+
+Media make_media(const scene::Scene& s, const core::Grid3<float>& density, int refine, bool full) {
+    FULGUR_ASSERT(refine >= 1 && s.lighting_downsample % refine == 0,
+                  "make_media: refine must divide lighting.downsample");
     Media m;
     m.lighting = scene::make_lighting_medium(s, density);
-    m.refine = s.transport.refine;
-    m.transport = m.refine == 1 ? m.lighting : scene::make_transport_medium(s, density);
-    if (s.transport.lb_exact_orders == 2) {
+    m.refine = refine;
+    if (refine == 1) {
+        m.transport = m.lighting;
+    } else {
+        scene::Scene r = s;
+        r.transport.refine = refine;
+        m.transport = scene::make_transport_medium(r, density);
+    }
+    if (full) {
         m.full.density = density;
         m.full.optics = s.medium;
     }

@@ -48,6 +48,10 @@ struct Media {
     transport::LightingMedium full;
 };
 Media make_media(const scene::Scene& s, const core::Grid3<float>& density);
+/// The same with its own refinement of the lighting grid (a divisor of lighting.downsample)
+/// and, with `full`, the full-resolution density (for an order-2 Monte Carlo): the static
+/// light's media (sky::static_media).
+Media make_media(const scene::Scene& s, const core::Grid3<float>& density, int refine, bool full);
 
 /// The scene's lattice-Boltzmann settings (transport.lattice_boltzmann).
 transport::LbSettings lattice_settings(const scene::Scene& s);

@@ -626,15 +626,36 @@ MonteCarloResult monte_carlo(const LightingMedium& medium, const PointSource& li
     return detail::run_grid(medium, em, directions, options);
 }
 
-MonteCarloResult monte_carlo(const LightingMedium& medium, const DirectionalSource& sun,
-                             std::span<const glm::dvec3> directions, const MonteCarloOptions& options) {
+namespace detail {
+namespace {
+
+/// The emitter of a checked sun over the medium's box.
+BoxSunEmitter checked_sun(const LightingMedium& medium, const DirectionalSource& sun) {
     const double len = glm::length(sun.direction);
     if (!std::isfinite(len) || !(len > 0.0)) throw core::Error("sun.direction", "must be a finite non-zero vector");
     if (!std::isfinite(sun.irradiance) || sun.irradiance < 0.0)
         throw core::Error("sun.irradiance", "must be finite and >= 0, got " + std::to_string(sun.irradiance));
     const core::GridGeometry& g = medium.density.geom;
-    const detail::BoxSunEmitter em(g.origin, g.upper(), sun.direction / len, sun.irradiance);
-    return detail::run_grid(medium, em, directions, options);
+    return BoxSunEmitter(g.origin, g.upper(), sun.direction / len, sun.irradiance);
+}
+
+int check_sources(const LightingMedium& medium, std::span<const PointSource> points, std::span<const LineSource> lines,
+                  const core::GridGeometry& tally_grid, const MonteCarloOptions& options);
+
+}  // namespace
+}  // namespace detail
+
+MonteCarloResult monte_carlo(const LightingMedium& medium, const DirectionalSource& sun,
+                             std::span<const glm::dvec3> directions, const MonteCarloOptions& options) {
+    return detail::run_grid(medium, detail::checked_sun(medium, sun), directions, options);
+}
+
+MonteCarloResult monte_carlo(const LightingMedium& medium, const DirectionalSource& sun,
+                             const core::GridGeometry& tally_grid, std::span<const glm::dvec3> directions,
+                             const MonteCarloOptions& options) {
+    const int f = detail::check_sources(medium, {}, {}, tally_grid, options);
+    return detail::run_grid(medium, detail::checked_sun(medium, sun), directions, options,
+                            f == 1 ? nullptr : &tally_grid);
 }
 
 namespace detail {

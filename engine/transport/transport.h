@@ -311,6 +311,14 @@ MonteCarloResult monte_carlo(const LightingMedium& medium, const PointSource& li
                              std::span<const glm::dvec3> directions, const MonteCarloOptions& options = {});
 MonteCarloResult monte_carlo(const LightingMedium& medium, const DirectionalSource& sun,
                              std::span<const glm::dvec3> directions, const MonteCarloOptions& options = {});
+/// The sun's light through `medium` (the full-resolution density: the truth of static light)
+/// tallied as voxel averages on `tally_grid`, a coarsening of the medium's grid by an integer
+/// factor (as the frame overload below). With tally_grid equal to the medium's grid this is the
+/// overload above (same paths, same numbers); on a coarser grid each cell is the volume average
+/// of the fine cells' tallies.
+MonteCarloResult monte_carlo(const LightingMedium& medium, const DirectionalSource& sun,
+                             const core::GridGeometry& tally_grid, std::span<const glm::dvec3> directions,
+                             const MonteCarloOptions& options = {});
 
 /// The truth of a set of sources (a frame's lightning channel): Monte Carlo through `medium`
 /// at full resolution (the scene's density grid, not the lighting grid), S tallied as voxel

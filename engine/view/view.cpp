@@ -102,7 +102,7 @@ StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::opti
     } else if (fgb) {
         throw core::Error(fgb->string(), "the scene has no lightning: it renders without a .fgb");
     }
-    if (plan_.sun || plan_.sky) static_ = sky::load_or_solve(scene_, density_, media(), plan_, setup.cache, setup.say);
+    if (plan_.sun || plan_.sky) static_ = sky::load_or_solve(scene_, density_, static_media(), plan_, setup.cache, setup.say);
     if (plan_.sun) {
         sun_ = scene_.sun;
         sun_transmittance_ = sky::sun_transmittance(density_, scene_.medium.extinction, static_.sun_direction);
@@ -185,6 +185,11 @@ void StormView::set_quality(const scene::Quality& q) {
 const solve::Media& StormView::media() {
     if (!media_) media_ = solve::make_media(scene_, density_);
     return *media_;
+}
+
+const solve::Media& StormView::static_media() {
+    if (!static_media_) static_media_ = sky::static_media(scene_, density_);
+    return *static_media_;
 }
 
 double StormView::time_all_directions(double t, const runtime::Components& components, bool wait_for_strikes) {

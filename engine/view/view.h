@@ -133,6 +133,9 @@ public:
                            bool wait_for_strikes = true);
     /// The media the direct solve runs in (solve::make_media: the lighting grid and the transport grid).
     const solve::Media& media();
+    /// The media the static light (sun, moon, sky) is solved in (sky::static_media: its own
+    /// transport.static_light refinement and exact orders).
+    const solve::Media& static_media();
     /// Relative L2 of the last frame's reconstruction against `reference` (a field like
     /// solve_direct's) over cloud voxels (lighting-grid density > 0), every direction the
     /// frame holds (after solve_direct: all). 0 when the last frame is dark.
@@ -179,7 +182,8 @@ private:
     std::unique_ptr<runtime::FramePipeline> pipeline_;
     std::unique_ptr<render::Renderer> renderer_;
     const runtime::Frame* last_ = nullptr;
-    std::optional<solve::Media> media_;  // built on first use (solve_direct) or for the static light
+    std::optional<solve::Media> media_;         // built on first use (solve_direct)
+    std::optional<solve::Media> static_media_;  // built on first use (the static light)
     // The static light: its solves, the sun's full-resolution transmittance, what is uploaded.
     sky::StaticLight static_;
     core::Grid3<float> sun_transmittance_;
