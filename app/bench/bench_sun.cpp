@@ -18,7 +18,7 @@ FULGUR_BENCH(sun, "sun re-solve on the default storm at three elevations (time o
     FULGUR_ASSERT(s.sun.has_value(), "the default storm has a moon");
     const core::Grid3<float> density = scene::make_density(s);
     const solve::Media media = sky::static_media(s, density);
-    const sky::SolveSettings settings = sky::solve_settings(s);
+    const sky::SolveSettings settings = sky::solve_settings(s, density);
     const sky::SunCourse course = sky::sun_course(*s.sun);
     std::vector<double> hours = {course.last_hour - 0.25, course.scene_hour, 12.0};  // ~4, 40, 50 degrees
     if (ctx.quick) hours = {course.scene_hour};
@@ -32,6 +32,22 @@ FULGUR_BENCH(sun, "sun re-solve on the default storm at three elevations (time o
             course.angles(hour, el, az);
             const sky::SunSolve r = sky::solve_sun(s, density, media, settings, sun.direction);
             const double rest = r.seconds - r.field.seconds_single - r.field.seconds_multiple;
+            // The time-of-day's preview (order 2 by the lattice, sky::SunResolver's first answer)
+            // and how far the refined solve moves the light from it (relative L2 of S over the
+            // cloud, single + multiple, every direction): the step the view shows when it lands.
+            sky::SolveSettings quick = settings;
+            quick.exact_orders = 1;
+            const transport::DirectionalSource unit{sun.direction, 1.0};  // as solve_sun
+            core::Stopwatch sw;
+            const sky::LightField p = sky::solve_directional(
+                media, std::span(&unit, 1), transport::output_directions(s.effective_directions()), quick);
+            const double preview_s = sw.seconds();
+            core::RelativeL2 step;
+            const std::vector<float>& rho = media.lighting.density.data;
+            for (std::size_t i = 0; i < p.multiple.data.size(); ++i)
+                if (rho[i % rho.size()] > 0.0f)
+                    step.add(double(p.single.data[i]) + p.multiple.data[i],
+                             double(r.field.single.data[i]) + r.field.multiple.data[i]);
             ctx.emit("sun", {{"scene", "content/scenes/storm.json"},
                              {"threads", t},
                              {"hour", hour},
@@ -46,7 +62,10 @@ FULGUR_BENCH(sun, "sun re-solve on the default storm at three elevations (time o
                              {"seconds", r.seconds},
                              {"seconds_single", r.field.seconds_single},
                              {"seconds_lattice", r.field.seconds_multiple},
-                             {"seconds_transmittance_and_rest", rest}});
+                             {"seconds_transmittance_and_rest", rest},
+                             {"exact_orders", settings.exact_orders},
+                             {"preview_seconds", preview_s},
+                             {"preview_to_refined_change", step.value()}});
         }
     }
 }

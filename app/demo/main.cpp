@@ -56,7 +56,8 @@ int headless_sequence(scene::Scene s, core::Grid3<float> density, const sky::Sce
     if (time_of_day && plan.sun) {  // the sun moved along its course, solved here
         const sky::SunCourse course = sky::sun_course(*view.scene().sun);
         const scene::Sun sun = course.at(*time_of_day);
-        view.set_sun_solve(sky::solve_sun(view.scene(), view.density(), view.static_media(), plan.settings, sun.direction));
+        view.set_sun_solve(
+            sky::solve_sun(view.scene(), view.density(), view.static_media(), plan.settings, sun.direction));
         view.set_sun(sun);
     }
     std::vector<double> times(std::size_t(frames), 0.0);  // without lightning: the same still scene

@@ -10,7 +10,8 @@ namespace fulgur::app {
 
 TimeOfDay::TimeOfDay(view::StormView& view, std::optional<double> start_hour)
     : view_(view), course_(sky::sun_course(*view.scene().sun)), shown_(course_.scene_hour) {
-    resolver_ = std::make_unique<sky::SunResolver>(view.scene(), view.density(), view.static_media(), view.plan().settings, 1);
+    resolver_ =
+        std::make_unique<sky::SunResolver>(view.scene(), view.density(), view.static_media(), view.plan().settings, 1);
     hour_ = float(shown_);
     if (start_hour) {
         hour_ = float(std::clamp(*start_hour, course_.first_hour, course_.last_hour));
@@ -29,10 +30,11 @@ void TimeOfDay::update() {
             break;
         }
     last_seconds_ = r->seconds;
+    preview_ = r->preview;
     double el = 0.0, az = 0.0;
     course_.angles(shown_, el, az);
-    std::printf("time of day: %.2f h (elevation %.1f deg, azimuth %.0f deg), solved in %.0f ms\n", shown_, el, az,
-                1e3 * last_seconds_);
+    std::printf("time of day: %.2f h (elevation %.1f deg, azimuth %.0f deg), %s in %.0f ms\n", shown_, el, az,
+                preview_ ? "preview solved" : "solved", 1e3 * last_seconds_);
     view_.set_sun_solve(std::move(*r));
     view_.set_sun(course_.at(shown_));
 }
@@ -45,10 +47,12 @@ void TimeOfDay::panel() {
     double el = 0.0, az = 0.0;
     course_.angles(shown_, el, az);
     ImGui::Text("shown: %.2f h, elevation %.1f deg, azimuth %.0f deg", shown_, el, az);
-    if (busy())
+    if (busy() && preview_)
+        ImGui::Text("preview shown (%.0f ms); refining: order 2 by Monte Carlo...", 1e3 * last_seconds_);
+    else if (busy())
         ImGui::TextUnformatted("solving the new direction (the old light stays shown)...");
     else if (last_seconds_ > 0.0)
-        ImGui::Text("last re-solve %.0f ms (lattice + full-resolution transmittance)", 1e3 * last_seconds_);
+        ImGui::Text("last re-solve %.0f ms", 1e3 * last_seconds_);
 }
 
 void TimeOfDay::request() {

@@ -37,6 +37,7 @@ private:
     std::vector<std::pair<double, glm::dvec3>> requests_;  // not yet shown: hour and direction
     float hour_ = 12.0f;
     double shown_ = 12.0, last_seconds_ = 0.0;
+    bool preview_ = false;  // the shown field is a SunResolver preview; its refined solve follows
 };
 
 }  // namespace fulgur::app

@@ -462,10 +462,9 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
                               " drops every light: no light scatters more than medium.albedo (" +
                               core::format_number(s.medium.albedo) + ") of its power; the bake would light nothing");
     if (s.transport.static_refine > 0 && s.lighting_downsample % s.transport.static_refine != 0)
-        throw core::Error(file + ": /transport/static_light/refine", "must divide /lighting/downsample (" +
-                                                                          std::to_string(s.lighting_downsample) +
-                                                                          "), got " +
-                                                                          std::to_string(s.transport.static_refine));
+        throw core::Error(file + ": /transport/static_light/refine",
+                          "must divide /lighting/downsample (" + std::to_string(s.lighting_downsample) + "), got " +
+                              std::to_string(s.transport.static_refine));
     if (s.lighting_downsample % s.transport.refine != 0)
         throw core::Error(file + ": /transport/refine", "must divide /lighting/downsample (" +
                                                             std::to_string(s.lighting_downsample) + "), got " +

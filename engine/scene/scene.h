@@ -123,8 +123,9 @@ struct TransportSettings {
     std::uint64_t lb_order2_paths = 50'000;
     /// "static_light": how the sun's, moon's and sky's light is solved (once per scene and
     /// direction, cached): its own transport-grid refinement and exactly solved orders, as
-    /// `refine` and lattice_boltzmann.exact_orders are for the bake's lights; 0 takes the bake's.
-    /// docs/sky.md measures them against the static light's truth.
+    /// `refine` and lattice_boltzmann.exact_orders are for the bake's lights. 0: the default,
+    /// refine from the medium's optical depth per lighting voxel (sky::static_refine_for) and
+    /// order 2 exact. docs/sky.md measures them against the static light's truth.
     int static_refine = 0;
     int static_exact_orders = 0;
     /// Order-2 Monte Carlo paths of a static solve with exact orders 2 (a sun; the sky's dome

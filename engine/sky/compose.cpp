@@ -2,6 +2,7 @@
 // (sky.h).
 #include "sky/sky.h"
 
+#include <atomic>
 #include <exception>
 #include <mutex>
 
@@ -69,24 +70,46 @@ struct SunResolver::Impl {
     mutable std::mutex mu;
     std::optional<SunSolve> ready;
     std::exception_ptr error;
-    core::Worker worker;  // last: its jobs use the members above until it is joined
+    std::atomic<std::uint64_t> generation{0};  // requests made so far
+    core::Worker worker;                       // last: its jobs use the members above until it is joined
 
     Impl(const scene::Scene& s, const core::Grid3<float>& d, const solve::Media& m, const SolveSettings& st, int t)
         : scene(s), density(d), media(m), settings(st), worker(t) {}
 
-    void solve(const glm::dvec3& d) {
-        std::optional<SunSolve> result;
-        std::exception_ptr e;
-        try {
-            result = solve_sun(scene, density, media, settings, d);
-        } catch (...) {
-            e = std::current_exception();
-        }
+    void publish(std::optional<SunSolve>&& result, std::exception_ptr e) {
         std::lock_guard<std::mutex> lock(mu);
         if (e)
             error = e;
         else
             ready = std::move(result);  // a newer finished solve replaces an untaken older one
+    }
+
+    void solve(const glm::dvec3& d, std::uint64_t request) {
+        const bool two_stage = settings.multiple && settings.exact_orders == 2;
+        try {
+            if (!two_stage) {
+                publish(solve_sun(scene, density, media, settings, d), nullptr);
+                return;
+            }
+            SolveSettings quick = settings;
+            quick.exact_orders = 1;
+            SunSolve preview = solve_sun(scene, density, media, quick, d);
+            preview.preview = true;
+            core::Grid3<float> transmittance = preview.transmittance;
+            publish(std::move(preview), nullptr);
+            if (generation.load() != request) return;  // the slider moved on: refine that one
+            core::Stopwatch sw;
+            SunSolve refined;
+            refined.direction = d;
+            const transport::DirectionalSource unit{d, 1.0};
+            refined.field = solve_directional(media, std::span(&unit, 1),
+                                              transport::output_directions(scene.effective_directions()), settings);
+            refined.transmittance = std::move(transmittance);
+            refined.seconds = sw.seconds();
+            publish(std::move(refined), nullptr);
+        } catch (...) {
+            publish(std::nullopt, std::current_exception());
+        }
     }
 };
 
@@ -98,7 +121,8 @@ SunResolver::~SunResolver() = default;
 
 void SunResolver::request(const glm::dvec3& direction) {
     Impl& im = *impl_;
-    im.worker.submit([&im, direction] { im.solve(direction); }, /*latest_only=*/true);
+    const std::uint64_t request = ++im.generation;
+    im.worker.submit([&im, direction, request] { im.solve(direction, request); }, /*latest_only=*/true);
 }
 
 std::optional<SunSolve> SunResolver::take() {

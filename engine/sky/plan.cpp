@@ -28,7 +28,7 @@ ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, c
                           "single_scattering and multiple_scattering are both false: no light "
                           "reaches the cloud, nothing to simulate");
     ScenePlan p;
-    p.settings = solve_settings(s);
+    p.settings = solve_settings(s, density);
     p.directions = s.effective_directions();
     auto& why = p.reasons;
     if (s.medium.g == 0.0)
@@ -58,10 +58,20 @@ ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, c
             ? std::string("exact single scattering only (effects.multiple_scattering = false: no lattice solve)")
         : p.settings.exact_orders == 2
             ? "exact single scattering + order 2 by " + std::to_string(p.settings.order2_paths) +
-                  " Monte Carlo paths through the full-resolution density + lattice-Boltzmann for orders >= 3" +
-                  lattice
+                  " Monte Carlo paths through the full-resolution density + lattice-Boltzmann for orders >= 3" + lattice
             : "exact single scattering + lattice-Boltzmann for orders >= 2" + lattice;
     const solve::Media grid = static_media(s, density);
+    if (e.multiple_scattering && (sun || sky))
+        why.push_back(
+            "static light on the lighting grid refined by " + std::to_string(p.settings.refine) +
+            (s.transport.static_refine > 0
+                 ? std::string(" (transport.static_light.refine)")
+                 : " (a transport voxel at density 1 at most one optical depth: extinction x " +
+                       core::format_number(density.geom.voxel_size * s.lighting_downsample) + " m = " +
+                       core::format_number(s.medium.extinction * density.geom.voxel_size * s.lighting_downsample) +
+                       " optical depths per lighting voxel)") +
+            ", order " + (p.settings.exact_orders == 2 ? "2 exact" : "2 by the lattice") +
+            ": docs/sky.md measures the configurations against the static light's truth");
     const core::Int3 td = grid.transport.density.dims();
     const std::string where = "on the " + std::to_string(td.x) + " x " + std::to_string(td.y) + " x " +
                               std::to_string(td.z) + " transport grid (" +
@@ -87,11 +97,15 @@ ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, c
         p.sky_uniform = s.sky->zenith() == s.sky->horizon();
         p.sky_single_solves = p.settings.sky_samples;
         p.sky_lattice_solves = e.multiple_scattering ? (p.sky_uniform ? 1 : 2) : 0;
-        why.push_back(std::string("sky dome (") + (p.sky_uniform ? "uniform" : "zenith-horizon gradient") +
-                      "): " + std::to_string(p.sky_single_solves) + " directions' exact single scattering, " +
-                      std::to_string(p.sky_lattice_solves) + " lattice solve" + (p.sky_lattice_solves == 1 ? "" : "s") +
-                      (p.sky_uniform ? "" : " (one per gradient end)") + " " + where +
-                      ", per unit radiance; the background is the same sky");
+        why.push_back(
+            std::string("sky dome (") + (p.sky_uniform ? "uniform" : "zenith-horizon gradient") +
+            "): " + std::to_string(p.sky_single_solves) + " directions' exact single scattering, " +
+            (e.multiple_scattering && p.settings.exact_orders == 2
+                 ? "their order 2 by Monte Carlo (" + std::to_string(p.settings.order2_paths) + " paths shared), "
+                 : std::string()) +
+            std::to_string(p.sky_lattice_solves) + " lattice solve" + (p.sky_lattice_solves == 1 ? "" : "s") +
+            (p.sky_uniform ? "" : " (one per gradient end)") + " " + where +
+            ", per unit radiance; the background is the same sky");
     } else if (s.sky) {
         why.push_back("a sky is declared but effects.sky = false: it is the background only, no sky light");
     } else {

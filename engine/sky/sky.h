@@ -69,7 +69,11 @@ struct SolveSettings {
 /// The scene's settings: solve::single_scattering_options, solve::lattice_settings and its
 /// effects (the same accuracy knobs as the virtual-light bake), with transport.static_light's
 /// refine and exact orders (the bake's where it leaves them 0).
-SolveSettings solve_settings(const scene::Scene& s);
+SolveSettings solve_settings(const scene::Scene& s, const core::Grid3<float>& density);
+/// transport.static_light.refine's default (0): the smallest divisor r of lighting.downsample
+/// that makes a transport voxel at density 1 at most one optical depth thick (extinction x
+/// lighting voxel / r <= 1), else lighting.downsample (the full resolution).
+int static_refine_for(const scene::Scene& s, const core::Grid3<float>& density);
 /// The media static solves run in: the lighting grid refined by solve_settings(s).refine, with
 /// the full-resolution density when they solve order 2 exactly.
 solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density);
@@ -239,6 +243,9 @@ struct SunSolve {
     LightField field;
     core::Grid3<float> transmittance;  ///< sun_transmittance of the scene's density
     double seconds = 0.0;              ///< wall time of the solve (lattice + transmittance)
+    /// A SunResolver's quick first answer (order 2 by the lattice, settings.exact_orders 2
+    /// asked for): the refined solve of the same direction follows unless a newer request came.
+    bool preview = false;
 };
 /// The scene's sun solve for `direction` (sun_transmittance included). Seconds.
 SunSolve solve_sun(const scene::Scene& s, const core::Grid3<float>& density, const solve::Media& media,
@@ -267,7 +274,9 @@ SunCourse sun_course(const scene::Sun& sun);
 
 /// Solves the sun again on a worker thread whenever asked (the demo's time-of-day slider):
 /// only the newest request matters, the caller keeps showing the old field until take()
-/// returns the new one. Thread-safe.
+/// returns the new one. With exact orders 2 it answers twice: first a preview with order 2 by
+/// the lattice (a few times faster: docs/sky.md gives both latencies), then the refined solve,
+/// unless a newer request came meanwhile. Thread-safe.
 class SunResolver {
 public:
     /// Keeps references to the arguments; they must outlive it. `threads`: the worker's share

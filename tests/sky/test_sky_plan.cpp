@@ -112,7 +112,7 @@ TEST_CASE("solved once: the cache is read while fresh, solved again when the sun
     const auto dir = test::scratch_dir("sky_load");
     const scene::Scene s = variant(dir, "night", kSunSky);
     const core::Grid3<float> d = scene::make_density(s);
-    const solve::Media media = solve::make_media(s, d);
+    const solve::Media media = sky::static_media(s, d);
     const sky::ScenePlan plan = sky::plan_scene(s, d, quick());
     std::vector<std::string> said;
     auto say = [&](const std::string& m) { said.push_back(m); };
@@ -172,22 +172,31 @@ TEST_CASE("the sun solved again on a worker thread: the newest request wins, the
     const auto dir = test::scratch_dir("sky_resolver");
     const scene::Scene s = variant(dir, "night", kSunSky);
     const core::Grid3<float> d = scene::make_density(s);
-    const solve::Media media = solve::make_media(s, d);
-    sky::SunResolver r(s, d, media, sky::solve_settings(s), 1);
+    const solve::Media media = sky::static_media(s, d);
+    sky::SunResolver r(s, d, media, sky::solve_settings(s, d), 1);
     CHECK_FALSE(r.take().has_value());
     const glm::dvec3 first = scene::sun_direction(30.0, 0.0), last = scene::sun_direction(10.0, 90.0);
     r.request(first);
     r.request(last);  // replaces the first unless it has started
+    // With exact orders 2 (the default) it answers twice: a preview (order 2 by the lattice),
+    // then the refined solve of the same direction.
+    REQUIRE(sky::solve_settings(s, d).exact_orders == 2);
     std::optional<sky::SunSolve> got;
-    for (int i = 0; i < 6000 && !(got && got->direction == last); ++i) {
-        if (auto t = r.take()) got = std::move(t);
+    bool preview = false;
+    for (int i = 0; i < 6000 && !(got && got->direction == last && !got->preview); ++i) {
+        if (auto t = r.take()) {
+            got = std::move(t);
+            preview |= got->preview && got->direction == last;
+        }
         std::this_thread::sleep_for(std::chrono::milliseconds(5));
     }
     REQUIRE(got.has_value());
     CHECK(got->direction == last);
+    CHECK_FALSE(got->preview);
+    CHECK(preview);  // taken every 5 ms: the preview lands seconds before the refined solve
     CHECK(got->seconds > 0.0);
     CHECK(got->transmittance.geom == d.geom);
-    const sky::SunSolve direct = sky::solve_sun(s, d, media, sky::solve_settings(s), last);
+    const sky::SunSolve direct = sky::solve_sun(s, d, media, sky::solve_settings(s, d), last);
     CHECK(got->field.multiple.data == direct.field.multiple.data);  // the same solve, deterministic
     CHECK_FALSE(r.busy());
 }

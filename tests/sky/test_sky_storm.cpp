@@ -1,8 +1,10 @@
-// The sun solve against Monte Carlo with the same directional source on the default storm
-// (content/scenes/storm.json, its lighting grid and settings), at three sun elevations:
-// relative L2 of S over the cloud voxels and all 26 directions, single and multiple
-// scattering apart (the figures docs/sky.md quotes).
-#include "mc_errors.h"
+// The static light against its truth on the default storm (content/scenes/storm.json): the sun
+// solved as the renderer's cache solves it (sky::solve_directional on sky::static_media with
+// the scene's static settings: the lighting grid refined by 3, order 2 by Monte Carlo) against
+// Monte Carlo of the sun from the grid's boundary through the full-resolution density, tallied
+// on the lighting grid, at three sun elevations: relative L2 of S over the cloud, single and
+// multiple scattering apart, and the ratio of their whole-cloud totals (the figures
+// docs/sky.md quotes; fulgur-study static-frontier measures every configuration).
 #include "sky/sky.h"
 
 #include "support/test_support.h"
@@ -14,73 +16,66 @@
 
 using namespace fulgur;
 
-TEST_CASE("default storm: the sun solve against Monte Carlo at elevations 60, 25 and 5 degrees") {
+TEST_CASE("default storm: the static light's sun solve against its truth at elevations 60, 25 and 5 degrees") {
     const scene::Scene s = scene::load_scene(test::source_dir() / "content/scenes/storm.json");
     const core::Grid3<float> density = scene::make_density(s);
-    const solve::Media media = solve::make_media(s, density);
+    const solve::Media media = sky::static_media(s, density);
+    const sky::SolveSettings st = sky::solve_settings(s, density);
+    REQUIRE(st.refine == 3);  // 750 m lighting voxels of 3 optical depths at density 1
+    REQUIRE(st.exact_orders == 2);
+    const solve::Media full = solve::make_media(s, density, 1, true);
     const auto dirs = transport::output_directions(s.effective_directions());
-    sky::SolveSettings hybrid = sky::solve_settings(s);
-    hybrid.single = hybrid.multiple = true;
-    sky::SolveSettings geist = hybrid;
-    geist.method = sky::Method::Lattice;
     const std::vector<float>& rho = media.lighting.density.data;
+    const std::size_t cells = rho.size();
     struct Row {
-        double elevation, azimuth, multiple_ratio;
+        double elevation, azimuth, single_ratio, multiple_ratio;
     };
-    for (const Row r : {Row{60.0, -60.0, 0.8371}, Row{25.0, 30.0, 0.8765}, Row{5.0, 150.0, 0.8286}}) {
+    for (const Row r :
+         {Row{60.0, -60.0, 0.9831, 0.9711}, Row{25.0, 30.0, 0.9754, 0.9810}, Row{5.0, 150.0, 0.9734, 0.9799}}) {
         const transport::DirectionalSource sun{scene::sun_direction(r.elevation, r.azimuth), 1.0};
-        const sky::LightField h = sky::solve_directional(media, std::span(&sun, 1), dirs, hybrid);
-        const sky::LightField l = sky::solve_directional(media, std::span(&sun, 1), dirs, geist);
+        const sky::LightField h = sky::solve_directional(media, std::span(&sun, 1), dirs, st);
         transport::MonteCarloOptions mo;
         mo.paths = 2'000'000;
         mo.seed = 17;
         mo.halves = true;
-        const transport::MonteCarloResult mc = transport::monte_carlo(media.transport, sun, dirs, mo);
-        test::SunMcErrors e;
-        const std::size_t cells = media.lighting.density.size();
-        for (std::size_t m = 0; m < dirs.size(); ++m)
-            for (std::size_t i = 0; i < cells; ++i)
-                if (rho[i] > 0.05f) e.add(h, l, mc, m * cells + i);  // cloud voxels, as fulgur-study lb-vs-mc
-        auto& [single, multiple, total, total_geist] = e;
-        // Whole-cloud totals of the hybrid's parts over the Monte Carlo's (its cloud: every
-        // cell holding density), with the Monte Carlo sums' standard errors from its batches.
+        const transport::MonteCarloResult truth =
+            transport::monte_carlo(full.full, sun, media.lighting.density.geom, dirs, mo);
+        core::RelativeL2 single, multiple, total;
         double hs = 0.0, hm = 0.0;
         for (std::size_t m = 0; m < dirs.size(); ++m)
-            for (std::size_t i = 0; i < cells; ++i)
-                if (media.transport.density.data[i] > 0.0f) {
-                    hs += h.single.data[m * cells + i];
-                    hm += h.multiple.data[m * cells + i];
-                }
-        const double ratio_single = hs / mc.sums.single.mean, ratio_multiple = hm / mc.sums.multiple.mean;
-        const double se_single = ratio_single * mc.sums.single.se / mc.sums.single.mean,
-                     se_multiple = ratio_multiple * mc.sums.multiple.se / mc.sums.multiple.mean;
-        std::printf("storm, sun at %4.1f deg: totals' ratio single %.4f +- %.4f, multiple %.4f +- %.4f\n", r.elevation,
-                    ratio_single, se_single, ratio_multiple, se_multiple);
+            for (std::size_t i = 0; i < cells; ++i) {
+                if (!(rho[i] > 0.0f)) continue;  // the cloud: lighting cells holding density
+                const std::size_t k = m * cells + i;
+                single.add(h.single.data[k], truth.single.data[k]);
+                multiple.add(h.multiple.data[k], truth.multiple.data[k]);
+                total.add(double(h.single.data[k]) + h.multiple.data[k],
+                          double(truth.single.data[k]) + truth.multiple.data[k]);
+                hs += h.single.data[k];
+                hm += h.multiple.data[k];
+            }
+        // The truth's sums cover every cell holding density, as the loop above.
+        const double ratio_single = hs / truth.sums.single.mean, ratio_multiple = hm / truth.sums.multiple.mean;
+        const double se_single = ratio_single * truth.sums.single.se / truth.sums.single.mean,
+                     se_multiple = ratio_multiple * truth.sums.multiple.se / truth.sums.multiple.mean;
         std::printf(
-            "storm, sun at %4.1f deg: hybrid single %.2f%% (MC noise %.2f%%), multiple %.2f%% (noise %.2f%%), "
-            "total %.2f%%; Geist's injection total %.2f%%; lattice %d / %d steps\n",
-            r.elevation, 100 * single.value(), 100 * mc.noise.single, 100 * multiple.value(), 100 * mc.noise.multiple,
-            100 * total.value(), 100 * total_geist.value(), h.iterations, l.iterations);
+            "storm, sun at %4.1f deg: single %.2f%% (truth noise %.2f%%), multiple %.2f%% (noise %.2f%%), total "
+            "%.2f%%; totals' ratio single %.4f +- %.4f, multiple %.4f +- %.4f; lattice %d steps\n",
+            r.elevation, 100 * single.value(), 100 * truth.noise.single, 100 * multiple.value(),
+            100 * truth.noise.multiple, 100 * total.value(), ratio_single, se_single, ratio_multiple, se_multiple,
+            h.iterations);
         CHECK(h.converged);
-        CHECK(l.converged);
-        // Measured (2M paths, noise 1.5-1.8% single, 2.3-3.1% multiple): single 2.2%, 1.9%, 3.9%
-        // (the scene's single-scattering tolerance is 1e-2; a grazing sun crosses the most
-        // voxel faces); multiple 34.1%, 32.6%, 34.1%; total 25.2%, 21.3%, 25.7%; Geist's
-        // injection 62%, 62%, 42%. The storm's 750 m lighting grid holds hop optical depths
-        // up to ~3: the lattice's error there is the one docs/lattice-boltzmann.md reports for
-        // point lights on this grid (41%). The bounds guard those figures with a margin.
-        // The whole-cloud totals: single scattering is exact up to the scene's quadrature
-        // tolerance (1e-2; measured ratios 0.996-1.000), multiple scattering is the lattice's
-        // (measured ratios 0.837, 0.877, 0.829 at 60, 25, 5 degrees). Bands: those plus 4 x the
-        // Monte Carlo sum's standard error (0.13-0.21%), so a 5% error of either part fails.
-        CHECK(std::fabs(ratio_single - 1.0) <= 0.01 + 4.0 * se_single);
-        CHECK(std::fabs(ratio_multiple - r.multiple_ratio) <= 0.001 + 4.0 * se_multiple);
+        // Measured (2M paths; truth noise 1.5-1.8% single, 2.2-3.3% multiple, which the errors
+        // include): single 2.9-3.5%, multiple 8.2-9.4%, total 4.9-5.8%: within the aims of 10%
+        // total and 15% multiple with margin (the 750 m grid solved before: 21-25% total).
         CHECK(single.value() < 0.06);
-        CHECK(multiple.value() < 0.40);
-        CHECK(total.value() < 0.30);
-        CHECK(total_geist.value() < 0.75);
-        // Energy bookkeeping of the storm's solves (double sums of float32 lattice values).
+        CHECK(multiple.value() < 0.12);
+        CHECK(total.value() < 0.08);
+        // The whole-cloud totals, pinned to what this solve gives (single 0.973-0.983: the 250 m
+        // transport grid's medium against the 125 m truth; multiple 0.971-0.981) within 0.002
+        // (the solve's own order-2 noise: 400k paths, 0.1-0.2% on a total) + 4 x the truth's
+        // standard error (0.1-0.2%): a 5% change of either part fails.
+        CHECK(std::fabs(ratio_single - r.single_ratio) <= 0.002 + 4.0 * se_single);
+        CHECK(std::fabs(ratio_multiple - r.multiple_ratio) <= 0.002 + 4.0 * se_multiple);
         CHECK(std::fabs(h.injected_total - (h.absorbed_total + h.escaped_total + h.stored)) < 1e-6 * h.injected_total);
-        CHECK(std::fabs(l.injected_total - (l.absorbed_total + l.escaped_total + l.stored)) < 1e-6 * l.injected_total);
     }
 }
