@@ -102,7 +102,8 @@ StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::opti
     } else if (fgb) {
         throw core::Error(fgb->string(), "the scene has no lightning: it renders without a .fgb");
     }
-    if (plan_.sun || plan_.sky) static_ = sky::load_or_solve(scene_, density_, static_media(), plan_, setup.cache, setup.say);
+    if (plan_.sun || plan_.sky)
+        static_ = sky::load_or_solve(scene_, density_, static_media(), plan_, setup.cache, setup.say);
     if (plan_.sun) {
         sun_ = scene_.sun;
         sun_transmittance_ = sky::sun_transmittance(density_, scene_.medium.extinction, static_.sun_direction);
