@@ -170,8 +170,9 @@ TEST_CASE("refinement: a refined transport grid is averaged onto the lighting gr
     media.lighting.optics = fine.optics;
     media.refine = 2;
     const transport::DirectionalSource sun{{0.3, 0.2, -1.0}, 1.0};
-    const sky::LightField f =
-        sky::solve_directional(media, std::span(&sun, 1), transport::output_directions(26), settings());
+    sky::SolveSettings st = settings();
+    st.refine = 2;  // the media's (sky::static_media keeps them together)
+    const sky::LightField f = sky::solve_directional(media, std::span(&sun, 1), transport::output_directions(26), st);
     CHECK(f.single.geom == media.lighting.density.geom);
     CHECK(f.multiple.geom == media.lighting.density.geom);
 }
@@ -209,6 +210,26 @@ TEST_CASE("isotropic scattering: one output direction; Monte Carlo agrees with b
     CHECK(multiple.value() < 0.11);
     CHECK(total_h.value() < 0.065);
     CHECK(total_l.value() < 0.19);
+
+    // Order 2 exact (the static light's default): order 2 by Monte Carlo through the medium
+    // (here the same grid: refine 1), the lattice for orders >= 3. The lattice's error then
+    // falls on dimmer light: the multiple part moves toward the Monte Carlo.
+    solve::Media two = media_of(m);
+    two.full = m;
+    sky::SolveSettings st2 = settings();
+    st2.exact_orders = 2;
+    st2.order2_paths = 400'000;
+    const sky::LightField h2 = sky::solve_directional(two, std::span(&sun, 1), dirs, st2);
+    core::RelativeL2 multiple2;
+    for (std::size_t i = 0; i < m.density.size(); ++i)
+        if (m.density.data[i] > 0.05f) multiple2.add(h2.multiple.data[i], mc.multiple.data[i]);
+    std::printf("blob, order 2 exact: multiple %.2f%% (the lattice for orders >= 2: %.2f%%)\n", 100 * multiple2.value(),
+                100 * multiple.value());
+    CHECK(h2.single.data == h.single.data);  // order 1 is the same exact single scattering
+    // Measured 6.7% against the lattice's 7.9% (the reference's noise 1.6% in both): at least
+    // half a point better (the solves are deterministic; the margin is for other platforms).
+    CHECK(multiple2.value() < multiple.value() - 0.005);
+    CHECK(std::fabs(h2.injected_total - (h2.absorbed_total + h2.escaped_total + h2.stored)) < 1e-6 * h2.injected_total);
 }
 
 TEST_CASE("sun transmittance at full resolution: exact where the renderer reads it, 1 elsewhere") {
