@@ -1,12 +1,14 @@
 #version 450 core
 // One step up the glare pyramid: this level weighted (its share of the point-spread
-// function, render::fit_glare) plus the coarser levels' sum, upsampled by four bilinear taps
-// half a coarser texel either side (a tent).
+// function, render::fit_glare) plus the coarser levels' sum, upsampled by a tent: four
+// bilinear taps half a coarser texel either side onto the finest levels, nine taps a whole
+// texel either side onto the coarser ones (render::glare_wide_from).
 layout(binding = 0) uniform sampler2D u_level;   // this level (the way down)
 layout(binding = 1) uniform sampler2D u_coarse;  // the coarser levels' weighted sum
 
 uniform float u_weight;
 uniform int u_has_coarse;
+uniform int u_wide;  // 1: nine taps (a tent a coarser texel either side); 0: four taps half a texel off
 uniform vec2 u_coarse_texel;  // 1 / coarser size
 uniform vec2 u_size;          // this level's size
 
@@ -16,9 +18,22 @@ void main() {
     vec3 s = u_weight * texelFetch(u_level, ivec2(gl_FragCoord.xy), 0).rgb;
     if (u_has_coarse != 0) {
         vec2 uv = gl_FragCoord.xy / u_size;
-        vec2 o = 0.5 * u_coarse_texel;
-        s += 0.25 * (textureLod(u_coarse, uv + vec2(-o.x, -o.y), 0.0).rgb + textureLod(u_coarse, uv + vec2(o.x, -o.y), 0.0).rgb +
-                     textureLod(u_coarse, uv + vec2(-o.x, o.y), 0.0).rgb + textureLod(u_coarse, uv + vec2(o.x, o.y), 0.0).rgb);
+        if (u_wide != 0) {
+            // A [1 2 1] tent over the coarser level's texels: smooth where they are large on
+            // screen (the coarsest levels' linear ramps would show their kinks in a dark sky).
+            vec3 t = vec3(0.0);
+            for (int j = -1; j <= 1; ++j)
+                for (int i = -1; i <= 1; ++i)
+                    t += float((2 - abs(i)) * (2 - abs(j))) *
+                         textureLod(u_coarse, uv + vec2(i, j) * u_coarse_texel, 0.0).rgb;
+            s += t * (1.0 / 16.0);
+        } else {
+            vec2 o = 0.5 * u_coarse_texel;
+            s += 0.25 * (textureLod(u_coarse, uv + vec2(-o.x, -o.y), 0.0).rgb +
+                         textureLod(u_coarse, uv + vec2(o.x, -o.y), 0.0).rgb +
+                         textureLod(u_coarse, uv + vec2(-o.x, o.y), 0.0).rgb +
+                         textureLod(u_coarse, uv + vec2(o.x, o.y), 0.0).rgb);
+        }
     }
     o_radiance = vec4(s, 1.0);
 }

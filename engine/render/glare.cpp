@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace fulgur::render {
@@ -11,6 +12,7 @@ namespace fulgur::render {
 namespace {
 
 constexpr double kA = 0.02;  // degrees: the PSF's core scale
+constexpr double kInf = std::numeric_limits<double>::infinity();
 // Square degrees per steradian: f_i are per steradian with areas measured in square degrees.
 constexpr double kDeg2PerSr = (180.0 / std::numbers::pi) * (180.0 / std::numbers::pi);
 
@@ -54,12 +56,14 @@ double glare_energy_within(double theta_deg) noexcept {
 
 double glare_level_sigma(int k) noexcept {
     // Variance per axis, in level-j texels: a box downsample over 4 finer texels adds 1.25
-    // finer texels^2 (0.3125 of level j's); an upsample by four bilinear taps half a coarser
-    // texel either side adds 0.25 for the taps and 0.1875 for their bilinear weights (the
-    // finer texels sit a quarter texel off the coarser ones). Summed over the k steps down and
-    // back up: sum_{j=1..k} 0.75 * 4^j internal pixels^2. Plus the texel's own box (1/12) and
-    // the bilinear upsampling to the output (3/16).
-    const double chain = 0.75 * (std::pow(4.0, k + 1) - 4.0) / 3.0;
+    // finer texels^2 (0.3125 of level j's); an upsample from level j adds 0.1875 for the
+    // bilinear weights (the finer texels sit a quarter texel off the coarser ones) plus its
+    // taps': 0.25 for four taps half a texel either side, 0.5 for the nine-tap [1 2 1] tent
+    // (onto levels kGlareWideFrom and coarser). Summed over the k steps down and back up, in
+    // internal pixels^2 (4^j per level-j texel^2). Plus the texel's own box (1/12) and the
+    // bilinear upsampling to the output (3/16).
+    double chain = 0.0;
+    for (int j = 1; j <= k; ++j) chain += (0.3125 + 0.1875 + (j - 1 >= kGlareWideFrom ? 0.5 : 0.25)) * std::pow(4.0, j);
     return std::sqrt(chain + 1.0 / 12.0 + 3.0 / 16.0);
 }
 
@@ -79,14 +83,15 @@ GlareFit fit_glare(double output_pixel_deg, double internal_scale, int levels, d
         fit.sigma_px.push_back(glare_level_sigma(int(k)));
         sigma_deg[k] = fit.sigma_px[k] * internal_pixel_deg;
     }
-    // Rows: the energy within radii log-spaced from one output pixel to the reach, and the total
-    // at the reach weighted up (what the frame holds is conserved).
+    // Rows: the energy within radii log-spaced from one ray-march pixel to the reach, and,
+    // weighted up, the light the levels spread in all (the pyramid clamps at the frame's edges,
+    // so all of it stays in the frame): P's beyond the kept part, within the reach.
     constexpr int kRadii = 96;
     std::vector<double> G(n * n, 0.0), r(n, 0.0), row(n);
     auto add_row = [&](double radius, double weight) {
-        const double target = glare_energy_within(radius) - fit.keep;
+        const double target = glare_energy_within(std::min(radius, reach_deg)) - fit.keep;
         for (std::size_t k = 0; k < n; ++k)
-            row[k] = -std::expm1(-radius * radius / (2.0 * sigma_deg[k] * sigma_deg[k]));
+            row[k] = radius == kInf ? 1.0 : -std::expm1(-radius * radius / (2.0 * sigma_deg[k] * sigma_deg[k]));
         for (std::size_t a = 0; a < n; ++a) {
             r[a] += weight * row[a] * target;
             for (std::size_t b = 0; b < n; ++b) G[a * n + b] += weight * row[a] * row[b];
@@ -96,7 +101,7 @@ GlareFit fit_glare(double output_pixel_deg, double internal_scale, int levels, d
     for (int j = 0; j < kRadii; ++j)
         radii[std::size_t(j)] = internal_pixel_deg * std::pow(reach_deg / internal_pixel_deg, double(j) / (kRadii - 1));
     for (const double radius : radii) add_row(radius, 1.0);
-    add_row(reach_deg, 16.0);
+    add_row(kInf, 64.0);
     fit.weights = nnls(G, r, n);
     for (const double radius : radii) {
         double m = fit.keep;

@@ -86,6 +86,7 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
         glBindTextureUnit(1, coarser ? glare_up[std::size_t(k + 1)].tex : glare_down[std::size_t(k)].tex);
         glUniform1f(glGetUniformLocation(up, "u_weight"), float(glare_fit.weights[std::size_t(k)]));
         glUniform1i(glGetUniformLocation(up, "u_has_coarse"), coarser ? 1 : 0);
+        glUniform1i(glGetUniformLocation(up, "u_wide"), k >= kGlareWideFrom ? 1 : 0);
         if (coarser) {
             const detail::Target& c = glare_up[std::size_t(k + 1)];
             glUniform2f(glGetUniformLocation(up, "u_coarse_texel"), 1.0f / float(c.w), 1.0f / float(c.h));

@@ -275,6 +275,9 @@ GlareFit fit_glare(double output_pixel_deg, double internal_scale, int levels, d
 /// The Gaussian width (internal pixels) of pyramid level k's contribution: the variance of its
 /// box downsamples, tent upsamples and bilinear resampling (docs/render.md, "Glare").
 double glare_level_sigma(int k) noexcept;
+/// Upsampling onto levels from this one on uses nine taps a coarser texel either side (a
+/// smoother tent: the coarse levels' texels are large on screen); finer levels four taps.
+inline constexpr int kGlareWideFrom = 2;
 
 // ---------------------------------------------------------------------------------------
 // Output

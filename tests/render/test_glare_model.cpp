@@ -72,7 +72,7 @@ TEST_CASE("glare: the pyramid's Gaussians fit the point-spread function") {
             sum += w;
         }
         // What the frame holds is conserved: the kept light and the levels' weights add up to
-        // P's energy within the reach (weighted 16x in the fit: within 0.5%).
+        // P's energy within the reach (weighted 64x in the fit: within 0.5%).
         CHECK(sum == test::rel(render::glare_energy_within(reach), 0.005));
         // Sums of Gaussians doubling in width follow P's energy-within-radius curve within
         // 0.02 of the point's light from one pixel to the frame's corner (measured 0.004-0.011).
