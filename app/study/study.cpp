@@ -10,6 +10,28 @@
 
 namespace fulgur::study {
 
+bool read_fields(const std::filesystem::path& file, std::uint64_t key, transport::MonteCarloResult::Noise& noise,
+                 transport::SourceField& single, transport::SourceField& multiple) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) return false;
+    std::uint64_t k = 0;
+    in.read(reinterpret_cast<char*>(&k), sizeof k);
+    in.read(reinterpret_cast<char*>(&noise), sizeof noise);
+    for (transport::SourceField* f : {&single, &multiple})
+        in.read(reinterpret_cast<char*>(f->data.data()), std::streamsize(f->data.size() * sizeof(float)));
+    return in && k == key;
+}
+
+void write_fields(const std::filesystem::path& file, std::uint64_t key, const transport::MonteCarloResult::Noise& noise,
+                  const transport::SourceField& single, const transport::SourceField& multiple) {
+    std::ofstream out(file, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(&key), sizeof key);
+    out.write(reinterpret_cast<const char*>(&noise), sizeof noise);
+    for (const transport::SourceField* f : {&single, &multiple})
+        out.write(reinterpret_cast<const char*>(f->data.data()), std::streamsize(f->data.size() * sizeof(float)));
+    if (!out) throw core::Error(file.string(), "cannot write the reference cache");
+}
+
 // The truth of a frame, kept in the study's folder keyed by the scene, the strike and a
 // checksum of the lit channel (a changed bolt or timing recomputes it).
 runtime::Truth cached_truth(const scene::Scene& s, const core::Grid3<float>& density,
@@ -26,24 +48,9 @@ runtime::Truth cached_truth(const scene::Scene& s, const core::Grid3<float>& den
     g.dims = {(g.dims.x + f - 1) / f, (g.dims.y + f - 1) / f, (g.dims.z + f - 1) / f};
     runtime::Truth t;
     t.single = t.multiple = transport::SourceField(g, dirs);
-    if (std::ifstream in(file, std::ios::binary); in) {
-        std::uint64_t key = 0;
-        in.read(reinterpret_cast<char*>(&key), sizeof key);
-        in.read(reinterpret_cast<char*>(&t.noise), sizeof t.noise);
-        in.read(reinterpret_cast<char*>(t.single.data.data()), std::streamsize(t.single.data.size() * sizeof(float)));
-        in.read(reinterpret_cast<char*>(t.multiple.data.data()),
-                std::streamsize(t.multiple.data.size() * sizeof(float)));
-        if (in && key == sum) return t;
-    }
+    if (read_fields(file, sum, t.noise, t.single, t.multiple)) return t;
     t = runtime::truth(s, density, lit, {}, to);
-    std::ofstream out(file, std::ios::binary);
-    out.write(reinterpret_cast<const char*>(&sum), sizeof sum);
-    out.write(reinterpret_cast<const char*>(&t.noise), sizeof t.noise);
-    out.write(reinterpret_cast<const char*>(t.single.data.data()),
-              std::streamsize(t.single.data.size() * sizeof(float)));
-    out.write(reinterpret_cast<const char*>(t.multiple.data.data()),
-              std::streamsize(t.multiple.data.size() * sizeof(float)));
-    if (!out) throw core::Error(file.string(), "cannot write the truth cache");
+    write_fields(file, sum, t.noise, t.single, t.multiple);
     return t;
 }
 

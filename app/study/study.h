@@ -61,6 +61,15 @@ public:
 /// base, today's lattice and the refined one (part of lb-vs-mc; study_lb_truth.cpp).
 void lb_vs_truth(const Context& ctx);
 
+/// A reference's single and multiple fields and their noise kept in `file` under `key`
+/// (binary: key, noise, the fields' floats). read_fields fills the fields (sized by the caller)
+/// and returns true when the file holds that key; write_fields throws core::Error naming the
+/// file when it cannot be written.
+bool read_fields(const std::filesystem::path& file, std::uint64_t key, transport::MonteCarloResult::Noise& noise,
+                 transport::SourceField& single, transport::SourceField& multiple);
+void write_fields(const std::filesystem::path& file, std::uint64_t key, const transport::MonteCarloResult::Noise& noise,
+                  const transport::SourceField& single, const transport::SourceField& multiple);
+
 /// The truth of a frame (runtime::truth), kept in `file` keyed by the options and a checksum of
 /// the lit channel (a changed bolt or timing recomputes it).
 runtime::Truth cached_truth(const scene::Scene& s, const core::Grid3<float>& density,

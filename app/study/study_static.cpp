@@ -14,7 +14,6 @@
 #include "sky/sky.h"
 
 #include <cstdio>
-#include <fstream>
 
 using namespace fulgur;
 
@@ -31,28 +30,13 @@ transport::MonteCarloResult cached_sun_truth(const solve::Media& full_media, con
     transport::MonteCarloResult r;
     const std::vector<glm::dvec3> d(dirs.begin(), dirs.end());
     r.single = r.multiple = transport::SourceField(lighting, d);
-    if (std::ifstream in(file, std::ios::binary); in) {
-        std::uint64_t k = 0;
-        in.read(reinterpret_cast<char*>(&k), sizeof k);
-        in.read(reinterpret_cast<char*>(&r.noise), sizeof r.noise);
-        in.read(reinterpret_cast<char*>(r.single.data.data()), std::streamsize(r.single.data.size() * sizeof(float)));
-        in.read(reinterpret_cast<char*>(r.multiple.data.data()),
-                std::streamsize(r.multiple.data.size() * sizeof(float)));
-        if (in && k == key) return r;
-    }
+    if (study::read_fields(file, key, r.noise, r.single, r.multiple)) return r;
     transport::MonteCarloOptions mo;
     mo.paths = paths;
     mo.seed = 23;
     mo.halves = true;
     r = transport::monte_carlo(full_media.full, sun, lighting, dirs, mo);
-    std::ofstream out(file, std::ios::binary);
-    out.write(reinterpret_cast<const char*>(&key), sizeof key);
-    out.write(reinterpret_cast<const char*>(&r.noise), sizeof r.noise);
-    out.write(reinterpret_cast<const char*>(r.single.data.data()),
-              std::streamsize(r.single.data.size() * sizeof(float)));
-    out.write(reinterpret_cast<const char*>(r.multiple.data.data()),
-              std::streamsize(r.multiple.data.size() * sizeof(float)));
-    if (!out) throw core::Error(file.string(), "cannot write the truth cache");
+    study::write_fields(file, key, r.noise, r.single, r.multiple);
     return r;
 }
 

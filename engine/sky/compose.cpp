@@ -48,14 +48,24 @@ ColourField compose(const StaticLight& light, const std::optional<scene::Sun>& s
     return out;
 }
 
+namespace {
+
+// The field of a unit sun along `direction`, every output direction of the scene.
+LightField unit_sun_field(const scene::Scene& s, const solve::Media& media, const SolveSettings& settings,
+                          const glm::dvec3& direction) {
+    const transport::DirectionalSource unit{direction, 1.0};
+    return solve_directional(media, std::span(&unit, 1), transport::output_directions(s.effective_directions()),
+                             settings);
+}
+
+}  // namespace
+
 SunSolve solve_sun(const scene::Scene& s, const core::Grid3<float>& density, const solve::Media& media,
                    const SolveSettings& settings, const glm::dvec3& direction) {
     core::Stopwatch sw;
     SunSolve out;
     out.direction = direction;
-    const transport::DirectionalSource unit{direction, 1.0};
-    out.field =
-        solve_directional(media, std::span(&unit, 1), transport::output_directions(s.effective_directions()), settings);
+    out.field = unit_sun_field(s, media, settings, direction);
     out.transmittance = sun_transmittance(density, s.medium.extinction, direction);
     out.seconds = sw.seconds();
     return out;
@@ -101,9 +111,7 @@ struct SunResolver::Impl {
             core::Stopwatch sw;
             SunSolve refined;
             refined.direction = d;
-            const transport::DirectionalSource unit{d, 1.0};
-            refined.field = solve_directional(media, std::span(&unit, 1),
-                                              transport::output_directions(scene.effective_directions()), settings);
+            refined.field = unit_sun_field(scene, media, settings, d);  // the preview's transmittance is this sun's
             refined.transmittance = std::move(transmittance);
             refined.seconds = sw.seconds();
             publish(std::move(refined), nullptr);

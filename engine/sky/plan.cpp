@@ -60,7 +60,8 @@ ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, c
             ? "exact single scattering + order 2 by " + std::to_string(p.settings.order2_paths) +
                   " Monte Carlo paths through the full-resolution density + lattice-Boltzmann for orders >= 3" + lattice
             : "exact single scattering + lattice-Boltzmann for orders >= 2" + lattice;
-    const solve::Media grid = static_media(s, density);
+    // The static light's transport grid (its dims for the reasons; no full-density copy).
+    const solve::Media grid = solve::make_media(s, density, p.settings.refine, false);
     if (e.multiple_scattering && (sun || sky))
         why.push_back(
             "static light on the lighting grid refined by " + std::to_string(p.settings.refine) +

@@ -68,7 +68,7 @@ struct SolveSettings {
 
 /// The scene's settings: solve::single_scattering_options, solve::lattice_settings and its
 /// effects (the same accuracy knobs as the virtual-light bake), with transport.static_light's
-/// refine and exact orders (the bake's where it leaves them 0).
+/// refine and exact orders (where it leaves them 0: static_refine_for, and order 2 exact).
 SolveSettings solve_settings(const scene::Scene& s, const core::Grid3<float>& density);
 /// transport.static_light.refine's default (0): the smallest divisor r of lighting.downsample
 /// that makes a transport voxel at density 1 at most one optical depth thick (extinction x

@@ -36,6 +36,16 @@ struct FirstScattered {
     core::Grid3<float> phi2;
 };
 
+/// acc += w f, every field f holds (order 2 only when both hold it).
+void add_scaled(FirstScattered& acc, const FirstScattered& f, double w) {
+    add_scaled(acc.s1, f.s1, w);
+    add_scaled(acc.phi1, f.phi1, w);
+    if (!acc.s2.data.empty() && !f.s2.data.empty()) {
+        add_scaled(acc.s2, f.s2, w);
+        add_scaled(acc.phi2, f.phi2, w);
+    }
+}
+
 /// Order 2 of directional lights by the expected-value Monte Carlo of the second flight through
 /// the full-resolution density, tallied on the transport grid (as solve::solve does for point
 /// lights): each light `paths` paths, seeded by `seed` and its index.
@@ -49,14 +59,8 @@ void second_order(const solve::Media& media, std::span<const transport::Directio
     fs.phi2 = core::Grid3<float>(geom, 0.0f);
     for (std::size_t i = 0; i < lights.size(); ++i) {
         if (lights[i].irradiance == 0.0) continue;
-        transport::MonteCarloOptions mo;
-        mo.paths = paths;
-        mo.batches = 4;
-        mo.max_scatterings = 1;
-        mo.expected_second_order = true;
-        mo.tally_fluence = true;
-        mo.seed = core::hash_seed(seed, i);
-        const transport::MonteCarloResult r = transport::monte_carlo(media.full, lights[i], geom, dirs, mo);
+        const transport::MonteCarloResult r = transport::monte_carlo(
+            media.full, lights[i], geom, dirs, solve::order_two_options(paths, core::hash_seed(seed, i)));
         add_scaled(fs.s2, r.multiple, 1.0);
         add_scaled(fs.phi2, r.fluence2, 1.0);
     }
@@ -258,21 +262,9 @@ SkyField solve_sky(const solve::Media& media, bool uniform, std::span<const glm:
         FirstScattered one = first_scattered(media.transport, std::span(&light, 1), directions, settings);
         if (two) second_order(media, std::span(&light, 1), directions, paths2, core::hash_seed(settings.seed, k), one);
         const double w = uniform ? 1.0 : scene::SkyDome::zenith_weight(d.toward.z);
-        add_scaled(z.s1, one.s1, w);
-        add_scaled(z.phi1, one.phi1, w);
-        if (two) {
-            add_scaled(z.s2, one.s2, w);
-            add_scaled(z.phi2, one.phi2, w);
-        }
+        add_scaled(z, one, w);
         z.seconds += one.seconds;
-        if (!uniform) {
-            add_scaled(h.s1, one.s1, 1.0 - w);
-            add_scaled(h.phi1, one.phi1, 1.0 - w);
-            if (two) {
-                add_scaled(h.s2, one.s2, 1.0 - w);
-                add_scaled(h.phi2, one.phi2, 1.0 - w);
-            }
-        }
+        if (!uniform) add_scaled(h, one, 1.0 - w);
     }
     SkyField out;
     LightField& first = uniform ? out.uniform : out.zenith;

@@ -30,6 +30,17 @@ std::uint64_t sources_seed(std::uint64_t seed, std::span<const transport::PointS
 
 }  // namespace
 
+transport::MonteCarloOptions order_two_options(std::uint64_t paths, std::uint64_t seed) {
+    transport::MonteCarloOptions mo;
+    mo.paths = paths;
+    mo.batches = 4;
+    mo.max_scatterings = 1;
+    mo.expected_second_order = true;
+    mo.tally_fluence = true;
+    mo.seed = seed;
+    return mo;
+}
+
 transport::LbSettings lattice_settings(const scene::Scene& s) {
     transport::LbSettings lb;
     lb.collision = transport::parse_lb_collision(s.transport.lb_collision);
@@ -126,14 +137,9 @@ Solution solve(const scene::Scene& s, const Media& media, std::span<const transp
                 // deterministic.
                 FULGUR_ASSERT(!media.full.density.data.empty(),
                               "solve::solve: exact_orders 2 needs make_media's full density");
-                transport::MonteCarloOptions mo;
-                mo.paths = s.transport.lb_order2_paths;
-                mo.batches = 4;
-                mo.max_scatterings = 1;
-                mo.expected_second_order = true;
-                mo.tally_fluence = true;
-                mo.seed = sources_seed(s.transport.mc_seed, sources);
-                second = transport::monte_carlo(media.full, sources, {}, geom, dirs, mo);
+                second = transport::monte_carlo(
+                    media.full, sources, {}, geom, dirs,
+                    order_two_options(s.transport.lb_order2_paths, sources_seed(s.transport.mc_seed, sources)));
                 src.first_scattered = &second.multiple;
                 src.first_scattered_fluence = &second.fluence2;
             }

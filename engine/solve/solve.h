@@ -53,6 +53,10 @@ Media make_media(const scene::Scene& s, const core::Grid3<float>& density);
 /// light's media (sky::static_media).
 Media make_media(const scene::Scene& s, const core::Grid3<float>& density, int refine, bool full);
 
+/// The Monte Carlo of exactly order 2 a lattice with exact orders 2 is fed with: the
+/// expected-value second flight (paths stop after it), its S and fluence tallied, 4 batches.
+transport::MonteCarloOptions order_two_options(std::uint64_t paths, std::uint64_t seed);
+
 /// The scene's lattice-Boltzmann settings (transport.lattice_boltzmann).
 transport::LbSettings lattice_settings(const scene::Scene& s);
 
