@@ -658,6 +658,22 @@ MonteCarloResult monte_carlo(const LightingMedium& medium, const DirectionalSour
                             f == 1 ? nullptr : &tally_grid);
 }
 
+MonteCarloResult monte_carlo(const LightingMedium& medium, const DomeSource& sky, const core::GridGeometry& tally_grid,
+                             std::span<const glm::dvec3> directions, const MonteCarloOptions& options) {
+    const std::size_t n = sky.radiance.size();
+    if (n < 2 || n > (std::size_t(1) << 20))
+        throw core::Error("sky.radiance",
+                          "needs 2 to 2^20 values (sin of the elevation 0 .. 1), got " + std::to_string(n));
+    for (std::size_t k = 0; k < n; ++k)
+        if (!std::isfinite(sky.radiance[k]) || sky.radiance[k] < 0.0)
+            throw core::Error("sky.radiance[" + std::to_string(k) + "]",
+                              "must be finite and >= 0, got " + std::to_string(sky.radiance[k]));
+    const int f = detail::check_sources(medium, {}, {}, tally_grid, options);
+    const core::GridGeometry& g = medium.density.geom;
+    const detail::BoxDomeEmitter em(g.origin, g.upper(), sky.radiance);
+    return detail::run_grid(medium, em, directions, options, f == 1 ? nullptr : &tally_grid);
+}
+
 namespace detail {
 namespace {
 

@@ -5,6 +5,7 @@
 #include <glm/vec3.hpp>
 
 #include <cstdint>
+#include <vector>
 
 namespace fulgur::transport {
 
@@ -28,6 +29,14 @@ struct LineSource {
 struct DirectionalSource {
     glm::dvec3 direction{0.0, 0.0, -1.0};  ///< propagation direction (normalized on use)
     double irradiance = 1.0;               ///< E, W/m^2, finite and >= 0
+};
+
+/// A sky dome: radiance from every direction above the horizon, uniform in azimuth, a
+/// function of the elevation only, lighting the grid from outside (the sky's truth,
+/// transport::monte_carlo). Tabulated at u = sin(elevation) = k / (n - 1), k = 0 .. n - 1, and
+/// linear between; no light from below the horizon.
+struct DomeSource {
+    std::vector<double> radiance;  ///< W m^-2 sr^-1, 2 <= n <= 2^20 values, finite and >= 0
 };
 
 }  // namespace fulgur::transport

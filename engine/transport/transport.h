@@ -319,6 +319,11 @@ MonteCarloResult monte_carlo(const LightingMedium& medium, const DirectionalSour
 MonteCarloResult monte_carlo(const LightingMedium& medium, const DirectionalSource& sun,
                              const core::GridGeometry& tally_grid, std::span<const glm::dvec3> directions,
                              const MonteCarloOptions& options = {});
+/// The sky dome's light, as the sun's above: every path enters the grid's box from a direction
+/// drawn with probability proportional to the dome's radiance times the box's area seen from
+/// it (exactly, by rejection from tabulated bounds), on the faces that direction sees.
+MonteCarloResult monte_carlo(const LightingMedium& medium, const DomeSource& sky, const core::GridGeometry& tally_grid,
+                             std::span<const glm::dvec3> directions, const MonteCarloOptions& options = {});
 
 /// The truth of a set of sources (a frame's lightning channel): Monte Carlo through `medium`
 /// at full resolution (the scene's density grid, not the lighting grid), S tallied as voxel

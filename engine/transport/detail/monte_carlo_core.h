@@ -330,6 +330,99 @@ struct BoxSunEmitter {
     double power() const noexcept { return irradiance * cumulative[2]; }
 };
 
+/// A sky dome over the box: radiance L(u) from every direction above the horizon (u = sin of
+/// the elevation of the direction the light comes from), uniform in azimuth, tabulated at
+/// u_k = k / (n - 1) and linear between (transport::DomeSource). Light from direction
+/// `toward` crosses the box's projected area A(-toward), so the power is
+///   P = int L(u) A dOmega = int_0^1 L(u) [4 (A_yz + A_xz) sqrt(1 - u^2) + 2 pi A_xy u] du
+/// (dOmega = du dphi; the azimuth integral of |cos phi| and |sin phi| is 4), integrated in
+/// closed form per table interval. A path's direction is drawn with density L A / P, exactly:
+/// a bin of (u, phi) by its bound Lmax Amax (L is linear and |cos phi|, |sin phi| monotone in
+/// a bin, so the bounds are the ends' values), a point uniform in it, kept with probability
+/// L A / (Lmax Amax); then a point on the faces the direction enters, as BoxSunEmitter does.
+struct BoxDomeEmitter {
+    static constexpr int kPhiBins = 64;  // multiple of 4: |cos|, |sin| kinks fall on bin edges
+    glm::dvec3 lo{0.0}, hi{1.0};
+    std::vector<double> table;  // L at u_k
+    int u_bins = 0;
+    double du = 0.0, total_power = 0.0;
+    std::vector<double> cdf;    // running sums of the bins' bounds (u major, phi minor)
+    std::vector<double> bound;  // Lmax Amax per bin
+    double a_yz = 0.0, a_xz = 0.0, a_xy = 0.0;
+
+    BoxDomeEmitter(const glm::dvec3& lo_, const glm::dvec3& hi_, std::span<const double> radiance)
+        : lo(lo_), hi(hi_), table(radiance.begin(), radiance.end()) {
+        const glm::dvec3 ext = hi - lo;
+        a_yz = ext.y * ext.z;
+        a_xz = ext.x * ext.z;
+        a_xy = ext.x * ext.y;
+        const int intervals = int(table.size()) - 1;
+        // At least 128 bins in u, each inside one table interval (L linear in it).
+        const int per = std::max(1, (128 + intervals - 1) / intervals);
+        u_bins = intervals * per;
+        du = 1.0 / double(u_bins);
+        const double dphi = 2.0 * std::numbers::pi / kPhiBins;
+        cdf.resize(std::size_t(u_bins) * kPhiBins);
+        bound.resize(cdf.size());
+        double run = 0.0;
+        for (int i = 0; i < u_bins; ++i) {
+            const double u0 = i * du, u1 = (i + 1) * du;
+            const double lmax = std::max(radiance_at(u0), radiance_at(u1));
+            const double cmax = std::sqrt(std::max(0.0, 1.0 - u0 * u0));
+            for (int j = 0; j < kPhiBins; ++j) {
+                const double p0 = j * dphi, p1 = (j + 1) * dphi;
+                const double amax = a_yz * cmax * std::max(std::fabs(std::cos(p0)), std::fabs(std::cos(p1))) +
+                                    a_xz * cmax * std::max(std::fabs(std::sin(p0)), std::fabs(std::sin(p1))) +
+                                    a_xy * u1;
+                const std::size_t b = std::size_t(i) * kPhiBins + std::size_t(j);
+                bound[b] = lmax * amax;
+                run += bound[b];
+                cdf[b] = run;
+            }
+        }
+        // The power, interval by interval: L = a + b u, with
+        //   int sqrt(1-u^2) du = (u sqrt(1-u^2) + asin u) / 2,  int u sqrt(1-u^2) du = -(1-u^2)^1.5 / 3.
+        const auto s0 = [](double u) { return 0.5 * (u * std::sqrt(1.0 - u * u) + std::asin(u)); };
+        const auto s1 = [](double u) { return -std::pow(1.0 - u * u, 1.5) / 3.0; };
+        double side = 0.0, top = 0.0;
+        for (int k = 0; k < intervals; ++k) {
+            const double u0 = double(k) / intervals, u1 = double(k + 1) / intervals;
+            const double b = (table[std::size_t(k) + 1] - table[std::size_t(k)]) / (u1 - u0);
+            const double a = table[std::size_t(k)] - b * u0;
+            side += a * (s0(u1) - s0(u0)) + b * (s1(u1) - s1(u0));
+            top += a * 0.5 * (u1 * u1 - u0 * u0) + b * (u1 * u1 * u1 - u0 * u0 * u0) / 3.0;
+        }
+        total_power = 4.0 * (a_yz + a_xz) * side + 2.0 * std::numbers::pi * a_xy * top;
+    }
+    double radiance_at(double u) const noexcept {
+        const int intervals = int(table.size()) - 1;
+        const double x = std::clamp(u, 0.0, 1.0) * intervals;
+        const int k = std::min(int(x), intervals - 1);
+        const double f = x - k;
+        return table[std::size_t(k)] * (1.0 - f) + table[std::size_t(k) + 1] * f;
+    }
+    std::uint32_t emit(core::Rng& rng, glm::dvec3& x, glm::dvec3& d) const {
+        glm::dvec3 toward{0.0, 0.0, 1.0};
+        const double dphi = 2.0 * std::numbers::pi / kPhiBins;
+        // A candidate is kept with probability L A / (Lmax Amax): about 1/2 in a bin where L
+        // rises from 0, near 1 elsewhere, so 64 candidates all fail with probability < 2^-40;
+        // then the last one is kept (bounded work whatever the table holds).
+        for (int tries = 0; tries < 64 && cdf.back() > 0.0; ++tries) {
+            const double v = rng.uniform() * cdf.back();
+            const std::size_t b =
+                std::min(std::size_t(std::upper_bound(cdf.begin(), cdf.end(), v) - cdf.begin()), cdf.size() - 1);
+            const int i = int(b / kPhiBins), j = int(b % kPhiBins);
+            const double u = (i + rng.uniform()) * du, phi = (j + rng.uniform()) * dphi;
+            const double c = std::sqrt(std::max(0.0, 1.0 - u * u));
+            toward = {c * std::cos(phi), c * std::sin(phi), u};
+            const double a = a_yz * std::fabs(toward.x) + a_xz * std::fabs(toward.y) + a_xy * u;
+            if (rng.uniform() * bound[b] <= radiance_at(u) * a) break;
+        }
+        return BoxSunEmitter(lo, hi, -toward, 1.0).emit(rng, x, d);
+    }
+    double power() const noexcept { return total_power; }
+};
+
 // ---------------------------------------------------------------------------------------
 // Analytic media (oracles)
 
