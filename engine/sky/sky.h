@@ -215,6 +215,45 @@ StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& densi
                           const std::function<void(const std::string&)>& say = {});
 
 // ---------------------------------------------------------------------------------------
+// The truth: Monte Carlo from the boundary through the full-resolution density
+
+struct TruthOptions {
+    std::uint64_t paths = 4'000'000;  ///< per light (the sun; each end of the sky), in [1000, 2^34]
+    std::uint64_t seed = 23;          ///< every light draws its own stream from it
+    /// The sky's profile (zenith_weight) tabulated at this many values of sin(elevation)
+    /// (transport::DomeSource), in [2, 2^20].
+    int table = 1025;
+};
+/// One light's truth in a solve's shape (single: order 1, multiple: orders >= 2), with the
+/// Monte Carlo's own noise (relative L2 from two independent halves) and wall time.
+struct TruthField {
+    LightField field;
+    transport::MonteCarloResult::Noise noise;
+    double seconds = 0.0;
+};
+/// The sun (unit irradiance along `direction`) entering the grid's box, through media.full
+/// (solve::make_media with the full-resolution density), tallied on media.lighting.
+/// core::Error without the full-resolution density or with options out of range.
+TruthField sun_truth(const solve::Media& media, const glm::dvec3& direction, std::span<const glm::dvec3> directions,
+                     const TruthOptions& options = {});
+/// The sky dome's bases as solve_sky gives them (zenith and horizon ends of the gradient, or
+/// their sum for a uniform sky), per unit radiance: radiance from every direction above the
+/// horizon (transport::DomeSource), not the solve's sky_samples directions.
+struct SkyTruth {
+    SkyField field;
+    std::vector<transport::MonteCarloResult::Noise> noise;  ///< per basis (zenith, horizon; or uniform)
+    double seconds = 0.0;
+};
+SkyTruth sky_truth(const solve::Media& media, bool uniform, std::span<const glm::dvec3> directions,
+                   const TruthOptions& options = {});
+/// The plan's static light (its sun along `sun_direction`, its sky) by the truth, in the shape
+/// load_or_solve gives, so a view can render it in place of the solves (a reference frame).
+/// `noise`: each light's, in order (sun, then the sky's bases).
+StaticLight static_truth(const ScenePlan& plan, const solve::Media& media, const glm::dvec3& sun_direction,
+                         std::span<const glm::dvec3> directions, const TruthOptions& options = {},
+                         std::vector<transport::MonteCarloResult::Noise>* noise = nullptr);
+
+// ---------------------------------------------------------------------------------------
 // Composing the colour the renderer draws
 
 struct ComposeOptions {

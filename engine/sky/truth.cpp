@@ -1,0 +1,98 @@
+// The static light's truth (sky.h, docs/sky.md "The static light against its truth"): the
+// sun and the sky dome by Monte Carlo from the grid's boundary through the full-resolution
+// density, tallied on the lighting grid, in the fields a solve gives.
+#include "sky/sky.h"
+
+#include <cmath>
+
+namespace fulgur::sky {
+
+namespace {
+
+const transport::LightingMedium& full_medium(const solve::Media& media) {
+    if (media.full.density.data.empty())
+        throw core::Error("sky truth", "needs the full-resolution density (solve::make_media with full)");
+    return media.full;
+}
+
+transport::MonteCarloOptions truth_options(const TruthOptions& o, std::uint64_t stream) {
+    if (o.paths < 1000 || o.paths > (std::uint64_t(1) << 34))
+        throw core::Error("truth paths", "must be in [1000, 2^34], got " + std::to_string(o.paths));
+    transport::MonteCarloOptions mo;
+    mo.paths = o.paths;
+    mo.seed = core::hash_seed(o.seed, stream);
+    mo.halves = true;
+    return mo;
+}
+
+TruthField as_field(transport::MonteCarloResult&& r) {
+    TruthField t;
+    t.field.single = std::move(r.single);
+    t.field.multiple = std::move(r.multiple);
+    t.noise = r.noise;
+    t.seconds = r.seconds;
+    return t;
+}
+
+}  // namespace
+
+TruthField sun_truth(const solve::Media& media, const glm::dvec3& direction, std::span<const glm::dvec3> directions,
+                     const TruthOptions& options) {
+    const transport::DirectionalSource sun{direction, 1.0};
+    return as_field(transport::monte_carlo(full_medium(media), sun, media.lighting.density.geom, directions,
+                                           truth_options(options, 0)));
+}
+
+SkyTruth sky_truth(const solve::Media& media, bool uniform, std::span<const glm::dvec3> directions,
+                   const TruthOptions& options) {
+    if (options.table < 2 || options.table > (1 << 20))
+        throw core::Error("truth table", "must be in [2, 2^20], got " + std::to_string(options.table));
+    const transport::LightingMedium& full = full_medium(media);
+    const core::GridGeometry& lighting = media.lighting.density.geom;
+    SkyTruth out;
+    if (uniform) {
+        TruthField t = as_field(transport::monte_carlo(full, transport::DomeSource{{1.0, 1.0}}, lighting, directions,
+                                                       truth_options(options, 1)));
+        out.field.uniform = std::move(t.field);
+        out.noise.push_back(t.noise);
+        out.seconds = t.seconds;
+        return out;
+    }
+    // The gradient's ends, tabulated finely enough that their linear interpolation is the
+    // profile: zenith_weight's steepest stretch (sqrt near the horizon) differs from its
+    // chords by at most 1/(8 sqrt(n)) over the first interval, a solid angle 2 pi / n.
+    transport::DomeSource zenith, horizon;
+    const int n = options.table;
+    for (int k = 0; k < n; ++k) {
+        const double w = scene::SkyDome::zenith_weight(double(k) / (n - 1));
+        zenith.radiance.push_back(w);
+        horizon.radiance.push_back(1.0 - w);
+    }
+    TruthField z = as_field(transport::monte_carlo(full, zenith, lighting, directions, truth_options(options, 2)));
+    TruthField h = as_field(transport::monte_carlo(full, horizon, lighting, directions, truth_options(options, 3)));
+    out.field.zenith = std::move(z.field);
+    out.field.horizon = std::move(h.field);
+    out.noise = {z.noise, h.noise};
+    out.seconds = z.seconds + h.seconds;
+    return out;
+}
+
+StaticLight static_truth(const ScenePlan& plan, const solve::Media& media, const glm::dvec3& sun_direction,
+                         std::span<const glm::dvec3> directions, const TruthOptions& options,
+                         std::vector<transport::MonteCarloResult::Noise>* noise) {
+    StaticLight light;
+    light.sun_direction = sun_direction;
+    if (plan.sun) {
+        TruthField t = sun_truth(media, sun_direction, directions, options);
+        light.sun = std::move(t.field);
+        if (noise) noise->push_back(t.noise);
+    }
+    if (plan.sky) {
+        SkyTruth t = sky_truth(media, plan.sky_uniform, directions, options);
+        light.sky = std::move(t.field);
+        if (noise) noise->insert(noise->end(), t.noise.begin(), t.noise.end());
+    }
+    return light;
+}
+
+}  // namespace fulgur::sky
