@@ -104,9 +104,11 @@ void declare(CommandLine& cli, ShotArgs& a) {
     app.add_option(
            "--against", a.against,
            "what --reference renders: truth (Monte Carlo of the frame's lit channel through the full-resolution "
-           "density; the default) or direct (the scene's own solvers on the frame's point sources)")
-        ->check(CLI::IsMember({"truth", "direct"}))
-        ->type_name("truth|direct");
+           "density; the default), direct (the scene's own solvers on the frame's point sources) or static (the "
+           "frame's sun or moon and sky by Monte Carlo through the full-resolution density in place of their "
+           "solves; the lightning as shown)")
+        ->check(CLI::IsMember({"truth", "direct", "static"}))
+        ->type_name("truth|direct|static");
     cli.number("--truth-paths", a.truth_paths, "Monte Carlo paths of the truth (noise ~ 1/sqrt(N))",
                std::uint64_t(1000), std::uint64_t(1) << 34)
         ->type_name("N");

@@ -29,9 +29,10 @@ struct ShotArgs {
     /// basis method is measured against) into REF.png, its difference image into
     /// REF_diff.png, and print a second JSON line with the errors and the times.
     std::optional<std::filesystem::path> reference;
-    /// --against truth|direct: what --reference renders: the truth (Monte Carlo of the
-    /// frame's lit channel through the full-resolution density, runtime::truth) or the direct
-    /// solve (the scene's own solvers on the frame's point sources, no basis).
+    /// --against truth|direct|static: what --reference renders: the truth (Monte Carlo of the
+    /// frame's lit channel through the full-resolution density, runtime::truth), the direct
+    /// solve (the scene's own solvers on the frame's point sources, no basis), or the static
+    /// light's truth (sky::static_truth in place of the sun's and sky's solves).
     std::string against = "truth";
     std::uint64_t truth_paths = 4'000'000;  ///< --truth-paths N: the truth's Monte Carlo paths
     /// --quality PRESET: how the frame is lit (paper, hybrid, per_strike, reference; default:

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <iostream>
 #include <optional>
 #include <vector>
@@ -54,6 +55,55 @@ transport::SourceField since_known_field(view::StormView& view, double t, const 
     return field;
 }
 
+// What --reference writes besides its JSON line: the reference frame's image, the
+// difference of the cloud's radiance (march buffer: no glow, no jitter) between the shown
+// field and the reference, and the three side by side. `show_reference` / `show_basis` make
+// the view light the frame by the reference or by what was shown (before each render).
+app::RadianceComparison reference_images(
+    view::StormView& view, platform::Context* ctx, const render::Camera& cam, double t, const view::ViewOptions& opt,
+    const app::ShotArgs& a, const std::vector<std::uint8_t>& shown_basis, const transport::SourceField* shown_field,
+    const transport::SourceField* reference_field, const std::function<void()>& show_reference,
+    const std::function<void()>& show_basis, app::DisplayDifference& shown, int& w, int& h) {
+    show_reference();
+    view.render(cam, t, a.width, a.height, opt, reference_field);
+    ctx->present();
+    const std::vector<std::uint8_t> shown_ref = ctx->read_rgba8();
+    core::write_png(*a.reference, a.width, a.height, 4, shown_ref);
+    shown = app::compare_display(shown_basis, shown_ref);
+
+    // The cloud alone (no glow in the march buffer, no jitter), once per field.
+    view::ViewOptions metric = opt;
+    metric.settings.glow = false;
+    metric.settings.jitter = false;
+    show_basis();
+    view.render(cam, t, a.width, a.height, metric, shown_field);
+    const std::vector<float> basis = view.renderer().read_march(w, h);
+    show_reference();
+    view.render(cam, t, a.width, a.height, metric, reference_field);
+    const std::vector<float> ref = view.renderer().read_march(w, h);
+    show_basis();
+    const app::RadianceComparison c = app::compare_radiance(basis, ref);
+    const std::vector<std::uint8_t> diff_px = app::difference_image(basis, ref);
+    core::write_png(app::reference_diff_path(*a.reference), w, h, 4, diff_px);
+    // Side by side for a quick look: basis | reference | difference (nearest-upsampled).
+    const int W = a.width, H = a.height;
+    std::vector<std::uint8_t> trio(std::size_t(3 * W) * std::size_t(H) * 4);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+            for (int ch = 0; ch < 4; ++ch) {
+                const std::size_t src = (std::size_t(y) * std::size_t(W) + std::size_t(x)) * 4 + std::size_t(ch);
+                const std::size_t row = std::size_t(y) * std::size_t(3 * W);
+                trio[(row + std::size_t(x)) * 4 + std::size_t(ch)] = shown_basis[src];
+                trio[(row + std::size_t(W + x)) * 4 + std::size_t(ch)] = shown_ref[src];
+                const std::size_t dx = std::size_t(x) * std::size_t(w) / std::size_t(W);
+                const std::size_t dy = std::size_t(y) * std::size_t(h) / std::size_t(H);
+                trio[(row + std::size_t(2 * W + x)) * 4 + std::size_t(ch)] =
+                    diff_px[(dy * std::size_t(w) + dx) * 4 + std::size_t(ch)];
+            }
+    core::write_png(app::reference_compare_path(*a.reference), 3 * W, H, 4, trio);
+    return c;
+}
+
 // --reference: the same frame lit by the truth (or the direct solve), its difference image and the errors
 // (S over the cloud; the cloud's in-scattered radiance in the image) and times as JSON.
 void render_reference(view::StormView& view, platform::Context* ctx, const render::Camera& cam, double t,
@@ -84,42 +134,11 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
     const std::size_t sources = f.sources.size(), active = f.weights.active.size();
     const double s_err = shown_field ? field_error(view, *shown_field, direct) : view.reconstruction_error(direct);
 
-    view.render(cam, t, a.width, a.height, opt, &direct);
-    ctx->present();
-    const std::vector<std::uint8_t> shown_ref = ctx->read_rgba8();
-    core::write_png(*a.reference, a.width, a.height, 4, shown_ref);
-    const app::DisplayDifference shown = app::compare_display(shown_basis, shown_ref);
-
-    // The cloud alone (no glow in the march buffer, no jitter), once per field.
-    view::ViewOptions metric = opt;
-    metric.settings.glow = false;
-    metric.settings.jitter = false;
+    app::DisplayDifference shown;
+    const auto nothing = [] {};
     int w = 0, h = 0;
-    view.render(cam, t, a.width, a.height, metric, shown_field);
-    const std::vector<float> basis = view.renderer().read_march(w, h);
-    view.render(cam, t, a.width, a.height, metric, &direct);
-    const std::vector<float> ref = view.renderer().read_march(w, h);
-    const app::RadianceComparison c = app::compare_radiance(basis, ref);
-    const std::vector<std::uint8_t> diff_px = app::difference_image(basis, ref);
-    core::write_png(app::reference_diff_path(*a.reference), w, h, 4, diff_px);
-    // Side by side for a quick look: basis | direct | difference (nearest-upsampled).
-    const std::filesystem::path both = app::reference_compare_path(*a.reference);
-    const int W = a.width, H = a.height;
-    std::vector<std::uint8_t> trio(std::size_t(3 * W) * std::size_t(H) * 4);
-    for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x)
-            for (int ch = 0; ch < 4; ++ch) {
-                const std::size_t src = (std::size_t(y) * std::size_t(W) + std::size_t(x)) * 4 + std::size_t(ch);
-                const std::size_t row = std::size_t(y) * std::size_t(3 * W);
-                trio[(row + std::size_t(x)) * 4 + std::size_t(ch)] = shown_basis[src];
-                trio[(row + std::size_t(W + x)) * 4 + std::size_t(ch)] = shown_ref[src];
-                const std::size_t dx = std::size_t(x) * std::size_t(w) / std::size_t(W);
-                const std::size_t dy = std::size_t(y) * std::size_t(h) / std::size_t(H);
-                trio[(row + std::size_t(2 * W + x)) * 4 + std::size_t(ch)] =
-                    diff_px[(dy * std::size_t(w) + dx) * 4 + std::size_t(ch)];
-            }
-    core::write_png(both, 3 * W, H, 4, trio);
-
+    const app::RadianceComparison c =
+        reference_images(view, ctx, cam, t, opt, a, shown_basis, shown_field, &direct, nothing, nothing, shown, w, h);
     std::printf(
         "{\"name\":\"fulgur-shot-reference\",\"against\":\"%s\",\"quality\":\"%s\",\"lit\":%s,"
         "\"sources\":%zu,\"active_lights\":%zu,\"reference_noise\":%.4g,"
@@ -131,6 +150,57 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
         lit ? "true" : "false", sources, active, noise.total, solve_s, frame_ms,
         frame_ms > 0.0 ? solve_s * 1e3 / frame_ms : 0.0, s_err, c.relative_l2, c.max_difference, c.fraction_over,
         c.lit_pixels, w, h, shown.mean_levels, shown.fraction_over);
+    std::fflush(stdout);
+}
+
+// Relative L2 of two static lights in colour over the cloud (lighting cells holding density),
+// every direction and channel.
+double colour_error(view::StormView& view, const sky::ColourField& x, const sky::ColourField& ref) {
+    const std::vector<float>& rho = view.static_media().lighting.density.data;
+    core::RelativeL2 e;
+    for (std::size_t m = 0; m < ref.rgb.size(); ++m)
+        for (std::size_t i = 0; i < ref.rgb[m].size(); ++i)
+            if (rho[i / 3] > 0.0f) e.add(double(x.rgb[m][i]), double(ref.rgb[m][i]));
+    return e.value();
+}
+
+// --reference --against static: the same frame with its static light (sun or moon, sky) by the
+// truth (sky::static_truth) in place of the scene's solves; the lightning is the frame's in
+// both. Errors of the static light's S in colour (single, multiple, total) over the cloud and
+// of the cloud's radiance in the image, as JSON.
+void render_static_reference(view::StormView& view, platform::Context* ctx, const render::Camera& cam, double t,
+                             const view::ViewOptions& opt, const app::ShotArgs& a,
+                             const std::vector<std::uint8_t>& shown_basis, const transport::SourceField* shown_field) {
+    sky::TruthOptions to;
+    to.paths = a.truth_paths;
+    to.seed = a.seed;
+    view::StormView::StaticTruthSolve truth = view.solve_static_truth(to);
+    const sky::StaticLight solved = view.static_light();
+    double noise = 0.0;
+    for (const transport::MonteCarloResult::Noise& n : truth.noise) noise = std::max(noise, n.total);
+    sky::ComposeOptions co;
+    co.sun = opt.sun;
+    co.sky = opt.sky;
+    double err[3] = {};
+    for (int part = 0; part < 3; ++part) {
+        co.single = part != 1;
+        co.multiple = part != 0;
+        const sky::ColourField ref = view.static_colour(co, &truth.light);
+        if (!ref.empty()) err[part] = colour_error(view, view.static_colour(co), ref);
+    }
+    app::DisplayDifference shown;
+    int w = 0, h = 0;
+    const app::RadianceComparison c = reference_images(
+        view, ctx, cam, t, opt, a, shown_basis, shown_field, shown_field, [&] { view.set_static_light(truth.light); },
+        [&] { view.set_static_light(solved); }, shown, w, h);
+    std::printf(
+        "{\"name\":\"fulgur-shot-static-reference\",\"against\":\"static\",\"sun\":%s,\"sky\":%s,"
+        "\"reference_noise\":%.4g,\"reference_s\":%.4g,\"single_rel_l2\":%.4g,\"multiple_rel_l2\":%.4g,"
+        "\"source_rel_l2\":%.4g,\"image_rel_l2\":%.4g,\"image_max_difference\":%.4g,"
+        "\"image_fraction_over_10pct\":%.4g,\"image_lit_pixels\":%zu,"
+        "\"shown_mean_levels\":%.4g,\"shown_fraction_over_25_levels\":%.4g}\n",
+        solved.sun ? "true" : "false", solved.sky ? "true" : "false", noise, truth.seconds, err[0], err[1], err[2],
+        c.relative_l2, c.max_difference, c.fraction_over, c.lit_pixels, shown.mean_levels, shown.fraction_over);
     std::fflush(stdout);
 }
 
@@ -209,7 +279,7 @@ int main(int argc, char** argv) {
             if (a.quality || a.since_known_ms) view.set_quality(q);
             const std::size_t strike = view.pipeline().strike_at(0.0, a.seed);
             if (a.time_after_return_stroke) t += view.pipeline().storm().strike(strike).profile.stroke_onset.at(0);
-        } else if (a.time_after_return_stroke || a.reference || a.since_known_ms) {
+        } else if (a.time_after_return_stroke || (a.reference && a.against != "static") || a.since_known_ms) {
             throw core::Error(a.scene.string(), std::string("the scene has no lightning: ") +
                                                     (a.reference        ? "--reference has no frame to solve"
                                                      : a.since_known_ms ? "--since-known has no strike to wait for"
@@ -260,7 +330,10 @@ int main(int argc, char** argv) {
         line.pop_back();  // the object's closing brace: the camera joins it
         std::cout << line << ",\"camera\":" << scene::camera_json(stated) << "}" << std::endl;
         if (a.vdb) write_frame_vdb(view, t, opt, a, shown_field);
-        if (a.reference) render_reference(view, ctx.get(), cam, t, opt, a, px, shown_field);
+        if (a.reference && a.against == "static")
+            render_static_reference(view, ctx.get(), cam, t, opt, a, px, shown_field);
+        else if (a.reference)
+            render_reference(view, ctx.get(), cam, t, opt, a, px, shown_field);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur-shot: %s\n", e.what());
         return app::kExitFailure;

@@ -136,6 +136,58 @@ void StormView::set_sun_solve(sky::SunSolve&& solve) {
     ++static_version_;
 }
 
+void StormView::set_static_light(sky::StaticLight light) {
+    const auto field_like = [](const sky::LightField& f, const sky::LightField& like) {
+        return f.single.data.size() == like.single.data.size() && f.multiple.data.size() == like.multiple.data.size();
+    };
+    const auto sky_like = [&](const sky::SkyField& f, const sky::SkyField& like) {
+        return field_like(f.zenith, like.zenith) && field_like(f.horizon, like.horizon) &&
+               field_like(f.uniform, like.uniform);
+    };
+    if (light.sun.has_value() != static_.sun.has_value() || light.sky.has_value() != static_.sky.has_value() ||
+        (light.sun && !field_like(*light.sun, *static_.sun)) || (light.sky && !sky_like(*light.sky, *static_.sky)))
+        throw core::Error(scene_.path.string(), "set_static_light: a static light of another shape than the plan's");
+    if (light.sun && light.sun_direction != static_.sun_direction)
+        throw core::Error(scene_.path.string(), "set_static_light: a sun solved for another direction");
+    static_ = std::move(light);
+    ++static_version_;
+}
+
+StormView::StaticTruthSolve StormView::solve_static_truth(const sky::TruthOptions& options) {
+    if (!plan_.sun && !plan_.sky) throw core::Error(scene_.path.string(), "the scene has no sun and no sky");
+    core::Stopwatch sw;
+    // The truth needs the full-resolution density; the static media hold it when their order 2
+    // is exact, else it is built here for this solve.
+    std::optional<solve::Media> own;
+    const solve::Media* media = &static_media();
+    if (media->full.density.data.empty()) media = &own.emplace(solve::make_media(scene_, density_, 1, true));
+    std::vector<glm::dvec3> dirs;
+    if (static_.sun)
+        dirs = static_.sun->multiple.directions.empty() ? static_.sun->single.directions
+                                                        : static_.sun->multiple.directions;
+    else
+        dirs = transport::output_directions(scene_.effective_directions());
+    StaticTruthSolve out;
+    out.light = sky::static_truth(plan_, *media, static_.sun_direction, dirs, options, &out.noise);
+    // Only what the plan solves: a part the scene switched off stays empty, as in its solves.
+    const auto match = [](sky::LightField& f, const sky::LightField& like) {
+        if (like.single.data.empty()) f.single = {};
+        if (like.multiple.data.empty()) f.multiple = {};
+    };
+    if (out.light.sun) match(*out.light.sun, *static_.sun);
+    if (out.light.sky) {
+        match(out.light.sky->zenith, static_.sky->zenith);
+        match(out.light.sky->horizon, static_.sky->horizon);
+        match(out.light.sky->uniform, static_.sky->uniform);
+    }
+    out.seconds = sw.seconds();
+    return out;
+}
+
+sky::ColourField StormView::static_colour(const sky::ComposeOptions& options, const sky::StaticLight* light) const {
+    return sky::compose(light ? *light : static_, sun_, scene_.sky, options);
+}
+
 void StormView::update_static_light(const ViewOptions& o) {
     const bool sun = plan_.sun && o.sun && static_.sun.has_value() && sun_.has_value();
     const bool sky = plan_.sky && o.sky && static_.sky.has_value();

@@ -156,6 +156,25 @@ public:
     void set_sun_solve(sky::SunSolve&& solve);
     /// The direction the shown sun field was solved for.
     const glm::dvec3& sun_solved_direction() const noexcept { return static_.sun_direction; }
+    /// The static light shown: the scene's solves (load_or_solve, set_sun_solve) or what
+    /// set_static_light() gave.
+    const sky::StaticLight& static_light() const noexcept { return static_; }
+    /// Shows `light` as the static light from now on, e.g. its truth for a reference frame (the
+    /// sun's full-resolution order 1 is unchanged: it is exact). It must hold what the plan
+    /// solves, for the shown sun's direction; core::Error otherwise.
+    void set_static_light(sky::StaticLight light);
+    /// The truth of the static light shown (sky::static_truth: Monte Carlo of the sun along the
+    /// shown direction and of the whole dome through the full-resolution density). Seconds to
+    /// minutes. core::Error when the scene has no sun and no sky.
+    struct StaticTruthSolve {
+        sky::StaticLight light;
+        std::vector<transport::MonteCarloResult::Noise> noise;  ///< sky::static_truth's
+        double seconds = 0.0;
+    };
+    StaticTruthSolve solve_static_truth(const sky::TruthOptions& options = {});
+    /// The static light in colour on the lighting grid (sky::compose with the shown sun and the
+    /// scene's sky), every direction: `light` (default: the shown one) with `options`.
+    sky::ColourField static_colour(const sky::ComposeOptions& options, const sky::StaticLight* light = nullptr) const;
 
     /// A scene without lightning has no bases and no pipeline: has_lightning() is false and
     /// pipeline() / bases() must not be called.
