@@ -32,6 +32,9 @@ void declare(CommandLine& cli, DemoArgs& a) {
     app.add_flag("--screenshot-at-peak", a.screenshot_at_peak,
                  "hold the first strike 2 ms after its return stroke, write out/screenshot_000.png after "
                  "--screenshot-after frames (default 4) and quit");
+    app.add_flag("--static-truth", a.static_truth,
+                 "press \"Static light against its truth\" on the second frame (a screenshot waits for it and shows "
+                 "the truth)");
     app.add_flag("--solve-direct", a.solve_direct,
                  "ask for the second frame's direct solve (on a worker thread; with --screenshot-at-peak the "
                  "screenshot waits for it and shows the direct solve and its figures)");

@@ -35,6 +35,7 @@ AccuracyPanel::AccuracyPanel(view::StormView& view) : view_(view) {
 
 AccuracyPanel::~AccuracyPanel() {
     if (pending_.valid()) pending_.wait();
+    if (static_pending_.valid()) static_pending_.wait();
 }
 
 const transport::SourceField* AccuracyPanel::shown_field() const noexcept {
@@ -47,6 +48,7 @@ void AccuracyPanel::reset() {
 }
 
 void AccuracyPanel::update(double t, const view::ViewOptions& options) {
+    update_static(options);
     if (!view_.has_lightning()) return;
     if (pending_.valid() && pending_.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
         Reference r = pending_.get();
@@ -119,7 +121,104 @@ void AccuracyPanel::update(double t, const view::ViewOptions& options) {
     });
 }
 
+void AccuracyPanel::release_static() {
+    // The sun may have moved meanwhile (time of day): its new solve stays, the sky's solve returns.
+    if (static_shown_) {
+        sky::StaticLight back = static_->solved;
+        if (back.sun && view_.static_light().sun_direction != static_->truth.sun_direction) {
+            back.sun = view_.static_light().sun;
+            back.sun_direction = view_.static_light().sun_direction;
+        }
+        view_.set_static_light(std::move(back));
+    }
+    static_shown_ = false;
+    static_.reset();
+}
+
+void AccuracyPanel::update_static(const view::ViewOptions& options) {
+    if (static_pending_.valid() && static_pending_.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
+        StaticReference r = static_pending_.get();
+        std::fprintf(stderr, "fulgur: static light's truth %.1f s: S off by %.1f%% (single %.1f%%, multiple %.1f%%)\n",
+                     r.seconds, 100.0 * r.total, 100.0 * r.single, 100.0 * r.multiple);
+        // A sun that moved meanwhile makes the truth another direction's: dropped.
+        if (!r.truth.sun || r.truth.sun_direction == view_.static_light().sun_direction) static_ = std::move(r);
+    }
+    if (static_ && static_->truth.sun && static_->truth.sun_direction != view_.static_light().sun_direction)
+        release_static();  // the time of day moved the sun
+    if (static_) {
+        const bool want = static_show_;
+        if (want != static_shown_) {
+            view_.set_static_light(want ? static_->truth : static_->solved);
+            static_shown_ = want;
+        }
+    }
+    if (!static_requested_ || static_pending_.valid()) return;
+    static_requested_ = false;
+    const sky::ScenePlan& plan = view_.plan();
+    if (!plan.sun && !plan.sky) return;
+    // Copies for the worker (the view's static light changes with the time of day); the
+    // static media are built here, on the thread that owns the view.
+    const solve::Media& media = view_.static_media();
+    std::fprintf(stderr, "fulgur: solving the static light's truth on a worker thread...\n");
+    static_started_ = wall_seconds();
+    static_pending_ = std::async(std::launch::async, [scene = view_.scene(), &density = view_.density(), &media, plan,
+                                                      solved = view_.static_light(), sun = view_.shown_sun(), options] {
+        const core::ScopedThreadCount share(std::max(1, core::thread_count() - 1));
+        core::Stopwatch sw;
+        StaticReference r;
+        r.solved = solved;
+        std::optional<solve::Media> own;
+        const solve::Media* m = &media;
+        if (m->full.density.data.empty()) m = &own.emplace(solve::make_media(scene, density, 1, true));
+        std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
+        sky::TruthOptions to;
+        to.paths = 2'000'000;
+        r.truth = sky::static_truth(plan, *m, solved.sun_direction, dirs, to, &r.noise);
+        sky::keep_parts(r.truth, solved);
+        sky::ComposeOptions co;
+        co.sun = options.sun;
+        co.sky = options.sky;
+        double* err[3] = {&r.single, &r.multiple, &r.total};
+        for (int part = 0; part < 3; ++part) {
+            co.single = part != 1;
+            co.multiple = part != 0;
+            *err[part] = sky::colour_error(sky::compose(solved, sun, scene.sky, co),
+                                           sky::compose(r.truth, sun, scene.sky, co), m->lighting.density.data);
+        }
+        r.seconds = sw.seconds();
+        return r;
+    });
+}
+
+void AccuracyPanel::draw_static() {
+    const sky::ScenePlan& plan = view_.plan();
+    if (!plan.sun && !plan.sky) return;
+    ImGui::Separator();
+    ImGui::TextUnformatted("Static light (sun or moon, sky)");
+    if (static_pending_.valid()) {
+        ImGui::Text("solving its truth... %.0f s", wall_seconds() - static_started_);
+    } else if (!static_) {
+        if (ImGui::Button("Static light against its truth")) request_static();
+        if (ImGui::IsItemHovered())
+            ImGui::SetTooltip(
+                "Monte Carlo of the sun and of the whole sky dome through the full-resolution density\n"
+                "(2M paths per light, on a worker thread: a minute or more); the error of the solves\n"
+                "the renderer draws (docs/sky.md has the figures for every configuration)");
+    } else {
+        const StaticReference& r = *static_;
+        double noise = 0.0;
+        for (const auto& n : r.noise) noise = std::max(noise, n.total);
+        ImGui::Text("truth %.1f s: S off by %.1f%% (single %.1f%%, multiple %.1f%%)", r.seconds, 100.0 * r.total,
+                    100.0 * r.single, 100.0 * r.multiple);
+        ImGui::Text("(truth's own noise %.1f%%)", 100.0 * noise);
+        ImGui::Checkbox("show the static light's truth", &static_show_);
+        ImGui::SameLine();
+        if (ImGui::Button("Release##static")) release_static();
+    }
+}
+
 void AccuracyPanel::draw(const view::FrameReport& rep) {
+    draw_static();
     if (!view_.has_lightning()) {
         ImGui::TextUnformatted("Quality (the scene has no lightning)");
         return;

@@ -1,7 +1,8 @@
 // The demo panel's "Quality" section: the preset in use (selectable), its frame time and
 // per-strike solve latency, and on demand the error of the frame against the direct solve or
 // the truth, solved on a worker thread while the window stays live (the storm time holds
-// until the user releases it).
+// until the user releases it); and the static light's (sun or moon, sky) error against its
+// truth, solved the same way, with the truth shown in its place on request.
 #pragma once
 
 #include "view/view.h"
@@ -24,14 +25,18 @@ public:
     void update(double t, const view::ViewOptions& options);
     /// A reference solve is running or shown: the storm time must hold.
     bool holds_time() const noexcept { return requested_ >= 0 || pending_.valid() || reference_.has_value(); }
-    /// A reference solve is asked for or running.
-    bool busy() const noexcept { return requested_ >= 0 || pending_.valid(); }
+    /// A reference solve (of the frame or of the static light) is asked for or running.
+    bool busy() const noexcept {
+        return requested_ >= 0 || pending_.valid() || static_requested_ || static_pending_.valid();
+    }
     /// The field to light the cloud with instead of the frame's (the reference, when shown).
     const transport::SourceField* shown_field() const noexcept;
     /// Drops the reference (a new strike, new lightning, other components).
     void reset();
     /// Asks for a reference solve of the next frame: the truth, or the direct solve.
     void request(bool truth) { requested_ = truth ? 1 : 0; }
+    /// Asks for the static light's truth (scenes with a sun or a sky).
+    void request_static() { static_requested_ = true; }
 
 private:
     struct Reference {
@@ -48,6 +53,22 @@ private:
     bool show_ = true;
     runtime::Components components_;  // those the reference was solved for
     double started_ = 0.0;            // wall seconds when the pending solve started
+
+    // The static light against its truth.
+    struct StaticReference {
+        sky::StaticLight truth, solved;  // the truth, and the solves it replaces while shown
+        std::vector<transport::MonteCarloResult::Noise> noise;
+        double seconds = 0.0, single = 0.0, multiple = 0.0, total = 0.0;
+    };
+    void update_static(const view::ViewOptions& options);
+    void draw_static();
+    void release_static();  // shows the solves again and drops the truth
+    bool static_requested_ = false;
+    std::future<StaticReference> static_pending_;
+    std::optional<StaticReference> static_;
+    bool static_shown_ = false;  // the truth is what the view shows
+    bool static_show_ = true;    // the checkbox
+    double static_started_ = 0.0;
 };
 
 }  // namespace fulgur::app

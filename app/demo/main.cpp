@@ -139,6 +139,7 @@ int main(int argc, char** argv) {
             // --solve-direct: ask for the direct solve of the second frame.
             if (solve_direct_at_start && shell.frames() == 1)
                 accuracy.request(false);  // frames() counts finished frames
+            if (args.static_truth && shell.frames() == 1) accuracy.request_static();
             if (!accuracy.holds_time()) t = at_peak ? peak_time : t + shell.dt() * panel.time_scale();
             const bool strike = panel.draw(shell, t, rep, opt);
             // The radiance slice, in its own window at the bottom right (the panel fills a

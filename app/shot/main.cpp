@@ -153,17 +153,6 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
     std::fflush(stdout);
 }
 
-// Relative L2 of two static lights in colour over the cloud (lighting cells holding density),
-// every direction and channel.
-double colour_error(view::StormView& view, const sky::ColourField& x, const sky::ColourField& ref) {
-    const std::vector<float>& rho = view.static_media().lighting.density.data;
-    core::RelativeL2 e;
-    for (std::size_t m = 0; m < ref.rgb.size(); ++m)
-        for (std::size_t i = 0; i < ref.rgb[m].size(); ++i)
-            if (rho[i / 3] > 0.0f) e.add(double(x.rgb[m][i]), double(ref.rgb[m][i]));
-    return e.value();
-}
-
 // --reference --against static: the same frame with its static light (sun or moon, sky) by the
 // truth (sky::static_truth) in place of the scene's solves; the lightning is the frame's in
 // both. Errors of the static light's S in colour (single, multiple, total) over the cloud and
@@ -186,7 +175,7 @@ void render_static_reference(view::StormView& view, platform::Context* ctx, cons
         co.single = part != 1;
         co.multiple = part != 0;
         const sky::ColourField ref = view.static_colour(co, &truth.light);
-        if (!ref.empty()) err[part] = colour_error(view, view.static_colour(co), ref);
+        err[part] = sky::colour_error(view.static_colour(co), ref, view.static_media().lighting.density.data);
     }
     app::DisplayDifference shown;
     int w = 0, h = 0;

@@ -147,4 +147,17 @@ std::optional<SunSolve> SunResolver::take() {
 
 bool SunResolver::busy() const { return impl_->worker.busy(); }
 
+double colour_error(const ColourField& x, const ColourField& ref, std::span<const float> density) {
+    if (ref.empty()) return 0.0;
+    FULGUR_ASSERT(x.rgb.size() == ref.rgb.size(), "colour_error: fields of different shapes");
+    core::RelativeL2 e;
+    for (std::size_t m = 0; m < ref.rgb.size(); ++m) {
+        FULGUR_ASSERT(x.rgb[m].size() == ref.rgb[m].size() && ref.rgb[m].size() == 3 * density.size(),
+                      "colour_error: fields of different shapes");
+        for (std::size_t i = 0; i < ref.rgb[m].size(); ++i)
+            if (density[i / 3] > 0.0f) e.add(double(x.rgb[m][i]), double(ref.rgb[m][i]));
+    }
+    return e.value();
+}
+
 }  // namespace fulgur::sky

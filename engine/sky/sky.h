@@ -252,6 +252,9 @@ SkyTruth sky_truth(const solve::Media& media, bool uniform, std::span<const glm:
 StaticLight static_truth(const ScenePlan& plan, const solve::Media& media, const glm::dvec3& sun_direction,
                          std::span<const glm::dvec3> directions, const TruthOptions& options = {},
                          std::vector<transport::MonteCarloResult::Noise>* noise = nullptr);
+/// Empties the fields of `light` that `like` (the scene's solves) lacks: the parts its effects
+/// switched off, so a truth renders what the solves would.
+void keep_parts(StaticLight& light, const StaticLight& like);
 
 // ---------------------------------------------------------------------------------------
 // Composing the colour the renderer draws
@@ -272,6 +275,9 @@ struct ColourField {
 };
 ColourField compose(const StaticLight& light, const std::optional<scene::Sun>& sun,
                     const std::optional<scene::SkyDome>& sky, const ComposeOptions& options);
+/// Relative L2 of `x` against `ref` (two compose() results of one shape) over the cells where
+/// `density` (the lighting grid's) is > 0, every direction and channel; 0 when `ref` is empty.
+double colour_error(const ColourField& x, const ColourField& ref, std::span<const float> density);
 
 // ---------------------------------------------------------------------------------------
 // Solving again when the sun moves

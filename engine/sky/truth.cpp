@@ -95,4 +95,17 @@ StaticLight static_truth(const ScenePlan& plan, const solve::Media& media, const
     return light;
 }
 
+void keep_parts(StaticLight& light, const StaticLight& like) {
+    const auto match = [](LightField& f, const LightField& l) {
+        if (l.single.data.empty()) f.single = {};
+        if (l.multiple.data.empty()) f.multiple = {};
+    };
+    if (light.sun && like.sun) match(*light.sun, *like.sun);
+    if (light.sky && like.sky) {
+        match(light.sky->zenith, like.sky->zenith);
+        match(light.sky->horizon, like.sky->horizon);
+        match(light.sky->uniform, like.sky->uniform);
+    }
+}
+
 }  // namespace fulgur::sky

@@ -169,17 +169,7 @@ StormView::StaticTruthSolve StormView::solve_static_truth(const sky::TruthOption
         dirs = transport::output_directions(scene_.effective_directions());
     StaticTruthSolve out;
     out.light = sky::static_truth(plan_, *media, static_.sun_direction, dirs, options, &out.noise);
-    // Only what the plan solves: a part the scene switched off stays empty, as in its solves.
-    const auto match = [](sky::LightField& f, const sky::LightField& like) {
-        if (like.single.data.empty()) f.single = {};
-        if (like.multiple.data.empty()) f.multiple = {};
-    };
-    if (out.light.sun) match(*out.light.sun, *static_.sun);
-    if (out.light.sky) {
-        match(out.light.sky->zenith, static_.sky->zenith);
-        match(out.light.sky->horizon, static_.sky->horizon);
-        match(out.light.sky->uniform, static_.sky->uniform);
-    }
+    sky::keep_parts(out.light, static_);
     out.seconds = sw.seconds();
     return out;
 }

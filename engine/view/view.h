@@ -159,6 +159,8 @@ public:
     /// The static light shown: the scene's solves (load_or_solve, set_sun_solve) or what
     /// set_static_light() gave.
     const sky::StaticLight& static_light() const noexcept { return static_; }
+    /// The sun's irradiance and colour shown (set_sun; the scene's at first); none without a sun.
+    const std::optional<scene::Sun>& shown_sun() const noexcept { return sun_; }
     /// Shows `light` as the static light from now on, e.g. its truth for a reference frame (the
     /// sun's full-resolution order 1 is unchanged: it is exact). It must hold what the plan
     /// solves, for the shown sun's direction; core::Error otherwise.
