@@ -22,6 +22,10 @@ OUT_DIR (default: docs/images):
   latency_summary.csv -> latency.{png,svg}: each preset's worst-strike error against the truth
                       versus wall time since an unscheduled strike became known, one panel per
                       scene, the targets dotted.
+  static_frontier.csv (+ static_sky.csv) -> static_frontier.{png,svg}: the static light's worst
+                      total and multiple-scattering error against its truth versus solve time,
+                      one panel per scene: the sun's configurations (worst of its elevations)
+                      and the sky dome's sample counts (the scene's sky), the aims dotted.
 Run with /usr/bin/python3 (Debian's matplotlib lives there).
 """
 import csv
@@ -328,6 +332,54 @@ def plot_latency(study, out_dir):
     save(fig, out_dir, "latency")
 
 
+# --- static light against its truth ------------------------------------------------------
+
+
+def plot_static_frontier(study, out_dir):
+    sun = read(study / "static_frontier.csv")
+    sky = read(study / "static_sky.csv") if (study / "static_sky.csv").exists() else []
+    scenes = list(dict.fromkeys([r["scene"] for r in sun] + [r["scene"] for r in sky]))
+    fig, axes = plt.subplots(1, len(scenes), figsize=(6.5 * len(scenes), 5), squeeze=False)
+    for ax, scene in zip(axes[0], scenes):
+        configs = {}
+        for r in sun:  # the worst of the sun's elevations per configuration
+            if r["scene"] != scene:
+                continue
+            c = configs.setdefault(r["config"], [0.0, 0.0, 0.0])
+            c[0] = max(c[0], float(r["seconds"]))
+            c[1] = max(c[1], 100 * float(r["total_error"]))
+            c[2] = max(c[2], 100 * float(r["multiple_error"]))
+        for name, (x, total, multiple) in configs.items():
+            ax.scatter(x, total, marker="o", color="tab:orange", s=40, zorder=3)
+            ax.scatter(x, multiple, marker="^", color="tab:orange", s=30, zorder=3, alpha=0.55)
+            ax.annotate("sun " + name, (x, total), textcoords="offset points", xytext=(5, 3), fontsize=7)
+        for r in sky:
+            if r["scene"] != scene or r["basis"] not in ("scene", "uniform"):
+                continue
+            x = float(r["seconds"])
+            ax.scatter(x, 100 * float(r["total_error"]), marker="s", color="tab:blue", s=40, zorder=3)
+            ax.scatter(x, 100 * float(r["multiple_error"]), marker="^", color="tab:blue", s=30, zorder=3, alpha=0.55)
+            ax.annotate(f"sky {r['samples']}", (x, 100 * float(r["total_error"])), textcoords="offset points",
+                        xytext=(5, 3), fontsize=7)
+        for y, text in ((10, "total 10%"), (15, "multiple 15%")):
+            ax.axhline(y, color="tab:red", lw=0.8, ls=":")
+            ax.annotate(text, (ax.get_xlim()[0], y), textcoords="offset points", xytext=(3, 2), fontsize=7,
+                        color="tab:red")
+        ax.set_xscale("log")
+        ax.set_xlabel("solve time, s (2 threads, log)")
+        ax.set_ylabel("error against the truth, % (relative L2 of S)")
+        ax.set_title(scene)
+        ax.grid(True, which="both", color="0.9")
+        ax.set_ylim(bottom=0)
+    handles = [plt.Line2D([], [], marker="o", color="tab:orange", ls="", label="sun: total (worst elevation)"),
+               plt.Line2D([], [], marker="s", color="tab:blue", ls="", label="sky (the scene's): total"),
+               plt.Line2D([], [], marker="^", color="0.5", ls="", label="multiple scattering")]
+    fig.suptitle("The static light: what accuracy costs", y=0.985)
+    fig.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.94), ncol=3, frameon=False)
+    fig.tight_layout(rect=(0, 0, 1, 0.88))
+    save(fig, out_dir, "static_frontier")
+
+
 def main():
     if len(sys.argv) < 2:
         sys.exit(__doc__)
@@ -338,7 +390,7 @@ def main():
               ("lb_convergence.csv", plot_lb_convergence), ("lb_vs_mc_profile.csv", plot_lb_vs_mc_profile),
               ("runtime_accuracy.csv", plot_runtime_accuracy),
               ("runtime_accuracy_spacing.csv", plot_runtime_accuracy_spacing),
-              ("latency_summary.csv", plot_latency))
+              ("latency_summary.csv", plot_latency), ("static_frontier.csv", plot_static_frontier))
     for name, fn in tables:
         if (study / name).exists():
             fn(study, out_dir)
