@@ -109,7 +109,7 @@ FULGUR_STUDY(static_frontier, "static-frontier",
         const std::vector<glm::dvec3> dirs = transport::output_directions(base.effective_directions());
         const solve::Media full = solve::make_media(base, density, 1, true);
         const std::vector<float>& rho = full.lighting.density.data;
-        for (std::size_t e = 0; e < elevations.size(); ++e) {
+        for (std::size_t e = 0; e < elevations.size() && !c.configs.empty(); ++e) {
             const transport::DirectionalSource sun{scene::sun_direction(elevations[e], azimuths[e]), 1.0};
             std::fprintf(stderr, "static-frontier: %s sun at %.0f deg: truth\n", c.file.c_str(), elevations[e]);
             sky::TruthOptions to;
@@ -157,7 +157,8 @@ FULGUR_STUDY(static_frontier, "static-frontier",
                                {"seconds", secs}});
             }
         }
-        if (!base.sky || !base.effects.sky) continue;
+        if (!base.sky || !base.effects.sky || (!ctx.only.empty() && ctx.only.find("sky") == std::string::npos))
+            continue;
         // The sky dome: each end of the gradient (or a uniform sky's sum) against its truth,
         // and the scene's sky (the ends weighted by their radiance) as the renderer composes it.
         const bool uniform = base.sky->zenith() == base.sky->horizon();
