@@ -181,7 +181,7 @@ FULGUR_STUDY(static_frontier, "static-frontier",
                     cached_truth(lighting, dirs, core::hash_seed(c.truth_paths, 100 + k),
                                  file.string() + "." + std::to_string(k), [&] {
                                      const sky::SkyTruth& all = solve();
-                                     return sky::TruthField{all.field.*which, all.noise[k], all.seconds};
+                                     return sky::TruthField{all.field.*which, all.noise[k], all.sums[k], all.seconds};
                                  });
                 t.field.*which = f.field;
                 t.noise.push_back(f.noise);

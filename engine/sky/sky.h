@@ -229,6 +229,7 @@ struct TruthOptions {
 struct TruthField {
     LightField field;
     transport::MonteCarloResult::Noise noise;
+    transport::MonteCarloResult::CloudSums sums;  ///< whole-cloud totals with standard errors
     double seconds = 0.0;
 };
 /// The sun (unit irradiance along `direction`) entering the grid's box, through media.full
@@ -242,6 +243,7 @@ TruthField sun_truth(const solve::Media& media, const glm::dvec3& direction, std
 struct SkyTruth {
     SkyField field;
     std::vector<transport::MonteCarloResult::Noise> noise;  ///< per basis (zenith, horizon; or uniform)
+    std::vector<transport::MonteCarloResult::CloudSums> sums;  ///< per basis, as `noise`
     double seconds = 0.0;
 };
 SkyTruth sky_truth(const solve::Media& media, bool uniform, std::span<const glm::dvec3> directions,

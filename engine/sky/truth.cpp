@@ -30,6 +30,7 @@ TruthField as_field(transport::MonteCarloResult&& r) {
     t.field.single = std::move(r.single);
     t.field.multiple = std::move(r.multiple);
     t.noise = r.noise;
+    t.sums = r.sums;
     t.seconds = r.seconds;
     return t;
 }
@@ -55,6 +56,7 @@ SkyTruth sky_truth(const solve::Media& media, bool uniform, std::span<const glm:
                                                        truth_options(options, 1)));
         out.field.uniform = std::move(t.field);
         out.noise.push_back(t.noise);
+        out.sums.push_back(t.sums);
         out.seconds = t.seconds;
         return out;
     }
@@ -73,6 +75,7 @@ SkyTruth sky_truth(const solve::Media& media, bool uniform, std::span<const glm:
     out.field.zenith = std::move(z.field);
     out.field.horizon = std::move(h.field);
     out.noise = {z.noise, h.noise};
+    out.sums = {z.sums, h.sums};
     out.seconds = z.seconds + h.seconds;
     return out;
 }
