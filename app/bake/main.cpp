@@ -16,6 +16,7 @@
 #include <csignal>
 #include <cstdio>
 #include <exception>
+#include <functional>
 #include <map>
 #include <vector>
 
@@ -133,26 +134,45 @@ void check_outputs(const app::BakeArgs& a, const scene::Scene& s, const std::fil
     core::check_distinct_files(inputs, outputs);
 }
 
-// A rank other than 0 of a distributed bake: waits for rank 0's decision, then solves the
-// chunks it is handed (rank 0 prints, solves the sun and the sky, and writes every file).
+// The sun's and the sky's solves (the plan's static light), cached: over every rank of the
+// session (rank 0 reads and writes the cache files and prints; every rank takes part in a
+// solve, with the same result as one process).
+void solve_static_light(const distributed::Session& session, const scene::Scene& s, const core::Grid3<float>& density,
+                        sky::ScenePlan plan) {
+    plan.settings = distributed::static_light_settings(session, plan.settings);
+    std::function<void(const std::string&)> say;
+    if (session.rank() == 0) say = [](const std::string& m) { std::printf("%s\n", m.c_str()); };
+    (void)sky::load_or_solve(s, density, sky::static_media(s, density), plan, {}, say);
+}
+
+// A rank other than 0 of a distributed run: waits for rank 0's decisions, takes part in the
+// sun's and the sky's solves, then solves the chunks of the bake it is handed (rank 0 prints
+// and writes every file).
 int help_bake(const distributed::Session& session, const scene::Scene& s, const core::Grid3<float>& density) {
-    if (!session.broadcast(0)) return 0;
     bake::PlanOptions po;
     po.estimate = false;
+    if (session.broadcast(0)) solve_static_light(session, s, density, sky::plan_scene(s, density, po));
+    if (!session.broadcast(0)) return 0;
     (void)distributed::bake(session, s, density, bake::make_plan(s, density, po), {});
     return 0;
 }
 
-// Rank 0 tells the other ranks whether it bakes, once, on every path.
+// Rank 0 tells the other ranks, once each and in this order on every path, whether the sun
+// and the sky are solved (they take part) and whether it bakes.
 struct Decision {
     const distributed::Session& session;
-    bool told = false;
+    bool told_static = false, told_bake = false;
+    void tell_static(bool solve) {
+        if (!told_static) (void)session.broadcast(solve ? 1 : 0);
+        told_static = true;
+    }
     void tell(bool bake) {
-        if (!told) (void)session.broadcast(bake ? 1 : 0);
-        told = true;
+        tell_static(false);
+        if (!told_bake) (void)session.broadcast(bake ? 1 : 0);
+        told_bake = true;
     }
     ~Decision() {
-        if (!told && std::uncaught_exceptions() == 0) tell(false);
+        if (std::uncaught_exceptions() == 0) tell(false);
     }
 };
 
@@ -198,9 +218,12 @@ int run(const app::BakeArgs& a, const distributed::Session& session) {
         std::printf("  output          %s (%s)\n", out.string().c_str(), fresh ? "up to date" : why.c_str());
     std::fflush(stdout);
     if (a.dry_run) return 0;
-    if (scene_plan.sun || scene_plan.sky)
-        (void)sky::load_or_solve(s, density, sky::static_media(s, density), scene_plan, {},
-                                 [](const std::string& m) { std::printf("%s\n", m.c_str()); });
+    decision.tell_static(scene_plan.sun || scene_plan.sky);
+    if (scene_plan.sun || scene_plan.sky) {
+        if (session.distributed()) std::printf("the static light's solves over %d ranks\n", session.size());
+        std::fflush(stdout);
+        solve_static_light(session, s, density, scene_plan);
+    }
     if (!scene_plan.lightning) {
         if (!a.export_lights.empty())
             throw core::Error(a.scene.string(), "--export: the scene has no lightning to bake");

@@ -1,12 +1,14 @@
 // fulgur::distributed — a bake over several processes (docs/distributed.md): the processes
 // of an MPI run (mpirun, srun) share the plan's lights dynamically and rank 0 writes the one
-// .fgb, byte-identical to a single process's bake of the same scene.
+// .fgb, byte-identical to a single process's bake of the same scene; the static light (the
+// sun's and the sky's solves) over the same processes, bit-identical to one process's.
 //
 // No MPI type appears in this header: MPI stays inside the module's sources, and a build
 // without MPI (FULGUR_MPI off) has the same interface, every process being rank 0 of 1.
 #pragma once
 
 #include "bake/bake.h"
+#include "sky/sky.h"
 
 #include <optional>
 
@@ -48,5 +50,16 @@ private:
 std::optional<bake::Report> bake(const Session& session, const scene::Scene& s, const core::Grid3<float>& density,
                                  const bake::Plan& plan, const std::filesystem::path& out,
                                  const bake::BakeOptions& options = {}, const bake::Progress& progress = {});
+
+/// `settings` with the static light's solve spread over every rank of `session` (sky::
+/// SolveSettings::processes and transport::LbSettings::make_kernel): the sky's dome samples
+/// dealt round by round, the sun's single scattering (rank 0) and order-2 Monte Carlo (rank 1)
+/// at once, exchanged with MPI_Bcast; the lattice stepped in z-slabs (LatticeSlab; the whole
+/// lattice on every rank when it has fewer than 2 planes per rank) and all-gathered for the
+/// read-out. Every rank then makes the same sky calls (solve_directional, solve_sun, solve_sky,
+/// load_or_solve) in the same order, on the thread that created the Session, and each returns
+/// the one-process result bit for bit. `session` must outlive the settings. One rank:
+/// `settings` unchanged.
+sky::SolveSettings static_light_settings(const Session& session, sky::SolveSettings settings);
 
 }  // namespace fulgur::distributed

@@ -134,11 +134,20 @@ void LatticeSlab::set_arriving(std::size_t site, int q, float v) {
     if (site >= begin && site < end) kernel_->set_arriving(site - begin, q, v);
 }
 
-std::vector<float> LatticeSlab::gather() const {
-    const std::size_t sites = std::size_t(z1_ - z0_) * plane_;
+namespace {
+
+// This rank's sites' arriving densities, index (site - first site of the slab) * kQ + q.
+std::vector<float> own_sites(const SlabKernel& k, std::size_t sites) {
     std::vector<float> mine(sites * kQ);
     for (std::size_t s = 0; s < sites; ++s)
-        for (int q = 0; q < kQ; ++q) mine[s * kQ + std::size_t(q)] = kernel_->arriving(s, q);
+        for (int q = 0; q < kQ; ++q) mine[s * kQ + std::size_t(q)] = k.arriving(s, q);
+    return mine;
+}
+
+}  // namespace
+
+std::vector<float> LatticeSlab::gather() const {
+    std::vector<float> mine = own_sites(*kernel_, std::size_t(z1_ - z0_) * plane_);
 #ifdef FULGUR_HAVE_MPI
     const int p = session_.size();
     if (p == 1) return mine;
@@ -159,6 +168,32 @@ std::vector<float> LatticeSlab::gather() const {
     detail::check(
         MPI_Gatherv(mine.data(), n, MPI_FLOAT, all.data(), counts.data(), displs.data(), MPI_FLOAT, 0, MPI_COMM_WORLD),
         "MPI_Gatherv");
+    return all;
+#else
+    return mine;
+#endif
+}
+
+std::vector<float> LatticeSlab::gather_all() const {
+    std::vector<float> mine = own_sites(*kernel_, std::size_t(z1_ - z0_) * plane_);
+#ifdef FULGUR_HAVE_MPI
+    const int p = session_.size();
+    if (p == 1) return mine;
+    // The slabs are consecutive runs of sites, so rank order is site order.
+    std::vector<int> counts(static_cast<std::size_t>(p)), displs(static_cast<std::size_t>(p));
+    FULGUR_ASSERT(mine.size() <= std::size_t(INT_MAX), "LatticeSlab::gather_all: a slab larger than 2^31 floats");
+    const int n = int(mine.size());
+    detail::check(MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, MPI_COMM_WORLD), "MPI_Allgather");
+    std::size_t total = 0;
+    for (int i = 0; i < p; ++i) {
+        displs[std::size_t(i)] = int(total);
+        total += std::size_t(counts[std::size_t(i)]);
+        FULGUR_ASSERT(total <= std::size_t(INT_MAX), "LatticeSlab::gather_all: a lattice larger than 2^31 floats");
+    }
+    std::vector<float> all(total);
+    detail::check(
+        MPI_Allgatherv(mine.data(), n, MPI_FLOAT, all.data(), counts.data(), displs.data(), MPI_FLOAT, MPI_COMM_WORLD),
+        "MPI_Allgatherv");
     return all;
 #else
     return mine;

@@ -304,8 +304,14 @@ StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& densi
                           const std::function<void(const std::string&)>& say) {
     StaticLight out;
     const std::vector<glm::dvec3> dirs = transport::output_directions(plan.directions);
+    // Over several processes, process 0 alone reads and writes the cache, speaks, and tells the
+    // others whether each light is solved (they all take part in a solve).
+    const Processes* procs =
+        plan.settings.processes && plan.settings.processes->size() > 1 ? plan.settings.processes.get() : nullptr;
+    const bool first = !procs || procs->rank() == 0;
+    auto agree = [&](bool solve) { return procs ? procs->broadcast(solve ? 1 : 0) != 0 : solve; };
     auto tell = [&](const std::string& m) {
-        if (say) say(m);
+        if (say && first) say(m);
     };
     // Reads the cache file when it is fresh; returns why not otherwise.
     // Reads the cache file when it is fresh and holds this scene's grid and directions;
@@ -330,7 +336,7 @@ StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& densi
     };
     auto store = [&](const std::optional<std::filesystem::path>& p, const basis::BakeKey& key,
                      const std::vector<NamedField>& fields) {
-        if (!p) return;
+        if (!p || !first) return;
         std::filesystem::create_directories(p->parent_path());
         write_light_file(*p, key, fields);
     };
@@ -340,10 +346,12 @@ StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& densi
         const basis::BakeKey key = sun_key(s, density, plan.settings, d);
         const auto p = cache_path(s, cache, "sun");
         std::vector<NamedField> fields;
-        const std::string why = cached(p, key, {grid, dirs, {"single", "multiple"}}, fields);
-        if (why.empty()) {
-            out.sun = field_of(fields, "");
-            tell("sun: read from " + p->string());
+        const std::string why = first ? cached(p, key, {grid, dirs, {"single", "multiple"}}, fields) : "";
+        if (!agree(!why.empty())) {
+            if (first) {
+                out.sun = field_of(fields, "");
+                tell("sun: read from " + p->string());
+            }
         } else {
             core::Stopwatch sw;
             const transport::DirectionalSource unit{d, 1.0};
@@ -361,13 +369,16 @@ StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& densi
                                    dirs,
                                    {"zenith.single", "zenith.multiple", "horizon.single", "horizon.multiple",
                                     "uniform.single", "uniform.multiple"}};
-        const std::string why = cached(p, key, shape, fields);
+        const std::string why = first ? cached(p, key, shape, fields) : "";
         SkyField sky;
-        if (why.empty()) {
-            sky.zenith = field_of(fields, "zenith.");
-            sky.horizon = field_of(fields, "horizon.");
-            sky.uniform = field_of(fields, "uniform.");
-            tell("sky: read from " + p->string());
+        const bool solve = agree(!why.empty());
+        if (!solve) {
+            if (first) {
+                sky.zenith = field_of(fields, "zenith.");
+                sky.horizon = field_of(fields, "horizon.");
+                sky.uniform = field_of(fields, "uniform.");
+                tell("sky: read from " + p->string());
+            }
         } else {
             core::Stopwatch sw;
             sky = solve_sky(media, plan.sky_uniform, dirs, plan.settings);
@@ -377,7 +388,7 @@ StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& densi
             for (NamedField& f : light_fields(sky.uniform, "uniform.")) all.push_back(std::move(f));
             store(p, key, all);
         }
-        out.sky = std::move(sky);
+        if (first || solve) out.sky = std::move(sky);
     }
     return out;
 }

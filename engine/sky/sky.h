@@ -45,6 +45,22 @@ enum class Method {
 Method parse_method(std::string_view s, std::string_view where);
 std::string_view to_string(Method m) noexcept;
 
+/// The processes a static solve is spread over (distributed::static_light_settings: the ranks
+/// of an MPI run). Every process calls the same solve with the same arguments on the thread
+/// that joined the run; each computes its share of the independent parts (the sky's dome
+/// samples; the sun's single scattering and its order-2 Monte Carlo) and they exchange them,
+/// so every process returns the same field, bit for bit the one-process solve.
+class Processes {
+public:
+    virtual ~Processes() = default;
+    virtual int rank() const = 0;
+    virtual int size() const = 0;
+    /// Process `root`'s `data` into `data` on every process (collective: all call it).
+    virtual void share(std::span<float> data, int root) const = 0;
+    /// Process 0's `value` on every process (collective; waiting processes do not spin).
+    virtual int broadcast(int value) const = 0;
+};
+
 struct SolveSettings {
     Method method = Method::Hybrid;
     bool single = true;    ///< keep S1 (effects.single_scattering; computed anyway to feed the lattice)
@@ -64,6 +80,9 @@ struct SolveSettings {
     int exact_orders = 1;
     std::uint64_t order2_paths = 400'000;
     std::uint64_t seed = 1;  ///< of the order-2 Monte Carlo (a solve is deterministic)
+    /// Spreads the solve over several processes (the lattice too, through lattice.make_kernel);
+    /// unset: this process alone. Not part of the cache keys: the result is the same.
+    std::shared_ptr<const Processes> processes;
 };
 
 /// The scene's settings: solve::single_scattering_options, solve::lattice_settings and its
@@ -210,6 +229,9 @@ std::optional<std::filesystem::path> cache_path(const scene::Scene& s, const Cac
 
 /// The plan's solves: each light is read from its cache file when that is fresh, else solved
 /// (and written). `say` is told what happens ("sun: solved in 0.4 s (no cache file)").
+/// Over several processes (plan.settings.processes): every process calls it; process 0 alone
+/// reads and writes the cache files and tells the others whether each light is solved, so a
+/// light read from its file is returned on process 0 only, a solved one on every process.
 StaticLight load_or_solve(const scene::Scene& s, const core::Grid3<float>& density, const solve::Media& media,
                           const ScenePlan& plan, const CacheOptions& cache = {},
                           const std::function<void(const std::string&)>& say = {});

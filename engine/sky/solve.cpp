@@ -36,6 +36,32 @@ struct FirstScattered {
     core::Grid3<float> phi2;
 };
 
+/// Zero fields on the transport grid, with order 2 when `order2`.
+FirstScattered zeros(const core::GridGeometry& geom, const std::vector<glm::dvec3>& dirs, bool order2) {
+    FirstScattered f{transport::SourceField(geom, dirs), core::Grid3<float>(geom, 0.0f), 0.0, {}, {}};
+    if (order2) {
+        f.s2 = transport::SourceField(geom, dirs);
+        f.phi2 = core::Grid3<float>(geom, 0.0f);
+    }
+    return f;
+}
+
+/// The processes the settings spread a solve over, or null for this process alone.
+const Processes* spread(const SolveSettings& settings) {
+    return settings.processes && settings.processes->size() > 1 ? settings.processes.get() : nullptr;
+}
+
+/// Process `root`'s fields of `fs` into `fs` on every process (each holds fields of the same
+/// sizes: order 2 on all or none).
+void share(const Processes& procs, FirstScattered& fs, int root) {
+    procs.share(fs.s1.data, root);
+    procs.share(fs.phi1.data, root);
+    if (!fs.s2.data.empty()) {
+        procs.share(fs.s2.data, root);
+        procs.share(fs.phi2.data, root);
+    }
+}
+
 /// acc += w f, every field f holds (order 2 only when both hold it).
 void add_scaled(FirstScattered& acc, const FirstScattered& f, double w) {
     add_scaled(acc.s1, f.s1, w);
@@ -215,8 +241,31 @@ LightField solve_directional(const solve::Media& media, std::span<const transpor
             out.seconds_multiple += r.seconds;
         }
     } else {
-        FirstScattered fs = first_scattered(media.transport, lights, directions, settings);
-        if (exact_two(settings)) second_order(media, lights, directions, settings.order2_paths, settings.seed, fs);
+        FirstScattered fs;
+        const Processes* procs = spread(settings);
+        if (procs && exact_two(settings)) {
+            // Over several processes the single scattering (process 0) and the order-2 Monte
+            // Carlo (process 1) run at once, each exactly as alone, and are exchanged.
+            core::Stopwatch sw;
+            const std::vector<glm::dvec3> dirs(directions.begin(), directions.end());
+            const core::GridGeometry& geom = media.transport.density.geom;
+            fs = procs->rank() == 0 ? first_scattered(media.transport, lights, directions, settings)
+                                    : zeros(geom, dirs, false);
+            if (procs->rank() == 1)
+                second_order(media, lights, directions, settings.order2_paths, settings.seed, fs);
+            else {
+                fs.s2 = transport::SourceField(geom, dirs);
+                fs.phi2 = core::Grid3<float>(geom, 0.0f);
+            }
+            procs->share(fs.s1.data, 0);
+            procs->share(fs.phi1.data, 0);
+            procs->share(fs.s2.data, 1);
+            procs->share(fs.phi2.data, 1);
+            fs.seconds = sw.seconds();
+        } else {
+            fs = first_scattered(media.transport, lights, directions, settings);
+            if (exact_two(settings)) second_order(media, lights, directions, settings.order2_paths, settings.seed, fs);
+        }
         out = hybrid(media, std::move(fs), directions, settings);
     }
     average_onto_lighting(out, media.refine);
@@ -246,25 +295,46 @@ SkyField solve_sky(const solve::Media& media, bool uniform, std::span<const glm:
     const core::GridGeometry& geom = media.transport.density.geom;
     const std::vector<glm::dvec3> dirs(directions.begin(), directions.end());
     // Each sample's exact single scattering once; both bases are weighted sums of them.
-    FirstScattered z{transport::SourceField(geom, dirs), core::Grid3<float>(geom, 0.0f), 0.0, {}, {}};
-    FirstScattered h{transport::SourceField(geom, dirs), core::Grid3<float>(geom, 0.0f), 0.0, {}, {}};
-    if (two) {
-        for (FirstScattered* f : {&z, &h}) {
-            f->s2 = transport::SourceField(geom, dirs);
-            f->phi2 = core::Grid3<float>(geom, 0.0f);
-        }
-    }
-    for (std::size_t k = 0; k < samples.size(); ++k) {
+    FirstScattered z = zeros(geom, dirs, two), h = zeros(geom, dirs, two);
+    auto solve_sample = [&](std::size_t k) {
         const DomeSample& d = samples[k];
         // Radiance L over a solid angle dOmega arriving from `toward`: a directional light
         // of irradiance L dOmega travelling along -toward.
         const transport::DirectionalSource light{-d.toward, d.solid_angle};
         FirstScattered one = first_scattered(media.transport, std::span(&light, 1), directions, settings);
         if (two) second_order(media, std::span(&light, 1), directions, paths2, core::hash_seed(settings.seed, k), one);
-        const double w = uniform ? 1.0 : scene::SkyDome::zenith_weight(d.toward.z);
+        return one;
+    };
+    auto add_sample = [&](std::size_t k, const FirstScattered& one) {
+        const double w = uniform ? 1.0 : scene::SkyDome::zenith_weight(samples[k].toward.z);
         add_scaled(z, one, w);
         z.seconds += one.seconds;
         if (!uniform) add_scaled(h, one, 1.0 - w);
+    };
+    if (const Processes* procs = spread(settings)) {
+        // Over p processes the samples go round by round: in each, process r solves sample
+        // k0 + r, then every process receives the round's samples and adds them in sample
+        // order, exactly the one-process sums.
+        core::Stopwatch sw;
+        const std::size_t p = std::size_t(procs->size()), me = std::size_t(procs->rank());
+        std::vector<FirstScattered> batch(p);  // the other processes' samples: received into, reused
+        for (std::size_t k0 = 0; k0 < samples.size(); k0 += p) {
+            const std::size_t n = std::min(p, samples.size() - k0);
+            for (std::size_t j = 0; j < n; ++j) {
+                if (j == me)
+                    batch[j] = solve_sample(k0 + j);
+                else if (batch[j].s1.data.empty())
+                    batch[j] = zeros(geom, dirs, two);
+                batch[j].seconds = 0.0;
+            }
+            for (std::size_t j = 0; j < n; ++j) {
+                share(*procs, batch[j], int(j));
+                add_sample(k0 + j, batch[j]);
+            }
+        }
+        z.seconds = sw.seconds();  // wall time, the exchanges included
+    } else {
+        for (std::size_t k = 0; k < samples.size(); ++k) add_sample(k, solve_sample(k));
     }
     SkyField out;
     LightField& first = uniform ? out.uniform : out.zenith;

@@ -453,12 +453,31 @@ void iterate(Simulation& sim, const Problem& p, const LbSettings& settings, cons
     res.injected_total = sim.injected_total();
     res.absorbed_total = sim.absorbed_total();
     res.escaped_total = sim.escaped_total();
-    res.stored = sim.kernel().stored();
+}
+
+/// The fast kernel's stored() (after an even step) from every site's arriving densities
+/// (index site * kQ + q): the same terms added in the same order (direction by direction, rows
+/// in z, y order, each row's sum first), so the same double bit for bit.
+double stored_of(std::span<const float> arriving, const Problem& p) {
+    const int q0 = p.absorption == LbAbsorption::Conservative ? 0 : 1;
+    const std::size_t nx = std::size_t(p.dims.x), rows = std::size_t(p.dims.y) * std::size_t(p.dims.z);
+    double total = 0.0;
+    for (int q = q0; q < kQ; ++q)
+        for (std::size_t r = 0; r < rows; ++r) {
+            const float* a = &arriving[r * nx * kQ + std::size_t(q)];
+            double row = 0.0;
+            for (std::size_t x = 0; x < nx; ++x) row += double(a[x * kQ]);
+            total += row;
+        }
+    return total;
 }
 
 /// Densities -> tracks -> fluence and S (docs/lattice-boltzmann.md, "Units"), into `res`.
-void read_out(const Kernel& K, const Problem& p, const LightingMedium& medium, std::span<const glm::dvec3> directions,
-              const std::vector<SiteCoefficients>& coef, const SourceTracks& source_tracks, double V, LbResult& res) {
+/// `arriving(site, q)`: the lattice's arriving density.
+template <class Arriving>
+void read_out(const Arriving& arriving, const Problem& p, const LightingMedium& medium,
+              std::span<const glm::dvec3> directions, const std::vector<SiteCoefficients>& coef,
+              const SourceTracks& source_tracks, double V, LbResult& res) {
     const core::GridGeometry& g = medium.density.geom;
     const std::size_t n = g.cell_count();
     std::vector<std::array<double, kQ>> out_phase(directions.size());
@@ -476,7 +495,7 @@ void read_out(const Kernel& K, const Problem& p, const LightingMedium& medium, s
         double T[kQ] = {};
         double phi = 0.0;
         for (int q = 1; q < kQ; ++q) {
-            T[q] = double(K.arriving(i, q)) * c.track[dir_class(q)];
+            T[q] = double(arriving(i, q)) * c.track[dir_class(q)];
             if (track_index[i] >= 0) T[q] += source_tracks[std::size_t(track_index[i])].second[std::size_t(q)];
             phi += T[q];
         }
@@ -509,9 +528,23 @@ LbResult solve(const LightingMedium& medium, const LbSources& sources, std::span
 
     LbResult res;
     core::Stopwatch watch;
-    Simulation sim(p, settings.kernel);
+    // A kernel made elsewhere (a slab of the lattice decomposed over processes) stands in for
+    // the fast kernel: it steps bit-identically and gathers the lattice for the read-out.
+    const bool elsewhere = settings.make_kernel && settings.kernel == LbKernel::Fast;
+    Simulation sim = elsewhere ? Simulation(p, settings.make_kernel(p)) : Simulation(p, settings.kernel);
     iterate(sim, p, settings, watch, res);
-    read_out(sim.kernel(), p, medium, directions, coef, source_tracks, V, res);
+    const std::vector<float> all = sim.kernel().gather_all();
+    if (all.empty()) {
+        res.stored = sim.kernel().stored();
+        const Kernel& K = sim.kernel();
+        read_out([&K](std::size_t i, int q) { return K.arriving(i, q); }, p, medium, directions, coef, source_tracks, V,
+                 res);
+    } else {
+        FULGUR_ASSERT(all.size() == p.sites() * std::size_t(kQ), "lb::solve: a gathered lattice of another size");
+        res.stored = stored_of(all, p);
+        read_out([&all](std::size_t i, int q) { return all[i * kQ + std::size_t(q)]; }, p, medium, directions, coef,
+                 source_tracks, V, res);
+    }
     return res;
 }
 

@@ -24,6 +24,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -441,6 +442,11 @@ LbAbsorption parse_lb_absorption(std::string_view s, std::string_view where = "t
 LbThickVoxels parse_lb_thick_voxels(std::string_view s,
                                     std::string_view where = "transport.lattice_boltzmann.thick_voxels");
 
+namespace lb {
+class Kernel;  // transport/detail/lb_solver.h (internal)
+struct Problem;
+}  // namespace lb
+
 struct LbSettings {
     LbCollision collision = LbCollision::Corrected;
     LbAbsorption absorption = LbAbsorption::Physical;
@@ -455,6 +461,11 @@ struct LbSettings {
     double tolerance = 1e-4;
     int max_iterations = 4000;    ///< step cap (rounded up to an even number)
     bool record_history = false;  ///< keep the total lattice density after every step
+    /// Makes the kernel that steps the lattice in place of the fast one (kernel Fast only):
+    /// one process's part of a lattice decomposed over several (distributed::
+    /// static_light_settings). It must step bit-identically to the fast kernel and report the
+    /// whole lattice's figures (lb::Kernel::gather_all). Unset: the fast kernel of this process.
+    std::function<std::unique_ptr<lb::Kernel>(const lb::Problem&)> make_kernel;
 };
 
 struct LbSources {

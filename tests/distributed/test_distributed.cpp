@@ -1,6 +1,7 @@
-// The bake over MPI ranks (engine/distributed), run by CTest under `mpirun -np 2`: every test
-// case runs on every rank (they make the same collective calls); rank 0 checks the files.
-// Scenes: the tiny golden-test scenes (32x32x16 density, 8x8x4 lighting grid).
+// The bake, the static light and the lattice over MPI ranks (engine/distributed), run by CTest
+// under `mpirun -np 2`: every test case runs on every rank (they make the same collective
+// calls); rank 0 checks the files. Scenes: the tiny golden-test scenes (32x32x16 density, 8x8x4
+// lighting grid).
 #define DOCTEST_CONFIG_IMPLEMENT
 #include <doctest/doctest.h>
 
@@ -10,6 +11,7 @@
 #include "support/stop_hook.h"
 #include "support/test_support.h"
 
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <sstream>
@@ -170,6 +172,160 @@ TEST_CASE("distributed lattice: z-slabs on 2 ranks step bit-identically to the o
         CHECK(differ == 0);
     }
     MESSAGE("steps " << one.steps() << ", converged " << one_converged);
+}
+
+namespace {
+
+// Bit for bit: the same floats in the same places (memcmp, so -0 and +0 or two NaNs differ too).
+bool same_bits(const std::vector<float>& a, const std::vector<float>& b) {
+    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
+}
+
+bool any_positive(const std::vector<float>& v) {
+    for (float x : v)
+        if (x > 0.0f) return true;
+    return false;
+}
+
+// The one-process field and the 2-rank one: every float and every figure of the solve equal.
+void check_identical(const sky::LightField& one, const sky::LightField& two, bool lattice) {
+    CHECK(same_bits(two.single.data, one.single.data));
+    CHECK(same_bits(two.multiple.data, one.multiple.data));
+    CHECK(two.iterations == one.iterations);
+    CHECK(two.converged == one.converged);
+    CHECK(two.injected_total == one.injected_total);
+    CHECK(two.absorbed_total == one.absorbed_total);
+    CHECK(two.escaped_total == one.escaped_total);
+    CHECK(two.stored == one.stored);
+    CHECK(two.first_scattered_power == one.first_scattered_power);
+    if (lattice) CHECK(any_positive(two.multiple.data));  // the lattice ran: not two empty fields
+}
+
+// The day scene's static light, made small: fewer order-2 paths and an odd number of dome
+// samples (the last round of the sky leaves one rank without a sample).
+struct StaticCase {
+    scene::Scene s = tiny("test_day_sun");
+    core::Grid3<float> density = scene::make_density(s);
+    solve::Media media = sky::static_media(s, density);
+    std::vector<glm::dvec3> dirs = transport::output_directions(s.effective_directions());
+    sky::SolveSettings settings() const {
+        sky::SolveSettings st = sky::solve_settings(s, density);
+        st.order2_paths = 20'000;
+        st.sky_samples = 5;
+        return st;
+    }
+};
+
+// `st` spread over the session's ranks, counting (in `slabs`) the lattices stepped in slabs.
+sky::SolveSettings spread(sky::SolveSettings st, int& slabs) {
+    st = distributed::static_light_settings(*g_session, st);
+    REQUIRE(st.processes);
+    REQUIRE(st.lattice.make_kernel);
+    st.lattice.make_kernel = [make = st.lattice.make_kernel, &slabs](const transport::lb::Problem& p) {
+        std::unique_ptr<transport::lb::Kernel> k = make(p);
+        slabs += dynamic_cast<distributed::LatticeSlab*>(k.get()) != nullptr;
+        return k;
+    };
+    return st;
+}
+
+}  // namespace
+
+TEST_CASE("static light: the sun over 2 ranks is the one-process solve bit for bit (hybrid, order 2, lattice)") {
+    REQUIRE(g_session->size() >= 2);
+    const StaticCase c;
+    REQUIRE(c.media.transport.density.dims().z >= 2 * g_session->size());  // a lattice in slabs
+    const transport::DirectionalSource sun{c.s.sun->direction, 1.0};
+    struct Variant {
+        const char* name;
+        sky::Method method;
+        int exact_orders;
+    };
+    for (const Variant v : {Variant{"hybrid, lattice for orders >= 2", sky::Method::Hybrid, 1},
+                            Variant{"hybrid, order 2 by Monte Carlo", sky::Method::Hybrid, 2},
+                            Variant{"Geist's injection", sky::Method::Lattice, 1}}) {
+        INFO(v.name);
+        sky::SolveSettings st = c.settings();
+        st.method = v.method;
+        st.exact_orders = v.exact_orders;
+        const sky::LightField one = sky::solve_directional(c.media, std::span(&sun, 1), c.dirs, st);
+        int slabs = 0;
+        const sky::LightField two = sky::solve_directional(c.media, std::span(&sun, 1), c.dirs, spread(st, slabs));
+        CHECK(slabs == 1);
+        check_identical(one, two, true);
+        if (v.method == sky::Method::Hybrid) CHECK(any_positive(two.single.data));
+    }
+}
+
+TEST_CASE("static light: the sky over 2 ranks is the one-process solve bit for bit (two ends, and uniform)") {
+    REQUIRE(g_session->size() >= 2);
+    const StaticCase c;
+    const sky::SolveSettings st = c.settings();
+    for (const bool uniform : {false, true}) {
+        INFO("uniform " << uniform);
+        const sky::SkyField one = sky::solve_sky(c.media, uniform, c.dirs, st);
+        int slabs = 0;
+        const sky::SkyField two = sky::solve_sky(c.media, uniform, c.dirs, spread(st, slabs));
+        CHECK(slabs == (uniform ? 1 : 2));
+        if (uniform) {
+            check_identical(one.uniform, two.uniform, true);
+        } else {
+            check_identical(one.zenith, two.zenith, true);
+            check_identical(one.horizon, two.horizon, true);
+        }
+    }
+}
+
+TEST_CASE("static light: load_or_solve over 2 ranks, rank 0 writes the cache; a fresh file stops every rank") {
+    const distributed::Session& session = *g_session;
+    REQUIRE(session.size() >= 2);
+    const StaticCase c;
+    bake::PlanOptions po;
+    po.estimate = false;
+    sky::ScenePlan plan = sky::plan_scene(c.s, c.density, po);
+    REQUIRE(plan.sun);
+    REQUIRE(plan.sky);
+    const sky::SolveSettings alone = c.settings();
+    int slabs = 0;
+    plan.settings = spread(alone, slabs);
+    const fs::path dir = dir_of("distributed_static_light");
+    const sky::CacheOptions cache{true, dir};
+    std::vector<std::string> said;
+    const auto say = [&](const std::string& m) { said.push_back(m); };
+
+    const sky::StaticLight first = sky::load_or_solve(c.s, c.density, c.media, plan, cache, say);
+    CHECK(slabs == 3);  // the sun's lattice and the sky's two, each over both ranks
+    // Every rank holds the solved light, the one-process solve's bits.
+    const transport::DirectionalSource sun{c.s.sun->direction, 1.0};
+    REQUIRE(first.sun);
+    REQUIRE(first.sky);
+    check_identical(sky::solve_directional(c.media, std::span(&sun, 1), c.dirs, alone), *first.sun, true);
+    const sky::SkyField sky1 = sky::solve_sky(c.media, plan.sky_uniform, c.dirs, alone);
+    CHECK(same_bits(first.sky->zenith.multiple.data, sky1.zenith.multiple.data));
+    CHECK(same_bits(first.sky->horizon.single.data, sky1.horizon.single.data));
+    if (session.rank() == 0) {
+        CHECK(fs::exists(dir / "test_day_sun.sun.fgl"));
+        CHECK(fs::exists(dir / "test_day_sun.sky.fgl"));
+        CHECK(said.size() == 2);  // rank 0 speaks
+    } else {
+        CHECK(said.empty());
+    }
+
+    // Again: rank 0 finds both files fresh and no rank starts a solve (no lattice is made).
+    said.clear();
+    const sky::StaticLight again = sky::load_or_solve(c.s, c.density, c.media, plan, cache, say);
+    CHECK(slabs == 3);
+    if (session.rank() == 0) {
+        REQUIRE(again.sun);
+        REQUIRE(again.sky);
+        CHECK(same_bits(again.sun->multiple.data, first.sun->multiple.data));  // the file holds the bits
+        CHECK(same_bits(again.sky->zenith.single.data, first.sky->zenith.single.data));
+        REQUIRE(said.size() == 2);
+        CHECK(said[0].find("read from") != std::string::npos);
+    } else {
+        CHECK_FALSE(again.sun);  // read on rank 0 only
+        CHECK_FALSE(again.sky);
+    }
 }
 
 int main(int argc, char** argv) {

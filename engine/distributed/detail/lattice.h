@@ -40,6 +40,8 @@ public:
     std::size_t halo_floats_per_step() const noexcept { return 2 * halo_; }
     /// Every site's arriving densities (index site * 19 + q), on rank 0 (empty on the others).
     std::vector<float> gather() const;
+    /// The same on every rank (MPI_Allgatherv): what lb::solve reads out.
+    std::vector<float> gather_all() const override;
 
 private:
     const Session& session_;

@@ -97,6 +97,11 @@ public:
         step();
         second = {last_absorbed(), last_escaped(), last_total()};
     }
+    /// A kernel holding only part of the lattice (one process's slab of a decomposed lattice,
+    /// whose arriving() answers for its own sites): every site's arriving densities, index
+    /// site * kQ + q, the same on every process (a collective call). Empty for a kernel that
+    /// holds the whole lattice.
+    virtual std::vector<float> gather_all() const { return {}; }
     int steps() const noexcept { return steps_; }
 
 protected:
