@@ -25,7 +25,8 @@ OUT_DIR (default: docs/images):
   static_frontier.csv (+ static_sky.csv) -> static_frontier.{png,svg}: the static light's worst
                       total and multiple-scattering error against its truth versus solve time,
                       one panel per scene: the sun's configurations (worst of its elevations)
-                      and the sky dome's sample counts (the scene's sky), the aims dotted.
+                      and the sky dome's configurations (directions or the dome's Monte Carlo; the
+                      scene's sky), the aims dotted.
 Run with /usr/bin/python3 (Debian's matplotlib lives there).
 """
 import csv
@@ -359,8 +360,10 @@ def plot_static_frontier(study, out_dir):
             x = float(r["seconds"])
             ax.scatter(x, 100 * float(r["total_error"]), marker="s", color="tab:blue", s=40, zorder=3)
             ax.scatter(x, 100 * float(r["multiple_error"]), marker="^", color="tab:blue", s=30, zorder=3, alpha=0.55)
-            ax.annotate(f"sky {r['samples']}", (x, 100 * float(r["total_error"])), textcoords="offset points",
-                        xytext=(5, 3), fontsize=7)
+            paths = int(float(r.get("paths", "0") or 0))
+            label = f"sky MC {paths / 1e6:g}M" if paths else f"sky {r['samples']} dirs"
+            ax.annotate(label, (x, 100 * float(r["total_error"])), textcoords="offset points", xytext=(5, 3),
+                        fontsize=7)
         for y, text in ((10, "total 10%"), (15, "multiple 15%")):
             ax.axhline(y, color="tab:red", lw=0.8, ls=":")
             ax.annotate(text, (ax.get_xlim()[0], y), textcoords="offset points", xytext=(3, 2), fontsize=7,

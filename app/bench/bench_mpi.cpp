@@ -155,7 +155,10 @@ void static_light_mpi(const bench::Context& ctx, bool sky_dome, int repeats) {
         {"speedup_of_" + std::to_string(ctx.max_threads) + "_threads", t1 / bench::median(threads.total)},
         {"bit_identical", identical},
         {"note", session.size() == 1 ? "one rank: run under mpirun -np 2 for the speed-up" : ""}};
-    if (sky_dome) j["dome_samples"] = c.settings.sky_samples;
+    if (sky_dome) {
+        j["dome_samples"] = c.settings.sky_paths > 0 ? 0 : c.settings.sky_samples;
+        j["dome_paths"] = c.settings.sky_paths;  // > 0: the dome by its own Monte Carlo, a basis per rank
+    }
     one.put(j, "1_rank");
     threads.put(j, "1_rank_" + std::to_string(ctx.max_threads) + "_threads");
     all.put(j, "all_ranks");

@@ -68,8 +68,14 @@ FULGUR_STUDY(static_frontier, "static-frontier",
     struct Case {
         std::string file;
         std::vector<Config> configs;
-        std::uint64_t truth_paths;     // the truth's noise well below the best configuration's error
-        std::vector<int> sky_samples;  // the dome's directions (the scene's static settings otherwise)
+        std::uint64_t truth_paths;  // the truth's noise well below the best configuration's error
+        // The sky's configurations: the dome as N directions (paths 0), or by Monte Carlo with
+        // `paths` per basis; the scene's static settings otherwise.
+        struct Sky {
+            int samples;
+            std::uint64_t paths;
+        };
+        std::vector<Sky> sky;
     };
     std::vector<Case> cases = {
         {"storm.json",
@@ -81,15 +87,15 @@ FULGUR_STUDY(static_frontier, "static-frontier",
           {"r3o2 100k", 3, 2, 100'000},
           {"r3o2", 3, 2}},
          4'000'000,
-         {16, 32, 64}},
+         {{16, 0}, {32, 0}, {64, 0}, {0, 1'000'000}, {0, 2'000'000}, {0, 4'000'000}}},
         {"day-cumulus.json",
          {{"r1", 1, 1}, {"r2", 2, 1}, {"r1o2", 1, 2}, {"r2o2 100k", 2, 2, 100'000}, {"r2o2", 2, 2}},
          16'000'000,
-         {16, 32}}};
+         {{16, 0}, {32, 0}, {0, 1'000'000}, {0, 2'000'000}, {0, 4'000'000}}}};
     std::vector<double> elevations = {60.0, 25.0, 5.0};
     const std::vector<double> azimuths = {-60.0, 30.0, 150.0};
     if (ctx.quick) {
-        cases = {{"storm.json", {{"r1", 1, 1}, {"r1o2", 1, 2}}, 500'000, {8}}};
+        cases = {{"storm.json", {{"r1", 1, 1}, {"r1o2", 1, 2}}, 500'000, {{8, 0}, {0, 200'000}}}};
         elevations = {25.0};
     }
     if (!ctx.only.empty())
@@ -100,8 +106,8 @@ FULGUR_STUDY(static_frontier, "static-frontier",
         {"scene", "config", "refine", "exact_orders", "order2_paths", "elevation", "single_error", "multiple_error",
          "total_error", "single_ratio", "multiple_ratio", "seconds", "truth_noise_single", "truth_noise_multiple"});
     study::Csv sky_rows(ctx.file("static_sky.csv"),
-                        {"scene", "samples", "basis", "single_error", "multiple_error", "total_error", "single_ratio",
-                         "multiple_ratio", "seconds", "truth_noise_single", "truth_noise_multiple"});
+                        {"scene", "samples", "paths", "basis", "single_error", "multiple_error", "total_error",
+                         "single_ratio", "multiple_ratio", "seconds", "truth_noise_single", "truth_noise_multiple"});
     nlohmann::json out = nlohmann::json::array();
     for (const Case& c : cases) {
         const scene::Scene base = scene::load_scene(scenes / c.file);
@@ -195,9 +201,13 @@ FULGUR_STUDY(static_frontier, "static-frontier",
             return t;
         }();
         const double lz = luminance(base.sky->zenith()), lh = luminance(base.sky->horizon());
-        for (const int n : c.sky_samples) {
+        for (const Case::Sky& k : c.sky) {
+            // --only skymc: the dome's Monte Carlo rows alone (their truth is cached).
+            if (ctx.only.find("skymc") != std::string::npos && k.paths == 0) continue;
             sky::SolveSettings st = sky::solve_settings(base, density);
-            st.sky_samples = n;
+            st.sky_samples = k.samples > 0 ? k.samples : st.sky_samples;
+            st.sky_paths = k.paths;
+            const std::string label = k.paths > 0 ? "mc " + std::to_string(k.paths) : std::to_string(k.samples);
             const solve::Media media = sky::static_media(base, density);
             core::Stopwatch sw;
             const sky::SkyField f = sky::solve_sky(media, uniform, dirs, st);
@@ -246,16 +256,16 @@ FULGUR_STUDY(static_frontier, "static-frontier",
                 const double et = study::cloud_error(sum, tsum, rho);
                 const double r1 = total(b.single, rho) / total(b.truth_single, rho);
                 const double rm = total(b.multiple, rho) / total(b.truth_multiple, rho);
-                sky_rows << stem << double(n) << b.name << e1 << em << et << r1 << rm << secs << b.noise.single
-                         << b.noise.multiple;
+                sky_rows << stem << double(k.samples) << double(k.paths) << b.name << e1 << em << et << r1 << rm << secs
+                         << b.noise.single << b.noise.multiple;
                 sky_rows.end_row();
                 std::fprintf(stderr,
-                             "static-frontier: %-16s sky %2d samples %-8s: single %.3f multiple %.3f total %.3f "
+                             "static-frontier: %-16s sky %-10s %-8s: single %.3f multiple %.3f total %.3f "
                              "(ratios %.3f %.3f) in %.1f s (truth noise %.3f %.3f)\n",
-                             c.file.c_str(), n, b.name.c_str(), e1, em, et, r1, rm, secs, b.noise.single,
+                             c.file.c_str(), label.c_str(), b.name.c_str(), e1, em, et, r1, rm, secs, b.noise.single,
                              b.noise.multiple);
                 out.push_back({{"scene", c.file},
-                               {"config", "sky" + std::to_string(n) + " " + b.name},
+                               {"config", "sky " + label + " " + b.name},
                                {"total_error", et},
                                {"multiple_error", em},
                                {"seconds", secs}});

@@ -136,6 +136,13 @@ void parse_transport(JsonObject o, TransportSettings& t) {
         // Bounded so a solve ends: 2^27 paths are ~2 min on one core of this machine.
         t.static_order2_paths = std::uint64_t(
             st->integer_or("order2_paths", std::int64_t(t.static_order2_paths), 1000, std::int64_t(1) << 27));
+        t.static_sky_samples = int(st->integer_or("sky_samples", t.static_sky_samples, 1, 1024));
+        // As order2_paths: 2^27 paths bound a solve to minutes.
+        t.static_sky_paths =
+            std::uint64_t(st->integer_or("sky_paths", std::int64_t(t.static_sky_paths), 0, std::int64_t(1) << 27));
+        if (t.static_sky_paths > 0 && t.static_sky_paths < 1000)
+            st->fail("sky_paths",
+                     "must be 0 (the dome as directions) or at least 1000, got " + std::to_string(t.static_sky_paths));
         st->finish();
     }
     if (auto ss = o.optional_object("single_scattering")) {

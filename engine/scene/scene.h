@@ -131,6 +131,12 @@ struct TransportSettings {
     /// Order-2 Monte Carlo paths of a static solve with exact orders 2 (a sun; the sky's dome
     /// samples share them by their weights).
     std::uint64_t static_order2_paths = 400'000;
+    /// The sky dome: `static_sky_paths` 0 samples it as `static_sky_samples` directional lights
+    /// of equal solid angle (each an exact single scattering); > 0 computes its orders 1 and 2
+    /// by Monte Carlo from the whole dome (that many paths per end of the gradient) feeding
+    /// the lattice for orders >= 3, with no directions to band the shadows.
+    int static_sky_samples = 32;
+    std::uint64_t static_sky_paths = 2'000'000;
     // monte_carlo
     std::uint64_t mc_paths = 2'000'000;  ///< paths per light
     std::uint64_t mc_seed = 1;

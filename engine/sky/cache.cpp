@@ -163,7 +163,11 @@ basis::BakeKey sky_key(const scene::Scene& s, const core::Grid3<float>& density,
     d << bake::scene_key(s, density).description << settings_lines(settings);
     d << "sky.light=dome\n";
     d << "sky.dome.uniform=" << uniform << "\n";
-    d << "sky.dome.samples=" << settings.sky_samples << "\n";
+    // The dome as directions keeps its key; by Monte Carlo its paths replace the samples.
+    if (settings.sky_paths > 0)
+        d << "sky.dome.paths=" << settings.sky_paths << "\n";
+    else
+        d << "sky.dome.samples=" << settings.sky_samples << "\n";
     return basis::BakeKey::from_description(d.str());
 }
 

@@ -96,17 +96,21 @@ ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, c
     if (sky) {
         p.sky = true;
         p.sky_uniform = s.sky->zenith() == s.sky->horizon();
-        p.sky_single_solves = p.settings.sky_samples;
+        const bool mc = p.settings.sky_paths > 0;
+        p.sky_single_solves = mc ? 0 : p.settings.sky_samples;
         p.sky_lattice_solves = e.multiple_scattering ? (p.sky_uniform ? 1 : 2) : 0;
-        why.push_back(
-            std::string("sky dome (") + (p.sky_uniform ? "uniform" : "zenith-horizon gradient") +
-            "): " + std::to_string(p.sky_single_solves) + " directions' exact single scattering, " +
-            (e.multiple_scattering && p.settings.exact_orders == 2
-                 ? "their order 2 by Monte Carlo (" + std::to_string(p.settings.order2_paths) + " paths shared), "
-                 : std::string()) +
-            std::to_string(p.sky_lattice_solves) + " lattice solve" + (p.sky_lattice_solves == 1 ? "" : "s") +
-            (p.sky_uniform ? "" : " (one per gradient end)") + " " + where +
-            ", per unit radiance; the background is the same sky");
+        const bool two = e.multiple_scattering && p.settings.exact_orders == 2;
+        why.push_back(std::string("sky dome (") + (p.sky_uniform ? "uniform" : "zenith-horizon gradient") + "): " +
+                      (mc ? "order 1" + std::string(two ? " and 2" : "") + " by Monte Carlo from the whole dome (" +
+                                std::to_string(p.settings.sky_paths) + " paths per " +
+                                (p.sky_uniform ? "dome" : "gradient end") + ", no directions to band the shadows), "
+                          : std::to_string(p.sky_single_solves) + " directions' exact single scattering, " +
+                                (two ? "their order 2 by Monte Carlo (" + std::to_string(p.settings.order2_paths) +
+                                           " paths shared), "
+                                     : std::string())) +
+                      std::to_string(p.sky_lattice_solves) + " lattice solve" + (p.sky_lattice_solves == 1 ? "" : "s") +
+                      (p.sky_uniform ? "" : " (one per gradient end)") + " " + where +
+                      ", per unit radiance; the background is the same sky");
     } else if (s.sky) {
         why.push_back("a sky is declared but effects.sky = false: it is the background only, no sky light");
     } else {

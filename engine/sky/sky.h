@@ -70,6 +70,11 @@ struct SolveSettings {
     /// Directions sampling the sky dome (equal solid angles over the upper hemisphere). An
     /// accuracy/time knob: each is one exact single-scattering solve.
     int sky_samples = 32;
+    /// > 0: the dome's orders 1 and 2 by Monte Carlo from the whole dome (transport::DomeSource,
+    /// this many paths per basis) through the full-resolution density, in place of the
+    /// sky_samples directions (no directions to band small clouds' shadows); the lattice for
+    /// orders >= 3 as with directions. 0: the directions.
+    std::uint64_t sky_paths = 0;
     /// The transport grid the solve runs on: the lighting grid refined by this (the media
     /// passed to the solves must be static_media's, whose refine it is).
     int refine = 1;
@@ -259,12 +264,18 @@ struct TruthField {
 /// core::Error without the full-resolution density or with options out of range.
 TruthField sun_truth(const solve::Media& media, const glm::dvec3& direction, std::span<const glm::dvec3> directions,
                      const TruthOptions& options = {});
+/// A basis of the sky dome as a tabulated dome (transport::DomeSource, `table` values of
+/// sin(elevation) from 0 to 1): the zenith end of the gradient (zenith_weight), the horizon end
+/// (1 - zenith_weight) or the uniform sky (their sum, two values). The truth's and the solve's
+/// Monte Carlo of the dome use it.
+enum class DomeBasis { Zenith, Horizon, Uniform };
+transport::DomeSource dome_basis(DomeBasis which, int table = 1025);
 /// The sky dome's bases as solve_sky gives them (zenith and horizon ends of the gradient, or
 /// their sum for a uniform sky), per unit radiance: radiance from every direction above the
 /// horizon (transport::DomeSource), not the solve's sky_samples directions.
 struct SkyTruth {
     SkyField field;
-    std::vector<transport::MonteCarloResult::Noise> noise;  ///< per basis (zenith, horizon; or uniform)
+    std::vector<transport::MonteCarloResult::Noise> noise;     ///< per basis (zenith, horizon; or uniform)
     std::vector<transport::MonteCarloResult::CloudSums> sums;  ///< per basis, as `noise`
     double seconds = 0.0;
 };

@@ -93,6 +93,33 @@ void second_order(const solve::Media& media, std::span<const transport::Directio
     fs.seconds += sw.seconds();
 }
 
+/// The dome's orders 1 and 2 by Monte Carlo from the whole dome (`dome`: one basis), tallied on
+/// the transport grid with the expected-value estimators (order 1's S and uncollided fluence,
+/// order 2's S and fluence: what first_scattered and second_order give for directions), through
+/// the full-resolution density. Without order 2 exact only order 1 is traced.
+FirstScattered dome_first_scattered(const solve::Media& media, const transport::DomeSource& dome,
+                                    std::span<const glm::dvec3> directions, bool two, std::uint64_t paths,
+                                    std::uint64_t seed) {
+    FULGUR_ASSERT(!media.full.density.data.empty(), "sky: the dome's Monte Carlo needs static_media's full density");
+    core::Stopwatch sw;
+    transport::MonteCarloOptions mo = solve::order_two_options(paths, seed);
+    if (!two) {
+        mo.expected_second_order = false;
+        mo.max_scatterings = 0;
+        mo.tally_multiple = false;
+        mo.uncollided_only = true;
+    }
+    transport::MonteCarloResult r =
+        transport::monte_carlo(media.full, dome, media.transport.density.geom, directions, mo);
+    FirstScattered f{std::move(r.single), std::move(r.fluence), 0.0, {}, {}};
+    if (two) {
+        f.s2 = std::move(r.multiple);
+        f.phi2 = std::move(r.fluence2);
+    }
+    f.seconds = sw.seconds();
+    return f;
+}
+
 FirstScattered first_scattered(const transport::LightingMedium& medium,
                                std::span<const transport::DirectionalSource> lights,
                                std::span<const glm::dvec3> directions, const SolveSettings& settings) {
@@ -201,6 +228,8 @@ SolveSettings solve_settings(const scene::Scene& s, const core::Grid3<float>& de
     st.refine = s.transport.static_refine > 0 ? s.transport.static_refine : static_refine_for(s, density);
     st.exact_orders = s.transport.static_exact_orders > 0 ? s.transport.static_exact_orders : 2;
     st.order2_paths = s.transport.static_order2_paths;
+    st.sky_samples = s.transport.static_sky_samples;
+    st.sky_paths = s.transport.static_sky_paths;
     st.seed = s.transport.mc_seed;
     // Every fine voxel of a needed lighting voxel is computed (as the bake's single scattering).
     st.single_options.skip_block = st.refine;
@@ -209,7 +238,7 @@ SolveSettings solve_settings(const scene::Scene& s, const core::Grid3<float>& de
 
 solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density) {
     const SolveSettings st = solve_settings(s, density);
-    return solve::make_media(s, density, st.refine, exact_two(st));
+    return solve::make_media(s, density, st.refine, exact_two(st) || (s.sky && st.sky_paths > 0));
 }
 
 LightField solve_directional(const solve::Media& media, std::span<const transport::DirectionalSource> lights,
@@ -288,7 +317,7 @@ std::vector<DomeSample> dome_samples(int count) {
 SkyField solve_sky(const solve::Media& media, bool uniform, std::span<const glm::dvec3> directions,
                    const SolveSettings& settings) {
     check_media(media, settings);
-    const std::vector<DomeSample> samples = dome_samples(settings.sky_samples);
+    const std::vector<DomeSample> samples = dome_samples(settings.sky_paths > 0 ? 1 : settings.sky_samples);
     const bool two = exact_two(settings);
     // The dome's order 2: the sun's paths shared by the samples (equal solid angles).
     const std::uint64_t paths2 = std::max<std::uint64_t>(1000, settings.order2_paths / std::uint64_t(samples.size()));
@@ -311,7 +340,20 @@ SkyField solve_sky(const solve::Media& media, bool uniform, std::span<const glm:
         z.seconds += one.seconds;
         if (!uniform) add_scaled(h, one, 1.0 - w);
     };
-    if (const Processes* procs = spread(settings)) {
+    if (settings.sky_paths > 0) {
+        // The dome's orders 1 and 2 by its own Monte Carlo, one run per basis (over several
+        // processes each basis on its own, exchanged).
+        const Processes* procs = spread(settings);
+        FirstScattered* out[2] = {&z, &h};
+        const DomeBasis bases[2] = {uniform ? DomeBasis::Uniform : DomeBasis::Zenith, DomeBasis::Horizon};
+        for (std::size_t b = 0; b < (uniform ? 1u : 2u); ++b) {
+            const int owner = procs ? int(b % std::size_t(procs->size())) : 0;
+            if (!procs || procs->rank() == owner)
+                *out[b] = dome_first_scattered(media, dome_basis(bases[b]), directions, two, settings.sky_paths,
+                                               core::hash_seed(settings.seed, 1000 + b));
+            if (procs) share(*procs, *out[b], owner);
+        }
+    } else if (const Processes* procs = spread(settings)) {
         // Over p processes the samples go round by round: in each, process r solves sample
         // k0 + r, then every process receives the round's samples and adds them in sample
         // order, exactly the one-process sums.

@@ -37,6 +37,21 @@ TruthField as_field(transport::MonteCarloResult&& r) {
 
 }  // namespace
 
+transport::DomeSource dome_basis(DomeBasis which, int table) {
+    FULGUR_ASSERT(table >= 2, "dome_basis: a table of at least 2 values");
+    if (which == DomeBasis::Uniform) return transport::DomeSource{{1.0, 1.0}};
+    // Linear between the values: zenith_weight's steepest stretch (sqrt near the horizon)
+    // differs from its chord by at most 1/(8 sqrt(n)) over the first interval, a solid angle of
+    // 2 pi / n; 1025 values make the profile's integral exact to ~1e-5.
+    transport::DomeSource d;
+    d.radiance.resize(std::size_t(table));
+    for (int k = 0; k < table; ++k) {
+        const double w = scene::SkyDome::zenith_weight(double(k) / (table - 1));
+        d.radiance[std::size_t(k)] = which == DomeBasis::Zenith ? w : 1.0 - w;
+    }
+    return d;
+}
+
 TruthField sun_truth(const solve::Media& media, const glm::dvec3& direction, std::span<const glm::dvec3> directions,
                      const TruthOptions& options) {
     const transport::DirectionalSource sun{direction, 1.0};
@@ -52,7 +67,7 @@ SkyTruth sky_truth(const solve::Media& media, bool uniform, std::span<const glm:
     const core::GridGeometry& lighting = media.lighting.density.geom;
     SkyTruth out;
     if (uniform) {
-        TruthField t = as_field(transport::monte_carlo(full, transport::DomeSource{{1.0, 1.0}}, lighting, directions,
+        TruthField t = as_field(transport::monte_carlo(full, dome_basis(DomeBasis::Uniform), lighting, directions,
                                                        truth_options(options, 1)));
         out.field.uniform = std::move(t.field);
         out.noise.push_back(t.noise);
@@ -60,16 +75,8 @@ SkyTruth sky_truth(const solve::Media& media, bool uniform, std::span<const glm:
         out.seconds = t.seconds;
         return out;
     }
-    // The gradient's ends, tabulated finely enough that their linear interpolation is the
-    // profile: zenith_weight's steepest stretch (sqrt near the horizon) differs from its
-    // chords by at most 1/(8 sqrt(n)) over the first interval, a solid angle 2 pi / n.
-    transport::DomeSource zenith, horizon;
-    const int n = options.table;
-    for (int k = 0; k < n; ++k) {
-        const double w = scene::SkyDome::zenith_weight(double(k) / (n - 1));
-        zenith.radiance.push_back(w);
-        horizon.radiance.push_back(1.0 - w);
-    }
+    const transport::DomeSource zenith = dome_basis(DomeBasis::Zenith, options.table),
+                                horizon = dome_basis(DomeBasis::Horizon, options.table);
     TruthField z = as_field(transport::monte_carlo(full, zenith, lighting, directions, truth_options(options, 2)));
     TruthField h = as_field(transport::monte_carlo(full, horizon, lighting, directions, truth_options(options, 3)));
     out.field.zenith = std::move(z.field);

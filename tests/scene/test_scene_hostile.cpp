@@ -160,6 +160,25 @@ TEST_CASE("a ground at or above the top of the cloud's grid is refused with the 
     CHECK_NOTHROW(make_density(parse_scene(kScene, "ok.json")));
 }
 
+TEST_CASE("the sky dome's knobs are bounded: sky_samples in [1, 1024], sky_paths 0 or [1000, 2^27]") {
+    const auto sky = [](const std::string& knobs) {
+        return parse_scene(with("\"lights\"", "\"transport\": {\"static_light\": {" + knobs + "}}, \"lights\""),
+                           "sky.json");
+    };
+    const Scene ok = sky("\"sky_samples\": 64, \"sky_paths\": 3000000");
+    CHECK(ok.transport.static_sky_samples == 64);
+    CHECK(ok.transport.static_sky_paths == 3'000'000);
+    CHECK(parse_scene(kScene, "plain.json").transport.static_sky_paths ==
+          2'000'000);  // the default: the dome by Monte Carlo
+    CHECK_THROWS_WITH_AS(sky("\"sky_samples\": 0"), doctest::Contains("sky.json: /transport/static_light/sky_samples"),
+                         Error);
+    CHECK_THROWS_WITH_AS(sky("\"sky_samples\": 100000"), doctest::Contains("/transport/static_light/sky_samples"),
+                         Error);
+    CHECK_THROWS_WITH_AS(sky("\"sky_paths\": 500"), doctest::Contains("/transport/static_light/sky_paths"), Error);
+    CHECK_THROWS_WITH_AS(sky("\"sky_paths\": 4294967296"), doctest::Contains("/transport/static_light/sky_paths"),
+                         Error);
+}
+
 TEST_CASE("every knob that scales a solve's work is in the cost: order-2 paths, a preset's per-strike paths") {
     // order2_paths 2^32 with exact_orders 2 once ran with no output and no end: its paths are
     // part of each light's lower bound (2e-7 s per path: 859 s a light).

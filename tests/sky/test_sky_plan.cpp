@@ -55,8 +55,9 @@ TEST_CASE("plan: the solves each kind of scene triggers, counted, and the reason
     REQUIRE(all.lightning.has_value());
     CHECK(all.virtual_lights == all.lightning->lights.count());
     CHECK(all.sun_solves == 1);
-    CHECK(all.sky_single_solves == 32);
+    CHECK(all.sky_single_solves == 0);   // the dome by its own Monte Carlo (sky_paths), no directions
     CHECK(all.sky_lattice_solves == 2);  // a gradient: one per end
+    CHECK(mentions(all, "order 1 and 2 by Monte Carlo from the whole dome (2000000 paths per gradient end"));
     CHECK(all.directions == 26);
     CHECK(mentions(all, "moon (elevation 40 deg, azimuth 30 deg): one solve per direction"));
     CHECK(mentions(all, "zenith-horizon gradient"));
@@ -95,7 +96,17 @@ TEST_CASE("plan: the solves each kind of scene triggers, counted, and the reason
                 R"({"effects": {"multiple_scattering": false, "lightning": false}, "sky": {"radiance": 1}})"),
         d, quick());
     CHECK(single.sky_lattice_solves == 0);
-    CHECK(single.sky_single_solves == 32);
+    CHECK(single.sky_single_solves == 0);
+    CHECK(mentions(single, "order 1 by Monte Carlo from the whole dome"));
+
+    // The dome as directions: sky_paths 0, sky_samples of them.
+    const sky::ScenePlan directions =
+        sky::plan_scene(variant(dir, "directions",
+                                R"({"effects": {"lightning": false}, "sky": {"radiance": 1},
+                    "transport": {"static_light": {"sky_paths": 0, "sky_samples": 16}}})"),
+                        d, quick());
+    CHECK(directions.sky_single_solves == 16);
+    CHECK(mentions(directions, "16 directions' exact single scattering"));
 
     // Nothing that lights the cloud: a clear error naming the file and the field.
     CHECK_THROWS_WITH_AS(sky::plan_scene(variant(dir, "dark", R"({"effects": {"lightning": false}})"), d, quick()),
@@ -208,9 +219,10 @@ TEST_CASE("plan: the three content scenes trigger exactly the solves they call f
         int sun, sky_single, sky_lattice, directions;
         const char* reason;
     };
-    for (const Expect e : {Expect{"storm", true, 1, 32, 2, 26, "moon (elevation 40 deg, azimuth -130 deg)"},
-                           Expect{"dusk-storm", true, 1, 32, 2, 26, "sun (elevation 5 deg, azimuth -30 deg)"},
-                           Expect{"day-cumulus", false, 1, 32, 2, 26, "no lightning (effects.lightning = false)"}}) {
+    // The sky by the dome's Monte Carlo (the default sky_paths): no directions' single scatterings.
+    for (const Expect e : {Expect{"storm", true, 1, 0, 2, 26, "moon (elevation 40 deg, azimuth -130 deg)"},
+                           Expect{"dusk-storm", true, 1, 0, 2, 26, "sun (elevation 5 deg, azimuth -30 deg)"},
+                           Expect{"day-cumulus", false, 1, 0, 2, 26, "no lightning (effects.lightning = false)"}}) {
         INFO(e.scene);
         const scene::Scene s =
             scene::load_scene(test::source_dir() / "content/scenes" / (std::string(e.scene) + ".json"));
