@@ -341,18 +341,23 @@ SkyField solve_sky(const solve::Media& media, bool uniform, std::span<const glm:
         if (!uniform) add_scaled(h, one, 1.0 - w);
     };
     if (settings.sky_paths > 0) {
-        // The dome's orders 1 and 2 by its own Monte Carlo, one run per basis (over several
-        // processes each basis on its own, exchanged).
+        // The dome's orders 1 and 2 by its own Monte Carlo, one run per basis. Over several
+        // processes each basis runs on its own process, all at once, then they are exchanged.
         const Processes* procs = spread(settings);
         FirstScattered* out[2] = {&z, &h};
         const DomeBasis bases[2] = {uniform ? DomeBasis::Uniform : DomeBasis::Zenith, DomeBasis::Horizon};
-        for (std::size_t b = 0; b < (uniform ? 1u : 2u); ++b) {
-            const int owner = procs ? int(b % std::size_t(procs->size())) : 0;
-            if (!procs || procs->rank() == owner)
+        const std::size_t n = uniform ? 1 : 2;
+        const auto owner = [&](std::size_t b) { return procs ? int(b % std::size_t(procs->size())) : 0; };
+        core::Stopwatch sw;
+        for (std::size_t b = 0; b < n; ++b)
+            if (!procs || procs->rank() == owner(b))
                 *out[b] = dome_first_scattered(media, dome_basis(bases[b]), directions, two, settings.sky_paths,
                                                core::hash_seed(settings.seed, 1000 + b));
-            if (procs) share(*procs, *out[b], owner);
-        }
+        if (procs)
+            for (std::size_t b = 0; b < n; ++b) share(*procs, *out[b], owner(b));
+        // Wall time of both bases (the zenith's field carries the sky's first-scattered time).
+        z.seconds = sw.seconds();
+        h.seconds = 0.0;
     } else if (const Processes* procs = spread(settings)) {
         // Over p processes the samples go round by round: in each, process r solves sample
         // k0 + r, then every process receives the round's samples and adds them in sample
