@@ -105,6 +105,16 @@ void explain(const scene::Scene& s, const solve::Media& media, Plan& p) {
             "compression.components = separate: single and multiple parts stored apart (run time can toggle them)");
     else if (p.single && p.multiple)
         why.push_back("compression.components = combined: one basis per direction holds single + multiple");
+    if (s.compression.mode == basis::ThresholdMode::Energy) {
+        // Keeping a fraction xi of a basis' energy bounds its relative L2 error by sqrt(1 - xi);
+        // past a quarter the bases no longer resemble what was solved (xi 1e-300 bakes ~99% off).
+        const double bound = std::sqrt(std::max(0.0, 1.0 - s.compression.xi));
+        why.push_back(std::string(bound > 0.25 ? "warning: " : "") +
+                      "compression.xi = " + core::format_number(s.compression.xi, 9) +
+                      " (energy): each basis keeps that fraction of its energy, so it is at most " +
+                      core::format_number(100.0 * bound, 3) + "% off what was solved (relative L2)" +
+                      (bound > 0.25 ? "; 0.9999 keeps within 1%" : ""));
+    }
     if (s.effects.sun || s.sun)
         why.push_back("the sun is not part of the virtual-light bake (it does not change per frame)");
     if (s.drop_below > 0.0)

@@ -35,7 +35,10 @@ struct Slot {
 Slot g_slots[kSlots];
 static_assert(std::atomic<int>::is_always_lock_free, "the signal handler reads the slots lock-free");
 
-constexpr int kCleanupSignals[] = {SIGINT, SIGTERM, SIGHUP};
+// Every signal whose default action ends the process without the program's own handling
+// (the crash signals excepted: after a fault, touching the file system is not safe).
+constexpr int kCleanupSignals[] = {SIGINT,  SIGTERM, SIGHUP,  SIGQUIT, SIGUSR1,
+                                   SIGUSR2, SIGALRM, SIGPIPE, SIGXCPU, SIGVTALRM};
 struct sigaction g_previous[NSIG];
 
 extern "C" void remove_temporaries_and_reraise(int sig) {

@@ -59,7 +59,8 @@ private:
 /// Writes `target` safely: holds its FileLock, writes "<target>.<pid>.tmp" in the same
 /// directory, and commit() flushes, syncs, closes (each checked: a full disk or a file-size
 /// limit is an Error, not a short file) and renames the temporary over the target atomically.
-/// Destroyed without commit() (an exception), or on SIGINT, SIGTERM or SIGHUP, the temporary
+/// Destroyed without commit() (an exception), or on a terminating signal (SIGINT, SIGTERM,
+/// SIGHUP, SIGQUIT, SIGUSR1/2, SIGALRM, SIGVTALRM, SIGPIPE, SIGXCPU), the temporary
 /// is removed; temporaries a killed process left for the same target are removed on open. A
 /// target that exists but is not a regular file (a directory, a device such as /dev/full) is
 /// refused; a symbolic link is followed. Errors name the target.

@@ -79,6 +79,21 @@ TEST_CASE("plan: the scene's effects decide what is simulated") {
     CHECK(said_iso);
     CHECK(said_no_solver);
 
+    // The compression's error bound is stated, and a setting that keeps almost nothing is a
+    // warning (sqrt(1 - xi): 0.9999 -> 1%, 1e-300 -> 100%).
+    auto compression_line = [&](double xi) {
+        scene::Scene c = ss;
+        c.compression.xi = xi;
+        for (const std::string& r : bake::make_plan(c, d2, no_estimate()).reasons)
+            if (r.find("compression.xi") != std::string::npos) return r;
+        return std::string();
+    };
+    CHECK(compression_line(0.9999).find("at most 1% off") != std::string::npos);
+    CHECK(compression_line(0.9999).find("warning") == std::string::npos);
+    const std::string lossy = compression_line(1e-300);
+    CHECK(lossy.find("warning: compression.xi = 1e-300") == 0);
+    CHECK(lossy.find("at most 100% off") != std::string::npos);
+
     // Nothing to bake: errors naming the field.
     scene::Scene off = ss;
     off.effects.lightning = false;
