@@ -26,7 +26,9 @@ const mat3 kAcesInput = mat3(0.59719, 0.07600, 0.02840, 0.35458, 0.90834, 0.1338
 const mat3 kAcesOutput = mat3(1.60475, -0.10208, -0.00327, -0.53108, 1.10813, -0.07276, -0.07367, -0.00605, 1.07602);
 
 vec3 aces_fitted(vec3 x) {
-    vec3 v = kAcesInput * x;
+    // Past 1e4 the curve is white to 4e-5 (its limit is 1.0165, clamped to 1); without this a
+    // radiance times exposure beyond ~1e19 would square past float32 and divide inf by inf.
+    vec3 v = kAcesInput * min(x, vec3(1e4));
     vec3 a = v * (v + 0.0245786) - 0.000090537;
     vec3 b = v * (0.983729 * v + 0.4329510) + 0.238081;
     return clamp(kAcesOutput * (a / b), 0.0, 1.0);

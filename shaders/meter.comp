@@ -12,7 +12,7 @@ uniform int u_bins;         // number of bins
 uniform float u_log2_min;   // lower edge of bin 0 (log2 of radiance)
 uniform float u_bin_width;  // in log2 units
 
-shared uint local_bins[256];
+shared uint local_bins[1024];  // at least u_bins (render/pass_meter.cpp)
 
 void main() {
     uint li = gl_LocalInvocationIndex;

@@ -71,10 +71,11 @@ void declare(CommandLine& cli, ShotArgs& a) {
            "--manual-exposure",
            [&a](const std::string& v) {
                a.manual_exposure = parse_number<double>(v, kTool, "--manual-exposure");
-               if (!std::isfinite(*a.manual_exposure) || !(*a.manual_exposure > 0.0))
-                   throw core::Error(kTool, "--manual-exposure must be finite and > 0");
+               // The shaders take it as a float32 (largest power of ten: 1e38).
+               if (!std::isfinite(*a.manual_exposure) || !(*a.manual_exposure > 0.0) || *a.manual_exposure > 1e38)
+                   throw core::Error(kTool, "--manual-exposure must be in (0, 1e38]");
            },
-           "a fixed exposure (linear multiplier before the tone map) instead of the automatic one")
+           "a fixed exposure (linear multiplier before the tone map, in (0, 1e38]) instead of the automatic one")
         ->type_name("X");
     app.add_option_function<std::string>(
            "--off",

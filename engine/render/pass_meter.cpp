@@ -18,10 +18,11 @@ using detail::PassTimer;
 
 namespace {
 
-// Exposure metering: log2 bins of the march's luminance, from 2^-40 to 2^24 (night sky to a
-// lightning channel seen through a thin cloud), a quarter stop each.
-constexpr int kMeterBins = 256;
-constexpr float kMeterLog2Min = -40.0f, kMeterBinWidth = 0.25f;
+// Exposure metering: log2 bins of the march's luminance over float32's whole normal range,
+// 2^-126 to 2^130, a quarter stop each: any light a scene may declare (a night sky at 1e-9, a
+// sun of 1e30 W/m^2) is metered where it is, never pinned at an end of the range.
+constexpr int kMeterBins = 1024;
+constexpr float kMeterLog2Min = -126.0f, kMeterBinWidth = 0.25f;
 
 }  // namespace
 

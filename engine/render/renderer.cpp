@@ -48,13 +48,15 @@ void validate_settings(const Settings& st) {
         const bool ok = std::isfinite(v) && (lo_open ? v > lo : v >= lo) && v <= hi;
         if (!ok)
             throw core::Error(std::string("render: settings.") + field,
-                              "must be in " + std::string(lo_open ? "(" : "[") + std::to_string(lo) + ", " +
-                                  std::to_string(hi) + "], got " + std::to_string(v));
+                              "must be in " + std::string(lo_open ? "(" : "[") + core::format_number(lo, 9) + ", " +
+                                  core::format_number(hi, 9) + "], got " + core::format_number(v, 9));
     };
     const double inf = std::numeric_limits<double>::max();
-    range(st.exposure, 0.0, inf, false, "exposure");
+    // The exposure reaches the shaders as a float32: 1e38 is the largest power of ten it holds.
+    constexpr double kMaxExposure = 1e38;
+    range(st.exposure, 0.0, kMaxExposure, false, "exposure");
     range(st.exposure_compensation, -20.0, 20.0, false, "exposure_compensation");
-    range(st.previous_exposure, 0.0, inf, false, "previous_exposure");
+    range(st.previous_exposure, 0.0, kMaxExposure, false, "previous_exposure");
     range(st.adaptation_seconds, 0.0, 1e6, false, "adaptation_seconds");
     range(st.brighten_seconds, 0.0, 1e6, false, "brighten_seconds");
     range(st.darken_seconds, 0.0, 1e6, false, "darken_seconds");

@@ -213,6 +213,12 @@ glm::dvec3 colour_or(JsonObject& o, std::string_view key, glm::dvec3 fallback) {
     return c / y;
 }
 
+// The largest sun irradiance (W/m^2) or point intensity (W/sr) a scene may declare: the
+// renderer carries radiance in float32 (largest 3.4e38), and a sun's disc is ~2e5 times its
+// irradiance in its bluest channel (1/0.0722 over the disc's 6.8e-5 sr), which leaves 1e3 of
+// headroom for the march's sums at 1e30. (The sun is 1361 W/m^2.)
+constexpr double kMaxLight = 1e30;
+
 void parse_sun(JsonObject& l, Scene& s) {
     if (s.sun) l.fail("type", "a scene has at most one sun (a moon is a dim sun)");
     Sun sun;
@@ -237,7 +243,7 @@ void parse_sun(JsonObject& l, Scene& s) {
         const double az = l.number("azimuth", Range{-360.0, 360.0});
         sun.direction = sun_direction(el, az);
     }
-    sun.irradiance = l.number_or("irradiance", sun.irradiance, Range{0.0, kInf, true, true});
+    sun.irradiance = l.number_or("irradiance", sun.irradiance, Range{0.0, kMaxLight, true});
     sun.colour = colour_or(l, "colour", sun.colour);
     sun.name = l.string_or("name", "");
     s.sun = sun;
@@ -250,7 +256,7 @@ void parse_lights(JsonObject& root, Scene& s) {
         if (type == "point") {
             transport::PointSource p;
             p.position = l.vec3("position", Range{-1e7, 1e7});
-            p.intensity = l.number_or("intensity", p.intensity, Range{0.0, kInf, false, true});
+            p.intensity = l.number_or("intensity", p.intensity, Range{0.0, kMaxLight});
             s.point_lights.push_back(p);
         } else {
             parse_sun(l, s);

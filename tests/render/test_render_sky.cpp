@@ -195,6 +195,61 @@ TEST_CASE("automatic exposure: the frame is tone mapped with the exposure it rep
     r.clear_static();
 }
 
+TEST_CASE("extreme light and exposure: metered where it is, never pinned, black or NaN") {
+    render::Renderer& r = gl_renderer();
+    const Box b = dark_box(r);
+    const core::GridGeometry lg = static_grid(b);
+    render::Settings st = test::volume_only();
+    st.auto_exposure = true;
+    st.jitter = false;
+    const int W = 48, H = 32;
+    // Which pixels show the box (lit) and which are at display white, per channel byte.
+    auto lit_and_white = [](const std::vector<std::uint8_t>& px) {
+        std::size_t lit = 0, white = 0;
+        for (std::size_t i = 0; i + 3 < px.size(); i += 4) {
+            lit += (px[i] | px[i + 1] | px[i + 2]) != 0;
+            white += px[i] == 255 && px[i + 1] == 255 && px[i + 2] == 255;
+        }
+        return std::pair{lit, white};
+    };
+    upload_constant_static(r, lg, {40.0, 40.0, 40.0});
+    const render::FrameStats base = render_at(r, b.cam, st, W, H);
+    const std::vector<std::uint8_t> base_px = test::gl_context().read_rgba8();
+    const auto [base_lit, base_white] = lit_and_white(base_px);
+    REQUIRE(base_lit > 100);
+    REQUIRE(base_white == 0);  // the highlight guard keeps a uniformly lit box below white
+    // The same light scaled as far as a scene may declare (a sun of 1e30 W/m^2 lights the cloud
+    // at ~1e30): the exposure follows it (its key grows slowly with luminance, so the picture
+    // brightens a little but never clips to white), and no pixel turns black from overflow.
+    for (double scale : {1e10, 1e20, 1e30}) {
+        CAPTURE(scale);
+        upload_constant_static(r, lg, {40.0 * scale, 40.0 * scale, 40.0 * scale});
+        const render::FrameStats s = render_at(r, b.cam, st, W, H);
+        CHECK(std::isfinite(s.exposure));
+        // exposure x luminance is the key, in [0.03, 1.03] whatever the scale: the ratio to the
+        // unscaled frame's is within that range's ratio (34x), where a pinned meter is off by 1e6+.
+        const double ratio = s.exposure * scale / base.exposure;
+        CHECK(ratio > 1.0 / 34.0);
+        CHECK(ratio < 34.0);
+        const auto [lit, white] = lit_and_white(test::gl_context().read_rgba8());
+        CHECK(lit == base_lit);
+        CHECK(white == 0);
+    }
+    // A manual exposure as large as the renderer takes: every lit pixel white, the rest black
+    // (no inf/inf in the tone curve turning the brightest pixels black).
+    upload_constant_static(r, lg, {40.0, 40.0, 40.0});
+    render::Settings manual = test::volume_only();
+    manual.jitter = false;
+    manual.exposure = 1e38;
+    render_at(r, b.cam, manual, W, H);
+    const auto [lit, white] = lit_and_white(test::gl_context().read_rgba8());
+    CHECK(lit >= base_lit);  // the box's faintest edge pixels, black at the metered exposure, too
+    CHECK(white == lit);
+    manual.exposure = 2e38;  // past float32's largest power of ten: refused, named
+    CHECK_THROWS_WITH_AS(render_at(r, b.cam, manual, W, H), doctest::Contains("settings.exposure"), core::Error);
+    r.clear_static();
+}
+
 TEST_CASE("static light and sun: bad inputs are rejected naming the field") {
     render::Renderer& r = gl_renderer();
     const Box b = box(r);

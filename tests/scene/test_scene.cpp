@@ -172,6 +172,10 @@ TEST_CASE("a sun (or moon): direction or elevation and azimuth, irradiance, colo
     bad(R"({"type": "sun", "direction": [0, 0, -1], "colour": [0, 0, 0]})", "/lights/0/colour: must have a positive");
     bad(R"({"type": "sun", "direction": [0, 0, -1], "colour": [1, -1, 1]})", "/lights/0/colour");
     bad(R"({"type": "sun", "direction": [0, 0, -1], "irradiance": 0})", "/lights/0/irradiance");
+    // Past what the renderer's float32 radiance carries (the sun's disc is ~2e5 x its irradiance).
+    bad(R"({"type": "sun", "direction": [0, 0, -1], "irradiance": 1e31})", "/lights/0/irradiance: value 1e+31");
+    bad(R"({"type": "sun", "direction": [0, 0, -1], "irradiance": 1e308})", "/lights/0/irradiance");
+    bad(R"({"type": "point", "position": [0, 0, 0], "intensity": 1e31})", "/lights/0/intensity");
     bad(R"({"type": "sun", "direction": [0, 0, -1]}, {"type": "sun", "direction": [0, 0, -1]})",
         "/lights/1/type: a scene has at most one sun");
     bad(R"({"type": "sun", "direction": [0, 0, -1], "size": 0.5})", "/lights/0/size: unknown key");
