@@ -54,6 +54,7 @@ struct Plan {
     int threads = 1;                            ///< worker threads the bake will use
     scene::Cost cost;                           ///< memory and a lower bound on time, before solving
     int sample_lights = 0;                      ///< lights solved for expected_* (16, fewer on large grids)
+    bool single_measured = false;               ///< cost.seconds from the single scattering measured on a sample
     basis::FgbMetadata metadata;                ///< what the file will hold (key, grids, directions)
     std::string to_text() const;
 };

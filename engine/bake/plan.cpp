@@ -24,7 +24,11 @@ std::string Plan::to_text() const {
       << " (float32, every light, direction and component)\n";
     o << "  memory          " << core::format_bytes(double(cost.memory_bytes)) << " estimated peak (" << cost.threads
       << " worker(s) x " << core::format_bytes(double(cost.per_thread_bytes)) << ")\n";
-    o << "  time at least   " << core::format_seconds(cost.seconds) << " (from the grid sizes)\n";
+    if (single_measured)
+        o << "  time about      " << core::format_seconds(cost.seconds)
+          << " (the single scattering measured on a sample of one light's voxels)\n";
+    else
+        o << "  time at least   " << core::format_seconds(cost.seconds) << " (from the grid sizes)\n";
     if (expected_bytes)
         o << "  expected file   " << core::format_bytes(double(expected_bytes)) << " (from " << sample_lights
           << " sample lights)\n";
@@ -152,21 +156,56 @@ void estimate_from_samples(const scene::Scene& s, const solve::Media& media, Pla
     // (at least one) when their lower-bound cost passes a minute: on a large grid one
     // light can take minutes.
     constexpr double kSampleBudgetSeconds = 60.0;
+    const basis::VirtualLightGrid& g = p.lights;
+    const double light_count = double(p.lights.count());
+    bool measured = false;  // the single scattering's measured cost is the light's cost
+    // The single scattering's quadrature refines by the tolerance and g (at 1e-9 and g 0.9 a
+    // voxel near the light takes thousands of sub-boxes), which no grid-size bound sees: it
+    // is measured on a sample of the central light's voxels, at most 2 s (within 0.84-1.49x
+    // of the full solve from 1e-9 to 1e-3 and g 0 to 0.99: fulgur-bench ss_cost).
+    if (p.cost.seconds_per_light <= kSampleBudgetSeconds) {
+        const transport::PointSource centre{
+            g.position(std::uint32_t(g.index(g.x.size() / 2, g.y.size() / 2, g.z.size() / 2))), 1.0};
+        const transport::SingleScatteringCost ss = transport::single_scattering_cost(
+            media.transport, centre, p.output_directions, solve::single_scattering_options(s), 2.0);
+        if (ss.seconds > p.cost.seconds_per_light) {
+            p.cost.seconds_per_light = ss.seconds;
+            measured = p.single_measured = true;
+            p.cost.seconds = ss.seconds * light_count / double(std::min(std::size_t(p.threads), p.lights.count()));
+        }
+        if (ss.seconds > 0.25 * kSampleBudgetSeconds || !ss.complete)
+            p.reasons.push_back("single scattering at tolerance " + core::format_number(s.transport.ss_tolerance) +
+                                " and g = " + core::format_number(s.medium.g) + ": about " +
+                                core::format_seconds(ss.seconds) + " per light on one thread (measured on " +
+                                std::to_string(ss.measured) + " of the central light's " + std::to_string(ss.voxels) +
+                                " voxels)");
+        if (p.cost.seconds > s.limits.bake_seconds)
+            throw core::Error((s.path.empty() ? std::string("scene") : s.path.string()) + ": limits.bake_hours",
+                              "the bake would take about " + core::format_seconds(p.cost.seconds) + " (" +
+                                  std::to_string(p.lights.count()) + " light(s) x " + core::format_seconds(ss.seconds) +
+                                  " of single scattering at tolerance " +
+                                  core::format_number(s.transport.ss_tolerance) +
+                                  " and g = " + core::format_number(s.medium.g) + ", measured on " +
+                                  std::to_string(ss.measured) + " voxels, on " + std::to_string(p.threads) +
+                                  " thread(s)), over the limit of " + core::format_seconds(s.limits.bake_seconds) +
+                                  "; raise transport.single_scattering.tolerance, \"limits\": {\"bake_hours\": "
+                                  "...}, or ask for less");
+    }
     if (p.cost.seconds_per_light > kSampleBudgetSeconds) {
         // Not even one sample fits the budget: a plan (and --dry-run) must not run for minutes
         // with no output, so the estimate is the lower bound itself, said to be one.
         p.sample_lights = 0;
         p.expected_seconds = p.cost.seconds;
-        p.reasons.push_back("no sample light solved: one light's lower bound, " +
+        p.reasons.push_back("no sample light solved: one light's " +
+                            std::string(measured ? "measured cost, " : "lower bound, ") +
                             core::format_seconds(p.cost.seconds_per_light) + ", is over the " +
                             core::format_seconds(kSampleBudgetSeconds) +
-                            " the plan may spend on samples; the expected time is that lower bound");
+                            " the plan may spend on samples; the expected time is from it");
         return;
     }
     const int kSamples = int(std::clamp(kSampleBudgetSeconds / std::max(p.cost.seconds_per_light, 1e-9), 1.0, 16.0));
     p.sample_lights = kSamples;
     std::vector<std::uint32_t> samples;
-    const basis::VirtualLightGrid& g = p.lights;
     for (int k = 0; k < kSamples; ++k) {
         auto pick = [&](double a, std::size_t n) {
             const double f = std::fmod(0.5 + k * a, 1.0);
@@ -187,10 +226,9 @@ void estimate_from_samples(const scene::Scene& s, const solve::Media& media, Pla
             seconds += sw.seconds();
         }
     }
-    const double n = double(p.lights.count());
     const double ns = double(samples.size());
-    p.expected_seconds = seconds / ns * n / double(p.threads);
-    p.expected_bytes = std::uint64_t(block_bytes / ns * n);
+    p.expected_seconds = seconds / ns * light_count / double(p.threads);
+    p.expected_bytes = std::uint64_t(block_bytes / ns * light_count);
     if (p.expected_seconds > s.limits.bake_seconds)
         throw core::Error((s.path.empty() ? std::string("scene") : s.path.string()) + ": limits.bake_hours",
                           "the bake would take about " + core::format_seconds(p.expected_seconds) + " (from " +

@@ -245,6 +245,76 @@ void single_scattering(const LightingMedium& medium, const PointSource& light, S
                    });
 }
 
+SingleScatteringCost single_scattering_cost(const LightingMedium& medium, const PointSource& light,
+                                            std::span<const glm::dvec3> directions,
+                                            const SingleScatteringOptions& options, double max_seconds) {
+    validate_medium(medium);
+    check_options(options);
+    if (!std::isfinite(light.position.x) || !std::isfinite(light.position.y) || !std::isfinite(light.position.z))
+        throw core::Error("light.position", "must be finite");
+    const std::vector<glm::dvec3> dirs = checked_directions(directions);
+    const core::GridGeometry& g = medium.density.geom;
+    const PointCtx ctx{
+        &g,
+        medium.density.data.data(),
+        medium.optics.extinction,
+        light.position,
+        options.optical_depth_cutoff,
+        density_bounds(medium),
+        medium.optics.extinction * double(*std::max_element(medium.density.data.begin(), medium.density.data.end()))};
+    const Plan plan(options.tolerance, medium.optics.g, options.optical_depth_cutoff, dirs);
+    const auto need = needed_mask(medium, options);
+
+    // The computed voxels sorted by distance from the light (the cost of a voxel depends
+    // mostly on it: near ones refine deepest), sampled systematically (each sampled voxel
+    // stands for `stride` of similar distance) and measured coarse to fine (bit-reversed
+    // order), so a sample cut short by max_seconds still spans every distance.
+    std::vector<std::pair<double, std::size_t>> cells;
+    for (int k = 0; k < g.dims.z; ++k)
+        for (int j = 0; j < g.dims.y; ++j)
+            for (int i = 0; i < g.dims.x; ++i) {
+                const std::size_t cell = g.index(i, j, k);
+                if (!need[cell]) continue;
+                const double d = glm::length(g.origin + (glm::dvec3(i, j, k) + 0.5) * g.voxel_size - light.position);
+                cells.emplace_back(d, cell);
+            }
+    std::sort(cells.begin(), cells.end());
+    SingleScatteringCost out;
+    out.voxels = cells.size();
+    if (cells.empty()) return out;
+    constexpr std::size_t kSample = 1024;
+    const std::size_t stride = std::max<std::size_t>(1, (cells.size() + kSample - 1) / kSample);
+    const std::size_t n = (cells.size() + stride - 1) / stride;
+    std::size_t bits = 0;
+    while ((std::size_t(1) << bits) < n) ++bits;
+
+    PhaseAccumulator acc(dirs, medium.optics.g);
+    core::Stopwatch total;
+    double seconds = 0.0;
+    std::size_t sampled = 0;
+    for (std::size_t r = 0; r < (std::size_t(1) << bits); ++r) {
+        std::size_t v = 0;
+        for (std::size_t b = 0; b < bits; ++b) v |= ((r >> b) & 1u) << (bits - 1 - b);
+        if (v >= n) continue;
+        if (total.seconds() > max_seconds) break;
+        const std::size_t cell = cells[std::min(cells.size() - 1, v * stride + stride / 2)].second;
+        const core::Int3 c = g.unindex(cell);
+        Box b;
+        b.lo = g.origin + glm::dvec3(c.x, c.y, c.z) * g.voxel_size;
+        b.hi = b.lo + glm::dvec3(g.voxel_size);
+        core::Stopwatch sw;
+        acc.reset();
+        integrate_box_point(ctx, b, medium.sigma_t(cell), 0, plan, acc);
+        (void)acc.result();
+        seconds += sw.seconds();
+        ++sampled;
+    }
+    out.measured = sampled;
+    out.complete = sampled == n;
+    if (sampled > 0) out.seconds = seconds / double(sampled) * double(cells.size());
+    return out;
+}
+
 SourceField single_scattering(const LightingMedium& medium, const PointSource& light,
                               std::span<const glm::dvec3> directions, const SingleScatteringOptions& options) {
     SourceField f;

@@ -367,6 +367,18 @@ TEST_CASE("plan: memory and a lower bound on time are known before any light is 
     // The user can raise the limit (no estimate: nothing is solved here either).
     s.limits.bake_seconds = 1e12;
     CHECK_NOTHROW(bake::make_plan(s, d, no_estimate()));
+    // The single scattering's quadrature at tolerance 1e-9 and g 0.9 (once a plan with no
+    // output and no end): measured on a sample of voxels in at most 2 s, and refused by the
+    // limit naming the tolerance and g, before any sample light is solved.
+    {
+        scene::Scene fine = tiny("test_iso_ss_ic");
+        fine.medium.g = 0.9;
+        fine.transport.ss_tolerance = 1e-9;
+        fine.limits.bake_seconds = 60.0;
+        const core::Grid3<float> fd = scene::make_density(fine);
+        CHECK_THROWS_WITH_AS(bake::make_plan(fine, fd),
+                             doctest::Contains("of single scattering at tolerance 1e-09 and g = 0.9"), core::Error);
+    }
     // A memory limit below the estimate.
     s.limits.memory_bytes = double(p.cost.memory_bytes) / 2.0;
     s.transport.solver = scene::TransportSettings::Solver::LatticeBoltzmann;

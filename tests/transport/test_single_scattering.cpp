@@ -400,3 +400,34 @@ TEST_CASE("strongly peaked scattering, g from -0.999 to 0.999: finite, symmetric
         for (std::size_t i = 0; i < phi.data.size(); ++i) CHECK(phi.data[i] == test::rel(phi0.data[i], 5e-3));
     }
 }
+
+TEST_CASE("single scattering's cost: a sample of voxels by distance, bounded by its time budget") {
+    const LightingMedium m = uniform_medium({12, 12, 6}, 1.0, {0, 0, 0}, 1.0f, {0.5, 0.9, 0.9});
+    const auto dirs = output_directions(26);
+    SingleScatteringOptions o;
+    o.tolerance = 1e-4;
+    const PointSource src{{6.0, 6.0, 3.0}, 1.0};
+    // Time to spare: every voxel measured (864 < the sample's 1024), the estimate their sum.
+    const SingleScatteringCost all = single_scattering_cost(m, src, dirs, o, 1e9);
+    CHECK(all.voxels == 864);
+    CHECK(all.measured == 864);
+    CHECK(all.complete);
+    CHECK(all.seconds > 0.0);
+    // No time: nothing measured, said so, and no figure invented.
+    const SingleScatteringCost none = single_scattering_cost(m, src, dirs, o, -1.0);
+    CHECK(none.voxels == 864);
+    CHECK(none.measured == 0);
+    CHECK_FALSE(none.complete);
+    CHECK(none.seconds == 0.0);
+    // Far-empty voxels are not computed by the solve, so not counted.
+    LightingMedium hollow = m;
+    for (int k = 0; k < 6; ++k)
+        for (int j = 0; j < 12; ++j)
+            for (int i = 0; i < 12; ++i) hollow.density.data[hollow.density.geom.index(i, j, k)] = i < 3 ? 1.0f : 0.0f;
+    o.skip_far_empty = true;
+    CHECK(single_scattering_cost(hollow, src, dirs, o, 1e9).voxels == 4 * 12 * 6);
+    // Bad input named as the solve names it.
+    o.tolerance = 0.0;
+    CHECK_THROWS_WITH_AS(single_scattering_cost(m, src, dirs, o, 1.0), doctest::Contains("single_scattering.tolerance"),
+                         core::Error);
+}
