@@ -2,6 +2,8 @@
 // on time, checked against the scene's limits before anything is allocated or solved.
 #include "scene/scene.h"
 
+#include "basis/fgb.h"
+
 #include <unistd.h>
 
 #include <algorithm>
@@ -111,6 +113,15 @@ void check_cost(const Scene& s, const Cost& c) {
     auto dims = [](core::Int3 d) {
         return std::to_string(d.x) + " x " + std::to_string(d.y) + " x " + std::to_string(d.z);
     };
+    // The bases' file holds at most kMaxFgbCells lighting cells: a finer grid (a small
+    // density_voxel_size, a large generator grid at a small downsample) is refused here, from
+    // the sizes alone, not after the density (gigabytes) is made.
+    if (s.effects.lightning && volume(c.lighting_dims) > double(basis::kMaxFgbCells))
+        throw core::Error(file + ": lighting.downsample",
+                          std::to_string(s.lighting_downsample) + ": the lighting grid would be " +
+                              dims(c.lighting_dims) + " cells (density " + dims(c.density_dims) + "), over the " +
+                              std::to_string(basis::kMaxFgbCells) +
+                              " a bake file holds; raise lighting.downsample or make the density coarser");
     const double mem = memory_limit(s);
     if (double(c.memory_bytes) > mem)
         throw core::Error(

@@ -150,6 +150,20 @@ TEST_CASE("the cost of a scene is known before anything is allocated, and refuse
     CHECK_THROWS_WITH_AS(check_cost(small, estimate_cost(small)), doctest::Contains("limits.bake_hours"), Error);
     CHECK_THROWS_WITH_AS(parse_scene(with("\"lights\"", "\"limits\": {\"bake_hours\": 0}, \"lights\""), "z.json"),
                          doctest::Contains("z.json: /limits/bake_hours"), Error);
+    // A lighting grid past what a bake file holds (2^26 cells: here 1024 x 1024 x 128 at
+    // downsample 2 of a 2048 x 2048 x 256 grid) is refused from the sizes, naming the field,
+    // before gigabytes of density are made (a VDB's small density_voxel_size once loaded
+    // 3.2 GB first).
+    Scene fine = parse_scene(kScene, "fine.json");
+    fine.cloud.generator.grid = {2048, 2048, 256};
+    fine.lighting_downsample = 2;
+    fine.limits.memory_bytes = 1e15;
+    fine.limits.bake_seconds = 1e15;
+    CHECK_THROWS_WITH_AS(
+        check_cost(fine, estimate_cost(fine, 1, 1)),
+        doctest::Contains("lighting.downsample: 2: the lighting grid would be 1024 x 1024 x 128 cells"), Error);
+    fine.lighting_downsample = 4;  // 2^24 cells: accepted
+    CHECK_NOTHROW(check_cost(fine, estimate_cost(fine, 1, 1)));
 }
 
 TEST_CASE("a ground at or above the top of the cloud's grid is refused with the file, before any bolt") {
