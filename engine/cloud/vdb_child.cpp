@@ -91,19 +91,24 @@ static_assert(int(Lower::DIM) == kLowerEdge && int(Upper::DIM) == kUpperEdge);
 // limit counts from there.
 std::uint64_t g_child_start_vm = 0;
 
-// Limits the child's address space to its start plus `budget` plus the library's margin;
-// lowering only. Not in sanitized builds (see FULGUR_VDB_SANITIZED).
-void limit_child_memory(std::uint64_t budget) {
+// Limits the child's address space to its start plus `budget` plus the library's margin: the
+// hard limit once (the whole budget), the soft limit per phase (the descriptors', then the
+// tree's share), never above the hard one. Not in sanitized builds (see FULGUR_VDB_SANITIZED).
+void limit_child_memory(std::uint64_t budget, bool hard = false) {
 #if !FULGUR_VDB_SANITIZED
     if (g_child_start_vm == 0) return;  // /proc unreadable: the parent's watch still holds
     rlimit r{};
     if (::getrlimit(RLIMIT_AS, &r) != 0) return;
     const rlim_t want = rlim_t(add_saturated(g_child_start_vm, add_saturated(budget, kLibraryBytes)));
-    if (r.rlim_max != RLIM_INFINITY && r.rlim_max < want) return;  // a tighter limit is already set
-    r.rlim_cur = r.rlim_max = want;
+    if (hard) {
+        if (r.rlim_max != RLIM_INFINITY && r.rlim_max < want) return;  // a tighter limit is already set
+        r.rlim_max = want;
+    }
+    r.rlim_cur = std::min(want, r.rlim_max);
     ::setrlimit(RLIMIT_AS, &r);
 #else
     (void)budget;
+    (void)hard;
 #endif
 }
 
@@ -354,14 +359,16 @@ void child_load(const std::filesystem::path& path, const VdbImport& options, Out
     out.put(kDone);
 }
 
-void child_main(int fd, pid_t parent, std::uint64_t budget, double seconds, const ChildBody& body) {
+void child_main(int fd, pid_t parent, std::uint64_t budget, std::uint64_t first, double seconds,
+                const ChildBody& body) {
     // Dies with the parent.
     ::prctl(PR_SET_PDEATHSIG, SIGKILL);
     if (::getppid() != parent) ::_exit(kExitWriteFailed);
     reset_signals_and_limits(seconds);
     const int out_fd = keep_only_pipe(fd);
     g_child_start_vm = statm_bytes(0, 0);
-    limit_child_memory(budget);
+    limit_child_memory(budget, true);
+    limit_child_memory(first);
     // After fork() only this thread exists: nothing parallel.
     const core::ScopedThreadCount one(1);
     Out out(out_fd);

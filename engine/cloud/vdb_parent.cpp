@@ -72,19 +72,21 @@ std::uint64_t statm_bytes(pid_t pid, int field) {
 
 Reader::Reader(const std::filesystem::path& path, std::uint64_t file_bytes, std::uint64_t budget, ChildBody body)
     : where_(path.string()),
-      budget_(budget),
+      full_budget_(budget),
+      budget_(descriptor_budget(file_bytes, budget)),
       seconds_(kBaseSeconds + kSecondsPerMiB * double(file_bytes) / double(1 << 20)) {
     initialize_openvdb();  // once, here: the children inherit the registry
     int fds[2];
     if (::pipe2(fds, O_CLOEXEC) != 0)
         throw core::Error(where_, std::string("cannot start the OpenVDB reader: pipe: ") + std::strerror(errno));
     // The child's resident size starts at most at the parent's (the pages it inherits).
-    rss_limit_ = add_saturated(statm_bytes(0, 1), add_saturated(budget, kLibraryBytes));
+    start_rss_ = statm_bytes(0, 1);
+    rss_limit_ = add_saturated(start_rss_, add_saturated(budget_, kLibraryBytes));
     const pid_t parent = ::getpid();
     pid_ = ::fork();
     if (pid_ == 0) {
         ::close(fds[0]);
-        child_main(fds[1], parent, budget, seconds_, body);
+        child_main(fds[1], parent, budget, budget_, seconds_, body);
     }
     const int e = errno;
     ::close(fds[1]);
@@ -226,8 +228,11 @@ void Reader::end(int status) {
         throw core::Error(where_, "the OpenVDB reader took longer than " + secs +
                                       " s on this file (the limit for its size): it is corrupt");
     if (out_of_memory_ || (status >= 0 && WIFEXITED(status) && WEXITSTATUS(status) == kExitOutOfMemory))
-        throw core::Error(where_, "the OpenVDB reader ran out of its memory budget of " + budget +
-                                      " on this file (the load's memory limit): it is corrupt, or too large");
+        throw core::Error(where_, "the OpenVDB reader ran out of its memory budget of " + budget + " on this file (" +
+                                      (descriptors_ && budget_ < full_budget_
+                                           ? "for its descriptors: the library's share, 16 MiB and 4x the file"
+                                           : "the load's memory limit") +
+                                      "): it is corrupt, or too large");
     if (status >= 0 && WIFSIGNALED(status)) {
         const int sig = WTERMSIG(status);
         const std::string named = "signal " + std::to_string(sig) + ", " + signal_name(sig);

@@ -382,6 +382,39 @@ TEST_CASE("a truncated VDB file is refused in bounded time and memory, naming th
     }
 }
 
+TEST_CASE("a descriptor's length prefix of 1 GB is refused within the descriptors' memory, not the load's") {
+    // A 52 KB fuzzer input whose grid type name claimed 1 GB once took 10 s and 7.3 GB of the
+    // scene's memory budget before OpenVDB's error came back; the descriptors' phase now has
+    // 16 MiB + 4x the file (plus the library's share), whatever the load's budget.
+    const std::string original = read_bytes(storm_cell());
+    const std::string type = "Tree_float_5_4_3";
+    const std::size_t at = original.find(type);
+    REQUIRE(at != std::string::npos);
+    REQUIRE(at >= 4);
+    std::string bytes = original;
+    const std::uint32_t huge = 0x3ff00000u;  // 1023 MiB, little-endian as OpenVDB writes it
+    std::memcpy(bytes.data() + at - 4, &huge, 4);
+    const auto path = test::scratch_dir("vdb_length") / "type_length.vdb";
+    write_bytes(path, bytes);
+    cloud::VdbImport o;
+    o.grid = "density";
+    o.max_bytes = std::uint64_t(8) << 30;  // the load may take 8 GiB: the descriptors may not
+    for (int load = 0; load < 2; ++load) {
+        CAPTURE(load);
+        try {
+            if (load)
+                (void)cloud::load_vdb(path, o);
+            else
+                (void)cloud::inspect_vdb(path, o);
+            FAIL("a 1 GB grid type name was accepted");
+        } catch (const Error& e) {
+            const std::string m = e.what();
+            CHECK(m.starts_with(path.string() + ": "));
+            CHECK(m.find("for its descriptors") != std::string::npos);
+        }
+    }
+}
+
 TEST_CASE("every single-bit flip in the tree topology of a real VDB file loads a valid grid or is refused") {
     // OpenVDB's reader corrupts its heap or its pointers on many of these (glibc aborts with
     // "malloc(): corrupted top size", or it segfaults); the read runs in a child process, so

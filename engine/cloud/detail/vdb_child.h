@@ -23,9 +23,11 @@ using ChildBody = std::function<void(Out&)>;
 void initialize_openvdb();
 
 // Runs in the forked child: limits its core files, CPU time (`seconds`) and memory (`budget`
-// plus kLibraryBytes), keeps only the pipe `fd` open, runs `body` and exits; an exception
-// becomes an error record. Everything the parent needs from it is on the pipe.
-[[noreturn]] void child_main(int fd, pid_t parent, std::uint64_t budget, double seconds, const ChildBody& body);
+// plus kLibraryBytes; `first` plus kLibraryBytes until the descriptors are checked), keeps only
+// the pipe `fd` open, runs `body` and exits; an exception becomes an error record. Everything
+// the parent needs from it is on the pipe.
+[[noreturn]] void child_main(int fd, pid_t parent, std::uint64_t budget, std::uint64_t first, double seconds,
+                             const ChildBody& body);
 
 // inspect_vdb's child: the descriptors.
 void child_inspect(const std::filesystem::path& path, Out& out);

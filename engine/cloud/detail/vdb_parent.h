@@ -27,7 +27,8 @@ namespace fulgur::cloud::detail::vdb {
 class Reader {
 public:
     // Forks the child running body(out) on `path`, whose size is `file_bytes`; it may use
-    // `budget` bytes (plus kLibraryBytes).
+    // `budget` bytes (plus kLibraryBytes), and descriptor_budget() of them until the
+    // descriptors are received.
     Reader(const std::filesystem::path& path, std::uint64_t file_bytes, std::uint64_t budget, ChildBody body);
     ~Reader();
     Reader(const Reader&) = delete;
@@ -35,12 +36,12 @@ public:
 
     // Errors after the grid is chosen name it.
     void set_where(std::string where) { where_ = std::move(where); }
-    // The child's share of the memory once the parent knows the dense copies' size.
-    void lower_budget(std::uint64_t budget) {
-        if (budget < budget_) {
-            rss_limit_ -= budget_ - budget;
-            budget_ = budget;
-        }
+    // The child's share of the memory once the parent knows the dense copies' size (at most
+    // the whole budget; the descriptors' share until then).
+    void set_budget(std::uint64_t budget) {
+        budget_ = std::min(budget, full_budget_);
+        rss_limit_ = add_saturated(start_rss_, add_saturated(budget_, kLibraryBytes));
+        descriptors_ = false;
     }
 
     template <class T>
@@ -84,13 +85,15 @@ private:
 
     std::string where_;
     const std::string file_ = where_;
+    const std::uint64_t full_budget_;
     std::uint64_t budget_;
     const double seconds_;
-    std::uint64_t rss_limit_ = 0;
+    std::uint64_t start_rss_ = 0, rss_limit_ = 0;
     pid_t pid_ = -1;
     int fd_ = -1;
     std::chrono::steady_clock::time_point deadline_, next_rss_check_{};
     bool timed_out_ = false, out_of_memory_ = false, eof_ = false;
+    bool descriptors_ = true;  // the child may still be reading the descriptors (their budget)
     std::vector<char> buf_ = std::vector<char>(std::size_t(1) << 16);
     std::size_t pos_ = 0, end_ = 0;
 };

@@ -40,6 +40,15 @@ constexpr std::size_t kReasonCut = 400;        // ... as the parent passes it on
 // decompression buffers, streams, the allocator's slack). Sanitized builds hold freed memory
 // in a quarantine and count shadow pages in the resident size: they get more.
 constexpr std::uint64_t kLibraryBytes = std::uint64_t(FULGUR_VDB_SANITIZED ? 1024 : 256) << 20;
+// Until the descriptors are read and checked, the child may use at most this much beyond the
+// library's share (and never more than the load's budget): a file's metadata, names and
+// transforms are at most its own bytes, read once and copied a few times. A corrupt length
+// prefix (a grid type "name" of 1 GB in a 52 KB file) then fails in milliseconds instead of
+// filling the scene's whole memory budget (7.3 GB measured) before it is refused.
+constexpr std::uint64_t descriptor_budget(std::uint64_t file_bytes, std::uint64_t budget) {
+    const std::uint64_t want = (std::uint64_t(16) << 20) + 4 * file_bytes;
+    return want < budget ? want : budget;
+}
 // The child's exit statuses of its own (0: done, or stopped where the parent refuses anyway).
 constexpr int kExitOutOfMemory = 75;  // std::bad_alloc: its memory limit was reached
 constexpr int kExitWriteFailed = 74;  // the pipe closed: the parent stopped listening
