@@ -241,6 +241,7 @@ core::Grid3<float> load_vdb(const std::filesystem::path& path, const VdbImport& 
                                      dims_text(info.source_dims) + " file voxels onto " + dims_text(info.density.dims) +
                                      "), over the limit of " + core::format_bytes(double(options.max_bytes)));
     reader.set_budget(options.max_bytes - (info.load_bytes - L.tree_bytes));
+    reader.allow_dense(info.load_bytes);
 
     receive_background_and_box(reader, L, where);
     std::vector<float> dense = receive_voxels(reader, L, float(options.density_scale));

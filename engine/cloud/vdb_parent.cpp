@@ -99,6 +99,13 @@ Reader::Reader(const std::filesystem::path& path, std::uint64_t file_bytes, std:
                                                        std::chrono::duration<double>(seconds_));
 }
 
+void Reader::allow_dense(std::uint64_t bytes) {
+    // 256 MiB a second: a quarter of what filling fresh pages runs at on the development machine.
+    const double extra = double(bytes) / double(256u << 20);
+    seconds_ += extra;
+    deadline_ += std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(extra));
+}
+
 Reader::~Reader() {
     if (pid_ > 0) {
         ::kill(pid_, SIGKILL);

@@ -36,6 +36,9 @@ public:
 
     // Errors after the grid is chosen name it.
     void set_where(std::string where) { where_ = std::move(where); }
+    // More time for a load whose dense copies take `bytes` (filled as the records arrive): a
+    // few-KB file of large active tiles is a valid grid of gigabytes, not a corrupt file.
+    void allow_dense(std::uint64_t bytes);
     // The child's share of the memory once the parent knows the dense copies' size (at most
     // the whole budget; the descriptors' share until then).
     void set_budget(std::uint64_t budget) {
@@ -87,7 +90,7 @@ private:
     const std::string file_ = where_;
     const std::uint64_t full_budget_;
     std::uint64_t budget_;
-    const double seconds_;
+    double seconds_;
     std::uint64_t start_rss_ = 0, rss_limit_ = 0;
     pid_t pid_ = -1;
     int fd_ = -1;
