@@ -212,6 +212,10 @@ int run(const app::BakeArgs& a, const distributed::Session& session) {
     const bool fresh = s.effects.lightning && bake::up_to_date(s, density, out, &why);
     bake::PlanOptions po;
     po.estimate = !fresh || a.force || a.dry_run;
+    po.on_progress = [](const std::string& line) {
+        std::fprintf(stderr, "fulgur-bake: %s\n", line.c_str());
+        std::fflush(stderr);
+    };
     const sky::ScenePlan scene_plan = sky::plan_scene(s, density, po);
     std::fputs(scene_plan.to_text().c_str(), stdout);
     if (scene_plan.lightning)

@@ -64,6 +64,9 @@ struct PlanOptions {
     /// and size; about a second. false: expected_* stay 0.
     bool estimate = true;
     int threads = 0;  ///< 0: core::thread_count()
+    /// Told, one line each, what the estimate is doing when it will take more than a few
+    /// seconds (the single scattering's probe, each sample light): a plan can take a minute.
+    std::function<void(const std::string&)> on_progress;
 };
 /// Throws core::Error when the scene asks for nothing to bake (lightning off, or neither
 /// single nor multiple scattering) or its cloud is empty.

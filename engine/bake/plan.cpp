@@ -36,7 +36,9 @@ std::string Plan::to_text() const {
         o << "  expected time   " << core::format_seconds(expected_seconds) << " (from " << sample_lights
           << " sample lights)\n";
     else if (expected_seconds > 0.0)
-        o << "  expected time   " << core::format_seconds(expected_seconds) << " (the lower bound: no sample light)\n";
+        o << "  expected time   " << core::format_seconds(expected_seconds)
+          << (single_measured ? " (the single scattering's measured cost: no sample light)\n"
+                              : " (the lower bound: no sample light)\n");
     o << "  why:\n";
     for (const std::string& r : reasons) o << "    - " << r << "\n";
     return o.str();
@@ -149,7 +151,10 @@ void describe_file(const scene::Scene& s, const core::Grid3<float>& density, Pla
 
 // The bake's time and file size from sample lights solved and compressed as a worker would;
 // refused when the time passes the scene's limit.
-void estimate_from_samples(const scene::Scene& s, const solve::Media& media, Plan& p) {
+void estimate_from_samples(const scene::Scene& s, const solve::Media& media, Plan& p, const PlanOptions& options) {
+    auto tell = [&](const std::string& line) {
+        if (options.on_progress) options.on_progress(line);
+    };
     // Sample lights: 16 spread over the grid by a golden-ratio sequence in each axis
     // (inside, below and beside the cloud), each solved single-threaded as a bake worker
     // does. Light costs and sizes vary by ~3x between in-cloud and far lights. Fewer
@@ -216,14 +221,23 @@ void estimate_from_samples(const scene::Scene& s, const solve::Media& media, Pla
     }
     double seconds = 0.0, block_bytes = 0.0;
     basis::HaarTransform<double> haar(p.lighting.dims, s.compression.decomposition);
+    // Sampling that may take more than a few seconds says what it is doing, light by light.
+    const bool long_sampling = p.cost.seconds_per_light * double(samples.size()) > 5.0;
+    if (long_sampling)
+        tell("plan: solving " + std::to_string(samples.size()) + " sample light(s), about " +
+             core::format_seconds(p.cost.seconds_per_light) + " each, to estimate the bake");
     {
         const core::ScopedThreadCount one_thread(1);  // as a bake worker solves a light
-        for (std::uint32_t l : samples) {
+        for (std::size_t k = 0; k < samples.size(); ++k) {
+            const std::uint32_t l = samples[k];
             core::Stopwatch sw;
             const transport::SourceField f = solve_light(s, media, p, l);
             const basis::CompressedLight c = basis::compress_light(l, f, s.compression, haar);
             block_bytes += double(basis::encode_block(c, p.metadata).bytes.size());  // as the file will hold it
             seconds += sw.seconds();
+            if (long_sampling)
+                tell("plan: sample light " + std::to_string(k + 1) + " of " + std::to_string(samples.size()) +
+                     " solved in " + core::format_seconds(sw.seconds()));
         }
     }
     const double ns = double(samples.size());
@@ -266,7 +280,7 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
 
     explain(s, media, p);
     describe_file(s, density, p);
-    if (options.estimate) estimate_from_samples(s, media, p);
+    if (options.estimate) estimate_from_samples(s, media, p, options);
     return p;
 }
 
