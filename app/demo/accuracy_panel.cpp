@@ -167,14 +167,10 @@ void AccuracyPanel::update_static(const view::ViewOptions& options) {
         core::Stopwatch sw;
         StaticReference r;
         r.solved = solved;
-        std::optional<solve::Media> own;
-        const solve::Media* m = &media;
-        if (m->full.density.data.empty()) m = &own.emplace(solve::make_media(scene, density, 1, true));
-        std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
         sky::TruthOptions to;
         to.paths = 2'000'000;
-        r.truth = sky::static_truth(plan, *m, solved.sun_direction, dirs, to, &r.noise);
-        sky::keep_parts(r.truth, solved);
+        r.truth = sky::truth_of(scene, density, plan, media, solved,
+                                transport::output_directions(scene.effective_directions()), to, &r.noise);
         sky::ComposeOptions co;
         co.sun = options.sun;
         co.sky = options.sky;
@@ -183,7 +179,7 @@ void AccuracyPanel::update_static(const view::ViewOptions& options) {
             co.single = part != 1;
             co.multiple = part != 0;
             *err[part] = sky::colour_error(sky::compose(solved, sun, scene.sky, co),
-                                           sky::compose(r.truth, sun, scene.sky, co), m->lighting.density.data);
+                                           sky::compose(r.truth, sun, scene.sky, co), media.lighting.density.data);
         }
         r.seconds = sw.seconds();
         return r;

@@ -144,60 +144,55 @@ std::vector<float> own_sites(const SlabKernel& k, std::size_t sites) {
     return mine;
 }
 
+#ifdef FULGUR_HAVE_MPI
+// Every rank's slab in rank order (the slabs are consecutive runs of sites, so rank order is
+// site order), on rank 0 only or on every rank.
+std::vector<float> gather_slabs(const std::vector<float>& mine, int ranks, bool root, bool everyone) {
+    std::vector<int> counts(static_cast<std::size_t>(ranks)), displs(static_cast<std::size_t>(ranks));
+    FULGUR_ASSERT(mine.size() <= std::size_t(INT_MAX), "LatticeSlab: a slab larger than 2^31 floats");
+    const int n = int(mine.size());
+    if (everyone)
+        detail::check(MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, MPI_COMM_WORLD), "MPI_Allgather");
+    else
+        detail::check(MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD), "MPI_Gather");
+    std::vector<float> all;
+    if (everyone || root) {
+        std::size_t total = 0;
+        for (int i = 0; i < ranks; ++i) {
+            displs[std::size_t(i)] = int(total);
+            total += std::size_t(counts[std::size_t(i)]);
+            FULGUR_ASSERT(total <= std::size_t(INT_MAX), "LatticeSlab: a lattice larger than 2^31 floats");
+        }
+        all.resize(total);
+    }
+    if (everyone)
+        detail::check(MPI_Allgatherv(mine.data(), n, MPI_FLOAT, all.data(), counts.data(), displs.data(), MPI_FLOAT,
+                                     MPI_COMM_WORLD),
+                      "MPI_Allgatherv");
+    else
+        detail::check(MPI_Gatherv(mine.data(), n, MPI_FLOAT, all.data(), counts.data(), displs.data(), MPI_FLOAT, 0,
+                                  MPI_COMM_WORLD),
+                      "MPI_Gatherv");
+    return all;
+}
+#endif
+
 }  // namespace
 
 std::vector<float> LatticeSlab::gather() const {
     std::vector<float> mine = own_sites(*kernel_, std::size_t(z1_ - z0_) * plane_);
 #ifdef FULGUR_HAVE_MPI
-    const int p = session_.size();
-    if (p == 1) return mine;
-    std::vector<int> counts(static_cast<std::size_t>(p)), displs(static_cast<std::size_t>(p));
-    const int n = int(mine.size());
-    FULGUR_ASSERT(mine.size() <= std::size_t(INT_MAX), "LatticeSlab::gather: a slab larger than 2^31 floats");
-    detail::check(MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD), "MPI_Gather");
-    std::vector<float> all;
-    if (session_.rank() == 0) {
-        std::size_t total = 0;
-        for (int i = 0; i < p; ++i) {
-            displs[std::size_t(i)] = int(total);
-            total += std::size_t(counts[std::size_t(i)]);
-        }
-        FULGUR_ASSERT(total <= std::size_t(INT_MAX), "LatticeSlab::gather: a lattice larger than 2^31 floats");
-        all.resize(total);
-    }
-    detail::check(
-        MPI_Gatherv(mine.data(), n, MPI_FLOAT, all.data(), counts.data(), displs.data(), MPI_FLOAT, 0, MPI_COMM_WORLD),
-        "MPI_Gatherv");
-    return all;
-#else
-    return mine;
+    if (session_.size() > 1) return gather_slabs(mine, session_.size(), session_.rank() == 0, false);
 #endif
+    return mine;
 }
 
 std::vector<float> LatticeSlab::gather_all() const {
     std::vector<float> mine = own_sites(*kernel_, std::size_t(z1_ - z0_) * plane_);
 #ifdef FULGUR_HAVE_MPI
-    const int p = session_.size();
-    if (p == 1) return mine;
-    // The slabs are consecutive runs of sites, so rank order is site order.
-    std::vector<int> counts(static_cast<std::size_t>(p)), displs(static_cast<std::size_t>(p));
-    FULGUR_ASSERT(mine.size() <= std::size_t(INT_MAX), "LatticeSlab::gather_all: a slab larger than 2^31 floats");
-    const int n = int(mine.size());
-    detail::check(MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, MPI_COMM_WORLD), "MPI_Allgather");
-    std::size_t total = 0;
-    for (int i = 0; i < p; ++i) {
-        displs[std::size_t(i)] = int(total);
-        total += std::size_t(counts[std::size_t(i)]);
-        FULGUR_ASSERT(total <= std::size_t(INT_MAX), "LatticeSlab::gather_all: a lattice larger than 2^31 floats");
-    }
-    std::vector<float> all(total);
-    detail::check(
-        MPI_Allgatherv(mine.data(), n, MPI_FLOAT, all.data(), counts.data(), displs.data(), MPI_FLOAT, MPI_COMM_WORLD),
-        "MPI_Allgatherv");
-    return all;
-#else
-    return mine;
+    if (session_.size() > 1) return gather_slabs(mine, session_.size(), session_.rank() == 0, true);
 #endif
+    return mine;
 }
 
 }  // namespace fulgur::distributed

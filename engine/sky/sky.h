@@ -290,6 +290,13 @@ StaticLight static_truth(const ScenePlan& plan, const solve::Media& media, const
 /// Empties the fields of `light` that `like` (the scene's solves) lacks: the parts its effects
 /// switched off, so a truth renders what the solves would.
 void keep_parts(StaticLight& light, const StaticLight& like);
+/// The truth of the scene's solved static light `solved` (its sun's direction, its parts):
+/// static_truth through the static media's full-resolution density when they hold it (their
+/// order 2 is exact), else through media made for this call, then keep_parts.
+StaticLight truth_of(const scene::Scene& s, const core::Grid3<float>& density, const ScenePlan& plan,
+                     const solve::Media& media, const StaticLight& solved, std::span<const glm::dvec3> directions,
+                     const TruthOptions& options = {},
+                     std::vector<transport::MonteCarloResult::Noise>* noise = nullptr);
 
 // ---------------------------------------------------------------------------------------
 // Composing the colour the renderer draws

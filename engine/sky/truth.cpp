@@ -4,6 +4,7 @@
 #include "sky/sky.h"
 
 #include <cmath>
+#include <optional>
 
 namespace fulgur::sky {
 
@@ -116,6 +117,17 @@ void keep_parts(StaticLight& light, const StaticLight& like) {
         match(light.sky->horizon, like.sky->horizon);
         match(light.sky->uniform, like.sky->uniform);
     }
+}
+
+StaticLight truth_of(const scene::Scene& s, const core::Grid3<float>& density, const ScenePlan& plan,
+                     const solve::Media& media, const StaticLight& solved, std::span<const glm::dvec3> directions,
+                     const TruthOptions& options, std::vector<transport::MonteCarloResult::Noise>* noise) {
+    std::optional<solve::Media> own;
+    const solve::Media* m = &media;
+    if (m->full.density.data.empty()) m = &own.emplace(solve::make_media(s, density, 1, true));
+    StaticLight truth = static_truth(plan, *m, solved.sun_direction, directions, options, noise);
+    keep_parts(truth, solved);
+    return truth;
 }
 
 }  // namespace fulgur::sky

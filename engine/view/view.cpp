@@ -156,11 +156,6 @@ void StormView::set_static_light(sky::StaticLight light) {
 StormView::StaticTruthSolve StormView::solve_static_truth(const sky::TruthOptions& options) {
     if (!plan_.sun && !plan_.sky) throw core::Error(scene_.path.string(), "the scene has no sun and no sky");
     core::Stopwatch sw;
-    // The truth needs the full-resolution density; the static media hold it when their order 2
-    // is exact, else it is built here for this solve.
-    std::optional<solve::Media> own;
-    const solve::Media* media = &static_media();
-    if (media->full.density.data.empty()) media = &own.emplace(solve::make_media(scene_, density_, 1, true));
     std::vector<glm::dvec3> dirs;
     if (static_.sun)
         dirs = static_.sun->multiple.directions.empty() ? static_.sun->single.directions
@@ -168,8 +163,7 @@ StormView::StaticTruthSolve StormView::solve_static_truth(const sky::TruthOption
     else
         dirs = transport::output_directions(scene_.effective_directions());
     StaticTruthSolve out;
-    out.light = sky::static_truth(plan_, *media, static_.sun_direction, dirs, options, &out.noise);
-    sky::keep_parts(out.light, static_);
+    out.light = sky::truth_of(scene_, density_, plan_, static_media(), static_, dirs, options, &out.noise);
     out.seconds = sw.seconds();
     return out;
 }

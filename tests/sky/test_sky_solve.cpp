@@ -1,6 +1,7 @@
 // The sun's and the sky's light through the lattice on a small cloud: energy bookkeeping,
 // what the lattice is fed, linearity, refinement, Monte Carlo, the dome's quadrature and the
 // full-resolution transmittance to the sun.
+#include "lumpy_cloud.h"
 #include "mc_errors.h"
 #include "sky/sky.h"
 #include "support/test_support.h"
@@ -17,21 +18,9 @@ using namespace fulgur;
 
 namespace {
 
-// A lumpy blob (hop optical depth up to ~1.5) in a 20 x 18 x 14 grid of 100 m voxels, with an
-// empty margin: thin and thick voxels, lit and shadowed ones.
+// The lumpy cloud in a 20 x 18 x 14 grid of 100 m voxels.
 transport::LightingMedium blob(transport::Medium optics = {0.015, 0.95, 0.6}) {
-    core::GridGeometry g{{20, 18, 14}, 100.0, {-1000.0, -900.0, 0.0}};
-    transport::LightingMedium m;
-    m.density = core::Grid3<float>(g, 0.0f);
-    m.optics = optics;
-    for (int k = 0; k < g.dims.z; ++k)
-        for (int j = 0; j < g.dims.y; ++j)
-            for (int i = 0; i < g.dims.x; ++i) {
-                const glm::dvec3 p = (g.centre(i, j, k) - glm::dvec3(0.0, 0.0, 700.0)) / glm::dvec3(700, 650, 450);
-                const double r = glm::length(p);
-                if (r < 1.0) m.density.at(i, j, k) = float((1.0 - r) * (0.8 + 0.2 * std::sin(3.0 * p.x + 2.0 * p.z)));
-            }
-    return m;
+    return test::lumpy_cloud({20, 18, 14}, {700.0, 650.0, 450.0}, 700.0, optics);
 }
 
 solve::Media media_of(const transport::LightingMedium& m) { return solve::Media{m, m, 1, {}}; }

@@ -1,6 +1,7 @@
 // The static light's truth (sky::sun_truth, sky::sky_truth, sky::static_truth): physics of a
 // uniform sky over a thin cloud, the gradient's ends summing to the uniform sky, the plan's
 // lights in a solve's shape, and bad input named.
+#include "lumpy_cloud.h"
 #include "sky/sky.h"
 #include "support/test_support.h"
 
@@ -24,22 +25,8 @@ double cloud_sum(const transport::SourceField& f, const transport::LightingMediu
     return s;
 }
 
-// A lumpy cloud of hop optical depth up to ~1.5 (g = 0.6) in 16 x 14 x 10 voxels of 100 m,
-// with an empty margin: thin and thick voxels, lit and shadowed ones.
-transport::LightingMedium lumpy_cloud() {
-    core::GridGeometry g{{16, 14, 10}, 100.0, {-800.0, -700.0, 0.0}};
-    transport::LightingMedium m;
-    m.density = core::Grid3<float>(g, 0.0f);
-    m.optics = {0.015, 0.95, 0.6};
-    for (int k = 0; k < g.dims.z; ++k)
-        for (int j = 0; j < g.dims.y; ++j)
-            for (int i = 0; i < g.dims.x; ++i) {
-                const glm::dvec3 p = (g.centre(i, j, k) - glm::dvec3(0.0, 0.0, 500.0)) / glm::dvec3(600, 550, 350);
-                const double r = glm::length(p);
-                if (r < 1.0) m.density.at(i, j, k) = float((1.0 - r) * (0.8 + 0.2 * std::sin(3.0 * p.x + 2.0 * p.z)));
-            }
-    return m;
-}
+// The lumpy cloud (g = 0.6) in 16 x 14 x 10 voxels of 100 m.
+transport::LightingMedium lumpy_cloud() { return test::lumpy_cloud({16, 14, 10}, {600.0, 550.0, 350.0}, 500.0); }
 
 }  // namespace
 
@@ -129,6 +116,14 @@ TEST_CASE("the static truth holds the plan's lights in a solve's shape; bad inpu
     sky::keep_parts(kept, like);
     CHECK(kept.sun->multiple.data.empty());
     CHECK(!kept.sun->single.data.empty());
+    // truth_of: the same truth through media holding the full density (same seed, same
+    // numbers), with the solves' parts kept; the scene and density are only for media lacking it.
+    like.sun_direction = sun;
+    const sky::StaticLight of = sky::truth_of(scene::Scene{}, m.density, plan, full_media(m), like, dirs, to);
+    REQUIRE(of.sun.has_value());
+    CHECK(of.sun->multiple.data.empty());
+    CHECK(of.sun->single.data == light.sun->single.data);
+    CHECK(of.sky->zenith.multiple.data == light.sky->zenith.multiple.data);
 
     solve::Media no_full{m, m, 1, {}};
     CHECK_THROWS_WITH(sky::sun_truth(no_full, sun, dirs, to), doctest::Contains("full-resolution density"));
