@@ -145,6 +145,22 @@ void check_options(const SingleScatteringOptions& o) {
         throw core::Error("single_scattering.skip_block", "must be in [1, 64], got " + std::to_string(o.skip_block));
 }
 
+// What the quadrature of a point source needs (the medium checked, the light's position finite).
+PointCtx point_context(const LightingMedium& medium, const PointSource& light, const SingleScatteringOptions& options) {
+    validate_medium(medium);
+    check_options(options);
+    if (!std::isfinite(light.position.x) || !std::isfinite(light.position.y) || !std::isfinite(light.position.z))
+        throw core::Error("light.position", "must be finite");
+    return PointCtx{
+        &medium.density.geom,
+        medium.density.data.data(),
+        medium.optics.extinction,
+        light.position,
+        options.optical_depth_cutoff,
+        density_bounds(medium),
+        medium.optics.extinction * double(*std::max_element(medium.density.data.begin(), medium.density.data.end()))};
+}
+
 std::vector<unsigned char> needed_mask(const LightingMedium& m, const SingleScatteringOptions& o) {
     const core::GridGeometry& g = m.density.geom;
     std::vector<unsigned char> need(g.cell_count(), 1);
@@ -220,20 +236,11 @@ void single_scattering(const LightingMedium& medium, const PointSource& light, S
                        const SingleScatteringOptions& options) {
     validate_medium(medium);
     check_options(options);
-    if (!std::isfinite(light.position.x) || !std::isfinite(light.position.y) || !std::isfinite(light.position.z))
-        throw core::Error("light.position", "must be finite");
     if (!std::isfinite(light.intensity) || light.intensity < 0.0)
         throw core::Error("light.intensity", "must be finite and >= 0, got " + std::to_string(light.intensity));
     prepare_output(medium, out);
     const core::GridGeometry& g = medium.density.geom;
-    const PointCtx ctx{
-        &g,
-        medium.density.data.data(),
-        medium.optics.extinction,
-        light.position,
-        options.optical_depth_cutoff,
-        density_bounds(medium),
-        medium.optics.extinction * double(*std::max_element(medium.density.data.begin(), medium.density.data.end()))};
+    const PointCtx ctx = point_context(medium, light, options);
     const Plan plan(options.tolerance, medium.optics.g, options.optical_depth_cutoff, out.directions);
     const double vol = g.voxel_size * g.voxel_size * g.voxel_size;
     const double factor = medium.optics.albedo * light.intensity / vol;
@@ -248,20 +255,9 @@ void single_scattering(const LightingMedium& medium, const PointSource& light, S
 SingleScatteringCost single_scattering_cost(const LightingMedium& medium, const PointSource& light,
                                             std::span<const glm::dvec3> directions,
                                             const SingleScatteringOptions& options, double max_seconds) {
-    validate_medium(medium);
-    check_options(options);
-    if (!std::isfinite(light.position.x) || !std::isfinite(light.position.y) || !std::isfinite(light.position.z))
-        throw core::Error("light.position", "must be finite");
+    const PointCtx ctx = point_context(medium, light, options);
     const std::vector<glm::dvec3> dirs = checked_directions(directions);
     const core::GridGeometry& g = medium.density.geom;
-    const PointCtx ctx{
-        &g,
-        medium.density.data.data(),
-        medium.optics.extinction,
-        light.position,
-        options.optical_depth_cutoff,
-        density_bounds(medium),
-        medium.optics.extinction * double(*std::max_element(medium.density.data.begin(), medium.density.data.end()))};
     const Plan plan(options.tolerance, medium.optics.g, options.optical_depth_cutoff, dirs);
     const auto need = needed_mask(medium, options);
 
