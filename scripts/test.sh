@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Sets up (Debian packages), checks the formatting, builds and runs every test: the full
 # suite in the optimized build, then the `asan`-labelled tests (parsers, file loaders,
-# corruption fuzzing) under AddressSanitizer + UndefinedBehaviorSanitizer, then short
+# corruption fuzzing, and fulgur-bake and fulgur-preview themselves on the hard cases of
+# docs/hostile-inputs.md) under AddressSanitizer + UndefinedBehaviorSanitizer, then short
 # libFuzzer runs (label fuzz).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -14,7 +15,9 @@ cmake --preset release
 cmake --build --preset release -j "$jobs"
 ctest --preset release -j "$jobs"
 
-# Only the asan-labelled tests' executables: the rest of the tree is not run under the sanitizers.
+# Only the asan-labelled tests' executables and the tools they run (test_hostile_apps depends on
+# fulgur-bake and fulgur-preview, so this target builds them sanitized too): the rest of the tree
+# is not run under the sanitizers.
 # (asan and fuzz build with -g1: line tables are all a sanitizer report needs, and build faster.)
 cmake --preset asan
 cmake --build --preset asan -j "$jobs" --target fulgur_asan_tests
