@@ -263,7 +263,14 @@ Plan make_plan(const scene::Scene& s, const core::Grid3<float>& density, const P
     Plan p;
     const solve::Media media = solve::make_media(s, density);
     p.lighting = media.lighting.density.geom;
-    p.lights = basis::build_virtual_light_grid(density, s.virtual_lights);
+    try {
+        p.lights = basis::build_virtual_light_grid(density, s.virtual_lights);
+    } catch (const core::Error& e) {
+        // The grid's errors (an empty cloud, a ground above the cloud base) name the field: the
+        // file too.
+        if (s.path.empty()) throw;
+        throw core::Error(s.path.string() + ": " + e.where(), e.reason());
+    }
     p.directions = s.effective_directions();
     p.output_directions = transport::output_directions(p.directions);
     p.single = s.effects.single_scattering;

@@ -502,7 +502,8 @@ TEST_CASE("solves on extreme media: albedo 1, optical depth 1e4 per lighting vox
     check("one voxel of density 1 (bake)", kBake, {"one.json", "-o", "one.fgb"}, dir, kSolve,
           succeeds({"baked one.fgb in", "12 lights"}));
     check("density 1e-6 in 1% of the voxels", kBake, {"faint.json", "--dry-run"}, dir, kQuick,
-          refused({"the cloud is empty: no voxel of the 16x16x8 density grid exceeds density_threshold 0.05 "
+          refused({"faint.json: virtual_lights: the cloud is empty: no voxel of the 16x16x8 density grid exceeds "
+                   "density_threshold 0.05 "
                    "(largest density 1e-06)"}));
     CHECK(test::temporaries(dir).empty());
 }
