@@ -36,18 +36,6 @@ using nlohmann::json;
 
 namespace {
 
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kSanitized = true;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-constexpr bool kSanitized = true;
-#else
-constexpr bool kSanitized = false;
-#endif
-#else
-constexpr bool kSanitized = false;
-#endif
-
 const fs::path kBake = FULGUR_BAKE_EXE;
 const fs::path kPreview = FULGUR_PREVIEW_EXE;
 const fs::path kVdbFixtures = FULGUR_VDB_FIXTURES;         // tests/cloud/make_vdb_fixtures.py's files
@@ -270,8 +258,8 @@ TEST_CASE("the tools are built as this test is: with ASan and UBSan in the sanit
     for (const fs::path& tool : {kBake, kPreview}) {
         CAPTURE(tool);
         const std::string bytes = read_text(tool);
-        CHECK((bytes.find("__asan_report_") != std::string::npos) == kSanitized);
-        CHECK((bytes.find("__ubsan_handle_") != std::string::npos) == kSanitized);
+        CHECK((bytes.find("__asan_report_") != std::string::npos) == test::kSanitized);
+        CHECK((bytes.find("__ubsan_handle_") != std::string::npos) == test::kSanitized);
     }
 }
 

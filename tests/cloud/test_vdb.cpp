@@ -89,18 +89,6 @@ Outcome try_load(const std::filesystem::path& p, const cloud::VdbImport& o) {
     return r;
 }
 
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kSanitized = true;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-constexpr bool kSanitized = true;
-#else
-constexpr bool kSanitized = false;
-#endif
-#else
-constexpr bool kSanitized = false;
-#endif
-
 // A scene over `cloud` (the "cloud" object's JSON), written beside the fixtures' copy.
 scene::Scene vdb_scene(const std::filesystem::path& dir, const std::string& cloud) {
     test::write_text(dir / "s.json", R"({"fulgur_scene": 1, "medium": {"extinction": 0.01}, "cloud": )" + cloud +
@@ -456,7 +444,7 @@ TEST_CASE("every single-bit flip in the tree topology of a real VDB file loads a
     CHECK(worst < 30.0);
     // The window does reach the reader's crashes (under AddressSanitizer its allocator, not
     // glibc's, sees the corruption, and may report it otherwise).
-    if (!kSanitized) CHECK(crashed > 0);
+    if (!test::kSanitized) CHECK(crashed > 0);
 }
 
 TEST_CASE("two grids of one name, and non-finite transforms, are refused naming the file and the grid") {

@@ -12,6 +12,19 @@
 
 namespace fulgur::test {
 
+/// Whether this program is built with AddressSanitizer (gcc's macro, clang's feature test).
+#if defined(__SANITIZE_ADDRESS__)
+inline constexpr bool kSanitized = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+inline constexpr bool kSanitized = true;
+#else
+inline constexpr bool kSanitized = false;
+#endif
+#else
+inline constexpr bool kSanitized = false;
+#endif
+
 /// The repository root (for content/, shaders/, tests/ data).
 std::filesystem::path source_dir();
 
