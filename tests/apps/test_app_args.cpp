@@ -37,8 +37,12 @@ TEST_CASE("fulgur-shot: a complete command line parses") {
     std::vector<std::string> manual = good;
     manual.insert(manual.end(), {"--manual-exposure", "0.125"});
     CHECK(parse(manual).manual_exposure.value() == 0.125);
-    manual.back() = "0";
-    CHECK_THROWS_WITH_AS(parse(manual), doctest::Contains("--manual-exposure must be finite and > 0"), core::Error);
+    manual.back() = "1e38";  // the largest a float32 uniform carries as a power of ten
+    CHECK(parse(manual).manual_exposure.value() == 1e38);
+    for (const char* bad : {"0", "-1", "2e38", "inf", "nan"}) {
+        manual.back() = bad;
+        CHECK_THROWS_WITH_AS(parse(manual), doctest::Contains("--manual-exposure must be in (0, 1e38]"), core::Error);
+    }
     CHECK_FALSE(parse(good).since_known_ms.has_value());  // the strike's own solve is waited for
     std::vector<std::string> known = good;
     known.insert(known.end(), {"--since-known", "100"});
