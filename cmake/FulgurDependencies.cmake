@@ -17,6 +17,7 @@ function(fulgur_find_openvdb)
   find_package(OpenVDB REQUIRED)
 endfunction()
 fulgur_find_openvdb()
+find_package(OpenEXR 3 REQUIRED CONFIG)             # libopenexr-dev: linear frames out (fulgur-shot --exr)
 # libopenmpi-dev + openmpi-bin: the bake and the lattice over several processes (engine/distributed,
 # docs/distributed.md). Optional: on by default where MPI is found; without it every process is
 # rank 0 of 1.

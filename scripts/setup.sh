@@ -24,6 +24,9 @@ PACKAGES=(
   clang libclang-rt-14-dev                       # libFuzzer harnesses (fuzz preset, fuzz/)
   clang-format                                   # the formatting check (scripts/check_format.sh)
   libopenmpi-dev openmpi-bin                     # the bake over several processes (MPI; docs/distributed.md)
+  libopenexr-dev                                 # linear frames out (fulgur-shot --exr)
+  blender                                        # Cycles, the outside renderer of the image (docs/blender.md)
+  python3-openimageio                            # reads the EXRs of the Cycles comparison (scripts/)
 )
 
 missing=()

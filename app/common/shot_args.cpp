@@ -131,6 +131,27 @@ void declare(CommandLine& cli, ShotArgs& a) {
                 "also write the density and the frame's lightning S in every direction (grids density, S_00, S_01, "
                 "...) as OUT.vdb (OpenVDB, metres), for Houdini, Blender or ParaView")
         ->type_name("OUT.vdb");
+    path_option(app, "--exr", a.exr, ".exr",
+                "also write the frame's linear radiance (W m^-2 sr^-1, before exposure and tone map, without the "
+                "eye's glare; float32 R, G, B) as OUT.exr, with the camera, units and frame in its header")
+        ->type_name("OUT.exr");
+    app.add_flag("--exr-passes", a.exr_passes,
+                 "with --exr: also the frame's terms apart (layers lightning, static, glow, channel, background, "
+                 "which sum to R, G, B) and the cloud's transmittance (T.Y)");
+    app.add_option_function<std::string>(
+           "--blender",
+           [&a](const std::string& s) {
+               if (s.empty()) throw core::Error(kTool, "--blender needs a directory");
+               a.blender = s;
+           },
+           "also write what Blender needs to render the same frame into DIR (frame.json: camera, lights, sun, "
+           "sky, ground, medium; density.vdb); scripts/blender_scene.py builds the Blender scene from it")
+        ->type_name("DIR");
+    cli.number("--internal-scale", a.internal_scale,
+               "the ray march's resolution over the output's (0.5; 1: one march ray per pixel; with the glare at "
+               "least 0.125)",
+               0.0625, 1.0)
+        ->type_name("X");
 }
 
 }  // namespace
@@ -139,11 +160,15 @@ std::string shot_usage() { return usage_of<ShotArgs>(kTool, kDescription, declar
 
 ShotArgs parse_shot_args(const std::vector<std::string>& args) {
     return parse_args<ShotArgs>(kTool, kDescription, args, declare, [](const CommandLine&, const ShotArgs& a) {
-        if (!a.reference) return;
-        const core::NamedPath outputs[] = {{"image (-o)", a.output},
-                                           {"reference image", *a.reference},
-                                           {"difference image", reference_diff_path(*a.reference)},
-                                           {"comparison image", reference_compare_path(*a.reference)}};
+        if (a.exr_passes && !a.exr) throw core::Error(kTool, "--exr-passes goes with --exr OUT.exr");
+        std::vector<core::NamedPath> outputs{{"image (-o)", a.output}};
+        if (a.exr) outputs.push_back({"EXR (--exr)", *a.exr});
+        if (a.reference) {
+            outputs.push_back({"reference image", *a.reference});
+            outputs.push_back({"difference image", reference_diff_path(*a.reference)});
+            outputs.push_back({"comparison image", reference_compare_path(*a.reference)});
+        }
+        if (outputs.size() == 1) return;
         try {
             core::check_distinct_files({}, outputs);
         } catch (const core::Error& e) {

@@ -46,6 +46,16 @@ struct ShotArgs {
     /// --vdb OUT.vdb: also write the density and the frame's lightning S (every direction, on
     /// the lighting grid) as OpenVDB.
     std::optional<std::filesystem::path> vdb;
+    /// --exr OUT.exr: also write the frame's linear radiance (W m^-2 sr^-1, before exposure and
+    /// tone map, without the eye's glare) as OpenEXR, with the camera and units in the header;
+    /// --exr-passes adds the terms apart (view::kLinearPasses) and the transmittance.
+    std::optional<std::filesystem::path> exr;
+    bool exr_passes = false;
+    /// --blender DIR: also write what Blender needs to render the same frame (DIR/frame.json,
+    /// DIR/density.vdb; docs/blender.md).
+    std::optional<std::filesystem::path> blender;
+    /// --internal-scale X: the ray march's resolution over the output's (render::Settings).
+    double internal_scale = 0.5;
     /// --camera JSON|FILE: the view (a scene's "camera" object, as JSON text or a file holding
     /// it); default: the scene's camera, else the default view.
     std::optional<scene::CameraSpec> camera;
@@ -57,7 +67,8 @@ std::string shot_usage();
 
 /// Parses argv[1..]. Throws core::Error with a one-line reason on any invalid input
 /// (unknown option, missing value, malformed number, non-positive size, missing -o, two of
-/// the images -o, REF.png, REF_diff.png and REF_compare.png being one file).
+/// the images -o, REF.png, REF_diff.png, REF_compare.png and OUT.exr being one file,
+/// --exr-passes without --exr).
 ShotArgs parse_shot_args(const std::vector<std::string>& args);
 
 /// The images --reference REF.png derives: REF_diff.png and REF_compare.png beside it.

@@ -1,10 +1,15 @@
 // fulgur-shot: one frame of a scene's storm, headless (OSMesa), to PNG; timings as JSON.
 #include "common/cli.h"
+#include "common/exr_image.h"
 #include "common/image_compare.h"
 #include "common/lighting_vdb.h"
 #include "common/shot_args.h"
 #include "common/view_cli.h"
 #include "platform/platform.h"
+#include "shot/blender_export.h"
+#include "view/linear_frame.h"
+
+#include <glm/gtc/matrix_transform.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -232,6 +237,68 @@ void write_frame_vdb(view::StormView& view, double t, const view::ViewOptions& o
     app::write_lighting_vdb(*a.vdb, v);
 }
 
+// What the frame is, for the headers of --exr and --blender.
+std::string frame_label(view::StormView& view, double t, const app::ShotArgs& a) {
+    std::string f = "t = " + core::format_number(t, 9) + " s";
+    if (view.has_lightning())
+        f += ", strike seed " + std::to_string(a.seed) + ", quality " +
+             std::string(scene::to_string(view.pipeline().quality().preset));
+    if (a.since_known_ms) f += ", " + core::format_number(*a.since_known_ms, 6) + " ms after it became known";
+    return f;
+}
+
+// --exr: the frame's linear radiance (and with --exr-passes its terms and transmittance), the
+// camera as vectors and as OpenEXR's standard worldToCamera / worldToNDC, the units.
+void write_frame_exr(view::StormView& view, const render::Camera& cam, double t, const view::ViewOptions& opt,
+                     const app::ShotArgs& a, const transport::SourceField* shown_field, double shown_exposure) {
+    const view::LinearFrame f = view::render_linear(view, cam, t, a.width, a.height, opt, shown_field, a.exr_passes);
+    std::vector<app::ExrLayer> layers{{"", {"R", "G", "B"}, f.radiance}};
+    for (const view::LinearPass& p : f.passes) layers.push_back({p.name, {"R", "G", "B"}, p.rgb});
+    if (!f.transmittance.empty()) layers.push_back({"T", {"Y"}, f.transmittance});
+    app::ExrHeader h;
+    const scene::Scene& s = view.scene();
+    h.text = {{"fulgurUnits",
+               "R, G, B: radiance in W m^-2 sr^-1 (linear, before exposure and tone map, without the "
+               "eye's glare); T.Y: the cloud's transmittance along the pixel's ray"},
+              {"fulgurScene", s.name + " (" + a.scene.string() + ")"},
+              {"fulgurFrame", frame_label(view, t, a)},
+              {"fulgurLengthUnit", "m (world space; z up)"}};
+    if (a.exr_passes)
+        h.text.push_back(
+            {"fulgurPasses", "lightning + static + glow + channel + background = R, G, B (docs/render.md)"});
+    h.vectors = {{"cameraPosition", cam.position}, {"cameraTarget", cam.target}, {"cameraUp", cam.up}};
+    h.numbers = {{"cameraVerticalFovDeg", cam.vertical_fov_deg},
+                 {"fulgurDisplayExposure", shown_exposure},
+                 {"fulgurInternalScale", a.internal_scale}};
+    const glm::dmat4 world_to_camera = glm::lookAt(cam.position, cam.target, cam.up);
+    h.world_to_camera = world_to_camera;
+    h.world_to_ndc =
+        glm::perspective(glm::radians(cam.vertical_fov_deg), double(a.width) / double(a.height), 0.5, 1e6) *
+        world_to_camera;
+    app::write_exr(*a.exr, a.width, a.height, layers, h);
+}
+
+// --blender: the frame's lit channel (as shown: the frame at t), its camera and its lights.
+void write_frame_blender(view::StormView& view, const render::Camera& cam, double t, const view::ViewOptions& opt,
+                         const app::ShotArgs& a) {
+    std::vector<lightning::LitSegment> lit;
+    if (view.has_lightning()) {
+        runtime::ReconstructOptions ro;
+        ro.components = opt.components;
+        ro.wait_for_strikes = true;
+        lit = view.pipeline().build(t, {}, ro).segments;
+    }
+    app::BlenderExport e;
+    e.scene = view.scene().name + " (" + a.scene.string() + ")";
+    e.frame = frame_label(view, t, a);
+    e.camera = cam;
+    e.width = a.width;
+    e.height = a.height;
+    // A quarter of a density voxel: the points differ from the line only within a voxel of it.
+    e.light_spacing = 0.25 * view.density().geom.voxel_size;
+    app::write_blender_export(*a.blender, view, opt, lit, e);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -246,6 +313,11 @@ int main(int argc, char** argv) {
         if (s.cloud.kind != scene::CloudSource::Kind::Generator) inputs.push_back({"cloud file", s.cloud.file});
         std::vector<core::NamedPath> outputs{{"image (-o)", a.output}};
         if (a.vdb) outputs.push_back({"VDB (--vdb)", *a.vdb});
+        if (a.exr) outputs.push_back({"EXR (--exr)", *a.exr});
+        if (a.blender) {
+            outputs.push_back({"Blender frame (--blender)", *a.blender / "frame.json"});
+            outputs.push_back({"Blender density (--blender)", *a.blender / "density.vdb"});
+        }
         if (a.reference) {
             outputs.push_back({"reference image", *a.reference});
             outputs.push_back({"difference image", app::reference_diff_path(*a.reference)});
@@ -277,6 +349,7 @@ int main(int argc, char** argv) {
         view::ViewOptions opt;
         opt.wait_for_strikes = true;  // offline: the preset's own light, never its fallback
         opt.settings.exposure_compensation = a.exposure_ev;
+        opt.settings.internal_scale = a.internal_scale;
         if (a.manual_exposure) {
             opt.settings.auto_exposure = false;
             opt.settings.exposure = *a.manual_exposure;
@@ -319,6 +392,8 @@ int main(int argc, char** argv) {
         line.pop_back();  // the object's closing brace: the camera joins it
         std::cout << line << ",\"camera\":" << scene::camera_json(stated) << "}" << std::endl;
         if (a.vdb) write_frame_vdb(view, t, opt, a, shown_field);
+        if (a.blender) write_frame_blender(view, cam, t, opt, a);
+        if (a.exr) write_frame_exr(view, cam, t, opt, a, shown_field, r.gpu.exposure);
         if (a.reference && a.against == "static")
             render_static_reference(view, ctx.get(), cam, t, opt, a, px, shown_field);
         else if (a.reference)

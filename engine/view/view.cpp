@@ -300,6 +300,13 @@ FrameReport StormView::render(const render::Camera& camera, double t, int width,
         renderer_->clear_source();
     }
     update_static_light(options);
+    const render::Settings st = frame_settings(options);
+    rep.gpu = renderer_->render(camera, st, width, height);
+    rep.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - t0).count();
+    return rep;
+}
+
+render::Settings StormView::frame_settings(const ViewOptions& options) const {
     render::Settings st = options.settings;
     st.ground_height = scene_.lightning.bolt.ground_height;
     st.flash_colour = scene_.lightning_colour;
@@ -312,9 +319,7 @@ FrameReport StormView::render(const render::Camera& camera, double t, int width,
     st.glow = st.glow && scene_.effects.glow;
     st.glare = st.glare && scene_.effects.glare;
     st.ground = st.ground && scene_.effects.ground;
-    rep.gpu = renderer_->render(camera, st, width, height);
-    rep.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - t0).count();
-    return rep;
+    return st;
 }
 
 void StormView::render_lightning(const render::Camera& camera, double t, const ViewOptions& options,

@@ -106,6 +106,9 @@ public:
     /// ground still come from the frame at t, so two renders differ only in S.
     FrameReport render(const render::Camera& camera, double t, int width, int height, const ViewOptions& options,
                        const transport::SourceField* source = nullptr);
+    /// The renderer's settings render() uses with `options`: the scene's ground height, flash
+    /// colour and sky, and the effects the scene switched off taken out.
+    render::Settings frame_settings(const ViewOptions& options) const;
 
     /// The reference of the frame at time t (runtime::direct_solve of the frame's point
     /// sources: exact single scattering + the scene's solver, no virtual lights, no basis),

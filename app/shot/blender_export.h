@@ -1,0 +1,32 @@
+// fulgur-shot --blender DIR: what Blender (Cycles) needs to render the frame fulgur-shot shows,
+// in the units Fulgur computes in (docs/blender.md): DIR/frame.json and DIR/density.vdb.
+#pragma once
+
+#include "view/view.h"
+
+#include <filesystem>
+#include <span>
+#include <string>
+
+namespace fulgur::app {
+
+struct BlenderExport {
+    std::string scene;  ///< the scene's name and file, for people
+    std::string frame;  ///< what the frame is (seed, time, quality), for people
+    render::Camera camera;
+    int width = 0, height = 0;
+    /// The channel is exported as isotropic point lights no farther apart than this (metres):
+    /// lightning::append_point_sources keeps the total intensity exactly.
+    double light_spacing = 0.0;
+};
+
+/// Writes DIR/density.vdb (grid "density", rho; sigma_t = extinction * rho) and DIR/frame.json
+/// (format "fulgur-blender-frame" version 1: camera, image size, medium, flash colour, the lit
+/// channel as point lights, sun or moon, sky, ground), as `view` renders with `options` (the
+/// sun and sky only where they light the cloud in the frame, the sky and ground only where they
+/// are drawn). `lit` is the frame's lit channel. Creates DIR; refuses a DIR that is a file.
+void write_blender_export(const std::filesystem::path& dir, const view::StormView& view,
+                          const view::ViewOptions& options, std::span<const lightning::LitSegment> lit,
+                          const BlenderExport& e);
+
+}  // namespace fulgur::app
