@@ -200,3 +200,38 @@ TEST_CASE("fulgur: the demo's command line parses strictly") {
     rejects({"missing.json"}, "missing.json");
     rejects({s_json, s_json}, "more than one scene");
 }
+
+TEST_CASE("fulgur-shot: --exr names an .exr other than the other outputs; --exr-passes needs it") {
+    std::vector<std::string> r = good;
+    CHECK_FALSE(parse(r).exr.has_value());
+    r.push_back("--exr-passes");
+    CHECK_THROWS_WITH_AS(parse(r), doctest::Contains("--exr-passes goes with --exr"), core::Error);
+    r.insert(r.end(), {"--exr", "f.exr"});
+    const app::ShotArgs a = parse(r);
+    CHECK(a.exr.value() == "f.exr");
+    CHECK(a.exr_passes);
+    r.back() = "f.png";
+    CHECK_THROWS_WITH_AS(parse(r), doctest::Contains("--exr must name a .exr file"), core::Error);
+    r = good;
+    r.insert(r.end(), {"--exr", "a.exr", "--reference", "a.png"});
+    CHECK_NOTHROW(parse(r));
+}
+
+TEST_CASE("fulgur-shot: --internal-scale is a fraction of the output resolution") {
+    std::vector<std::string> r = good;
+    CHECK(parse(r).internal_scale == 0.5);
+    r.insert(r.end(), {"--internal-scale", "1"});
+    CHECK(parse(r).internal_scale == 1.0);
+    for (const char* bad : {"0", "1.5", "-0.5", "nan"}) {
+        r.back() = bad;
+        CHECK_THROWS_AS(parse(r), core::Error);
+    }
+}
+
+TEST_CASE("fulgur-shot: --blender takes a directory") {
+    std::vector<std::string> r = good;
+    r.insert(r.end(), {"--blender", "out/blender"});
+    CHECK(parse(r).blender.value() == "out/blender");
+    r.back() = "";
+    CHECK_THROWS_WITH_AS(parse(r), doctest::Contains("--blender needs a directory"), core::Error);
+}

@@ -3,10 +3,12 @@
 // Goldens: tests/render/golden/storm_*.png, regenerated only with FULGUR_UPDATE_GOLDENS=1.
 #include "golden.h"
 #include "platform/platform.h"
+#include "view/linear_frame.h"
 #include "view/view.h"
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include <cstdio>
@@ -189,4 +191,59 @@ TEST_CASE("storm: a render lit by a given field; the direct-solve reference of t
     // A field on another grid is refused with a reason, not uploaded.
     transport::SourceField wrong(view.bases().lighting(), {glm::dvec3(0, 0, 1)});
     CHECK_THROWS_AS(view.render(cam, t, W, H, opt, &wrong), core::Error);
+}
+
+TEST_CASE("storm: the linear frame (fulgur-shot --exr) is the tone map's input and its passes sum to it") {
+    scene::Scene s = scene::load_scene(kScenes / "test_aniso_ms_cg.json");
+    core::Grid3<float> d = scene::make_density(s);
+    const auto fgb = baked("test_aniso_ms_cg", s, d);
+    platform::Context& ctx = context();
+    view::StormView view(std::move(s), std::move(d), fgb, ctx.get_proc_address());
+    const std::size_t i = view.pipeline().strike_at(0.0, 11);
+    const double t = view.pipeline().storm().strike(i).profile.stroke_onset.at(0) + 0.002;
+    const render::Camera cam = view::scene_camera(view.scene().camera, view.density());
+    view::ViewOptions opt;
+    opt.settings.timing = render::Timing::Off;
+    opt.settings.internal_scale = 1.0;
+    const view::LinearFrame f = view::render_linear(view, cam, t, W, H, opt, nullptr, true);
+    const std::size_t n = std::size_t(W) * std::size_t(H);
+    REQUIRE(f.radiance.size() == 3 * n);
+    REQUIRE(f.passes.size() == std::size(view::kLinearPasses));
+    REQUIRE(f.transmittance.size() == n);
+    // Each pass re-composites the same frame with one term on: the sum differs from the
+    // frame by float rounding of five terms (a few ulp of the brightest pixel, the core).
+    double peak = 0.0, worst = 0.0;
+    for (float v : f.radiance) peak = std::max(peak, double(v));
+    for (std::size_t k = 0; k < f.radiance.size(); ++k) {
+        double sum = 0.0;
+        for (const view::LinearPass& p : f.passes) sum += double(p.rgb[k]);
+        worst = std::max(worst, std::abs(sum - double(f.radiance[k])));
+    }
+    CHECK(peak > 0.0);
+    CHECK(worst <= 1e-6 * peak);
+    // Every term is lit in this frame (a flash with glow, channel and a sky behind the cloud)
+    // but the static light, which the scene has none of; the transmittance spans the clear
+    // sky (1) to the thick cloud (well under the march's early exit, 1e-3, plus its rest).
+    for (const view::LinearPass& p : f.passes) {
+        double sum = 0.0;
+        std::size_t negative = 0;
+        for (float v : p.rgb) {
+            negative += v < 0.0f;
+            sum += v;
+        }
+        CAPTURE(p.name);
+        CHECK(negative == 0);
+        CHECK((sum > 0.0) == (p.name != std::string("static")));
+    }
+    const auto [tmin, tmax] = std::minmax_element(f.transmittance.begin(), f.transmittance.end());
+    CHECK(*tmin >= 0.0f);
+    CHECK(*tmin < 0.01f);
+    CHECK(*tmax == doctest::Approx(1.0f).epsilon(1e-6));
+
+    // The radiance is what the tone map receives: the same frame through render() with the
+    // glare off reads back the same values.
+    opt.settings.glare = false;
+    opt.settings.auto_exposure = false;
+    view.render(cam, t, W, H, opt);
+    CHECK(view.renderer().read_hdr() == f.radiance);
 }
