@@ -11,6 +11,7 @@ uniform float u_min_width_px;
 
 out float v_across;          // -1 .. 1 across the ribbon
 out vec3 v_radiance;
+noperspective out float v_inv_depth;  // 1 / eye depth: linear in screen space
 
 void main() {
     // (end, side) per vertex of the two triangles
@@ -24,6 +25,7 @@ void main() {
         gl_Position = vec4(2.0, 2.0, 2.0, 1.0);  // behind the camera: degenerate, outside
         v_across = 0.0;
         v_radiance = vec3(0.0);
+        v_inv_depth = 0.0;
         return;
     }
     if (ca.w < w_near) ca = mix(ca, cb, (w_near - ca.w) / (cb.w - ca.w));
@@ -43,5 +45,6 @@ void main() {
     float core = A.w / (2.0 * B.w) * (w_true / w);        // radiance of a cylinder seen side-on
     float T = k.x == 0 ? endpoint_t[s].x : endpoint_t[s].y;
     v_across = float(k.y);
+    v_inv_depth = 1.0 / w_clip;
     v_radiance = core * T * light_colour.rgb;
 }

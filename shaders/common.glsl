@@ -27,15 +27,33 @@ layout(std140, binding = 0) uniform Frame {
     vec4 sun_dir;          // xyz direction sunlight travels (unit), w = 1 when the sun lights the scene
     vec4 sun_rgb;          // rgb sun irradiance x colour (W m^-2), w = albedo of the cloud
     vec4 sun_params;       // x HG g of the cloud, y = 1 when the full-resolution sun transmittance is bound
+    vec4 host_depth;       // a host's depth buffer: x P22, y P32 of its projection (eye depth = y / (z_ndc + x)),
+                           // z 1 when its depth is in [0, 1] (else [-1, 1]), w 0 none, 1 standard Z, -1 reversed Z
 };
+
+// The host's depth buffer (render_into_host), full output resolution; read only when host_depth.w != 0.
+layout(binding = 8) uniform sampler2D u_host_depth;
 
 const float kBig = 1e30;
 
 float luminance(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }
 
 // Camera ray through a point of the image plane given in NDC ([-1, 1]^2, y up).
+// cam_right.w and cam_up.w shift the image centre (an off-centre projection's lens shift, NDC).
 vec3 camera_ray(vec2 ndc) {
+    ndc += vec2(cam_right.w, cam_up.w);
     return normalize(cam_fwd.xyz + ndc.x * cam_pos.w * cam_fwd.w * cam_right.xyz + ndc.y * cam_pos.w * cam_up.xyz);
+}
+
+// The host's opaque surface at an output pixel as an eye depth (distance along the view axis,
+// metres); kBig where it holds its clear value (nothing opaque) or there is no host depth.
+float host_eye_depth(vec2 pixel) {
+    if (host_depth.w == 0.0) return kBig;
+    float z = texelFetch(u_host_depth, ivec2(pixel), 0).r;
+    if (host_depth.w > 0.0 ? z >= 1.0 : z <= 0.0) return kBig;
+    float z_ndc = host_depth.z > 0.5 ? z : 2.0 * z - 1.0;
+    float eye = host_depth.y / (z_ndc + host_depth.x);
+    return eye > 0.0 ? eye : kBig;
 }
 
 // Interleaved gradient noise (Jimenez 2014): a per-pixel value in [0, 1) whose neighbours

@@ -10,7 +10,7 @@ layout(binding = 3) uniform sampler2D u_march;   // internal res: rgb radiance, 
 layout(binding = 4) uniform sampler2D u_core;    // full res: bolt core radiance
 layout(binding = 5) uniform sampler2D u_glare_sum;  // internal res: the glare pyramid's sum (when u_glare is 1)
 
-uniform int u_hdr_output;
+uniform int u_hdr_output;  // 1: the radiance (read-back); 2: a host's frame, (L, T) blended as L + T dst
 uniform int u_glare;         // 1: the frame's light spread by the eye's point-spread function
 uniform float u_glare_keep;  // the share of march + core left in place (render::GlareFit::keep)
 
@@ -53,6 +53,10 @@ void main() {
     if (u_glare != 0)
         hdr = u_glare_keep * (m.rgb + texelFetch(u_core, ivec2(pixel), 0).rgb) +
               m.a * star_radiance(cam_pos.xyz, d, pixel_angle) + textureLod(u_glare_sum, uv, 0.0).rgb;
+    if (u_hdr_output == 2) {
+        o_colour = vec4(m.rgb + texelFetch(u_core, ivec2(pixel), 0).rgb, m.a);
+        return;
+    }
     if (u_hdr_output != 0) {
         o_colour = vec4(hdr, 1.0);
         return;

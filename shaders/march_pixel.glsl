@@ -16,10 +16,13 @@ vec4 shade_pixel(vec2 pixel) {
     vec3 d = camera_ray(ndc);
     float jitter = march_params.z > 0.5 ? fract(interleaved_gradient_noise(floor(pixel)) + march_params.w) : 0.5;
     float t_end = ground_distance(cam_pos.xyz, d);
+    // A host's opaque surface ends the ray too (its eye depth over the ray's forward cosine).
+    if (host_depth.w != 0.0) t_end = min(t_end, host_eye_depth(pixel * sizes.xy / sizes.zw) / max(dot(d, cam_fwd.xyz), 1e-6));
 #if HAS_EMISSION
     vec4 e = texelFetch(u_glow, ivec2(pixel), 0);
     float y = luminance(e.rgb);
     float t_emit = y > 0.0 ? e.a / y : kBig;
+    if (host_depth.w != 0.0 && t_emit > t_end) e = vec4(0.0);  // the glow behind the host's surface
 #else
     vec4 e = vec4(0.0);
     float t_emit = kBig;

@@ -95,12 +95,14 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
     const double tan_half = std::tan(glm::radians(camera.vertical_fov_deg) * 0.5);
     const double aspect = double(width) / double(height);
     const glm::dmat4 view = glm::lookAt(camera.position, camera.target, up);
-    const glm::dmat4 proj = glm::perspective(glm::radians(camera.vertical_fov_deg), aspect, 0.5, 1e6);
+    glm::dmat4 proj = glm::perspective(glm::radians(camera.vertical_fov_deg), aspect, 0.5, 1e6);
+    proj[2][0] = camera.lens_shift.x;  // an off-centre projection (camera_ray shifts by the same)
+    proj[2][1] = camera.lens_shift.y;
     f.view_proj = glm::mat4(proj * view);
     f.cam_pos = glm::vec4(glm::vec3(camera.position), float(tan_half));
     f.cam_fwd = glm::vec4(glm::vec3(fwd), float(aspect));
-    f.cam_right = glm::vec4(glm::vec3(right), 0.0f);
-    f.cam_up = glm::vec4(glm::vec3(up), 0.0f);
+    f.cam_right = glm::vec4(glm::vec3(right), float(camera.lens_shift.x));
+    f.cam_up = glm::vec4(glm::vec3(up), float(camera.lens_shift.y));
     // Volume and march step
     double step = 1.0;
     int max_steps = 1;

@@ -21,7 +21,17 @@ void Renderer::Impl::composite_pass(const FrameUniforms& u, const CallerTarget& 
     bind_composite_inputs(p, false);
     glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(caller.fbo));
     glViewport(0, 0, u.width, u.height);
+    if (u.host) {
+        // A host's frame: dst = L + T dst (premultiplied radiance over the host's radiance); its alpha is kept.
+        glUniform1i(glGetUniformLocation(p, "u_hdr_output"), 2);
+        glEnable(GL_BLEND);
+        glBlendFuncSeparate(GL_ONE, GL_SRC_ALPHA, GL_ZERO, GL_ONE);
+    }
     glDrawArrays(GL_TRIANGLES, 0, 3);
+    if (u.host) {
+        glBlendFunc(GL_ONE, GL_ZERO);
+        glDisable(GL_BLEND);
+    }
     timer.end(kComposite);
 }
 

@@ -31,6 +31,8 @@
 
 #include "core/core.h"
 
+#include <glm/mat4x4.hpp>
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
 #include <array>
@@ -126,6 +128,9 @@ struct Camera {
     glm::dvec3 target{0.0, 0.0, 4000.0};
     glm::dvec3 up{0.0, 0.0, 1.0};
     double vertical_fov_deg = 50.0;
+    /// An off-centre projection's shift of the image centre in NDC (a host's jittered or
+    /// asymmetric projection: its projection[2][0] and [2][1]); 0 for a centred view.
+    glm::dvec2 lens_shift{0.0};
 
     /// Camera on a sphere around `target`: azimuth from +x toward +y, elevation above the
     /// horizontal plane (degrees).
@@ -136,6 +141,24 @@ struct Camera {
 /// Default of Settings::direction_min_weight and of the `min_weight` arguments of
 /// view_directions() and Renderer::needed_directions().
 inline constexpr double kDirectionMinWeight = 1e-3;
+
+/// A host engine's frame the storm is composited into (Renderer::render_into_host).
+struct HostFrame {
+    glm::dmat4 view{1.0};        ///< world -> eye (OpenGL's convention: the camera looks down -z, +y up)
+    glm::dmat4 projection{1.0};  ///< eye -> clip: perspective, centred or off-centre, finite or infinite far plane
+    /// The host's depth buffer as a GL texture of the output's size (GL_DEPTH_COMPONENT*; read
+    /// with comparison off, whatever its own mode), written with `projection`; 0: nothing opaque.
+    unsigned depth_texture = 0;
+    bool depth_zero_to_one = false;  ///< glClipControl's GL_ZERO_TO_ONE depth (else GL's [-1, 1])
+    bool reversed_z = false;         ///< depth 1 at the near plane, 0 far (its clear value: nothing there)
+};
+
+/// The Camera a host's view and projection matrices describe (position, target one metre ahead,
+/// up, vertical field of view, lens shift). Throws core::Error naming the matrix and entry when
+/// `projection` is not a perspective projection (w = -z_eye) or `view` is not a rigid motion,
+/// or the projection's aspect ratio differs from `aspect` (the target's width / height) by more
+/// than 0.1%.
+Camera camera_from_matrices(const glm::dmat4& view, const glm::dmat4& projection, double aspect);
 
 enum class MarchKernel { Fragment, Compute };
 enum class Timing { Off, Finish, Queries };
@@ -351,6 +374,16 @@ public:
     /// Renders one frame of size width x height into the currently bound draw framebuffer
     /// (sets the viewport to the full size; restores the framebuffer binding).
     FrameStats render(const Camera& camera, const Settings& settings, int width, int height);
+
+    /// Composites the storm into a host engine's HDR target, bound as the draw framebuffer
+    /// (width x height, float RGB): dst = L + T dst, with L the storm's radiance (the cloud's
+    /// light, the glow and the channel's core, W m^-2 sr^-1 before any exposure) and T the
+    /// cloud's transmittance, both along each pixel's ray up to the host's opaque depth (the
+    /// cloud behind a mountain is not drawn; the channel's core and glow behind it neither).
+    /// The host's tone map, exposure and glare apply afterwards; Fulgur draws no sky, stars or
+    /// ground (settings.sky, ground, glare and the automatic exposure are ignored) and does
+    /// not touch the target's alpha. Throws core::Error as camera_from_matrices does.
+    FrameStats render_into_host(const HostFrame& host, const Settings& settings, int width, int height);
 
     /// The last frame before tone mapping (radiance, RGB float, rows top to bottom).
     std::vector<float> read_hdr() const;

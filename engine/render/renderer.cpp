@@ -94,7 +94,8 @@ void validate_frame(const Camera& camera, const Settings& st, int width, int hei
     validate_settings(st);
     const glm::dvec3 fwd_raw = camera.target - camera.position;
     if (!(glm::length(fwd_raw) > 0.0) || !(camera.vertical_fov_deg > 0.0 && camera.vertical_fov_deg < 179.0) ||
-        !(glm::length(glm::cross(fwd_raw, camera.up)) > 0.0))
+        !(glm::length(glm::cross(fwd_raw, camera.up)) > 0.0) || !std::isfinite(camera.lens_shift.x) ||
+        !std::isfinite(camera.lens_shift.y))
         throw core::Error("render: camera", "needs target != position, up not parallel to the view and 0 < fov < 179");
 }
 
@@ -338,13 +339,34 @@ std::vector<DirectionUse> Renderer::needed_directions(const Camera& camera, cons
 // One frame: the setup (frame_setup.cpp), then the passes in order (pass_<name>.cpp).
 
 FrameStats Renderer::render(const Camera& camera, const Settings& st, int width, int height) {
-    Impl& m = *impl_;
+    validate_frame(camera, st, width, height);
+    return impl_->run_frame(camera, st, width, height, nullptr);
+}
+
+FrameStats Renderer::render_into_host(const HostFrame& host, const Settings& settings, int width, int height) {
+    if (width <= 0 || height <= 0)
+        throw core::Error("render: host frame",
+                          "output size must be positive, got " + std::to_string(width) + "x" + std::to_string(height));
+    const Camera camera = camera_from_matrices(host.view, host.projection, double(width) / double(height));
+    if (host.depth_texture != 0 && !glIsTexture(host.depth_texture))
+        throw core::Error("render: host frame",
+                          "depth_texture " + std::to_string(host.depth_texture) + " is not a texture of this context");
+    Settings st = settings;
+    st.sky = st.ground = st.glare = st.auto_exposure = false;  // the host's world, tone map and glare
+    st.star_radiance = 0.0;
+    validate_frame(camera, st, width, height);
+    return impl_->run_frame(camera, st, width, height, &host);
+}
+
+FrameStats Renderer::Impl::run_frame(const Camera& camera, const Settings& st, int width, int height,
+                                     const HostFrame* host) {
+    Impl& m = *this;
     core::Stopwatch total;
     const double total_cpu0 = process_cpu_ms();
-    validate_frame(camera, st, width, height);
     const CallerTarget caller = CallerTarget::save();
 
-    const FrameUniforms u = m.prepare_frame(camera, st, width, height);
+    FrameUniforms u = m.prepare_frame(camera, st, width, height);
+    if (host) m.attach_host_depth(*host, u);
     m.bind_frame(u);
     FrameStats stats;
     stats.internal_width = u.internal_width;
@@ -358,6 +380,7 @@ FrameStats Renderer::render(const Camera& camera, const Settings& st, int width,
     m.glare_pass(camera, st, u, timer, stats);
     m.composite_pass(u, caller, timer);
     timer.finish();
+    if (host) m.detach_host_depth();
     caller.restore();
 
     stats.wall = timer.wall_times(m.pending_upload_ms, total.milliseconds());

@@ -133,7 +133,12 @@ struct Renderer::Impl {
     double vertical_transmittance(const glm::dvec3& p, double ground) const;
     void rebuild_ground_lights(int k, double ground);
 
-    // ---- one frame: uniforms, then the passes in the order Renderer::render() runs them
+    // ---- one frame: uniforms, then the passes in the order they run (renderer.cpp)
+    FrameStats run_frame(const Camera& camera, const Settings& st, int width, int height, const HostFrame* host);
+    // ---- a host's depth buffer (host.cpp): its projection into the uniforms, its texture on unit 8
+    GLuint host_sampler = 0;
+    void attach_host_depth(const HostFrame& host, detail::FrameUniforms& u);
+    void detach_host_depth();
     detail::FrameUniforms prepare_frame(const Camera& camera, const Settings& st, int width, int height);
     void bind_frame(const detail::FrameUniforms& u);
     GLuint resolve_set(detail::SourceSet& set, const glm::dvec3& camera, const std::vector<int>& active,

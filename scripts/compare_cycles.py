@@ -1,0 +1,191 @@
+#!/usr/bin/python3
+"""Fulgur's frame against Cycles' render of the same frame (docs/blender.md).
+
+usage:
+  scripts/compare_cycles.py run SCENE.json OUT_DIR --seed S --time [+]T --size WxH
+        [--quality PRESET] [--samples N] [--cycles-seeds A,B] [--fulgur-shot EXE] [--blender EXE]
+  scripts/compare_cycles.py compare FULGUR.exr CYCLES_A.exr CYCLES_B.exr [--near-px R]
+
+`run` renders the frame with fulgur-shot (--exr with its passes, --blender DIR, one ray-march ray
+per pixel), builds and renders the Blender scene twice with Cycles (two seeds), and compares;
+`compare` only compares. Both print one JSON line and write OUT_DIR/compare.png (Fulgur | Cycles
+| |difference|, each tone mapped alike) when run.
+
+What is compared: Fulgur's lightning + static + background passes (the cloud lit by the flash's
+S and by the sun or moon and sky, over the sky and the ground it transmits) against Cycles'
+image, which has the same lights, medium, sky and ground. Left out on Fulgur's side: the
+channel's core and its glow in the air (Cycles gets the channel as point lights, which the
+camera does not see, and has no air), and the eye's glare (not radiance). No factor is fitted:
+both images are radiance in W m^-2 sr^-1.
+
+Regions (Fulgur's transmittance T of each pixel's ray, and its channel pass):
+  cloud        T < 0.98: the ray meets cloud
+  near         cloud pixels within --near-px of a pixel the channel's core covers
+  rest         the other cloud pixels
+  background   T >= 0.98: sky and ground seen past at most 2% extinction
+Per region: relative L2 (all three colours: sqrt(sum (f - c)^2 / sum c^2)) and the ratio of
+totals sum f / sum c. Cycles' noise: its image is the mean of the two seeds, whose own relative
+L2 error is |A - B| / 2 over |mean| (two independent estimates: the difference has twice the
+variance of one, the mean half); `*_rel_l2_noise_removed` subtracts it in quadrature.
+"""
+
+import argparse
+import json
+import math
+import os
+import pathlib
+import subprocess
+import sys
+import time
+
+import numpy as np
+import OpenImageIO as oiio
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+
+
+def read_channels(path):
+    """Every channel of an EXR by name, float64, rows top to bottom."""
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise SystemExit(f"{path}: cannot open: {oiio.geterror()}")
+    spec = inp.spec()
+    px = inp.read_image(oiio.FLOAT)
+    inp.close()
+    if px is None:
+        raise SystemExit(f"{path}: cannot read the pixels")
+    px = np.asarray(px, dtype=np.float64).reshape(spec.height, spec.width, spec.nchannels)
+    return {name: px[:, :, k] for k, name in enumerate(spec.channelnames)}
+
+
+def rgb(ch, layer=""):
+    p = layer + "." if layer else ""
+    return np.stack([ch[p + c] for c in "RGB"], axis=-1)
+
+
+def dilate(mask, r):
+    """Pixels within r (Chebyshev) of a true pixel."""
+    out = mask.copy()
+    h, w = mask.shape
+    for dy in range(-r, r + 1):
+        for dx in range(-r, r + 1):
+            ys, yd = slice(max(0, dy), h + min(0, dy)), slice(max(0, -dy), h + min(0, -dy))
+            xs, xd = slice(max(0, dx), w + min(0, dx)), slice(max(0, -dx), w + min(0, -dx))
+            out[yd, xd] |= mask[ys, xs]
+    return out
+
+
+def region_figures(f, c, a, b, mask):
+    if not mask.any():
+        return {"pixels": 0}
+    fm, cm = f[mask], c[mask]
+    c2 = float(np.sum(cm * cm))
+    err = math.sqrt(float(np.sum((fm - cm) ** 2)) / c2) if c2 > 0 else float("nan")
+    noise = math.sqrt(float(np.sum(((a[mask] - b[mask]) / 2) ** 2)) / c2) if c2 > 0 else float("nan")
+    return {
+        "pixels": int(mask.sum()),
+        "rel_l2": err,
+        "cycles_noise_rel_l2": noise,
+        "rel_l2_noise_removed": math.sqrt(max(0.0, err * err - noise * noise)),
+        "ratio_of_totals": float(np.sum(fm)) / float(np.sum(cm)) if np.sum(cm) > 0 else float("nan"),
+    }
+
+
+def compare(fulgur_exr, cycles_a, cycles_b, near_px=None, picture=None):
+    fc = read_channels(fulgur_exr)
+    for need in ("lightning.R", "static.R", "background.R", "channel.R", "T.Y"):
+        if need not in fc:
+            raise SystemExit(f"{fulgur_exr}: no channel {need} (write it with fulgur-shot --exr-passes)")
+    f = rgb(fc, "lightning") + rgb(fc, "static") + rgb(fc, "background")
+    a, b = rgb(read_channels(cycles_a)), rgb(read_channels(cycles_b))
+    if a.shape != f.shape or b.shape != f.shape:
+        raise SystemExit(f"image sizes differ: Fulgur {f.shape[:2]}, Cycles {a.shape[:2]} and {b.shape[:2]}")
+    c = (a + b) / 2
+    t = fc["T.Y"]
+    h = f.shape[0]
+    r = near_px if near_px is not None else max(1, round(0.05 * h))
+    cloud = t < 0.98
+    core = rgb(fc, "channel").sum(axis=-1) > 0
+    near = cloud & dilate(core, r)
+    out = {"name": "compare-cycles", "width": f.shape[1], "height": h, "near_px": r}
+    for name, m in (("cloud", cloud), ("near", near), ("rest", cloud & ~near), ("background", ~cloud)):
+        for k, v in region_figures(f, c, a, b, m).items():
+            out[f"{name}_{k}"] = v
+    if picture:
+        write_picture(picture, f, c)
+    return out
+
+
+def write_picture(path, f, c):
+    """Fulgur | Cycles | |difference|, one exposure for all three (the cloud's 99th percentile
+    of Cycles' luminance at 0.8 of white), a plain Reinhard curve and sRGB."""
+    lum = lambda x: 0.2126 * x[..., 0] + 0.7152 * x[..., 1] + 0.0722 * x[..., 2]
+    k = 0.8 / max(np.percentile(lum(c), 99), 1e-30)
+    tone = lambda x: np.clip(x * k / (1 + x * k), 0, 1) ** (1 / 2.2)
+    img = np.concatenate([tone(f), tone(c), tone(np.abs(f - c))], axis=1)
+    out = oiio.ImageOutput.create(str(path))
+    spec = oiio.ImageSpec(img.shape[1], img.shape[0], 3, oiio.UINT8)
+    out.open(str(path), spec)
+    out.write_image(np.ascontiguousarray((img * 255 + 0.5).astype(np.uint8)))
+    out.close()
+
+
+def run(args):
+    out = pathlib.Path(args.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    shot = [args.fulgur_shot, args.scene, "--seed", str(args.seed), "--time", args.time, "--size", args.size,
+            "-o", str(out / "fulgur.png"), "--exr", str(out / "fulgur.exr"), "--exr-passes",
+            "--blender", str(out / "blender"), "--internal-scale", "1"]
+    if args.quality:
+        shot += ["--quality", args.quality]
+    t0 = time.monotonic()
+    subprocess.run(shot, check=True, stdout=subprocess.DEVNULL)
+    fulgur_s = time.monotonic() - t0
+    seeds = [int(s) for s in args.cycles_seeds.split(",")]
+    if len(seeds) != 2:
+        raise SystemExit("--cycles-seeds takes two seeds")
+    cycles_s = []
+    for s in seeds:
+        t0 = time.monotonic()
+        subprocess.run([args.blender, "-b", "--factory-startup", "--python", str(ROOT / "scripts/blender_scene.py"),
+                        "--", str(out / "blender"), "--out", str(out / f"cycles_{s}.exr"),
+                        "--samples", str(args.samples), "--seed", str(s)],
+                       check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        cycles_s.append(time.monotonic() - t0)
+    r = compare(out / "fulgur.exr", out / f"cycles_{seeds[0]}.exr", out / f"cycles_{seeds[1]}.exr",
+                args.near_px, out / "compare.png")
+    r.update({"scene": args.scene, "seed": args.seed, "time": args.time, "quality": args.quality or "scene's",
+              "samples": args.samples, "fulgur_seconds": fulgur_s, "cycles_seconds": cycles_s})
+    return r
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="cmd", required=True)
+    r = sub.add_parser("run")
+    r.add_argument("scene")
+    r.add_argument("out_dir")
+    r.add_argument("--seed", type=int, required=True)
+    r.add_argument("--time", required=True)
+    r.add_argument("--size", required=True)
+    r.add_argument("--quality")
+    r.add_argument("--samples", type=int, default=64)
+    r.add_argument("--cycles-seeds", default="1,2")
+    r.add_argument("--near-px", type=int)
+    r.add_argument("--fulgur-shot", default=str(ROOT / "build/release/app/fulgur-shot"))
+    r.add_argument("--blender", default="blender")
+    c = sub.add_parser("compare")
+    c.add_argument("fulgur")
+    c.add_argument("cycles_a")
+    c.add_argument("cycles_b")
+    c.add_argument("--near-px", type=int)
+    args = p.parse_args()
+    if args.cmd == "run":
+        res = run(args)
+    else:
+        res = compare(args.fulgur, args.cycles_a, args.cycles_b, args.near_px)
+    print(json.dumps(res))
+
+
+if __name__ == "__main__":
+    main()
