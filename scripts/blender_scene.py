@@ -101,8 +101,9 @@ def fail(message):
 
 def parse_args(argv):
     usage = ("usage: blender -b --factory-startup --python scripts/blender_scene.py -- DIR "
-             "--out OUT.exr [--samples N] [--seed S] [--threads T] [--save-blend FILE.blend]")
-    args = {"dir": None, "out": None, "samples": 64, "seed": 0, "threads": 2, "save_blend": None}
+             "--out OUT.exr [--samples N] [--seed S] [--threads T] [--light-radius M] [--save-blend FILE.blend]")
+    args = {"dir": None, "out": None, "samples": 64, "seed": 0, "threads": 2, "save_blend": None,
+            "light_radius": None}
     ints = {"--samples": ("samples", 1), "--seed": ("seed", 0), "--threads": ("threads", 1)}
     i = 0
     while i < len(argv):
@@ -110,11 +111,19 @@ def parse_args(argv):
         if a in ("-h", "--help"):
             print(usage)
             sys.exit(0)
-        if a in ("--out", "--save-blend") or a in ints:
+        if a in ("--out", "--save-blend", "--light-radius") or a in ints:
             if i + 1 >= len(argv):
                 fail("%s needs a value\n%s" % (a, usage))
             v = argv[i + 1]
-            if a == "--out":
+            if a == "--light-radius":
+                try:
+                    r = float(v)
+                except ValueError:
+                    fail("--light-radius: expected metres, got '%s'" % v)
+                if not (math.isfinite(r) and r >= 0.0):
+                    fail("--light-radius: %s is not a finite length >= 0" % v)
+                args["light_radius"] = r
+            elif a == "--out":
                 args["out"] = v
             elif a == "--save-blend":
                 args["save_blend"] = v
@@ -257,6 +266,8 @@ def read_frame(frame_dir):
     if not isinstance(lights, list):
         F.err("lights", "expected an array")
     fr["lights"] = []
+    sp = F.get(root, "light_spacing", "light_spacing", optional=True)
+    fr["light_spacing"] = 0.0 if sp is None else F.number(sp, "light_spacing", lo=0.0)
     for i, l in enumerate(lights):
         pos = F.vec(F.get(l, "lights[%d].position" % i, "position"), "lights[%d].position" % i)
         inten = F.number(F.get(l, "lights[%d].intensity" % i, "intensity"), "lights[%d].intensity" % i, lo=0.0)
@@ -596,7 +607,12 @@ def add_medium(scene, fr, vdb_out):
     vol.materials.append(mat)
 
 
-def add_point_lights(scene, fr):
+def add_point_lights(scene, fr, radius):
+    """The channel's points. `radius` > 0 makes each a sphere light of that radius (Cycles keeps
+    its power): at half the points' spacing the chain becomes a tube around the channel, which
+    it is, and a scattering point can no longer come arbitrarily close to a point of the chain,
+    whose 1/d^2 spikes are what makes a light inside a cloud converge slowly (fireflies). Its
+    light outside the tube is the points' own."""
     colour, scale = fold_colour(fr["flash_colour"], 1.0)
     coll = scene.collection
     for i, (pos, intensity) in enumerate(fr["lights"]):
@@ -606,7 +622,7 @@ def add_point_lights(scene, fr):
         # Cycles' point light of power P (W) has radiant intensity P / (4 pi) W/sr.
         light.energy = 4.0 * math.pi * intensity * scale
         light.color = colour
-        light.shadow_soft_size = 0.0      # radius 0: a true point light
+        light.shadow_soft_size = radius   # 0: a true point light
         light.use_shadow = True
         light.cycles.cast_shadow = True
         light.cycles.max_bounces = 1024   # lights paths after any number of bounces
@@ -755,7 +771,8 @@ def build_scene(fr, args, vdb_out):
     add_world(scene, fr)
     if fr["medium"] is not None:
         add_medium(scene, fr, vdb_out)
-    add_point_lights(scene, fr)
+    radius = args["light_radius"] if args["light_radius"] is not None else 0.5 * fr["light_spacing"]
+    add_point_lights(scene, fr, radius)
     if fr["sun"] is not None:
         add_sun(scene, fr)
     if fr["ground"] is not None:

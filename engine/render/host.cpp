@@ -67,6 +67,15 @@ Camera camera_from_matrices(const glm::dmat4& view, const glm::dmat4& projection
     return c;
 }
 
+std::vector<Renderer::FlashLight> Renderer::flash_lights(int k, double ground_height) {
+    FULGUR_ASSERT(k >= 0 && std::isfinite(ground_height), "flash_lights needs k >= 0 and a finite ground height");
+    Impl& m = *impl_;
+    m.rebuild_ground_lights(k, ground_height);
+    std::vector<FlashLight> out;
+    for (const glm::vec4& l : m.ground_lights) out.push_back({glm::dvec3(glm::vec3(l)), double(l.w)});
+    return out;
+}
+
 void Renderer::Impl::attach_host_depth(const HostFrame& host, detail::FrameUniforms& u) {
     u.host = true;
     if (host.depth_texture == 0) return;

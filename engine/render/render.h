@@ -385,6 +385,17 @@ public:
     /// not touch the target's alpha. Throws core::Error as camera_from_matrices does.
     FrameStats render_into_host(const HostFrame& host, const Settings& settings, int width, int height);
 
+    /// The lit channel (set_channel) as `k` representative point lights, for a host that lights
+    /// its own surfaces by the flash: the channel split into k runs of equal power, each light
+    /// at its run's power-weighted centroid with the run's radiant intensity (W/sr, grey: times
+    /// Settings::flash_colour), dimmed by the cloud's transmittance straight down to
+    /// `ground_height` (the lights the renderer's own ground uses). Empty when no channel is lit.
+    struct FlashLight {
+        glm::dvec3 position{0.0};
+        double intensity = 0.0;
+    };
+    std::vector<FlashLight> flash_lights(int k, double ground_height);
+
     /// The last frame before tone mapping (radiance, RGB float, rows top to bottom).
     std::vector<float> read_hdr() const;
     /// The last frame's ray-march output at internal resolution: RGBA float (rgb in-scattered

@@ -306,6 +306,25 @@ FrameReport StormView::render(const render::Camera& camera, double t, int width,
     return rep;
 }
 
+FrameReport StormView::render_into_host(const render::HostFrame& host, double t, int width, int height,
+                                        const ViewOptions& options) {
+    using clock = std::chrono::steady_clock;
+    const auto t0 = clock::now();
+    const render::Camera camera =
+        render::camera_from_matrices(host.view, host.projection, double(width) / double(height));
+    FrameReport rep;
+    if (pipeline_) {
+        render_lightning(camera, t, options, nullptr, rep);
+    } else {
+        renderer_->set_channel({});
+        renderer_->clear_source();
+    }
+    update_static_light(options);
+    rep.gpu = renderer_->render_into_host(host, frame_settings(options), width, height);
+    rep.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - t0).count();
+    return rep;
+}
+
 render::Settings StormView::frame_settings(const ViewOptions& options) const {
     render::Settings st = options.settings;
     st.ground_height = scene_.lightning.bolt.ground_height;

@@ -106,6 +106,13 @@ public:
     /// ground still come from the frame at t, so two renders differ only in S.
     FrameReport render(const render::Camera& camera, double t, int width, int height, const ViewOptions& options,
                        const transport::SourceField* source = nullptr);
+    /// The frame at time t composited into a host engine's HDR target (bound as the draw
+    /// framebuffer) with the host's camera and depth (render::Renderer::render_into_host): the
+    /// storm's radiance before exposure over the host's, which keeps its own world, tone map
+    /// and glare. The ground-lighting model is the host's: renderer().flash_lights() gives the flash as
+    /// point lights for it.
+    FrameReport render_into_host(const render::HostFrame& host, double t, int width, int height,
+                                 const ViewOptions& options);
     /// The renderer's settings render() uses with `options`: the scene's ground height, flash
     /// colour and sky, and the effects the scene switched off taken out.
     render::Settings frame_settings(const ViewOptions& options) const;
