@@ -75,6 +75,13 @@ def dilate(mask, r):
     return out
 
 
+def block_mean(x, n):
+    """x (H, W, ...) averaged over n x n blocks (the last partial row and column dropped)."""
+    h, w = (x.shape[0] // n) * n, (x.shape[1] // n) * n
+    x = x[:h, :w]
+    return x.reshape(h // n, n, w // n, n, *x.shape[2:]).mean(axis=(1, 3))
+
+
 def region_figures(f, c, a, b, mask):
     if not mask.any():
         return {"pixels": 0}
@@ -88,10 +95,14 @@ def region_figures(f, c, a, b, mask):
         "cycles_noise_rel_l2": noise,
         "rel_l2_noise_removed": math.sqrt(max(0.0, err * err - noise * noise)),
         "ratio_of_totals": float(np.sum(fm)) / float(np.sum(cm)) if np.sum(cm) > 0 else float("nan"),
+        # The mean's relative noise in the total, from the two seeds' totals (|A - B| / 2 over
+        # the mean: a one-sample estimate of it).
+        "cycles_total_noise": abs(float(np.sum(a[mask]) - np.sum(b[mask]))) / float(np.sum(a[mask]) + np.sum(b[mask]))
+        if np.sum(cm) > 0 else float("nan"),
     }
 
 
-def compare(fulgur_exr, cycles_a, cycles_b, near_px=None, picture=None):
+def compare(fulgur_exr, cycles_a, cycles_b, near_px=None, picture=None, block=8):
     fc = read_channels(fulgur_exr)
     for need in ("lightning.R", "static.R", "background.R", "channel.R", "T.Y"):
         if need not in fc:
@@ -111,6 +122,14 @@ def compare(fulgur_exr, cycles_a, cycles_b, near_px=None, picture=None):
     for name, m in (("cloud", cloud), ("near", near), ("rest", cloud & ~near), ("background", ~cloud)):
         for k, v in region_figures(f, c, a, b, m).items():
             out[f"{name}_{k}"] = v
+    # The cloud at a coarser scale: n x n blocks at least half cloud (per-pixel noise averages
+    # out n^2-fold in variance; what is left is structure larger than a block).
+    n = block
+    blocks_cloud = block_mean(cloud.astype(np.float64), n) >= 0.5
+    fb, cb, ab, bb = (block_mean(x, n) for x in (f, c, a, b))
+    for k, v in region_figures(fb, cb, ab, bb, blocks_cloud).items():
+        out[f"cloud_blocks_{k}"] = v
+    out["block_px"] = n
     if picture:
         write_picture(picture, f, c)
     return out
@@ -149,11 +168,12 @@ def run(args):
         t0 = time.monotonic()
         subprocess.run([args.blender, "-b", "--factory-startup", "--python", str(ROOT / "scripts/blender_scene.py"),
                         "--", str(out / "blender"), "--out", str(out / f"cycles_{s}.exr"),
-                        "--samples", str(args.samples), "--seed", str(s)],
+                        "--samples", str(args.samples), "--seed", str(s)]
+                       + (["--light-radius", args.light_radius] if args.light_radius else []),
                        check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         cycles_s.append(time.monotonic() - t0)
     r = compare(out / "fulgur.exr", out / f"cycles_{seeds[0]}.exr", out / f"cycles_{seeds[1]}.exr",
-                args.near_px, out / "compare.png")
+                args.near_px, out / "compare.png", args.block)
     r.update({"scene": args.scene, "seed": args.seed, "time": args.time, "quality": args.quality or "scene's",
               "samples": args.samples, "fulgur_seconds": fulgur_s, "cycles_seconds": cycles_s})
     return r
@@ -174,17 +194,39 @@ def main():
     r.add_argument("--near-px", type=int)
     r.add_argument("--fulgur-shot", default=str(ROOT / "build/release/app/fulgur-shot"))
     r.add_argument("--blender", default="blender")
+    r.add_argument("--light-radius", help="passed to blender_scene.py (default: half the points' spacing)")
     c = sub.add_parser("compare")
     c.add_argument("fulgur")
     c.add_argument("cycles_a")
     c.add_argument("cycles_b")
     c.add_argument("--near-px", type=int)
+    for q in (r, c):
+        q.add_argument("--block", type=int, default=8, help="block size (pixels) of the cloud_blocks_* figures")
+        q.add_argument("--require", action="append",
+                       help="KEY<=VALUE or KEY>=VALUE on a printed figure; exit 1 when one fails (repeatable)")
     args = p.parse_args()
     if args.cmd == "run":
         res = run(args)
     else:
-        res = compare(args.fulgur, args.cycles_a, args.cycles_b, args.near_px)
+        res = compare(args.fulgur, args.cycles_a, args.cycles_b, args.near_px, None, args.block)
     print(json.dumps(res))
+    sys.stdout.flush()
+    failed = []
+    for req in args.require or []:
+        for op in ("<=", ">="):
+            if op in req:
+                key, bound = req.split(op)
+                v = res.get(key)
+                if v is None:
+                    raise SystemExit(f"--require {req}: no figure {key}")
+                if not (v <= float(bound) if op == "<=" else v >= float(bound)):
+                    failed.append(f"{key} = {v:.4g}, required {op} {bound}")
+                break
+        else:
+            raise SystemExit(f"--require {req}: expected KEY<=VALUE or KEY>=VALUE")
+    if failed:
+        print("compare_cycles: " + "; ".join(failed), file=sys.stderr)
+        sys.exit(1)
 
 
 if __name__ == "__main__":
