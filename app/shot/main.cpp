@@ -282,7 +282,12 @@ void write_frame_exr(view::StormView& view, const render::Camera& cam, double t,
 void write_frame_blender(view::StormView& view, const render::Camera& cam, double t, const view::ViewOptions& opt,
                          const app::ShotArgs& a) {
     std::vector<lightning::LitSegment> lit;
-    if (view.has_lightning()) {
+    // Cycles renders every order of scattering: the flash is exported whole or not at all.
+    if (opt.components.single != opt.components.multiple)
+        throw core::Error("--blender",
+                          "Cycles renders all orders of scattering: turn both single and multiple off "
+                          "(no flash light in the cloud) or neither");
+    if (view.has_lightning() && opt.components.single) {
         runtime::ReconstructOptions ro;
         ro.components = opt.components;
         ro.wait_for_strikes = true;
