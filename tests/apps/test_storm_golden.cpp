@@ -13,6 +13,7 @@
 
 #include <cstdio>
 #include <map>
+#include <memory>
 
 using namespace fulgur;
 
@@ -43,6 +44,20 @@ std::filesystem::path baked(const std::string& name, const scene::Scene& s, cons
     return done[name] = fgb;
 }
 
+// A view of a tiny test scene, baked fresh for this run (baked()).
+std::unique_ptr<view::StormView> storm_view(const std::string& name) {
+    scene::Scene s = scene::load_scene(kScenes / (name + ".json"));
+    core::Grid3<float> d = scene::make_density(s);
+    const auto fgb = baked(name, s, d);
+    return std::make_unique<view::StormView>(std::move(s), std::move(d), fgb, context().get_proc_address());
+}
+
+// 2 ms after the first return stroke's onset of a strike with `seed` at t = 0.
+double return_stroke(view::StormView& view, std::uint64_t seed) {
+    const std::size_t i = view.pipeline().strike_at(0.0, seed);
+    return view.pipeline().storm().strike(i).profile.stroke_onset.at(0) + 0.002;
+}
+
 struct Shot {
     std::vector<std::uint8_t> rgba;
     double cloud_mean = 0.0;  ///< mean in-scattered luminance of the march (cloud only, no bolt/glow)
@@ -52,13 +67,10 @@ struct Shot {
 
 // The frame 2 ms after the first return stroke's onset of a strike with `seed` at t = 0.
 Shot shoot(const std::string& name, std::uint64_t seed, runtime::Components comp = {}) {
-    scene::Scene s = scene::load_scene(kScenes / (name + ".json"));
-    core::Grid3<float> d = scene::make_density(s);
-    const auto fgb = baked(name, s, d);
+    std::unique_ptr<view::StormView> owned = storm_view(name);
+    view::StormView& view = *owned;
     platform::Context& ctx = context();
-    view::StormView view(std::move(s), std::move(d), fgb, ctx.get_proc_address());
-    const std::size_t i = view.pipeline().strike_at(0.0, seed);
-    const double t = view.pipeline().storm().strike(i).profile.stroke_onset.at(0) + 0.002;
+    const double t = return_stroke(view, seed);
     view::ViewOptions opt;
     opt.components = comp;
     opt.settings.timing = render::Timing::Off;
@@ -138,13 +150,10 @@ TEST_CASE("storm: multiple scattering on vs off is visibly different") {
 }
 
 TEST_CASE("storm: a render lit by a given field; the direct-solve reference of the frame") {
-    scene::Scene s = scene::load_scene(kScenes / "test_aniso_ms_cg.json");
-    core::Grid3<float> d = scene::make_density(s);
-    const auto fgb = baked("test_aniso_ms_cg", s, d);
+    std::unique_ptr<view::StormView> owned = storm_view("test_aniso_ms_cg");
+    view::StormView& view = *owned;
     platform::Context& ctx = context();
-    view::StormView view(std::move(s), std::move(d), fgb, ctx.get_proc_address());
-    const std::size_t i = view.pipeline().strike_at(0.0, 41);
-    const double t = view.pipeline().storm().strike(i).profile.stroke_onset.at(0) + 0.002;
+    const double t = return_stroke(view, 41);
     const render::Camera cam = view::scene_camera(view.scene().camera, view.density());
     view::ViewOptions opt;
     opt.settings.timing = render::Timing::Off;
@@ -194,13 +203,9 @@ TEST_CASE("storm: a render lit by a given field; the direct-solve reference of t
 }
 
 TEST_CASE("storm: the linear frame (fulgur-shot --exr) is the tone map's input and its passes sum to it") {
-    scene::Scene s = scene::load_scene(kScenes / "test_aniso_ms_cg.json");
-    core::Grid3<float> d = scene::make_density(s);
-    const auto fgb = baked("test_aniso_ms_cg", s, d);
-    platform::Context& ctx = context();
-    view::StormView view(std::move(s), std::move(d), fgb, ctx.get_proc_address());
-    const std::size_t i = view.pipeline().strike_at(0.0, 11);
-    const double t = view.pipeline().storm().strike(i).profile.stroke_onset.at(0) + 0.002;
+    std::unique_ptr<view::StormView> owned = storm_view("test_aniso_ms_cg");
+    view::StormView& view = *owned;
+    const double t = return_stroke(view, 11);
     const render::Camera cam = view::scene_camera(view.scene().camera, view.density());
     view::ViewOptions opt;
     opt.settings.timing = render::Timing::Off;
