@@ -325,6 +325,17 @@ FrameReport StormView::render_into_host(const render::HostFrame& host, double t,
     return rep;
 }
 
+std::vector<render::Renderer::FlashLight> StormView::flash_lights(double t, int k, const ViewOptions& options) {
+    if (!pipeline_) return {};
+    std::vector<lightning::LitSegment> lit;
+    pipeline_->storm().lit(t, lit);
+    render::LitChannel bolt;
+    for (const lightning::LitSegment& s : lit)
+        bolt.segments.push_back({glm::vec3(s.a), glm::vec3(s.b), float(s.intensity), float(options.bolt_radius)});
+    renderer_->set_channel(bolt);
+    return renderer_->flash_lights(k, scene_.lightning.bolt.ground_height);
+}
+
 render::Settings StormView::frame_settings(const ViewOptions& options) const {
     render::Settings st = options.settings;
     st.ground_height = scene_.lightning.bolt.ground_height;

@@ -109,10 +109,15 @@ public:
     /// The frame at time t composited into a host engine's HDR target (bound as the draw
     /// framebuffer) with the host's camera and depth (render::Renderer::render_into_host): the
     /// storm's radiance before exposure over the host's, which keeps its own world, tone map
-    /// and glare. The ground-lighting model is the host's: renderer().flash_lights() gives the flash as
+    /// and glare. The ground-lighting model is the host's: flash_lights() gives the flash as
     /// point lights for it.
     FrameReport render_into_host(const render::HostFrame& host, double t, int width, int height,
                                  const ViewOptions& options);
+    /// The flash at time t as `k` representative point lights (render::Renderer::flash_lights:
+    /// W/sr, grey, times scene().lightning_colour; dimmed straight down to the scene's ground),
+    /// for a host lighting its own surfaces before it composites the storm; empty when no
+    /// strike glows at t or the scene has no lightning. Sets the renderer's channel to t's.
+    std::vector<render::Renderer::FlashLight> flash_lights(double t, int k, const ViewOptions& options = {});
     /// The renderer's settings render() uses with `options`: the scene's ground height, flash
     /// colour and sky, and the effects the scene switched off taken out.
     render::Settings frame_settings(const ViewOptions& options) const;

@@ -1,16 +1,27 @@
 // fulgur-minimal: the engine embedded from its installed package. Loads a scene, bakes its
 // virtual lights when the .fgb beside it is missing or stale, schedules one lightning strike
-// and renders two frames into PNGs: before the strike and at its return stroke.
+// and renders two frames into PNGs: before the strike and at its return stroke. Then the same
+// instants as a game would draw them (host_terrain.h): its own terrain in its own HDR target
+// and camera matrices, lit by the flash's point lights, the storm composited into that target
+// (render_into_host: the terrain's depth hides what is behind it), its own tone map.
 //
-// usage: fulgur-minimal SCENE.json OUT_PREFIX   (writes OUT_PREFIX_before.png, OUT_PREFIX_flash.png, 320x180)
-// Prints the mean brightness of both frames; exits 1 if the flash does not light the image.
+// usage: fulgur-minimal SCENE.json OUT_PREFIX
+//   writes OUT_PREFIX_before.png, OUT_PREFIX_flash.png (Fulgur's own frames) and OUT_PREFIX_host.png
+//   (the game's frame at the return stroke), 320x180. Prints the mean brightness of the frames;
+//   exits 1 if the flash does not light the image or the game's mountains behind the storm, or if
+//   the channel shows through the game's ridge in front of it.
+#include "host_terrain.h"
+
 #include <fulgur/core/core.h>
 #include <fulgur/scene/scene.h>
 #include <fulgur/sky/sky.h>
 #include <fulgur/view/view.h>
 
 #include <GL/osmesa.h>
+#include <glm/gtc/matrix_transform.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
@@ -106,6 +117,75 @@ int main(int argc, char** argv) {
         }
         if (!(mean[1] > mean[0])) {
             std::fprintf(stderr, "the flash does not light the frame (%.2f vs %.2f)\n", mean[1], mean[0]);
+            return 1;
+        }
+
+        // ---- The game's frame at the return stroke. The flash at that instant as point lights for
+        // its own surfaces, in the scene's flash colour.
+        std::vector<FlashLight> lights;
+        for (const render::Renderer::FlashLight& l : storm.flash_lights(times[1], 6))
+            lights.push_back({glm::vec3(l.position), glm::vec3(l.intensity * storm.scene().lightning_colour)});
+        if (lights.empty()) throw std::runtime_error("no lit channel at the return stroke");
+        const core::GridGeometry& g = storm.density().geom;
+        HostWorld world(kWidth, kHeight,
+                        {camera.position, g.origin + 0.5 * g.extent(), storm.flash_lights(times[1], 1)[0].position,
+                         0.5 * std::max(g.extent().x, g.extent().y)});
+        // Its own camera matrices for the scene's view, its terrain (first without the flash, to see
+        // what the flash adds), then the storm composited into its target up to the terrain's depth.
+        const glm::dmat4 view_matrix = glm::lookAt(camera.position, camera.target, camera.up);
+        const glm::dmat4 projection =
+            glm::perspective(glm::radians(camera.vertical_fov_deg), double(kWidth) / kHeight, 10.0, 2e5);
+        world.draw_terrain(glm::mat4(projection * view_matrix), {});
+        const std::vector<float> dark = world.read();
+        world.draw_terrain(glm::mat4(projection * view_matrix), lights);
+        const std::vector<float> lit = world.read();
+        storm.render_into_host({view_matrix, projection, world.depth_texture()}, times[1], kWidth, kHeight, options);
+        const std::vector<float> hdr = world.read();  // alpha: what the terrain is there (kept by Fulgur)
+
+        // Its tone map: the exposure that puts the frame's 99th percentile at 3/4 of white.
+        std::vector<float> lum;
+        for (std::size_t i = 0; i < hdr.size(); i += 4)
+            lum.push_back(0.2126f * hdr[i] + 0.7152f * hdr[i + 1] + 0.0722f * hdr[i + 2]);
+        std::nth_element(lum.begin(), lum.begin() + std::ptrdiff_t(lum.size() * 99 / 100), lum.end());
+        const float exposure = 3.0f / lum[lum.size() * 99 / 100];
+        world.tone_map(exposure);
+        const double host_mean = gl.save(prefix + "_host.png");
+
+        // The flash lights the range behind the storm: the terrain's mean there, without and with it,
+        // as displayed (exposure x / (1 + exposure x), 8-bit).
+        auto shown = [&](float x) { return 255.0 * std::pow(exposure * x / (1.0 + exposure * x), 1.0 / 2.2); };
+        double range[2] = {0.0, 0.0};
+        int range_px = 0;
+        for (std::size_t i = 0; i < lit.size(); i += 4)
+            if (lit[i + 3] == HostWorld::kRange) {
+                range[0] += shown(dark[i + 1]);
+                range[1] += shown(lit[i + 1]);
+                ++range_px;
+            }
+        // The ridge hides the channel where it crosses it: the frame's pixels on the channel's
+        // projection, where the ridge covers it and where nothing does (the brightest of each).
+        double covered = 0.0, open = 0.0;
+        for (const lightning::LitSegment& seg : storm.last_frame()->segments)
+            for (double u = 0.0; u <= 1.0; u += 0.05) {
+                const glm::dvec4 c = projection * view_matrix * glm::dvec4(seg.a + u * (seg.b - seg.a), 1.0);
+                const int x = int((c.x / c.w * 0.5 + 0.5) * kWidth), y = int((c.y / c.w * 0.5 + 0.5) * kHeight);
+                if (c.w <= 0.0 || x < 0 || y < 0 || x >= kWidth || y >= kHeight) continue;
+                const std::size_t i = (std::size_t(y) * kWidth + std::size_t(x)) * 4;
+                if (hdr[i + 3] == HostWorld::kRidge) covered = std::max(covered, double(hdr[i + 1]));
+                if (hdr[i + 3] == HostWorld::kSky || hdr[i + 3] == HostWorld::kRange)
+                    open = std::max(open, double(hdr[i + 1]));
+            }
+        std::printf(
+            "%s_host.png: exposure %.3g, mean brightness %.2f / 255; the range behind the storm %.1f -> %.1f / 255 "
+            "in the flash; the channel %.3g, behind the ridge %.3g W m^-2 sr^-1\n",
+            prefix.c_str(), exposure, host_mean, range[0] / std::max(range_px, 1), range[1] / std::max(range_px, 1),
+            open, covered);
+        if (range_px == 0 || !(range[1] > 2.0 * range[0] && range[1] > range[0] + 4.0 * range_px)) {
+            std::fprintf(stderr, "the flash does not light the mountains behind the storm\n");
+            return 1;
+        }
+        if (!(open > 0.0 && covered > 0.0) || covered >= 0.1 * open) {
+            std::fprintf(stderr, "the ridge does not hide the channel where it crosses it\n");
             return 1;
         }
         return 0;

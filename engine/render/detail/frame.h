@@ -55,20 +55,24 @@ struct FrameUniforms {
     bool host = false;                            ///< composited into a host's frame (render_into_host)
 };
 
-/// The caller's draw framebuffer and viewport, restored when a frame or a read-back is done.
+/// The caller's draw and read framebuffers and viewport, restored when a frame or a read-back is
+/// done (the passes bind GL_FRAMEBUFFER, which sets both: a host that reads or blits from its
+/// target after render_into_host must find it still bound for reading).
 struct CallerTarget {
-    GLint fbo = 0, viewport[4] = {};
+    GLint fbo = 0, read_fbo = 0, viewport[4] = {};
     static CallerTarget save() {
         CallerTarget c;
         glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &c.fbo);
+        glGetIntegerv(GL_READ_FRAMEBUFFER_BINDING, &c.read_fbo);
         glGetIntegerv(GL_VIEWPORT, c.viewport);
         return c;
     }
-    /// Unbinds the renderer's program and vertex array and rebinds the caller's target.
+    /// Unbinds the renderer's program and vertex array and rebinds the caller's framebuffers.
     void restore() const {
         glUseProgram(0);
         glBindVertexArray(0);
         glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(fbo));
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, GLuint(read_fbo));
         glViewport(viewport[0], viewport[1], viewport[2], viewport[3]);
     }
 };
