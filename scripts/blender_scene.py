@@ -101,9 +101,9 @@ def fail(message):
 
 def parse_args(argv):
     usage = ("usage: blender -b --factory-startup --python scripts/blender_scene.py -- DIR "
-             "--out OUT.exr [--samples N] [--seed S] [--threads T] [--light-radius M] [--save-blend FILE.blend]")
+             "--out OUT.exr [--samples N] [--seed S] [--threads T] [--light-radius M] [--single-scattering] [--save-blend FILE.blend]")
     args = {"dir": None, "out": None, "samples": 64, "seed": 0, "threads": 2, "save_blend": None,
-            "light_radius": None}
+            "light_radius": None, "single": False}
     ints = {"--samples": ("samples", 1), "--seed": ("seed", 0), "--threads": ("threads", 1)}
     i = 0
     while i < len(argv):
@@ -137,6 +137,13 @@ def parse_args(argv):
                     fail("%s: %d is out of range [%d, 2^31-1]" % (a, n, lo))
                 args[key] = n
             i += 2
+            continue
+        if a == "--single-scattering":
+            # Light scattered once in the volume only (volume bounces 0): the counterpart of
+            # Fulgur's single-scattering term (fulgur-shot --off multiple), to split a
+            # difference between the orders.
+            args["single"] = True
+            i += 1
             continue
         if a.startswith("-"):
             fail("unknown option '%s'\n%s" % (a, usage))
@@ -363,7 +370,7 @@ def configure_cycles(scene, fr, args):
     # distribution (long random walks that escape through a thin flank) carries light that a
     # cap would drop. 1024 makes the truncation negligible (0.99^1024 ~ 3e-5 of the energy).
     cy.max_bounces = 1024                # the overall cap; 1024 is RNA's hard maximum in 3.4
-    cy.volume_bounces = 1024             # default 0: single scattering only, a heavy bias
+    cy.volume_bounces = 0 if args["single"] else 1024  # default 0: single scattering only, a heavy bias
     cy.diffuse_bounces = 1024            # ground <-> cloud interreflection
     cy.glossy_bounces = 1024
     cy.transmission_bounces = 1024

@@ -4,7 +4,7 @@
 usage:
   scripts/compare_cycles.py run SCENE.json OUT_DIR --seed S --time [+]T --size WxH
         [--quality PRESET] [--samples N] [--cycles-seeds A,B] [--fulgur-shot EXE] [--blender EXE]
-  scripts/compare_cycles.py compare FULGUR.exr CYCLES_A.exr CYCLES_B.exr [--near-px R]
+  scripts/compare_cycles.py compare FULGUR.exr CYCLES_A.exr CYCLES_B.exr [--near-px R] [--picture P.png]
 
 `run` renders the frame with fulgur-shot (--exr with its passes, --blender DIR, one ray-march ray
 per pixel), builds and renders the Blender scene twice with Cycles (two seeds), and compares;
@@ -200,6 +200,7 @@ def main():
     c.add_argument("cycles_a")
     c.add_argument("cycles_b")
     c.add_argument("--near-px", type=int)
+    c.add_argument("--picture", help="also write Fulgur | Cycles | |difference| as this PNG")
     for q in (r, c):
         q.add_argument("--block", type=int, default=8, help="block size (pixels) of the cloud_blocks_* figures")
         q.add_argument("--require", action="append",
@@ -208,7 +209,7 @@ def main():
     if args.cmd == "run":
         res = run(args)
     else:
-        res = compare(args.fulgur, args.cycles_a, args.cycles_b, args.near_px, None, args.block)
+        res = compare(args.fulgur, args.cycles_a, args.cycles_b, args.near_px, args.picture, args.block)
     print(json.dumps(res))
     sys.stdout.flush()
     failed = []

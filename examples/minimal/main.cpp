@@ -139,7 +139,12 @@ int main(int argc, char** argv) {
         const std::vector<float> dark = world.read();
         world.draw_terrain(glm::mat4(projection * view_matrix), lights);
         const std::vector<float> lit = world.read();
-        storm.render_into_host({view_matrix, projection, world.depth_texture()}, times[1], kWidth, kHeight, options);
+        // One ray-march ray per pixel: the march reads the terrain's depth per ray, so at the default
+        // half resolution the cloud behind would bleed a pixel into the ridge's silhouette.
+        view::ViewOptions host_options = options;
+        host_options.settings.internal_scale = 1.0;
+        storm.render_into_host({view_matrix, projection, world.depth_texture()}, times[1], kWidth, kHeight,
+                               host_options);
         const std::vector<float> hdr = world.read();  // alpha: what the terrain is there (kept by Fulgur)
 
         // Its tone map: the exposure that puts the frame's 99th percentile at 3/4 of white.
