@@ -175,6 +175,15 @@ class Fields:
             self.err(field, "missing")
         return obj[name]
 
+    def flag(self, obj, field, name, default):
+        """An optional true/false member (default when absent)."""
+        v = self.get(obj, field, name, optional=True)
+        if v is None:
+            return default
+        if not isinstance(v, bool):
+            self.err(field, "expected true or false, got %s" % json.dumps(v))
+        return v
+
     def number(self, value, field, lo=None, hi=None, lo_open=False):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             self.err(field, "expected a finite number, got %s" % json.dumps(value))
@@ -294,18 +303,8 @@ def read_frame(frame_dir):
     if sky is not None:
         s = {"zenith_rgb": F.vec(F.get(sky, "sky.zenith_rgb", "zenith_rgb"), "sky.zenith_rgb", lo=0.0),
              "horizon_rgb": F.vec(F.get(sky, "sky.horizon_rgb", "horizon_rgb"), "sky.horizon_rgb", lo=0.0)}
-        lc = F.get(sky, "sky.lights_cloud", "lights_cloud", optional=True)
-        if lc is None:
-            lc = True
-        if not isinstance(lc, bool):
-            F.err("sky.lights_cloud", "expected true or false, got %s" % json.dumps(lc))
-        s["lights_cloud"] = lc
-        vis = F.get(sky, "sky.visible", "visible", optional=True)
-        if vis is None:
-            vis = True
-        if not isinstance(vis, bool):
-            F.err("sky.visible", "expected true or false, got %s" % json.dumps(vis))
-        s["visible"] = vis
+        s["lights_cloud"] = F.flag(sky, "sky.lights_cloud", "lights_cloud", True)
+        s["visible"] = F.flag(sky, "sky.visible", "visible", True)
         fr["sky"] = s
     else:
         fr["sky"] = None
@@ -315,12 +314,7 @@ def read_frame(frame_dir):
         fr["ground"] = {"height": F.number(F.get(ground, "ground.height", "height"), "ground.height"),
                         "albedo": F.number(F.get(ground, "ground.albedo", "albedo"), "ground.albedo",
                                            lo=0.0, hi=1.0)}
-        lc = F.get(ground, "ground.lights_cloud", "lights_cloud", optional=True)
-        if lc is None:
-            lc = True
-        if not isinstance(lc, bool):
-            F.err("ground.lights_cloud", "expected true or false, got %s" % json.dumps(lc))
-        fr["ground"]["lights_cloud"] = lc
+        fr["ground"]["lights_cloud"] = F.flag(ground, "ground.lights_cloud", "lights_cloud", True)
     else:
         fr["ground"] = None
     return fr

@@ -58,6 +58,16 @@ core::Grid3<float> make_grid(core::Int3 dims, double voxel, glm::dvec3 origin, F
     return grid;
 }
 
+/// A smooth Gaussian puff (sigma 5.3 voxels) filling a 32^3 grid of 40 m voxels with its lower
+/// corner at `origin`: its image is smooth at every resolution, so sampling does not move its
+/// centroid (a hard-edged object's would alias differently at each resolution).
+inline core::Grid3<float> gaussian_puff(glm::dvec3 origin) {
+    return make_grid({32, 32, 32}, 40.0, origin, [](int i, int j, int k) {
+        const double dx = i - 15.5, dy = j - 15.5, dz = k - 15.5;
+        return float(std::exp(-(dx * dx + dy * dy + dz * dz) / (2.0 * 5.3 * 5.3)));
+    });
+}
+
 /// The camera ray through the centre of pixel (x, y) (y from the top), as the shaders build it.
 inline glm::dvec3 pixel_ray(const render::Camera& c, int x, int y, int w, int h) {
     const glm::dvec3 fwd = glm::normalize(c.target - c.position);

@@ -535,10 +535,7 @@ TEST_CASE("host: a projection jittered by half a pixel moves the image by half a
     }
     // A smooth, optically thin Gaussian puff (sigma ~8 px) in the middle of the view, lit
     // uniformly: its centroid moves with the image.
-    const auto puff = test::make_grid({32, 32, 32}, 40.0, {-640.0, -640.0, 1360.0}, [](int i, int j, int k) {
-        const double dx = i - 15.5, dy = j - 15.5, dz = k - 15.5;
-        return float(std::exp(-(dx * dx + dy * dy + dz * dz) / (2.0 * 5.3 * 5.3)));
-    });
+    const auto puff = test::gaussian_puff({-640.0, -640.0, 1360.0});
     r.set_volume({.density = &puff, .extinction = 2e-4, .precision = render::DensityPrecision::F16});
     core::GridGeometry lg = puff.geom;
     lg.dims = {2, 2, 2};

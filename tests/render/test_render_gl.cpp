@@ -393,10 +393,7 @@ TEST_CASE("internal-scale upsampling does not shift the image") {
     // A smooth, optically thin Gaussian puff off the image centre, lit uniformly: its image is
     // smooth at every internal scale, so sampling does not move its centroid (a hard-edged
     // object would: its edges alias differently at each resolution).
-    const auto density = test::make_grid({32, 32, 32}, 40.0, {-60, -640, 1680}, [](int i, int j, int k) {
-        const double dx = i - 15.5, dy = j - 15.5, dz = k - 15.5;
-        return float(std::exp(-(dx * dx + dy * dy + dz * dz) / (2.0 * 5.3 * 5.3)));
-    });
+    const auto density = test::gaussian_puff({-60, -640, 1680});
     r.set_volume({.density = &density, .extinction = 2e-4, .precision = render::DensityPrecision::F16});
     core::GridGeometry lg = density.geom;
     lg.dims = {2, 2, 2};
