@@ -117,7 +117,7 @@ std::vector<Chunk> plan_chunks(const Plan& plan, const BakeOptions& options, con
 // The report's figures from the lights' totals; a bake that would render an unlit cloud is
 // refused (no file is written), naming the settings that made it so.
 void check_and_sum(const scene::Scene& s, const Totals& totals, std::uint32_t n, Report& rep) {
-    const std::string where = s.path.empty() ? std::string("scene") : s.path.string();
+    const std::string where = s.file_name();
     rep.lights_dropped = totals.dropped;
     rep.coefficients_kept = totals.kept;
     rep.unconverged = totals.unconverged;

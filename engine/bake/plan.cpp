@@ -163,7 +163,6 @@ void estimate_from_samples(const scene::Scene& s, const solve::Media& media, Pla
     constexpr double kSampleBudgetSeconds = 60.0;
     const basis::VirtualLightGrid& g = p.lights;
     const double light_count = double(p.lights.count());
-    bool measured = false;  // the single scattering's measured cost is the light's cost
     // The single scattering's quadrature refines by the tolerance and g (at 1e-9 and g 0.9 a
     // voxel near the light takes thousands of sub-boxes), which no grid-size bound sees: it
     // is measured on a sample of the central light's voxels, at most 2 s (within 0.84-1.49x
@@ -175,7 +174,7 @@ void estimate_from_samples(const scene::Scene& s, const solve::Media& media, Pla
             media.transport, centre, p.output_directions, solve::single_scattering_options(s), 2.0);
         if (ss.seconds > p.cost.seconds_per_light) {
             p.cost.seconds_per_light = ss.seconds;
-            measured = p.single_measured = true;
+            p.single_measured = true;
             p.cost.seconds = ss.seconds * light_count / double(std::min(std::size_t(p.threads), p.lights.count()));
         }
         if (ss.seconds > 0.25 * kSampleBudgetSeconds || !ss.complete)
@@ -185,7 +184,7 @@ void estimate_from_samples(const scene::Scene& s, const solve::Media& media, Pla
                                 std::to_string(ss.measured) + " of the central light's " + std::to_string(ss.voxels) +
                                 " voxels)");
         if (p.cost.seconds > s.limits.bake_seconds)
-            throw core::Error((s.path.empty() ? std::string("scene") : s.path.string()) + ": limits.bake_hours",
+            throw core::Error(s.file_name() + ": limits.bake_hours",
                               "the bake would take about " + core::format_seconds(p.cost.seconds) + " (" +
                                   std::to_string(p.lights.count()) + " light(s) x " + core::format_seconds(ss.seconds) +
                                   " of single scattering at tolerance " +
@@ -202,7 +201,7 @@ void estimate_from_samples(const scene::Scene& s, const solve::Media& media, Pla
         p.sample_lights = 0;
         p.expected_seconds = p.cost.seconds;
         p.reasons.push_back("no sample light solved: one light's " +
-                            std::string(measured ? "measured cost, " : "lower bound, ") +
+                            std::string(p.single_measured ? "measured cost, " : "lower bound, ") +
                             core::format_seconds(p.cost.seconds_per_light) + ", is over the " +
                             core::format_seconds(kSampleBudgetSeconds) +
                             " the plan may spend on samples; the expected time is from it");
@@ -244,7 +243,7 @@ void estimate_from_samples(const scene::Scene& s, const solve::Media& media, Pla
     p.expected_seconds = seconds / ns * light_count / double(p.threads);
     p.expected_bytes = std::uint64_t(block_bytes / ns * light_count);
     if (p.expected_seconds > s.limits.bake_seconds)
-        throw core::Error((s.path.empty() ? std::string("scene") : s.path.string()) + ": limits.bake_hours",
+        throw core::Error(s.file_name() + ": limits.bake_hours",
                           "the bake would take about " + core::format_seconds(p.expected_seconds) + " (from " +
                               std::to_string(samples.size()) + " sample light(s)), over the limit of " +
                               core::format_seconds(s.limits.bake_seconds) +

@@ -109,7 +109,7 @@ double memory_limit(const Scene& s) {
 }
 
 void check_cost(const Scene& s, const Cost& c) {
-    const std::string file = s.path.empty() ? std::string("scene") : s.path.string();
+    const std::string file = s.file_name();
     auto dims = [](core::Int3 d) {
         return std::to_string(d.x) + " x " + std::to_string(d.y) + " x " + std::to_string(d.z);
     };

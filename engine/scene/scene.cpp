@@ -560,7 +560,7 @@ auto vdb_cloud_errors(const Scene& s, F&& f) {
     try {
         return f();
     } catch (const core::Error& e) {
-        const std::string scene_file = s.path.empty() ? std::string("scene") : s.path.string();
+        const std::string scene_file = s.file_name();
         // Errors about the grid the scene names (missing, not float, empty, its transform or
         // values) are the "grid" field's; the others (file missing or not a VDB) the "vdb" field's.
         const std::string named = s.cloud.file.string() + ": grid \"" + s.cloud.vdb.grid + "\"";
@@ -586,7 +586,7 @@ void check_ground_fits(const Scene& s, const core::GridGeometry& density) {
     const lightning::BoltParams& b = s.lightning.bolt;
     const double top = density.upper().z;
     if (!(b.ground_height + b.segment_length_mean < top))
-        throw core::Error((s.path.empty() ? std::string("scene") : s.path.string()) + ": /lightning/ground_height",
+        throw core::Error(s.file_name() + ": /lightning/ground_height",
                           core::format_number(b.ground_height, 8) + " m: the ground must lie more than a segment (" +
                               core::format_number(b.segment_length_mean, 8) +
                               " m) below the top of the cloud's grid (z = " + core::format_number(top, 8) + " m)");

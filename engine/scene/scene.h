@@ -239,6 +239,8 @@ struct Limits {
 
 struct Scene {
     std::filesystem::path path;  ///< the scene file ("" when parsed from memory)
+    /// The scene file as messages name it: its path, or "scene" when parsed from memory.
+    std::string file_name() const { return path.empty() ? std::string("scene") : path.string(); }
     std::string name;
     transport::Medium medium;
     CloudSource cloud;

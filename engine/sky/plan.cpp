@@ -16,7 +16,7 @@ std::string angles(const glm::dvec3& direction) {
 }  // namespace
 
 ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, const bake::PlanOptions& options) {
-    const std::string file = s.path.empty() ? std::string("scene") : s.path.string();
+    const std::string file = s.file_name();
     const scene::Effects& e = s.effects;
     const bool lightning = e.lightning, sun = e.sun && s.sun, sky = e.sky && s.sky;
     if (!lightning && !sun && !sky)
