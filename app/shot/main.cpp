@@ -287,12 +287,7 @@ void write_frame_blender(view::StormView& view, const render::Camera& cam, doubl
         throw core::Error("--blender",
                           "Cycles renders all orders of scattering: turn both single and multiple off "
                           "(no flash light in the cloud) or neither");
-    if (view.has_lightning() && opt.components.single) {
-        runtime::ReconstructOptions ro;
-        ro.components = opt.components;
-        ro.wait_for_strikes = true;
-        lit = view.pipeline().build(t, {}, ro).segments;
-    }
+    if (view.has_lightning() && opt.components.single) view.pipeline().storm().lit(t, lit);
     app::BlenderExport e;
     e.scene = view.scene().name + " (" + a.scene.string() + ")";
     e.frame = frame_label(view, t, a);

@@ -29,12 +29,13 @@ struct LinearFrame {
     int width = 0, height = 0;
     std::vector<float> radiance;     ///< the whole frame, RGB
     std::vector<LinearPass> passes;  ///< kLinearPasses (when asked for)
-    std::vector<float>
-        transmittance;  ///< the cloud's transmittance along each pixel's ray, one value per pixel (with the passes)
+    /// The cloud's transmittance along each pixel's ray, one value per pixel (with the passes).
+    std::vector<float> transmittance;
 };
 
 /// Renders the frame at t like StormView::render and reads its radiance; the bound framebuffer
-/// is drawn into (with the passes it holds the last of them afterwards). The eye's glare is left out: it is a display effect, not radiance. With `passes`
+/// is drawn into (with the passes it holds the last of them afterwards). The eye's glare is left
+/// out: it is a display effect, not radiance. With `passes`
 /// each term is re-composited from the same frame (same density, S, channel and ray-march
 /// jitter) with only that term on, so the passes sum to `radiance` up to float rounding, and
 /// the transmittance is the frame seen against a uniform unit sky with no light.

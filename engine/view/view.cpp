@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <span>
 
 namespace fulgur::view {
 
@@ -287,11 +288,32 @@ double StormView::reconstruction_error(const transport::SourceField& reference) 
     return e.value();
 }
 
+namespace {
+
+// What the renderer draws of the lit stretches: each with its intensity and the drawn radius.
+render::LitChannel lit_channel(std::span<const lightning::LitSegment> lit, double radius) {
+    render::LitChannel bolt;
+    bolt.segments.reserve(lit.size());
+    for (const lightning::LitSegment& s : lit)
+        bolt.segments.push_back({glm::vec3(s.a), glm::vec3(s.b), float(s.intensity), float(radius)});
+    return bolt;
+}
+
+}  // namespace
+
 FrameReport StormView::render(const render::Camera& camera, double t, int width, int height, const ViewOptions& options,
                               const transport::SourceField* source) {
     using clock = std::chrono::steady_clock;
     const auto t0 = clock::now();
     FrameReport rep;
+    upload_frame(camera, t, options, source, rep);
+    rep.gpu = renderer_->render(camera, frame_settings(options), width, height);
+    rep.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - t0).count();
+    return rep;
+}
+
+void StormView::upload_frame(const render::Camera& camera, double t, const ViewOptions& options,
+                             const transport::SourceField* source, FrameReport& rep) {
     if (pipeline_) {
         render_lightning(camera, t, options, source, rep);
     } else {
@@ -300,10 +322,6 @@ FrameReport StormView::render(const render::Camera& camera, double t, int width,
         renderer_->clear_source();
     }
     update_static_light(options);
-    const render::Settings st = frame_settings(options);
-    rep.gpu = renderer_->render(camera, st, width, height);
-    rep.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - t0).count();
-    return rep;
 }
 
 FrameReport StormView::render_into_host(const render::HostFrame& host, double t, int width, int height,
@@ -313,13 +331,7 @@ FrameReport StormView::render_into_host(const render::HostFrame& host, double t,
     const render::Camera camera =
         render::camera_from_matrices(host.view, host.projection, double(width) / double(height));
     FrameReport rep;
-    if (pipeline_) {
-        render_lightning(camera, t, options, nullptr, rep);
-    } else {
-        renderer_->set_channel({});
-        renderer_->clear_source();
-    }
-    update_static_light(options);
+    upload_frame(camera, t, options, nullptr, rep);
     rep.gpu = renderer_->render_into_host(host, frame_settings(options), width, height);
     rep.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - t0).count();
     return rep;
@@ -329,10 +341,7 @@ std::vector<render::Renderer::FlashLight> StormView::flash_lights(double t, int 
     if (!pipeline_) return {};
     std::vector<lightning::LitSegment> lit;
     pipeline_->storm().lit(t, lit);
-    render::LitChannel bolt;
-    for (const lightning::LitSegment& s : lit)
-        bolt.segments.push_back({glm::vec3(s.a), glm::vec3(s.b), float(s.intensity), float(options.bolt_radius)});
-    renderer_->set_channel(bolt);
+    renderer_->set_channel(lit_channel(lit, options.bolt_radius));
     return renderer_->flash_lights(k, scene_.lightning.bolt.ground_height);
 }
 
@@ -367,11 +376,7 @@ void StormView::render_lightning(const render::Camera& camera, double t, const V
     rep.stages = f.times;
     rep.lit = f.lit;
 
-    render::LitChannel bolt;
-    bolt.segments.reserve(f.segments.size());
-    for (const lightning::LitSegment& s : f.segments)
-        bolt.segments.push_back({glm::vec3(s.a), glm::vec3(s.b), float(s.intensity), float(options.bolt_radius)});
-    renderer_->set_channel(bolt);
+    renderer_->set_channel(lit_channel(f.segments, options.bolt_radius));
     if (source) {
         check_field(*source, "StormView::render");
         render::SourceUpload up;

@@ -211,6 +211,9 @@ private:
     void update_static_light(const ViewOptions& options);                        // uploads what changed
     void render_lightning(const render::Camera& camera, double t, const ViewOptions& options,
                           const transport::SourceField* source, FrameReport& rep);
+    /// The frame at t into the renderer: its lightning (or none) and the static light.
+    void upload_frame(const render::Camera& camera, double t, const ViewOptions& options,
+                      const transport::SourceField* source, FrameReport& rep);
     scene::Scene scene_;
     core::Grid3<float> density_;
     sky::ScenePlan plan_;
