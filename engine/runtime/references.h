@@ -42,6 +42,9 @@ struct Truth {
     transport::SourceField multiple;  ///< orders >= 2 (zero when not tallied)
     /// Relative L2 noise over the cloud voxels (transport::MonteCarloResult::Noise).
     transport::MonteCarloResult::Noise noise;
+    /// The whole-cloud totals of single and multiple with their standard errors
+    /// (transport::MonteCarloResult::CloudSums): the noise of a ratio of totals.
+    transport::MonteCarloResult::CloudSums sums;
     std::uint64_t paths = 0;
     double seconds = 0.0;
     /// The components asked for, summed (a field like direct_solve's).

@@ -39,6 +39,7 @@ Truth truth(const scene::Scene& scene, const core::Grid3<float>& density, std::s
     t.single = std::move(r.single);
     t.multiple = std::move(r.multiple);
     t.noise = r.noise;
+    t.sums = r.sums;
     t.paths = r.paths;
     t.seconds = r.seconds;
     return t;

@@ -409,9 +409,9 @@ TEST_CASE("accuracy: basis method against the direct solve on a tiny scene") {
         // The whole method on this deliberately coarse scene (virtual lights 4 km apart, 2 km
         // lighting voxels, bolts ~1 km from the nearest light): measured 0.94, all of it from
         // the splat (eVD); S there is dominated by the single scattering in the voxels next to
-        // the channel, which no 4 km light grid can place. Pinned just above the measurement
-        // so that a change of the splat or of the sources' spacing is noticed.
-        CHECK(eRD < 0.97);
-        CHECK(std::fabs(eRD - eVD) < 0.015);  // the splat is the whole difference (same bound as eRV)
+        // the channel, which no 4 km light grid can place. The splat's error itself is bounded
+        // against the truth, per part, in test_truth and test_truth_storm (the paper preset);
+        // here: it is the whole difference (same bound as eRV).
+        CHECK(std::fabs(eRD - eVD) < 0.015);
     }
 }

@@ -2,7 +2,8 @@
 // full-resolution density), on the tiny anisotropic test scene with a refined transport grid
 // (truth_scene.h): a virtual light's bases and a frame of each quality preset for two strikes, per
 // component, with bounds from each one's measured error and the truth's noise, tight enough that
-// a 5% error in either component fails. Also: a strike whose solve
+// a 5% error in either component fails (test_truth_storm: the same presets on the default storm
+// cut small). Also: a strike whose solve
 // is not ready is shown by the bases, never by another strike's light.
 #include "runtime/runtime.h"
 
@@ -65,74 +66,24 @@ TEST_CASE("truth: a virtual light's bases against the truth, per component") {
 }
 
 TEST_CASE("truth: a frame of each preset against the truth, per component, two strikes") {
-    const test::TruthScene& s = test::truth_scene("truth_refine4");
-    const std::vector<float>& rho = s.media.lighting.density.data;
-    runtime::TruthOptions to;
-    to.paths = 1'000'000;  // noise 0.3% single, 0.7% multiple (relative L2, printed), ~4 s
     // Each preset's own error, measured (4 km virtual lights on 2 km lighting voxels, so the
     // splat dominates the paper frame and the hybrid's multiple part; per_strike is the lattice
-    // with order 2 exact; per_strike_mc 50k paths): relative L2 and sum ratio of single and
-    // multiple scattering against the truth. Every preset is deterministic per seed; what
-    // moves these figures when the code changes without changing the physics is the noise
-    // of the truth (and of the per-strike Monte Carlo), so the bounds are these figures plus
-    // k times that noise:
-    //  - relative L2 <= measured + 4 x the truth's L2 noise of that part (+ 0.01 for the
-    //    per-strike Monte Carlo's own noise: 50k paths, ~1% L2 on these voxels);
-    //  - sum ratio within measured +- 4 x the truth's L2 noise of the part (a bound on the sum's
-    //    noise, which averages over the voxels), +- 0.005 for the per-strike Monte Carlo.
-    // So the ratio bands are +-1.2-1.4% (single) and +-2.9% (multiple; measured: the ratios
-    // moved by 0.2-0.5% between truths of 200k and 1M paths): a 5% error in either part of any
-    // preset moves its ratio by 3.9-5% (5% of 0.78-1.00) and fails.
-    struct Measured {
-        std::uint64_t seed;
-        scene::Quality::Preset preset;
-        double single_l2, single_ratio, multiple_l2, multiple_ratio;
-    };
+    // with order 2 exact; per_strike_mc 50k paths, ~1% L2 of its own on these voxels): relative
+    // L2 and ratio of totals of single and multiple scattering against the truth (1M paths: L2
+    // noise 0.3% single, 0.7% multiple; the totals' SE 0.06-0.08% and 0.18%). The ratio bands
+    // (test::check_presets_against_truth: 4 SE of the truth's totals) are +-0.25% (single) and
+    // +-0.74% (multiple): a 5% error in either part of any preset moves its ratio by 3.9-5% (5%
+    // of 0.78-1.00) and fails.
     using P = scene::Quality::Preset;
-    const std::vector<Measured> measured = {
-        {5, P::Paper, 0.7259, 0.7826, 0.5488, 0.8287},      {5, P::Hybrid, 0.0100, 1.0017, 0.5488, 0.8287},
-        {5, P::PerStrike, 0.0100, 1.0017, 0.1289, 0.9402},  {5, P::PerStrikeMc, 0.0128, 1.0029, 0.0289, 0.9951},
-        {11, P::Paper, 0.4848, 0.8605, 0.5181, 0.8023},     {11, P::Hybrid, 0.0097, 1.0018, 0.5181, 0.8023},
-        {11, P::PerStrike, 0.0097, 1.0018, 0.1342, 0.9475}, {11, P::PerStrikeMc, 0.0129, 1.0031, 0.0283, 1.0016}};
-    std::uint64_t truth_seed = 0;
-    std::optional<runtime::Truth> truth;
-    for (const Measured& m : measured) {
-        CAPTURE(m.seed);
-        CAPTURE(scene::to_string(m.preset));
-        scene::Quality q = scene::quality_preset(scene::to_string(m.preset));
-        if (m.preset != P::PerStrikeMc) q.single_paths = 100'000;  // noise ~1% on the 2 km lighting voxels
-        runtime::FramePipeline p(s.scene, s.density, *s.bases, {}, q);
-        const double t = peak_time(p, m.seed);
-        runtime::ReconstructOptions o;
-        o.wait_for_strikes = true;
-        o.components = {true, false};
-        const std::vector<float> single = flat(p.build(t, {}, o).radiance);
-        o.components = {false, true};
-        const runtime::Frame& f = p.build(t, {}, o);
-        REQUIRE(f.lit);
-        CHECK(f.strikes_fallback == 0);
-        const std::vector<float> multiple = flat(f.radiance);
-        if (truth_seed != m.seed) {
-            truth = runtime::truth(s.scene, s.density, f.segments, {}, to);
-            truth_seed = m.seed;
-            MESSAGE("strike " << m.seed << ": truth noise single " << truth->noise.single << ", multiple "
-                              << truth->noise.multiple);
-        }
-        const test::FieldError e1 = compare_fields(single, truth->single.data, rho),
-                               e2 = compare_fields(multiple, truth->multiple.data, rho);
-        MESSAGE("strike " << m.seed << ", " << scene::to_string(m.preset) << ": single " << e1.l2 << " (ratio "
-                          << e1.ratio << "), multiple " << e2.l2 << " (ratio " << e2.ratio << ")");
-        const double own = m.preset == P::PerStrikeMc ? 1.0 : 0.0;  // the per-strike Monte Carlo's noise
-        const double n1 = 4.0 * truth->noise.single, n2 = 4.0 * truth->noise.multiple;
-        CHECK(e1.l2 <= m.single_l2 + n1 + 0.01 * own);
-        CHECK(e2.l2 <= m.multiple_l2 + n2 + 0.01 * own);
-        CHECK(std::fabs(e1.ratio - m.single_ratio) <= n1 + 0.005 * own);
-        CHECK(std::fabs(e2.ratio - m.multiple_ratio) <= n2 + 0.005 * own);
-        // No NaN or Inf; negative S only from the lattice's over-relaxed sites, at most 0.5% of
-        // the field's maximum (docs/lattice-boltzmann.md "Negative values": 0.4% on the storm).
-        const test::ValueRange r = test::finite_range({&single, &multiple});
-        CHECK(r.lo >= -0.005f * r.hi);
-    }
+    test::check_presets_against_truth(test::truth_scene("truth_refine4"),
+                                      {{5, P::Paper, 0.7259, 0.7826, 0.5488, 0.8287},
+                                       {5, P::Hybrid, 0.0100, 1.0017, 0.5488, 0.8287},
+                                       {5, P::PerStrike, 0.0100, 1.0017, 0.1289, 0.9402},
+                                       {5, P::PerStrikeMc, 0.0128, 1.0029, 0.0289, 0.9951},
+                                       {11, P::Paper, 0.4848, 0.8605, 0.5181, 0.8023},
+                                       {11, P::Hybrid, 0.0097, 1.0018, 0.5181, 0.8023},
+                                       {11, P::PerStrike, 0.0097, 1.0018, 0.1342, 0.9475},
+                                       {11, P::PerStrikeMc, 0.0129, 1.0031, 0.0283, 1.0016}});
 }
 
 TEST_CASE("truth: a strike whose solve is not ready is shown by the bases, never by another strike's light") {

@@ -1,6 +1,8 @@
-// The tiny anisotropic test scene with a refined transport grid (transport.refine 4: the
-// solvers run on the density grid itself, 500 m, hop optical depth <= 2), baked once per test
-// program, and what the tests against the truth compare with.
+// Scenes baked once per test program for the tests against the truth, and what those tests
+// compare with: the tiny anisotropic test scene with a refined transport grid
+// (transport.refine 4: the solvers run on the density grid itself, 500 m, hop optical depth
+// <= 2) and the default storm cut small (its central tower on 375 m voxels, its virtual lights,
+// lighting voxels and lightning).
 #pragma once
 
 #include "runtime/runtime.h"
@@ -14,7 +16,9 @@
 #include <cmath>
 #include <functional>
 #include <initializer_list>
+#include <map>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -29,15 +33,18 @@ struct TruthScene {
     std::unique_ptr<runtime::BakedBases> bases;
 };
 
-/// The scene, baked on first use into `scratch` (a folder of the calling test program's own:
-/// test programs run in parallel, and two bakes into one folder would collide). A bake that
-/// throws leaves nothing half-built behind: the next call tries again.
-inline const TruthScene& truth_scene(const std::string& scratch) {
-    static std::unique_ptr<TruthScene> cached;
+/// The scene file `json` (under the source tree), with `edit` applied, baked on first use into
+/// `scratch` (a folder of the calling test program's own: test programs run in parallel, and
+/// two bakes into one folder would collide). A bake that throws leaves nothing half-built
+/// behind: the next call tries again.
+inline const TruthScene& baked_scene(const std::string& json, const std::string& scratch,
+                                     const std::function<void(scene::Scene&)>& edit = {}) {
+    static std::map<std::string, std::unique_ptr<TruthScene>> cache;
+    std::unique_ptr<TruthScene>& cached = cache[scratch];
     if (!cached) {
         auto s = std::make_unique<TruthScene>();
-        s->scene = scene::load_scene(source_dir() / "tests/apps/scenes/test_aniso_ms_cg.json");
-        s->scene.transport.refine = 4;
+        s->scene = scene::load_scene(source_dir() / json);
+        if (edit) edit(s->scene);
         s->density = scene::make_density(s->scene);
         s->media = solve::make_media(s->scene, s->density);
         bake::PlanOptions po;
@@ -50,6 +57,19 @@ inline const TruthScene& truth_scene(const std::string& scratch) {
         cached = std::move(s);
     }
     return *cached;
+}
+
+/// The tiny anisotropic scene with transport.refine 4 (~1 s to bake).
+inline const TruthScene& truth_scene(const std::string& scratch) {
+    return baked_scene("tests/apps/scenes/test_aniso_ms_cg.json", scratch,
+                       [](scene::Scene& s) { s.transport.refine = 4; });
+}
+
+/// The default storm cut small (tests/apps/scenes/test_storm_small.json; ~25 s to bake on 2
+/// cores): the storm's medium, lightning, 1500 m virtual lights and 750 m lighting voxels, on
+/// its central tower alone at 375 m voxels, without the moon and the sky.
+inline const TruthScene& storm_small_scene(const std::string& scratch) {
+    return baked_scene("tests/apps/scenes/test_storm_small.json", scratch);
 }
 
 /// Relative L2 of x against ref and the ratio of their sums, over cloud voxels (lighting-grid
@@ -97,6 +117,83 @@ inline ValueRange finite_range(std::initializer_list<const std::vector<float>*> 
             r.hi = std::max(r.hi, x);
         }
     return r;
+}
+
+/// A quality preset's measured error on one strike against the truth: relative L2 and sum
+/// ratio of the single and the multiple part over the cloud.
+struct PresetFigures {
+    std::uint64_t seed;
+    scene::Quality::Preset preset;
+    double single_l2, single_ratio, multiple_l2, multiple_ratio;
+};
+
+/// How check_presets_against_truth runs and what noise it allows besides the truth's own.
+struct PresetCheck {
+    std::uint64_t truth_paths = 1'000'000;
+    /// Presets other than per_strike_mc: their per-strike single-scattering paths (hybrid and
+    /// per_strike), fewer than the preset's default to keep the test short.
+    std::uint64_t single_paths = 100'000;
+    /// per_strike_mc: its own Monte Carlo noise on the relative L2 and on the sum ratios.
+    double mc_l2 = 0.01, mc_ratio = 0.005;
+};
+
+/// Each row's preset on its strike (at its first return stroke + 2 ms, the solve waited for),
+/// single and multiple part apart, against runtime::truth of the same frame. Every preset is
+/// deterministic per seed, so what moves the figures while the physics stays is the truth's
+/// noise (and the per-strike Monte Carlo's own). Each part's relative L2 must be at most the
+/// measured figure + 4 x the truth's L2 noise of that part; its ratio of whole-cloud totals
+/// within the measured ratio +- 4 standard errors of the truth's total (Truth::sums: ~0.1-0.3%,
+/// where the L2 noise is 0.5-1%), so a part 5% off fails on its ratio whatever its L2 error.
+/// per_strike_mc adds its own noise (`c.mc_*`). Also: no NaN or Inf, and negative S (the
+/// lattice's over-relaxed sites) at most 0.5% of the field's maximum.
+inline void check_presets_against_truth(const TruthScene& s, const std::vector<PresetFigures>& measured,
+                                        const PresetCheck& c = {}) {
+    using P = scene::Quality::Preset;
+    const std::vector<float>& rho = s.media.lighting.density.data;
+    runtime::TruthOptions to;
+    to.paths = c.truth_paths;
+    std::uint64_t truth_seed = 0;
+    std::optional<runtime::Truth> truth;
+    for (const PresetFigures& m : measured) {
+        CAPTURE(m.seed);
+        CAPTURE(scene::to_string(m.preset));
+        scene::Quality q = scene::quality_preset(scene::to_string(m.preset));
+        if (m.preset != P::PerStrikeMc) q.single_paths = c.single_paths;
+        runtime::FramePipeline p(s.scene, s.density, *s.bases, {}, q);
+        const double t = peak_time(p, m.seed);
+        runtime::ReconstructOptions o;
+        o.wait_for_strikes = true;
+        o.components = {true, false};
+        const std::vector<float> single = flat(p.build(t, {}, o).radiance);
+        o.components = {false, true};
+        const runtime::Frame& f = p.build(t, {}, o);
+        REQUIRE(f.lit);
+        CHECK(f.strikes_fallback == 0);
+        const std::vector<float> multiple = flat(f.radiance);
+        if (truth_seed != m.seed) {
+            truth = runtime::truth(s.scene, s.density, f.segments, {}, to);
+            truth_seed = m.seed;
+            MESSAGE("strike " << m.seed << ": truth noise single " << truth->noise.single << ", multiple "
+                              << truth->noise.multiple << "; totals' SE "
+                              << truth->sums.single.se / truth->sums.single.mean << ", "
+                              << truth->sums.multiple.se / truth->sums.multiple.mean << " (" << truth->seconds
+                              << " s)");
+        }
+        const FieldError e1 = compare_fields(single, truth->single.data, rho),
+                         e2 = compare_fields(multiple, truth->multiple.data, rho);
+        MESSAGE("strike " << m.seed << ", " << scene::to_string(m.preset) << ": single " << e1.l2 << " (ratio "
+                          << e1.ratio << "), multiple " << e2.l2 << " (ratio " << e2.ratio << ")");
+        const double own = m.preset == P::PerStrikeMc ? 1.0 : 0.0;
+        const double n1 = 4.0 * truth->noise.single, n2 = 4.0 * truth->noise.multiple;
+        const double r1 = 4.0 * truth->sums.single.se / truth->sums.single.mean,
+                     r2 = 4.0 * truth->sums.multiple.se / truth->sums.multiple.mean;
+        CHECK(e1.l2 <= m.single_l2 + n1 + c.mc_l2 * own);
+        CHECK(e2.l2 <= m.multiple_l2 + n2 + c.mc_l2 * own);
+        CHECK(std::fabs(e1.ratio - m.single_ratio) <= m.single_ratio * r1 + c.mc_ratio * own);
+        CHECK(std::fabs(e2.ratio - m.multiple_ratio) <= m.multiple_ratio * r2 + c.mc_ratio * own);
+        const ValueRange r = finite_range({&single, &multiple});
+        CHECK(r.lo >= -0.005f * r.hi);
+    }
 }
 
 /// Two strikes 10 s apart (seeds 11, 12) under `q`, which must not solve them ahead: the first
