@@ -66,14 +66,12 @@ TEST_CASE("instant: the first lit frame is the bases' frame, the converged one t
 
     // Converged: the final estimate, per component, against the truth.
     p.instant_strikes()->set_paused(false);
+    const test::FrameParts parts = test::frame_parts(p, t);
+    const runtime::Frame& f = *parts.frame;
+    CHECK(f.strikes_solved == 1);
+    const std::vector<float>&single = parts.single, &multiple = parts.multiple;
     runtime::ReconstructOptions o;
     o.wait_for_strikes = true;
-    o.components = {true, false};
-    const std::vector<float> single = flat(p.build(t, {}, o).radiance);
-    o.components = {false, true};
-    const runtime::Frame& f = p.build(t, {}, o);
-    CHECK(f.strikes_solved == 1);
-    const std::vector<float> multiple = flat(f.radiance);
     o.components = {true, true};
     const std::vector<float> total = flat(p.build(t, {}, o).radiance);
     const auto est = p.instant_strikes()->get(5, p.storm().strike(0).time);
@@ -191,7 +189,13 @@ TEST_CASE("instant: a scene that does not simulate multiple scattering traces no
     const test::TruthScene& s = test::truth_scene("instant_refine4");
     scene::Scene single_only = s.scene;
     single_only.effects.multiple_scattering = false;
-    runtime::FramePipeline p(single_only, s.density, *s.bases, {}, instant_quality());
+    // Run to the path cap, as in the first case: where the solve stops at the preset's noise
+    // target depends on how many paths each round traced, i.e. on the machine's load, and the
+    // two halves' noise estimate at ~2% understates the error (measured 4.6-5.8% against 2.0%).
+    scene::Quality q = instant_quality();
+    q.target_noise = 1e-4;
+    q.single_paths = 100'000;
+    runtime::FramePipeline p(single_only, s.density, *s.bases, {}, q);
     const double t = peak_time(p, 5);
     runtime::ReconstructOptions o;
     o.wait_for_strikes = true;
@@ -202,8 +206,8 @@ TEST_CASE("instant: a scene that does not simulate multiple scattering traces no
     REQUIRE(est);
     CHECK(est->multiple_paths == 0);  // no path traced for a part the scene does not call for
     CHECK(est->light.noise.multiple == 0.0);
-    for (std::uint32_t q = 0; q < 2; ++q)
-        for (const float v : est->light.multiple[q].data) REQUIRE(v == 0.0f);
+    for (std::uint32_t h = 0; h < 2; ++h)
+        for (const float v : est->light.multiple[h].data) REQUIRE(v == 0.0f);
     // Its single scattering is the truth's (order 1 only), within 3.5% as in the first case.
     o.components = {true, false};
     const std::vector<float> single = flat(p.build(t, {}, o).radiance);
@@ -212,7 +216,8 @@ TEST_CASE("instant: a scene that does not simulate multiple scattering traces no
     to.multiple = false;
     const runtime::Truth truth = runtime::truth(s.scene, s.density, f.segments, {}, to);
     const test::FieldError e1 = compare_fields(single, truth.single.data, s.media.lighting.density.data);
-    MESSAGE("single scattering only: " << e1.l2 << " (ratio " << e1.ratio << "), noise " << est->light.noise.single);
+    MESSAGE("single scattering only: " << e1.l2 << " (ratio " << e1.ratio << "), noise " << est->light.noise.single
+                                       << ", " << est->single_paths << " paths");
     CHECK(e1.l2 < 0.035);
     CHECK(std::fabs(e1.ratio - 1.0) < 0.03);
 }

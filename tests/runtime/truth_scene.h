@@ -104,6 +104,24 @@ inline std::vector<float> flat(const runtime::RadianceField& r) {
     return v;
 }
 
+/// The frame at time t with its strikes' solves waited for, single and multiple scattering
+/// built apart; `frame` is the pipeline's last frame (the multiple part's: segments, counts).
+struct FrameParts {
+    std::vector<float> single, multiple;
+    const runtime::Frame* frame = nullptr;
+};
+inline FrameParts frame_parts(runtime::FramePipeline& p, double t) {
+    runtime::ReconstructOptions o;
+    o.wait_for_strikes = true;
+    o.components = {true, false};
+    FrameParts out;
+    out.single = flat(p.build(t, {}, o).radiance);
+    o.components = {false, true};
+    out.frame = &p.build(t, {}, o);
+    out.multiple = flat(out.frame->radiance);
+    return out;
+}
+
 /// The smallest (<= 0) and largest (>= 0) value of the fields; each value must be finite.
 struct ValueRange {
     float lo = 0.0f, hi = 0.0f;
@@ -161,15 +179,11 @@ inline void check_presets_against_truth(const TruthScene& s, const std::vector<P
         if (m.preset != P::PerStrikeMc) q.single_paths = c.single_paths;
         runtime::FramePipeline p(s.scene, s.density, *s.bases, {}, q);
         const double t = peak_time(p, m.seed);
-        runtime::ReconstructOptions o;
-        o.wait_for_strikes = true;
-        o.components = {true, false};
-        const std::vector<float> single = flat(p.build(t, {}, o).radiance);
-        o.components = {false, true};
-        const runtime::Frame& f = p.build(t, {}, o);
+        const FrameParts parts = frame_parts(p, t);
+        const runtime::Frame& f = *parts.frame;
         REQUIRE(f.lit);
         CHECK(f.strikes_fallback == 0);
-        const std::vector<float> multiple = flat(f.radiance);
+        const std::vector<float>&single = parts.single, &multiple = parts.multiple;
         if (truth_seed != m.seed) {
             truth = runtime::truth(s.scene, s.density, f.segments, {}, to);
             truth_seed = m.seed;
