@@ -1,8 +1,9 @@
-// Each quality preset against the truth on the default storm cut small (truth_scene.h): the
-// storm's medium (albedo 0.99, g 0.6), its 1500 m virtual lights, 750 m lighting voxels and
-// lightning, on its central tower at 375 m voxels. The tiny scene (test_truth) has 4 km
-// virtual lights on 2 km lighting voxels; here the splat, the lattice and the per-strike
-// Monte Carlo work at the default storm's own scales, on two strikes.
+// Each quality preset (instant: its converged estimate) against the truth on the default
+// storm cut small (truth_scene.h): the storm's medium (albedo 0.99, g 0.6), its 1500 m virtual
+// lights, 750 m lighting voxels and lightning, on its central tower at 375 m voxels. The tiny
+// scene (test_truth) has 4 km virtual lights on 2 km lighting voxels; here the splat, the
+// lattice and the per-strike Monte Carlo work at the default storm's own scales, on two
+// strikes.
 #include "runtime/runtime.h"
 
 #include "truth_scene.h"
@@ -18,7 +19,8 @@ TEST_CASE("truth, storm cut small: a frame of each preset against the truth, per
     // splat onto 1500 m virtual lights, ratio 0.91-1.21) and its multiple 60-67% (ratio
     // 0.59-0.62); hybrid's single is exact scattering of the channel up to the 750 m lighting
     // voxels (1.9-3.1%); per_strike's multiple is the lattice with order 2 exact (10-11%,
-    // ratio 0.94-0.96); per_strike_mc (50k paths) is within its own noise (2.5-4%). The ratio
+    // ratio 0.94-0.96); per_strike_mc (50k paths) is within its own noise (2.5-4%), and so is
+    // instant traced to 100k + 400k paths (0.7-1.4%, ratios within 0.08% of 1). The ratio
     // bands are +-0.2-0.4% (4 SE of the truth's totals): a part 5% off moves its ratio by
     // 2.9-6% (5% of 0.59-1.21) and fails (test::check_presets_against_truth).
     using P = scene::Quality::Preset;
@@ -27,8 +29,10 @@ TEST_CASE("truth, storm cut small: a frame of each preset against the truth, per
                                        {5, P::Hybrid, 0.0307, 1.0001, 0.5970, 0.6201},
                                        {5, P::PerStrike, 0.0307, 1.0001, 0.1018, 0.9402},
                                        {5, P::PerStrikeMc, 0.0398, 0.9994, 0.0382, 0.9986},
+                                       {5, P::Instant, 0.0114, 0.9998, 0.0141, 1.0004},
                                        {11, P::Paper, 1.0759, 0.9148, 0.6673, 0.5887},
                                        {11, P::Hybrid, 0.0185, 1.0012, 0.6673, 0.5887},
                                        {11, P::PerStrike, 0.0185, 1.0012, 0.1095, 0.9557},
-                                       {11, P::PerStrikeMc, 0.0246, 1.0017, 0.0290, 1.0032}});
+                                       {11, P::PerStrikeMc, 0.0246, 1.0017, 0.0290, 1.0032},
+                                       {11, P::Instant, 0.0067, 1.0004, 0.0120, 0.9992}});
 }
