@@ -159,9 +159,10 @@ struct PresetCheck {
 };
 
 /// Each row's preset on its strike (at its first return stroke + 2 ms, the solve waited for),
-/// single and multiple part apart, against runtime::truth of the same frame. Every preset is
-/// deterministic per seed, so what moves the figures while the physics stays is the truth's
-/// noise (and the per-strike Monte Carlo's own). Each part's relative L2 must be at most the
+/// single and multiple part apart, against runtime::truth of the same frame. Every preset but
+/// instant is deterministic per seed (instant's rounds split paths between threads as they
+/// run: its figures move in the 4th digit), so what moves the figures while the physics stays
+/// is the truth's noise and the per-strike Monte Carlo's own. Each part's relative L2 must be at most the
 /// measured figure + 4 x the truth's L2 noise of that part; its ratio of whole-cloud totals
 /// within the measured ratio +- 4 standard errors of the truth's total (Truth::sums: ~0.1-0.3%,
 /// where the L2 noise is 0.5-1%), so a part 5% off fails on its ratio whatever its L2 error.
