@@ -9,6 +9,7 @@
 #include "core/core.h"
 #include "sky/sky.h"
 
+#include <algorithm>
 #include <filesystem>
 
 using namespace fulgur;
@@ -67,5 +68,41 @@ FULGUR_BENCH(sun, "sun re-solve on the default storm at three elevations (time o
                              {"preview_seconds", preview_s},
                              {"preview_to_refined_change", step.value()}});
         }
+    }
+}
+
+// The static light's truth (test_sky_storm, fulgur-study static-frontier): Monte Carlo of the
+// sun from the grid's boundary through the full-resolution density, S tallied on the lighting
+// grid. Its cost is the expected-value walks through the fine grid (a memory-bound loop: the
+// density and the per-direction tally rows are read per voxel), so the memory bandwidth of the
+// same run is its baseline.
+FULGUR_BENCH(sun_truth, "Monte Carlo of the sun through the default storm's full-resolution density, paths/s") {
+    const scene::Scene s = scene::load_scene(std::filesystem::path(FULGUR_SOURCE_ROOT) / "content/scenes/storm.json");
+    const core::Grid3<float> density = scene::make_density(s);
+    const solve::Media lighting = sky::static_media(s, density);
+    const solve::Media full = solve::make_media(s, density, 1, true);
+    const auto dirs = transport::output_directions(s.effective_directions());
+    const transport::DirectionalSource sun{scene::sun_direction(25.0, 30.0), 1.0};
+    const std::uint64_t paths = ctx.quick ? 50'000 : 400'000;
+    for (int t = 1; t <= std::min(2, ctx.max_threads); ++t) {
+        const core::ScopedThreadCount share(t);
+        ctx.emit("sun_truth", {{"baseline", "memory"}, {"threads", t}, {"triad_GBps", bench::measure_bandwidth(t)}});
+        transport::MonteCarloOptions mo;
+        mo.paths = paths;
+        mo.seed = 17;
+        mo.halves = true;
+        const double sec = bench::time_median(ctx.quick ? 1 : 3, [&] {
+            transport::monte_carlo(full.full, sun, lighting.lighting.density.geom, dirs, mo);
+        });
+        const core::GridGeometry& fg = full.full.density.geom;
+        const core::GridGeometry& lg = lighting.lighting.density.geom;
+        ctx.emit("sun_truth", {{"scene", "content/scenes/storm.json"},
+                               {"threads", t},
+                               {"density_grid", {fg.dims.x, fg.dims.y, fg.dims.z}},
+                               {"tally_grid", {lg.dims.x, lg.dims.y, lg.dims.z}},
+                               {"directions", dirs.size()},
+                               {"paths", paths},
+                               {"seconds", sec},
+                               {"paths_per_s", double(paths) / sec}});
     }
 }

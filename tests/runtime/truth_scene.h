@@ -34,9 +34,11 @@ struct TruthScene {
 };
 
 /// The scene file `json` (under the source tree), with `edit` applied, baked on first use into
-/// `scratch` (a folder of the calling test program's own: test programs run in parallel, and
-/// two bakes into one folder would collide). A bake that throws leaves nothing half-built
-/// behind: the next call tries again.
+/// the cache folder `scratch` (the calling test program's own: test programs run in parallel,
+/// and two bakes into one folder would collide). The folder is keyed by the engine's source
+/// (test::code_cache_dir) and the file by the scene (bake::up_to_date: its hash and header), so
+/// a run of the same build reuses the bake and a changed engine or scene bakes afresh. A bake
+/// that throws leaves nothing half-built behind: the next call tries again.
 inline const TruthScene& baked_scene(const std::string& json, const std::string& scratch,
                                      const std::function<void(scene::Scene&)>& edit = {}) {
     static std::map<std::string, std::unique_ptr<TruthScene>> cache;
@@ -50,8 +52,8 @@ inline const TruthScene& baked_scene(const std::string& json, const std::string&
         bake::PlanOptions po;
         po.estimate = false;
         s->plan = bake::make_plan(s->scene, s->density, po);
-        const std::filesystem::path fgb = scratch_dir(scratch) / "scene.fgb";
-        bake::bake(s->scene, s->density, s->plan, fgb);
+        const std::filesystem::path fgb = code_cache_dir(scratch) / "scene.fgb";
+        if (!bake::up_to_date(s->scene, s->density, fgb)) bake::bake(s->scene, s->density, s->plan, fgb);
         s->bases = std::make_unique<runtime::BakedBases>(
             runtime::BakedBases::load(fgb, bake::scene_key(s->scene, s->density)));
         cached = std::move(s);
