@@ -59,32 +59,42 @@ glm::dvec3 light_position(Shape shape) {
                                   : glm::dvec3(mid + 37.0, mid - 21.0, 0.25 * kFine * kH - 1200.0);
 }
 
-// solve::solve's multiple part at `refine` and the truth's, compared on the lighting grid.
-Result run(const Case& c, int refine) {
+// The truth of case c: Monte Carlo through the full-resolution medium, tallied on the
+// lighting grid (it does not depend on the transport grid's refinement, so each case traces it
+// once for both solves).
+transport::MonteCarloResult truth_of(const Case& c, const core::Grid3<float>& density, const transport::Medium& optics,
+                                     const core::GridGeometry& lighting, const std::vector<glm::dvec3>& dirs) {
+    transport::LightingMedium fine;
+    fine.density = density;
+    fine.optics = optics;
+    transport::MonteCarloOptions o;
+    o.paths = 60'000;
+    o.batches = 8;
+    o.seed = 17;
+    const transport::PointSource p{light_position(c.shape), 1.0};
+    return transport::monte_carlo(fine, std::span(&p, 1), {}, lighting, dirs, o);
+}
+
+scene::Scene case_scene(const Case& c, int refine) {
     scene::Scene s;
     s.medium = {c.tau / (kDown * kH), 0.99, 0.6};  // sigma_t at density 1: tau per lighting voxel
     s.lighting_downsample = kDown;
     s.transport.refine = refine;
-    const core::Grid3<float> density = shape_density(c.shape);
+    return s;
+}
+
+// solve::solve's multiple part at `refine` against the truth, compared on the lighting grid.
+Result run(const Case& c, int refine, const core::Grid3<float>& density, const transport::MonteCarloResult& truth,
+           const std::vector<glm::dvec3>& dirs) {
+    const scene::Scene s = case_scene(c, refine);
     solve::Media media;
     media.lighting.density = core::downsample(density, kDown);
     media.lighting.optics = s.medium;
     media.transport.density = core::downsample(density, kDown / refine);
     media.transport.optics = s.medium;
     media.refine = refine;
-    const std::vector<glm::dvec3> dirs = transport::output_directions(26);
     const transport::PointSource p{light_position(c.shape), 1.0};
     const solve::Solution sol = solve::solve(s, media, std::span(&p, 1), dirs);
-
-    transport::LightingMedium fine;
-    fine.density = density;
-    fine.optics = s.medium;
-    transport::MonteCarloOptions o;
-    o.paths = 60'000;
-    o.batches = 8;
-    o.seed = 17;
-    const transport::MonteCarloResult truth =
-        transport::monte_carlo(fine, std::span(&p, 1), {}, media.lighting.density.geom, dirs, o);
 
     Result r;
     core::RelativeL2 e;
@@ -130,7 +140,11 @@ TEST_CASE("refined transport grid: thick lighting voxels against the truth") {
         const std::string name = b.c.name();
         CAPTURE(name);
         CAPTURE(b.c.tau);
-        const Result coarse = run(b.c, 1), fine = run(b.c, 4);
+        const core::Grid3<float> density = shape_density(b.c.shape);
+        const std::vector<glm::dvec3> dirs = transport::output_directions(26);
+        const transport::MonteCarloResult truth =
+            truth_of(b.c, density, case_scene(b.c, 1).medium, core::downsample(density, kDown).geom, dirs);
+        const Result coarse = run(b.c, 1, density, truth, dirs), fine = run(b.c, 4, density, truth, dirs);
         MESSAGE(name << " tau " << b.c.tau << ": refine 1 " << coarse.l2 << " (ratio " << coarse.ratio << "), refine 4 "
                      << fine.l2 << " (ratio " << fine.ratio << "), most negative " << fine.most_negative);
         CHECK(fine.finite);
