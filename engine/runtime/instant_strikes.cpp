@@ -6,6 +6,7 @@
 #include "runtime/reconstructor.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <condition_variable>
 #include <exception>
@@ -89,7 +90,7 @@ struct InstantStrikes::Impl {
     mutable std::mutex mu;
     std::condition_variable cv;  // work to do, an estimate published, stop
     std::map<Key, std::shared_ptr<Entry>> entries;
-    bool paused = false, stop = false;
+    bool paused = false, stop = false, warm = false;
     std::thread worker;  // started in the constructor's body, once the members above exist
 
     Impl(const scene::Scene& s, const core::Grid3<float>& density, const solve::Media& m, const BakedBases* b,
@@ -104,6 +105,10 @@ struct InstantStrikes::Impl {
           dirs(transport::output_directions(s.effective_directions())) {
         spare.push_back(spare_tracers());  // the first strike's memory, touched before it comes
         worker = std::thread([this] { run(); });
+        // Returns once the worker has made its first rounds' memory ready (warm_up), so that a
+        // strike requested right after construction does not wait for it.
+        std::unique_lock<std::mutex> lock(mu);
+        cv.wait(lock, [&] { return warm; });
     }
 
     ~Impl() {
@@ -163,6 +168,30 @@ struct InstantStrikes::Impl {
             }
     }
 
+    // A strike's first rounds without fresh memory. Each round builds both tracers' results
+    // and an estimate of a dozen ~1 MB fields (default storm) while the previous estimate is
+    // still shown; the first time, every page of them is new to the process (the allocator maps
+    // large blocks afresh until it has freed one), and page faults made the first estimate's
+    // bookkeeping 40 ms where later rounds take 3 (fulgur-bench instant). Building two rounds'
+    // worth on the worker's own thread and freeing them leaves that memory with its allocator.
+    void warm_up() {
+        if (spare.empty()) return;
+        const Tracers& t = spare.back();
+        struct Round {
+            transport::MonteCarloResult single, multiple;
+            std::vector<transport::SourceField> estimate;
+            std::vector<float> total;
+        };
+        std::array<Round, 2> rounds;
+        for (Round& r : rounds) {
+            r.single = t.single->result();
+            r.multiple = t.multiple->result();
+            for (const auto& g : r.single.groups) r.estimate.push_back(g.single);
+            for (const auto& g : r.multiple.groups) r.estimate.push_back(g.multiple);
+            r.total = r.single.single.data;
+        }
+    }
+
     void run() {
         const core::ScopedThreadCount share(threads);
         // The bases' frame of a strike's strokes, for their estimated error (worker's own).
@@ -172,6 +201,12 @@ struct InstantStrikes::Impl {
             splatter = std::make_unique<lightning::Splatter>(bases->lights());
             reconstructor = std::make_unique<Reconstructor>(*bases);
         }
+        warm_up();
+        {
+            std::lock_guard<std::mutex> lock(mu);
+            warm = true;
+        }
+        cv.notify_all();
         for (;;) {
             std::shared_ptr<Entry> e;
             {
