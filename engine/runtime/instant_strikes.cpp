@@ -201,7 +201,11 @@ struct InstantStrikes::Impl {
             splatter = std::make_unique<lightning::Splatter>(bases->lights());
             reconstructor = std::make_unique<Reconstructor>(*bases);
         }
-        warm_up();
+        try {
+            warm_up();
+        } catch (...) {
+            // Only a cost: without it the first round allocates afresh, as before.
+        }
         {
             std::lock_guard<std::mutex> lock(mu);
             warm = true;
