@@ -8,6 +8,7 @@
 //   HAS_STATIC   1: the static light's S in colour (sun, moon, sky: u_static) is present
 //   HAS_SUN      1: the sun's single scattering at full resolution (u_sun_t)
 //   HAS_EMISSION 1: track the transmittance up to the glow's depth
+//   HAS_DETAIL   1: erode the density by the sub-voxel detail (u_detail, detail_params)
 #ifndef SKIP_EMPTY
 #define SKIP_EMPTY 1
 #endif
@@ -26,6 +27,9 @@
 #ifndef HAS_EMISSION
 #define HAS_EMISSION 1
 #endif
+#ifndef HAS_DETAIL
+#define HAS_DETAIL 0
+#endif
 
 // r: density rho in [0, 1]; g: Chebyshev (L-infinity) distance, in density voxels / 255,
 // from the voxel centre to the nearest voxel with non-zero density (0 inside the cloud).
@@ -38,6 +42,19 @@ layout(binding = 6) uniform sampler3D u_static;
 #define SUN_TRANSMITTANCE_DECLARED
 // Transmittance from the sun to each full-resolution voxel (the density grid).
 layout(binding = 7) uniform sampler3D u_sun_t;
+#endif
+
+#if HAS_DETAIL
+// The billow field b in [0, 1] on one periodic tile (cloud::DetailNoise): R8, repeat
+// wrapping, linear filtering; one period is 1 / detail_params.x metres.
+layout(binding = 9) uniform sampler3D u_detail;
+
+// cloud::erode at world point p: rho_d = max(rho - lo, 0) / (1 - lo), lo = strength (1 - b).
+// Only removes density, so the undetailed cloud's empty-space distance stays valid.
+float detailed_density(float rho, vec3 p) {
+    float lo = detail_params.y * (1.0 - textureLod(u_detail, p * detail_params.x, 0.0).r);
+    return max(rho - lo, 0.0) / max(1.0 - lo, 1e-6);
+}
 #endif
 
 // Henyey-Greenstein phase function per steradian (transport::hg_phase).
@@ -128,7 +145,11 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
             continue;
         }
 #endif
-        float alpha = 1.0 - exp(-kappa * dv.r * (b - a));
+        float rho = dv.r;
+#if HAS_DETAIL
+        if (rho > 0.0) rho = detailed_density(rho, o + t * d);
+#endif
+        float alpha = 1.0 - exp(-kappa * rho * (b - a));
 #if HAS_SOURCE
         // Radiance is never negative: S from the lattice (its signed phase fit) and from
         // truncated Haar coefficients can dip below zero; clamped where it is consumed.
@@ -181,7 +202,11 @@ float transmittance_to(vec3 p) {
             k += 1.0;
             continue;
         }
-        tau += dv.r * (b - a);
+        float rho = dv.r;
+#if HAS_DETAIL
+        if (rho > 0.0) rho = detailed_density(rho, o + t * d);
+#endif
+        tau += rho * (b - a);
         a = b;
         k += 1.0;
     }

@@ -30,9 +30,20 @@ std::optional<std::filesystem::path> bases_for(const sky::ScenePlan& plan, const
     return view::bases_for(plan, s, density, explicit_fgb);
 }
 
-view::StaticSetup static_setup(const sky::ScenePlan& plan, std::FILE* out) {
+SceneDensity load_density(const scene::Scene& s) {
+    SceneDensity d;
+    d.density = scene::make_undetailed_density(s);
+    if (s.cloud.detail) {
+        d.undetailed = std::move(d.density);
+        d.density = scene::add_detail(s, *d.undetailed);
+    }
+    return d;
+}
+
+view::StaticSetup static_setup(const sky::ScenePlan& plan, std::FILE* out, const SceneDensity* d) {
     view::StaticSetup setup;
     setup.plan = plan;
+    if (d && d->undetailed) setup.undetailed_density = &*d->undetailed;
     setup.say = [out](const std::string& m) { std::fprintf(out, "%s\n", m.c_str()); };
     return setup;
 }

@@ -24,9 +24,18 @@ std::optional<std::filesystem::path> bases_for(const sky::ScenePlan& plan, const
                                                const core::Grid3<float>& density,
                                                const std::optional<std::filesystem::path>& explicit_fgb);
 
+/// The scene's density as the apps load it: `density` is scene::make_density's (what the
+/// solvers integrate); for a scene with sub-voxel detail, `undetailed` is the cloud before its
+/// detail, which the renderer erodes per sample (the cloud generated or loaded once for both).
+struct SceneDensity {
+    core::Grid3<float> density;
+    std::optional<core::Grid3<float>> undetailed;
+};
+SceneDensity load_density(const scene::Scene& s);
+
 /// What a view of the scene is set up with: its plan, the static light cached beside the
-/// scene, what is solved or read printed to `out`.
-view::StaticSetup static_setup(const sky::ScenePlan& plan, std::FILE* out);
+/// scene, what is solved or read printed to `out`, and `d`'s undetailed density when given.
+view::StaticSetup static_setup(const sky::ScenePlan& plan, std::FILE* out, const SceneDensity* d = nullptr);
 
 /// The JSON line fulgur-shot (and the demo's headless frames) print (stage times in ms).
 std::string timings_json(const view::FrameReport& r, int width, int height, const char* name = "fulgur-shot");

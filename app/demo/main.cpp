@@ -47,12 +47,12 @@ std::vector<double> flash_times(const lightning::FlashProfile& f, double start, 
     return t;
 }
 
-int headless_sequence(scene::Scene s, core::Grid3<float> density, const sky::ScenePlan& plan,
+int headless_sequence(scene::Scene s, app::SceneDensity density, const sky::ScenePlan& plan,
                       const std::optional<std::filesystem::path>& fgb, int frames, int w, int h, std::uint64_t seed,
                       std::optional<double> time_of_day) {
     auto ctx = platform::create_headless({.width = w, .height = h});
-    view::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address(),
-                         app::static_setup(plan, stdout));
+    const view::StaticSetup setup = app::static_setup(plan, stdout, &density);
+    view::StormView view(std::move(s), std::move(density.density), fgb, ctx->get_proc_address(), setup);
     if (time_of_day && plan.sun) {  // the sun moved along its course, solved here
         const sky::SunCourse course = sky::sun_course(*view.scene().sun);
         const scene::Sun sun = course.at(*time_of_day);
@@ -97,9 +97,9 @@ int main(int argc, char** argv) {
     try {
         scene::Scene s = scene::load_scene(scene_path);
         if (args.camera) s.camera = args.camera;
-        core::Grid3<float> density = scene::make_density(s);
-        const sky::ScenePlan plan = app::plan_and_print(s, density, stdout);
-        const auto fgb = app::bases_for(plan, s, density, std::nullopt);
+        app::SceneDensity density = app::load_density(s);
+        const sky::ScenePlan plan = app::plan_and_print(s, density.density, stdout);
+        const auto fgb = app::bases_for(plan, s, density.density, std::nullopt);
         if (force_headless || !platform::display_available()) {
             if (!force_headless) std::printf(kNoDisplay, frames);
             const std::uint64_t sd = seed_arg.value_or(s.lightning.seed);
@@ -107,8 +107,8 @@ int main(int argc, char** argv) {
                                      std::min(H, 360), sd, args.time_of_day);
         }
         app::DemoShell shell(W, H, "Fulgur", screenshot_after);
-        view::StormView view(std::move(s), std::move(density), fgb, shell.context().get_proc_address(),
-                             app::static_setup(plan, stdout));
+        const view::StaticSetup setup = app::static_setup(plan, stdout, &density);
+        view::StormView view(std::move(s), std::move(density.density), fgb, shell.context().get_proc_address(), setup);
         std::optional<app::TimeOfDay> time_of_day;
         if (view.plan().sun) time_of_day.emplace(view, args.time_of_day);
 

@@ -324,12 +324,12 @@ int main(int argc, char** argv) {
             outputs.push_back({"comparison image", app::reference_compare_path(*a.reference)});
         }
         core::check_distinct_files(inputs, outputs);
-        core::Grid3<float> density = scene::make_density(s);
-        const sky::ScenePlan plan = app::plan_and_print(s, density, stderr);
-        const auto fgb = app::bases_for(plan, s, density, a.fgb);
+        app::SceneDensity loaded = app::load_density(s);
+        const sky::ScenePlan plan = app::plan_and_print(s, loaded.density, stderr);
+        const auto fgb = app::bases_for(plan, s, loaded.density, a.fgb);
         auto ctx = platform::create_headless({.width = a.width, .height = a.height});
-        view::StormView view(std::move(s), std::move(density), fgb, ctx->get_proc_address(),
-                             app::static_setup(plan, stderr));
+        const view::StaticSetup setup = app::static_setup(plan, stderr, &loaded);
+        view::StormView view(std::move(s), std::move(loaded.density), fgb, ctx->get_proc_address(), setup);
         double t = a.time;
         if (view.has_lightning()) {
             lightning::LightningParams lp = view.scene().lightning;

@@ -133,6 +133,8 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
         f.sun_rgb = glm::vec4(glm::vec3(sun_rgb), float(sun_albedo));
         f.sun_params = glm::vec4(float(sun_g), sun_fine && has_volume ? 1.0f : 0.0f, 0.0f, 0.0f);
     }
+    u.detail = has_volume && detail_tex != 0 && st.detail;
+    if (u.detail) f.detail = glm::vec4(float(1.0 / detail_period), float(detail_strength), 0.0f, 0.0f);
     f.march_params = glm::vec4(float(step), float(st.min_transmittance), st.jitter ? 1.0f : 0.0f,
                                float(std::fmod(double(st.frame_index) * 0.6180339887498949, 1.0)));
     f.sizes = glm::vec4(float(width), float(height), float(iw), float(ih));

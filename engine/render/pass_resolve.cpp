@@ -148,6 +148,7 @@ void Renderer::Impl::resolve_pass(const glm::dvec3& camera, const Settings& st, 
     glBindTextureUnit(1, scam);
     glBindTextureUnit(6, stat);
     glBindTextureUnit(7, sun_fine ? sun_tex : zero_tex);
+    glBindTextureUnit(9, u.detail ? detail_tex : zero_tex);
     last_scam = u.lit ? scam : 0;
     last_static = u.statics ? stat : 0;
 }

@@ -29,6 +29,7 @@
 // (set_sun): the silver lining where the view looks toward the sun.
 #pragma once
 
+#include "cloud/subvoxel.h"
 #include "core/core.h"
 
 #include <glm/mat4x4.hpp>
@@ -39,6 +40,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -67,6 +69,10 @@ struct VolumeDesc {
     const core::Grid3<float>* density = nullptr;  ///< rho in [0, 1] (values outside are clamped)
     double extinction = 0.02;                     ///< kappa (1/m): sigma_t = kappa * rho
     DensityPrecision precision = DensityPrecision::U8;
+    /// Sub-voxel detail eroded into `density` at every ray-march sample (cloud/subvoxel.h):
+    /// then `density` is the cloud before its detail (scene::make_undetailed_density), and
+    /// the march draws cloud::detailed_at. None: the density as given, no detail texture.
+    std::optional<cloud::SubvoxelDetail> detail = std::nullopt;
 };
 
 /// One upload of the source function S. Only the listed directions are transferred. By
@@ -198,6 +204,9 @@ struct Settings {
     bool flash_light = true;     ///< the flash's S (false: not sampled, no resolve)
     bool static_light = true;    ///< the static light's S (sun, moon, sky; false: not sampled, no resolve)
     bool sun_light = true;       ///< the sun at full resolution and on the ground (false: not drawn)
+    /// The volume's sub-voxel detail (VolumeDesc::detail) in the march; false: the undetailed
+    /// density is drawn (no detail texture fetch). No effect without detail.
+    bool detail = true;
     // Scene constants
     double ground_height = 0.0;  ///< z of the ground plane (m)
     double ground_albedo = 0.1;  ///< Lambertian reflectance of the ground (wet fields at night)

@@ -144,6 +144,7 @@ Renderer::~Renderer() {
     delete_texture(m.zero_tex);
     delete_texture(m.profile_tex);
     delete_texture(m.density_tex);
+    delete_texture(m.detail_tex);
     m.flash.release();
     m.statics.release();
     delete_texture(m.sun_tex);
@@ -212,6 +213,19 @@ void Renderer::set_volume(const VolumeDesc& v) {
         delete_texture(m.sun_tex);  // on the old grid
         m.sun_fine = false;
     }
+    delete_texture(m.detail_tex);
+    if (v.detail) {
+        const cloud::DetailNoise noise(*v.detail);
+        constexpr int tile = cloud::kDetailTile;
+        m.detail_tex = make_texture_3d(GL_R8, {tile, tile, tile});
+        for (GLenum wrap : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R})
+            glTextureParameteri(m.detail_tex, wrap, GL_REPEAT);
+        glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+        glTextureSubImage3D(m.detail_tex, 0, 0, 0, 0, tile, tile, tile, GL_RED, GL_UNSIGNED_BYTE,
+                            noise.texels().data());
+        m.detail_period = noise.period();
+        m.detail_strength = v.detail->strength;
+    }
     m.density = std::move(copy);
     m.distance = std::move(dist);
     m.kappa = v.extinction;
@@ -224,6 +238,7 @@ void Renderer::set_volume(const VolumeDesc& v) {
 void Renderer::clear_volume() {
     Impl& m = *impl_;
     delete_texture(m.density_tex);
+    delete_texture(m.detail_tex);
     delete_texture(m.sun_tex);
     m.sun_fine = false;
     m.density = {};

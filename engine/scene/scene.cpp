@@ -91,6 +91,18 @@ void parse_vdb(JsonObject& o, CloudSource& c) {
     v.offset = o.vec3_or("offset", v.offset, Range{-core::kMaxOrigin / 10.0, core::kMaxOrigin / 10.0});
 }
 
+// "cloud": {"detail": {...}}: cloud::SubvoxelDetail by the same names.
+cloud::SubvoxelDetail parse_detail(JsonObject o) {
+    cloud::SubvoxelDetail d;
+    d.seed = o.seed_or("seed", d.seed);
+    d.scale = o.number_or("scale", d.scale, Range{1.0, 1e5});
+    d.octaves = int(o.integer_or("octaves", d.octaves, 1, cloud::kMaxDetailOctaves));
+    d.strength = o.number_or("strength", d.strength, Range{0.0, 1.0});
+    o.finish();
+    validated_as_pointer(o.file(), [&] { cloud::validate_subvoxel_detail(d); });
+    return d;
+}
+
 void parse_cloud(JsonObject o, CloudSource& c, const std::filesystem::path& base_dir) {
     const int sources = int(o.has("generator")) + int(o.has("file")) + int(o.has("vdb"));
     if (sources != 1)
@@ -111,6 +123,7 @@ void parse_cloud(JsonObject o, CloudSource& c, const std::filesystem::path& base
         c.file = path("vdb");
         parse_vdb(o, c);
     }
+    if (auto d = o.optional_object("detail")) c.detail = parse_detail(*d);
     o.finish();
 }
 
@@ -604,11 +617,22 @@ core::Grid3<float> load_or_generate(const Scene& s) {
 
 }  // namespace
 
-core::Grid3<float> make_density(const Scene& s) {
+core::Grid3<float> make_undetailed_density(const Scene& s) {
     check_cost(s, estimate_cost(s));
     core::Grid3<float> d = load_or_generate(s);
     check_ground_fits(s, d.geom);
     return d;
+}
+
+core::Grid3<float> add_detail(const Scene& s, const core::Grid3<float>& undetailed) {
+    if (!s.cloud.detail) return undetailed;
+    return cloud::detailed_density(undetailed, cloud::DetailNoise(*s.cloud.detail));
+}
+
+core::Grid3<float> make_density(const Scene& s) {
+    core::Grid3<float> d = make_undetailed_density(s);
+    if (!s.cloud.detail) return d;
+    return cloud::detailed_density(d, cloud::DetailNoise(*s.cloud.detail));
 }
 
 transport::LightingMedium make_lighting_medium(const Scene& s, const core::Grid3<float>& density) {

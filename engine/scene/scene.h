@@ -10,6 +10,7 @@
 #include "basis/compression.h"
 #include "basis/virtual_lights.h"
 #include "cloud/cloud.h"
+#include "cloud/subvoxel.h"
 #include "core/core.h"
 #include "lightning/lightning.h"
 #include "transport/transport.h"
@@ -39,6 +40,9 @@ struct CloudSource {
     /// The NRRD density (kind == File) or the .vdb file (kind == Vdb), absolute.
     std::filesystem::path file;
     cloud::VdbImport vdb;  ///< used when kind == Vdb: grid, scale, resampling ("cloud": {"vdb": ...})
+    /// "cloud.detail": billows finer than the voxels carved into the cloud's edges (any
+    /// source; none when absent: no noise, no erosion, the density as loaded).
+    std::optional<cloud::SubvoxelDetail> detail;
 };
 
 /// Effects the scene calls for. Work for an effect that is off is not done (no solve, no
@@ -313,9 +317,19 @@ void check_cost(const Scene& s, const Cost& c);
 /// "/cloud/grid" for a named grid that is missing or not float).
 cloud::VdbInfo inspect_vdb_cloud(const Scene& s);
 
-/// The cloud density the scene describes (generated or loaded). Refuses (check_cost) before
-/// allocating when the scene's estimated cost exceeds its limits.
+/// The cloud density the solvers integrate: the one the scene describes (generated or
+/// loaded) with its sub-voxel detail's voxel means (cloud::detailed_density) when it declares
+/// one. Refuses (check_cost) before allocating when the scene's estimated cost exceeds its
+/// limits.
 core::Grid3<float> make_density(const Scene& s);
+
+/// The cloud density before its sub-voxel detail (what the renderer erodes per ray-march
+/// sample); make_density() when the scene declares no detail.
+core::Grid3<float> make_undetailed_density(const Scene& s);
+
+/// make_density() from make_undetailed_density()'s result, without generating or loading
+/// the cloud again: the scene's detail applied (a copy when it declares none).
+core::Grid3<float> add_detail(const Scene& s, const core::Grid3<float>& undetailed);
 
 /// The transport medium on the lighting grid (density box-filtered by lighting_downsample).
 transport::LightingMedium make_lighting_medium(const Scene& s, const core::Grid3<float>& density);

@@ -111,7 +111,17 @@ StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::opti
     }
     renderer_ = std::make_unique<render::Renderer>(
         gl, setup.shader_dir.empty() ? render::default_shader_dir() : setup.shader_dir);
-    renderer_->set_volume({.density = &density_, .extinction = scene_.medium.extinction});
+    if (scene_.cloud.detail) {
+        std::optional<core::Grid3<float>> made;
+        if (!setup.undetailed_density) made = scene::make_undetailed_density(scene_);
+        const core::Grid3<float>& undetailed = setup.undetailed_density ? *setup.undetailed_density : *made;
+        if (!(undetailed.geom == density_.geom))
+            throw core::Error("StaticSetup::undetailed_density", "is not on the scene's density grid");
+        renderer_->set_volume(
+            {.density = &undetailed, .extinction = scene_.medium.extinction, .detail = scene_.cloud.detail});
+    } else {
+        renderer_->set_volume({.density = &density_, .extinction = scene_.medium.extinction});
+    }
 }
 
 void StormView::set_lightning(const lightning::LightningParams& p) {

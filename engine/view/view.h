@@ -89,13 +89,18 @@ struct StaticSetup {
     sky::CacheOptions cache;                      ///< where the sun's and the sky's solves are cached
     std::function<void(const std::string&)> say;  ///< told what is read or solved
     std::optional<sky::ScenePlan> plan;           ///< the scene's plan when already made (else made here)
+    /// For a scene with sub-voxel detail: its density before the detail
+    /// (scene::make_undetailed_density), which the renderer erodes per sample; when null it is
+    /// generated or loaded again here. Only read during construction.
+    const core::Grid3<float>* undetailed_density = nullptr;
 };
 
 /// Owns density, bases, pipeline and renderer for one scene.
 class StormView {
 public:
     /// `fgb`: the scene's bases (bases_for); none for a scene without lightning. The static
-    /// light the plan calls for is read from its cache or solved here (seconds).
+    /// light the plan calls for is read from its cache or solved here (seconds). `density` is
+    /// scene::make_density's (with the detail's voxel means when the scene has detail).
     StormView(scene::Scene s, core::Grid3<float> density, const std::optional<std::filesystem::path>& fgb,
               render::GetProcAddress gl, const StaticSetup& setup = {});
     StormView(const StormView&) = delete;  // the pipeline refers to the members

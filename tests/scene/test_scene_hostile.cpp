@@ -8,6 +8,8 @@
 #include <sys/stat.h>
 
 #include <string>
+#include <utility>
+#include <vector>
 
 using fulgur::core::Error;
 using namespace fulgur::scene;
@@ -260,4 +262,31 @@ TEST_CASE("settings that would make a bake useless are refused at parse time, na
         parse_scene(with("\"lights\"", "\"compression\": {\"threshold\": \"relative_l2\", \"xi\": 1}, \"lights\""),
                     "x.json"),
         doctest::Contains("x.json: /compression/xi"), Error);
+}
+
+TEST_CASE("sub-voxel detail is optional; its values are bounded, naming the field") {
+    CHECK_FALSE(parse_scene(kScene, "plain.json").cloud.detail.has_value());
+    const std::string cloud_end = "\"anvil_offset\": 500}";
+    auto detail = [&](const std::string& body) { return with(cloud_end, cloud_end + ", \"detail\": {" + body + "}"); };
+    const Scene s = parse_scene(detail("\"seed\": 9, \"scale\": 250, \"octaves\": 4, \"strength\": 0.7"), "d.json");
+    REQUIRE(s.cloud.detail.has_value());
+    CHECK(s.cloud.detail->seed == 9);
+    CHECK(s.cloud.detail->scale == 250.0);
+    CHECK(s.cloud.detail->octaves == 4);
+    CHECK(s.cloud.detail->strength == 0.7);
+    CHECK(parse_scene(detail(""), "defaults.json").cloud.detail->octaves == 3);
+    for (const auto& [body, field] :
+         std::vector<std::pair<std::string, std::string>>{{"\"scale\": 0", "/cloud/detail/scale"},
+                                                          {"\"scale\": 1e9", "/cloud/detail/scale"},
+                                                          {"\"octaves\": 0", "/cloud/detail/octaves"},
+                                                          {"\"octaves\": 5", "/cloud/detail/octaves"},
+                                                          {"\"octaves\": 2.5", "/cloud/detail/octaves"},
+                                                          {"\"strength\": -0.5", "/cloud/detail/strength"},
+                                                          {"\"strength\": 2", "/cloud/detail/strength"},
+                                                          {"\"strength\": \"high\"", "/cloud/detail/strength"},
+                                                          {"\"sclae\": 100", "/cloud/detail/sclae"}}) {
+        CAPTURE(body);
+        const std::string where = "bad.json: " + field;
+        CHECK_THROWS_WITH_AS(parse_scene(detail(body), "bad.json"), doctest::Contains(where.c_str()), Error);
+    }
 }

@@ -28,8 +28,9 @@ struct FrameBlock {
     glm::vec4 static_min{0.0f}, static_size{1.0f};
     glm::vec4 sun_dir{0.0f}, sun_rgb{0.0f}, sun_params{0.0f};
     glm::vec4 host_depth{0.0f};
+    glm::vec4 detail{0.0f};
 };
-static_assert(sizeof(FrameBlock) == 64 + 11 * 16 + 8 * 16 + 4 * 16 + 8 * 16, "FrameBlock must match std140");
+static_assert(sizeof(FrameBlock) == 64 + 11 * 16 + 8 * 16 + 4 * 16 + 9 * 16, "FrameBlock must match std140");
 
 /// The passes of a frame in the order render() runs them (the timer's slots).
 enum Pass { kResolve, kGlow, kMarch, kMeter, kBolt, kGlare, kComposite, kPassCount };
@@ -51,6 +52,7 @@ struct FrameUniforms {
     bool lit = false;                             ///< the march samples S (source, cloud lighting, volume)
     bool statics = false;                         ///< the march samples the static light (sun, moon, sky)
     bool sun = false;                             ///< the march draws the sun's full-resolution single scattering
+    bool detail = false;                          ///< the march erodes the density by the sub-voxel detail
     bool glow = false;                            ///< the glow pass runs
     bool host = false;                            ///< composited into a host's frame (render_into_host)
 };

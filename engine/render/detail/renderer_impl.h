@@ -33,6 +33,8 @@ struct Renderer::Impl {
     core::Grid3<float> density;          // CPU copy (clamped), for ground-light visibility
     std::vector<std::uint8_t> distance;  // Chebyshev distance field (voxels)
     double kappa = 0.0;
+    GLuint detail_tex = 0;  // the billow tile (cloud::DetailNoise, R8, repeat); 0: no detail
+    double detail_period = 0.0, detail_strength = 0.0;
 
     // Source: the flash's S and the static light's (colour)
     detail::SourceSet flash = detail::SourceSet(GL_R32F), statics = detail::SourceSet(GL_RGBA32F);
@@ -85,12 +87,13 @@ struct Renderer::Impl {
     }
 
     static std::string march_defines(bool skip, bool early, bool source, bool emission, bool statics = false,
-                                     bool sun = false) {
+                                     bool sun = false, bool detail = false) {
         std::string d = std::string("#define SKIP_EMPTY ") + (skip ? "1" : "0") + "\n#define EARLY_EXIT " +
                         (early ? "1" : "0") + "\n#define HAS_SOURCE " + (source ? "1" : "0") +
                         "\n#define HAS_EMISSION " + (emission ? "1" : "0") + "\n";
         if (statics) d += "#define HAS_STATIC 1\n";
         if (sun) d += "#define HAS_SUN 1\n";
+        if (detail) d += "#define HAS_DETAIL 1\n";
         return d;
     }
 
