@@ -125,6 +125,13 @@ void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& r
     ImGui::Checkbox("glare", &opt.settings.glare);
     ImGui::Checkbox("bolt", &opt.settings.bolt);
     ImGui::Checkbox("ground", &opt.settings.ground);
+    if (view_.scene().cloud.detail) {
+        ImGui::SameLine();
+        ImGui::Checkbox("sub-voxel detail", &opt.settings.detail);
+        if (ImGui::IsItemHovered())
+            ImGui::SetTooltip(
+                "off: the march draws the cloud before its detail (the light keeps the detail's voxel means)");
+    }
     static_light_panel(opt, view_.plan());
     exposure_panel(opt.settings, rep, dt);
     float scale = float(opt.settings.internal_scale);

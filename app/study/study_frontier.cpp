@@ -93,7 +93,7 @@ FULGUR_STUDY(frontier, "frontier",
              "truth (total, single, multiple, side-view image) against frame time, per-strike solve, bake time, file "
              "size and memory; the Pareto front (scripts/plot_frontier.py)") {
     const scene::Scene base = scene::load_scene(std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes/storm.json");
-    const core::Grid3<float> density = scene::make_density(base);
+    const core::Grid3<float> storm_density = scene::make_density(base);
     const int seeds = ctx.quick ? 2 : 5;
     const std::uint64_t truth_paths = ctx.quick ? 300'000 : 4'000'000;
     constexpr double kFramesPerStrike = 60.0;  // 60 fps, one strike a second (the default storm)
@@ -116,6 +116,15 @@ FULGUR_STUDY(frontier, "frontier",
     variant("hybrid", "storm", preset("hybrid"));
     variant("per_strike", "storm", preset("per_strike"));
     variant("per_strike_mc", "storm", preset("per_strike_mc"));
+    // The presets on the storm with sub-voxel detail (content/scenes/storm-detail.json's): its
+    // own bake, bolts and truths, through the voxel means of the eroded density.
+    const std::optional<cloud::SubvoxelDetail> detail =
+        scene::load_scene(std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes/storm-detail.json").cloud.detail;
+    for (const char* p : {"paper", "hybrid", "per_strike", "per_strike_mc"})
+        variant(std::string(p) + " detail", "storm_detail", [&, p](scene::Scene& s) {
+            s.quality = scene::quality_preset(p);
+            s.cloud.detail = detail;
+        });
     if (!ctx.quick) {
         auto lattice = [](int refine, int orders) {
             return [refine, orders](scene::Scene& s) {
@@ -190,14 +199,21 @@ FULGUR_STUDY(frontier, "frontier",
         std::erase_if(configs, [&](const Config& c) { return !keep(c.name); });
         if (configs.empty()) throw core::Error("--only", "no configuration is named \"" + ctx.only + "\"");
     }
+    // The density of a configuration: the storm's, or with the configuration's detail.
+    std::optional<core::Grid3<float>> detailed;
+    auto density_of = [&](const Config& c) -> const core::Grid3<float>& {
+        if (!c.scene.cloud.detail) return storm_density;
+        if (!detailed) detailed = scene::make_density(c.scene);
+        return *detailed;
+    };
     // A variant whose bake is the scene's own (same key) uses the scene's file.
-    const basis::BakeKey base_key = bake::scene_key(base, density);
+    const basis::BakeKey base_key = bake::scene_key(base, storm_density);
     for (Config& c : configs)
-        if (bake::scene_key(c.scene, density) == base_key) c.bake = "storm";
+        if (bake::scene_key(c.scene, density_of(c)) == base_key) c.bake = "storm";
 
     // --- strikes and their truths (one per lighting grid and direction set) ---
     std::vector<Strike> strikes;
-    std::map<std::tuple<std::uint64_t, int, int>, runtime::Truth> truths;
+    std::map<std::tuple<std::uint64_t, int, int, bool>, runtime::Truth> truths;
     std::map<std::string, Bake> bakes;
 
     study::Csv per_strike(ctx.file("frontier_strikes.csv"),
@@ -230,6 +246,7 @@ FULGUR_STUDY(frontier, "frontier",
     nlohmann::json rows = nlohmann::json::array();
     for (const Config& c : configs) {
         const scene::Scene& s = c.scene;
+        const core::Grid3<float>& density = density_of(c);
         Bake& b = ensure_bake(bakes, c.bake, s, density, ctx);
         const solve::Media media = solve::make_media(s, density);
         const std::vector<float>& rho = media.lighting.density.data;
@@ -262,7 +279,7 @@ FULGUR_STUDY(frontier, "frontier",
                 memory_mb = double(b.bases->memory_bytes()) / 1e6 +
                             (L ? 4.0 * double(L->single[0].data.size() * sizeof(float)) / 1e6 : 0.0);
             }
-            const auto key = std::make_tuple(seed, s.lighting_downsample, int(dirs.size()));
+            const auto key = std::make_tuple(seed, s.lighting_downsample, int(dirs.size()), s.cloud.detail.has_value());
             if (!truths.count(key)) {
                 runtime::TruthOptions to;
                 to.paths = truth_paths;

@@ -106,9 +106,12 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
     // Volume and march step
     double step = 1.0;
     int max_steps = 1;
+    u.detail = has_volume && detail_tex != 0 && st.detail;
     if (has_volume) {
         const core::GridGeometry& g = density.geom;
         step = st.step_voxels * g.voxel_size;
+        // Billows finer than the step would alias: at most detail_step_billows of the finest.
+        if (u.detail && st.detail_step_billows > 0.0) step = std::min(step, st.detail_step_billows * detail_finest);
         max_steps = int(std::ceil(glm::length(g.extent()) / step)) + 2;
         f.vol_min = glm::vec4(glm::vec3(g.origin), float(kappa));
         f.vol_size = glm::vec4(glm::vec3(g.extent()), float(g.voxel_size));
@@ -133,7 +136,6 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
         f.sun_rgb = glm::vec4(glm::vec3(sun_rgb), float(sun_albedo));
         f.sun_params = glm::vec4(float(sun_g), sun_fine && has_volume ? 1.0f : 0.0f, 0.0f, 0.0f);
     }
-    u.detail = has_volume && detail_tex != 0 && st.detail;
     if (u.detail) f.detail = glm::vec4(float(1.0 / detail_period), float(detail_strength), 0.0f, 0.0f);
     f.march_params = glm::vec4(float(step), float(st.min_transmittance), st.jitter ? 1.0f : 0.0f,
                                float(std::fmod(double(st.frame_index) * 0.6180339887498949, 1.0)));

@@ -63,6 +63,7 @@ void validate_settings(const Settings& st) {
     range(st.highlight_fraction, 0.0, 0.5, true, "highlight_fraction");
     range(st.internal_scale, 0.0, 1.0, true, "internal_scale");
     range(st.step_voxels, 0.01, 64.0, false, "step_voxels");
+    range(st.detail_step_billows, 0.0, 64.0, false, "detail_step_billows");
     range(st.min_transmittance, 0.0, 0.5, false, "min_transmittance");
     range(st.ground_albedo, 0.0, 1.0, false, "ground_albedo");
     range(double(st.ground_lights), 0.0, 8.0, false, "ground_lights");
@@ -224,6 +225,7 @@ void Renderer::set_volume(const VolumeDesc& v) {
         glTextureSubImage3D(m.detail_tex, 0, 0, 0, 0, tile, tile, tile, GL_RED, GL_UNSIGNED_BYTE,
                             noise.texels().data());
         m.detail_period = noise.period();
+        m.detail_finest = std::ldexp(v.detail->scale, 1 - v.detail->octaves);
         m.detail_strength = v.detail->strength;
     }
     m.density = std::move(copy);

@@ -35,6 +35,7 @@ struct Renderer::Impl {
     double kappa = 0.0;
     GLuint detail_tex = 0;  // the billow tile (cloud::DetailNoise, R8, repeat); 0: no detail
     double detail_period = 0.0, detail_strength = 0.0;
+    double detail_finest = 0.0;  // metres across the finest billows
 
     // Source: the flash's S and the static light's (colour)
     detail::SourceSet flash = detail::SourceSet(GL_R32F), statics = detail::SourceSet(GL_RGBA32F);
