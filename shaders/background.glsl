@@ -86,6 +86,21 @@ float sun_visibility(vec3 p) {
     return textureLod(u_sun_t, (q - vol_min.xyz) / vol_size.xyz, 0.0).r;
 }
 
+#if HAS_RAIN
+// Transmittance of the rain between a ground point p and a light at q: the part of the segment
+// below the rain's top, sampled at 4 points (the rain varies over hundreds of metres).
+float rain_transmittance(vec3 p, vec3 q) {
+    vec3 l = q - p;
+    float f = l.z > 1e-3 ? clamp((rain_params.z - p.z) / l.z, 0.0, 1.0) : 1.0;
+    float tau = 0.0;
+    for (int k = 0; k < 4; ++k) {
+        vec3 x = p + ((float(k) + 0.5) * 0.25 * f) * l;
+        tau += textureLod(u_density, (x - vol_min.xyz) / vol_size.xyz, 0.0).b;
+    }
+    return exp(-rain_params.x * tau * 0.25 * f * length(l));
+}
+#endif
+
 // Ground: Lambertian, lit by a few point lights standing for the bolt (intensity already
 // multiplied by their visibility through the cloud), the sun through the cloud (its shadow)
 // and the sky's irradiance on a horizontal plane, pi (0.2 horizon + 0.8 zenith) for the
@@ -98,7 +113,11 @@ vec3 ground_radiance(vec3 p, vec3 d, float t) {
         vec3 l = ground_light[i].xyz - p;
         float r2 = max(dot(l, l), 1.0);
         float cos_theta = max(l.z, 0.0) * inversesqrt(r2);
+#if HAS_RAIN
+        E += light_colour.rgb * (ground_light[i].w * cos_theta / r2 * rain_transmittance(p, ground_light[i].xyz));
+#else
         E += light_colour.rgb * (ground_light[i].w * cos_theta / r2);
+#endif
     }
     E += sky_params.z > 0.5 ? 3.14159265 * (0.2 * sky_horizon.rgb + 0.8 * sky_zenith.rgb) : vec3(0.0);
     if (sun_dir.w > 0.5 && sun_dir.z < 0.0) E += sun_rgb.rgb * (-sun_dir.z * sun_visibility(p));

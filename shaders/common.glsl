@@ -30,6 +30,9 @@ layout(std140, binding = 0) uniform Frame {
     vec4 host_depth;       // a host's depth buffer: x P22, y P32 of its projection (eye depth = y / (z_ndc + x)),
                            // z 1 when its depth is in [0, 1] (else [-1, 1]), w 0 none, 1 standard Z, -1 reversed Z
     vec4 detail_params;    // sub-voxel detail: x 1 / tile period (1/m), y erosion strength
+    vec4 rain_params;      // rain: x extinction at b = 1 (1/m), y HG g, z its top (m), w albedo
+    vec4 rain_light[8];    // the channel below the rain's top as point lights: xyz position, w W/sr
+    vec4 rain_lights;      // x number of rain_light
 };
 
 // The host's depth buffer (render_into_host), full output resolution; read only when host_depth.w != 0.

@@ -9,6 +9,8 @@
 //   HAS_SUN      1: the sun's single scattering at full resolution (u_sun_t)
 //   HAS_EMISSION 1: track the transmittance up to the glow's depth
 //   HAS_DETAIL   1: erode the density by the sub-voxel detail (u_detail, detail_params)
+//   HAS_RAIN     1: rain's extinction in the density texture's b channel (rain_params), lit
+//                   by the flash's point lights, the sun and the sky
 #ifndef SKIP_EMPTY
 #define SKIP_EMPTY 1
 #endif
@@ -30,9 +32,13 @@
 #ifndef HAS_DETAIL
 #define HAS_DETAIL 0
 #endif
+#ifndef HAS_RAIN
+#define HAS_RAIN 0
+#endif
 
 // r: density rho in [0, 1]; g: Chebyshev (L-infinity) distance, in density voxels / 255,
-// from the voxel centre to the nearest voxel with non-zero density (0 inside the cloud).
+// from the voxel centre to the nearest voxel with non-zero density or rain (0 inside them);
+// b (with rain): the rain's extinction / rain_params.x.
 layout(binding = 0) uniform sampler3D u_density;
 // S(x, w_cam(x)) on the lighting grid: the source function toward the camera.
 layout(binding = 1) uniform sampler3D u_scam;
@@ -62,6 +68,33 @@ float hg_phase(float cos_theta, float g) {
     float a = (1.0 - g) * (1.0 - g) + 2.0 * g * (1.0 - cos_theta);
     return (1.0 - g * g) / (4.0 * 3.14159265 * a * sqrt(a));
 }
+
+#if HAS_RAIN
+// Rain's in-scattered radiance toward the camera (-d) at p, per unit albedo: the channel
+// below the rain's top as point lights of equal power (W/sr; the flash colour applied with
+// the cloud's flash light), directly, without the rain's own attenuation on the way. r^2 is
+// kept above (50 m)^2: closer, a point stands for a stretch of channel, not a point.
+float rain_flash(vec3 p, vec3 d) {
+    float s = 0.0;
+    int n = int(rain_lights.x);
+    for (int i = 0; i < n; ++i) {
+        vec3 l = p - rain_light[i].xyz;
+        float r2 = max(dot(l, l), 2500.0);
+        s += rain_light[i].w * hg_phase(dot(l, -d) * inversesqrt(r2), rain_params.y) / r2;
+    }
+    return s;
+}
+
+// The same for the sun or moon through the cloud and the rain (the full-resolution
+// transmittance at p_tex) and the sky: below a storm's base the rain sees about half the dome
+// as the horizon's sky, the rest as cloud.
+vec3 rain_static(vec3 d, vec3 p_tex) {
+    vec3 s = sky_params.z > 0.5 ? 0.5 * sky_horizon.rgb : vec3(0.0);
+    if (sun_dir.w > 0.5 && sun_params.y > 0.5)
+        s += sun_rgb.rgb * (hg_phase(dot(-d, sun_dir.xyz), rain_params.y) * textureLod(u_sun_t, p_tex, 0.0).r);
+    return s;
+}
+#endif
 
 // Safety margin of the skip distance, in voxels. The trilinear interpolant D~(p) of the
 // distance field satisfies |p - c|_inf >= D~(p) - 1 for every non-zero voxel centre c, and
@@ -134,7 +167,7 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #endif
         float b = min(t0 + (k + jitter) * dt, t1);
         float t = 0.5 * (a + b);
-        vec2 dv = textureLod(u_density, o_tex + t * d_tex, 0.0).rg;
+        vec4 dv = textureLod(u_density, o_tex + t * d_tex, 0.0);
 #if SKIP_EMPTY
         float skip = (dv.g * 255.0 - kSkipMargin) * voxel;
         if (skip >= dt) {
@@ -149,17 +182,30 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #if HAS_DETAIL
         if (rho > 0.0) rho = detailed_density(rho, o + t * d);
 #endif
+#if HAS_RAIN
+        // Cloud and rain in the same piece: alpha from both, each scattering its share.
+        float sigma_c = kappa * rho, sigma_r = rain_params.x * dv.b;
+        float alpha = 1.0 - exp(-(sigma_c + sigma_r) * (b - a));
+        float wc = sigma_c + sigma_r > 0.0 ? sigma_c / (sigma_c + sigma_r) : 0.0;
+        if (sigma_r > 0.0) {
+            float wr = T * alpha * (1.0 - wc) * rain_params.w;
+            L += wr * rain_flash(o + t * d, d);
+            Ls += wr * rain_static(d, o_tex + t * d_tex);
+        }
+#else
         float alpha = 1.0 - exp(-kappa * rho * (b - a));
+        const float wc = 1.0;
+#endif
 #if HAS_SOURCE
         // Radiance is never negative: S from the lattice (its signed phase fit) and from
         // truncated Haar coefficients can dip below zero; clamped where it is consumed.
-        L += T * alpha * max(textureLod(u_scam, o_lit + t * d_lit, 0.0).r, 0.0);
+        L += T * alpha * wc * max(textureLod(u_scam, o_lit + t * d_lit, 0.0).r, 0.0);
 #endif
 #if HAS_STATIC
-        Ls += T * alpha * textureLod(u_static, o_st + t * d_st, 0.0).rgb;
+        Ls += T * alpha * wc * textureLod(u_static, o_st + t * d_st, 0.0).rgb;
 #endif
 #if HAS_SUN
-        Ls += (T * alpha * textureLod(u_sun_t, o_tex + t * d_tex, 0.0).r) * sun_s1;
+        Ls += (T * alpha * wc * textureLod(u_sun_t, o_tex + t * d_tex, 0.0).r) * sun_s1;
 #endif
         T *= 1.0 - alpha;
 #if HAS_EMISSION
@@ -188,13 +234,13 @@ float transmittance_to(vec3 p) {
     if (t1 <= t0) return 1.0;
     float dt = march_params.x;
     vec3 o_tex = (o - vol_min.xyz) / vol_size.xyz, d_tex = d / vol_size.xyz;
-    float tau = 0.0;
+    float tau = 0.0, tau_rain = 0.0;
     float a = t0, k = 1.0;
     for (int i = 0; i < counts.x; ++i) {
         if (a >= t1) break;
         float b = min(t0 + k * dt, t1);
         float t = 0.5 * (a + b);
-        vec2 dv = textureLod(u_density, o_tex + t * d_tex, 0.0).rg;
+        vec4 dv = textureLod(u_density, o_tex + t * d_tex, 0.0);
         float skip = (dv.g * 255.0 - kSkipMargin) * vol_size.w;
         if (skip >= dt) {
             k = floor((t + skip - t0) / dt);
@@ -207,8 +253,11 @@ float transmittance_to(vec3 p) {
         if (rho > 0.0) rho = detailed_density(rho, o + t * d);
 #endif
         tau += rho * (b - a);
+#if HAS_RAIN
+        tau_rain += rain_params.x * dv.b * (b - a);
+#endif
         a = b;
         k += 1.0;
     }
-    return exp(-vol_min.w * tau);
+    return exp(-vol_min.w * tau - tau_rain);
 }

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <limits>
 #include <numbers>
 
 namespace fulgur::render {
@@ -39,36 +40,63 @@ double Renderer::Impl::vertical_transmittance(const glm::dvec3& p, double ground
 /// Representative point lights for the ground: the bolt split into k runs of equal
 /// power (sum of intensity x length, in segment order); each light sits at its run's
 /// power-weighted centroid with the run's intensity, times its visibility.
+namespace {
+
+// The channel's stretches (segments clipped to z <= top) as at most k point lights of equal
+// power in channel order: each at its stretches' power-weighted centroid, its radiant
+// intensity (W/sr) their summed intensity x length.
+std::vector<glm::dvec4> cluster_channel(const LitChannel& bolt, int k, double top) {
+    struct Piece {
+        glm::dvec3 ends;  // a + b
+        double power;
+    };
+    std::vector<Piece> pieces;
+    double total = 0.0;
+    for (const ChannelSegment& s : bolt.segments) {
+        glm::dvec3 a(s.a), b(s.b);
+        if (a.z > b.z) std::swap(a, b);
+        if (a.z > top) continue;
+        if (b.z > top) b = a + (b - a) * ((top - a.z) / (b.z - a.z));
+        const double p = double(s.intensity) * glm::length(b - a);
+        if (!(p > 0.0)) continue;
+        pieces.push_back({a + b, p});
+        total += p;
+    }
+    std::vector<glm::dvec4> out;
+    if (total <= 0.0 || k <= 0) return out;
+    const double per = total / k;
+    double acc = 0.0, wsum = 0.0;
+    glm::dvec3 centroid(0.0);
+    for (std::size_t i = 0; i < pieces.size(); ++i) {
+        centroid += pieces[i].power * 0.5 * pieces[i].ends;
+        wsum += pieces[i].power;
+        acc += pieces[i].power;
+        if (acc >= per * double(out.size() + 1) - 1e-9 * total || i + 1 == pieces.size()) {
+            out.emplace_back(centroid / wsum, wsum);
+            centroid = glm::dvec3(0.0);
+            wsum = 0.0;
+            if (int(out.size()) == k) break;
+        }
+    }
+    if (wsum > 0.0 && int(out.size()) < k) out.emplace_back(centroid / wsum, wsum);
+    return out;
+}
+
+}  // namespace
+
 void Renderer::Impl::rebuild_ground_lights(int k, double ground) {
     ground_lights.clear();
     ground_lights_k = k;
     ground_lights_height = ground;
-    double total = 0.0;
-    for (const ChannelSegment& s : bolt.segments) total += double(s.intensity) * glm::length(glm::dvec3(s.b - s.a));
-    if (total <= 0.0 || k <= 0) return;
-    const double per = total / k;
-    double acc = 0.0, wsum = 0.0;
-    glm::dvec3 centroid(0.0);
-    for (const ChannelSegment& s : bolt.segments) {
-        const double p = double(s.intensity) * glm::length(glm::dvec3(s.b - s.a));
-        if (p <= 0.0) continue;
-        centroid += p * 0.5 * (glm::dvec3(s.a) + glm::dvec3(s.b));
-        wsum += p;
-        acc += p;
-        if (acc >= per * double(ground_lights.size() + 1) - 1e-9 * total || &s == &bolt.segments.back()) {
-            glm::dvec3 c = centroid / wsum;
-            c.z = std::max(c.z, ground + 1.0);
-            ground_lights.emplace_back(glm::vec3(c), float(wsum * vertical_transmittance(c, ground)));
-            centroid = glm::dvec3(0.0);
-            wsum = 0.0;
-            if (int(ground_lights.size()) == k) break;
-        }
-    }
-    if (wsum > 0.0 && int(ground_lights.size()) < k) {
-        glm::dvec3 c = centroid / wsum;
+    for (glm::dvec4 l : cluster_channel(bolt, k, std::numeric_limits<double>::infinity())) {
+        glm::dvec3 c(l);
         c.z = std::max(c.z, ground + 1.0);
-        ground_lights.emplace_back(glm::vec3(c), float(wsum * vertical_transmittance(c, ground)));
+        ground_lights.emplace_back(glm::vec3(c), float(l.w * vertical_transmittance(c, ground)));
     }
+    // The rain's: the channel below the rain's top (no cloud between them and the rain).
+    rain_lights.clear();
+    if (has_rain)
+        for (glm::dvec4 l : cluster_channel(bolt, kMaxGroundLights, rain_top)) rain_lights.emplace_back(l);
 }
 
 /// Targets at the frame's sizes, and the frame uniforms: camera, volume and march step,
@@ -136,18 +164,22 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
         f.sun_rgb = glm::vec4(glm::vec3(sun_rgb), float(sun_albedo));
         f.sun_params = glm::vec4(float(sun_g), sun_fine && has_volume ? 1.0f : 0.0f, 0.0f, 0.0f);
     }
+    u.rain = has_volume && has_rain && st.rain;
+    if (u.rain) f.rain = glm::vec4(float(rain_max), float(rain_g), float(rain_top), float(rain_albedo));
     if (u.detail) f.detail = glm::vec4(float(1.0 / detail_period), float(detail_strength), 0.0f, 0.0f);
     f.march_params = glm::vec4(float(step), float(st.min_transmittance), st.jitter ? 1.0f : 0.0f,
                                float(std::fmod(double(st.frame_index) * 0.6180339887498949, 1.0)));
     f.sizes = glm::vec4(float(width), float(height), float(iw), float(ih));
-    // Ground
-    if (st.ground) {
+    // Ground (its point lights light the rain too, with the ground off)
+    if (st.ground || u.rain) {
         if (ground_lights_k != st.ground_lights || ground_lights_height != st.ground_height)
             rebuild_ground_lights(st.ground_lights, st.ground_height);
         for (std::size_t i = 0; i < ground_lights.size() && i < kMaxGroundLights; ++i)
             f.ground_light[i] = ground_lights[i];
-        f.ground_params = glm::vec4(float(st.ground_height), float(st.ground_albedo / std::numbers::pi), 1.0f,
-                                    float(ground_lights.size()));
+        f.ground_params = glm::vec4(float(st.ground_height), float(st.ground_albedo / std::numbers::pi),
+                                    st.ground ? 1.0f : 0.0f, float(ground_lights.size()));
+        for (std::size_t i = 0; u.rain && i < rain_lights.size(); ++i) f.rain_light[i] = rain_lights[i];
+        if (u.rain) f.rain_lights = glm::vec4(float(rain_lights.size()), 0.0f, 0.0f, 0.0f);
     } else {
         f.ground_params = glm::vec4(float(st.ground_height), 0.0f, 0.0f, 0.0f);
     }

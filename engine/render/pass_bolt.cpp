@@ -19,7 +19,8 @@ void Renderer::Impl::bolt_pass(const Settings& st, const FrameUniforms& u, PassT
     timer.begin(kBolt);
     // The channel seen through the same detailed density the march draws.
     glUseProgram(
-        program("bolt_t", {{GL_COMPUTE_SHADER, "bolt_transmittance.comp"}}, u.detail ? "#define HAS_DETAIL 1\n" : ""));
+        program("bolt_t", {{GL_COMPUTE_SHADER, "bolt_transmittance.comp"}},
+                std::string(u.detail ? "#define HAS_DETAIL 1\n" : "") + (u.rain ? "#define HAS_RAIN 1\n" : "")));
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, seg_buf.id);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, endpoint_buf.id);
     glDispatchCompute(GLuint((seg_count + 63) / 64), 1, 1);

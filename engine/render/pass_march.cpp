@@ -15,7 +15,8 @@ using detail::PassTimer;
 /// Ray march at internal resolution: in-scattered radiance + attenuated glow, and T.
 void Renderer::Impl::march_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer) {
     timer.begin(kMarch);
-    const std::string defines = march_defines(st.skip_empty, st.early_exit, u.lit, u.glow, u.statics, u.sun, u.detail);
+    const std::string defines =
+        march_defines(st.skip_empty, st.early_exit, u.lit, u.glow, u.statics, u.sun, u.detail, u.rain);
     const GLuint p = march_program(st.kernel, defines);
     glUseProgram(p);
     if (st.kernel == MarchKernel::Fragment) {

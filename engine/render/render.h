@@ -29,6 +29,7 @@
 // (set_sun): the silver lining where the view looks toward the sun.
 #pragma once
 
+#include "cloud/rain.h"
 #include "cloud/subvoxel.h"
 #include "core/core.h"
 
@@ -73,6 +74,10 @@ struct VolumeDesc {
     /// then `density` is the cloud before its detail (scene::make_undetailed_density), and
     /// the march draws cloud::detailed_at. None: the density as given, no detail texture.
     std::optional<cloud::SubvoxelDetail> detail = std::nullopt;
+    /// Rain on the density grid (cloud::make_rain), drawn with the cloud: its extinction, its
+    /// light (the flash's point lights, the sun through set_sun's transmittance, the sky) and
+    /// its shadow on the ground's flash light. Null (or no rain in it): none, no cost.
+    const cloud::RainField* rain = nullptr;
 };
 
 /// One upload of the source function S. Only the listed directions are transferred. By
@@ -211,6 +216,8 @@ struct Settings {
     /// (scale / 2^(octaves - 1)); 0: step_voxels alone. 2 keeps the march within 1% of a
     /// step-0.25 reference where step 1 errs by 1.3% (docs/render.md, `fulgur-bench render`).
     double detail_step_billows = 2.0;
+    /// The volume's rain (VolumeDesc::rain); false: not drawn (the texture keeps it).
+    bool rain = true;
     // Scene constants
     double ground_height = 0.0;  ///< z of the ground plane (m)
     double ground_albedo = 0.1;  ///< Lambertian reflectance of the ground (wet fields at night)

@@ -190,25 +190,52 @@ void Renderer::set_volume(const VolumeDesc& v) {
         occupied[i] =
             v.precision == DensityPrecision::U8 ? detail::quantize_density(copy.data[i]) > 0 : copy.data[i] > 0.0f;
     }
+    // Rain rides in the same texture (b = extinction / its maximum): one fetch per sample
+    // gives the density, the empty-space distance and the rain; its voxels count as occupied.
+    const cloud::RainField* rain = v.rain && v.rain->max_extinction > 0.0 ? v.rain : nullptr;
+    if (rain) {
+        if (!(rain->extinction.geom == v.density->geom))
+            throw core::Error("set_volume: rain", "is not on the density grid");
+        for (std::size_t i = 0; i < n; ++i) {
+            const float r = rain->extinction.data[i];
+            if (!std::isfinite(r) || r < 0.0f)
+                throw core::Error("set_volume: rain",
+                                  "extinction must be finite and >= 0 at voxel " + std::to_string(i));
+            occupied[i] = occupied[i] || r > 0.0f;
+        }
+    }
     std::vector<std::uint8_t> dist = detail::chebyshev_distance(occupied, d);
     delete_texture(m.density_tex);
+    const std::size_t channels = rain ? 4 : 2;
+    const GLenum layout = rain ? GL_RGBA : GL_RG;
+    auto rain_share = [&](std::size_t i) { return float(double(rain->extinction.data[i]) / rain->max_extinction); };
     if (v.precision == DensityPrecision::U8) {
-        m.density_tex = make_texture_3d(GL_RG8, d);
-        std::vector<std::uint8_t> packed(2 * n);
+        m.density_tex = make_texture_3d(rain ? GL_RGBA8 : GL_RG8, d);
+        std::vector<std::uint8_t> packed(channels * n, 0);
         for (std::size_t i = 0; i < n; ++i) {
-            packed[2 * i] = detail::quantize_density(copy.data[i]);
-            packed[2 * i + 1] = dist[i];
+            packed[channels * i] = detail::quantize_density(copy.data[i]);
+            packed[channels * i + 1] = dist[i];
+            if (rain)
+                packed[channels * i + 2] = std::uint8_t(std::lround(255.0f * std::clamp(rain_share(i), 0.0f, 1.0f)));
         }
         glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-        glTextureSubImage3D(m.density_tex, 0, 0, 0, 0, d.x, d.y, d.z, GL_RG, GL_UNSIGNED_BYTE, packed.data());
+        glTextureSubImage3D(m.density_tex, 0, 0, 0, 0, d.x, d.y, d.z, layout, GL_UNSIGNED_BYTE, packed.data());
     } else {
-        m.density_tex = make_texture_3d(GL_RG16F, d);
-        std::vector<float> packed(2 * n);
+        m.density_tex = make_texture_3d(rain ? GL_RGBA16F : GL_RG16F, d);
+        std::vector<float> packed(channels * n, 0.0f);
         for (std::size_t i = 0; i < n; ++i) {
-            packed[2 * i] = copy.data[i];
-            packed[2 * i + 1] = float(dist[i]) / 255.0f;
+            packed[channels * i] = copy.data[i];
+            packed[channels * i + 1] = float(dist[i]) / 255.0f;
+            if (rain) packed[channels * i + 2] = rain_share(i);
         }
-        glTextureSubImage3D(m.density_tex, 0, 0, 0, 0, d.x, d.y, d.z, GL_RG, GL_FLOAT, packed.data());
+        glTextureSubImage3D(m.density_tex, 0, 0, 0, 0, d.x, d.y, d.z, layout, GL_FLOAT, packed.data());
+    }
+    m.has_rain = rain != nullptr;
+    if (rain) {
+        m.rain_max = rain->max_extinction;
+        m.rain_g = rain->g;
+        m.rain_albedo = rain->albedo;
+        m.rain_top = rain->top;
     }
     if (m.sun_tex && !(m.density.geom == v.density->geom)) {
         delete_texture(m.sun_tex);  // on the old grid
@@ -243,6 +270,7 @@ void Renderer::clear_volume() {
     delete_texture(m.detail_tex);
     delete_texture(m.sun_tex);
     m.sun_fine = false;
+    m.has_rain = false;
     m.density = {};
     m.distance.clear();
     m.has_volume = false;

@@ -250,13 +250,13 @@ std::string JsonObject::choice_or(std::string_view key, std::string fallback,
     fail(key, "\"" + s + "\" is not one of " + list);
 }
 
-glm::dvec3 JsonObject::vec3(std::string_view key, Range each) {
+void JsonObject::numbers(std::string_view key, Range each, std::span<double> out, const char* missing) {
     const nlohmann::json* v = find(key);
-    if (!v) fail(key, "required [x, y, z] is missing");
-    if (!v->is_array() || v->size() != 3) fail(key, "expected an array of 3 numbers, got " + describe(*v));
-    glm::dvec3 out;
-    for (int i = 0; i < 3; ++i) {
-        const auto& e = (*v)[std::size_t(i)];
+    if (!v) fail(key, std::string("required ") + missing + " is missing");
+    if (!v->is_array() || v->size() != out.size())
+        fail(key, "expected an array of " + std::to_string(out.size()) + " numbers, got " + describe(*v));
+    for (std::size_t i = 0; i < out.size(); ++i) {
+        const auto& e = (*v)[i];
         if (!e.is_number()) fail(key, "element " + std::to_string(i) + " is not a number: " + describe(e));
         const double d = e.get<double>();
         if (!std::isfinite(d) || !each.contains(d))
@@ -264,11 +264,23 @@ glm::dvec3 JsonObject::vec3(std::string_view key, Range each) {
                           " is outside the allowed range " + each.str());
         out[i] = d;
     }
-    return out;
+}
+
+glm::dvec3 JsonObject::vec3(std::string_view key, Range each) {
+    double v[3];
+    numbers(key, each, v, "[x, y, z]");
+    return {v[0], v[1], v[2]};
 }
 
 glm::dvec3 JsonObject::vec3_or(std::string_view key, glm::dvec3 fallback, Range each) {
     return j_.contains(key) ? vec3(key, each) : (known_.emplace(key), fallback);
+}
+
+glm::dvec2 JsonObject::vec2_or(std::string_view key, glm::dvec2 fallback, Range each) {
+    if (!j_.contains(key)) return known_.emplace(key), fallback;
+    double v[2];
+    numbers(key, each, v, "[x, y]");
+    return {v[0], v[1]};
 }
 
 core::Int3 JsonObject::int3(std::string_view key, int lo, int hi) {

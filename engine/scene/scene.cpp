@@ -103,6 +103,22 @@ cloud::SubvoxelDetail parse_detail(JsonObject o) {
     return d;
 }
 
+// "rain": cloud::RainParams by the same names.
+cloud::RainParams parse_rain(JsonObject o) {
+    cloud::RainParams p;
+    p.rate = o.number_or("rate", p.rate, Range{0.0, 1000.0, true, false});
+    p.threshold = o.number_or("threshold", p.threshold, Range{0.0, 1.0, false, true});
+    p.shear = o.vec2_or("shear", p.shear, Range{-5000.0, 5000.0});
+    p.streak_scale = o.number_or("streak_scale", p.streak_scale, Range{1.0, 1e5});
+    p.streak_strength = o.number_or("streak_strength", p.streak_strength, Range{0.0, 1.0});
+    p.seed = o.seed_or("seed", p.seed);
+    p.g = o.number_or("g", p.g, Range{-1.0, 1.0, true, true});
+    p.albedo = o.number_or("albedo", p.albedo, Range{0.0, 1.0});
+    o.finish();
+    validated_as_pointer(o.file(), [&] { cloud::validate_rain(p); });
+    return p;
+}
+
 void parse_cloud(JsonObject o, CloudSource& c, const std::filesystem::path& base_dir) {
     const int sources = int(o.has("generator")) + int(o.has("file")) + int(o.has("vdb"));
     if (sources != 1)
@@ -429,6 +445,7 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
     if (auto c = root.optional_object("compression")) parse_compression(*c, s.compression, s.separate_components);
     parse_lights(root, s);
     if (auto sky = root.optional_object("sky")) parse_sky(*sky, s);
+    if (auto rain = root.optional_object("rain")) s.rain = parse_rain(*rain);
     // What the scene declares is what it calls for, unless "effects" says otherwise.
     s.effects.sun = s.sun.has_value();
     s.effects.sky = s.sky.has_value();

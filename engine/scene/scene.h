@@ -10,6 +10,7 @@
 #include "basis/compression.h"
 #include "basis/virtual_lights.h"
 #include "cloud/cloud.h"
+#include "cloud/rain.h"
 #include "cloud/subvoxel.h"
 #include "core/core.h"
 #include "lightning/lightning.h"
@@ -248,6 +249,9 @@ struct Scene {
     std::string name;
     transport::Medium medium;
     CloudSource cloud;
+    /// "rain": shafts below the base of the cloud's raining columns (cloud/rain.h), drawn by
+    /// the renderer and shadowing the sun and the ground; none when absent (no cost).
+    std::optional<cloud::RainParams> rain;
     int lighting_downsample = 4;  ///< lighting grid = density grid box-filtered by this factor
     int directions = 26;          ///< output directions n_dir: 1, 6, 18 or 26
     TransportSettings transport;

@@ -66,7 +66,7 @@ SunSolve solve_sun(const scene::Scene& s, const core::Grid3<float>& density, con
     SunSolve out;
     out.direction = direction;
     out.field = unit_sun_field(s, media, settings, direction);
-    out.transmittance = sun_transmittance(density, s.medium.extinction, direction);
+    out.transmittance = sun_transmittance(s, density, direction);
     out.seconds = sw.seconds();
     return out;
 }

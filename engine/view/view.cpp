@@ -107,20 +107,24 @@ StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::opti
         static_ = sky::load_or_solve(scene_, density_, static_media(), plan_, setup.cache, setup.say);
     if (plan_.sun) {
         sun_ = scene_.sun;
-        sun_transmittance_ = sky::sun_transmittance(density_, scene_.medium.extinction, static_.sun_direction);
+        sun_transmittance_ = sky::sun_transmittance(scene_, density_, static_.sun_direction);
     }
     renderer_ = std::make_unique<render::Renderer>(
         gl, setup.shader_dir.empty() ? render::default_shader_dir() : setup.shader_dir);
+    if (scene_.rain) rain_ = cloud::make_rain(density_, *scene_.rain);
+    const cloud::RainField* rain = scene_.rain ? &*rain_ : nullptr;
     if (scene_.cloud.detail) {
         std::optional<core::Grid3<float>> made;
         if (!setup.undetailed_density) made = scene::make_undetailed_density(scene_);
         const core::Grid3<float>& undetailed = setup.undetailed_density ? *setup.undetailed_density : *made;
         if (!(undetailed.geom == density_.geom))
             throw core::Error("StaticSetup::undetailed_density", "is not on the scene's density grid");
-        renderer_->set_volume(
-            {.density = &undetailed, .extinction = scene_.medium.extinction, .detail = scene_.cloud.detail});
+        renderer_->set_volume({.density = &undetailed,
+                               .extinction = scene_.medium.extinction,
+                               .detail = scene_.cloud.detail,
+                               .rain = rain});
     } else {
-        renderer_->set_volume({.density = &density_, .extinction = scene_.medium.extinction});
+        renderer_->set_volume({.density = &density_, .extinction = scene_.medium.extinction, .rain = rain});
     }
 }
 

@@ -231,7 +231,8 @@ private:
     // The static light: its solves, the sun's full-resolution transmittance, what is uploaded.
     sky::StaticLight static_;
     core::Grid3<float> sun_transmittance_;
-    std::optional<scene::Sun> sun_;  // irradiance and colour shown (direction: static_.sun_direction)
+    std::optional<cloud::RainField> rain_;  // the scene's rain (drawn by the renderer)
+    std::optional<scene::Sun> sun_;         // irradiance and colour shown (direction: static_.sun_direction)
     struct Uploaded {
         bool valid = false, sun = false, sky = false, sun_single = false, single = false, multiple = false;
         std::uint64_t version = 0;

@@ -29,8 +29,12 @@ struct FrameBlock {
     glm::vec4 sun_dir{0.0f}, sun_rgb{0.0f}, sun_params{0.0f};
     glm::vec4 host_depth{0.0f};
     glm::vec4 detail{0.0f};
+    glm::vec4 rain{0.0f};
+    glm::vec4 rain_light[8]{};
+    glm::vec4 rain_lights{0.0f};
 };
-static_assert(sizeof(FrameBlock) == 64 + 11 * 16 + 8 * 16 + 4 * 16 + 9 * 16, "FrameBlock must match std140");
+static_assert(sizeof(FrameBlock) == 64 + 11 * 16 + 8 * 16 + 4 * 16 + 10 * 16 + 8 * 16 + 16,
+              "FrameBlock must match std140");
 
 /// The passes of a frame in the order render() runs them (the timer's slots).
 enum Pass { kResolve, kGlow, kMarch, kMeter, kBolt, kGlare, kComposite, kPassCount };
@@ -53,6 +57,7 @@ struct FrameUniforms {
     bool statics = false;                         ///< the march samples the static light (sun, moon, sky)
     bool sun = false;                             ///< the march draws the sun's full-resolution single scattering
     bool detail = false;                          ///< the march erodes the density by the sub-voxel detail
+    bool rain = false;                            ///< the march draws the rain (and the ground its shadow)
     bool glow = false;                            ///< the glow pass runs
     bool host = false;                            ///< composited into a host's frame (render_into_host)
 };

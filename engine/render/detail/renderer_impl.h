@@ -36,6 +36,8 @@ struct Renderer::Impl {
     GLuint detail_tex = 0;  // the billow tile (cloud::DetailNoise, R8, repeat); 0: no detail
     double detail_period = 0.0, detail_strength = 0.0;
     double detail_finest = 0.0;  // metres across the finest billows
+    bool has_rain = false;       // the density texture's b channel holds rain (RGBA)
+    double rain_max = 0.0, rain_g = 0.0, rain_albedo = 0.0, rain_top = 0.0;
 
     // Source: the flash's S and the static light's (colour)
     detail::SourceSet flash = detail::SourceSet(GL_R32F), statics = detail::SourceSet(GL_RGBA32F);
@@ -64,7 +66,8 @@ struct Renderer::Impl {
     double glow_built_radius = -1.0;
     double profile_radius = -1.0, profile_sigma = -1.0;
     std::vector<glm::vec4> ground_lights;
-    int ground_lights_k = -1;  // -1: to rebuild
+    std::vector<glm::vec4> rain_lights;  // the channel below the rain's top as point lights (W/sr)
+    int ground_lights_k = -1;            // -1: to rebuild
     double ground_lights_height = 0.0;
 
     GLuint last_scam = 0;    // S_cam texture the last frame sampled (0: none)
@@ -88,13 +91,14 @@ struct Renderer::Impl {
     }
 
     static std::string march_defines(bool skip, bool early, bool source, bool emission, bool statics = false,
-                                     bool sun = false, bool detail = false) {
+                                     bool sun = false, bool detail = false, bool rain = false) {
         std::string d = std::string("#define SKIP_EMPTY ") + (skip ? "1" : "0") + "\n#define EARLY_EXIT " +
                         (early ? "1" : "0") + "\n#define HAS_SOURCE " + (source ? "1" : "0") +
                         "\n#define HAS_EMISSION " + (emission ? "1" : "0") + "\n";
         if (statics) d += "#define HAS_STATIC 1\n";
         if (sun) d += "#define HAS_SUN 1\n";
         if (detail) d += "#define HAS_DETAIL 1\n";
+        if (rain) d += "#define HAS_RAIN 1\n";
         return d;
     }
 

@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
 #include <cstdint>
@@ -68,6 +69,7 @@ public:
     }
     glm::dvec3 vec3(std::string_view key, Range each);
     glm::dvec3 vec3_or(std::string_view key, glm::dvec3 fallback, Range each);
+    glm::dvec2 vec2_or(std::string_view key, glm::dvec2 fallback, Range each);
     core::Int3 int3(std::string_view key, int lo, int hi);
     core::Int3 int3_or(std::string_view key, core::Int3 fallback, int lo, int hi);
 
@@ -83,6 +85,9 @@ public:
     [[noreturn]] void fail(std::string_view key, const std::string& what) const;
 
 private:
+    // An array of exactly out.size() finite numbers in `each` (`missing` names its shape).
+    void numbers(std::string_view key, Range each, std::span<double> out, const char* missing);
+
     const nlohmann::json* find(std::string_view key);
     const nlohmann::json& j_;
     std::string file_, path_;
