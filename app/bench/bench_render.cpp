@@ -20,9 +20,12 @@
 //                  the detailed reference at step 0.25 (and with the default limit of the step
 //                  by the finest billows), and the error of drawing only the voxel means the
 //                  solvers integrate (no per-sample erosion) against the same reference.
+//   case "rain":   a rain shaft under the storm (25 mm/h, cloud::make_rain): the march's and the
+//                  whole frame's CPU time against the dry storm in the same run (ratios).
 // llvmpipe uses LP_NUM_THREADS threads (default: all cores); the row says how many.
 #include "bench/bench.h"
 
+#include "cloud/rain.h"
 #include "cloud/subvoxel.h"
 
 #include "core/core.h"
@@ -284,4 +287,31 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
                         {"radiance_rel_rms_error", radiance_rel_rms(img, detailed_ref)},
                         {"transmittance_max_error", transmittance_max_err(img, detailed_ref)},
                         {"reference", "detail on, step 0.25 voxel, f16 density, no jitter"}});
+
+    // Rain: what drawing it costs (the march's fetch is the same; the rain's light per sample
+    // inside the shaft and the ground's shadow are the extra work).
+    cloud::RainParams rain_params;
+    rain_params.rate = 25.0;
+    rain_params.shear = {400.0, 0.0};
+    const cloud::RainField rain = cloud::make_rain(density, rain_params);
+    auto whole = [](const render::PassTimes& t) { return t.total; };
+    render::Settings st = base;
+    st.ground = true;
+    r.set_volume({.density = &density, .extinction = kappa});
+    const Medians dry_march = run_frames(r, cam, st, W, H, frames, march, true);
+    const Medians dry_frame = run_frames(r, cam, st, W, H, frames, whole, true);
+    r.set_volume({.density = &density, .extinction = kappa, .rain = &rain});
+    const Medians wet_march = run_frames(r, cam, st, W, H, frames, march, true);
+    const Medians wet_frame = run_frames(r, cam, st, W, H, frames, whole, true);
+    ctx.emit("render", {{"case", "rain"},
+                        {"rate_mm_h", rain_params.rate},
+                        {"march_cpu_ms", wet_march.cpu},
+                        {"baseline_march_cpu_ms", dry_march.cpu},
+                        {"march_cpu_ratio", wet_march.cpu / dry_march.cpu},
+                        {"frame_cpu_ms", wet_frame.cpu},
+                        {"baseline_frame_cpu_ms", dry_frame.cpu},
+                        {"frame_cpu_ratio", wet_frame.cpu / dry_frame.cpu},
+                        {"frame_ms", wet_frame.wall},
+                        {"baseline_frame_ms", dry_frame.wall},
+                        {"baseline", "the same storm without rain"}});
 }

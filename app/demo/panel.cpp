@@ -125,6 +125,10 @@ void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& r
     ImGui::Checkbox("glare", &opt.settings.glare);
     ImGui::Checkbox("bolt", &opt.settings.bolt);
     ImGui::Checkbox("ground", &opt.settings.ground);
+    if (view_.scene().rain) {
+        ImGui::SameLine();
+        ImGui::Checkbox("rain", &opt.settings.rain);
+    }
     if (view_.scene().cloud.detail) {
         ImGui::SameLine();
         ImGui::Checkbox("sub-voxel detail", &opt.settings.detail);

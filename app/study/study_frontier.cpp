@@ -116,10 +116,10 @@ FULGUR_STUDY(frontier, "frontier",
     variant("hybrid", "storm", preset("hybrid"));
     variant("per_strike", "storm", preset("per_strike"));
     variant("per_strike_mc", "storm", preset("per_strike_mc"));
-    // The presets on the storm with sub-voxel detail (content/scenes/storm-detail.json's): its
+    // The presets on the storm with sub-voxel detail (content/scenes/storm-full.json's): its
     // own bake, bolts and truths, through the voxel means of the eroded density.
     const std::optional<cloud::SubvoxelDetail> detail =
-        scene::load_scene(std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes/storm-detail.json").cloud.detail;
+        scene::load_scene(std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes/storm-full.json").cloud.detail;
     for (const char* p : {"paper", "hybrid", "per_strike", "per_strike_mc"})
         variant(std::string(p) + " detail", "storm_detail", [&, p](scene::Scene& s) {
             s.quality = scene::quality_preset(p);

@@ -19,12 +19,19 @@ using namespace fulgur;
 namespace {
 
 /// Renders the synthetic storm at w x h and returns the 8-bit frame (rows top to bottom).
-/// With `detail`, the cloud carries that sub-voxel detail (eroded in the march).
+/// With `detail`, the cloud carries that sub-voxel detail (eroded in the march); with `rain`,
+/// rain falls under it (cloud::make_rain with those parameters).
 std::vector<std::uint8_t> synthetic_storm(const core::Int3& dims, double voxel, int w, int h, bool dither = true,
-                                          const std::optional<cloud::SubvoxelDetail>& detail = std::nullopt) {
+                                          const std::optional<cloud::SubvoxelDetail>& detail = std::nullopt,
+                                          const std::optional<cloud::RainParams>& rain = std::nullopt) {
     render::Renderer& r = test::gl_renderer();
     const synthetic::Storm storm = synthetic::storm(dims, voxel);
-    r.set_volume({.density = &storm.density, .extinction = storm.extinction, .detail = detail});
+    std::optional<cloud::RainField> field;
+    if (rain) field = cloud::make_rain(storm.density, *rain);
+    r.set_volume({.density = &storm.density,
+                  .extinction = storm.extinction,
+                  .detail = detail,
+                  .rain = field ? &*field : nullptr});
     r.upload_source(synthetic::needed_upload(r, storm));
     r.set_channel(storm.bolt);
     render::Settings st = storm.settings;
@@ -73,6 +80,27 @@ TEST_CASE("golden: synthetic storm with sub-voxel detail") {
     for (std::size_t i = 0; i < rgba.size(); ++i) diff += std::abs(int(rgba[i]) - int(plain[i]));
     MESSAGE("mean difference from the undetailed storm: ", diff / double(rgba.size()), " levels");
     CHECK(diff / double(rgba.size()) > 0.5);  // measured 1.06 levels; twice the golden's mean tolerance
+}
+
+TEST_CASE("golden: synthetic storm with a rain shaft") {
+    // 25 mm/h under the tower, leaning 400 m per km downwind, streaks of 300 m.
+    cloud::RainParams rain;
+    rain.rate = 25.0;
+    rain.shear = {400.0, 0.0};
+    rain.streak_scale = 300.0;
+    const int W = 192, H = 108;
+    const auto rgba = synthetic_storm({64, 64, 48}, 200.0, W, H, true, std::nullopt, rain);
+    // The same tolerance and reasons as the undetailed golden.
+    const test::GoldenTolerance tol{.pixel_threshold = 6, .max_failing_fraction = 0.005, .max_mean_diff = 0.5};
+    const auto res = test::compare_golden(test::source_dir() / "tests/render/golden/synthetic_storm_rain.png", W, H,
+                                          rgba, tol, std::filesystem::path(FULGUR_TEST_OUTPUT_DIR) / "golden");
+    MESSAGE(res.message);
+    CHECK(res.passed);
+    const auto plain = synthetic_storm({64, 64, 48}, 200.0, W, H, true);
+    double diff = 0.0;
+    for (std::size_t i = 0; i < rgba.size(); ++i) diff += std::abs(int(rgba[i]) - int(plain[i]));
+    MESSAGE("mean difference from the dry storm: ", diff / double(rgba.size()), " levels");
+    CHECK(diff / double(rgba.size()) > 0.5);
 }
 
 TEST_CASE("documentation image (only with FULGUR_WRITE_DOC_IMAGES=1)") {
