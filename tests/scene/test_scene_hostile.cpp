@@ -293,27 +293,25 @@ TEST_CASE("sub-voxel detail is optional; its values are bounded, naming the fiel
 
 TEST_CASE("rain is optional; its values are bounded, naming the field") {
     CHECK_FALSE(parse_scene(kScene, "dry.json").rain.has_value());
-    auto rain = [&](const std::string& body) {
-        return with("\"lights\":", "\"rain\": {" + body + "}, \"lights\":");
-    };
+    auto rain = [&](const std::string& body) { return with("\"lights\":", "\"rain\": {" + body + "}, \"lights\":"); };
     const Scene s = parse_scene(rain("\"rate\": 30, \"shear\": [300, -100], \"streak_strength\": 0.2"), "r.json");
     REQUIRE(s.rain.has_value());
     CHECK(s.rain->rate == 30.0);
     CHECK(s.rain->shear == glm::dvec2(300.0, -100.0));
     CHECK(s.rain->streak_strength == 0.2);
     CHECK(parse_scene(rain(""), "defaults.json").rain->rate == 20.0);
-    for (const auto& [body, field] : std::vector<std::pair<std::string, std::string>>{
-             {"\"rate\": 0", "/rain/rate"},
-             {"\"rate\": 5000", "/rain/rate"},
-             {"\"threshold\": 1", "/rain/threshold"},
-             {"\"shear\": [1, 2, 3]", "/rain/shear"},
-             {"\"shear\": [9000, 0]", "/rain/shear"},
-             {"\"shear\": \"east\"", "/rain/shear"},
-             {"\"streak_scale\": 0.5", "/rain/streak_scale"},
-             {"\"streak_strength\": -1", "/rain/streak_strength"},
-             {"\"g\": 1", "/rain/g"},
-             {"\"albedo\": 1.5", "/rain/albedo"},
-             {"\"drizzle\": true", "/rain/drizzle"}}) {
+    for (const auto& [body, field] :
+         std::vector<std::pair<std::string, std::string>>{{"\"rate\": 0", "/rain/rate"},
+                                                          {"\"rate\": 5000", "/rain/rate"},
+                                                          {"\"threshold\": 1", "/rain/threshold"},
+                                                          {"\"shear\": [1, 2, 3]", "/rain/shear"},
+                                                          {"\"shear\": [9000, 0]", "/rain/shear"},
+                                                          {"\"shear\": \"east\"", "/rain/shear"},
+                                                          {"\"streak_scale\": 0.5", "/rain/streak_scale"},
+                                                          {"\"streak_strength\": -1", "/rain/streak_strength"},
+                                                          {"\"g\": 1", "/rain/g"},
+                                                          {"\"albedo\": 1.5", "/rain/albedo"},
+                                                          {"\"drizzle\": true", "/rain/drizzle"}}) {
         CAPTURE(body);
         const std::string where = "bad.json: " + field;
         CHECK_THROWS_WITH_AS(parse_scene(rain(body), "bad.json"), doctest::Contains(where.c_str()), Error);
