@@ -14,8 +14,8 @@ namespace fulgur::app {
 
 namespace {
 
-constexpr std::array<std::string_view, 9> kSwitches = {"sun",  "sky",    "silver-lining", "glow",    "glare",
-                                                       "bolt", "ground", "single",        "multiple"};
+constexpr std::array<std::string_view, 12> kSwitches = {
+    "sun", "sky", "silver-lining", "glow", "glare", "bolt", "ground", "single", "multiple", "detail", "rain", "dither"};
 
 constexpr const char* kTool = "fulgur-shot";
 
@@ -88,13 +88,15 @@ void declare(CommandLine& cli, ShotArgs& a) {
                        throw core::Error(kTool,
                                          "--off: \"" + name +
                                              "\" is not one of sun, sky, silver-lining, glow, glare, bolt, ground, "
-                                             "single, multiple");
+                                             "single, multiple, detail, rain, dither");
                    a.off.push_back(name);
                    b = e + 1;
                }
            },
            "run-time switches to turn off, comma-separated: sun, sky, silver-lining (the sun's single scattering "
-           "at full resolution: on the lighting grid instead), glow, glare, bolt, ground, single, multiple")
+           "at full resolution: on the lighting grid instead), glow, glare, bolt, ground, single, multiple, detail "
+           "(the march draws the cloud before its sub-voxel detail), rain, dither (the 8-bit output's dither: "
+           "smooth images compress far better)")
         ->type_name("A,B,..");
     app.add_option("-o,--output", a.output, "output PNG")->type_name("OUT.png")->required();
     path_option(app, "--reference", a.reference, ".png",

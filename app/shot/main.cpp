@@ -364,6 +364,9 @@ int main(int argc, char** argv) {
             opt.settings.ground &= off != "ground";
             opt.components.single &= off != "single";
             opt.components.multiple &= off != "multiple";
+            opt.settings.detail &= off != "detail";
+            opt.settings.rain &= off != "rain";
+            opt.settings.dither &= off != "dither";
         }
         // The view: --camera, else the scene's, else the default; printed with every part explicit.
         const std::optional<scene::CameraSpec> chosen = a.camera ? a.camera : view.scene().camera;
