@@ -22,6 +22,11 @@
 //                  solvers integrate (no per-sample erosion) against the same reference.
 //   case "rain":   a rain shaft under the storm (25 mm/h, cloud::make_rain): the march's and the
 //                  whole frame's CPU time against the dry storm in the same run (ratios).
+//   case "demo":   whole frames as the demo draws them (glare, ground, sky, automatic exposure,
+//                  internal scale 0.5, Timing::Off + glFinish) at 640x360, 1280x720 and
+//                  1920x1080, the camera orbiting (1 degree a frame) or still, with the storm
+//                  plain and with detail and rain; the plain still camera at the same size is
+//                  the baseline of each row (ratio).
 // llvmpipe uses LP_NUM_THREADS threads (default: all cores); the row says how many.
 #include "bench/bench.h"
 
@@ -37,6 +42,8 @@
 #include <cmath>
 #include <cstdlib>
 #include <thread>
+
+#include <time.h>
 
 namespace {
 
@@ -78,9 +85,84 @@ double transmittance_max_err(const std::vector<float>& a, const std::vector<floa
     return e;
 }
 
+/// CPU time of the whole process (every llvmpipe thread), milliseconds.
+double process_cpu_ms() {
+    timespec t{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return double(t.tv_sec) * 1e3 + double(t.tv_nsec) * 1e-6;
+}
+
 int llvmpipe_threads() {
     if (const char* e = std::getenv("LP_NUM_THREADS"); e && *e) return std::atoi(e);
     return int(std::thread::hardware_concurrency());
+}
+
+}  // namespace
+
+namespace {
+
+// The demo's frames at one output size: a context and renderer of that size (shaders
+// compiled before timing), all 26 directions of S uploaded (the orbit needs others than the
+// first view's), the storm plain or with detail and rain.
+void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const cloud::SubvoxelDetail& detail,
+               const cloud::RainParams& rain_params, int frames) {
+    const cloud::RainField rain = cloud::make_rain(storm.density, rain_params);
+    render::SourceUpload all;
+    all.geometry = storm.lighting;
+    all.direction_count = storm.directions;
+    const std::size_t cells = storm.lighting.cell_count();
+    for (int m = 0; m < storm.directions; ++m) {
+        all.directions.push_back(m);
+        all.values.emplace_back(storm.source.data() + std::size_t(m) * cells, cells);
+    }
+    const core::GridGeometry& g = storm.density.geom;
+    const glm::dvec3 target = g.origin + 0.5 * g.extent() * glm::dvec3(1.0, 1.0, 0.7);
+    const double distance = glm::length(storm.camera.position - target);
+    for (const core::Int3 size : {core::Int3{640, 360, 0}, core::Int3{1280, 720, 0}, core::Int3{1920, 1080, 0}}) {
+        auto context = platform::create_headless({.width = size.x, .height = size.y});
+        render::Renderer r(context->get_proc_address());
+        r.set_channel(storm.bolt);
+        render::Settings st = storm.settings;
+        st.glare = true;
+        st.auto_exposure = true;
+        st.timing = render::Timing::Off;
+        double baseline = 0.0;
+        for (const bool effects : {false, true}) {
+            r.set_volume({.density = &storm.density,
+                          .extinction = storm.extinction,
+                          .detail = effects ? std::optional(detail) : std::nullopt,
+                          .rain = effects ? &rain : nullptr});
+            r.upload_source(all);
+            for (const bool orbit : {false, true}) {
+                std::vector<double> wall, cpu;
+                for (int i = -2; i < frames; ++i) {  // two frames to compile and fault pages in
+                    st.frame_index = std::uint32_t(i + 2);
+                    const render::Camera cam =
+                        orbit ? render::Camera::orbit(target, distance, -60.0 + 1.0 * (i + 2), 8.0, 55.0)
+                              : storm.camera;
+                    const double cpu0 = process_cpu_ms();
+                    core::Stopwatch sw;
+                    r.render(cam, st, size.x, size.y);
+                    context->present();  // glFinish
+                    if (i < 0) continue;
+                    wall.push_back(sw.milliseconds());
+                    cpu.push_back(process_cpu_ms() - cpu0);
+                }
+                const double ms = bench::median(wall);
+                if (!effects && !orbit) baseline = ms;
+                ctx.emit("render", {{"case", "demo"},
+                                    {"size", {size.x, size.y}},
+                                    {"camera", orbit ? "orbit" : "still"},
+                                    {"effects", effects ? "detail+rain" : "none"},
+                                    {"frame_ms", ms},
+                                    {"fps", 1000.0 / ms},
+                                    {"frame_cpu_ms", bench::median(cpu)},
+                                    {"baseline_frame_ms", baseline},
+                                    {"ratio", ms / baseline},
+                                    {"baseline", "the plain storm, still camera, same size, same run"}});
+            }
+        }
+    }
 }
 
 }  // namespace
@@ -314,4 +396,6 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
                         {"frame_ms", wet_frame.wall},
                         {"baseline_frame_ms", dry_frame.wall},
                         {"baseline", "the same storm without rain"}});
+
+    demo_rows(ctx, storm, detail, rain_params, frames);
 }
