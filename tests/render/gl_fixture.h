@@ -58,6 +58,22 @@ core::Grid3<float> make_grid(core::Int3 dims, double voxel, glm::dvec3 origin, F
     return grid;
 }
 
+/// A slab 1 km thick (y in [-500, 500]) of density `rho` across the whole view of
+/// slab_camera(): 60 x 10 x 60 voxels of 100 m from (-3000, -500, 0).
+inline core::Grid3<float> view_slab(float rho) {
+    return make_grid({60, 10, 60}, 100.0, {-3000, -500, 0}, [rho](int, int, int) { return rho; });
+}
+
+/// 8 km in front of view_slab(), looking at its middle along +y with a 12 degree field: every
+/// ray within 6 degrees of the slab's normal.
+inline render::Camera slab_camera() {
+    render::Camera cam;
+    cam.position = {0, -8000, 3000};
+    cam.target = {0, 0, 3000};
+    cam.vertical_fov_deg = 12.0;
+    return cam;
+}
+
 /// A smooth Gaussian puff (sigma 5.3 voxels) filling a 32^3 grid of 40 m voxels with its lower
 /// corner at `origin`: its image is smooth at every resolution, so sampling does not move its
 /// centroid (a hard-edged object's would alias differently at each resolution).

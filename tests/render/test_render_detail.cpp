@@ -121,13 +121,10 @@ TEST_CASE("the channel is seen through the detailed cloud") {
     // channel behind a slab of rho = 0.5 (where the erosion acts everywhere) keeps the light
     // the detailed slab lets through, per vertex, not the undetailed slab's exp(-1).
     render::Renderer& r = gl_renderer();
-    const auto slab = test::make_grid({60, 10, 60}, 100.0, {-3000, -500, 0}, [](int, int, int) { return 0.5f; });
+    const auto slab = test::view_slab(0.5f);
     const double kappa = 2e-3;  // undetailed: tau = kappa * 0.5 * 1000 m = 1
     r.clear_source();
-    render::Camera cam;
-    cam.position = {0, -8000, 3000};
-    cam.target = {0, 0, 3000};
-    cam.vertical_fov_deg = 12.0;
+    const render::Camera cam = test::slab_camera();
     render::Settings st = test::volume_only();
     st.bolt = true;
     st.glow = false;

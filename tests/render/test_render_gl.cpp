@@ -436,13 +436,10 @@ TEST_CASE("internal-scale upsampling does not shift the image") {
 
 TEST_CASE("bolt core and glow are attenuated by the cloud in front of them, not behind") {
     render::Renderer& r = gl_renderer();
-    // A slab 1 km thick (y in [-500, 500]) across the whole view: tau = kappa * 1000 = 1.
-    const auto slab = test::make_grid({60, 10, 60}, 100.0, {-3000, -500, 0}, [](int, int, int) { return 1.0f; });
+    // A slab 1 km thick across the whole view: tau = kappa * 1000 = 1.
+    const auto slab = test::view_slab(1.0f);
     r.clear_source();
-    render::Camera cam;
-    cam.position = {0, -8000, 3000};
-    cam.target = {0, 0, 3000};
-    cam.vertical_fov_deg = 12.0;
+    const render::Camera cam = test::slab_camera();
     render::Settings st = test::volume_only();
     st.bolt = st.glow = true;
     st.glow_radius = 300.0;
