@@ -648,8 +648,7 @@ core::Grid3<float> add_detail(const Scene& s, const core::Grid3<float>& undetail
 
 core::Grid3<float> make_density(const Scene& s) {
     core::Grid3<float> d = make_undetailed_density(s);
-    if (!s.cloud.detail) return d;
-    return cloud::detailed_density(d, cloud::DetailNoise(*s.cloud.detail));
+    return s.cloud.detail ? add_detail(s, d) : d;
 }
 
 transport::LightingMedium make_lighting_medium(const Scene& s, const core::Grid3<float>& density) {

@@ -155,11 +155,11 @@ SkyField solve_sky(const solve::Media& media, bool uniform, std::span<const glm:
 core::Grid3<float> sun_transmittance(const core::Grid3<float>& density, double extinction, const glm::dvec3& direction);
 
 /// The scene's sun transmittance: through its cloud (`density`, make_density's) and, when the
-/// scene declares rain, through the rain too (cloud::make_rain of that density): the rain's
-/// voxels are then computed as well, so the rain is lit through the cloud and shadows the
-/// ground.
+/// scene declares rain, through the rain too (`rain`: cloud::make_rain of that density, made
+/// here when null): the rain's voxels are then computed as well, so the rain is lit through
+/// the cloud and shadows the ground.
 core::Grid3<float> sun_transmittance(const scene::Scene& s, const core::Grid3<float>& density,
-                                     const glm::dvec3& direction);
+                                     const glm::dvec3& direction, const cloud::RainField* rain = nullptr);
 
 // ---------------------------------------------------------------------------------------
 // The plan: what a scene's light needs and why

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <optional>
 
 namespace fulgur::sky {
 
@@ -431,14 +432,15 @@ core::Grid3<float> sun_transmittance(const core::Grid3<float>& density, double e
 }
 
 core::Grid3<float> sun_transmittance(const scene::Scene& s, const core::Grid3<float>& density,
-                                     const glm::dvec3& direction) {
+                                     const glm::dvec3& direction, const cloud::RainField* rain) {
     if (!s.rain) return sun_transmittance(density, s.medium.extinction, direction);
+    std::optional<cloud::RainField> made;
+    if (!rain) rain = &made.emplace(cloud::make_rain(density, *s.rain));
     // Rain as density of the same extinction per unit (extinction > 0: the scene's range).
-    const cloud::RainField rain = cloud::make_rain(density, *s.rain);
     core::Grid3<float> both = density;
     const double per_unit = 1.0 / s.medium.extinction;
     for (std::size_t i = 0; i < both.data.size(); ++i)
-        both.data[i] = float(double(both.data[i]) + double(rain.extinction.data[i]) * per_unit);
+        both.data[i] = float(double(both.data[i]) + double(rain->extinction.data[i]) * per_unit);
     return sun_transmittance(both, s.medium.extinction, direction);
 }
 

@@ -105,27 +105,25 @@ StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::opti
     }
     if (plan_.sun || plan_.sky)
         static_ = sky::load_or_solve(scene_, density_, static_media(), plan_, setup.cache, setup.say);
+    if (scene_.rain) rain_ = cloud::make_rain(density_, *scene_.rain);
+    const cloud::RainField* rain = rain_ ? &*rain_ : nullptr;
     if (plan_.sun) {
         sun_ = scene_.sun;
-        sun_transmittance_ = sky::sun_transmittance(scene_, density_, static_.sun_direction);
+        sun_transmittance_ = sky::sun_transmittance(scene_, density_, static_.sun_direction, rain);
     }
     renderer_ = std::make_unique<render::Renderer>(
         gl, setup.shader_dir.empty() ? render::default_shader_dir() : setup.shader_dir);
-    if (scene_.rain) rain_ = cloud::make_rain(density_, *scene_.rain);
-    const cloud::RainField* rain = scene_.rain ? &*rain_ : nullptr;
+    // With detail the renderer erodes the density before its detail at every sample.
+    std::optional<core::Grid3<float>> made;
+    const core::Grid3<float>* drawn = &density_;
     if (scene_.cloud.detail) {
-        std::optional<core::Grid3<float>> made;
-        if (!setup.undetailed_density) made = scene::make_undetailed_density(scene_);
-        const core::Grid3<float>& undetailed = setup.undetailed_density ? *setup.undetailed_density : *made;
-        if (!(undetailed.geom == density_.geom))
+        drawn =
+            setup.undetailed_density ? setup.undetailed_density : &made.emplace(scene::make_undetailed_density(scene_));
+        if (!(drawn->geom == density_.geom))
             throw core::Error("StaticSetup::undetailed_density", "is not on the scene's density grid");
-        renderer_->set_volume({.density = &undetailed,
-                               .extinction = scene_.medium.extinction,
-                               .detail = scene_.cloud.detail,
-                               .rain = rain});
-    } else {
-        renderer_->set_volume({.density = &density_, .extinction = scene_.medium.extinction, .rain = rain});
     }
+    renderer_->set_volume(
+        {.density = drawn, .extinction = scene_.medium.extinction, .detail = scene_.cloud.detail, .rain = rain});
 }
 
 void StormView::set_lightning(const lightning::LightningParams& p) {
