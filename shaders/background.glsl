@@ -101,12 +101,10 @@ float rain_transmittance(vec3 p, vec3 q) {
 }
 #endif
 
-// Ground: Lambertian, lit by a few point lights standing for the bolt (intensity already
-// multiplied by their visibility through the cloud), the sun through the cloud (its shadow)
-// and the sky's irradiance on a horizontal plane, pi (0.2 horizon + 0.8 zenith) for the
-// gradient (the sky the cloud hides is not subtracted); hazy with distance (aerial
-// perspective toward the horizon colour).
-vec3 ground_radiance(vec3 p, vec3 d, float t) {
+// The ground's irradiance from the channel: a few point lights standing for it (intensity
+// already multiplied by their visibility through the cloud), through the rain, in the flash's
+// colour.
+vec3 ground_flash_irradiance(vec3 p) {
     vec3 E = vec3(0.0);
     int n = int(ground_params.w);
     for (int i = 0; i < n; ++i) {
@@ -119,19 +117,39 @@ vec3 ground_radiance(vec3 p, vec3 d, float t) {
         E += light_colour.rgb * (ground_light[i].w * cos_theta / r2);
 #endif
     }
+    return E;
+}
+
+// The rest of the ground's irradiance: the sky's on a horizontal plane, pi (0.2 horizon + 0.8
+// zenith) for the gradient (the sky the cloud hides is not subtracted), and the sun through
+// the cloud (its shadow), added to E in that order.
+vec3 ground_static_irradiance(vec3 p, vec3 E) {
     E += sky_params.z > 0.5 ? 3.14159265 * (0.2 * sky_horizon.rgb + 0.8 * sky_zenith.rgb) : vec3(0.0);
     if (sun_dir.w > 0.5 && sun_dir.z < 0.0) E += sun_rgb.rgb * (-sun_dir.z * sun_visibility(p));
-    // Mild, low-frequency variation of the reflectance (fields, forest) so the plane reads as ground.
+    return E;
+}
+
+// The ground's reflectance at p: Lambertian, with a mild, low-frequency variation (fields,
+// forest) so the plane reads as ground; divided by pi.
+vec3 ground_albedo(vec3 p) {
     vec2 g = p.xy / 1500.0;
     vec2 gi = floor(g), gf = fract(g);
     gf = gf * gf * (3.0 - 2.0 * gf);
     float n00 = hash_unit(hash_u32(uvec3(ivec3(gi, 7)))), n10 = hash_unit(hash_u32(uvec3(ivec3(gi + vec2(1, 0), 7))));
     float n01 = hash_unit(hash_u32(uvec3(ivec3(gi + vec2(0, 1), 7)))), n11 = hash_unit(hash_u32(uvec3(ivec3(gi + vec2(1, 1), 7))));
     float variation = mix(mix(n00, n10, gf.x), mix(n01, n11, gf.x), gf.y);
-    vec3 albedo = ground_params.y * (0.85 + 0.3 * variation) * vec3(0.9, 1.0, 0.85);
-    vec3 L = albedo * E;
-    float haze = 1.0 - exp(-t / 40000.0);
-    return mix(L, sky_params.z > 0.5 ? sky_gradient(vec3(d.xy, 0.0)) : vec3(0.0), haze);
+    return ground_params.y * (0.85 + 0.3 * variation) * vec3(0.9, 1.0, 0.85);
+}
+
+// Haze toward the horizon over a ground distance t (aerial perspective toward the horizon colour).
+float ground_haze(float t) { return 1.0 - exp(-t / 40000.0); }
+vec3 haze_colour(vec3 d) { return sky_params.z > 0.5 ? sky_gradient(vec3(d.xy, 0.0)) : vec3(0.0); }
+
+// Ground: Lambertian, lit by the channel, the sun and the sky; hazy with distance.
+vec3 ground_radiance(vec3 p, vec3 d, float t) {
+    vec3 E = ground_static_irradiance(p, ground_flash_irradiance(p));
+    vec3 L = ground_albedo(p) * E;
+    return mix(L, haze_colour(d), ground_haze(t));
 }
 
 // The smooth background (no stars).
@@ -140,4 +158,21 @@ vec3 background(vec3 o, vec3 d) {
     if (tg < kBig) return ground_radiance(o + tg * d, d, tg);
     if (ground_params.z > 0.5 && d.z < 0.0 && o.z <= ground_params.x) return vec3(0.0);  // under the ground
     return sky_radiance(d);
+}
+
+// The smooth background in two parts whose sum is background(o, d) (to rounding): what the
+// channel lights (`flash`: the ground's flash light) and the rest (`rest`: sky, sunlit and
+// skylit ground, haze). Each is kept apart by the temporal history (docs/render.md).
+void background_parts(vec3 o, vec3 d, out vec3 rest, out vec3 flash) {
+    flash = vec3(0.0);
+    float tg = ground_distance(o, d);
+    if (tg < kBig) {
+        vec3 p = o + tg * d;
+        vec3 albedo = ground_albedo(p);
+        float haze = ground_haze(tg);
+        flash = albedo * ground_flash_irradiance(p) * (1.0 - haze);
+        rest = mix(albedo * ground_static_irradiance(p, vec3(0.0)), haze_colour(d), haze);
+        return;
+    }
+    rest = ground_params.z > 0.5 && d.z < 0.0 && o.z <= ground_params.x ? vec3(0.0) : sky_radiance(d);
 }

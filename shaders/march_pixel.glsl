@@ -6,29 +6,67 @@
 // Glow emission at internal resolution: rgb radiance, a = sum of luminance * distance.
 layout(binding = 2) uniform sampler2D u_glow;
 
+// The march of one pixel: its ray, its jitter, where it ends (the ground, a host's surface),
+// the glow at it (e; t_emit its depth) and the march itself.
+struct PixelMarch {
+    vec3 d;
+    float t_end;
+    vec4 e;
+    MarchResult r;
+};
+
+PixelMarch march_pixel(vec2 pixel) {
+    PixelMarch m;
+    vec2 ndc = pixel / sizes.zw * 2.0 - 1.0;
+    m.d = camera_ray(ndc);
+    float jitter = march_params.z > 0.5 ? fract(interleaved_gradient_noise(floor(pixel)) + march_params.w) : 0.5;
+    m.t_end = ground_distance(cam_pos.xyz, m.d);
+    // A host's opaque surface ends the ray too (its eye depth over the ray's forward cosine).
+    if (host_depth.w != 0.0) m.t_end = min(m.t_end, host_eye_depth(pixel * sizes.xy / sizes.zw) / max(dot(m.d, cam_fwd.xyz), 1e-6));
+#if HAS_EMISSION
+    m.e = texelFetch(u_glow, ivec2(pixel), 0);
+    float y = luminance(m.e.rgb);
+    float t_emit = y > 0.0 ? m.e.a / y : kBig;
+    if (host_depth.w != 0.0 && t_emit > m.t_end) m.e = vec4(0.0);  // the glow behind the host's surface
+#else
+    m.e = vec4(0.0);
+    float t_emit = kBig;
+#endif
+    m.r = march_ray(cam_pos.xyz, m.d, m.t_end, jitter, t_emit);
+    return m;
+}
+
 // pixel: internal-resolution pixel centre (x + 0.5, y + 0.5), origin bottom-left.
 // Returns rgb = in-scattered radiance * flash colour + the static light's and the sun's
 //              in-scattered radiance + glow * T(camera, glow depth)
 //              + smooth background (sky gradient or ground) * T,
 // a = transmittance of the whole ray (the stars are added at full resolution).
 vec4 shade_pixel(vec2 pixel) {
-    vec2 ndc = pixel / sizes.zw * 2.0 - 1.0;
-    vec3 d = camera_ray(ndc);
-    float jitter = march_params.z > 0.5 ? fract(interleaved_gradient_noise(floor(pixel)) + march_params.w) : 0.5;
-    float t_end = ground_distance(cam_pos.xyz, d);
-    // A host's opaque surface ends the ray too (its eye depth over the ray's forward cosine).
-    if (host_depth.w != 0.0) t_end = min(t_end, host_eye_depth(pixel * sizes.xy / sizes.zw) / max(dot(d, cam_fwd.xyz), 1e-6));
-#if HAS_EMISSION
-    vec4 e = texelFetch(u_glow, ivec2(pixel), 0);
-    float y = luminance(e.rgb);
-    float t_emit = y > 0.0 ? e.a / y : kBig;
-    if (host_depth.w != 0.0 && t_emit > t_end) e = vec4(0.0);  // the glow behind the host's surface
-#else
-    vec4 e = vec4(0.0);
-    float t_emit = kBig;
-#endif
-    MarchResult r = march_ray(cam_pos.xyz, d, t_end, jitter, t_emit);
-    vec3 bg = background(cam_pos.xyz, d);
-    return vec4(r.in_scattered * light_colour.rgb + r.in_static + r.t_emit * e.rgb + r.transmittance * bg,
-                r.transmittance);
+    PixelMarch m = march_pixel(pixel);
+    vec3 bg = background(cam_pos.xyz, m.d);
+    return vec4(m.r.in_scattered * light_colour.rgb + m.r.in_static + m.r.t_emit * m.e.rgb + m.r.transmittance * bg,
+                m.r.transmittance);
 }
+
+#if TEMPORAL
+// The same pixel's terms kept apart by light group, for the temporal history (temporal.frag
+// sums them with the glow into shade_pixel's result):
+//   flash   = (the flash's in-scattered S before its colour, T, T to the glow's depth, depth)
+//   statics = (the static light: in-scattered sun, moon and sky + the background they light * T)
+//   channel = (the channel's direct light: the rain it lights + the ground it lights * T, in
+//              colour; the flash's light depth)
+// depth: the cloud's opacity-weighted distance where it hides at least 10% of the background,
+// else the background's distance (-1: the sky, infinitely far). The flash's light depth: the
+// distance its in-scattered light comes from on average (it lights the cloud from within,
+// behind the cloud's near side: reprojected by the cloud's depth it would slide), 0: none.
+void shade_groups(vec2 pixel, out vec4 flash, out vec4 statics, out vec4 channel) {
+    PixelMarch m = march_pixel(pixel);
+    vec3 rest, lit;
+    background_parts(cam_pos.xyz, m.d, rest, lit);
+    float T = m.r.transmittance;
+    float depth = T <= 0.9 ? m.r.depth : (m.t_end < kBig ? m.t_end : -1.0);
+    flash = vec4(m.r.in_scattered, T, m.r.t_emit, depth);
+    statics = vec4(m.r.in_static + T * rest, 0.0);
+    channel = vec4(m.r.in_rain_flash * light_colour.rgb + T * lit, m.r.light_depth);
+}
+#endif

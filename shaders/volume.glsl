@@ -11,6 +11,8 @@
 //   HAS_DETAIL   1: erode the density by the sub-voxel detail (u_detail, detail_params)
 //   HAS_RAIN     1: rain's extinction in the density texture's b channel (rain_params), lit
 //                   by the flash's point lights, the sun and the sky
+//   TEMPORAL     1: keep the rain's light from the channel apart from the flash's S and
+//                   return the ray's opacity-weighted depth (the temporal history's terms)
 #ifndef SKIP_EMPTY
 #define SKIP_EMPTY 1
 #endif
@@ -34,6 +36,9 @@
 #endif
 #ifndef HAS_RAIN
 #define HAS_RAIN 0
+#endif
+#ifndef TEMPORAL
+#define TEMPORAL 0
 #endif
 
 // r: density rho in [0, 1]; g: Chebyshev (L-infinity) distance, in density voxels / 255,
@@ -121,6 +126,11 @@ struct MarchResult {
     vec3 in_static;      // the same for the static light and the sun's full-resolution single scattering (rgb)
     float transmittance; // T over the whole ray segment
     float t_emit;        // T from the camera to the emission depth
+#if TEMPORAL
+    float in_rain_flash; // the rain's in-scattered light from the channel (not in in_scattered)
+    float depth;         // opacity-weighted mean distance of the cloud along the ray (0 when it is clear)
+    float light_depth;   // the flash's in-scattered light's weighted mean distance (0 when there is none)
+#endif
 };
 
 // Integrates L = int T(t) sigma_t(t) S(t) dt over the ray o + t d (d unit) inside the box,
@@ -136,6 +146,11 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
     r.in_static = vec3(0.0);
     r.transmittance = 1.0;
     r.t_emit = 1.0;
+#if TEMPORAL
+    r.in_rain_flash = 0.0;
+    r.depth = 0.0;
+    r.light_depth = 0.0;
+#endif
     float t0, t1;
     if (vol_size.w <= 0.0 || !ray_box(o, d, vol_min.xyz, vol_min.xyz + vol_size.xyz, t0, t1)) return r;
     t1 = min(t1, t_end);
@@ -157,6 +172,9 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
     float kappa = vol_min.w;
     float voxel = vol_size.w;
     float T = 1.0, L = 0.0, Te = 1.0;
+#if TEMPORAL
+    float Lrf = 0.0, depth_sum = 0.0, light_depth_sum = 0.0;
+#endif
     float a = t0;      // start of the current piece
     float k = 0.0;     // index of its end boundary
     int steps = counts.x;
@@ -189,7 +207,11 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
         float wc = sigma_c + sigma_r > 0.0 ? sigma_c / (sigma_c + sigma_r) : 0.0;
         if (sigma_r > 0.0) {
             float wr = T * alpha * (1.0 - wc) * rain_params.w;
+#if TEMPORAL
+            Lrf += wr * rain_flash(o + t * d, d);
+#else
             L += wr * rain_flash(o + t * d, d);
+#endif
             Ls += wr * rain_static(d, o_tex + t * d_tex);
         }
 #else
@@ -199,13 +221,22 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #if HAS_SOURCE
         // Radiance is never negative: S from the lattice (its signed phase fit) and from
         // truncated Haar coefficients can dip below zero; clamped where it is consumed.
+#if TEMPORAL
+        float dL = T * alpha * wc * max(textureLod(u_scam, o_lit + t * d_lit, 0.0).r, 0.0);
+        L += dL;
+        light_depth_sum += dL * t;
+#else
         L += T * alpha * wc * max(textureLod(u_scam, o_lit + t * d_lit, 0.0).r, 0.0);
+#endif
 #endif
 #if HAS_STATIC
         Ls += T * alpha * wc * textureLod(u_static, o_st + t * d_st, 0.0).rgb;
 #endif
 #if HAS_SUN
         Ls += (T * alpha * wc * textureLod(u_sun_t, o_tex + t * d_tex, 0.0).r) * sun_s1;
+#endif
+#if TEMPORAL
+        depth_sum += T * alpha * t;
 #endif
         T *= 1.0 - alpha;
 #if HAS_EMISSION
@@ -218,6 +249,12 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
     r.in_static = Ls;
     r.transmittance = T;
     r.t_emit = Te;
+#if TEMPORAL
+    r.in_rain_flash = Lrf;
+    // The opacity sum_k T_k alpha_k telescopes to 1 - T.
+    r.depth = T < 1.0 ? depth_sum / (1.0 - T) : 0.0;
+    r.light_depth = L > 0.0 ? light_depth_sum / L : 0.0;
+#endif
     return r;
 }
 

@@ -25,8 +25,10 @@
 //   case "demo":   whole frames as the demo draws them (glare, ground, sky, automatic exposure,
 //                  internal scale 0.5, Timing::Off + glFinish) at 640x360, 1280x720 and
 //                  1920x1080, the camera orbiting (1 degree a frame) or still, with the storm
-//                  plain and with detail and rain; the plain still camera at the same size is
-//                  the baseline of each row (ratio).
+//                  plain and with detail and rain, through a return stroke's decay; today's
+//                  renderer and the temporal history (Settings::temporal: its steps and its
+//                  error against a fresh render of each frame). Today's plain still camera at
+//                  the same size is the baseline of each row (ratio).
 // llvmpipe uses LP_NUM_THREADS threads (default: all cores); the row says how many.
 #include "bench/bench.h"
 
@@ -103,25 +105,35 @@ namespace {
 
 // The demo's frames at one output size: a context and renderer of that size (shaders
 // compiled before timing), all 26 directions of S uploaded (the orbit needs others than the
-// first view's), the storm plain or with detail and rain.
+// first view's), the storm plain or with detail and rain, a return stroke decaying over the
+// frames (S and the channel scaled by exp(-frame / 8) before each, untimed, as the run time
+// uploads them), today's renderer and the temporal history. Each temporal frame is compared
+// with a fresh render of the same frame (untimed).
 void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const cloud::SubvoxelDetail& detail,
                const cloud::RainParams& rain_params, int frames) {
     const cloud::RainField rain = cloud::make_rain(storm.density, rain_params);
-    render::SourceUpload all;
-    all.geometry = storm.lighting;
-    all.direction_count = storm.directions;
     const std::size_t cells = storm.lighting.cell_count();
-    for (int m = 0; m < storm.directions; ++m) {
-        all.directions.push_back(m);
-        all.values.emplace_back(storm.source.data() + std::size_t(m) * cells, cells);
-    }
+    std::vector<float> scaled(storm.source.size());
+    auto show_flash = [&](render::Renderer& r, double g) {
+        for (std::size_t i = 0; i < scaled.size(); ++i) scaled[i] = float(double(storm.source[i]) * g);
+        render::SourceUpload all;
+        all.geometry = storm.lighting;
+        all.direction_count = storm.directions;
+        for (int m = 0; m < storm.directions; ++m) {
+            all.directions.push_back(m);
+            all.values.emplace_back(scaled.data() + std::size_t(m) * cells, cells);
+        }
+        r.upload_source(all);
+        render::LitChannel ch = storm.bolt;
+        for (render::ChannelSegment& c : ch.segments) c.intensity = float(double(c.intensity) * g);
+        r.set_channel(ch);
+    };
     const core::GridGeometry& g = storm.density.geom;
     const glm::dvec3 target = g.origin + 0.5 * g.extent() * glm::dvec3(1.0, 1.0, 0.7);
     const double distance = glm::length(storm.camera.position - target);
     for (const core::Int3 size : {core::Int3{640, 360, 0}, core::Int3{1280, 720, 0}, core::Int3{1920, 1080, 0}}) {
         auto context = platform::create_headless({.width = size.x, .height = size.y});
         render::Renderer r(context->get_proc_address());
-        r.set_channel(storm.bolt);
         render::Settings st = storm.settings;
         st.glare = true;
         st.auto_exposure = true;
@@ -132,35 +144,58 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                           .extinction = storm.extinction,
                           .detail = effects ? std::optional(detail) : std::nullopt,
                           .rain = effects ? &rain : nullptr});
-            r.upload_source(all);
-            for (const bool orbit : {false, true}) {
-                std::vector<double> wall, cpu;
-                for (int i = -2; i < frames; ++i) {  // two frames to compile and fault pages in
-                    st.frame_index = std::uint32_t(i + 2);
-                    const render::Camera cam =
-                        orbit ? render::Camera::orbit(target, distance, -60.0 + 1.0 * (i + 2), 8.0, 55.0)
-                              : storm.camera;
-                    const double cpu0 = process_cpu_ms();
-                    core::Stopwatch sw;
-                    r.render(cam, st, size.x, size.y);
-                    context->present();  // glFinish
-                    if (i < 0) continue;
-                    wall.push_back(sw.milliseconds());
-                    cpu.push_back(process_cpu_ms() - cpu0);
+            for (const bool orbit : {false, true})
+                for (const bool temporal : {false, true}) {
+                    std::vector<double> wall, cpu, error;
+                    int steps[4] = {0, 0, 0, 0};
+                    for (int i = -2; i < frames; ++i) {  // two frames to compile and fault pages in
+                        show_flash(r, std::exp(-(i + 2) / 8.0));
+                        st.frame_index = std::uint32_t(i + 2);
+                        st.temporal = temporal;
+                        const render::Camera cam =
+                            orbit ? render::Camera::orbit(target, distance, -60.0 + 1.0 * (i + 2), 8.0, 55.0)
+                                  : storm.camera;
+                        const double cpu0 = process_cpu_ms();
+                        core::Stopwatch sw;
+                        const render::FrameStats stats = r.render(cam, st, size.x, size.y);
+                        context->present();  // glFinish
+                        if (i < 0) continue;
+                        wall.push_back(sw.milliseconds());
+                        cpu.push_back(process_cpu_ms() - cpu0);
+                        ++steps[int(stats.temporal)];
+                        if (!temporal) continue;
+                        int w = 0, h = 0;
+                        const std::vector<float> kept = r.read_march(w, h);
+                        render::Settings fresh = st;
+                        fresh.temporal = false;
+                        r.render(cam, fresh, size.x, size.y);
+                        error.push_back(radiance_rel_rms(kept, r.read_march(w, h)));
+                    }
+                    const double ms = bench::median(wall);
+                    if (!effects && !orbit && !temporal) baseline = ms;
+                    nlohmann::json row = {{"case", "demo"},
+                                          {"size", {size.x, size.y}},
+                                          {"camera", orbit ? "orbit" : "still"},
+                                          {"effects", effects ? "detail+rain" : "none"},
+                                          {"temporal", temporal},
+                                          {"frame_ms", ms},
+                                          {"fps", 1000.0 / ms},
+                                          {"frame_cpu_ms", bench::median(cpu)},
+                                          {"baseline_frame_ms", baseline},
+                                          {"ratio", ms / baseline},
+                                          {"baseline",
+                                           "today's renderer (no temporal history), the plain storm, "
+                                           "still camera, same size, same run"}};
+                    if (temporal) {
+                        row["frames_full"] = steps[int(render::TemporalStep::Full)];
+                        row["frames_quarter"] = steps[int(render::TemporalStep::Quarter)];
+                        row["frames_reused"] = steps[int(render::TemporalStep::Reused)];
+                        row["error_vs_fresh_median"] = bench::median(error);
+                        row["error_vs_fresh_max"] = *std::max_element(error.begin(), error.end());
+                        row["error"] = "relative L2 of the march's radiance against a fresh render of the frame";
+                    }
+                    ctx.emit("render", row);
                 }
-                const double ms = bench::median(wall);
-                if (!effects && !orbit) baseline = ms;
-                ctx.emit("render", {{"case", "demo"},
-                                    {"size", {size.x, size.y}},
-                                    {"camera", orbit ? "orbit" : "still"},
-                                    {"effects", effects ? "detail+rain" : "none"},
-                                    {"frame_ms", ms},
-                                    {"fps", 1000.0 / ms},
-                                    {"frame_cpu_ms", bench::median(cpu)},
-                                    {"baseline_frame_ms", baseline},
-                                    {"ratio", ms / baseline},
-                                    {"baseline", "the plain storm, still camera, same size, same run"}});
-            }
         }
     }
 }

@@ -172,6 +172,13 @@ struct HostFrame {
 Camera camera_from_matrices(const glm::dmat4& view, const glm::dmat4& projection, double aspect);
 
 enum class MarchKernel { Fragment, Compute };
+/// What the temporal history did in a frame (Settings::temporal).
+enum class TemporalStep {
+    Off,      ///< no history: the march as without it
+    Full,     ///< every pixel marched (no history yet, or a light changed in shape)
+    Quarter,  ///< the camera moved: a quarter of the pixels marched, the rest reprojected
+    Reused,   ///< a still camera and lights changed only in intensity: nothing marched
+};
 enum class Timing { Off, Finish, Queries };
 
 /// Frame settings. Every accuracy/time knob is here with its default.
@@ -199,6 +206,14 @@ struct Settings {
     bool early_exit = true;           ///< stop when the transmittance falls below min_transmittance
     double min_transmittance = 1e-3;  ///< early-exit threshold (max error: this * S along the rest)
     MarchKernel kernel = MarchKernel::Fragment;
+    /// The temporal history (docs/render.md, "Temporal history"): the march keeps its light
+    /// per group (the flash's S, the channel's direct light, the static light) with the
+    /// transmittances and a depth. A frame whose groups changed only in intensity rescales
+    /// the history: a still camera marches nothing, a moving one a quarter of the pixels (a
+    /// 2x2 block's pixels in turn) and reprojects the rest through their depth. A change in a
+    /// group's shape (a leader's front, another strike, the static light, any other input or
+    /// setting) marches every pixel. The fragment kernel; not with render_into_host.
+    bool temporal = false;
     std::uint32_t frame_index = 0;  ///< varies the jitter pattern between frames (deterministic)
     // Effects
     bool sky = true;
@@ -352,6 +367,8 @@ struct FrameStats {
     double exposure = 0.0;          ///< the exposure the frame was tone mapped with
     double metered_exposure = 0.0;  ///< what the automatic exposure called for (0: manual)
     double glare_keep = 1.0;        ///< the share of the frame's light the glare left in place (1: no glare)
+    TemporalStep temporal = TemporalStep::Off;
+    double marched_share = 1.0;  ///< the share of the internal pixels the march ran for
 };
 
 class Renderer {

@@ -159,6 +159,7 @@ Renderer::~Renderer() {
     m.hdr_target.release();
     for (detail::Target& t : m.glare_down) t.release();
     for (detail::Target& t : m.glare_up) t.release();
+    m.temporal.release();
 }
 
 void Renderer::set_volume(const VolumeDesc& v) {
@@ -259,6 +260,7 @@ void Renderer::set_volume(const VolumeDesc& v) {
     m.distance = std::move(dist);
     m.kappa = v.extinction;
     m.has_volume = true;
+    m.temporal.inputs_changed = true;
     m.lit_active_valid = false;
     m.needed_camera.reset();
     m.ground_lights_k = -1;  // visibility depends on the volume
@@ -274,6 +276,7 @@ void Renderer::clear_volume() {
     m.density = {};
     m.distance.clear();
     m.has_volume = false;
+    m.temporal.inputs_changed = true;
     m.lit_active_valid = false;
     m.needed_camera.reset();
     m.ground_lights_k = -1;
@@ -284,11 +287,16 @@ void Renderer::upload_source(const SourceUpload& s) {
     core::Stopwatch sw;
     const double cpu0 = process_cpu_ms();
     upload_into(m.flash, "upload_source", s.geometry, s.direction_count, s.directions, s.values, 1, s.keep_others);
+    const core::GridGeometry& g = s.geometry;
+    const float fixed[8] = {float(g.origin.x), float(g.origin.y), float(g.origin.z), float(g.voxel_size),
+                            float(g.dims.x),   float(g.dims.y),   float(g.dims.z),   float(s.direction_count)};
+    m.temporal.source.note(fixed, s.directions, s.values, !s.keep_others);
     m.pending_upload_ms += sw.milliseconds();
     m.pending_upload_cpu_ms += process_cpu_ms() - cpu0;
 }
 
 void Renderer::clear_source() {
+    impl_->temporal.source.clear();
     impl_->flash.has = false;
     impl_->flash.dirty = true;
 }
@@ -303,11 +311,13 @@ void Renderer::upload_static(const StaticUpload& s) {
         throw core::Error("upload_static", "needs all " + std::to_string(s.direction_count) + " directions, got " +
                                                std::to_string(s.rgb.size()));
     upload_into(m.statics, "upload_static", s.geometry, s.direction_count, all, s.rgb, 3, false);
+    m.temporal.inputs_changed = true;
     m.pending_upload_ms += sw.milliseconds();
     m.pending_upload_cpu_ms += process_cpu_ms() - cpu0;
 }
 
 void Renderer::clear_static() {
+    impl_->temporal.inputs_changed = true;
     impl_->statics.has = false;
     impl_->statics.dirty = true;
 }
@@ -322,6 +332,7 @@ void Renderer::set_sun(const SunDesc& sun) {
             throw core::Error("set_sun: irradiance_rgb", "must be finite and >= 0");
     if (!(sun.albedo >= 0.0 && sun.albedo <= 1.0)) throw core::Error("set_sun: albedo", "must be in [0, 1]");
     if (!(sun.g > -1.0 && sun.g < 1.0)) throw core::Error("set_sun: g", "must be in (-1, 1)");
+    m.temporal.inputs_changed = true;
     m.sun_direction = sun.direction / len;
     m.sun_rgb = sun.irradiance_rgb;
     m.sun_albedo = sun.albedo;
@@ -344,7 +355,10 @@ void Renderer::set_sun(const SunDesc& sun) {
     }
 }
 
-void Renderer::clear_sun() { impl_->has_sun = impl_->sun_fine = false; }
+void Renderer::clear_sun() {
+    impl_->temporal.inputs_changed = true;
+    impl_->has_sun = impl_->sun_fine = false;
+}
 
 void Renderer::set_channel(const LitChannel& bolt) {
     Impl& m = *impl_;
@@ -364,6 +378,13 @@ void Renderer::set_channel(const LitChannel& bolt) {
         segs.emplace_back(s.a, s.intensity);
         segs.emplace_back(s.b, s.radius);
     }
+    // The channel's light in the temporal history: its geometry fixed, its intensities compared.
+    std::vector<float> fixed, intensity;
+    for (const ChannelSegment& c : bolt.segments) {
+        fixed.insert(fixed.end(), {c.a.x, c.a.y, c.a.z, c.b.x, c.b.y, c.b.z, c.radius});
+        intensity.push_back(c.intensity);
+    }
+    m.temporal.channel.note(fixed, {0}, {intensity}, true);
     m.bolt = bolt;
     m.seg_count = int(bolt.segments.size());
     m.seg_buf.upload(segs.data(), segs.size() * sizeof(glm::vec4));
@@ -419,7 +440,10 @@ FrameStats Renderer::Impl::run_frame(const Camera& camera, const Settings& st, i
     PassTimer timer(st.timing, m.queries);
     m.resolve_pass(camera.position, st, u, timer, stats);
     m.glow_pass(st, u, timer, stats);
-    m.march_pass(st, u, timer);
+    if (st.temporal && !host)
+        m.temporal_march_pass(camera, st, u, timer, stats);
+    else
+        m.march_pass(st, u, timer);
     m.meter_pass(st, u, timer, stats);
     m.bolt_pass(st, u, timer, stats);
     m.glare_pass(camera, st, u, timer, stats);

@@ -37,6 +37,25 @@ inline void delete_texture(GLuint& t) {
     t = 0;
 }
 
+/// A w x h RGBA32F 2D texture, linearly filtered and clamped to its edges.
+inline GLuint make_texture_2d(int w, int h) {
+    GLuint tex = 0;
+    glCreateTextures(GL_TEXTURE_2D, 1, &tex);
+    glTextureStorage2D(tex, 1, GL_RGBA32F, w, h);
+    glTextureParameteri(tex, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTextureParameteri(tex, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glTextureParameteri(tex, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTextureParameteri(tex, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    return tex;
+}
+
+/// Throws unless framebuffer `fbo` (w x h) is complete.
+inline void check_framebuffer(GLuint fbo, int w, int h) {
+    if (glCheckNamedFramebufferStatus(fbo, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+        throw core::Error("render",
+                          "RGBA32F framebuffer of " + std::to_string(w) + "x" + std::to_string(h) + " is not complete");
+}
+
 struct Target {  // a colour texture + framebuffer
     GLuint tex = 0, fbo = 0;
     int w = 0, h = 0;
@@ -45,17 +64,10 @@ struct Target {  // a colour texture + framebuffer
         release();
         w = width;
         h = height;
-        glCreateTextures(GL_TEXTURE_2D, 1, &tex);
-        glTextureStorage2D(tex, 1, GL_RGBA32F, w, h);
-        glTextureParameteri(tex, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-        glTextureParameteri(tex, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-        glTextureParameteri(tex, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-        glTextureParameteri(tex, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+        tex = make_texture_2d(w, h);
         glCreateFramebuffers(1, &fbo);
         glNamedFramebufferTexture(fbo, GL_COLOR_ATTACHMENT0, tex, 0);
-        if (glCheckNamedFramebufferStatus(fbo, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-            throw core::Error(
-                "render", "RGBA32F framebuffer of " + std::to_string(w) + "x" + std::to_string(h) + " is not complete");
+        check_framebuffer(fbo, w, h);
     }
     void release() {
         if (fbo) glDeleteFramebuffers(1, &fbo);

@@ -7,6 +7,7 @@
 #include "render/detail/frame.h"
 #include "render/detail/gl_program.h"
 #include "render/detail/gl_resources.h"
+#include "render/detail/temporal.h"
 #include "render/render.h"
 
 #include <glad/gl.h>
@@ -77,6 +78,7 @@ struct Renderer::Impl {
     detail::Target glow_target, march_target, core_target, hdr_target;
     std::vector<detail::Target> glare_down, glare_up;  // the glare pyramid's levels (pass_glare.cpp)
     GlareFit glare_fit;
+    detail::TemporalState temporal;            // the temporal history (pass_temporal.cpp)
     double glare_key[3] = {-1.0, -1.0, -1.0};  // pixel size, internal scale, reach the fit was made for
     bool glare_ran = false;                    // this frame's composite adds glare_up[0]
     int out_w = 0, out_h = 0;
@@ -155,6 +157,9 @@ struct Renderer::Impl {
                       detail::PassTimer& timer, FrameStats& stats);
     void glow_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats);
     void march_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer);
+    /// The march with the temporal history (Settings::temporal) in place of march_pass.
+    void temporal_march_pass(const Camera& camera, const Settings& st, const detail::FrameUniforms& u,
+                             detail::PassTimer& timer, FrameStats& stats);
     void meter_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats);
     void bolt_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats);
     void glare_pass(const Camera& camera, const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer,

@@ -1,0 +1,98 @@
+// Internal to fulgur::render: the temporal history (Settings::temporal). The march's light is
+// kept per light group — the flash's S, the channel's direct light (rain and ground), the
+// static light (sun, moon, sky) — with the transmittances and a depth, so that a frame whose
+// groups changed only in intensity rescales the history instead of marching again: a still
+// camera re-marches nothing through a return stroke's decay, a moving one marches a quarter
+// of the pixels and reprojects the rest. A group whose light changed in shape (a leader's
+// front, another strike, a new static light, other settings) starts the history again.
+#pragma once
+
+#include "render/detail/frame.h"
+#include "render/detail/gl_resources.h"
+#include "render/render.h"
+
+#include <glad/gl.h>
+
+#include <glm/glm.hpp>
+
+#include <cstdint>
+#include <map>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace fulgur::render::detail {
+
+/// `count` RGBA32F colour textures of one size on one framebuffer (attachments 0..count-1).
+struct MultiTarget {
+    std::vector<GLuint> tex;
+    GLuint fbo = 0;
+    int w = 0, h = 0;
+    void ensure(int width, int height, int count);
+    void release();
+};
+
+/// Whether a light group's values now are a multiple of those the history was made with: the
+/// factor (`rescale`) while they are, `valid` false once they are not. The values are compared
+/// by least squares: c = <now, then> / <then, then>, a multiple when |now - c then| <=
+/// kTolerance |now| (the same light reconstructed at another intensity differs from a multiple
+/// by float rounding, ~1e-7).
+class ScaleTracker {
+public:
+    static constexpr double kTolerance = 1e-5;
+    /// New values of the group, keyed (a direction of S; 0 for a single array); `fixed`: what
+    /// must be identical for the values to be comparable (geometry). `replace`: keys not listed
+    /// are dropped (else kept, and a listed key never seen before is taken as consistent).
+    void note(std::span<const float> fixed, const std::vector<int>& keys,
+              const std::vector<std::span<const float>>& values, bool replace);
+    /// The group is dark now: a multiple (0) of any history.
+    void clear();
+    /// The history was written with the current values.
+    void written() {
+        rescale_ = 1.0;
+        valid_ = true;
+    }
+    void invalidate() { valid_ = false; }
+    bool valid() const { return valid_; }
+    double rescale() const { return rescale_; }
+
+private:
+    std::vector<float> fixed_;
+    std::map<int, std::vector<float>> values_;
+    bool dark_ = true;  ///< no light in the group (the history holds zero for it)
+    bool valid_ = true;
+    double rescale_ = 1.0;
+};
+
+/// What decides whether the history can serve a frame: everything the march reads except the
+/// camera and the light groups' intensities (those are reprojected and rescaled).
+struct TemporalKey {
+    std::vector<float> uniforms;
+    std::string defines;
+    int width = 0, height = 0, internal_width = 0, internal_height = 0;
+    bool operator==(const TemporalKey&) const = default;
+};
+
+struct TemporalState {
+    MultiTarget fresh;       // this frame's marched pixels (flash, statics, channel)
+    MultiTarget history[2];  // ping-pong: history[current] is the last one written
+    GLuint resolve_fbo[2] = {0, 0};
+    int current = 0;
+    bool has_history = false;
+    bool inputs_changed = true;  // the volume, the static light or the sun changed since
+    TemporalKey key;
+    Camera camera;
+    glm::mat4 view_proj{1.0f};
+    std::uint32_t frames = 0;  // temporal frames rendered (the quarter's phase)
+    ScaleTracker source, channel;
+    void release();
+};
+
+/// The key of a frame (FrameBlock fields the march and the background read, besides the
+/// camera, the jitter offset, the frame index, the exposure and the channel's lights).
+TemporalKey temporal_key(const FrameUniforms& u, const std::string& march_defines);
+
+/// Cameras equal in every field (the history's pixels are this frame's).
+bool same_camera(const Camera& a, const Camera& b);
+
+}  // namespace fulgur::render::detail

@@ -1,0 +1,233 @@
+// The march pass with the temporal history (Settings::temporal): the march of this frame's
+// pixels, the light groups apart (march_groups.frag), then the history's resolve
+// (temporal.frag) into the new history and the march result the later passes read.
+#include "render/detail/renderer_impl.h"
+#include "render/detail/temporal.h"
+
+#include <glad/gl.h>
+
+#include <glm/gtc/type_ptr.hpp>
+
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <string>
+
+namespace fulgur::render {
+
+using detail::FrameUniforms;
+using detail::kMarch;
+using detail::PassTimer;
+
+namespace detail {
+
+void MultiTarget::ensure(int width, int height, int count) {
+    if (fbo && w == width && h == height && int(tex.size()) == count) return;
+    release();
+    w = width;
+    h = height;
+    glCreateFramebuffers(1, &fbo);
+    std::vector<GLenum> draw;
+    for (int i = 0; i < count; ++i) {
+        tex.push_back(make_texture_2d(w, h));
+        glNamedFramebufferTexture(fbo, GLenum(GL_COLOR_ATTACHMENT0 + i), tex.back(), 0);
+        draw.push_back(GLenum(GL_COLOR_ATTACHMENT0 + i));
+    }
+    glNamedFramebufferDrawBuffers(fbo, GLsizei(draw.size()), draw.data());
+    check_framebuffer(fbo, w, h);
+}
+
+void MultiTarget::release() {
+    if (fbo) glDeleteFramebuffers(1, &fbo);
+    for (GLuint& t : tex) delete_texture(t);
+    tex.clear();
+    fbo = 0;
+    w = h = 0;
+}
+
+void TemporalState::release() {
+    fresh.release();
+    for (MultiTarget& t : history) t.release();
+    for (GLuint& f : resolve_fbo) {
+        if (f) glDeleteFramebuffers(1, &f);
+        f = 0;
+    }
+    has_history = false;
+}
+
+void ScaleTracker::note(std::span<const float> fixed, const std::vector<int>& keys,
+                        const std::vector<std::span<const float>>& values, bool replace) {
+    const bool comparable = fixed.size() == fixed_.size() && std::equal(fixed.begin(), fixed.end(), fixed_.begin());
+    if (!comparable) {
+        values_.clear();
+        fixed_.assign(fixed.begin(), fixed.end());
+    }
+    // Least squares over the keys listed now and before: c = <now, then> / <then, then>.
+    double tt = 0.0, nt = 0.0, nn = 0.0;
+    int common = 0;
+    for (std::size_t k = 0; k < keys.size(); ++k) {
+        const std::span<const float> now = values[k];
+        for (float v : now) nn += double(v) * double(v);
+        const auto it = values_.find(keys[k]);
+        if (it == values_.end() || it->second.size() != now.size()) continue;
+        ++common;
+        for (std::size_t i = 0; i < now.size(); ++i) {
+            tt += double(it->second[i]) * double(it->second[i]);
+            nt += double(now[i]) * double(it->second[i]);
+        }
+    }
+    if (!(nn > 0.0) && !replace) {
+        valid_ = false;  // a partial upload of zeros: not a change of intensity
+    } else if (!(nn > 0.0)) {
+        if (!dark_) rescale_ = 0.0;  // dark now: zero times the history
+    } else if (dark_ || !comparable || (common == 0 && replace) || !(tt > 0.0)) {
+        valid_ = false;  // light where the history has none, or nothing to compare
+    } else if (common > 0) {
+        const double c = nt / tt;
+        double residual = 0.0;
+        for (std::size_t k = 0; k < keys.size(); ++k) {
+            const auto it = values_.find(keys[k]);
+            if (it == values_.end() || it->second.size() != values[k].size()) continue;
+            for (std::size_t i = 0; i < values[k].size(); ++i) {
+                const double e = double(values[k][i]) - c * double(it->second[i]);
+                residual += e * e;
+            }
+        }
+        if (residual <= kTolerance * kTolerance * nn)
+            rescale_ *= c;
+        else
+            valid_ = false;
+    }
+    if (replace) values_.clear();
+    for (std::size_t k = 0; k < keys.size(); ++k) values_[keys[k]].assign(values[k].begin(), values[k].end());
+    if (replace) dark_ = !(nn > 0.0);
+}
+
+void ScaleTracker::clear() {
+    if (!dark_) rescale_ = 0.0;
+    dark_ = true;
+    values_.clear();
+}
+
+TemporalKey temporal_key(const FrameUniforms& u, const std::string& march_defines) {
+    const FrameBlock& f = u.block;
+    TemporalKey k;
+    auto add = [&](const glm::vec4& v, int n = 4) {
+        for (int i = 0; i < n; ++i) k.uniforms.push_back(v[i]);
+    };
+    // Not the flash's lighting grid nor the channel's light counts: a flash going dark changes
+    // them, and its light groups' trackers follow that.
+    for (const glm::vec4* v : {&f.vol_min, &f.vol_size, &f.static_min, &f.static_size, &f.sun_dir, &f.sun_rgb,
+                               &f.sun_params, &f.detail, &f.rain, &f.sky_zenith, &f.sky_horizon, &f.glow_params})
+        add(*v);
+    add(f.march_params, 3);   // not its w: the frame's jitter offset
+    add(f.ground_params, 3);  // not its w: the number of ground lights
+    add(f.sky_params, 3);     // not its w: the exposure
+    add(f.light_colour, 3);   // not its w: the dither
+    k.uniforms.push_back(float(f.counts.x));
+    k.defines = march_defines;
+    k.width = u.width;
+    k.height = u.height;
+    k.internal_width = u.internal_width;
+    k.internal_height = u.internal_height;
+    return k;
+}
+
+bool same_camera(const Camera& a, const Camera& b) {
+    return a.position == b.position && a.target == b.target && a.up == b.up &&
+           a.vertical_fov_deg == b.vertical_fov_deg && a.lens_shift == b.lens_shift;
+}
+
+}  // namespace detail
+
+namespace {
+
+// The order in which a moving camera marches the four pixels of each 2x2 block: diagonal
+// first, so two consecutive frames cover both diagonals.
+constexpr std::array<glm::ivec2, 4> kPhases = {glm::ivec2{0, 0}, {1, 1}, {1, 0}, {0, 1}};
+// A history sample serves a pixel when its depth is within this fraction of the distance the
+// pixel's depth predicts from the history's camera (1 degree of orbit moves a cloud's depth
+// by well under 1%; a disoccluded background differs by tens of percent).
+constexpr float kDepthTolerance = 0.05f;
+
+}  // namespace
+
+void Renderer::Impl::temporal_march_pass(const Camera& camera, const Settings& st, const FrameUniforms& u,
+                                         PassTimer& timer, FrameStats& stats) {
+    detail::TemporalState& h = temporal;
+    timer.begin(kMarch);
+    const std::string defines =
+        march_defines(st.skip_empty, st.early_exit, u.lit, u.glow, u.statics, u.sun, u.detail, u.rain) +
+        "#define TEMPORAL 1\n";
+    // The key names the flash's S and the glow as the settings ask for them, not as present
+    // this frame: a flash going dark is the trackers' to follow, a setting switched is not.
+    const bool flash_on = st.cloud_lighting && st.flash_light && has_volume;
+    const bool glow_on = st.glow && st.air_scattering > 0.0;
+    detail::TemporalKey key = detail::temporal_key(
+        u, march_defines(st.skip_empty, st.early_exit, flash_on, glow_on, u.statics, u.sun, u.detail, u.rain));
+    const bool valid = h.has_history && !h.inputs_changed && key == h.key && h.source.valid() && h.channel.valid();
+    const bool still = valid && detail::same_camera(camera, h.camera);
+    const int stride = !valid ? 1 : still ? 0 : 2;
+    const glm::ivec2 phase = stride == 2 ? kPhases[h.frames % 4] : glm::ivec2(0);
+    stats.temporal = stride == 0 ? TemporalStep::Reused : stride == 2 ? TemporalStep::Quarter : TemporalStep::Full;
+
+    const int iw = u.internal_width, ih = u.internal_height;
+    stats.marched_share = 0.0;
+    if (stride > 0) {
+        const int fw = (iw - phase.x + stride - 1) / stride, fh = (ih - phase.y + stride - 1) / stride;
+        h.fresh.ensure(fw, fh, 3);
+        const GLuint p =
+            program("march_groups", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "march_groups.frag"}},
+                    defines);
+        glUseProgram(p);
+        glUniform3i(glGetUniformLocation(p, "u_grid"), stride, phase.x, phase.y);
+        glBindFramebuffer(GL_FRAMEBUFFER, h.fresh.fbo);
+        glViewport(0, 0, fw, fh);
+        glDrawArrays(GL_TRIANGLES, 0, 3);
+        stats.marched_share = double(fw) * double(fh) / (double(iw) * double(ih));
+    }
+
+    // The resolve into the other history buffer and the march target.
+    const int next = 1 - h.current;
+    for (detail::MultiTarget& t : h.history) t.ensure(iw, ih, 3);
+    GLuint& fbo = h.resolve_fbo[next];
+    if (!fbo) glCreateFramebuffers(1, &fbo);
+    for (int i = 0; i < 3; ++i)
+        glNamedFramebufferTexture(fbo, GLenum(GL_COLOR_ATTACHMENT0 + i), h.history[next].tex[std::size_t(i)], 0);
+    glNamedFramebufferTexture(fbo, GL_COLOR_ATTACHMENT3, march_target.tex, 0);
+    const GLenum draw[4] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2, GL_COLOR_ATTACHMENT3};
+    glNamedFramebufferDrawBuffers(fbo, 4, draw);
+    detail::check_framebuffer(fbo, iw, ih);
+
+    const GLuint p =
+        program("temporal", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "temporal.frag"}});
+    glUseProgram(p);
+    const detail::MultiTarget& fresh = stride > 0 ? h.fresh : h.history[h.current];
+    for (int i = 0; i < 3; ++i) {
+        glBindTextureUnit(GLuint(10 + i), fresh.tex[std::size_t(i)]);
+        glBindTextureUnit(GLuint(13 + i), h.history[h.current].tex[std::size_t(i)]);
+    }
+    glUniform3i(glGetUniformLocation(p, "u_grid"), stride, phase.x, phase.y);
+    glUniformMatrix4fv(glGetUniformLocation(p, "u_prev_view_proj"), 1, GL_FALSE, glm::value_ptr(h.view_proj));
+    const glm::vec3 prev(h.camera.position);
+    glUniform4f(glGetUniformLocation(p, "u_prev_cam"), prev.x, prev.y, prev.z, 0.0f);
+    glUniform2f(glGetUniformLocation(p, "u_rescale"), float(h.source.rescale()), float(h.channel.rescale()));
+    glUniform1f(glGetUniformLocation(p, "u_depth_tolerance"), kDepthTolerance);
+    glUniform1i(glGetUniformLocation(p, "u_glow_on"), u.glow ? 1 : 0);
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+    glViewport(0, 0, iw, ih);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    timer.end(kMarch);
+
+    h.current = next;
+    h.has_history = true;
+    h.inputs_changed = false;
+    h.key = std::move(key);
+    h.camera = camera;
+    h.view_proj = u.block.view_proj;
+    h.source.written();
+    h.channel.written();
+    ++h.frames;
+}
+
+}  // namespace fulgur::render
