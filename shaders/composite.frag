@@ -1,17 +1,35 @@
 #version 450 core
 // Full-resolution composite: bilinear upsampling of the ray-march result (cloud, glow and
 // smooth background), the stars through the cloud's transmittance, the bolt core, the glare; then
-// exposure, the filmic tone map and the sRGB encoding (u_hdr_output = 1 writes the
-// radiance instead, for read-back).
+// exposure, the filmic tone map and the sRGB encoding.
+//
+// Compile-time switches (a software rasterizer runs both sides of a branch, uniform or not,
+// so each variant is its own program; render/pass_composite.cpp):
+//   OUTPUT  0: tone-mapped sRGB; 1: the radiance (read-back); 2: a host's frame, (L, T)
+//           blended as L + T dst
+//   GLARE   1: the frame's light spread by the eye's point-spread function
+//   STARS   1: the stars (0 when the sky or its stars are off: they would add exactly 0)
+//   DITHER  1: +-1 LSB triangular dither before 8-bit output
 #include "common.glsl"
 #include "background.glsl"
 
+#ifndef OUTPUT
+#define OUTPUT 0
+#endif
+#ifndef GLARE
+#define GLARE 0
+#endif
+#ifndef STARS
+#define STARS 1
+#endif
+#ifndef DITHER
+#define DITHER 1
+#endif
+
 layout(binding = 3) uniform sampler2D u_march;   // internal res: rgb radiance, a transmittance
 layout(binding = 4) uniform sampler2D u_core;    // full res: bolt core radiance
-layout(binding = 5) uniform sampler2D u_glare_sum;  // internal res: the glare pyramid's sum (when u_glare is 1)
+layout(binding = 5) uniform sampler2D u_glare_sum;  // internal res: the glare pyramid's sum (GLARE)
 
-uniform int u_hdr_output;  // 1: the radiance (read-back); 2: a host's frame, (L, T) blended as L + T dst
-uniform int u_glare;         // 1: the frame's light spread by the eye's point-spread function
 uniform float u_glare_keep;  // the share of march + core left in place (render::GlareFit::keep)
 
 out vec4 o_colour;
@@ -47,26 +65,33 @@ void main() {
     vec2 pixel = gl_FragCoord.xy;
     vec2 uv = pixel / sizes.xy;
     vec4 m = textureLod(u_march, uv, 0.0);
+    vec3 core = texelFetch(u_core, ivec2(pixel), 0).rgb;
+#if OUTPUT == 2
+    o_colour = vec4(m.rgb + core, m.a);
+#else
+#if STARS
     vec3 d = camera_ray(uv * 2.0 - 1.0);
     float pixel_angle = 2.0 * cam_pos.w / sizes.y;
-    vec3 hdr = m.rgb + m.a * star_radiance(cam_pos.xyz, d, pixel_angle) + texelFetch(u_core, ivec2(pixel), 0).rgb;
-    if (u_glare != 0)
-        hdr = u_glare_keep * (m.rgb + texelFetch(u_core, ivec2(pixel), 0).rgb) +
-              m.a * star_radiance(cam_pos.xyz, d, pixel_angle) + textureLod(u_glare_sum, uv, 0.0).rgb;
-    if (u_hdr_output == 2) {
-        o_colour = vec4(m.rgb + texelFetch(u_core, ivec2(pixel), 0).rgb, m.a);
-        return;
-    }
-    if (u_hdr_output != 0) {
-        o_colour = vec4(hdr, 1.0);
-        return;
-    }
+    vec3 stars = m.a * star_radiance(cam_pos.xyz, d, pixel_angle);
+#else
+    const vec3 stars = vec3(0.0);
+#endif
+#if GLARE
+    vec3 hdr = u_glare_keep * (m.rgb + core) + stars + textureLod(u_glare_sum, uv, 0.0).rgb;
+#else
+    vec3 hdr = m.rgb + stars + core;
+#endif
+#if OUTPUT == 1
+    o_colour = vec4(hdr, 1.0);
+#else
     vec3 c = srgb_encode(aces_fitted(hdr * sky_params.w));
-    if (light_colour.w > 0.5) {
-        // Triangular dither of +-1 LSB (sum of two 16-bit uniforms from one hash), deterministic per frame.
-        uint h = hash_u32(uvec3(uvec2(pixel), uint(counts.y)));
-        float n = float(h & 0xffffu) * (1.0 / 65535.0) + float(h >> 16u) * (1.0 / 65535.0) - 1.0;
-        c += n / 255.0;
-    }
+#if DITHER
+    // Triangular dither of +-1 LSB (sum of two 16-bit uniforms from one hash), deterministic per frame.
+    uint h = hash_u32(uvec3(uvec2(pixel), uint(counts.y)));
+    float n = float(h & 0xffffu) * (1.0 / 65535.0) + float(h >> 16u) * (1.0 / 65535.0) - 1.0;
+    c += n / 255.0;
+#endif
     o_colour = vec4(c, 1.0);
+#endif
+#endif
 }

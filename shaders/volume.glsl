@@ -90,6 +90,24 @@ float rain_flash(vec3 p, vec3 d) {
     return s;
 }
 
+#if TEMPORAL
+// rain_flash, and in `light_t` the sum of each light's share times its distance along the ray
+// (o + t d): the rain's forward-scattered halo around a light moves on screen with the
+// light, not with the drops that scatter it (the temporal history reprojects it by this).
+float rain_flash(vec3 p, vec3 d, vec3 o, inout float light_t) {
+    float s = 0.0;
+    int n = int(rain_lights.x);
+    for (int i = 0; i < n; ++i) {
+        vec3 l = p - rain_light[i].xyz;
+        float r2 = max(dot(l, l), 2500.0);
+        float c = rain_light[i].w * hg_phase(dot(l, -d) * inversesqrt(r2), rain_params.y) / r2;
+        s += c;
+        light_t += c * dot(rain_light[i].xyz - o, d);
+    }
+    return s;
+}
+#endif
+
 // The same for the sun or moon through the cloud and the rain (the full-resolution
 // transmittance at p_tex) and the sky: below a storm's base the rain sees about half the dome
 // as the horizon's sky, the rest as cloud.
@@ -130,6 +148,7 @@ struct MarchResult {
     float in_rain_flash; // the rain's in-scattered light from the channel (not in in_scattered)
     float depth;         // opacity-weighted mean distance of the cloud along the ray (0 when it is clear)
     float light_depth;   // the flash's in-scattered light's weighted mean distance (0 when there is none)
+    float rain_depth;    // the same for in_rain_flash, by the distance of the lights it scatters
 #endif
 };
 
@@ -150,6 +169,7 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
     r.in_rain_flash = 0.0;
     r.depth = 0.0;
     r.light_depth = 0.0;
+    r.rain_depth = 0.0;
 #endif
     float t0, t1;
     if (vol_size.w <= 0.0 || !ray_box(o, d, vol_min.xyz, vol_min.xyz + vol_size.xyz, t0, t1)) return r;
@@ -173,7 +193,7 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
     float voxel = vol_size.w;
     float T = 1.0, L = 0.0, Te = 1.0;
 #if TEMPORAL
-    float Lrf = 0.0, depth_sum = 0.0, light_depth_sum = 0.0;
+    float Lrf = 0.0, depth_sum = 0.0, light_depth_sum = 0.0, rain_depth_sum = 0.0;
 #endif
     float a = t0;      // start of the current piece
     float k = 0.0;     // index of its end boundary
@@ -208,7 +228,9 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
         if (sigma_r > 0.0) {
             float wr = T * alpha * (1.0 - wc) * rain_params.w;
 #if TEMPORAL
-            Lrf += wr * rain_flash(o + t * d, d);
+            float light_t = 0.0;
+            Lrf += wr * rain_flash(o + t * d, d, o, light_t);
+            rain_depth_sum += wr * light_t;
 #else
             L += wr * rain_flash(o + t * d, d);
 #endif
@@ -254,6 +276,7 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
     // The opacity sum_k T_k alpha_k telescopes to 1 - T.
     r.depth = T < 1.0 ? depth_sum / (1.0 - T) : 0.0;
     r.light_depth = L > 0.0 ? light_depth_sum / L : 0.0;
+    r.rain_depth = Lrf > 0.0 ? rain_depth_sum / Lrf : 0.0;
 #endif
     return r;
 }

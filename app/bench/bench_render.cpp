@@ -29,6 +29,7 @@
 //                  renderer and the temporal history (Settings::temporal: its steps and its
 //                  error against a fresh render of each frame). Today's plain still camera at
 //                  the same size is the baseline of each row (ratio).
+//   FULGUR_BENCH_DEMO_WIDTH=W runs only the demo rows, at output width W (640, 1280 or 1920).
 // llvmpipe uses LP_NUM_THREADS threads (default: all cores); the row says how many.
 #include "bench/bench.h"
 
@@ -103,6 +104,24 @@ int llvmpipe_threads() {
 
 namespace {
 
+// The detail of the "detail" and "demo" rows: billows of 3 voxels, 4 octaves, strength 0.6.
+cloud::SubvoxelDetail bench_detail(double voxel) {
+    cloud::SubvoxelDetail d;
+    d.seed = 7;
+    d.scale = 3.0 * voxel;
+    d.octaves = 4;
+    d.strength = 0.6;
+    return d;
+}
+
+// The rain of the "rain" and "demo" rows: 25 mm/h, shear 400 m/km.
+cloud::RainParams bench_rain() {
+    cloud::RainParams r;
+    r.rate = 25.0;
+    r.shear = {400.0, 0.0};
+    return r;
+}
+
 // The demo's frames at one output size: a context and renderer of that size (shaders
 // compiled before timing), all 26 directions of S uploaded (the orbit needs others than the
 // first view's), the storm plain or with detail and rain, a return stroke decaying over the
@@ -132,12 +151,13 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
     const glm::dvec3 target = g.origin + 0.5 * g.extent() * glm::dvec3(1.0, 1.0, 0.7);
     const double distance = glm::length(storm.camera.position - target);
     for (const core::Int3 size : {core::Int3{640, 360, 0}, core::Int3{1280, 720, 0}, core::Int3{1920, 1080, 0}}) {
+        if (const char* only = std::getenv("FULGUR_BENCH_DEMO_WIDTH"); only && size.x != std::atoi(only)) continue;
         auto context = platform::create_headless({.width = size.x, .height = size.y});
         render::Renderer r(context->get_proc_address());
         render::Settings st = storm.settings;
         st.glare = true;
         st.auto_exposure = true;
-        st.timing = render::Timing::Off;
+        st.timing = render::Timing::Queries;  // per-pass GPU times; render() waits for them at its end
         double baseline = 0.0;
         for (const bool effects : {false, true}) {
             r.set_volume({.density = &storm.density,
@@ -146,7 +166,8 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                           .rain = effects ? &rain : nullptr});
             for (const bool orbit : {false, true})
                 for (const bool temporal : {false, true}) {
-                    std::vector<double> wall, cpu, error;
+                    std::vector<double> wall, cpu, error, jitter_noise;
+                    std::vector<render::PassTimes> passes;
                     int steps[4] = {0, 0, 0, 0};
                     for (int i = -2; i < frames; ++i) {  // two frames to compile and fault pages in
                         show_flash(r, std::exp(-(i + 2) / 8.0));
@@ -162,6 +183,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                         if (i < 0) continue;
                         wall.push_back(sw.milliseconds());
                         cpu.push_back(process_cpu_ms() - cpu0);
+                        passes.push_back(stats.wall);
                         ++steps[int(stats.temporal)];
                         if (!temporal) continue;
                         int w = 0, h = 0;
@@ -169,7 +191,12 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                         render::Settings fresh = st;
                         fresh.temporal = false;
                         r.render(cam, fresh, size.x, size.y);
-                        error.push_back(radiance_rel_rms(kept, r.read_march(w, h)));
+                        const std::vector<float> fresh_march = r.read_march(w, h);
+                        error.push_back(radiance_rel_rms(kept, fresh_march));
+                        // The jitter's own noise: the same frame marched with another frame's jitter.
+                        fresh.frame_index += 2;
+                        r.render(cam, fresh, size.x, size.y);
+                        jitter_noise.push_back(radiance_rel_rms(r.read_march(w, h), fresh_march));
                     }
                     const double ms = bench::median(wall);
                     if (!effects && !orbit && !temporal) baseline = ms;
@@ -186,13 +213,26 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                                           {"baseline",
                                            "today's renderer (no temporal history), the plain storm, "
                                            "still camera, same size, same run"}};
+                    auto pass = [&](double render::PassTimes::*m) {
+                        std::vector<double> v;
+                        for (const render::PassTimes& t : passes) v.push_back(t.*m);
+                        return bench::median(v);
+                    };
+                    row["pass_ms"] = {
+                        {"resolve", pass(&render::PassTimes::resolve)},    {"glow", pass(&render::PassTimes::glow)},
+                        {"march", pass(&render::PassTimes::march)},        {"meter", pass(&render::PassTimes::meter)},
+                        {"bolt", pass(&render::PassTimes::bolt)},          {"glare", pass(&render::PassTimes::glare)},
+                        {"composite", pass(&render::PassTimes::composite)}};
                     if (temporal) {
                         row["frames_full"] = steps[int(render::TemporalStep::Full)];
                         row["frames_quarter"] = steps[int(render::TemporalStep::Quarter)];
                         row["frames_reused"] = steps[int(render::TemporalStep::Reused)];
                         row["error_vs_fresh_median"] = bench::median(error);
                         row["error_vs_fresh_max"] = *std::max_element(error.begin(), error.end());
-                        row["error"] = "relative L2 of the march's radiance against a fresh render of the frame";
+                        row["jitter_noise_median"] = bench::median(jitter_noise);
+                        row["error"] =
+                            "relative L2 of the march's radiance against a fresh render of the frame; "
+                            "jitter_noise: a fresh render with another frame's jitter against it";
                     }
                     ctx.emit("render", row);
                 }
@@ -212,6 +252,10 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
     const core::Grid3<float>& density = storm.density;
     const double kappa = storm.extinction;
     const render::Camera& cam = storm.camera;
+    if (std::getenv("FULGUR_BENCH_DEMO_WIDTH")) {  // the demo rows alone
+        demo_rows(ctx, storm, bench_detail(voxel), bench_rain(), frames);
+        return;
+    }
 
     render::Renderer r(context->get_proc_address());
     r.set_volume({.density = &density, .extinction = kappa});
@@ -357,11 +401,7 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
     }
 
     // Sub-voxel detail: cost and accuracy of the per-sample erosion.
-    cloud::SubvoxelDetail detail;
-    detail.seed = 7;
-    detail.scale = 3.0 * voxel;
-    detail.octaves = 4;
-    detail.strength = 0.6;
+    const cloud::SubvoxelDetail detail = bench_detail(voxel);
     r.set_volume(
         {.density = &density, .extinction = kappa, .precision = render::DensityPrecision::F16, .detail = detail});
     r.render(cam, ref, W, H);
@@ -407,9 +447,7 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
 
     // Rain: what drawing it costs (the march's fetch is the same; the rain's light per sample
     // inside the shaft and the ground's shadow are the extra work).
-    cloud::RainParams rain_params;
-    rain_params.rate = 25.0;
-    rain_params.shear = {400.0, 0.0};
+    const cloud::RainParams rain_params = bench_rain();
     const cloud::RainField rain = cloud::make_rain(density, rain_params);
     auto whole = [](const render::PassTimes& t) { return t.total; };
     render::Settings st = base;

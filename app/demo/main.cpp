@@ -121,6 +121,7 @@ int main(int argc, char** argv) {
                          std::min(0.4 * size, *view_spec.distance), std::max(5.0 * size, *view_spec.distance)};
         view::ViewOptions opt;
         opt.settings.dither = args.dither;
+        opt.settings.temporal = true;  // the march's history: a still view re-marches only what changed in shape
         const int seed = int(seed_arg.value_or(view.scene().lightning.seed));
         double t = 0.0;
         view::FrameReport rep;

@@ -140,6 +140,11 @@ void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& r
     exposure_panel(opt.settings, rep, dt);
     float scale = float(opt.settings.internal_scale);
     if (ImGui::SliderFloat("internal scale", &scale, 0.25f, 1.0f)) opt.settings.internal_scale = scale;
+    ImGui::Checkbox("temporal history", &opt.settings.temporal);
+    if (ImGui::IsItemHovered())
+        ImGui::SetTooltip(
+            "the march's light kept per group and rescaled by the flash's intensity: a still camera "
+            "marches nothing while the flash only dims, a moving one a quarter of the pixels");
 }
 
 void DemoPanel::frame_times(const view::FrameReport& rep) {
@@ -151,6 +156,8 @@ void DemoPanel::frame_times(const view::FrameReport& rep) {
                     rep.stages.inverse_haar, rep.stages.strike_light);
         ImGui::Text("upload %.2f  ray march %.2f  GPU total %.2f", rep.gpu.wall.upload, rep.gpu.wall.march,
                     rep.gpu.wall.total);
+        static const char* const kSteps[] = {"off", "every pixel marched", "a quarter marched", "history reused"};
+        ImGui::Text("temporal history: %s", kSteps[int(rep.gpu.temporal)]);
         ImGui::TreePop();
     }
 }

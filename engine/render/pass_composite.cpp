@@ -15,15 +15,13 @@ using detail::PassTimer;
 /// into the caller's framebuffer.
 void Renderer::Impl::composite_pass(const FrameUniforms& u, const CallerTarget& caller, PassTimer& timer) {
     timer.begin(kComposite);
-    const GLuint p =
-        program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}});
+    const GLuint p = composite_program(u.host ? 2 : 0);
     glUseProgram(p);
-    bind_composite_inputs(p, false);
+    bind_composite_inputs(p);
     glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(caller.fbo));
     glViewport(0, 0, u.width, u.height);
     if (u.host) {
         // A host's frame: dst = L + T dst (premultiplied radiance over the host's radiance); its alpha is kept.
-        glUniform1i(glGetUniformLocation(p, "u_hdr_output"), 2);
         glEnable(GL_BLEND);
         glBlendFuncSeparate(GL_ONE, GL_SRC_ALPHA, GL_ZERO, GL_ONE);
     }
@@ -35,9 +33,15 @@ void Renderer::Impl::composite_pass(const FrameUniforms& u, const CallerTarget& 
     timer.end(kComposite);
 }
 
-void Renderer::Impl::bind_composite_inputs(GLuint p, bool hdr) const {
-    glUniform1i(glGetUniformLocation(p, "u_hdr_output"), hdr ? 1 : 0);
-    glUniform1i(glGetUniformLocation(p, "u_glare"), glare_ran ? 1 : 0);
+GLuint Renderer::Impl::composite_program(int output) {
+    const std::string defines = "#define OUTPUT " + std::to_string(output) + "\n#define GLARE " +
+                                (glare_ran ? "1" : "0") + "\n#define STARS " + (composite_stars ? "1" : "0") +
+                                "\n#define DITHER " + (composite_dither ? "1" : "0") + "\n";
+    return program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}},
+                   defines);
+}
+
+void Renderer::Impl::bind_composite_inputs(GLuint p) const {
     glUniform1f(glGetUniformLocation(p, "u_glare_keep"), glare_ran ? float(glare_fit.keep) : 1.0f);
     glBindTextureUnit(3, march_target.tex);
     glBindTextureUnit(4, core_target.tex);

@@ -42,7 +42,7 @@ void Renderer::Impl::meter_pass(const Settings& st, const FrameUniforms& u, Pass
     glUniform1f(glGetUniformLocation(p, "u_log2_min"), kMeterLog2Min);
     glUniform1f(glGetUniformLocation(p, "u_bin_width"), kMeterBinWidth);
     glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
-    glDispatchCompute(GLuint((u.internal_width + 7) / 8), GLuint((u.internal_height + 7) / 8), 1);
+    glDispatchCompute(GLuint((u.internal_width + 31) / 32), GLuint((u.internal_height + 31) / 32), 1);  // 32x32 tiles
     glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     std::vector<std::uint32_t> bins(kMeterBins);
     glGetNamedBufferSubData(meter_buf.id, 0, GLsizeiptr(bins.size() * sizeof(std::uint32_t)), bins.data());

@@ -133,6 +133,14 @@ TemporalKey temporal_key(const FrameUniforms& u, const std::string& march_define
     return k;
 }
 
+bool camera_continues(const Camera& from, const Camera& to) {
+    const glm::dvec3 f0 = glm::normalize(from.target - from.position), f1 = glm::normalize(to.target - to.position);
+    const double distance = glm::length(to.target - to.position);
+    return glm::dot(f0, f1) >= std::cos(glm::radians(kMaxTurnDeg)) &&
+           glm::length(to.position - from.position) <= kMaxMove * distance &&
+           std::abs(to.vertical_fov_deg - from.vertical_fov_deg) <= kMaxTurnDeg;
+}
+
 bool same_camera(const Camera& a, const Camera& b) {
     return a.position == b.position && a.target == b.target && a.up == b.up &&
            a.vertical_fov_deg == b.vertical_fov_deg && a.lens_shift == b.lens_shift;
@@ -165,7 +173,8 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, const Settings& s
     const bool glow_on = st.glow && st.air_scattering > 0.0;
     detail::TemporalKey key = detail::temporal_key(
         u, march_defines(st.skip_empty, st.early_exit, flash_on, glow_on, u.statics, u.sun, u.detail, u.rain));
-    const bool valid = h.has_history && !h.inputs_changed && key == h.key && h.source.valid() && h.channel.valid();
+    const bool valid = h.has_history && !h.inputs_changed && key == h.key && h.source.valid() && h.channel.valid() &&
+                       detail::camera_continues(h.camera, camera);
     const bool still = valid && detail::same_camera(camera, h.camera);
     const int stride = !valid ? 1 : still ? 0 : 2;
     const glm::ivec2 phase = stride == 2 ? kPhases[h.frames % 4] : glm::ivec2(0);
@@ -199,15 +208,15 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, const Settings& s
     glNamedFramebufferDrawBuffers(fbo, 4, draw);
     detail::check_framebuffer(fbo, iw, ih);
 
-    const GLuint p =
-        program("temporal", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "temporal.frag"}});
+    const GLuint p = program("temporal", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "temporal.frag"}},
+                             "#define STRIDE " + std::to_string(stride) + "\n");
     glUseProgram(p);
     const detail::MultiTarget& fresh = stride > 0 ? h.fresh : h.history[h.current];
     for (int i = 0; i < 3; ++i) {
         glBindTextureUnit(GLuint(10 + i), fresh.tex[std::size_t(i)]);
         glBindTextureUnit(GLuint(13 + i), h.history[h.current].tex[std::size_t(i)]);
     }
-    glUniform3i(glGetUniformLocation(p, "u_grid"), stride, phase.x, phase.y);
+    glUniform2i(glGetUniformLocation(p, "u_phase"), phase.x, phase.y);
     glUniformMatrix4fv(glGetUniformLocation(p, "u_prev_view_proj"), 1, GL_FALSE, glm::value_ptr(h.view_proj));
     const glm::vec3 prev(h.camera.position);
     glUniform4f(glGetUniformLocation(p, "u_prev_cam"), prev.x, prev.y, prev.z, 0.0f);

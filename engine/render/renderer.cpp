@@ -463,12 +463,11 @@ std::vector<float> Renderer::read_hdr() const {
     FULGUR_ASSERT(m.out_w > 0, "read_hdr before render");
     const CallerTarget caller = CallerTarget::save();
     m.hdr_target.ensure(m.out_w, m.out_h);
-    const GLuint p =
-        m.program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}});
+    const GLuint p = m.composite_program(1);
     glUseProgram(p);
     glBindBufferBase(GL_UNIFORM_BUFFER, 0, m.frame_ubo);
     glBindVertexArray(m.vao);
-    m.bind_composite_inputs(p, true);
+    m.bind_composite_inputs(p);
     glDisable(GL_BLEND);
     glBindFramebuffer(GL_FRAMEBUFFER, m.hdr_target.fbo);
     glViewport(0, 0, m.out_w, m.out_h);

