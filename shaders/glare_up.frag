@@ -6,9 +6,17 @@
 layout(binding = 0) uniform sampler2D u_level;   // this level (the way down)
 layout(binding = 1) uniform sampler2D u_coarse;  // the coarser levels' weighted sum
 
+// Compile-time switches (a software rasterizer runs both sides of a uniform branch):
+//   HAS_COARSE 1: a coarser level's sum to add (all but the coarsest level)
+//   WIDE       1: nine taps (a tent a coarser texel either side); 0: four taps half a texel off
+#ifndef HAS_COARSE
+#define HAS_COARSE 1
+#endif
+#ifndef WIDE
+#define WIDE 0
+#endif
+
 uniform float u_weight;
-uniform int u_has_coarse;
-uniform int u_wide;  // 1: nine taps (a tent a coarser texel either side); 0: four taps half a texel off
 uniform vec2 u_coarse_texel;  // 1 / coarser size
 uniform vec2 u_size;          // this level's size
 
@@ -16,24 +24,21 @@ out vec4 o_radiance;
 
 void main() {
     vec3 s = u_weight * texelFetch(u_level, ivec2(gl_FragCoord.xy), 0).rgb;
-    if (u_has_coarse != 0) {
-        vec2 uv = gl_FragCoord.xy / u_size;
-        if (u_wide != 0) {
-            // A [1 2 1] tent over the coarser level's texels: smooth where they are large on
-            // screen (the coarsest levels' linear ramps would show their kinks in a dark sky).
-            vec3 t = vec3(0.0);
-            for (int j = -1; j <= 1; ++j)
-                for (int i = -1; i <= 1; ++i)
-                    t += float((2 - abs(i)) * (2 - abs(j))) *
-                         textureLod(u_coarse, uv + vec2(i, j) * u_coarse_texel, 0.0).rgb;
-            s += t * (1.0 / 16.0);
-        } else {
-            vec2 o = 0.5 * u_coarse_texel;
-            s += 0.25 * (textureLod(u_coarse, uv + vec2(-o.x, -o.y), 0.0).rgb +
-                         textureLod(u_coarse, uv + vec2(o.x, -o.y), 0.0).rgb +
-                         textureLod(u_coarse, uv + vec2(-o.x, o.y), 0.0).rgb +
-                         textureLod(u_coarse, uv + vec2(o.x, o.y), 0.0).rgb);
-        }
-    }
+#if HAS_COARSE
+    vec2 uv = gl_FragCoord.xy / u_size;
+#if WIDE
+    // A [1 2 1] tent over the coarser level's texels: smooth where they are large on
+    // screen (the coarsest levels' linear ramps would show their kinks in a dark sky).
+    vec3 t = vec3(0.0);
+    for (int j = -1; j <= 1; ++j)
+        for (int i = -1; i <= 1; ++i)
+            t += float((2 - abs(i)) * (2 - abs(j))) * textureLod(u_coarse, uv + vec2(i, j) * u_coarse_texel, 0.0).rgb;
+    s += t * (1.0 / 16.0);
+#else
+    vec2 o = 0.5 * u_coarse_texel;
+    s += 0.25 * (textureLod(u_coarse, uv + vec2(-o.x, -o.y), 0.0).rgb + textureLod(u_coarse, uv + vec2(o.x, -o.y), 0.0).rgb +
+                 textureLod(u_coarse, uv + vec2(-o.x, o.y), 0.0).rgb + textureLod(u_coarse, uv + vec2(o.x, o.y), 0.0).rgb);
+#endif
+#endif
     o_radiance = vec4(s, 1.0);
 }

@@ -6,6 +6,8 @@
 
 #include <glad/gl.h>
 
+#include <string>
+
 #include <glm/trigonometric.hpp>
 
 #include <algorithm>
@@ -76,17 +78,17 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
         glDrawArrays(GL_TRIANGLES, 0, 3);
     }
     // Up: each level weighted, plus the coarser sum.
-    const GLuint up =
-        program("glare_up", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_up.frag"}});
-    glUseProgram(up);
     for (int k = levels - 1; k >= 0; --k) {
         const detail::Target& dst = glare_up[std::size_t(k)];
         const bool coarser = k + 1 < levels;
+        const std::string defines = std::string("#define HAS_COARSE ") + (coarser ? "1" : "0") + "\n#define WIDE " +
+                                    (k >= kGlareWideFrom ? "1" : "0") + "\n";
+        const GLuint up = program(
+            "glare_up", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_up.frag"}}, defines);
+        glUseProgram(up);
         glBindTextureUnit(0, glare_down[std::size_t(k)].tex);
         glBindTextureUnit(1, coarser ? glare_up[std::size_t(k + 1)].tex : glare_down[std::size_t(k)].tex);
         glUniform1f(glGetUniformLocation(up, "u_weight"), float(glare_fit.weights[std::size_t(k)]));
-        glUniform1i(glGetUniformLocation(up, "u_has_coarse"), coarser ? 1 : 0);
-        glUniform1i(glGetUniformLocation(up, "u_wide"), k >= kGlareWideFrom ? 1 : 0);
         if (coarser) {
             const detail::Target& c = glare_up[std::size_t(k + 1)];
             glUniform2f(glGetUniformLocation(up, "u_coarse_texel"), 1.0f / float(c.w), 1.0f / float(c.h));

@@ -120,7 +120,6 @@ struct Renderer::Impl {
         composite_program(0);
         program("glare_first", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_first.frag"}});
         program("glare_down", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_down.frag"}});
-        program("glare_up", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_up.frag"}});
         march_program(MarchKernel::Fragment, march_defines(true, true, true, true));
     }
 
