@@ -176,7 +176,9 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, const Settings& s
     const bool valid = h.has_history && !h.inputs_changed && key == h.key && h.source.valid() && h.channel.valid() &&
                        detail::camera_continues(h.camera, camera);
     const bool still = valid && detail::same_camera(camera, h.camera);
-    const int stride = !valid ? 1 : still ? 0 : 2;
+    // A quarter needs a 2x2 block: a march one pixel wide or high marches every pixel.
+    const bool blocks = u.internal_width >= 2 && u.internal_height >= 2;
+    const int stride = !valid ? 1 : still ? 0 : blocks ? 2 : 1;
     const glm::ivec2 phase = stride == 2 ? kPhases[h.frames % 4] : glm::ivec2(0);
     stats.temporal = stride == 0 ? TemporalStep::Reused : stride == 2 ? TemporalStep::Quarter : TemporalStep::Full;
 

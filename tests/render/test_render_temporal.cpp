@@ -197,3 +197,33 @@ TEST_CASE("temporal history: a moving camera marches a quarter and stays near a 
     CHECK(render_at(r, cut, temporal, W, H).temporal == render::TemporalStep::Full);
     r.clear_volume();
 }
+
+TEST_CASE("temporal history: tiny and changing sizes march what they must, without errors") {
+    render::Renderer& r = gl_renderer();
+    const synthetic::Storm storm = synthetic::storm({64, 64, 48}, 200.0);
+    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
+    r.set_channel(storm.bolt);
+    r.upload_source(synthetic::needed_upload(r, storm));
+    render::Settings st = storm.settings;
+    st.temporal = true;
+    render::Camera cam = storm.camera;
+    // 1x1 and 3x1 outputs (one internal pixel high: no 2x2 block), a moving camera; then a
+    // size that changes every frame. Every frame is finite.
+    for (const int w : {1, 3, 5, 2, 7}) {
+        for (int i = 0; i < 3; ++i) {
+            cam.position.x += 10.0;
+            st.frame_index = std::uint32_t(i);
+            const render::FrameStats s = render_at(r, cam, st, w, 1);
+            CAPTURE(w);
+            CHECK(s.temporal == render::TemporalStep::Full);
+            int mw = 0, mh = 0;
+            for (const float v : r.read_march(mw, mh)) CHECK(std::isfinite(v));
+        }
+    }
+    for (int i = 0; i < 4; ++i) {
+        cam.position.x += 10.0;
+        const render::FrameStats s = render_at(r, cam, st, 8 + 2 * i, 6);
+        CHECK(s.temporal == render::TemporalStep::Full);  // a new size: no history for it
+    }
+    r.clear_volume();
+}
