@@ -8,7 +8,8 @@
 //   OUTPUT  0: tone-mapped sRGB; 1: the radiance (read-back); 2: a host's frame, (L, T)
 //           blended as L + T dst
 //   GLARE   1: the frame's light spread by the eye's point-spread function
-//   STARS   1: the stars (0 when the sky or its stars are off: they would add exactly 0)
+//   STARS   1: the stars (0 when the sky or its stars are off: they would add exactly 0; 2:
+//           the same read from u_stars, stars.frag's, while the camera stays still)
 //   DITHER  1: +-1 LSB triangular dither before 8-bit output
 #include "common.glsl"
 #include "background.glsl"
@@ -29,6 +30,7 @@
 layout(binding = 3) uniform sampler2D u_march;   // internal res: rgb radiance, a transmittance
 layout(binding = 4) uniform sampler2D u_core;    // full res: bolt core radiance
 layout(binding = 5) uniform sampler2D u_glare_sum;  // internal res: the glare pyramid's sum (GLARE)
+layout(binding = 6) uniform sampler2D u_stars;      // full res: the stars (STARS 2)
 
 uniform float u_glare_keep;  // the share of march + core left in place (render::GlareFit::keep)
 
@@ -69,10 +71,12 @@ void main() {
 #if OUTPUT == 2
     o_colour = vec4(m.rgb + core, m.a);
 #else
-#if STARS
+#if STARS == 1
     vec3 d = camera_ray(uv * 2.0 - 1.0);
     float pixel_angle = 2.0 * cam_pos.w / sizes.y;
     vec3 stars = m.a * star_radiance(cam_pos.xyz, d, pixel_angle);
+#elif STARS == 2
+    vec3 stars = m.a * texelFetch(u_stars, ivec2(pixel), 0).rgb;
 #else
     const vec3 stars = vec3(0.0);
 #endif

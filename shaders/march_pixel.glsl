@@ -54,13 +54,13 @@ vec4 shade_pixel(vec2 pixel) {
 //   flash   = (the flash's in-scattered S before its colour, T, T to the glow's depth, depth)
 //   statics = (the static light: in-scattered sun, moon and sky + the background they light * T;
 //              the channel's light depth)
-//   channel = (the channel's direct light: the rain it lights + the ground it lights * T, in
-//              colour; the flash's light depth)
+//   channel = (the channel's direct light: the rain it lights + the ground it lights * T + the
+//              glow in the air around it * T to the glow, in colour; the flash's light depth)
 // depth: the cloud's opacity-weighted distance where it hides at least 10% of the background,
 // else the background's distance (-1: the sky, infinitely far). A light depth: the distance
 // the group's light comes from on average (the flash lights the cloud from within, behind its
-// near side; the channel lights the rain below the cloud and the ground behind it: each
-// reprojected by the cloud's depth would slide), 0: no such light.
+// near side; the channel lights the rain below the cloud, the ground behind it and the air
+// around itself: each reprojected by the cloud's depth would slide), 0: no such light.
 void shade_groups(vec2 pixel, out vec4 flash, out vec4 statics, out vec4 channel) {
     PixelMarch m = march_pixel(pixel);
     vec3 rest, lit;
@@ -68,10 +68,12 @@ void shade_groups(vec2 pixel, out vec4 flash, out vec4 statics, out vec4 channel
     float T = m.r.transmittance;
     float depth = T <= 0.9 ? m.r.depth : (m.t_end < kBig ? m.t_end : -1.0);
     flash = vec4(m.r.in_scattered, T, m.r.t_emit, depth);
-    vec3 rain_lit = m.r.in_rain_flash * light_colour.rgb;
-    float wr = luminance(rain_lit), wg = luminance(T * lit);
-    float channel_depth = wr + wg > 0.0 ? (wr * m.r.rain_depth + wg * (m.t_end < kBig ? m.t_end : 0.0)) / (wr + wg) : 0.0;
+    vec3 rain_lit = m.r.in_rain_flash * light_colour.rgb, glow = m.r.t_emit * m.e.rgb;
+    float wr = luminance(rain_lit), wg = luminance(T * lit), we = luminance(glow);
+    float glow_depth = we > 0.0 ? m.e.a / luminance(m.e.rgb) : 0.0;
+    float w = wr + wg + we;
+    float channel_depth = w > 0.0 ? (wr * m.r.rain_depth + wg * (m.t_end < kBig ? m.t_end : 0.0) + we * glow_depth) / w : 0.0;
     statics = vec4(m.r.in_static + T * rest, channel_depth);
-    channel = vec4(rain_lit + T * lit, m.r.light_depth);
+    channel = vec4(rain_lit + T * lit + glow, m.r.light_depth);
 }
 #endif

@@ -18,7 +18,6 @@
 #define STRIDE 2
 #endif
 
-layout(binding = 2) uniform sampler2D u_glow;
 layout(binding = 10) uniform sampler2D u_fresh_flash;
 layout(binding = 11) uniform sampler2D u_fresh_statics;
 layout(binding = 12) uniform sampler2D u_fresh_channel;
@@ -31,7 +30,6 @@ uniform mat4 u_prev_view_proj;   // the history's camera: world -> clip
 uniform vec4 u_prev_cam;         // xyz the history's camera position
 uniform vec2 u_rescale;          // x: the flash's S now / in the history, y: the channel's intensity now / in the history
 uniform float u_depth_tolerance; // relative depth difference beyond which a history sample is disoccluded
-uniform int u_glow_on;
 
 layout(location = 0) out vec4 o_flash;
 layout(location = 1) out vec4 o_statics;
@@ -120,6 +118,5 @@ void main() {
         o_statics.w = ch_ok ? channel.depth : fresh_statics.w;
     }
 #endif
-    vec3 e = u_glow_on != 0 ? texelFetch(u_glow, p, 0).rgb : vec3(0.0);
-    o_march = vec4(o_flash.x * light_colour.rgb + o_statics.rgb + o_channel.rgb + o_flash.z * e, o_flash.y);
+    o_march = vec4(o_flash.x * light_colour.rgb + o_statics.rgb + o_channel.rgb, o_flash.y);
 }

@@ -15,6 +15,7 @@ using detail::PassTimer;
 /// into the caller's framebuffer.
 void Renderer::Impl::composite_pass(const FrameUniforms& u, const CallerTarget& caller, PassTimer& timer) {
     timer.begin(kComposite);
+    prepare_stars(u, !u.host && u.stars);
     const GLuint p = composite_program(u.host ? 2 : 0);
     glUseProgram(p);
     bind_composite_inputs(p);
@@ -33,9 +34,39 @@ void Renderer::Impl::composite_pass(const FrameUniforms& u, const CallerTarget& 
     timer.end(kComposite);
 }
 
+void Renderer::Impl::prepare_stars(const FrameUniforms& u, bool stars) {
+    composite_stars = 0;
+    if (!stars) return;
+    // What star_radiance reads: the camera's frame and lens, the output size, the stars' radiance
+    // and the sky and ground switches.
+    const detail::FrameBlock& f = u.block;
+    std::vector<float> key;
+    for (const glm::vec4* v :
+         {&f.cam_pos, &f.cam_fwd, &f.cam_right, &f.cam_up, &f.sizes, &f.sky_params, &f.ground_params})
+        key.insert(key.end(), {(*v)[0], (*v)[1], (*v)[2], (*v)[3]});
+    key[4 * 5 + 3] = 0.0f;  // not the exposure
+    key[4 * 6 + 3] = 0.0f;  // nor the number of ground lights
+    const bool still = key == star_previous;
+    star_previous = key;
+    if (!still) {
+        composite_stars = 1;
+        return;
+    }
+    if (key != star_key || !star_target.tex) {
+        star_target.ensure(u.width, u.height);
+        const GLuint p = program("stars", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "stars.frag"}});
+        glUseProgram(p);
+        glBindFramebuffer(GL_FRAMEBUFFER, star_target.fbo);
+        glViewport(0, 0, u.width, u.height);
+        glDrawArrays(GL_TRIANGLES, 0, 3);
+        star_key = key;
+    }
+    composite_stars = 2;
+}
+
 GLuint Renderer::Impl::composite_program(int output) {
     const std::string defines = "#define OUTPUT " + std::to_string(output) + "\n#define GLARE " +
-                                (glare_ran ? "1" : "0") + "\n#define STARS " + (composite_stars ? "1" : "0") +
+                                (glare_ran ? "1" : "0") + "\n#define STARS " + std::to_string(composite_stars) +
                                 "\n#define DITHER " + (composite_dither ? "1" : "0") + "\n";
     return program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}},
                    defines);
@@ -46,6 +77,7 @@ void Renderer::Impl::bind_composite_inputs(GLuint p) const {
     glBindTextureUnit(3, march_target.tex);
     glBindTextureUnit(4, core_target.tex);
     glBindTextureUnit(5, glare_ran ? glare_up[0].tex : march_target.tex);
+    glBindTextureUnit(6, composite_stars == 2 ? star_target.tex : march_target.tex);
 }
 
 }  // namespace fulgur::render

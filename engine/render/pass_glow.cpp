@@ -70,8 +70,9 @@ void Renderer::Impl::rebuild_profile(double radius, double sigma) {
 
 /// Glow: additive quads along the strokes into the emission buffer at internal resolution
 /// (bound to unit 2 for the march).
-void Renderer::Impl::glow_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer, FrameStats& stats) {
-    if (u.glow) {
+void Renderer::Impl::glow_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer, FrameStats& stats,
+                               bool draw) {
+    if (u.glow && draw) {
         timer.begin(kGlow);
         if (profile_radius != st.glow_radius || profile_sigma != st.air_scattering)
             rebuild_profile(st.glow_radius, st.air_scattering);

@@ -118,9 +118,9 @@ GLuint Renderer::Impl::resolve_set(SourceSet& set, const glm::dvec3& camera, con
 /// 0), the flash's S toward the camera (unit 1), the static light's (unit 6) and the sun's
 /// transmittance (unit 7).
 void Renderer::Impl::resolve_pass(const glm::dvec3& camera, const Settings& st, const FrameUniforms& u,
-                                  PassTimer& timer, FrameStats& stats) {
+                                  PassTimer& timer, FrameStats& stats, bool resolve) {
     GLuint scam = zero_tex, stat = zero_tex;
-    if (u.lit) {
+    if (u.lit && resolve) {
         const bool must_resolve = flash.dir_count > 1 && (flash.dirty || flash.resolved_camera != camera);
         if (must_resolve) timer.begin(kResolve);  // includes the CPU work of finding the needed directions
         const std::vector<DirectionUse>& need =
@@ -135,7 +135,7 @@ void Renderer::Impl::resolve_pass(const glm::dvec3& camera, const Settings& st, 
         }
         scam = resolve_set(flash, camera, active, must_resolve, timer);
     }
-    if (u.statics) {
+    if (u.statics && resolve) {
         // Every direction is present (upload_static); the view's needed ones are resolved.
         const bool must_resolve = statics.dir_count > 1 && (statics.dirty || statics.resolved_camera != camera);
         if (must_resolve) timer.begin(kResolve);
@@ -149,8 +149,8 @@ void Renderer::Impl::resolve_pass(const glm::dvec3& camera, const Settings& st, 
     glBindTextureUnit(6, stat);
     glBindTextureUnit(7, sun_fine ? sun_tex : zero_tex);
     glBindTextureUnit(9, u.detail ? detail_tex : zero_tex);
-    last_scam = u.lit ? scam : 0;
-    last_static = u.statics ? stat : 0;
+    last_scam = u.lit && resolve ? scam : 0;
+    last_static = u.statics && resolve ? stat : 0;
 }
 
 }  // namespace fulgur::render

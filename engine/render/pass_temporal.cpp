@@ -160,26 +160,36 @@ constexpr float kDepthTolerance = 0.05f;
 
 }  // namespace
 
-void Renderer::Impl::temporal_march_pass(const Camera& camera, const Settings& st, const FrameUniforms& u,
-                                         PassTimer& timer, FrameStats& stats) {
-    detail::TemporalState& h = temporal;
-    timer.begin(kMarch);
-    const std::string defines =
-        march_defines(st.skip_empty, st.early_exit, u.lit, u.glow, u.statics, u.sun, u.detail, u.rain) +
-        "#define TEMPORAL 1\n";
+detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const Settings& st,
+                                                   const FrameUniforms& u) const {
+    const detail::TemporalState& h = temporal;
+    detail::TemporalPlan plan;
+    plan.defines = march_defines(st.skip_empty, st.early_exit, u.lit, u.glow, u.statics, u.sun, u.detail, u.rain) +
+                   "#define TEMPORAL 1\n";
     // The key names the flash's S and the glow as the settings ask for them, not as present
     // this frame: a flash going dark is the trackers' to follow, a setting switched is not.
     const bool flash_on = st.cloud_lighting && st.flash_light && has_volume;
     const bool glow_on = st.glow && st.air_scattering > 0.0;
-    detail::TemporalKey key = detail::temporal_key(
+    plan.key = detail::temporal_key(
         u, march_defines(st.skip_empty, st.early_exit, flash_on, glow_on, u.statics, u.sun, u.detail, u.rain));
-    const bool valid = h.has_history && !h.inputs_changed && key == h.key && h.source.valid() && h.channel.valid() &&
-                       detail::camera_continues(h.camera, camera);
+    const bool valid = h.has_history && !h.inputs_changed && plan.key == h.key && h.source.valid() &&
+                       h.channel.valid() && detail::camera_continues(h.camera, camera);
     const bool still = valid && detail::same_camera(camera, h.camera);
     // A quarter needs a 2x2 block: a march one pixel wide or high marches every pixel.
     const bool blocks = u.internal_width >= 2 && u.internal_height >= 2;
-    const int stride = !valid ? 1 : still ? 0 : blocks ? 2 : 1;
-    const glm::ivec2 phase = stride == 2 ? kPhases[h.frames % 4] : glm::ivec2(0);
+    plan.stride = !valid ? 1 : still ? 0 : blocks ? 2 : 1;
+    plan.phase = plan.stride == 2 ? kPhases[h.frames % 4] : glm::ivec2(0);
+    return plan;
+}
+
+void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalPlan plan, const FrameUniforms& u,
+                                         PassTimer& timer, FrameStats& stats) {
+    detail::TemporalState& h = temporal;
+    timer.begin(kMarch);
+    const int stride = plan.stride;
+    const glm::ivec2 phase = plan.phase;
+    const std::string& defines = plan.defines;
+    detail::TemporalKey& key = plan.key;
     stats.temporal = stride == 0 ? TemporalStep::Reused : stride == 2 ? TemporalStep::Quarter : TemporalStep::Full;
 
     const int iw = u.internal_width, ih = u.internal_height;
@@ -224,7 +234,6 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, const Settings& s
     glUniform4f(glGetUniformLocation(p, "u_prev_cam"), prev.x, prev.y, prev.z, 0.0f);
     glUniform2f(glGetUniformLocation(p, "u_rescale"), float(h.source.rescale()), float(h.channel.rescale()));
     glUniform1f(glGetUniformLocation(p, "u_depth_tolerance"), kDepthTolerance);
-    glUniform1i(glGetUniformLocation(p, "u_glow_on"), u.glow ? 1 : 0);
     glBindFramebuffer(GL_FRAMEBUFFER, fbo);
     glViewport(0, 0, iw, ih);
     glDrawArrays(GL_TRIANGLES, 0, 3);

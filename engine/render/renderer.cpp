@@ -17,6 +17,7 @@
 #include <cstddef>
 #include <cstdlib>
 #include <limits>
+#include <optional>
 #include <string>
 
 namespace fulgur::render {
@@ -160,6 +161,7 @@ Renderer::~Renderer() {
     for (detail::Target& t : m.glare_down) t.release();
     for (detail::Target& t : m.glare_up) t.release();
     m.temporal.release();
+    m.star_target.release();
 }
 
 void Renderer::set_volume(const VolumeDesc& v) {
@@ -438,10 +440,13 @@ FrameStats Renderer::Impl::run_frame(const Camera& camera, const Settings& st, i
     stats.internal_width = u.internal_width;
     stats.internal_height = u.internal_height;
     PassTimer timer(st.timing, m.queries);
-    m.resolve_pass(camera.position, st, u, timer, stats);
-    m.glow_pass(st, u, timer, stats);
-    if (st.temporal && !host)
-        m.temporal_march_pass(camera, st, u, timer, stats);
+    std::optional<detail::TemporalPlan> plan;
+    if (st.temporal && !host) plan = m.plan_temporal(camera, st, u);
+    const bool reuse = plan && plan->stride == 0;  // the history holds the march, the glow in it
+    m.resolve_pass(camera.position, st, u, timer, stats, !reuse);
+    m.glow_pass(st, u, timer, stats, !reuse);
+    if (plan)
+        m.temporal_march_pass(camera, std::move(*plan), u, timer, stats);
     else
         m.march_pass(st, u, timer);
     m.meter_pass(st, u, timer, stats);

@@ -227,3 +227,31 @@ TEST_CASE("temporal history: tiny and changing sizes march what they must, witho
     }
     r.clear_volume();
 }
+
+TEST_CASE("a still camera's stars, drawn once and read back, are the stars computed each frame") {
+    render::Renderer& r = gl_renderer();
+    const synthetic::Storm storm = synthetic::storm({64, 64, 48}, 200.0);
+    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
+    r.set_channel(storm.bolt);
+    r.upload_source(synthetic::needed_upload(r, storm));
+    render::Settings st = storm.settings;
+    st.star_radiance = 1e-3;  // bright enough to show in 8 bits through the storm's exposure
+    st.sky = true;
+    // The first frame of a view computes its stars; the next ones (the same view) read them.
+    render::Camera moved = storm.camera;
+    moved.position.z += 50.0;
+    render_at(r, moved, st, W, H);
+    render_at(r, storm.camera, st, W, H);
+    const std::vector<std::uint8_t> computed = test::gl_context().read_rgba8();
+    const std::vector<float> computed_hdr = r.read_hdr();
+    render_at(r, storm.camera, st, W, H);
+    render_at(r, storm.camera, st, W, H);
+    CHECK(test::gl_context().read_rgba8() == computed);
+    CHECK(r.read_hdr() == computed_hdr);
+    // And they are there: without stars the frame differs.
+    render::Settings dark = st;
+    dark.star_radiance = 0.0;
+    render_at(r, storm.camera, dark, W, H);
+    CHECK(r.read_hdr() != computed_hdr);
+    r.clear_volume();
+}

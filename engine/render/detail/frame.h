@@ -60,6 +60,7 @@ struct FrameUniforms {
     bool rain = false;                            ///< the march draws the rain (and the ground its shadow)
     bool glow = false;                            ///< the glow pass runs
     bool host = false;                            ///< composited into a host's frame (render_into_host)
+    bool stars = false;                           ///< the composite draws stars (sky on, star radiance > 0)
 };
 
 /// The caller's draw and read framebuffers and viewport, restored when a frame or a read-back is

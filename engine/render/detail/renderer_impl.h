@@ -78,10 +78,15 @@ struct Renderer::Impl {
     detail::Target glow_target, march_target, core_target, hdr_target;
     std::vector<detail::Target> glare_down, glare_up;  // the glare pyramid's levels (pass_glare.cpp)
     GlareFit glare_fit;
-    detail::TemporalState temporal;                        // the temporal history (pass_temporal.cpp)
-    double glare_key[3] = {-1.0, -1.0, -1.0};              // pixel size, internal scale, reach the fit was made for
-    bool glare_ran = false;                                // this frame's composite adds glare_up[0]
-    bool composite_stars = true, composite_dither = true;  // this frame's composite draws stars, dithers
+    detail::TemporalState temporal;            // the temporal history (pass_temporal.cpp)
+    double glare_key[3] = {-1.0, -1.0, -1.0};  // pixel size, internal scale, reach the fit was made for
+    bool glare_ran = false;                    // this frame's composite adds glare_up[0]
+    int composite_stars = 1;  // this frame's composite's stars: 0 none, 1 computed, 2 read from star_target
+    bool composite_dither = true;
+    // The stars kept while the camera stays still (pass_composite.cpp): the target, what they
+    // were drawn for, and the previous frame's view (a still camera: two frames alike).
+    detail::Target star_target;
+    std::vector<float> star_key, star_previous;
     int out_w = 0, out_h = 0;
 
     // ----------------------------------------------------------------------------------
@@ -153,18 +158,27 @@ struct Renderer::Impl {
     void bind_frame(const detail::FrameUniforms& u);
     GLuint resolve_set(detail::SourceSet& set, const glm::dvec3& camera, const std::vector<int>& active,
                        bool must_resolve, detail::PassTimer& timer);
+    /// `resolve` false: S toward the camera is not needed this frame (a reused history); the
+    /// textures are bound, S stays to be resolved.
     void resolve_pass(const glm::dvec3& camera, const Settings& st, const detail::FrameUniforms& u,
-                      detail::PassTimer& timer, FrameStats& stats);
-    void glow_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats);
+                      detail::PassTimer& timer, FrameStats& stats, bool resolve = true);
+    /// `draw` false: the glow is not needed this frame (a reused history holds it).
+    void glow_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats,
+                   bool draw = true);
     void march_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer);
-    /// The march with the temporal history (Settings::temporal) in place of march_pass.
-    void temporal_march_pass(const Camera& camera, const Settings& st, const detail::FrameUniforms& u,
+    /// With the temporal history (Settings::temporal): what this frame does with it (before the
+    /// resolve and glow passes, which a reused history skips), and the march in place of march_pass.
+    detail::TemporalPlan plan_temporal(const Camera& camera, const Settings& st, const detail::FrameUniforms& u) const;
+    void temporal_march_pass(const Camera& camera, detail::TemporalPlan plan, const detail::FrameUniforms& u,
                              detail::PassTimer& timer, FrameStats& stats);
     void meter_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats);
     void bolt_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats);
     void glare_pass(const Camera& camera, const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer,
                     FrameStats& stats);
     void composite_pass(const detail::FrameUniforms& u, const detail::CallerTarget& caller, detail::PassTimer& timer);
+    /// The stars for this frame's composite: computed in it while the camera moves, drawn once
+    /// into star_target and read from there while it stays still.
+    void prepare_stars(const detail::FrameUniforms& u, bool stars);
     /// The composite's program for this frame's switches (glare, stars, dither) and `output`
     /// (composite.frag's OUTPUT: 0 tone mapped, 1 radiance, 2 a host's frame).
     GLuint composite_program(int output);

@@ -73,6 +73,16 @@ struct TemporalKey {
     bool operator==(const TemporalKey&) const = default;
 };
 
+/// What a frame's march does with the history (Renderer::Impl::plan_temporal): `stride` 0 reuses
+/// it (nothing marched: no resolve, no glow), 1 marches every pixel, 2 the pixel `phase` of each
+/// 2x2 block; the march's defines and the frame's key.
+struct TemporalPlan {
+    int stride = 1;
+    glm::ivec2 phase{0};
+    std::string defines;
+    TemporalKey key;
+};
+
 struct TemporalState {
     MultiTarget fresh;       // this frame's marched pixels (flash, statics, channel)
     MultiTarget history[2];  // ping-pong: history[current] is the last one written
