@@ -97,13 +97,13 @@ TEST_CASE("--camera on fulgur-shot and fulgur: JSON text or a file, validated") 
 TEST_CASE("every golden and README scene states its camera") {
     // The golden tests render view::scene_camera(scene.camera): a scene without one would be
     // rendered from a view that moves whenever the default does.
-    for (const char* f : {"content/scenes/storm.json", "content/scenes/dusk-storm.json",
-                          "content/scenes/day-cumulus.json", "content/scenes/vdb-cloud.json",
-                          "content/scenes/storm-full.json", "content/scenes/dusk-storm-full.json",
-                          "content/scenes/day-cumulus-full.json",
-                          "tests/apps/scenes/test_aniso_ms_cg.json", "tests/apps/scenes/test_aniso_ss_ic.json",
-                          "tests/apps/scenes/test_iso_ms_cg.json", "tests/apps/scenes/test_iso_ss_ic.json",
-                          "tests/apps/scenes/test_day_sun.json", "tests/apps/scenes/test_vdb_cloud.json"}) {
+    for (const char* f :
+         {"content/scenes/storm.json", "content/scenes/dusk-storm.json", "content/scenes/day-cumulus.json",
+          "content/scenes/vdb-cloud.json", "content/scenes/storm-full.json", "content/scenes/dusk-storm-full.json",
+          "content/scenes/day-cumulus-full.json", "tests/apps/scenes/test_aniso_ms_cg.json",
+          "tests/apps/scenes/test_aniso_ss_ic.json", "tests/apps/scenes/test_iso_ms_cg.json",
+          "tests/apps/scenes/test_iso_ss_ic.json", "tests/apps/scenes/test_day_sun.json",
+          "tests/apps/scenes/test_vdb_cloud.json"}) {
         CAPTURE(f);
         const scene::Scene s = scene::load_scene(test::source_dir() / f);
         CHECK(s.camera.has_value());
