@@ -69,11 +69,24 @@ void show_flash(render::Renderer& r, const synthetic::Storm& storm, const render
     r.upload_source(up);
 }
 
+// The synthetic storm at 200 m voxels, made once.
+const synthetic::Storm& small_storm() {
+    static const synthetic::Storm storm = synthetic::storm({64, 64, 48}, 200.0);
+    return storm;
+}
+
+// The storm's volume, its channel and the directions of S its camera needs.
+void show_storm(render::Renderer& r, const synthetic::Storm& storm) {
+    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
+    r.set_channel(storm.bolt);
+    r.upload_source(synthetic::needed_upload(r, storm));
+}
+
 }  // namespace
 
 TEST_CASE("temporal history: a still camera through a whole flash gives each frame a fresh render's") {
     render::Renderer& r = gl_renderer();
-    const synthetic::Storm storm = synthetic::storm({64, 64, 48}, 200.0);
+    const synthetic::Storm& storm = small_storm();
     cloud::RainParams rp;
     const cloud::RainField rain = cloud::make_rain(storm.density, rp);
     r.set_volume({.density = &storm.density, .extinction = storm.extinction, .rain = &rain});
@@ -134,7 +147,7 @@ TEST_CASE("temporal history: a still camera through a whole flash gives each fra
 
 TEST_CASE("temporal history: a moving camera marches a quarter and stays near a fresh render") {
     render::Renderer& r = gl_renderer();
-    const synthetic::Storm storm = synthetic::storm({64, 64, 48}, 200.0);
+    const synthetic::Storm& storm = small_storm();
     r.set_volume({.density = &storm.density, .extinction = storm.extinction});
     render::SourceUpload all;  // every direction: the orbit needs others than the first view's
     all.geometry = storm.lighting;
@@ -200,10 +213,8 @@ TEST_CASE("temporal history: a moving camera marches a quarter and stays near a 
 
 TEST_CASE("temporal history: tiny and changing sizes march what they must, without errors") {
     render::Renderer& r = gl_renderer();
-    const synthetic::Storm storm = synthetic::storm({64, 64, 48}, 200.0);
-    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
-    r.set_channel(storm.bolt);
-    r.upload_source(synthetic::needed_upload(r, storm));
+    const synthetic::Storm& storm = small_storm();
+    show_storm(r, storm);
     render::Settings st = storm.settings;
     st.temporal = true;
     render::Camera cam = storm.camera;
@@ -230,10 +241,8 @@ TEST_CASE("temporal history: tiny and changing sizes march what they must, witho
 
 TEST_CASE("a still camera's stars, drawn once and read back, are the stars computed each frame") {
     render::Renderer& r = gl_renderer();
-    const synthetic::Storm storm = synthetic::storm({64, 64, 48}, 200.0);
-    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
-    r.set_channel(storm.bolt);
-    r.upload_source(synthetic::needed_upload(r, storm));
+    const synthetic::Storm& storm = small_storm();
+    show_storm(r, storm);
     render::Settings st = storm.settings;
     st.star_radiance = 1e-3;  // bright enough to show in 8 bits through the storm's exposure
     st.sky = true;
