@@ -100,6 +100,14 @@ void ScaleTracker::note(std::span<const float> fixed, const std::vector<int>& ke
     }
     if (replace) values_.clear();
     for (std::size_t k = 0; k < keys.size(); ++k) values_[keys[k]].assign(values[k].begin(), values[k].end());
+    // The copy is bounded: beyond kMaxValues the next upload cannot be compared (a change of
+    // shape: every pixel marched) and nothing is kept.
+    std::size_t kept = 0;
+    for (const auto& [key, v] : values_) kept += v.size();
+    if (kept > kMaxValues) {
+        values_.clear();
+        fixed_.clear();
+    }
     if (replace) dark_ = !(nn > 0.0);
 }
 

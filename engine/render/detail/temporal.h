@@ -40,6 +40,10 @@ struct MultiTarget {
 class ScaleTracker {
 public:
     static constexpr double kTolerance = 1e-5;
+    /// At most this many values are kept for the comparison (64 MB; a lighting grid of 32x32x24
+    /// with 26 directions is 0.64 M): a larger group is never found a multiple of its previous
+    /// values, and the history marches every pixel when it changes.
+    static constexpr std::size_t kMaxValues = std::size_t(1) << 24;
     /// New values of the group, keyed (a direction of S; 0 for a single array); `fixed`: what
     /// must be identical for the values to be comparable (geometry). `replace`: keys not listed
     /// are dropped (else kept, and a listed key never seen before is taken as consistent).
