@@ -13,7 +13,7 @@ layout(location = 2) out vec4 o_channel;
 void main() {
     ivec2 p = ivec2(gl_FragCoord.xy) * u_grid.x + u_grid.yz;
     if (p.x >= int(sizes.z) || p.y >= int(sizes.w)) {
-        o_flash = vec4(0.0, 1.0, 1.0, -1.0);
+        o_flash = vec4(0.0, 1.0, 0.0, -1.0);
         o_statics = o_channel = vec4(0.0);
         return;
     }

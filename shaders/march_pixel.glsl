@@ -51,7 +51,7 @@ vec4 shade_pixel(vec2 pixel) {
 #if TEMPORAL
 // The same pixel's terms kept apart by light group, for the temporal history (temporal.frag
 // sums them with the glow into shade_pixel's result):
-//   flash   = (the flash's in-scattered S before its colour, T, T to the glow's depth, depth)
+//   flash   = (the flash's in-scattered S before its colour, T, 0 (unused), depth)
 //   statics = (the static light: in-scattered sun, moon and sky + the background they light * T;
 //              the channel's light depth)
 //   channel = (the channel's direct light: the rain it lights + the ground it lights * T + the
@@ -67,7 +67,7 @@ void shade_groups(vec2 pixel, out vec4 flash, out vec4 statics, out vec4 channel
     background_parts(cam_pos.xyz, m.d, rest, lit);
     float T = m.r.transmittance;
     float depth = T <= 0.9 ? m.r.depth : (m.t_end < kBig ? m.t_end : -1.0);
-    flash = vec4(m.r.in_scattered, T, m.r.t_emit, depth);
+    flash = vec4(m.r.in_scattered, T, 0.0, depth);
     vec3 rain_lit = m.r.in_rain_flash * light_colour.rgb, glow = m.r.t_emit * m.e.rgb;
     float wr = luminance(rain_lit), wg = luminance(T * lit), we = luminance(glow);
     float glow_depth = we > 0.0 ? m.e.a / luminance(m.e.rgb) : 0.0;

@@ -109,7 +109,7 @@ void main() {
         vec4 fresh_channel = textureLod(u_fresh_channel, fuv, 0.0);
         bool c_ok = cloud.err < kBig, f_ok = flash.err < kBig, ch_ok = channel.err < kBig;
         vec4 hf = textureLod(u_hist_flash, cloud.uv, 0.0), hs = textureLod(u_hist_statics, cloud.uv, 0.0);
-        o_flash = c_ok ? vec4(hf.x, hf.y, hf.z, cloud.depth) : vec4(fresh_flash.xyz, fresh_flash.w);
+        o_flash = c_ok ? vec4(hf.xyz, cloud.depth) : fresh_flash;
         o_statics = c_ok ? hs : fresh_statics;
         o_flash.x = f_ok ? textureLod(u_hist_flash, flash.uv, 0.0).x * u_rescale.x : fresh_flash.x;
         o_channel = ch_ok ? textureLod(u_hist_channel, channel.uv, 0.0) * vec4(vec3(u_rescale.y), 1.0) : fresh_channel;

@@ -41,11 +41,10 @@ void Renderer::Impl::prepare_stars(const FrameUniforms& u, bool stars) {
     // and the sky and ground switches.
     const detail::FrameBlock& f = u.block;
     std::vector<float> key;
-    for (const glm::vec4* v :
-         {&f.cam_pos, &f.cam_fwd, &f.cam_right, &f.cam_up, &f.sizes, &f.sky_params, &f.ground_params})
-        key.insert(key.end(), {(*v)[0], (*v)[1], (*v)[2], (*v)[3]});
-    key[4 * 5 + 3] = 0.0f;  // not the exposure
-    key[4 * 6 + 3] = 0.0f;  // nor the number of ground lights
+    for (const glm::vec4* v : {&f.cam_pos, &f.cam_fwd, &f.cam_right, &f.cam_up, &f.sizes})
+        detail::append_components(key, *v);
+    detail::append_components(key, f.sky_params, 3);     // not its w: the exposure
+    detail::append_components(key, f.ground_params, 3);  // not its w: the number of ground lights
     const bool still = key == star_previous;
     star_previous = key;
     if (!still) {

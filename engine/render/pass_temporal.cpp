@@ -10,7 +10,6 @@
 
 #include <array>
 #include <cmath>
-#include <cstring>
 #include <string>
 
 namespace fulgur::render {
@@ -58,9 +57,7 @@ void TemporalState::release() {
 TemporalKey temporal_key(const FrameUniforms& u, const std::string& march_defines) {
     const FrameBlock& f = u.block;
     TemporalKey k;
-    auto add = [&](const glm::vec4& v, int n = 4) {
-        for (int i = 0; i < n; ++i) k.uniforms.push_back(v[i]);
-    };
+    auto add = [&](const glm::vec4& v, int n = 4) { append_components(k.uniforms, v, n); };
     // Not the flash's lighting grid nor the channel's light counts: a flash going dark changes
     // them, and its light groups' trackers follow that.
     for (const glm::vec4* v : {&f.vol_min, &f.vol_size, &f.static_min, &f.static_size, &f.sun_dir, &f.sun_rgb,

@@ -12,6 +12,8 @@
 
 #include <time.h>
 
+#include <vector>
+
 namespace fulgur::render::detail {
 
 /// Mirror of the std140 block `Frame` in shaders/common.glsl (vec4/mat4 members only, so
@@ -35,6 +37,11 @@ struct FrameBlock {
 };
 static_assert(sizeof(FrameBlock) == 64 + 11 * 16 + 8 * 16 + 4 * 16 + 10 * 16 + 8 * 16 + 16,
               "FrameBlock must match std140");
+
+/// Appends the first `n` components of `v` to `out` (keys made of frame-block fields).
+inline void append_components(std::vector<float>& out, const glm::vec4& v, int n = 4) {
+    for (int i = 0; i < n; ++i) out.push_back(v[i]);
+}
 
 /// The passes of a frame in the order render() runs them (the timer's slots).
 enum Pass { kResolve, kGlow, kMarch, kMeter, kBolt, kGlare, kComposite, kPassCount };

@@ -17,8 +17,6 @@
 #include <glm/glm.hpp>
 
 #include <cstdint>
-#include <map>
-#include <span>
 #include <string>
 #include <vector>
 
