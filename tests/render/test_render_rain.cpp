@@ -30,6 +30,14 @@ cloud::RainField uniform_rain(double sigma) {
     return r;
 }
 
+// The only light: a channel from a to b (1 W/sr/m, radius 2 m), no S.
+void light_by_channel(render::Renderer& r, glm::vec3 a, glm::vec3 b) {
+    render::LitChannel ch;
+    ch.segments.push_back({a, b, 1.0f, 2.0f});
+    r.set_channel(ch);
+    r.clear_source();
+}
+
 render::Camera side_camera() {
     render::Camera cam;
     cam.position = {-300.0, -4000.0, 600.0};
@@ -127,11 +135,8 @@ TEST_CASE("rain shadows the ground's flash light") {
     // ground's radiance times the view's transmittance (the rain's own glow would add to it).
     cloud::RainField rain = uniform_rain(sigma);
     rain.albedo = 0.0;
-    render::LitChannel ch;  // a short channel 1 km up, over the box's centre
-    ch.segments.push_back({{0.0f, 0.0f, 1000.0f}, {0.0f, 0.0f, 1100.0f}, 1.0f, 2.0f});
-    r.set_channel(ch);
-    r.clear_source();
-    render::Camera cam;  // looking down at the ground under the channel
+    light_by_channel(r, {0.0f, 0.0f, 1000.0f}, {0.0f, 0.0f, 1100.0f});  // 1 km up, over the box's centre
+    render::Camera cam;                                                 // looking down at the ground under the channel
     cam.position = {0.0, -600.0, 3000.0};
     cam.target = {0.0, 0.0, 0.0};
     cam.vertical_fov_deg = 10.0;
@@ -173,10 +178,7 @@ TEST_CASE("the channel's light in the rain: the march against its single-scatter
     rain.albedo = 1.0;
     rain.g = 0.85;
     r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16, .rain = &rain});
-    render::LitChannel ch;
-    ch.segments.push_back({{100.0f, 200.0f, 500.0f}, {100.0f, 200.0f, 510.0f}, 1.0f, 2.0f});
-    r.set_channel(ch);
-    r.clear_source();
+    light_by_channel(r, {100.0f, 200.0f, 500.0f}, {100.0f, 200.0f, 510.0f});
     const render::Camera cam = side_camera();
     const int W = 64, H = 48;
     render::Settings st = test::volume_only();
