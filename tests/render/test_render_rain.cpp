@@ -135,8 +135,9 @@ TEST_CASE("rain shadows the ground's flash light") {
     // ground's radiance times the view's transmittance (the rain's own glow would add to it).
     cloud::RainField rain = uniform_rain(sigma);
     rain.albedo = 0.0;
-    light_by_channel(r, {0.0f, 0.0f, 1000.0f}, {0.0f, 0.0f, 1100.0f});  // 1 km up, over the box's centre
-    render::Camera cam;                                                 // looking down at the ground under the channel
+    // A short channel 1 km up, over the box's centre; the camera looks down at the ground under it.
+    light_by_channel(r, {0.0f, 0.0f, 1000.0f}, {0.0f, 0.0f, 1100.0f});
+    render::Camera cam;
     cam.position = {0.0, -600.0, 3000.0};
     cam.target = {0.0, 0.0, 0.0};
     cam.vertical_fov_deg = 10.0;
