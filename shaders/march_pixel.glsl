@@ -50,7 +50,7 @@ vec4 shade_pixel(vec2 pixel) {
 
 #if TEMPORAL
 // The same pixel's terms kept apart by light group, for the temporal history (temporal.frag
-// sums them with the glow into shade_pixel's result):
+// sums them into shade_pixel's result):
 //   flash   = (the flash's in-scattered S before its colour, T, 0 (unused), depth)
 //   statics = (the static light: in-scattered sun, moon and sky + the background they light * T;
 //              the channel's light depth)

@@ -79,21 +79,10 @@ float hg_phase(float cos_theta, float g) {
 // below the rain's top as point lights of equal power (W/sr; the flash colour applied with
 // the cloud's flash light), directly, without the rain's own attenuation on the way. r^2 is
 // kept above (50 m)^2: closer, a point stands for a stretch of channel, not a point.
-float rain_flash(vec3 p, vec3 d) {
-    float s = 0.0;
-    int n = int(rain_lights.x);
-    for (int i = 0; i < n; ++i) {
-        vec3 l = p - rain_light[i].xyz;
-        float r2 = max(dot(l, l), 2500.0);
-        s += rain_light[i].w * hg_phase(dot(l, -d) * inversesqrt(r2), rain_params.y) / r2;
-    }
-    return s;
-}
-
-#if TEMPORAL
-// rain_flash, and in `light_t` the sum of each light's share times its distance along the ray
-// (o + t d): the rain's forward-scattered halo around a light moves on screen with the
-// light, not with the drops that scatter it (the temporal history reprojects it by this).
+// In `light_t` it adds each light's share times its distance along the ray o + t d: the
+// rain's forward-scattered halo around a light moves on screen with the light, not with the
+// drops that scatter it (the temporal history reprojects it by this; without TEMPORAL the
+// sum is not used and compiled away).
 float rain_flash(vec3 p, vec3 d, vec3 o, inout float light_t) {
     float s = 0.0;
     int n = int(rain_lights.x);
@@ -106,7 +95,6 @@ float rain_flash(vec3 p, vec3 d, vec3 o, inout float light_t) {
     }
     return s;
 }
-#endif
 
 // The same for the sun or moon through the cloud and the rain (the full-resolution
 // transmittance at p_tex) and the sky: below a storm's base the rain sees about half the dome
@@ -227,12 +215,12 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
         float wc = sigma_c + sigma_r > 0.0 ? sigma_c / (sigma_c + sigma_r) : 0.0;
         if (sigma_r > 0.0) {
             float wr = T * alpha * (1.0 - wc) * rain_params.w;
-#if TEMPORAL
             float light_t = 0.0;
+#if TEMPORAL
             Lrf += wr * rain_flash(o + t * d, d, o, light_t);
             rain_depth_sum += wr * light_t;
 #else
-            L += wr * rain_flash(o + t * d, d);
+            L += wr * rain_flash(o + t * d, d, o, light_t);
 #endif
             Ls += wr * rain_static(d, o_tex + t * d_tex);
         }
