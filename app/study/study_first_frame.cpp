@@ -2,8 +2,10 @@
 //   first-frame: the default storm's strikes 1-5 at their first return stroke + 2 ms, each
 //   candidate estimate against the truth of that frame, single and multiple scattering apart:
 //   the paper frame (the splat), exact single scattering of the frame's point sources on the
-//   lighting grid, and the bases' multiple scattering with virtual-light weights fitted to the
-//   strike's first-scattered field (non-negative least squares) instead of the splat's.
+//   lighting grid, the bases' multiple scattering with virtual-light weights fitted to the
+//   strike's first-scattered field (non-negative least squares) instead of the splat's, and
+//   the splat with perfect bases (the splatted virtual lights traced by the truth's Monte
+//   Carlo) at the bake's spacing and 2x and 4x denser.
 //   Outputs: first_frame.csv (one row per strike and candidate).
 #include "study/study.h"
 
@@ -46,8 +48,9 @@ std::vector<double> nnls(const std::vector<double>& G, const std::vector<double>
 
 FULGUR_STUDY(first_frame, "first-frame",
              "a strike's first frame before any per-strike work: the splat, exact single scattering of the point "
-             "sources on the lighting grid, and the bases' multiple scattering with fitted virtual-light weights, "
-             "against the truth (default storm, 5 strikes)") {
+             "sources on the lighting grid, the bases' multiple scattering with fitted virtual-light weights, and "
+             "the splat with perfect bases at the bake's spacing and 2x and 4x denser, against the truth (default "
+             "storm, 5 strikes)") {
     const std::filesystem::path scenes = std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes";
     const scene::Scene base = scene::load_scene(scenes / "storm.json");
     const core::Grid3<float> density = scene::make_density(base);
@@ -183,5 +186,47 @@ FULGUR_STUDY(first_frame, "first-frame",
         const std::vector<float> fitm = part(w, false), fit1 = part(w, true);
         report("fitted single + fitted multiple", fit1, fitm, fit_s);
         report("direct single + fitted multiple", d1.data, fitm, direct_s + fit_s);
+
+        // What the splat would give with perfect bases: the virtual lights at the splat's
+        // weights traced by the truth's own Monte Carlo (no lattice, no compression), and the
+        // frame's point sources traced the same way (the channel cut into points, no splat).
+        runtime::TruthOptions po = to;
+        po.paths = truth_paths / 2;
+        po.seed = seed + 1000;
+        std::vector<transport::PointSource> splat_pts;
+        for (const std::uint32_t l : pf.weights.active) splat_pts.push_back({vl.position(l), pf.weights.e[l]});
+        t0 = std::chrono::steady_clock::now();
+        const runtime::Truth sp = runtime::truth(s, density, {}, splat_pts, po);
+        report("splat traced (exact bases)", sp.single.data, sp.multiple.data, seconds_since(t0));
+        report("direct single + splat traced multiple", d1.data, sp.multiple.data, direct_s);
+        // The same with the virtual lights 2x and 4x denser on every axis (nodes inserted
+        // between the bake's): how dense perfect bases would have to be under the splat.
+        for (const int split : {2, 4}) {
+            basis::VirtualLightGrid dense;
+            auto refine_axis = [&](const std::vector<double>& a) {
+                std::vector<double> out;
+                for (std::size_t q = 0; q + 1 < a.size(); ++q)
+                    for (int d = 0; d < split; ++d) out.push_back(a[q] + (a[q + 1] - a[q]) * d / split);
+                out.push_back(a.back());
+                return out;
+            };
+            dense.x = refine_axis(vl.x);
+            dense.y = refine_axis(vl.y);
+            dense.z = refine_axis(vl.z);
+            const lightning::Splatter ds(dense);
+            lightning::LightWeights dw;
+            ds.splat(pf.sources, dw);
+            std::vector<transport::PointSource> dpts;
+            for (const std::uint32_t l : dw.active) dpts.push_back({dense.position(l), dw.e[l]});
+            t0 = std::chrono::steady_clock::now();
+            const runtime::Truth dt = runtime::truth(s, density, {}, dpts, po);
+            report("splat traced, lights " + std::to_string(split) + "x denser", dt.single.data, dt.multiple.data,
+                   seconds_since(t0));
+            report("direct single + splat traced multiple, lights " + std::to_string(split) + "x denser", d1.data,
+                   dt.multiple.data, direct_s);
+        }
+        t0 = std::chrono::steady_clock::now();
+        const runtime::Truth ps = runtime::truth(s, density, {}, pf.sources, po);
+        report("point sources traced", ps.single.data, ps.multiple.data, seconds_since(t0));
     }
 }
