@@ -6,8 +6,12 @@
 //   (runtime::truth): relative L2 of S over the cloud voxels, all directions. Also the frame
 //   thread's cost while the strike is being solved (median build), the instant preset's
 //   weight of its own estimate, and the worker's wall and CPU time so far.
+//   Also each strike triggered at its leader's start with the storm clock running (the frames
+//   of its leader built at their own time, 60 fps), its return stroke's frame against the same
+//   truth: what a "Strike now" shows when the flash is brightest.
 //   Outputs: latency.csv (one row per scene, preset, strike and X), latency_summary.csv
-//   (worst strike per scene, preset and X); scripts/plot_studies.py draws the curves.
+//   (worst strike per scene, preset and X), latency_leader.csv (one row per scene, preset and
+//   strike triggered at its leader's start); scripts/plot_studies.py draws the curves.
 //   --quick: the default storm, 2 strikes, 3 latencies, fewer truth paths.
 #include "study/study.h"
 
@@ -53,6 +57,12 @@ FULGUR_STUDY(latency, "latency",
                     {"scene", "preset", "seed", "since_known_ms", "error_vs_truth", "frame_ms_median", "frame_ms_max",
                      "frames", "instant_weight", "worker_s", "single_paths", "multiple_paths", "estimate_noise",
                      "bases_error", "truth_noise"});
+    // A strike triggered at its leader's start with the storm clock running: the return
+    // stroke's frame (+2 ms) as a frame loop shows it, the leader's frames built meanwhile
+    // (what the demo's "Strike now" and a game event that starts a whole flash get).
+    study::Csv leader_rows(ctx.file("latency_leader.csv"),
+                           {"scene", "preset", "seed", "leader_ms", "error_vs_truth", "frames", "instant_weight",
+                            "worker_s", "single_paths", "multiple_paths", "estimate_noise"});
     study::Csv summary(ctx.file("latency_summary.csv"),
                        {"scene", "preset", "since_known_ms", "worst_error", "median_error", "frame_ms_median"});
     nlohmann::json out = nlohmann::json::array();
@@ -68,6 +78,7 @@ FULGUR_STUDY(latency, "latency",
         const solve::Media media = solve::make_media(s, density);
         const std::vector<float>& rho = media.lighting.density.data;
         std::map<std::pair<std::string, double>, std::vector<double>> errors, frame_ms;
+        std::map<std::string, std::vector<double>> leader_errors;
         for (int k = 0; k < c.strikes; ++k) {
             const std::uint64_t seed = std::uint64_t(k + 1);
             // The truth of the frame (from a paper pipeline: the lit channel does not depend on
@@ -89,11 +100,17 @@ FULGUR_STUDY(latency, "latency",
             for (const std::string& name : presets) {
                 scene::Quality q = scene::quality_preset(name);
                 q.lookahead = 0.0;  // nobody scheduled it
-                for (const double x : latencies) {
+                // The latencies, then (x < 0) the strike triggered at its leader's start.
+                std::vector<double> xs = latencies;
+                xs.push_back(-1.0);
+                for (const double x_or_leader : xs) {
                     runtime::FramePipeline p(s, density, bases, {}, q);
-                    const double start = p.storm().strike(p.strike_at(0.0, seed)).time;
+                    const bool leader = x_or_leader < 0.0;
+                    // Triggered at its leader's start: an unscheduled strike, as "Strike now".
+                    const double start = p.storm().strike(p.strike_at(0.0, seed, !leader)).time;
+                    const double x = leader ? (t - start) * 1000.0 : x_or_leader;
                     runtime::SinceKnown seen;
-                    const runtime::Frame& f = runtime::build_since_known(p, t, x, {}, {}, &seen);
+                    const runtime::Frame& f = runtime::build_since_known(p, t, x, {}, {}, &seen, leader);
                     const double e = cloud_error(flat(f.radiance), tt.data, rho);
                     double worker_s = 0.0, noise = 0.0, eb = -1.0, sp = 0.0, mp = 0.0;
                     if (runtime::InstantStrikes* is = p.instant_strikes()) {
@@ -108,6 +125,18 @@ FULGUR_STUDY(latency, "latency",
                     } else if (runtime::StrikeSolver* ss = p.strike_solver()) {
                         if (const auto L = ss->get(seed, start)) worker_s = L->seconds_single + L->seconds_multiple;
                         ss->set_paused(true);
+                    }
+                    if (leader) {
+                        leader_rows << std::filesystem::path(c.file).stem().string() << name << double(seed) << x << e
+                                    << double(seen.frames) << f.instant_weight << worker_s << sp << mp << noise;
+                        leader_rows.end_row();
+                        leader_errors[name].push_back(e);
+                        std::fprintf(stderr,
+                                     "latency: %-16s %-14s seed %llu triggered at its leader's start, %.0f ms before "
+                                     "its return stroke: error %.3f (weight %.2f, noise %.3f)\n",
+                                     c.file.c_str(), name.c_str(), static_cast<unsigned long long>(seed), x, e,
+                                     f.instant_weight, noise);
+                        continue;
                     }
                     rows << std::filesystem::path(c.file).stem().string() << name << double(seed) << x << e
                          << seen.median_frame_ms << seen.max_frame_ms << double(seen.frames) << f.instant_weight
@@ -133,6 +162,13 @@ FULGUR_STUDY(latency, "latency",
                 summary.end_row();
                 out.push_back({{"scene", c.file}, {"preset", name}, {"since_known_ms", x}, {"worst_error", v.back()}});
             }
+        for (const std::string& name : presets) {
+            const std::vector<double>& v = leader_errors[name];
+            out.push_back({{"scene", c.file},
+                           {"preset", name},
+                           {"triggered_at_leader_start", true},
+                           {"worst_error", *std::max_element(v.begin(), v.end())}});
+        }
     }
     ctx.summary("latency", {{"rows", out}, {"truth_paths", truth_paths}});
 }

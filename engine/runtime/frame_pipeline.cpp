@@ -127,6 +127,8 @@ std::size_t FramePipeline::strike_at(double t, std::optional<std::uint64_t> seed
         const lightning::Strike& k = im.storm.strike(i);
         im.unscheduled.insert({k.seed, k.time});
         if (!im.instant) im.make_instant(scene::quality_preset("instant"));
+        // Known now: its tracing starts now, not at the next frame that lights it.
+        im.instant->request(k.seed, k.time, im.storm.bolt(i));
     }
     return i;
 }
@@ -168,7 +170,8 @@ const Frame& FramePipeline::Impl::build_paper(double t, std::span<const int> dir
 
 // The instant preset's strike: its strokes' light from its latest estimate with weight w (the
 // estimate's against the bases, cross-faded from the previous estimate so the shown light
-// changes by at most quality.max_change_per_frame per build) and from the bases with 1 - w;
+// changes by at most quality.max_change_per_frame per build while the strokes glow, at once
+// while they are dark) and from the bases with 1 - w;
 // its leaders from the bases. No estimate yet: the bases alone, as a strike whose solve is
 // not ready.
 void FramePipeline::Impl::add_instant(const lightning::Strike& k, const lightning::Bolt& bolt, double t,
@@ -182,7 +185,12 @@ void FramePipeline::Impl::add_instant(const lightning::Strike& k, const lightnin
         s.target = latest;
         s.settled = false;
     }
-    if (s.target && !s.settled) move_toward_target(s, options.wait_for_strikes ? 1e300 : quality.max_change_per_frame);
+    // While the strokes are dark (the stepped leader before the first return stroke, the
+    // leaders and gaps before later ones) the shown light is drawn at zero glow: it settles
+    // on the latest estimate at once, and the next stroke starts from it with no visible step.
+    const bool strokes_dark = !(st.main_glow > 0.0) && !(st.branch_glow > 0.0);
+    if (s.target && !s.settled)
+        move_toward_target(s, options.wait_for_strikes || strokes_dark ? 1e300 : quality.max_change_per_frame);
     if (!s.light) {
         lightning::lit_segments(bolt, st, basis_segments);
         ++f.strikes_fallback;
@@ -388,7 +396,8 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
 }
 
 const Frame& build_since_known(FramePipeline& pipeline, double t, double since_known_ms,
-                               std::span<const int> directions, const ReconstructOptions& options, SinceKnown* seen) {
+                               std::span<const int> directions, const ReconstructOptions& options, SinceKnown* seen,
+                               bool storm_time_runs) {
     FULGUR_ASSERT(std::isfinite(since_known_ms) && since_known_ms >= 0.0,
                   "build_since_known: since_known_ms must be finite and >= 0");
     FULGUR_ASSERT(!options.wait_for_strikes, "build_since_known: waiting for the strikes defeats the point");
@@ -400,7 +409,8 @@ const Frame& build_since_known(FramePipeline& pipeline, double t, double since_k
         if (next >= since_known_ms && n > 0) break;
         const double wait = std::min(next, since_known_ms) - known.milliseconds();
         if (wait > 0.0) std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(wait));
-        ms.push_back(pipeline.build(t, directions, options).times.total());
+        const double at = storm_time_runs ? t - (since_known_ms - next) / 1000.0 : t;
+        ms.push_back(pipeline.build(at, directions, options).times.total());
     }
     const double wait = since_known_ms - known.milliseconds();
     if (wait > 0.0) std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(wait));

@@ -55,8 +55,9 @@ public:
     /// Schedules a strike at time t; returns its index. `known_ahead` false: nobody knew it
     /// was coming (a game event, the demo's "Strike now"): under a preset that solves strikes
     /// ahead of their frames (hybrid, per_strike, per_strike_mc) it is lit the instant
-    /// preset's way (InstantStrikes, from its first frame on), since its own solve would be
-    /// ready only most of a flash later. The paper preset lights every strike alike.
+    /// preset's way (InstantStrikes, traced from this call on, not from the first frame that
+    /// lights it), since its own solve would be ready only most of a flash later. The paper
+    /// preset lights every strike alike.
     std::size_t strike_at(double t, std::optional<std::uint64_t> seed = {}, bool known_ahead = true);
     /// Builds the frame at time t for the requested directions (all when empty). A dark
     /// frame (no strike glows at t) costs the strike lookup only: no sources, no splat, no
@@ -87,12 +88,17 @@ struct SinceKnown {
 
 /// The frame at storm time t as a strike nobody scheduled shows it `since_known_ms` of wall
 /// time after it became known: `pipeline` (fresh: never built, its quality's lookahead 0, so
-/// the strike becomes known at the first build) is built at t once, then at 60 fps (sleeping
-/// in between, as a frame loop would) until since_known_ms have passed, and once more; that
-/// last frame is returned (valid until the next build). The per-strike work runs meanwhile on
-/// its worker; what is not ready by then is not shown. `seen` (optional) gets the frames' cost.
+/// the strike becomes known at the first build that lights it) is built at t once, then at
+/// 60 fps (sleeping in between, as a frame loop would) until since_known_ms have passed, and
+/// once more; that last frame is returned (valid until the next build). The per-strike work
+/// runs meanwhile on its worker; what is not ready by then is not shown. `seen` (optional)
+/// gets the frames' cost.
+/// With `storm_time_runs`, the frames before the last are built at the storm time of their
+/// slot, t - since_known_ms + slot (a frame loop whose storm clock runs with the wall clock)
+/// instead of at t: with since_known_ms = t minus the strike's time, the strike is triggered
+/// at its leader's start and frame t is what the loop shows when the flash reaches t.
 const Frame& build_since_known(FramePipeline& pipeline, double t, double since_known_ms,
                                std::span<const int> directions, const ReconstructOptions& options = {},
-                               SinceKnown* seen = nullptr);
+                               SinceKnown* seen = nullptr, bool storm_time_runs = false);
 
 }  // namespace fulgur::runtime

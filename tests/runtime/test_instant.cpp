@@ -159,6 +159,36 @@ TEST_CASE("instant: while estimates replace each other the shown light changes b
     CHECK(largest <= 1.5 * q.max_change_per_frame);
 }
 
+TEST_CASE("instant: while the strokes are dark the shown light settles on the estimate, so the stroke starts from it") {
+    const test::TruthScene& s = test::truth_scene("instant_refine4");
+    const scene::Quality q = instant_quality();
+    runtime::FramePipeline p(s.scene, s.density, *s.bases, {}, q);
+    const double peak = peak_time(p, 7);
+    const lightning::Strike& k = p.storm().strike(0);
+    const double onset = k.time + k.profile.stroke_onset.at(0);
+    REQUIRE(onset - k.time > 0.004);  // a stepped leader to build frames in
+    runtime::InstantStrikes& is = *p.instant_strikes();
+    // Leader frames (the strike lit, the strokes dark) until the first estimate is there,
+    // then one more, with the worker paused so the estimate stays the latest.
+    const double leader = k.time + 0.5 * (onset - k.time);
+    std::shared_ptr<const runtime::StrikeEstimate> e;
+    for (int n = 0; n < 2000 && !(e = is.get(k.seed, k.time)); ++n) {
+        p.build(leader, {});
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    REQUIRE(e);
+    is.set_paused(true);
+    e = is.get(k.seed, k.time);
+    REQUIRE(e);
+    REQUIRE(e->weight() > 0.05);  // something to move toward (a first estimate: ~0.2-0.9)
+    p.build(leader, {});
+    // The return stroke's first frame shows the estimate's whole blend (not a 0.25 step of
+    // it): the weight is the estimate's to float precision (1 - bases, bases in double).
+    const runtime::Frame& f = p.build(peak, {});
+    CHECK(f.strikes_solved == 1);
+    CHECK(f.instant_weight == doctest::Approx(e->weight()).epsilon(1e-9));
+}
+
 TEST_CASE("instant: under a preset that solves ahead, an unscheduled strike is lit the instant way") {
     const test::TruthScene& s = test::truth_scene("instant_refine4");
     scene::Quality q = scene::quality_preset("per_strike_mc");
