@@ -50,64 +50,6 @@ namespace {
 
 constexpr double kPathCutoff = 104.0;  // same optical-depth cutoff as single_scattering's default
 
-/// The LightingMedium as a delta-tracking medium: the majorant is constant per macro-cell
-/// (F^3 voxels, the max of sigma_t inside it); density lookups are clamped to the current
-/// macro-cell so round-off at a macro-cell face can never exceed its majorant.
-class GridMedium {
-public:
-    struct Walker {
-        DdaWalker macro;
-    };
-
-    GridMedium(const LightingMedium& m, int macro_cell)
-        : g_(m.density.geom), rho_(m.density.data.data()), kappa_(m.optics.extinction) {
-        const core::Int3 n = g_.dims;
-        F_ = macro_cell <= 0 ? std::max({n.x, n.y, n.z}) : macro_cell;
-        macro_.dims = {(n.x + F_ - 1) / F_, (n.y + F_ - 1) / F_, (n.z + F_ - 1) / F_};
-        macro_.voxel_size = g_.voxel_size * F_;
-        macro_.origin = g_.origin;
-        majorant_.assign(macro_.cell_count(), 0.0);
-        for (int k = 0; k < n.z; ++k)
-            for (int j = 0; j < n.y; ++j)
-                for (int i = 0; i < n.x; ++i) {
-                    double& mj = majorant_[macro_.index(i / F_, j / F_, k / F_)];
-                    mj = std::max(mj, kappa_ * double(rho_[g_.index(i, j, k)]));
-                }
-    }
-
-    bool start(Walker& w, const glm::dvec3& x, const glm::dvec3& d) const noexcept {
-        double t0 = 0.0, t1 = kInf;
-        if (!core::clip_ray_to_box(x, d, g_.origin, g_.upper(), t0, t1)) return false;
-        return w.macro.start(macro_, x, d, t0, t1);
-    }
-    void segment(const Walker& w, double& t0, double& t1, double& sb) const noexcept {
-        t0 = w.macro.t;
-        t1 = w.macro.t_next();
-        sb = majorant_[std::size_t(w.macro.cell)];
-    }
-    bool advance(Walker& w) const noexcept { return w.macro.advance(); }
-    double sigma_t(const glm::dvec3& x, const Walker& w) const noexcept {
-        const glm::dvec3 u = (x - g_.origin) / g_.voxel_size;
-        const int mi[3] = {w.macro.i, w.macro.j, w.macro.k};
-        const int n[3] = {g_.dims.x, g_.dims.y, g_.dims.z};
-        int idx[3];
-        for (int a = 0; a < 3; ++a) {
-            const int lo = mi[a] * F_, hi = std::min(n[a], lo + F_) - 1;
-            const double f = std::floor(u[a]);
-            idx[a] = int(std::clamp(f, double(lo), double(hi)));
-        }
-        return kappa_ * double(rho_[g_.index(idx[0], idx[1], idx[2])]);
-    }
-
-private:
-    core::GridGeometry g_;
-    const float* rho_;
-    double kappa_;
-    int F_ = 1;
-    core::GridGeometry macro_;
-    std::vector<double> majorant_;
-};
-
 /// Where S is tallied: the medium's own grid, or a coarsening of it by an integer factor with
 /// the same origin (the truth of a frame: the full-resolution density, S on the lighting
 /// grid). The coarse box may extend past the medium's (a trailing partial block); the medium
@@ -184,6 +126,67 @@ struct TallyGrid {
     }
 };
 
+/// The LightingMedium as a delta-tracking medium: the majorant is constant per macro-cell
+/// (F^3 voxels, the max of sigma_t inside it); density lookups are clamped to the current
+/// macro-cell so round-off at a macro-cell face can never exceed its majorant.
+class GridMedium {
+public:
+    struct Walker {
+        DdaWalker macro;
+    };
+
+    /// `bricks`: the tally grid built over the same medium, whose bricked copy of the density
+    /// the lookups read (the same values, a few kilobytes per brick instead of a plane apart
+    /// per step in z).
+    GridMedium(const LightingMedium& m, int macro_cell, const TallyGrid& bricks)
+        : g_(m.density.geom), kappa_(m.optics.extinction), bricks_(&bricks) {
+        const core::Int3 n = g_.dims;
+        F_ = macro_cell <= 0 ? std::max({n.x, n.y, n.z}) : macro_cell;
+        macro_.dims = {(n.x + F_ - 1) / F_, (n.y + F_ - 1) / F_, (n.z + F_ - 1) / F_};
+        macro_.voxel_size = g_.voxel_size * F_;
+        macro_.origin = g_.origin;
+        majorant_.assign(macro_.cell_count(), 0.0);
+        for (int k = 0; k < n.z; ++k)
+            for (int j = 0; j < n.y; ++j)
+                for (int i = 0; i < n.x; ++i) {
+                    double& mj = majorant_[macro_.index(i / F_, j / F_, k / F_)];
+                    mj = std::max(mj, kappa_ * double(m.density.data[g_.index(i, j, k)]));
+                }
+    }
+
+    bool start(Walker& w, const glm::dvec3& x, const glm::dvec3& d) const noexcept {
+        double t0 = 0.0, t1 = kInf;
+        if (!core::clip_ray_to_box(x, d, g_.origin, g_.upper(), t0, t1)) return false;
+        return w.macro.start_clipped(macro_, x, d, t0, t1);  // the majorant grid covers the medium's box
+    }
+    void segment(const Walker& w, double& t0, double& t1, double& sb) const noexcept {
+        t0 = w.macro.t;
+        t1 = w.macro.t_next();
+        sb = majorant_[std::size_t(w.macro.cell)];
+    }
+    bool advance(Walker& w) const noexcept { return w.macro.advance(); }
+    double sigma_t(const glm::dvec3& x, const Walker& w) const noexcept {
+        const glm::dvec3 u = (x - g_.origin) / g_.voxel_size;
+        const int mi[3] = {w.macro.i, w.macro.j, w.macro.k};
+        const int n[3] = {g_.dims.x, g_.dims.y, g_.dims.z};
+        int idx[3];
+        for (int a = 0; a < 3; ++a) {
+            const int lo = mi[a] * F_, hi = std::min(n[a], lo + F_) - 1;
+            const double f = std::floor(u[a]);
+            idx[a] = int(std::clamp(f, double(lo), double(hi)));
+        }
+        return kappa_ * double(bricks_->density(idx[0], idx[1], idx[2]));
+    }
+
+private:
+    core::GridGeometry g_;
+    double kappa_;
+    const TallyGrid* bricks_;
+    int F_ = 1;
+    core::GridGeometry macro_;
+    std::vector<double> majorant_;
+};
+
 /// Voxel tallies of the (weighted) integral of p(s_m . w) L dw dx (S without albedo and
 /// normalization), split into order 1 and orders >= 2; layout [cell][m] so one voxel's
 /// directions are contiguous.
@@ -197,7 +200,6 @@ public:
         : g_(&m.density.geom),
           tg_(&tg),
           kappa_(m.optics.extinction),
-          dirs_(dirs),
           hg_(m.optics.g),
           M_(dirs.size()),
           expected_single_(expected_single),
@@ -212,7 +214,13 @@ public:
           multiple_(multiple),
           fluence_(fluence),
           fluence2_(fluence2),
-          p_(dirs.size()) {}
+          p_(dirs.size()) {
+        for (const glm::dvec3& s : dirs) {
+            sx_.push_back(s.x);
+            sy_.push_back(s.y);
+            sz_.push_back(s.z);
+        }
+    }
 
     void begin_path(std::uint32_t group) {
         const std::size_t cells = tg_->geom.cell_count();
@@ -253,8 +261,14 @@ public:
     }
 
 private:
+    /// p(s_m . d) for every output direction: once per flight, so the directions are kept
+    /// as three arrays and the loop runs on whole vector registers (the same operations in
+    /// the same order as glm::dot, so the same bits).
     void phase(const glm::dvec3& d) {
-        for (std::size_t m = 0; m < M_; ++m) p_[m] = hg_(glm::dot(dirs_[m], d));
+        const double x = d.x, y = d.y, z = d.z;
+        const double *sx = sx_.data(), *sy = sy_.data(), *sz = sz_.data();
+        double* p = p_.data();
+        for (std::size_t m = 0; m < M_; ++m) p[m] = hg_(sx[m] * x + sy[m] * y + sz[m] * z);
     }
     void add(double* base, std::size_t tally_cell, double c) {
         double* a = base + tally_cell * M_;
@@ -333,7 +347,6 @@ private:
     const core::GridGeometry* g_;
     const TallyGrid* tg_;
     double kappa_;
-    std::span<const glm::dvec3> dirs_;
     HgConstants hg_;
     std::size_t M_;
     bool expected_single_, track_single_, tally_multiple_;
@@ -341,6 +354,7 @@ private:
     double *single0_, *multiple0_, *fluence0_, *fluence20_;  // group 0
     double *single_, *multiple_, *fluence_, *fluence2_;      // the current path's group
     std::vector<double> p_;
+    std::vector<double> sx_, sy_, sz_;  // the output directions, one array per axis
 };
 
 /// Sums of the batch estimates of the first and the second half of the batches (a noise
@@ -561,7 +575,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
     const std::size_t cells = g.cell_count(), M = dirs.size(), size = cells * M * G;
     const bool fluence = o.tally_fluence && o.single_estimator == MonteCarloOptions::SingleEstimator::ExpectedValue;
     const bool fluence2 = fluence && o.expected_second_order;
-    const GridMedium gm(medium, o.macro_cell);
+    const GridMedium gm(medium, o.macro_cell, tg);
     const PathOptions po = path_options(medium, o);
     const bool expected = o.single_estimator == MonteCarloOptions::SingleEstimator::ExpectedValue;
     const bool multiple = o.tally_multiple && o.max_scatterings > 0;
@@ -776,7 +790,7 @@ struct MonteCarloMedium::Impl {
         : medium(m),
           tally_grid(t),
           tg(m, f == 1 ? nullptr : &t, MonteCarloOptions::TallyWeight::Volume),
-          gm(m, macro_cell) {}
+          gm(m, macro_cell, tg) {}
 };
 
 MonteCarloMedium::MonteCarloMedium(const LightingMedium& medium, const core::GridGeometry& tally_grid, int macro_cell) {

@@ -38,7 +38,10 @@ struct HgConstants {
     }
     /// p(cos): same formula as hg_phase() (stable denominator), inlinable and vectorizable.
     double operator()(double cos_theta) const noexcept {
-        const double c = std::min(1.0, std::max(-1.0, cos_theta));
+        // std::min(1.0, std::max(-1.0, cos_theta)) written as selects, which a loop over
+        // directions vectorizes (the reference-returning forms kept it scalar).
+        const double lo = -1.0 < cos_theta ? cos_theta : -1.0;
+        const double c = lo < 1.0 ? lo : 1.0;
         const double d = one_minus_g_sq + two_g * (1.0 - c);
         return norm / (d * std::sqrt(d));
     }

@@ -46,6 +46,14 @@ public:
     bool start(const core::GridGeometry& g, const glm::dvec3& o, const glm::dvec3& d, double t0, double t1) noexcept {
         if (!(t1 > t0)) return false;
         if (!core::clip_ray_to_box(o, d, g.origin, g.upper(), t0, t1)) return false;
+        return start_clipped(g, o, d, t0, t1);
+    }
+
+    /// start() for a segment the caller has clipped already to a box inside the grid's (a
+    /// coarser grid over the same medium: delta tracking's majorant cells), t0 < t1: the
+    /// second clip would return the same interval.
+    bool start_clipped(const core::GridGeometry& g, const glm::dvec3& o, const glm::dvec3& d, double t0,
+                       double t1) noexcept {
         n_[0] = g.dims.x;
         n_[1] = g.dims.y;
         n_[2] = g.dims.z;
