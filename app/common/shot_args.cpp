@@ -122,13 +122,26 @@ void declare(CommandLine& cli, ShotArgs& a) {
     app.add_option_function<std::string>(
            "--since-known",
            [&a](const std::string& v) {
-               a.since_known_ms = parse_number<double>(v, kTool, "--since-known");
+               a.since_leader = v == "leader";
+               if (a.since_leader) {
+                   a.since_known_ms = 0.0;  // set from the strike's timing
+                   return;
+               }
+               const std::string what =
+                   "--since-known must be a number of milliseconds in [0, 600000] or \"leader\", got '" + v + "'";
+               try {
+                   a.since_known_ms = parse_number<double>(v, kTool, "--since-known");
+               } catch (const core::Error&) {
+                   throw core::Error(kTool, what);
+               }
                if (!std::isfinite(*a.since_known_ms) || *a.since_known_ms < 0.0 || *a.since_known_ms > 600'000.0)
-                   throw core::Error(kTool, "--since-known must be a number of milliseconds in [0, 600000]");
+                   throw core::Error(kTool, what);
            },
            "the frame as a strike nobody scheduled shows it MS ms of wall time after it became known (0: its first "
-           "lit frame; frames at 60 fps meanwhile, lookahead 0); without it the strike's own solve is waited for")
-        ->type_name("MS");
+           "lit frame; frames at 60 fps meanwhile, lookahead 0); \"leader\": the strike triggered at its leader's "
+           "start, the leader's frames at their own storm time (\"Strike now\"); without it the strike's own solve "
+           "is waited for")
+        ->type_name("MS|leader");
     path_option(app, "--vdb", a.vdb, ".vdb",
                 "also write the density and the frame's lightning S in every direction (grids density, S_00, S_01, "
                 "...) as OUT.vdb (OpenVDB, metres), for Houdini, Blender or ParaView")

@@ -41,8 +41,11 @@ struct ShotArgs {
     /// --since-known MS: the frame as a strike nobody scheduled shows it MS milliseconds of wall
     /// time after it became known (runtime::build_since_known: lookahead 0, frames at 60 fps
     /// meanwhile, then the per-strike work stops and the frame is what exists); 0 is its first
-    /// lit frame. Without it the strike's own solve is waited for.
+    /// lit frame. Without it the strike's own solve is waited for. `--since-known leader`: the
+    /// strike triggered at its leader's start, its leader's frames built at their own storm time
+    /// (what "Strike now" shows at --time); since_known_ms is then set from the strike's timing.
     std::optional<double> since_known_ms;
+    bool since_leader = false;
     /// --vdb OUT.vdb: also write the density and the frame's lightning S (every direction, on
     /// the lighting grid) as OpenVDB.
     std::optional<std::filesystem::path> vdb;

@@ -42,7 +42,7 @@ transport::SourceField since_known_field(view::StormView& view, double t, const 
     runtime::ReconstructOptions ro;
     ro.components = opt.components;
     runtime::SinceKnown seen;
-    const runtime::Frame& f = runtime::build_since_known(p, t, *a.since_known_ms, {}, ro, &seen);
+    const runtime::Frame& f = runtime::build_since_known(p, t, *a.since_known_ms, {}, ro, &seen, a.since_leader);
     if (runtime::InstantStrikes* is = p.instant_strikes()) is->set_paused(true);
     if (runtime::StrikeSolver* ss = p.strike_solver()) ss->set_paused(true);
     transport::SourceField field(view.bases().lighting(), view.bases().directions());
@@ -52,10 +52,10 @@ transport::SourceField since_known_field(view::StormView& view, double t, const 
                       field.direction(std::size_t(f.radiance.directions[k])).begin());
     std::printf(
         "{\"name\":\"fulgur-shot-since-known\",\"quality\":\"%s\",\"since_known_ms\":%.4g,"
-        "\"frames_meanwhile\":%d,\"frame_ms_median\":%.4g,\"frame_ms_max\":%.4g,"
+        "\"triggered_at_leader_start\":%s,\"frames_meanwhile\":%d,\"frame_ms_median\":%.4g,\"frame_ms_max\":%.4g,"
         "\"strikes_solved\":%zu,\"strikes_fallback\":%zu,\"instant_weight\":%.4g}\n",
-        std::string(scene::to_string(p.quality().preset)).c_str(), *a.since_known_ms, seen.frames, seen.median_frame_ms,
-        seen.max_frame_ms, f.strikes_solved, f.strikes_fallback, f.instant_weight);
+        std::string(scene::to_string(p.quality().preset)).c_str(), *a.since_known_ms, a.since_leader ? "true" : "false",
+        seen.frames, seen.median_frame_ms, seen.max_frame_ms, f.strikes_solved, f.strikes_fallback, f.instant_weight);
     std::fflush(stdout);
     return field;
 }
@@ -230,7 +230,8 @@ void write_frame_vdb(view::StormView& view, double t, const view::ViewOptions& o
         v.source_meaning =
             "the lightning's S of the frame at t = " + core::format_number(t, 9) + " s, seed " +
             std::to_string(a.seed) + ", quality " + std::string(scene::to_string(view.pipeline().quality().preset)) +
-            (a.since_known_ms ? ", " + core::format_number(*a.since_known_ms, 6) + " ms after it became known"
+            (a.since_known_ms ? ", " + core::format_number(*a.since_known_ms, 6) + " ms after it became known" +
+                                    (a.since_leader ? " at its leader's start" : "")
                               : std::string()) +
             (lit ? "" : " (no flash glows at t: zero)");
     }
@@ -243,7 +244,9 @@ std::string frame_label(view::StormView& view, double t, const app::ShotArgs& a)
     if (view.has_lightning())
         f += ", strike seed " + std::to_string(a.seed) + ", quality " +
              std::string(scene::to_string(view.pipeline().quality().preset));
-    if (a.since_known_ms) f += ", " + core::format_number(*a.since_known_ms, 6) + " ms after it became known";
+    if (a.since_known_ms)
+        f += ", " + core::format_number(*a.since_known_ms, 6) + " ms after it became known" +
+             (a.since_leader ? " at its leader's start" : "");
     return f;
 }
 
@@ -338,8 +341,15 @@ int main(int argc, char** argv) {
             scene::Quality q = a.quality ? scene::quality_preset(*a.quality) : view.scene().quality;
             if (a.since_known_ms) q.lookahead = 0.0;  // nobody scheduled it
             if (a.quality || a.since_known_ms) view.set_quality(q);
-            const std::size_t strike = view.pipeline().strike_at(0.0, a.seed);
-            if (a.time_after_return_stroke) t += view.pipeline().storm().strike(strike).profile.stroke_onset.at(0);
+            const std::size_t strike = view.pipeline().strike_at(0.0, a.seed, /*known_ahead=*/!a.since_leader);
+            const lightning::Strike& k = view.pipeline().storm().strike(strike);
+            if (a.time_after_return_stroke) t += k.profile.stroke_onset.at(0);
+            if (a.since_leader) {  // known since the strike started
+                if (!(t >= k.time))
+                    throw core::Error("--since-known leader", "the frame at --time is before the strike starts (" +
+                                                                  core::format_number(k.time, 6) + " s)");
+                a.since_known_ms = (t - k.time) * 1000.0;
+            }
         } else if (a.time_after_return_stroke || (a.reference && a.against != "static") || a.since_known_ms) {
             throw core::Error(a.scene.string(), std::string("the scene has no lightning: ") +
                                                     (a.reference        ? "--reference has no frame to solve"

@@ -47,10 +47,13 @@ TEST_CASE("fulgur-shot: a complete command line parses") {
     std::vector<std::string> known = good;
     known.insert(known.end(), {"--since-known", "100"});
     CHECK(parse(known).since_known_ms.value() == 100.0);
-    for (const char* bad : {"-1", "nan", "inf", "1e9"}) {
+    for (const char* bad : {"-1", "nan", "inf", "1e9", "Leader", "leaders"}) {
         known.back() = bad;
         CHECK_THROWS_WITH_AS(parse(known), doctest::Contains("--since-known must be"), core::Error);
     }
+    known.back() = "leader";  // triggered at its leader's start: the time comes from the strike
+    CHECK(parse(known).since_leader);
+    CHECK(parse(known).since_known_ms.has_value());
     more[more.size() - 3] = "0";  // --repeat 0
     CHECK_THROWS_AS(parse(more), core::Error);
     CHECK(a.width == 64);
