@@ -198,6 +198,14 @@ void render_static_reference(view::StormView& view, platform::Context* ctx, cons
     std::fflush(stdout);
 }
 
+// ", MS ms after it became known" (and how) for --since-known, else empty: part of what
+// --vdb, --exr and --blender say the frame is.
+std::string since_known_text(const app::ShotArgs& a) {
+    if (!a.since_known_ms) return {};
+    return ", " + core::format_number(*a.since_known_ms, 6) + " ms after it became known" +
+           (a.since_leader ? " at its leader's start" : "");
+}
+
 // --vdb: the density and the frame's lightning S at t in every baked direction (zeros when no
 // flash glows at t; none without lightning), on the lighting grid.
 void write_frame_vdb(view::StormView& view, double t, const view::ViewOptions& opt, const app::ShotArgs& a,
@@ -227,13 +235,10 @@ void write_frame_vdb(view::StormView& view, double t, const view::ViewOptions& o
                 for (std::size_t i = 0; i < f.radiance.directions.size(); ++i)
                     v.source.at(std::size_t(f.radiance.directions[i])).data = f.radiance.values[i];
         }
-        v.source_meaning =
-            "the lightning's S of the frame at t = " + core::format_number(t, 9) + " s, seed " +
-            std::to_string(a.seed) + ", quality " + std::string(scene::to_string(view.pipeline().quality().preset)) +
-            (a.since_known_ms ? ", " + core::format_number(*a.since_known_ms, 6) + " ms after it became known" +
-                                    (a.since_leader ? " at its leader's start" : "")
-                              : std::string()) +
-            (lit ? "" : " (no flash glows at t: zero)");
+        v.source_meaning = "the lightning's S of the frame at t = " + core::format_number(t, 9) + " s, seed " +
+                           std::to_string(a.seed) + ", quality " +
+                           std::string(scene::to_string(view.pipeline().quality().preset)) + since_known_text(a) +
+                           (lit ? "" : " (no flash glows at t: zero)");
     }
     app::write_lighting_vdb(*a.vdb, v);
 }
@@ -244,10 +249,7 @@ std::string frame_label(view::StormView& view, double t, const app::ShotArgs& a)
     if (view.has_lightning())
         f += ", strike seed " + std::to_string(a.seed) + ", quality " +
              std::string(scene::to_string(view.pipeline().quality().preset));
-    if (a.since_known_ms)
-        f += ", " + core::format_number(*a.since_known_ms, 6) + " ms after it became known" +
-             (a.since_leader ? " at its leader's start" : "");
-    return f;
+    return f + since_known_text(a);
 }
 
 // --exr: the frame's linear radiance (and with --exr-passes its terms and transmittance), the

@@ -188,20 +188,14 @@ FULGUR_STUDY(first_frame, "first-frame",
         report("direct single + fitted multiple", d1.data, fitm, direct_s + fit_s);
 
         // What the splat would give with perfect bases: the virtual lights at the splat's
-        // weights traced by the truth's own Monte Carlo (no lattice, no compression), and the
-        // frame's point sources traced the same way (the channel cut into points, no splat).
+        // weights traced by the truth's own Monte Carlo (no lattice, no compression), on the
+        // bake's grid and with nodes inserted between the bake's on every axis (2x, 4x
+        // denser: how dense perfect bases would have to be under the splat); then the frame's
+        // point sources traced the same way (the channel cut into points, no splat).
         runtime::TruthOptions po = to;
         po.paths = truth_paths / 2;
         po.seed = seed + 1000;
-        std::vector<transport::PointSource> splat_pts;
-        for (const std::uint32_t l : pf.weights.active) splat_pts.push_back({vl.position(l), pf.weights.e[l]});
-        t0 = std::chrono::steady_clock::now();
-        const runtime::Truth sp = runtime::truth(s, density, {}, splat_pts, po);
-        report("splat traced (exact bases)", sp.single.data, sp.multiple.data, seconds_since(t0));
-        report("direct single + splat traced multiple", d1.data, sp.multiple.data, direct_s);
-        // The same with the virtual lights 2x and 4x denser on every axis (nodes inserted
-        // between the bake's): how dense perfect bases would have to be under the splat.
-        for (const int split : {2, 4}) {
+        for (const int split : {1, 2, 4}) {
             basis::VirtualLightGrid dense;
             auto refine_axis = [&](const std::vector<double>& a) {
                 std::vector<double> out;
@@ -220,10 +214,10 @@ FULGUR_STUDY(first_frame, "first-frame",
             for (const std::uint32_t l : dw.active) dpts.push_back({dense.position(l), dw.e[l]});
             t0 = std::chrono::steady_clock::now();
             const runtime::Truth dt = runtime::truth(s, density, {}, dpts, po);
-            report("splat traced, lights " + std::to_string(split) + "x denser", dt.single.data, dt.multiple.data,
-                   seconds_since(t0));
-            report("direct single + splat traced multiple, lights " + std::to_string(split) + "x denser", d1.data,
-                   dt.multiple.data, direct_s);
+            const std::string lights = split == 1 ? "" : ", lights " + std::to_string(split) + "x denser";
+            report(split == 1 ? std::string("splat traced (exact bases)") : "splat traced" + lights, dt.single.data,
+                   dt.multiple.data, seconds_since(t0));
+            report("direct single + splat traced multiple" + lights, d1.data, dt.multiple.data, direct_s);
         }
         t0 = std::chrono::steady_clock::now();
         const runtime::Truth ps = runtime::truth(s, density, {}, pf.sources, po);
