@@ -108,6 +108,13 @@ struct FramePipeline::Impl {
         std::shared_ptr<const StrikeLight> light;
         double main = 0.0, branch = 0.0;
     };
+    // An instant strike's bases' share of its strokes, from the bases' frame its worker made
+    // once per group (StrikeEstimate::bases_groups), scaled by share x glow.
+    struct BasesShare {
+        std::shared_ptr<const std::array<std::vector<float>, 2>> groups;
+        double main = 0.0, branch = 0.0;
+    };
+    std::vector<BasesShare> shares;
     void add_instant(const lightning::Strike& k, const lightning::Bolt& bolt, double t,
                      const ReconstructOptions& options, std::vector<Lit>& solved);
     void move_toward_target(Shown& s, double step);
@@ -199,11 +206,20 @@ void FramePipeline::Impl::add_instant(const lightning::Strike& k, const lightnin
     }
     ++f.strikes_solved;
     f.instant_weight = std::min(f.instant_weight, 1.0 - s.bases);
+    solved.push_back({s.light, st.main_glow, st.branch_glow});
+    // The strokes' share of the bases: from the worker's bases' frame of each group when it
+    // holds what this frame asks for (both components, no ambient term: how it was made), so
+    // the frame reconstructs only the leaders; else splatted and reconstructed with them.
+    const auto& groups = s.target->bases_groups;
+    if (groups && options.components.single && options.components.multiple && options.ambient == Ambient::None) {
+        lightning::lit_segments(bolt, lightning::split_leaders(st).leaders, basis_segments);
+        if (s.bases > 0.0) shares.push_back({groups, s.bases * st.main_glow, s.bases * st.branch_glow});
+        return;
+    }
     lightning::FlashState bases_part = st;  // the leaders, and the strokes' share of the bases
     bases_part.main_glow *= s.bases;
     bases_part.branch_glow *= s.bases;
     lightning::lit_segments(bolt, bases_part, basis_segments);
-    solved.push_back({s.light, st.main_glow, st.branch_glow});
 }
 
 // One frame's step of a strike's shown light toward its target's blend w M + (1 - w) B: the
@@ -299,6 +315,7 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
     basis_segments.clear();
     multiple_segments.clear();
     std::vector<Lit> solved;
+    shares.clear();
     if (glowing) {
         const std::vector<std::size_t> active(storm.active(t).begin(), storm.active(t).end());
         for (const std::size_t i : active) {
@@ -373,20 +390,22 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
         for (std::size_t k = 0; k < f.radiance.directions.size(); ++k) {
             const std::size_t m = std::size_t(f.radiance.directions[k]);
             float* out = f.radiance.values[k].data();
+            const auto add = [out, cells](float w, const float* a) {
+                if (w != 0.0f)
+                    for (std::size_t i = 0; i < cells; ++i) out[i] += w * a[i];
+            };
             for (const Lit& l : solved) {
                 const StrikeLight& L = *l.light;
                 const float w[2] = {float(l.main), float(l.branch)};
-                for (int q = 0; q < 2; ++q) {
-                    if (w[q] == 0.0f) continue;
-                    if (options.components.single) {
-                        const float* a = L.single[std::size_t(q)].direction(m).data();
-                        for (std::size_t i = 0; i < cells; ++i) out[i] += w[q] * a[i];
-                    }
-                    if (options.components.multiple && L.has_multiple()) {
-                        const float* a = L.multiple[std::size_t(q)].direction(m).data();
-                        for (std::size_t i = 0; i < cells; ++i) out[i] += w[q] * a[i];
-                    }
+                for (std::size_t q = 0; q < 2; ++q) {
+                    if (options.components.single) add(w[q], L.single[q].direction(m).data());
+                    if (options.components.multiple && L.has_multiple()) add(w[q], L.multiple[q].direction(m).data());
                 }
+            }
+            for (const BasesShare& b : shares) {
+                const float w[2] = {float(b.main), float(b.branch)};
+                for (std::size_t q = 0; q < 2; ++q)
+                    if ((*b.groups)[q].size() == nd * cells) add(w[q], (*b.groups)[q].data() + m * cells);
             }
         }
     }

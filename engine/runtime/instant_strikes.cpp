@@ -22,7 +22,7 @@ double StrikeEstimate::weight() const noexcept {
     const double eb2 = bases_error * bases_error, n2 = light.noise.total * light.noise.total;
     const double w = eb2 + n2 > 0.0 ? eb2 / (eb2 + n2) : 1.0;
     // A bases share under 1% means noise < e_b / 10: dropping it moves S by less than the
-    // estimate's own noise, and spares the frame a reconstruction of the strokes for it.
+    // estimate's own noise, and spares the frame adding the bases' frame of the strokes.
     return w > 0.99 ? 1.0 : w;
 }
 
@@ -70,7 +70,8 @@ struct InstantStrikes::Impl {
         double seconds_single = 0.0, seconds_multiple = 0.0;
         int round = 0;
         double bases_error = -1.0;
-        std::shared_ptr<const std::vector<float>> bases_frame;  // [m][cell], the strokes at unit glow
+        std::shared_ptr<const std::vector<float>> bases_frame;                  // [m][cell], the strokes at unit glow
+        std::shared_ptr<const std::array<std::vector<float>, 2>> bases_groups;  // the same per group
         // Under the mutex.
         double seconds = 0.0;  // the worker's time on it: who goes next
         std::shared_ptr<const StrikeEstimate> estimate;
@@ -305,8 +306,22 @@ struct InstantStrikes::Impl {
         // The bases' frame of the strokes is made once; their error against the estimate barely
         // moves once the estimate is within a few tens of percent: two rounds measure it.
         if (splatter && rec && e.round == 1) {
-            std::vector<float> b = bases_frame(e.bolt, *splatter, *rec);
-            if (b.size() == total.size()) e.bases_frame = std::make_shared<const std::vector<float>>(std::move(b));
+            auto groups = std::make_shared<std::array<std::vector<float>, 2>>();
+            for (std::size_t q = 0; q < 2; ++q) (*groups)[q] = bases_frame(e.bolt, q, *splatter, *rec);
+            std::vector<float> b(total.size(), 0.0f);
+            bool lit = false;
+            for (const std::vector<float>& g : *groups)
+                if (g.size() == b.size()) {
+                    for (std::size_t i = 0; i < b.size(); ++i) b[i] += g[i];
+                    lit = true;
+                } else if (!g.empty()) {
+                    lit = false;  // not the estimate's layout: no bases error, no cached frame
+                    break;
+                }
+            if (lit) {
+                e.bases_frame = std::make_shared<const std::vector<float>>(std::move(b));
+                e.bases_groups = std::move(groups);
+            }
         }
         if (e.bases_frame && nt > 0.0 && e.round <= 2)
             e.bases_error =
@@ -314,6 +329,7 @@ struct InstantStrikes::Impl {
         est->bases_error = e.bases_error;
         est->total = std::move(total);
         est->bases = e.bases_frame;
+        est->bases_groups = e.bases_groups;
 
         const bool capped = e.single->paths() >= options.max_single_paths &&
                             (!with_multiple || e.multiple->paths() >= options.max_multiple_paths);
@@ -338,13 +354,12 @@ struct InstantStrikes::Impl {
         return est;
     }
 
-    // The bases' S of the strokes at unit glow, every direction ([m][cell]); empty when the
-    // bases show nothing.
-    static std::vector<float> bases_frame(const lightning::Bolt& bolt, lightning::Splatter& splatter,
+    // The bases' S of one group of the strokes (0: the main channel, 1: the branches) at unit
+    // glow, every direction ([m][cell]); empty when the bases show nothing of it.
+    static std::vector<float> bases_frame(const lightning::Bolt& bolt, std::size_t group, lightning::Splatter& splatter,
                                           Reconstructor& rec) {
         lightning::FlashState unit;
-        unit.main_glow = 1.0;
-        unit.branch_glow = 1.0;
+        (group == 0 ? unit.main_glow : unit.branch_glow) = 1.0;
         std::vector<lightning::LitSegment> lit;
         lightning::lit_segments(bolt, unit, lit);
         std::vector<transport::PointSource> sources;

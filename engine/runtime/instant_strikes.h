@@ -11,6 +11,7 @@
 #include "scene/scene.h"
 #include "solve/solve.h"
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -29,6 +30,11 @@ struct StrikeEstimate {
     /// change of its shown light with (FramePipeline's cross-fade).
     std::vector<float> total;
     std::shared_ptr<const std::vector<float>> bases;
+    /// The same bases' frame per group ([0] the main channel, [1] the branches; empty: the
+    /// group lights nothing), reconstructed with the default ReconstructOptions (both
+    /// components, no ambient term): a frame adds its bases' share of the strokes from these
+    /// instead of reconstructing them every build (null: no bases).
+    std::shared_ptr<const std::array<std::vector<float>, 2>> bases_groups;
     std::uint64_t single_paths = 0, multiple_paths = 0;
     double worker_seconds = 0.0;  ///< wall time the worker spent tracing this strike so far
     double since_request = 0.0;   ///< wall time from the request to this estimate, seconds
