@@ -1,0 +1,189 @@
+#!/usr/bin/python3
+"""Single scattering of an exported frame computed by brute force: a third opinion beside
+Fulgur's image and Cycles' (docs/blender.md, "The content scenes against Cycles").
+
+usage:
+  scripts/exact_single_scattering.py DIR OUT.json [--medium pc|trilinear] [--stride N]
+        [--step M] [--shadow-samples K]
+  scripts/exact_single_scattering.py compare DIR OUT_PC.json OUT_TRILINEAR.json FULGUR.exr CYCLES_A.exr CYCLES_B.exr
+
+DIR is what `fulgur-shot ... --blender DIR` writes (frame.json, density.vdb). For every N-th pixel
+(both axes, from N / 2) the camera ray is sampled every M metres until its optical depth reaches
+12, and at each sample the light of every exported point light arrives attenuated along a
+straight shadow ray sampled at K points, scattered once by the Henyey-Greenstein phase function:
+
+  L = sum over samples of exp(-tau_camera) albedo sigma_t (sum over lights of I p(cos) exp(-tau_light) / r^2) M
+
+in W m^-2 sr^-1 per unit flash colour. The medium is the density grid read either piecewise
+constant per voxel (`pc`: what Fulgur's Monte Carlo truth and its solvers transport light
+through) or trilinear between voxel centres and zero outside (`trilinear`: what Fulgur's march
+and Cycles read). No light bounces off the ground and no light scatters twice: compare it with
+`fulgur-shot --off multiple` and Cycles with `blender_scene.py --single-scattering`.
+
+`compare` prints the totals over the sampled cloud pixels (Fulgur's transmittance < 0.98) of the
+two exact images, Fulgur's lightning pass and the mean of the two Cycles images (green channel,
+the exact images times the flash's green), and their ratios.
+"""
+
+import json
+import math
+import pathlib
+import sys
+
+import numpy as np
+
+
+def load(directory):
+    import pyopenvdb as vdb
+
+    d = pathlib.Path(directory)
+    frame = json.loads((d / "frame.json").read_text())
+    m = frame["medium"]
+    if m is None:
+        raise SystemExit(f"{d / 'frame.json'}: no medium")
+    nx, ny, nz = m["dims"]
+    grid = vdb.read(str(d / m["file"]), m["grid"])
+    rho = np.zeros((nx, ny, nz), np.float32)
+    grid.copyToArray(rho, ijk=(0, 0, 0))
+    return frame, rho
+
+
+def density_sampler(rho, origin, voxel, medium):
+    dims = np.array(rho.shape)
+
+    def pc(p):
+        i = np.floor((p - origin) / voxel).astype(np.int64)
+        inside = np.all((i >= 0) & (i < dims), axis=-1)
+        i = np.clip(i, 0, dims - 1)
+        return np.where(inside, rho[i[..., 0], i[..., 1], i[..., 2]], 0.0)
+
+    # Trilinear: a zero border around the grid, so every corner is an index into it (a point
+    # beyond the border clips onto zeros) and the fringe half a voxel outside fades to zero.
+    padded = np.zeros(tuple(dims + 2), np.float32)
+    padded[1:-1, 1:-1, 1:-1] = rho
+    flat = padded.ravel()
+    sy, sx = dims[2] + 2, (dims[1] + 2) * (dims[2] + 2)
+    offsets = [dx * sx + dy * sy + dz for dx in (0, 1) for dy in (0, 1) for dz in (0, 1)]
+
+    def trilinear(p):
+        u = (p - origin) / voxel + 0.5  # values at voxel centres; +1 for the border, -0.5
+        u = np.clip(u, 0.0, dims + 1 - 1e-9)
+        i0 = np.minimum(np.floor(u).astype(np.int64), dims)
+        t = u - i0
+        base = i0[..., 0] * sx + i0[..., 1] * sy + i0[..., 2]
+        tx, ty, tz = t[..., 0], t[..., 1], t[..., 2]
+        out = np.zeros(p.shape[:-1])
+        k = 0
+        for wx in (1.0 - tx, tx):
+            for wy in (1.0 - ty, ty):
+                wxy = wx * wy
+                for wz in (1.0 - tz, tz):
+                    out += flat[base + offsets[k]] * (wxy * wz)
+                    k += 1
+        return out
+
+    return pc if medium == "pc" else trilinear
+
+
+def render(directory, out, medium="pc", stride=4, step=5.0, shadow_samples=256):
+    frame, rho = load(directory)
+    m = frame["medium"]
+    origin = np.array(m["origin"], float)
+    voxel = float(m["voxel_size"])
+    kappa, albedo, g = m["extinction"], m["albedo"], m["g"]
+    density = density_sampler(rho, origin, voxel, medium)
+    lights = np.array([l["position"] for l in frame["lights"]], float)
+    intensity = np.array([l["intensity"] for l in frame["lights"]], float)
+    cam = frame["camera"]
+    width, height = frame["image"]["width"], frame["image"]["height"]
+    eye = np.array(cam["position"], float)
+    forward = np.array(cam["target"], float) - eye
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, cam["up"])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    tan_half = math.tan(math.radians(cam["vertical_fov_deg"]) / 2.0)
+    lo, hi = origin, origin + voxel * np.array(rho.shape)
+    along = (np.arange(shadow_samples) + 0.5) / shadow_samples
+    pixels = {}
+    for py in range(stride // 2, height, stride):
+        for px in range(stride // 2, width, stride):
+            sx = (2.0 * (px + 0.5) / width - 1.0) * tan_half * width / height
+            sy = (1.0 - 2.0 * (py + 0.5) / height) * tan_half
+            d = forward + sx * right + sy * up
+            d /= np.linalg.norm(d)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t0 = np.where(d != 0.0, (lo - eye) / d, -np.inf)
+                t1 = np.where(d != 0.0, (hi - eye) / d, np.inf)
+            near, far = np.max(np.minimum(t0, t1)), np.min(np.maximum(t0, t1))
+            if not near < far:
+                continue
+            t = np.arange(max(near, 0.0) + 0.5 * step, far, step)
+            x = eye + t[:, None] * d
+            sigma = kappa * density(x)
+            tau = np.cumsum(sigma) * step - 0.5 * sigma * step  # to each sample's middle
+            keep = (tau < 12.0) & (sigma > 0.0)
+            if not keep.any():
+                continue
+            x, sigma, tau = x[keep], sigma[keep], tau[keep]
+            v = lights[None, :, :] - x[:, None, :]
+            r = np.linalg.norm(v, axis=-1)
+            points = x[:, None, None, :] + v[:, :, None, :] * along[None, None, :, None]
+            tau_light = kappa * density(points).sum(-1) * r / shadow_samples
+            cos = np.einsum("slk,k->sl", -v / r[..., None], -d)  # light's travel . toward the eye
+            phase = (1.0 - g * g) / (4.0 * math.pi * (1.0 + g * g - 2.0 * g * cos) ** 1.5)
+            arriving = (intensity[None, :] * np.exp(-tau_light) * phase / (r * r)).sum(-1)
+            pixels[f"{px},{py}"] = float((np.exp(-tau) * albedo * sigma * arriving).sum() * step)
+    pathlib.Path(out).write_text(json.dumps({"medium": medium, "stride": stride, "step": step,
+                                             "shadow_samples": shadow_samples, "pixels": pixels}))
+    print(json.dumps({"medium": medium, "pixels": len(pixels), "total": sum(pixels.values())}))
+
+
+def compare(directory, pc_json, tri_json, fulgur_exr, cycles_a, cycles_b):
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+    from compare_cycles import read_channels
+
+    frame = json.loads((pathlib.Path(directory) / "frame.json").read_text())
+    green = frame["flash_colour"][1]  # the exact images are per unit flash colour
+    f, a, b = read_channels(fulgur_exr), read_channels(cycles_a), read_channels(cycles_b)
+    pc = json.loads(pathlib.Path(pc_json).read_text())["pixels"]
+    tri = json.loads(pathlib.Path(tri_json).read_text())["pixels"]
+    rows = []
+    for key, value in pc.items():
+        px, py = map(int, key.split(","))
+        if f["T.Y"][py, px] >= 0.98:
+            continue
+        rows.append((green * value, green * tri.get(key, 0.0), f["lightning.G"][py, px],
+                     0.5 * (a["G"][py, px] + b["G"][py, px])))
+    if not rows:
+        raise SystemExit("no sampled pixel sees the cloud")
+    exact_pc, exact_tri, fulgur, cycles = np.array(rows).sum(axis=0)
+    print(json.dumps({"cloud_pixels": len(rows), "exact_pc": exact_pc, "exact_trilinear": exact_tri,
+                      "fulgur": fulgur, "cycles": cycles,
+                      "fulgur_over_exact_pc": fulgur / exact_pc, "fulgur_over_exact_trilinear": fulgur / exact_tri,
+                      "cycles_over_exact_pc": cycles / exact_pc, "cycles_over_exact_trilinear": cycles / exact_tri,
+                      "exact_trilinear_over_pc": exact_tri / exact_pc}))
+
+
+def main(argv):
+    if len(argv) == 7 and argv[0] == "compare":
+        compare(*argv[1:])
+        return
+    if len(argv) < 2 or argv[0] == "compare":
+        raise SystemExit(__doc__)
+    opts = {"--medium": "pc", "--stride": "4", "--step": "5", "--shadow-samples": "256"}
+    rest = argv[2:]
+    if len(rest) % 2:
+        raise SystemExit(__doc__)
+    for k, v in zip(rest[::2], rest[1::2]):
+        if k not in opts:
+            raise SystemExit(f"unknown option {k}\n{__doc__}")
+        opts[k] = v
+    if opts["--medium"] not in ("pc", "trilinear"):
+        raise SystemExit("--medium: pc or trilinear")
+    render(argv[0], argv[1], opts["--medium"], int(opts["--stride"]), float(opts["--step"]),
+           int(opts["--shadow-samples"]))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
