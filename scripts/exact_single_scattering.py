@@ -103,7 +103,10 @@ def render(directory, out, medium="pc", stride=4, step=5.0, shadow_samples=256):
     right /= np.linalg.norm(right)
     up = np.cross(right, forward)
     tan_half = math.tan(math.radians(cam["vertical_fov_deg"]) / 2.0)
-    lo, hi = origin, origin + voxel * np.array(rho.shape)
+    # Where the medium can be non-zero: the grid, and for the trilinear medium the half voxel
+    # beyond its faces where the last values fade to zero.
+    fringe = 0.5 * voxel if medium == "trilinear" else 0.0
+    lo, hi = origin - fringe, origin + voxel * np.array(rho.shape) + fringe
     along = (np.arange(shadow_samples) + 0.5) / shadow_samples
     pixels = {}
     for py in range(stride // 2, height, stride):
