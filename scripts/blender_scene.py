@@ -2,14 +2,17 @@
 Cycles, as an independent reference for Fulgur's renderer.
 
     blender -b --factory-startup --python scripts/blender_scene.py -- DIR --out OUT.exr \
-        [--samples N] [--seed S] [--threads T] [--save-blend FILE.blend]
+        [--samples N] [--seed S] [--threads T] [--light-radius M] [--max-light-loss F]
+        [--single-scattering] [--save-blend FILE.blend]
 
 It builds the scene from scratch (the factory cube, light and camera are deleted), renders it
 with Cycles on the CPU and writes OUT.exr: linear radiance in W m^-2 sr^-1 (metres are the world
 unit), float32 RGBA, A = 1 (the world stays visible), no view transform. The last line on stdout
 is one JSON object:
     {"name":"blender-scene","samples":N,"seed":S,"seconds":render wall time,"width":W,
-     "height":H,"out":"..."}
+     "height":H,"out":"...","light_radius":R,"light_loss":F}
+(light_loss: the share of the first collisions the channel's sphere lights of radius R withhold
+from the cloud, against true points; scripts/cycles_light_radius.py.)
 An unreadable or malformed frame.json (or a missing VDB or grid) prints a message naming the
 file and the field to stderr and exits with status 1 (sys.exit inside `blender --python` does
 end Blender with that status: verified on Blender 3.4.1).
@@ -45,6 +48,7 @@ import time
 
 import bpy
 import mathutils
+import numpy as np
 import pyopenvdb as vdb  # Debian's python3-openvdb; Blender 3.4 (Debian) runs the system Python 3.11
 
 PROG = "blender_scene.py"
@@ -65,6 +69,12 @@ VOXEL_CENTRE_SHIFT = float(os.environ.get("FULGUR_BLENDER_VOXEL_SHIFT", "-0.5"))
 # cube's optical depth off by 8% at 0.001, right at 0.01 and above), so a voxel is kept >= 0.05
 # units in object space. FULGUR_BLENDER_DENSITY_SCALE overrides K (blender_calibrate.py sets 1
 # to show the cutoff).
+# The largest density copied densely to choose the channel's light radius (light_radius): 2^27
+# voxels, 512 MB of float32 (a storm of 125 m voxels is 1.7M; beyond the limit the radius must be
+# given).
+DENSE_DENSITY_LIMIT = 1 << 27
+
+
 def density_scale(voxel_size):
     env = os.environ.get("FULGUR_BLENDER_DENSITY_SCALE")
     if env:
@@ -101,9 +111,10 @@ def fail(message):
 
 def parse_args(argv):
     usage = ("usage: blender -b --factory-startup --python scripts/blender_scene.py -- DIR "
-             "--out OUT.exr [--samples N] [--seed S] [--threads T] [--light-radius M] [--single-scattering] [--save-blend FILE.blend]")
+             "--out OUT.exr [--samples N] [--seed S] [--threads T] [--light-radius M] [--max-light-loss F] "
+             "[--single-scattering] [--save-blend FILE.blend]")
     args = {"dir": None, "out": None, "samples": 64, "seed": 0, "threads": 2, "save_blend": None,
-            "light_radius": None, "single": False}
+            "light_radius": None, "max_light_loss": 0.01, "single": False}
     ints = {"--samples": ("samples", 1), "--seed": ("seed", 0), "--threads": ("threads", 1)}
     i = 0
     while i < len(argv):
@@ -111,7 +122,7 @@ def parse_args(argv):
         if a in ("-h", "--help"):
             print(usage)
             sys.exit(0)
-        if a in ("--out", "--save-blend", "--light-radius") or a in ints:
+        if a in ("--out", "--save-blend", "--light-radius", "--max-light-loss") or a in ints:
             if i + 1 >= len(argv):
                 fail("%s needs a value\n%s" % (a, usage))
             v = argv[i + 1]
@@ -123,6 +134,14 @@ def parse_args(argv):
                 if not (math.isfinite(r) and r >= 0.0):
                     fail("--light-radius: %s is not a finite length >= 0" % v)
                 args["light_radius"] = r
+            elif a == "--max-light-loss":
+                try:
+                    f = float(v)
+                except ValueError:
+                    fail("--max-light-loss: expected a fraction, got '%s'" % v)
+                if not (math.isfinite(f) and 0.0 <= f < 1.0):
+                    fail("--max-light-loss: %s is not a fraction in [0, 1)" % v)
+                args["max_light_loss"] = f
             elif a == "--out":
                 args["out"] = v
             elif a == "--save-blend":
@@ -506,6 +525,10 @@ def prepare_vdb(fr, out, K):
             raise FrameError((where % "voxel_size") + ": %s's index-to-world transform is not a "
                              "scale by %g (axis %d steps by (%g, %g, %g))"
                              % ((m["path"], vs, axis) + tuple(step)))
+    # A dense copy for choosing the channel's light radius (light_radius), when it fits in memory.
+    if m["dims"][0] * m["dims"][1] * m["dims"][2] <= DENSE_DENSITY_LIMIT:
+        m["rho"] = np.zeros(tuple(m["dims"]), np.float32)
+        grid.copyToArray(m["rho"], ijk=(0, 0, 0))
     lo, hi = grid.evalActiveVoxelBoundingBox()
     if grid.activeVoxelCount() > 0 and (min(lo) < 0 or any(h >= d for h, d in zip(hi, m["dims"]))):
         warn("%s: %s's active voxels span index (%d,%d,%d)..(%d,%d,%d), outside frame.json's "
@@ -608,12 +631,37 @@ def add_medium(scene, fr, vdb_out):
     vol.materials.append(mat)
 
 
+def light_radius(fr, args):
+    """(radius, loss) of the channel's sphere lights: --light-radius, else the largest radius on
+    cycles_light_radius.py's ladder (half the points' spacing, halved) whose share of the first
+    collisions withheld from the cloud is at most --max-light-loss; loss None when the density is
+    too large to measure it."""
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import cycles_light_radius
+
+    m = fr["medium"]
+    given = args["light_radius"]
+    if m is None or not fr["lights"]:
+        return (given if given is not None else 0.5 * fr["light_spacing"]), 0.0
+    if "rho" not in m:
+        r = given if given is not None else 0.5 * fr["light_spacing"]
+        warn("%s: the density (%d x %d x %d voxels) is too large to measure what sphere lights of "
+             "radius %g m withhold from the cloud; rendering with that radius (choose one with "
+             "--light-radius)" % ((fr["path"],) + tuple(m["dims"]) + (r,)))
+        return r, None
+    got = cycles_light_radius.choose(m, [p for p, _ in fr["lights"]], [i for _, i in fr["lights"]],
+                                     fr["light_spacing"], m["rho"], args["max_light_loss"],
+                                     [given] if given is not None else None)
+    return (given, got["ladder"].get("%g" % given, 0.0)) if given is not None else (got["radius"], got["loss"])
+
+
 def add_point_lights(scene, fr, radius):
     """The channel's points. `radius` > 0 makes each a sphere light of that radius (Cycles keeps
-    its power): at half the points' spacing the chain becomes a tube around the channel, which
-    it is, and a scattering point can no longer come arbitrarily close to a point of the chain,
-    whose 1/d^2 spikes are what makes a light inside a cloud converge slowly (fireflies). Its
-    light outside the tube is the points' own."""
+    its power), which a scattering point can no longer come arbitrarily close to: a true point's
+    1/d^2 spikes are what makes a light inside a cloud converge slowly (fireflies). The price is
+    a bias: Cycles samples the sphere as a disk facing the receiver, which delivers less than the
+    point within a few radii of it, so the medium around the channel collides less of its light
+    (light_radius keeps that share below --max-light-loss)."""
     colour, scale = fold_colour(fr["flash_colour"], 1.0)
     coll = scene.collection
     for i, (pos, intensity) in enumerate(fr["lights"]):
@@ -772,7 +820,8 @@ def build_scene(fr, args, vdb_out):
     add_world(scene, fr)
     if fr["medium"] is not None:
         add_medium(scene, fr, vdb_out)
-    radius = args["light_radius"] if args["light_radius"] is not None else 0.5 * fr["light_spacing"]
+    radius, fr["light_loss"] = light_radius(fr, args)
+    fr["light_radius"] = radius
     add_point_lights(scene, fr, radius)
     if fr["sun"] is not None:
         add_sun(scene, fr)
@@ -817,7 +866,8 @@ def main():
             shutil.rmtree(tmp, ignore_errors=True)
     print(json.dumps({"name": "blender-scene", "samples": args["samples"], "seed": args["seed"],
                       "seconds": round(seconds, 3), "width": fr["width"], "height": fr["height"],
-                      "out": out}, separators=(",", ":")))
+                      "out": out, "light_radius": fr["light_radius"], "light_loss": fr["light_loss"]},
+                     separators=(",", ":")))
     sys.stdout.flush()
 
 

@@ -4,6 +4,7 @@
 usage:
   scripts/compare_cycles.py run SCENE.json OUT_DIR --seed S --time [+]T --size WxH
         [--quality PRESET] [--samples N] [--cycles-seeds A,B] [--fulgur-shot EXE] [--blender EXE]
+        [--light-radius M] [--max-light-loss F]
   scripts/compare_cycles.py compare FULGUR.exr CYCLES_A.exr CYCLES_B.exr [--near-px R] [--picture P.png]
 
 `run` renders the frame with fulgur-shot (--exr with its passes, --blender DIR, one ray-march ray
@@ -163,19 +164,24 @@ def run(args):
     seeds = [int(s) for s in args.cycles_seeds.split(",")]
     if len(seeds) != 2:
         raise SystemExit("--cycles-seeds takes two seeds")
-    cycles_s = []
+    cycles_s, lights = [], None
     for s in seeds:
         t0 = time.monotonic()
-        subprocess.run([args.blender, "-b", "--factory-startup", "--python", str(ROOT / "scripts/blender_scene.py"),
-                        "--", str(out / "blender"), "--out", str(out / f"cycles_{s}.exr"),
-                        "--samples", str(args.samples), "--seed", str(s)]
-                       + (["--light-radius", args.light_radius] if args.light_radius else []),
-                       check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        done = subprocess.run([args.blender, "-b", "--factory-startup", "--python", str(ROOT / "scripts/blender_scene.py"),
+                               "--", str(out / "blender"), "--out", str(out / f"cycles_{s}.exr"),
+                               "--samples", str(args.samples), "--seed", str(s)]
+                              + (["--light-radius", args.light_radius] if args.light_radius else [])
+                              + (["--max-light-loss", args.max_light_loss] if args.max_light_loss else []),
+                              check=True, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
         cycles_s.append(time.monotonic() - t0)
+        line = [l for l in done.stdout.splitlines() if l.startswith('{"name":"blender-scene"')]
+        lights = json.loads(line[-1]) if line else lights
     r = compare(out / "fulgur.exr", out / f"cycles_{seeds[0]}.exr", out / f"cycles_{seeds[1]}.exr",
                 args.near_px, out / "compare.png", args.block)
     r.update({"scene": args.scene, "seed": args.seed, "time": args.time, "quality": args.quality or "scene's",
-              "samples": args.samples, "fulgur_seconds": fulgur_s, "cycles_seconds": cycles_s})
+              "samples": args.samples, "fulgur_seconds": fulgur_s, "cycles_seconds": cycles_s,
+              "cycles_light_radius": lights and lights.get("light_radius"),
+              "cycles_light_loss": lights and lights.get("light_loss")})
     return r
 
 
@@ -194,7 +200,9 @@ def main():
     r.add_argument("--near-px", type=int)
     r.add_argument("--fulgur-shot", default=str(ROOT / "build/release/app/fulgur-shot"))
     r.add_argument("--blender", default="blender")
-    r.add_argument("--light-radius", help="passed to blender_scene.py (default: half the points' spacing)")
+    r.add_argument("--light-radius", help="passed to blender_scene.py (default: the largest radius whose share "
+                   "of the first collisions withheld from the cloud is within --max-light-loss)")
+    r.add_argument("--max-light-loss", help="passed to blender_scene.py (default 0.01)")
     c = sub.add_parser("compare")
     c.add_argument("fulgur")
     c.add_argument("cycles_a")
