@@ -148,7 +148,8 @@ void declare(CommandLine& cli, ShotArgs& a) {
         ->type_name("OUT.vdb");
     path_option(app, "--exr", a.exr, ".exr",
                 "also write the frame's linear radiance (W m^-2 sr^-1, before exposure and tone map, without the "
-                "eye's glare; float32 R, G, B) as OUT.exr, with the camera, units and frame in its header")
+                "eye's glare; float32 R, G, B) as OUT.exr, with the camera, units and frame in its header; with "
+                "--reference also the frame lit by the reference as OUT_reference.exr")
         ->type_name("OUT.exr");
     app.add_flag("--exr-passes", a.exr_passes,
                  "with --exr: also the frame's terms apart (layers lightning, static, glow, channel, background, "
@@ -182,6 +183,7 @@ ShotArgs parse_shot_args(const std::vector<std::string>& args) {
             outputs.push_back({"reference image", *a.reference});
             outputs.push_back({"difference image", reference_diff_path(*a.reference)});
             outputs.push_back({"comparison image", reference_compare_path(*a.reference)});
+            if (a.exr) outputs.push_back({"reference EXR", reference_exr_path(*a.exr)});
         }
         if (outputs.size() == 1) return;
         try {
@@ -201,6 +203,12 @@ std::filesystem::path reference_diff_path(const std::filesystem::path& reference
 std::filesystem::path reference_compare_path(const std::filesystem::path& reference) {
     std::filesystem::path p = reference;
     p.replace_filename(reference.stem().string() + "_compare.png");
+    return p;
+}
+
+std::filesystem::path reference_exr_path(const std::filesystem::path& exr) {
+    std::filesystem::path p = exr;
+    p.replace_filename(exr.stem().string() + "_reference.exr");
     return p;
 }
 

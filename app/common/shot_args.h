@@ -70,12 +70,14 @@ std::string shot_usage();
 
 /// Parses argv[1..]. Throws core::Error with a one-line reason on any invalid input
 /// (unknown option, missing value, malformed number, non-positive size, missing -o, two of
-/// the images -o, REF.png, REF_diff.png, REF_compare.png and OUT.exr being one file,
-/// --exr-passes without --exr).
+/// the images -o, REF.png, REF_diff.png, REF_compare.png, OUT.exr and OUT_reference.exr being
+/// one file, --exr-passes without --exr).
 ShotArgs parse_shot_args(const std::vector<std::string>& args);
 
 /// The images --reference REF.png derives: REF_diff.png and REF_compare.png beside it.
 std::filesystem::path reference_diff_path(const std::filesystem::path& reference);
 std::filesystem::path reference_compare_path(const std::filesystem::path& reference);
+/// The reference frame's radiance that --exr OUT.exr with --reference writes: OUT_reference.exr.
+std::filesystem::path reference_exr_path(const std::filesystem::path& exr);
 
 }  // namespace fulgur::app

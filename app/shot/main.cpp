@@ -60,9 +60,13 @@ transport::SourceField since_known_field(view::StormView& view, double t, const 
     return field;
 }
 
-// What --reference writes besides its JSON line: the reference frame's image, the
-// difference of the cloud's radiance (march buffer: no glow, no jitter) between the shown
-// field and the reference, and the three side by side. `show_reference` / `show_basis` make
+void write_frame_exr(view::StormView& view, const render::Camera& cam, double t, const view::ViewOptions& opt,
+                     const app::ShotArgs& a, const transport::SourceField* shown_field, double shown_exposure,
+                     const std::filesystem::path& out, const std::string& lit_by);
+
+// What --reference writes besides its JSON line: the reference frame's image (and with --exr its
+// radiance, OUT_reference.exr), the difference of the cloud's radiance (march buffer: no glow,
+// no jitter) between the shown field and the reference, and the three side by side. `show_reference` / `show_basis` make
 // the view light the frame by the reference or by what was shown (before each render).
 app::RadianceComparison reference_images(
     view::StormView& view, platform::Context* ctx, const render::Camera& cam, double t, const view::ViewOptions& opt,
@@ -70,10 +74,14 @@ app::RadianceComparison reference_images(
     const transport::SourceField* reference_field, const std::function<void()>& show_reference,
     const std::function<void()>& show_basis, app::DisplayDifference& shown, int& w, int& h) {
     show_reference();
-    view.render(cam, t, a.width, a.height, opt, reference_field);
+    const double ref_exposure = view.render(cam, t, a.width, a.height, opt, reference_field).gpu.exposure;
     ctx->present();
     const std::vector<std::uint8_t> shown_ref = ctx->read_rgba8();
     core::write_png(*a.reference, a.width, a.height, 4, shown_ref);
+    if (a.exr)
+        write_frame_exr(view, cam, t, opt, a, reference_field, ref_exposure, app::reference_exr_path(*a.exr),
+                        a.against == "static" ? ", its static light by the truth (--against static)"
+                                              : ", lit by the reference (--against " + a.against + ")");
     shown = app::compare_display(shown_basis, shown_ref);
 
     // The cloud alone (no glow in the march buffer, no jitter), once per field.
@@ -255,7 +263,8 @@ std::string frame_label(view::StormView& view, double t, const app::ShotArgs& a)
 // --exr: the frame's linear radiance (and with --exr-passes its terms and transmittance), the
 // camera as vectors and as OpenEXR's standard worldToCamera / worldToNDC, the units.
 void write_frame_exr(view::StormView& view, const render::Camera& cam, double t, const view::ViewOptions& opt,
-                     const app::ShotArgs& a, const transport::SourceField* shown_field, double shown_exposure) {
+                     const app::ShotArgs& a, const transport::SourceField* shown_field, double shown_exposure,
+                     const std::filesystem::path& out, const std::string& lit_by) {
     const view::LinearFrame f = view::render_linear(view, cam, t, a.width, a.height, opt, shown_field, a.exr_passes);
     std::vector<app::ExrLayer> layers{{"", {"R", "G", "B"}, f.radiance}};
     for (const view::LinearPass& p : f.passes) layers.push_back({p.name, {"R", "G", "B"}, p.rgb});
@@ -266,7 +275,7 @@ void write_frame_exr(view::StormView& view, const render::Camera& cam, double t,
                "R, G, B: radiance in W m^-2 sr^-1 (linear, before exposure and tone map, without the "
                "eye's glare); T.Y: the cloud's transmittance along the pixel's ray"},
               {"fulgurScene", s.name + " (" + a.scene.string() + ")"},
-              {"fulgurFrame", frame_label(view, t, a)},
+              {"fulgurFrame", frame_label(view, t, a) + lit_by},
               {"fulgurLengthUnit", "m (world space; z up)"}};
     if (a.exr_passes)
         h.text.push_back(
@@ -280,7 +289,7 @@ void write_frame_exr(view::StormView& view, const render::Camera& cam, double t,
     h.world_to_ndc =
         glm::perspective(glm::radians(cam.vertical_fov_deg), double(a.width) / double(a.height), 0.5, 1e6) *
         world_to_camera;
-    app::write_exr(*a.exr, a.width, a.height, layers, h);
+    app::write_exr(out, a.width, a.height, layers, h);
 }
 
 // --blender: the frame's lit channel (as shown: the frame at t), its camera and its lights.
@@ -408,7 +417,7 @@ int main(int argc, char** argv) {
         std::cout << line << ",\"camera\":" << scene::camera_json(stated) << "}" << std::endl;
         if (a.vdb) write_frame_vdb(view, t, opt, a, shown_field);
         if (a.blender) write_frame_blender(view, cam, t, opt, a);
-        if (a.exr) write_frame_exr(view, cam, t, opt, a, shown_field, r.gpu.exposure);
+        if (a.exr) write_frame_exr(view, cam, t, opt, a, shown_field, r.gpu.exposure, *a.exr, "");
         if (a.reference && a.against == "static")
             render_static_reference(view, ctx.get(), cam, t, opt, a, px, shown_field);
         else if (a.reference)

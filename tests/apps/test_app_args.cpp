@@ -218,6 +218,7 @@ TEST_CASE("fulgur-shot: --exr names an .exr other than the other outputs; --exr-
     r = good;
     r.insert(r.end(), {"--exr", "a.exr", "--reference", "a.png"});
     CHECK_NOTHROW(parse(r));
+    CHECK(app::reference_exr_path("out/a.exr") == std::filesystem::path("out/a_reference.exr"));
 }
 
 TEST_CASE("fulgur-shot: --internal-scale is a fraction of the output resolution") {
