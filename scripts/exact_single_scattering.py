@@ -6,6 +6,7 @@ usage:
   scripts/exact_single_scattering.py DIR OUT.json [--medium pc|trilinear] [--stride N]
         [--step M] [--shadow-samples K]
   scripts/exact_single_scattering.py compare DIR OUT_PC.json OUT_TRILINEAR.json FULGUR.exr CYCLES_A.exr CYCLES_B.exr
+        [--max-t T]
 
 DIR is what `fulgur-shot ... --blender DIR` writes (frame.json, density.vdb). For every N-th pixel
 (both axes, from N / 2) the camera ray is sampled every M metres until its optical depth reaches
@@ -14,15 +15,20 @@ straight shadow ray sampled at K points, scattered once by the Henyey-Greenstein
 
   L = sum over samples of exp(-tau_camera) albedo sigma_t (sum over lights of I p(cos) exp(-tau_light) / r^2) M
 
-in W m^-2 sr^-1 per unit flash colour. The medium is the density grid read either piecewise
+in W m^-2 sr^-1 per unit flash colour; and when the frame has a sun (or moon), its single
+scattering apart: parallel light of the sun's irradiance (green) through a shadow ray to the
+medium's box, in W m^-2 sr^-1. The medium is the density grid read either piecewise
 constant per voxel (`pc`: what Fulgur's Monte Carlo truth and its solvers transport light
 through) or trilinear between voxel centres and zero outside (`trilinear`: what Fulgur's march
 and Cycles read). No light bounces off the ground and no light scatters twice: compare it with
 `fulgur-shot --off multiple` and Cycles with `blender_scene.py --single-scattering`.
 
-`compare` prints the totals over the sampled cloud pixels (Fulgur's transmittance < 0.98) of the
-two exact images, Fulgur's lightning pass and the mean of the two Cycles images (green channel,
-the exact images times the flash's green), and their ratios.
+`compare` prints the totals over the sampled cloud pixels (Fulgur's transmittance < T, 0.98
+unless --max-t says) of the two exact images, Fulgur's lightning pass and the mean of the two
+Cycles images (green channel, the exact images times the flash's green), and their ratios; the
+same for the sun against Fulgur's static pass (`sun_*`). Cycles' image also holds what is seen
+through the cloud (the ground, which the channel or the sun lights): on a frame where that is
+not negligible against single scattering, compare opaque pixels only (--max-t 0.02).
 """
 
 import json
@@ -92,7 +98,7 @@ def render(directory, out, medium="pc", stride=4, step=5.0, shadow_samples=256):
     voxel = float(m["voxel_size"])
     kappa, albedo, g = m["extinction"], m["albedo"], m["g"]
     density = density_sampler(rho, origin, voxel, medium)
-    lights = np.array([l["position"] for l in frame["lights"]], float)
+    lights = np.array([l["position"] for l in frame["lights"]], float).reshape(-1, 3)
     intensity = np.array([l["intensity"] for l in frame["lights"]], float)
     cam = frame["camera"]
     width, height = frame["image"]["width"], frame["image"]["height"]
@@ -108,7 +114,12 @@ def render(directory, out, medium="pc", stride=4, step=5.0, shadow_samples=256):
     fringe = 0.5 * voxel if medium == "trilinear" else 0.0
     lo, hi = origin - fringe, origin + voxel * np.array(rho.shape) + fringe
     along = (np.arange(shadow_samples) + 0.5) / shadow_samples
-    pixels = {}
+    sun = frame.get("sun")
+    if sun is not None:
+        travel = np.array(sun["direction"], float)
+        travel /= np.linalg.norm(travel)
+        to_sun, sun_green = -travel, float(sun["irradiance_rgb"][1])
+    pixels, sun_pixels = {}, {}
     for py in range(stride // 2, height, stride):
         for px in range(stride // 2, width, stride):
             sx = (2.0 * (px + 0.5) / width - 1.0) * tan_half * width / height
@@ -137,12 +148,26 @@ def render(directory, out, medium="pc", stride=4, step=5.0, shadow_samples=256):
             phase = (1.0 - g * g) / (4.0 * math.pi * (1.0 + g * g - 2.0 * g * cos) ** 1.5)
             arriving = (intensity[None, :] * np.exp(-tau_light) * phase / (r * r)).sum(-1)
             pixels[f"{px},{py}"] = float((np.exp(-tau) * albedo * sigma * arriving).sum() * step)
+            if sun is not None:
+                # The sun: parallel light of irradiance E (green) from -travel, attenuated from
+                # where the shadow ray leaves the medium's box.
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    exits = np.where(to_sun != 0.0, (np.where(to_sun > 0.0, hi, lo) - x) / to_sun, np.inf)
+                t_exit = np.maximum(exits.min(axis=-1), 0.0)
+                points = x[:, None, :] + (t_exit[:, None] * along[None, :])[..., None] * to_sun
+                tau_sun = kappa * density(points).sum(-1) * t_exit / shadow_samples
+                cos = float(np.dot(travel, -d))
+                phase = (1.0 - g * g) / (4.0 * math.pi * (1.0 + g * g - 2.0 * g * cos) ** 1.5)
+                sun_pixels[f"{px},{py}"] = float(
+                    (np.exp(-tau) * albedo * sigma * sun_green * phase * np.exp(-tau_sun)).sum() * step)
     pathlib.Path(out).write_text(json.dumps({"medium": medium, "stride": stride, "step": step,
-                                             "shadow_samples": shadow_samples, "pixels": pixels}))
-    print(json.dumps({"medium": medium, "pixels": len(pixels), "total": sum(pixels.values())}))
+                                             "shadow_samples": shadow_samples, "pixels": pixels,
+                                             "sun_pixels": sun_pixels}))
+    print(json.dumps({"medium": medium, "pixels": len(pixels), "total": sum(pixels.values()),
+                      "sun_total": sum(sun_pixels.values())}))
 
 
-def compare(directory, pc_json, tri_json, fulgur_exr, cycles_a, cycles_b):
+def compare(directory, pc_json, tri_json, fulgur_exr, cycles_a, cycles_b, max_t=0.98):
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
     from compare_cycles import read_channels
 
@@ -154,23 +179,38 @@ def compare(directory, pc_json, tri_json, fulgur_exr, cycles_a, cycles_b):
     rows = []
     for key, value in pc.items():
         px, py = map(int, key.split(","))
-        if f["T.Y"][py, px] >= 0.98:
+        if f["T.Y"][py, px] >= max_t:
             continue
         rows.append((green * value, green * tri.get(key, 0.0), f["lightning.G"][py, px],
                      0.5 * (a["G"][py, px] + b["G"][py, px])))
     if not rows:
         raise SystemExit("no sampled pixel sees the cloud")
-    exact_pc, exact_tri, fulgur, cycles = np.array(rows).sum(axis=0)
-    print(json.dumps({"cloud_pixels": len(rows), "exact_pc": exact_pc, "exact_trilinear": exact_tri,
-                      "fulgur": fulgur, "cycles": cycles,
-                      "fulgur_over_exact_pc": fulgur / exact_pc, "fulgur_over_exact_trilinear": fulgur / exact_tri,
-                      "cycles_over_exact_pc": cycles / exact_pc, "cycles_over_exact_trilinear": cycles / exact_tri,
-                      "exact_trilinear_over_pc": exact_tri / exact_pc}))
+    out = {"cloud_pixels": len(rows), "max_transmittance": max_t}
+    figures(out, "", np.array(rows).sum(axis=0))
+    # The sun's single scattering (a frame the sun or moon lights): against Fulgur's static pass.
+    sun_pc = json.loads(pathlib.Path(pc_json).read_text()).get("sun_pixels", {})
+    sun_tri = json.loads(pathlib.Path(tri_json).read_text()).get("sun_pixels", {})
+    sun_rows = [(v, sun_tri.get(k, 0.0), f["static.G"][py, px], 0.5 * (a["G"][py, px] + b["G"][py, px]))
+                for k, v in sun_pc.items() for px, py in [map(int, k.split(","))] if f["T.Y"][py, px] < max_t]
+    if sun_rows and any(r[0] > 0.0 for r in sun_rows):
+        figures(out, "sun_", np.array(sun_rows).sum(axis=0))
+    print(json.dumps(out))
+
+
+def figures(out, prefix, totals):
+    exact_pc, exact_tri, fulgur, cycles = totals
+    ratio = lambda x, y: x / y if y > 0.0 else None  # noqa: E731
+    out.update({prefix + "exact_pc": exact_pc, prefix + "exact_trilinear": exact_tri, prefix + "fulgur": fulgur,
+                prefix + "cycles": cycles, prefix + "fulgur_over_exact_pc": ratio(fulgur, exact_pc),
+                prefix + "fulgur_over_exact_trilinear": ratio(fulgur, exact_tri),
+                prefix + "cycles_over_exact_pc": ratio(cycles, exact_pc),
+                prefix + "cycles_over_exact_trilinear": ratio(cycles, exact_tri),
+                prefix + "exact_trilinear_over_pc": ratio(exact_tri, exact_pc)})
 
 
 def main(argv):
-    if len(argv) == 7 and argv[0] == "compare":
-        compare(*argv[1:])
+    if argv[:1] == ["compare"] and len(argv) in (7, 9) and (len(argv) == 7 or argv[7] == "--max-t"):
+        compare(*argv[1:7], max_t=float(argv[8]) if len(argv) == 9 else 0.98)
         return
     if len(argv) < 2 or argv[0] == "compare":
         raise SystemExit(__doc__)
