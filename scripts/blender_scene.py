@@ -62,6 +62,11 @@ PROG = "blender_scene.py"
 # measure the raw offset.
 VOXEL_CENTRE_SHIFT = float(os.environ.get("FULGUR_BLENDER_VOXEL_SHIFT", "-0.5"))
 
+# The largest density copied densely to choose the channel's light radius (light_radius): 2^27
+# voxels, 512 MB of float32 (a storm of 125 m voxels is 1.7M; beyond the limit the radius must be
+# given).
+DENSE_DENSITY_LIMIT = 1 << 27
+
 # The medium's coefficients are handed to Cycles K times too large in a volume object scaled K
 # times up, which Cycles divides back out (see add_medium): this moves Cycles' 1e-5 per-unit
 # cutoff on volume coefficients down to 1e-5 / K per metre. K = min(1000, voxel_size / 0.05 m):
@@ -69,12 +74,6 @@ VOXEL_CENTRE_SHIFT = float(os.environ.get("FULGUR_BLENDER_VOXEL_SHIFT", "-0.5"))
 # cube's optical depth off by 8% at 0.001, right at 0.01 and above), so a voxel is kept >= 0.05
 # units in object space. FULGUR_BLENDER_DENSITY_SCALE overrides K (blender_calibrate.py sets 1
 # to show the cutoff).
-# The largest density copied densely to choose the channel's light radius (light_radius): 2^27
-# voxels, 512 MB of float32 (a storm of 125 m voxels is 1.7M; beyond the limit the radius must be
-# given).
-DENSE_DENSITY_LIMIT = 1 << 27
-
-
 def density_scale(voxel_size):
     env = os.environ.get("FULGUR_BLENDER_DENSITY_SCALE")
     if env:
