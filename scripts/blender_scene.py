@@ -524,8 +524,9 @@ def prepare_vdb(fr, out, K):
             raise FrameError((where % "voxel_size") + ": %s's index-to-world transform is not a "
                              "scale by %g (axis %d steps by (%g, %g, %g))"
                              % ((m["path"], vs, axis) + tuple(step)))
-    # A dense copy for choosing the channel's light radius (light_radius), when it fits in memory.
-    if m["dims"][0] * m["dims"][1] * m["dims"][2] <= DENSE_DENSITY_LIMIT:
+    # A dense copy for choosing the channel's light radius (light_radius), when the frame has a
+    # channel and the copy fits in memory.
+    if fr["lights"] and m["dims"][0] * m["dims"][1] * m["dims"][2] <= DENSE_DENSITY_LIMIT:
         m["rho"] = np.zeros(tuple(m["dims"]), np.float32)
         grid.copyToArray(m["rho"], ijk=(0, 0, 0))
     lo, hi = grid.evalActiveVoxelBoundingBox()

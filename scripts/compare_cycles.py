@@ -167,8 +167,9 @@ def run(args):
     cycles_s, lights = [], None
     for s in seeds:
         t0 = time.monotonic()
-        done = subprocess.run([args.blender, "-b", "--factory-startup", "--python", str(ROOT / "scripts/blender_scene.py"),
-                               "--", str(out / "blender"), "--out", str(out / f"cycles_{s}.exr"),
+        done = subprocess.run([args.blender, "-b", "--factory-startup", "--python",
+                               str(ROOT / "scripts/blender_scene.py"), "--", str(out / "blender"),
+                               "--out", str(out / f"cycles_{s}.exr"),
                                "--samples", str(args.samples), "--seed", str(s)]
                               + (["--light-radius", args.light_radius] if args.light_radius else [])
                               + (["--max-light-loss", args.max_light_loss] if args.max_light_loss else []),

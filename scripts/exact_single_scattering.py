@@ -54,6 +54,11 @@ def load(directory):
     return frame, rho
 
 
+def hg(g, cos):
+    """Henyey-Greenstein phase function at cos = the light's travel . the way toward the eye."""
+    return (1.0 - g * g) / (4.0 * math.pi * (1.0 + g * g - 2.0 * g * cos) ** 1.5)
+
+
 def density_sampler(rho, origin, voxel, medium):
     dims = np.array(rho.shape)
 
@@ -145,7 +150,7 @@ def render(directory, out, medium="pc", stride=4, step=5.0, shadow_samples=256):
             points = x[:, None, None, :] + v[:, :, None, :] * along[None, None, :, None]
             tau_light = kappa * density(points).sum(-1) * r / shadow_samples
             cos = np.einsum("slk,k->sl", -v / r[..., None], -d)  # light's travel . toward the eye
-            phase = (1.0 - g * g) / (4.0 * math.pi * (1.0 + g * g - 2.0 * g * cos) ** 1.5)
+            phase = hg(g, cos)
             arriving = (intensity[None, :] * np.exp(-tau_light) * phase / (r * r)).sum(-1)
             pixels[f"{px},{py}"] = float((np.exp(-tau) * albedo * sigma * arriving).sum() * step)
             if sun is not None:
@@ -157,7 +162,7 @@ def render(directory, out, medium="pc", stride=4, step=5.0, shadow_samples=256):
                 points = x[:, None, :] + (t_exit[:, None] * along[None, :])[..., None] * to_sun
                 tau_sun = kappa * density(points).sum(-1) * t_exit / shadow_samples
                 cos = float(np.dot(travel, -d))
-                phase = (1.0 - g * g) / (4.0 * math.pi * (1.0 + g * g - 2.0 * g * cos) ** 1.5)
+                phase = hg(g, cos)
                 sun_pixels[f"{px},{py}"] = float(
                     (np.exp(-tau) * albedo * sigma * sun_green * phase * np.exp(-tau_sun)).sum() * step)
     pathlib.Path(out).write_text(json.dumps({"medium": medium, "stride": stride, "step": step,
@@ -174,26 +179,27 @@ def compare(directory, pc_json, tri_json, fulgur_exr, cycles_a, cycles_b, max_t=
     frame = json.loads((pathlib.Path(directory) / "frame.json").read_text())
     green = frame["flash_colour"][1]  # the exact images are per unit flash colour
     f, a, b = read_channels(fulgur_exr), read_channels(cycles_a), read_channels(cycles_b)
-    pc = json.loads(pathlib.Path(pc_json).read_text())["pixels"]
-    tri = json.loads(pathlib.Path(tri_json).read_text())["pixels"]
-    rows = []
-    for key, value in pc.items():
-        px, py = map(int, key.split(","))
-        if f["T.Y"][py, px] >= max_t:
-            continue
-        rows.append((green * value, green * tri.get(key, 0.0), f["lightning.G"][py, px],
-                     0.5 * (a["G"][py, px] + b["G"][py, px])))
-    if not rows:
+    pc, tri = (json.loads(pathlib.Path(p).read_text()) for p in (pc_json, tri_json))
+
+    def totals(key, scale, layer):
+        """Sums over the sampled pixels under max_t: exact pc, exact trilinear, Fulgur's layer, Cycles."""
+        rows = []
+        for k, value in pc.get(key, {}).items():
+            px, py = map(int, k.split(","))
+            if f["T.Y"][py, px] < max_t:
+                rows.append((scale * value, scale * tri.get(key, {}).get(k, 0.0), f[layer][py, px],
+                             0.5 * (a["G"][py, px] + b["G"][py, px])))
+        return len(rows), np.array(rows).reshape(-1, 4).sum(axis=0)
+
+    n, flash = totals("pixels", green, "lightning.G")
+    if not n:
         raise SystemExit("no sampled pixel sees the cloud")
-    out = {"cloud_pixels": len(rows), "max_transmittance": max_t}
-    figures(out, "", np.array(rows).sum(axis=0))
+    out = {"cloud_pixels": n, "max_transmittance": max_t}
+    figures(out, "", flash)
     # The sun's single scattering (a frame the sun or moon lights): against Fulgur's static pass.
-    sun_pc = json.loads(pathlib.Path(pc_json).read_text()).get("sun_pixels", {})
-    sun_tri = json.loads(pathlib.Path(tri_json).read_text()).get("sun_pixels", {})
-    sun_rows = [(v, sun_tri.get(k, 0.0), f["static.G"][py, px], 0.5 * (a["G"][py, px] + b["G"][py, px]))
-                for k, v in sun_pc.items() for px, py in [map(int, k.split(","))] if f["T.Y"][py, px] < max_t]
-    if sun_rows and any(r[0] > 0.0 for r in sun_rows):
-        figures(out, "sun_", np.array(sun_rows).sum(axis=0))
+    _, sun = totals("sun_pixels", 1.0, "static.G")
+    if sun[0] > 0.0:
+        figures(out, "sun_", sun)
     print(json.dumps(out))
 
 

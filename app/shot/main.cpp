@@ -66,8 +66,9 @@ void write_frame_exr(view::StormView& view, const render::Camera& cam, double t,
 
 // What --reference writes besides its JSON line: the reference frame's image (and with --exr its
 // radiance, OUT_reference.exr), the difference of the cloud's radiance (march buffer: no glow,
-// no jitter) between the shown field and the reference, and the three side by side. `show_reference` / `show_basis` make
-// the view light the frame by the reference or by what was shown (before each render).
+// no jitter) between the shown field and the reference, and the three side by side.
+// `show_reference` / `show_basis` make the view light the frame by the reference or by what was
+// shown (before each render).
 app::RadianceComparison reference_images(
     view::StormView& view, platform::Context* ctx, const render::Camera& cam, double t, const view::ViewOptions& opt,
     const app::ShotArgs& a, const std::vector<std::uint8_t>& shown_basis, const transport::SourceField* shown_field,
