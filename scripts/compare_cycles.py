@@ -27,7 +27,9 @@ Regions (Fulgur's transmittance T of each pixel's ray, and its channel pass):
 Per region: relative L2 (all three colours: sqrt(sum (f - c)^2 / sum c^2)) and the ratio of
 totals sum f / sum c. Cycles' noise: its image is the mean of the two seeds, whose own relative
 L2 error is |A - B| / 2 over |mean| (two independent estimates: the difference has twice the
-variance of one, the mean half); `*_rel_l2_noise_removed` subtracts it in quadrature.
+variance of one, the mean half); `*_rel_l2_noise_removed` subtracts it in quadrature and
+`*_rel_l2_noise_removed_upper2sigma` bounds it from above at two standard errors of that
+subtraction (what "within Cycles' noise" can claim).
 """
 
 import argparse
@@ -90,11 +92,20 @@ def region_figures(f, c, a, b, mask):
     c2 = float(np.sum(cm * cm))
     err = math.sqrt(float(np.sum((fm - cm) ** 2)) / c2) if c2 > 0 else float("nan")
     noise = math.sqrt(float(np.sum(((a[mask] - b[mask]) / 2) ** 2)) / c2) if c2 > 0 else float("nan")
+    # Per pixel, (f - c)^2 - ((a - b) / 2)^2 is an unbiased estimate of (f - mean)^2 whatever
+    # Cycles' noise distribution (c's variance is half a seed's, ((a - b) / 2)^2's mean the
+    # same); the spread of these terms over the region gives the standard error of their sum,
+    # pixels taken as independent, and so a two-sigma upper bound on the error without noise.
+    t = (fm - cm) ** 2 - ((a[mask] - b[mask]) / 2) ** 2
+    t = t.reshape(t.shape[0], -1).sum(axis=1)
+    se = math.sqrt(float(np.sum((t - t.mean()) ** 2))) if t.size > 1 else float("inf")
+    upper = math.sqrt(max(0.0, float(np.sum(t)) + 2.0 * se) / c2) if c2 > 0 else float("nan")
     return {
         "pixels": int(mask.sum()),
         "rel_l2": err,
         "cycles_noise_rel_l2": noise,
         "rel_l2_noise_removed": math.sqrt(max(0.0, err * err - noise * noise)),
+        "rel_l2_noise_removed_upper2sigma": upper,
         "ratio_of_totals": float(np.sum(fm)) / float(np.sum(cm)) if np.sum(cm) > 0 else float("nan"),
         # The mean's relative noise in the total, from the two seeds' totals (|A - B| / 2 over
         # the mean: a one-sample estimate of it).
