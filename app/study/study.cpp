@@ -1,5 +1,6 @@
 #include "study/study.h"
 
+#include "bake/bake.h"
 #include "core/core.h"
 
 #include <algorithm>
@@ -34,6 +35,17 @@ void write_fields(const std::filesystem::path& file, std::uint64_t key, const tr
 
 // The truth of a frame, kept in the study's folder keyed by the scene, the strike and a
 // checksum of the lit channel (a changed bolt or timing recomputes it).
+StrikeScene strike_scene(const std::string& file) {
+    const scene::Scene base = scene::load_scene(std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes" / file);
+    core::Grid3<float> density = scene::make_density(base);
+    bake::bake_if_stale(base, density, bake::default_fgb_path(base));
+    runtime::BakedBases bases = runtime::BakedBases::load(bake::default_fgb_path(base), bake::scene_key(base, density));
+    scene::Scene s = base;
+    s.lightning.schedule.strike_rate = 0.0;
+    solve::Media media = solve::make_media(s, density);
+    return {std::move(s), std::move(density), std::move(bases), std::move(media)};
+}
+
 runtime::Truth cached_truth(const scene::Scene& s, const core::Grid3<float>& density,
                             std::span<const lightning::LitSegment> lit, const runtime::TruthOptions& to,
                             const std::filesystem::path& file) {

@@ -7,9 +7,11 @@
 #pragma once
 
 #include "common/registry.h"
+#include "runtime/baked_bases.h"
 #include "runtime/reconstructor.h"
 #include "runtime/references.h"
 #include "scene/scene.h"
+#include "solve/solve.h"
 #include "transport/transport.h"
 
 #include <nlohmann/json.hpp>
@@ -75,6 +77,17 @@ void write_fields(const std::filesystem::path& file, std::uint64_t key, const tr
 runtime::Truth cached_truth(const scene::Scene& s, const core::Grid3<float>& density,
                             std::span<const lightning::LitSegment> lit, const runtime::TruthOptions& to,
                             const std::filesystem::path& file);
+
+/// A content scene (`content/scenes/<file>`) made ready for studies of its strikes: the scene
+/// with no strikes of its own schedule (only the study's), its density, its bases (baked first
+/// when missing or stale) and its media.
+struct StrikeScene {
+    scene::Scene scene;
+    core::Grid3<float> density;
+    runtime::BakedBases bases;
+    solve::Media media;
+};
+StrikeScene strike_scene(const std::string& file);
 
 /// A side view on the lighting grid, the quantity an image integrates: a camera far along -y
 /// looking along +y sees per (x, z) column sum_j T_j sigma_t,j S_j(toward the camera) h with

@@ -67,15 +67,8 @@ std::vector<float> plus(const std::vector<float>& a, const std::vector<float>& b
 FULGUR_STUDY(denoise, "denoise",
              "a strike's early Monte Carlo estimate smoothed on the lighting grid (binomial passes, chosen by "
              "cross-validation between its halves) against the truth (default storm, 5 strikes)") {
-    const std::filesystem::path scenes = std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes";
-    const scene::Scene base = scene::load_scene(scenes / "storm.json");
-    const core::Grid3<float> density = scene::make_density(base);
-    bake::bake_if_stale(base, density, bake::default_fgb_path(base));
-    const runtime::BakedBases bases =
-        runtime::BakedBases::load(bake::default_fgb_path(base), bake::scene_key(base, density));
-    scene::Scene s = base;
-    s.lightning.schedule.strike_rate = 0.0;
-    const solve::Media media = solve::make_media(s, density);
+    const study::StrikeScene storm = study::strike_scene("storm.json");
+    const auto& [s, density, bases, media] = storm;
     const std::vector<float>& rho = media.lighting.density.data;
     const core::GridGeometry& geom = media.lighting.density.geom;
     const transport::LightingMedium fine{density, s.medium};
@@ -112,15 +105,8 @@ FULGUR_STUDY(denoise, "denoise",
             // Two independent halves of each part, the groups at the frame's glow.
             std::array<std::vector<float>, 2> h1, hm;
             for (int h = 0; h < 2; ++h) {
-                transport::MonteCarloOptions so;
-                so.groups = 2;
-                so.max_scatterings = 0;
-                so.tally_multiple = false;
-                so.uncollided_only = true;
-                transport::MonteCarloOptions mo;
-                mo.groups = 2;
-                mo.tally_single = false;
-                transport::ProgressiveMonteCarlo ps(tracing, {}, lines, dirs, so), pm(tracing, {}, lines, dirs, mo);
+                const std::array<transport::MonteCarloOptions, 2> o = runtime::instant_tracer_options();
+                transport::ProgressiveMonteCarlo ps(tracing, {}, lines, dirs, o[0]), pm(tracing, {}, lines, dirs, o[1]);
                 ps.restart({}, lines, core::hash_seed(seed, 10 + h));
                 pm.restart({}, lines, core::hash_seed(seed, 20 + h));
                 ps.advance(n1 / 2);

@@ -1,14 +1,16 @@
 // What S's baked output directions lose in a forward-scattering cloud.
-//   directions: the day cumulus's sun (g = 0.8) and the default storm's moon (g = 0.6), each
-//   light's truth (Monte Carlo through the full-resolution density) tallied at the scene's
-//   baked directions and, in the same run, at test directions: toward the scene's camera from
-//   the cloud's centre, turned by 0-44 degrees in azimuth and 0 or 15 in elevation (the image's
-//   pixels see the cloud along these). At each test direction, S interpolated from the baked
-//   directions as the renderer does (render::direction_weights) against S tallied there:
-//   relative L2 over the cloud voxels of orders >= 2 (the renderer draws the sun's and moon's
-//   single scattering at full resolution with the exact phase function) and the ratio of their
-//   totals; the truth's own noise beside them.
-//   Outputs: directions.csv (one row per scene and test direction).
+//   directions: the day cumulus (g = 0.8) and the default storm (g = 0.6), the truth (Monte
+//   Carlo through the full-resolution density) of each scene's sun or moon and of both ends of
+//   its sky's gradient, tallied at the scene's baked directions and, in the same run, at test
+//   directions: toward the orbit camera from its target, turned by 0-44 degrees in azimuth and
+//   0 or 15 in elevation (the image's pixels see the cloud along these). At each test direction,
+//   S interpolated from the baked directions as the renderer does (render::direction_weights)
+//   against S tallied there: relative L2 over the cloud voxels and the ratio of totals, for what
+//   the renderer takes from S (the sun's orders >= 2, its order 1 being drawn at full resolution
+//   with the exact phase function; every order of the sky), and the ratio of totals weighted as
+//   a camera along the test direction sees the voxels (extinction times the transmittance toward
+//   it: mostly the cloud's sunlit or skylit surface); the truth's own noise beside them.
+//   Outputs: directions.csv (one row per scene, light and test direction).
 #include "study/study.h"
 
 #if FULGUR_STUDY_HAS_RENDER
@@ -29,7 +31,8 @@ using namespace fulgur;
 
 FULGUR_STUDY(directions, "directions",
              "S interpolated between the baked output directions against S tallied at the directions the camera "
-             "sees the cloud along (day cumulus's sun at g = 0.8, the storm's moon at g = 0.6), orders >= 2") {
+             "sees the cloud along (day cumulus's sun at g = 0.8, the storm's moon at g = 0.6), orders >= 2 of the sun "
+             "or moon, every order of the sky") {
     const std::filesystem::path scenes = std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes";
     struct Case {
         std::string file;
@@ -37,8 +40,8 @@ FULGUR_STUDY(directions, "directions",
     };
     const std::vector<Case> cases = {{"day-cumulus.json", ctx.quick ? 400'000ull : 4'000'000ull},
                                      {"storm.json", ctx.quick ? 400'000ull : 4'000'000ull}};
-    study::Csv rows(ctx.file("directions.csv"), {"scene", "g", "azimuth_offset", "elevation_offset", "multiple_error",
-                                                 "multiple_ratio", "truth_noise_multiple"});
+    study::Csv rows(ctx.file("directions.csv"), {"scene", "light", "g", "azimuth_offset", "elevation_offset", "error",
+                                                 "ratio", "seen_ratio", "truth_noise"});
     nlohmann::json out = nlohmann::json::array();
     for (const Case& c : cases) {
         const scene::Scene s = scene::load_scene(scenes / c.file);
@@ -67,39 +70,81 @@ FULGUR_STUDY(directions, "directions",
 
         sky::TruthOptions to;
         to.paths = c.paths;
-        std::fprintf(stderr, "directions: %s: truth of its %s at %zu directions, %llu paths\n", c.file.c_str(),
-                     s.sun->name.c_str(), dirs.size(), static_cast<unsigned long long>(c.paths));
-        const sky::TruthField truth = sky::sun_truth(media, s.sun->direction, dirs, to);
-        const transport::SourceField& m = truth.field.multiple;
-        const std::size_t cells = m.cells();
+        std::fprintf(stderr, "directions: %s: truth of its %s and sky at %zu directions, %llu paths each\n",
+                     c.file.c_str(), s.sun->name.c_str(), dirs.size(), static_cast<unsigned long long>(c.paths));
+        const sky::TruthField sun = sky::sun_truth(media, s.sun->direction, dirs, to);
+        const sky::SkyTruth sky = sky::sky_truth(media, false, dirs, to);
+        // What the renderer takes from S for each light: the sun's orders >= 2 (its order 1 is
+        // drawn at full resolution), the sky's every order (each end of its gradient).
+        struct Part {
+            std::string name;
+            std::vector<float> s;  // [m][cell]
+            double noise;
+        };
+        std::vector<Part> parts;
+        parts.push_back({s.sun->name + " orders >= 2", sun.field.multiple.data, sun.noise.multiple});
+        const auto whole = [](const sky::LightField& f) {
+            std::vector<float> v = f.multiple.data;
+            for (std::size_t i = 0; i < v.size() && i < f.single.data.size(); ++i) v[i] += f.single.data[i];
+            return v;
+        };
+        parts.push_back({"sky zenith end, all orders", whole(sky.field.zenith), sky.noise.at(0).total});
+        parts.push_back({"sky horizon end, all orders", whole(sky.field.horizon), sky.noise.at(1).total});
+        const std::size_t cells = media.lighting.density.geom.cell_count();
+        // What a camera far along each test direction sees of each voxel: its extinction times
+        // the transmittance from it toward the camera (the full-resolution density sampled every
+        // half voxel to the grid's edge). An image sums S with these weights along its rays.
+        const core::Grid3<float>& full = media.full.density;
+        const double step = 0.5 * full.geom.voxel_size;
+        std::vector<std::vector<double>> seen(tests.size(), std::vector<double>(cells, 0.0));
         for (std::size_t k = 0; k < tests.size(); ++k) {
             const glm::dvec3& d = dirs[std::size_t(nbaked) + k];
-            const render::DirectionWeights w = render::direction_weights(d, nbaked);
-            const std::span<const float> exact = m.direction(std::size_t(nbaked) + k);
-            double diff2 = 0.0, ref2 = 0.0, sum_i = 0.0, sum_e = 0.0;
             for (std::size_t i = 0; i < cells; ++i) {
                 if (!(rho[i] > 0.0f)) continue;
-                double v = 0.0;
-                for (int q = 0; q < w.count; ++q) v += w.weight[q] * double(m.direction(std::size_t(w.index[q]))[i]);
-                diff2 += (v - exact[i]) * (v - exact[i]);
-                ref2 += double(exact[i]) * exact[i];
-                sum_i += v;
-                sum_e += exact[i];
+                const core::Int3 ijk = media.lighting.density.geom.unindex(i);
+                glm::dvec3 x = media.lighting.density.geom.centre(ijk.x, ijk.y, ijk.z);
+                double tau = 0.0;
+                for (x += 0.5 * step * d; full.geom.contains(x); x += step * d)
+                    tau += s.medium.extinction * double(full.sample(x)) * step;
+                seen[k][i] = s.medium.extinction * double(rho[i]) * std::exp(-tau);
             }
-            const double err = std::sqrt(diff2 / ref2), ratio = sum_i / sum_e;
-            rows << std::filesystem::path(c.file).stem().string() << s.medium.g << tests[k].daz << tests[k].del << err
-                 << ratio << truth.noise.multiple;
-            rows.end_row();
-            std::fprintf(stderr,
-                         "directions: %s (g = %.2f) toward the camera %+.0f deg azimuth %+.0f deg elevation: orders >= "
-                         "2 interpolated %.4f off, ratio of totals %.4f (truth noise %.4f)\n",
-                         c.file.c_str(), s.medium.g, tests[k].daz, tests[k].del, err, ratio, truth.noise.multiple);
-            out.push_back({{"scene", c.file},
-                           {"azimuth_offset", tests[k].daz},
-                           {"elevation_offset", tests[k].del},
-                           {"multiple_error", err},
-                           {"multiple_ratio", ratio}});
         }
+        for (const Part& part : parts)
+            for (std::size_t k = 0; k < tests.size(); ++k) {
+                const glm::dvec3& d = dirs[std::size_t(nbaked) + k];
+                const render::DirectionWeights w = render::direction_weights(d, nbaked);
+                const float* exact = part.s.data() + (std::size_t(nbaked) + k) * cells;
+                double diff2 = 0.0, ref2 = 0.0, sum_i = 0.0, sum_e = 0.0, seen_i = 0.0, seen_e = 0.0;
+                for (std::size_t i = 0; i < cells; ++i) {
+                    if (!(rho[i] > 0.0f)) continue;
+                    double v = 0.0;
+                    for (int q = 0; q < w.count; ++q)
+                        v += w.weight[q] * double(part.s[std::size_t(w.index[q]) * cells + i]);
+                    diff2 += (v - exact[i]) * (v - exact[i]);
+                    ref2 += double(exact[i]) * exact[i];
+                    sum_i += v;
+                    sum_e += exact[i];
+                    seen_i += seen[k][i] * v;
+                    seen_e += seen[k][i] * exact[i];
+                }
+                const double err = std::sqrt(diff2 / ref2), ratio = sum_i / sum_e, seen_ratio = seen_i / seen_e;
+                rows << std::filesystem::path(c.file).stem().string() << part.name << s.medium.g << tests[k].daz
+                     << tests[k].del << err << ratio << seen_ratio << part.noise;
+                rows.end_row();
+                std::fprintf(
+                    stderr,
+                    "directions: %s (g = %.2f) %s toward the camera %+.0f deg azimuth %+.0f deg elevation: "
+                    "interpolated %.4f off, ratio of totals %.4f, as the camera sees them %.4f (truth noise %.4f)\n",
+                    c.file.c_str(), s.medium.g, part.name.c_str(), tests[k].daz, tests[k].del, err, ratio, seen_ratio,
+                    part.noise);
+                out.push_back({{"scene", c.file},
+                               {"light", part.name},
+                               {"azimuth_offset", tests[k].daz},
+                               {"elevation_offset", tests[k].del},
+                               {"error", err},
+                               {"ratio", ratio},
+                               {"seen_ratio", seen_ratio}});
+            }
     }
     ctx.summary("directions", {{"rows", out}});
 }

@@ -51,15 +51,8 @@ FULGUR_STUDY(first_frame, "first-frame",
              "sources on the lighting grid, the bases' multiple scattering with fitted virtual-light weights, and "
              "the splat with perfect bases at the bake's spacing and 2x and 4x denser, against the truth (default "
              "storm, 5 strikes)") {
-    const std::filesystem::path scenes = std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes";
-    const scene::Scene base = scene::load_scene(scenes / "storm.json");
-    const core::Grid3<float> density = scene::make_density(base);
-    bake::bake_if_stale(base, density, bake::default_fgb_path(base));
-    const runtime::BakedBases bases =
-        runtime::BakedBases::load(bake::default_fgb_path(base), bake::scene_key(base, density));
-    scene::Scene s = base;
-    s.lightning.schedule.strike_rate = 0.0;
-    const solve::Media media = solve::make_media(s, density);
+    const study::StrikeScene storm = study::strike_scene("storm.json");
+    const auto& [s, density, bases, media] = storm;
     const std::vector<float>& rho = media.lighting.density.data;
     const std::size_t cells = rho.size();
     const std::uint64_t truth_paths = ctx.quick ? 300'000 : 2'000'000;

@@ -34,7 +34,6 @@ FULGUR_STUDY(latency, "latency",
              "each preset's error against the truth as a function of wall time since an unscheduled strike became "
              "known (0-1000 ms, lookahead 0, frames at 60 fps meanwhile), default storm, dusk-storm and vdb-cloud; "
              "the frame thread's cost and the solver's time") {
-    const std::filesystem::path scenes = std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes";
     struct Case {
         std::string file;
         int strikes;
@@ -67,15 +66,9 @@ FULGUR_STUDY(latency, "latency",
                        {"scene", "preset", "since_known_ms", "worst_error", "median_error", "frame_ms_median"});
     nlohmann::json out = nlohmann::json::array();
     for (const Case& c : cases) {
-        const scene::Scene base = scene::load_scene(scenes / c.file);
-        const core::Grid3<float> density = scene::make_density(base);
         std::fprintf(stderr, "latency: %s: bake\n", c.file.c_str());
-        bake::bake_if_stale(base, density, bake::default_fgb_path(base));
-        const runtime::BakedBases bases =
-            runtime::BakedBases::load(bake::default_fgb_path(base), bake::scene_key(base, density));
-        scene::Scene s = base;
-        s.lightning.schedule.strike_rate = 0.0;  // only the study's strikes
-        const solve::Media media = solve::make_media(s, density);
+        const study::StrikeScene prepared = study::strike_scene(c.file);
+        const auto& [s, density, bases, media] = prepared;
         const std::vector<float>& rho = media.lighting.density.data;
         std::map<std::pair<std::string, double>, std::vector<double>> errors, frame_ms;
         std::map<std::string, std::vector<double>> leader_errors;

@@ -34,6 +34,17 @@ InstantOptions instant_options(const scene::Quality& q) {
     return o;
 }
 
+std::array<transport::MonteCarloOptions, 2> instant_tracer_options() {
+    std::array<transport::MonteCarloOptions, 2> o;
+    o[0].groups = 2;
+    o[0].max_scatterings = 0;
+    o[0].tally_multiple = false;
+    o[0].uncollided_only = true;
+    o[1].groups = 2;
+    o[1].tally_single = false;
+    return o;
+}
+
 namespace {
 
 // Sums over the cloud cells (every direction) of a field's square, and of a difference's.
@@ -129,8 +140,7 @@ struct InstantStrikes::Impl {
         return best;
     }
 
-    // A strike's two tracers: order 1 by expected-value emissions only, orders >= 2 by whole
-    // paths that leave order 1 to the other (far cheaper there).
+    // A strike's two tracers (instant_tracer_options).
     struct Tracers {
         std::unique_ptr<transport::ProgressiveMonteCarlo> single, multiple;
     };
@@ -142,19 +152,12 @@ struct InstantStrikes::Impl {
             spare.pop_back();
             return t;
         }
-        transport::MonteCarloOptions so;
-        so.groups = 2;
-        so.max_scatterings = 0;
-        so.tally_multiple = false;
-        so.uncollided_only = true;
-        transport::MonteCarloOptions mo;
-        mo.groups = 2;
-        mo.tally_single = false;
+        const std::array<transport::MonteCarloOptions, 2> o = instant_tracer_options();
         const std::span<const transport::LineSource> none;
         return {std::make_unique<transport::ProgressiveMonteCarlo>(tracing, std::span<const transport::PointSource>{},
-                                                                   none, dirs, so),
+                                                                   none, dirs, o[0]),
                 std::make_unique<transport::ProgressiveMonteCarlo>(tracing, std::span<const transport::PointSource>{},
-                                                                   none, dirs, mo)};
+                                                                   none, dirs, o[1])};
     }
 
     // Tracers of strikes that will not be traced again go back to the pool, up to two pairs

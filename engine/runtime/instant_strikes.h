@@ -62,6 +62,11 @@ struct InstantOptions {
 /// The instant preset's options (target_noise, path caps) from a quality preset.
 InstantOptions instant_options(const scene::Quality& q);
 
+/// The options of a strike's two tracers, two groups each (the main channel, the branches):
+/// [0] order 1 alone, by expected-value emissions; [1] orders >= 2 alone, by whole paths that
+/// leave order 1 to the other (far cheaper there).
+std::array<transport::MonteCarloOptions, 2> instant_tracer_options();
+
 /// Traces strikes progressively on one worker thread (its parallel regions on `threads`
 /// threads), the strike that has had the least time first, so a new strike's first estimate
 /// comes a round after its request whatever else is converging. Thread-safe.
