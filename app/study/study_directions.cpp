@@ -8,8 +8,10 @@
 //   against S tallied there: relative L2 over the cloud voxels and the ratio of totals, for what
 //   the renderer takes from S (the sun's orders >= 2, its order 1 being drawn at full resolution
 //   with the exact phase function; every order of the sky), and the ratio of totals weighted as
-//   a camera along the test direction sees the voxels (extinction times the transmittance toward
-//   it: mostly the cloud's sunlit or skylit surface); the truth's own noise beside them.
+//   a camera along the test direction sees S (each cloud voxel's extinction times its
+//   transmittance toward the camera, shared among the lighting-grid nodes a march interpolates
+//   S from: mostly the cloud's lit surface and the empty nodes just outside it); the truth's own
+//   noise beside them.
 //   Outputs: directions.csv (one row per scene, light and test direction).
 #include "study/study.h"
 
@@ -22,8 +24,10 @@
 #include "solve/solve.h"
 #include "transport/transport.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
 
@@ -38,13 +42,25 @@ FULGUR_STUDY(directions, "directions",
         std::string file;
         std::uint64_t paths;
     };
-    const std::vector<Case> cases = {{"day-cumulus.json", ctx.quick ? 400'000ull : 4'000'000ull},
-                                     {"storm.json", ctx.quick ? 400'000ull : 4'000'000ull}};
+    const std::uint64_t paths = ctx.quick ? 400'000ull : 4'000'000ull;
+    std::vector<Case> cases = {{"day-cumulus.json", paths}, {"storm.json", paths}};
+    // --only A.json,B.json: other scenes (paths, or names under content/scenes), e.g. the slab of
+    // scripts/slab_check.py.
+    if (!ctx.only.empty()) {
+        cases.clear();
+        std::string rest = ctx.only;
+        for (std::size_t at; !rest.empty(); rest = at == std::string::npos ? "" : rest.substr(at + 1)) {
+            at = rest.find(',');
+            cases.push_back({rest.substr(0, at), paths});
+        }
+    }
     study::Csv rows(ctx.file("directions.csv"), {"scene", "light", "g", "azimuth_offset", "elevation_offset", "error",
                                                  "ratio", "seen_ratio", "truth_noise"});
     nlohmann::json out = nlohmann::json::array();
     for (const Case& c : cases) {
-        const scene::Scene s = scene::load_scene(scenes / c.file);
+        const std::filesystem::path file =
+            std::filesystem::exists(c.file) ? std::filesystem::path(c.file) : scenes / c.file;
+        const scene::Scene s = scene::load_scene(file);
         if (!s.sun) throw core::Error(c.file, "has no sun or moon");
         if (!s.camera || s.camera->kind != scene::CameraSpec::Kind::Orbit)
             throw core::Error(c.file, "camera: not an orbit");
@@ -91,22 +107,36 @@ FULGUR_STUDY(directions, "directions",
         parts.push_back({"sky zenith end, all orders", whole(sky.field.zenith), sky.noise.at(0).total});
         parts.push_back({"sky horizon end, all orders", whole(sky.field.horizon), sky.noise.at(1).total});
         const std::size_t cells = media.lighting.density.geom.cell_count();
-        // What a camera far along each test direction sees of each voxel: its extinction times
-        // the transmittance from it toward the camera (the full-resolution density sampled every
-        // half voxel to the grid's edge). An image sums S with these weights along its rays.
+        // What a camera far along each test direction sees of each lighting voxel's S: every
+        // full-resolution voxel of cloud weighs its extinction times the transmittance from it
+        // toward the camera (the density sampled every voxel to the grid's edge), shared among
+        // the lighting-grid nodes around it by trilinear weights, as a march interpolates S
+        // (so the empty nodes just outside a lit surface count too). An image sums S so.
         const core::Grid3<float>& full = media.full.density;
-        const double step = 0.5 * full.geom.voxel_size;
+        const core::GridGeometry& lg = media.lighting.density.geom;
+        const double step = full.geom.voxel_size;
         std::vector<std::vector<double>> seen(tests.size(), std::vector<double>(cells, 0.0));
         for (std::size_t k = 0; k < tests.size(); ++k) {
             const glm::dvec3& d = dirs[std::size_t(nbaked) + k];
-            for (std::size_t i = 0; i < cells; ++i) {
-                if (!(rho[i] > 0.0f)) continue;
-                const core::Int3 ijk = media.lighting.density.geom.unindex(i);
-                glm::dvec3 x = media.lighting.density.geom.centre(ijk.x, ijk.y, ijk.z);
+            for (std::size_t f = 0; f < full.data.size(); ++f) {
+                if (!(full.data[f] > 0.0f)) continue;
+                const core::Int3 fi = full.geom.unindex(f);
+                const glm::dvec3 p = full.geom.centre(fi.x, fi.y, fi.z);
                 double tau = 0.0;
-                for (x += 0.5 * step * d; full.geom.contains(x); x += step * d)
+                for (glm::dvec3 x = p + 0.5 * step * d; full.geom.contains(x); x += step * d)
                     tau += s.medium.extinction * double(full.sample(x)) * step;
-                seen[k][i] = s.medium.extinction * double(rho[i]) * std::exp(-tau);
+                const double wgt = s.medium.extinction * double(full.data[f]) * std::exp(-tau);
+                const glm::dvec3 u = lg.to_voxel(p) - 0.5;
+                const glm::ivec3 b = glm::ivec3(glm::floor(u));
+                const glm::dvec3 t = u - glm::dvec3(b);
+                for (int corner = 0; corner < 8; ++corner) {
+                    const int ci = std::clamp(b.x + (corner & 1), 0, lg.dims.x - 1),
+                              cj = std::clamp(b.y + ((corner >> 1) & 1), 0, lg.dims.y - 1),
+                              ck = std::clamp(b.z + ((corner >> 2) & 1), 0, lg.dims.z - 1);
+                    const double tw = ((corner & 1) ? t.x : 1.0 - t.x) * (((corner >> 1) & 1) ? t.y : 1.0 - t.y) *
+                                      (((corner >> 2) & 1) ? t.z : 1.0 - t.z);
+                    seen[k][lg.index(ci, cj, ck)] += wgt * tw;
+                }
             }
         }
         for (const Part& part : parts)
@@ -124,6 +154,12 @@ FULGUR_STUDY(directions, "directions",
                     ref2 += double(exact[i]) * exact[i];
                     sum_i += v;
                     sum_e += exact[i];
+                }
+                for (std::size_t i = 0; i < cells; ++i) {
+                    if (!(seen[k][i] > 0.0)) continue;
+                    double v = 0.0;
+                    for (int q = 0; q < w.count; ++q)
+                        v += w.weight[q] * double(part.s[std::size_t(w.index[q]) * cells + i]);
                     seen_i += seen[k][i] * v;
                     seen_e += seen[k][i] * exact[i];
                 }
