@@ -33,8 +33,6 @@ void write_fields(const std::filesystem::path& file, std::uint64_t key, const tr
     if (!out) throw core::Error(file.string(), "cannot write the reference cache");
 }
 
-// The truth of a frame, kept in the study's folder keyed by the scene, the strike and a
-// checksum of the lit channel (a changed bolt or timing recomputes it).
 StrikeScene strike_scene(const std::string& file) {
     const scene::Scene base = scene::load_scene(std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes" / file);
     core::Grid3<float> density = scene::make_density(base);
@@ -46,6 +44,8 @@ StrikeScene strike_scene(const std::string& file) {
     return {std::move(s), std::move(density), std::move(bases), std::move(media)};
 }
 
+// The truth of a frame, kept in the study's folder keyed by the scene, the strike and a
+// checksum of the lit channel (a changed bolt or timing recomputes it).
 runtime::Truth cached_truth(const scene::Scene& s, const core::Grid3<float>& density,
                             std::span<const lightning::LitSegment> lit, const runtime::TruthOptions& to,
                             const std::filesystem::path& file) {

@@ -11,7 +11,9 @@
 //   a camera along the test direction sees S (each cloud voxel's extinction times its
 //   transmittance toward the camera, shared among the lighting-grid nodes a march interpolates
 //   S from: mostly the cloud's lit surface and the empty nodes just outside it); the truth's own
-//   noise beside them.
+//   noise beside them. The weighting is a guide at a surface, not the image: a march also reads
+//   S where the trilinear density ramps down outside it (docs/blender.md measures the two on a
+//   slab).
 //   Outputs: directions.csv (one row per scene, light and test direction).
 #include "study/study.h"
 
