@@ -44,6 +44,23 @@ StrikeScene strike_scene(const std::string& file) {
     return {std::move(s), std::move(density), std::move(bases), std::move(media)};
 }
 
+StrikeFrame strike_frame(const Context& ctx, const StrikeScene& scene, const std::string& stem, std::uint64_t seed,
+                         std::uint64_t truth_paths) {
+    StrikeFrame f;
+    f.probe = std::make_unique<runtime::FramePipeline>(scene.scene, scene.density, scene.bases, std::nullopt,
+                                                       scene::quality_preset("paper"));
+    f.strike = f.probe->strike_at(0.0, seed);
+    f.time = f.probe->storm().strike(f.strike).profile.stroke_onset.at(0) + 0.002;
+    f.frame = f.probe->build(f.time, {});
+    runtime::TruthOptions to;
+    to.paths = truth_paths;
+    to.seed = seed;
+    f.truth = cached_truth(
+        scene.scene, scene.density, f.frame.segments, to,
+        ctx.file("truth-" + stem + "-" + std::to_string(seed) + "-" + std::to_string(truth_paths) + ".bin"));
+    return f;
+}
+
 // The truth of a frame, kept in the study's folder keyed by the scene, the strike and a
 // checksum of the lit channel (a changed bolt or timing recomputes it).
 runtime::Truth cached_truth(const scene::Scene& s, const core::Grid3<float>& density,

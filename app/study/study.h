@@ -8,6 +8,7 @@
 
 #include "common/registry.h"
 #include "runtime/baked_bases.h"
+#include "runtime/frame_pipeline.h"
 #include "runtime/reconstructor.h"
 #include "runtime/references.h"
 #include "scene/scene.h"
@@ -19,6 +20,7 @@
 #include <cmath>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -88,6 +90,19 @@ struct StrikeScene {
     solve::Media media;
 };
 StrikeScene strike_scene(const std::string& file);
+
+/// Strike `seed` alone in a StrikeScene at its first return stroke + 2 ms: the paper preset's
+/// frame of it and that frame's truth (cached_truth in ctx's folder, as
+/// truth-<stem>-<seed>-<truth_paths>.bin; seed `seed`).
+struct StrikeFrame {
+    std::unique_ptr<runtime::FramePipeline> probe;  ///< built the frame; its storm holds the strike
+    std::size_t strike = 0;                         ///< the strike's index in probe->storm()
+    double time = 0.0;                              ///< the frame's storm time, s
+    runtime::Frame frame;
+    runtime::Truth truth;
+};
+StrikeFrame strike_frame(const Context& ctx, const StrikeScene& scene, const std::string& stem, std::uint64_t seed,
+                         std::uint64_t truth_paths);
 
 /// A side view on the lighting grid, the quantity an image integrates: a camera far along -y
 /// looking along +y sees per (x, z) column sum_j T_j sigma_t,j S_j(toward the camera) h with

@@ -85,30 +85,22 @@ FULGUR_STUDY(denoise, "denoise",
     nlohmann::json out = nlohmann::json::array();
     for (int k = 0; k < strikes; ++k) {
         const std::uint64_t seed = std::uint64_t(k + 1);
-        runtime::FramePipeline probe(s, density, bases, {}, scene::quality_preset("paper"));
-        const std::size_t si = probe.strike_at(0.0, seed);
-        const lightning::Strike& strike = probe.storm().strike(si);
-        const double t = strike.profile.stroke_onset.at(0) + 0.002;
-        const runtime::Frame& pf = probe.build(t, {});
-        runtime::TruthOptions to;
-        to.paths = truth_paths;
-        to.seed = seed;
-        const runtime::Truth truth = study::cached_truth(
-            s, density, pf.segments, to,
-            ctx.file("truth-storm-" + std::to_string(seed) + "-" + std::to_string(truth_paths) + ".bin"));
-        const std::vector<float> tt = truth.sum().data;
+        const study::StrikeFrame sf = study::strike_frame(ctx, storm, "storm", seed, truth_paths);
+        lightning::Storm& probe_storm = sf.probe->storm();
+        const lightning::Strike& strike = probe_storm.strike(sf.strike);
+        const std::vector<float> tt = sf.truth.sum().data;
         const double tn2 = dist2(tt, std::vector<float>(tt.size(), 0.0f), rho);
         const lightning::FlashState st =
-            lightning::flash_state(strike.profile, probe.storm().params().timing, t - strike.time);
-        const std::vector<transport::LineSource> lines = runtime::strike_line_sources(probe.storm().bolt(si));
+            lightning::flash_state(strike.profile, probe_storm.params().timing, sf.time - strike.time);
+        const std::vector<transport::LineSource> lines = runtime::strike_line_sources(probe_storm.bolt(sf.strike));
         for (const auto& [n1, nm] : budgets) {
             // Two independent halves of each part, the groups at the frame's glow.
             std::array<std::vector<float>, 2> h1, hm;
             for (int h = 0; h < 2; ++h) {
-                const std::array<transport::MonteCarloOptions, 2> o = runtime::instant_tracer_options();
+                std::array<transport::MonteCarloOptions, 2> o = runtime::instant_tracer_options();
+                o[0].seed = core::hash_seed(seed, 10 + h);
+                o[1].seed = core::hash_seed(seed, 20 + h);
                 transport::ProgressiveMonteCarlo ps(tracing, {}, lines, dirs, o[0]), pm(tracing, {}, lines, dirs, o[1]);
-                ps.restart({}, lines, core::hash_seed(seed, 10 + h));
-                pm.restart({}, lines, core::hash_seed(seed, 20 + h));
                 ps.advance(n1 / 2);
                 pm.advance(nm / 2);
                 const transport::MonteCarloResult rs = ps.result(), rm = pm.result();
@@ -126,17 +118,22 @@ FULGUR_STUDY(denoise, "denoise",
                 e1[i] = 0.5f * (h1[0][i] + h1[1][i]);
                 em[i] = 0.5f * (hm[0][i] + hm[1][i]);
             }
+            // Each field filtered once per pass count (filtered[p] = p passes).
+            const auto passes = [&](const std::vector<float>& f, int most) {
+                std::vector<std::vector<float>> filtered{f};
+                for (int p = 1; p <= most; ++p) filtered.push_back(binomial(filtered.back(), geom, dirs.size(), 1));
+                return filtered;
+            };
+            const auto e1f = passes(e1, 2), emf = passes(em, 3);
+            const std::array<std::vector<std::vector<float>>, 2> h1f = {passes(h1[0], 2), passes(h1[1], 2)},
+                                                                 hmf = {passes(hm[0], 3), passes(hm[1], 3)};
+            const std::array<std::vector<float>, 2> raw_half = {plus(h1[0], hm[0]), plus(h1[1], hm[1])};
             double best_cv = 1e300, chosen = 0.0, raw = 0.0;
             for (int p1 = 0; p1 <= 2; ++p1)
                 for (int p2 = 0; p2 <= 3; ++p2) {
-                    const std::vector<float> est =
-                        plus(binomial(e1, geom, dirs.size(), p1), binomial(em, geom, dirs.size(), p2));
-                    const double err = std::sqrt(dist2(est, tt, rho) / tn2);
+                    const double err = std::sqrt(dist2(plus(e1f[p1], emf[p2]), tt, rho) / tn2);
                     double cv2 = 0.0;
-                    for (int h = 0; h < 2; ++h)
-                        cv2 += 0.5 * dist2(plus(binomial(h1[h], geom, dirs.size(), p1),
-                                                binomial(hm[h], geom, dirs.size(), p2)),
-                                           plus(h1[1 - h], hm[1 - h]), rho);
+                    for (int h = 0; h < 2; ++h) cv2 += 0.5 * dist2(plus(h1f[h][p1], hmf[h][p2]), raw_half[1 - h], rho);
                     const double cv = std::sqrt(cv2 / tn2);
                     rows << double(seed) << double(n1) << double(nm) << double(p1) << double(p2) << err << cv;
                     rows.end_row();

@@ -148,21 +148,18 @@ FULGUR_STUDY(directions, "directions",
                 const float* exact = part.s.data() + (std::size_t(nbaked) + k) * cells;
                 double diff2 = 0.0, ref2 = 0.0, sum_i = 0.0, sum_e = 0.0, seen_i = 0.0, seen_e = 0.0;
                 for (std::size_t i = 0; i < cells; ++i) {
-                    if (!(rho[i] > 0.0f)) continue;
+                    const bool cloud = rho[i] > 0.0f, seen_here = seen[k][i] > 0.0;
+                    if (!cloud && !seen_here) continue;
                     double v = 0.0;
                     for (int q = 0; q < w.count; ++q)
                         v += w.weight[q] * double(part.s[std::size_t(w.index[q]) * cells + i]);
-                    diff2 += (v - exact[i]) * (v - exact[i]);
-                    ref2 += double(exact[i]) * exact[i];
-                    sum_i += v;
-                    sum_e += exact[i];
-                }
-                for (std::size_t i = 0; i < cells; ++i) {
-                    if (!(seen[k][i] > 0.0)) continue;
-                    double v = 0.0;
-                    for (int q = 0; q < w.count; ++q)
-                        v += w.weight[q] * double(part.s[std::size_t(w.index[q]) * cells + i]);
-                    seen_i += seen[k][i] * v;
+                    if (cloud) {
+                        diff2 += (v - exact[i]) * (v - exact[i]);
+                        ref2 += double(exact[i]) * exact[i];
+                        sum_i += v;
+                        sum_e += exact[i];
+                    }
+                    seen_i += seen[k][i] * v;  // 0 where nothing is seen
                     seen_e += seen[k][i] * exact[i];
                 }
                 const double err = std::sqrt(diff2 / ref2), ratio = sum_i / sum_e, seen_ratio = seen_i / seen_e;

@@ -79,16 +79,9 @@ FULGUR_STUDY(first_frame, "first-frame",
                     {"seed", "candidate", "single_error", "multiple_error", "total_error", "seconds"});
     for (int k = 0; k < strikes; ++k) {
         const std::uint64_t seed = std::uint64_t(k + 1);
-        runtime::FramePipeline probe(s, density, bases, {}, scene::quality_preset("paper"));
-        const std::size_t i = probe.strike_at(0.0, seed);
-        const double t = probe.storm().strike(i).profile.stroke_onset.at(0) + 0.002;
-        const runtime::Frame pf = probe.build(t, {});
-        runtime::TruthOptions to;
-        to.paths = truth_paths;
-        to.seed = seed;
-        const runtime::Truth truth = study::cached_truth(
-            s, density, pf.segments, to,
-            ctx.file("truth-storm-" + std::to_string(seed) + "-" + std::to_string(truth_paths) + ".bin"));
+        const study::StrikeFrame sf = study::strike_frame(ctx, storm, "storm", seed, truth_paths);
+        const runtime::Frame& pf = sf.frame;
+        const runtime::Truth& truth = sf.truth;
         const transport::SourceField tt = truth.sum();
 
         runtime::Reconstructor rec(bases);
@@ -185,7 +178,7 @@ FULGUR_STUDY(first_frame, "first-frame",
         // bake's grid and with nodes inserted between the bake's on every axis (2x, 4x
         // denser: how dense perfect bases would have to be under the splat); then the frame's
         // point sources traced the same way (the channel cut into points, no splat).
-        runtime::TruthOptions po = to;
+        runtime::TruthOptions po;
         po.paths = truth_paths / 2;
         po.seed = seed + 1000;
         for (const int split : {1, 2, 4}) {

@@ -76,19 +76,12 @@ FULGUR_STUDY(latency, "latency",
             const std::uint64_t seed = std::uint64_t(k + 1);
             // The truth of the frame (from a paper pipeline: the lit channel does not depend on
             // the preset).
-            runtime::FramePipeline probe(s, density, bases, {}, scene::quality_preset("paper"));
-            const std::size_t i = probe.strike_at(0.0, seed);
-            const double t = probe.storm().strike(i).profile.stroke_onset.at(0) + 0.002;
-            const runtime::Frame& pf = probe.build(t, {});
-            runtime::TruthOptions to;
-            to.paths = truth_paths;
-            to.seed = seed;
             std::fprintf(stderr, "latency: %s: truth of strike %llu\n", c.file.c_str(),
                          static_cast<unsigned long long>(seed));
-            const runtime::Truth truth =
-                cached_truth(s, density, pf.segments, to,
-                             ctx.file("truth-" + std::filesystem::path(c.file).stem().string() + "-" +
-                                      std::to_string(seed) + "-" + std::to_string(truth_paths) + ".bin"));
+            const study::StrikeFrame sf =
+                study::strike_frame(ctx, prepared, std::filesystem::path(c.file).stem().string(), seed, truth_paths);
+            const double t = sf.time;
+            const runtime::Truth& truth = sf.truth;
             const transport::SourceField tt = truth.sum();
             for (const std::string& name : presets) {
                 scene::Quality q = scene::quality_preset(name);
