@@ -88,16 +88,18 @@ def block_mean(x, n):
 def region_figures(f, c, a, b, mask):
     if not mask.any():
         return {"pixels": 0}
-    fm, cm = f[mask], c[mask]
+    fm, cm, am, bm = f[mask], c[mask], a[mask], b[mask]
     c2 = float(np.sum(cm * cm))
-    err = math.sqrt(float(np.sum((fm - cm) ** 2)) / c2) if c2 > 0 else float("nan")
-    noise = math.sqrt(float(np.sum(((a[mask] - b[mask]) / 2) ** 2)) / c2) if c2 > 0 else float("nan")
-    # Per pixel, (f - c)^2 - ((a - b) / 2)^2 is an unbiased estimate of (f - mean)^2 whatever
-    # Cycles' noise distribution (c's variance is half a seed's, ((a - b) / 2)^2's mean the
-    # same); the spread of these terms over the region gives the standard error of their sum,
-    # pixels taken as independent, and so a two-sigma upper bound on the error without noise.
-    t = (fm - cm) ** 2 - ((a[mask] - b[mask]) / 2) ** 2
-    t = t.reshape(t.shape[0], -1).sum(axis=1)
+    # Per pixel (summed over the colours): the squared error and Cycles' noise, (a - b)^2 / 4.
+    # Their difference is an unbiased estimate of (f - mean)^2 whatever Cycles' noise
+    # distribution (c's variance is half a seed's, ((a - b) / 2)^2's mean the same); its spread
+    # over the region gives the standard error of its sum, pixels taken as independent, and so a
+    # two-sigma upper bound on the error without noise.
+    e2 = ((fm - cm) ** 2).reshape(fm.shape[0], -1).sum(axis=1)
+    n2 = (((am - bm) / 2) ** 2).reshape(fm.shape[0], -1).sum(axis=1)
+    err = math.sqrt(float(np.sum(e2)) / c2) if c2 > 0 else float("nan")
+    noise = math.sqrt(float(np.sum(n2)) / c2) if c2 > 0 else float("nan")
+    t = e2 - n2
     se = math.sqrt(float(np.sum((t - t.mean()) ** 2))) if t.size > 1 else float("inf")
     upper = math.sqrt(max(0.0, float(np.sum(t)) + 2.0 * se) / c2) if c2 > 0 else float("nan")
     return {
@@ -109,7 +111,7 @@ def region_figures(f, c, a, b, mask):
         "ratio_of_totals": float(np.sum(fm)) / float(np.sum(cm)) if np.sum(cm) > 0 else float("nan"),
         # The mean's relative noise in the total, from the two seeds' totals (|A - B| / 2 over
         # the mean: a one-sample estimate of it).
-        "cycles_total_noise": abs(float(np.sum(a[mask]) - np.sum(b[mask]))) / float(np.sum(a[mask]) + np.sum(b[mask]))
+        "cycles_total_noise": abs(float(np.sum(am) - np.sum(bm))) / float(np.sum(am) + np.sum(bm))
         if np.sum(cm) > 0 else float("nan"),
     }
 
