@@ -4,6 +4,7 @@
 // Carlo of a homogeneous layer (orders 1 and >= 2, layer by layer, at g = 0 and 0.8).
 #include "lumpy_cloud.h"
 #include "sky/sky.h"
+#include "support/layer_monte_carlo.h"
 #include "support/test_support.h"
 
 #include <doctest/doctest.h>
@@ -182,107 +183,6 @@ TEST_CASE("the sky solved by the dome's Monte Carlo: orders 1 and 2 as the truth
     }
 }
 
-namespace {
-
-// An independent estimate of the sun's S in an infinite homogeneous layer: the layer's own
-// Monte Carlo in depth alone (no grid, no voxels across, no tally box, no code shared with the
-// engine's tracer): photons enter the top along the sun, fly exponential steps, keep albedo x
-// their weight at each collision (Russian roulette below 0.1), scatter by Henyey-Greenstein;
-// every flight adds its length in each layer times p(s_m . d) (track-length estimate of
-// integral p L dw), order 1 and orders >= 2 apart; batches give the standard errors.
-struct LayerEstimate {
-    // [order 0: single, 1: multiple][layer][direction]: mean and standard error
-    std::array<std::vector<std::vector<double>>, 2> mean, se;
-};
-
-double hg(double g, double mu) { return (1.0 - g * g) / (4.0 * M_PI * std::pow(1.0 + g * g - 2.0 * g * mu, 1.5)); }
-
-glm::dvec3 scatter_hg(const glm::dvec3& d, double g, core::Rng& rng) {
-    const double u = rng.uniform(), v = rng.uniform();
-    double mu;
-    if (std::fabs(g) < 1e-6) {
-        mu = 1.0 - 2.0 * u;
-    } else {
-        const double q = (1.0 - g * g) / (1.0 - g + 2.0 * g * u);
-        mu = std::clamp((1.0 + g * g - q * q) / (2.0 * g), -1.0, 1.0);
-    }
-    const double st = std::sqrt(std::max(0.0, 1.0 - mu * mu)), phi = 2.0 * M_PI * v;
-    // An orthonormal frame around d.
-    const glm::dvec3 a = std::fabs(d.z) < 0.9 ? glm::dvec3(0, 0, 1) : glm::dvec3(1, 0, 0);
-    const glm::dvec3 t = glm::normalize(glm::cross(a, d)), b = glm::cross(d, t);
-    return glm::normalize(mu * d + st * (std::cos(phi) * t + std::sin(phi) * b));
-}
-
-LayerEstimate layer_monte_carlo(double sigma, double albedo, double g, double layer, int layers, const glm::dvec3& sun,
-                                std::span<const glm::dvec3> dirs, int photons, int batches) {
-    const std::size_t M = dirs.size();
-    const double top = layer * layers, mu0 = -sun.z;
-    LayerEstimate out;
-    std::array<std::vector<std::vector<double>>, 2> sum, sum2;
-    for (int o = 0; o < 2; ++o) {
-        sum[o].assign(std::size_t(layers), std::vector<double>(M, 0.0));
-        sum2[o] = sum[o];
-    }
-    core::Rng rng(20261201, 7);
-    for (int b = 0; b < batches; ++b) {
-        std::array<std::vector<std::vector<double>>, 2> acc;
-        for (int o = 0; o < 2; ++o) acc[o].assign(std::size_t(layers), std::vector<double>(M, 0.0));
-        for (int n = 0; n < photons; ++n) {
-            double z = top, w = 1.0;
-            glm::dvec3 d = sun;
-            for (int k = 0;; ++k) {
-                const double s = -std::log1p(-rng.uniform()) / sigma;
-                double z1 = z + s * d.z;
-                const bool out_of = z1 > top || z1 < 0.0;
-                z1 = std::clamp(z1, 0.0, top);
-                // The flight's length in each layer it crosses.
-                const double lo = std::min(z, z1), hi = std::max(z, z1),
-                             per = std::fabs(d.z) > 1e-12 ? 1.0 / std::fabs(d.z) : 0.0;
-                auto& a = acc[k == 0 ? 0 : 1];
-                if (per > 0.0)
-                    for (int l = std::max(0, int(lo / layer)); l < layers && l * layer < hi; ++l) {
-                        const double len = (std::min(hi, (l + 1) * layer) - std::max(lo, l * layer)) * per;
-                        if (len <= 0.0) continue;
-                        for (std::size_t m = 0; m < M; ++m)
-                            a[std::size_t(l)][m] += w * len * hg(g, glm::dot(dirs[m], d));
-                    }
-                if (out_of) break;
-                z = z1;
-                w *= albedo;
-                if (w < 0.1) {
-                    if (rng.uniform() < 0.5) break;
-                    w *= 2.0;
-                }
-                d = scatter_hg(d, g, rng);
-            }
-        }
-        // S = albedo * E mu0 * (sum of w len p) / (photons * layer thickness), for unit
-        // irradiance E across the sun's beam (E mu0 through the layer's top per unit area).
-        const double k = albedo * mu0 / (double(photons) * layer);
-        for (int o = 0; o < 2; ++o)
-            for (int l = 0; l < layers; ++l)
-                for (std::size_t m = 0; m < M; ++m) {
-                    const double v = acc[o][std::size_t(l)][m] * k;
-                    sum[o][std::size_t(l)][m] += v;
-                    sum2[o][std::size_t(l)][m] += v * v;
-                }
-    }
-    for (int o = 0; o < 2; ++o) {
-        out.mean[o] = sum[o];
-        out.se[o] = sum[o];
-        for (int l = 0; l < layers; ++l)
-            for (std::size_t m = 0; m < M; ++m) {
-                const double mean = sum[o][std::size_t(l)][m] / batches;
-                const double var = std::max(0.0, sum2[o][std::size_t(l)][m] / batches - mean * mean);
-                out.mean[o][std::size_t(l)][m] = mean;
-                out.se[o][std::size_t(l)][m] = std::sqrt(var / (batches - 1));
-            }
-    }
-    return out;
-}
-
-}  // namespace
-
 TEST_CASE("the sun's truth against an independent Monte Carlo of a homogeneous layer, layer by layer") {
     // A layer 5 voxels (500 m) thick at extinction 0.02 per metre (optical depth 10, 2 per voxel),
     // albedo 0.99, lit by the sun at 32 degrees, at g = 0 and at the day cumulus's 0.8. The
@@ -315,7 +215,8 @@ TEST_CASE("the sun's truth against an independent Monte Carlo of a homogeneous l
             to.seed = 23 + r;
             runs[r] = sky::sun_truth(full_media(m), sun, dirs, to);
         }
-        const LayerEstimate ref = layer_monte_carlo(sigma, albedo, g, voxel, layers, sun, dirs, 50'000, 20);
+        const test::LayerEstimate ref =
+            test::layer_monte_carlo({sigma, albedo, g, voxel, layers, sun}, dirs, {}, 50'000, 20);
         for (int o = 0; o < 2; ++o) {
             CAPTURE(o);
             // [layer][direction] means of the middle columns, per run.
