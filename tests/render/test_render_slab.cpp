@@ -39,7 +39,7 @@ TEST_CASE("the image of a sunlit homogeneous layer against the layer's own Monte
     // The layer: 10 voxels of 100 m at 0.01 per metre (optical depth 10, 1 per voxel), albedo
     // 0.99, 100 x 100 voxels wide, S on the density's own voxels. The sun at 32 degrees; the
     // camera 3 km from the middle of the top, 35 degrees above it, 20 degrees field of view: the
-    // middle 16 x 12 of its 32 x 24 pixels see 1 x 0.5 km of the top, at least 4 km (8
+    // middle 16 x 12 of its 32 x 24 pixels see about 0.7 x 0.9 km of the top, over 4 km (8
     // transport mean free paths at g = 0.8) from the edges, i.e. an infinite layer.
     const int nx = 100, layers = 10, W = 32, H = 24;
     const double voxel = 100.0, sigma = 0.01, albedo = 0.99, top = voxel * layers;
@@ -133,7 +133,7 @@ TEST_CASE("the image of a sunlit homogeneous layer against the layer's own Monte
         // transmittance vary over a voxel of one optical depth, and the march reads them at the
         // voxels' centres; at g = 0.8 S also peaks between the baked directions toward this
         // camera. Measured (2026-12-01): totals 0.9468 / 0.8977, orders 1 0.9547 / 0.9476.
-        // Bounds: the totals' spread over four seeds of the truth is 0.16% and 0.09% (the
+        // Bounds: the totals' spread over three seeds of the truth is 0.16% and 0.09% (the
         // layer's S averaged over 1600 columns), the layer Monte Carlo's 0.03%; 1% is six or
         // more of those, and what a better read of S at surfaces moves. Order 1 is
         // deterministic (the transmittance by exact traversal, no paths): 0.3% for the float
