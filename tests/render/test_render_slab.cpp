@@ -83,11 +83,8 @@ TEST_CASE("the image of a sunlit homogeneous layer against the layer's own Monte
         std::vector<std::vector<float>> rgb(dirs.size(), std::vector<float>(cells * 3));
         for (std::size_t d = 0; d < dirs.size(); ++d)
             for (int k = 0; k < geom.dims.z; ++k) {
-                double sum = 0.0;
-                for (int j = nx / 2 - 20; j < nx / 2 + 20; ++j)
-                    for (int i = nx / 2 - 20; i < nx / 2 + 20; ++i)
-                        sum += truth.field.multiple.data[d * cells + geom.index(i, j, k)];
-                const float mean = float(sum / 1600.0);
+                const float mean =
+                    float(test::middle_columns_mean(truth.field.multiple, d, k, nx / 2 - 20, nx / 2 + 20));
                 for (int j = 0; j < nx; ++j)
                     for (int i = 0; i < nx; ++i)
                         for (int c = 0; c < 3; ++c) rgb[d][3 * geom.index(i, j, k) + std::size_t(c)] = mean;

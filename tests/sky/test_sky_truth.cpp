@@ -225,12 +225,8 @@ TEST_CASE("the sun's truth against an independent Monte Carlo of a homogeneous l
                 const transport::SourceField& f = o == 0 ? runs[r].field.single : runs[r].field.multiple;
                 mid[r].assign(std::size_t(layers), std::vector<double>(M, 0.0));
                 for (int l = 0; l < layers; ++l)
-                    for (std::size_t mi = 0; mi < M; ++mi) {
-                        double sum = 0.0;
-                        for (int j = lo; j < hi; ++j)
-                            for (int i = lo; i < hi; ++i) sum += f.data[mi * geom.cell_count() + geom.index(i, j, l)];
-                        mid[r][std::size_t(l)][mi] = sum / double((hi - lo) * (hi - lo));
-                    }
+                    for (std::size_t mi = 0; mi < M; ++mi)
+                        mid[r][std::size_t(l)][mi] = test::middle_columns_mean(f, mi, l, lo, hi);
             }
             // Sums over subsets of (layer, direction): each layer (over the directions), each
             // direction (over the layers), and everything. For each: the engine's mean of the two

@@ -14,6 +14,7 @@
 #pragma once
 
 #include "core/rng.h"
+#include "transport/transport.h"
 
 #include <glm/geometric.hpp>
 #include <glm/glm.hpp>
@@ -74,6 +75,16 @@ inline glm::dvec3 layer_scatter(const glm::dvec3& d, double g, core::Rng& rng) {
     const glm::dvec3 a = std::fabs(d.z) < 0.9 ? glm::dvec3(0, 0, 1) : glm::dvec3(1, 0, 0);
     const glm::dvec3 t = glm::normalize(glm::cross(a, d)), b = glm::cross(d, t);
     return glm::normalize(mu * d + st * (std::cos(phi) * t + std::sin(phi) * b));
+}
+
+/// The mean of a field's direction `m` over columns [lo, hi) x [lo, hi) of layer `k`: an
+/// engine field read where the layer is the same in every column (far from its edges).
+inline double middle_columns_mean(const transport::SourceField& f, std::size_t m, int k, int lo, int hi) {
+    const core::GridGeometry& g = f.geom;
+    double sum = 0.0;
+    for (int j = lo; j < hi; ++j)
+        for (int i = lo; i < hi; ++i) sum += f.data[m * g.cell_count() + g.index(i, j, k)];
+    return sum / double((hi - lo) * (hi - lo));
 }
 
 /// `dirs`: output directions of S; `views`: directions toward a camera above the layer.
