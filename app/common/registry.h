@@ -1,10 +1,10 @@
 // A name -> function registry and the main() of the tools built on one: fulgur-bench and
 // fulgur-study. Each entry file registers itself at static initialization
 // (FULGUR_REGISTRY_ENTRY, wrapped by FULGUR_BENCH and FULGUR_STUDY); main() parses
-// [--quick] [tool options] [NAME...] with CLI11 and runs the named entries (all if none).
+// [--quick] [tool options] [NAME...] with CLI11 (in registry.cpp, so the entry files do not
+// compile it) and runs the named entries (all if none).
 #pragma once
 
-#include "common/cli.h"
 #include "core/core.h"
 
 #include <cstdio>
@@ -12,6 +12,10 @@
 #include <map>
 #include <string>
 #include <vector>
+
+namespace CLI {
+class App;
+}
 
 namespace fulgur::app {
 
@@ -51,46 +55,24 @@ struct RegistryTool {
     int name_width = 10;      ///< the entries' names are padded to this width in the list
 };
 
-/// The main() of a registry tool: [--quick] [options] [NAME...] (`options` declares the
-/// tool's own; --quick sets ctx.quick). Runs the named entries in the order given, all of
-/// them (by name) when none is; --help lists the entries with their help. Exit status 0, 1
-/// when an entry throws, 2 on an invalid command line or an unknown name.
+/// The command line of a registry tool, apart from its entries' types (common/registry.cpp,
+/// the one place CLI11 is compiled for the entry files): [--quick] [options] [NAME...] over
+/// `entries` (name -> help). Runs `run(name)` for the names given, in that order, or for all
+/// of them (sorted) when none is. Exit status 0, 1 when `run` throws, 2 on an invalid command
+/// line or an unknown name.
+int run_registry(int argc, char** argv, const RegistryTool& t, const std::map<std::string, std::string>& entries,
+                 bool& quick, const std::function<void(CLI::App&)>& options,
+                 const std::function<void(const std::string&)>& run);
+
+/// The main() of a registry tool: run_registry() over Registry<Context>'s entries, --quick
+/// setting ctx.quick (`options` declares the tool's own).
 template <class Context>
 int registry_main(int argc, char** argv, const RegistryTool& t, Context& ctx,
                   const std::function<void(CLI::App&)>& options = {}) {
     const auto& entries = Registry<Context>::entries();
-    std::string listing = t.description + "\n";
-    for (const auto& [name, e] : entries) {
-        std::string padded = name;
-        if (padded.size() < std::size_t(t.name_width)) padded.resize(std::size_t(t.name_width), ' ');
-        listing += "\n  " + padded + " " + e.help;
-    }
-    CommandLine cli(t.tool, listing);
-    cli.app().add_flag("--quick", ctx.quick, "smaller problems and fewer repeats (smoke runs)");
-    if (options) options(cli.app());
-    std::vector<std::string> names;
-    cli.app().add_option("NAME", names, "which of the above to run (all if none)");
-    try {
-        if (!cli.parse(std::vector<std::string>(argv + 1, argv + argc))) {
-            std::fputs(cli.help().c_str(), stdout);
-            return 0;
-        }
-        for (const std::string& n : names)
-            if (!entries.count(n))
-                throw core::Error(t.tool, std::string("unknown ") + t.entry_kind + " '" + n + "' (see --help)");
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "%s\n", e.what());
-        return kExitUsage;
-    }
-    if (names.empty())
-        for (const auto& [name, e] : entries) names.push_back(name);
-    try {
-        for (const std::string& n : names) entries.at(n).fn(ctx);
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "%s: %s\n", t.tool, e.what());
-        return kExitFailure;
-    }
-    return 0;
+    std::map<std::string, std::string> helps;
+    for (const auto& [name, e] : entries) helps[name] = e.help;
+    return run_registry(argc, argv, t, helps, ctx.quick, options, [&](const std::string& n) { entries.at(n).fn(ctx); });
 }
 
 }  // namespace fulgur::app

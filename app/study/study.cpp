@@ -1,6 +1,7 @@
 #include "study/study.h"
 
 #include "bake/bake.h"
+#include "common/cli.h"
 #include "core/core.h"
 
 #include <algorithm>
