@@ -264,6 +264,9 @@ std::vector<NamedField> read_light_file(const std::filesystem::path& path, const
     if (shape) check_shape(name, g, dirs, *shape);
     const auto nfields = r.get<std::uint32_t>("the field count");
     if (nfields > kMaxFields) r.fail(std::to_string(nfields) + " fields (at most 16)");
+    // A field holds S per output direction: with none it would hold nothing (an empty field a
+    // composition cannot read; fuzz_fgl found its copy of zero bytes from no storage).
+    if (nfields > 0 && ndirs == 0) r.fail(std::to_string(nfields) + " fields over no output directions");
     if (nfields > 0) {
         try {
             core::validate_geometry(g, name + ": grid");

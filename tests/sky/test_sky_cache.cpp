@@ -113,6 +113,15 @@ TEST_CASE("light file: one for another grid or directions, or with values no sol
         CHECK_THROWS_WITH_AS(sky::read_light_file(path, &key, &shape), doctest::Contains("field \"single\": value 0"),
                              core::Error);
     }
+    // Fields over no output directions (a checksummed file of empty fields; found by fuzz_fgl).
+    std::vector<sky::NamedField> empty = two_fields();
+    for (sky::NamedField& f : empty) {
+        f.field.directions.clear();
+        f.field.data.clear();
+    }
+    sky::write_light_file(path, key, empty);
+    CHECK_THROWS_WITH_AS(sky::read_light_file(path, &key), doctest::Contains("2 fields over no output directions"),
+                         core::Error);
     // The file is sized against the shape before it is read: more bytes than the grid needs
     // are refused before any is read.
     sky::write_light_file(path, key, fields);
