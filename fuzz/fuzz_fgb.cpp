@@ -7,45 +7,35 @@
 // the input, then the header CRC), and the mutations reach the metadata, the index and the
 // blocks' decoding. The mismatches themselves are tested in tests/basis (test_fgb).
 #include "basis/basis.h"
-#include "basis/detail/internal.h"
+#include "basis/detail/fgb_codec.h"
 
 #include <cstddef>
 #include <cstdint>
-#include <cstring>
 #include <span>
 #include <vector>
 
 namespace {
 
 namespace fgb = fulgur::basis::fgb;
-
-template <class T>
-T peek(const std::vector<std::uint8_t>& b, std::size_t at) {
-    T v;
-    std::memcpy(&v, b.data() + at, sizeof v);
-    return v;
-}
-template <class T>
-void poke(std::vector<std::uint8_t>& b, std::size_t at, T v) {
-    std::memcpy(b.data() + at, &v, sizeof v);
-}
+using fgb::peek;
+using fgb::poke;
 
 void make_checks_match(std::vector<std::uint8_t>& b) {
     if (b.size() < fgb::kHeaderSize) return;
     const std::uint64_t size = b.size();
     poke(b, fgb::kOffFileSize, size);
-    const auto index_offset = peek<std::uint64_t>(b, fgb::kOffIndexOffset);
-    const auto index_size = peek<std::uint64_t>(b, fgb::kOffIndexSize);
-    constexpr std::uint64_t kEntry = 24;
+    const auto index_offset = peek<std::uint64_t>(b.data() + fgb::kOffIndexOffset);
+    const auto index_size = peek<std::uint64_t>(b.data() + fgb::kOffIndexSize);
     if (index_offset <= size && index_size <= size - index_offset)
-        for (std::uint64_t e = index_offset; e + kEntry <= index_offset + index_size; e += kEntry) {
-            const auto offset = peek<std::uint64_t>(b, std::size_t(e));
-            const auto n = peek<std::uint64_t>(b, std::size_t(e + 8));
+        for (std::uint64_t e = index_offset; e + fgb::kIndexEntrySize <= index_offset + index_size;
+             e += fgb::kIndexEntrySize) {
+            const auto offset = peek<std::uint64_t>(b.data() + e);
+            const auto n = peek<std::uint64_t>(b.data() + e + 8);
             if (offset <= size && n <= size - offset)
                 poke(b, std::size_t(e + 16),
                      fulgur::basis::crc32_of(std::span<const std::uint8_t>(b.data() + offset, std::size_t(n))));
         }
-    poke(b, fgb::kOffHeaderCrc, fgb::header_crc(b, peek<std::uint64_t>(b, fgb::kOffBlocksOffset)));
+    poke(b, fgb::kOffHeaderCrc, fgb::header_crc(b, peek<std::uint64_t>(b.data() + fgb::kOffBlocksOffset)));
 }
 
 }  // namespace

@@ -285,7 +285,7 @@ TEST_CASE("sub-voxel detail is optional; its values are bounded, naming the fiel
                                                           {"\"strength\": 2", "/cloud/detail/strength"},
                                                           {"\"strength\": \"high\"", "/cloud/detail/strength"},
                                                           {"\"sclae\": 100", "/cloud/detail/sclae"}}) {
-        // (named copies: clang before 16 refuses a structured binding inside doctest's lambda)
+        // (a named reference: clang before 16 refuses a structured binding inside doctest's lambda)
         const std::string& body = bad.first;
         CAPTURE(body);
         const std::string where = "bad.json: " + bad.second;
@@ -314,7 +314,7 @@ TEST_CASE("rain is optional; its values are bounded, naming the field") {
                                                           {"\"g\": 1", "/rain/g"},
                                                           {"\"albedo\": 1.5", "/rain/albedo"},
                                                           {"\"drizzle\": true", "/rain/drizzle"}}) {
-        // (named copies: clang before 16 refuses a structured binding inside doctest's lambda)
+        // (a named reference: clang before 16 refuses a structured binding inside doctest's lambda)
         const std::string& body = bad.first;
         CAPTURE(body);
         const std::string where = "bad.json: " + bad.second;
