@@ -27,6 +27,10 @@ OUT_DIR (default: docs/images):
                       one panel per scene: the sun's configurations (worst of its elevations)
                       and the sky dome's configurations (directions or the dome's Monte Carlo; the
                       scene's sky), the aims dotted.
+  near_field.csv   -> near_field.{png,svg}: the splat with a near-field correction, worst strike's
+                      error against the truth versus the correction's time (one thread, the
+                      slowest strike) per model and ray count; the paper frame, perfect bases
+                      with the corrections and the 20% first-frame aim as lines.
 Run with /usr/bin/python3 (Debian's matplotlib lives there).
 """
 import csv
@@ -383,6 +387,45 @@ def plot_static_frontier(study, out_dir):
     save(fig, out_dir, "static_frontier")
 
 
+# --- near-field correction of the splat -----------------------------------------------------
+
+
+def plot_near_field(study, out_dir):
+    rows = read(study / "near_field.csv")
+    worst = {}  # candidate -> rays -> [worst total, slowest seconds]
+    for r in rows:
+        w = worst.setdefault(r["candidate"], {}).setdefault(int(float(r["rays"])), [0.0, 0.0])
+        w[0] = max(w[0], 100 * float(r["total_error"]))
+        w[1] = max(w[1], float(r["seconds"]))
+    fig, ax = plt.subplots(figsize=(8.5, 4.4))
+    colours = iter(("tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:pink"))
+    lines = iter(("--", "-.", ":"))
+    offsets = iter(((2, 3), (2, -10), (2, 3)))  # perfect-bases labels above and below their lines
+    for name, by_rays in worst.items():
+        if 0 in by_rays:  # no correction, or perfect bases: no time of its own
+            ax.axhline(by_rays[0][0], color="tab:blue" if name == "paper" else "0.5", lw=1.0, ls="-")
+            ax.annotate(name, (1e-2, by_rays[0][0]), textcoords="offset points", xytext=(2, 3), fontsize=7)
+        elif name.startswith("perfect bases"):
+            (_, (err, _)), = by_rays.items()
+            ax.axhline(err, color="0.5", lw=1.0, ls=next(lines))
+            ax.annotate(name, (1e-2, err), textcoords="offset points", xytext=next(offsets), fontsize=7)
+        else:
+            pts = sorted((s, e, n) for n, (e, s) in by_rays.items())
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", color=next(colours), label=name)
+            for s, e, n in pts:
+                ax.annotate(f"{n}", (s, e), textcoords="offset points", xytext=(3, 3), fontsize=6)
+    ax.axhline(20, color="tab:red", lw=0.8, ls=":")
+    ax.annotate("first-frame aim 20%", (1e-2, 20), textcoords="offset points", xytext=(2, -10), fontsize=7,
+                color="tab:red")
+    ax.set_xscale("log")
+    ax.set_xlim(left=5e-3)
+    ax.set_ylim(bottom=0)
+    ax.set_xlabel("correction time, s (one thread, slowest strike; labels: rays per point)")
+    ax.set_ylabel("worst strike: S error against the truth, %")
+    finish_single(fig, ax, "The splat with a near-field correction (default storm, 5 strikes)", out_dir,
+                  "near_field")
+
+
 def main():
     if len(sys.argv) < 2:
         sys.exit(__doc__)
@@ -393,7 +436,8 @@ def main():
               ("lb_convergence.csv", plot_lb_convergence), ("lb_vs_mc_profile.csv", plot_lb_vs_mc_profile),
               ("runtime_accuracy.csv", plot_runtime_accuracy),
               ("runtime_accuracy_spacing.csv", plot_runtime_accuracy_spacing),
-              ("latency_summary.csv", plot_latency), ("static_frontier.csv", plot_static_frontier))
+              ("latency_summary.csv", plot_latency), ("static_frontier.csv", plot_static_frontier),
+              ("near_field.csv", plot_near_field))
     for name, fn in tables:
         if (study / name).exists():
             fn(study, out_dir)
