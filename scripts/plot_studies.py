@@ -29,8 +29,9 @@ OUT_DIR (default: docs/images):
                       scene's sky), the aims dotted.
   near_field.csv   -> near_field.{png,svg}: the splat with a near-field correction, worst strike's
                       error against the truth versus the correction's time (one thread, the
-                      slowest strike) per model and ray count; the paper frame, perfect bases
-                      with the corrections and the 20% first-frame aim as lines.
+                      slowest strike) per model and ray count, one panel per scene; the paper
+                      frame, perfect bases with the corrections and the 20% first-frame aim as
+                      lines.
 Run with /usr/bin/python3 (Debian's matplotlib lives there).
 """
 import csv
@@ -392,38 +393,45 @@ def plot_static_frontier(study, out_dir):
 
 def plot_near_field(study, out_dir):
     rows = read(study / "near_field.csv")
-    worst = {}  # candidate -> rays -> [worst total, slowest seconds]
-    for r in rows:
-        w = worst.setdefault(r["candidate"], {}).setdefault(int(float(r["rays"])), [0.0, 0.0])
-        w[0] = max(w[0], 100 * float(r["total_error"]))
-        w[1] = max(w[1], float(r["seconds"]))
-    fig, ax = plt.subplots(figsize=(8.5, 4.4))
-    colours = iter(("tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:pink"))
-    lines = iter(("--", "-.", ":"))
-    offsets = iter(((2, 3), (2, -10), (2, 3)))  # perfect-bases labels above and below their lines
-    for name, by_rays in worst.items():
-        if 0 in by_rays:  # no correction, or perfect bases: no time of its own
-            ax.axhline(by_rays[0][0], color="tab:blue" if name == "paper" else "0.5", lw=1.0, ls="-")
-            ax.annotate(name, (1e-2, by_rays[0][0]), textcoords="offset points", xytext=(2, 3), fontsize=7)
-        elif name.startswith("perfect bases"):
-            (_, (err, _)), = by_rays.items()
-            ax.axhline(err, color="0.5", lw=1.0, ls=next(lines))
-            ax.annotate(name, (1e-2, err), textcoords="offset points", xytext=next(offsets), fontsize=7)
-        else:
-            pts = sorted((s, e, n) for n, (e, s) in by_rays.items())
-            ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", color=next(colours), label=name)
-            for s, e, n in pts:
-                ax.annotate(f"{n}", (s, e), textcoords="offset points", xytext=(3, 3), fontsize=6)
-    ax.axhline(20, color="tab:red", lw=0.8, ls=":")
-    ax.annotate("first-frame aim 20%", (1e-2, 20), textcoords="offset points", xytext=(2, -10), fontsize=7,
-                color="tab:red")
-    ax.set_xscale("log")
-    ax.set_xlim(left=5e-3)
-    ax.set_ylim(bottom=0)
-    ax.set_xlabel("correction time, s (one thread, slowest strike; labels: rays per point)")
-    ax.set_ylabel("worst strike: S error against the truth, %")
-    finish_single(fig, ax, "The splat with a near-field correction (default storm, 5 strikes)", out_dir,
-                  "near_field")
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    fig, axes = plt.subplots(1, len(scenes), figsize=(5.2 * len(scenes) + 2.5, 4.4), squeeze=False)
+    for ax, scene in zip(axes[0], scenes):
+        worst = {}  # candidate -> rays -> [worst total, slowest seconds]
+        for r in rows:
+            if r["scene"] != scene:
+                continue
+            w = worst.setdefault(r["candidate"], {}).setdefault(int(float(r["rays"])), [0.0, 0.0])
+            w[0] = max(w[0], 100 * float(r["total_error"]))
+            w[1] = max(w[1], float(r["seconds"]))
+        colours = iter(("tab:orange", "tab:green", "tab:olive", "tab:purple", "tab:brown"))
+        lines = iter(("--", "-.", ":", (0, (5, 1))))
+        for name, by_rays in worst.items():
+            if 0 in by_rays:  # no correction, or perfect bases: no time of its own
+                ax.axhline(by_rays[0][0], color="tab:blue" if name == "paper" else "0.5", lw=1.0, ls="-")
+                ax.annotate(name, (1e-2, by_rays[0][0]), textcoords="offset points",
+                            xytext=(2, 3) if name == "paper" else (2, -10), fontsize=7)
+            elif name.startswith("perfect bases"):
+                (_, (err, _)), = by_rays.items()
+                ax.axhline(err, color="0.5", lw=1.0, ls=next(lines), label=name)
+            else:
+                pts = sorted((s, e, n) for n, (e, s) in by_rays.items())
+                ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", color=next(colours), label=name)
+                for s, e, n in pts:
+                    ax.annotate(f"{n}", (s, e), textcoords="offset points", xytext=(3, 3), fontsize=6)
+        ax.axhline(20, color="tab:red", lw=0.8, ls=":")
+        ax.annotate("first-frame aim 20%", (1e-2, 20), textcoords="offset points", xytext=(2, -10), fontsize=7,
+                    color="tab:red")
+        ax.set_xscale("log")
+        ax.set_xlim(left=5e-3)
+        ax.set_ylim(bottom=0)
+        ax.set_xlabel("correction time, s (one thread, slowest strike;\nlabels: rays per point)")
+        ax.set_ylabel("worst strike: S error against the truth, %")
+        ax.set_title(scene)
+        ax.grid(True, which="both", color="0.9")
+    axes[0][-1].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False, fontsize=8)
+    fig.suptitle("The splat with a near-field correction")
+    fig.tight_layout()
+    save(fig, out_dir, "near_field")
 
 
 def main():
