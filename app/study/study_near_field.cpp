@@ -35,6 +35,7 @@
 #include <cmath>
 #include <cstdio>
 #include <glm/geometric.hpp>
+#include <limits>
 #include <numbers>
 
 using namespace fulgur;
@@ -167,7 +168,8 @@ FULGUR_STUDY(near_field, "near-field",
         // Adds sign x both models of the point (q, I) to `out` on the cells `mask` admits, by
         // `rays` rays marched in steps of h / 8 out to r_max.
         auto cast = [&](const glm::dvec3& q, double I, double sign, double r_max, const std::vector<char>& mask,
-                        std::span<const glm::dvec3> rays, std::span<const glm::dvec3> dirs, NearField& out) {
+                        std::span<const glm::dvec3> rays, std::span<const glm::dvec3> dirs, NearField& out,
+                        double taper_from = std::numeric_limits<double>::infinity()) {
             const double dr = h / 8.0, d_omega = 4.0 * std::numbers::pi / double(rays.size());
             std::vector<double> ph(dirs.size());
             for (const glm::dvec3& u : rays) {
@@ -183,7 +185,8 @@ FULGUR_STUDY(near_field, "near-field",
                     const double tau_mid = tau + 0.5 * sig * dr;
                     tau += sig * dr;
                     if (!mask[c] || rho[c] <= 0.0f) continue;
-                    const double w = sign * I * albedo * dr * d_omega / V;
+                    const double w = sign * I * albedo * dr * d_omega / V *
+                                     (rm > taper_from ? (r_max - rm) / (r_max - taper_from) : 1.0);
                     const double e1 = w * std::exp(-tau_mid);
                     for (std::size_t m = 0; m < dirs.size(); ++m) out.single[m * cells + c] += e1 * ph[m];
                     out.first_scattered[c] += e1 * inv4pi;
@@ -216,6 +219,33 @@ FULGUR_STUDY(near_field, "near-field",
                 for (const std::uint32_t l : w.active)
                     cast(bases.lights().position(l), w.e[l], -1.0, reach + 3.0 * h, mask, rays, dirs, f);
             }
+            return f;
+        };
+        // The same with every kernel on its own support (the sources' and each light's, the
+        // lights weighted by the whole splat): the lights' part no longer depends on the strike
+        // and could be kept per light. Support: a hard ball of radius `reach`, or (tapered) the
+        // last voxel of it ramped down linearly along the rays.
+        auto correction_own = [&](std::span<const transport::PointSource> src, std::span<const glm::dvec3> rays,
+                                  std::span<const glm::dvec3> dirs, bool tapered) {
+            source_seconds = 0.0;
+            NearField f{std::vector<double>(cells * dirs.size(), 0.0), std::vector<double>(cells, 0.0),
+                        std::vector<double>(cells, 0.0), std::vector<double>(cells, 0.0)};
+            std::vector<char> mask(cells);
+            const double taper_from = tapered ? reach - h : std::numeric_limits<double>::infinity();
+            auto own = [&](const glm::dvec3& p, double I, double sign) {
+                for (std::size_t c = 0; c < cells; ++c) {
+                    const core::Int3 x = geom.unindex(c);
+                    mask[c] = tapered || glm::length(geom.centre(x.x, x.y, x.z) - p) <= reach;
+                }
+                cast(p, I, sign, tapered ? reach : reach + h, mask, rays, dirs, f, taper_from);
+            };
+            const auto t0 = std::chrono::steady_clock::now();
+            for (const transport::PointSource& q : src)
+                if (q.intensity != 0.0) own(q.position, q.intensity, 1.0);
+            source_seconds = seconds_since(t0);
+            lightning::LightWeights w;
+            splatter.splat(src, w);
+            for (const std::uint32_t l : w.active) own(bases.lights().position(l), w.e[l], -1.0);
             return f;
         };
         // The first-scattered source's multiple scattering: emission 4 pi sigma_t S1 per volume,
@@ -307,6 +337,45 @@ FULGUR_STUDY(near_field, "near-field",
                        secs);
                 report("near field: single + first-scattered", n, paper1, paperm, &f.single, &spread_m,
                        secs + spread_secs);
+                if (n <= 128)
+                    for (const bool tapered : {false, true}) {
+                        const NearField o = correction_own(pf.sources, rays, dirs, tapered);
+                        const double own_secs = source_seconds;
+                        t0 = std::chrono::steady_clock::now();
+                        const std::vector<double> own_m = spread(o.first_scattered);
+                        report(tapered ? "near field, own supports tapered: single + first-scattered"
+                                       : "near field, own supports: single + first-scattered",
+                               n, paper1, paperm, &o.single, &own_m, own_secs + seconds_since(t0));
+                        if (!tapered) continue;
+                        // The engine's runtime::NearField is this model: the same figures, and
+                        // its time once the lights' models are kept (a strike after the first).
+                        runtime::NearFieldOptions no;
+                        no.rays = n;
+                        const runtime::NearField engine(lm, bases.lights(), dirs, no);
+                        runtime::NearFieldParts cold, warm;
+                        t0 = std::chrono::steady_clock::now();
+                        engine.add(pf.sources, cold);
+                        const double cold_secs = seconds_since(t0);
+                        t0 = std::chrono::steady_clock::now();
+                        engine.add(pf.sources, warm);
+                        const double warm_secs = seconds_since(t0);
+                        double d2 = 0.0, r2 = 0.0;
+                        for (std::size_t j = 0; j < warm.single.size(); ++j) {
+                            const double ref = o.single[j] + own_m[j % cells];
+                            const double mine = double(warm.single[j]) + double(warm.multiple[j % cells]);
+                            d2 += (mine - ref) * (mine - ref);
+                            r2 += ref * ref;
+                        }
+                        const std::vector<double> warm1(warm.single.begin(), warm.single.end()),
+                            warmm(warm.multiple.begin(), warm.multiple.end());
+                        source_seconds = warm_secs;
+                        report("engine near field", n, paper1, paperm, &warm1, &warmm, warm_secs);
+                        std::fprintf(stderr,
+                                     "near-field: engine against this study's model: relative L2 %.2e; %.1f ms with "
+                                     "the lights' models made, %.1f ms once they are kept (%zu lights)\n",
+                                     r2 > 0.0 ? std::sqrt(d2 / r2) : 0.0, 1e3 * cold_secs, 1e3 * warm_secs,
+                                     engine.kept_lights());
+                    }
                 f.first_scattered = spread_m;
                 best = std::move(f);
                 best_seconds = secs + spread_secs;

@@ -115,6 +115,14 @@ struct FramePipeline::Impl {
         double main = 0.0, branch = 0.0;
     };
     std::vector<BasesShare> shares;
+    // An instant strike's near-field correction (InstantStrikes::near_field: the part of its
+    // bases' frame the splat cannot carry) where the frame does not take it from the worker's
+    // bases' frame per group, scaled by the bases' share x glow; the components the frame asks.
+    struct NearShare {
+        std::shared_ptr<const std::array<NearFieldParts, 2>> parts;
+        double main = 0.0, branch = 0.0;
+    };
+    std::vector<NearShare> near_shares;
     void add_instant(const lightning::Strike& k, const lightning::Bolt& bolt, double t,
                      const ReconstructOptions& options, std::vector<Lit>& solved);
     void move_toward_target(Shown& s, double step);
@@ -200,6 +208,10 @@ void FramePipeline::Impl::add_instant(const lightning::Strike& k, const lightnin
         move_toward_target(s, options.wait_for_strikes || strokes_dark ? 1e300 : quality.max_change_per_frame);
     if (!s.light) {
         lightning::lit_segments(bolt, st, basis_segments);
+        // The bases' frame of the strokes as every estimate carries it: with its near-field
+        // correction.
+        if (auto near = instant->near_field(k.seed, k.time))
+            near_shares.push_back({std::move(near), st.main_glow, st.branch_glow});
         ++f.strikes_fallback;
         f.instant_weight = 0.0;
         return;
@@ -220,6 +232,9 @@ void FramePipeline::Impl::add_instant(const lightning::Strike& k, const lightnin
     bases_part.main_glow *= s.bases;
     bases_part.branch_glow *= s.bases;
     lightning::lit_segments(bolt, bases_part, basis_segments);
+    if (s.bases > 0.0)
+        if (auto near = instant->near_field(k.seed, k.time))
+            near_shares.push_back({std::move(near), s.bases * st.main_glow, s.bases * st.branch_glow});
 }
 
 // One frame's step of a strike's shown light toward its target's blend w M + (1 - w) B: the
@@ -316,6 +331,7 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
     multiple_segments.clear();
     std::vector<Lit> solved;
     shares.clear();
+    near_shares.clear();
     if (glowing) {
         const std::vector<std::size_t> active(storm.active(t).begin(), storm.active(t).end());
         for (const std::size_t i : active) {
@@ -369,12 +385,14 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
         f.times.inverse_haar += mt.inverse_haar;
     }
 
-    // The solved strikes' light, for the directions the frame holds.
+    // The solved strikes' light and the bases' shares kept per strike, for the directions the
+    // frame holds.
     sw.reset();
-    if (!solved.empty()) {
-        const StrikeLight& first = *solved.front().light;
-        const core::GridGeometry& g = first.single[0].geom;
-        const std::size_t cells = g.cell_count(), nd = first.single[0].directions.size();
+    if (!solved.empty() || !shares.empty() || !near_shares.empty()) {
+        const core::GridGeometry& g = media->lighting.density.geom;
+        const std::size_t cells = g.cell_count();
+        // Every field holds all the scene's output directions, as the worker's estimates do.
+        const std::size_t nd = instant ? instant->directions() : solved.front().light->single[0].directions.size();
         if (!valid) {  // nothing from the bases: start from zero on the requested directions
             f.radiance.geometry = g;
             f.radiance.direction_count = int(nd);
@@ -406,6 +424,15 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
                 const float w[2] = {float(b.main), float(b.branch)};
                 for (std::size_t q = 0; q < 2; ++q)
                     if ((*b.groups)[q].size() == nd * cells) add(w[q], (*b.groups)[q].data() + m * cells);
+            }
+            for (const NearShare& n : near_shares) {
+                const float w[2] = {float(n.main), float(n.branch)};
+                for (std::size_t q = 0; q < 2; ++q) {
+                    const NearFieldParts& part = (*n.parts)[q];
+                    if (part.single.size() != nd * cells) continue;
+                    if (options.components.single) add(w[q], part.single.data() + m * cells);
+                    if (options.components.multiple) add(w[q], part.multiple.data());
+                }
             }
         }
     }

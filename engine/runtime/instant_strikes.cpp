@@ -3,6 +3,7 @@
 // estimated error.
 #include "runtime/instant_strikes.h"
 
+#include "runtime/near_field.h"
 #include "runtime/reconstructor.h"
 
 #include <algorithm>
@@ -31,6 +32,7 @@ InstantOptions instant_options(const scene::Quality& q) {
     o.max_single_paths = q.single_paths;
     o.max_multiple_paths = q.multiple_paths;
     o.target_noise = q.target_noise;
+    o.near_field_rays = q.near_field_rays;
     return o;
 }
 
@@ -83,6 +85,10 @@ struct InstantStrikes::Impl {
         double bases_error = -1.0;
         std::shared_ptr<const std::vector<float>> bases_frame;                  // [m][cell], the strokes at unit glow
         std::shared_ptr<const std::array<std::vector<float>, 2>> bases_groups;  // the same per group
+        // The near-field correction of the strokes per group (NearField::strokes), made once by
+        // whichever thread asks first.
+        std::once_flag near_once;
+        std::shared_ptr<const std::array<NearFieldParts, 2>> near;
         // Under the mutex.
         double seconds = 0.0;  // the worker's time on it: who goes next
         std::shared_ptr<const StrikeEstimate> estimate;
@@ -98,6 +104,7 @@ struct InstantStrikes::Impl {
     transport::LightingMedium fine;  // the full-resolution density the truth traces
     transport::MonteCarloMedium tracing;
     std::vector<glm::dvec3> dirs;
+    std::unique_ptr<NearField> near;  // null: no near-field correction
 
     mutable std::mutex mu;
     std::condition_variable cv;  // work to do, an estimate published, stop
@@ -115,6 +122,11 @@ struct InstantStrikes::Impl {
           fine{density, s.medium},
           tracing(fine, m.lighting.density.geom),
           dirs(transport::output_directions(s.effective_directions())) {
+        if (bases && o.near_field_rays > 0) {
+            NearFieldOptions no;
+            no.rays = o.near_field_rays;
+            near = std::make_unique<NearField>(m.lighting, bases->lights(), dirs, no);
+        }
         spare.push_back(spare_tracers());  // the first strike's memory, touched before it comes
         worker = std::thread([this] { run(); });
         // Returns once the worker has made its first rounds' memory ready (warm_up), so that a
@@ -130,6 +142,17 @@ struct InstantStrikes::Impl {
         }
         cv.notify_all();
         worker.join();
+    }
+
+    // The entry's near-field correction, made on the first call (std::call_once orders the
+    // write before every caller's read).
+    std::shared_ptr<const std::array<NearFieldParts, 2>> near_of(Entry& e) const {
+        std::call_once(e.near_once, [&] {
+            auto groups = std::make_shared<std::array<NearFieldParts, 2>>();
+            for (std::size_t q = 0; q < 2; ++q) (*groups)[q] = near->strokes(e.bolt, q);
+            e.near = std::move(groups);
+        });
+        return e.near;
     }
 
     // The unfinished entry that has had the least of the worker's time (null: none).
@@ -215,6 +238,15 @@ struct InstantStrikes::Impl {
             warm = true;
         }
         cv.notify_all();
+        // Idle until the first strike: the lights' near-field models, one at a time, so a
+        // strike's first correction pays only for its own points (the rest are made when used).
+        for (std::size_t l = 0; near && l < near->light_count(); ++l) {
+            {
+                std::lock_guard<std::mutex> lock(mu);
+                if (stop || next()) break;
+            }
+            near->keep_light(l);
+        }
         for (;;) {
             std::shared_ptr<Entry> e;
             {
@@ -311,6 +343,16 @@ struct InstantStrikes::Impl {
         if (splatter && rec && e.round == 1) {
             auto groups = std::make_shared<std::array<std::vector<float>, 2>>();
             for (std::size_t q = 0; q < 2; ++q) (*groups)[q] = bases_frame(e.bolt, q, *splatter, *rec);
+            if (near) {  // the bases' frame a frame shows: with its near-field correction
+                const auto nf = near_of(e);
+                for (std::size_t q = 0; q < 2; ++q) {
+                    const NearFieldParts& n = (*nf)[q];
+                    std::vector<float>& b = (*groups)[q];
+                    if (n.empty() || b.size() != n.single.size()) continue;
+                    const std::size_t cells = n.multiple.size();
+                    for (std::size_t i = 0; i < b.size(); ++i) b[i] += n.single[i] + n.multiple[i % cells];
+                }
+            }
             std::vector<float> b(total.size(), 0.0f);
             bool lit = false;
             for (const std::vector<float>& g : *groups)
@@ -407,6 +449,21 @@ std::shared_ptr<const StrikeEstimate> InstantStrikes::get(std::uint64_t seed, do
     const auto it = impl_->entries.find({seed, time});
     return it == impl_->entries.end() ? nullptr : it->second->estimate;
 }
+
+std::shared_ptr<const std::array<NearFieldParts, 2>> InstantStrikes::near_field(std::uint64_t seed, double time) const {
+    const Impl& im = *impl_;
+    if (!im.near) return nullptr;
+    std::shared_ptr<Impl::Entry> e;
+    {
+        std::lock_guard<std::mutex> lock(im.mu);
+        const auto it = im.entries.find({seed, time});
+        if (it == im.entries.end()) return nullptr;
+        e = it->second;
+    }
+    return im.near_of(*e);
+}
+
+std::size_t InstantStrikes::directions() const noexcept { return impl_->dirs.size(); }
 
 std::shared_ptr<const StrikeEstimate> InstantStrikes::wait_final(std::uint64_t seed, double time) {
     Impl& im = *impl_;

@@ -7,6 +7,7 @@
 #include "core/core.h"
 #include "lightning/lightning.h"
 #include "runtime/baked_bases.h"
+#include "runtime/near_field.h"
 #include "runtime/strike_solver.h"
 #include "scene/scene.h"
 #include "solve/solve.h"
@@ -29,7 +30,7 @@ struct StrikeEstimate {
     /// direction), and the bases' frame of the same (null: no bases): what a frame measures the
     /// change of its shown light with (FramePipeline's cross-fade).
     std::vector<float> total;
-    std::shared_ptr<const std::vector<float>> bases;
+    std::shared_ptr<const std::vector<float>> bases;  ///< with the near-field correction, if any
     /// The same bases' frame per group ([0] the main channel, [1] the branches; empty: the
     /// group lights nothing), reconstructed with the default ReconstructOptions (both
     /// components, no ambient term): a frame adds its bases' share of the strokes from these
@@ -57,6 +58,9 @@ struct InstantOptions {
     /// roughly geometric intervals, so publishing stays a small share of the work.
     double round_seconds = 0.015, growth = 0.5;
     std::uint64_t seed = 1;
+    /// Rays per point of the near-field correction added to the bases' frame of the strokes
+    /// (runtime::NearField); 0: none.
+    int near_field_rays = 0;
 };
 
 /// The instant preset's options (target_noise, path caps) from a quality preset.
@@ -85,9 +89,18 @@ public:
     void request(std::uint64_t seed, double time, const lightning::Bolt& bolt);
     /// The strike's latest estimate, else null (never another strike's).
     std::shared_ptr<const StrikeEstimate> get(std::uint64_t seed, double time) const;
+    /// The near-field correction of the strike's strokes at unit glow, per group ([0] the main
+    /// channel, [1] the branches; empty: the group lights nothing), part of the bases' frame
+    /// every estimate carries (StrikeEstimate::bases, bases_groups).
+    /// Made on the first call, on the calling thread (the frame's, for a strike's first frame)
+    /// or the worker's, and kept; null when the options ask for none, there are no bases, or
+    /// the strike was not requested.
+    std::shared_ptr<const std::array<NearFieldParts, 2>> near_field(std::uint64_t seed, double time) const;
     /// Blocks until the strike's solve has stopped (it must have been requested); rethrows its
     /// error.
     std::shared_ptr<const StrikeEstimate> wait_final(std::uint64_t seed, double time);
+    /// S's output directions, every field's [m][cell] layout.
+    std::size_t directions() const noexcept;
     /// While paused the worker starts no round and a round that ends publishes nothing: what
     /// get() returns at the pause stays (the time a caller gives the solve is exact).
     void set_paused(bool paused);

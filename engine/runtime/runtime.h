@@ -12,7 +12,7 @@
 // caller chooses which to sum (both linear, so both go into the same H, one transform).
 //
 // One concept per header: baked_bases.h, reconstructor.h, strike_solver.h, instant_strikes.h,
-// frame_pipeline.h, references.h (direct solve, truth); this umbrella includes them all.
+// near_field.h, frame_pipeline.h, references.h (direct solve, truth); this umbrella includes them all.
 //
 // THESE HEADERS ARE THE CONTRACT between the run-time module and the apps (demo, shot tool,
 // benchmarks). Changing them is fine when the implementation needs it; keep it small,
@@ -22,6 +22,7 @@
 #include "runtime/baked_bases.h"
 #include "runtime/frame_pipeline.h"
 #include "runtime/instant_strikes.h"
+#include "runtime/near_field.h"
 #include "runtime/reconstructor.h"
 #include "runtime/references.h"
 #include "runtime/strike_solver.h"

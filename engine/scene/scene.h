@@ -188,6 +188,11 @@ struct Quality {
     /// own intensity does between two frames at 60 fps (a return stroke's 12 ms decay: -75%),
     /// and fades the first estimate in over about 3 frames (docs/presets.md measures the cost).
     double max_change_per_frame = 0.25;
+    /// Instant: rays per point of the near-field correction added to the bases' frame of a
+    /// strike's strokes (runtime::NearField): what the splat cannot represent next to the
+    /// channel, from a local model, so a strike's frames before its first estimate are not the
+    /// paper frame. 0: none (docs/presets.md measures 32 and more).
+    int near_field_rays = 0;
 };
 
 /// Every preset's name in scene files, indexed by Quality::Preset, cheapest first.
