@@ -129,8 +129,9 @@ struct InstantStrikes::Impl {
         }
         spare.push_back(spare_tracers());  // the first strike's memory, touched before it comes
         worker = std::thread([this] { run(); });
-        // Returns once the worker has made its first rounds' memory ready (warm_up), so that a
-        // strike requested right after construction does not wait for it.
+        // Returns once the worker has made its first rounds' memory ready (warm_up) and the
+        // lights' near-field models, so that a strike requested right after construction does
+        // not wait for them.
         std::unique_lock<std::mutex> lock(mu);
         cv.wait(lock, [&] { return warm; });
     }
@@ -233,20 +234,17 @@ struct InstantStrikes::Impl {
         } catch (...) {
             // Only a cost: without it the first round allocates afresh, as before.
         }
+        // The lights' near-field models, on every core before the first strike can come: a
+        // strike's first correction then pays only for its own points (docs/presets.md: the
+        // default storm's 968 lights take ~0.1 s once).
+        if (near)
+            core::parallel_for_dynamic(0, std::int64_t(near->light_count()),
+                                       [&](std::int64_t l) { near->keep_light(std::size_t(l)); }, 16);
         {
             std::lock_guard<std::mutex> lock(mu);
             warm = true;
         }
         cv.notify_all();
-        // Idle until the first strike: the lights' near-field models, one at a time, so a
-        // strike's first correction pays only for its own points (the rest are made when used).
-        for (std::size_t l = 0; near && l < near->light_count(); ++l) {
-            {
-                std::lock_guard<std::mutex> lock(mu);
-                if (stop || next()) break;
-            }
-            near->keep_light(l);
-        }
         for (;;) {
             std::shared_ptr<Entry> e;
             {

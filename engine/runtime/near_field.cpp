@@ -114,9 +114,11 @@ struct NearField::Impl {
                 phase[r * dirs.size() + k] = transport::hg_phase(glm::dot(rays[r], dirs[k]), g);
     }
 
-    // Adds sign x I x the model of the point p to `s`: rays marched in steps of h / 8 out to
-    // `reach`, their last voxel ramped down linearly.
-    void cast(const glm::dvec3& p, double I, double sign, Sums& s) const {
+    // Hands sign x I x the model of the point p to sink(i, j, k, cell, e, phase row) per ray
+    // step in a cloud voxel (single scattering there: e x phase[m]; first-scattered: e / (4 pi)):
+    // rays marched in steps of h / 8 out to `reach`, their last voxel ramped down linearly.
+    template <class Sink>
+    void cast(const glm::dvec3& p, double I, double sign, Sink&& sink) const {
         const core::GridGeometry& geom = medium.density.geom;
         const std::vector<float>& rho = medium.density.data;
         const double kappa = medium.optics.extinction, albedo = medium.optics.albedo;
@@ -137,23 +139,44 @@ struct NearField::Impl {
                 const double tau_mid = tau + 0.5 * sigma * dr;
                 tau += sigma * dr;
                 if (!(rho[c] > 0.0f)) continue;
-                const double e = scale * std::exp(-tau_mid) * (rm > ramp_from ? (reach - rm) / h : 1.0);
-                for (std::size_t m = 0; m < nd; ++m) s.single[m * cells + c] += e * ph[m];
-                s.first[c] += e * kInv4Pi;
+                sink(i, j, k, c, scale * std::exp(-tau_mid) * (rm > ramp_from ? (reach - rm) / h : 1.0), ph);
             }
         }
     }
+    void cast(const glm::dvec3& p, double I, double sign, Sums& s) const {
+        const std::size_t nd = dirs.size();
+        cast(p, I, sign, [&](int, int, int, std::size_t c, double e, const double* ph) {
+            for (std::size_t m = 0; m < nd; ++m) s.single[m * cells + c] += e * ph[m];
+            s.first[c] += e * kInv4Pi;
+        });
+    }
 
+    // A light's model, made once: summed in a box of voxels around it (its support), then kept
+    // as a sparse list of the voxels it reaches.
     const Kernel& light(std::uint32_t l) const {
         std::call_once(made[l], [&] {
-            Sums s{std::vector<double>(dirs.size() * cells, 0.0), std::vector<double>(cells, 0.0)};
-            cast(lights.position(l), 1.0, 1.0, s);
+            const core::GridGeometry& geom = medium.density.geom;
+            const glm::dvec3 p = lights.position(l);
+            const glm::dvec3 v = geom.to_voxel(p);
+            const int R = int(std::ceil(reach / h)) + 1, side = 2 * R + 1;
+            const core::Int3 lo{int(std::floor(v.x)) - R, int(std::floor(v.y)) - R, int(std::floor(v.z)) - R};
+            const std::size_t nd = dirs.size(), box = std::size_t(side) * side * side;
+            std::vector<double> single(box * nd, 0.0), first(box, 0.0);
+            std::vector<std::uint32_t> cell(box, 0);
+            cast(p, 1.0, 1.0, [&](int i, int j, int k, std::size_t c, double e, const double* ph) {
+                const std::size_t b =
+                    std::size_t(i - lo.x) +
+                    std::size_t(side) * (std::size_t(j - lo.y) + std::size_t(side) * std::size_t(k - lo.z));
+                cell[b] = std::uint32_t(c);
+                for (std::size_t m = 0; m < nd; ++m) single[b * nd + m] += e * ph[m];
+                first[b] += e * kInv4Pi;
+            });
             Kernel& k = kept[l];
-            for (std::size_t c = 0; c < cells; ++c) {
-                if (s.first[c] == 0.0) continue;
-                k.cell.push_back(std::uint32_t(c));
-                k.first.push_back(float(s.first[c]));
-                for (std::size_t m = 0; m < dirs.size(); ++m) k.single.push_back(float(s.single[m * cells + c]));
+            for (std::size_t b = 0; b < box; ++b) {
+                if (first[b] == 0.0) continue;
+                k.cell.push_back(cell[b]);
+                k.first.push_back(float(first[b]));
+                for (std::size_t m = 0; m < nd; ++m) k.single.push_back(float(single[b * nd + m]));
             }
             std::lock_guard<std::mutex> lock(count_mu);
             ++kept_count;

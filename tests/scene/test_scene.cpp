@@ -361,6 +361,15 @@ TEST_CASE("quality: a preset's name or an object of knobs; bad values name the f
                          Error);
     CHECK_THROWS_WITH_AS(scene(R"({"preset": "instant", "max_change_per_frame": -1})"),
                          doctest::Contains("max_change_per_frame"), Error);
+    // The near-field correction: on for instant (32 rays), off elsewhere, 0 turns it off.
+    CHECK(i.near_field_rays == 32);
+    CHECK(scene(R"("paper")").quality.near_field_rays == 0);
+    CHECK(scene(R"({"preset": "instant", "near_field_rays": 0})").quality.near_field_rays == 0);
+    CHECK(scene(R"({"preset": "instant", "near_field_rays": 128})").quality.near_field_rays == 128);
+    CHECK_THROWS_WITH_AS(scene(R"({"preset": "instant", "near_field_rays": 5000})"),
+                         doctest::Contains("near_field_rays"), Error);
+    CHECK_THROWS_WITH_AS(scene(R"({"preset": "instant", "near_field_rays": -1})"),
+                         doctest::Contains("near_field_rays"), Error);
 }
 
 TEST_CASE("transport.refine and lattice_boltzmann.exact_orders: values and ranges naming the field") {
