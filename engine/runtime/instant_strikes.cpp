@@ -285,6 +285,10 @@ struct InstantStrikes::Impl {
     // estimate.
     std::shared_ptr<const StrikeEstimate> round(Entry& e, lightning::Splatter* splatter, Reconstructor* rec) {
         if (!e.single) {
+            // The near-field correction first (on every core, a few ms): the frame that shows
+            // the strike before its first estimate waits for it rather than making it alone,
+            // and the first estimate's bases' frame carries it.
+            if (near) near_of(e);
             const std::vector<transport::LineSource> lines = strike_line_sources(e.bolt);
             const std::uint64_t seed = core::hash_seed(options.seed, e.seed);
             Tracers t = spare_tracers();

@@ -143,45 +143,52 @@ struct NearField::Impl {
             }
         }
     }
-    void cast(const glm::dvec3& p, double I, double sign, Sums& s) const {
-        const std::size_t nd = dirs.size();
-        cast(p, I, sign, [&](int, int, int, std::size_t c, double e, const double* ph) {
-            for (std::size_t m = 0; m < nd; ++m) s.single[m * cells + c] += e * ph[m];
-            s.first[c] += e * kInv4Pi;
+    // A point's model at unit intensity: summed in a box of voxels around it (its support),
+    // then kept as a sparse list of the voxels it reaches.
+    Kernel model(const glm::dvec3& p) const {
+        const core::GridGeometry& geom = medium.density.geom;
+        const glm::dvec3 v = geom.to_voxel(p);
+        const int R = int(std::ceil(reach / h)) + 1, side = 2 * R + 1;
+        const core::Int3 lo{int(std::floor(v.x)) - R, int(std::floor(v.y)) - R, int(std::floor(v.z)) - R};
+        const std::size_t nd = dirs.size(), box = std::size_t(side) * side * side;
+        std::vector<double> single(box * nd, 0.0), first(box, 0.0);
+        std::vector<std::uint32_t> cell(box, 0);
+        cast(p, 1.0, 1.0, [&](int i, int j, int k, std::size_t c, double e, const double* ph) {
+            const std::size_t b =
+                std::size_t(i - lo.x) +
+                std::size_t(side) * (std::size_t(j - lo.y) + std::size_t(side) * std::size_t(k - lo.z));
+            cell[b] = std::uint32_t(c);
+            for (std::size_t m = 0; m < nd; ++m) single[b * nd + m] += e * ph[m];
+            first[b] += e * kInv4Pi;
         });
+        Kernel k;
+        for (std::size_t b = 0; b < box; ++b) {
+            if (first[b] == 0.0) continue;
+            k.cell.push_back(cell[b]);
+            k.first.push_back(float(first[b]));
+            for (std::size_t m = 0; m < nd; ++m) k.single.push_back(float(single[b * nd + m]));
+        }
+        return k;
     }
 
-    // A light's model, made once: summed in a box of voxels around it (its support), then kept
-    // as a sparse list of the voxels it reaches.
+    // A light's model, made once and kept.
     const Kernel& light(std::uint32_t l) const {
         std::call_once(made[l], [&] {
-            const core::GridGeometry& geom = medium.density.geom;
-            const glm::dvec3 p = lights.position(l);
-            const glm::dvec3 v = geom.to_voxel(p);
-            const int R = int(std::ceil(reach / h)) + 1, side = 2 * R + 1;
-            const core::Int3 lo{int(std::floor(v.x)) - R, int(std::floor(v.y)) - R, int(std::floor(v.z)) - R};
-            const std::size_t nd = dirs.size(), box = std::size_t(side) * side * side;
-            std::vector<double> single(box * nd, 0.0), first(box, 0.0);
-            std::vector<std::uint32_t> cell(box, 0);
-            cast(p, 1.0, 1.0, [&](int i, int j, int k, std::size_t c, double e, const double* ph) {
-                const std::size_t b =
-                    std::size_t(i - lo.x) +
-                    std::size_t(side) * (std::size_t(j - lo.y) + std::size_t(side) * std::size_t(k - lo.z));
-                cell[b] = std::uint32_t(c);
-                for (std::size_t m = 0; m < nd; ++m) single[b * nd + m] += e * ph[m];
-                first[b] += e * kInv4Pi;
-            });
-            Kernel& k = kept[l];
-            for (std::size_t b = 0; b < box; ++b) {
-                if (first[b] == 0.0) continue;
-                k.cell.push_back(cell[b]);
-                k.first.push_back(float(first[b]));
-                for (std::size_t m = 0; m < nd; ++m) k.single.push_back(float(single[b * nd + m]));
-            }
+            kept[l] = model(lights.position(l));
             std::lock_guard<std::mutex> lock(count_mu);
             ++kept_count;
         });
         return kept[l];
+    }
+
+    // Adds w x the model k to the sums.
+    void accumulate(const Kernel& k, double w, Sums& s) const {
+        const std::size_t nd = dirs.size();
+        for (std::size_t n = 0; n < k.cell.size(); ++n) {
+            const std::size_t c = k.cell[n];
+            s.first[c] += w * double(k.first[n]);
+            for (std::size_t m = 0; m < nd; ++m) s.single[m * cells + c] += w * double(k.single[n * nd + m]);
+        }
     }
 
     // The first-scattered source's multiple scattering (the same in every direction): emission
@@ -249,19 +256,17 @@ void NearField::add(std::span<const transport::PointSource> sources, NearFieldPa
         out.single.assign(nd * cells, 0.0f);
         out.multiple.assign(cells, 0.0f);
     }
+    // The points' models in parallel (each its own), then summed in a fixed order: the same
+    // field on any number of threads.
+    std::vector<Impl::Kernel> models(finite.size());
+    core::parallel_for_dynamic(0, std::int64_t(finite.size()), [&](std::int64_t i) {
+        models[std::size_t(i)] = im.model(finite[std::size_t(i)].position);
+    });
     Impl::Sums s{std::vector<double>(nd * cells, 0.0), std::vector<double>(cells, 0.0)};
-    for (const transport::PointSource& q : finite) im.cast(q.position, q.intensity, 1.0, s);
+    for (std::size_t i = 0; i < finite.size(); ++i) im.accumulate(models[i], finite[i].intensity, s);
     lightning::LightWeights w;
     im.splatter.splat(finite, w);
-    for (const std::uint32_t l : w.active) {
-        const Impl::Kernel& k = im.light(l);
-        const double e = w.e[l];
-        for (std::size_t n = 0; n < k.cell.size(); ++n) {
-            const std::size_t c = k.cell[n];
-            s.first[c] -= e * double(k.first[n]);
-            for (std::size_t m = 0; m < nd; ++m) s.single[m * cells + c] -= e * double(k.single[n * nd + m]);
-        }
-    }
+    for (const std::uint32_t l : w.active) im.accumulate(im.light(l), -w.e[l], s);
     std::vector<double> multiple(cells, 0.0);
     im.spread(s.first, multiple);
     for (std::size_t i = 0; i < nd * cells; ++i) out.single[i] += float(s.single[i]);
