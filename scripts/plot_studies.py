@@ -51,6 +51,7 @@ PRESET_STYLE = {
     "per_strike": ("^", "tab:green"),
     "per_strike_mc": ("v", "tab:purple"),
     "instant": ("*", "tab:brown"),
+    "instant_no_near_field": ("x", "tab:gray"),
     "reference": ("D", "tab:red"),
 }
 
@@ -403,12 +404,12 @@ def plot_near_field(study, out_dir):
             w = worst.setdefault(r["candidate"], {}).setdefault(int(float(r["rays"])), [0.0, 0.0])
             w[0] = max(w[0], 100 * float(r["total_error"]))
             w[1] = max(w[1], float(r["seconds"]))
-        colours = iter(("tab:orange", "tab:green", "tab:olive", "tab:purple", "tab:brown"))
+        colours = iter(("tab:orange", "tab:green", "tab:olive", "tab:purple", "tab:pink", "tab:cyan", "tab:brown"))
         lines = iter(("--", "-.", ":", (0, (5, 1))))
         for name, by_rays in worst.items():
             if 0 in by_rays:  # no correction, or perfect bases: no time of its own
                 ax.axhline(by_rays[0][0], color="tab:blue" if name == "paper" else "0.5", lw=1.0, ls="-")
-                ax.annotate(name, (1e-2, by_rays[0][0]), textcoords="offset points",
+                ax.annotate(name, (2e-3, by_rays[0][0]), textcoords="offset points",
                             xytext=(2, 3) if name == "paper" else (2, -10), fontsize=7)
             elif name.startswith("perfect bases"):
                 (_, (err, _)), = by_rays.items()
@@ -419,12 +420,12 @@ def plot_near_field(study, out_dir):
                 for s, e, n in pts:
                     ax.annotate(f"{n}", (s, e), textcoords="offset points", xytext=(3, 3), fontsize=6)
         ax.axhline(20, color="tab:red", lw=0.8, ls=":")
-        ax.annotate("first-frame aim 20%", (1e-2, 20), textcoords="offset points", xytext=(2, -10), fontsize=7,
+        ax.annotate("first-frame aim 20%", (2e-3, 20), textcoords="offset points", xytext=(2, -10), fontsize=7,
                     color="tab:red")
         ax.set_xscale("log")
-        ax.set_xlim(left=5e-3)
+        ax.set_xlim(left=1e-3)
         ax.set_ylim(bottom=0)
-        ax.set_xlabel("correction time, s (one thread, slowest strike;\nlabels: rays per point)")
+        ax.set_xlabel("correction time, s (slowest strike; one thread, the engine's two;\nlabels: rays per point)")
         ax.set_ylabel("worst strike: S error against the truth, %")
         ax.set_title(scene)
         ax.grid(True, which="both", color="0.9")

@@ -23,7 +23,8 @@
 //   time. Then the same corrections on perfect bases (the splatted virtual lights traced by the
 //   truth's Monte Carlo in place of the lattice's bases): what the models leave when the bases
 //   are exact.
-//   Outputs: near_field.csv (one row per strike and candidate; seconds: one thread).
+//   Outputs: near_field.csv (one row per strike and candidate; seconds: one thread, the engine's
+//   runtime::NearField rows on every thread with the lights' models kept).
 #include "study/study.h"
 
 #include "core/core.h"

@@ -368,8 +368,8 @@ TEST_CASE("quality: a preset's name or an object of knobs; bad values name the f
     CHECK(scene(R"({"preset": "instant", "near_field_rays": 128})").quality.near_field_rays == 128);
     CHECK_THROWS_WITH_AS(scene(R"({"preset": "instant", "near_field_rays": 5000})"),
                          doctest::Contains("near_field_rays"), Error);
-    CHECK_THROWS_WITH_AS(scene(R"({"preset": "instant", "near_field_rays": -1})"),
-                         doctest::Contains("near_field_rays"), Error);
+    CHECK_THROWS_WITH_AS(scene(R"({"preset": "instant", "near_field_rays": -1})"), doctest::Contains("near_field_rays"),
+                         Error);
 }
 
 TEST_CASE("transport.refine and lattice_boltzmann.exact_orders: values and ranges naming the field") {
