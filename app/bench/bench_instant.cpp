@@ -6,6 +6,9 @@
 //   timeline: strikes nobody scheduled (seeds 1-3, lookahead 0): wall time from the request
 //     to the first estimate, and the estimate's noise and weight against the bases at 16, 50,
 //     100, 300 and 1000 ms.
+//   near field: runtime::NearField's correction of a strike (both glow groups, the lights'
+//     models kept) at 32 and 128 rays, and the lights' models once, against the paper frame
+//     of the same strike in the same run.
 //   frame: the frame thread's cost (wall and the thread's own CPU time, median) while the
 //     strike is being solved, instant against paper in the same run, all 26 directions and
 //     the 8 a side view needs; for instant also over the frames that blend the bases in
@@ -172,5 +175,39 @@ FULGUR_BENCH(instant,
             }
             ctx.emit("instant_frame", j);
         }
+    }
+
+    // --- near field ---
+    // The correction a strike's frames before its first estimate carry (runtime::NearField),
+    // both glow groups, per strike once the lights' models are kept, against the paper frame
+    // of the same strike (all 26 directions) in the same run.
+    for (const int rays : {32, 128}) {
+        runtime::NearFieldOptions no;
+        no.rays = rays;
+        const std::vector<glm::dvec3> dirs = transport::output_directions(s.effective_directions());
+        const runtime::NearField nf(media.lighting, bases.lights(), dirs, no);
+        core::Stopwatch lw;
+        for (std::size_t l = 0; l < nf.light_count(); ++l) nf.keep_light(l);
+        const double lights_ms = lw.milliseconds();
+        std::vector<double> strike_ms, paper_ms;
+        for (int k = 0; k < strikes; ++k) {
+            runtime::FramePipeline p(s, density, bases, {}, scene::quality_preset("paper"));
+            const std::size_t i = p.strike_at(0.0, std::uint64_t(k + 1));
+            const double t = p.storm().strike(i).profile.stroke_onset.at(0) + 0.002;
+            const lightning::Bolt bolt = p.storm().bolt(i);
+            strike_ms.push_back(1e3 * bench::time_median(ctx.quick ? 1 : 5, [&] {
+                                    for (std::size_t q = 0; q < 2; ++q) (void)nf.strokes(bolt, q);
+                                }));
+            paper_ms.push_back(1e3 * bench::time_median(ctx.quick ? 1 : 5, [&] { (void)p.build(t, {}); }));
+        }
+        nlohmann::json j = base;
+        j["rays"] = rays;
+        j["threads"] = ctx.max_threads;
+        j["lights"] = nf.light_count();
+        j["lights_ms"] = lights_ms;
+        j["strike_ms_median"] = bench::median(strike_ms);
+        j["paper_frame_ms_median"] = bench::median(paper_ms);
+        j["ratio_to_paper_frame"] = bench::median(strike_ms) / std::max(1e-9, bench::median(paper_ms));
+        ctx.emit("instant_near_field", j);
     }
 }
