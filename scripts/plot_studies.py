@@ -312,6 +312,22 @@ def plot_runtime_accuracy_spacing(study, out_dir):
 # --- latency ------------------------------------------------------------------------------
 
 
+def worst_strike_panel(ax, scene, xlabel):
+    """Labels and grid of a panel of one scene's worst-strike error against the truth."""
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("worst strike: S error against the truth, %")
+    ax.set_title(scene)
+    ax.grid(True, which="both", color="0.9")
+
+
+def finish_panels(fig, axes, title, out_dir, name):
+    """One legend right of the last panel, the title, and save."""
+    axes[0][-1].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False, fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    save(fig, out_dir, name)
+
+
 def plot_latency(study, out_dir):
     rows = read(study / "latency_summary.csv")
     scenes = list(dict.fromkeys(r["scene"] for r in rows))
@@ -329,14 +345,9 @@ def plot_latency(study, out_dir):
             ax.plot([ms], [pct], marker="_", markersize=18, color="0.4")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel("wall time since the strike became known, ms (0 drawn at 5)")
-        ax.set_ylabel("worst strike: S error against the truth, %")
-        ax.set_title(scene)
-        ax.grid(True, which="both", color="0.9")
-    axes[0][-1].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False, fontsize=8)
-    fig.suptitle("Unscheduled strikes: error against time (grey bars: the targets 20% / 10% / 7%)")
-    fig.tight_layout()
-    save(fig, out_dir, "latency")
+        worst_strike_panel(ax, scene, "wall time since the strike became known, ms (0 drawn at 5)")
+    finish_panels(fig, axes, "Unscheduled strikes: error against time (grey bars: the targets 20% / 10% / 7%)",
+                  out_dir, "latency")
 
 
 # --- static light against its truth ------------------------------------------------------
@@ -425,14 +436,9 @@ def plot_near_field(study, out_dir):
         ax.set_xscale("log")
         ax.set_xlim(left=1e-3)
         ax.set_ylim(bottom=0)
-        ax.set_xlabel("correction time, s (slowest strike; one thread, the engine's two;\nlabels: rays per point)")
-        ax.set_ylabel("worst strike: S error against the truth, %")
-        ax.set_title(scene)
-        ax.grid(True, which="both", color="0.9")
-    axes[0][-1].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False, fontsize=8)
-    fig.suptitle("The splat with a near-field correction")
-    fig.tight_layout()
-    save(fig, out_dir, "near_field")
+        worst_strike_panel(ax, scene, "correction time, s (slowest strike; one thread, the engine's two;\n"
+                                      "labels: rays per point)")
+    finish_panels(fig, axes, "The splat with a near-field correction", out_dir, "near_field")
 
 
 def main():
