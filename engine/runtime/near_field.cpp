@@ -109,16 +109,16 @@ struct NearField::Impl {
                 phase[r * dirs.size() + k] = transport::hg_phase(glm::dot(rays[r], dirs[k]), g);
     }
 
-    // Hands sign x I x the model of the point p to sink(i, j, k, cell, e, phase row) per ray
+    // Hands the model of the point p at unit intensity to sink(i, j, k, cell, e, phase row) per ray
     // step in a cloud voxel (single scattering there: e x phase[m]; first-scattered: e / (4 pi)):
     // rays marched in steps of h / 8 out to `reach`, their last voxel ramped down linearly.
     template <class Sink>
-    void cast(const glm::dvec3& p, double I, double sign, Sink&& sink) const {
+    void cast(const glm::dvec3& p, Sink&& sink) const {
         const core::GridGeometry& geom = medium.density.geom;
         const std::vector<float>& rho = medium.density.data;
         const double kappa = medium.optics.extinction, albedo = medium.optics.albedo;
         const double dr = h / 8.0, d_omega = 4.0 * std::numbers::pi / double(rays.size());
-        const double scale = sign * I * albedo * dr * d_omega / (h * h * h), ramp_from = reach - h;
+        const double scale = albedo * dr * d_omega / (h * h * h), ramp_from = reach - h;
         const std::size_t nd = dirs.size();
         for (std::size_t r = 0; r < rays.size(); ++r) {
             const glm::dvec3 u = rays[r];
@@ -152,7 +152,7 @@ struct NearField::Impl {
         single.assign(box * nd, 0.0);
         first.assign(box, 0.0);
         cell.assign(box, 0);
-        cast(p, 1.0, 1.0, [&](int i, int j, int k, std::size_t c, double e, const double* ph) {
+        cast(p, [&](int i, int j, int k, std::size_t c, double e, const double* ph) {
             const std::size_t b =
                 std::size_t(i - lo.x) +
                 std::size_t(side) * (std::size_t(j - lo.y) + std::size_t(side) * std::size_t(k - lo.z));
