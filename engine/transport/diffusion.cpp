@@ -1,0 +1,285 @@
+// Flux-limited diffusion of a first-scattered emission (diffusion.h).
+#include "transport/diffusion.h"
+
+#include "core/core.h"
+#include "core/rng.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <limits>
+#include <numbers>
+
+namespace fulgur::transport {
+
+namespace {
+
+// The cloud's cells as a compact list: their grid index and, per face (-x, +x, -y, +y, -z, +z),
+// the neighbour's position in the list (-1: a clear voxel or the grid's edge).
+struct Cells {
+    std::vector<std::uint32_t> grid;
+    std::vector<std::array<std::int32_t, 6>> nb;
+    std::vector<double> sigma_t;
+};
+
+Cells cloud_cells(const LightingMedium& m) {
+    const core::GridGeometry& g = m.density.geom;
+    const std::size_t n = g.cell_count();
+    FULGUR_ASSERT(n < std::size_t(std::numeric_limits<std::int32_t>::max()), "solve_diffusion: grid too large");
+    std::vector<std::int32_t> at(n, -1);
+    Cells c;
+    for (std::size_t i = 0; i < n; ++i) {
+        const double st = m.sigma_t(i);
+        if (!(st > 0.0) || !std::isfinite(st)) continue;
+        at[i] = std::int32_t(c.grid.size());
+        c.grid.push_back(std::uint32_t(i));
+        c.sigma_t.push_back(st);
+    }
+    c.nb.resize(c.grid.size());
+    for (std::size_t a = 0; a < c.grid.size(); ++a) {
+        const core::Int3 p = g.unindex(c.grid[a]);
+        for (int f = 0; f < 6; ++f) {
+            core::Int3 o = p;
+            const int s = (f & 1) ? 1 : -1;
+            (f < 2 ? o.x : f < 4 ? o.y : o.z) += s;
+            const bool inside = o.x >= 0 && o.y >= 0 && o.z >= 0 && o.x < g.dims.x && o.y < g.dims.y && o.z < g.dims.z;
+            c.nb[a][std::size_t(f)] = inside ? at[g.index(o.x, o.y, o.z)] : -1;
+        }
+    }
+    return c;
+}
+
+// grad phi per cloud cell: per axis the two one-sided slopes, each weighted by the other side's
+// distance (toward a clear face: phi 0 at the extrapolated boundary 2D beyond it).
+void gradient(const Cells& c, const std::vector<double>& D, const std::vector<double>& phi, double h,
+              std::vector<glm::dvec3>& out) {
+    out.assign(c.grid.size(), glm::dvec3(0.0));
+    for (std::size_t a = 0; a < c.grid.size(); ++a)
+        for (int ax = 0; ax < 3; ++ax) {
+            double side[2], dist[2];
+            for (int s = 0; s < 2; ++s) {
+                const std::int32_t b = c.nb[a][std::size_t(2 * ax + s)];
+                side[s] = b >= 0 ? phi[std::size_t(b)] : 0.0;
+                dist[s] = b >= 0 ? h : 0.5 * h + 2.0 * D[a];
+            }
+            const double up = (side[1] - phi[a]) / dist[1], down = (phi[a] - side[0]) / dist[0];
+            out[a][ax] = (up * dist[0] + down * dist[1]) / (dist[0] + dist[1]);
+        }
+}
+
+// One solve of -div(D grad phi) + sigma_a phi = q (b = q V per cell) by Jacobi-preconditioned
+// conjugate gradients from phi's values on entry. Returns the iterations; sets `converged`.
+int conjugate_gradients(const Cells& c, const std::vector<double>& D, const std::vector<double>& b, double sigma_a_per,
+                        double h, const DiffusionOptions& o, std::vector<double>& phi, bool& converged) {
+    const std::size_t n = c.grid.size();
+    const double V = h * h * h;
+    // Conductances of the +x, +y, +z faces (0 toward a clear voxel) and the diagonal.
+    std::vector<std::array<double, 3>> G(n, {0.0, 0.0, 0.0});
+    std::vector<double> diag(n, 0.0);
+    for (std::size_t a = 0; a < n; ++a) {
+        diag[a] += c.sigma_t[a] * sigma_a_per * V;
+        for (int f = 0; f < 6; ++f) {
+            const std::int32_t nb = c.nb[a][std::size_t(f)];
+            if (nb < 0) {
+                diag[a] += h * h * D[a] / (0.5 * h + 2.0 * D[a]);
+                continue;
+            }
+            const double Gf = 2.0 * h * D[a] * D[std::size_t(nb)] / (D[a] + D[std::size_t(nb)]);
+            diag[a] += Gf;
+            if (f & 1) G[a][std::size_t(f / 2)] = Gf;
+        }
+    }
+    auto apply = [&](const std::vector<double>& x, std::vector<double>& y) {
+        for (std::size_t a = 0; a < n; ++a) y[a] = diag[a] * x[a];
+        for (std::size_t a = 0; a < n; ++a)
+            for (std::size_t ax = 0; ax < 3; ++ax) {
+                const std::int32_t nb = c.nb[a][2 * ax + 1];
+                if (nb < 0) continue;
+                const double Gf = G[a][ax];
+                y[a] -= Gf * x[std::size_t(nb)];
+                y[std::size_t(nb)] -= Gf * x[a];
+            }
+    };
+    std::vector<double> r(n), z(n), p(n), Ap(n);
+    apply(phi, Ap);
+    double bnorm = 0.0;
+    for (std::size_t a = 0; a < n; ++a) {
+        bnorm += b[a] * b[a];
+        r[a] = b[a] - Ap[a];
+    }
+    bnorm = std::sqrt(bnorm);
+    if (!(bnorm > 0.0)) {
+        std::fill(phi.begin(), phi.end(), 0.0);
+        return 0;
+    }
+    for (std::size_t a = 0; a < n; ++a) z[a] = r[a] / diag[a];
+    p = z;
+    double rz = 0.0, rr = 0.0;
+    for (std::size_t a = 0; a < n; ++a) {
+        rz += r[a] * z[a];
+        rr += r[a] * r[a];
+    }
+    if (std::sqrt(rr) <= o.tolerance * bnorm) return 0;
+    for (int it = 1; it <= o.max_iterations; ++it) {
+        apply(p, Ap);
+        double pAp = 0.0;
+        for (std::size_t a = 0; a < n; ++a) pAp += p[a] * Ap[a];
+        if (!(pAp > 0.0)) {
+            converged = false;
+            return it;
+        }
+        const double alpha = rz / pAp;
+        rr = 0.0;
+        for (std::size_t a = 0; a < n; ++a) {
+            phi[a] += alpha * p[a];
+            r[a] -= alpha * Ap[a];
+            rr += r[a] * r[a];
+        }
+        if (std::sqrt(rr) <= o.tolerance * bnorm) return it;
+        double rz_new = 0.0;
+        for (std::size_t a = 0; a < n; ++a) {
+            z[a] = r[a] / diag[a];
+            rz_new += r[a] * z[a];
+        }
+        const double beta = rz_new / rz;
+        rz = rz_new;
+        for (std::size_t a = 0; a < n; ++a) p[a] = z[a] + beta * p[a];
+    }
+    converged = false;
+    return o.max_iterations;
+}
+
+}  // namespace
+
+DiffusionField solve_diffusion(const LightingMedium& m, std::span<const double> emission,
+                               const DiffusionOptions& options) {
+    const core::GridGeometry& g = m.density.geom;
+    FULGUR_ASSERT(emission.size() == g.cell_count(), "solve_diffusion: emission is not one value per cell");
+    FULGUR_ASSERT(options.limiter_passes >= 0 && options.limiter_passes <= 64,
+                  "solve_diffusion: limiter_passes must be in [0, 64]");
+    FULGUR_ASSERT(options.tolerance > 0.0 && options.max_iterations >= 1,
+                  "solve_diffusion: bad tolerance or iterations");
+    DiffusionField out;
+    out.geom = g;
+    out.fluence.assign(g.cell_count(), 0.0f);
+    out.flux.assign(g.cell_count(), glm::vec3(0.0f));
+    const Cells c = cloud_cells(m);
+    const std::size_t n = c.grid.size();
+    if (n == 0) return out;
+    const double h = g.voxel_size, V = h * h * h;
+    const double albedo = std::clamp(m.optics.albedo, 0.0, 1.0);
+    const double tr = 1.0 - albedo * std::clamp(m.optics.g, -kMaxAbsG, kMaxAbsG);
+    std::vector<double> b(n), D(n), phi(n, 0.0);
+    for (std::size_t a = 0; a < n; ++a) {
+        const double q = emission[c.grid[a]];
+        b[a] = std::isfinite(q) && q > 0.0 ? q * V : 0.0;
+        D[a] = 1.0 / (3.0 * c.sigma_t[a] * tr);
+    }
+    std::vector<glm::dvec3> grad;
+    for (int pass = 0; pass <= options.limiter_passes; ++pass) {
+        if (pass > 0) {
+            gradient(c, D, phi, h, grad);
+            for (std::size_t a = 0; a < n; ++a) {
+                const double st = c.sigma_t[a] * tr;
+                const double R = phi[a] > 0.0 ? glm::length(grad[a]) / (st * phi[a]) : 0.0;
+                D[a] = (2.0 + R) / (6.0 + 3.0 * R + R * R) / st;
+            }
+        }
+        out.iterations += conjugate_gradients(c, D, b, 1.0 - albedo, h, options, phi, out.converged);
+    }
+    gradient(c, D, phi, h, grad);
+    for (std::size_t a = 0; a < n; ++a) {
+        out.fluence[c.grid[a]] = float(std::max(phi[a], 0.0));
+        out.flux[c.grid[a]] = glm::vec3(-D[a] * grad[a]);
+    }
+    return out;
+}
+
+void add_diffusion_source(const LightingMedium& m, const DiffusionField& field, std::span<const glm::dvec3> directions,
+                          double w, std::span<float> out) {
+    const std::size_t cells = field.geom.cell_count(), nd = directions.size();
+    FULGUR_ASSERT(field.fluence.size() == cells && field.flux.size() == cells, "add_diffusion_source: bad field");
+    FULGUR_ASSERT(out.size() == nd * cells, "add_diffusion_source: out is not [directions][cells]");
+    const double a = std::clamp(m.optics.albedo, 0.0, 1.0), g = std::clamp(m.optics.g, -kMaxAbsG, kMaxAbsG);
+    const double inv4pi = 0.25 / std::numbers::pi;
+    for (std::size_t c = 0; c < cells; ++c) {
+        const double phi = field.fluence[c];
+        if (!(phi > 0.0)) continue;
+        const glm::dvec3 F(field.flux[c]);
+        const double f = glm::length(F);
+        if (!(f > 0.0)) {
+            for (std::size_t k = 0; k < nd; ++k) out[k * cells + c] += float(w * a * phi * inv4pi);
+            continue;
+        }
+        // The lobe's mean cosine |F| / phi is at most 1 by the limiter; 0.99 keeps the HG finite.
+        const double gk = g * std::min(f / phi, 0.99);
+        for (std::size_t k = 0; k < nd; ++k)
+            out[k * cells + c] += float(w * a * phi * hg_phase(glm::dot(directions[k], F) / f, gk));
+    }
+}
+
+void add_first_scattered_emission(const LightingMedium& m, std::span<const PointSource> sources, int rays,
+                                  std::uint64_t seed, std::vector<double>& emission) {
+    FULGUR_ASSERT(rays >= 1 && rays <= 65536, "add_first_scattered_emission: rays must be in [1, 65536]");
+    const core::GridGeometry& g = m.density.geom;
+    if (emission.empty()) emission.assign(g.cell_count(), 0.0);
+    FULGUR_ASSERT(emission.size() == g.cell_count(), "add_first_scattered_emission: emission is not one per cell");
+    const double h = g.voxel_size, V = h * h * h, dr = 0.25 * h, d_omega = 4.0 * std::numbers::pi / rays;
+    const double albedo = std::clamp(m.optics.albedo, 0.0, 1.0);
+    const double golden = std::numbers::pi * (3.0 - std::sqrt(5.0));
+    const double dims[3] = {double(g.dims.x), double(g.dims.y), double(g.dims.z)};
+    for (std::size_t n = 0; n < sources.size(); ++n) {
+        const PointSource& p = sources[n];
+        if (!std::isfinite(p.position.x) || !std::isfinite(p.position.y) || !std::isfinite(p.position.z) ||
+            !std::isfinite(p.intensity) || p.intensity == 0.0)
+            continue;
+        core::Rng rng(core::hash_seed(seed, n));
+        // A rotation: the pattern's pole to a uniform direction w, then a turn about it.
+        const double az0 = 2.0 * std::numbers::pi * rng.uniform(), z0 = 2.0 * rng.uniform() - 1.0;
+        const double s0 = std::sqrt(std::max(0.0, 1.0 - z0 * z0));
+        const glm::dvec3 w(s0 * std::cos(az0), s0 * std::sin(az0), z0);
+        const glm::dvec3 t =
+            glm::normalize(glm::cross(w, std::fabs(w.x) > 0.5 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0)));
+        const glm::dvec3 bt = glm::cross(w, t);
+        const double turn = 2.0 * std::numbers::pi * rng.uniform();
+        const glm::dvec3 v0 = g.to_voxel(p.position);
+        const double scale = albedo * p.intensity * dr * d_omega / V;
+        for (int r = 0; r < rays; ++r) {
+            const double z = 1.0 - (r + 0.5) * 2.0 / rays, rr = std::sqrt(std::max(0.0, 1.0 - z * z));
+            const double az = r * golden + turn;
+            const glm::dvec3 u = t * (rr * std::cos(az)) + bt * (rr * std::sin(az)) + w * z;
+            // The ray's stretch inside the grid's box (slabs, in voxels).
+            double t_in = 0.0, t_out = std::numeric_limits<double>::infinity();
+            for (int ax = 0; ax < 3; ++ax) {
+                const double d = u[ax] / h;
+                if (std::fabs(d) < 1e-300) {
+                    if (v0[ax] < 0.0 || v0[ax] > dims[ax]) t_out = -1.0;
+                    continue;
+                }
+                const double ta = -v0[ax] / d, tb = (dims[ax] - v0[ax]) / d;
+                t_in = std::max(t_in, std::min(ta, tb));
+                t_out = std::min(t_out, std::max(ta, tb));
+            }
+            if (!(t_out > t_in)) continue;
+            // Counted steps (a source far away cannot make r0 + dr == r0 loop for ever): at most
+            // the box's diagonal in quarter voxels.
+            const double span = std::min((t_out - t_in) / dr, 4.0 * (dims[0] + dims[1] + dims[2]) + 8.0);
+            const long steps = long(std::ceil(span));
+            double tau = 0.0;
+            for (long s = 0; s < steps; ++s) {
+                const glm::dvec3 v = v0 + u * ((t_in + (double(s) + 0.5) * dr) / h);
+                const int i = int(std::floor(v.x)), j = int(std::floor(v.y)), k = int(std::floor(v.z));
+                if (i < 0 || j < 0 || k < 0 || i >= g.dims.x || j >= g.dims.y || k >= g.dims.z) continue;
+                const std::size_t c = g.index(i, j, k);
+                const double st = m.sigma_t(c);
+                if (!(st > 0.0)) continue;
+                emission[c] += scale * st * std::exp(-(tau + 0.5 * st * dr));
+                tau += st * dr;
+                if (tau > 30.0) break;
+            }
+        }
+    }
+}
+
+}  // namespace fulgur::transport
