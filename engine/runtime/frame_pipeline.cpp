@@ -431,7 +431,7 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
                     const NearFieldParts& part = (*n.parts)[q];
                     if (part.single.size() != nd * cells) continue;
                     if (options.components.single) add(w[q], part.single.data() + m * cells);
-                    if (options.components.multiple) add(w[q], part.multiple.data());
+                    if (options.components.multiple) add(w[q], part.multiple.data() + m * cells);
                 }
             }
         }

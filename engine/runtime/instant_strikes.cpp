@@ -5,6 +5,7 @@
 
 #include "runtime/near_field.h"
 #include "runtime/reconstructor.h"
+#include "runtime/strike_diffusion.h"
 
 #include <algorithm>
 #include <array>
@@ -33,6 +34,7 @@ InstantOptions instant_options(const scene::Quality& q) {
     o.max_multiple_paths = q.multiple_paths;
     o.target_noise = q.target_noise;
     o.near_field_rays = q.near_field_rays;
+    o.diffusion_multiple = q.near_field_multiple == "diffusion";
     return o;
 }
 
@@ -104,7 +106,8 @@ struct InstantStrikes::Impl {
     transport::LightingMedium fine;  // the full-resolution density the truth traces
     transport::MonteCarloMedium tracing;
     std::vector<glm::dvec3> dirs;
-    std::unique_ptr<NearField> near;  // null: no near-field correction
+    std::unique_ptr<NearField> near;             // null: no near-field correction
+    std::unique_ptr<StrikeDiffusion> diffusion;  // null: NearField's own multiple model
 
     mutable std::mutex mu;
     std::condition_variable cv;  // work to do, an estimate published, stop
@@ -123,8 +126,16 @@ struct InstantStrikes::Impl {
           tracing(fine, m.lighting.density.geom),
           dirs(transport::output_directions(s.effective_directions())) {
         if (bases && o.near_field_rays > 0) {
+            if (o.diffusion_multiple) {
+                StrikeDiffusionOptions so;
+                so.rays = o.near_field_rays;
+                so.seed = o.seed;
+                diffusion = std::make_unique<StrikeDiffusion>(m.lighting, *bases, dirs, so);
+                if (!diffusion->separable()) diffusion.reset();
+            }
             NearFieldOptions no;
             no.rays = o.near_field_rays;
+            no.multiple = !diffusion;
             near = std::make_unique<NearField>(m.lighting, bases->lights(), dirs, no);
         }
         spare.push_back(spare_tracers());  // the first strike's memory, touched before it comes
@@ -150,7 +161,18 @@ struct InstantStrikes::Impl {
     std::shared_ptr<const std::array<NearFieldParts, 2>> near_of(Entry& e) const {
         std::call_once(e.near_once, [&] {
             auto groups = std::make_shared<std::array<NearFieldParts, 2>>();
-            for (std::size_t q = 0; q < 2; ++q) (*groups)[q] = near->strokes(e.bolt, q);
+            if (!diffusion) {
+                for (std::size_t q = 0; q < 2; ++q) (*groups)[q] = near->strokes(e.bolt, q);
+            } else {
+                // The two groups at once: each diffusion solve runs on one thread.
+                core::parallel_for_dynamic(0, 2, [&](std::int64_t q) {
+                    const std::vector<transport::PointSource> src = near->stroke_sources(e.bolt, std::size_t(q));
+                    NearFieldParts& part = (*groups)[std::size_t(q)];
+                    if (src.empty()) return;
+                    near->add(src, part);
+                    diffusion->add(src, part);
+                });
+            }
             e.near = std::move(groups);
         });
         return e.near;
@@ -351,8 +373,7 @@ struct InstantStrikes::Impl {
                     const NearFieldParts& n = (*nf)[q];
                     std::vector<float>& b = (*groups)[q];
                     if (n.empty() || b.size() != n.single.size()) continue;
-                    const std::size_t cells = n.multiple.size();
-                    for (std::size_t i = 0; i < b.size(); ++i) b[i] += n.single[i] + n.multiple[i % cells];
+                    for (std::size_t i = 0; i < b.size(); ++i) b[i] += n.single[i] + n.multiple[i];
                 }
             }
             std::vector<float> b(total.size(), 0.0f);

@@ -61,6 +61,9 @@ struct InstantOptions {
     /// Rays per point of the near-field correction added to the bases' frame of the strokes
     /// (runtime::NearField); 0: none.
     int near_field_rays = 0;
+    /// The correction's multiple scattering: the strike's own flux-limited diffusion solve in
+    /// place of the bases' (runtime::StrikeDiffusion), else NearField's local kernel.
+    bool diffusion_multiple = false;
 };
 
 /// The instant preset's options (target_noise, path caps) from a quality preset.

@@ -245,8 +245,8 @@ std::size_t NearField::directions() const noexcept { return impl_->dirs.size(); 
 void NearField::add(std::span<const transport::PointSource> sources, NearFieldParts& out) const {
     const Impl& im = *impl_;
     const std::size_t nd = im.dirs.size(), cells = im.cells;
-    FULGUR_ASSERT(out.empty() || (out.single.size() == nd * cells && out.multiple.size() == cells),
-                  "NearField::add: the parts are not [directions][cells] and [cells]");
+    FULGUR_ASSERT(out.empty() || (out.single.size() == nd * cells && out.multiple.size() == nd * cells),
+                  "NearField::add: the parts are not [directions][cells]");
     std::vector<transport::PointSource> finite;
     finite.reserve(sources.size());
     for (const transport::PointSource& q : sources)
@@ -256,7 +256,7 @@ void NearField::add(std::span<const transport::PointSource> sources, NearFieldPa
     if (finite.empty()) return;
     if (out.empty()) {
         out.single.assign(nd * cells, 0.0f);
-        out.multiple.assign(cells, 0.0f);
+        out.multiple.assign(nd * cells, 0.0f);
     }
     // The points' models in parallel (each its own), then summed in a fixed order: the same
     // field on any number of threads.
@@ -269,18 +269,25 @@ void NearField::add(std::span<const transport::PointSource> sources, NearFieldPa
     lightning::LightWeights w;
     im.splatter.splat(finite, w);
     for (const std::uint32_t l : w.active) im.accumulate(im.light(l), -w.e[l], out.single, first);
+    if (!im.options.multiple) return;
     std::vector<double> multiple(cells, 0.0);
     im.spread(first, multiple);
-    for (std::size_t c = 0; c < cells; ++c) out.multiple[c] += float(multiple[c]);
+    for (std::size_t m = 0; m < nd; ++m)
+        for (std::size_t c = 0; c < cells; ++c) out.multiple[m * cells + c] += float(multiple[c]);
 }
 
-NearFieldParts NearField::strokes(const lightning::Bolt& bolt, std::size_t group) const {
+std::vector<transport::PointSource> NearField::stroke_sources(const lightning::Bolt& bolt, std::size_t group) const {
     lightning::FlashState unit;
     (group == 0 ? unit.main_glow : unit.branch_glow) = 1.0;
     std::vector<lightning::LitSegment> lit;
     lightning::lit_segments(bolt, unit, lit);
     std::vector<transport::PointSource> sources;
     lightning::append_point_sources(lit, impl_->splatter.source_spacing(), sources);
+    return sources;
+}
+
+NearFieldParts NearField::strokes(const lightning::Bolt& bolt, std::size_t group) const {
+    const std::vector<transport::PointSource> sources = stroke_sources(bolt, group);
     NearFieldParts parts;
     if (!sources.empty()) add(sources, parts);
     return parts;

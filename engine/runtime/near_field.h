@@ -36,10 +36,14 @@ struct NearFieldOptions {
     /// The model's support, in lighting voxels (4: 3 km on the default storm; 6 changed no
     /// figure by more than 0.001).
     double reach_voxels = 4.0;
+    /// Whether the correction carries its multiple-scattering model; false: single scattering
+    /// alone (another model, runtime::StrikeDiffusion, replaces the bases' multiple part).
+    bool multiple = true;
 };
 
-/// A correction's two parts on the lighting grid: single scattering [m][cell] (every output
-/// direction) and multiple [cell] (the same in every direction). Empty: nothing to add.
+/// A correction's two parts on the lighting grid, single and multiple scattering, each [m][cell]
+/// (every output direction; NearField's multiple model is the same in every direction,
+/// StrikeDiffusion's is not). Empty: nothing to add.
 struct NearFieldParts {
     std::vector<float> single, multiple;
     bool empty() const noexcept { return single.empty(); }
@@ -65,6 +69,8 @@ public:
     /// the branches; lightning::lit_segments), cut into points as a frame's splat cuts them
     /// (Splatter::source_spacing); empty when the group lights nothing.
     NearFieldParts strokes(const lightning::Bolt& bolt, std::size_t group) const;
+    /// The points strokes() takes for that group.
+    std::vector<transport::PointSource> stroke_sources(const lightning::Bolt& bolt, std::size_t group) const;
 
     /// Makes light l's model now if it is not kept yet (idle time: a strike's first correction
     /// then pays only for its own points). Thread-safe.

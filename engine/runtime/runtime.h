@@ -12,7 +12,8 @@
 // caller chooses which to sum (both linear, so both go into the same H, one transform).
 //
 // One concept per header: baked_bases.h, reconstructor.h, strike_solver.h, instant_strikes.h,
-// near_field.h, frame_pipeline.h, references.h (direct solve, truth); this umbrella includes them all.
+// near_field.h, strike_diffusion.h, frame_pipeline.h, references.h (direct solve, truth); this
+// umbrella includes them all.
 //
 // THESE HEADERS ARE THE CONTRACT between the run-time module and the apps (demo, shot tool,
 // benchmarks). Changing them is fine when the implementation needs it; keep it small,
@@ -25,4 +26,5 @@
 #include "runtime/near_field.h"
 #include "runtime/reconstructor.h"
 #include "runtime/references.h"
+#include "runtime/strike_diffusion.h"
 #include "runtime/strike_solver.h"

@@ -193,6 +193,11 @@ struct Quality {
     /// channel, from a local model, so a strike's frames before its first estimate are not the
     /// paper frame. 0: none (docs/presets.md measures 32 and more).
     int near_field_rays = 0;
+    /// Instant: the near-field correction's multiple scattering. "diffusion": the strike's own
+    /// flux-limited diffusion solve replaces the bases' multiple part (runtime::StrikeDiffusion;
+    /// a bake storing single and multiple scattering as one basis falls back to "kernel");
+    /// "kernel": a local diffusion kernel around each point (runtime::NearField).
+    std::string near_field_multiple = "kernel";
 };
 
 /// Every preset's name in scene files, indexed by Quality::Preset, cheapest first.

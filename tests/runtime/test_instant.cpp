@@ -1,7 +1,7 @@
 // The instant preset against the truth on the tiny anisotropic test scene (truth_scene.h): a
-// strike nobody scheduled shows the bases' frame with its near-field correction on its first
-// lit frame, then its own
-// progressive Monte Carlo blended in by the errors, converging to the truth within the noise;
+// strike nobody scheduled shows the bases' frame with its near-field correction (its multiple
+// part by diffusion, or by the kernel) on its first lit frame, then its own progressive Monte
+// Carlo blended in by the errors, converging to the truth within the noise;
 // never another strike's light; finite S; the shown light changes by at most
 // quality.max_change_per_frame from one frame to the next while estimates replace each other.
 #include "runtime/runtime.h"
@@ -97,13 +97,33 @@ TEST_CASE("instant: the first lit frame is the bases' frame with its near field,
                                << " (ratio " << e1.ratio << "), multiple " << e2.l2 << " (ratio " << e2.ratio
                                << "), total " << et.l2 << "; truth noise " << truth.noise.single << " / "
                                << truth.noise.multiple);
-    // The first frame is the paper frame plus the near-field correction (checked above): measured
-    // 0.240 of the truth (sum ratio 1.115), where the paper frame is 0.687 (0.80; test_truth
-    // bounds it per part). Both fields are deterministic; the truth's noise (~1%) moves an error
-    // of 0.24 by ~n^2 / (2 e), under 0.001, and the ratio by its 4 standard errors (~2%).
-    CHECK(e0.l2 < 0.26);
+    // The first frame is the paper frame plus the near-field correction (checked above), its
+    // multiple part the strike's diffusion solve (the instant preset's near_field_multiple):
+    // measured 0.281 of the truth (sum ratio 1.184), where the paper frame is 0.687 (0.80;
+    // test_truth bounds it per part). On this scene's 1 km lighting voxels (4 free paths) the
+    // diffusion is coarser than the kernel (below: 0.240); on the default storm's 750 m voxels
+    // it is the better by 7 points worst (docs/presets.md). Both fields are deterministic; the
+    // truth's noise (~1%) moves an error of 0.28 by ~n^2 / (2 e), under 0.001, and the ratio by
+    // its 4 standard errors (~2%).
+    CHECK(e0.l2 < 0.30);
     CHECK(e0.l2 < 0.5 * ep.l2);
-    CHECK(std::fabs(e0.ratio - 1.115) < 0.03);
+    CHECK(std::fabs(e0.ratio - 1.184) < 0.03);
+    {
+        // The same first frame with NearField's own multiple model (near_field_multiple "kernel"):
+        // measured 0.240 (ratio 1.115).
+        scene::Quality qk = q;
+        qk.near_field_multiple = "kernel";
+        runtime::FramePipeline pk(s.scene, s.density, *s.bases, {}, qk);
+        peak_time(pk, 5);
+        pk.instant_strikes()->set_paused(true);
+        const std::vector<float> kernel_first = flat(pk.build(t, {}).radiance);
+        CHECK(test::max_relative_difference(kernel_first,
+                                            test::with_near_field(pk, pk.storm().strike(0), t, paper_first)) < 1e-5);
+        const test::FieldError ek = compare_fields(kernel_first, truth.sum().data, rho);
+        MESSAGE("first lit frame with the kernel's multiple part " << ek.l2 << " (ratio " << ek.ratio << ")");
+        CHECK(ek.l2 < 0.26);
+        CHECK(std::fabs(ek.ratio - 1.115) < 0.03);
+    }
     // Converged: relative L2 within 2.5x the combined noise of the estimate and the truth (a
     // noise estimate from two halves scatters by ~30% at these sizes), at most 3.5%; a part 5%
     // off adds 5% in quadrature and fails. Sum ratios within 3% (their noise is a fraction of

@@ -243,10 +243,9 @@ inline std::vector<float> with_near_field(runtime::FramePipeline& p, const light
     for (std::size_t q = 0; q < 2; ++q) {
         const runtime::NearFieldParts& part = (*near)[q];
         if (part.single.size() != frame.size()) continue;
-        const std::size_t cells = part.multiple.size();
         for (std::size_t i = 0; i < frame.size(); ++i) {
             frame[i] += glow[q] * part.single[i];
-            frame[i] += glow[q] * part.multiple[i % cells];
+            frame[i] += glow[q] * part.multiple[i];
         }
     }
     return frame;

@@ -370,6 +370,12 @@ TEST_CASE("quality: a preset's name or an object of knobs; bad values name the f
                          doctest::Contains("near_field_rays"), Error);
     CHECK_THROWS_WITH_AS(scene(R"({"preset": "instant", "near_field_rays": -1})"), doctest::Contains("near_field_rays"),
                          Error);
+    // Its multiple part: the strike's diffusion solve for instant, the kernel elsewhere.
+    CHECK(i.near_field_multiple == "diffusion");
+    CHECK(scene(R"("paper")").quality.near_field_multiple == "kernel");
+    CHECK(scene(R"({"preset": "instant", "near_field_multiple": "kernel"})").quality.near_field_multiple == "kernel");
+    CHECK_THROWS_WITH_AS(scene(R"({"preset": "instant", "near_field_multiple": "lattice"})"),
+                         doctest::Contains("near_field_multiple"), Error);
 }
 
 TEST_CASE("transport.refine and lattice_boltzmann.exact_orders: values and ranges naming the field") {

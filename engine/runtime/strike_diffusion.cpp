@@ -1,0 +1,92 @@
+// StrikeDiffusion (strike_diffusion.h): a strike's multiple scattering by flux-limited diffusion.
+#include "runtime/strike_diffusion.h"
+
+#include "core/core.h"
+#include "lightning/lightning.h"
+#include "runtime/reconstructor.h"
+
+#include <atomic>
+#include <cmath>
+#include <vector>
+
+namespace fulgur::runtime {
+
+struct StrikeDiffusion::Impl {
+    transport::LightingMedium medium;
+    const BakedBases& bases;
+    lightning::Splatter splatter;
+    std::vector<glm::dvec3> dirs;
+    StrikeDiffusionOptions options;
+    bool separable = false;
+    mutable std::atomic<int> iterations{0};
+    mutable std::atomic<bool> converged{true};
+
+    Impl(const transport::LightingMedium& m, const BakedBases& b, std::span<const glm::dvec3> d,
+         const StrikeDiffusionOptions& o)
+        : medium(m), bases(b), splatter(b.lights()), dirs(d.begin(), d.end()), options(o) {
+        // Only separate bases can show the multiple part alone; a bake without it shows none
+        // (the correction then adds the whole solve).
+        separable = (b.separate() || !b.has_multiple()) && b.lighting() == m.density.geom &&
+                    b.directions().size() == dirs.size();
+    }
+};
+
+StrikeDiffusion::StrikeDiffusion(const transport::LightingMedium& lighting, const BakedBases& bases,
+                                 std::span<const glm::dvec3> directions, const StrikeDiffusionOptions& options) {
+    FULGUR_ASSERT(options.rays >= 1 && options.rays <= 65536, "StrikeDiffusion: rays must be in [1, 65536]");
+    FULGUR_ASSERT(!directions.empty(), "StrikeDiffusion: no output directions");
+    FULGUR_ASSERT(bases.lights().count() > 0, "StrikeDiffusion: bases without lights");
+    impl_ = std::make_unique<Impl>(lighting, bases, directions, options);
+}
+
+StrikeDiffusion::~StrikeDiffusion() = default;
+
+bool StrikeDiffusion::separable() const noexcept { return impl_->separable; }
+int StrikeDiffusion::last_iterations() const noexcept { return impl_->iterations.load(); }
+bool StrikeDiffusion::last_converged() const noexcept { return impl_->converged.load(); }
+
+bool StrikeDiffusion::add(std::span<const transport::PointSource> sources, NearFieldParts& out) const {
+    const Impl& im = *impl_;
+    if (!im.separable) return false;
+    const std::size_t nd = im.dirs.size(), cells = im.medium.density.geom.cell_count();
+    FULGUR_ASSERT(out.empty() || (out.single.size() == nd * cells && out.multiple.size() == nd * cells),
+                  "StrikeDiffusion::add: the parts are not [directions][cells]");
+    std::vector<transport::PointSource> finite;
+    finite.reserve(sources.size());
+    for (const transport::PointSource& q : sources)
+        if (std::isfinite(q.position.x) && std::isfinite(q.position.y) && std::isfinite(q.position.z) &&
+            std::isfinite(q.intensity) && q.intensity != 0.0)
+            finite.push_back(q);
+    if (finite.empty()) return false;
+
+    // The bases' multiple part of the points' splat: what the bases' frame shows of them.
+    lightning::LightWeights w;
+    im.splatter.splat(finite, w);
+    Reconstructor rec(im.bases);
+    ReconstructOptions ro;
+    ro.components = {false, true};
+    RadianceField splatted;
+    StageTimes st;
+    const bool have_bases = rec.reconstruct(w, {}, ro, splatted, st);
+
+    std::vector<double> emission;
+    transport::add_first_scattered_emission(im.medium, finite, im.options.rays, im.options.seed, emission);
+    const transport::DiffusionField field = transport::solve_diffusion(im.medium, emission, im.options.diffusion);
+    im.iterations.store(field.iterations);
+    im.converged.store(field.converged);
+
+    if (out.empty()) {
+        out.single.assign(nd * cells, 0.0f);
+        out.multiple.assign(nd * cells, 0.0f);
+    }
+    transport::add_diffusion_source(im.medium, field, im.dirs, 1.0, out.multiple);
+    if (have_bases)
+        for (std::size_t k = 0; k < splatted.directions.size(); ++k) {
+            const std::size_t m = std::size_t(splatted.directions[k]);
+            const std::vector<float>& v = splatted.values[k];
+            for (std::size_t c = 0; c < cells; ++c) out.multiple[m * cells + c] -= v[c];
+        }
+    return true;
+}
+
+}  // namespace fulgur::runtime
