@@ -1,7 +1,9 @@
 // How soon a strike nobody scheduled is lit right.
 //   latency: for the default storm (5 strikes), dusk-storm and vdb-cloud (3 strikes each), each
 //   strike at its first return stroke + 2 ms, each preset's frame (and instant's without its
-//   near-field correction: instant_no_near_field) as it is shown X ms of wall
+//   near-field correction: instant_no_near_field; with the correction's multiple part by the
+//   kernel instead of the strike's diffusion solve: instant_kernel; with 128 rays per point
+//   instead of 32: instant_128) as it is shown X ms of wall
 //   time after the strike became known (X = 0, 16, 50, 100, 300, 1000; lookahead 0; frames
 //   built at 60 fps meanwhile: runtime::build_since_known), against the truth of that frame
 //   (runtime::truth): relative L2 of S over the cloud voxels, all directions. Also the frame
@@ -41,9 +43,11 @@ FULGUR_STUDY(latency, "latency",
     };
     std::vector<Case> cases = {{"storm.json", 5}, {"dusk-storm.json", 3}, {"vdb-cloud.json", 3}};
     std::vector<double> latencies = {0, 16, 50, 100, 300, 1000};
-    // Configurations: the presets, and the instant preset without its near-field correction
-    // (what the correction buys at each latency, measured in the same run).
-    std::vector<std::string> presets = {"paper", "per_strike_mc", "instant", "instant_no_near_field"};
+    // Configurations: the presets, and the instant preset without its near-field correction,
+    // with the kernel's multiple part, with 128 rays (what each buys at each latency, measured
+    // in the same run).
+    std::vector<std::string> presets = {"paper",          "per_strike_mc",         "instant",
+                                        "instant_kernel", "instant_no_near_field", "instant_128"};
     std::uint64_t truth_paths = 2'000'000;
     if (ctx.quick) {
         cases = {{"storm.json", 2}};
@@ -54,7 +58,8 @@ FULGUR_STUDY(latency, "latency",
         std::erase_if(presets, [&](const std::string& p) { return ctx.only.find(p) == std::string::npos; });
         if (presets.empty())
             throw core::Error("--only",
-                              "names no configuration of paper, per_strike_mc, instant, instant_no_near_field");
+                              "names no configuration of paper, per_strike_mc, instant, instant_kernel, "
+                              "instant_no_near_field, instant_128");
     }
 
     study::Csv rows(ctx.file("latency.csv"),
@@ -89,9 +94,11 @@ FULGUR_STUDY(latency, "latency",
             const runtime::Truth& truth = sf.truth;
             const transport::SourceField tt = truth.sum();
             for (const std::string& name : presets) {
-                const bool no_near = name == "instant_no_near_field";
-                scene::Quality q = scene::quality_preset(no_near ? "instant" : name);
-                if (no_near) q.near_field_rays = 0;
+                const bool variant = name.starts_with("instant_");
+                scene::Quality q = scene::quality_preset(variant ? "instant" : name);
+                if (name == "instant_no_near_field") q.near_field_rays = 0;
+                if (name == "instant_kernel") q.near_field_multiple = "kernel";
+                if (name == "instant_128") q.near_field_rays = 128;
                 q.lookahead = 0.0;  // nobody scheduled it
                 // The latencies, then (x < 0) the strike triggered at its leader's start.
                 std::vector<double> xs = latencies;

@@ -363,12 +363,12 @@ FULGUR_STUDY(near_field, "near-field",
                         double d2 = 0.0, r2 = 0.0;
                         for (std::size_t j = 0; j < warm.single.size(); ++j) {
                             const double ref = o.single[j] + own_m[j % cells];
-                            const double mine = double(warm.single[j]) + double(warm.multiple[j % cells]);
+                            const double mine = double(warm.single[j]) + double(warm.multiple[j]);
                             d2 += (mine - ref) * (mine - ref);
                             r2 += ref * ref;
                         }
                         const std::vector<double> warm1(warm.single.begin(), warm.single.end()),
-                            warmm(warm.multiple.begin(), warm.multiple.end());
+                            warmm(warm.multiple.begin(), warm.multiple.begin() + std::ptrdiff_t(cells));
                         source_seconds = warm_secs;
                         report("engine near field", n, paper1, paperm, &warm1, &warmm, warm_secs);
                         std::fprintf(stderr,
