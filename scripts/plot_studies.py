@@ -52,6 +52,8 @@ PRESET_STYLE = {
     "per_strike_mc": ("v", "tab:purple"),
     "instant": ("*", "tab:brown"),
     "instant_no_near_field": ("x", "tab:gray"),
+    "instant_kernel": ("P", "tab:olive"),
+    "instant_128": ("h", "tab:cyan"),
     "reference": ("D", "tab:red"),
 }
 
@@ -345,7 +347,7 @@ def plot_latency(study, out_dir):
             ax.plot([ms], [pct], marker="_", markersize=18, color="0.4")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        worst_strike_panel(ax, scene, "wall time since the strike became known, ms (0 drawn at 5)")
+        worst_strike_panel(ax, scene, "ms since the strike became known (0 drawn at 5)")
     finish_panels(fig, axes, "Unscheduled strikes: error against time (grey bars: the targets 20% / 10% / 7%)",
                   out_dir, "latency")
 

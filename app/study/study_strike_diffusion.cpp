@@ -341,6 +341,28 @@ FULGUR_STUDY(strike_diffusion, "strike-diffusion",
                 }
                 report("engine: near-field single + strike diffusion", 1, e1, em, nf_secs, sd_secs,
                        sd.last_iterations());
+                // The solve's knobs: limiter passes and the conjugate gradients' tolerance.
+                for (const auto& [passes, tol] : {std::pair{4, 1e-4}, std::pair{4, 1e-3}, std::pair{2, 1e-4},
+                                                  std::pair{2, 1e-3}, std::pair{1, 1e-3}}) {
+                    runtime::StrikeDiffusionOptions sdo;
+                    sdo.diffusion.limiter_passes = passes;
+                    sdo.diffusion.tolerance = tol;
+                    const runtime::StrikeDiffusion variant(lm, bases, dirs, sdo);
+                    runtime::NearFieldParts vp;
+                    single_only.add(pf.sources, vp);
+                    t0 = std::chrono::steady_clock::now();
+                    variant.add(pf.sources, vp);
+                    const double v_secs = seconds_since(t0);
+                    std::vector<float> v1 = paper1, vm = paperm;
+                    for (std::size_t j = 0; j < v1.size(); ++j) {
+                        v1[j] += vp.single[j];
+                        vm[j] += vp.multiple[j];
+                    }
+                    char label[96];
+                    std::snprintf(label, sizeof label, "engine: strike diffusion, %d passes, tolerance %g", passes,
+                                  tol);
+                    report(label, 1, v1, vm, nf_secs, v_secs, variant.last_iterations());
+                }
                 // The engine's solver against this study's (whole grid, plain loops) on the same
                 // emission.
                 std::vector<double> q;
