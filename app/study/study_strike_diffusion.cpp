@@ -367,8 +367,10 @@ FULGUR_STUDY(strike_diffusion, "strike-diffusion",
                 // emission.
                 std::vector<double> q;
                 transport::add_first_scattered_emission(lm, pf.sources, 32, 1, q);
-                const Diffusion naive = diffusion(lm, q, 4);
-                const transport::DiffusionField fast = transport::solve_diffusion(lm, q);
+                transport::DiffusionOptions eo;  // the study's solver's settings
+                eo.tolerance = 1e-6;
+                const Diffusion naive = diffusion(lm, q, eo.limiter_passes);
+                const transport::DiffusionField fast = transport::solve_diffusion(lm, q, eo);
                 double d2 = 0.0, r2 = 0.0;
                 for (std::size_t c = 0; c < cells; ++c) {
                     d2 += (double(fast.fluence[c]) - naive.phi[c]) * (double(fast.fluence[c]) - naive.phi[c]);

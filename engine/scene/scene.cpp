@@ -575,8 +575,8 @@ Quality quality_preset(std::string_view name, std::string_view where) {
         // 32 rays per point halve the first frame's error on the default storm (75.7% ->
         // 35.7%) for a few milliseconds once per strike (docs/presets.md).
         q.near_field_rays = 32;
-        // Its multiple part by the strike's own flux-limited diffusion solve: 35.5% -> 28.7%
-        // worst on the default storm for ~20 ms once per strike (docs/presets.md).
+        // Its multiple part by the strike's own flux-limited diffusion solve: 35.5% -> 27.8%
+        // worst on the default storm for 3-6 ms per glow group once per strike (docs/presets.md).
         q.near_field_multiple = "diffusion";
     } else if (name == "reference") {
         q.preset = Quality::Preset::Reference;
