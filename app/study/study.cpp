@@ -34,6 +34,11 @@ void write_fields(const std::filesystem::path& file, std::uint64_t key, const tr
     if (!out) throw core::Error(file.string(), "cannot write the reference cache");
 }
 
+std::vector<StrikeCase> strike_cases(bool quick) {
+    if (quick) return {{"storm.json", "storm", 2}};
+    return {{"storm.json", "storm", 5}, {"dusk-storm.json", "dusk-storm", 3}, {"vdb-cloud.json", "vdb-cloud", 3}};
+}
+
 StrikeScene strike_scene(const std::string& file) {
     const scene::Scene base = scene::load_scene(std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes" / file);
     core::Grid3<float> density = scene::make_density(base);

@@ -91,6 +91,14 @@ struct StrikeScene {
 };
 StrikeScene strike_scene(const std::string& file);
 
+/// The scenes the strike studies measure and how many strikes each: the default storm's 5,
+/// dusk-storm's and vdb-cloud's 3 (quick: the storm's first 2).
+struct StrikeCase {
+    std::string file, stem;
+    int strikes = 0;
+};
+std::vector<StrikeCase> strike_cases(bool quick);
+
 /// Strike `seed` alone in a StrikeScene at its first return stroke + 2 ms: the paper preset's
 /// frame of it and that frame's truth (cached_truth in ctx's folder, as
 /// truth-<stem>-<seed>-<truth_paths>.bin; seed `seed`).

@@ -136,17 +136,11 @@ FULGUR_STUDY(near_field, "near-field",
              "and the virtual lights it is splatted onto): exact single scattering of points, and two diffusion "
              "models of multiple scattering, at three ray counts and on perfect bases, against the truth (default "
              "storm, 5 strikes; dusk-storm and vdb-cloud, 3)") {
-    struct Case {
-        std::string file, stem;
-        int strikes;
-    };
-    std::vector<Case> cases = {
-        {"storm.json", "storm", 5}, {"dusk-storm.json", "dusk-storm", 3}, {"vdb-cloud.json", "vdb-cloud", 3}};
-    if (ctx.quick) cases = {{"storm.json", "storm", 2}};
+    const std::vector<study::StrikeCase> cases = study::strike_cases(ctx.quick);
     study::Csv rows(ctx.file("near_field.csv"), {"scene", "seed", "candidate", "rays", "single_error", "multiple_error",
                                                  "total_error", "seconds", "source_seconds"});
     nlohmann::json worst = nlohmann::json::object();
-    for (const Case& sc : cases) {
+    for (const study::StrikeCase& sc : cases) {
         const study::StrikeScene storm = study::strike_scene(sc.file);
         const auto& [s, density, bases, media] = storm;
         const transport::LightingMedium& lm = media.lighting;

@@ -211,18 +211,12 @@ FULGUR_STUDY(strike_diffusion, "strike-diffusion",
              "a strike's multiple scattering by the diffusion equation through the cloud's density, solved per "
              "strike on the lighting grid refined by 1-3, from its exact uncollided fluence, against the truth "
              "(default storm, 5 strikes; dusk-storm and vdb-cloud, 3)") {
-    struct Case {
-        std::string file, stem;
-        int strikes;
-    };
-    std::vector<Case> cases = {
-        {"storm.json", "storm", 5}, {"dusk-storm.json", "dusk-storm", 3}, {"vdb-cloud.json", "vdb-cloud", 3}};
-    if (ctx.quick) cases = {{"storm.json", "storm", 2}};
+    const std::vector<study::StrikeCase> cases = study::strike_cases(ctx.quick);
     study::Csv rows(ctx.file("strike_diffusion.csv"),
                     {"scene", "seed", "candidate", "refine", "single_error", "multiple_error", "total_error",
                      "phi1_seconds", "solve_seconds", "iterations"});
     nlohmann::json worst = nlohmann::json::object();
-    for (const Case& sc : cases) {
+    for (const study::StrikeCase& sc : cases) {
         const study::StrikeScene storm = study::strike_scene(sc.file);
         const auto& [s, density, bases, media] = storm;
         const transport::LightingMedium& lm = media.lighting;

@@ -219,6 +219,16 @@ struct NearField::Impl {
     }
 };
 
+std::vector<transport::PointSource> lit_sources(std::span<const transport::PointSource> sources) {
+    std::vector<transport::PointSource> lit;
+    lit.reserve(sources.size());
+    for (const transport::PointSource& q : sources)
+        if (std::isfinite(q.position.x) && std::isfinite(q.position.y) && std::isfinite(q.position.z) &&
+            std::isfinite(q.intensity) && q.intensity != 0.0)
+            lit.push_back(q);
+    return lit;
+}
+
 NearField::NearField(const transport::LightingMedium& lighting, const basis::VirtualLightGrid& lights,
                      std::span<const glm::dvec3> directions, const NearFieldOptions& options) {
     FULGUR_ASSERT(options.rays >= 1 && options.rays <= 65536, "NearField: rays must be in [1, 65536]");
@@ -247,12 +257,7 @@ void NearField::add(std::span<const transport::PointSource> sources, NearFieldPa
     const std::size_t nd = im.dirs.size(), cells = im.cells;
     FULGUR_ASSERT(out.empty() || (out.single.size() == nd * cells && out.multiple.size() == nd * cells),
                   "NearField::add: the parts are not [directions][cells]");
-    std::vector<transport::PointSource> finite;
-    finite.reserve(sources.size());
-    for (const transport::PointSource& q : sources)
-        if (std::isfinite(q.position.x) && std::isfinite(q.position.y) && std::isfinite(q.position.z) &&
-            std::isfinite(q.intensity) && q.intensity != 0.0)
-            finite.push_back(q);
+    const std::vector<transport::PointSource> finite = lit_sources(sources);
     if (finite.empty()) return;
     if (out.empty()) {
         out.single.assign(nd * cells, 0.0f);

@@ -49,6 +49,9 @@ struct NearFieldParts {
     bool empty() const noexcept { return single.empty(); }
 };
 
+/// The sources a correction takes: finite position and a finite, non-zero intensity.
+std::vector<transport::PointSource> lit_sources(std::span<const transport::PointSource> sources);
+
 class NearField {
 public:
     /// Keeps a copy of the lighting medium and the light grid. `directions`: S's output

@@ -51,12 +51,7 @@ bool StrikeDiffusion::add(std::span<const transport::PointSource> sources, NearF
     const std::size_t nd = im.dirs.size(), cells = im.medium.density.geom.cell_count();
     FULGUR_ASSERT(out.empty() || (out.single.size() == nd * cells && out.multiple.size() == nd * cells),
                   "StrikeDiffusion::add: the parts are not [directions][cells]");
-    std::vector<transport::PointSource> finite;
-    finite.reserve(sources.size());
-    for (const transport::PointSource& q : sources)
-        if (std::isfinite(q.position.x) && std::isfinite(q.position.y) && std::isfinite(q.position.z) &&
-            std::isfinite(q.intensity) && q.intensity != 0.0)
-            finite.push_back(q);
+    const std::vector<transport::PointSource> finite = lit_sources(sources);
     if (finite.empty()) return false;
 
     // The bases' multiple part of the points' splat: what the bases' frame shows of them.
