@@ -116,6 +116,20 @@ double cloud_error(std::span<const float> x, std::span<const float> ref, const s
     return e.value();
 }
 
+std::array<std::vector<float>, 2> paper_parts(const runtime::BakedBases& bases, const runtime::Frame& frame,
+                                              std::size_t size) {
+    runtime::Reconstructor rec(bases);
+    std::array<std::vector<float>, 2> out;
+    for (const bool single : {true, false}) {
+        runtime::ReconstructOptions o;
+        o.components = {single, !single};
+        runtime::RadianceField r;
+        runtime::StageTimes st;
+        out[single ? 0 : 1] = rec.reconstruct(frame.weights, {}, o, r, st) ? flat(r) : std::vector<float>(size, 0.0f);
+    }
+    return out;
+}
+
 std::vector<float> flat(const runtime::RadianceField& r) {
     std::vector<float> v;
     for (const auto& d : r.values) v.insert(v.end(), d.begin(), d.end());

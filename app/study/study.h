@@ -17,6 +17,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <functional>
@@ -121,6 +122,11 @@ std::vector<double> side_view(const transport::LightingMedium& m, std::size_t to
 /// Relative L2 of x against ref over the cloud voxels (lighting-grid density `rho` > 0), every
 /// direction (direction-major fields).
 double cloud_error(std::span<const float> x, std::span<const float> ref, const std::vector<float>& rho);
+
+/// The paper frame's single and multiple parts apart ([0], [1]; direction-major, every
+/// direction), reconstructed from `frame`'s light weights; zeros of `size` when no light is lit.
+std::array<std::vector<float>, 2> paper_parts(const runtime::BakedBases& bases, const runtime::Frame& frame,
+                                              std::size_t size);
 
 /// A frame's radiance for all its directions as one direction-major array.
 std::vector<float> flat(const runtime::RadianceField& r);

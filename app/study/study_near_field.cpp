@@ -283,15 +283,6 @@ FULGUR_STUDY(near_field, "near-field",
             const transport::SourceField tt = truth.sum();
             const std::span<const glm::dvec3> dirs = truth.single.directions;
 
-            runtime::Reconstructor rec(bases);
-            auto part = [&](bool single) {
-                runtime::ReconstructOptions o;
-                o.components = {single, !single};
-                runtime::RadianceField r;
-                runtime::StageTimes st;
-                if (!rec.reconstruct(pf.weights, {}, o, r, st)) return std::vector<float>(tt.data.size(), 0.0f);
-                return study::flat(r);
-            };
             auto report = [&](const std::string& name, int rays, std::span<const float> b1, std::span<const float> bm,
                               const std::vector<double>* c1, const std::vector<double>* cm, double secs) {
                 std::vector<float> s1(b1.begin(), b1.end()), sm(bm.begin(), bm.end()), sum(s1.size());
@@ -313,7 +304,7 @@ FULGUR_STUDY(near_field, "near-field",
                     "near-field: seed %llu %-64s single %6.3f multiple %6.3f total %6.3f (%.3f s, sources %.3f s)\n",
                     static_cast<unsigned long long>(seed), key.c_str(), e1, em, et, secs, rays ? source_seconds : 0.0);
             };
-            const std::vector<float> paper1 = part(true), paperm = part(false);
+            const auto [paper1, paperm] = study::paper_parts(bases, pf, tt.data.size());
             report("paper", 0, paper1, paperm, nullptr, nullptr, 0.0);
 
             NearField best;

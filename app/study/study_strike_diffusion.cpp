@@ -232,16 +232,7 @@ FULGUR_STUDY(strike_diffusion, "strike-diffusion",
             const std::vector<glm::dvec3> dirs(truth.single.directions.begin(), truth.single.directions.end());
             const std::size_t nd = dirs.size();
 
-            runtime::Reconstructor rec(bases);
-            auto part = [&](bool single) {
-                runtime::ReconstructOptions o;
-                o.components = {single, !single};
-                runtime::RadianceField r;
-                runtime::StageTimes st;
-                if (!rec.reconstruct(pf.weights, {}, o, r, st)) return std::vector<float>(tt.data.size(), 0.0f);
-                return study::flat(r);
-            };
-            const std::vector<float> paper1 = part(true), paperm = part(false);
+            const auto [paper1, paperm] = study::paper_parts(bases, pf, tt.data.size());
             // The instant path's single scattering: the bases' with the near-field correction.
             runtime::NearFieldOptions no;
             no.rays = 32;
