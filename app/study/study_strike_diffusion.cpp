@@ -205,6 +205,64 @@ std::vector<double> exact_emission(const scene::Scene& s, const transport::Light
     return q;
 }
 
+// The points' whole single scattering on the lighting grid `cg` as the truth tallies it, the
+// extinction-weighted voxel average sum sigma S dV / sum sigma dV, by `rays` rays from each
+// point (a Fibonacci sphere turned per point) marched through `m`'s density (the full
+// resolution, or the lighting grid's own) in quarter-voxel steps to optical depth 30 or the
+// grid's edge. No bases: the rays carry the far field too.
+std::vector<float> cast_single(const transport::LightingMedium& m, const core::GridGeometry& cg,
+                               std::span<const transport::PointSource> sources, int rays,
+                               std::span<const glm::dvec3> dirs) {
+    const core::GridGeometry& g = m.density.geom;
+    const std::size_t cells = cg.cell_count(), nd = dirs.size();
+    const double h = g.voxel_size, dr = 0.25 * h, d_omega = 4.0 * std::numbers::pi / rays;
+    const double golden = std::numbers::pi * (3.0 - std::sqrt(5.0)), a = m.optics.albedo;
+    std::vector<double> num(nd * cells, 0.0), den(cells, 0.0);
+    for (std::size_t c = 0; c < g.cell_count(); ++c) {
+        const core::Int3 p = g.unindex(c);
+        const glm::dvec3 v = cg.to_voxel(g.centre(p.x, p.y, p.z));
+        const int i = int(std::floor(v.x)), j = int(std::floor(v.y)), k = int(std::floor(v.z));
+        if (i < 0 || j < 0 || k < 0 || i >= cg.dims.x || j >= cg.dims.y || k >= cg.dims.z) continue;
+        den[cg.index(i, j, k)] += m.sigma_t(c) * h * h * h;
+    }
+    std::vector<double> ph(nd);
+    for (std::size_t n = 0; n < sources.size(); ++n) {
+        const transport::PointSource& p = sources[n];
+        if (p.intensity == 0.0) continue;
+        core::Rng rng(core::hash_seed(0x51f1e, n));
+        const double turn = 2.0 * std::numbers::pi * rng.uniform();
+        for (int r = 0; r < rays; ++r) {
+            const double z = 1.0 - (r + 0.5) * 2.0 / rays, rr = std::sqrt(std::max(0.0, 1.0 - z * z));
+            const glm::dvec3 u(rr * std::cos(r * golden + turn), rr * std::sin(r * golden + turn), z);
+            for (std::size_t k = 0; k < nd; ++k) ph[k] = transport::hg_phase(glm::dot(u, dirs[k]), m.optics.g);
+            double tau = 0.0;
+            const double length = glm::length(g.extent()) + glm::length(p.position - (g.origin + 0.5 * g.extent()));
+            for (double r0 = 0.0; r0 < length; r0 += dr) {
+                const glm::dvec3 x = p.position + u * (r0 + 0.5 * dr);
+                const glm::dvec3 v = g.to_voxel(x);
+                const int i = int(std::floor(v.x)), j = int(std::floor(v.y)), k = int(std::floor(v.z));
+                if (i < 0 || j < 0 || k < 0 || i >= g.dims.x || j >= g.dims.y || k >= g.dims.z) continue;
+                const double st = m.sigma_t(g.index(i, j, k));
+                if (!(st > 0.0)) continue;
+                const glm::dvec3 vc = cg.to_voxel(x);
+                const int ci = int(std::floor(vc.x)), cj = int(std::floor(vc.y)), ck = int(std::floor(vc.z));
+                if (ci >= 0 && cj >= 0 && ck >= 0 && ci < cg.dims.x && cj < cg.dims.y && ck < cg.dims.z) {
+                    const std::size_t c = cg.index(ci, cj, ck);
+                    const double w = a * p.intensity * st * std::exp(-(tau + 0.5 * st * dr)) * dr * d_omega;
+                    for (std::size_t kk = 0; kk < nd; ++kk) num[kk * cells + c] += w * ph[kk];
+                }
+                tau += st * dr;
+                if (tau > 30.0) break;
+            }
+        }
+    }
+    std::vector<float> out(nd * cells, 0.0f);
+    for (std::size_t k = 0; k < nd; ++k)
+        for (std::size_t c = 0; c < cells; ++c)
+            if (den[c] > 0.0) out[k * cells + c] = float(num[k * cells + c] / den[c]);
+    return out;
+}
+
 }  // namespace
 
 FULGUR_STUDY(strike_diffusion, "strike-diffusion",
@@ -366,6 +424,28 @@ FULGUR_STUDY(strike_diffusion, "strike-diffusion",
                              "ms, diffusion %.1f ms (%d iterations, %s)\n",
                              std::sqrt(d2 / r2), 1e3 * nf_secs, 1e3 * sd_secs, sd.last_iterations(),
                              sd.last_converged() ? "converged" : "NOT converged");
+            }
+
+            // The whole single scattering by rays through the full-resolution density (the
+            // truth's medium) and through the lighting grid's, no bases; with the engine's
+            // diffusion for the multiple part.
+            {
+                transport::LightingMedium full{density, s.medium};
+                runtime::NearFieldParts dp;
+                const runtime::StrikeDiffusion sd(lm, bases, dirs);
+                sd.add(pf.sources, dp);
+                std::vector<float> dm = paperm;
+                for (std::size_t j = 0; j < dm.size(); ++j) dm[j] += dp.multiple[j];
+                for (const int rays : {32, 128, 512})
+                    for (const bool fine : {true, false}) {
+                        const auto t0 = std::chrono::steady_clock::now();
+                        const std::vector<float> s1 =
+                            cast_single(fine ? full : lm, lm.density.geom, pf.sources, rays, dirs);
+                        const double secs = seconds_since(t0);
+                        report(std::string("cast single, ") + (fine ? "full density" : "lighting density") + ", " +
+                                   std::to_string(rays) + " rays + strike diffusion",
+                               1, s1, dm, secs, 0.0, 0);
+                    }
             }
 
             // The instant path's single scattering with 128 rays (the knob's next step).

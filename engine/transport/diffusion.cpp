@@ -219,12 +219,21 @@ void add_diffusion_source(const LightingMedium& m, const DiffusionField& field, 
     }
 }
 
-void add_first_scattered_emission(const LightingMedium& m, std::span<const PointSource> sources, int rays,
-                                  std::uint64_t seed, std::vector<double>& emission) {
-    FULGUR_ASSERT(rays >= 1 && rays <= 65536, "add_first_scattered_emission: rays must be in [1, 65536]");
+namespace {
+
+// The cast of add_first_scattered_emission and add_point_scattering: the emission always, the
+// single scattering in `directions` when `single` is given.
+void cast_points(const LightingMedium& m, std::span<const PointSource> sources, int rays, std::uint64_t seed,
+                 std::span<const glm::dvec3> directions, std::vector<double>& emission, std::vector<double>* single) {
+    FULGUR_ASSERT(rays >= 1 && rays <= 65536, "point source cast: rays must be in [1, 65536]");
     const core::GridGeometry& g = m.density.geom;
-    if (emission.empty()) emission.assign(g.cell_count(), 0.0);
-    FULGUR_ASSERT(emission.size() == g.cell_count(), "add_first_scattered_emission: emission is not one per cell");
+    const std::size_t cells = g.cell_count(), nd = directions.size();
+    if (emission.empty()) emission.assign(cells, 0.0);
+    FULGUR_ASSERT(emission.size() == cells, "point source cast: emission is not one value per cell");
+    if (single && single->empty()) single->assign(nd * cells, 0.0);
+    FULGUR_ASSERT(!single || single->size() == nd * cells, "point source cast: single is not [directions][cells]");
+    const double g_hg = std::clamp(m.optics.g, -kMaxAbsG, kMaxAbsG);
+    std::vector<double> phase(single ? nd : 0);
     const double h = g.voxel_size, V = h * h * h, dr = 0.25 * h, d_omega = 4.0 * std::numbers::pi / rays;
     const double albedo = std::clamp(m.optics.albedo, 0.0, 1.0);
     const double golden = std::numbers::pi * (3.0 - std::sqrt(5.0));
@@ -249,6 +258,7 @@ void add_first_scattered_emission(const LightingMedium& m, std::span<const Point
             const double z = 1.0 - (r + 0.5) * 2.0 / rays, rr = std::sqrt(std::max(0.0, 1.0 - z * z));
             const double az = r * golden + turn;
             const glm::dvec3 u = t * (rr * std::cos(az)) + bt * (rr * std::sin(az)) + w * z;
+            for (std::size_t k = 0; k < phase.size(); ++k) phase[k] = hg_phase(glm::dot(u, directions[k]), g_hg);
             // The ray's stretch inside the grid's box (slabs, in voxels).
             double t_in = 0.0, t_out = std::numeric_limits<double>::infinity();
             for (int ax = 0; ax < 3; ++ax) {
@@ -274,12 +284,28 @@ void add_first_scattered_emission(const LightingMedium& m, std::span<const Point
                 const std::size_t c = g.index(i, j, k);
                 const double st = m.sigma_t(c);
                 if (!(st > 0.0)) continue;
-                emission[c] += scale * st * std::exp(-(tau + 0.5 * st * dr));
+                const double e = scale * std::exp(-(tau + 0.5 * st * dr));
+                emission[c] += e * st;
+                if (single)
+                    for (std::size_t d = 0; d < nd; ++d) (*single)[d * cells + c] += e * phase[d];
                 tau += st * dr;
                 if (tau > 30.0) break;
             }
         }
     }
+}
+
+}  // namespace
+
+void add_first_scattered_emission(const LightingMedium& m, std::span<const PointSource> sources, int rays,
+                                  std::uint64_t seed, std::vector<double>& emission) {
+    cast_points(m, sources, rays, seed, {}, emission, nullptr);
+}
+
+void add_point_scattering(const LightingMedium& m, std::span<const PointSource> sources, int rays, std::uint64_t seed,
+                          std::span<const glm::dvec3> directions, std::vector<double>& emission,
+                          std::vector<double>& single) {
+    cast_points(m, sources, rays, seed, directions, emission, &single);
 }
 
 }  // namespace fulgur::transport

@@ -150,7 +150,7 @@ TEST_CASE("diffusion: the source function's mean over the sphere is a phi / (4 p
     CHECK(worst < 1e-3);
 }
 
-TEST_CASE("diffusion: the ray-cast first-scattered emission matches the exact quadrature's") {
+TEST_CASE("diffusion: the ray-cast first-scattered emission and single scattering match the exact quadrature's") {
     // A blob of varying density around a point source: the emission a sigma_t phi1 from
     // 2048 rays against transport::single_scattering's uncollided fluence (voxel averages).
     const transport::Medium optics{0.004, 0.99, 0.6};
@@ -186,6 +186,36 @@ TEST_CASE("diffusion: the ray-cast first-scattered emission matches the exact qu
     // (the 1/r^2 peak), the total is exact to the rays' quadrature of the sphere.
     CHECK(e < 0.06);
     CHECK(mine.value() / ref.value() == doctest::Approx(1.0).epsilon(0.01));
+
+    // The same cast's single scattering against the exact quadrature's, per direction, over the
+    // cloud's voxels (S where nothing scatters reaches no image); its emission is the one above,
+    // bit for bit.
+    const std::vector<glm::dvec3> dirs = {glm::dvec3(0, 0, 1), glm::normalize(glm::dvec3(1, -1, 0.3)),
+                                          glm::dvec3(-1, 0, 0)};
+    std::vector<double> emission, single;
+    transport::add_point_scattering(m, std::span(&src, 1), 2048, 1, dirs, emission, single);
+    CHECK(emission == cast);
+    const transport::SourceField exact1 = transport::single_scattering(m, src, dirs, so);
+    const std::size_t cells = g.cell_count();
+    for (std::size_t k = 0; k < dirs.size(); ++k) {
+        core::CompensatedSum s2, q2, t1, r1;
+        for (std::size_t c = 0; c < cells; ++c) {
+            if (!(m.density.data[c] > 0.0f)) continue;  // the cast leaves clear voxels at 0
+            const double mine1 = single[k * cells + c], ref1 = exact1.data[k * cells + c];
+            s2.add((mine1 - ref1) * (mine1 - ref1));
+            q2.add(ref1 * ref1);
+            t1.add(mine1);
+            r1.add(ref1);
+        }
+        const double ek = std::sqrt(s2.value() / q2.value()), ratio = t1.value() / r1.value();
+        MESSAGE("direction " << k << ": single scattering's relative L2 against the quadrature " << ek
+                             << ", ratio of totals " << ratio);
+        // Measured 0.025, 0.032 and 0.041 (the rays' sampling of the voxels next to the source,
+        // as for the emission), totals within 0.3%; a single part 5% off fails the ratio in
+        // every direction.
+        CHECK(ek < 0.06);
+        CHECK(ratio == doctest::Approx(1.0).epsilon(0.02));
+    }
 }
 
 TEST_CASE("diffusion: hostile inputs give zeros or finite fields; the same input the same bits") {
