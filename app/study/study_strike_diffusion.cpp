@@ -358,53 +358,56 @@ FULGUR_STUDY(strike_diffusion, "strike-diffusion",
                 report("truth's multiple, P1 fit + exact single", 0, truth.single.data, p1, 0.0, 0.0, 0);
             }
             report("instant first frame", 0, instant1, instantm, 0.0, 0.0, 0);
-            // The engine's first frame with the multiple part by diffusion: NearField's single
-            // scattering and runtime::StrikeDiffusion (the instant preset's near_field_multiple),
-            // on the lighting grid, with the time each takes (NearField on every thread, the
-            // lights' models kept; the diffusion on one).
+            // The engine's first frame: runtime::StrikeDiffusion (the instant preset's
+            // near_field_multiple "diffusion") with its single part by the same cast, and with
+            // NearField's single part (32 rays) instead; the time each takes (NearField on every
+            // thread, the lights' models kept; the diffusion on one).
             {
                 runtime::NearFieldOptions so;
                 so.rays = 32;
                 so.multiple = false;
                 const runtime::NearField single_only(lm, bases.lights(), dirs, so);
-                const runtime::StrikeDiffusion sd(lm, bases, dirs);
-                runtime::NearFieldParts parts;
-                single_only.add(pf.sources, parts);  // makes the lights' models
-                parts = {};
+                runtime::NearFieldParts nf_parts;
+                single_only.add(pf.sources, nf_parts);  // makes the lights' models
+                nf_parts = {};
                 auto t0 = std::chrono::steady_clock::now();
-                single_only.add(pf.sources, parts);
+                single_only.add(pf.sources, nf_parts);
                 const double nf_secs = seconds_since(t0);
-                t0 = std::chrono::steady_clock::now();
-                sd.add(pf.sources, parts);
-                const double sd_secs = seconds_since(t0);
-                std::vector<float> e1 = paper1, em = paperm;
-                for (std::size_t j = 0; j < e1.size(); ++j) {
-                    e1[j] += parts.single[j];
-                    em[j] += parts.multiple[j];
+                auto engine_row = [&](const std::string& label, const runtime::StrikeDiffusionOptions& sdo) {
+                    const runtime::StrikeDiffusion sd(lm, bases, dirs, sdo);
+                    runtime::NearFieldParts parts = sdo.single ? runtime::NearFieldParts{} : nf_parts;
+                    const auto ts = std::chrono::steady_clock::now();
+                    sd.add(pf.sources, parts);
+                    const double secs = seconds_since(ts);
+                    std::vector<float> e1 = paper1, em = paperm;
+                    for (std::size_t j = 0; j < e1.size(); ++j) {
+                        e1[j] += parts.single[j];
+                        em[j] += parts.multiple[j];
+                    }
+                    report(label, 1, e1, em, sdo.single ? 0.0 : nf_secs, secs, sd.last_iterations());
+                    return secs;
+                };
+                runtime::StrikeDiffusionOptions cast_single;
+                const double sd_secs = engine_row("engine: cast single + strike diffusion", cast_single);
+                runtime::StrikeDiffusionOptions near_single;
+                near_single.single = false;
+                engine_row("engine: near-field single + strike diffusion", near_single);
+                for (const int rays : {64, 128}) {
+                    runtime::StrikeDiffusionOptions more;
+                    more.rays = rays;
+                    engine_row("engine: cast single + strike diffusion, " + std::to_string(rays) + " rays", more);
                 }
-                report("engine: near-field single + strike diffusion", 1, e1, em, nf_secs, sd_secs,
-                       sd.last_iterations());
                 // The solve's knobs: limiter passes and the conjugate gradients' tolerance.
                 for (const auto& [passes, tol] : {std::pair{4, 1e-4}, std::pair{4, 1e-3}, std::pair{2, 1e-4},
                                                   std::pair{2, 1e-3}, std::pair{1, 1e-3}}) {
                     runtime::StrikeDiffusionOptions sdo;
+                    sdo.single = false;
                     sdo.diffusion.limiter_passes = passes;
                     sdo.diffusion.tolerance = tol;
-                    const runtime::StrikeDiffusion variant(lm, bases, dirs, sdo);
-                    runtime::NearFieldParts vp;
-                    single_only.add(pf.sources, vp);
-                    t0 = std::chrono::steady_clock::now();
-                    variant.add(pf.sources, vp);
-                    const double v_secs = seconds_since(t0);
-                    std::vector<float> v1 = paper1, vm = paperm;
-                    for (std::size_t j = 0; j < v1.size(); ++j) {
-                        v1[j] += vp.single[j];
-                        vm[j] += vp.multiple[j];
-                    }
                     char label[96];
                     std::snprintf(label, sizeof label, "engine: strike diffusion, %d passes, tolerance %g", passes,
                                   tol);
-                    report(label, 1, v1, vm, nf_secs, v_secs, variant.last_iterations());
+                    engine_row(label, sdo);
                 }
                 // The engine's solver against this study's (whole grid, plain loops) on the same
                 // emission.
@@ -421,9 +424,9 @@ FULGUR_STUDY(strike_diffusion, "strike-diffusion",
                 }
                 std::fprintf(stderr,
                              "strike-diffusion: engine solver against this study's: relative L2 %.2e; near field %.1f "
-                             "ms, diffusion %.1f ms (%d iterations, %s)\n",
-                             std::sqrt(d2 / r2), 1e3 * nf_secs, 1e3 * sd_secs, sd.last_iterations(),
-                             sd.last_converged() ? "converged" : "NOT converged");
+                             "ms, cast + diffusion %.1f ms (the check's solve: %d iterations, %s)\n",
+                             std::sqrt(d2 / r2), 1e3 * nf_secs, 1e3 * sd_secs, fast.iterations,
+                             fast.converged ? "converged" : "NOT converged");
             }
 
             // The whole single scattering by rays through the full-resolution density (the

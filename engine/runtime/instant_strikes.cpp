@@ -169,7 +169,7 @@ struct InstantStrikes::Impl {
                     const std::vector<transport::PointSource> src = near->stroke_sources(e.bolt, std::size_t(q));
                     NearFieldParts& part = (*groups)[std::size_t(q)];
                     if (src.empty()) return;
-                    near->add(src, part);
+                    if (!diffusion->replaces_single()) near->add(src, part);
                     diffusion->add(src, part);
                 });
             }
@@ -259,7 +259,7 @@ struct InstantStrikes::Impl {
         // The lights' near-field models, on every core before the first strike can come: a
         // strike's first correction then pays only for its own points (docs/presets.md: the
         // default storm's 968 lights take 11-19 ms on 2 cores, once).
-        if (near)
+        if (near && !diffusion)
             core::parallel_for_dynamic(
                 0, std::int64_t(near->light_count()), [&](std::int64_t l) { near->keep_light(std::size_t(l)); }, 16);
         {

@@ -5,6 +5,7 @@
 #include "lightning/lightning.h"
 #include "runtime/reconstructor.h"
 
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <vector>
@@ -42,6 +43,7 @@ StrikeDiffusion::StrikeDiffusion(const transport::LightingMedium& lighting, cons
 StrikeDiffusion::~StrikeDiffusion() = default;
 
 bool StrikeDiffusion::separable() const noexcept { return impl_->separable; }
+bool StrikeDiffusion::replaces_single() const noexcept { return impl_->options.single; }
 int StrikeDiffusion::last_iterations() const noexcept { return impl_->iterations.load(); }
 bool StrikeDiffusion::last_converged() const noexcept { return impl_->converged.load(); }
 
@@ -54,18 +56,25 @@ bool StrikeDiffusion::add(std::span<const transport::PointSource> sources, NearF
     const std::vector<transport::PointSource> finite = lit_sources(sources);
     if (finite.empty()) return false;
 
-    // The bases' multiple part of the points' splat: what the bases' frame shows of them.
+    // The bases' parts of the points' splat that this replaces: what the bases' frame shows.
     lightning::LightWeights w;
     im.splatter.splat(finite, w);
     Reconstructor rec(im.bases);
-    ReconstructOptions ro;
-    ro.components = {false, true};
-    RadianceField splatted;
-    StageTimes st;
-    const bool have_bases = rec.reconstruct(w, {}, ro, splatted, st);
+    std::array<RadianceField, 2> splatted;
+    std::array<bool, 2> have_bases = {false, false};
+    for (const int part : {0, 1}) {
+        if (part == 0 && !im.options.single) continue;
+        ReconstructOptions ro;
+        ro.components = {part == 0, part == 1};
+        StageTimes st;
+        have_bases[std::size_t(part)] = rec.reconstruct(w, {}, ro, splatted[std::size_t(part)], st);
+    }
 
-    std::vector<double> emission;
-    transport::add_first_scattered_emission(im.medium, finite, im.options.rays, im.options.seed, emission);
+    std::vector<double> emission, single;
+    if (im.options.single)
+        transport::add_point_scattering(im.medium, finite, im.options.rays, im.options.seed, im.dirs, emission, single);
+    else
+        transport::add_first_scattered_emission(im.medium, finite, im.options.rays, im.options.seed, emission);
     const transport::DiffusionField field = transport::solve_diffusion(im.medium, emission, im.options.diffusion);
     im.iterations.store(field.iterations);
     im.converged.store(field.converged);
@@ -75,12 +84,17 @@ bool StrikeDiffusion::add(std::span<const transport::PointSource> sources, NearF
         out.multiple.assign(nd * cells, 0.0f);
     }
     transport::add_diffusion_source(im.medium, field, im.dirs, 1.0, out.multiple);
-    if (have_bases)
-        for (std::size_t k = 0; k < splatted.directions.size(); ++k) {
-            const std::size_t m = std::size_t(splatted.directions[k]);
-            const std::vector<float>& v = splatted.values[k];
-            for (std::size_t c = 0; c < cells; ++c) out.multiple[m * cells + c] -= v[c];
+    for (std::size_t i = 0; i < single.size(); ++i) out.single[i] += float(single[i]);
+    for (const std::size_t part : {0u, 1u}) {
+        if (!have_bases[part]) continue;
+        std::vector<float>& to = part == 0 ? out.single : out.multiple;
+        const RadianceField& r = splatted[part];
+        for (std::size_t k = 0; k < r.directions.size(); ++k) {
+            const std::size_t m = std::size_t(r.directions[k]);
+            const std::vector<float>& v = r.values[k];
+            for (std::size_t c = 0; c < cells; ++c) to[m * cells + c] -= v[c];
         }
+    }
     return true;
 }
 

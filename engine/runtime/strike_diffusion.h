@@ -28,6 +28,11 @@ struct StrikeDiffusionOptions {
     /// Rays cast from each point for its first-scattered emission: 32 and 128 give the same
     /// figures on the default storm (the diffusion smooths what 32 rays sample).
     int rays = 32;
+    /// Also the points' single scattering by the same rays, through the whole grid, in place of
+    /// the bases' (and of NearField's correction of it): on the default storm's strikes 11-26%
+    /// single against the bases with NearField's 14-33%, the first frame's worst 24.5% against
+    /// 28.1% (docs/presets.md).
+    bool single = true;
     transport::DiffusionOptions diffusion;
     std::uint64_t seed = 1;  ///< turns each point's rays (transport::add_first_scattered_emission)
 };
@@ -47,8 +52,13 @@ public:
     /// NearField's own multiple model), on this lighting grid and direction set.
     bool separable() const noexcept;
 
+    /// Whether add() replaces the single part too (options.single).
+    bool replaces_single() const noexcept;
+
     /// Adds to out.multiple ([m][cell]; both parts sized here when `out` is empty) the diffusion
-    /// solve's multiple scattering of `sources` minus the bases' multiple part of their splat.
+    /// solve's multiple scattering of `sources` minus the bases' multiple part of their splat;
+    /// with options.single, to out.single the cast's single scattering minus the bases' single
+    /// part (then `out` should hold no NearField correction).
     /// Sources with a non-finite position or intensity, or none, add nothing. Thread-safe.
     /// Returns false when nothing was added (nothing lit, or not separable()).
     bool add(std::span<const transport::PointSource> sources, NearFieldParts& out) const;
