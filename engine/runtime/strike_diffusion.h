@@ -1,17 +1,17 @@
-// fulgur::runtime — a strike's multiple scattering by flux-limited diffusion through the cloud's
-// own density (transport/diffusion.h), in place of the bases' splat of it, for the frames before
-// its first Monte Carlo estimate.
+// fulgur::runtime — a strike's own light in place of the bases' for the frames before its first
+// Monte Carlo estimate: its single scattering by rays cast from its points, its multiple
+// scattering by flux-limited diffusion through the cloud's own density (transport/diffusion.h).
 //
-// The bases carry a strike's multiple scattering as the splat onto virtual lights 1500 m apart
-// represents it; next to the channel and where the cloud's base and edges cut the light off,
-// the splat cannot (docs/presets.md). Per strike and glow group this solves the multiple part
-// directly: the points' first-scattered emission a sigma_t phi1 by rays cast from each, the
-// diffused light on the lighting grid, and its source function as an HG lobe along the flux.
-// Added to a NearFieldParts as a correction, that solve minus the bases' multiple part of the
-// same points, so that the bases' frame plus the correction shows the solve's multiple part.
-// On the default storm's strikes this takes the first lit frame from 35.5% to 27.8% worst (its
-// median from 31.3% to 17.7%) against the truth (docs/presets.md, "A strike's multiple
-// scattering by diffusion").
+// The bases carry a strike's light as the splat onto virtual lights 1500 m apart represents it;
+// next to the channel, and where the cloud's base and edges cut the light off, the splat cannot
+// (docs/presets.md). Per strike and glow group this casts rays from the points through the
+// lighting grid (their single scattering and first-scattered emission a sigma_t phi1), solves
+// the diffusion of that emission, and takes the diffused light's source function as an HG lobe
+// along its flux. Added to a NearFieldParts as a correction (the cast and the solve minus the
+// bases' parts of the same points), so that the bases' frame plus the correction shows the
+// strike's own light. On the default storm's strikes this takes the first lit frame from 35.5%
+// (NearField's kernel) to 23.2% worst, its median from 31.3% to 17.4%, against the truth
+// (docs/presets.md, "A strike's multiple scattering by diffusion").
 #pragma once
 
 #include "runtime/baked_bases.h"

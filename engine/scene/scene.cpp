@@ -575,8 +575,9 @@ Quality quality_preset(std::string_view name, std::string_view where) {
         // 32 rays per point halve the first frame's error on the default storm (75.7% ->
         // 35.7%) for a few milliseconds once per strike (docs/presets.md).
         q.near_field_rays = 32;
-        // Its multiple part by the strike's own flux-limited diffusion solve: 35.5% -> 27.8%
-        // worst on the default storm for 3-6 ms per glow group once per strike (docs/presets.md).
+        // Instead of the kernel, the strike's own light: its rays' single scattering and a
+        // flux-limited diffusion solve, 35.5% -> 23.2% worst on the default storm for 4.4 ms once
+        // per strike (docs/presets.md).
         q.near_field_multiple = "diffusion";
     } else if (name == "reference") {
         q.preset = Quality::Preset::Reference;

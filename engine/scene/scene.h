@@ -193,10 +193,10 @@ struct Quality {
     /// channel, from a local model, so a strike's frames before its first estimate are not the
     /// paper frame. 0: none (docs/presets.md measures 32 and more).
     int near_field_rays = 0;
-    /// Instant: the near-field correction's multiple scattering. "diffusion": the strike's own
-    /// flux-limited diffusion solve replaces the bases' multiple part (runtime::StrikeDiffusion;
-    /// a bake storing single and multiple scattering as one basis falls back to "kernel");
-    /// "kernel": a local diffusion kernel around each point (runtime::NearField).
+    /// Instant: how the correction is made. "diffusion": the strike's own light replaces the
+    /// bases' (runtime::StrikeDiffusion: single scattering by rays from its points, multiple by
+    /// a flux-limited diffusion solve; a bake storing single and multiple scattering as one
+    /// basis falls back to "kernel"); "kernel": NearField's local model next to the channel.
     std::string near_field_multiple = "kernel";
 };
 
