@@ -61,8 +61,9 @@ struct InstantOptions {
     /// Rays per point of the near-field correction added to the bases' frame of the strokes
     /// (runtime::NearField); 0: none.
     int near_field_rays = 0;
-    /// The correction's multiple scattering: the strike's own flux-limited diffusion solve in
-    /// place of the bases' (runtime::StrikeDiffusion), else NearField's local kernel.
+    /// The correction: the strike's own light in place of the bases' (runtime::StrikeDiffusion:
+    /// its points' rays for single scattering, a flux-limited diffusion solve for multiple),
+    /// else NearField's local model with its kernel.
     bool diffusion_multiple = false;
 };
 

@@ -1,4 +1,5 @@
-// StrikeDiffusion (strike_diffusion.h): a strike's multiple scattering by flux-limited diffusion.
+// StrikeDiffusion (strike_diffusion.h): a strike's own light, single scattering by its points'
+// rays and multiple scattering by flux-limited diffusion, in place of the bases'.
 #include "runtime/strike_diffusion.h"
 
 #include "core/core.h"
