@@ -112,17 +112,6 @@ private:
     std::vector<double> edges_, centre_, phi_;
 };
 
-// Directions of equal solid angle (a Fibonacci sphere).
-std::vector<glm::dvec3> sphere_directions(int n) {
-    std::vector<glm::dvec3> d(static_cast<std::size_t>(n));
-    for (int r = 0; r < n; ++r) {
-        const double z = 1.0 - (r + 0.5) * 2.0 / n, rr = std::sqrt(std::max(0.0, 1.0 - z * z));
-        const double phi = r * std::numbers::pi * (3.0 - std::sqrt(5.0));
-        d[std::size_t(r)] = {rr * std::cos(phi), rr * std::sin(phi), z};
-    }
-    return d;
-}
-
 // The near-field models' fields on the lighting grid: single per output direction
 // (direction-major), the point kernel's multiple and the scalar first-scattered source.
 struct NearField {
@@ -310,7 +299,7 @@ FULGUR_STUDY(near_field, "near-field",
             NearField best;
             double best_seconds = 0.0;
             for (const int n : {32, 128, 512, 2048}) {
-                const std::vector<glm::dvec3> rays = sphere_directions(n);
+                const std::vector<glm::dvec3> rays = core::fibonacci_sphere(n);
                 auto t0 = std::chrono::steady_clock::now();
                 NearField f = correction(pf.sources, rays, dirs);
                 const double secs = seconds_since(t0);

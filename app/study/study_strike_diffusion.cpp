@@ -216,7 +216,7 @@ std::vector<float> cast_single(const transport::LightingMedium& m, const core::G
     const core::GridGeometry& g = m.density.geom;
     const std::size_t cells = cg.cell_count(), nd = dirs.size();
     const double h = g.voxel_size, dr = 0.25 * h, d_omega = 4.0 * std::numbers::pi / rays;
-    const double golden = std::numbers::pi * (3.0 - std::sqrt(5.0)), a = m.optics.albedo;
+    const double a = m.optics.albedo;
     std::vector<double> num(nd * cells, 0.0), den(cells, 0.0);
     for (std::size_t c = 0; c < g.cell_count(); ++c) {
         const core::Int3 p = g.unindex(c);
@@ -232,8 +232,7 @@ std::vector<float> cast_single(const transport::LightingMedium& m, const core::G
         core::Rng rng(core::hash_seed(0x51f1e, n));
         const double turn = 2.0 * std::numbers::pi * rng.uniform();
         for (int r = 0; r < rays; ++r) {
-            const double z = 1.0 - (r + 0.5) * 2.0 / rays, rr = std::sqrt(std::max(0.0, 1.0 - z * z));
-            const glm::dvec3 u(rr * std::cos(r * golden + turn), rr * std::sin(r * golden + turn), z);
+            const glm::dvec3 u = core::fibonacci_direction(r, rays, turn);
             for (std::size_t k = 0; k < nd; ++k) ph[k] = transport::hg_phase(glm::dot(u, dirs[k]), m.optics.g);
             double tau = 0.0;
             const double length = glm::length(g.extent()) + glm::length(p.position - (g.origin + 0.5 * g.extent()));

@@ -5,6 +5,7 @@
 //  * rng.h       Rng: PCG32, deterministic per (seed, stream); seed mixing.
 //  * numerics.h  compensated sums, relative L2.
 //  * basis3.h    an orthonormal basis around a unit vector.
+//  * sphere_points.h  directions of equal solid angle (a Fibonacci sphere).
 //  * parallel.h  threads (OpenMP underneath), the background Worker, Stopwatch.
 //  * format.h    numbers, durations and sizes for people.
 //  * files.h     bounded reads, atomic writes, file locks, finiteness checks.
@@ -24,3 +25,4 @@
 #include "core/numerics.h"
 #include "core/parallel.h"
 #include "core/rng.h"
+#include "core/sphere_points.h"

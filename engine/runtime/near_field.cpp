@@ -26,17 +26,6 @@ double diffusion_phi(double r, double sigma, double albedo, double g) {
     return std::exp(-r / L) / (D * r);
 }
 
-// Directions of equal solid angle (a Fibonacci sphere).
-std::vector<glm::dvec3> sphere_directions(int n) {
-    std::vector<glm::dvec3> d(static_cast<std::size_t>(n));
-    const double golden = std::numbers::pi * (3.0 - std::sqrt(5.0));
-    for (int r = 0; r < n; ++r) {
-        const double z = 1.0 - (r + 0.5) * 2.0 / n, rr = std::sqrt(std::max(0.0, 1.0 - z * z));
-        d[std::size_t(r)] = {rr * std::cos(r * golden), rr * std::sin(r * golden), z};
-    }
-    return d;
-}
-
 }  // namespace
 
 struct NearField::Impl {
@@ -78,7 +67,7 @@ struct NearField::Impl {
           splatter(lights),
           dirs(d.begin(), d.end()),
           options(o),
-          rays(sphere_directions(o.rays)),
+          rays(core::fibonacci_sphere(o.rays)),
           h(m.density.geom.voxel_size),
           reach(o.reach_voxels * m.density.geom.voxel_size),
           cells(m.density.geom.cell_count()),

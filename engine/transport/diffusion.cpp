@@ -236,7 +236,6 @@ void cast_points(const LightingMedium& m, std::span<const PointSource> sources, 
     std::vector<double> phase(single ? nd : 0);
     const double h = g.voxel_size, V = h * h * h, dr = 0.25 * h, d_omega = 4.0 * std::numbers::pi / rays;
     const double albedo = std::clamp(m.optics.albedo, 0.0, 1.0);
-    const double golden = std::numbers::pi * (3.0 - std::sqrt(5.0));
     const double dims[3] = {double(g.dims.x), double(g.dims.y), double(g.dims.z)};
     for (std::size_t n = 0; n < sources.size(); ++n) {
         const PointSource& p = sources[n];
@@ -255,9 +254,8 @@ void cast_points(const LightingMedium& m, std::span<const PointSource> sources, 
         const glm::dvec3 v0 = g.to_voxel(p.position);
         const double scale = albedo * p.intensity * dr * d_omega / V;
         for (int r = 0; r < rays; ++r) {
-            const double z = 1.0 - (r + 0.5) * 2.0 / rays, rr = std::sqrt(std::max(0.0, 1.0 - z * z));
-            const double az = r * golden + turn;
-            const glm::dvec3 u = t * (rr * std::cos(az)) + bt * (rr * std::sin(az)) + w * z;
+            const glm::dvec3 f = core::fibonacci_direction(r, rays, turn);
+            const glm::dvec3 u = t * f.x + bt * f.y + w * f.z;
             for (std::size_t k = 0; k < phase.size(); ++k) phase[k] = hg_phase(glm::dot(u, directions[k]), g_hg);
             // The ray's stretch inside the grid's box (slabs, in voxels).
             double t_in = 0.0, t_out = std::numeric_limits<double>::infinity();

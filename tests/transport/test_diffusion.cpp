@@ -25,16 +25,6 @@ transport::LightingMedium cube(int n, double h, transport::Medium optics) {
     return test::uniform_medium({n, n, n}, h, glm::dvec3(-0.5 * n * h), 1.0f, optics);
 }
 
-std::vector<glm::dvec3> sphere(int n) {
-    std::vector<glm::dvec3> d(static_cast<std::size_t>(n));
-    const double golden = std::numbers::pi * (3.0 - std::sqrt(5.0));
-    for (int r = 0; r < n; ++r) {
-        const double z = 1.0 - (r + 0.5) * 2.0 / n, rr = std::sqrt(std::max(0.0, 1.0 - z * z));
-        d[std::size_t(r)] = {rr * std::cos(r * golden), rr * std::sin(r * golden), z};
-    }
-    return d;
-}
-
 }  // namespace
 
 TEST_CASE("diffusion: a point emission in a homogeneous medium follows diffusion's Green's function") {
@@ -129,7 +119,7 @@ TEST_CASE("diffusion: the source function's mean over the sphere is a phi / (4 p
     std::vector<double> q(m.density.geom.cell_count(), 0.0);
     q[m.density.geom.index(2, 4, 4)] = 1.0;  // off-centre: strong flux across the cube
     const transport::DiffusionField f = transport::solve_diffusion(m, q);
-    const std::vector<glm::dvec3> dirs = sphere(4096);
+    const std::vector<glm::dvec3> dirs = core::fibonacci_sphere(4096);
     const std::size_t cells = f.fluence.size();
     std::vector<float> S(dirs.size() * cells, 0.0f);
     transport::add_diffusion_source(m, f, dirs, 2.0, S);
