@@ -10,8 +10,9 @@
 //     models kept) at 32 and 128 rays, and the lights' models once, against the paper frame
 //     of the same strike in the same run.
 //   strike diffusion: the correction as the instant preset makes it (runtime::StrikeDiffusion,
-//     32 rays, both groups at once) per strike, and one group alone on one thread, against the
-//     same paper frame.
+//     its single scattering cast through the full-resolution density with 128 rays, and through
+//     the lighting grid with 32; the groups one after the other, each cast on every core) per
+//     strike, and the main channel's group alone, against the same paper frame.
 //   frame: the frame thread's cost (wall and the thread's own CPU time, median) while the
 //     strike is being solved, instant against paper in the same run, all 26 directions and
 //     the 8 a side view needs; for instant also over the frames that blend the bases in
@@ -217,9 +218,10 @@ FULGUR_BENCH(instant,
 
     // --- the strike's diffusion solve ---
     // The correction as the instant preset makes it: runtime::StrikeDiffusion (its rays' single
-    // scattering and its diffusion solve; NearField only for the points), the two glow groups
-    // at once, one per core; per strike, against the paper frame of the same strike in the same
-    // run. Also one group (the main channel's) alone on one thread, with its iterations.
+    // scattering and its diffusion solve; NearField only for the points), the glow groups one
+    // after the other, per strike, against the paper frame of the same strike in the same run;
+    // also the main channel's group alone, with its iterations. Its single scattering cast
+    // through the full-resolution density (the instant preset's) and through the lighting grid.
     {
         runtime::NearFieldOptions no;
         no.rays = 32;
@@ -227,37 +229,42 @@ FULGUR_BENCH(instant,
         const std::vector<glm::dvec3> dirs = transport::output_directions(s.effective_directions());
         const runtime::NearField nf(media.lighting, bases.lights(), dirs, no);
         for (std::size_t l = 0; l < nf.light_count(); ++l) nf.keep_light(l);
-        const runtime::StrikeDiffusion sd(media.lighting, bases, dirs);
-        std::vector<double> correction_ms, diffusion_ms, paper_ms, iterations;
-        for (int k = 0; k < strikes; ++k) {
-            runtime::FramePipeline p(s, density, bases, {}, scene::quality_preset("paper"));
-            const std::size_t i = p.strike_at(0.0, std::uint64_t(k + 1));
-            const double t = p.storm().strike(i).profile.stroke_onset.at(0) + 0.002;
-            const lightning::Bolt bolt = p.storm().bolt(i);
-            const std::array<std::vector<transport::PointSource>, 2> src = {nf.stroke_sources(bolt, 0),
-                                                                            nf.stroke_sources(bolt, 1)};
-            correction_ms.push_back(1e3 * bench::time_median(ctx.quick ? 1 : 5, [&] {
-                                        core::parallel_for_dynamic(0, 2, [&](std::int64_t q) {
-                                            runtime::NearFieldParts part;
-                                            if (!sd.replaces_single()) nf.add(src[std::size_t(q)], part);
-                                            sd.add(src[std::size_t(q)], part);
-                                        });
-                                    }));
-            diffusion_ms.push_back(1e3 * bench::time_median(ctx.quick ? 1 : 5, [&] {
-                                       runtime::NearFieldParts part;
-                                       sd.add(src[0], part);
-                                   }));
-            iterations.push_back(double(sd.last_iterations()));
-            paper_ms.push_back(1e3 * bench::time_median(ctx.quick ? 1 : 5, [&] { (void)p.build(t, {}); }));
+        const transport::LightingMedium full{density, s.medium};
+        for (const bool fine : {true, false}) {
+            runtime::StrikeDiffusionOptions so;
+            const runtime::StrikeDiffusion sd(media.lighting, bases, dirs, so, fine ? &full : nullptr);
+            std::vector<double> correction_ms, diffusion_ms, paper_ms, iterations;
+            for (int k = 0; k < strikes; ++k) {
+                runtime::FramePipeline p(s, density, bases, {}, scene::quality_preset("paper"));
+                const std::size_t i = p.strike_at(0.0, std::uint64_t(k + 1));
+                const double t = p.storm().strike(i).profile.stroke_onset.at(0) + 0.002;
+                const lightning::Bolt bolt = p.storm().bolt(i);
+                const std::array<std::vector<transport::PointSource>, 2> src = {nf.stroke_sources(bolt, 0),
+                                                                                nf.stroke_sources(bolt, 1)};
+                correction_ms.push_back(1e3 * bench::time_median(ctx.quick ? 1 : 5, [&] {
+                                            for (std::size_t q = 0; q < 2; ++q) {
+                                                runtime::NearFieldParts part;
+                                                if (!sd.replaces_single()) nf.add(src[q], part);
+                                                sd.add(src[q], part);
+                                            }
+                                        }));
+                diffusion_ms.push_back(1e3 * bench::time_median(ctx.quick ? 1 : 5, [&] {
+                                           runtime::NearFieldParts part;
+                                           sd.add(src[0], part);
+                                       }));
+                iterations.push_back(double(sd.last_iterations()));
+                paper_ms.push_back(1e3 * bench::time_median(ctx.quick ? 1 : 5, [&] { (void)p.build(t, {}); }));
+            }
+            nlohmann::json j = base;
+            j["single"] = fine ? "cast through the full-resolution density" : "cast through the lighting grid";
+            j["rays"] = fine ? so.fine_rays : so.rays;
+            j["threads"] = ctx.max_threads;
+            j["correction_ms_median"] = bench::median(correction_ms);
+            j["main_group_ms_median"] = bench::median(diffusion_ms);
+            j["iterations_median"] = bench::median(iterations);
+            j["paper_frame_ms_median"] = bench::median(paper_ms);
+            j["ratio_to_paper_frame"] = bench::median(correction_ms) / std::max(1e-9, bench::median(paper_ms));
+            ctx.emit("instant_strike_diffusion", j);
         }
-        nlohmann::json j = base;
-        j["rays"] = 32;
-        j["threads"] = ctx.max_threads;
-        j["correction_ms_median"] = bench::median(correction_ms);
-        j["main_group_one_thread_ms_median"] = bench::median(diffusion_ms);
-        j["iterations_median"] = bench::median(iterations);
-        j["paper_frame_ms_median"] = bench::median(paper_ms);
-        j["ratio_to_paper_frame"] = bench::median(correction_ms) / std::max(1e-9, bench::median(paper_ms));
-        ctx.emit("instant_strike_diffusion", j);
     }
 }

@@ -3,7 +3,8 @@
 //   strike at its first return stroke + 2 ms, each preset's frame (and instant's without its
 //   near-field correction: instant_no_near_field; with the correction's multiple part by the
 //   kernel instead of the strike's diffusion solve: instant_kernel; with 128 rays per point
-//   instead of 32: instant_128) as it is shown X ms of wall
+//   instead of 32: instant_128; with the strike's single scattering cast through the lighting
+//   grid instead of the full-resolution density: instant_lighting_single) as it is shown X ms of wall
 //   time after the strike became known (X = 0, 16, 50, 100, 300, 1000; lookahead 0; frames
 //   built at 60 fps meanwhile: runtime::build_since_known), against the truth of that frame
 //   (runtime::truth): relative L2 of S over the cloud voxels, all directions. Also the frame
@@ -46,8 +47,9 @@ FULGUR_STUDY(latency, "latency",
     // Configurations: the presets, and the instant preset without its near-field correction,
     // with the kernel's multiple part, with 128 rays (what each buys at each latency, measured
     // in the same run).
-    std::vector<std::string> presets = {"paper",          "per_strike_mc",         "instant",
-                                        "instant_kernel", "instant_no_near_field", "instant_128"};
+    std::vector<std::string> presets = {
+        "paper",       "per_strike_mc",          "instant", "instant_kernel", "instant_no_near_field",
+        "instant_128", "instant_lighting_single"};
     std::uint64_t truth_paths = 2'000'000;
     if (ctx.quick) {
         cases = {{"storm.json", 2}};
@@ -59,7 +61,7 @@ FULGUR_STUDY(latency, "latency",
         if (presets.empty())
             throw core::Error("--only",
                               "names no configuration of paper, per_strike_mc, instant, instant_kernel, "
-                              "instant_no_near_field, instant_128");
+                              "instant_no_near_field, instant_128, instant_lighting_single");
     }
 
     study::Csv rows(ctx.file("latency.csv"),
@@ -99,6 +101,7 @@ FULGUR_STUDY(latency, "latency",
                 if (name == "instant_no_near_field") q.near_field_rays = 0;
                 if (name == "instant_kernel") q.near_field_multiple = "kernel";
                 if (name == "instant_128") q.near_field_rays = 128;
+                if (name == "instant_lighting_single") q.near_field_fine_rays = 0;
                 q.lookahead = 0.0;  // nobody scheduled it
                 // The latencies, then (x < 0) the strike triggered at its leader's start.
                 std::vector<double> xs = latencies;

@@ -35,6 +35,7 @@ InstantOptions instant_options(const scene::Quality& q) {
     o.target_noise = q.target_noise;
     o.near_field_rays = q.near_field_rays;
     o.diffusion_multiple = q.near_field_multiple == "diffusion";
+    o.fine_rays = q.near_field_fine_rays;
     return o;
 }
 
@@ -129,8 +130,9 @@ struct InstantStrikes::Impl {
             if (o.diffusion_multiple) {
                 StrikeDiffusionOptions so;
                 so.rays = o.near_field_rays;
+                so.fine_rays = o.fine_rays;
                 so.seed = o.seed;
-                diffusion = std::make_unique<StrikeDiffusion>(m.lighting, *bases, dirs, so);
+                diffusion = std::make_unique<StrikeDiffusion>(m.lighting, *bases, dirs, so, &fine);
                 if (!diffusion->separable()) diffusion.reset();
             }
             NearFieldOptions no;
@@ -164,14 +166,15 @@ struct InstantStrikes::Impl {
             if (!diffusion) {
                 for (std::size_t q = 0; q < 2; ++q) (*groups)[q] = near->strokes(e.bolt, q);
             } else {
-                // The two groups at once: each diffusion solve runs on one thread.
-                core::parallel_for_dynamic(0, 2, [&](std::int64_t q) {
-                    const std::vector<transport::PointSource> src = near->stroke_sources(e.bolt, std::size_t(q));
-                    NearFieldParts& part = (*groups)[std::size_t(q)];
-                    if (src.empty()) return;
+                // One group after the other: each one's cast runs on every core (the main
+                // channel's carries most of the points), its diffusion solve on one.
+                for (std::size_t q = 0; q < 2; ++q) {
+                    const std::vector<transport::PointSource> src = near->stroke_sources(e.bolt, q);
+                    NearFieldParts& part = (*groups)[q];
+                    if (src.empty()) continue;
                     if (!diffusion->replaces_single()) near->add(src, part);
                     diffusion->add(src, part);
-                });
+                }
             }
             e.near = std::move(groups);
         });

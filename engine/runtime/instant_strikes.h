@@ -65,6 +65,9 @@ struct InstantOptions {
     /// its points' rays for single scattering, a flux-limited diffusion solve for multiple),
     /// else NearField's local model with its kernel.
     bool diffusion_multiple = false;
+    /// With diffusion_multiple: rays per point of the single scattering cast through the
+    /// full-resolution density (StrikeDiffusionOptions::fine_rays); 0: the lighting grid's.
+    int fine_rays = 0;
 };
 
 /// The instant preset's options (target_noise, path caps) from a quality preset.

@@ -15,6 +15,7 @@ namespace fulgur::runtime {
 
 struct StrikeDiffusion::Impl {
     transport::LightingMedium medium;
+    const transport::LightingMedium* full;  // null, or the density at full resolution
     const BakedBases& bases;
     lightning::Splatter splatter;
     std::vector<glm::dvec3> dirs;
@@ -23,9 +24,14 @@ struct StrikeDiffusion::Impl {
     mutable std::atomic<int> iterations{0};
     mutable std::atomic<bool> converged{true};
 
-    Impl(const transport::LightingMedium& m, const BakedBases& b, std::span<const glm::dvec3> d,
-         const StrikeDiffusionOptions& o)
-        : medium(m), bases(b), splatter(b.lights()), dirs(d.begin(), d.end()), options(o) {
+    Impl(const transport::LightingMedium& m, const transport::LightingMedium* f, const BakedBases& b,
+         std::span<const glm::dvec3> d, const StrikeDiffusionOptions& o)
+        : medium(m),
+          full(o.fine_rays > 0 ? f : nullptr),
+          bases(b),
+          splatter(b.lights()),
+          dirs(d.begin(), d.end()),
+          options(o) {
         // Only separate bases can show the multiple part alone; a bake without it shows none
         // (the correction then adds the whole solve).
         separable = (b.separate() || !b.has_multiple()) && b.lighting() == m.density.geom &&
@@ -34,11 +40,14 @@ struct StrikeDiffusion::Impl {
 };
 
 StrikeDiffusion::StrikeDiffusion(const transport::LightingMedium& lighting, const BakedBases& bases,
-                                 std::span<const glm::dvec3> directions, const StrikeDiffusionOptions& options) {
+                                 std::span<const glm::dvec3> directions, const StrikeDiffusionOptions& options,
+                                 const transport::LightingMedium* full) {
     FULGUR_ASSERT(options.rays >= 1 && options.rays <= 65536, "StrikeDiffusion: rays must be in [1, 65536]");
+    FULGUR_ASSERT(options.fine_rays >= 0 && options.fine_rays <= 65536,
+                  "StrikeDiffusion: fine_rays must be in [0, 65536]");
     FULGUR_ASSERT(!directions.empty(), "StrikeDiffusion: no output directions");
     FULGUR_ASSERT(bases.lights().count() > 0, "StrikeDiffusion: bases without lights");
-    impl_ = std::make_unique<Impl>(lighting, bases, directions, options);
+    impl_ = std::make_unique<Impl>(lighting, full, bases, directions, options);
 }
 
 StrikeDiffusion::~StrikeDiffusion() = default;
@@ -72,10 +81,20 @@ bool StrikeDiffusion::add(std::span<const transport::PointSource> sources, NearF
     }
 
     std::vector<double> emission, single;
-    if (im.options.single)
+    const core::GridGeometry& lg = im.medium.density.geom;
+    if (im.options.single && im.full) {
+        std::vector<double> fine_emission;
+        transport::add_point_scattering_fine(*im.full, lg, finite, im.options.fine_rays, im.options.seed, im.dirs,
+                                             fine_emission, single);
+        if (im.options.fine_emission)
+            emission = std::move(fine_emission);
+        else
+            transport::add_first_scattered_emission(im.medium, finite, im.options.rays, im.options.seed, emission);
+    } else if (im.options.single) {
         transport::add_point_scattering(im.medium, finite, im.options.rays, im.options.seed, im.dirs, emission, single);
-    else
+    } else {
         transport::add_first_scattered_emission(im.medium, finite, im.options.rays, im.options.seed, emission);
+    }
     const transport::DiffusionField field = transport::solve_diffusion(im.medium, emission, im.options.diffusion);
     im.iterations.store(field.iterations);
     im.converged.store(field.converged);

@@ -198,6 +198,12 @@ struct Quality {
     /// a flux-limited diffusion solve; a bake storing single and multiple scattering as one
     /// basis falls back to "kernel"); "kernel": NearField's local model next to the channel.
     std::string near_field_multiple = "kernel";
+    /// Instant, "diffusion": rays per point of the strike's single scattering cast through the
+    /// cloud's full-resolution density (the truth's medium: the channel's light is cut off where
+    /// the cloud's base and edges are, not where a lighting voxel's mean density is); its
+    /// first-scattered light feeds the diffusion solve. 0: the lighting grid's cast of
+    /// near_field_rays rays.
+    int near_field_fine_rays = 0;
 };
 
 /// Every preset's name in scene files, indexed by Quality::Preset, cheapest first.

@@ -3,6 +3,7 @@
 
 #include "core/core.h"
 #include "core/rng.h"
+#include "transport/detail/traversal.h"
 
 #include <algorithm>
 #include <array>
@@ -221,6 +222,31 @@ void add_diffusion_source(const LightingMedium& m, const DiffusionField& field, 
 
 namespace {
 
+// A point's Fibonacci sphere of rays turned by a rotation hashed from (seed, point): the
+// pattern's pole to a uniform direction w, then a uniform turn about it.
+struct TurnedSphere {
+    glm::dvec3 t, b, w;
+    double turn = 0.0;
+    TurnedSphere(std::uint64_t seed, std::size_t point) {
+        core::Rng rng(core::hash_seed(seed, point));
+        const double az0 = 2.0 * std::numbers::pi * rng.uniform(), z0 = 2.0 * rng.uniform() - 1.0;
+        const double s0 = std::sqrt(std::max(0.0, 1.0 - z0 * z0));
+        w = glm::dvec3(s0 * std::cos(az0), s0 * std::sin(az0), z0);
+        t = glm::normalize(glm::cross(w, std::fabs(w.x) > 0.5 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0)));
+        b = glm::cross(w, t);
+        turn = 2.0 * std::numbers::pi * rng.uniform();
+    }
+    glm::dvec3 direction(int r, int rays) const noexcept {
+        const glm::dvec3 f = core::fibonacci_direction(r, rays, turn);
+        return t * f.x + b * f.y + w * f.z;
+    }
+};
+
+bool finite_source(const PointSource& p) noexcept {
+    return std::isfinite(p.position.x) && std::isfinite(p.position.y) && std::isfinite(p.position.z) &&
+           std::isfinite(p.intensity) && p.intensity != 0.0;
+}
+
 // The cast of add_first_scattered_emission and add_point_scattering: the emission always, the
 // single scattering in `directions` when `single` is given.
 void cast_points(const LightingMedium& m, std::span<const PointSource> sources, int rays, std::uint64_t seed,
@@ -239,23 +265,12 @@ void cast_points(const LightingMedium& m, std::span<const PointSource> sources, 
     const double dims[3] = {double(g.dims.x), double(g.dims.y), double(g.dims.z)};
     for (std::size_t n = 0; n < sources.size(); ++n) {
         const PointSource& p = sources[n];
-        if (!std::isfinite(p.position.x) || !std::isfinite(p.position.y) || !std::isfinite(p.position.z) ||
-            !std::isfinite(p.intensity) || p.intensity == 0.0)
-            continue;
-        core::Rng rng(core::hash_seed(seed, n));
-        // A rotation: the pattern's pole to a uniform direction w, then a turn about it.
-        const double az0 = 2.0 * std::numbers::pi * rng.uniform(), z0 = 2.0 * rng.uniform() - 1.0;
-        const double s0 = std::sqrt(std::max(0.0, 1.0 - z0 * z0));
-        const glm::dvec3 w(s0 * std::cos(az0), s0 * std::sin(az0), z0);
-        const glm::dvec3 t =
-            glm::normalize(glm::cross(w, std::fabs(w.x) > 0.5 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0)));
-        const glm::dvec3 bt = glm::cross(w, t);
-        const double turn = 2.0 * std::numbers::pi * rng.uniform();
+        if (!finite_source(p)) continue;
+        const TurnedSphere sphere(seed, n);
         const glm::dvec3 v0 = g.to_voxel(p.position);
         const double scale = albedo * p.intensity * dr * d_omega / V;
         for (int r = 0; r < rays; ++r) {
-            const glm::dvec3 f = core::fibonacci_direction(r, rays, turn);
-            const glm::dvec3 u = t * f.x + bt * f.y + w * f.z;
+            const glm::dvec3 u = sphere.direction(r, rays);
             for (std::size_t k = 0; k < phase.size(); ++k) phase[k] = hg_phase(glm::dot(u, directions[k]), g_hg);
             // The ray's stretch inside the grid's box (slabs, in voxels).
             double t_in = 0.0, t_out = std::numeric_limits<double>::infinity();
@@ -304,6 +319,107 @@ void add_point_scattering(const LightingMedium& m, std::span<const PointSource> 
                           std::span<const glm::dvec3> directions, std::vector<double>& emission,
                           std::vector<double>& single) {
     cast_points(m, sources, rays, seed, directions, emission, &single);
+}
+
+void add_point_scattering_fine(const LightingMedium& fine, const core::GridGeometry& onto,
+                               std::span<const PointSource> sources, int rays, std::uint64_t seed,
+                               std::span<const glm::dvec3> directions, std::vector<double>& emission,
+                               std::vector<double>& single) {
+    FULGUR_ASSERT(rays >= 1 && rays <= 65536, "point source cast: rays must be in [1, 65536]");
+    const core::GridGeometry& g = fine.density.geom;
+    const std::size_t cells = onto.cell_count(), nd = directions.size();
+    if (emission.empty()) emission.assign(cells, 0.0);
+    if (single.empty()) single.assign(nd * cells, 0.0);
+    FULGUR_ASSERT(emission.size() == cells && single.size() == nd * cells,
+                  "point source cast: emission and single are not [cells] and [directions][cells] of `onto`");
+    const double g_hg = std::clamp(fine.optics.g, -kMaxAbsG, kMaxAbsG);
+    const double albedo = std::clamp(fine.optics.albedo, 0.0, 1.0);
+    const double V = onto.voxel_size * onto.voxel_size * onto.voxel_size, d_omega = 4.0 * std::numbers::pi / rays;
+    const glm::dvec3 centre = g.origin + 0.5 * g.extent();
+    // `onto`'s cell of a fine voxel: by integer division when the grids nest (the lighting grid
+    // over the cloud's: same origin, a whole number of fine voxels per cell), else by the
+    // position of the ray's midpoint in the voxel.
+    const double ratio = onto.voxel_size / g.voxel_size;
+    const int nest = int(std::lround(ratio));
+    const bool nested = nest >= 1 && std::fabs(ratio - nest) < 1e-9 * ratio &&
+                        glm::length(onto.origin - g.origin) < 1e-9 * onto.voxel_size;
+    // The points in a fixed number of interleaved chunks over the cores, each with its own sums,
+    // added in chunk order: the same bits whatever the thread count.
+    const std::size_t chunks = std::min<std::size_t>(4, sources.size());
+    std::vector<std::vector<double>> chunk_emission(chunks), chunk_single(chunks);
+    core::parallel_for_dynamic(0, std::int64_t(chunks), [&](std::int64_t q) {
+        std::vector<double>& emission_q = chunk_emission[std::size_t(q)];
+        std::vector<double>& single_q = chunk_single[std::size_t(q)];
+        emission_q.assign(cells, 0.0);
+        single_q.assign(nd * cells, 0.0);
+        std::vector<double> phase(nd);
+        for (std::size_t n = std::size_t(q); n < sources.size(); n += chunks) {
+            const PointSource& p = sources[n];
+            if (!finite_source(p)) continue;
+            const TurnedSphere sphere(seed, n);
+            const double scale = albedo * p.intensity * d_omega / V;
+            // Far enough to leave the box from anywhere the source may be (finite: checked above).
+            const double reach = glm::length(g.extent()) + glm::length(p.position - centre);
+            for (int r = 0; r < rays; ++r) {
+                const glm::dvec3 u = sphere.direction(r, rays);
+                for (std::size_t k = 0; k < nd; ++k) phase[k] = hg_phase(glm::dot(u, directions[k]), g_hg);
+                // Sums of exp(-tau) ds (phi) and sigma_t exp(-tau) ds (emission) over the fine
+                // voxels the ray crosses inside one cell of `onto`, added once it leaves the cell.
+                std::ptrdiff_t cell = -1;
+                double phi = 0.0, em = 0.0;
+                auto flush = [&] {
+                    if (cell < 0 || phi == 0.0) return;
+                    emission_q[std::size_t(cell)] += scale * em;
+                    for (std::size_t k = 0; k < nd; ++k)
+                        single_q[k * cells + std::size_t(cell)] += scale * phi * phase[k];
+                };
+                detail::DdaWalker walk;
+                if (!walk.start(g, p.position, u, 0.0, reach)) continue;
+                double tau = 0.0, T = 1.0;  // optical depth and transmittance from the point
+                do {
+                    const double t0 = walk.t, t1 = walk.t_next(), len = t1 - t0;
+                    if (!(len > 0.0)) continue;
+                    const double st = fine.sigma_t(std::size_t(walk.cell)), x = st * len;
+                    int i, j, k;
+                    if (nested) {
+                        i = walk.i / nest;
+                        j = walk.j / nest;
+                        k = walk.k / nest;
+                    } else {
+                        const glm::dvec3 v = onto.to_voxel(p.position + u * (0.5 * (t0 + t1)));
+                        i = int(std::floor(v.x));
+                        j = int(std::floor(v.y));
+                        k = int(std::floor(v.z));
+                    }
+                    const bool inside =
+                        i >= 0 && j >= 0 && k >= 0 && i < onto.dims.x && j < onto.dims.y && k < onto.dims.z;
+                    const std::ptrdiff_t c = inside ? std::ptrdiff_t(onto.index(i, j, k)) : -1;
+                    if (c != cell) {
+                        flush();
+                        cell = c;
+                        phi = em = 0.0;
+                    }
+                    if (x > 1e-8) {
+                        // The exact integral of exp(-tau) over the voxel's stretch.
+                        const double absorbed = -std::expm1(-x);
+                        phi += T * absorbed / st;
+                        em += T * absorbed;
+                        T -= T * absorbed;
+                    } else {
+                        phi += T * len;
+                        em += T * x;
+                    }
+                    tau += x;
+                    if (tau > 30.0) break;
+                } while (walk.advance());
+                flush();
+            }
+        }
+    });
+    for (std::size_t q = 0; q < chunks; ++q) {
+        for (std::size_t c = 0; c < cells; ++c) emission[c] += chunk_emission[q][c];
+        for (std::size_t c = 0; c < nd * cells; ++c) single[c] += chunk_single[q][c];
+    }
 }
 
 }  // namespace fulgur::transport

@@ -87,4 +87,19 @@ void add_point_scattering(const LightingMedium& m, std::span<const PointSource> 
                           std::span<const glm::dvec3> directions, std::vector<double>& emission,
                           std::vector<double>& single);
 
+/// The same points' single scattering S1 and first-scattered emission a sigma_t phi1 on the
+/// grid `onto`, by rays marched voxel by voxel through a finer density `fine` (the cloud at its
+/// full resolution, same optics; exact transmittance of its piecewise-constant density) until
+/// their optical depth passes 30, S1 and the emission averaged over each of `onto`'s cells by
+/// volume, as the truth tallies S: a I sum p(u . w) exp(-tau) ds dOmega / V. Where a lighting
+/// cell's density varies within it (the cloud's base and edges) the channel's light is cut off
+/// where the cloud is, not where the cell's mean is: on the default storm's strikes 2.5-8.6%
+/// single against the truth at 128 rays, where the lighting grid's own cast gives 5-21%
+/// (docs/presets.md). `onto` must cover the same box as `fine` or less; rays leave it unlit
+/// outside. Rays turned as add_first_scattered_emission's. Asserts rays in [1, 65536].
+void add_point_scattering_fine(const LightingMedium& fine, const core::GridGeometry& onto,
+                               std::span<const PointSource> sources, int rays, std::uint64_t seed,
+                               std::span<const glm::dvec3> directions, std::vector<double>& emission,
+                               std::vector<double>& single);
+
 }  // namespace fulgur::transport

@@ -376,6 +376,13 @@ TEST_CASE("quality: a preset's name or an object of knobs; bad values name the f
     CHECK(scene(R"({"preset": "instant", "near_field_multiple": "kernel"})").quality.near_field_multiple == "kernel");
     CHECK_THROWS_WITH_AS(scene(R"({"preset": "instant", "near_field_multiple": "lattice"})"),
                          doctest::Contains("near_field_multiple"), Error);
+    CHECK(i.near_field_fine_rays == 128);
+    CHECK(scene(R"("paper")").quality.near_field_fine_rays == 0);
+    CHECK(scene(R"({"preset": "instant", "near_field_fine_rays": 0})").quality.near_field_fine_rays == 0);
+    CHECK_THROWS_WITH_AS(scene(R"({"preset": "instant", "near_field_fine_rays": 4097})"),
+                         doctest::Contains("near_field_fine_rays"), Error);
+    CHECK_THROWS_WITH_AS(scene(R"({"preset": "instant", "near_field_fine_rays": 1.5})"),
+                         doctest::Contains("near_field_fine_rays"), Error);
 }
 
 TEST_CASE("transport.refine and lattice_boltzmann.exact_orders: values and ranges naming the field") {

@@ -1,8 +1,9 @@
 // Flux-limited diffusion (transport/diffusion.h) against closed forms: a point emission in a
 // homogeneous medium against diffusion's Green's function, the discrete energy balance, the flux
 // limiter's bound, the source function's mean over the sphere and its sign; the ray-cast
-// first-scattered emission against the exact quadrature's uncollided fluence; hostile inputs
-// and determinism.
+// first-scattered emission against the exact quadrature's uncollided fluence; the cast through a
+// finer density against the quadrature averaged over coarse cells, and its exact totals; hostile
+// inputs and determinism.
 #include "transport/diffusion.h"
 
 #include "core/core.h"
@@ -208,6 +209,122 @@ TEST_CASE("diffusion: the ray-cast first-scattered emission and single scatterin
     }
 }
 
+TEST_CASE("diffusion: the cast through a finer density averages S over each coarse cell by volume, exactly per ray") {
+    // A cloud of 125 m voxels with a sharp base (clear below z = 250 m, halfway up a coarse cell; a blob above) under a
+    // coarse grid of 500 m cells: the truth's S on the coarse grid is the volume average of the
+    // fine grid's S, which the cast reproduces, and which the coarse density's own cast misses
+    // where a cell holds both clear air and cloud.
+    const transport::Medium optics{0.004, 0.99, 0.6};
+    const int n = 24, nest = 4;
+    const double h = 125.0;
+    transport::LightingMedium fine = cube(n, h, optics);
+    const core::GridGeometry& g = fine.density.geom;
+    for (std::size_t c = 0; c < g.cell_count(); ++c) {
+        const core::Int3 p = g.unindex(c);
+        const glm::dvec3 x = g.centre(p.x, p.y, p.z);
+        const double blob = std::max(0.0, 1.0 - glm::length(x - glm::dvec3(200.0, -100.0, 600.0)) / 1400.0);
+        fine.density.data[c] = x.z > 250.0 ? float(0.3 + 0.7 * blob) : 0.0f;
+    }
+    core::GridGeometry coarse = g;
+    coarse.voxel_size = h * nest;
+    coarse.dims = {n / nest, n / nest, n / nest};
+    const transport::PointSource src{glm::dvec3(-90.0, 40.0, -180.0), 2.0};  // below the base
+    const std::vector<glm::dvec3> dirs = {glm::dvec3(0, 0, 1), glm::normalize(glm::dvec3(1, -1, 0.3)),
+                                          glm::dvec3(-1, 0, 0)};
+    std::vector<double> emission, single;
+    transport::add_point_scattering_fine(fine, coarse, std::span(&src, 1), 4096, 1, dirs, emission, single);
+
+    transport::SingleScatteringOptions so;
+    so.tolerance = 1e-4;
+    core::Grid3<float> phi1;
+    so.uncollided_fluence = &phi1;
+    const transport::SourceField exact =
+        transport::block_average(transport::single_scattering(fine, src, dirs, so), nest);
+    // The exact emission a sigma_t phi1, averaged the same way.
+    transport::SourceField q(g, std::vector<glm::dvec3>{dirs[0]});
+    for (std::size_t c = 0; c < g.cell_count(); ++c)
+        q.data[c] = float(optics.albedo * fine.sigma_t(c) * double(phi1.data[c]));
+    const transport::SourceField exact_q = transport::block_average(q, nest);
+    // The coarse density's own cast, for contrast.
+    transport::LightingMedium lm{core::downsample(fine.density, nest), optics};
+    std::vector<double> lm_emission, lm_single;
+    transport::add_point_scattering(lm, std::span(&src, 1), 4096, 1, dirs, lm_emission, lm_single);
+    REQUIRE(lm.density.geom == coarse);
+
+    const std::size_t cells = coarse.cell_count();
+    auto error = [&](std::span<const double> mine, std::span<const float> ref, std::size_t k, double& ratio) {
+        core::CompensatedSum d2, r2, t1, r1;
+        for (std::size_t c = 0; c < cells; ++c) {
+            if (!(lm.density.data[c] > 0.0f)) continue;  // cells with cloud: what an image sees
+            const double a = mine[k * cells + c], b = ref[k * cells + c];
+            d2.add((a - b) * (a - b));
+            r2.add(b * b);
+            t1.add(a);
+            r1.add(b);
+        }
+        ratio = t1.value() / r1.value();
+        return std::sqrt(d2.value() / r2.value());
+    };
+    double ratio = 0.0;
+    const double eq = error(emission, exact_q.data, 0, ratio);
+    MESSAGE("emission against the volume-averaged quadrature: " << eq << ", ratio of totals " << ratio);
+    // Measured 0.0052 and 1.0001: what 4096 rays leave of the cells next to the source (their
+    // sampling of the 1/r^2 peak); the bound is 2x that. A 5% emission fails the ratio.
+    CHECK(eq < 0.01);
+    CHECK(ratio == doctest::Approx(1.0).epsilon(0.01));
+    for (std::size_t k = 0; k < dirs.size(); ++k) {
+        const double ek = error(single, exact.data, k, ratio);
+        double lm_ratio = 0.0;
+        const double lm_ek = error(lm_single, exact.data, k, lm_ratio);
+        MESSAGE("direction " << k << ": single " << ek << " (ratio " << ratio << "); the coarse density's cast "
+                             << lm_ek << " (ratio " << lm_ratio << ")");
+        // Measured 0.0016-0.0022, totals within 0.06%; the bound on the L2 is the emission's.
+        // A single part 5% off fails the ratio. The coarse density's cast is 19-33% off here,
+        // 0.68-0.82 of the totals: it spreads the cloud of the cells across the base over their
+        // clear lower half, where the source's light is brightest.
+        CHECK(ek < 0.01);
+        CHECK(ratio == doctest::Approx(1.0).epsilon(0.01));
+        CHECK(lm_ek > 10.0 * ek);
+    }
+
+    // Grids that do not nest (`onto` 1 mm off) take each voxel's cell by its midpoint: the
+    // same field but for the stretches within 1 mm of a cell's face.
+    core::GridGeometry shifted = coarse;
+    shifted.origin += glm::dvec3(1e-3);
+    std::vector<double> e2, s2;
+    transport::add_point_scattering_fine(fine, shifted, std::span(&src, 1), 4096, 1, dirs, e2, s2);
+    core::CompensatedSum dd, rr;
+    for (std::size_t i = 0; i < s2.size(); ++i) {
+        dd.add((s2[i] - single[i]) * (s2[i] - single[i]));
+        rr.add(single[i] * single[i]);
+    }
+    CHECK(std::sqrt(dd.value() / rr.value()) < 1e-4);
+}
+
+TEST_CASE("diffusion: the fine cast's totals are exact: a I 4 pi of emission, a I / sigma of isotropic S") {
+    // A homogeneous cube 40 optical depths from its centre to each face: every ray stops at
+    // optical depth 30 (e^-30 ~ 1e-13 of its light left). With exact transmittance per voxel
+    // the whole-grid sums are exact up to that and round-off.
+    const transport::Medium optics{0.01, 0.9, 0.0};
+    const transport::LightingMedium m = cube(80, 100.0, optics);
+    core::GridGeometry coarse = m.density.geom;
+    coarse.voxel_size *= 4;
+    coarse.dims = {20, 20, 20};
+    const transport::PointSource src{glm::dvec3(13.0, -7.0, 21.0), 5.0};
+    const std::vector<glm::dvec3> dirs = {glm::dvec3(0, 0, 1)};
+    std::vector<double> emission, single;
+    transport::add_point_scattering_fine(m, coarse, std::span(&src, 1), 64, 9, dirs, emission, single);
+    const double V = std::pow(coarse.voxel_size, 3);
+    core::CompensatedSum e, s1;
+    for (std::size_t c = 0; c < emission.size(); ++c) {
+        e.add(emission[c] * V);
+        s1.add(single[c] * V);
+    }
+    const double a = optics.albedo, I = src.intensity, sigma = optics.extinction;
+    CHECK(e.value() / (a * I * 4.0 * std::numbers::pi) == doctest::Approx(1.0).epsilon(1e-9));
+    CHECK(s1.value() / (a * I / sigma) == doctest::Approx(1.0).epsilon(1e-9));
+}
+
 TEST_CASE("diffusion: hostile inputs give zeros or finite fields; the same input the same bits") {
     const transport::Medium optics{0.01, 0.99, 0.6};
     const transport::LightingMedium m = cube(8, 100.0, optics);
@@ -233,12 +350,31 @@ TEST_CASE("diffusion: hostile inputs give zeros or finite fields; the same input
     transport::add_first_scattered_emission(m, bad, 64, 7, e);
     REQUIRE(e.size() == cells);
     for (const double v : e) REQUIRE(std::isfinite(v));
+    std::vector<double> fe_e, fe_s;
+    const std::vector<glm::dvec3> up = {glm::dvec3(0, 0, 1)};
+    transport::add_point_scattering_fine(m, m.density.geom, bad, 64, 7, up, fe_e, fe_s);
+    REQUIRE(fe_e.size() == cells);
+    REQUIRE(fe_s.size() == cells);
+    for (const double v : fe_e) REQUIRE(std::isfinite(v));
+    for (const double v : fe_s) REQUIRE(std::isfinite(v));
+    // A grid `onto` off to the side of the fine one: rays leave it unlit where they do not overlap.
+    core::GridGeometry aside = m.density.geom;
+    aside.origin += glm::dvec3(1e6, 0.0, 0.0);
+    std::vector<double> as_e, as_s;
+    const std::vector<transport::PointSource> one = {{glm::dvec3(30.0, -20.0, 10.0), 1.0}};
+    transport::add_point_scattering_fine(m, aside, one, 64, 7, up, as_e, as_s);
+    for (const double v : as_s) REQUIRE(v == 0.0);
     // Deterministic.
     const std::vector<transport::PointSource> src = {{glm::dvec3(30.0, -20.0, 10.0), 1.0}};
     std::vector<double> a, b;
     transport::add_first_scattered_emission(m, src, 32, 3, a);
     transport::add_first_scattered_emission(m, src, 32, 3, b);
     CHECK(a == b);
+    std::vector<double> fa_e, fa_s, fb_e, fb_s;
+    transport::add_point_scattering_fine(m, m.density.geom, src, 32, 3, up, fa_e, fa_s);
+    transport::add_point_scattering_fine(m, m.density.geom, src, 32, 3, up, fb_e, fb_s);
+    CHECK(fa_e == fb_e);
+    CHECK(fa_s == fb_s);
     const transport::DiffusionField fa = transport::solve_diffusion(m, a), fb = transport::solve_diffusion(m, b);
     CHECK(fa.fluence == fb.fluence);
     CHECK(fa.converged);
