@@ -11,8 +11,8 @@
 //     of the same strike in the same run.
 //   strike diffusion: the correction as the instant preset makes it (runtime::StrikeDiffusion,
 //     its single scattering cast through the full-resolution density with 128 rays, and through
-//     the lighting grid with 32; the groups one after the other, each cast on every core) per
-//     strike, and the main channel's group alone, against the same paper frame.
+//     the lighting grid with 32; the two groups at once, one per core) per strike, and the
+//     main channel's group alone (its cast on every core), against the same paper frame.
 //   frame: the frame thread's cost (wall and the thread's own CPU time, median) while the
 //     strike is being solved, instant against paper in the same run, all 26 directions and
 //     the 8 a side view needs; for instant also over the frames that blend the bases in
@@ -218,9 +218,9 @@ FULGUR_BENCH(instant,
 
     // --- the strike's diffusion solve ---
     // The correction as the instant preset makes it: runtime::StrikeDiffusion (its rays' single
-    // scattering and its diffusion solve; NearField only for the points), the glow groups one
-    // after the other, per strike, against the paper frame of the same strike in the same run;
-    // also the main channel's group alone, with its iterations. Its single scattering cast
+    // scattering and its diffusion solve; NearField only for the points), the two glow groups at
+    // once, one per core, per strike, against the paper frame of the same strike in the same
+    // run; also the main channel's group alone (its cast on every core), with its iterations. Its single scattering cast
     // through the full-resolution density (the instant preset's) and through the lighting grid.
     {
         runtime::NearFieldOptions no;
@@ -242,11 +242,11 @@ FULGUR_BENCH(instant,
                 const std::array<std::vector<transport::PointSource>, 2> src = {nf.stroke_sources(bolt, 0),
                                                                                 nf.stroke_sources(bolt, 1)};
                 correction_ms.push_back(1e3 * bench::time_median(ctx.quick ? 1 : 5, [&] {
-                                            for (std::size_t q = 0; q < 2; ++q) {
+                                            core::parallel_for_dynamic(0, 2, [&](std::int64_t q) {
                                                 runtime::NearFieldParts part;
-                                                if (!sd.replaces_single()) nf.add(src[q], part);
-                                                sd.add(src[q], part);
-                                            }
+                                                if (!sd.replaces_single()) nf.add(src[std::size_t(q)], part);
+                                                sd.add(src[std::size_t(q)], part);
+                                            });
                                         }));
                 diffusion_ms.push_back(1e3 * bench::time_median(ctx.quick ? 1 : 5, [&] {
                                            runtime::NearFieldParts part;

@@ -166,15 +166,16 @@ struct InstantStrikes::Impl {
             if (!diffusion) {
                 for (std::size_t q = 0; q < 2; ++q) (*groups)[q] = near->strokes(e.bolt, q);
             } else {
-                // One group after the other: each one's cast runs on every core (the main
-                // channel's carries most of the points), its diffusion solve on one.
-                for (std::size_t q = 0; q < 2; ++q) {
-                    const std::vector<transport::PointSource> src = near->stroke_sources(e.bolt, q);
-                    NearFieldParts& part = (*groups)[q];
-                    if (src.empty()) continue;
+                // The two groups at once, one per core (their casts are of similar cost: the
+                // branches carry as many points as the main channel); a cast inside runs on its
+                // group's core alone.
+                core::parallel_for_dynamic(0, 2, [&](std::int64_t q) {
+                    const std::vector<transport::PointSource> src = near->stroke_sources(e.bolt, std::size_t(q));
+                    NearFieldParts& part = (*groups)[std::size_t(q)];
+                    if (src.empty()) return;
                     if (!diffusion->replaces_single()) near->add(src, part);
                     diffusion->add(src, part);
-                }
+                });
             }
             e.near = std::move(groups);
         });

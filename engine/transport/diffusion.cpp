@@ -343,83 +343,72 @@ void add_point_scattering_fine(const LightingMedium& fine, const core::GridGeome
     const int nest = int(std::lround(ratio));
     const bool nested = nest >= 1 && std::fabs(ratio - nest) < 1e-9 * ratio &&
                         glm::length(onto.origin - g.origin) < 1e-9 * onto.voxel_size;
-    // The points in a fixed number of interleaved chunks over the cores, each with its own sums,
-    // added in chunk order: the same bits whatever the thread count.
-    const std::size_t chunks = std::min<std::size_t>(4, sources.size());
-    std::vector<std::vector<double>> chunk_emission(chunks), chunk_single(chunks);
-    core::parallel_for_dynamic(0, std::int64_t(chunks), [&](std::int64_t q) {
-        std::vector<double>& emission_q = chunk_emission[std::size_t(q)];
-        std::vector<double>& single_q = chunk_single[std::size_t(q)];
-        emission_q.assign(cells, 0.0);
-        single_q.assign(nd * cells, 0.0);
-        std::vector<double> phase(nd);
-        for (std::size_t n = std::size_t(q); n < sources.size(); n += chunks) {
-            const PointSource& p = sources[n];
-            if (!finite_source(p)) continue;
-            const TurnedSphere sphere(seed, n);
-            const double scale = albedo * p.intensity * d_omega / V;
-            // Far enough to leave the box from anywhere the source may be (finite: checked above).
-            const double reach = glm::length(g.extent()) + glm::length(p.position - centre);
-            for (int r = 0; r < rays; ++r) {
-                const glm::dvec3 u = sphere.direction(r, rays);
-                for (std::size_t k = 0; k < nd; ++k) phase[k] = hg_phase(glm::dot(u, directions[k]), g_hg);
-                // Sums of exp(-tau) ds (phi) and sigma_t exp(-tau) ds (emission) over the fine
-                // voxels the ray crosses inside one cell of `onto`, added once it leaves the cell.
-                std::ptrdiff_t cell = -1;
-                double phi = 0.0, em = 0.0;
-                auto flush = [&] {
-                    if (cell < 0 || phi == 0.0) return;
-                    emission_q[std::size_t(cell)] += scale * em;
-                    for (std::size_t k = 0; k < nd; ++k)
-                        single_q[k * cells + std::size_t(cell)] += scale * phi * phase[k];
-                };
-                detail::DdaWalker walk;
-                if (!walk.start(g, p.position, u, 0.0, reach)) continue;
-                double tau = 0.0, T = 1.0;  // optical depth and transmittance from the point
-                do {
-                    const double t0 = walk.t, t1 = walk.t_next(), len = t1 - t0;
-                    if (!(len > 0.0)) continue;
-                    const double st = fine.sigma_t(std::size_t(walk.cell)), x = st * len;
-                    int i, j, k;
-                    if (nested) {
-                        i = walk.i / nest;
-                        j = walk.j / nest;
-                        k = walk.k / nest;
-                    } else {
-                        const glm::dvec3 v = onto.to_voxel(p.position + u * (0.5 * (t0 + t1)));
-                        i = int(std::floor(v.x));
-                        j = int(std::floor(v.y));
-                        k = int(std::floor(v.z));
-                    }
-                    const bool inside =
-                        i >= 0 && j >= 0 && k >= 0 && i < onto.dims.x && j < onto.dims.y && k < onto.dims.z;
-                    const std::ptrdiff_t c = inside ? std::ptrdiff_t(onto.index(i, j, k)) : -1;
-                    if (c != cell) {
-                        flush();
-                        cell = c;
-                        phi = em = 0.0;
-                    }
-                    if (x > 1e-8) {
-                        // The exact integral of exp(-tau) over the voxel's stretch.
-                        const double absorbed = -std::expm1(-x);
-                        phi += T * absorbed / st;
-                        em += T * absorbed;
-                        T -= T * absorbed;
-                    } else {
-                        phi += T * len;
-                        em += T * x;
-                    }
-                    tau += x;
-                    if (tau > 30.0) break;
-                } while (walk.advance());
-                flush();
-            }
+    // S accumulated cell-major ([cell][direction]: one flush writes one contiguous run), moved
+    // into `single`'s [direction][cell] layout at the end.
+    std::vector<double> acc(cells * nd, 0.0), phase(nd);
+    for (std::size_t n = 0; n < sources.size(); ++n) {
+        const PointSource& p = sources[n];
+        if (!finite_source(p)) continue;
+        const TurnedSphere sphere(seed, n);
+        const double scale = albedo * p.intensity * d_omega / V;
+        // Far enough to leave the box from anywhere the source may be (finite: checked above).
+        const double reach = glm::length(g.extent()) + glm::length(p.position - centre);
+        for (int r = 0; r < rays; ++r) {
+            const glm::dvec3 u = sphere.direction(r, rays);
+            for (std::size_t k = 0; k < nd; ++k) phase[k] = scale * hg_phase(glm::dot(u, directions[k]), g_hg);
+            // Sums of exp(-tau) ds (phi) and sigma_t exp(-tau) ds (emission) over the fine
+            // voxels the ray crosses inside one cell of `onto`, added once it leaves the cell.
+            std::ptrdiff_t cell = -1;
+            double phi = 0.0, em = 0.0;
+            auto flush = [&] {
+                if (cell < 0 || phi == 0.0) return;
+                emission[std::size_t(cell)] += scale * em;
+                double* to = acc.data() + std::size_t(cell) * nd;
+                for (std::size_t k = 0; k < nd; ++k) to[k] += phi * phase[k];
+            };
+            detail::DdaWalker walk;
+            if (!walk.start(g, p.position, u, 0.0, reach)) continue;
+            double tau = 0.0, T = 1.0;  // optical depth and transmittance from the point
+            do {
+                const double t0 = walk.t, t1 = walk.t_next(), len = t1 - t0;
+                if (!(len > 0.0)) continue;
+                const double st = fine.sigma_t(std::size_t(walk.cell)), x = st * len;
+                int i, j, k;
+                if (nested) {
+                    i = walk.i / nest;
+                    j = walk.j / nest;
+                    k = walk.k / nest;
+                } else {
+                    const glm::dvec3 v = onto.to_voxel(p.position + u * (0.5 * (t0 + t1)));
+                    i = int(std::floor(v.x));
+                    j = int(std::floor(v.y));
+                    k = int(std::floor(v.z));
+                }
+                const bool inside = i >= 0 && j >= 0 && k >= 0 && i < onto.dims.x && j < onto.dims.y && k < onto.dims.z;
+                const std::ptrdiff_t c = inside ? std::ptrdiff_t(onto.index(i, j, k)) : -1;
+                if (c != cell) {
+                    flush();
+                    cell = c;
+                    phi = em = 0.0;
+                }
+                if (x > 1e-8) {
+                    // The exact integral of exp(-tau) over the voxel's stretch.
+                    const double absorbed = -std::expm1(-x);
+                    phi += T * absorbed / st;
+                    em += T * absorbed;
+                    T -= T * absorbed;
+                } else {
+                    phi += T * len;
+                    em += T * x;
+                }
+                tau += x;
+                if (tau > 30.0) break;
+            } while (walk.advance());
+            flush();
         }
-    });
-    for (std::size_t q = 0; q < chunks; ++q) {
-        for (std::size_t c = 0; c < cells; ++c) emission[c] += chunk_emission[q][c];
-        for (std::size_t c = 0; c < nd * cells; ++c) single[c] += chunk_single[q][c];
     }
+    for (std::size_t c = 0; c < cells; ++c)
+        for (std::size_t k = 0; k < nd; ++k) single[k * cells + c] += acc[c * nd + k];
 }
 
 }  // namespace fulgur::transport
