@@ -32,7 +32,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <glm/geometric.hpp>
 #include <limits>
 #include <numbers>
@@ -206,70 +205,6 @@ std::vector<double> exact_emission(const scene::Scene& s, const transport::Light
     return q;
 }
 
-// The points' whole single scattering on the lighting grid `cg` as the truth tallies it, the
-// extinction-weighted voxel average sum sigma S dV / sum sigma dV, by `rays` rays from each
-// point (a Fibonacci sphere turned per point) marched through `m`'s density (the full
-// resolution, or the lighting grid's own) in quarter-voxel steps to optical depth 30 or the
-// grid's edge. No bases: the rays carry the far field too.
-std::vector<float> cast_single(const transport::LightingMedium& m, const core::GridGeometry& cg,
-                               std::span<const transport::PointSource> sources, int rays,
-                               std::span<const glm::dvec3> dirs) {
-    const core::GridGeometry& g = m.density.geom;
-    const std::size_t cells = cg.cell_count(), nd = dirs.size();
-    const double h = g.voxel_size, dr = 0.25 * h, d_omega = 4.0 * std::numbers::pi / rays;
-    const double a = m.optics.albedo;
-    std::vector<double> num(nd * cells, 0.0), den(cells, 0.0);
-    for (std::size_t c = 0; c < g.cell_count(); ++c) {
-        const core::Int3 p = g.unindex(c);
-        const glm::dvec3 v = cg.to_voxel(g.centre(p.x, p.y, p.z));
-        const int i = int(std::floor(v.x)), j = int(std::floor(v.y)), k = int(std::floor(v.z));
-        if (i < 0 || j < 0 || k < 0 || i >= cg.dims.x || j >= cg.dims.y || k >= cg.dims.z) continue;
-        den[cg.index(i, j, k)] += (std::getenv("SD_VOLUME") ? 1.0 : m.sigma_t(c)) * h * h * h;
-    }
-    std::vector<double> ph(nd);
-    for (std::size_t n = 0; n < sources.size(); ++n) {
-        const transport::PointSource& p = sources[n];
-        if (p.intensity == 0.0) continue;
-        core::Rng rng(core::hash_seed(0x51f1e, n));
-        const double az0 = 2.0 * std::numbers::pi * rng.uniform(), z0 = 2.0 * rng.uniform() - 1.0;
-        const double s0 = std::sqrt(std::max(0.0, 1.0 - z0 * z0));
-        const glm::dvec3 w(s0 * std::cos(az0), s0 * std::sin(az0), z0);
-        glm::dvec3 t, bt;
-        core::orthonormal_basis(w, t, bt);
-        const double turn = 2.0 * std::numbers::pi * rng.uniform();
-        for (int r = 0; r < rays; ++r) {
-            const glm::dvec3 f = core::fibonacci_direction(r, rays, turn);
-            const glm::dvec3 u = t * f.x + bt * f.y + w * f.z;
-            for (std::size_t k = 0; k < nd; ++k) ph[k] = transport::hg_phase(glm::dot(u, dirs[k]), m.optics.g);
-            double tau = 0.0;
-            const double length = glm::length(g.extent()) + glm::length(p.position - (g.origin + 0.5 * g.extent()));
-            for (double r0 = 0.0; r0 < length; r0 += dr) {
-                const glm::dvec3 x = p.position + u * (r0 + 0.5 * dr);
-                const glm::dvec3 v = g.to_voxel(x);
-                const int i = int(std::floor(v.x)), j = int(std::floor(v.y)), k = int(std::floor(v.z));
-                if (i < 0 || j < 0 || k < 0 || i >= g.dims.x || j >= g.dims.y || k >= g.dims.z) continue;
-                const double st = m.sigma_t(g.index(i, j, k));
-                const double wv = std::getenv("SD_VOLUME") ? 1.0 : st;
-                if (!(st > 0.0) && !std::getenv("SD_VOLUME")) continue;
-                const glm::dvec3 vc = cg.to_voxel(x);
-                const int ci = int(std::floor(vc.x)), cj = int(std::floor(vc.y)), ck = int(std::floor(vc.z));
-                if (ci >= 0 && cj >= 0 && ck >= 0 && ci < cg.dims.x && cj < cg.dims.y && ck < cg.dims.z) {
-                    const std::size_t c = cg.index(ci, cj, ck);
-                    const double wt = a * p.intensity * wv * std::exp(-(tau + 0.5 * st * dr)) * dr * d_omega;
-                    for (std::size_t kk = 0; kk < nd; ++kk) num[kk * cells + c] += wt * ph[kk];
-                }
-                tau += st * dr;
-                if (tau > 30.0) break;
-            }
-        }
-    }
-    std::vector<float> out(nd * cells, 0.0f);
-    for (std::size_t k = 0; k < nd; ++k)
-        for (std::size_t c = 0; c < cells; ++c)
-            if (den[c] > 0.0) out[k * cells + c] = float(num[k * cells + c] / den[c]);
-    return out;
-}
-
 }  // namespace
 
 FULGUR_STUDY(strike_diffusion, "strike-diffusion",
@@ -328,161 +263,128 @@ FULGUR_STUDY(strike_diffusion, "strike-diffusion",
                              iterations);
             };
             report("paper", 0, paper1, paperm, 0.0, 0.0, 0);
-            if (!std::getenv("SD_ONLY_CAST")) {
-                // What an isotropic multiple part can reach at best: the truth's multiple part
-                // replaced by its mean over the directions, and by its least-squares fit a + b . w
-                // (what a P1 model could reach), each with the exact single scattering.
-                {
-                    std::vector<float> iso(truth.multiple.data.size()), p1(truth.multiple.data.size());
-                    for (std::size_t c = 0; c < cells; ++c) {
-                        // Normal equations of [1, wx, wy, wz] over the directions.
-                        double A[4][4] = {}, b[4] = {};
-                        for (std::size_t m = 0; m < nd; ++m) {
-                            const double f[4] = {1.0, dirs[m].x, dirs[m].y, dirs[m].z};
-                            const double y = truth.multiple.data[m * cells + c];
-                            for (int i = 0; i < 4; ++i) {
-                                b[i] += f[i] * y;
-                                for (int j = 0; j < 4; ++j) A[i][j] += f[i] * f[j];
-                            }
-                        }
-                        for (std::size_t m = 0; m < nd; ++m) iso[m * cells + c] = float(b[0] / A[0][0]);
-                        // Gaussian elimination (A is symmetric positive definite for 26 directions).
-                        for (int i = 0; i < 4; ++i)
-                            for (int r = i + 1; r < 4; ++r) {
-                                const double f = A[r][i] / A[i][i];
-                                for (int j = i; j < 4; ++j) A[r][j] -= f * A[i][j];
-                                b[r] -= f * b[i];
-                            }
-                        double x[4];
-                        for (int i = 3; i >= 0; --i) {
-                            double v = b[i];
-                            for (int j = i + 1; j < 4; ++j) v -= A[i][j] * x[j];
-                            x[i] = v / A[i][i];
-                        }
-                        for (std::size_t m = 0; m < nd; ++m)
-                            p1[m * cells + c] = float(x[0] + x[1] * dirs[m].x + x[2] * dirs[m].y + x[3] * dirs[m].z);
-                    }
-                    report("truth's multiple, isotropic part + exact single", 0, truth.single.data, iso, 0.0, 0.0, 0);
-                    report("truth's multiple, P1 fit + exact single", 0, truth.single.data, p1, 0.0, 0.0, 0);
-                }
-                report("instant first frame", 0, instant1, instantm, 0.0, 0.0, 0);
-                // The engine's first frame: runtime::StrikeDiffusion (the instant preset's
-                // near_field_multiple "diffusion") with its single part by the same cast, and with
-                // NearField's single part (32 rays) instead; the time each takes (NearField on every
-                // thread, the lights' models kept; the diffusion on one).
-                {
-                    runtime::NearFieldOptions so;
-                    so.rays = 32;
-                    so.multiple = false;
-                    const runtime::NearField single_only(lm, bases.lights(), dirs, so);
-                    runtime::NearFieldParts nf_parts;
-                    single_only.add(pf.sources, nf_parts);  // makes the lights' models
-                    nf_parts = {};
-                    auto t0 = std::chrono::steady_clock::now();
-                    single_only.add(pf.sources, nf_parts);
-                    const double nf_secs = seconds_since(t0);
-                    auto engine_row = [&](const std::string& label, const runtime::StrikeDiffusionOptions& sdo) {
-                        const runtime::StrikeDiffusion sd(lm, bases, dirs, sdo);
-                        runtime::NearFieldParts parts = sdo.single ? runtime::NearFieldParts{} : nf_parts;
-                        const auto ts = std::chrono::steady_clock::now();
-                        sd.add(pf.sources, parts);
-                        const double secs = seconds_since(ts);
-                        std::vector<float> e1 = paper1, em = paperm;
-                        for (std::size_t j = 0; j < e1.size(); ++j) {
-                            e1[j] += parts.single[j];
-                            em[j] += parts.multiple[j];
-                        }
-                        report(label, 1, e1, em, sdo.single ? 0.0 : nf_secs, secs, sd.last_iterations());
-                        return secs;
-                    };
-                    runtime::StrikeDiffusionOptions cast_single;
-                    const double sd_secs = engine_row("engine: cast single + strike diffusion", cast_single);
-                    runtime::StrikeDiffusionOptions near_single;
-                    near_single.single = false;
-                    engine_row("engine: near-field single + strike diffusion", near_single);
-                    for (const int rays : {64, 128}) {
-                        runtime::StrikeDiffusionOptions more;
-                        more.rays = rays;
-                        engine_row("engine: cast single + strike diffusion, " + std::to_string(rays) + " rays", more);
-                    }
-                    // The solve's knobs: limiter passes and the conjugate gradients' tolerance.
-                    for (const auto& [passes, tol] : {std::pair{4, 1e-4}, std::pair{4, 1e-3}, std::pair{2, 1e-4},
-                                                      std::pair{2, 1e-3}, std::pair{1, 1e-3}}) {
-                        runtime::StrikeDiffusionOptions sdo;
-                        sdo.single = false;
-                        sdo.diffusion.limiter_passes = passes;
-                        sdo.diffusion.tolerance = tol;
-                        char label[96];
-                        std::snprintf(label, sizeof label, "engine: strike diffusion, %d passes, tolerance %g", passes,
-                                      tol);
-                        engine_row(label, sdo);
-                    }
-                    // The engine's solver against this study's (whole grid, plain loops) on the same
-                    // emission.
-                    std::vector<double> q;
-                    transport::add_first_scattered_emission(lm, pf.sources, 32, 1, q);
-                    transport::DiffusionOptions eo;  // the study's solver's settings
-                    eo.tolerance = 1e-6;
-                    const Diffusion naive = diffusion(lm, q, eo.limiter_passes);
-                    const transport::DiffusionField fast = transport::solve_diffusion(lm, q, eo);
-                    double d2 = 0.0, r2 = 0.0;
-                    for (std::size_t c = 0; c < cells; ++c) {
-                        d2 += (double(fast.fluence[c]) - naive.phi[c]) * (double(fast.fluence[c]) - naive.phi[c]);
-                        r2 += naive.phi[c] * naive.phi[c];
-                    }
-                    std::fprintf(
-                        stderr,
-                        "strike-diffusion: engine solver against this study's: relative L2 %.2e; near field %.1f "
-                        "ms, cast + diffusion %.1f ms (the check's solve: %d iterations, %s)\n",
-                        std::sqrt(d2 / r2), 1e3 * nf_secs, 1e3 * sd_secs, fast.iterations,
-                        fast.converged ? "converged" : "NOT converged");
-                }
-            }
+            // What an isotropic multiple part can reach at best: the truth's multiple part
+            // replaced by its mean over the directions, and by its least-squares fit a + b . w
+            // (what a P1 model could reach), each with the exact single scattering.
             {
+                std::vector<float> iso(truth.multiple.data.size()), p1(truth.multiple.data.size());
+                for (std::size_t c = 0; c < cells; ++c) {
+                    // Normal equations of [1, wx, wy, wz] over the directions.
+                    double A[4][4] = {}, b[4] = {};
+                    for (std::size_t m = 0; m < nd; ++m) {
+                        const double f[4] = {1.0, dirs[m].x, dirs[m].y, dirs[m].z};
+                        const double y = truth.multiple.data[m * cells + c];
+                        for (int i = 0; i < 4; ++i) {
+                            b[i] += f[i] * y;
+                            for (int j = 0; j < 4; ++j) A[i][j] += f[i] * f[j];
+                        }
+                    }
+                    for (std::size_t m = 0; m < nd; ++m) iso[m * cells + c] = float(b[0] / A[0][0]);
+                    // Gaussian elimination (A is symmetric positive definite for 26 directions).
+                    for (int i = 0; i < 4; ++i)
+                        for (int r = i + 1; r < 4; ++r) {
+                            const double f = A[r][i] / A[i][i];
+                            for (int j = i; j < 4; ++j) A[r][j] -= f * A[i][j];
+                            b[r] -= f * b[i];
+                        }
+                    double x[4];
+                    for (int i = 3; i >= 0; --i) {
+                        double v = b[i];
+                        for (int j = i + 1; j < 4; ++j) v -= A[i][j] * x[j];
+                        x[i] = v / A[i][i];
+                    }
+                    for (std::size_t m = 0; m < nd; ++m)
+                        p1[m * cells + c] = float(x[0] + x[1] * dirs[m].x + x[2] * dirs[m].y + x[3] * dirs[m].z);
+                }
+                report("truth's multiple, isotropic part + exact single", 0, truth.single.data, iso, 0.0, 0.0, 0);
+                report("truth's multiple, P1 fit + exact single", 0, truth.single.data, p1, 0.0, 0.0, 0);
+            }
+            report("instant first frame", 0, instant1, instantm, 0.0, 0.0, 0);
+            // The engine's first frame: runtime::StrikeDiffusion (the instant preset's
+            // near_field_multiple "diffusion") with its single part by the same cast, and with
+            // NearField's single part (32 rays) instead; the time each takes (NearField on every
+            // thread, the lights' models kept; the diffusion on one).
+            {
+                runtime::NearFieldOptions so;
+                so.rays = 32;
+                so.multiple = false;
+                const runtime::NearField single_only(lm, bases.lights(), dirs, so);
+                runtime::NearFieldParts nf_parts;
+                single_only.add(pf.sources, nf_parts);  // makes the lights' models
+                nf_parts = {};
+                auto t0 = std::chrono::steady_clock::now();
+                single_only.add(pf.sources, nf_parts);
+                const double nf_secs = seconds_since(t0);
+                auto engine_row = [&](const std::string& label, const runtime::StrikeDiffusionOptions& sdo,
+                                      const transport::LightingMedium* full) {
+                    const runtime::StrikeDiffusion sd(lm, bases, dirs, sdo, full);
+                    runtime::NearFieldParts parts = sdo.single ? runtime::NearFieldParts{} : nf_parts;
+                    const auto ts = std::chrono::steady_clock::now();
+                    sd.add(pf.sources, parts);
+                    const double secs = seconds_since(ts);
+                    std::vector<float> e1 = paper1, em = paperm;
+                    for (std::size_t j = 0; j < e1.size(); ++j) {
+                        e1[j] += parts.single[j];
+                        em[j] += parts.multiple[j];
+                    }
+                    report(label, 1, e1, em, sdo.single ? 0.0 : nf_secs, secs, sd.last_iterations());
+                    return secs;
+                };
+                runtime::StrikeDiffusionOptions cast_single;
+                const double sd_secs = engine_row("engine: cast single + strike diffusion", cast_single, nullptr);
+                runtime::StrikeDiffusionOptions near_single;
+                near_single.single = false;
+                engine_row("engine: near-field single + strike diffusion", near_single, nullptr);
+                for (const int rays : {64, 128, 512}) {
+                    runtime::StrikeDiffusionOptions more;
+                    more.rays = rays;
+                    engine_row("engine: cast single + strike diffusion, " + std::to_string(rays) + " rays", more,
+                               nullptr);
+                }
+                // The single scattering cast through the full-resolution density (the truth's
+                // medium, S averaged over each lighting cell by volume as the truth tallies it),
+                // its first-scattered light fed to the diffusion, or the lighting grid's cast's.
                 const transport::LightingMedium full{density, s.medium};
-                for (const int rays : {32, 64, 128, 256})
-                    for (const bool fe : {false, true}) {
+                for (const int rays : {32, 64, 128, 256, 512})
+                    for (const bool fe : {true, false}) {
                         runtime::StrikeDiffusionOptions sdo;
                         sdo.fine_rays = rays;
                         sdo.fine_emission = fe;
-                        const runtime::StrikeDiffusion sd(lm, bases, dirs, sdo, &full);
-                        runtime::NearFieldParts parts;
-                        const auto ts = std::chrono::steady_clock::now();
-                        sd.add(pf.sources, parts);
-                        const double secs = seconds_since(ts);
-                        std::vector<float> e1 = paper1, em = paperm;
-                        for (std::size_t j = 0; j < e1.size(); ++j) {
-                            e1[j] += parts.single[j];
-                            em[j] += parts.multiple[j];
-                        }
-                        report("engine: full-density single, " + std::to_string(rays) + " rays" +
-                                   (fe ? ", its emission" : ""),
-                               1, e1, em, 0.0, secs, sd.last_iterations());
+                        engine_row("engine: full-density single, " + std::to_string(rays) + " rays" +
+                                       (fe ? "" : ", the lighting grid's emission"),
+                                   sdo, &full);
                     }
+                // The solve's knobs: limiter passes and the conjugate gradients' tolerance.
+                for (const auto& [passes, tol] : {std::pair{4, 1e-4}, std::pair{4, 1e-3}, std::pair{2, 1e-4},
+                                                  std::pair{2, 1e-3}, std::pair{1, 1e-3}}) {
+                    runtime::StrikeDiffusionOptions sdo;
+                    sdo.single = false;
+                    sdo.diffusion.limiter_passes = passes;
+                    sdo.diffusion.tolerance = tol;
+                    char label[96];
+                    std::snprintf(label, sizeof label, "engine: strike diffusion, %d passes, tolerance %g", passes,
+                                  tol);
+                    engine_row(label, sdo, nullptr);
+                }
+                // The engine's solver against this study's (whole grid, plain loops) on the same
+                // emission.
+                std::vector<double> q;
+                transport::add_first_scattered_emission(lm, pf.sources, 32, 1, q);
+                transport::DiffusionOptions eo;  // the study's solver's settings
+                eo.tolerance = 1e-6;
+                const Diffusion naive = diffusion(lm, q, eo.limiter_passes);
+                const transport::DiffusionField fast = transport::solve_diffusion(lm, q, eo);
+                double d2 = 0.0, r2 = 0.0;
+                for (std::size_t c = 0; c < cells; ++c) {
+                    d2 += (double(fast.fluence[c]) - naive.phi[c]) * (double(fast.fluence[c]) - naive.phi[c]);
+                    r2 += naive.phi[c] * naive.phi[c];
+                }
+                std::fprintf(stderr,
+                             "strike-diffusion: engine solver against this study's: relative L2 %.2e; near field %.1f "
+                             "ms, cast + diffusion %.1f ms (the check's solve: %d iterations, %s)\n",
+                             std::sqrt(d2 / r2), 1e3 * nf_secs, 1e3 * sd_secs, fast.iterations,
+                             fast.converged ? "converged" : "NOT converged");
             }
-            // The whole single scattering by rays through the full-resolution density (the
-            // truth's medium) and through the lighting grid's, no bases; with the engine's
-            // diffusion for the multiple part.
-            {
-                transport::LightingMedium full{density, s.medium};
-                runtime::NearFieldParts dp;
-                const runtime::StrikeDiffusion sd(lm, bases, dirs);
-                sd.add(pf.sources, dp);
-                std::vector<float> dm = paperm;
-                for (std::size_t j = 0; j < dm.size(); ++j) dm[j] += dp.multiple[j];
-                for (const int rays : {32, 128, 512})
-                    for (const bool fine : {true, false}) {
-                        const auto t0 = std::chrono::steady_clock::now();
-                        const std::vector<float> s1 =
-                            cast_single(fine ? full : lm, lm.density.geom, pf.sources, rays, dirs);
-                        const double secs = seconds_since(t0);
-                        report(std::string("cast single, ") + (fine ? "full density" : "lighting density") + ", " +
-                                   std::to_string(rays) + " rays + strike diffusion",
-                               1, s1, dm, secs, 0.0, 0);
-                    }
-            }
-
-            if (std::getenv("SD_ONLY_CAST")) continue;
             // The instant path's single scattering with 128 rays (the knob's next step).
             std::vector<float> instant1_128 = paper1;
             {

@@ -85,7 +85,7 @@ bool StrikeDiffusion::add(std::span<const transport::PointSource> sources, NearF
     if (im.options.single && im.full) {
         std::vector<double> fine_emission;
         transport::add_point_scattering_fine(*im.full, lg, finite, im.options.fine_rays, im.options.seed, im.dirs,
-                                             fine_emission, single);
+                                             fine_emission, single, &im.medium.density);
         if (im.options.fine_emission)
             emission = std::move(fine_emission);
         else

@@ -324,7 +324,7 @@ void add_point_scattering(const LightingMedium& m, std::span<const PointSource> 
 void add_point_scattering_fine(const LightingMedium& fine, const core::GridGeometry& onto,
                                std::span<const PointSource> sources, int rays, std::uint64_t seed,
                                std::span<const glm::dvec3> directions, std::vector<double>& emission,
-                               std::vector<double>& single) {
+                               std::vector<double>& single, const core::Grid3<float>* onto_density) {
     FULGUR_ASSERT(rays >= 1 && rays <= 65536, "point source cast: rays must be in [1, 65536]");
     const core::GridGeometry& g = fine.density.geom;
     const std::size_t cells = onto.cell_count(), nd = directions.size();
@@ -332,6 +332,7 @@ void add_point_scattering_fine(const LightingMedium& fine, const core::GridGeome
     if (single.empty()) single.assign(nd * cells, 0.0);
     FULGUR_ASSERT(emission.size() == cells && single.size() == nd * cells,
                   "point source cast: emission and single are not [cells] and [directions][cells] of `onto`");
+    FULGUR_ASSERT(!onto_density || onto_density->geom == onto, "point source cast: onto_density is not on `onto`");
     const double g_hg = std::clamp(fine.optics.g, -kMaxAbsG, kMaxAbsG);
     const double albedo = std::clamp(fine.optics.albedo, 0.0, 1.0);
     const double V = onto.voxel_size * onto.voxel_size * onto.voxel_size, d_omega = 4.0 * std::numbers::pi / rays;
@@ -343,6 +344,9 @@ void add_point_scattering_fine(const LightingMedium& fine, const core::GridGeome
     const int nest = int(std::lround(ratio));
     const bool nested = nest >= 1 && std::fabs(ratio - nest) < 1e-9 * ratio &&
                         glm::length(onto.origin - g.origin) < 1e-9 * onto.voxel_size;
+    // With `onto`'s density on nesting grids a ray walks `onto`'s cells and descends into the
+    // fine voxels only where the cell holds cloud: clear air is crossed a cell at a time.
+    const bool two_level = nested && onto_density != nullptr;
     // S accumulated cell-major ([cell][direction]: one flush writes one contiguous run), moved
     // into `single`'s [direction][cell] layout at the end.
     std::vector<double> acc(cells * nd, 0.0), phase(nd);
@@ -356,43 +360,26 @@ void add_point_scattering_fine(const LightingMedium& fine, const core::GridGeome
         for (int r = 0; r < rays; ++r) {
             const glm::dvec3 u = sphere.direction(r, rays);
             for (std::size_t k = 0; k < nd; ++k) phase[k] = scale * hg_phase(glm::dot(u, directions[k]), g_hg);
-            // Sums of exp(-tau) ds (phi) and sigma_t exp(-tau) ds (emission) over the fine
-            // voxels the ray crosses inside one cell of `onto`, added once it leaves the cell.
+            // Sums of exp(-tau) ds (phi) and sigma_t exp(-tau) ds (emission) over the stretch
+            // the ray spends inside one cell of `onto`, added once it leaves the cell.
             std::ptrdiff_t cell = -1;
             double phi = 0.0, em = 0.0;
-            auto flush = [&] {
-                if (cell < 0 || phi == 0.0) return;
-                emission[std::size_t(cell)] += scale * em;
-                double* to = acc.data() + std::size_t(cell) * nd;
-                for (std::size_t k = 0; k < nd; ++k) to[k] += phi * phase[k];
+            auto enter = [&](std::ptrdiff_t c) {
+                if (c == cell) return;
+                if (cell >= 0 && phi != 0.0) {
+                    emission[std::size_t(cell)] += scale * em;
+                    double* to = acc.data() + std::size_t(cell) * nd;
+                    for (std::size_t k = 0; k < nd; ++k) to[k] += phi * phase[k];
+                }
+                cell = c;
+                phi = em = 0.0;
             };
-            detail::DdaWalker walk;
-            if (!walk.start(g, p.position, u, 0.0, reach)) continue;
             double tau = 0.0, T = 1.0;  // optical depth and transmittance from the point
-            do {
-                const double t0 = walk.t, t1 = walk.t_next(), len = t1 - t0;
-                if (!(len > 0.0)) continue;
-                const double st = fine.sigma_t(std::size_t(walk.cell)), x = st * len;
-                int i, j, k;
-                if (nested) {
-                    i = walk.i / nest;
-                    j = walk.j / nest;
-                    k = walk.k / nest;
-                } else {
-                    const glm::dvec3 v = onto.to_voxel(p.position + u * (0.5 * (t0 + t1)));
-                    i = int(std::floor(v.x));
-                    j = int(std::floor(v.y));
-                    k = int(std::floor(v.z));
-                }
-                const bool inside = i >= 0 && j >= 0 && k >= 0 && i < onto.dims.x && j < onto.dims.y && k < onto.dims.z;
-                const std::ptrdiff_t c = inside ? std::ptrdiff_t(onto.index(i, j, k)) : -1;
-                if (c != cell) {
-                    flush();
-                    cell = c;
-                    phi = em = 0.0;
-                }
+            // One fine voxel's stretch of length len and extinction st: the exact integral of
+            // exp(-tau) over it. False once the light left is negligible (optical depth 30).
+            auto cross = [&](double st, double len) {
+                const double x = st * len;
                 if (x > 1e-8) {
-                    // The exact integral of exp(-tau) over the voxel's stretch.
                     const double absorbed = -std::expm1(-x);
                     phi += T * absorbed / st;
                     em += T * absorbed;
@@ -402,9 +389,55 @@ void add_point_scattering_fine(const LightingMedium& fine, const core::GridGeome
                     em += T * x;
                 }
                 tau += x;
-                if (tau > 30.0) break;
-            } while (walk.advance());
-            flush();
+                return tau <= 30.0;
+            };
+            // The fine voxels of o + t u, t in [t0, t1]; `c` >= 0: all in that cell of `onto`.
+            auto walk_fine = [&](double t0, double t1, std::ptrdiff_t c) {
+                detail::DdaWalker walk;
+                if (!walk.start(g, p.position, u, t0, t1)) return true;
+                do {
+                    const double a = walk.t, b = walk.t_next(), len = b - a;
+                    if (!(len > 0.0)) continue;
+                    if (c < 0) {
+                        int i, j, k;
+                        if (nested) {
+                            i = walk.i / nest;
+                            j = walk.j / nest;
+                            k = walk.k / nest;
+                        } else {
+                            const glm::dvec3 v = onto.to_voxel(p.position + u * (0.5 * (a + b)));
+                            i = int(std::floor(v.x));
+                            j = int(std::floor(v.y));
+                            k = int(std::floor(v.z));
+                        }
+                        const bool inside =
+                            i >= 0 && j >= 0 && k >= 0 && i < onto.dims.x && j < onto.dims.y && k < onto.dims.z;
+                        enter(inside ? std::ptrdiff_t(onto.index(i, j, k)) : -1);
+                    }
+                    if (!cross(fine.sigma_t(std::size_t(walk.cell)), len)) return false;
+                } while (walk.advance());
+                return true;
+            };
+            if (!two_level) {
+                walk_fine(0.0, reach, -1);
+            } else {
+                // `onto`'s cells over the stretch inside the fine grid's box.
+                double t0 = 0.0, t1 = reach;
+                if (core::clip_ray_to_box(p.position, u, g.origin, g.upper(), t0, t1)) {
+                    detail::DdaWalker walk;
+                    if (walk.start(onto, p.position, u, t0, t1)) do {
+                            const double a = walk.t, b = walk.t_next();
+                            if (!(b > a)) continue;
+                            enter(walk.cell);
+                            if (onto_density->data[std::size_t(walk.cell)] > 0.0f) {
+                                if (!walk_fine(a, b, walk.cell)) break;
+                            } else if (!cross(0.0, b - a)) {
+                                break;
+                            }
+                        } while (walk.advance());
+                }
+            }
+            enter(-1);
         }
     }
     for (std::size_t c = 0; c < cells; ++c)

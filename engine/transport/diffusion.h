@@ -95,11 +95,14 @@ void add_point_scattering(const LightingMedium& m, std::span<const PointSource> 
 /// cell's density varies within it (the cloud's base and edges) the channel's light is cut off
 /// where the cloud is, not where the cell's mean is: on the default storm's strikes 2.5-8.6%
 /// single against the truth at 128 rays, where the lighting grid's own cast gives 5-21%
-/// (docs/presets.md). `onto` must cover the same box as `fine` or less; rays leave it unlit
-/// outside. Rays turned as add_first_scattered_emission's. Asserts rays in [1, 65536].
+/// (docs/presets.md). Rays are marched inside `fine`'s box; `onto`'s cells outside it stay
+/// unlit. Rays turned as add_first_scattered_emission's. `onto_density` (optional): the density
+/// on `onto`, zero only where all of `fine`'s within the cell is (the lighting grid's box
+/// average): on grids that nest, rays then cross its clear cells a cell at a time instead of
+/// voxel by voxel, the same sums to round-off. Asserts rays in [1, 65536].
 void add_point_scattering_fine(const LightingMedium& fine, const core::GridGeometry& onto,
                                std::span<const PointSource> sources, int rays, std::uint64_t seed,
                                std::span<const glm::dvec3> directions, std::vector<double>& emission,
-                               std::vector<double>& single);
+                               std::vector<double>& single, const core::Grid3<float>* onto_density = nullptr);
 
 }  // namespace fulgur::transport
