@@ -233,7 +233,7 @@ FULGUR_BENCH(instant,
         for (const bool fine : {true, false}) {
             runtime::StrikeDiffusionOptions so;
             const runtime::StrikeDiffusion sd(media.lighting, bases, dirs, so, fine ? &full : nullptr);
-            std::vector<double> correction_ms, diffusion_ms, paper_ms, iterations;
+            std::vector<double> correction_ms, diffusion_ms, paper_ms, iterations, points;
             for (int k = 0; k < strikes; ++k) {
                 runtime::FramePipeline p(s, density, bases, {}, scene::quality_preset("paper"));
                 const std::size_t i = p.strike_at(0.0, std::uint64_t(k + 1));
@@ -253,6 +253,7 @@ FULGUR_BENCH(instant,
                                            sd.add(src[0], part);
                                        }));
                 iterations.push_back(double(sd.last_iterations()));
+                points.push_back(double(src[0].size() + src[1].size()));
                 paper_ms.push_back(1e3 * bench::time_median(ctx.quick ? 1 : 5, [&] { (void)p.build(t, {}); }));
             }
             nlohmann::json j = base;
@@ -262,6 +263,7 @@ FULGUR_BENCH(instant,
             j["correction_ms_median"] = bench::median(correction_ms);
             j["main_group_ms_median"] = bench::median(diffusion_ms);
             j["iterations_median"] = bench::median(iterations);
+            j["points_median"] = bench::median(points);
             j["paper_frame_ms_median"] = bench::median(paper_ms);
             j["ratio_to_paper_frame"] = bench::median(correction_ms) / std::max(1e-9, bench::median(paper_ms));
             ctx.emit("instant_strike_diffusion", j);
