@@ -54,6 +54,7 @@ PRESET_STYLE = {
     "instant_no_near_field": ("x", "tab:gray"),
     "instant_kernel": ("P", "tab:olive"),
     "instant_128": ("h", "tab:cyan"),
+    "instant_lighting_single": ("p", "tab:pink"),
     "reference": ("D", "tab:red"),
 }
 
