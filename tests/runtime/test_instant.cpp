@@ -108,6 +108,16 @@ TEST_CASE("instant: the first lit frame is the bases' frame with its near field,
     CHECK(e0.l2 < 0.135);
     CHECK(e0.l2 < 0.25 * ep.l2);
     CHECK(std::fabs(e0.ratio - 0.967) < 0.03);
+    {
+        // Finite and not negative: the correction subtracts the bases' parts of the strike, so
+        // the bases' frame plus it is the strike's own light (the cast and the lobe, never
+        // negative) up to float rounding of the cancelled parts: measured -4e-9 of the largest
+        // S; the bound is ~100 float epsilons of it.
+        const test::ValueRange r0 = test::finite_range({&shown_first});
+        MESSAGE("first lit frame's S in [" << r0.lo << ", " << r0.hi << "]: lowest " << -r0.lo / r0.hi
+                                           << " of the highest");
+        CHECK(r0.lo >= -1e-5f * r0.hi);
+    }
     // The same first frame with the single scattering cast through the lighting grid
     // (near_field_fine_rays 0): measured 0.239 (ratio 1.076); and with NearField's own multiple
     // model (near_field_multiple "kernel"): 0.240 (1.115). On this scene's 1 km lighting voxels
