@@ -4,7 +4,8 @@
 // (transport::single_scattering) where no support ends; its multiple-scattering part is a naive
 // gather of diffusion's Green's function from the exact first-scattered source; hostile sources
 // add nothing or stay finite; the same inputs give the same field. runtime::StrikeDiffusion's
-// correction plus the bases' parts is the strike's own cast and diffusion solve. Their accuracy
+// correction plus the bases' parts is the strike's own cast (through the lighting grid or the
+// full-resolution density) and diffusion solve. Their accuracy
 // against the truth in a frame is test_instant's (the instant preset's first lit frame) and
 // docs/presets.md's.
 #include "runtime/near_field.h"
@@ -278,16 +279,10 @@ TEST_CASE("strike diffusion: the bases' frame plus its correction is the strike'
     // float rounding; hostile sources add nothing or stay finite; deterministic.
     const Setup u;
     const transport::LightingMedium& lm = u.s.media.lighting;
+    const transport::LightingMedium full{u.s.density, u.s.scene.medium};
     runtime::StrikeDiffusionOptions o;
-    const runtime::StrikeDiffusion sd(lm, *u.s.bases, u.dirs, o);
-    REQUIRE(sd.separable());
-    REQUIRE(sd.replaces_single());
     const std::vector<transport::PointSource> src = {{u.between(0.3, 0.6, 0.4), 2.0}, {u.between(0.7, 0.2, 0.8), 0.5}};
-    runtime::NearFieldParts parts;
-    REQUIRE(sd.add(src, parts));
     const std::size_t cells = lm.density.geom.cell_count(), nd = u.dirs.size();
-    REQUIRE(parts.single.size() == nd * cells);
-    REQUIRE(parts.multiple.size() == nd * cells);
 
     // The bases' parts of the same points' splat.
     lightning::Splatter splatter(u.lights);
@@ -304,25 +299,45 @@ TEST_CASE("strike diffusion: the bases' frame plus its correction is the strike'
         for (const auto& v : r.values)
             bases[std::size_t(part)].insert(bases[std::size_t(part)].end(), v.begin(), v.end());
     }
-    // The strike's own light, from the transport functions directly.
-    std::vector<double> emission, single;
-    transport::add_point_scattering(lm, src, o.rays, o.seed, u.dirs, emission, single);
-    const transport::DiffusionField field = transport::solve_diffusion(lm, emission, o.diffusion);
-    std::vector<float> multiple(nd * cells, 0.0f);
-    transport::add_diffusion_source(lm, field, u.dirs, 1.0, multiple);
-    double d1 = 0.0, dm = 0.0, m1 = 0.0, mm = 0.0;
-    for (std::size_t i = 0; i < nd * cells; ++i) {
-        d1 = std::max(d1, std::fabs(double(bases[0][i]) + double(parts.single[i]) - single[i]));
-        dm = std::max(dm, std::fabs(double(bases[1][i]) + double(parts.multiple[i]) - double(multiple[i])));
-        m1 = std::max(m1, std::fabs(single[i]));
-        mm = std::max(mm, std::fabs(double(multiple[i])));
+    // With the single scattering cast through the lighting grid, and through the full-resolution
+    // density (its first-scattered light then feeding the solve).
+    for (const transport::LightingMedium* fine : {static_cast<const transport::LightingMedium*>(nullptr), &full}) {
+        CAPTURE(fine != nullptr);
+        const runtime::StrikeDiffusion sd(lm, *u.s.bases, u.dirs, o, fine);
+        REQUIRE(sd.separable());
+        REQUIRE(sd.replaces_single());
+        runtime::NearFieldParts parts;
+        REQUIRE(sd.add(src, parts));
+        REQUIRE(parts.single.size() == nd * cells);
+        REQUIRE(parts.multiple.size() == nd * cells);
+        // The strike's own light, from the transport functions directly.
+        std::vector<double> emission, single;
+        if (fine)
+            transport::add_point_scattering_fine(*fine, lm.density.geom, src, o.fine_rays, o.seed, u.dirs, emission,
+                                                 single, &lm.density);
+        else
+            transport::add_point_scattering(lm, src, o.rays, o.seed, u.dirs, emission, single);
+        const transport::DiffusionField field = transport::solve_diffusion(lm, emission, o.diffusion);
+        std::vector<float> multiple(nd * cells, 0.0f);
+        transport::add_diffusion_source(lm, field, u.dirs, 1.0, multiple);
+        double d1 = 0.0, dm = 0.0, m1 = 0.0, mm = 0.0;
+        for (std::size_t i = 0; i < nd * cells; ++i) {
+            d1 = std::max(d1, std::fabs(double(bases[0][i]) + double(parts.single[i]) - single[i]));
+            dm = std::max(dm, std::fabs(double(bases[1][i]) + double(parts.multiple[i]) - double(multiple[i])));
+            m1 = std::max(m1, std::fabs(single[i]));
+            mm = std::max(mm, std::fabs(double(multiple[i])));
+        }
+        MESSAGE("largest difference from the cast and the solve: " << d1 / m1 << " / " << dm / mm
+                                                                   << " of their largest");
+        REQUIRE(m1 > 0.0);
+        REQUIRE(mm > 0.0);
+        // float sums of fields whose largest terms are the cast's next to the points: ~1e-6.
+        CHECK(d1 <= 1e-5 * m1);
+        CHECK(dm <= 1e-5 * mm);
     }
-    MESSAGE("largest difference from the cast and the solve: " << d1 / m1 << " / " << dm / mm << " of their largest");
-    REQUIRE(m1 > 0.0);
-    REQUIRE(mm > 0.0);
-    // float sums of fields whose largest terms are the cast's next to the points: ~1e-6.
-    CHECK(d1 <= 1e-5 * m1);
-    CHECK(dm <= 1e-5 * mm);
+    const runtime::StrikeDiffusion sd(lm, *u.s.bases, u.dirs, o, &full);
+    runtime::NearFieldParts parts;
+    REQUIRE(sd.add(src, parts));
 
     // Hostile sources: nothing lit adds nothing and does not size the parts.
     const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
@@ -339,7 +354,7 @@ TEST_CASE("strike diffusion: the bases' frame plus its correction is the strike'
     for (const float v : far.multiple) REQUIRE(std::isfinite(v));
     // Deterministic.
     runtime::NearFieldParts again;
-    runtime::StrikeDiffusion(lm, *u.s.bases, u.dirs, o).add(src, again);
+    runtime::StrikeDiffusion(lm, *u.s.bases, u.dirs, o, &full).add(src, again);
     CHECK(again.single == parts.single);
     CHECK(again.multiple == parts.multiple);
 }
