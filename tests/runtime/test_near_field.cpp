@@ -5,9 +5,8 @@
 // gather of diffusion's Green's function from the exact first-scattered source; hostile sources
 // add nothing or stay finite; the same inputs give the same field. runtime::StrikeDiffusion's
 // correction plus the bases' parts is the strike's own cast (through the lighting grid or the
-// full-resolution density) and diffusion solve. Their accuracy
-// against the truth in a frame is test_instant's (the instant preset's first lit frame) and
-// docs/presets.md's.
+// full-resolution density) and diffusion solve. Their accuracy against the truth in a frame is
+// test_instant's (the instant preset's first lit frame) and docs/presets.md's.
 #include "runtime/near_field.h"
 #include "runtime/strike_diffusion.h"
 
