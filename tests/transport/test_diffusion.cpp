@@ -26,6 +26,18 @@ transport::LightingMedium cube(int n, double h, transport::Medium optics) {
     return test::uniform_medium({n, n, n}, h, glm::dvec3(-0.5 * n * h), 1.0f, optics);
 }
 
+// The same cube with the density rho(x) at each voxel's centre x.
+template <class F>
+transport::LightingMedium cube(int n, double h, transport::Medium optics, F&& rho) {
+    transport::LightingMedium m = cube(n, h, optics);
+    const core::GridGeometry& g = m.density.geom;
+    for (std::size_t c = 0; c < g.cell_count(); ++c) {
+        const core::Int3 p = g.unindex(c);
+        m.density.data[c] = float(rho(g.centre(p.x, p.y, p.z)));
+    }
+    return m;
+}
+
 }  // namespace
 
 TEST_CASE("diffusion: a point emission in a homogeneous medium follows diffusion's Green's function") {
@@ -147,13 +159,10 @@ TEST_CASE("diffusion: the ray-cast first-scattered emission and single scatterin
     const transport::Medium optics{0.004, 0.99, 0.6};
     const int n = 16;
     const double h = 250.0;
-    transport::LightingMedium m = cube(n, h, optics);
+    const transport::LightingMedium m = cube(n, h, optics, [](const glm::dvec3& x) {
+        return std::max(0.0, 1.0 - glm::length(x - glm::dvec3(300.0, 0.0, 400.0)) / 1800.0);
+    });
     const core::GridGeometry& g = m.density.geom;
-    for (std::size_t c = 0; c < g.cell_count(); ++c) {
-        const core::Int3 p = g.unindex(c);
-        const glm::dvec3 x = g.centre(p.x, p.y, p.z);
-        m.density.data[c] = float(std::max(0.0, 1.0 - glm::length(x - glm::dvec3(300.0, 0.0, 400.0)) / 1800.0));
-    }
     const transport::PointSource src{glm::dvec3(-120.0, 70.0, -200.0), 3.0};
     std::vector<double> cast;
     transport::add_first_scattered_emission(m, std::span(&src, 1), 2048, 1, cast);
@@ -217,14 +226,11 @@ TEST_CASE("diffusion: the cast through a finer density averages S over each coar
     const transport::Medium optics{0.004, 0.99, 0.6};
     const int n = 24, nest = 4;
     const double h = 125.0;
-    transport::LightingMedium fine = cube(n, h, optics);
-    const core::GridGeometry& g = fine.density.geom;
-    for (std::size_t c = 0; c < g.cell_count(); ++c) {
-        const core::Int3 p = g.unindex(c);
-        const glm::dvec3 x = g.centre(p.x, p.y, p.z);
+    const transport::LightingMedium fine = cube(n, h, optics, [](const glm::dvec3& x) {
         const double blob = std::max(0.0, 1.0 - glm::length(x - glm::dvec3(200.0, -100.0, 600.0)) / 1400.0);
-        fine.density.data[c] = x.z > 250.0 ? float(0.3 + 0.7 * blob) : 0.0f;
-    }
+        return x.z > 250.0 ? 0.3 + 0.7 * blob : 0.0;
+    });
+    const core::GridGeometry& g = fine.density.geom;
     core::GridGeometry coarse = g;
     coarse.voxel_size = h * nest;
     coarse.dims = {n / nest, n / nest, n / nest};
