@@ -391,66 +391,50 @@ void add_point_scattering_fine(const LightingMedium& fine, const core::GridGeome
                 tau += x;
                 return tau <= 30.0;
             };
-            // The fine voxels of the whole ray, each added to its cell of `onto`.
-            auto walk_fine = [&] {
+            // The fine voxels of o + t u, t in [t0, t1]; `c` >= 0: all in that cell of `onto`.
+            auto walk_fine = [&](double t0, double t1, std::ptrdiff_t c) {
                 detail::DdaWalker walk;
-                if (!walk.start(g, p.position, u, 0.0, reach)) return;
+                if (!walk.start(g, p.position, u, t0, t1)) return true;
                 do {
                     const double a = walk.t, b = walk.t_next(), len = b - a;
                     if (!(len > 0.0)) continue;
-                    int i, j, k;
-                    if (nested) {
-                        i = walk.i / nest;
-                        j = walk.j / nest;
-                        k = walk.k / nest;
-                    } else {
-                        const glm::dvec3 v = onto.to_voxel(p.position + u * (0.5 * (a + b)));
-                        i = int(std::floor(v.x));
-                        j = int(std::floor(v.y));
-                        k = int(std::floor(v.z));
+                    if (c < 0) {
+                        int i, j, k;
+                        if (nested) {
+                            i = walk.i / nest;
+                            j = walk.j / nest;
+                            k = walk.k / nest;
+                        } else {
+                            const glm::dvec3 v = onto.to_voxel(p.position + u * (0.5 * (a + b)));
+                            i = int(std::floor(v.x));
+                            j = int(std::floor(v.y));
+                            k = int(std::floor(v.z));
+                        }
+                        const bool inside =
+                            i >= 0 && j >= 0 && k >= 0 && i < onto.dims.x && j < onto.dims.y && k < onto.dims.z;
+                        enter(inside ? std::ptrdiff_t(onto.index(i, j, k)) : -1);
                     }
-                    const bool inside =
-                        i >= 0 && j >= 0 && k >= 0 && i < onto.dims.x && j < onto.dims.y && k < onto.dims.z;
-                    enter(inside ? std::ptrdiff_t(onto.index(i, j, k)) : -1);
-                    if (!cross(fine.sigma_t(std::size_t(walk.cell)), len)) return;
+                    if (!cross(fine.sigma_t(std::size_t(walk.cell)), len)) return false;
                 } while (walk.advance());
+                return true;
             };
             if (!two_level) {
-                walk_fine();
+                walk_fine(0.0, reach, -1);
             } else {
-                // The fine voxels, but a clear cell of `onto` is crossed in one step: the walk
-                // starts again where the ray leaves it. A start that lands back in the cell it
-                // left (round-off at the face) walks that cell voxel by voxel instead, and so do
-                // starts beyond as many as a ray can cross cells: each start makes progress.
-                detail::DdaWalker walk;
-                bool more = walk.start(g, p.position, u, 0.0, reach);
-                int starts_left = onto.dims.x + onto.dims.y + onto.dims.z + 3;
-                std::ptrdiff_t skipped = -1;
-                while (more) {
-                    const int i = walk.i / nest, j = walk.j / nest, k = walk.k / nest;
-                    const bool inside = i < onto.dims.x && j < onto.dims.y && k < onto.dims.z;
-                    const std::ptrdiff_t c = inside ? std::ptrdiff_t(onto.index(i, j, k)) : -1;
-                    enter(c);
-                    if (c >= 0 && c != skipped && starts_left > 0 && !(onto_density->data[std::size_t(c)] > 0.0f)) {
-                        // Where the ray leaves the cell: its nearest exit face.
-                        double exit = walk.t_end;
-                        const int at[3] = {i, j, k};
-                        for (int ax = 0; ax < 3; ++ax) {
-                            if (u[ax] == 0.0) continue;
-                            const double face =
-                                onto.origin[ax] + onto.voxel_size * double(at[ax] + (u[ax] > 0.0 ? 1 : 0));
-                            exit = std::min(exit, (face - p.position[ax]) / u[ax]);
-                        }
-                        exit = std::max(exit, walk.t);
-                        if (!cross(0.0, exit - walk.t)) break;
-                        skipped = c;
-                        --starts_left;
-                        more = exit < walk.t_end && walk.start(g, p.position, u, exit, walk.t_end);
-                        continue;
-                    }
-                    const double len = walk.t_next() - walk.t;
-                    if (len > 0.0 && !cross(fine.sigma_t(std::size_t(walk.cell)), len)) break;
-                    more = walk.advance();
+                // `onto`'s cells over the stretch inside the fine grid's box.
+                double t0 = 0.0, t1 = reach;
+                if (core::clip_ray_to_box(p.position, u, g.origin, g.upper(), t0, t1)) {
+                    detail::DdaWalker walk;
+                    if (walk.start(onto, p.position, u, t0, t1)) do {
+                            const double a = walk.t, b = walk.t_next();
+                            if (!(b > a)) continue;
+                            enter(walk.cell);
+                            if (onto_density->data[std::size_t(walk.cell)] > 0.0f) {
+                                if (!walk_fine(a, b, walk.cell)) break;
+                            } else if (!cross(0.0, b - a)) {
+                                break;
+                            }
+                        } while (walk.advance());
                 }
             }
             enter(-1);
