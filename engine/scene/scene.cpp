@@ -581,7 +581,7 @@ Quality quality_preset(std::string_view name, std::string_view where) {
         // per strike (docs/presets.md).
         q.near_field_multiple = "diffusion";
         // Its single scattering through the full-resolution density, 128 rays per point: 23.2% ->
-        // 18.6% worst on the default storm for ~8 ms more once per strike (docs/presets.md).
+        // 18.6% worst on the default storm for 6-7 ms more once per strike (docs/presets.md).
         q.near_field_fine_rays = 128;
     } else if (name == "reference") {
         q.preset = Quality::Preset::Reference;
