@@ -12,7 +12,7 @@
 //   strike diffusion: the correction as the instant preset makes it (runtime::StrikeDiffusion,
 //     its single scattering cast through the full-resolution density with 128 rays, and through
 //     the lighting grid with 32; the two groups at once, one per core) per strike, and the
-//     main channel's group alone (its cast on every core), against the same paper frame.
+//     main channel's group alone on one thread, against the same paper frame.
 //   frame: the frame thread's cost (wall and the thread's own CPU time, median) while the
 //     strike is being solved, instant against paper in the same run, all 26 directions and
 //     the 8 a side view needs; for instant also over the frames that blend the bases in
@@ -220,8 +220,9 @@ FULGUR_BENCH(instant,
     // The correction as the instant preset makes it: runtime::StrikeDiffusion (its rays' single
     // scattering and its diffusion solve; NearField only for the points), the two glow groups at
     // once, one per core, per strike, against the paper frame of the same strike in the same
-    // run; also the main channel's group alone (its cast on every core), with its iterations. Its single scattering cast
-    // through the full-resolution density (the instant preset's) and through the lighting grid.
+    // run; also the main channel's group alone on one thread, with its iterations. Its single
+    // scattering cast through the full-resolution density (the instant preset's) and through
+    // the lighting grid.
     {
         runtime::NearFieldOptions no;
         no.rays = 32;

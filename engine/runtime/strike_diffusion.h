@@ -38,7 +38,7 @@ struct StrikeDiffusionOptions {
     /// With the cloud's full-resolution density given to the constructor: rays per point of the
     /// single scattering marched through it (transport::add_point_scattering_fine) in place of
     /// the lighting grid's cast; 2.7-8.9% single on the default storm's strikes at 128 rays, 4-21%
-    /// at 32, where the lighting grid's cast stays at 5-18% with any number. 0: the lighting
+    /// at 32, where the lighting grid's cast stays at 4-21% with any number. 0: the lighting
     /// grid's cast of `rays`.
     int fine_rays = 128;
     /// The diffusion's first-scattered emission from the full-resolution cast too (one cast),

@@ -93,8 +93,8 @@ void add_point_scattering(const LightingMedium& m, std::span<const PointSource> 
 /// their optical depth passes 30, S1 and the emission averaged over each of `onto`'s cells by
 /// volume, as the truth tallies S: a I sum p(u . w) exp(-tau) ds dOmega / V. Where a lighting
 /// cell's density varies within it (the cloud's base and edges) the channel's light is cut off
-/// where the cloud is, not where the cell's mean is: on the default storm's strikes 2.5-8.6%
-/// single against the truth at 128 rays, where the lighting grid's own cast gives 5-21%
+/// where the cloud is, not where the cell's mean is: on the default storm's strikes 2.7-8.9%
+/// single against the truth at 128 rays, where the lighting grid's own cast gives 4-21%
 /// (docs/presets.md). Rays are marched inside `fine`'s box; `onto`'s cells outside it stay
 /// unlit. Rays turned as add_first_scattered_emission's. `onto_density` (optional): the density
 /// on `onto`, zero only where all of `fine`'s within the cell is (the lighting grid's box
