@@ -162,6 +162,8 @@ void parse_transport(JsonObject o, TransportSettings& t) {
     if (auto st = o.optional_object("static_light")) {
         t.static_refine = int(st->integer_or("refine", t.static_refine, 0, 64));
         t.static_exact_orders = int(st->integer_or("exact_orders", t.static_exact_orders, 0, 2));
+        t.static_keep_transport_grid = st->choice_or("grid", t.static_keep_transport_grid ? "transport" : "lighting",
+                                                     {"lighting", "transport"}) == "transport";
         // Bounded so a solve ends: 2^27 paths are ~2 min on one core of this machine.
         t.static_order2_paths = std::uint64_t(
             st->integer_or("order2_paths", std::int64_t(t.static_order2_paths), 1000, std::int64_t(1) << 27));

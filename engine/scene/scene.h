@@ -133,6 +133,13 @@ struct TransportSettings {
     /// order 2 exact. docs/sky.md measures them against the static light's truth.
     int static_refine = 0;
     int static_exact_orders = 0;
+    /// "grid": where the static light's S is kept, solved, cached and drawn. Lighting (false):
+    /// averaged onto the lighting grid, as the bake's lights. Transport (true): on the
+    /// transport grid it is solved on (the lighting grid refined by static_refine), so the
+    /// renderer reads S where the light falls over less than a lighting voxel (at the cloud's
+    /// surface) at refine^3 the memory and resolve work (docs/sky.md measures both against
+    /// Cycles).
+    bool static_keep_transport_grid = false;
     /// Order-2 Monte Carlo paths of a static solve with exact orders 2 (a sun; the sky's dome
     /// samples share them by their weights).
     std::uint64_t static_order2_paths = 400'000;

@@ -72,6 +72,9 @@ ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, c
                        core::format_number(s.medium.extinction * density.geom.voxel_size * s.lighting_downsample) +
                        " optical depths per lighting voxel)") +
             ", order " + (p.settings.exact_orders == 2 ? "2 exact" : "2 by the lattice") +
+            (p.settings.keep_transport_grid
+                 ? std::string(", S kept on that grid (transport.static_light.grid \"transport\")")
+                 : std::string(", S averaged onto the lighting grid")) +
             ": docs/sky.md measures the configurations against the static light's truth");
     const core::Int3 td = grid.transport.density.dims();
     const std::string where = "on the " + std::to_string(td.x) + " x " + std::to_string(td.y) + " x " +

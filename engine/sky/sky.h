@@ -78,6 +78,11 @@ struct SolveSettings {
     /// The transport grid the solve runs on: the lighting grid refined by this (the media
     /// passed to the solves must be static_media's, whose refine it is).
     int refine = 1;
+    /// Keep S on that transport grid (transport.static_light.grid "transport"): the media's
+    /// lighting grid is then the transport grid itself (refine 1 between them), so nothing is
+    /// averaged away and the truth tallies on the same grid. False: S averaged onto the
+    /// scene's lighting grid.
+    bool keep_transport_grid = false;
     /// 2: order 2 by the expected-value Monte Carlo of the second flight through the
     /// full-resolution density (order2_paths per sun; the sky's dome samples share them), the
     /// lattice for orders >= 3, as transport.lattice_boltzmann.exact_orders does for point
@@ -99,8 +104,10 @@ SolveSettings solve_settings(const scene::Scene& s, const core::Grid3<float>& de
 /// lighting voxel / r <= 1), else lighting.downsample (the full resolution).
 int static_refine_for(const scene::Scene& s, const core::Grid3<float>& density);
 /// The media static solves run in: the lighting grid refined by solve_settings(s).refine, with
-/// the full-resolution density when they solve order 2 exactly.
+/// the full-resolution density when they solve order 2 exactly (or `full`). With
+/// keep_transport_grid their lighting grid is that transport grid (refine 1).
 solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density);
+solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density, bool full);
 
 /// S of one light on the lighting grid, per unit irradiance (a sun) or unit radiance (a sky
 /// basis), in W m^-2 sr^-1 per (W m^-2) or per (W m^-2 sr^-1).

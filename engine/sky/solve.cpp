@@ -194,7 +194,8 @@ void check_media(const solve::Media& media, const SolveSettings& settings) {
     FULGUR_ASSERT(media.refine >= 1 &&
                       media.lighting.density.geom.voxel_size == media.transport.density.geom.voxel_size * media.refine,
                   "sky: media from solve::make_media");
-    FULGUR_ASSERT(media.refine == settings.refine, "sky: the media's refine must be the settings' (static_media)");
+    FULGUR_ASSERT(media.refine == (settings.keep_transport_grid ? 1 : settings.refine),
+                  "sky: the media's refine must be the settings' (static_media)");
 }
 
 bool exact_two(const SolveSettings& settings) { return settings.multiple && settings.exact_orders == 2; }
@@ -227,19 +228,31 @@ SolveSettings solve_settings(const scene::Scene& s, const core::Grid3<float>& de
     st.single_options = solve::single_scattering_options(s);
     st.lattice = solve::lattice_settings(s);
     st.refine = s.transport.static_refine > 0 ? s.transport.static_refine : static_refine_for(s, density);
+    st.keep_transport_grid = s.transport.static_keep_transport_grid;
     st.exact_orders = s.transport.static_exact_orders > 0 ? s.transport.static_exact_orders : 2;
     st.order2_paths = s.transport.static_order2_paths;
     st.sky_samples = s.transport.static_sky_samples;
     st.sky_paths = s.transport.static_sky_paths;
     st.seed = s.transport.mc_seed;
-    // Every fine voxel of a needed lighting voxel is computed (as the bake's single scattering).
+    // Every fine voxel of a needed lighting voxel is computed (as the bake's single scattering),
+    // whichever grid S is kept on: the two differ only by the final average.
     st.single_options.skip_block = st.refine;
     return st;
 }
 
+solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density, bool full) {
+    const SolveSettings st = solve_settings(s, density);
+    solve::Media m = solve::make_media(s, density, st.refine, full);
+    if (st.keep_transport_grid) {
+        m.lighting = m.transport;
+        m.refine = 1;
+    }
+    return m;
+}
+
 solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density) {
     const SolveSettings st = solve_settings(s, density);
-    return solve::make_media(s, density, st.refine, exact_two(st) || (s.sky && st.sky_paths > 0));
+    return static_media(s, density, exact_two(st) || (s.sky && st.sky_paths > 0));
 }
 
 LightField solve_directional(const solve::Media& media, std::span<const transport::DirectionalSource> lights,

@@ -179,6 +179,54 @@ TEST_CASE("solved once: the cache is read while fresh, solved again when the sun
     CHECK(sky::compose(a, s.sun, s.sky, none).empty());
 }
 
+TEST_CASE("the static light kept on its transport grid: media, plan, cache key, colour and truth on that grid") {
+    const auto dir = test::scratch_dir("sky_keep");
+    nlohmann::json patch = nlohmann::json::parse(kSunSky);
+    // Few Monte Carlo paths for order 2 and the dome: this checks grids, not values.
+    patch["transport"] = {{"static_light", {{"refine", 2}, {"order2_paths", 1000}, {"sky_paths", 1000}}}};
+    const scene::Scene averaged = variant(dir, "night", patch.dump());
+    patch["transport"]["static_light"]["grid"] = "transport";
+    const scene::Scene kept = variant(dir, "night", patch.dump());
+    const core::Grid3<float> d = scene::make_density(kept);
+    const solve::Media ma = sky::static_media(averaged, d), mk = sky::static_media(kept, d);
+    // The same transport grid (2 km lighting voxels refined by 2); kept, it is the lighting grid.
+    CHECK(mk.transport.density.geom == ma.transport.density.geom);
+    CHECK(mk.lighting.density.geom == mk.transport.density.geom);
+    CHECK(mk.refine == 1);
+    CHECK(ma.lighting.density.geom.voxel_size == 2.0 * ma.transport.density.geom.voxel_size);
+    const sky::ScenePlan pk = sky::plan_scene(kept, d, quick());
+    CHECK(pk.settings.refine == 2);
+    CHECK(pk.settings.keep_transport_grid);
+    CHECK(mentions(pk, "S kept on that grid"));
+    CHECK(mentions(sky::plan_scene(averaged, d, quick()), "S averaged onto the lighting grid"));
+
+    // One cache file name for both: the kept grid is in the key, so neither reads the other's.
+    std::vector<std::string> said;
+    auto say = [&](const std::string& m) { said.push_back(m); };
+    const sky::CacheOptions cache{true, dir / "cache"};
+    const sky::StaticLight la = sky::load_or_solve(averaged, d, ma, sky::plan_scene(averaged, d, quick()), cache, say);
+    said.clear();
+    const sky::StaticLight lk = sky::load_or_solve(kept, d, mk, pk, cache, say);
+    REQUIRE(said.size() == 2);
+    CHECK(said[0].find("sun: solved") == 0);
+    CHECK(said[0].find("sky.grid") != std::string::npos);
+    CHECK(lk.sun->multiple.geom == mk.lighting.density.geom);
+    CHECK(la.sun->multiple.geom == ma.lighting.density.geom);
+    said.clear();
+    (void)sky::load_or_solve(kept, d, mk, pk, cache, say);  // and it is read back on its grid
+    CHECK(said[0].find("sun: read from") == 0);
+
+    const sky::ColourField c = sky::compose(lk, kept.sun, kept.sky, {});
+    CHECK(c.geom == mk.lighting.density.geom);
+    // The truth tallies where the solves' S is kept (a few paths: only the grid is checked).
+    sky::TruthOptions few;
+    few.paths = 2000;
+    const sky::StaticLight t = sky::truth_of(kept, d, pk, mk, lk, transport::output_directions(26), few);
+    CHECK(t.sun->multiple.geom == mk.lighting.density.geom);
+    CHECK_THROWS_WITH_AS(variant(dir, "bad", R"({"transport": {"static_light": {"grid": "fine"}}})"),
+                         doctest::Contains("/transport/static_light/grid"), core::Error);
+}
+
 TEST_CASE("the sun solved again on a worker thread: the newest request wins, the old field until then") {
     const auto dir = test::scratch_dir("sky_resolver");
     const scene::Scene s = variant(dir, "night", kSunSky);

@@ -166,6 +166,52 @@ TEST_CASE("refinement: a refined transport grid is averaged onto the lighting gr
     CHECK(f.multiple.geom == media.lighting.density.geom);
 }
 
+TEST_CASE("kept on the transport grid: the same solve, whose block average is the lighting grid's S") {
+    // transport.static_light.grid "transport" only leaves out the final average: averaging the
+    // kept S gives the lighting grid's S to the last bit (the same fine fields, the same sums).
+    const transport::LightingMedium fine = blob();
+    solve::Media averaged;
+    averaged.transport = fine;
+    averaged.lighting.density = core::downsample(fine.density, 2);
+    averaged.lighting.optics = fine.optics;
+    averaged.refine = 2;
+    const solve::Media kept{fine, fine, 1, {}};
+    const transport::DirectionalSource sun{{0.3, 0.2, -1.0}, 1.0};
+    const std::vector<glm::dvec3> dirs = transport::output_directions(26);
+    sky::SolveSettings st = settings();
+    st.refine = 2;
+    const sky::LightField a = sky::solve_directional(averaged, std::span(&sun, 1), dirs, st);
+    st.keep_transport_grid = true;
+    const sky::LightField k = sky::solve_directional(kept, std::span(&sun, 1), dirs, st);
+    CHECK(k.single.geom == fine.density.geom);
+    CHECK(k.multiple.geom == fine.density.geom);
+    const transport::SourceField ks = transport::block_average(k.single, 2);
+    const transport::SourceField km = transport::block_average(k.multiple, 2);
+    REQUIRE(ks.data.size() == a.single.data.size());
+    REQUIRE(km.data.size() == a.multiple.data.size());
+    CHECK(ks.data == a.single.data);
+    CHECK(km.data == a.multiple.data);
+    // Fine structure the average removes: S varies within a lighting voxel (else keeping it
+    // would buy nothing). The largest spread of the kept S over a 2x2x2 block, against S's
+    // peak, is well above float rounding.
+    float spread = 0.0f, peak = 0.0f;
+    const core::Int3 d = fine.density.dims();
+    const std::span<const float> s0 = k.multiple.direction(0);
+    for (int z = 0; z + 1 < d.z; z += 2)
+        for (int y = 0; y + 1 < d.y; y += 2)
+            for (int x = 0; x + 1 < d.x; x += 2) {
+                float lo = 1e30f, hi = -1e30f;
+                for (int c = 0; c < 8; ++c) {
+                    const float v = s0[fine.density.geom.index(x + (c & 1), y + ((c >> 1) & 1), z + (c >> 2))];
+                    lo = std::min(lo, v);
+                    hi = std::max(hi, v);
+                }
+                spread = std::max(spread, hi - lo);
+                peak = std::max(peak, hi);
+            }
+    CHECK(spread > 0.05f * peak);
+}
+
 TEST_CASE("isotropic scattering: one output direction; Monte Carlo agrees with both methods") {
     // Monte Carlo with the same directional source in the same medium: single scattering is
     // exact (the hybrid's), multiple scattering is where the lattice's error lives.
