@@ -22,8 +22,21 @@ using detail::kResolve;
 using detail::PassTimer;
 using detail::SourceSet;
 
+Renderer::Impl::NeededCache& Renderer::Impl::needed_slot(const core::GridGeometry& lg) const {
+    for (NeededCache& c : needed_cache)
+        if (c.used && c.geom == lg) return c;
+    NeededCache& c = needed_cache[needed_next];
+    needed_next = (needed_next + 1) % needed_cache.size();
+    c = {};
+    c.used = true;
+    c.geom = lg;
+    return c;
+}
+
 const std::vector<std::uint8_t>& Renderer::Impl::active_mask(const core::GridGeometry& lg) const {
-    if (lit_active_valid && lit_active_geom == lg) return lit_active;
+    NeededCache& slot = needed_slot(lg);
+    if (slot.active_valid) return slot.active;
+    std::vector<std::uint8_t>& lit_active = slot.active;
     lit_active.assign(lg.cell_count(), 1);
     if (has_volume) {
         const core::GridGeometry& dg = density.geom;
@@ -43,22 +56,19 @@ const std::vector<std::uint8_t>& Renderer::Impl::active_mask(const core::GridGeo
             lit_active[c] = double(distance[dg.index(i, j, k)]) <= reach + 1.0 - extra ? 1 : 0;
         }
     }
-    lit_active_geom = lg;
-    lit_active_valid = true;
+    slot.active_valid = true;
     return lit_active;
 }
 
 const std::vector<DirectionUse>& Renderer::Impl::needed_for(const glm::dvec3& cam, const core::GridGeometry& lg,
                                                             int count, double min_weight) const {
-    if (needed_camera && *needed_camera == cam && needed_geom == lg && needed_count == count &&
-        needed_min_weight == min_weight)
-        return needed;
-    needed = view_directions(cam, lg, count, active_mask(lg), min_weight);
-    needed_min_weight = min_weight;
-    needed_camera = cam;
-    needed_geom = lg;
-    needed_count = count;
-    return needed;
+    NeededCache& slot = needed_slot(lg);
+    if (slot.camera && *slot.camera == cam && slot.count == count && slot.min_weight == min_weight) return slot.needed;
+    slot.needed = view_directions(cam, lg, count, active_mask(lg), min_weight);  // active_mask: the same slot
+    slot.min_weight = min_weight;
+    slot.camera = cam;
+    slot.count = count;
+    return slot.needed;
 }
 
 /// Resolves a source set toward the camera (only when it or the camera changed): returns the

@@ -263,8 +263,7 @@ void Renderer::set_volume(const VolumeDesc& v) {
     m.kappa = v.extinction;
     m.has_volume = true;
     m.temporal.inputs_changed = true;
-    m.lit_active_valid = false;
-    m.needed_camera.reset();
+    m.forget_needed();
     m.ground_lights_k = -1;  // visibility depends on the volume
 }
 
@@ -279,8 +278,7 @@ void Renderer::clear_volume() {
     m.distance.clear();
     m.has_volume = false;
     m.temporal.inputs_changed = true;
-    m.lit_active_valid = false;
-    m.needed_camera.reset();
+    m.forget_needed();
     m.ground_lights_k = -1;
 }
 

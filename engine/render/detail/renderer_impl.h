@@ -14,6 +14,7 @@
 
 #include <glm/glm.hpp>
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -50,15 +51,26 @@ struct Renderer::Impl {
     // Exposure metering
     detail::Buffer meter_buf;
     double pending_upload_ms = 0.0, pending_upload_cpu_ms = 0.0;
-    // Cache of the needed directions for (camera, lighting grid, count).
-    mutable std::optional<glm::dvec3> needed_camera;
-    mutable core::GridGeometry needed_geom;
-    mutable int needed_count = 0;
-    mutable double needed_min_weight = -1.0;
-    mutable std::vector<DirectionUse> needed;
-    mutable std::vector<std::uint8_t> lit_active;  // lighting nodes near non-empty density
-    mutable core::GridGeometry lit_active_geom;
-    mutable bool lit_active_valid = false;
+    // The needed directions of one lighting grid: its nodes near non-empty density, and the
+    // directions for the last (camera, count, threshold).
+    struct NeededCache {
+        bool used = false;  // holds a grid
+        core::GridGeometry geom;
+        bool active_valid = false;
+        std::vector<std::uint8_t> active;
+        std::optional<glm::dvec3> camera;
+        int count = 0;
+        double min_weight = -1.0;
+        std::vector<DirectionUse> needed;
+    };
+    // Two grids: the flash's and the static light's (which may be finer: a frame resolves
+    // both, and one slot would recompute each every frame).
+    mutable std::array<NeededCache, 2> needed_cache;
+    mutable std::size_t needed_next = 0;  // the slot a third grid replaces
+    NeededCache& needed_slot(const core::GridGeometry& lg) const;
+    void forget_needed() {
+        for (NeededCache& c : needed_cache) c = {};
+    }
 
     // Bolt
     LitChannel bolt;
