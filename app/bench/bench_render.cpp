@@ -29,6 +29,8 @@
 //                  renderer and the temporal history (Settings::temporal: its steps and its
 //                  error against a fresh render of each frame). Today's plain still camera at
 //                  the same size is the baseline of each row (ratio).
+//   case "static_grid": the static light on the lighting grid and on a 3x finer one: upload,
+//                  resolve and frame of a moving camera (FULGUR_BENCH_STATIC_GRID=1: these alone).
 //   FULGUR_BENCH_DEMO_WIDTH=W runs only the demo rows, at output width W (640, 1280 or 1920).
 // llvmpipe uses LP_NUM_THREADS threads (default: all cores); the row says how many.
 #include "bench/bench.h"
@@ -240,6 +242,60 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
     }
 }
 
+// The static light (sun, moon, sky: StaticUpload) on the storm's lighting grid and on that
+// grid refined 3x (transport.static_light.grid "transport" keeps it on the grid its solve ran
+// on: 27x the nodes on the default storm): its upload, and the resolve and the whole frame of
+// a moving camera (the resolve runs every frame), the flash lit as in the other rows. The
+// field's values do not matter for the time: each refined node takes its coarse node's S.
+void static_grid_rows(const bench::Context& ctx, render::Renderer& r, const synthetic::Storm& storm,
+                      const render::Settings& base, int w, int h, int frames) {
+    const core::GridGeometry& lg = storm.lighting;
+    const std::size_t coarse = lg.cell_count();
+    double baseline_resolve = 0.0, baseline_frame = 0.0;
+    for (const int refine : {1, 3}) {
+        core::GridGeometry fg = lg;
+        fg.voxel_size = lg.voxel_size / refine;
+        fg.dims = {lg.dims.x * refine, lg.dims.y * refine, lg.dims.z * refine};
+        const std::size_t cells = fg.cell_count();
+        std::vector<std::vector<float>> rgb(std::size_t(storm.directions), std::vector<float>(3 * cells));
+        for (int m = 0; m < storm.directions; ++m)
+            for (std::size_t c = 0; c < cells; ++c) {
+                const core::Int3 n = fg.unindex(c);
+                const float v =
+                    1e-3f * storm.source[std::size_t(m) * coarse + lg.index(n.x / refine, n.y / refine, n.z / refine)];
+                for (int ch = 0; ch < 3; ++ch) rgb[std::size_t(m)][3 * c + std::size_t(ch)] = v;
+            }
+        render::StaticUpload up;
+        up.geometry = fg;
+        up.direction_count = storm.directions;
+        for (const std::vector<float>& v : rgb) up.rgb.emplace_back(v.data(), v.size());
+        core::Stopwatch sw;
+        r.upload_static(up);
+        const double upload_ms = sw.milliseconds();
+        r.render(storm.camera, base, w, h);  // the refined grid's node mask and first resolve
+        const Medians resolve = run_frames(
+            r, storm.camera, base, w, h, frames, [](const render::PassTimes& t) { return t.resolve; }, true);
+        const Medians frame = run_frames(
+            r, storm.camera, base, w, h, frames, [](const render::PassTimes& t) { return t.total; }, true);
+        if (refine == 1) {
+            baseline_resolve = resolve.cpu;
+            baseline_frame = frame.cpu;
+        }
+        ctx.emit("render", {{"case", "static_grid"},
+                            {"refine", refine},
+                            {"static_nodes", cells},
+                            {"upload_ms", upload_ms},
+                            {"resolve_ms", resolve.wall},
+                            {"resolve_cpu_ms", resolve.cpu},
+                            {"frame_ms", frame.wall},
+                            {"frame_cpu_ms", frame.cpu},
+                            {"resolve_cpu_ratio", resolve.cpu / baseline_resolve},
+                            {"frame_cpu_ratio", frame.cpu / baseline_frame},
+                            {"baseline", "the static light on the lighting grid (refine 1), same run"}});
+    }
+    r.clear_static();
+}
+
 }  // namespace
 
 FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixed-step march, frame times, knobs") {
@@ -265,6 +321,10 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
     core::Stopwatch upload_clock;
     r.upload_source(up);
     const double upload_ms = upload_clock.milliseconds();
+    if (std::getenv("FULGUR_BENCH_STATIC_GRID")) {  // the static light's grid rows alone
+        static_grid_rows(ctx, r, storm, storm.settings, W, H, frames);
+        return;
+    }
 
     const render::Settings base = storm.settings;  // defaults: internal scale 0.5, step 1 voxel, skipping, early exit
     const int iw = int(std::lround(W * base.internal_scale)), ih = int(std::lround(H * base.internal_scale));
@@ -470,5 +530,6 @@ FULGUR_BENCH(render, "GL renderer via OSMesa at 640x360: ray march vs plain fixe
                         {"baseline_frame_ms", dry_frame.wall},
                         {"baseline", "the same storm without rain"}});
 
+    static_grid_rows(ctx, r, storm, base, W, H, frames);
     demo_rows(ctx, storm, detail, rain_params, frames);
 }
