@@ -151,24 +151,10 @@ TEST_CASE("the sky against physics: a uniform sky of radiance 1 over an opticall
     CHECK(most_multiple <= 1e-5f);  // order 2 is of the order of the optical depth (1e-6) times S1
 }
 
-TEST_CASE("refinement: a refined transport grid is averaged onto the lighting grid") {
-    const transport::LightingMedium fine = blob();
-    solve::Media media;
-    media.transport = fine;
-    media.lighting.density = core::downsample(fine.density, 2);
-    media.lighting.optics = fine.optics;
-    media.refine = 2;
-    const transport::DirectionalSource sun{{0.3, 0.2, -1.0}, 1.0};
-    sky::SolveSettings st = settings();
-    st.refine = 2;  // the media's (sky::static_media keeps them together)
-    const sky::LightField f = sky::solve_directional(media, std::span(&sun, 1), transport::output_directions(26), st);
-    CHECK(f.single.geom == media.lighting.density.geom);
-    CHECK(f.multiple.geom == media.lighting.density.geom);
-}
-
-TEST_CASE("kept on the transport grid: the same solve, whose block average is the lighting grid's S") {
-    // transport.static_light.grid "transport" only leaves out the final average: averaging the
-    // kept S gives the lighting grid's S to the last bit (the same fine fields, the same sums).
+TEST_CASE("refinement: S averaged onto the lighting grid, or kept on the transport grid to the same average") {
+    // A refined transport grid is averaged onto the lighting grid; transport.static_light.grid
+    // "transport" only leaves out that average: averaging the kept S gives the lighting grid's
+    // S to the last bit (the same fine fields, the same sums).
     const transport::LightingMedium fine = blob();
     solve::Media averaged;
     averaged.transport = fine;
@@ -179,8 +165,10 @@ TEST_CASE("kept on the transport grid: the same solve, whose block average is th
     const transport::DirectionalSource sun{{0.3, 0.2, -1.0}, 1.0};
     const std::vector<glm::dvec3> dirs = transport::output_directions(26);
     sky::SolveSettings st = settings();
-    st.refine = 2;
+    st.refine = 2;  // the media's (sky::static_media keeps them together)
     const sky::LightField a = sky::solve_directional(averaged, std::span(&sun, 1), dirs, st);
+    CHECK(a.single.geom == averaged.lighting.density.geom);
+    CHECK(a.multiple.geom == averaged.lighting.density.geom);
     st.keep_transport_grid = true;
     const sky::LightField k = sky::solve_directional(kept, std::span(&sun, 1), dirs, st);
     CHECK(k.single.geom == fine.density.geom);
