@@ -120,6 +120,27 @@ ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, c
         why.push_back("no sky in the scene: no sky solve; the background is the default dark night sky");
     }
 
+    // S kept on the transport grid: the solves' fields and the renderer's copy grow with its
+    // cells (refine^3 the lighting grid's), so it is bounded before anything is solved.
+    if (p.settings.keep_transport_grid && (p.sun || p.sky)) {
+        const double cells = double(grid.transport.density.geom.cell_count()), dirs = double(p.directions);
+        const int fields = (p.sun ? 2 : 0) + (p.sky ? (p.sky_uniform ? 2 : 4) : 0);  // single + multiple each
+        // Host: the fields (float); the renderer: an RGB float texture per direction (padded to
+        // 16 bytes a texel) and the resolved one.
+        const double bytes = double(fields) * dirs * cells * 4.0 + (dirs + 1.0) * cells * 16.0;
+        const double limit = scene::memory_limit(s);
+        if (bytes > limit)
+            throw core::Error(file + ": /transport/static_light/grid",
+                              "\"transport\" keeps the static light's S " + where + ": about " +
+                                  core::format_bytes(bytes) + " (" + std::to_string(fields) + " fields x " +
+                                  std::to_string(p.directions) + " directions, and the renderer's copy), over the " +
+                                  "limit of " + core::format_bytes(limit) +
+                                  (s.limits.memory_bytes > 0.0 ? " (limits.memory_gib)" : " (3/4 of physical memory)") +
+                                  "; use \"lighting\" or a smaller transport.static_light.refine");
+        why.push_back("the static light's S kept " + where + ": about " + core::format_bytes(bytes) +
+                      " with the renderer's copy (refine^3 the lighting grid's)");
+    }
+
     // Run-time effects.
     if (!e.glow) why.push_back("effects.glow = false: no glow pass");
     if (!e.ground) why.push_back("effects.ground = false: no ground plane");

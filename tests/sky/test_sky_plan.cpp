@@ -225,6 +225,15 @@ TEST_CASE("the static light kept on its transport grid: media, plan, cache key, 
     CHECK(t.sun->multiple.geom == mk.lighting.density.geom);
     CHECK_THROWS_WITH_AS(variant(dir, "bad", R"({"transport": {"static_light": {"grid": "fine"}}})"),
                          doctest::Contains("/transport/static_light/grid"), core::Error);
+    // Bounded before anything is solved: the kept fields over the scene's memory limit (the
+    // 16 x 16 x 8 grid's six fields of 26 directions and the renderer's copy: ~2.2 MB; no
+    // lightning, whose bake's own estimate would be refused first).
+    CHECK(mentions(pk, "S kept on the 16 x 16 x 8 transport grid"));
+    patch["limits"] = {{"memory_gib", 0.001}};
+    patch["effects"]["lightning"] = false;
+    const scene::Scene tight = variant(dir, "tight", patch.dump());
+    CHECK_THROWS_WITH_AS(sky::plan_scene(tight, d, quick()),
+                         doctest::Contains("/transport/static_light/grid: \"transport\" keeps"), core::Error);
 }
 
 TEST_CASE("the sun solved again on a worker thread: the newest request wins, the old field until then") {
