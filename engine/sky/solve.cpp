@@ -240,8 +240,10 @@ SolveSettings solve_settings(const scene::Scene& s, const core::Grid3<float>& de
     return st;
 }
 
-solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density, bool full) {
-    const SolveSettings st = solve_settings(s, density);
+namespace {
+
+// The static light's media for settings `st` (solve_settings of the scene).
+solve::Media media_for(const scene::Scene& s, const core::Grid3<float>& density, const SolveSettings& st, bool full) {
     solve::Media m = solve::make_media(s, density, st.refine, full);
     if (st.keep_transport_grid) {
         m.lighting = m.transport;
@@ -250,9 +252,15 @@ solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& densi
     return m;
 }
 
+}  // namespace
+
+solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density, bool full) {
+    return media_for(s, density, solve_settings(s, density), full);
+}
+
 solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density) {
     const SolveSettings st = solve_settings(s, density);
-    return static_media(s, density, exact_two(st) || (s.sky && st.sky_paths > 0));
+    return media_for(s, density, st, exact_two(st) || (s.sky && st.sky_paths > 0));
 }
 
 LightField solve_directional(const solve::Media& media, std::span<const transport::DirectionalSource> lights,

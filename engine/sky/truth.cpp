@@ -124,8 +124,11 @@ StaticLight truth_of(const scene::Scene& s, const core::Grid3<float>& density, c
                      const TruthOptions& options, std::vector<transport::MonteCarloResult::Noise>* noise) {
     std::optional<solve::Media> own;
     const solve::Media* m = &media;
-    // The truth tallies on the grid the solves' S is kept on (static_media's lighting grid).
-    if (m->full.density.data.empty()) m = &own.emplace(static_media(s, density, true));
+    // The truth tallies on the grid the solves' S is kept on (static_media's lighting grid); on
+    // the lighting grid it needs no transport grid.
+    if (m->full.density.data.empty())
+        m = &own.emplace(solve_settings(s, density).keep_transport_grid ? static_media(s, density, true)
+                                                                        : solve::make_media(s, density, 1, true));
     StaticLight truth = static_truth(plan, *m, solved.sun_direction, directions, options, noise);
     keep_parts(truth, solved);
     return truth;
