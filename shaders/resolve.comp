@@ -12,6 +12,11 @@
 
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 
+// One work group per 8 x 8 x 1 tile of nodes holding a node near non-empty density, listed as
+// (tz * tiles_y + ty) * tiles_x + tx; the other tiles keep S_cam's zeros.
+layout(std430, binding = 4) readonly buffer Tiles { uint u_tiles[]; };
+uniform ivec2 u_tile_counts;  // tiles along x and y
+
 layout(binding = 0) uniform sampler3D u_src0;
 layout(binding = 1) uniform sampler3D u_src1;
 layout(binding = 2) uniform sampler3D u_src2;
@@ -65,7 +70,10 @@ vec4 fetch4(vec4 w, sampler3D a, sampler3D b, sampler3D d, sampler3D e, ivec3 c)
 }
 
 void main() {
-    ivec3 c = ivec3(gl_GlobalInvocationID);
+    uint t = u_tiles[gl_WorkGroupID.x];
+    uint per_layer = uint(u_tile_counts.x * u_tile_counts.y);
+    ivec3 tile = ivec3(int(t % uint(u_tile_counts.x)), int((t % per_layer) / uint(u_tile_counts.x)), int(t / per_layer));
+    ivec3 c = tile * ivec3(8, 8, 1) + ivec3(gl_LocalInvocationID);
     if (any(greaterThanEqual(c, u_dims))) return;
     vec3 x = lit_min.xyz + (vec3(c) + 0.5) * (lit_size.xyz / vec3(u_dims));
     vec3 d = cam_pos.xyz - x;

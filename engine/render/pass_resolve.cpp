@@ -22,6 +22,9 @@ using detail::kResolve;
 using detail::PassTimer;
 using detail::SourceSet;
 
+/// The resolve's work group: kResolveTile x kResolveTile x 1 nodes (resolve.comp's local size).
+constexpr int kResolveTile = 8;
+
 Renderer::Impl::NeededCache& Renderer::Impl::needed_slot(const core::GridGeometry& lg) const {
     for (NeededCache& c : needed_cache)
         if (c.used && c.geom == lg) return c;
@@ -57,7 +60,26 @@ const std::vector<std::uint8_t>& Renderer::Impl::active_mask(const core::GridGeo
         }
     }
     slot.active_valid = true;
+    slot.tiles.clear();
     return lit_active;
+}
+
+const std::vector<std::uint32_t>& Renderer::Impl::active_tiles(const core::GridGeometry& lg) const {
+    const std::vector<std::uint8_t>& act = active_mask(lg);
+    NeededCache& slot = needed_slot(lg);  // the same slot active_mask filled
+    if (!slot.tiles.empty()) return slot.tiles;
+    const core::Int3 n = lg.dims;
+    const int tx = (n.x + kResolveTile - 1) / kResolveTile, ty = (n.y + kResolveTile - 1) / kResolveTile;
+    std::vector<std::uint8_t> hit(std::size_t(tx) * std::size_t(ty) * std::size_t(n.z), 0);
+    for (int k = 0; k < n.z; ++k)
+        for (int j = 0; j < n.y; ++j)
+            for (int i = 0; i < n.x; ++i)
+                if (act[lg.index(i, j, k)])
+                    hit[(std::size_t(k) * std::size_t(ty) + std::size_t(j / kResolveTile)) * std::size_t(tx) +
+                        std::size_t(i / kResolveTile)] = 1;
+    for (std::size_t t = 0; t < hit.size(); ++t)
+        if (hit[t]) slot.tiles.push_back(std::uint32_t(t));
+    return slot.tiles;
 }
 
 const std::vector<DirectionUse>& Renderer::Impl::needed_for(const glm::dvec3& cam, const core::GridGeometry& lg,
@@ -99,8 +121,21 @@ GLuint Renderer::Impl::resolve_set(SourceSet& set, const glm::dvec3& camera, con
     GLfloat active_mask[26] = {};
     for (int d : active) active_mask[d] = 1.0f;
     glUniform1fv(glGetUniformLocation(p, "u_active"), 26, active_mask);
+    // Only the tiles near non-empty density are resolved: the march reads S elsewhere only
+    // where the density (cloud and rain) is zero.
+    const std::vector<std::uint32_t>& tiles = active_tiles(g);
+    if (tiles.empty()) {
+        timer.end(kResolve);
+        set.dirty = false;
+        set.resolved_camera = camera;
+        return set.cam_tex;
+    }
+    resolve_tiles.upload(tiles.data(), tiles.size() * sizeof(std::uint32_t));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, resolve_tiles.id);
+    glUniform2i(glGetUniformLocation(p, "u_tile_counts"), (g.dims.x + kResolveTile - 1) / kResolveTile,
+                (g.dims.y + kResolveTile - 1) / kResolveTile);
     // Up to 16 directions per dispatch (unused samplers read the zero texture with weight 0);
-    // at least one dispatch so S_cam is written (zeros) even without S.
+    // at least one dispatch so the active tiles of S_cam are written (zeros) even without S.
     constexpr std::size_t kBatch = 16;
     for (std::size_t b = 0; b == 0 || b < active.size(); b += kBatch) {
         GLint dirs[kBatch];
@@ -114,7 +149,7 @@ GLuint Renderer::Impl::resolve_set(SourceSet& set, const glm::dvec3& camera, con
         glUniform1i(loc_n, GLint(std::min(kBatch, std::max<std::size_t>(1, active.size() - b))));
         glUniform1i(loc_acc, b == 0 ? 0 : 1);
         if (b > 0) glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
-        glDispatchCompute(GLuint((g.dims.x + 7) / 8), GLuint((g.dims.y + 7) / 8), GLuint(g.dims.z));
+        glDispatchCompute(GLuint(tiles.size()), 1, 1);
     }
     glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
     timer.end(kResolve);

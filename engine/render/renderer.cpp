@@ -151,6 +151,7 @@ Renderer::~Renderer() {
     m.statics.release();
     delete_texture(m.sun_tex);
     m.meter_buf.release();
+    m.resolve_tiles.release();
     m.seg_buf.release();
     m.endpoint_buf.release();
     m.glow_buf.release();

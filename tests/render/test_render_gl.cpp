@@ -302,6 +302,44 @@ TEST_CASE("the GPU resolve matches the CPU direction weights") {
     }
 }
 
+TEST_CASE("the resolve covers the tiles near the cloud and leaves the rest zero") {
+    // A cloud in one corner of a 40 x 36 x 3 lighting grid: the resolve runs only over the
+    // 8 x 8 node tiles holding a node near it. Every node a march can read where the density
+    // is non-zero must match the CPU weights; the nodes of skipped tiles stay exactly zero.
+    render::Renderer& r = gl_renderer();
+    const auto density = test::make_grid({40, 36, 3}, 100.0, {-2000, -1800, 0},
+                                         [](int i, int j, int) { return i < 6 && j < 6 ? 0.5f : 0.0f; });
+    r.set_volume({.density = &density, .extinction = 1e-3});
+    const core::GridGeometry lg = density.geom;
+    auto value = [](int m, std::size_t c) { return float(1.0 + m + 0.01 * double(c)); };
+    upload_all(r, lg, 26, value);
+    render::Camera cam;
+    cam.position = {-1500, -6000, 1500};
+    cam.target = {-1500, -1500, 150};
+    render::Settings st = test::volume_only();
+    st.direction_min_weight = 0.0;
+    render_at(r, cam, st, 32, 24);
+    const std::vector<float> gpu = r.read_resolved_source();
+    REQUIRE(gpu.size() == lg.cell_count());
+    std::size_t near = 0, skipped = 0;
+    for (std::size_t c = 0; c < lg.cell_count(); ++c) {
+        const core::Int3 n = lg.unindex(c);
+        CHECK(std::isfinite(gpu[c]));
+        if (n.x < 8 && n.y < 8) {  // the cloud's tile: every node resolved
+            const auto w = render::direction_weights(cam.position - lg.centre(n.x, n.y, n.z), 26);
+            double expected = 0.0;
+            for (int k = 0; k < w.count; ++k) expected += w.weight[std::size_t(k)] * value(w.index[std::size_t(k)], c);
+            CHECK(gpu[c] == test::rel(expected, 2e-5));  // float vs double weights, as above
+            ++near;
+        } else if (n.x >= 16 || n.y >= 16) {  // >= 10 voxels from the cloud: never resolved
+            CHECK(gpu[c] == 0.0f);
+            ++skipped;
+        }
+    }
+    CHECK(near == 8 * 8 * 3);
+    CHECK(skipped > lg.cell_count() / 2);
+}
+
 TEST_CASE("uploading only the needed directions gives the same image; a missing one is reported") {
     render::Renderer& r = gl_renderer();
     const auto density = synthetic::cumulus({40, 40, 30}, 300.0, 2);

@@ -119,7 +119,12 @@ struct SourceSet {
         release();
         tex.assign(std::size_t(count), 0);
         for (GLuint& t : tex) t = make_texture_3d(format, g.dims);
-        if (count > 1) cam_tex = make_texture_3d(format, g.dims);
+        if (count > 1) {
+            // The resolve writes only the tiles near the cloud; the rest stays zero (read by
+            // the march only where the density is zero, so never NaN garbage).
+            cam_tex = make_texture_3d(format, g.dims);
+            glClearTexImage(cam_tex, 0, format == GL_R32F ? GL_RED : GL_RGBA, GL_FLOAT, nullptr);
+        }
         geom = g;
         dir_count = count;
         return true;

@@ -50,6 +50,7 @@ struct Renderer::Impl {
     double sun_albedo = 0.0, sun_g = 0.0;
     // Exposure metering
     detail::Buffer meter_buf;
+    detail::Buffer resolve_tiles;  // the tile list of the grid being resolved
     double pending_upload_ms = 0.0, pending_upload_cpu_ms = 0.0;
     // The needed directions of one lighting grid: its nodes near non-empty density, and the
     // directions for the last (camera, count, threshold).
@@ -58,6 +59,9 @@ struct Renderer::Impl {
         core::GridGeometry geom;
         bool active_valid = false;
         std::vector<std::uint8_t> active;
+        /// The resolve's work groups: the 8 x 8 x 1 node tiles holding an active node, as
+        /// (tz * tiles_y + ty) * tiles_x + tx (valid with `active`).
+        std::vector<std::uint32_t> tiles;
         std::optional<glm::dvec3> camera;
         int count = 0;
         double min_weight = -1.0;
@@ -68,6 +72,8 @@ struct Renderer::Impl {
     mutable std::array<NeededCache, 2> needed_cache;
     mutable std::size_t needed_next = 0;  // the slot a third grid replaces
     NeededCache& needed_slot(const core::GridGeometry& lg) const;
+    /// The active-node tiles of a lighting grid (cached with its active mask).
+    const std::vector<std::uint32_t>& active_tiles(const core::GridGeometry& lg) const;
     void forget_needed() {
         for (NeededCache& c : needed_cache) c = {};
     }
