@@ -60,4 +60,74 @@ Grid3<float> downsample(const Grid3<float>& src, int factor) {
     return dst;
 }
 
+namespace {
+
+// One axis of Grid3::sample: the two source indices and the weight of the second for each
+// destination centre along that axis.
+struct AxisTaps {
+    std::vector<int> i0, i1;
+    std::vector<double> f;
+};
+
+AxisTaps axis_taps(double from_origin, double from_voxel, int n, double to_origin, double to_voxel, int m) {
+    AxisTaps t;
+    t.i0.resize(std::size_t(m));
+    t.i1.resize(std::size_t(m));
+    t.f.resize(std::size_t(m));
+    for (int d = 0; d < m; ++d) {
+        const double world = to_origin + (double(d) + 0.5) * to_voxel;
+        const double v = (world - from_origin) / from_voxel - 0.5;
+        int a = 0, b = 0;
+        double w = 0.0;
+        if (!(v > 0.0)) {
+            a = b = 0;
+        } else if (v >= double(n - 1)) {
+            a = b = n - 1;
+        } else {
+            a = int(v);
+            b = a + 1;
+            w = v - double(a);
+        }
+        t.i0[std::size_t(d)] = a;
+        t.i1[std::size_t(d)] = b;
+        t.f[std::size_t(d)] = w;
+    }
+    return t;
+}
+
+}  // namespace
+
+void resample_trilinear(const GridGeometry& from, std::span<const float> src, const GridGeometry& to,
+                        std::span<float> dst) {
+    FULGUR_ASSERT(src.size() == from.cell_count() && dst.size() == to.cell_count(),
+                  "resample_trilinear: field sizes must match their geometries");
+    const Int3 n = from.dims, m = to.dims;
+    const AxisTaps tx = axis_taps(from.origin.x, from.voxel_size, n.x, to.origin.x, to.voxel_size, m.x);
+    const AxisTaps ty = axis_taps(from.origin.y, from.voxel_size, n.y, to.origin.y, to.voxel_size, m.y);
+    const AxisTaps tz = axis_taps(from.origin.z, from.voxel_size, n.z, to.origin.z, to.voxel_size, m.z);
+    const std::size_t sx = std::size_t(n.x), sxy = sx * std::size_t(n.y);
+    parallel_for(0, m.z, [&](std::int64_t kk) {
+        const std::size_t k = std::size_t(kk);
+        // z: the destination slice's two source slices, mixed once (n.x x n.y, double).
+        std::vector<double> slice(sxy), row(sx);
+        const float* z0 = src.data() + std::size_t(tz.i0[k]) * sxy;
+        const float* z1 = src.data() + std::size_t(tz.i1[k]) * sxy;
+        const double fz = tz.f[k];
+        for (std::size_t i = 0; i < sxy; ++i) slice[i] = double(z0[i]) + (double(z1[i]) - double(z0[i])) * fz;
+        for (int j = 0; j < m.y; ++j) {
+            // y: the destination row's two source rows.
+            const double* y0 = slice.data() + std::size_t(ty.i0[std::size_t(j)]) * sx;
+            const double* y1 = slice.data() + std::size_t(ty.i1[std::size_t(j)]) * sx;
+            const double fy = ty.f[std::size_t(j)];
+            for (std::size_t i = 0; i < sx; ++i) row[i] = y0[i] + (y1[i] - y0[i]) * fy;
+            // x: each destination cell.
+            float* out = dst.data() + to.index(0, j, int(k));
+            for (int i = 0; i < m.x; ++i) {
+                const double a = row[std::size_t(tx.i0[std::size_t(i)])], b = row[std::size_t(tx.i1[std::size_t(i)])];
+                out[i] = float(a + (b - a) * tx.f[std::size_t(i)]);
+            }
+        }
+    });
+}
+
 }  // namespace fulgur::core

@@ -5,6 +5,7 @@
 #include <glm/vec3.hpp>
 
 #include <cstddef>
+#include <span>
 #include <string_view>
 #include <utility>
 #include <vector>
@@ -91,6 +92,14 @@ void validate_geometry(const GridGeometry& g, std::string_view where);
 /// Box-filter downsample by an integer factor per axis (dims must divide exactly, or the
 /// trailing partial block averages only the voxels it has). Voxel size grows by `factor`.
 Grid3<float> downsample(const Grid3<float>& src, int factor);
+
+/// Writes into `dst` (to.cell_count() values) Grid3::sample of the field `src` (on `from`) at
+/// every voxel centre of `to`: trilinear between `from`'s centres, constant outside them.
+/// Separable (one pass per axis, each source slice and row interpolated once), so an upsample
+/// costs a few operations per destination cell; equal to the point-wise sample up to float
+/// rounding (tests/core/test_grid.cpp).
+void resample_trilinear(const GridGeometry& from, std::span<const float> src, const GridGeometry& to,
+                        std::span<float> dst);
 
 // ---------------------------------------------------------------------------------------
 // Template definitions

@@ -43,6 +43,7 @@ struct FramePipeline::Impl {
     lightning::LightWeights multiple_weights;
     RadianceField multiple_radiance;
     double forgotten_before = -1e300;
+    bool keep_fine = false;  // solved strikes kept on a transport grid finer than the lighting grid
 
     const scene::Scene* scene;
     const core::Grid3<float>* density;
@@ -62,6 +63,7 @@ struct FramePipeline::Impl {
         shown.clear();
         media.reset();
         quality = q;
+        keep_fine = false;
         if (q.preset == scene::Quality::Preset::Paper) return;
         solve_scene = s;  // the per-strike transport grid may be finer than the bake's
         // At least the bake's refinement; a preset's default applies where it divides the
@@ -75,8 +77,12 @@ struct FramePipeline::Impl {
             return;
         }
         // The worker takes one core less than the frame's share, at least one.
-        solver = std::make_unique<StrikeSolver>(solve_scene, *density, *media, strike_solve_options(q),
-                                                std::max(1, core::thread_count() - 1));
+        // Keeping the strikes on the transport grid means something only where it is finer.
+        keep_fine = q.keep_transport_grid && media->refine > 1;
+        StrikeSolveOptions so = strike_solve_options(q);
+        so.keep_transport_grid = keep_fine;
+        solver =
+            std::make_unique<StrikeSolver>(solve_scene, *density, *media, so, std::max(1, core::thread_count() - 1));
         if (!unscheduled.empty()) make_instant(scene::quality_preset("instant"));
     }
 
@@ -317,8 +323,11 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
         else if (lit_instantly(k))  // its flash is over: no more paths for it
             instant->stop(k.seed, k.time);
     }
-    if (t - 60.0 > forgotten_before) {  // keep a minute of solved strikes
-        forgotten_before = t - 60.0;
+    // Keep a minute of solved strikes; 5 s when each holds its light on the transport grid
+    // (tens of MB a strike: scene::Cost::strike_light_bytes), still longer than any flash.
+    const double keep_seconds = keep_fine ? 5.0 : 60.0;
+    if (t - keep_seconds > forgotten_before) {
+        forgotten_before = t - keep_seconds;
         if (instant) instant->forget_before(forgotten_before);
         if (solver) solver->forget_before(forgotten_before);
         const auto old = [&](const auto& key) { return key.second < forgotten_before; };
@@ -414,6 +423,7 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
             };
             for (const Lit& l : solved) {
                 const StrikeLight& L = *l.light;
+                if (L.has_fine()) continue;  // added below, on both grids
                 const float w[2] = {float(l.main), float(l.branch)};
                 for (std::size_t q = 0; q < 2; ++q) {
                     if (options.components.single) add(w[q], L.single[q].direction(m).data());
@@ -435,6 +445,53 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
                 }
             }
         }
+    }
+    // The frame on the transport grid: everything so far (lighting grid) upsampled, then the
+    // light of the strikes solved on that grid added on each grid.
+    const bool fine = keep_fine && valid;
+    if (fine) {
+        const core::GridGeometry& from = media->lighting.density.geom;
+        const core::GridGeometry& to = media->transport.density.geom;
+        RadianceField& r = f.fine;
+        r.geometry = to;
+        r.direction_count = f.radiance.direction_count;
+        r.directions = f.radiance.directions;
+        r.components = f.radiance.components;
+        r.values.resize(f.radiance.values.size());
+        for (std::size_t k = 0; k < r.values.size(); ++k) {
+            r.values[k].resize(to.cell_count());
+            core::resample_trilinear(from, f.radiance.values[k], to, r.values[k]);
+        }
+    } else {
+        f.fine.directions.clear();
+        f.fine.values.clear();
+    }
+    const auto add_solved = [&](RadianceField& r, bool transport_grid) {
+        for (std::size_t k = 0; k < r.directions.size(); ++k) {
+            const std::size_t m = std::size_t(r.directions[k]);
+            float* out = r.values[k].data();
+            const std::size_t cells = r.values[k].size();
+            const auto add = [out, cells, m](float w, const transport::SourceField& a) {
+                FULGUR_ASSERT(a.geom.cell_count() == cells, "FramePipeline: a strike's light is on another grid");
+                const float* v = a.direction(m).data();
+                if (w != 0.0f)
+                    for (std::size_t i = 0; i < cells; ++i) out[i] += w * v[i];
+            };
+            for (const Lit& l : solved) {
+                const StrikeLight& L = *l.light;
+                if (!L.has_fine()) continue;  // in the lighting grid's part
+                const float w[2] = {float(l.main), float(l.branch)};
+                for (std::size_t q = 0; q < 2; ++q) {
+                    if (options.components.single) add(w[q], transport_grid ? L.fine_single[q] : L.single[q]);
+                    if (options.components.multiple && L.has_multiple())
+                        add(w[q], transport_grid ? L.fine_multiple[q] : L.multiple[q]);
+                }
+            }
+        }
+    };
+    if (std::any_of(solved.begin(), solved.end(), [](const Lit& l) { return l.light->has_fine(); })) {
+        add_solved(f.radiance, false);
+        if (fine) add_solved(f.fine, true);
     }
     f.times.strike_light = sw.milliseconds();
     f.lit = valid;

@@ -28,6 +28,13 @@ struct Frame {
     std::vector<transport::PointSource> sources;
     lightning::LightWeights weights;
     RadianceField radiance;
+    /// Quality that keeps solved strikes on the transport grid (scene::Quality::
+    /// keep_transport_grid): the same frame's S on that grid, for the renderer: `radiance`'s
+    /// bases, leaders and unsolved strikes trilinearly upsampled (what the renderer would
+    /// sample of them), plus the solved strikes' own light at the transport grid's resolution.
+    /// Same directions as `radiance`. Empty (no values) otherwise; valid when `lit`.
+    /// `radiance` stays on the lighting grid, where the truth is tallied.
+    RadianceField fine;
     StageTimes times;
     /// Presets that solve strikes: active strikes whose own solve lit this frame, and those
     /// shown by the bases because their solve was not ready (0 and 0 for the paper preset).

@@ -41,6 +41,7 @@ StrikeSolveOptions strike_solve_options(const scene::Quality& q) {
                  : q.multiple == "monte_carlo" ? StrikeSolveOptions::Multiple::MonteCarlo
                                                : StrikeSolveOptions::Multiple::None;
     o.multiple_paths = q.multiple_paths;
+    o.keep_transport_grid = q.keep_transport_grid;
     return o;
 }
 
@@ -76,9 +77,13 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
     out.seconds_single = sw.seconds();
     out.noise.single = s1.noise.single;
     const bool empty = s1.groups.empty();  // no lit segment: all zero
-    for (std::uint32_t q = 0; q < 2; ++q)
-        out.single[q] =
-            transport::block_average(empty ? transport::SourceField(grid, dirs) : s1.groups[q].single, media.refine);
+    const bool keep = options.keep_transport_grid;
+    const transport::SourceField zero = empty ? transport::SourceField(grid, dirs) : transport::SourceField{};
+    for (std::uint32_t q = 0; q < 2; ++q) {
+        const transport::SourceField& tallied = empty ? zero : s1.groups[q].single;
+        out.single[q] = transport::block_average(tallied, media.refine);
+        if (keep) out.fine_single[q] = tallied;
+    }
 
     sw.reset();
     if (lattice) {
@@ -87,6 +92,7 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
                                                    [](float v) { return v == 0.0f; });
             if (dark) {  // no branches, or no light reaches the cloud
                 out.multiple[q] = transport::SourceField(lighting, dirs);
+                if (keep) out.fine_multiple[q] = transport::SourceField(grid, dirs);
                 continue;
             }
             const transport::MonteCarloResult::Group& part = s1.groups[q];
@@ -98,6 +104,7 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
             if (order2)
                 for (std::size_t i = 0; i < r.source.data.size(); ++i) r.source.data[i] += part.multiple.data[i];
             out.multiple[q] = transport::block_average(r.source, media.refine);
+            if (keep) out.fine_multiple[q] = std::move(r.source);
         }
     } else if (mc) {
         transport::MonteCarloOptions mo;
@@ -106,10 +113,20 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
         mo.groups = 2;
         mo.batches = 8;
         mo.halves = true;
-        const transport::MonteCarloResult r = transport::monte_carlo(fine, {}, lines, lighting, dirs, mo);
-        for (std::uint32_t q = 0; q < 2; ++q)
-            out.multiple[q] = r.groups.empty() ? transport::SourceField(lighting, dirs) : r.groups[q].multiple;
-        out.noise.multiple = r.noise.multiple;
+        // Tallied where it is kept: block averages of transport-grid tallies are the lighting
+        // grid's tallies (the same paths, summed per lighting voxel).
+        const core::GridGeometry& tally = keep ? grid : lighting;
+        const transport::MonteCarloResult r = transport::monte_carlo(fine, {}, lines, tally, dirs, mo);
+        for (std::uint32_t q = 0; q < 2; ++q) {
+            transport::SourceField m = r.groups.empty() ? transport::SourceField(tally, dirs) : r.groups[q].multiple;
+            if (!keep) {
+                out.multiple[q] = std::move(m);
+                continue;
+            }
+            out.multiple[q] = transport::block_average(m, media.refine);
+            out.fine_multiple[q] = std::move(m);
+        }
+        out.noise.multiple = r.noise.multiple;  // per voxel of the tally's grid
     }
     out.seconds_multiple = sw.seconds();
     return out;

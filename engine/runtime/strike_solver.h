@@ -22,6 +22,10 @@ namespace fulgur::runtime {
 /// channel, a few ms) stay with the bases. `multiple` is empty when not solved.
 struct StrikeLight {
     std::array<transport::SourceField, 2> single, multiple;
+    /// With StrikeSolveOptions::keep_transport_grid, the same light on the transport grid the
+    /// solve tallied on (`single` and `multiple` are its block averages); else empty.
+    std::array<transport::SourceField, 2> fine_single, fine_multiple;
+    bool has_fine() const noexcept { return !fine_single[0].data.empty(); }
     transport::MonteCarloResult::Noise noise;  ///< of the Monte Carlo parts (relative L2 over the cloud)
     double seconds_single = 0.0, seconds_multiple = 0.0;
     bool has_multiple() const noexcept { return !multiple[0].data.empty(); }
@@ -44,6 +48,9 @@ struct StrikeSolveOptions {
     Multiple multiple = Multiple::Lattice;
     std::uint64_t multiple_paths = 200'000;
     std::uint64_t seed = 1;
+    /// Keep the light on the transport grid as well (StrikeLight::fine_*; quality.grid
+    /// "transport"). Monte Carlo's multiple scattering is then tallied there too.
+    bool keep_transport_grid = false;
 };
 
 /// The per-strike solve a quality preset asks for (its multiple-scattering solver and paths).

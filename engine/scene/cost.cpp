@@ -37,6 +37,16 @@ double volume(core::Int3 d) { return double(d.x) * double(d.y) * double(d.z); }
 // A strike's solve at run time (runtime::solve_strike): its single scattering's paths, then
 // its multiple scattering by Monte Carlo paths or by the lattice on the per-strike transport
 // grid (order 2 from the single scattering's own paths when exact).
+// The per-strike transport grid (runtime::FramePipeline: quality.refine where it is finer than
+// the bake's and divides the downsample).
+core::Int3 strike_transport_dims(const Scene& s, const Cost& c) {
+    const Quality& q = s.quality;
+    const int refine = q.refine > s.transport.refine && s.lighting_downsample % std::max(q.refine, 1) == 0
+                           ? q.refine
+                           : s.transport.refine;
+    return divided(c.density_dims, s.lighting_downsample / std::max(1, refine));
+}
+
 double strike_seconds(const Scene& s, const Cost& c) {
     const Quality& q = s.quality;
     if (q.preset == Quality::Preset::Paper) return 0.0;
@@ -44,10 +54,7 @@ double strike_seconds(const Scene& s, const Cost& c) {
     if (q.multiple == "monte_carlo") {
         t += double(q.multiple_paths) * kMcSecondsPerPath;
     } else if (q.multiple == "lattice") {
-        const int refine = q.refine > s.transport.refine && s.lighting_downsample % std::max(q.refine, 1) == 0
-                               ? q.refine
-                               : s.transport.refine;
-        const core::Int3 d = divided(c.density_dims, s.lighting_downsample / std::max(1, refine));
+        const core::Int3 d = strike_transport_dims(s, c);
         const double steps = double(std::max({d.x, d.y, d.z}));
         t += volume(d) * 19.0 * steps * kLbSecondsPerSiteStep;
     }
@@ -99,6 +106,14 @@ Cost estimate_cost(const Scene& s, std::size_t lights, int threads) {
     c.seconds_per_light = t;
     c.seconds = t * double(c.lights) / double(std::min<std::size_t>(std::size_t(c.threads), c.lights));
     c.seconds_per_strike = strike_seconds(s, c);
+    if (s.quality.preset != Quality::Preset::Paper) {
+        // runtime::StrikeLight: single and multiple S of two groups (channel, branches), every
+        // direction, float; kept on the transport grid too, with the frame's copy there.
+        const double per_field = dirs * 4.0;
+        double bytes = 4.0 * per_field * nl;
+        if (s.quality.keep_transport_grid) bytes += 5.0 * per_field * volume(strike_transport_dims(s, c));
+        c.strike_light_bytes = std::uint64_t(bytes);
+    }
     return c;
 }
 
@@ -133,6 +148,21 @@ void check_cost(const Scene& s, const Cost& c) {
                 " worker(s) x " + core::format_bytes(double(c.per_thread_bytes)) + "), over the limit of " +
                 core::format_bytes(mem) + (s.limits.memory_bytes > 0.0 ? "" : " (3/4 of physical memory)") +
                 "; raise \"limits\": {\"memory_gib\": ...}, use fewer threads, or a coarser grid or downsample");
+    // A frame loop holds the density, the media, a solved strike's light and the one being
+    // solved: a quality that keeps each strike on a transport grid that would not fit is refused
+    // here, not after minutes of solving.
+    // The solve's Monte Carlo tallies its paths on that grid, per thread and per group (channel,
+    // branches): ~1 GB of the 1.7 GB the default storm's strike takes kept on 250 m voxels.
+    const double tally_bytes = double(c.threads) * 2.0 * kMcBytesPerCellDirection * double(s.effective_directions()) *
+                               volume(strike_transport_dims(s, c));
+    const double run_bytes = double(c.density_bytes + c.media_bytes) + 2.0 * double(c.strike_light_bytes) + tally_bytes;
+    if (s.quality.keep_transport_grid && run_bytes > mem)
+        throw core::Error(
+            file + ": /quality/grid",
+            "\"transport\" keeps each solved strike on the transport grid: about " +
+                core::format_bytes(double(c.strike_light_bytes)) + " per strike, " + core::format_bytes(run_bytes) +
+                " with the solve's tallies, the density and the media, over the limit of " + core::format_bytes(mem) +
+                "; use \"lighting\", a smaller quality.refine, or raise \"limits\": {\"memory_gib\": ...}");
     if (c.seconds > s.limits.bake_seconds)
         throw core::Error(file + ": limits.bake_hours",
                           "the bake would take at least " + core::format_seconds(c.seconds) + " (" +

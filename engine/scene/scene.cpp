@@ -468,6 +468,10 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
         k.lookahead = q->number_or("lookahead", k.lookahead, Range{0.0, 60.0});
         k.refine = int(q->integer_or("refine", k.refine, 0, 64));
         k.exact_orders = int(q->integer_or("exact_orders", k.exact_orders, 0, 2));
+        k.keep_transport_grid = q->choice_or("grid", "lighting", {"lighting", "transport"}) == "transport";
+        if (k.keep_transport_grid && (k.preset == Quality::Preset::Paper || k.preset == Quality::Preset::Instant))
+            q->fail("grid", std::string("the ") + std::string(to_string(k.preset)) +
+                                " preset keeps no solved strike's light: must be \"lighting\"");
         k.target_noise = q->number_or("target_noise", k.target_noise, Range{1e-4, 1.0});
         k.max_change_per_frame = q->number_or("max_change_per_frame", k.max_change_per_frame, Range{1e-3, 1e3});
         k.near_field_rays = int(q->integer_or("near_field_rays", k.near_field_rays, 0, 4096));
@@ -497,6 +501,12 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
         throw core::Error(file + ": /quality/refine", "must divide /lighting/downsample (" +
                                                           std::to_string(s.lighting_downsample) + "), got " +
                                                           std::to_string(s.quality.refine));
+    if (s.quality.keep_transport_grid && std::max(s.quality.refine, s.transport.refine) <= 1)
+        throw core::Error(file + ": /quality/grid",
+                          "\"transport\" keeps the strikes on the per-strike transport grid, which here is the "
+                          "lighting grid (quality.refine and transport.refine are 1): set quality.refine to a "
+                          "divisor of /lighting/downsample (" +
+                              std::to_string(s.lighting_downsample) + ") above 1, or use \"lighting\"");
     // The lattice carries S on its own directions: 6 output directions are not a lattice set.
     if (s.effects.multiple_scattering && s.transport.solver == TransportSettings::Solver::LatticeBoltzmann &&
         s.effective_directions() == 6)

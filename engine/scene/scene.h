@@ -185,6 +185,15 @@ struct Quality {
     /// transport.lattice_boltzmann.exact_orders); 0: the scene's, as the bake. Order 2 comes
     /// from the single scattering's own paths (their expected-value second flight).
     int exact_orders = 0;
+    /// Where a solved strike's S is kept (scene "grid"): false ("lighting") averages it onto
+    /// the lighting grid, where the frame mixes it with the bases; true ("transport") also keeps
+    /// it on the per-strike transport grid, and each lit frame then carries S on that grid too
+    /// (runtime::Frame::fine: the bases' part upsampled, the solved strikes' own light at that
+    /// resolution) for the renderer. Presets that solve strikes ahead only (not paper, not
+    /// instant) and a per-strike transport grid finer than the lighting grid (quality.refine or
+    /// transport.refine above 1). docs/presets.md measures what it buys against Cycles and what
+    /// it costs.
+    bool keep_transport_grid = false;
     /// Instant: the progressive solve of a strike stops once the relative noise of its S
     /// (single + multiple, over the cloud) is at most this, or at single_paths /
     /// multiple_paths paths, whichever comes first.
@@ -326,6 +335,9 @@ struct Cost {
     double seconds_per_light = 0.0;      ///< lower bound, one worker
     double seconds = 0.0;                ///< lower bound: lights x per light / threads
     double seconds_per_strike = 0.0;     ///< lower bound of one strike's solve, one thread (0: paper)
+    /// One solved strike's light as the run time keeps it, plus the frame's copy of S on the
+    /// per-strike transport grid when the quality keeps that grid (0: paper).
+    std::uint64_t strike_light_bytes = 0;
     std::size_t lights = 1;
     int threads = 1;
 };

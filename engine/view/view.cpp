@@ -398,11 +398,13 @@ void StormView::render_lightning(const render::Camera& camera, double t, const V
         for (int m : dirs) up.values.push_back(source->direction(std::size_t(m)));
         renderer_->upload_source(up);
     } else if (f.lit && !f.radiance.values.empty()) {
+        // S on the transport grid where the quality keeps the strikes there.
+        const runtime::RadianceField& r = f.fine.values.empty() ? f.radiance : f.fine;
         render::SourceUpload up;
-        up.geometry = f.radiance.geometry;
-        up.direction_count = f.radiance.direction_count;
-        up.directions = f.radiance.directions;
-        for (const auto& v : f.radiance.values) up.values.emplace_back(v.data(), v.size());
+        up.geometry = r.geometry;
+        up.direction_count = r.direction_count;
+        up.directions = r.directions;
+        for (const auto& v : r.values) up.values.emplace_back(v.data(), v.size());
         renderer_->upload_source(up);
     } else {
         renderer_->clear_source();

@@ -321,3 +321,35 @@ TEST_CASE("rain is optional; its values are bounded, naming the field") {
         CHECK_THROWS_WITH_AS(parse_scene(rain(body), "bad.json"), doctest::Contains(where.c_str()), Error);
     }
 }
+
+TEST_CASE("quality.grid \"transport\": refused where nothing is kept or the grid is not finer; bounded by memory") {
+    const auto quality = [](const std::string& q) { return with("\"lights\"", "\"quality\": " + q + ", \"lights\""); };
+    // The paper and instant presets keep no solved strike's light.
+    for (const std::string p : {"paper", "instant"}) {
+        CAPTURE(p);
+        CHECK_THROWS_WITH_AS(parse_scene(quality(R"({"preset": ")" + p + R"(", "grid": "transport"})"), "g.json"),
+                             doctest::Contains("g.json: /quality/grid"), Error);
+    }
+    // transport.refine and quality.refine 1: the per-strike transport grid is the lighting grid.
+    CHECK_THROWS_WITH_AS(parse_scene(quality(R"({"preset": "per_strike_mc", "grid": "transport"})"), "g.json"),
+                         doctest::Contains("which here is the lighting grid"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(quality(R"({"preset": "per_strike_mc", "grid": "fine", "refine": 4})"), "g.json"),
+                         doctest::Contains("g.json: /quality/grid"), Error);
+    // Accepted on a finer grid; each strike then costs its light on that grid (5 fields of 26
+    // directions: single and multiple of two groups, and the frame's copy) beside the lighting
+    // grid's.
+    const Scene kept =
+        parse_scene(quality(R"({"preset": "per_strike_mc", "grid": "transport", "refine": 4})"), "k.json");
+    const Scene plain = parse_scene(quality(R"({"preset": "per_strike_mc", "refine": 4})"), "p.json");
+    CHECK(kept.quality.keep_transport_grid);
+    CHECK_FALSE(plain.quality.keep_transport_grid);
+    const Cost ck = estimate_cost(kept), cp = estimate_cost(plain);
+    CHECK(cp.strike_light_bytes == std::uint64_t(4.0 * 26.0 * 4.0 * 8.0 * 8.0 * 6.0));  // 32 x 32 x 24 / 4
+    CHECK(ck.strike_light_bytes - cp.strike_light_bytes == std::uint64_t(5.0 * 26.0 * 4.0 * 32.0 * 32.0 * 24.0));
+    // Refused before anything is solved when a strike kept that way does not fit, with a limit
+    // the bake itself fits in.
+    Scene tight = kept;
+    tight.limits.memory_bytes = double(ck.memory_bytes) * 1.01;
+    CHECK_NOTHROW(check_cost(plain, estimate_cost(plain)));
+    CHECK_THROWS_WITH_AS(check_cost(tight, estimate_cost(tight)), doctest::Contains("scene: /quality/grid"), Error);
+}
