@@ -171,6 +171,8 @@ def run(args):
             "--blender", str(out / "blender"), "--internal-scale", "1"]
     if args.quality:
         shot += ["--quality", args.quality]
+    if args.strike_grid:
+        shot += ["--strike-grid", str(args.strike_grid)]
     t0 = time.monotonic()
     subprocess.run(shot, check=True, stdout=subprocess.DEVNULL)
     fulgur_s = time.monotonic() - t0
@@ -193,6 +195,7 @@ def run(args):
     r = compare(out / "fulgur.exr", out / f"cycles_{seeds[0]}.exr", out / f"cycles_{seeds[1]}.exr",
                 args.near_px, out / "compare.png", args.block)
     r.update({"scene": args.scene, "seed": args.seed, "time": args.time, "quality": args.quality or "scene's",
+              "strike_grid": args.strike_grid,
               "samples": args.samples, "fulgur_seconds": fulgur_s, "cycles_seconds": cycles_s,
               "cycles_light_radius": lights and lights.get("light_radius"),
               "cycles_light_loss": lights and lights.get("light_loss")})
@@ -209,6 +212,8 @@ def main():
     r.add_argument("--time", required=True)
     r.add_argument("--size", required=True)
     r.add_argument("--quality")
+    r.add_argument("--strike-grid", type=int, help="passed to fulgur-shot: keep the solved strike's S on the "
+                   "lighting grid refined by this factor")
     r.add_argument("--samples", type=int, default=64)
     r.add_argument("--cycles-seeds", default="1,2")
     r.add_argument("--near-px", type=int)

@@ -119,6 +119,12 @@ void declare(CommandLine& cli, ShotArgs& a) {
         app, "--quality", [&a](const std::string& s) { a.quality = s; }, scene::kQualityPresets,
         "how the frame is lit, its strike's own solve waited for (default: the scene's \"quality\")")
         ->type_name("PRESET");
+    cli.number("--strike-grid", a.strike_grid,
+               "keep the solved strike's S on the lighting grid refined by REFINE (the quality's \"grid\": "
+               "\"transport\", \"refine\": REFINE; a divisor of lighting.downsample above 1; presets that solve "
+               "strikes ahead)",
+               2, 64)
+        ->type_name("REFINE");
     app.add_option_function<std::string>(
            "--since-known",
            [&a](const std::string& v) {

@@ -38,6 +38,10 @@ struct ShotArgs {
     /// --quality PRESET: how the frame is lit (paper, hybrid, per_strike, reference; default:
     /// the scene's "quality"); a strike's own solve is waited for.
     std::optional<std::string> quality;
+    /// --strike-grid REFINE: keep the solved strike's S on the lighting grid refined by REFINE
+    /// (the quality's "grid": "transport" with "refine": REFINE), for a sharper flash in a still
+    /// shot without a new bake (docs/presets.md, "Where a solved strike's S is kept").
+    int strike_grid = 0;  ///< 0: the quality's own grid
     /// --since-known MS: the frame as a strike nobody scheduled shows it MS milliseconds of wall
     /// time after it became known (runtime::build_since_known: lookahead 0, frames at 60 fps
     /// meanwhile, then the per-strike work stops and the frame is what exists); 0 is its first

@@ -60,6 +60,27 @@ transport::SourceField since_known_field(view::StormView& view, double t, const 
     return field;
 }
 
+// The quality the frame is lit with: --quality's preset, else the scene's.
+scene::Quality shot_quality(const scene::Scene& s, const app::ShotArgs& a) {
+    return a.quality ? scene::quality_preset(*a.quality) : s.quality;
+}
+
+// `q` keeping its solved strikes on the lighting grid refined by `refine` (--strike-grid), after
+// the checks the scene file's "grid": "transport" gets.
+scene::Quality strike_grid_quality(const scene::Scene& s, scene::Quality q, int refine) {
+    using P = scene::Quality::Preset;
+    if (q.preset == P::Paper || q.preset == P::Instant)
+        throw core::Error("--strike-grid", "the " + std::string(scene::to_string(q.preset)) +
+                                               " preset keeps no solved strike's light; use a preset that solves "
+                                               "strikes ahead (hybrid, per_strike, per_strike_mc, reference)");
+    if (s.lighting_downsample % refine != 0)
+        throw core::Error("--strike-grid", std::to_string(refine) + " must divide the scene's lighting.downsample (" +
+                                               std::to_string(s.lighting_downsample) + ")");
+    q.keep_transport_grid = true;
+    q.refine = std::max(q.refine, refine);
+    return q;
+}
+
 void write_frame_exr(view::StormView& view, const render::Camera& cam, double t, const view::ViewOptions& opt,
                      const app::ShotArgs& a, const transport::SourceField* shown_field, double shown_exposure,
                      const std::filesystem::path& out, const std::string& lit_by);
@@ -322,6 +343,9 @@ int main(int argc, char** argv) {
         return *status;
     try {
         scene::Scene s = scene::load_scene(a.scene);
+        // --strike-grid: the quality's grid set before the density is made, so its cost is
+        // checked with the rest (scene::check_cost) before anything is solved.
+        if (a.strike_grid > 0) s.quality = strike_grid_quality(s, shot_quality(s, a), a.strike_grid);
         // The images never overwrite the scene, its cloud or its baked file, nor each other.
         std::vector<core::NamedPath> inputs{{"scene", a.scene},
                                             {"baked file", a.fgb ? *a.fgb : bake::default_fgb_path(s)}};
@@ -350,7 +374,8 @@ int main(int argc, char** argv) {
             lightning::LightningParams lp = view.scene().lightning;
             lp.schedule.strike_rate = 0.0;  // only the requested strike (after the bake check: same .fgb as the demo)
             view.set_lightning(lp);
-            scene::Quality q = a.quality ? scene::quality_preset(*a.quality) : view.scene().quality;
+            scene::Quality q = shot_quality(view.scene(), a);
+            if (a.strike_grid > 0) q = strike_grid_quality(view.scene(), q, a.strike_grid);
             if (a.since_known_ms) q.lookahead = 0.0;  // nobody scheduled it
             if (a.quality || a.since_known_ms) view.set_quality(q);
             const std::size_t strike = view.pipeline().strike_at(0.0, a.seed, /*known_ahead=*/!a.since_leader);

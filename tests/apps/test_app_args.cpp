@@ -51,6 +51,14 @@ TEST_CASE("fulgur-shot: a complete command line parses") {
         known.back() = bad;
         CHECK_THROWS_WITH_AS(parse(known), doctest::Contains("--since-known must be"), core::Error);
     }
+    CHECK(parse(good).strike_grid == 0);  // the quality's own grid
+    std::vector<std::string> grid = good;
+    grid.insert(grid.end(), {"--strike-grid", "3"});
+    CHECK(parse(grid).strike_grid == 3);
+    for (const char* bad : {"1", "0", "65", "2.5", "x"}) {  // 1 is the lighting grid itself
+        grid.back() = bad;
+        CHECK_THROWS_WITH_AS(parse(grid), doctest::Contains("--strike-grid"), core::Error);
+    }
     known.back() = "leader";  // triggered at its leader's start: the time comes from the strike
     CHECK(parse(known).since_leader);
     CHECK(parse(known).since_known_ms.has_value());
