@@ -140,6 +140,13 @@ struct TransportSettings {
     /// surface) at refine^3 the memory and resolve work (docs/sky.md measures both against
     /// Cycles).
     bool static_keep_transport_grid = false;
+    /// "solver": how the static light is solved. Lattice (false): exact single scattering,
+    /// order 2 by Monte Carlo, the lattice for orders >= 3 (static_exact_orders). Monte Carlo
+    /// (true): every order by the truth's estimator (sky::sun_truth, sky::sky_truth: paths from
+    /// the box's boundary through the full-resolution density), static_paths per light; cached
+    /// like any solve, so it is paid once per scene and sun direction (docs/sky.md).
+    bool static_monte_carlo = false;
+    std::uint64_t static_paths = 4'000'000;
     /// Order-2 Monte Carlo paths of a static solve with exact orders 2 (a sun; the sky's dome
     /// samples share them by their weights).
     std::uint64_t static_order2_paths = 400'000;

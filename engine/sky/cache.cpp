@@ -39,6 +39,7 @@ std::string settings_lines(const SolveSettings& st) {
     d << "sky.refine=" << st.refine << "\n";
     // Only when set, so the keys (and cache files) of S on the lighting grid stay as they were.
     if (st.keep_transport_grid) d << "sky.grid=transport\n";
+    if (st.method == Method::MonteCarlo) d << "sky.truth_paths=" << st.truth_paths << "\n";
     d << "sky.exact_orders=" << st.exact_orders << "\n";
     if (st.multiple && st.exact_orders == 2)
         d << "sky.order2_paths=" << st.order2_paths << "\nsky.order2_seed=" << st.seed << "\n";

@@ -54,7 +54,11 @@ ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, c
     const std::string lattice = " (" + s.transport.lb_collision + " collision, " + s.transport.lb_thick_voxels +
                                 " thick voxels, tolerance " + core::format_number(s.transport.lb_tolerance) + ")";
     const std::string how =
-        !e.multiple_scattering
+        p.settings.method == Method::MonteCarlo
+            ? "every order by " + std::to_string(p.settings.truth_paths) +
+                  " Monte Carlo paths from the box's boundary through the full-resolution density "
+                  "(transport.static_light.solver \"monte_carlo\": the truth's estimator, no lattice)"
+        : !e.multiple_scattering
             ? std::string("exact single scattering only (effects.multiple_scattering = false: no lattice solve)")
         : p.settings.exact_orders == 2
             ? "exact single scattering + order 2 by " + std::to_string(p.settings.order2_paths) +
@@ -77,9 +81,12 @@ ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, c
                  : std::string(", S averaged onto the lighting grid")) +
             ": docs/sky.md measures the configurations against the static light's truth");
     const core::Int3 td = grid.transport.density.dims();
-    const std::string where = "on the " + std::to_string(td.x) + " x " + std::to_string(td.y) + " x " +
-                              std::to_string(td.z) + " transport grid (" +
-                              core::format_number(grid.transport.density.geom.voxel_size, 6) + " m voxels)";
+    // A Monte Carlo solve runs on no transport grid: it tallies where S is kept.
+    const std::string where =
+        p.settings.method == Method::MonteCarlo
+            ? std::string("tallied on the ") + (p.settings.keep_transport_grid ? "transport" : "lighting") + " grid"
+            : "on the " + std::to_string(td.x) + " x " + std::to_string(td.y) + " x " + std::to_string(td.z) +
+                  " transport grid (" + core::format_number(grid.transport.density.geom.voxel_size, 6) + " m voxels)";
 
     // The sun (or moon).
     if (sun) {
@@ -103,17 +110,27 @@ ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, c
         p.sky_single_solves = mc ? 0 : p.settings.sky_samples;
         p.sky_lattice_solves = e.multiple_scattering ? (p.sky_uniform ? 1 : 2) : 0;
         const bool two = e.multiple_scattering && p.settings.exact_orders == 2;
-        why.push_back(std::string("sky dome (") + (p.sky_uniform ? "uniform" : "zenith-horizon gradient") + "): " +
-                      (mc ? "order 1" + std::string(two ? " and 2" : "") + " by Monte Carlo from the whole dome (" +
-                                std::to_string(p.settings.sky_paths) + " paths per " +
-                                (p.sky_uniform ? "dome" : "gradient end") + ", no directions to band the shadows), "
-                          : std::to_string(p.sky_single_solves) + " directions' exact single scattering, " +
-                                (two ? "their order 2 by Monte Carlo (" + std::to_string(p.settings.order2_paths) +
-                                           " paths shared), "
-                                     : std::string())) +
-                      std::to_string(p.sky_lattice_solves) + " lattice solve" + (p.sky_lattice_solves == 1 ? "" : "s") +
-                      (p.sky_uniform ? "" : " (one per gradient end)") + " " + where +
-                      ", per unit radiance; the background is the same sky");
+        if (p.settings.method == Method::MonteCarlo) {
+            p.sky_single_solves = p.sky_lattice_solves = 0;
+            why.push_back(std::string("sky dome (") + (p.sky_uniform ? "uniform" : "zenith-horizon gradient") +
+                          "): every order by " + std::to_string(p.settings.truth_paths) + " Monte Carlo paths per " +
+                          (p.sky_uniform ? "dome" : "gradient end") +
+                          " from the whole dome through the full-resolution density (transport.static_light.solver "
+                          "\"monte_carlo\"), S on the " +
+                          (p.settings.keep_transport_grid ? "transport" : "lighting") +
+                          " grid, per unit radiance; the background is the same sky");
+        } else
+            why.push_back(std::string("sky dome (") + (p.sky_uniform ? "uniform" : "zenith-horizon gradient") + "): " +
+                          (mc ? "order 1" + std::string(two ? " and 2" : "") + " by Monte Carlo from the whole dome (" +
+                                    std::to_string(p.settings.sky_paths) + " paths per " +
+                                    (p.sky_uniform ? "dome" : "gradient end") + ", no directions to band the shadows), "
+                              : std::to_string(p.sky_single_solves) + " directions' exact single scattering, " +
+                                    (two ? "their order 2 by Monte Carlo (" + std::to_string(p.settings.order2_paths) +
+                                               " paths shared), "
+                                         : std::string())) +
+                          std::to_string(p.sky_lattice_solves) + " lattice solve" +
+                          (p.sky_lattice_solves == 1 ? "" : "s") + (p.sky_uniform ? "" : " (one per gradient end)") +
+                          " " + where + ", per unit radiance; the background is the same sky");
     } else if (s.sky) {
         why.push_back("a sky is declared but effects.sky = false: it is the background only, no sky light");
     } else {

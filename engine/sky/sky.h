@@ -39,6 +39,10 @@ enum class Method {
     /// Appendix A decomposition of its direction, every order from the lattice (the
     /// uncollided beam too, on 18 lattice directions). `single` stays empty.
     Lattice,
+    /// Every order by Monte Carlo from the box's boundary through the full-resolution density
+    /// (sun_truth, sky_truth: the truth's estimator, SolveSettings::truth_paths per light; the
+    /// media must hold the full density). single and multiple as Hybrid gives them.
+    MonteCarlo,
 };
 
 /// "hybrid" | "lattice"; throws core::Error naming `where` otherwise.
@@ -90,6 +94,9 @@ struct SolveSettings {
     int exact_orders = 1;
     std::uint64_t order2_paths = 400'000;
     std::uint64_t seed = 1;  ///< of the order-2 Monte Carlo (a solve is deterministic)
+    /// Method::MonteCarlo: paths per light (the sun; each basis of the sky), drawn from
+    /// TruthOptions' default seed, so the solve is the static truth of the same paths.
+    std::uint64_t truth_paths = 4'000'000;
     /// Spreads the solve over several processes (the lattice too, through lattice.make_kernel);
     /// unset: this process alone. Not part of the cache keys: the result is the same.
     std::shared_ptr<const Processes> processes;

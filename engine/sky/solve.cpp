@@ -200,15 +200,31 @@ void check_media(const solve::Media& media, const SolveSettings& settings) {
 
 bool exact_two(const SolveSettings& settings) { return settings.multiple && settings.exact_orders == 2; }
 
+void scale_light(LightField& f, double w) {
+    for (float& v : f.single.data) v = float(w * double(v));
+    for (float& v : f.multiple.data) v = float(w * double(v));
+}
+
+// A Monte Carlo solve holds the parts a Hybrid solve with these settings would: order 1 only
+// with `single`, orders >= 2 only with `multiple`.
+void keep_solved_parts(LightField& f, const SolveSettings& settings) {
+    if (!settings.single) f.single = {};
+    if (!settings.multiple) f.multiple = {};
+}
+
 }  // namespace
 
 Method parse_method(std::string_view s, std::string_view where) {
     if (s == "hybrid") return Method::Hybrid;
     if (s == "lattice") return Method::Lattice;
-    throw core::Error(std::string(where), "\"" + std::string(s) + "\" is not one of \"hybrid\", \"lattice\"");
+    if (s == "monte_carlo") return Method::MonteCarlo;
+    throw core::Error(std::string(where),
+                      "\"" + std::string(s) + "\" is not one of \"hybrid\", \"lattice\", \"monte_carlo\"");
 }
 
-std::string_view to_string(Method m) noexcept { return m == Method::Hybrid ? "hybrid" : "lattice"; }
+std::string_view to_string(Method m) noexcept {
+    return m == Method::Hybrid ? "hybrid" : m == Method::Lattice ? "lattice" : "monte_carlo";
+}
 
 int static_refine_for(const scene::Scene& s, const core::Grid3<float>& density) {
     // The lattice's error grows with a hop's optical depth (docs/lattice-boltzmann.md): the
@@ -234,6 +250,10 @@ SolveSettings solve_settings(const scene::Scene& s, const core::Grid3<float>& de
     st.sky_samples = s.transport.static_sky_samples;
     st.sky_paths = s.transport.static_sky_paths;
     st.seed = s.transport.mc_seed;
+    if (s.transport.static_monte_carlo) {
+        st.method = Method::MonteCarlo;
+        st.truth_paths = s.transport.static_paths;
+    }
     // Every fine voxel of a needed lighting voxel is computed (as the bake's single scattering),
     // whichever grid S is kept on: the two differ only by the final average.
     st.single_options.skip_block = st.refine;
@@ -260,7 +280,7 @@ solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& densi
 
 solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density) {
     const SolveSettings st = solve_settings(s, density);
-    return media_for(s, density, st, exact_two(st) || (s.sky && st.sky_paths > 0));
+    return media_for(s, density, st, exact_two(st) || (s.sky && st.sky_paths > 0) || st.method == Method::MonteCarlo);
 }
 
 LightField solve_directional(const solve::Media& media, std::span<const transport::DirectionalSource> lights,
@@ -268,6 +288,26 @@ LightField solve_directional(const solve::Media& media, std::span<const transpor
     check_media(media, settings);
     for (const transport::DirectionalSource& l : lights) check_light(l);
     LightField out;
+    if (settings.method == Method::MonteCarlo) {
+        // The truth's estimator per light, scaled by its irradiance and summed (linear).
+        TruthOptions to;
+        to.paths = settings.truth_paths;
+        for (const transport::DirectionalSource& l : lights) {
+            if (l.irradiance == 0.0) continue;
+            TruthField t = sun_truth(media, l.direction, directions, to);
+            if (out.empty()) {
+                out = std::move(t.field);
+                scale_light(out, l.irradiance);
+            } else {
+                add_scaled(out.single, t.field.single, l.irradiance);
+                add_scaled(out.multiple, t.field.multiple, l.irradiance);
+                out.seconds_single += t.field.seconds_single;
+                out.seconds_multiple += t.field.seconds_multiple;
+            }
+        }
+        keep_solved_parts(out, settings);
+        return out;
+    }
     if (settings.method == Method::Lattice && settings.multiple) {
         // Geist et al.: each light injected at the boundary (Appendix A), every order from
         // the lattice; several lights are solved one by one and summed (the lattice is linear).
@@ -339,6 +379,14 @@ std::vector<DomeSample> dome_samples(int count) {
 SkyField solve_sky(const solve::Media& media, bool uniform, std::span<const glm::dvec3> directions,
                    const SolveSettings& settings) {
     check_media(media, settings);
+    if (settings.method == Method::MonteCarlo) {
+        TruthOptions to;
+        to.paths = settings.truth_paths;
+        SkyField f = sky_truth(media, uniform, directions, to).field;
+        for (LightField* l : {&f.zenith, &f.horizon, &f.uniform})
+            if (!l->empty()) keep_solved_parts(*l, settings);
+        return f;
+    }
     const std::vector<DomeSample> samples = dome_samples(settings.sky_paths > 0 ? 1 : settings.sky_samples);
     const bool two = exact_two(settings);
     // The dome's order 2: the sun's paths shared by the samples (equal solid angles).

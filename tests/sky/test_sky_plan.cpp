@@ -11,6 +11,7 @@
 
 #include <glm/geometric.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <fstream>
 #include <thread>
@@ -234,6 +235,63 @@ TEST_CASE("the static light kept on its transport grid: media, plan, cache key, 
     const scene::Scene tight = variant(dir, "tight", patch.dump());
     CHECK_THROWS_WITH_AS(sky::plan_scene(tight, d, quick()),
                          doctest::Contains("/transport/static_light/grid: \"transport\" keeps"), core::Error);
+}
+
+TEST_CASE("the static light by Monte Carlo (solver \"monte_carlo\"): the truth of the same paths, cached apart") {
+    const auto dir = test::scratch_dir("sky_mc");
+    nlohmann::json patch = nlohmann::json::parse(kSunSky);
+    patch["transport"] = {{"static_light", {{"order2_paths", 1000}, {"sky_paths", 1000}}}};
+    const scene::Scene lattice = variant(dir, "night", patch.dump());
+    patch["transport"]["static_light"]["solver"] = "monte_carlo";
+    patch["transport"]["static_light"]["paths"] = 3000;
+    const scene::Scene mc = variant(dir, "night", patch.dump());
+    const core::Grid3<float> d = scene::make_density(mc);
+    const solve::Media media = sky::static_media(mc, d);
+    REQUIRE_FALSE(media.full.density.data.empty());  // the truth's estimator needs it
+    const sky::ScenePlan plan = sky::plan_scene(mc, d, quick());
+    CHECK(plan.settings.method == sky::Method::MonteCarlo);
+    CHECK(plan.settings.truth_paths == 3000);
+    CHECK(mentions(plan, "every order by 3000 Monte Carlo paths from the box's boundary"));
+    CHECK(plan.sky_lattice_solves == 0);
+
+    // One cache file name for both: the solver is in the key, so neither reads the other's.
+    std::vector<std::string> said;
+    auto say = [&](const std::string& m) { said.push_back(m); };
+    const sky::CacheOptions cache{true, dir / "cache"};
+    (void)sky::load_or_solve(lattice, d, sky::static_media(lattice, d), sky::plan_scene(lattice, d, quick()), cache,
+                             say);
+    said.clear();
+    const sky::StaticLight solved = sky::load_or_solve(mc, d, media, plan, cache, say);
+    REQUIRE(said.size() == 2);
+    CHECK(said[0].find("sun: solved") == 0);
+    CHECK(said[0].find("sky.method") != std::string::npos);
+    said.clear();
+    const sky::StaticLight read = sky::load_or_solve(mc, d, media, plan, cache, say);
+    CHECK(said[0].find("sun: read from") == 0);
+
+    // The static truth with the same paths and its default seed, bit for bit: the figures
+    // measured for the truth (docs/sky.md, docs/blender.md) are this solve's.
+    sky::TruthOptions same;
+    same.paths = 3000;
+    const sky::StaticLight truth =
+        sky::truth_of(mc, d, plan, media, solved, transport::output_directions(plan.directions), same);
+    REQUIRE(solved.sun.has_value());
+    REQUIRE(solved.sky.has_value());
+    const auto lit = [](const transport::SourceField& f) {
+        return std::any_of(f.data.begin(), f.data.end(), [](float v) { return v > 0.0f; });
+    };
+    CHECK(lit(solved.sun->single));
+    CHECK(lit(solved.sun->multiple));
+    CHECK(lit(solved.sky->zenith.multiple));
+    CHECK(solved.sun->single.data == truth.sun->single.data);
+    CHECK(solved.sun->multiple.data == truth.sun->multiple.data);
+    CHECK(solved.sky->zenith.multiple.data == truth.sky->zenith.multiple.data);
+    CHECK(solved.sky->horizon.single.data == truth.sky->horizon.single.data);
+    CHECK(read.sun->multiple.data == solved.sun->multiple.data);
+    CHECK_THROWS_WITH_AS(variant(dir, "bad", R"({"transport": {"static_light": {"solver": "exact"}}})"),
+                         doctest::Contains("/transport/static_light/solver"), core::Error);
+    CHECK_THROWS_WITH_AS(variant(dir, "bad", R"({"transport": {"static_light": {"paths": 100000000}}})"),
+                         doctest::Contains("/transport/static_light/paths"), core::Error);
 }
 
 TEST_CASE("the sun solved again on a worker thread: the newest request wins, the old field until then") {
