@@ -75,18 +75,22 @@ ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, c
                        core::format_number(density.geom.voxel_size * s.lighting_downsample) + " m = " +
                        core::format_number(s.medium.extinction * density.geom.voxel_size * s.lighting_downsample) +
                        " optical depths per lighting voxel)") +
-            ", order " + (p.settings.exact_orders == 2 ? "2 exact" : "2 by the lattice") +
+            (p.settings.method == Method::MonteCarlo ? std::string(", every order by Monte Carlo")
+             : p.settings.exact_orders == 2          ? std::string(", order 2 exact")
+                                                     : std::string(", order 2 by the lattice")) +
             (p.settings.keep_transport_grid
                  ? std::string(", S kept on that grid (transport.static_light.grid \"transport\")")
                  : std::string(", S averaged onto the lighting grid")) +
             ": docs/sky.md measures the configurations against the static light's truth");
     const core::Int3 td = grid.transport.density.dims();
     // A Monte Carlo solve runs on no transport grid: it tallies where S is kept.
+    const std::string transport_grid = "on the " + std::to_string(td.x) + " x " + std::to_string(td.y) + " x " +
+                                       std::to_string(td.z) + " transport grid (" +
+                                       core::format_number(grid.transport.density.geom.voxel_size, 6) + " m voxels)";
     const std::string where =
         p.settings.method == Method::MonteCarlo
             ? std::string("tallied on the ") + (p.settings.keep_transport_grid ? "transport" : "lighting") + " grid"
-            : "on the " + std::to_string(td.x) + " x " + std::to_string(td.y) + " x " + std::to_string(td.z) +
-                  " transport grid (" + core::format_number(grid.transport.density.geom.voxel_size, 6) + " m voxels)";
+            : transport_grid;
 
     // The sun (or moon).
     if (sun) {
@@ -148,13 +152,13 @@ ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, c
         const double limit = scene::memory_limit(s);
         if (bytes > limit)
             throw core::Error(file + ": /transport/static_light/grid",
-                              "\"transport\" keeps the static light's S " + where + ": about " +
+                              "\"transport\" keeps the static light's S " + transport_grid + ": about " +
                                   core::format_bytes(bytes) + " (" + std::to_string(fields) + " fields x " +
                                   std::to_string(p.directions) + " directions, and the renderer's copy), over the " +
                                   "limit of " + core::format_bytes(limit) +
                                   (s.limits.memory_bytes > 0.0 ? " (limits.memory_gib)" : " (3/4 of physical memory)") +
                                   "; use \"lighting\" or a smaller transport.static_light.refine");
-        why.push_back("the static light's S kept " + where + ": about " + core::format_bytes(bytes) +
+        why.push_back("the static light's S kept " + transport_grid + ": about " + core::format_bytes(bytes) +
                       " with the renderer's copy (refine^3 the lighting grid's)");
     }
 

@@ -94,8 +94,8 @@ struct SolveSettings {
     int exact_orders = 1;
     std::uint64_t order2_paths = 400'000;
     std::uint64_t seed = 1;  ///< of the order-2 Monte Carlo (a solve is deterministic)
-    /// Method::MonteCarlo: paths per light (the sun; each basis of the sky), drawn from
-    /// TruthOptions' default seed, so the solve is the static truth of the same paths.
+    /// Method::MonteCarlo: paths per light (the sun; each basis of the sky), drawn from `seed`,
+    /// so the solve is the static truth (TruthOptions) of the same paths and seed.
     std::uint64_t truth_paths = 4'000'000;
     /// Spreads the solve over several processes (the lattice too, through lattice.make_kernel);
     /// unset: this process alone. Not part of the cache keys: the result is the same.

@@ -292,6 +292,7 @@ LightField solve_directional(const solve::Media& media, std::span<const transpor
         // The truth's estimator per light, scaled by its irradiance and summed (linear).
         TruthOptions to;
         to.paths = settings.truth_paths;
+        to.seed = settings.seed;
         for (const transport::DirectionalSource& l : lights) {
             if (l.irradiance == 0.0) continue;
             TruthField t = sun_truth(media, l.direction, directions, to);
@@ -382,6 +383,7 @@ SkyField solve_sky(const solve::Media& media, bool uniform, std::span<const glm:
     if (settings.method == Method::MonteCarlo) {
         TruthOptions to;
         to.paths = settings.truth_paths;
+        to.seed = settings.seed;
         SkyField f = sky_truth(media, uniform, directions, to).field;
         for (LightField* l : {&f.zenith, &f.horizon, &f.uniform})
             if (!l->empty()) keep_solved_parts(*l, settings);

@@ -269,10 +269,12 @@ TEST_CASE("the static light by Monte Carlo (solver \"monte_carlo\"): the truth o
     const sky::StaticLight read = sky::load_or_solve(mc, d, media, plan, cache, say);
     CHECK(said[0].find("sun: read from") == 0);
 
-    // The static truth with the same paths and its default seed, bit for bit: the figures
-    // measured for the truth (docs/sky.md, docs/blender.md) are this solve's.
+    // The static truth with the same paths and seed (transport.mc_seed), bit for bit: the
+    // figures measured for the truth with that seed (docs/sky.md, docs/blender.md) are this
+    // solve's.
     sky::TruthOptions same;
     same.paths = 3000;
+    same.seed = plan.settings.seed;
     const sky::StaticLight truth =
         sky::truth_of(mc, d, plan, media, solved, transport::output_directions(plan.directions), same);
     REQUIRE(solved.sun.has_value());
