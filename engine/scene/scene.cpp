@@ -166,9 +166,9 @@ void parse_transport(JsonObject o, TransportSettings& t) {
                                                      {"lighting", "transport"}) == "transport";
         t.static_monte_carlo = st->choice_or("solver", t.static_monte_carlo ? "monte_carlo" : "lattice",
                                              {"lattice", "monte_carlo"}) == "monte_carlo";
-        // Whole paths through a thick cloud scatter hundreds of times: ~35 us each on the default
-        // storm (its moon and sky, 3 x 4M paths, in 7 min on 2 cores), so 2^26 bound a light to
-        // about 20 minutes.
+        // Whole paths through a thick cloud scatter hundreds of times: ~13 us of a core each on
+        // the default storm (its moon and sky, 3 x 4M paths, in 78 s on 2 cores), so 2^26 bound
+        // a light to about 7 minutes there.
         t.static_paths =
             std::uint64_t(st->integer_or("paths", std::int64_t(t.static_paths), 1000, std::int64_t(1) << 26));
         // Bounded so a solve ends: 2^27 paths are ~2 min on one core of this machine.
