@@ -122,7 +122,8 @@ void declare(CommandLine& cli, ShotArgs& a) {
     cli.number("--strike-grid", a.strike_grid,
                "keep the solved strike's S on the lighting grid refined by REFINE (the quality's \"grid\": "
                "\"transport\", \"refine\": REFINE; a divisor of lighting.downsample above 1; presets that solve "
-               "strikes ahead)",
+               "strikes ahead). The preset's paths spread over REFINE^3 the voxels: use reference, or raise "
+               "the scene's quality paths, where the noise would show",
                2, 64)
         ->type_name("REFINE");
     app.add_option_function<std::string>(
