@@ -395,7 +395,11 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
     }
 
     // The solved strikes' light and the bases' shares kept per strike, for the directions the
-    // frame holds.
+    // frame holds. `lighting_part`: the lighting grid holds light other than the strikes kept
+    // on the transport grid (the bases', the shares', a strike's on the lighting grid).
+    const bool lighting_part =
+        valid || !shares.empty() || !near_shares.empty() ||
+        std::any_of(solved.begin(), solved.end(), [](const Lit& l) { return !l.light->has_fine(); });
     sw.reset();
     if (!solved.empty() || !shares.empty() || !near_shares.empty()) {
         const core::GridGeometry& g = media->lighting.density.geom;
@@ -460,7 +464,10 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
         r.values.resize(f.radiance.values.size());
         for (std::size_t k = 0; k < r.values.size(); ++k) {
             r.values[k].resize(to.cell_count());
-            core::resample_trilinear(from, f.radiance.values[k], to, r.values[k]);
+            if (lighting_part)
+                core::resample_trilinear(from, f.radiance.values[k], to, r.values[k]);
+            else  // zeros upsampled are zeros
+                std::fill(r.values[k].begin(), r.values[k].end(), 0.0f);
         }
     } else {
         f.fine.directions.clear();
