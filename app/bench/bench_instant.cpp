@@ -18,8 +18,8 @@
 //     the 8 a side view needs; for instant also over the frames that blend the bases in
 //     (the estimate's weight under 1: the strokes' share of the bases is added).
 #include "bench/bench.h"
+#include "bench/default_storm.h"
 
-#include "bake/bake.h"
 #include "core/core.h"
 #include "runtime/runtime.h"
 #include "scene/scene.h"
@@ -28,7 +28,6 @@
 
 #include <array>
 #include <chrono>
-#include <filesystem>
 #include <thread>
 
 using namespace fulgur;
@@ -46,12 +45,10 @@ double thread_cpu_ms() {
 FULGUR_BENCH(instant,
              "instant preset on the default storm: Monte Carlo cost per path (1, 2 threads), first-estimate "
              "latency and noise over time for unscheduled strikes, the frame thread's cost against paper") {
-    const std::filesystem::path path = std::filesystem::path(FULGUR_SOURCE_ROOT) / "content/scenes/storm.json";
-    scene::Scene s = scene::load_scene(path);
-    s.lightning.schedule.strike_rate = 0.0;
-    const core::Grid3<float> density = scene::make_density(s);
-    bake::bake_if_stale(s, density, bake::default_fgb_path(s));
-    const runtime::BakedBases bases = runtime::BakedBases::load(bake::default_fgb_path(s), bake::scene_key(s, density));
+    const bench::DefaultStorm storm = bench::default_storm();
+    const scene::Scene& s = storm.scene;
+    const core::Grid3<float>& density = storm.density;
+    const runtime::BakedBases& bases = *storm.bases;
     const solve::Media media = solve::make_media(s, density);
     const int strikes = ctx.quick ? 1 : 3;
     const nlohmann::json base = {{"scene", "storm.json"}};

@@ -10,15 +10,13 @@
 // and the bytes a strike's light and a frame hold. What it buys is measured against Cycles
 // (docs/presets.md, "Where a solved strike's S is kept").
 #include "bench/bench.h"
+#include "bench/default_storm.h"
 
-#include "bake/bake.h"
 #include "core/core.h"
 #include "runtime/runtime.h"
 #include "scene/scene.h"
 
 #include <glm/geometric.hpp>
-
-#include <filesystem>
 
 using namespace fulgur;
 
@@ -46,12 +44,10 @@ std::size_t frame_bytes(const runtime::Frame& f) {
 FULGUR_BENCH(strike_grid,
              "solved strikes kept on the per-strike transport grid (quality.grid) on the default storm: the "
              "strike's solve, the frame and the memory against the lighting grid in the same run") {
-    const std::filesystem::path path = std::filesystem::path(FULGUR_SOURCE_ROOT) / "content/scenes/storm.json";
-    scene::Scene s = scene::load_scene(path);
-    s.lightning.schedule.strike_rate = 0.0;
-    const core::Grid3<float> density = scene::make_density(s);
-    bake::bake_if_stale(s, density, bake::default_fgb_path(s));
-    const runtime::BakedBases bases = runtime::BakedBases::load(bake::default_fgb_path(s), bake::scene_key(s, density));
+    const bench::DefaultStorm storm = bench::default_storm();
+    const scene::Scene& s = storm.scene;
+    const core::Grid3<float>& density = storm.density;
+    const runtime::BakedBases& bases = *storm.bases;
     const int strikes = ctx.quick ? 1 : 3, repeats = ctx.quick ? 3 : 7;
     // A side view's share of the directions: those within 60 degrees of the direction toward
     // the default camera (-y: the orbit's azimuth -90, nearly level).
