@@ -66,10 +66,7 @@ struct FramePipeline::Impl {
         keep_fine = false;
         if (q.preset == scene::Quality::Preset::Paper) return;
         solve_scene = s;  // the per-strike transport grid may be finer than the bake's
-        // At least the bake's refinement; a preset's default applies where it divides the
-        // lighting grid's downsample (a scene's own quality.refine is checked when read).
-        if (q.refine > s.transport.refine && s.lighting_downsample % q.refine == 0)
-            solve_scene.transport.refine = q.refine;
+        solve_scene.transport.refine = scene::strike_refine(s, q);
         if (q.exact_orders > 0) solve_scene.transport.lb_exact_orders = q.exact_orders;
         media = solve::make_media(solve_scene, *density);
         if (q.preset == scene::Quality::Preset::Instant) {

@@ -34,19 +34,14 @@ constexpr double kMcSecondsPerPath = 2e-7;
 core::Int3 divided(core::Int3 d, int f) { return {std::max(1, d.x / f), std::max(1, d.y / f), std::max(1, d.z / f)}; }
 double volume(core::Int3 d) { return double(d.x) * double(d.y) * double(d.z); }
 
+// The per-strike transport grid's dims (strike_refine, as runtime::FramePipeline solves on).
+core::Int3 strike_transport_dims(const Scene& s, const Cost& c) {
+    return divided(c.density_dims, s.lighting_downsample / std::max(1, strike_refine(s, s.quality)));
+}
+
 // A strike's solve at run time (runtime::solve_strike): its single scattering's paths, then
 // its multiple scattering by Monte Carlo paths or by the lattice on the per-strike transport
 // grid (order 2 from the single scattering's own paths when exact).
-// The per-strike transport grid (runtime::FramePipeline: quality.refine where it is finer than
-// the bake's and divides the downsample).
-core::Int3 strike_transport_dims(const Scene& s, const Cost& c) {
-    const Quality& q = s.quality;
-    const int refine = q.refine > s.transport.refine && s.lighting_downsample % std::max(q.refine, 1) == 0
-                           ? q.refine
-                           : s.transport.refine;
-    return divided(c.density_dims, s.lighting_downsample / std::max(1, refine));
-}
-
 double strike_seconds(const Scene& s, const Cost& c) {
     const Quality& q = s.quality;
     if (q.preset == Quality::Preset::Paper) return 0.0;

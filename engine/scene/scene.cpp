@@ -560,6 +560,10 @@ std::string_view to_string(Quality::Preset p) noexcept {
     return i < kQualityPresets.size() ? kQualityPresets[i] : "?";
 }
 
+int strike_refine(const Scene& s, const Quality& q) noexcept {
+    return q.refine > s.transport.refine && s.lighting_downsample % q.refine == 0 ? q.refine : s.transport.refine;
+}
+
 Quality quality_preset(std::string_view name, std::string_view where) {
     Quality q;
     if (name == "paper") {

@@ -329,6 +329,11 @@ Scene load_scene(const std::filesystem::path& path);
 /// resolves relative paths.
 Scene parse_scene(std::string_view json_text, std::string_view file_name, const std::filesystem::path& base_dir = {});
 
+/// The refinement of the per-strike transport grid a quality solves strikes on: at least the
+/// bake's (transport.refine); q.refine where it is finer and divides lighting.downsample (a
+/// preset's default may not; a scene's own quality.refine is checked when read).
+int strike_refine(const Scene& s, const Quality& q) noexcept;
+
 /// What baking the scene costs, estimated from the scene alone (for a cloud file, from its
 /// NRRD header or VDB metadata): nothing is allocated or solved. Memory is an upper estimate of the peak;
 /// time is a lower bound (per-cell and per-path costs measured on a 2-core machine, the
