@@ -343,6 +343,9 @@ int main(int argc, char** argv) {
         return *status;
     try {
         scene::Scene s = scene::load_scene(a.scene);
+        // --camera replaces the scene's before anything is planned: a static light solved
+        // toward the camera (transport.static_light.directions "camera") is solved toward it.
+        if (a.camera) s.camera = a.camera;
         // --strike-grid: the quality's grid set before the density is made, so its cost is
         // checked with the rest (scene::check_cost) before anything is solved.
         if (a.strike_grid > 0) s.quality = strike_grid_quality(s, shot_quality(s, a), a.strike_grid);
@@ -416,7 +419,7 @@ int main(int argc, char** argv) {
             opt.settings.dither &= off != "dither";
         }
         // The view: --camera, else the scene's, else the default; printed with every part explicit.
-        const std::optional<scene::CameraSpec> chosen = a.camera ? a.camera : view.scene().camera;
+        const std::optional<scene::CameraSpec> chosen = view.scene().camera;
         const render::Camera cam = view::scene_camera(chosen, view.density());
         const scene::CameraSpec stated = chosen && chosen->kind == scene::CameraSpec::Kind::LookAt
                                              ? *chosen

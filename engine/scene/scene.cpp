@@ -3,9 +3,11 @@
 #include "scene/detail/json_reader.h"
 
 #include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
 
 #include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <fstream>
 #include <limits>
 #include <numbers>
@@ -166,6 +168,10 @@ void parse_transport(JsonObject o, TransportSettings& t) {
                                                      {"lighting", "transport"}) == "transport";
         t.static_monte_carlo = st->choice_or("solver", t.static_monte_carlo ? "monte_carlo" : "lattice",
                                              {"lattice", "monte_carlo"}) == "monte_carlo";
+        t.static_toward_camera =
+            st->choice_or("directions", t.static_toward_camera ? "camera" : "baked", {"baked", "camera"}) == "camera";
+        if (t.static_toward_camera && !t.static_monte_carlo)
+            st->fail("directions", "\"camera\" needs \"solver\": \"monte_carlo\" (the lattice solves fixed directions)");
         // Whole paths through a thick cloud scatter hundreds of times: ~13 us of a core each on
         // the default storm (its moon and sky, 3 x 4M paths, in 78 s on 2 cores), so 2^26 bound
         // a light to about 7 minutes there.
@@ -700,6 +706,26 @@ transport::LightingMedium make_transport_medium(const Scene& s, const core::Grid
     m.density = core::downsample(density, s.lighting_downsample / s.transport.refine);
     m.optics = s.medium;
     return m;
+}
+
+void default_orbit(const core::GridGeometry& g, double distance_factor, glm::dvec3& target, double& distance) {
+    const glm::dvec3 ext = g.extent();
+    target = g.origin + 0.5 * ext;
+    target.z = g.origin.z + 0.33 * ext.z;
+    distance = distance_factor * std::max({ext.x, ext.y, ext.z});
+}
+
+glm::dvec3 camera_position(const std::optional<CameraSpec>& spec, const core::GridGeometry& density) {
+    const CameraSpec c = spec.value_or(CameraSpec{});
+    if (c.kind == CameraSpec::Kind::LookAt) return c.position;
+    glm::dvec3 target;
+    double distance = 0.0;
+    default_orbit(density, 1.1, target, distance);
+    if (c.orbit_target) target = *c.orbit_target;
+    if (c.distance) distance = *c.distance;
+    // As render::Camera::orbit places it (test_view pins the two together).
+    const double az = glm::radians(c.azimuth_deg), el = glm::radians(c.elevation_deg);
+    return target + distance * glm::dvec3(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
 }
 
 CameraSpec parse_camera(std::string_view json_text, std::string_view source) {

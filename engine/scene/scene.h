@@ -147,6 +147,12 @@ struct TransportSettings {
     /// like any solve, so it is paid once per scene and sun direction (docs/sky.md).
     bool static_monte_carlo = false;
     std::uint64_t static_paths = 4'000'000;
+    /// "directions": which output directions the static light's S is solved for. Baked (false):
+    /// the scene's output directions, between which the renderer interpolates toward any
+    /// camera. Camera (true): toward the scene's camera from every voxel (one field, no
+    /// interpolation; exact from that camera only, so for still shots): needs the Monte Carlo
+    /// solver, and a new camera position is a new solve (docs/sky.md).
+    bool static_toward_camera = false;
     /// Order-2 Monte Carlo paths of a static solve with exact orders 2 (a sun; the sky's dome
     /// samples share them by their weights).
     std::uint64_t static_order2_paths = 400'000;
@@ -259,6 +265,13 @@ struct CameraSpec {
     double vertical_fov_deg = 50.0;
     bool operator==(const CameraSpec&) const = default;
 };
+
+/// The orbit a camera leaves to the cloud: its target at the centre of `density`'s box at a
+/// third of its height, its distance `distance_factor` x the box's largest extent.
+void default_orbit(const core::GridGeometry& density, double distance_factor, glm::dvec3& target, double& distance);
+/// Where the camera stands: a look-at's position, or an orbit's (target and distance defaulted by
+/// default_orbit at 1.1; no camera: the default orbit). view::scene_camera places it the same.
+glm::dvec3 camera_position(const std::optional<CameraSpec>& spec, const core::GridGeometry& density);
 
 /// Parses a "camera" object given on its own (fulgur-shot --camera, the demo's --camera): JSON
 /// text holding one object, validated as a scene's "camera"; errors name `source` and the field.

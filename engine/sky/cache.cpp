@@ -7,6 +7,7 @@
 
 #include <cstring>
 #include <fstream>
+#include <iomanip>
 #include <sstream>
 
 namespace fulgur::sky {
@@ -40,6 +41,11 @@ std::string settings_lines(const SolveSettings& st) {
     // Only when set, so the keys (and cache files) of S on the lighting grid stay as they were.
     if (st.keep_transport_grid) d << "sky.grid=transport\n";
     if (st.method == Method::MonteCarlo) d << "sky.truth_paths=" << st.truth_paths << "\n";
+    if (st.toward) {  // exact digits: a camera moved by a millimetre is another solve
+        d << std::setprecision(17) << "sky.toward=" << st.toward->x << "," << st.toward->y << "," << st.toward->z
+          << "\n";
+        d << std::setprecision(6);
+    }
     d << "sky.exact_orders=" << st.exact_orders << "\n";
     if (st.multiple && st.exact_orders == 2)
         d << "sky.order2_paths=" << st.order2_paths << "\nsky.order2_seed=" << st.seed << "\n";

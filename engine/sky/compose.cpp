@@ -54,8 +54,8 @@ namespace {
 LightField unit_sun_field(const scene::Scene& s, const solve::Media& media, const SolveSettings& settings,
                           const glm::dvec3& direction) {
     const transport::DirectionalSource unit{direction, 1.0};
-    return solve_directional(media, std::span(&unit, 1), transport::output_directions(s.effective_directions()),
-                             settings);
+    return solve_directional(media, std::span(&unit, 1),
+                             transport::output_directions(static_direction_count(s, settings)), settings);
 }
 
 }  // namespace

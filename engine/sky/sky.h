@@ -97,6 +97,10 @@ struct SolveSettings {
     /// Method::MonteCarlo: paths per light (the sun; each basis of the sky), drawn from `seed`,
     /// so the solve is the static truth (TruthOptions) of the same paths and seed.
     std::uint64_t truth_paths = 4'000'000;
+    /// Set (transport.static_light.directions "camera", Method::MonteCarlo only): S toward this
+    /// point (the scene's camera) from every voxel, one field (transport::MonteCarloOptions::
+    /// toward) instead of the scene's output directions.
+    std::optional<glm::dvec3> toward;
     /// Spreads the solve over several processes (the lattice too, through lattice.make_kernel);
     /// unset: this process alone. Not part of the cache keys: the result is the same.
     std::shared_ptr<const Processes> processes;
@@ -106,6 +110,9 @@ struct SolveSettings {
 /// effects (the same accuracy knobs as the virtual-light bake), with transport.static_light's
 /// refine and exact orders (where it leaves them 0: static_refine_for, and order 2 exact).
 SolveSettings solve_settings(const scene::Scene& s, const core::Grid3<float>& density);
+/// The output directions a static solve gives: one toward the camera (settings.toward), else
+/// the scene's effective count.
+int static_direction_count(const scene::Scene& s, const SolveSettings& settings);
 /// transport.static_light.refine's default (0): the smallest divisor r of lighting.downsample
 /// that makes a transport voxel at density 1 at most one optical depth thick (extinction x
 /// lighting voxel / r <= 1), else lighting.downsample (the full resolution).
@@ -271,6 +278,9 @@ struct TruthOptions {
     /// The sky's profile (zenith_weight) tabulated at this many values of sin(elevation)
     /// (transport::DomeSource), in [2, 2^20].
     int table = 1025;
+    /// Set: S toward this point from every voxel (transport::MonteCarloOptions::toward); the
+    /// directions passed must then be one. static_truth takes its plan's settings.toward.
+    std::optional<glm::dvec3> toward;
 };
 /// One light's truth in a solve's shape (single: order 1, multiple: orders >= 2), with the
 /// Monte Carlo's own noise (relative L2 from two independent halves) and wall time.

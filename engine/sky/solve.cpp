@@ -196,6 +196,8 @@ void check_media(const solve::Media& media, const SolveSettings& settings) {
                   "sky: media from solve::make_media");
     FULGUR_ASSERT(media.refine == (settings.keep_transport_grid ? 1 : settings.refine),
                   "sky: the media's refine must be the settings' (static_media)");
+    FULGUR_ASSERT(!settings.toward || settings.method == Method::MonteCarlo,
+                  "sky: S toward a point is solved by Monte Carlo only (solve_settings)");
 }
 
 bool exact_two(const SolveSettings& settings) { return settings.multiple && settings.exact_orders == 2; }
@@ -253,11 +255,18 @@ SolveSettings solve_settings(const scene::Scene& s, const core::Grid3<float>& de
     if (s.transport.static_monte_carlo) {
         st.method = Method::MonteCarlo;
         st.truth_paths = s.transport.static_paths;
+        // At g = 0 S is the same toward every point: the one isotropic field serves any camera.
+        if (s.transport.static_toward_camera && s.medium.g != 0.0)
+            st.toward = scene::camera_position(s.camera, density.geom);
     }
     // Every fine voxel of a needed lighting voxel is computed (as the bake's single scattering),
     // whichever grid S is kept on: the two differ only by the final average.
     st.single_options.skip_block = st.refine;
     return st;
+}
+
+int static_direction_count(const scene::Scene& s, const SolveSettings& settings) {
+    return settings.toward ? 1 : s.effective_directions();
 }
 
 namespace {
@@ -293,6 +302,7 @@ LightField solve_directional(const solve::Media& media, std::span<const transpor
         TruthOptions to;
         to.paths = settings.truth_paths;
         to.seed = settings.seed;
+        to.toward = settings.toward;
         for (const transport::DirectionalSource& l : lights) {
             if (l.irradiance == 0.0) continue;
             TruthField t = sun_truth(media, l.direction, directions, to);
@@ -384,6 +394,7 @@ SkyField solve_sky(const solve::Media& media, bool uniform, std::span<const glm:
         TruthOptions to;
         to.paths = settings.truth_paths;
         to.seed = settings.seed;
+        to.toward = settings.toward;
         SkyField f = sky_truth(media, uniform, directions, to).field;
         for (LightField* l : {&f.zenith, &f.horizon, &f.uniform})
             if (!l->empty()) keep_solved_parts(*l, settings);

@@ -23,6 +23,7 @@ transport::MonteCarloOptions truth_options(const TruthOptions& o, std::uint64_t 
     mo.paths = o.paths;
     mo.seed = core::hash_seed(o.seed, stream);
     mo.halves = true;
+    mo.toward = o.toward;
     return mo;
 }
 
@@ -93,13 +94,15 @@ StaticLight static_truth(const ScenePlan& plan, const solve::Media& media, const
                          std::vector<transport::MonteCarloResult::Noise>* noise) {
     StaticLight light;
     light.sun_direction = sun_direction;
+    TruthOptions o = options;  // toward the plan's camera when its solves are
+    o.toward = plan.settings.toward;
     if (plan.sun) {
-        TruthField t = sun_truth(media, sun_direction, directions, options);
+        TruthField t = sun_truth(media, sun_direction, directions, o);
         light.sun = std::move(t.field);
         if (noise) noise->push_back(t.noise);
     }
     if (plan.sky) {
-        SkyTruth t = sky_truth(media, plan.sky_uniform, directions, options);
+        SkyTruth t = sky_truth(media, plan.sky_uniform, directions, o);
         light.sky = std::move(t.field);
         if (noise) noise->insert(noise->end(), t.noise.begin(), t.noise.end());
     }

@@ -44,6 +44,8 @@ void check_mc_options(const MonteCarloOptions& o) {
     if (o.macro_cell < 0)
         throw core::Error("monte_carlo.macro_cell", "must be >= 0, got " + std::to_string(o.macro_cell));
     if (o.max_collisions < 1) throw core::Error("monte_carlo.max_collisions", "must be >= 1");
+    if (o.toward && !(std::isfinite(o.toward->x) && std::isfinite(o.toward->y) && std::isfinite(o.toward->z)))
+        throw core::Error("monte_carlo.toward", "must be a finite point");
 }
 
 namespace {
@@ -196,7 +198,7 @@ public:
     /// hold one block per source group: [group][cell][m] ([group][cell]).
     GridTally(const LightingMedium& m, const TallyGrid& tg, std::span<const glm::dvec3> dirs, bool expected_single,
               bool track_single, bool tally_multiple, double cutoff, double* single, double* multiple,
-              double* fluence = nullptr, double* fluence2 = nullptr)
+              double* fluence = nullptr, double* fluence2 = nullptr, const glm::dvec3* toward = nullptr)
         : g_(&m.density.geom),
           tg_(&tg),
           kappa_(m.optics.extinction),
@@ -215,6 +217,11 @@ public:
           fluence_(fluence),
           fluence2_(fluence2),
           p_(dirs.size()) {
+        if (toward) {
+            FULGUR_ASSERT(M_ == 1, "GridTally: S toward a point is one field");
+            toward_ = *toward;
+            toward_on_ = true;
+        }
         for (const glm::dvec3& s : dirs) {
             sx_.push_back(s.x);
             sy_.push_back(s.y);
@@ -265,6 +272,10 @@ private:
     /// as three arrays and the loop runs on whole vector registers (the same operations in
     /// the same order as glm::dot, so the same bits).
     void phase(const glm::dvec3& d) {
+        if (toward_on_) {  // the phase depends on the cell: add() evaluates it
+            d_ = d;
+            return;
+        }
         const double x = d.x, y = d.y, z = d.z;
         const double *sx = sx_.data(), *sy = sy_.data(), *sz = sz_.data();
         double* p = p_.data();
@@ -272,11 +283,25 @@ private:
     }
     void add(double* base, std::size_t tally_cell, double c) {
         double* a = base + tally_cell * M_;
-        for (std::size_t m = 0; m < M_; ++m) a[m] += c * p_[m];
+        if (toward_on_)
+            a[0] += c * toward_phase(tally_cell);
+        else
+            for (std::size_t m = 0; m < M_; ++m) a[m] += c * p_[m];
         // Fluence (no phase): of the uncollided light, and of the second order when its
         // flights are expected-value estimates.
         if (fluence_ && base == single_) fluence_[tally_cell] += c;
         if (fluence2_ && base == multiple_) fluence2_[tally_cell] += c;
+    }
+    /// p(w . d) for the flight's direction d, w the unit vector from the cell's centre toward
+    /// the point (normalized and dotted as unit_directions and phase() do a fixed direction, so
+    /// a cell gives the bits a run along its own direction gives).
+    double toward_phase(std::size_t cell) const {
+        const core::GridGeometry& g = tg_->geom;
+        const std::size_t nx = std::size_t(g.dims.x), ny = std::size_t(g.dims.y);
+        const std::size_t i = cell % nx, j = (cell / nx) % ny, k = cell / (nx * ny);
+        const glm::dvec3 w = toward_ - g.centre(int(i), int(j), int(k));
+        const glm::dvec3 u = w / glm::length(w);
+        return hg_(u.x * d_.x + u.y * d_.y + u.z * d_.z);
     }
     /// w * (weighted) length on the tally grid over [t0, t1], outside the medium (empty:
     /// weight 1, and nothing into cloud cells when weighting by extinction).
@@ -355,6 +380,8 @@ private:
     double *single_, *multiple_, *fluence_, *fluence2_;      // the current path's group
     std::vector<double> p_;
     std::vector<double> sx_, sy_, sz_;  // the output directions, one array per axis
+    glm::dvec3 toward_{0.0}, d_{0.0};   // S toward a point: the point, the current flight's direction
+    bool toward_on_ = false;
 };
 
 /// Sums of the batch estimates of the first and the second half of the batches (a noise
@@ -463,6 +490,9 @@ std::vector<glm::dvec3> unit_directions(const LightingMedium& medium, std::span<
     validate_medium(medium);
     check_mc_options(o);
     if (directions.empty()) throw core::Error("directions", "at least one output direction is needed");
+    if (o.toward && directions.size() != 1)
+        throw core::Error("directions", "S toward a point (monte_carlo.toward) is one field: one direction, got " +
+                                            std::to_string(directions.size()));
     std::vector<glm::dvec3> dirs;
     for (std::size_t m = 0; m < directions.size(); ++m) {
         const double len = glm::length(directions[m]);
@@ -611,7 +641,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
             const int b = b0 + int(i);
             GridTally tally(medium, tg, dirs, expected, !expected, multiple, kPathCutoff, buf.single.data(),
                             multiple ? buf.multiple.data() : nullptr, fluence ? buf.fluence.data() : nullptr,
-                            fluence2 ? buf.fluence2.data() : nullptr);
+                            fluence2 ? buf.fluence2.data() : nullptr, o.toward ? &*o.toward : nullptr);
             trace_paths(gm, em, po, o.seed, batch_first_path(o.paths, o.batches, b), batch_paths(o.paths, o.batches, b),
                         tally, buf.energy);
             if (tg.extinction)  // per-cell normalization (volume: the constant in `scale`)
@@ -875,7 +905,7 @@ struct ProgressiveMonteCarlo::Impl {
             detail::EnergyBatch energy;  // not reported: the energy balance is monte_carlo()'s
             detail::GridTally tally(med.medium, med.tg, dirs, expected && o.tally_single, !expected && o.tally_single,
                                     multiple, detail::kPathCutoff, sums(h1, o.tally_single, h), sums(hm, multiple, h),
-                                    sums(hf, fluence, h), sums(hf2, fluence2, h));
+                                    sums(hf, fluence, h), sums(hf2, fluence2, h), o.toward ? &*o.toward : nullptr);
             detail::trace_paths(med.gm, em, po, half_seed[h], half_traced[h], half[h], tally, energy, &emission[h]);
         });
         for (std::size_t h = 0; h < 2; ++h) {

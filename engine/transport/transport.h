@@ -283,6 +283,12 @@ struct MonteCarloOptions {
     /// counted as truncated). With tally_fluence, `fluence2` receives the order-2 fluence.
     /// Needs the expected-value estimator and tally_multiple. For a lattice fed with order 2.
     bool expected_second_order = false;
+    /// Set: S toward this point (metres) instead of along fixed directions. Each tally cell's
+    /// one output direction is from its centre to the point, so a camera standing there reads S
+    /// with no interpolation between directions (a still shot's exact S_cam). `directions` must
+    /// then hold exactly one direction, which the result's fields carry as their label (the
+    /// renderer takes a one-direction field as S toward the camera). The point must be finite.
+    std::optional<glm::dvec3> toward;
 };
 
 struct MonteCarloResult {

@@ -37,25 +37,11 @@ std::optional<std::filesystem::path> bases_for(
     return std::nullopt;
 }
 
-namespace {
-
-// The default view's orbit centre (the cloud's centre at a third of its height) and distance
-// (distance_factor x the cloud's largest extent).
-void default_orbit(const core::Grid3<float>& density, double distance_factor, glm::dvec3& target, double& distance) {
-    const core::GridGeometry& g = density.geom;
-    const glm::dvec3 ext = g.extent();
-    target = g.origin + 0.5 * ext;
-    target.z = g.origin.z + 0.33 * ext.z;
-    distance = distance_factor * std::max({ext.x, ext.y, ext.z});
-}
-
-}  // namespace
-
 render::Camera default_camera(const core::Grid3<float>& density, double azimuth_deg, double elevation_deg,
                               double distance_factor) {
     glm::dvec3 target;
     double distance = 0.0;
-    default_orbit(density, distance_factor, target, distance);
+    scene::default_orbit(density.geom, distance_factor, target, distance);
     return render::Camera::orbit(target, distance, azimuth_deg, elevation_deg);
 }
 
@@ -83,7 +69,7 @@ scene::CameraSpec explicit_orbit(const std::optional<scene::CameraSpec>& spec, c
     }
     glm::dvec3 target;
     double distance = 0.0;
-    default_orbit(density, 1.1, target, distance);
+    scene::default_orbit(density.geom, 1.1, target, distance);
     if (!o.orbit_target) o.orbit_target = target;
     if (!o.distance) o.distance = distance;
     return o;
