@@ -73,7 +73,7 @@ FULGUR_BENCH(sun, "sun re-solve on the default storm at three elevations (time o
 
 // The static light's truth (test_sky_storm, fulgur-study static-frontier): Monte Carlo of the
 // sun from the grid's boundary through the full-resolution density, S tallied on the lighting
-// grid. Its cost is the expected-value walks through the fine grid (a memory-bound loop: the
+// grid at the scene's output directions, and in the same run toward the scene's camera. Its cost is the expected-value walks through the fine grid (a memory-bound loop: the
 // density and the per-direction tally rows are read per voxel), so the memory bandwidth of the
 // same run is its baseline.
 FULGUR_BENCH(sun_truth, "Monte Carlo of the sun through the default storm's full-resolution density, paths/s") {
@@ -94,6 +94,14 @@ FULGUR_BENCH(sun_truth, "Monte Carlo of the sun through the default storm's full
         const double sec = bench::time_median(ctx.quick ? 1 : 3, [&] {
             transport::monte_carlo(full.full, sun, lighting.lighting.density.geom, dirs, mo);
         });
+        // The same paths tallied toward the scene's camera (transport.static_light.directions
+        // "camera"): one phase evaluation per deposit instead of one per baked direction.
+        transport::MonteCarloOptions toward = mo;
+        toward.toward = scene::camera_position(s.camera, density.geom);
+        const auto one = transport::output_directions(1);
+        const double sec_toward = bench::time_median(ctx.quick ? 1 : 3, [&] {
+            transport::monte_carlo(full.full, sun, lighting.lighting.density.geom, one, toward);
+        });
         const core::GridGeometry& fg = full.full.density.geom;
         const core::GridGeometry& lg = lighting.lighting.density.geom;
         ctx.emit("sun_truth", {{"scene", "content/scenes/storm.json"},
@@ -103,6 +111,8 @@ FULGUR_BENCH(sun_truth, "Monte Carlo of the sun through the default storm's full
                                {"directions", dirs.size()},
                                {"paths", paths},
                                {"seconds", sec},
-                               {"paths_per_s", double(paths) / sec}});
+                               {"paths_per_s", double(paths) / sec},
+                               {"toward_camera_seconds", sec_toward},
+                               {"baked_over_toward_camera", sec / sec_toward}});
     }
 }

@@ -171,7 +171,8 @@ void parse_transport(JsonObject o, TransportSettings& t) {
         t.static_toward_camera =
             st->choice_or("directions", t.static_toward_camera ? "camera" : "baked", {"baked", "camera"}) == "camera";
         if (t.static_toward_camera && !t.static_monte_carlo)
-            st->fail("directions", "\"camera\" needs \"solver\": \"monte_carlo\" (the lattice solves fixed directions)");
+            st->fail("directions",
+                     "\"camera\" needs \"solver\": \"monte_carlo\" (the lattice solves fixed directions)");
         // Whole paths through a thick cloud scatter hundreds of times: ~13 us of a core each on
         // the default storm (its moon and sky, 3 x 4M paths, in 78 s on 2 cores), so 2^26 bound
         // a light to about 7 minutes there.

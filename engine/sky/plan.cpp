@@ -33,11 +33,12 @@ ScenePlan plan_scene(const scene::Scene& s, const core::Grid3<float>& density, c
     auto& why = p.reasons;
     if (p.settings.toward) {
         const glm::dvec3& c = *p.settings.toward;
-        why.push_back("transport.static_light.directions \"camera\": the sun's, moon's and sky's S toward the camera at (" +
-                      core::format_number(c.x) + ", " + core::format_number(c.y) + ", " + core::format_number(c.z) +
-                      ") m from every voxel, one field (exact from there only; another camera position is another "
-                      "solve); lightning keeps its " +
-                      std::to_string(s.effective_directions()) + " output directions");
+        why.push_back(
+            "transport.static_light.directions \"camera\": the sun's, moon's and sky's S toward the camera at (" +
+            core::format_number(c.x) + ", " + core::format_number(c.y) + ", " + core::format_number(c.z) +
+            ") m from every voxel, one field (exact from there only; another camera position is another "
+            "solve); lightning keeps its " +
+            std::to_string(s.effective_directions()) + " output directions");
     } else if (s.medium.g == 0.0)
         why.push_back(
             "g = 0 (isotropic scattering): S does not depend on direction, 1 output direction for every "

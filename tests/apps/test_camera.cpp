@@ -69,6 +69,25 @@ TEST_CASE("scene_camera: a look-at camera as stated, and as the orbit through it
     check_same(view::scene_camera(o, d), c, 1e-8 * glm::length(look.position - look.target));
 }
 
+TEST_CASE("scene::camera_position stands where scene_camera places the camera, bit for bit") {
+    // The static light solved toward the camera (sky::solve_settings) takes its point from
+    // scene::camera_position; the renderer's camera is view::scene_camera's.
+    const core::Grid3<float> d = box_density();
+    CHECK(scene::camera_position(std::nullopt, d.geom) == view::scene_camera(std::nullopt, d).position);
+    scene::CameraSpec orbit;
+    orbit.azimuth_deg = 33.0;
+    orbit.elevation_deg = -4.5;
+    CHECK(scene::camera_position(orbit, d.geom) == view::scene_camera(orbit, d).position);
+    orbit.orbit_target = glm::dvec3(100.0, -200.0, 1500.0);
+    orbit.distance = 7300.0;
+    CHECK(scene::camera_position(orbit, d.geom) == view::scene_camera(orbit, d).position);
+    scene::CameraSpec look;
+    look.kind = scene::CameraSpec::Kind::LookAt;
+    look.position = {3000.0, -9000.0, 300.0};
+    look.target = {0.0, 500.0, 4000.0};
+    CHECK(scene::camera_position(look, d.geom) == look.position);
+}
+
 TEST_CASE("--camera on fulgur-shot and fulgur: JSON text or a file, validated") {
     const std::string scene_file = FULGUR_SOURCE_DIR "/tests/apps/scenes/test_iso_ss_ic.json";
     const std::vector<std::string> shot = {scene_file, "--seed", "1", "--time", "0", "--size", "64x32", "-o", "x.png"};

@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <chrono>
 #include <fstream>
+#include <numbers>
 #include <thread>
 
 using namespace fulgur;
@@ -294,6 +295,82 @@ TEST_CASE("the static light by Monte Carlo (solver \"monte_carlo\"): the truth o
                          doctest::Contains("/transport/static_light/solver"), core::Error);
     CHECK_THROWS_WITH_AS(variant(dir, "bad", R"({"transport": {"static_light": {"paths": 100000000}}})"),
                          doctest::Contains("/transport/static_light/paths"), core::Error);
+}
+
+TEST_CASE("the static light toward the camera (directions \"camera\"): one field, each voxel's own direction") {
+    const auto dir = test::scratch_dir("sky_toward");
+    nlohmann::json patch = nlohmann::json::parse(kSunSky);
+    patch["transport"] = {{"static_light", {{"solver", "monte_carlo"}, {"paths", 3000}, {"directions", "camera"}}}};
+    const scene::Scene s = variant(dir, "still", patch.dump());
+    const core::Grid3<float> d = scene::make_density(s);
+    const solve::Media media = sky::static_media(s, d);
+    const sky::ScenePlan plan = sky::plan_scene(s, d, quick());
+    // The scene's orbit (test_aniso_ms_cg.json: target (0, 0, 2640), 17.6 km, azimuth -90,
+    // elevation 6), where view::scene_camera stands.
+    const glm::dvec3 camera = scene::camera_position(s.camera, d.geom);
+    CHECK(camera.y == test::rel(-17600.0 * std::cos(6.0 * std::numbers::pi / 180.0), 1e-12));
+    REQUIRE(plan.settings.toward.has_value());
+    CHECK(*plan.settings.toward == camera);
+    CHECK(plan.directions == 1);
+    CHECK(mentions(plan, "directions \"camera\": the sun's, moon's and sky's S toward the camera at"));
+    CHECK(mentions(plan, "lightning keeps its 26 output directions"));
+
+    std::vector<std::string> said;
+    auto say = [&](const std::string& m) { said.push_back(m); };
+    const sky::CacheOptions cache{true, dir / "cache"};
+    const sky::StaticLight solved = sky::load_or_solve(s, d, media, plan, cache, say);
+    REQUIRE(solved.sun.has_value());
+    REQUIRE(solved.sky.has_value());
+    CHECK(solved.sun->multiple.directions.size() == 1);
+    CHECK(solved.sky->zenith.multiple.directions.size() == 1);
+    CHECK(said.at(0).find("sun: solved") == 0);
+    // The truth of the same paths and seed is the same field: --against static compares like
+    // with like.
+    sky::TruthOptions same;
+    same.paths = 3000;
+    same.seed = plan.settings.seed;
+    const sky::StaticLight truth =
+        sky::truth_of(s, d, plan, media, solved, transport::output_directions(plan.directions), same);
+    CHECK(truth.sun->multiple.data == solved.sun->multiple.data);
+    CHECK(truth.sky->horizon.multiple.data == solved.sky->horizon.multiple.data);
+    // A lit cell holds the truth along its own direction to the camera (the same paths; float32
+    // rounding, as test_monte_carlo's "S toward a point").
+    const core::GridGeometry& g = media.lighting.density.geom;
+    std::size_t best = 0;
+    for (std::size_t c = 0; c < g.cell_count(); ++c)
+        if (solved.sun->multiple.data[c] > solved.sun->multiple.data[best]) best = c;
+    const core::Int3 b = g.unindex(best);
+    const glm::dvec3 own = camera - g.centre(b.x, b.y, b.z);
+    const sky::TruthField along = sky::sun_truth(media, solved.sun_direction, std::span(&own, 1), same);
+    CHECK(solved.sun->multiple.data[best] == test::rel(along.field.multiple.data[best], 2e-7));
+    CHECK(solved.sun->single.data[best] == test::rel(along.field.single.data[best], 2e-7));
+
+    // Read back while the camera stands still; another camera position is another solve.
+    said.clear();
+    (void)sky::load_or_solve(s, d, media, plan, cache, say);
+    CHECK(said.at(0).find("sun: read from") == 0);
+    patch["camera"] = {{"orbit", {{"azimuth", -60}}}};
+    const scene::Scene moved = variant(dir, "still", patch.dump());
+    said.clear();
+    const sky::StaticLight again =
+        sky::load_or_solve(moved, d, sky::static_media(moved, d), sky::plan_scene(moved, d, quick()), cache, say);
+    CHECK(said.at(0).find("sun: solved") == 0);
+    CHECK(said.at(0).find("sky.toward") != std::string::npos);
+    CHECK(again.sun->multiple.data != solved.sun->multiple.data);
+
+    // At g = 0 every camera sees the same S: the isotropic field, no camera in the key.
+    nlohmann::json iso = patch;
+    iso["medium"] = {{"g", 0}};
+    const scene::Scene flat = variant(dir, "flat", iso.dump());
+    const sky::ScenePlan fp = sky::plan_scene(flat, d, quick());
+    CHECK_FALSE(fp.settings.toward.has_value());
+    CHECK(fp.directions == 1);
+    // Refused, named: the lattice solves fixed directions; an unknown value.
+    CHECK_THROWS_WITH_AS(
+        variant(dir, "bad", R"({"transport": {"static_light": {"solver": "lattice", "directions": "camera"}}})"),
+        doctest::Contains("/transport/static_light/directions"), core::Error);
+    CHECK_THROWS_WITH_AS(variant(dir, "bad", R"({"transport": {"static_light": {"directions": "eye"}}})"),
+                         doctest::Contains("/transport/static_light/directions"), core::Error);
 }
 
 TEST_CASE("the sun solved again on a worker thread: the newest request wins, the old field until then") {
