@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -300,7 +301,11 @@ private:
         const std::size_t nx = std::size_t(g.dims.x), ny = std::size_t(g.dims.y);
         const std::size_t i = cell % nx, j = (cell / nx) % ny, k = cell / (nx * ny);
         const glm::dvec3 w = toward_ - g.centre(int(i), int(j), int(k));
-        const glm::dvec3 u = w / glm::length(w);
+        const double len = glm::length(w);
+        // A camera standing on the cell's centre looks at it from no one direction: the phase
+        // averaged over directions, 1 / (4 pi), as an isotropic field would hold.
+        if (!(len > 0.0)) return 1.0 / (4.0 * std::numbers::pi);
+        const glm::dvec3 u = w / len;
         return hg_(u.x * d_.x + u.y * d_.y + u.z * d_.z);
     }
     /// w * (weighted) length on the tally grid over [t0, t1], outside the medium (empty:

@@ -427,6 +427,13 @@ TEST_CASE("S toward a point: every cell holds what a tally along its own directi
     CHECK(spread_hi - spread_lo > 0.05);
     CHECK(r.single.directions.size() == 1);
     CHECK(r.multiple.directions.size() == 1);
+    // A camera inside the cloud, on a cell's centre: every value finite, that cell holds the
+    // phase's mean over directions (1 / (4 pi)) in place of a direction's.
+    toward.toward = g.centre(6, 6, 4);
+    const MonteCarloResult inside = monte_carlo(m, sun, output_directions(1), toward);
+    for (const float v : inside.multiple.data) REQUIRE(std::isfinite(v));
+    for (const float v : inside.single.data) REQUIRE(std::isfinite(v));
+    CHECK(inside.multiple.data[g.index(6, 6, 4)] > 0.0f);
     // Misuse named: several directions, a point that is not finite.
     const auto dirs2 = output_directions(6);
     CHECK_THROWS_WITH_AS(monte_carlo(m, sun, dirs2, toward), doctest::Contains("one direction"), core::Error);
