@@ -169,8 +169,8 @@ void AccuracyPanel::update_static(const view::ViewOptions& options) {
         r.solved = solved;
         sky::TruthOptions to;
         to.paths = 2'000'000;
-        r.truth = sky::truth_of(scene, density, plan, media, solved,
-                                transport::output_directions(scene.effective_directions()), to, &r.noise);
+        r.truth = sky::truth_of(scene, density, plan, media, solved, transport::output_directions(plan.directions), to,
+                                &r.noise);
         sky::ComposeOptions co;
         co.sun = options.sun;
         co.sky = options.sky;

@@ -37,6 +37,15 @@ void static_light_panel(view::ViewOptions& opt, const sky::ScenePlan& plan) {
     ImGui::BeginDisabled(!plan.sky);
     ImGui::Checkbox("sky light", &opt.sky);
     ImGui::EndDisabled();
+    // transport.static_light.directions "camera": one field toward the scene's camera, which
+    // this view's camera leaves as soon as it moves.
+    if (plan.settings.toward && (plan.sun || plan.sky)) {
+        const glm::dvec3& c = *plan.settings.toward;
+        ImGui::TextWrapped(
+            "sun and sky light solved toward the scene's camera at (%.0f, %.0f, %.0f) m: "
+            "exact from there only (a still shot's setting)",
+            c.x, c.y, c.z);
+    }
 }
 
 }  // namespace
