@@ -95,7 +95,9 @@ struct SunResolver::Impl {
     }
 
     void solve(const glm::dvec3& d, std::uint64_t request) {
-        const bool two_stage = settings.multiple && settings.exact_orders == 2;
+        // A preview is the lattice's order 2 before the exact one; a Monte Carlo solve has no
+        // cheaper first stage (its preview would be the same solve twice).
+        const bool two_stage = settings.method != Method::MonteCarlo && settings.multiple && settings.exact_orders == 2;
         try {
             if (!two_stage) {
                 publish(solve_sun(scene, density, media, settings, d), nullptr);

@@ -406,6 +406,31 @@ TEST_CASE("the sun solved again on a worker thread: the newest request wins, the
     CHECK_FALSE(r.busy());
 }
 
+TEST_CASE("the sun solved again by Monte Carlo toward the camera: one answer, no preview, one field") {
+    const auto dir = test::scratch_dir("sky_resolver_mc");
+    nlohmann::json patch = nlohmann::json::parse(kSunSky);
+    patch["transport"] = {{"static_light", {{"solver", "monte_carlo"}, {"paths", 3000}, {"directions", "camera"}}}};
+    const scene::Scene s = variant(dir, "still", patch.dump());
+    const core::Grid3<float> d = scene::make_density(s);
+    const solve::Media media = sky::static_media(s, d);
+    const sky::SolveSettings st = sky::solve_settings(s, d);
+    REQUIRE(st.exact_orders == 2);  // a lattice solve of these settings would preview first
+    sky::SunResolver r(s, d, media, st, 1);
+    const glm::dvec3 sun = scene::sun_direction(20.0, 45.0);
+    r.request(sun);
+    std::vector<sky::SunSolve> answers;
+    for (int i = 0; i < 6000 && (answers.empty() || r.busy()); ++i) {
+        if (auto t = r.take()) answers.push_back(std::move(*t));
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    if (auto t = r.take()) answers.push_back(std::move(*t));
+    REQUIRE(answers.size() == 1);
+    CHECK_FALSE(answers[0].preview);
+    CHECK(answers[0].field.multiple.directions.size() == 1);
+    const sky::SunSolve direct = sky::solve_sun(s, d, media, st, sun);
+    CHECK(answers[0].field.multiple.data == direct.field.multiple.data);
+}
+
 TEST_CASE("plan: the three content scenes trigger exactly the solves they call for") {
     struct Expect {
         const char* scene;
