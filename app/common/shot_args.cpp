@@ -126,6 +126,11 @@ void declare(CommandLine& cli, ShotArgs& a) {
                "the scene's quality paths, where the noise would show",
                2, 64)
         ->type_name("REFINE");
+    app.add_flag("--static-toward-camera", a.static_toward_camera,
+                 "solve the sun's, moon's and sky's light by Monte Carlo toward this shot's camera, kept on the "
+                 "transport grid (transport.static_light: \"solver\": \"monte_carlo\", \"directions\": "
+                 "\"camera\", \"grid\": \"transport\"): no interpolation between baked directions; a minute or "
+                 "more, cached per camera position");
     app.add_option_function<std::string>(
            "--since-known",
            [&a](const std::string& v) {

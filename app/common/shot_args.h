@@ -42,6 +42,11 @@ struct ShotArgs {
     /// (the quality's "grid": "transport" with "refine": REFINE), for a sharper flash in a still
     /// shot without a new bake (docs/presets.md, "Where a solved strike's S is kept").
     int strike_grid = 0;  ///< 0: the quality's own grid
+    /// --static-toward-camera: the sun's, moon's and sky's light solved by Monte Carlo toward
+    /// this shot's camera and kept on its transport grid (transport.static_light "solver":
+    /// "monte_carlo", "directions": "camera", "grid": "transport"; docs/sky.md, "Toward the
+    /// camera").
+    bool static_toward_camera = false;
     /// --since-known MS: the frame as a strike nobody scheduled shows it MS milliseconds of wall
     /// time after it became known (runtime::build_since_known: lookahead 0, frames at 60 fps
     /// meanwhile, then the per-strike work stops and the frame is what exists); 0 is its first

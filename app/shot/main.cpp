@@ -346,6 +346,11 @@ int main(int argc, char** argv) {
         // --camera replaces the scene's before anything is planned: a static light solved
         // toward the camera (transport.static_light.directions "camera") is solved toward it.
         if (a.camera) s.camera = a.camera;
+        if (a.static_toward_camera) {
+            s.transport.static_monte_carlo = true;
+            s.transport.static_toward_camera = true;
+            s.transport.static_keep_transport_grid = true;
+        }
         // --strike-grid: the quality's grid set before the density is made, so its cost is
         // checked with the rest (scene::check_cost) before anything is solved.
         if (a.strike_grid > 0) s.quality = strike_grid_quality(s, shot_quality(s, a), a.strike_grid);
