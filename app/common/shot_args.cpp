@@ -126,6 +126,10 @@ void declare(CommandLine& cli, ShotArgs& a) {
                "the scene's quality paths, where the noise would show",
                2, 64)
         ->type_name("REFINE");
+    app.add_flag("--strike-toward-camera", a.strike_toward_camera,
+                 "tally the solved strike's S toward this shot's camera from every voxel (the quality's "
+                 "\"directions\": \"camera\"; presets that solve strikes by Monte Carlo: hybrid, per_strike_mc, "
+                 "reference): no interpolation between baked directions");
     app.add_flag("--static-toward-camera", a.static_toward_camera,
                  "solve the sun's, moon's and sky's light by Monte Carlo toward this shot's camera, kept on the "
                  "transport grid (transport.static_light: \"solver\": \"monte_carlo\", \"directions\": "

@@ -47,6 +47,9 @@ struct ShotArgs {
     /// "monte_carlo", "directions": "camera", "grid": "transport"; docs/sky.md, "Toward the
     /// camera").
     bool static_toward_camera = false;
+    /// --strike-toward-camera: the solved strike's S tallied toward this shot's camera (the
+    /// quality's "directions": "camera"; docs/presets.md).
+    bool strike_toward_camera = false;
     /// --since-known MS: the frame as a strike nobody scheduled shows it MS milliseconds of wall
     /// time after it became known (runtime::build_since_known: lookahead 0, frames at 60 fps
     /// meanwhile, then the per-strike work stops and the frame is what exists); 0 is its first

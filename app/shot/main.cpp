@@ -81,6 +81,22 @@ scene::Quality strike_grid_quality(const scene::Scene& s, scene::Quality q, int 
     return q;
 }
 
+// `q` with its solved strikes tallied toward the camera (--strike-toward-camera), after the
+// check the scene file's "directions": "camera" gets.
+scene::Quality strike_toward_quality(scene::Quality q) {
+    q.toward_camera = true;
+    if (const std::string why = scene::toward_camera_problem(q); !why.empty())
+        throw core::Error("--strike-toward-camera", why);
+    return q;
+}
+
+// The quality the shot's options make of `q` (--strike-grid, --strike-toward-camera).
+scene::Quality shot_options_quality(const scene::Scene& s, scene::Quality q, const app::ShotArgs& a) {
+    if (a.strike_grid > 0) q = strike_grid_quality(s, q, a.strike_grid);
+    if (a.strike_toward_camera) q = strike_toward_quality(q);
+    return q;
+}
+
 void write_frame_exr(view::StormView& view, const render::Camera& cam, double t, const view::ViewOptions& opt,
                      const app::ShotArgs& a, const transport::SourceField* shown_field, double shown_exposure,
                      const std::filesystem::path& out, const std::string& lit_by);
@@ -353,7 +369,7 @@ int main(int argc, char** argv) {
         }
         // --strike-grid: the quality's grid set before the density is made, so its cost is
         // checked with the rest (scene::check_cost) before anything is solved.
-        if (a.strike_grid > 0) s.quality = strike_grid_quality(s, shot_quality(s, a), a.strike_grid);
+        if (a.strike_grid > 0 || a.strike_toward_camera) s.quality = shot_options_quality(s, shot_quality(s, a), a);
         // The images never overwrite the scene, its cloud or its baked file, nor each other.
         std::vector<core::NamedPath> inputs{{"scene", a.scene},
                                             {"baked file", a.fgb ? *a.fgb : bake::default_fgb_path(s)}};
@@ -383,7 +399,7 @@ int main(int argc, char** argv) {
             lp.schedule.strike_rate = 0.0;  // only the requested strike (after the bake check: same .fgb as the demo)
             view.set_lightning(lp);
             scene::Quality q = shot_quality(view.scene(), a);
-            if (a.strike_grid > 0) q = strike_grid_quality(view.scene(), q, a.strike_grid);
+            q = shot_options_quality(view.scene(), q, a);
             if (a.since_known_ms) q.lookahead = 0.0;  // nobody scheduled it
             if (a.quality || a.since_known_ms) view.set_quality(q);
             const std::size_t strike = view.pipeline().strike_at(0.0, a.seed, /*known_ahead=*/!a.since_leader);

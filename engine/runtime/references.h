@@ -10,6 +10,7 @@
 #include "transport/transport.h"
 
 #include <cstdint>
+#include <optional>
 #include <span>
 
 namespace fulgur::runtime {
@@ -34,6 +35,9 @@ struct TruthOptions {
     /// Average S over each lighting voxel by volume, or weighted by extinction (see
     /// transport::MonteCarloOptions::TallyWeight).
     transport::MonteCarloOptions::TallyWeight weight = transport::MonteCarloOptions::TallyWeight::Volume;
+    /// Set: S toward this point (a still camera) from every voxel, one field copied into every
+    /// output direction, as a strike solved toward the camera holds it (Quality::toward_camera).
+    std::optional<glm::dvec3> toward;
 };
 
 /// The ground truth of a frame.

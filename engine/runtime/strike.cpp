@@ -49,12 +49,22 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
                          const lightning::Bolt& bolt, const StrikeSolveOptions& options) {
     StrikeLight out;
     const std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
+    // Toward the camera: one field tallied (each voxel's own direction to the camera), then
+    // copied into every output direction, so the frame and the renderer take it as any strike
+    // and whatever direction the renderer interpolates toward the camera reads that field.
+    const std::vector<glm::dvec3> one = transport::output_directions(1);
+    const std::vector<glm::dvec3>& tallied_dirs = options.toward ? one : dirs;
+    const auto every_direction = [&](transport::SourceField f) {
+        return options.toward && !f.data.empty() ? transport::in_every_direction(f, dirs) : f;
+    };
     const core::GridGeometry& lighting = media.lighting.density.geom;
     const core::GridGeometry& grid = media.transport.density.geom;  // where the lattice runs
     const std::vector<transport::LineSource> lines = strike_line_sources(bolt);
     const transport::LightingMedium fine = full_resolution(scene, density);
     const bool lattice = options.multiple == StrikeSolveOptions::Multiple::Lattice && scene.effects.multiple_scattering;
     const bool mc = options.multiple == StrikeSolveOptions::Multiple::MonteCarlo && scene.effects.multiple_scattering;
+    FULGUR_ASSERT(!(options.toward && lattice),
+                  "solve_strike: the lattice solves fixed directions, not toward a point");
 
     // Single scattering (and the uncollided fluence the lattice needs), per group, on the
     // transport grid.
@@ -72,8 +82,10 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
     so.batches = 8;  // each batch costs a pass over the fields: few, the halves need >= 4
     so.halves = true;
     so.tally_fluence = lattice;
+    so.toward = options.toward;
     core::Stopwatch sw;
-    transport::MonteCarloResult s1 = transport::monte_carlo(fine, {}, lines, grid, dirs, so);
+    transport::MonteCarloResult s1 = transport::monte_carlo(fine, {}, lines, grid, tallied_dirs, so);
+    for (transport::MonteCarloResult::Group& g : s1.groups) g.single = every_direction(std::move(g.single));
     out.seconds_single = sw.seconds();
     out.noise.single = s1.noise.single;
     const bool empty = s1.groups.empty();  // no lit segment: all zero
@@ -116,9 +128,11 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
         // Tallied where it is kept: block averages of transport-grid tallies are the lighting
         // grid's tallies (the same paths, summed per lighting voxel).
         const core::GridGeometry& tally = keep ? grid : lighting;
-        const transport::MonteCarloResult r = transport::monte_carlo(fine, {}, lines, tally, dirs, mo);
+        mo.toward = options.toward;
+        const transport::MonteCarloResult r = transport::monte_carlo(fine, {}, lines, tally, tallied_dirs, mo);
         for (std::uint32_t q = 0; q < 2; ++q) {
-            transport::SourceField m = r.groups.empty() ? transport::SourceField(tally, dirs) : r.groups[q].multiple;
+            transport::SourceField m =
+                r.groups.empty() ? transport::SourceField(tally, dirs) : every_direction(r.groups[q].multiple);
             if (!keep) {
                 out.multiple[q] = std::move(m);
                 continue;

@@ -12,6 +12,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 namespace fulgur::runtime {
@@ -51,6 +52,9 @@ struct StrikeSolveOptions {
     /// Keep the light on the transport grid as well (StrikeLight::fine_*; quality.grid
     /// "transport"). Monte Carlo's multiple scattering is then tallied there too.
     bool keep_transport_grid = false;
+    /// Set (quality "directions": "camera"): S tallied toward this point (the scene's camera)
+    /// from every voxel, one field copied into every output direction (Quality::toward_camera).
+    std::optional<glm::dvec3> toward;
 };
 
 /// The per-strike solve a quality preset asks for (its multiple-scattering solver and paths).

@@ -34,10 +34,15 @@ Truth truth(const scene::Scene& scene, const core::Grid3<float>& density, std::s
     mc.tally_multiple = options.multiple;
     if (!options.multiple) mc.max_scatterings = 0;
     const std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
-    transport::MonteCarloResult r = transport::monte_carlo(fine, pts, lines, lighting, dirs, mc);
+    mc.toward = options.toward;
+    transport::MonteCarloResult r =
+        transport::monte_carlo(fine, pts, lines, lighting, options.toward ? transport::output_directions(1) : dirs, mc);
     Truth t;
     t.single = std::move(r.single);
     t.multiple = std::move(r.multiple);
+    if (options.toward)  // the one field in every direction, as a strike solved toward the camera
+        for (transport::SourceField* field : {&t.single, &t.multiple})
+            *field = transport::in_every_direction(*field, dirs);
     t.noise = r.noise;
     t.sums = r.sums;
     t.paths = r.paths;

@@ -486,6 +486,7 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
         if (k.keep_transport_grid && (k.preset == Quality::Preset::Paper || k.preset == Quality::Preset::Instant))
             q->fail("grid", std::string("the ") + std::string(to_string(k.preset)) +
                                 " preset keeps no solved strike's light: must be \"lighting\"");
+        k.toward_camera = q->choice_or("directions", "baked", {"baked", "camera"}) == "camera";
         k.target_noise = q->number_or("target_noise", k.target_noise, Range{1e-4, 1.0});
         k.max_change_per_frame = q->number_or("max_change_per_frame", k.max_change_per_frame, Range{1e-3, 1e3});
         k.near_field_rays = int(q->integer_or("near_field_rays", k.near_field_rays, 0, 4096));
@@ -496,6 +497,8 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
                     "the instant preset traces multiple scattering by Monte Carlo: must be \"monte_carlo\"");
         if (k.preset == Quality::Preset::Paper && k.multiple != "none")
             q->fail("multiple", "the paper preset solves nothing per strike: must be \"none\"");
+        if (k.toward_camera)
+            if (const std::string why = toward_camera_problem(k); !why.empty()) q->fail("directions", why);
         q->finish();
     }
     if (auto c = root.optional_object("camera")) s.camera = parse_camera_object(*c);
@@ -569,6 +572,16 @@ std::string_view to_string(Quality::Preset p) noexcept {
 
 int strike_refine(const Scene& s, const Quality& q) noexcept {
     return q.refine > s.transport.refine && s.lighting_downsample % q.refine == 0 ? q.refine : s.transport.refine;
+}
+
+std::string toward_camera_problem(const Quality& q) {
+    if (q.preset == Quality::Preset::Paper || q.preset == Quality::Preset::Instant)
+        return "\"camera\": the " + std::string(to_string(q.preset)) +
+               " preset solves no strike ahead; use hybrid, per_strike_mc or reference";
+    if (q.multiple == "lattice")
+        return "\"camera\" needs the strike's solve by Monte Carlo alone (\"multiple\": \"monte_carlo\" or "
+               "\"none\"): the lattice solves fixed directions";
+    return {};
 }
 
 Quality quality_preset(std::string_view name, std::string_view where) {

@@ -207,6 +207,13 @@ struct Quality {
     /// transport.refine above 1). docs/presets.md measures what it buys against Cycles and what
     /// it costs.
     bool keep_transport_grid = false;
+    /// Which directions a solved strike's S is tallied at (scene "directions"): false
+    /// ("baked") the scene's output directions; true ("camera") toward the scene's camera from
+    /// every voxel (transport::MonteCarloOptions::toward), copied into every output direction so
+    /// the frame and the renderer take it as they take any strike: exact from that camera only
+    /// (a still shot's setting). Presets whose per-strike solve is Monte Carlo only
+    /// (toward_camera_problem). docs/presets.md measures it against Cycles.
+    bool toward_camera = false;
     /// Instant: the progressive solve of a strike stops once the relative noise of its S
     /// (single + multiple, over the cloud) is at most this, or at single_paths /
     /// multiple_paths paths, whichever comes first.
@@ -247,6 +254,11 @@ static_assert(std::size_t(Quality::Preset::Reference) == kQualityPresets.size() 
 std::string_view to_string(Quality::Preset p) noexcept;
 /// The preset with its default knobs; throws core::Error naming `where` for an unknown name.
 Quality quality_preset(std::string_view name, std::string_view where = "quality");
+/// Why `q` cannot solve its strikes toward the camera (Quality::toward_camera), or empty: that
+/// needs a preset that solves strikes ahead (not paper, not instant) by Monte Carlo alone (its
+/// multiple scattering "monte_carlo", or "none" where the bases give it; the lattice solves
+/// fixed directions).
+std::string toward_camera_problem(const Quality& q);
 
 /// "camera": where the scene is seen from. Only the view depends on it: no bake, solve or cache
 /// does (it is not part of the scene key). Either a look-at camera (position, target, up) or an

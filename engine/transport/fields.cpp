@@ -20,4 +20,12 @@ SourceField block_average(const SourceField& fine, int factor) {
     return out;
 }
 
+SourceField in_every_direction(const SourceField& one, std::span<const glm::dvec3> directions) {
+    FULGUR_ASSERT(one.directions.size() == 1, "in_every_direction: a one-direction field");
+    SourceField out(one.geom, std::vector<glm::dvec3>(directions.begin(), directions.end()));
+    for (std::size_t m = 0; m < directions.size(); ++m)
+        std::copy(one.data.begin(), one.data.end(), out.direction(m).begin());
+    return out;
+}
+
 }  // namespace fulgur::transport

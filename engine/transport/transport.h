@@ -98,6 +98,10 @@ struct SourceField {
 /// Block average of a field onto the grid coarser by `factor` per axis (same origin, dims
 /// rounded up; a trailing partial block averages the voxels it has, as core::downsample).
 SourceField block_average(const SourceField& fine, int factor);
+/// A one-direction field (S toward a point: MonteCarloOptions::toward) copied into every one of
+/// `directions`: whichever directions a renderer interpolates toward that point, it reads the
+/// field itself.
+SourceField in_every_direction(const SourceField& one, std::span<const glm::dvec3> directions);
 
 // =======================================================================================
 // Transmittance, single scattering and the Monte Carlo reference
