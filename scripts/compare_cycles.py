@@ -3,8 +3,8 @@
 
 usage:
   scripts/compare_cycles.py run SCENE.json OUT_DIR --seed S --time [+]T --size WxH
-        [--quality PRESET] [--strike-grid N] [--static-toward-camera] [--samples N] [--cycles-seeds A,B]
-        [--fulgur-shot EXE] [--blender EXE]
+        [--quality PRESET] [--strike-grid N] [--strike-toward-camera] [--static-toward-camera]
+        [--samples N] [--cycles-seeds A,B] [--fulgur-shot EXE] [--blender EXE]
         [--light-radius M] [--max-light-loss F]
   scripts/compare_cycles.py compare FULGUR.exr CYCLES_A.exr CYCLES_B.exr [--near-px R] [--picture P.png]
 
@@ -176,6 +176,8 @@ def run(args):
         shot += ["--strike-grid", str(args.strike_grid)]
     if args.static_toward_camera:
         shot += ["--static-toward-camera"]
+    if args.strike_toward_camera:
+        shot += ["--strike-toward-camera"]
     t0 = time.monotonic()
     subprocess.run(shot, check=True, stdout=subprocess.DEVNULL)
     fulgur_s = time.monotonic() - t0
@@ -198,7 +200,8 @@ def run(args):
     r = compare(out / "fulgur.exr", out / f"cycles_{seeds[0]}.exr", out / f"cycles_{seeds[1]}.exr",
                 args.near_px, out / "compare.png", args.block)
     r.update({"scene": args.scene, "seed": args.seed, "time": args.time, "quality": args.quality or "scene's",
-              "strike_grid": args.strike_grid, "static_toward_camera": args.static_toward_camera,
+              "strike_grid": args.strike_grid, "strike_toward_camera": args.strike_toward_camera,
+              "static_toward_camera": args.static_toward_camera,
               "samples": args.samples, "fulgur_seconds": fulgur_s, "cycles_seconds": cycles_s,
               "cycles_light_radius": lights and lights.get("light_radius"),
               "cycles_light_loss": lights and lights.get("light_loss")})
@@ -217,6 +220,8 @@ def main():
     r.add_argument("--quality")
     r.add_argument("--strike-grid", type=int, help="passed to fulgur-shot: keep the solved strike's S on the "
                    "lighting grid refined by this factor")
+    r.add_argument("--strike-toward-camera", action="store_true", help="passed to fulgur-shot: the solved "
+                   "strike's S tallied toward the camera")
     r.add_argument("--static-toward-camera", action="store_true", help="passed to fulgur-shot: the sun's, moon's "
                    "and sky's light solved by Monte Carlo toward the camera on the transport grid")
     r.add_argument("--samples", type=int, default=64)

@@ -146,6 +146,10 @@ void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& r
                 "off: the march draws the cloud before its detail (the light keeps the detail's voxel means)");
     }
     static_light_panel(opt, view_.plan());
+    if (has_lightning_ && view_.pipeline().quality().toward_camera && view_.scene().medium.g != 0.0)
+        ImGui::TextWrapped(
+            "solved strikes tallied toward the scene's camera (quality \"directions\": \"camera\"): "
+            "exact from there only");
     exposure_panel(opt.settings, rep, dt);
     float scale = float(opt.settings.internal_scale);
     if (ImGui::SliderFloat("internal scale", &scale, 0.25f, 1.0f)) opt.settings.internal_scale = scale;

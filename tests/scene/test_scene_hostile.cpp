@@ -322,6 +322,27 @@ TEST_CASE("rain is optional; its values are bounded, naming the field") {
     }
 }
 
+TEST_CASE("quality.directions \"camera\": only where a strike is solved ahead by Monte Carlo alone") {
+    const auto quality = [](const std::string& q) { return with("\"lights\"", "\"quality\": " + q + ", \"lights\""); };
+    // Paper and instant solve no strike ahead; per_strike's lattice solves fixed directions.
+    for (const std::string p : {"paper", "instant", "per_strike"}) {
+        CAPTURE(p);
+        CHECK_THROWS_WITH_AS(parse_scene(quality(R"({"preset": ")" + p + R"(", "directions": "camera"})"), "d.json"),
+                             doctest::Contains("d.json: /quality/directions"), Error);
+    }
+    CHECK_THROWS_WITH_AS(parse_scene(quality(R"({"preset": "per_strike_mc", "directions": "eye"})"), "d.json"),
+                         doctest::Contains("d.json: /quality/directions"), Error);
+    CHECK_THROWS_WITH_AS(
+        parse_scene(quality(R"({"preset": "per_strike_mc", "multiple": "lattice", "directions": "camera"})"), "d.json"),
+        doctest::Contains("the lattice solves fixed directions"), Error);
+    for (const std::string p : {"hybrid", "per_strike_mc", "reference"}) {
+        CAPTURE(p);
+        CHECK(parse_scene(quality(R"({"preset": ")" + p + R"(", "directions": "camera"})"), "d.json")
+                  .quality.toward_camera);
+    }
+    CHECK_FALSE(parse_scene(quality(R"({"preset": "per_strike_mc"})"), "d.json").quality.toward_camera);
+}
+
 TEST_CASE("quality.grid \"transport\": refused where nothing is kept or the grid is not finer; bounded by memory") {
     const auto quality = [](const std::string& q) { return with("\"lights\"", "\"quality\": " + q + ", \"lights\""); };
     // The paper and instant presets keep no solved strike's light.
