@@ -3,7 +3,7 @@
 // beside the scene if stale), against the same preset on the lighting grid in the same run.
 //
 // Per configuration (per_strike_mc on the 750 m lighting grid; per_strike_mc kept on the grid
-// refined by 2 and by 3), on the same strikes (return-stroke peak + 2 ms): the strike's solve
+// refined by 2 and by 3, and by 3 tallied toward the camera), on the same strikes (return-stroke peak + 2 ms): the strike's solve
 // (wall time from request to ready), the frame once it is solved (FramePipeline::build: the
 // bases' reconstruction, the upsample onto the finer grid and the strikes' light added on both
 // grids; median of repeats) for all 26 directions and for a side view's share of them,
@@ -63,16 +63,21 @@ FULGUR_BENCH(strike_grid,
         double solve_s = 0.0, frame_all_ms = 0.0, frame_side_ms = 0.0, light_mb = 0.0, frame_mb = 0.0;
     };
     std::vector<Row> rows;
-    for (const int refine : {1, 2, 3}) {
+    // The last configuration also tallies the strike toward the scene's camera (quality
+    // "directions": "camera"): one phase per deposit instead of 26.
+    for (const auto& [refine, toward] :
+         {std::pair{1, false}, std::pair{2, false}, std::pair{3, false}, std::pair{3, true}}) {
         if (refine > 1 && s.lighting_downsample % refine != 0) continue;
         scene::Quality q = scene::quality_preset("per_strike_mc");
         if (refine > 1) {
             q.keep_transport_grid = true;
             q.refine = refine;
         }
+        q.toward_camera = toward;
         Row r;
         r.name = refine == 1 ? "per_strike_mc, lighting grid"
-                             : "per_strike_mc, kept on the grid refined by " + std::to_string(refine);
+                             : "per_strike_mc, kept on the grid refined by " + std::to_string(refine) +
+                                   (toward ? ", toward the camera" : "");
         r.refine = refine;
         std::vector<double> solve, all, part, light, frame;
         for (int k = 0; k < strikes; ++k) {
