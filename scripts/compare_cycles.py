@@ -7,6 +7,7 @@ usage:
         [--samples N] [--cycles-seeds A,B] [--fulgur-shot EXE] [--blender EXE]
         [--light-radius M] [--max-light-loss F]
   scripts/compare_cycles.py compare FULGUR.exr CYCLES_A.exr CYCLES_B.exr [--near-px R] [--picture P.png]
+        [--picture-block N]
 
 `run` renders the frame with fulgur-shot (--exr with its passes, --blender DIR, one ray-march ray
 per pixel), builds and renders the Blender scene twice with Cycles (two seeds), and compares;
@@ -117,7 +118,7 @@ def region_figures(f, c, a, b, mask):
     }
 
 
-def compare(fulgur_exr, cycles_a, cycles_b, near_px=None, picture=None, block=8):
+def compare(fulgur_exr, cycles_a, cycles_b, near_px=None, picture=None, block=8, picture_block=1):
     fc = read_channels(fulgur_exr)
     for need in ("lightning.R", "static.R", "background.R", "channel.R", "T.Y"):
         if need not in fc:
@@ -146,7 +147,11 @@ def compare(fulgur_exr, cycles_a, cycles_b, near_px=None, picture=None, block=8)
         out[f"cloud_blocks_{k}"] = v
     out["block_px"] = n
     if picture:
-        write_picture(picture, f, c)
+        if picture_block > 1:  # the scale the block figures measure: each block's mean, shown as a block
+            up = lambda x: np.repeat(np.repeat(block_mean(x, picture_block), picture_block, 0), picture_block, 1)
+            write_picture(picture, up(f), up(c))
+        else:
+            write_picture(picture, f, c)
     return out
 
 
@@ -238,6 +243,8 @@ def main():
     c.add_argument("cycles_b")
     c.add_argument("--near-px", type=int)
     c.add_argument("--picture", help="also write Fulgur | Cycles | |difference| as this PNG")
+    c.add_argument("--picture-block", type=int, default=1, help="the picture's pixels averaged over N x N "
+                   "blocks (the scale of the block figures, above Cycles' per-pixel noise)")
     for q in (r, c):
         q.add_argument("--block", type=int, default=8, help="block size (pixels) of the cloud_blocks_* figures")
         q.add_argument("--require", action="append",
@@ -246,7 +253,8 @@ def main():
     if args.cmd == "run":
         res = run(args)
     else:
-        res = compare(args.fulgur, args.cycles_a, args.cycles_b, args.near_px, args.picture, args.block)
+        res = compare(args.fulgur, args.cycles_a, args.cycles_b, args.near_px, args.picture, args.block,
+                      args.picture_block)
     print(json.dumps(res))
     sys.stdout.flush()
     failed = []
