@@ -247,7 +247,10 @@ StormView::TruthSolve StormView::solve_truth(double t, const runtime::Components
     TruthSolve out;
     out.basis_ms = time_all_directions(t, components, wait_for_strikes);
     core::Stopwatch sw;
-    const runtime::Truth truth = runtime::truth(scene_, density_, last_->segments, {}, options);
+    runtime::TruthOptions o = options;  // like with like: a strike solved toward the camera, its truth too
+    if (pipeline_ && pipeline_->quality().toward_camera && scene_.medium.g != 0.0)
+        o.toward = scene::camera_position(scene_.camera, density_.geom);
+    const runtime::Truth truth = runtime::truth(scene_, density_, last_->segments, {}, o);
     out.seconds = sw.seconds();
     out.field = truth.sum(components);
     out.noise = truth.noise;
