@@ -78,9 +78,7 @@ struct FramePipeline::Impl {
         keep_fine = q.keep_transport_grid && media->refine > 1;
         StrikeSolveOptions so = strike_solve_options(q);
         so.keep_transport_grid = keep_fine;
-        // Toward the scene's camera (quality "directions": "camera"); at g = 0 S is the same
-        // toward every point and the baked directions (one) already are it.
-        if (q.toward_camera && s.medium.g != 0.0) so.toward = scene::camera_position(s.camera, density->geom);
+        so.toward = scene::strike_toward(s, q, density->geom);  // quality "directions": "camera"
         solver =
             std::make_unique<StrikeSolver>(solve_scene, *density, *media, so, std::max(1, core::thread_count() - 1));
         if (!unscheduled.empty()) make_instant(scene::quality_preset("instant"));

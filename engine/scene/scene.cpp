@@ -574,6 +574,21 @@ int strike_refine(const Scene& s, const Quality& q) noexcept {
     return q.refine > s.transport.refine && s.lighting_downsample % q.refine == 0 ? q.refine : s.transport.refine;
 }
 
+namespace {
+std::optional<glm::dvec3> camera_if(bool toward, const Scene& s, const core::GridGeometry& density) {
+    if (!toward || s.medium.g == 0.0) return std::nullopt;
+    return camera_position(s.camera, density);
+}
+}  // namespace
+
+std::optional<glm::dvec3> strike_toward(const Scene& s, const Quality& q, const core::GridGeometry& density) {
+    return camera_if(q.toward_camera, s, density);
+}
+
+std::optional<glm::dvec3> static_toward(const Scene& s, const core::GridGeometry& density) {
+    return camera_if(s.transport.static_monte_carlo && s.transport.static_toward_camera, s, density);
+}
+
 std::string toward_camera_problem(const Quality& q) {
     if (q.preset == Quality::Preset::Paper || q.preset == Quality::Preset::Instant)
         return "\"camera\": the " + std::string(to_string(q.preset)) +

@@ -359,6 +359,15 @@ Scene parse_scene(std::string_view json_text, std::string_view file_name, const 
 /// preset's default may not; a scene's own quality.refine is checked when read).
 int strike_refine(const Scene& s, const Quality& q) noexcept;
 
+/// The point a strike solved under `q` is tallied toward (transport::MonteCarloOptions::toward),
+/// or none for the baked directions: the scene's camera (camera_position) when q.toward_camera,
+/// none at g = 0, where S is the same toward every point and the one baked direction is it.
+/// The pipeline's solves and the truth they are checked against both take it from here.
+std::optional<glm::dvec3> strike_toward(const Scene& s, const Quality& q, const core::GridGeometry& density);
+/// The same for the sun's, moon's and sky's S (transport.static_light.directions "camera",
+/// solved by Monte Carlo).
+std::optional<glm::dvec3> static_toward(const Scene& s, const core::GridGeometry& density);
+
 /// What baking the scene costs, estimated from the scene alone (for a cloud file, from its
 /// NRRD header or VDB metadata): nothing is allocated or solved. Memory is an upper estimate of the peak;
 /// time is a lower bound (per-cell and per-path costs measured on a 2-core machine, the

@@ -255,9 +255,7 @@ SolveSettings solve_settings(const scene::Scene& s, const core::Grid3<float>& de
     if (s.transport.static_monte_carlo) {
         st.method = Method::MonteCarlo;
         st.truth_paths = s.transport.static_paths;
-        // At g = 0 S is the same toward every point: the one isotropic field serves any camera.
-        if (s.transport.static_toward_camera && s.medium.g != 0.0)
-            st.toward = scene::camera_position(s.camera, density.geom);
+        st.toward = scene::static_toward(s, density.geom);  // directions "camera"; none at g = 0
     }
     // Every fine voxel of a needed lighting voxel is computed (as the bake's single scattering),
     // whichever grid S is kept on: the two differ only by the final average.

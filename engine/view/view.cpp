@@ -248,8 +248,7 @@ StormView::TruthSolve StormView::solve_truth(double t, const runtime::Components
     out.basis_ms = time_all_directions(t, components, wait_for_strikes);
     core::Stopwatch sw;
     runtime::TruthOptions o = options;  // like with like: a strike solved toward the camera, its truth too
-    if (pipeline_ && pipeline_->quality().toward_camera && scene_.medium.g != 0.0)
-        o.toward = scene::camera_position(scene_.camera, density_.geom);
+    if (pipeline_) o.toward = scene::strike_toward(scene_, pipeline_->quality(), density_.geom);
     const runtime::Truth truth = runtime::truth(scene_, density_, last_->segments, {}, o);
     out.seconds = sw.seconds();
     out.field = truth.sum(components);

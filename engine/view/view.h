@@ -148,7 +148,9 @@ public:
         double seconds = 0.0, basis_ms = 0.0;
     };
     /// `wait_for_strikes` false: the basis frame is timed with what the strike solvers have
-    /// (a caller that stopped them to show a frame as it was at some moment).
+    /// (a caller that stopped them to show a frame as it was at some moment). The truth is
+    /// tallied toward the point the pipeline's strikes are (scene::strike_toward), whatever
+    /// options.toward says: like is checked against like.
     TruthSolve solve_truth(double t, const runtime::Components& components, const runtime::TruthOptions& options = {},
                            bool wait_for_strikes = true);
     /// The media the direct solve runs in (solve::make_media: the lighting grid and the transport grid).

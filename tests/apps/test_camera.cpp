@@ -88,6 +88,35 @@ TEST_CASE("scene::camera_position stands where scene_camera places the camera, b
     CHECK(scene::camera_position(look, d.geom) == look.position);
 }
 
+TEST_CASE("strike_toward and static_toward: the scene's camera when asked, none when baked or at g = 0") {
+    const core::Grid3<float> d = box_density();
+    scene::Scene s;
+    s.medium.g = 0.6;
+    scene::CameraSpec look;
+    look.kind = scene::CameraSpec::Kind::LookAt;
+    look.position = {3000.0, -9000.0, 300.0};
+    s.camera = look;
+    scene::Quality q = scene::quality_preset("per_strike_mc");
+    CHECK_FALSE(scene::strike_toward(s, q, d.geom).has_value());  // baked directions
+    q.toward_camera = true;
+    REQUIRE(scene::strike_toward(s, q, d.geom).has_value());
+    CHECK(*scene::strike_toward(s, q, d.geom) == look.position);
+
+    CHECK_FALSE(scene::static_toward(s, d.geom).has_value());
+    s.transport.static_toward_camera = true;  // only a Monte Carlo static light is tallied toward a point
+    CHECK_FALSE(scene::static_toward(s, d.geom).has_value());
+    s.transport.static_monte_carlo = true;
+    REQUIRE(scene::static_toward(s, d.geom).has_value());
+    CHECK(*scene::static_toward(s, d.geom) == look.position);
+
+    s.camera.reset();  // no camera: the default orbit's position
+    CHECK(*scene::strike_toward(s, q, d.geom) == scene::camera_position(std::nullopt, d.geom));
+
+    s.medium.g = 0.0;  // isotropic: S is the same toward every point
+    CHECK_FALSE(scene::strike_toward(s, q, d.geom).has_value());
+    CHECK_FALSE(scene::static_toward(s, d.geom).has_value());
+}
+
 TEST_CASE("--camera on fulgur-shot and fulgur: JSON text or a file, validated") {
     const std::string scene_file = FULGUR_SOURCE_DIR "/tests/apps/scenes/test_iso_ss_ic.json";
     const std::vector<std::string> shot = {scene_file, "--seed", "1", "--time", "0", "--size", "64x32", "-o", "x.png"};
