@@ -402,8 +402,9 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
     if (!solved.empty() || !shares.empty() || !near_shares.empty()) {
         const core::GridGeometry& g = media->lighting.density.geom;
         const std::size_t cells = g.cell_count();
-        // Every field holds all the scene's output directions, as the worker's estimates do.
-        const std::size_t nd = instant ? instant->directions() : solved.front().light->single[0].directions.size();
+        // The frame holds all the scene's output directions, as the worker's estimates do; a
+        // strike tallied toward the camera holds one, which serves them all (StrikeLight).
+        const std::size_t nd = std::size_t(solve_scene.effective_directions());
         if (!valid) {  // nothing from the bases: start from zero on the requested directions
             f.radiance.geometry = g;
             f.radiance.direction_count = int(nd);
@@ -428,8 +429,9 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
                 if (L.has_fine()) continue;  // added below, on both grids
                 const float w[2] = {float(l.main), float(l.branch)};
                 for (std::size_t q = 0; q < 2; ++q) {
-                    if (options.components.single) add(w[q], L.single[q].direction(m).data());
-                    if (options.components.multiple && L.has_multiple()) add(w[q], L.multiple[q].direction(m).data());
+                    if (options.components.single) add(w[q], StrikeLight::direction(L.single[q], m).data());
+                    if (options.components.multiple && L.has_multiple())
+                        add(w[q], StrikeLight::direction(L.multiple[q], m).data());
                 }
             }
             for (const BasesShare& b : shares) {
@@ -478,7 +480,7 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
             const std::size_t cells = r.values[k].size();
             const auto add = [out, cells, m](float w, const transport::SourceField& a) {
                 FULGUR_ASSERT(a.geom.cell_count() == cells, "FramePipeline: a strike's light is on another grid");
-                const float* v = a.direction(m).data();
+                const float* v = StrikeLight::direction(a, m).data();
                 if (w != 0.0f)
                     for (std::size_t i = 0; i < cells; ++i) out[i] += w * v[i];
             };

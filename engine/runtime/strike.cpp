@@ -49,14 +49,11 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
                          const lightning::Bolt& bolt, const StrikeSolveOptions& options) {
     StrikeLight out;
     const std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
-    // Toward the camera: one field tallied (each voxel's own direction to the camera), then
-    // copied into every output direction, so the frame and the renderer take it as any strike
-    // and whatever direction the renderer interpolates toward the camera reads that field.
+    // Toward the camera: one field tallied (each voxel's own direction to the camera) and kept
+    // as one; the frame adds it into every output direction (StrikeLight::direction), so
+    // whatever direction the renderer interpolates toward the camera reads that field.
     const std::vector<glm::dvec3> one = transport::output_directions(1);
     const std::vector<glm::dvec3>& tallied_dirs = options.toward ? one : dirs;
-    const auto every_direction = [&](transport::SourceField f) {
-        return options.toward && !f.data.empty() ? transport::in_every_direction(f, dirs) : f;
-    };
     const core::GridGeometry& lighting = media.lighting.density.geom;
     const core::GridGeometry& grid = media.transport.density.geom;  // where the lattice runs
     const std::vector<transport::LineSource> lines = strike_line_sources(bolt);
@@ -85,12 +82,11 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
     so.toward = options.toward;
     core::Stopwatch sw;
     transport::MonteCarloResult s1 = transport::monte_carlo(fine, {}, lines, grid, tallied_dirs, so);
-    for (transport::MonteCarloResult::Group& g : s1.groups) g.single = every_direction(std::move(g.single));
     out.seconds_single = sw.seconds();
     out.noise.single = s1.noise.single;
     const bool empty = s1.groups.empty();  // no lit segment: all zero
     const bool keep = options.keep_transport_grid;
-    const transport::SourceField zero = empty ? transport::SourceField(grid, dirs) : transport::SourceField{};
+    const transport::SourceField zero = empty ? transport::SourceField(grid, tallied_dirs) : transport::SourceField{};
     for (std::uint32_t q = 0; q < 2; ++q) {
         const transport::SourceField& tallied = empty ? zero : s1.groups[q].single;
         out.single[q] = transport::block_average(tallied, media.refine);
@@ -132,7 +128,7 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
         const transport::MonteCarloResult r = transport::monte_carlo(fine, {}, lines, tally, tallied_dirs, mo);
         for (std::uint32_t q = 0; q < 2; ++q) {
             transport::SourceField m =
-                r.groups.empty() ? transport::SourceField(tally, dirs) : every_direction(r.groups[q].multiple);
+                r.groups.empty() ? transport::SourceField(tally, tallied_dirs) : r.groups[q].multiple;
             if (!keep) {
                 out.multiple[q] = std::move(m);
                 continue;

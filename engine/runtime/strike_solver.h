@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <vector>
 
 namespace fulgur::runtime {
@@ -20,7 +21,9 @@ namespace fulgur::runtime {
 /// The light of one strike's strokes at unit glow, on the lighting grid with all the scene's
 /// output directions: [0] the main channel, [1] the branches. A frame scales them by the
 /// flash's main and branch glow (lightning::FlashState); the leaders (dim, part of the
-/// channel, a few ms) stay with the bases. `multiple` is empty when not solved.
+/// channel, a few ms) stay with the bases. `multiple` is empty when not solved. A strike
+/// tallied toward the camera (StrikeSolveOptions::toward) holds one direction instead, which
+/// serves every output direction (direction()): 1/26 of the memory.
 struct StrikeLight {
     std::array<transport::SourceField, 2> single, multiple;
     /// With StrikeSolveOptions::keep_transport_grid, the same light on the transport grid the
@@ -30,6 +33,10 @@ struct StrikeLight {
     transport::MonteCarloResult::Noise noise;  ///< of the Monte Carlo parts (relative L2 over the cloud)
     double seconds_single = 0.0, seconds_multiple = 0.0;
     bool has_multiple() const noexcept { return !multiple[0].data.empty(); }
+    /// Output direction m of `f` (one of this light's fields): its one field when it holds one.
+    static std::span<const float> direction(const transport::SourceField& f, std::size_t m) noexcept {
+        return f.direction(f.directions.size() == 1 ? 0 : m);
+    }
 };
 
 /// The bolt's segments at unit glow as exact line sources, in StrikeLight's groups: 0 the
@@ -53,7 +60,7 @@ struct StrikeSolveOptions {
     /// "transport"). Monte Carlo's multiple scattering is then tallied there too.
     bool keep_transport_grid = false;
     /// Set (quality "directions": "camera"): S tallied toward this point (the scene's camera)
-    /// from every voxel, one field copied into every output direction (Quality::toward_camera).
+    /// from every voxel, one field that serves every output direction (Quality::toward_camera).
     std::optional<glm::dvec3> toward;
 };
 

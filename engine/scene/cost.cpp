@@ -103,10 +103,12 @@ Cost estimate_cost(const Scene& s, std::size_t lights, int threads) {
     c.seconds_per_strike = strike_seconds(s, c);
     if (s.quality.preset != Quality::Preset::Paper) {
         // runtime::StrikeLight: single and multiple S of two groups (channel, branches), every
-        // direction, float; kept on the transport grid too, with the frame's copy there.
-        const double per_field = dirs * 4.0;
+        // direction (one when tallied toward the camera), float; kept on the transport grid
+        // too, with the frame's copy there (every direction).
+        const double per_field = (s.quality.toward_camera ? 1.0 : dirs) * 4.0;
         double bytes = 4.0 * per_field * nl;
-        if (s.quality.keep_transport_grid) bytes += 5.0 * per_field * volume(strike_transport_dims(s, c));
+        if (s.quality.keep_transport_grid)
+            bytes += (4.0 * per_field + dirs * 4.0) * volume(strike_transport_dims(s, c));
         c.strike_light_bytes = std::uint64_t(bytes);
     }
     return c;

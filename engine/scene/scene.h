@@ -209,8 +209,8 @@ struct Quality {
     bool keep_transport_grid = false;
     /// Which directions a solved strike's S is tallied at (scene "directions"): false
     /// ("baked") the scene's output directions; true ("camera") toward the scene's camera from
-    /// every voxel (transport::MonteCarloOptions::toward), copied into every output direction so
-    /// the frame and the renderer take it as they take any strike: exact from that camera only
+    /// every voxel (transport::MonteCarloOptions::toward), one field the frame adds into every
+    /// output direction so the renderer takes it as it takes any strike: exact from that camera only
     /// (a still shot's setting). Presets whose per-strike solve is Monte Carlo only
     /// (toward_camera_problem). docs/presets.md measures it against Cycles.
     bool toward_camera = false;

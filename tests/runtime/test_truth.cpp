@@ -113,6 +113,15 @@ TEST_CASE("truth: solved strikes toward the camera (quality.directions) against 
     const runtime::Frame& f = toward.build(t, {}, o);
     REQUIRE(f.lit);
     CHECK(f.strikes_solved == 1);
+    // The kept light holds its one field (1/26 of the baked directions' memory); the frame
+    // holds every direction.
+    const lightning::Strike& k = toward.storm().strike(toward.strike_at(0.0, 5));
+    const std::shared_ptr<const runtime::StrikeLight> kept = toward.strike_solver()->get(k.seed, k.time);
+    REQUIRE(kept);
+    for (const transport::SourceField* field :
+         {&kept->single[0], &kept->multiple[1], &kept->fine_single[1], &kept->fine_multiple[0]})
+        CHECK(field->directions.size() == 1);
+    CHECK(f.fine.values.size() == 26);
     const core::GridGeometry& fine = s.media.transport.density.geom;
     REQUIRE(f.fine.geometry == fine);
 

@@ -367,6 +367,11 @@ TEST_CASE("quality.grid \"transport\": refused where nothing is kept or the grid
     const Cost ck = estimate_cost(kept), cp = estimate_cost(plain);
     CHECK(cp.strike_light_bytes == std::uint64_t(4.0 * 26.0 * 4.0 * 8.0 * 8.0 * 6.0));  // 32 x 32 x 24 / 4
     CHECK(ck.strike_light_bytes - cp.strike_light_bytes == std::uint64_t(5.0 * 26.0 * 4.0 * 32.0 * 32.0 * 24.0));
+    // Tallied toward the camera, a strike holds one direction; the frame's copy keeps 26.
+    const Scene toward = parse_scene(
+        quality(R"({"preset": "per_strike_mc", "grid": "transport", "refine": 4, "directions": "camera"})"), "t.json");
+    CHECK(estimate_cost(toward).strike_light_bytes ==
+          std::uint64_t(4.0 * 4.0 * 8.0 * 8.0 * 6.0 + (4.0 + 26.0) * 4.0 * 32.0 * 32.0 * 24.0));
     // Refused before anything is solved when a strike kept that way does not fit, with a limit
     // the bake itself fits in.
     Scene tight = kept;
