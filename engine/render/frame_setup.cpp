@@ -13,6 +13,7 @@
 #include <cstddef>
 #include <limits>
 #include <numbers>
+#include <span>
 
 namespace fulgur::render {
 
@@ -41,27 +42,26 @@ double Renderer::Impl::vertical_transmittance(const glm::dvec3& p, double ground
     return std::exp(-kappa * tau * (hi - lo) / n);
 }
 
-/// Representative point lights for the ground: the bolt split into k runs of equal
-/// power (sum of intensity x length, in segment order); each light sits at its run's
-/// power-weighted centroid with the run's intensity, times its visibility.
 namespace {
 
-// The channel's stretches (segments clipped to z <= top) as at most k point lights of equal
-// power in channel order: each at its stretches' power-weighted centroid, its radiant
-// intensity (W/sr) their summed intensity x length.
-std::vector<glm::dvec4> cluster_channel(const LitChannel& bolt, int k, double top) {
+// The channel's stretches (segments clipped to z <= top), each segment's power (intensity x
+// length) times its weight (empty: 1), as at most k point lights of equal weighted power in
+// channel order: each at its stretches' weighted-power centroid, its radiant intensity (W/sr)
+// their summed weighted power.
+std::vector<glm::dvec4> cluster_channel(const LitChannel& bolt, int k, double top, std::span<const double> weight) {
     struct Piece {
         glm::dvec3 ends;  // a + b
         double power;
     };
     std::vector<Piece> pieces;
     double total = 0.0;
-    for (const ChannelSegment& s : bolt.segments) {
+    for (std::size_t i = 0; i < bolt.segments.size(); ++i) {
+        const ChannelSegment& s = bolt.segments[i];
         glm::dvec3 a(s.a), b(s.b);
         if (a.z > b.z) std::swap(a, b);
         if (a.z > top) continue;
         if (b.z > top) b = a + (b - a) * ((top - a.z) / (b.z - a.z));
-        const double p = double(s.intensity) * glm::length(b - a);
+        const double p = double(s.intensity) * glm::length(b - a) * (weight.empty() ? 1.0 : weight[i]);
         if (!(p > 0.0)) continue;
         pieces.push_back({a + b, p});
         total += p;
@@ -88,19 +88,32 @@ std::vector<glm::dvec4> cluster_channel(const LitChannel& bolt, int k, double to
 
 }  // namespace
 
+/// Representative point lights for the ground: each segment's power dimmed by the cloud
+/// straight below its midpoint (a stretch below the cloud's base keeps all of it, one inside
+/// the cloud what reaches the ground beneath), then the channel split into k runs of equal
+/// dimmed power, each light at its run's dimmed-power centroid. Dimming before clustering
+/// matters: a run reaching from inside the cloud to below its base would otherwise be dimmed
+/// as a whole by the cloud above its centroid.
 void Renderer::Impl::rebuild_ground_lights(int k, double ground) {
     ground_lights.clear();
     ground_lights_k = k;
     ground_lights_height = ground;
-    for (glm::dvec4 l : cluster_channel(bolt, k, std::numeric_limits<double>::infinity())) {
+    if (segment_visibility.size() != bolt.segments.size() || visibility_ground != ground) {
+        segment_visibility.resize(bolt.segments.size());
+        for (std::size_t i = 0; i < bolt.segments.size(); ++i)
+            segment_visibility[i] =
+                vertical_transmittance(0.5 * (glm::dvec3(bolt.segments[i].a) + glm::dvec3(bolt.segments[i].b)), ground);
+        visibility_ground = ground;
+    }
+    for (glm::dvec4 l : cluster_channel(bolt, k, std::numeric_limits<double>::infinity(), segment_visibility)) {
         glm::dvec3 c(l);
         c.z = std::max(c.z, ground + 1.0);
-        ground_lights.emplace_back(glm::vec3(c), float(l.w * vertical_transmittance(c, ground)));
+        ground_lights.emplace_back(glm::vec3(c), float(l.w));
     }
     // The rain's: the channel below the rain's top (no cloud between them and the rain).
     rain_lights.clear();
     if (has_rain)
-        for (glm::dvec4 l : cluster_channel(bolt, kRainLights, rain_top)) rain_lights.emplace_back(l);
+        for (glm::dvec4 l : cluster_channel(bolt, kRainLights, rain_top, {})) rain_lights.emplace_back(l);
 }
 
 /// Targets at the frame's sizes, and the frame uniforms: camera, volume and march step,

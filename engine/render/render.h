@@ -423,10 +423,13 @@ public:
     FrameStats render_into_host(const HostFrame& host, const Settings& settings, int width, int height);
 
     /// The lit channel (set_channel) as `k` representative point lights, for a host that lights
-    /// its own surfaces by the flash: the channel split into k runs of equal power, each light
-    /// at its run's power-weighted centroid with the run's radiant intensity (W/sr, grey: times
-    /// Settings::flash_colour), dimmed by the cloud's transmittance straight down to
-    /// `ground_height` (the lights the renderer's own ground uses). Empty when no channel is lit.
+    /// its own surfaces by the flash: each channel segment's power (intensity x length) dimmed
+    /// by the cloud's transmittance straight down from its midpoint to `ground_height`, the
+    /// channel split into k runs of equal dimmed power, each light at its run's dimmed-power-
+    /// weighted centroid with the run's dimmed radiant intensity (W/sr, grey: times
+    /// Settings::flash_colour). So the channel below the cloud's base keeps its light wherever
+    /// its run's centroid lies (the lights the renderer's own ground uses). Empty when no
+    /// channel is lit.
     struct FlashLight {
         glm::dvec3 position{0.0};
         double intensity = 0.0;

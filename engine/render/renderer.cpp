@@ -266,6 +266,7 @@ void Renderer::set_volume(const VolumeDesc& v) {
     m.temporal.inputs_changed = true;
     m.forget_needed();
     m.ground_lights_k = -1;  // visibility depends on the volume
+    m.segment_visibility.clear();
 }
 
 void Renderer::clear_volume() {
@@ -281,6 +282,7 @@ void Renderer::clear_volume() {
     m.temporal.inputs_changed = true;
     m.forget_needed();
     m.ground_lights_k = -1;
+    m.segment_visibility.clear();
 }
 
 void Renderer::upload_source(const SourceUpload& s) {
@@ -384,6 +386,10 @@ void Renderer::set_channel(const LitChannel& bolt) {
     for (const ChannelSegment& c : bolt.segments) {
         fixed.insert(fixed.end(), {c.a.x, c.a.y, c.a.z, c.b.x, c.b.y, c.b.z, c.radius});
         intensity.push_back(c.intensity);
+    }
+    if (fixed != m.visibility_geometry) {
+        m.segment_visibility.clear();
+        m.visibility_geometry = fixed;
     }
     m.temporal.channel.note(fixed, {0}, {intensity}, true);
     m.bolt = bolt;

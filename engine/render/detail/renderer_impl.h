@@ -88,6 +88,12 @@ struct Renderer::Impl {
     std::vector<glm::vec4> rain_lights;  // the channel below the rain's top as point lights (W/sr)
     int ground_lights_k = -1;            // -1: to rebuild
     double ground_lights_height = 0.0;
+    // Each channel segment's transmittance straight down from its midpoint to the ground (the
+    // ground lights' weights), kept while the channel's geometry, the ground and the volume
+    // stay: a flash changes only the intensities from frame to frame.
+    std::vector<double> segment_visibility;
+    std::vector<float> visibility_geometry;
+    double visibility_ground = 0.0;
 
     GLuint last_scam = 0;    // S_cam texture the last frame sampled (0: none)
     GLuint last_static = 0;  // the static light's S_cam the last frame sampled (0: none)
