@@ -1,7 +1,9 @@
-// Operations on S fields.
+// Operations on S fields, and the ground tally's cells.
 #include "transport/transport.h"
 
 #include <algorithm>
+#include <cmath>
+#include <string>
 
 namespace fulgur::transport {
 
@@ -26,6 +28,26 @@ SourceField in_every_direction(const SourceField& one, std::span<const glm::dvec
     for (std::size_t m = 0; m < directions.size(); ++m)
         std::copy(one.data.begin(), one.data.end(), out.direction(m).begin());
     return out;
+}
+
+void validate_ground_tally(const GroundTally& g, const std::string& where) {
+    if (!std::isfinite(g.height) || std::abs(g.height) > 1e7)
+        throw core::Error(where + ".height", "must be finite and within 1e7 m, got " + std::to_string(g.height));
+    if (!std::isfinite(g.origin.x) || !std::isfinite(g.origin.y) || std::abs(g.origin.x) > 1e9 ||
+        std::abs(g.origin.y) > 1e9)
+        throw core::Error(where + ".origin", "must be finite and within 1e9 m");
+    if (!std::isfinite(g.cell) || !(g.cell >= 1e-3) || g.cell > 1e6)
+        throw core::Error(where + ".cell", "must be in [1e-3, 1e6] m, got " + std::to_string(g.cell));
+    if (g.nx < 1 || g.nx > 4096) throw core::Error(where + ".nx", "must be in [1, 4096], got " + std::to_string(g.nx));
+    if (g.ny < 1 || g.ny > 4096) throw core::Error(where + ".ny", "must be in [1, 4096], got " + std::to_string(g.ny));
+    if (g.cells() > (std::size_t(1) << 22))
+        throw core::Error(where, "at most 2^22 cells, got " + std::to_string(g.cells()));
+}
+
+double GroundIrradiance::power() const noexcept {
+    core::CompensatedSum s;
+    for (const float v : data) s.add(double(v));
+    return s.value() * cells.cell * cells.cell;
 }
 
 }  // namespace fulgur::transport

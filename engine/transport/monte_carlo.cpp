@@ -47,6 +47,13 @@ void check_mc_options(const MonteCarloOptions& o) {
     if (o.max_collisions < 1) throw core::Error("monte_carlo.max_collisions", "must be >= 1");
     if (o.toward && !(std::isfinite(o.toward->x) && std::isfinite(o.toward->y) && std::isfinite(o.toward->z)))
         throw core::Error("monte_carlo.toward", "must be a finite point");
+    if (o.ground) {
+        validate_ground_tally(*o.ground);
+        if (o.uncollided_only || o.expected_second_order)
+            throw core::Error("monte_carlo.ground",
+                              "tallies scattered light: needs paths traced past their first scattering (not "
+                              "uncollided_only nor expected_second_order)");
+    }
 }
 
 namespace {
@@ -230,7 +237,16 @@ public:
         }
     }
 
+    /// Also tally the scattered light reaching `ground` into `sums` ([group][cell], watts per
+    /// path summed; MonteCarloOptions::ground).
+    void set_ground(const GroundTally* ground, double* sums) {
+        ground_ = ground;
+        ground0_ = ground_cur_ = sums;
+    }
+
     void begin_path(std::uint32_t group) {
+        crossed_ = false;
+        if (ground0_) ground_cur_ = ground0_ + std::size_t(group) * ground_->cells();
         const std::size_t cells = tg_->geom.cell_count();
         if (single0_) single_ = single0_ + std::size_t(group) * cells * M_;
         if (multiple0_) multiple_ = multiple0_ + std::size_t(group) * cells * M_;
@@ -257,6 +273,7 @@ public:
     /// Track-length estimator of a sampled flight after k scatterings (t1 = infinity for a
     /// flight that escaped the medium).
     void flight(const glm::dvec3& x, const glm::dvec3& d, double t0, double t1, double w, int k) {
+        if (ground0_) ground_crossing(x, d, t1, w, k);
         if (k == 0 ? !track_single_ : !tally_multiple_) return;
         if (!(t1 > t0)) return;
         phase(d);
@@ -269,6 +286,21 @@ public:
     }
 
 private:
+    /// The ground tally of a flight from x along d ending at t1 (infinity: escaped): its first
+    /// downward crossing of the plane in the path, deposited when the path has scattered (the
+    /// uncollided light's crossing only marks the path, as a black ground would have stopped it).
+    void ground_crossing(const glm::dvec3& x, const glm::dvec3& d, double t1, double w, int k) {
+        const GroundTally& g = *ground_;
+        if (crossed_ || !(d.z < 0.0) || !(x.z > g.height)) return;
+        const double t = (g.height - x.z) / d.z;
+        if (!(t < t1)) return;
+        crossed_ = true;
+        if (k == 0) return;
+        const double gx = (x.x + t * d.x - g.origin.x) / g.cell, gy = (x.y + t * d.y - g.origin.y) / g.cell;
+        if (!(gx >= 0.0 && gy >= 0.0 && gx < double(g.nx) && gy < double(g.ny))) return;
+        ground_cur_[std::size_t(gy) * std::size_t(g.nx) + std::size_t(gx)] += w;
+    }
+
     /// p(s_m . d) for every output direction: once per flight, so the directions are kept
     /// as three arrays and the loop runs on whole vector registers (the same operations in
     /// the same order as glm::dot, so the same bits).
@@ -381,6 +413,9 @@ private:
     std::size_t M_;
     bool expected_single_, track_single_, tally_multiple_;
     double cutoff_;
+    const GroundTally* ground_ = nullptr;
+    double *ground0_ = nullptr, *ground_cur_ = nullptr;  // group 0, the current path's group
+    bool crossed_ = false;                               // the path has crossed the ground downward
     double *single0_, *multiple0_, *fluence0_, *fluence20_;  // group 0
     double *single_, *multiple_, *fluence_, *fluence2_;      // the current path's group
     std::vector<double> p_;
@@ -599,6 +634,24 @@ MonteCarloResult grid_result(const BatchTallies& t, const TallyGrid& tg, const s
     return r;
 }
 
+/// The ground tally's means ([group][cell]) as irradiance: summed over the groups into
+/// r.ground, and per group into r.groups (when there are several).
+void write_ground(std::span<const double> mean, const GroundTally& cells, std::size_t G, MonteCarloResult& r) {
+    const std::size_t n = cells.cells();
+    r.ground = {cells, std::vector<float>(n, 0.0f)};
+    for (std::size_t c = 0; c < n; ++c) {
+        double v = 0.0;
+        for (std::size_t q = 0; q < G; ++q) v += mean[q * n + c];
+        r.ground.data[c] = float(v);
+    }
+    if (G == 1) return;
+    r.groups.resize(G);
+    for (std::size_t q = 0; q < G; ++q) {
+        r.groups[q].ground = {cells, std::vector<float>(n, 0.0f)};
+        for (std::size_t c = 0; c < n; ++c) r.groups[q].ground.data[c] = float(mean[q * n + c]);
+    }
+}
+
 template <class Emitter>
 MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::span<const glm::dvec3> directions,
                           const MonteCarloOptions& o, const core::GridGeometry* tally_grid = nullptr) {
@@ -616,12 +669,15 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
     const bool multiple = o.tally_multiple && o.max_scatterings > 0;
 
     const int T = std::max(1, core::thread_count());
+    const std::size_t ground_cells = o.ground ? o.ground->cells() * G : 0;
     struct Buffer {
-        std::vector<double> single, multiple, fluence, fluence2;
+        std::vector<double> single, multiple, fluence, fluence2, ground;
         EnergyBatch energy;
     };
     std::vector<Buffer> bufs(static_cast<std::size_t>(T));
-    FieldStats s1, sm, fl, fl2;
+    FieldStats s1, sm, fl, fl2, gs;
+    ScalarStats ground_power;
+    if (o.ground) gs.init(ground_cells);
     s1.init(size);
     if (multiple) sm.init(size);
     if (fluence) fl.init(cells * G);
@@ -642,11 +698,13 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
             if (multiple) buf.multiple.assign(size, 0.0);
             if (fluence) buf.fluence.assign(cells * G, 0.0);
             if (fluence2) buf.fluence2.assign(cells * G, 0.0);
+            if (o.ground) buf.ground.assign(ground_cells, 0.0);
             buf.energy = EnergyBatch{};
             const int b = b0 + int(i);
             GridTally tally(medium, tg, dirs, expected, !expected, multiple, kPathCutoff, buf.single.data(),
                             multiple ? buf.multiple.data() : nullptr, fluence ? buf.fluence.data() : nullptr,
                             fluence2 ? buf.fluence2.data() : nullptr, o.toward ? &*o.toward : nullptr);
+            if (o.ground) tally.set_ground(&*o.ground, buf.ground.data());
             trace_paths(gm, em, po, o.seed, batch_first_path(o.paths, o.batches, b), batch_paths(o.paths, o.batches, b),
                         tally, buf.energy);
             if (tg.extinction)  // per-cell normalization (volume: the constant in `scale`)
@@ -674,12 +732,22 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
                 if (multiple) hm.add(bufs[std::size_t(i)].multiple, scale, first);
             }
             es.add(bufs[std::size_t(i)].energy, np);
+            if (o.ground) {
+                gs.add(bufs[std::size_t(i)].ground, 1.0 / (double(np) * o.ground->cell * o.ground->cell));
+                core::CompensatedSum p;
+                for (const double v : bufs[std::size_t(i)].ground) p.add(v);
+                ground_power.add(p.value() / double(np));
+            }
             sum1.add(cloud_sum(bufs[std::size_t(i)].single, tg, M, scale));
             if (multiple) summ.add(cloud_sum(bufs[std::size_t(i)].multiple, tg, M, scale));
         }
     }
     MonteCarloResult r = grid_result({s1, sm, fl, fl2, h1, hm, multiple, fluence, fluence2}, tg, dirs, o);
     r.sums = {sum1.estimate(), summ.estimate()};
+    if (o.ground) {
+        write_ground(gs.mean, *o.ground, G, r);
+        r.ground_power = ground_power.estimate();
+    }
     r.energy = es.tally();
     r.paths = o.paths;
     r.collisions = es.collisions;
@@ -848,7 +916,8 @@ struct ProgressiveMonteCarlo::Impl {
     bool multiple = false, fluence = false, fluence2 = false;
     std::size_t G = 1, cells = 0, M = 0, size = 0;
     // Raw tallies of each half (the deposits' sums; scaled in result()), with its path counts.
-    detail::HalfSums h1, hm, hf, hf2;
+    detail::HalfSums h1, hm, hf, hf2, hg;  // hg: the ground tally ([group][cell]; MonteCarloOptions::ground)
+    std::size_t ground_cells = 0;
     std::uint64_t traced = 0;
 
     Impl(const MonteCarloMedium::Impl& m, std::span<const PointSource> points, std::span<const LineSource> lines,
@@ -865,6 +934,7 @@ struct ProgressiveMonteCarlo::Impl {
         cells = med.tg.geom.cell_count();
         M = dirs.size();
         size = cells * M * G;
+        ground_cells = o.ground ? o.ground->cells() * G : 0;
         if (!o.tally_single && !multiple)
             throw core::Error("monte_carlo.tally_single", "false needs the multiple tally: nothing would be estimated");
         reset(o.seed);
@@ -877,7 +947,8 @@ struct ProgressiveMonteCarlo::Impl {
         if (multiple) hm.init(size);
         if (fluence) hf.init(cells * G);
         if (fluence2) hf2.init(cells * G);
-        for (detail::HalfSums* h : {&h1, &hm, &hf, &hf2}) h->na = h->nb = 0;
+        if (o.ground) hg.init(ground_cells);
+        for (detail::HalfSums* h : {&h1, &hm, &hf, &hf2, &hg}) h->na = h->nb = 0;
         traced = 0;
         for (std::size_t h = 0; h < 2; ++h) {
             half_seed[h] = core::hash_seed(seed, h);
@@ -911,11 +982,12 @@ struct ProgressiveMonteCarlo::Impl {
             detail::GridTally tally(med.medium, med.tg, dirs, expected && o.tally_single, !expected && o.tally_single,
                                     multiple, detail::kPathCutoff, sums(h1, o.tally_single, h), sums(hm, multiple, h),
                                     sums(hf, fluence, h), sums(hf2, fluence2, h), o.toward ? &*o.toward : nullptr);
+            if (o.ground) tally.set_ground(&*o.ground, sums(hg, true, h));
             detail::trace_paths(med.gm, em, po, half_seed[h], half_traced[h], half[h], tally, energy, &emission[h]);
         });
         for (std::size_t h = 0; h < 2; ++h) {
             half_traced[h] += half[h];
-            for (detail::HalfSums* s : {&h1, &hm, &hf, &hf2}) (h == 0 ? s->na : s->nb) += std::int64_t(half[h]);
+            for (detail::HalfSums* s : {&h1, &hm, &hf, &hf2, &hg}) (h == 0 ? s->na : s->nb) += std::int64_t(half[h]);
         }
         traced += n;
     }
@@ -960,6 +1032,26 @@ struct ProgressiveMonteCarlo::Impl {
             };
             if (G > 1 && fluence) write_fluence(hf, r.groups[q].fluence);
             if (G > 1 && fluence2) write_fluence(hf2, r.groups[q].fluence2);
+        }
+        if (o.ground) {
+            // Irradiance: the halves' summed weights per path over the cell's area; the power's
+            // standard error from the two halves' difference.
+            const double cell2 = o.ground->cell * o.ground->cell;
+            const double kg = traced_any ? 1.0 / (double(traced) * cell2) : 0.0;
+            std::vector<double> ground_mean(ground_cells);
+            core::CompensatedSum pa, pb;
+            for (std::size_t i = 0; i < ground_cells; ++i) {
+                ground_mean[i] = (hg.a[i] + hg.b[i]) * kg;
+                pa.add(hg.a[i]);
+                pb.add(hg.b[i]);
+            }
+            detail::write_ground(ground_mean, *o.ground, G, r);
+            if (traced_any && hg.na > 0 && hg.nb > 0) {
+                const double a = pa.value() / double(hg.na), b = pb.value() / double(hg.nb);
+                const double na = double(hg.na), nb = double(hg.nb);
+                r.ground_power = {(pa.value() + pb.value()) / double(traced),
+                                  std::abs(a - b) * std::sqrt(na * nb) / (na + nb)};
+            }
         }
         if (traced_any) {
             if (o.tally_single) r.noise.single = detail::half_noise(h1, nullptr, med.tg, M, G, true);

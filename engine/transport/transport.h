@@ -20,8 +20,10 @@
 #include "core/core.h"
 #include "transport/sources.h"
 
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <functional>
@@ -29,6 +31,7 @@
 #include <memory>
 #include <optional>
 #include <span>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -231,6 +234,31 @@ struct EnergyTally {
     }
 };
 
+/// A horizontal ground plane and the square cells on it where Monte Carlo tallies the light
+/// that reaches the plane after scattering at least once (MonteCarloOptions::ground): what the
+/// cloud's own scattered light gives the ground under a flash. The ground is taken as black
+/// for the transport (a path is tallied where it first crosses the plane downward, and its
+/// tracing goes on as if the plane were not there).
+struct GroundTally {
+    double height = 0.0;       ///< z of the plane (m)
+    glm::dvec2 origin{0.0};    ///< lower corner (x, y) of cell (0, 0), metres
+    double cell = 1000.0;      ///< cell size (m)
+    int nx = 0, ny = 0;        ///< cells along x and y, each in [1, 4096]; at most 2^22 in all
+    std::size_t cells() const noexcept { return std::size_t(std::max(nx, 0)) * std::size_t(std::max(ny, 0)); }
+};
+
+/// Throws core::Error naming the bad field (`where`.height, .origin, .cell, .nx, .ny).
+void validate_ground_tally(const GroundTally& g, const std::string& where = "monte_carlo.ground");
+
+/// Irradiance on a GroundTally's cells: W/m^2 averaged over each cell, x fastest ([j nx + i]).
+struct GroundIrradiance {
+    GroundTally cells;
+    std::vector<float> data;
+    bool empty() const noexcept { return data.empty(); }
+    /// The power the cells receive, W (compensated sum of irradiance x cell area).
+    double power() const noexcept;
+};
+
 struct MonteCarloOptions {
     std::uint64_t paths = 1'000'000;  ///< photon paths in total (split evenly over batches)
     int batches = 32;                 ///< independent batches (>= 2) for standard errors
@@ -293,6 +321,12 @@ struct MonteCarloOptions {
     /// then hold exactly one direction, which the result's fields carry as their label (the
     /// renderer takes a one-direction field as S toward the camera). The point must be finite.
     std::optional<glm::dvec3> toward;
+    /// Set: also tally the light that reaches this ground plane after scattering at least once
+    /// (MonteCarloResult::ground, analog: each path deposits its weight where it first crosses
+    /// the plane downward, after one scattering or more). The uncollided light is left out: a
+    /// renderer lights the ground with the channel directly. Needs paths traced past their first
+    /// scattering (not uncollided_only nor expected_second_order).
+    std::optional<GroundTally> ground;
 };
 
 struct MonteCarloResult {
@@ -325,9 +359,15 @@ struct MonteCarloResult {
     /// With MonteCarloOptions::groups > 1: each group's part (single, multiple, fluence), in
     /// group order; `single` and `multiple` above are their sums, and the per-voxel SE fields
     /// stay zero (paths are shared out between groups at random: use `noise`).
+    /// With MonteCarloOptions::ground: the irradiance of the scattered light on the ground's
+    /// cells (sum over the groups), and the power the cells received with its standard error
+    /// from the batches.
+    GroundIrradiance ground;
+    Estimate ground_power;
     struct Group {
         SourceField single, multiple;
         core::Grid3<float> fluence, fluence2;
+        GroundIrradiance ground;
     };
     std::vector<Group> groups;
 };
