@@ -101,11 +101,22 @@ float rain_transmittance(vec3 p, vec3 q) {
 }
 #endif
 
-// The ground's irradiance from the channel: a few point lights standing for it (intensity
-// already multiplied by their visibility through the cloud), through the rain, in the flash's
-// colour.
+// The irradiance the cloud's scattered flash light gives the ground (W/m^2 at luminance 1),
+// averaged over cells of the ground plane (clamped to zero outside them).
+layout(binding = 10) uniform sampler2D u_ground_scatter;
+
+// The ground's irradiance from the flash, in its colour: the channel as a few point lights
+// (intensity already multiplied by their visibility through the cloud), through the rain, and
+// the light the cloud scatters down (through the rain straight above the point).
 vec3 ground_flash_irradiance(vec3 p) {
     vec3 E = vec3(0.0);
+    if (ground_scatter.z > 0.0) {
+        float e = textureLod(u_ground_scatter, (p.xy - ground_scatter.xy) * ground_scatter.zw, 0.0).r;
+#if HAS_RAIN
+        e *= rain_transmittance(p, vec3(p.xy, rain_params.z));
+#endif
+        E += light_colour.rgb * e;
+    }
     int n = int(ground_params.w);
     for (int i = 0; i < n; ++i) {
         vec3 l = ground_light[i].xyz - p;

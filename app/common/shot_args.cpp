@@ -14,8 +14,9 @@ namespace fulgur::app {
 
 namespace {
 
-constexpr std::array<std::string_view, 12> kSwitches = {
-    "sun", "sky", "silver-lining", "glow", "glare", "bolt", "ground", "single", "multiple", "detail", "rain", "dither"};
+constexpr std::array<std::string_view, 13> kSwitches = {"sun",    "sky",    "silver-lining",  "glow",   "glare",
+                                                        "bolt",   "ground", "ground-scatter", "single", "multiple",
+                                                        "detail", "rain",   "dither"};
 
 constexpr const char* kTool = "fulgur-shot";
 
@@ -85,16 +86,18 @@ void declare(CommandLine& cli, ShotArgs& a) {
                    const std::size_t e = std::min(v.find(',', b), v.size());
                    const std::string name = v.substr(b, e - b);
                    if (std::find(kSwitches.begin(), kSwitches.end(), name) == kSwitches.end())
-                       throw core::Error(kTool,
-                                         "--off: \"" + name +
-                                             "\" is not one of sun, sky, silver-lining, glow, glare, bolt, ground, "
-                                             "single, multiple, detail, rain, dither");
+                       throw core::Error(
+                           kTool,
+                           "--off: \"" + name +
+                               "\" is not one of sun, sky, silver-lining, glow, glare, bolt, ground, ground-scatter, "
+                               "single, multiple, detail, rain, dither");
                    a.off.push_back(name);
                    b = e + 1;
                }
            },
            "run-time switches to turn off, comma-separated: sun, sky, silver-lining (the sun's single scattering "
-           "at full resolution: on the lighting grid instead), glow, glare, bolt, ground, single, multiple, detail "
+           "at full resolution: on the lighting grid instead), glow, glare, bolt, ground (ground-scatter: only the "
+           "light the cloud scatters onto it), single, multiple, detail "
            "(the march draws the cloud before its sub-voxel detail), rain, dither (the 8-bit output's dither: "
            "smooth images compress far better)")
         ->type_name("A,B,..");

@@ -433,6 +433,7 @@ int main(int argc, char** argv) {
             opt.settings.glare &= off != "glare";
             opt.settings.bolt &= off != "bolt";
             opt.settings.ground &= off != "ground";
+            opt.settings.ground_scatter &= off != "ground-scatter";
             opt.components.single &= off != "single";
             opt.components.multiple &= off != "multiple";
             opt.settings.detail &= off != "detail";

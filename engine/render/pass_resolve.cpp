@@ -160,8 +160,8 @@ GLuint Renderer::Impl::resolve_set(SourceSet& set, const glm::dvec3& camera, con
 
 /// Resolve: S toward the camera on the lighting grid, for the flash and for the static light
 /// (only when S or the camera changed; with one direction S itself). Binds the density (unit
-/// 0), the flash's S toward the camera (unit 1), the static light's (unit 6) and the sun's
-/// transmittance (unit 7).
+/// 0), the flash's S toward the camera (unit 1), the static light's (unit 6), the sun's
+/// transmittance (unit 7), the detail (unit 9) and the ground's scattered flash light (unit 10).
 void Renderer::Impl::resolve_pass(const glm::dvec3& camera, const Settings& st, const FrameUniforms& u,
                                   PassTimer& timer, FrameStats& stats, bool resolve) {
     GLuint scam = zero_tex, stat = zero_tex;
@@ -194,6 +194,7 @@ void Renderer::Impl::resolve_pass(const glm::dvec3& camera, const Settings& st, 
     glBindTextureUnit(6, stat);
     glBindTextureUnit(7, sun_fine ? sun_tex : zero_tex);
     glBindTextureUnit(9, u.detail ? detail_tex : zero_tex);
+    glBindTextureUnit(10, ground_scatter_tex);  // zero outside its cells (and 1x1 zero while there is none)
     last_scam = u.lit && resolve ? scam : 0;
     last_static = u.statics && resolve ? stat : 0;
 }

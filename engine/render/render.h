@@ -132,6 +132,16 @@ struct ChannelSegment {
 /// which is a bolt's whole geometry over its flash.
 struct LitChannel {
     std::vector<ChannelSegment> segments;
+    /// The light the cloud scatters onto the ground at this instant (runtime::Frame::ground):
+    /// irradiance in W/m^2 (at the flash's colour of luminance 1) averaged over square cells of
+    /// the ground plane, x fastest. The channel's own light on the ground (its point lights,
+    /// flash_lights()) is apart. Empty: none (the ground is lit by the channel alone).
+    struct GroundScatter {
+        glm::dvec2 origin{0.0};  ///< lower corner (x, y) of cell (0, 0), metres
+        double cell = 0.0;       ///< cell size (m)
+        int nx = 0, ny = 0;      ///< cells along x and y
+        std::vector<float> irradiance;
+    } ground;
 };
 
 struct Camera {
@@ -218,6 +228,8 @@ struct Settings {
     // Effects
     bool sky = true;
     bool ground = true;
+    /// The ground lit by the cloud's scattered flash light (LitChannel::ground), when given.
+    bool ground_scatter = true;
     bool bolt = true;
     bool glow = true;
     bool cloud_lighting = true;  ///< false: S = 0 (cloud only absorbs the background)

@@ -125,6 +125,8 @@ Renderer::Renderer(GetProcAddress get_proc_address, std::filesystem::path shader
     const float zero = 0.0f;
     m.zero_tex = make_texture_3d(GL_R32F, {1, 1, 1});
     glTextureSubImage3D(m.zero_tex, 0, 0, 0, 0, 1, 1, 1, GL_RED, GL_FLOAT, &zero);
+    m.ground_scatter_tex = detail::make_texture_2d_r32f(1, 1);
+    glTextureSubImage2D(m.ground_scatter_tex, 0, 0, 0, 1, 1, GL_RED, GL_FLOAT, &zero);
     try {
         m.build_default_programs();
     } catch (...) {
@@ -133,8 +135,25 @@ Renderer::Renderer(GetProcAddress get_proc_address, std::filesystem::path shader
         glDeleteBuffers(1, &m.frame_ubo);
         glDeleteQueries(kPassCount, m.queries);
         delete_texture(m.zero_tex);
+        delete_texture(m.ground_scatter_tex);
         throw;
     }
+}
+
+void Renderer::Impl::set_ground_scatter(const LitChannel::GroundScatter& g) {
+    if (g.irradiance.empty()) {
+        ground_scatter_map = glm::vec4(0.0f);
+        return;
+    }
+    if (g.nx != ground_scatter_nx || g.ny != ground_scatter_ny) {
+        delete_texture(ground_scatter_tex);
+        ground_scatter_tex = detail::make_texture_2d_r32f(g.nx, g.ny);
+        ground_scatter_nx = g.nx;
+        ground_scatter_ny = g.ny;
+    }
+    glTextureSubImage2D(ground_scatter_tex, 0, 0, 0, g.nx, g.ny, GL_RED, GL_FLOAT, g.irradiance.data());
+    ground_scatter_map =
+        glm::vec4(float(g.origin.x), float(g.origin.y), float(1.0 / (g.cell * g.nx)), float(1.0 / (g.cell * g.ny)));
 }
 
 Renderer::~Renderer() {
@@ -144,6 +163,7 @@ Renderer::~Renderer() {
     glDeleteBuffers(1, &m.frame_ubo);
     glDeleteQueries(kPassCount, m.queries);
     delete_texture(m.zero_tex);
+    delete_texture(m.ground_scatter_tex);
     delete_texture(m.profile_tex);
     delete_texture(m.density_tex);
     delete_texture(m.detail_tex);
@@ -381,7 +401,24 @@ void Renderer::set_channel(const LitChannel& bolt) {
         segs.emplace_back(s.a, s.intensity);
         segs.emplace_back(s.b, s.radius);
     }
-    // The channel's light in the temporal history: its geometry fixed, its intensities compared.
+    const LitChannel::GroundScatter& gs = bolt.ground;
+    if (!gs.irradiance.empty()) {
+        const std::string where = "set_channel: ground";
+        check_finite(gs.origin.x, where, "origin");
+        check_finite(gs.origin.y, where, "origin");
+        if (!std::isfinite(gs.cell) || !(gs.cell > 0.0))
+            throw core::Error(where + ".cell", "must be finite and > 0, got " + std::to_string(gs.cell));
+        if (gs.nx < 1 || gs.ny < 1 || gs.nx > 4096 || gs.ny > 4096 ||
+            gs.irradiance.size() != std::size_t(gs.nx) * std::size_t(gs.ny))
+            throw core::Error(where, "needs 1-4096 cells along x and y and nx * ny values, got " +
+                                         std::to_string(gs.nx) + " x " + std::to_string(gs.ny) + " and " +
+                                         std::to_string(gs.irradiance.size()));
+        for (std::size_t i = 0; i < gs.irradiance.size(); ++i)
+            if (!std::isfinite(gs.irradiance[i]) || gs.irradiance[i] < 0.0f)
+                throw core::Error(where + ".irradiance[" + std::to_string(i) + "]", "must be finite and >= 0");
+    }
+    // The channel's light in the temporal history: its geometry fixed, its intensities compared
+    // (with the cloud's scattered light on the ground, which follows the same glow).
     std::vector<float> fixed, intensity;
     for (const ChannelSegment& c : bolt.segments) {
         fixed.insert(fixed.end(), {c.a.x, c.a.y, c.a.z, c.b.x, c.b.y, c.b.z, c.radius});
@@ -391,7 +428,14 @@ void Renderer::set_channel(const LitChannel& bolt) {
         m.segment_visibility.clear();
         m.visibility_geometry = fixed;
     }
-    m.temporal.channel.note(fixed, {0}, {intensity}, true);
+    std::vector<float> fixed_all = fixed;
+    if (!gs.irradiance.empty()) {
+        fixed_all.insert(fixed_all.end(),
+                         {float(gs.origin.x), float(gs.origin.y), float(gs.cell), float(gs.nx), float(gs.ny)});
+        intensity.insert(intensity.end(), gs.irradiance.begin(), gs.irradiance.end());
+    }
+    m.temporal.channel.note(fixed_all, {0}, {intensity}, true);
+    m.set_ground_scatter(gs);
     m.bolt = bolt;
     m.seg_count = int(bolt.segments.size());
     m.seg_buf.upload(segs.data(), segs.size() * sizeof(glm::vec4));

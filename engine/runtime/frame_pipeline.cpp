@@ -79,6 +79,7 @@ struct FramePipeline::Impl {
         StrikeSolveOptions so = strike_solve_options(q);
         so.keep_transport_grid = keep_fine;
         so.toward = scene::strike_toward(s, q, density->geom);  // quality "directions": "camera"
+        so.ground = strike_ground(s, media->lighting.density.geom);
         solver =
             std::make_unique<StrikeSolver>(solve_scene, *density, *media, so, std::max(1, core::thread_count() - 1));
         if (!unscheduled.empty()) make_instant(scene::quality_preset("instant"));
@@ -105,6 +106,7 @@ struct FramePipeline::Impl {
         frame.times = {};
         frame.strikes_solved = frame.strikes_fallback = 0;
         frame.instant_weight = 1.0;
+        frame.ground.data.clear();
         return frame;
     }
     // A solved strike's light in a frame, scaled by its glow (and, instant, by its weight).
@@ -112,6 +114,20 @@ struct FramePipeline::Impl {
         std::shared_ptr<const StrikeLight> light;
         double main = 0.0, branch = 0.0;
     };
+    // The solved strikes' ground tallies, each group scaled by its glow, into the frame's
+    // (every strike of the scene is tallied on the same cells: strike_ground()).
+    static void add_ground(const std::vector<Lit>& solved, transport::GroundIrradiance& out) {
+        for (const Lit& l : solved) {
+            const double w[2] = {l.main, l.branch};
+            for (std::size_t q = 0; q < 2; ++q) {
+                const transport::GroundIrradiance& g = l.light->ground[q];
+                if (g.empty() || !(w[q] != 0.0)) continue;
+                if (out.empty()) out = {g.cells, std::vector<float>(g.data.size(), 0.0f)};
+                FULGUR_ASSERT(out.data.size() == g.data.size(), "FramePipeline: strikes' ground tallies differ");
+                for (std::size_t i = 0; i < g.data.size(); ++i) out.data[i] += float(w[q]) * g.data[i];
+            }
+        }
+    }
     // An instant strike's bases' share of its strokes, from the bases' frame its worker made
     // once per group (StrikeEstimate::bases_groups), scaled by share x glow.
     struct BasesShare {
@@ -254,6 +270,7 @@ void FramePipeline::Impl::move_toward_target(Shown& s, double step) {
         for (std::uint32_t q = 0; q < 2; ++q) {
             std::fill(s.light->single[q].data.begin(), s.light->single[q].data.end(), 0.0f);
             std::fill(s.light->multiple[q].data.begin(), s.light->multiple[q].data.end(), 0.0f);
+            std::fill(s.light->ground[q].data.begin(), s.light->ground[q].data.end(), 0.0f);
         }
         s.total.assign(n, 0.0f);
         s.bases = 1.0;
@@ -277,6 +294,9 @@ void FramePipeline::Impl::move_toward_target(Shown& s, double step) {
     for (std::uint32_t q = 0; q < 2; ++q) {
         lerp(s.light->single[q].data, e.light.single[q].data, w);
         lerp(s.light->multiple[q].data, e.light.multiple[q].data, w);
+        // The ground's scattered light moves with the S it comes from (the bases carry none).
+        if (s.light->ground[q].data.size() == e.light.ground[q].data.size())
+            lerp(s.light->ground[q].data, e.light.ground[q].data, w);
     }
     lerp(s.total, e.total, w);
     s.bases += a * ((1.0 - w) - s.bases);
@@ -364,6 +384,7 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
                 lightning::lit_segments(storm.bolt(i), parts.strokes, multiple_segments);
         }
     }
+    add_ground(solved, f.ground);
     f.times.bolt = sw.milliseconds();
     if (!glowing) {
         if (!f.weights.active.empty()) splatter.reset(f.weights);

@@ -35,6 +35,10 @@ struct Frame {
     /// Same directions as `radiance`. Empty (no values) otherwise; valid when `lit`.
     /// `radiance` stays on the lighting grid, where the truth is tallied.
     RadianceField fine;
+    /// The light the cloud scatters onto the ground at this instant (W/m^2): the solved strikes'
+    /// ground tallies (StrikeLight::ground) scaled by their glow, as their S is. Empty when no
+    /// strike lighting the frame carries one (the bases' frames, the lattice, no ground).
+    transport::GroundIrradiance ground;
     StageTimes times;
     /// Presets that solve strikes: active strikes whose own solve lit this frame, and those
     /// shown by the bases because their solve was not ready (0 and 0 for the paper preset).

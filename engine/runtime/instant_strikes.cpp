@@ -202,7 +202,8 @@ struct InstantStrikes::Impl {
             spare.pop_back();
             return t;
         }
-        const std::array<transport::MonteCarloOptions, 2> o = instant_tracer_options();
+        std::array<transport::MonteCarloOptions, 2> o = instant_tracer_options();
+        o[1].ground = strike_ground(scene, media.lighting.density.geom);  // the paths that scatter reach the ground
         const std::span<const transport::LineSource> none;
         return {std::make_unique<transport::ProgressiveMonteCarlo>(tracing, std::span<const transport::PointSource>{},
                                                                    none, dirs, o[0]),
@@ -343,6 +344,7 @@ struct InstantStrikes::Impl {
             L.single[q] = rs.groups[q].single;
             L.multiple[q] = scene.effects.multiple_scattering ? rm.groups[q].multiple
                                                               : transport::SourceField(rs.single.geom, dirs);
+            if (scene.effects.multiple_scattering) L.ground[q] = rm.groups[q].ground;
         }
         L.seconds_single = e.seconds_single;
         L.seconds_multiple = e.seconds_multiple;

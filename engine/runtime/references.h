@@ -38,6 +38,9 @@ struct TruthOptions {
     /// Set: S toward this point (a still camera) from every voxel, one field copied into every
     /// output direction, as a strike solved toward the camera holds it (Quality::toward_camera).
     std::optional<glm::dvec3> toward;
+    /// Set: also the light the cloud scatters onto this ground (Truth::ground; the cells a
+    /// strike's solve tallies on: strike_ground()).
+    std::optional<transport::GroundTally> ground;
 };
 
 /// The ground truth of a frame.
@@ -49,6 +52,10 @@ struct Truth {
     /// The whole-cloud totals of single and multiple with their standard errors
     /// (transport::MonteCarloResult::CloudSums): the noise of a ratio of totals.
     transport::MonteCarloResult::CloudSums sums;
+    /// With TruthOptions::ground: the irradiance of the cloud's scattered light on its cells
+    /// (W/m^2), and the power they received with its standard error.
+    transport::GroundIrradiance ground;
+    transport::Estimate ground_power;
     std::uint64_t paths = 0;
     double seconds = 0.0;
     /// The components asked for, summed (a field like direct_solve's).

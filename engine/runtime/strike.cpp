@@ -45,6 +45,20 @@ StrikeSolveOptions strike_solve_options(const scene::Quality& q) {
     return o;
 }
 
+std::optional<transport::GroundTally> strike_ground(const scene::Scene& scene, const core::GridGeometry& lighting) {
+    if (!scene.effects.ground || !scene.effects.lightning) return std::nullopt;
+    constexpr double kMargin = 20000.0;
+    transport::GroundTally g;
+    g.height = scene.lightning.bolt.ground_height;
+    g.cell = 2.0 * lighting.voxel_size;
+    g.origin = glm::dvec2(lighting.origin.x, lighting.origin.y) - kMargin;
+    const glm::dvec3 hi = lighting.upper();
+    g.nx = std::clamp(int(std::ceil((hi.x - lighting.origin.x + 2.0 * kMargin) / g.cell)), 1, 4096);
+    g.ny = std::clamp(int(std::ceil((hi.y - lighting.origin.y + 2.0 * kMargin) / g.cell)), 1, 4096);
+    if (g.cells() > (std::size_t(1) << 22)) return std::nullopt;  // a lighting voxel under 10 m: not a storm
+    return g;
+}
+
 StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& density, const solve::Media& media,
                          const lightning::Bolt& bolt, const StrikeSolveOptions& options) {
     StrikeLight out;
@@ -125,7 +139,14 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
         // grid's tallies (the same paths, summed per lighting voxel).
         const core::GridGeometry& tally = keep ? grid : lighting;
         mo.toward = options.toward;
+        mo.ground = options.ground;
         const transport::MonteCarloResult r = transport::monte_carlo(fine, {}, lines, tally, tallied_dirs, mo);
+        if (options.ground)
+            for (std::uint32_t q = 0; q < 2; ++q)
+                out.ground[q] = r.groups.empty()
+                                    ? transport::GroundIrradiance{*options.ground,
+                                                                  std::vector<float>(options.ground->cells(), 0.0f)}
+                                    : r.groups[q].ground;
         for (std::uint32_t q = 0; q < 2; ++q) {
             transport::SourceField m =
                 r.groups.empty() ? transport::SourceField(tally, tallied_dirs) : r.groups[q].multiple;

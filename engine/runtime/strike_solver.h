@@ -30,6 +30,9 @@ struct StrikeLight {
     /// solve tallied on (`single` and `multiple` are its block averages); else empty.
     std::array<transport::SourceField, 2> fine_single, fine_multiple;
     bool has_fine() const noexcept { return !fine_single[0].data.empty(); }
+    /// With StrikeSolveOptions::ground and Monte Carlo multiple scattering: the irradiance the
+    /// cloud's scattered light gives the ground at unit glow, per group (W/m^2); else empty.
+    std::array<transport::GroundIrradiance, 2> ground;
     transport::MonteCarloResult::Noise noise;  ///< of the Monte Carlo parts (relative L2 over the cloud)
     double seconds_single = 0.0, seconds_multiple = 0.0;
     bool has_multiple() const noexcept { return !multiple[0].data.empty(); }
@@ -62,7 +65,17 @@ struct StrikeSolveOptions {
     /// Set (quality "directions": "camera"): S tallied toward this point (the scene's camera)
     /// from every voxel, one field that serves every output direction (Quality::toward_camera).
     std::optional<glm::dvec3> toward;
+    /// Set: Monte Carlo's multiple-scattering paths also tally the light the cloud scatters onto
+    /// this ground (StrikeLight::ground; strike_ground()). Ignored by the lattice.
+    std::optional<transport::GroundTally> ground;
 };
+
+/// The ground cells a strike's solve tallies the cloud's scattered light on: the scene's ground
+/// plane (its lightning's ground height) under the lighting grid `lighting` and 20 km around
+/// it (a camera at the storm's distance sees the ground that far out), in cells of two
+/// lighting voxels (the light a cloud base a kilometre or more up sends down varies over
+/// kilometres; each cell then gathers enough crossings). None when the scene draws no ground.
+std::optional<transport::GroundTally> strike_ground(const scene::Scene& scene, const core::GridGeometry& lighting);
 
 /// The per-strike solve a quality preset asks for (its multiple-scattering solver and paths).
 StrikeSolveOptions strike_solve_options(const scene::Quality& q);

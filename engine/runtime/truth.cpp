@@ -35,6 +35,7 @@ Truth truth(const scene::Scene& scene, const core::Grid3<float>& density, std::s
     if (!options.multiple) mc.max_scatterings = 0;
     const std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
     mc.toward = options.toward;
+    mc.ground = options.multiple ? options.ground : std::nullopt;  // scattered light: the paths must go on
     transport::MonteCarloResult r =
         transport::monte_carlo(fine, pts, lines, lighting, options.toward ? transport::output_directions(1) : dirs, mc);
     Truth t;
@@ -45,6 +46,8 @@ Truth truth(const scene::Scene& scene, const core::Grid3<float>& density, std::s
             *field = transport::in_every_direction(*field, dirs);
     t.noise = r.noise;
     t.sums = r.sums;
+    t.ground = std::move(r.ground);
+    t.ground_power = r.ground_power;
     t.paths = r.paths;
     t.seconds = r.seconds;
     return t;

@@ -414,8 +414,8 @@ private:
     bool expected_single_, track_single_, tally_multiple_;
     double cutoff_;
     const GroundTally* ground_ = nullptr;
-    double *ground0_ = nullptr, *ground_cur_ = nullptr;  // group 0, the current path's group
-    bool crossed_ = false;                               // the path has crossed the ground downward
+    double *ground0_ = nullptr, *ground_cur_ = nullptr;      // group 0, the current path's group
+    bool crossed_ = false;                                   // the path has crossed the ground downward
     double *single0_, *multiple0_, *fluence0_, *fluence20_;  // group 0
     double *single_, *multiple_, *fluence_, *fluence2_;      // the current path's group
     std::vector<double> p_;

@@ -240,10 +240,10 @@ struct EnergyTally {
 /// for the transport (a path is tallied where it first crosses the plane downward, and its
 /// tracing goes on as if the plane were not there).
 struct GroundTally {
-    double height = 0.0;       ///< z of the plane (m)
-    glm::dvec2 origin{0.0};    ///< lower corner (x, y) of cell (0, 0), metres
-    double cell = 1000.0;      ///< cell size (m)
-    int nx = 0, ny = 0;        ///< cells along x and y, each in [1, 4096]; at most 2^22 in all
+    double height = 0.0;     ///< z of the plane (m)
+    glm::dvec2 origin{0.0};  ///< lower corner (x, y) of cell (0, 0), metres
+    double cell = 1000.0;    ///< cell size (m)
+    int nx = 0, ny = 0;      ///< cells along x and y, each in [1, 4096]; at most 2^22 in all
     std::size_t cells() const noexcept { return std::size_t(std::max(nx, 0)) * std::size_t(std::max(ny, 0)); }
 };
 

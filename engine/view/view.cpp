@@ -376,7 +376,12 @@ void StormView::render_lightning(const render::Camera& camera, double t, const V
     rep.stages = f.times;
     rep.lit = f.lit;
 
-    renderer_->set_channel(lit_channel(f.segments, options.bolt_radius));
+    render::LitChannel channel = lit_channel(f.segments, options.bolt_radius);
+    if (!f.ground.empty()) {
+        const transport::GroundTally& c = f.ground.cells;
+        channel.ground = {glm::dvec2(c.origin), c.cell, c.nx, c.ny, f.ground.data};
+    }
+    renderer_->set_channel(channel);
     if (source) {
         check_field(*source, "StormView::render");
         render::SourceUpload up;

@@ -115,7 +115,9 @@ public:
     /// framebuffer) with the host's camera and depth (render::Renderer::render_into_host): the
     /// storm's radiance before exposure over the host's, which keeps its own world, tone map
     /// and glare. The ground-lighting model is the host's: flash_lights() gives the flash as
-    /// point lights for it.
+    /// point lights for it, and last_frame()->ground the light the cloud scatters onto the
+    /// ground (irradiance on cells of the ground plane, at this frame's glow; empty unless the
+    /// preset traces the strike's paths).
     FrameReport render_into_host(const render::HostFrame& host, double t, int width, int height,
                                  const ViewOptions& options);
     /// The flash at time t as `k` representative point lights (render::Renderer::flash_lights:

@@ -84,10 +84,9 @@ TEST_CASE("ground tally: the scattered light on the ground is what the cloud's S
         sum_t += tallied[c] * ground.cell * ground.cell;
     }
     const double err = rel_l2(tallied, from_s);
-    MESSAGE("ground tally against the S estimate: relative L2 over 64 cells " << err << ", totals " << sum_t << " / "
-                                                                               << sum_s << " W, power "
-                                                                               << r.ground_power.mean << " +- "
-                                                                               << r.ground_power.se);
+    MESSAGE("ground tally against the S estimate: relative L2 over 64 cells "
+            << err << ", totals " << sum_t << " / " << sum_s << " W, power " << r.ground_power.mean << " +- "
+            << r.ground_power.se);
     // The tally's own noise: 3.6% of the emitted power reaches the cells, ~70 000 of the 2M
     // paths, ~1100 crossings a cell (3%, less in the middle, more at the corners); measured
     // 2.6%. The bound is twice that; the voxels-as-points model is off by well under 1%.

@@ -34,8 +34,9 @@ struct FrameBlock {
     glm::vec4 rain{0.0f};
     glm::vec4 rain_light[8]{};
     glm::vec4 rain_lights{0.0f};
+    glm::vec4 ground_scatter{0.0f};
 };
-static_assert(sizeof(FrameBlock) == 64 + 11 * 16 + 8 * 16 + 4 * 16 + 10 * 16 + 8 * 16 + 16,
+static_assert(sizeof(FrameBlock) == 64 + 11 * 16 + 8 * 16 + 4 * 16 + 10 * 16 + 8 * 16 + 2 * 16,
               "FrameBlock must match std140");
 
 /// Appends the first `n` components of `v` to `out` (keys made of frame-block fields).
@@ -68,6 +69,7 @@ struct FrameUniforms {
     bool glow = false;                            ///< the glow pass runs
     bool host = false;                            ///< composited into a host's frame (render_into_host)
     bool stars = false;                           ///< the composite draws stars (sky on, star radiance > 0)
+    bool ground_scatter = false;                  ///< the settings ask for the ground's scattered flash light
 };
 
 /// The caller's draw and read framebuffers and viewport, restored when a frame or a read-back is

@@ -49,6 +49,20 @@ inline GLuint make_texture_2d(int w, int h) {
     return tex;
 }
 
+/// A w x h single-channel float 2D texture, linearly filtered, reading zero outside its edges.
+inline GLuint make_texture_2d_r32f(int w, int h) {
+    GLuint tex = 0;
+    glCreateTextures(GL_TEXTURE_2D, 1, &tex);
+    glTextureStorage2D(tex, 1, GL_R32F, w, h);
+    glTextureParameteri(tex, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTextureParameteri(tex, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glTextureParameteri(tex, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_BORDER);
+    glTextureParameteri(tex, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_BORDER);
+    const float border[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+    glTextureParameterfv(tex, GL_TEXTURE_BORDER_COLOR, border);
+    return tex;
+}
+
 /// Throws unless framebuffer `fbo` (w x h) is complete.
 inline void check_framebuffer(GLuint fbo, int w, int h) {
     if (glCheckNamedFramebufferStatus(fbo, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)

@@ -94,6 +94,12 @@ struct Renderer::Impl {
     std::vector<double> segment_visibility;
     std::vector<float> visibility_geometry;
     double visibility_ground = 0.0;
+    // The cloud's scattered flash light on the ground (LitChannel::ground): an R32F texture of
+    // its cells, clamped to zero outside (1x1 zero while there is none), and where it lies.
+    GLuint ground_scatter_tex = 0;
+    int ground_scatter_nx = 0, ground_scatter_ny = 0;  // the texture's size (0: the 1x1 zero)
+    glm::vec4 ground_scatter_map{0.0f};                // FrameBlock::ground_scatter (zw 0: none)
+    void set_ground_scatter(const LitChannel::GroundScatter& g);
 
     GLuint last_scam = 0;    // S_cam texture the last frame sampled (0: none)
     GLuint last_static = 0;  // the static light's S_cam the last frame sampled (0: none)

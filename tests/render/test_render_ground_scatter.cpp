@@ -1,0 +1,116 @@
+// The cloud's scattered flash light on the ground (LitChannel::ground): a uniform irradiance
+// lights the ground exactly as the sun's equal irradiance does, nothing outside its cells,
+// nothing when switched off; bad cells are rejected with the field named.
+#include "gl_fixture.h"
+
+#include "support/test_support.h"
+
+#include <doctest/doctest.h>
+
+#include <cmath>
+
+using namespace fulgur;
+using test::gl_renderer;
+using test::render_at;
+
+namespace {
+
+// 20 x 20 x 10 voxels of 100 m from z = 500: an empty box (the march needs a volume).
+core::GridGeometry box() { return {{20, 20, 10}, 100.0, glm::dvec3(-1000.0, -1000.0, 500.0)}; }
+
+// 4 x 4 cells of 500 m over [-1000, 1000]^2, each holding `e` W/m^2.
+render::LitChannel::GroundScatter uniform_cells(float e) {
+    render::LitChannel::GroundScatter g;
+    g.origin = {-1000.0, -1000.0};
+    g.cell = 500.0;
+    g.nx = g.ny = 4;
+    g.irradiance.assign(16, e);
+    return g;
+}
+
+// Looking straight down at the ground from 3 km (the view spans about +-1.6 km).
+render::Camera down_camera() {
+    render::Camera cam;
+    cam.position = {0.0, -1.0, 3000.0};
+    cam.target = {0.0, 0.0, 0.0};
+    cam.vertical_fov_deg = 56.0;
+    return cam;
+}
+
+}  // namespace
+
+TEST_CASE("the ground's scattered flash light: a uniform irradiance lights it as the sun's equal irradiance does") {
+    render::Renderer& r = gl_renderer();
+    const core::Grid3<float> empty(box(), 0.0f);
+    r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16});
+    r.clear_source();
+    render::Settings st = test::volume_only();  // no sky, flash colour white
+    st.ground = true;
+    st.jitter = false;
+    const int N = 64;
+    const auto march = [&] {
+        render_at(r, down_camera(), st, N, N);
+        int w = 0, h = 0;
+        return r.read_march(w, h);
+    };
+    const double e = 0.5;
+    // A: only the cloud's scattered light, 0.5 W/m^2 on every cell.
+    render::LitChannel ch;
+    ch.ground = uniform_cells(float(e));
+    r.set_channel(ch);
+    r.clear_sun();
+    const std::vector<float> scattered = march();
+    // B: only the sun, 0.5 W/m^2 straight down onto the ground (no cloud to shadow it).
+    r.set_channel({});
+    r.set_sun({.direction = {0.0, 0.0, -1.0}, .irradiance_rgb = glm::dvec3(e), .scatter = false});
+    const std::vector<float> sunlit = march();
+    r.clear_sun();
+    // Pixels over the cells' inside (more than half a cell from their edge: the filter's reach)
+    // and far outside them (beyond half a cell past the edge the texture reads zero).
+    const auto ground_x = [&](int x) {
+        return (double(x) + 0.5 - 0.5 * N) / (0.5 * N) * 3000.0 * std::tan(28.0 * 3.14159265358979 / 180.0);
+    };
+    int inside = 0, outside = 0;
+    double worst = 0.0;
+    for (int y = 0; y < N; ++y)
+        for (int x = 0; x < N; ++x) {
+            const double gx = std::abs(ground_x(x)), gy = std::abs(ground_x(y));
+            const std::size_t p = (std::size_t(y) * N + std::size_t(x)) * 4 + 1;
+            if (gx < 700.0 && gy < 700.0) {
+                ++inside;
+                worst = std::max(worst, std::abs(double(scattered[p]) / double(sunlit[p]) - 1.0));
+            } else if (gx > 1300.0 || gy > 1300.0) {
+                ++outside;
+                CHECK(scattered[p] == 0.0f);
+            }
+        }
+    MESSAGE(inside << " pixels inside the cells: worst ratio to the sunlit ground - 1 = " << worst << "; " << outside
+                   << " outside, all zero");
+    CHECK(inside > 100);
+    CHECK(outside > 100);
+    CHECK(worst < 1e-5);  // the same irradiance through the same shading: float rounding only
+
+    // Switched off (Settings::ground_scatter), the same channel leaves the ground dark.
+    r.set_channel(ch);
+    st.ground_scatter = false;
+    const std::vector<float> off = march();
+    CHECK(off[(std::size_t(N / 2) * N + std::size_t(N / 2)) * 4 + 1] == 0.0f);
+    r.set_channel({});
+}
+
+TEST_CASE("bad ground cells are rejected with the field named") {
+    render::Renderer& r = gl_renderer();
+    const auto bad = [&](auto mutate, const char* field) {
+        render::LitChannel ch;
+        ch.ground = uniform_cells(1.0f);
+        mutate(ch.ground);
+        CHECK_THROWS_WITH_AS(r.set_channel(ch), doctest::Contains(field), core::Error);
+    };
+    bad([](auto& g) { g.irradiance[3] = -1.0f; }, "ground.irradiance[3]");
+    bad([](auto& g) { g.irradiance[0] = NAN; }, "ground.irradiance[0]");
+    bad([](auto& g) { g.irradiance.pop_back(); }, "ground");
+    bad([](auto& g) { g.nx = 0; }, "ground");
+    bad([](auto& g) { g.cell = 0.0; }, "ground.cell");
+    bad([](auto& g) { g.origin.x = INFINITY; }, "ground");
+    r.set_channel({});
+}
