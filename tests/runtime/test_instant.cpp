@@ -78,13 +78,25 @@ TEST_CASE("instant: the first lit frame is the bases' frame with its near field,
     runtime::ReconstructOptions o;
     o.wait_for_strikes = true;
     o.components = {true, true};
-    const std::vector<float> total = flat(p.build(t, {}, o).radiance);
+    const runtime::Frame& converged = p.build(t, {}, o);
+    const std::vector<float> total = flat(converged.radiance);
+    const double frame_ground = converged.ground.power();
     const auto est = p.instant_strikes()->get(5, p.storm().strike(0).time);
     REQUIRE(est);
     CHECK(est->final);
     runtime::TruthOptions to;
     to.paths = 400'000;
+    to.ground = runtime::strike_ground(s.scene, s.media.lighting.density.geom);
     const runtime::Truth truth = runtime::truth(s.scene, s.density, f.segments, {}, to);
+    // The cloud's scattered light on the ground, from the estimate's paths: the frame shows the
+    // estimate at its weight against the bases (which carry none), so its power is the weight
+    // times the truth's, within the two runs' noise (400k paths each: sqrt(2) x the truth's SE).
+    const double ground_se = std::sqrt(2.0) * truth.ground_power.se / truth.ground_power.mean;
+    MESSAGE("ground: frame " << frame_ground << " W, truth " << truth.ground.power() << " W x weight " << est->weight()
+                             << " (ratio " << frame_ground / (est->weight() * truth.ground.power()) << ", SE "
+                             << ground_se << ")");
+    CHECK(truth.ground.power() > 0.0);
+    CHECK(std::fabs(frame_ground / (est->weight() * truth.ground.power()) - 1.0) <= 4.0 * ground_se);
     const test::FieldError e1 = compare_fields(single, truth.single.data, rho);
     const test::FieldError e2 = compare_fields(multiple, truth.multiple.data, rho);
     const test::FieldError e0 = compare_fields(shown_first, truth.sum().data, rho);
