@@ -134,6 +134,12 @@ void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& r
     ImGui::Checkbox("glare", &opt.settings.glare);
     ImGui::Checkbox("bolt", &opt.settings.bolt);
     ImGui::Checkbox("ground", &opt.settings.ground);
+    ImGui::SameLine();
+    ImGui::BeginDisabled(!opt.settings.ground);
+    ImGui::Checkbox("cloud's light on it", &opt.settings.ground_scatter);
+    ImGui::EndDisabled();
+    if (ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled))
+        ImGui::SetTooltip("the flash light the cloud scatters onto the ground (presets that trace the strike's paths)");
     if (view_.scene().rain) {
         ImGui::SameLine();
         ImGui::Checkbox("rain", &opt.settings.rain);
