@@ -125,7 +125,7 @@ Renderer::Renderer(GetProcAddress get_proc_address, std::filesystem::path shader
     const float zero = 0.0f;
     m.zero_tex = make_texture_3d(GL_R32F, {1, 1, 1});
     glTextureSubImage3D(m.zero_tex, 0, 0, 0, 0, 1, 1, 1, GL_RED, GL_FLOAT, &zero);
-    m.ground_scatter_tex = detail::make_texture_2d_r32f(1, 1);
+    m.ground_scatter_tex = detail::make_texture_2d(1, 1, GL_R32F, GL_CLAMP_TO_BORDER);
     glTextureSubImage2D(m.ground_scatter_tex, 0, 0, 0, 1, 1, GL_RED, GL_FLOAT, &zero);
     try {
         m.build_default_programs();
@@ -147,7 +147,7 @@ void Renderer::Impl::set_ground_scatter(const LitChannel::GroundScatter& g) {
     }
     if (g.nx != ground_scatter_nx || g.ny != ground_scatter_ny) {
         delete_texture(ground_scatter_tex);
-        ground_scatter_tex = detail::make_texture_2d_r32f(g.nx, g.ny);
+        ground_scatter_tex = detail::make_texture_2d(g.nx, g.ny, GL_R32F, GL_CLAMP_TO_BORDER);
         ground_scatter_nx = g.nx;
         ground_scatter_ny = g.ny;
     }

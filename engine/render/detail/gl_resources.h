@@ -37,29 +37,16 @@ inline void delete_texture(GLuint& t) {
     t = 0;
 }
 
-/// A w x h RGBA32F 2D texture, linearly filtered and clamped to its edges.
-inline GLuint make_texture_2d(int w, int h) {
+/// A w x h 2D texture of `format` (RGBA32F by default), linearly filtered, clamped to its edges
+/// (GL_CLAMP_TO_BORDER as `wrap`: zero outside them, GL's default border colour).
+inline GLuint make_texture_2d(int w, int h, GLenum format = GL_RGBA32F, GLenum wrap = GL_CLAMP_TO_EDGE) {
     GLuint tex = 0;
     glCreateTextures(GL_TEXTURE_2D, 1, &tex);
-    glTextureStorage2D(tex, 1, GL_RGBA32F, w, h);
+    glTextureStorage2D(tex, 1, format, w, h);
     glTextureParameteri(tex, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
     glTextureParameteri(tex, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-    glTextureParameteri(tex, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-    glTextureParameteri(tex, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-    return tex;
-}
-
-/// A w x h single-channel float 2D texture, linearly filtered, reading zero outside its edges.
-inline GLuint make_texture_2d_r32f(int w, int h) {
-    GLuint tex = 0;
-    glCreateTextures(GL_TEXTURE_2D, 1, &tex);
-    glTextureStorage2D(tex, 1, GL_R32F, w, h);
-    glTextureParameteri(tex, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-    glTextureParameteri(tex, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-    glTextureParameteri(tex, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_BORDER);
-    glTextureParameteri(tex, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_BORDER);
-    const float border[4] = {0.0f, 0.0f, 0.0f, 0.0f};
-    glTextureParameterfv(tex, GL_TEXTURE_BORDER_COLOR, border);
+    glTextureParameteri(tex, GL_TEXTURE_WRAP_S, GLint(wrap));
+    glTextureParameteri(tex, GL_TEXTURE_WRAP_T, GLint(wrap));
     return tex;
 }
 
