@@ -68,8 +68,8 @@ TemporalKey temporal_key(const FrameUniforms& u, const std::string& march_define
     add(f.sky_params, 3);     // not its w: the exposure
     add(f.light_colour, 3);   // not its w: the dither
     k.uniforms.push_back(float(f.counts.x));
-    k.uniforms.push_back(u.ground_scatter ? 1.0f
-                                          : 0.0f);  // asked for, not its cells: the channel's tracker follows those
+    // The ground's scattered light as asked for, not its cells: the channel's tracker follows those.
+    k.uniforms.push_back(u.ground_scatter ? 1.0f : 0.0f);
     k.defines = march_defines;
     k.width = u.width;
     k.height = u.height;
