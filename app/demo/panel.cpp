@@ -139,7 +139,9 @@ void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& r
     ImGui::Checkbox("cloud's light on it", &opt.settings.ground_scatter);
     ImGui::EndDisabled();
     if (ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled))
-        ImGui::SetTooltip("the flash light the cloud scatters onto the ground (presets that trace the strike's paths)");
+        ImGui::SetTooltip(
+            "the flash light the cloud scatters onto the ground (presets that trace the strike's paths, and "
+            "per_strike)");
     if (view_.scene().rain) {
         ImGui::SameLine();
         ImGui::Checkbox("rain", &opt.settings.rain);

@@ -275,7 +275,7 @@ FULGUR_STUDY(frontier, "frontier",
             if (runtime::StrikeSolver* solver = p.strike_solver()) {
                 const lightning::Strike& sk = p.storm().strike(i);
                 const std::shared_ptr<const runtime::StrikeLight> L = solver->get(sk.seed, sk.time);
-                if (L) solve_s = L->seconds_single + L->seconds_multiple;
+                if (L) solve_s = L->seconds_single + L->seconds_multiple + L->seconds_ground;
                 memory_mb = double(b.bases->memory_bytes()) / 1e6 +
                             (L ? 4.0 * double(L->single[0].data.size() * sizeof(float)) / 1e6 : 0.0);
             }

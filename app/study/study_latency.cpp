@@ -126,7 +126,8 @@ FULGUR_STUDY(latency, "latency",
                         }
                         is->set_paused(true);
                     } else if (runtime::StrikeSolver* ss = p.strike_solver()) {
-                        if (const auto L = ss->get(seed, start)) worker_s = L->seconds_single + L->seconds_multiple;
+                        if (const auto L = ss->get(seed, start))
+                            worker_s = L->seconds_single + L->seconds_multiple + L->seconds_ground;
                         ss->set_paused(true);
                     }
                     if (leader) {

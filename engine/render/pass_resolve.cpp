@@ -1,8 +1,8 @@
 // The resolve pass: S toward the camera on the lighting grid, for the flash and for the
 // static light, over the directions the view needs (found on the CPU and cached per camera
 // and lighting grid; Renderer::needed_directions() reads the same cache).
-#include "render/detail/directions.h"
 #include "render/detail/renderer_impl.h"
+#include "transport/detail/directions.h"
 
 #include <glad/gl.h>
 
@@ -103,7 +103,7 @@ GLuint Renderer::Impl::resolve_set(SourceSet& set, const glm::dvec3& camera, con
     const GLuint p = rgb ? program("resolve_rgb", {{GL_COMPUTE_SHADER, "resolve.comp"}}, "#define RGB 1\n")
                          : program("resolve", {{GL_COMPUTE_SHADER, "resolve.comp"}});
     glUseProgram(p);
-    const detail::FoldTable ft = detail::fold_table(set.dir_count);
+    const transport::detail::FoldTable ft = transport::detail::fold_table(set.dir_count);
     GLint idx[27 * 3];
     GLfloat frac[27 * 3];
     for (int c = 0; c < 27; ++c)

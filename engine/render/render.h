@@ -32,6 +32,7 @@
 #include "cloud/rain.h"
 #include "cloud/subvoxel.h"
 #include "core/core.h"
+#include "transport/directions.h"
 
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
@@ -278,22 +279,10 @@ struct DirectionUse {
     double max_weight = 0.0;
 };
 
-/// Up to four (direction, weight) pairs with weights >= 0 summing to 1.
-struct DirectionWeights {
-    int count = 0;
-    std::array<int, 4> index{};
-    std::array<double, 4> weight{};
-};
-
-/// Interpolation of S between the baked directions for direction `dir` (unit, the direction
-/// from the sample toward the camera). For 26 directions (faces, edges, corners of a cube):
-/// `dir` is projected onto the cube (gnomonic), each cube face is a 2x2 grid of cells whose
-/// nodes are the face centre, edge midpoints and corners, and the weights are bilinear in
-/// smoothstep-remapped cell coordinates: non-negative, partition of unity, exactly one
-/// direction at a baked direction, C1 on the sphere. 18 directions give each corner's weight
-/// in equal thirds to its three edge neighbours, 6 give edge (corner) weights in halves
-/// (thirds) to the adjacent faces; 1 direction has weight 1. Mirrored in shaders/directions.glsl.
-DirectionWeights direction_weights(const glm::dvec3& dir, int direction_count);
+/// The interpolation of S between the baked directions the renderer resolves with
+/// (transport/directions.h).
+using transport::direction_weights;
+using transport::DirectionWeights;
 
 /// The directions S must provide for a camera at `camera_position`: the directions whose
 /// weight direction_weights(normalize(camera - x_i)) exceeds `min_weight` at some

@@ -37,7 +37,7 @@ struct Frame {
     RadianceField fine;
     /// The light the cloud scatters onto the ground at this instant (W/m^2): the solved strikes'
     /// ground tallies (StrikeLight::ground) scaled by their glow, as their S is. Empty when no
-    /// strike lighting the frame carries one (the bases' frames, the lattice, no ground).
+    /// strike lighting the frame carries one (the bases' frames, hybrid, no ground).
     transport::GroundIrradiance ground;
     StageTimes times;
     /// Presets that solve strikes: active strikes whose own solve lit this frame, and those

@@ -1,6 +1,7 @@
 // Per-strike light (runtime.h, docs/presets.md): a strike's strokes solved once, as exact
 // line sources, and the worker thread that solves strikes ahead of their frames.
 #include "runtime/runtime.h"
+#include "transport/ground_gather.h"
 
 #include <glm/geometric.hpp>
 
@@ -160,6 +161,23 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
         out.noise.multiple = r.noise.multiple;  // per voxel of the tally's grid
     }
     out.seconds_multiple = sw.seconds();
+    sw.reset();
+    // Without a Monte Carlo of the multiple scattering to tally it, the ground's light is
+    // gathered from the strike's S where that S is all of it: the lattice's (single + multiple)
+    // or single scattering alone in a scene without multiple scattering. The hybrid preset's
+    // strokes take their multiple scattering from the bases, which carry no ground: none then.
+    // Not toward the camera either: that S is the light toward one point, not toward the ground.
+    const bool complete = lattice || !scene.effects.multiple_scattering;
+    if (options.ground && !mc && complete && !options.toward) {
+        std::vector<std::vector<const transport::SourceField*>> groups(2);
+        for (std::uint32_t q = 0; q < 2; ++q) {
+            groups[q] = {&out.single[q]};
+            if (out.has_multiple()) groups[q].push_back(&out.multiple[q]);
+        }
+        std::vector<transport::GroundIrradiance> g = transport::gather_ground(media.lighting, groups, *options.ground);
+        for (std::uint32_t q = 0; q < 2; ++q) out.ground[q] = std::move(g[q]);
+    }
+    out.seconds_ground = sw.seconds();
     return out;
 }
 

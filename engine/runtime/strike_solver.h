@@ -30,11 +30,15 @@ struct StrikeLight {
     /// solve tallied on (`single` and `multiple` are its block averages); else empty.
     std::array<transport::SourceField, 2> fine_single, fine_multiple;
     bool has_fine() const noexcept { return !fine_single[0].data.empty(); }
-    /// With StrikeSolveOptions::ground and Monte Carlo multiple scattering: the irradiance the
-    /// cloud's scattered light gives the ground at unit glow, per group (W/m^2); else empty.
+    /// With StrikeSolveOptions::ground: the irradiance the cloud's scattered light gives the
+    /// ground at unit glow, per group (W/m^2). Tallied by Monte Carlo multiple scattering's
+    /// paths; gathered from S (transport::gather_ground) where the lattice solves it, or where
+    /// single scattering is all (no multiple scattering in the scene). Empty otherwise: the
+    /// hybrid preset (its multiple scattering is the bases'), S tallied toward the camera.
     std::array<transport::GroundIrradiance, 2> ground;
     transport::MonteCarloResult::Noise noise;  ///< of the Monte Carlo parts (relative L2 over the cloud)
     double seconds_single = 0.0, seconds_multiple = 0.0;
+    double seconds_ground = 0.0;  ///< of the gather from S (a Monte Carlo tally costs nothing apart)
     bool has_multiple() const noexcept { return !multiple[0].data.empty(); }
     /// Output direction m of `f` (one of this light's fields): its one field when it holds one.
     static std::span<const float> direction(const transport::SourceField& f, std::size_t m) noexcept {
@@ -65,8 +69,8 @@ struct StrikeSolveOptions {
     /// Set (quality "directions": "camera"): S tallied toward this point (the scene's camera)
     /// from every voxel, one field that serves every output direction (Quality::toward_camera).
     std::optional<glm::dvec3> toward;
-    /// Set: Monte Carlo's multiple-scattering paths also tally the light the cloud scatters onto
-    /// this ground (StrikeLight::ground; strike_ground()). Ignored by the lattice.
+    /// Set: the light the cloud scatters onto this ground (StrikeLight::ground; strike_ground()),
+    /// tallied by Monte Carlo's multiple-scattering paths or gathered from the lattice's S.
     std::optional<transport::GroundTally> ground;
 };
 

@@ -1,7 +1,7 @@
 // Direction interpolation of S between the baked output directions.
-#include "render/detail/directions.h"
 #include "render/render.h"
 #include "support/test_support.h"
+#include "transport/detail/directions.h"
 #include "transport/transport.h"
 
 #include <doctest/doctest.h>
@@ -89,7 +89,7 @@ TEST_CASE("direction weights on a face centre-edge line interpolate the two") {
 
 TEST_CASE("fold tables hand all weight to present directions") {
     for (int count : {1, 6, 18, 26}) {
-        const auto t = render::detail::fold_table(count);
+        const auto t = transport::detail::fold_table(count);
         for (int c = 0; c < 27; ++c) {
             if (c == 13) continue;  // (0,0,0) is not a direction
             double sum = 0.0;
@@ -98,7 +98,7 @@ TEST_CASE("fold tables hand all weight to present directions") {
             CHECK(sum == test::rel(1.0, 1e-15));  // thirds and halves in double
         }
     }
-    CHECK_THROWS_AS(render::detail::fold_table(7), core::Error);
+    CHECK_THROWS_AS(transport::detail::fold_table(7), core::Error);
 }
 
 TEST_CASE("view_directions: a far camera needs few directions, a camera inside needs all") {

@@ -1,10 +1,10 @@
 // Internal: the direction-interpolation tables shared by the CPU (direction_weights) and the
-// GPU resolve pass (shaders/directions.glsl reads them as uniforms).
+// renderer's GPU resolve pass (shaders/directions.glsl reads them as uniforms).
 #pragma once
 
 #include <array>
 
-namespace fulgur::render::detail {
+namespace fulgur::transport::detail {
 
 /// Lattice code of a cube lattice vector v (components in {-1, 0, 1}): (x+1) + 3(y+1) + 9(z+1).
 constexpr int lattice_code(int x, int y, int z) noexcept { return (x + 1) + 3 * (y + 1) + 9 * (z + 1); }
@@ -22,4 +22,4 @@ struct FoldTable {
 /// Throws core::Error for a count other than 1, 6, 18, 26.
 FoldTable fold_table(int direction_count);
 
-}  // namespace fulgur::render::detail
+}  // namespace fulgur::transport::detail
