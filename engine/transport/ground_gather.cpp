@@ -122,7 +122,9 @@ std::vector<GroundIrradiance> gather_ground(const LightingMedium& medium,
                     if (split <= 1) {
                         geometry = transmittance(medium, em.centre, p) * (l.z / r) / (r * r);
                     } else {
-                        // Sub-voxels of equal volume at their own centres.
+                        // Sub-voxels of equal volume at their own centres, each with its own
+                        // traversal (sharing the centre's outside the voxel was 3 points of L2
+                        // worse on the storm for no saving at one point a cell).
                         for (int sk = 0; sk < split; ++sk)
                             for (int sj = 0; sj < split; ++sj)
                                 for (int si = 0; si < split; ++si) {

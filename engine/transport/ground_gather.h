@@ -11,9 +11,11 @@
 namespace fulgur::transport {
 
 struct GroundGatherOptions {
-    /// Each cell's irradiance is the mean over n x n points on it (n >= 1): the cells under a
-    /// cloud's base vary within a cell.
-    int points_per_side = 2;
+    /// Each cell's irradiance is the mean over n x n points on it (n >= 1; 1: its centre). On
+    /// the default storm cut small, per_strike's ground against the truth: 1 point 13.0%
+    /// relative L2 over the cells, 2 x 2 points 11.6% for 4.3x the time (fulgur-bench
+    /// ground_gather: 0.40 s against 1.74 s a strike on one core).
+    int points_per_side = 1;
     /// A voxel nearer to a point than this many voxel sizes is taken as q^3 sub-voxels
     /// (q = ceil(near_voxels * h / r), at most 4) instead of one point: the 1/r^2 and the
     /// transmittance vary across a voxel that close.
