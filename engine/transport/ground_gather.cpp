@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -73,6 +74,10 @@ std::vector<GroundIrradiance> gather_ground(const LightingMedium& medium,
                     for (std::size_t m = 0; m < nd; ++m) {
                         double v = 0.0;
                         for (const SourceField* f : groups[q]) v += double(f->direction(m)[c]);
+                        if (!std::isfinite(v))
+                            throw core::Error(
+                                "gather_ground.groups[" + std::to_string(q) + "]",
+                                "S is not finite at voxel " + std::to_string(c) + ", direction " + std::to_string(m));
                         here[q * nd + m] = v;
                         any += std::abs(v);
                     }
@@ -80,6 +85,22 @@ std::vector<GroundIrradiance> gather_ground(const LightingMedium& medium,
                 s.insert(s.end(), here.begin(), here.end());
                 emitters.push_back({g.centre(i, j, k), st * vol});
             }
+
+    // The box of the voxels that hold any density: outside it the medium is empty, so each
+    // traversal is clipped to it first (the same optical depth, fewer empty voxels walked).
+    glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+    for (int k = 0; k < g.dims.z; ++k)
+        for (int j = 0; j < g.dims.y; ++j)
+            for (int i = 0; i < g.dims.x; ++i)
+                if (medium.density.data[g.index(i, j, k)] > 0.0f) {
+                    lo = glm::min(lo, g.origin + g.voxel_size * glm::dvec3(i, j, k));
+                    hi = glm::max(hi, g.origin + g.voxel_size * glm::dvec3(i + 1, j + 1, k + 1));
+                }
+    const auto through = [&](const glm::dvec3& x, const glm::dvec3& p) {
+        double t0 = 0.0, t1 = 1.0;
+        if (!core::clip_ray_to_box(x, p - x, lo, hi, t0, t1)) return 1.0;
+        return transmittance(medium, x + t0 * (p - x), x + t1 * (p - x));
+    };
 
     const int n = options.points_per_side;
     const double pairs = double(emitters.size()) * double(cells.cells()) * double(n) * double(n);
@@ -120,7 +141,7 @@ std::vector<GroundIrradiance> gather_ground(const LightingMedium& medium,
                         r < options.near_voxels * h ? std::min(4, int(std::ceil(options.near_voxels * h / r))) : 1;
                     double geometry = 0.0;  // transmittance x cos / r^2, over the voxel's points
                     if (split <= 1) {
-                        geometry = transmittance(medium, em.centre, p) * (l.z / r) / (r * r);
+                        geometry = through(em.centre, p) * (l.z / r) / (r * r);
                     } else {
                         // Sub-voxels of equal volume at their own centres, each with its own
                         // traversal (sharing the centre's outside the voxel was 3 points of L2
@@ -134,7 +155,7 @@ std::vector<GroundIrradiance> gather_ground(const LightingMedium& medium,
                                     const glm::dvec3 ls = x - p;
                                     if (!(ls.z > 0.0)) continue;
                                     const double rs2 = glm::dot(ls, ls);
-                                    geometry += transmittance(medium, x, p) * (ls.z / std::sqrt(rs2)) / rs2;
+                                    geometry += through(x, p) * (ls.z / std::sqrt(rs2)) / rs2;
                                 }
                         geometry /= double(split * split * split);
                     }

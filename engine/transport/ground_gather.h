@@ -14,7 +14,7 @@ struct GroundGatherOptions {
     /// Each cell's irradiance is the mean over n x n points on it (n >= 1; 1: its centre). On
     /// the default storm cut small, per_strike's ground against the truth: 1 point 13.0%
     /// relative L2 over the cells, 2 x 2 points 11.6% for 4.3x the time (fulgur-bench
-    /// ground_gather: 0.40 s against 1.74 s a strike on one core).
+    /// ground_gather: one point 0.35 s a strike on one core).
     int points_per_side = 1;
     /// A voxel nearer to a point than this many voxel sizes is taken as q^3 sub-voxels
     /// (q = ceil(near_voxels * h / r), at most 4) instead of one point: the 1/r^2 and the
@@ -34,7 +34,8 @@ struct GroundGatherOptions {
 /// directions; S toward p is interpolated between them by direction_weights. A one-direction
 /// field is taken as isotropic (g = 0): never pass S tallied toward a point.
 /// Deterministic (each point's sum in one order, whatever the threads). Throws core::Error
-/// naming the argument for mismatched fields or cells, or work above 2^32 voxel-point pairs.
+/// naming the argument for mismatched fields or cells, S not finite where the medium scatters,
+/// or work above 2^32 voxel-point pairs.
 GroundIrradiance gather_ground(const LightingMedium& medium, std::span<const SourceField* const> fields,
                                const GroundTally& cells, const GroundGatherOptions& options = {});
 

@@ -123,6 +123,12 @@ TEST_CASE("ground gather: the same irradiance on one thread and on two; bad argu
     cut.data.pop_back();
     const SourceField* short_field[] = {&cut};
     bad([&] { return gather_ground(m, short_field, cells); }, "gather_ground.fields[0]");
+    SourceField broken = s;
+    std::size_t cloudy = 0;  // a voxel that scatters
+    while (m.density.data[cloudy] <= 0.0f) ++cloudy;
+    broken.direction(3)[cloudy] = std::nanf("");
+    const SourceField* nan_field[] = {&broken};
+    bad([&] { return gather_ground(m, nan_field, cells); }, "S is not finite");
     GroundTally no_cells = cells;
     no_cells.nx = 0;
     bad([&] { return gather_ground(m, one, no_cells); }, "gather_ground.cells.nx");
