@@ -13,11 +13,7 @@
 #include <filesystem>
 #include <vector>
 
-namespace {
-
 using namespace fulgur;
-
-}  // namespace
 
 FULGUR_BENCH(ground_gather,
              "the ground gathered from S on the default storm: groups sharing transmittances vs one "

@@ -58,7 +58,10 @@ std::vector<GroundIrradiance> gather_ground(const LightingMedium& medium,
         }
     }
 
-    // The voxels that scatter, and S summed over each group's fields per voxel and direction.
+    // The voxels that scatter, and S summed over each group's fields per voxel and direction;
+    // and the box of the voxels that attenuate: outside it the medium is empty, so each
+    // traversal is clipped to it first (the same optical depth, fewer empty voxels walked).
+    glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
     std::vector<Emitter> emitters;
     std::vector<double> s;  // [(emitter * ng + group) * nd + m]
     std::vector<double> here(ng * nd);
@@ -69,6 +72,8 @@ std::vector<GroundIrradiance> gather_ground(const LightingMedium& medium,
                 const std::size_t c = g.index(i, j, k);
                 const double st = medium.sigma_t(c);
                 if (!(st > 0.0)) continue;
+                lo = glm::min(lo, g.origin + g.voxel_size * glm::dvec3(i, j, k));
+                hi = glm::max(hi, g.origin + g.voxel_size * glm::dvec3(i + 1, j + 1, k + 1));
                 double any = 0.0;
                 for (std::size_t q = 0; q < ng; ++q)
                     for (std::size_t m = 0; m < nd; ++m) {
@@ -86,16 +91,6 @@ std::vector<GroundIrradiance> gather_ground(const LightingMedium& medium,
                 emitters.push_back({g.centre(i, j, k), st * vol});
             }
 
-    // The box of the voxels that hold any density: outside it the medium is empty, so each
-    // traversal is clipped to it first (the same optical depth, fewer empty voxels walked).
-    glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
-    for (int k = 0; k < g.dims.z; ++k)
-        for (int j = 0; j < g.dims.y; ++j)
-            for (int i = 0; i < g.dims.x; ++i)
-                if (medium.density.data[g.index(i, j, k)] > 0.0f) {
-                    lo = glm::min(lo, g.origin + g.voxel_size * glm::dvec3(i, j, k));
-                    hi = glm::max(hi, g.origin + g.voxel_size * glm::dvec3(i + 1, j + 1, k + 1));
-                }
     const auto through = [&](const glm::dvec3& x, const glm::dvec3& p) {
         double t0 = 0.0, t1 = 1.0;
         if (!core::clip_ray_to_box(x, p - x, lo, hi, t0, t1)) return 1.0;

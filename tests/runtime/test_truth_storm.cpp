@@ -78,13 +78,11 @@ TEST_CASE("truth, storm cut small: the per_strike preset's ground, gathered from
                                   << "truth's S gathered " << truth_ratio << ", " << truth_l2 << " (the truth's SE "
                                   << truth.ground_power.se / truth.ground_power.mean << ")");
     // Measured: per_strike 0.862, L2 13.0%; the truth's S gathered 0.870, 12.8% (one point a
-    // cell; 2 x 2 points: 11.6% and 11.2%). The
-    // gather reads each 750 m voxel's mean S, where the light that reaches the ground leaves
-    // from the cloud base's lowest hundreds of metres; the lattice's S is 6% low in its
-    // multiple scattering (the test above), which moves the ground by 1%. Both runs are
-    // deterministic per seed; the bands are
-    // the truth's 4 SE (0.5%) plus 1.5% for per_strike's single-scattering paths, so the gather
-    // 5% off fails.
+    // cell; 2 x 2 points: 11.6% and 11.2%). The gather reads each 750 m voxel's mean S, where
+    // the light that reaches the ground leaves from the cloud base's lowest hundreds of metres;
+    // the lattice's S is 6% low in its multiple scattering (the test above), which moves the
+    // ground by 1%. Both runs are deterministic per seed; the bands are the truth's 4 SE (0.5%)
+    // plus 1.5% for per_strike's single-scattering paths, so the gather 5% off fails.
     CHECK(std::fabs(truth_ratio - 0.870) <= 0.02);
     CHECK(std::fabs(ratio - 0.862) <= 0.02);
     CHECK(truth_l2 <= 0.128 + 0.02);

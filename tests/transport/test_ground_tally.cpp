@@ -3,6 +3,7 @@
 // cloud must send down, split by source group, the same from the progressive tracer; and bad
 // ground tallies rejected with the field named.
 #include "support/test_support.h"
+#include "transport/ground_gather.h"
 #include "transport/transport.h"
 #include "transport_test_util.h"
 
@@ -52,32 +53,15 @@ TEST_CASE("ground tally: the scattered light on the ground is what the cloud's S
     const MonteCarloResult r = monte_carlo(m, light, dirs, o);
     REQUIRE(r.ground.data.size() == 64);
 
-    // The S estimate, averaged over each ground cell by 4 x 4 points.
-    const core::GridGeometry& g = m.density.geom;
-    const double vol = g.voxel_size * g.voxel_size * g.voxel_size;
+    // The S estimate, averaged over each ground cell by 4 x 4 points, every voxel taken as a
+    // point at its centre (no sub-voxels).
+    const SourceField* parts[] = {&r.single, &r.multiple};
+    const GroundIrradiance gathered = gather_ground(m, parts, ground, {.points_per_side = 4, .near_voxels = 0.0});
     std::vector<double> from_s(64, 0.0), tallied(64, 0.0);
-    for (int j = 0; j < 8; ++j)
-        for (int i = 0; i < 8; ++i) {
-            double e = 0.0;
-            for (int b = 0; b < 4; ++b)
-                for (int a = 0; a < 4; ++a) {
-                    const glm::dvec3 y(ground.origin.x + (i + (a + 0.5) / 4.0) * ground.cell,
-                                       ground.origin.y + (j + (b + 0.5) / 4.0) * ground.cell, ground.height);
-                    for (std::size_t c = 0; c < g.cell_count(); ++c) {
-                        if (m.density.data[c] <= 0.0f) continue;
-                        const int ci = int(c % std::size_t(g.dims.x)), cj = int(c / std::size_t(g.dims.x)) % g.dims.y,
-                                  ck = int(c / (std::size_t(g.dims.x) * std::size_t(g.dims.y)));
-                        const glm::dvec3 x = g.centre(ci, cj, ck);
-                        const glm::dvec3 l = x - y;
-                        const double r2 = glm::dot(l, l);
-                        const double s = double(r.single.data[c]) + double(r.multiple.data[c]);
-                        e += m.optics.extinction * double(m.density.data[c]) * s * vol * transmittance(m, x, y) *
-                             (l.z / std::sqrt(r2)) / r2;
-                    }
-                }
-            from_s[std::size_t(j * 8 + i)] = e / 16.0;
-            tallied[std::size_t(j * 8 + i)] = r.ground.data[std::size_t(j * 8 + i)];
-        }
+    for (std::size_t c = 0; c < 64; ++c) {
+        from_s[c] = gathered.data[c];
+        tallied[c] = r.ground.data[c];
+    }
     double sum_s = 0.0, sum_t = 0.0;
     for (std::size_t c = 0; c < 64; ++c) {
         sum_s += from_s[c] * ground.cell * ground.cell;
