@@ -131,11 +131,20 @@ vec3 ground_flash_irradiance(vec3 p) {
     return E;
 }
 
-// The rest of the ground's irradiance: the sky's on a horizontal plane, pi (0.2 horizon + 0.8
-// zenith) for the gradient (the sky the cloud hides is not subtracted), and the sun through
-// the cloud (its shadow), added to E in that order.
+// The static light on the ground besides the sun's beam (sky::compose_ground): the cloud's
+// scattered sun and sky light and the sky seen past the cloud, per cell in colour.
+layout(binding = 11) uniform sampler2D u_ground_static;
+
+// The rest of the ground's irradiance: on the static light's cells, their irradiance (the
+// cloud's light and the sky it leaves); elsewhere (or without them) the sky's on a horizontal
+// plane, pi (0.2 horizon + 0.8 zenith) for the gradient; then the sun through the cloud (its
+// shadow), added to E in that order.
 vec3 ground_static_irradiance(vec3 p, vec3 E) {
-    E += sky_params.z > 0.5 ? 3.14159265 * (0.2 * sky_horizon.rgb + 0.8 * sky_zenith.rgb) : vec3(0.0);
+    vec2 uv = (p.xy - ground_static.xy) * ground_static.zw;
+    if (ground_static.z > 0.0 && all(greaterThanEqual(uv, vec2(0.0))) && all(lessThan(uv, vec2(1.0))))
+        E += textureLod(u_ground_static, uv, 0.0).rgb;
+    else
+        E += sky_params.z > 0.5 ? 3.14159265 * (0.2 * sky_horizon.rgb + 0.8 * sky_zenith.rgb) : vec3(0.0);
     if (sun_dir.w > 0.5 && sun_dir.z < 0.0) E += sun_rgb.rgb * (-sun_dir.z * sun_visibility(p));
     return E;
 }

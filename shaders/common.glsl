@@ -35,6 +35,7 @@ layout(std140, binding = 0) uniform Frame {
     vec4 rain_lights;      // x number of rain_light
     vec4 ground_scatter;   // the cloud's scattered flash light on the ground (u_ground_scatter):
                            // xy lower corner of its cells (m), zw 1 / its extent along x, y (1/m); zw 0: none
+    vec4 ground_static;    // the static light on the ground (u_ground_static), as ground_scatter
 };
 
 // The host's depth buffer (render_into_host), full output resolution; read only when host_depth.w != 0.

@@ -187,12 +187,16 @@ FULGUR_STUDY(static_frontier, "static-frontier",
                 return *solved;
             };
             const auto part = [&](std::uint64_t k, sky::LightField sky::SkyField::*which) {
-                const sky::TruthField f =
-                    cached_truth(lighting, dirs, core::hash_seed(c.truth_paths, 100 + k),
-                                 file.string() + "." + std::to_string(k), [&] {
-                                     const sky::SkyTruth& all = solve();
-                                     return sky::TruthField{all.field.*which, all.noise[k], all.sums[k], all.seconds};
-                                 });
+                const sky::TruthField f = cached_truth(lighting, dirs, core::hash_seed(c.truth_paths, 100 + k),
+                                                       file.string() + "." + std::to_string(k), [&] {
+                                                           const sky::SkyTruth& all = solve();
+                                                           sky::TruthField one;
+                                                           one.field = all.field.*which;
+                                                           one.noise = all.noise[k];
+                                                           one.sums = all.sums[k];
+                                                           one.seconds = all.seconds;
+                                                           return one;
+                                                       });
                 t.field.*which = f.field;
                 t.noise.push_back(f.noise);
             };

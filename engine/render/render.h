@@ -106,6 +106,17 @@ struct StaticUpload {
     /// One array per direction (all of them, in order): 3 floats (rgb) per cell, x fastest,
     /// radiance units. Must stay valid during the call only.
     std::vector<std::span<const float>> rgb;
+    /// The static light on the ground besides the sun's direct beam (sky::compose_ground): the
+    /// light the cloud scatters down and the sky seen past the cloud, irradiance in colour
+    /// (W/m^2, 3 floats per cell) on square cells of the ground plane, x fastest. It takes the
+    /// place of the sky's unshadowed irradiance, pi (0.2 horizon + 0.8 zenith), on its cells;
+    /// empty (or outside them): that. Must stay valid during the call only.
+    struct Ground {
+        glm::dvec2 origin{0.0};  ///< lower corner (x, y) of cell (0, 0), metres
+        double cell = 0.0;       ///< cell size (m), > 0
+        int nx = 0, ny = 0;      ///< cells along x and y, each in [1, 4096]
+        std::span<const float> rgb;
+    } ground;
 };
 
 /// The sun drawn at full resolution: its single scattering

@@ -164,6 +164,7 @@ Renderer::~Renderer() {
     glDeleteQueries(kPassCount, m.queries);
     delete_texture(m.zero_tex);
     delete_texture(m.ground_scatter_tex);
+    delete_texture(m.ground_static_tex);
     delete_texture(m.profile_tex);
     delete_texture(m.density_tex);
     delete_texture(m.detail_tex);
@@ -333,7 +334,36 @@ void Renderer::upload_static(const StaticUpload& s) {
     if (int(s.rgb.size()) != s.direction_count)
         throw core::Error("upload_static", "needs all " + std::to_string(s.direction_count) + " directions, got " +
                                                std::to_string(s.rgb.size()));
+    const StaticUpload::Ground& g = s.ground;
+    if (!g.rgb.empty()) {
+        if (g.nx < 1 || g.nx > 4096 || g.ny < 1 || g.ny > 4096)
+            throw core::Error("upload_static: ground", "needs 1 to 4096 cells along x and y, got " +
+                                                           std::to_string(g.nx) + " x " + std::to_string(g.ny));
+        if (!(std::isfinite(g.cell) && g.cell > 0.0) || !std::isfinite(g.origin.x) || !std::isfinite(g.origin.y))
+            throw core::Error("upload_static: ground", "needs a finite origin and a cell size > 0");
+        if (g.rgb.size() != 3 * std::size_t(g.nx) * std::size_t(g.ny))
+            throw core::Error("upload_static: ground",
+                              "holds " + std::to_string(g.rgb.size()) + " values, not 3 per cell");
+        for (std::size_t i = 0; i < g.rgb.size(); ++i)
+            if (!std::isfinite(g.rgb[i]) || g.rgb[i] < 0.0f)
+                throw core::Error("upload_static: ground",
+                                  "irradiance must be finite and >= 0 (value " + std::to_string(i) + ")");
+    }
     upload_into(m.statics, "upload_static", s.geometry, s.direction_count, all, s.rgb, 3, false);
+    if (g.rgb.empty()) {
+        m.ground_static_map = glm::vec4(0.0f);
+    } else {
+        if (g.nx != m.ground_static_nx || g.ny != m.ground_static_ny) {
+            delete_texture(m.ground_static_tex);
+            m.ground_static_tex = detail::make_texture_2d(g.nx, g.ny, GL_RGB32F, GL_CLAMP_TO_EDGE);
+            m.ground_static_nx = g.nx;
+            m.ground_static_ny = g.ny;
+        }
+        glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+        glTextureSubImage2D(m.ground_static_tex, 0, 0, 0, g.nx, g.ny, GL_RGB, GL_FLOAT, g.rgb.data());
+        m.ground_static_map =
+            glm::vec4(float(g.origin.x), float(g.origin.y), float(1.0 / (g.cell * g.nx)), float(1.0 / (g.cell * g.ny)));
+    }
     m.temporal.inputs_changed = true;
     m.pending_upload_ms += sw.milliseconds();
     m.pending_upload_cpu_ms += process_cpu_ms() - cpu0;
@@ -341,6 +371,7 @@ void Renderer::upload_static(const StaticUpload& s) {
 
 void Renderer::clear_static() {
     impl_->temporal.inputs_changed = true;
+    impl_->ground_static_map = glm::vec4(0.0f);
     impl_->statics.has = false;
     impl_->statics.dirty = true;
 }

@@ -1,7 +1,7 @@
 // Per-strike light (runtime.h, docs/presets.md): a strike's strokes solved once, as exact
 // line sources, and the worker thread that solves strikes ahead of their frames.
 #include "runtime/runtime.h"
-#include "transport/ground_gather.h"
+#include "transport/ground_dome.h"
 
 #include <glm/geometric.hpp>
 
@@ -163,7 +163,7 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
     out.seconds_multiple = sw.seconds();
     sw.reset();
     // Without a Monte Carlo of the multiple scattering to tally it, the ground's light is
-    // gathered from the strike's S where that S is all of it: the lattice's (single + multiple)
+    // gathered from the strike's S (rays up from each cell) where that S is all of it: the lattice's (single + multiple)
     // or single scattering alone in a scene without multiple scattering. The hybrid preset's
     // strokes take their multiple scattering from the bases, which carry no ground: none then.
     // Not toward the camera either: that S is the light toward one point, not toward the ground.
@@ -174,8 +174,8 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
             groups[q] = {&out.single[q]};
             if (out.has_multiple()) groups[q].push_back(&out.multiple[q]);
         }
-        std::vector<transport::GroundIrradiance> g = transport::gather_ground(media.lighting, groups, *options.ground);
-        for (std::uint32_t q = 0; q < 2; ++q) out.ground[q] = std::move(g[q]);
+        transport::DomeGround g = transport::ground_dome(media.lighting, groups, {}, *options.ground);
+        for (std::uint32_t q = 0; q < 2; ++q) out.ground[q] = std::move(g.groups[q]);
     }
     out.seconds_ground = sw.seconds();
     return out;

@@ -32,7 +32,7 @@ struct StrikeLight {
     bool has_fine() const noexcept { return !fine_single[0].data.empty(); }
     /// With StrikeSolveOptions::ground: the irradiance the cloud's scattered light gives the
     /// ground at unit glow, per group (W/m^2). Tallied by Monte Carlo multiple scattering's
-    /// paths; gathered from S (transport::gather_ground) where the lattice solves it, or where
+    /// paths; gathered from S (transport::ground_dome) where the lattice solves it, or where
     /// single scattering is all (no multiple scattering in the scene). Empty otherwise: the
     /// hybrid preset (its multiple scattering is the bases'), S tallied toward the camera.
     std::array<transport::GroundIrradiance, 2> ground;

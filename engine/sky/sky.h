@@ -281,6 +281,9 @@ struct TruthOptions {
     /// Set: S toward this point from every voxel (transport::MonteCarloOptions::toward); the
     /// directions passed must then be one. static_truth takes its plan's settings.toward.
     std::optional<glm::dvec3> toward;
+    /// Set: also tally the light the cloud scatters onto these ground cells (the paths'
+    /// crossings after one scattering or more: transport::MonteCarloOptions::ground).
+    std::optional<transport::GroundTally> ground;
 };
 /// One light's truth in a solve's shape (single: order 1, multiple: orders >= 2), with the
 /// Monte Carlo's own noise (relative L2 from two independent halves) and wall time.
@@ -289,6 +292,9 @@ struct TruthField {
     transport::MonteCarloResult::Noise noise;
     transport::MonteCarloResult::CloudSums sums;  ///< whole-cloud totals with standard errors
     double seconds = 0.0;
+    /// With TruthOptions::ground: the scattered light on its cells, and their power with its SE.
+    transport::GroundIrradiance ground;
+    transport::Estimate ground_power;
 };
 /// The sun (unit irradiance along `direction`) entering the grid's box, through media.full
 /// (solve::make_media with the full-resolution density), tallied on media.lighting.
@@ -309,6 +315,8 @@ struct SkyTruth {
     std::vector<transport::MonteCarloResult::Noise> noise;     ///< per basis (zenith, horizon; or uniform)
     std::vector<transport::MonteCarloResult::CloudSums> sums;  ///< per basis, as `noise`
     double seconds = 0.0;
+    std::vector<transport::GroundIrradiance> ground;   ///< per basis, as `noise` (TruthOptions::ground)
+    std::vector<transport::Estimate> ground_power;     ///< per basis
 };
 SkyTruth sky_truth(const solve::Media& media, bool uniform, std::span<const glm::dvec3> directions,
                    const TruthOptions& options = {});

@@ -24,6 +24,7 @@ transport::MonteCarloOptions truth_options(const TruthOptions& o, std::uint64_t 
     mo.seed = core::hash_seed(o.seed, stream);
     mo.halves = true;
     mo.toward = o.toward;
+    mo.ground = o.ground;
     return mo;
 }
 
@@ -34,6 +35,8 @@ TruthField as_field(transport::MonteCarloResult&& r) {
     t.noise = r.noise;
     t.sums = r.sums;
     t.seconds = r.seconds;
+    t.ground = std::move(r.ground);
+    t.ground_power = r.ground_power;
     return t;
 }
 
@@ -75,6 +78,8 @@ SkyTruth sky_truth(const solve::Media& media, bool uniform, std::span<const glm:
         out.noise.push_back(t.noise);
         out.sums.push_back(t.sums);
         out.seconds = t.seconds;
+        out.ground.push_back(std::move(t.ground));
+        out.ground_power.push_back(t.ground_power);
         return out;
     }
     const transport::DomeSource zenith = dome_basis(DomeBasis::Zenith, options.table),
@@ -86,6 +91,8 @@ SkyTruth sky_truth(const solve::Media& media, bool uniform, std::span<const glm:
     out.noise = {z.noise, h.noise};
     out.sums = {z.sums, h.sums};
     out.seconds = z.seconds + h.seconds;
+    out.ground = {std::move(z.ground), std::move(h.ground)};
+    out.ground_power = {z.ground_power, h.ground_power};
     return out;
 }
 

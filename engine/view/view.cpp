@@ -196,6 +196,21 @@ void StormView::update_static_light(const ViewOptions& o) {
         up.geometry = c.geom;
         up.direction_count = int(c.directions.size());
         for (const std::vector<float>& v : c.rgb) up.rgb.emplace_back(v.data(), v.size());
+        // The ground's static light: what the cloud scatters down and the sky it leaves.
+        if (ground_version_ != static_version_) {
+            const solve::Media& m = static_media();
+            const auto cells = sky::static_ground_cells(scene_, m.lighting.density.geom);
+            ground_ = cells ? sky::static_ground(m, static_, *cells) : sky::StaticGround{};
+            ground_version_ = static_version_;
+        }
+        const std::vector<float> ground_rgb = sky::compose_ground(ground_, sun_, scene_.sky, sun, sky);
+        if (!ground_rgb.empty()) {
+            up.ground.origin = ground_.cells.origin;
+            up.ground.cell = ground_.cells.cell;
+            up.ground.nx = ground_.cells.nx;
+            up.ground.ny = ground_.cells.ny;
+            up.ground.rgb = ground_rgb;
+        }
         renderer_->upload_static(up);
     }
     if (sun) {

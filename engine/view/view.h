@@ -11,6 +11,7 @@
 #include "render/render.h"
 #include "runtime/runtime.h"
 #include "scene/scene.h"
+#include "sky/ground.h"
 #include "sky/sky.h"
 
 #include <filesystem>
@@ -242,6 +243,9 @@ private:
         std::uint64_t version = 0;
     } uploaded_, sun_uploaded_;
     std::uint64_t static_version_ = 1;  // bumped when the static light or the sun changes
+    // The static light on the ground (sky::static_ground), for static_version_ ground_version_.
+    sky::StaticGround ground_;
+    std::uint64_t ground_version_ = 0;
 };
 
 /// Per-field medians of several frames' reports (lit taken from the last one).

@@ -100,6 +100,10 @@ struct Renderer::Impl {
     int ground_scatter_nx = 0, ground_scatter_ny = 0;  // the texture's size (0: the 1x1 zero)
     glm::vec4 ground_scatter_map{0.0f};                // FrameBlock::ground_scatter (zw 0: none)
     void set_ground_scatter(const LitChannel::GroundScatter& g);
+    // The static light's ground (StaticUpload::ground): RGB32F, bound to unit 11.
+    GLuint ground_static_tex = 0;
+    int ground_static_nx = 0, ground_static_ny = 0;
+    glm::vec4 ground_static_map{0.0f};  // FrameBlock::ground_static (zw 0: none)
 
     GLuint last_scam = 0;    // S_cam texture the last frame sampled (0: none)
     GLuint last_static = 0;  // the static light's S_cam the last frame sampled (0: none)

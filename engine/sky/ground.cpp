@@ -1,0 +1,94 @@
+// The static light on the ground (ground.h): the cloud's scattered sun and sky light and the
+// sky seen through the cloud, by rays up from each cell (transport::ground_dome).
+#include "sky/ground.h"
+
+#include "core/parallel.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace fulgur::sky {
+
+std::optional<transport::GroundTally> static_ground_cells(const scene::Scene& s, const core::GridGeometry& lighting) {
+    if (!s.effects.ground) return std::nullopt;
+    constexpr double kMargin = 20000.0;
+    constexpr int kMaxSide = 128;
+    const glm::dvec3 span = lighting.extent() + 2.0 * kMargin;
+    transport::GroundTally g;
+    g.height = s.lightning.bolt.ground_height;
+    g.cell = std::max(2.0 * lighting.voxel_size, std::max(span.x, span.y) / kMaxSide);
+    g.origin = glm::dvec2(lighting.origin.x, lighting.origin.y) - kMargin;
+    g.nx = std::clamp(int(std::ceil(span.x / g.cell)), 1, kMaxSide);
+    g.ny = std::clamp(int(std::ceil(span.y / g.cell)), 1, kMaxSide);
+    return g;
+}
+
+StaticGround static_ground(const solve::Media& media, const StaticLight& light, const transport::GroundTally& cells,
+                           const transport::DomeGroundOptions& options) {
+    core::Stopwatch sw;
+    StaticGround out;
+    out.cells = cells;
+    const auto parts = [](const LightField& f) {
+        std::vector<const transport::SourceField*> v;
+        for (const transport::SourceField* p : {&f.single, &f.multiple})
+            if (!p->data.empty()) v.push_back(p);
+        return v;
+    };
+    std::vector<std::vector<const transport::SourceField*>> groups;
+    std::vector<transport::DomeProfile> skies;
+    std::vector<std::vector<float>*> group_out, sky_out;
+    // A light without S (its effects off) still sees the sky through the cloud; the fields a
+    // group holds are summed.
+    if (light.sun && !parts(*light.sun).empty()) {
+        groups.push_back(parts(*light.sun));
+        group_out.push_back(&out.sun);
+    }
+    if (light.sky) {
+        const auto basis = [&](const LightField& f, std::vector<float>& dst, transport::DomeProfile profile) {
+            if (!parts(f).empty()) {
+                groups.push_back(parts(f));
+                group_out.push_back(&dst);
+            }
+            skies.push_back(std::move(profile));
+            sky_out.push_back(&dst);
+        };
+        if (!light.sky->uniform.empty() || (light.sky->zenith.empty() && light.sky->horizon.empty()))
+            basis(light.sky->uniform, out.uniform, [](double) { return 1.0; });
+        else {
+            basis(light.sky->zenith, out.zenith, [](double s) { return scene::SkyDome::zenith_weight(s); });
+            basis(light.sky->horizon, out.horizon, [](double s) { return 1.0 - scene::SkyDome::zenith_weight(s); });
+        }
+    }
+    if (groups.empty() && skies.empty()) return out;
+    const transport::DomeGround d = transport::ground_dome(media.lighting, groups, skies, cells, options);
+    for (std::size_t q = 0; q < groups.size(); ++q) *group_out[q] = d.groups[q].data;
+    for (std::size_t k = 0; k < skies.size(); ++k) {
+        std::vector<float>& dst = *sky_out[k];
+        if (dst.empty()) dst.assign(d.skies[k].data.size(), 0.0f);
+        for (std::size_t c = 0; c < dst.size(); ++c) dst[c] += d.skies[k].data[c];
+    }
+    out.seconds = sw.seconds();
+    return out;
+}
+
+std::vector<float> compose_ground(const StaticGround& g, const std::optional<scene::Sun>& sun,
+                                  const std::optional<scene::SkyDome>& sky, bool use_sun, bool use_sky) {
+    const std::size_t n = g.cells.cells();
+    std::vector<float> rgb;
+    const auto add = [&](const std::vector<float>& part, const glm::dvec3& colour) {
+        if (part.empty()) return;
+        FULGUR_ASSERT(part.size() == n, "compose_ground: a part of another size than the cells");
+        if (rgb.empty()) rgb.assign(3 * n, 0.0f);
+        for (std::size_t c = 0; c < n; ++c)
+            for (int k = 0; k < 3; ++k) rgb[3 * c + std::size_t(k)] += float(double(part[c]) * colour[k]);
+    };
+    if (use_sun && sun) add(g.sun, sun->irradiance * sun->colour);
+    if (use_sky && sky) {
+        add(g.uniform, sky->zenith());  // a uniform sky: both ends equal
+        add(g.zenith, sky->zenith());
+        add(g.horizon, sky->horizon());
+    }
+    return rgb;
+}
+
+}  // namespace fulgur::sky

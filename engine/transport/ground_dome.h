@@ -1,0 +1,59 @@
+// fulgur::transport — the ground's irradiance from the light arriving over its dome: for each
+// cell, rays from the ground up through the medium in many directions, each gathering the
+// radiance the medium scatters toward the ground (from any solver's S: the lattice's, a
+// reconstruction's, where Monte Carlo tallies it from its paths instead,
+// MonteCarloOptions::ground) and what is left of a sky behind the medium.
+#pragma once
+
+#include "transport/transport.h"
+
+#include <functional>
+#include <span>
+#include <vector>
+
+namespace fulgur::transport {
+
+struct DomeGroundOptions {
+    /// Rays per cell (from its centre) over the upper hemisphere, cosine-weighted (a Fibonacci
+    /// spiral in the disc the hemisphere projects to), so the irradiance is pi times their mean
+    /// radiance. In [16, 65536].
+    int rays = 1024;
+    /// Each cell's irradiance is the mean over n x n points on it (n in [1, 16]; 1: its centre).
+    int points_per_side = 1;
+    /// What a ray takes from a voxel it crosses for a length l: Uniform, S constant through
+    /// the voxel, T_in S (1 - exp(-sigma_t l)) (exact for that model); Centre, the voxel's
+    /// light as from the middle of the crossing, T_in S sigma_t l exp(-sigma_t l / 2) (the
+    /// midpoint rule). Where voxels are optically thin they agree; where one is several optical
+    /// depths thick its S falls toward the faces the light leaves by, which Uniform does not
+    /// see and the midpoint's deeper dimming stands for (test_ground_dome: in voxels three
+    /// optical depths thick lit from within, Uniform 1.26 of the tallied power, Centre 1.18;
+    /// on the default storm's 750 m voxels, the sun's light on the ground 1.10 and 1.00 of the
+    /// truth's, a strike's 1.09 and 0.95).
+    enum class Within { Uniform, Centre };
+    Within within = Within::Centre;
+};
+
+/// A sky's radiance (W m^-2 sr^-1) as a function of sin(elevation) in [0, 1].
+using DomeProfile = std::function<double(double sin_elevation)>;
+
+/// Irradiance on `cells` (W/m^2 per cell, over its points) of:
+///  * `groups[q]`: the light the medium scatters, S summed over the group's fields (each on the
+///    medium's grid with the same directions; S toward the ground interpolated between them by
+///    direction_weights, one direction taken as isotropic). Along a ray the medium and S are
+///    constant in each voxel, so its radiance is exact for that model:
+///    L = sum over voxels T_in S (1 - exp(-sigma_t l)).
+///  * `skies[k]`: a sky behind the medium, L = T(ray) profile(sin elevation): what of that sky
+///    the cloud lets through, without the light the cloud scatters (a group's part).
+/// The ground is black and does not shadow; rays start on the plane. Deterministic whatever
+/// the threads. Throws core::Error naming the argument (`ground_dome.groups[q][f]`, `.cells`,
+/// `.rays`, `.points_per_side`, `.skies[k]`) for mismatched fields, S not finite where the medium scatters, a
+/// profile giving a negative or non-finite radiance, or work above 2^36 voxel visits.
+struct DomeGround {
+    std::vector<GroundIrradiance> groups;  ///< one per group of fields
+    std::vector<GroundIrradiance> skies;   ///< one per profile
+};
+DomeGround ground_dome(const LightingMedium& medium, std::span<const std::vector<const SourceField*>> groups,
+                       std::span<const DomeProfile> skies, const GroundTally& cells,
+                       const DomeGroundOptions& options = {});
+
+}  // namespace fulgur::transport
