@@ -315,8 +315,8 @@ struct SkyTruth {
     std::vector<transport::MonteCarloResult::Noise> noise;     ///< per basis (zenith, horizon; or uniform)
     std::vector<transport::MonteCarloResult::CloudSums> sums;  ///< per basis, as `noise`
     double seconds = 0.0;
-    std::vector<transport::GroundIrradiance> ground;   ///< per basis, as `noise` (TruthOptions::ground)
-    std::vector<transport::Estimate> ground_power;     ///< per basis
+    std::vector<transport::GroundIrradiance> ground;  ///< per basis, as `noise` (TruthOptions::ground)
+    std::vector<transport::Estimate> ground_power;    ///< per basis
 };
 SkyTruth sky_truth(const solve::Media& media, bool uniform, std::span<const glm::dvec3> directions,
                    const TruthOptions& options = {});
