@@ -337,17 +337,19 @@ void Renderer::upload_static(const StaticUpload& s) {
     const StaticUpload::Ground& g = s.ground;
     if (!g.rgb.empty()) {
         if (g.nx < 1 || g.nx > 4096 || g.ny < 1 || g.ny > 4096)
-            throw core::Error("upload_static: ground", "needs 1 to 4096 cells along x and y, got " +
-                                                           std::to_string(g.nx) + " x " + std::to_string(g.ny));
-        if (!(std::isfinite(g.cell) && g.cell > 0.0) || !std::isfinite(g.origin.x) || !std::isfinite(g.origin.y))
-            throw core::Error("upload_static: ground", "needs a finite origin and a cell size > 0");
+            throw core::Error("upload_static: ground.nx, ny",
+                              "need 1 to 4096 cells each, got " + std::to_string(g.nx) + " x " + std::to_string(g.ny));
+        if (!(std::isfinite(g.cell) && g.cell > 0.0))
+            throw core::Error("upload_static: ground.cell", "must be finite and > 0");
+        if (!std::isfinite(g.origin.x) || !std::isfinite(g.origin.y))
+            throw core::Error("upload_static: ground.origin", "must be finite");
         if (g.rgb.size() != 3 * std::size_t(g.nx) * std::size_t(g.ny))
-            throw core::Error("upload_static: ground",
+            throw core::Error("upload_static: ground.rgb",
                               "holds " + std::to_string(g.rgb.size()) + " values, not 3 per cell");
         for (std::size_t i = 0; i < g.rgb.size(); ++i)
             if (!std::isfinite(g.rgb[i]) || g.rgb[i] < 0.0f)
-                throw core::Error("upload_static: ground",
-                                  "irradiance must be finite and >= 0 (value " + std::to_string(i) + ")");
+                throw core::Error("upload_static: ground.rgb[" + std::to_string(i) + "]",
+                                  "irradiance must be finite and >= 0");
     }
     upload_into(m.statics, "upload_static", s.geometry, s.direction_count, all, s.rgb, 3, false);
     if (g.rgb.empty()) {

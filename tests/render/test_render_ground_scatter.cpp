@@ -1,6 +1,8 @@
 // The cloud's scattered flash light on the ground (LitChannel::ground): a uniform irradiance
 // lights the ground exactly as the sun's equal irradiance does, nothing outside its cells,
-// nothing when switched off; bad cells are rejected with the field named.
+// nothing when switched off; bad cells are rejected with the field named. The same for the
+// static light's ground (StaticUpload::ground), in colour, with the sky's unshadowed
+// irradiance outside its cells.
 #include "gl_fixture.h"
 
 #include "support/test_support.h"
@@ -113,4 +115,116 @@ TEST_CASE("bad ground cells are rejected with the field named") {
     bad([](auto& g) { g.cell = 0.0; }, "ground.cell");
     bad([](auto& g) { g.origin.x = INFINITY; }, "ground");
     r.set_channel({});
+}
+
+namespace {
+
+// A static light of one direction on the box's grid, zero everywhere (the march draws the static
+// light's ground with one), with 4 x 4 ground cells of colour `e` (none when e is zero).
+void upload_static_ground(render::Renderer& r, glm::dvec3 e) {
+    const std::vector<float> zeros(3 * box().cell_count(), 0.0f);
+    std::vector<float> cells;
+    for (int c = 0; c < 16 && e != glm::dvec3(0.0); ++c)
+        for (int k = 0; k < 3; ++k) cells.push_back(float(e[k]));
+    render::StaticUpload up;
+    up.geometry = box();
+    up.direction_count = 1;
+    up.rgb = {zeros};
+    up.ground = {.origin = {-1000.0, -1000.0}, .cell = 500.0, .nx = 4, .ny = 4, .rgb = cells};
+    r.upload_static(up);
+}
+
+}  // namespace
+
+TEST_CASE("the static light's ground: a colour irradiance lights it as the sun's; the sky's outside its cells") {
+    render::Renderer& r = gl_renderer();
+    const core::Grid3<float> empty(box(), 0.0f);
+    r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16});
+    r.clear_source();
+    r.set_channel({});
+    render::Settings st = test::volume_only();  // no sky
+    st.ground = true;
+    st.jitter = false;
+    const int N = 64;
+    const auto march = [&] {
+        render_at(r, down_camera(), st, N, N);
+        int w = 0, h = 0;
+        return r.read_march(w, h);
+    };
+    const auto ground_x = [&](int x) {
+        return (double(x) + 0.5 - 0.5 * N) / (0.5 * N) * 3000.0 * std::tan(28.0 * 3.14159265358979 / 180.0);
+    };
+    const glm::dvec3 e(0.5, 0.25, 0.125);
+    upload_static_ground(r, e);
+    r.clear_sun();
+    const std::vector<float> mapped = march();
+    r.clear_static();
+    r.set_sun({.direction = {0.0, 0.0, -1.0}, .irradiance_rgb = e, .scatter = false});
+    const std::vector<float> sunlit = march();
+    r.clear_sun();
+    int inside = 0;
+    double worst = 0.0;
+    for (int y = 0; y < N; ++y)
+        for (int x = 0; x < N; ++x) {
+            if (!(std::abs(ground_x(x)) < 700.0 && std::abs(ground_x(y)) < 700.0)) continue;
+            ++inside;
+            for (int c = 0; c < 3; ++c) {
+                const std::size_t p = (std::size_t(y) * N + std::size_t(x)) * 4 + std::size_t(c);
+                worst = std::max(worst, std::abs(double(mapped[p]) / double(sunlit[p]) - 1.0));
+            }
+        }
+    MESSAGE(inside << " pixels inside the cells: worst ratio to the sunlit ground - 1 = " << worst);
+    CHECK(inside > 100);
+    CHECK(worst < 1e-5);  // the same irradiance through the same shading: float rounding only
+
+    // With the sky drawn: outside the cells the ground shows the sky's unshadowed irradiance,
+    // the same pixels as without cells; inside, the cells take its place, so the difference
+    // there is the map's shading x (1 - E_sky / E_cell) per channel (the haze is the same).
+    st.sky = true;
+    st.sky_zenith = glm::dvec3(0.02, 0.03, 0.05);
+    st.sky_horizon = glm::dvec3(0.04, 0.04, 0.04);
+    upload_static_ground(r, e);
+    const std::vector<float> with_cells = march();
+    upload_static_ground(r, glm::dvec3(0.0));
+    const std::vector<float> without = march();
+    int outside = 0;
+    for (int y = 0; y < N; ++y)
+        for (int x = 0; x < N; ++x) {
+            if (!(std::abs(ground_x(x)) > 1000.0 || std::abs(ground_x(y)) > 1000.0)) continue;
+            ++outside;
+            const std::size_t p = (std::size_t(y) * N + std::size_t(x)) * 4;
+            for (int c = 0; c < 3; ++c) CHECK(with_cells[p + std::size_t(c)] == without[p + std::size_t(c)]);
+        }
+    CHECK(outside > 100);
+    const std::size_t centre = (std::size_t(N / 2) * N + std::size_t(N / 2)) * 4;
+    for (int c = 0; c < 3; ++c) {
+        const double e_sky = 3.14159265358979 * (0.2 * st.sky_horizon[c] + 0.8 * st.sky_zenith[c]);
+        const double expect = double(mapped[centre + std::size_t(c)]) * (1.0 - e_sky / e[c]);
+        CHECK(double(with_cells[centre + std::size_t(c)]) - double(without[centre + std::size_t(c)]) ==
+              doctest::Approx(expect).epsilon(1e-4));
+    }
+    r.clear_static();
+}
+
+TEST_CASE("bad static ground cells are rejected with the field named") {
+    render::Renderer& r = gl_renderer();
+    const std::vector<float> zeros(3 * box().cell_count(), 0.0f);
+    const auto bad = [&](auto mutate, const char* field) {
+        std::vector<float> values(48, 1.0f);
+        render::StaticUpload up;
+        up.geometry = box();
+        up.direction_count = 1;
+        up.rgb = {zeros};
+        up.ground = {.origin = {-1000.0, -1000.0}, .cell = 500.0, .nx = 4, .ny = 4, .rgb = values};
+        mutate(up.ground, values);
+        CHECK_THROWS_WITH_AS(r.upload_static(up), doctest::Contains(field), core::Error);
+    };
+    bad([](auto&, auto& v) { v[7] = -1.0f; }, "ground.rgb[7]");
+    bad([](auto&, auto& v) { v[0] = NAN; }, "ground.rgb[0]");
+    bad([](auto& g, auto& v) { g.rgb = std::span<const float>(v).first(47); }, "ground.rgb");
+    bad([](auto& g, auto&) { g.nx = 0; }, "ground.nx");
+    bad([](auto& g, auto&) { g.ny = 5000; }, "ground.nx, ny");
+    bad([](auto& g, auto&) { g.cell = -1.0; }, "ground.cell");
+    bad([](auto& g, auto&) { g.origin.y = NAN; }, "ground.origin");
+    r.clear_static();
 }
