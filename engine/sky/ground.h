@@ -16,7 +16,8 @@ namespace fulgur::sky {
 
 /// The cells the static light's ground is kept on: the scene's ground plane (the bolt's
 /// ground height) under `lighting` and 20 km around it, cells of two lighting voxels, made
-/// coarser when that would take more than 128 along a side. None when the scene has no ground.
+/// coarser when that would take more than 128 along a side, or more than ground_dome's work
+/// bound allows at its default rays for a grid that large. None when the scene has no ground.
 std::optional<transport::GroundTally> static_ground_cells(const scene::Scene& s, const core::GridGeometry& lighting);
 
 /// The static light's ground per unit light, W/m^2 per cell (GroundTally order): `sun`, the

@@ -118,11 +118,13 @@ DomeGround ground_dome(const LightingMedium& medium, std::span<const std::vector
                     lo = glm::min(lo, g.origin + g.voxel_size * glm::dvec3(i, j, k));
                     hi = glm::max(hi, g.origin + g.voxel_size * glm::dvec3(i + 1, j + 1, k + 1));
                 }
-    const double visits =
-        double(cells.cells()) * double(n * n) * double(dome.size()) * double(g.dims.x + g.dims.y + g.dims.z);
-    if (visits > double(std::uint64_t(1) << 36))
+    // Work bound: a ray crosses at most the sum of the cloud box's sides in voxels (~1e8 visits
+    // a second on one core).
+    const glm::dvec3 box = lo.x <= hi.x ? (hi - lo) / g.voxel_size : glm::dvec3(0.0);
+    const double visits = double(cells.cells()) * double(n * n) * double(dome.size()) * (box.x + box.y + box.z + 3.0);
+    if (visits > double(std::uint64_t(1) << 33))
         throw core::Error("ground_dome", "could visit " + std::to_string(visits) +
-                                             " voxels (at most 2^36): coarser cells or fewer rays");
+                                             " voxels (at most 2^33): coarser cells or fewer rays");
     // Each ray's direction weights (S toward the ground is S along -direction).
     std::vector<DirectionWeights> weights;
     weights.reserve(dome.size());
