@@ -39,22 +39,40 @@ render::Camera down_camera() {
     return cam;
 }
 
+// The renderer with the empty box, no flash S, and settings that draw the ground alone (no sky,
+// flash colour white, no jitter).
+render::Renderer& ground_renderer(render::Settings& st) {
+    render::Renderer& r = gl_renderer();
+    static const core::Grid3<float> empty(box(), 0.0f);
+    r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16});
+    r.clear_source();
+    st = test::volume_only();
+    st.ground = true;
+    st.jitter = false;
+    return r;
+}
+
+constexpr int kSide = 64;  // the march's pixels a side
+
+// The march looking down (RGBA per pixel, a = T).
+std::vector<float> march_down(render::Renderer& r, const render::Settings& st) {
+    render_at(r, down_camera(), st, kSide, kSide);
+    int w = 0, h = 0;
+    return r.read_march(w, h);
+}
+
+// Ground x (or y) under pixel column x (or row y), metres.
+double ground_x(int x) {
+    return (double(x) + 0.5 - 0.5 * kSide) / (0.5 * kSide) * 3000.0 * std::tan(28.0 * 3.14159265358979 / 180.0);
+}
+
 }  // namespace
 
 TEST_CASE("the ground's scattered flash light: a uniform irradiance lights it as the sun's equal irradiance does") {
-    render::Renderer& r = gl_renderer();
-    const core::Grid3<float> empty(box(), 0.0f);
-    r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16});
-    r.clear_source();
-    render::Settings st = test::volume_only();  // no sky, flash colour white
-    st.ground = true;
-    st.jitter = false;
-    const int N = 64;
-    const auto march = [&] {
-        render_at(r, down_camera(), st, N, N);
-        int w = 0, h = 0;
-        return r.read_march(w, h);
-    };
+    render::Settings st;
+    render::Renderer& r = ground_renderer(st);
+    const int N = kSide;
+    const auto march = [&] { return march_down(r, st); };
     const double e = 0.5;
     // A: only the cloud's scattered light, 0.5 W/m^2 on every cell.
     render::LitChannel ch;
@@ -69,9 +87,6 @@ TEST_CASE("the ground's scattered flash light: a uniform irradiance lights it as
     r.clear_sun();
     // Pixels over the cells' inside (more than half a cell from their edge: the filter's reach)
     // and far outside them (beyond half a cell past the edge the texture reads zero).
-    const auto ground_x = [&](int x) {
-        return (double(x) + 0.5 - 0.5 * N) / (0.5 * N) * 3000.0 * std::tan(28.0 * 3.14159265358979 / 180.0);
-    };
     int inside = 0, outside = 0;
     double worst = 0.0;
     for (int y = 0; y < N; ++y)
@@ -137,23 +152,11 @@ void upload_static_ground(render::Renderer& r, glm::dvec3 e) {
 }  // namespace
 
 TEST_CASE("the static light's ground: a colour irradiance lights it as the sun's; the sky's outside its cells") {
-    render::Renderer& r = gl_renderer();
-    const core::Grid3<float> empty(box(), 0.0f);
-    r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16});
-    r.clear_source();
+    render::Settings st;
+    render::Renderer& r = ground_renderer(st);
     r.set_channel({});
-    render::Settings st = test::volume_only();  // no sky
-    st.ground = true;
-    st.jitter = false;
-    const int N = 64;
-    const auto march = [&] {
-        render_at(r, down_camera(), st, N, N);
-        int w = 0, h = 0;
-        return r.read_march(w, h);
-    };
-    const auto ground_x = [&](int x) {
-        return (double(x) + 0.5 - 0.5 * N) / (0.5 * N) * 3000.0 * std::tan(28.0 * 3.14159265358979 / 180.0);
-    };
+    const int N = kSide;
+    const auto march = [&] { return march_down(r, st); };
     const glm::dvec3 e(0.5, 0.25, 0.125);
     upload_static_ground(r, e);
     r.clear_sun();
