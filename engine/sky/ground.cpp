@@ -56,7 +56,9 @@ StaticGround static_ground(const solve::Media& media, const StaticLight& light, 
             skies.push_back(std::move(profile));
             sky_out.push_back(&dst);
         };
-        if (!light.sky->uniform.empty() || (light.sky->zenith.empty() && light.sky->horizon.empty()))
+        // A uniform sky was solved as one basis; otherwise (or with no S at all) the gradient's
+        // two ends, which compose_ground colours for a uniform sky and a gradient alike.
+        if (!light.sky->uniform.empty())
             basis(light.sky->uniform, out.uniform, [](double) { return 1.0; });
         else {
             basis(light.sky->zenith, out.zenith, [](double s) { return scene::SkyDome::zenith_weight(s); });
