@@ -40,15 +40,16 @@ using DomeProfile = std::function<double(double sin_elevation)>;
 ///  * `groups[q]`: the light the medium scatters, S summed over the group's fields (each on the
 ///    medium's grid with the same directions; S toward the ground interpolated between them by
 ///    direction_weights, one direction taken as isotropic). Along a ray the medium and S are
-///    constant in each voxel, so its radiance is exact for that model:
-///    L = sum over voxels T_in S (1 - exp(-sigma_t l)).
+///    constant in each voxel; its radiance is the sum over the voxels it crosses of what
+///    DomeGroundOptions::within takes from each.
 ///  * `skies[k]`: a sky behind the medium, L = T(ray) profile(sin elevation): what of that sky
 ///    the cloud lets through, without the light the cloud scatters (a group's part).
 /// The ground is black and does not shadow; rays start on the plane. Deterministic whatever
 /// the threads. Throws core::Error naming the argument (`ground_dome.groups[q][f]`, `.cells`,
-/// `.rays`, `.points_per_side`, `.skies[k]`) for mismatched fields, S not finite where the medium scatters, a
-/// profile giving a negative or non-finite radiance, or work above 2^33 voxel visits (the cells'
-/// points x rays x the cloud's box across, in voxels: about a minute on one core).
+/// `.rays`, `.points_per_side`, `.skies[k]`) for mismatched fields, S not finite where the
+/// medium scatters, a profile giving a negative or non-finite radiance, or work above 2^33
+/// voxel visits (the cells' points x rays x the cloud's box across, in voxels: about a minute
+/// on one core).
 struct DomeGround {
     std::vector<GroundIrradiance> groups;  ///< one per group of fields
     std::vector<GroundIrradiance> skies;   ///< one per profile
