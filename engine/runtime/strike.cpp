@@ -163,8 +163,9 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
     out.seconds_multiple = sw.seconds();
     sw.reset();
     // Without a Monte Carlo of the multiple scattering to tally it, the ground's light is
-    // gathered from the strike's S (rays up from each cell) where that S is all of it: the lattice's (single + multiple)
-    // or single scattering alone in a scene without multiple scattering. The hybrid preset's
+    // gathered from the strike's S (rays up from each cell) where that S is all of it: the
+    // lattice's (single + multiple) or single scattering alone in a scene without multiple
+    // scattering. The hybrid preset's
     // strokes take their multiple scattering from the bases, which carry no ground: none then.
     // Not toward the camera either: that S is the light toward one point, not toward the ground.
     const bool complete = lattice || !scene.effects.multiple_scattering;

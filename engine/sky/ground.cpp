@@ -32,27 +32,23 @@ StaticGround static_ground(const solve::Media& media, const StaticLight& light, 
     core::Stopwatch sw;
     StaticGround out;
     out.cells = cells;
-    const auto parts = [](const LightField& f) {
-        std::vector<const transport::SourceField*> v;
-        for (const transport::SourceField* p : {&f.single, &f.multiple})
-            if (!p->data.empty()) v.push_back(p);
-        return v;
-    };
     std::vector<std::vector<const transport::SourceField*>> groups;
     std::vector<transport::DomeProfile> skies;
     std::vector<std::vector<float>*> group_out, sky_out;
     // A light without S (its effects off) still sees the sky through the cloud; the fields a
     // group holds are summed.
-    if (light.sun && !parts(*light.sun).empty()) {
-        groups.push_back(parts(*light.sun));
-        group_out.push_back(&out.sun);
-    }
+    const auto add_group = [&](const LightField& f, std::vector<float>& dst) {
+        std::vector<const transport::SourceField*> fields;
+        for (const transport::SourceField* p : {&f.single, &f.multiple})
+            if (!p->data.empty()) fields.push_back(p);
+        if (fields.empty()) return;
+        groups.push_back(std::move(fields));
+        group_out.push_back(&dst);
+    };
+    if (light.sun) add_group(*light.sun, out.sun);
     if (light.sky) {
         const auto basis = [&](const LightField& f, std::vector<float>& dst, transport::DomeProfile profile) {
-            if (!parts(f).empty()) {
-                groups.push_back(parts(f));
-                group_out.push_back(&dst);
-            }
+            add_group(f, dst);
             skies.push_back(std::move(profile));
             sky_out.push_back(&dst);
         };

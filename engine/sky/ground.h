@@ -29,7 +29,6 @@ struct StaticGround {
     transport::GroundTally cells;
     std::vector<float> sun, zenith, horizon, uniform;
     double seconds = 0.0;
-    bool empty() const noexcept { return sun.empty() && zenith.empty() && horizon.empty() && uniform.empty(); }
 };
 /// From the static light's S on `media`'s lighting grid by transport::ground_dome (the rays
 /// also give the sky's transmittance; its error against the truth's tally: docs/sky.md).

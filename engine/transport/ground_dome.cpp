@@ -21,12 +21,12 @@ namespace fulgur::transport {
 
 namespace {
 
-/// Checks groups of fields for `who`: at least one group, each non-empty, every field
+/// Checks groups of fields: at least one group, each non-empty, every field
 /// non-null, on the medium's grid, with one common set of 1, 6, 18 or 26 directions and cells
 /// x directions values, and S finite wherever the medium scatters (its sum over each group's
 /// fields). Returns the number of directions.
-std::size_t check_field_groups(const LightingMedium& medium, std::span<const std::vector<const SourceField*>> groups,
-                               const std::string& who) {
+std::size_t check_field_groups(const LightingMedium& medium, std::span<const std::vector<const SourceField*>> groups) {
+    const std::string who = "ground_dome";
     if (groups.empty()) throw core::Error(who + ".groups", "no group of fields");
     const core::GridGeometry& g = medium.density.geom;
     std::size_t nd = 0;
@@ -91,7 +91,7 @@ DomeGround ground_dome(const LightingMedium& medium, std::span<const std::vector
                           "must be in [1, 16], got " + std::to_string(options.points_per_side));
     const int n = options.points_per_side;
     const std::size_t ng = groups.size();
-    const std::size_t nd = ng > 0 ? check_field_groups(medium, groups, "ground_dome") : 1;
+    const std::size_t nd = ng > 0 ? check_field_groups(medium, groups) : 1;
     const std::size_t nk = skies.size();
     if (ng == 0 && nk == 0) throw core::Error("ground_dome", "neither a group of fields nor a sky to gather");
     const std::vector<glm::dvec3> dome = cosine_dome(options.rays);
