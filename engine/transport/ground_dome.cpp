@@ -78,6 +78,19 @@ std::vector<glm::dvec3> cosine_dome(int n) {
     return out;
 }
 
+/// `n` directions over the upper hemisphere with uniform density 1 / (2 pi): a Fibonacci
+/// spiral with z at the midpoints of n equal steps in [0, 1] (equal solid angles), so an
+/// integral of f over the hemisphere is 2 pi times the mean of f over them.
+std::vector<glm::dvec3> uniform_dome(int n) {
+    std::vector<glm::dvec3> out(static_cast<std::size_t>(n));
+    const double golden_angle = std::numbers::pi * (3.0 - std::sqrt(5.0));
+    for (int k = 0; k < n; ++k) {
+        const double z = (k + 0.5) / n, r = std::sqrt(std::max(0.0, 1.0 - z * z)), phi = golden_angle * k;
+        out[std::size_t(k)] = {r * std::cos(phi), r * std::sin(phi), z};
+    }
+    return out;
+}
+
 }  // namespace
 
 DomeGround ground_dome(const LightingMedium& medium, std::span<const std::vector<const SourceField*>> groups,
@@ -94,7 +107,9 @@ DomeGround ground_dome(const LightingMedium& medium, std::span<const std::vector
     const std::size_t nd = ng > 0 ? check_field_groups(medium, groups) : 1;
     const std::size_t nk = skies.size();
     if (ng == 0 && nk == 0) throw core::Error("ground_dome", "neither a group of fields nor a sky to gather");
-    const std::vector<glm::dvec3> dome = cosine_dome(options.rays);
+    // Cosine-weighted rays for the irradiance; with a lobe, rays of equal solid angle (a lobe
+    // toward a horizontal viewer peaks at the horizon, where cosine-weighted rays are sparse).
+    const std::vector<glm::dvec3> dome = options.lobe ? uniform_dome(options.rays) : cosine_dome(options.rays);
     // Each sky's radiance per ray, checked once.
     std::vector<double> sky(nk * dome.size());
     for (std::size_t k = 0; k < nk; ++k) {
@@ -108,6 +123,17 @@ DomeGround ground_dome(const LightingMedium& medium, std::span<const std::vector
             sky[k * dome.size() + r] = v;
         }
     }
+    // Each ray's weight over the common pi / rays: 1 for the irradiance (cosine-weighted
+    // rays), 2 lobe(w) with a lobe (rays of equal solid angle, 2 pi / rays each).
+    std::vector<double> ray_weight(dome.size(), 1.0);
+    if (options.lobe)
+        for (std::size_t r = 0; r < dome.size(); ++r) {
+            const double v = options.lobe(dome[r]);
+            if (!std::isfinite(v) || v < 0.0)
+                throw core::Error("ground_dome.lobe", "value " + std::to_string(v) + " at sin(elevation) " +
+                                                          std::to_string(dome[r].z) + ": must be finite and >= 0");
+            ray_weight[r] = 2.0 * v;
+        }
     // The box of the voxels that attenuate: outside it the medium is empty.
     const core::GridGeometry& g = medium.density.geom;
     glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
@@ -173,8 +199,8 @@ DomeGround ground_dome(const LightingMedium& medium, std::span<const std::vector
                         return T > kMinTransmittance;
                     });
                 }
-                for (std::size_t q = 0; q < ng; ++q) e_group[q] += l[q];
-                for (std::size_t k = 0; k < nk; ++k) e_sky[k] += T * sky[k * dome.size() + r];
+                for (std::size_t q = 0; q < ng; ++q) e_group[q] += ray_weight[r] * l[q];
+                for (std::size_t k = 0; k < nk; ++k) e_sky[k] += ray_weight[r] * T * sky[k * dome.size() + r];
             }
         }
         for (std::size_t q = 0; q < ng; ++q) out.groups[q].data[std::size_t(idx)] = float(weight * e_group[q]);

@@ -31,6 +31,14 @@ struct DomeGroundOptions {
     /// truth's, a strike's 1.09 and 0.95).
     enum class Within { Uniform, Centre };
     Within within = Within::Centre;
+    /// Set: instead of the irradiance, the integral over the upper hemisphere of lobe(w) L(w)
+    /// dw (w the unit direction a ray looks in, up; lobe per steradian, finite and >= 0). With
+    /// a phase function toward a viewer it is the radiance a medium at the cells' height
+    /// scatters toward the viewer per unit sigma_s, of the light arriving from above. The
+    /// rays are then of equal solid angle (a Fibonacci spiral, z uniform), each weighted by
+    /// the lobe: a lobe toward a horizontal viewer peaks at the horizon, where cosine-weighted
+    /// rays are sparse.
+    std::function<double(const glm::dvec3&)> lobe = {};
 };
 
 /// A sky's radiance (W m^-2 sr^-1) as a function of sin(elevation) in [0, 1].
@@ -46,8 +54,8 @@ using DomeProfile = std::function<double(double sin_elevation)>;
 ///    the cloud lets through, without the light the cloud scatters (a group's part).
 /// The ground is black and does not shadow; rays start on the plane. Deterministic whatever
 /// the threads. Throws core::Error naming the argument (`ground_dome.groups[q][f]`, `.cells`,
-/// `.rays`, `.points_per_side`, `.skies[k]`) for mismatched fields, S not finite where the
-/// medium scatters, a profile giving a negative or non-finite radiance, or work above 2^33
+/// `.rays`, `.points_per_side`, `.skies[k]`, `.lobe`) for mismatched fields, S not finite where
+/// the medium scatters, a profile or lobe giving a negative or non-finite value, or work above 2^33
 /// voxel visits (the cells' points x rays x the cloud's box across, in voxels: about a minute
 /// on one core).
 struct DomeGround {

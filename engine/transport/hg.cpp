@@ -23,6 +23,35 @@ double hg_phase(double cos_theta, double g) noexcept {
     return (1.0 - g * g) / (4.0 * std::numbers::pi * d * std::sqrt(d));
 }
 
+double hg_from_above(double mu, double g) {
+    g = clamp_g(g);
+    if (std::isnan(mu)) mu = 0.0;
+    mu = std::clamp(mu, -1.0, 1.0);
+    const double s = std::sqrt(std::max(0.0, 1.0 - mu * mu));
+    // Over the azimuth between w_i and w_s, hg's denominator is (a - b cos phi)^{3/2} with
+    // a = 1 + g^2 - 2 g mu_i mu, b = 2 |g| sin_i sin: the integral over phi of its inverse is
+    // 4 E(k) / ((a - b) sqrt(a + b)), k^2 = 2b / (a + b) (E: complete, second kind), so with
+    // hg's (1 - g^2) / (4 pi) it is (1 - g^2) E(k) / (pi (a - b) sqrt(a + b)). a - b is at
+    // least (1 - |g|)^2 > 0; a written as (1 - g)^2 + 2 g (1 - mu_i mu), no cancellation.
+    const auto azimuthal = [&](double mu_i, double si) {
+        const double a = (1.0 - g) * (1.0 - g) + 2.0 * g * (1.0 - mu_i * mu);
+        const double b = 2.0 * std::abs(g) * si * s;
+        const double k = std::sqrt(std::clamp(2.0 * b / (a + b), 0.0, 1.0));
+        return (1.0 - g * g) / std::numbers::pi * std::comp_ellint_2(k) / ((a - b) * std::sqrt(a + b));
+    };
+    // mu_i = -cos(alpha), alpha in [0, pi/2] (incident light travelling downward): d mu_i =
+    // sin(alpha) d alpha, smooth where sin_i = sqrt(1 - mu_i^2) is not. Composite Simpson.
+    constexpr int kIntervals = 2048;
+    const double h = 0.5 * std::numbers::pi / kIntervals;
+    const auto f = [&](int i) {
+        const double alpha = i * h;
+        return azimuthal(-std::cos(alpha), std::sin(alpha)) * std::sin(alpha);
+    };
+    double sum = f(0) + f(kIntervals);
+    for (int i = 1; i < kIntervals; ++i) sum += (i % 2 ? 4.0 : 2.0) * f(i);
+    return std::clamp(sum * h / 3.0, 0.0, 1.0);
+}
+
 double hg_sample_cos(double g, double u) noexcept {
     g = clamp_g(g);
     u = std::clamp(u, 0.0, 1.0);
