@@ -10,12 +10,9 @@
 //   HAS_EMISSION 1: track the transmittance up to the glow's depth
 //   HAS_DETAIL   1: erode the density by the sub-voxel detail (u_detail, detail_params)
 //   HAS_RAIN     1: rain's extinction in the density texture's b channel (rain_params), lit
-//                   by the flash's point lights, the sun, and the cloud's light and the sky
-//                   from above (the ground maps)
+//                   by the flash's point lights, the sun and the sky
 //   TEMPORAL     1: keep the rain's light from the channel apart from the flash's S and
 //                   return the ray's opacity-weighted depth (the temporal history's terms)
-#include "ground_maps.glsl"
-
 #ifndef SKIP_EMPTY
 #define SKIP_EMPTY 1
 #endif
@@ -99,39 +96,11 @@ float rain_flash(vec3 p, vec3 d, vec3 o, inout float light_t) {
     return s;
 }
 
-// The share of the rain's scattering toward the camera (-d) that light from above provides:
-// transport::hg_from_above(-d.z, the rain's g), from rain_above's 65 entries, linearly.
-float rain_above_share(vec3 d) {
-    float x = clamp((1.0 - d.z) * 32.0, 0.0, 64.0);
-    int i = min(int(x), 63);
-    return mix(rain_above[i >> 2][i & 3], rain_above[(i + 1) >> 2][(i + 1) & 3], x - float(i));
-}
-
-// What rain at p scatters toward the camera, per unit albedo, of a light whose irradiance on
-// the ground below is E: that light as a diffuse radiance E / pi from the upper hemisphere
-// (the share `above` of the phase function takes it), and the ground's reflection of it,
-// (albedo / pi) E, from the lower one (the rest). The maps hold the light the cloud sends
-// down, without the rain: the rain's own dimming on the way is left out, as for the channel.
-vec3 rain_from_ground_map(vec3 E, float above) {
-    return E * (above * (1.0 / 3.14159265) + ground_params.z * ground_params.y * (1.0 - above));
-}
-
-// The cloud's scattered flash light falling into the rain (u_ground_scatter's map; zero
-// outside its cells and without it), per unit albedo.
-float rain_cloud_flash(vec3 p, float above) {
-    float e = ground_scatter.z > 0.0 ? textureLod(u_ground_scatter, (p.xy - ground_scatter.xy) * ground_scatter.zw, 0.0).r
-                                     : 0.0;
-    return rain_from_ground_map(vec3(e), above).x;
-}
-
 // The same for the sun or moon through the cloud and the rain (the full-resolution
-// transmittance at p_tex) and, from the static light's map of the ground below, the light the
-// cloud scatters down and the sky it leaves; outside the map's cells (or without it) the sky
-// as about half the dome at the horizon's radiance.
-vec3 rain_static(vec3 d, vec3 p_tex, vec3 p, float above) {
-    vec2 uv = ground_static_uv(p);
-    vec3 s = uv.x >= 0.0 ? rain_from_ground_map(textureLod(u_ground_static, uv, 0.0).rgb, above)
-                         : (sky_params.z > 0.5 ? 0.5 * sky_horizon.rgb : vec3(0.0));
+// transmittance at p_tex) and the sky: below a storm's base the rain sees about half the dome
+// as the horizon's sky, the rest as cloud.
+vec3 rain_static(vec3 d, vec3 p_tex) {
+    vec3 s = sky_params.z > 0.5 ? 0.5 * sky_horizon.rgb : vec3(0.0);
     if (sun_dir.w > 0.5 && sun_params.y > 0.5)
         s += sun_rgb.rgb * (hg_phase(dot(-d, sun_dir.xyz), rain_params.y) * textureLod(u_sun_t, p_tex, 0.0).r);
     return s;
@@ -211,9 +180,6 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
     float kappa = vol_min.w;
     float voxel = vol_size.w;
     float T = 1.0, L = 0.0, Te = 1.0;
-#if HAS_RAIN
-    float above = rain_above_share(d);  // of the light from above, what the rain sends along -d
-#endif
 #if TEMPORAL
     float Lrf = 0.0, depth_sum = 0.0, light_depth_sum = 0.0, rain_depth_sum = 0.0;
 #endif
@@ -250,17 +216,13 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
         if (sigma_r > 0.0) {
             float wr = T * alpha * (1.0 - wc) * rain_params.w;
             float light_t = 0.0;
-            vec3 p = o + t * d;
-            float from_cloud = rain_cloud_flash(p, above);
 #if TEMPORAL
-            // The cloud's light lies where the drops are (depth t); the channel's halo moves
-            // with its lights.
-            Lrf += wr * (rain_flash(p, d, o, light_t) + from_cloud);
-            rain_depth_sum += wr * (light_t + from_cloud * t);
+            Lrf += wr * rain_flash(o + t * d, d, o, light_t);
+            rain_depth_sum += wr * light_t;
 #else
-            L += wr * (rain_flash(p, d, o, light_t) + from_cloud);
+            L += wr * rain_flash(o + t * d, d, o, light_t);
 #endif
-            Ls += wr * rain_static(d, o_tex + t * d_tex, p, above);
+            Ls += wr * rain_static(d, o_tex + t * d_tex);
         }
 #else
         float alpha = 1.0 - exp(-kappa * rho * (b - a));

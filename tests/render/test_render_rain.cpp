@@ -4,7 +4,6 @@
 #include "gl_fixture.h"
 
 #include "cloud/rain.h"
-#include "transport/transport.h"
 #include "support/test_support.h"
 
 #include <doctest/doctest.h>
@@ -224,102 +223,4 @@ TEST_CASE("the channel's light in the rain: the march against its single-scatter
     CHECK(peak > 0.0);
     CHECK(worst < 1e-3);
     r.set_channel({});
-}
-
-TEST_CASE("rain lit from above by the ground maps: uniform rain under uniform maps against the closed form") {
-    // With only a map's light E, rain of constant sigma scatters toward the camera albedo J
-    // (1 - exp(-sigma chord)) with J = E hg_from_above(-d.z, g) / pi (+ the ground's
-    // reflection (albedo_g / pi) E (1 - hg_from_above) when the ground is drawn): J is the same
-    // at every sample of a ray, so the march's pieces telescope to the closed form.
-    render::Renderer& r = gl_renderer();
-    const core::Grid3<float> empty(box(), 0.0f);
-    const double sigma = 1e-3;
-    const cloud::RainField rain = uniform_rain(sigma);
-    r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16, .rain = &rain});
-    r.clear_source();
-    r.clear_sun();
-    r.clear_static();
-    const render::Camera cam = side_camera();
-    const int W = 64, H = 48;
-    render::Settings st = test::volume_only();
-    st.jitter = false;
-    st.early_exit = false;
-    // 6 x 6 cells of 1 km over [-3, 3] km: the whole box, well inside (bilinear reads E).
-    const glm::dvec2 origin(-3000.0, -3000.0);
-    const double E = 0.8;
-    const glm::dvec3 colour(0.5, 0.25, 0.125);
-    double table_error = 0.0;  // the largest relative error of the interpolated share
-    // The worst relative error over the pixels that see rain, of channel c against the closed
-    // form for an irradiance e, with the renderer's share (the table, interpolated); with the
-    // ground drawn, only pixels looking up (no ground behind).
-    const auto worst_error = [&](const render::Settings& s, int channels, glm::dvec3 e, int& counted) {
-        render_at(r, cam, s, W, H);
-        int w = 0, h = 0;
-        const std::vector<float> img = r.read_march(w, h);
-        double worst = 0.0;
-        counted = 0;
-        for (int y = 0; y < H; ++y)
-            for (int x = 0; x < W; ++x) {
-                const glm::dvec3 d = test::pixel_ray(cam, x, y, W, H);
-                double t0 = 0.0, t1 = 1e300;
-                const core::GridGeometry g = box();
-                if (!core::clip_ray_to_box(cam.position, d, g.origin, g.upper(), t0, t1)) continue;
-                // A ray through a corner of the box crossing centimetres of rain loses its chord
-                // to the float rounding of its ends (0.3% at 4 cm): rays through 10 m or more.
-                if (t1 - t0 < 10.0 || (s.ground && d.z < 0.01)) continue;
-                // The renderer's share: hg_from_above at 65 cosines, linearly between them.
-                const double u = std::clamp((1.0 - d.z) * 32.0, 0.0, 64.0);
-                const int i = std::min(int(u), 63);
-                const double above = transport::hg_from_above(-1.0 + i / 32.0, rain.g) * (i + 1 - u) +
-                                     transport::hg_from_above(-1.0 + (i + 1) / 32.0, rain.g) * (u - i);
-                table_error = std::max(table_error, std::abs(above / transport::hg_from_above(-d.z, rain.g) - 1.0));
-                const double lower = s.ground ? s.ground_albedo / std::numbers::pi * (1.0 - above) : 0.0;
-                const double opacity = 1.0 - std::exp(-sigma * (t1 - t0));
-                for (int c = 0; c < channels; ++c) {
-                    const double expect = rain.albedo * e[c] * (above / std::numbers::pi + lower) * opacity;
-                    const double got = img[(std::size_t(y) * W + std::size_t(x)) * 4 + std::size_t(c)];
-                    worst = std::max(worst, std::abs(got / expect - 1.0));
-                }
-                ++counted;
-            }
-        return worst;
-    };
-    // The cloud's flash light (LitChannel::ground), no channel.
-    render::LitChannel ch;
-    ch.ground = {.origin = origin, .cell = 1000.0, .nx = 6, .ny = 6, .irradiance = std::vector<float>(36, float(E))};
-    r.set_channel(ch);
-    int n_flash = 0, n_ground = 0, n_static = 0;
-    const double flash = worst_error(st, 1, glm::dvec3(E), n_flash);
-    render::Settings with_ground = st;
-    with_ground.ground = true;
-    const double flash_ground = worst_error(with_ground, 1, glm::dvec3(E), n_ground);
-    r.set_channel({});
-    // The static light's map (StaticUpload::ground) in colour, its S zero.
-    render::StaticUpload up;
-    up.geometry = box();
-    up.direction_count = 1;
-    const std::vector<float> zeros(3 * box().cell_count(), 0.0f);
-    up.rgb = {zeros};
-    std::vector<float> cells;
-    for (int c = 0; c < 36; ++c)
-        for (int k = 0; k < 3; ++k) cells.push_back(float(colour[k]));
-    up.ground = {.origin = origin, .cell = 1000.0, .nx = 6, .ny = 6, .rgb = cells};
-    r.upload_static(up);
-    const double statics = worst_error(st, 3, colour, n_static);
-    r.clear_static();
-    MESSAGE("worst relative error: flash map " << flash << " (" << n_flash << " pixels), with the ground's reflection "
-                                               << flash_ground << " (" << n_ground << "), static map " << statics
-                                               << " (" << n_static << "); the share's interpolation "
-                                               << table_error);
-    CHECK(n_flash > 1000);
-    CHECK(n_ground > 300);
-    CHECK(n_static > 1000);
-    // The same closed form as the march's sum: float rounding only (measured ~1e-6 on most
-    // pixels, 2.9e-5 at worst on the shortest chords).
-    CHECK(flash < 1e-4);
-    CHECK(flash_ground < 1e-4);
-    CHECK(statics < 1e-4);
-    // The 65 entries against the share itself, over these views (|d.z| < 0.21): 0.34% at
-    // worst, near |mu| = 0.14 where g = 0.85's share is steepest (as over all mu).
-    CHECK(table_error < 0.004);
 }
