@@ -23,7 +23,8 @@ double hg_phase(double cos_theta, double g) noexcept {
     return (1.0 - g * g) / (4.0 * std::numbers::pi * d * std::sqrt(d));
 }
 
-double hg_from_above(double mu, double g) {
+double hg_from_above(double mu, double g, int cos_power) {
+    FULGUR_ASSERT(cos_power >= 0 && cos_power <= 8, "hg_from_above: cos_power must be in [0, 8]");
     g = clamp_g(g);
     if (std::isnan(mu)) mu = 0.0;
     mu = std::clamp(mu, -1.0, 1.0);
@@ -45,7 +46,8 @@ double hg_from_above(double mu, double g) {
     const double h = 0.5 * std::numbers::pi / kIntervals;
     const auto f = [&](int i) {
         const double alpha = i * h;
-        return azimuthal(-std::cos(alpha), std::sin(alpha)) * std::sin(alpha);
+        const double c = std::cos(alpha);
+        return azimuthal(-c, std::sin(alpha)) * std::sin(alpha) * (cos_power == 0 ? 1.0 : std::pow(c, cos_power));
     };
     double sum = f(0) + f(kIntervals);
     for (int i = 1; i < kIntervals; ++i) sum += (i % 2 ? 4.0 : 2.0) * f(i);

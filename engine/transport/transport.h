@@ -67,14 +67,15 @@ double hg_phase(double cos_theta, double g) noexcept;
 
 /// The share of HG scattering into a direction whose z-component is `mu` that light arriving
 /// from above (travelling downward) provides: the integral of hg_phase(w_i . w_s, g) over the
-/// incident directions w_i with w_i.z < 0, for any w_s with w_s.z = mu. A medium lit by a
-/// diffuse radiance L from above scatters sigma_s L hg_from_above(mu, g) toward w_s. By
+/// incident directions w_i with w_i.z < 0, for any w_s with w_s.z = mu; with `cos_power` n,
+/// each incident direction weighted by |w_i.z|^n. A medium lit by a diffuse radiance L from
+/// above scatters sigma_s L hg_from_above(mu, g) toward w_s (by L cos: hg_from_above(mu, g, 1)). By
 /// symmetry hg_from_above(mu) + hg_from_above(-mu) = 1 and hg_from_above(0) = 1/2; g = 0 gives
-/// 1/2 everywhere, g -> 1 a step (1 for mu < 0). The azimuth is integrated in closed form (a
+/// 1/2 everywhere, g -> 1 a step (1 for mu < 0) (for n = 0). The azimuth is integrated in closed form (a
 /// complete elliptic integral of the second kind), the incident zenith by composite Simpson
-/// on 2048 intervals (within 1e-8 of a fine double sum for |g| <= 0.85, test_hg); ~0.1 ms a
-/// call. mu is clamped to [-1, 1].
-double hg_from_above(double mu, double g);
+/// on 2048 intervals (within 1e-8 of a fine double sum for |g| <= 0.85, test_hg). mu is
+/// clamped to [-1, 1]; cos_power must be in [0, 8].
+double hg_from_above(double mu, double g, int cos_power = 0);
 
 /// Samples cos(theta) from HG exactly (inverse CDF, stable form), u in [0,1).
 double hg_sample_cos(double g, double u) noexcept;

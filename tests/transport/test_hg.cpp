@@ -175,18 +175,23 @@ TEST_CASE("hg_from_above: the share of HG scattering that light from above provi
         for (const double mu : {-0.8, -0.3, 0.4, 0.9}) {
             const double s = std::sqrt(1.0 - mu * mu);
             constexpr int kZenith = 1000, kAzimuth = 512;
-            double ref = 0.0;
+            double ref = 0.0, ref_cos = 0.0;  // the share, and weighted by the incident |cos|
             for (int i = 0; i < kZenith; ++i) {
                 const double alpha = (i + 0.5) / kZenith * 0.5 * std::numbers::pi;
                 for (int j = 0; j < kAzimuth; ++j) {
                     const double phi = (j + 0.5) / kAzimuth * 2.0 * std::numbers::pi;
-                    ref += hg_phase(-std::cos(alpha) * mu + std::sin(alpha) * s * std::cos(phi), g) * std::sin(alpha);
+                    const double p =
+                        hg_phase(-std::cos(alpha) * mu + std::sin(alpha) * s * std::cos(phi), g) * std::sin(alpha);
+                    ref += p;
+                    ref_cos += p * std::cos(alpha);
                 }
             }
             ref *= (0.5 * std::numbers::pi / kZenith) * (2.0 * std::numbers::pi / kAzimuth);
+            ref_cos *= (0.5 * std::numbers::pi / kZenith) * (2.0 * std::numbers::pi / kAzimuth);
             CAPTURE(g);
             CAPTURE(mu);
             CHECK(hg_from_above(mu, g) == doctest::Approx(ref).epsilon(3e-6));
+            CHECK(hg_from_above(mu, g, 1) == doctest::Approx(ref_cos).epsilon(3e-6));
         }
     // Out-of-range and NaN inputs: clamped, finite.
     CHECK(hg_from_above(5.0, 0.85) == hg_from_above(1.0, 0.85));

@@ -1,0 +1,142 @@
+// The light the rain gets from above, and what a model of it from the ground's maps would
+// draw.
+//   rain-light: storm-full.json's rain under the default storm (storm.json's cloud, its static
+//   light: the sun at 45 degrees and a uniform sky, solved as the cache solves them). At the
+//   rain's points (the static ground cells' centres where it rains, at a quarter, half and three
+//   quarters of the rain's height) the truth is the light arriving from above weighted by the
+//   rain's phase function toward a viewer (transport::ground_dome with a lobe: the same rays
+//   and S as the ground's map), for a viewer level (toward +x, +y), below at 30 degrees and
+//   above at 20 degrees. The models take the ground's map E (cosine-weighted, at the ground) as
+//   a radiance from above: diffuse E / pi (x transport::hg_from_above); overcast, (1 + 2 cos) /
+//   3 in shape; cosine, proportional to cos; a + b cos from E and the scalar flux at the ground;
+//   and, for the sky, the renderer's half dome at the horizon's radiance (the sun's cloud light:
+//   none). Relative L2 over the points and the ratio of totals, per light, height, view and
+//   model. Output: rain_light.csv. --quick: one height, 1024 rays.
+#include "study/study.h"
+
+#include "cloud/rain.h"
+#include "core/core.h"
+#include "scene/scene.h"
+#include "sky/ground.h"
+#include "sky/sky.h"
+
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+namespace fulgur::study {
+
+FULGUR_STUDY(rain_light, "rain-light",
+             "the rain's light from above under the default storm (its static light): the phase-weighted light "
+             "arriving at the rain's points against models from the ground's maps") {
+    const std::filesystem::path scenes = std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes";
+    scene::Scene s = scene::load_scene(scenes / "storm.json");
+    const core::Grid3<float> density = scene::make_density(s);
+    const solve::Media media = sky::static_media(s, density);
+    const sky::SolveSettings st = sky::solve_settings(s, density);
+    const auto dirs = transport::output_directions(s.effective_directions());
+    const auto cells = sky::static_ground_cells(s, media.lighting.density.geom);
+    if (!cells) throw core::Error("storm.json", "the scene has no ground");
+    // storm-full.json's rain under this cloud (its footprint and top; the drops' g).
+    const scene::Scene full = scene::load_scene(scenes / "storm-full.json");
+    if (!full.rain) throw core::Error("storm-full.json", "the scene has no rain");
+    const cloud::RainField rain = cloud::make_rain(density, *full.rain);
+
+    // The sun at 45 degrees and a uniform sky, solved as the scene's cache solves them.
+    const glm::dvec3 sun_dir = scene::sun_direction(45.0, -60.0);
+    const transport::DirectionalSource sun{sun_dir, 1.0};
+    sky::StaticLight light;
+    light.sun = sky::solve_directional(media, std::span(&sun, 1), dirs, st);
+    light.sun_direction = sun_dir;
+    light.sky = sky::solve_sky(media, true, dirs, st);
+    const sky::StaticGround ground = sky::static_ground(media, light, *cells);
+
+    // The rain points: the cells' centres where it rains, at a quarter, half and three quarters
+    // of the way from the ground up to the rain's top.
+    const core::GridGeometry& rg = rain.extinction.geom;
+    const auto raining = [&](double x, double y, double z) {
+        const glm::ivec3 v(glm::floor((glm::dvec3(x, y, z) - rg.origin) / rg.voxel_size));
+        return v.x >= 0 && v.y >= 0 && v.z >= 0 && v.x < rg.dims.x && v.y < rg.dims.y && v.z < rg.dims.z &&
+               rain.extinction.at(v.x, v.y, v.z) > 0.0f;
+    };
+    // Views: the scattered direction toward the camera w_s (the camera looks along -w_s):
+    // level, from below at 30 degrees, from above at 20 degrees; toward +x and toward +y.
+    struct View {
+        const char* name;
+        glm::dvec3 ws;
+    };
+    const double c30 = std::cos(std::numbers::pi / 6), c20 = std::cos(std::numbers::pi / 9);
+    const View views[] = {{"level +x", {1.0, 0.0, 0.0}},
+                          {"level +y", {0.0, 1.0, 0.0}},
+                          {"from below 30 deg", {c30, 0.0, -0.5}},
+                          {"from above 20 deg", {0.0, c20, std::sin(std::numbers::pi / 9)}}};
+    const double ground_z = cells->height;
+    // The scalar flux at the ground (the lobe 1): with the irradiance, a radiance a + b cos.
+    const sky::StaticGround flux = sky::static_ground(
+        media, light, *cells, {.rays = ctx.quick ? 1024 : 4096, .lobe = [](const glm::dvec3&) { return 1.0; }});
+    const double pi = std::numbers::pi;
+    const char* names[] = {"diffuse", "overcast", "cosine", "a+b cos", "half horizon"};
+    Csv csv(ctx.file("rain_light.csv"),
+            {"height_m", "view", "model", "points", "sun_l2", "sun_ratio", "sky_l2", "sky_ratio"});
+    double worst[5][2] = {};
+    const std::vector<double> shares = ctx.quick ? std::vector<double>{0.5} : std::vector<double>{0.25, 0.5, 0.75};
+    for (const double share : shares) {
+        transport::GroundTally at = *cells;
+        at.height = ground_z + share * (rain.top - ground_z);
+        for (const View& v : views) {
+            const double mu = v.ws.z;
+            const transport::DomeGroundOptions lobe{.rays = ctx.quick ? 1024 : 4096, .lobe = [&](const glm::dvec3& w) {
+                                                        return transport::hg_phase(-glm::dot(w, v.ws), rain.g);
+                                                    }};
+            const sky::StaticGround exact = sky::static_ground(media, light, at, lobe);
+            const double f0 = transport::hg_from_above(mu, rain.g), f1 = transport::hg_from_above(mu, rain.g, 1);
+            const auto model = [&](int m, double E, double phi) {
+                switch (m) {
+                    case 0:
+                        return E / pi * f0;
+                    case 1:
+                        return 3.0 * E / (7.0 * pi) * (f0 + 2.0 * f1);
+                    case 2:
+                        return 1.5 * E / pi * f1;
+                    case 4:
+                        return 0.0;  // replaced below: the sky's half dome, the sun's none
+                    default: {
+                        const double bb = 3.0 * (2.0 * E - phi) / pi, aa = (2.0 * phi - 3.0 * E) / pi;
+                        return aa * f0 + bb * f1;
+                    }
+                }
+            };
+            for (int m = 0; m < 5; ++m) {
+                double d_sun = 0.0, n_sun = 0.0, m_sun = 0.0, e_sun = 0.0;
+                double d_sky = 0.0, n_sky = 0.0, m_sky = 0.0, e_sky = 0.0;
+                int n = 0;
+                for (int j = 0; j < at.ny; ++j)
+                    for (int i = 0; i < at.nx; ++i) {
+                        const double x = at.origin.x + (i + 0.5) * at.cell, y = at.origin.y + (j + 0.5) * at.cell;
+                        if (!raining(x, y, at.height)) continue;
+                        const std::size_t c = std::size_t(j) * std::size_t(at.nx) + std::size_t(i);
+                        const double ms = model(m, ground.sun[c], flux.sun[c]), xs = exact.sun[c];
+                        const double mk = m == 4 ? 0.5 : model(m, ground.uniform[c], flux.uniform[c]);
+                        const double xk = exact.uniform[c];
+                        d_sun += (ms - xs) * (ms - xs), n_sun += xs * xs, m_sun += ms, e_sun += xs;
+                        d_sky += (mk - xk) * (mk - xk), n_sky += xk * xk, m_sky += mk, e_sky += xk;
+                        ++n;
+                    }
+                csv << at.height << v.name << names[m] << double(n) << std::sqrt(d_sun / n_sun) << m_sun / e_sun
+                    << std::sqrt(d_sky / n_sky) << m_sky / e_sky;
+                csv.end_row();
+                worst[m][0] = std::max(worst[m][0], std::sqrt(d_sun / n_sun));
+                worst[m][1] = std::max(worst[m][1], std::sqrt(d_sky / n_sky));
+            }
+        }
+    }
+    nlohmann::json j;
+    for (int m = 0; m < 5; ++m) j[names[m]] = {{"worst_sun_l2", worst[m][0]}, {"worst_sky_l2", worst[m][1]}};
+    ctx.summary("rain-light", j);
+}
+
+}  // namespace fulgur::study
