@@ -19,6 +19,7 @@
 #include "scene/scene.h"
 #include "sky/ground.h"
 #include "sky/sky.h"
+#include "transport/ground_dome.h"
 
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
@@ -134,8 +135,59 @@ FULGUR_STUDY(rain_light, "rain-light",
             }
         }
     }
+    // A strike's flash (seed 1, per_strike: its S single + lattice, its ground gathered by
+    // rays from that S) at its return stroke: the cloud's flash light into the same rain, the
+    // flash's ground map (the renderer's LitChannel::ground) as light from overhead (cosine)
+    // or diffuse, against the phase-weighted light at the rain's points.
+    const StrikeScene ss = strike_scene("storm.json");
+    runtime::FramePipeline pipe(ss.scene, ss.density, ss.bases, std::nullopt, scene::quality_preset("per_strike"));
+    const std::size_t strike = pipe.strike_at(0.0, 1);
+    runtime::ReconstructOptions wait;
+    wait.wait_for_strikes = true;
+    const runtime::Frame& f = pipe.build(pipe.storm().strike(strike).profile.stroke_onset.at(0) + 0.002, {}, wait);
+    if (!f.lit || f.ground.empty()) throw core::Error("rain-light", "the strike's frame has no light or no ground");
+    transport::SourceField flash(f.radiance.geometry, transport::output_directions(f.radiance.direction_count));
+    for (std::size_t k = 0; k < f.radiance.directions.size(); ++k) {
+        const std::vector<float>& v = f.radiance.values[k];
+        std::copy(v.begin(), v.end(), flash.direction(std::size_t(f.radiance.directions[k])).begin());
+    }
+    const std::vector<std::vector<const transport::SourceField*>> flash_group = {{&flash}};
+    Csv flash_csv(ctx.file("rain_light_flash.csv"), {"height_m", "view", "model", "points", "l2", "ratio"});
+    double worst_flash[2] = {};
+    for (const double share : shares) {
+        transport::GroundTally at = f.ground.cells;
+        at.height = ground_z + share * (rain.top - ground_z);
+        for (const View& v : views) {
+            const double mu = v.ws.z;
+            const transport::DomeGroundOptions lobe{.rays = ctx.quick ? 1024 : 4096, .lobe = [&](const glm::dvec3& w) {
+                                                        return transport::hg_phase(-glm::dot(w, v.ws), rain.g);
+                                                    }};
+            const transport::GroundIrradiance exact =
+                transport::ground_dome(ss.media.lighting, flash_group, {}, at, lobe).groups.at(0);
+            const double f0 = transport::hg_from_above(mu, rain.g), f1 = transport::hg_from_above(mu, rain.g, 1);
+            for (int m = 0; m < 2; ++m) {
+                double d = 0.0, nn = 0.0, sm = 0.0, se = 0.0;
+                int n = 0;
+                for (int j = 0; j < at.ny; ++j)
+                    for (int i = 0; i < at.nx; ++i) {
+                        const double x = at.origin.x + (i + 0.5) * at.cell, y = at.origin.y + (j + 0.5) * at.cell;
+                        if (!raining(x, y, at.height)) continue;
+                        const std::size_t c = std::size_t(j) * std::size_t(at.nx) + std::size_t(i);
+                        const double E = f.ground.data[c];
+                        const double mo = m == 0 ? E / pi * f0 : 1.5 * E / pi * f1, xo = exact.data[c];
+                        d += (mo - xo) * (mo - xo), nn += xo * xo, sm += mo, se += xo;
+                        ++n;
+                    }
+                flash_csv << at.height << v.name << (m == 0 ? "diffuse" : "cosine") << double(n) << std::sqrt(d / nn)
+                          << sm / se;
+                flash_csv.end_row();
+                worst_flash[m] = std::max(worst_flash[m], std::sqrt(d / nn));
+            }
+        }
+    }
     nlohmann::json j;
     for (int m = 0; m < 5; ++m) j[names[m]] = {{"worst_sun_l2", worst[m][0]}, {"worst_sky_l2", worst[m][1]}};
+    j["flash"] = {{"worst_diffuse_l2", worst_flash[0]}, {"worst_cosine_l2", worst_flash[1]}};
     ctx.summary("rain-light", j);
 }
 
