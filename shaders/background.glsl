@@ -3,7 +3,6 @@
 // The smooth part (sky gradient, ground) is evaluated per ray-march pixel (internal
 // resolution); the stars per output pixel (full resolution: they stay pixel-sharp whatever
 // the internal scale). Both are multiplied by the cloud's transmittance.
-#include "ground_maps.glsl"
 
 // The sky dome: a gradient between the horizon and the zenith in sqrt(sin elevation), the
 // function that lights the cloud (scene::SkyDome); below the horizon its horizon value.
@@ -102,6 +101,9 @@ float rain_transmittance(vec3 p, vec3 q) {
 }
 #endif
 
+// The irradiance the cloud's scattered flash light gives the ground (W/m^2 at luminance 1),
+// averaged over cells of the ground plane (clamped to zero outside them).
+layout(binding = 10) uniform sampler2D u_ground_scatter;
 
 // The ground's irradiance from the flash, in its colour: the channel as a few point lights
 // (intensity already multiplied by their visibility through the cloud), through the rain, and
@@ -129,14 +131,17 @@ vec3 ground_flash_irradiance(vec3 p) {
     return E;
 }
 
+// The static light on the ground besides the sun's beam (sky::compose_ground): the cloud's
+// scattered sun and sky light and the sky seen past the cloud, per cell in colour.
+layout(binding = 11) uniform sampler2D u_ground_static;
 
 // The rest of the ground's irradiance: on the static light's cells, their irradiance (the
 // cloud's light and the sky it leaves); elsewhere (or without them) the sky's on a horizontal
 // plane, pi (0.2 horizon + 0.8 zenith) for the gradient; then the sun through the cloud (its
 // shadow), added to E in that order.
 vec3 ground_static_irradiance(vec3 p, vec3 E) {
-    vec2 uv = ground_static_uv(p);
-    if (uv.x >= 0.0)
+    vec2 uv = (p.xy - ground_static.xy) * ground_static.zw;
+    if (ground_static.z > 0.0 && all(greaterThanEqual(uv, vec2(0.0))) && all(lessThan(uv, vec2(1.0))))
         E += textureLod(u_ground_static, uv, 0.0).rgb;
     else
         E += sky_params.z > 0.5 ? 3.14159265 * (0.2 * sky_horizon.rgb + 0.8 * sky_zenith.rgb) : vec3(0.0);

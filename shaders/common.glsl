@@ -36,8 +36,6 @@ layout(std140, binding = 0) uniform Frame {
     vec4 ground_scatter;   // the cloud's scattered flash light on the ground (u_ground_scatter):
                            // xy lower corner of its cells (m), zw 1 / its extent along x, y (1/m); zw 0: none
     vec4 ground_static;    // the static light on the ground (u_ground_static), as ground_scatter
-    vec4 rain_above[33];   // rain: transport::hg_from_above(mu, its g) and its cos moment at
-                           // mu = -1 + k / 32, k = 0..64: entry k in rain_above[k / 2].xy (k even), .zw (odd)
 };
 
 // The host's depth buffer (render_into_host), full output resolution; read only when host_depth.w != 0.

@@ -10,12 +10,9 @@
 //   HAS_EMISSION 1: track the transmittance up to the glow's depth
 //   HAS_DETAIL   1: erode the density by the sub-voxel detail (u_detail, detail_params)
 //   HAS_RAIN     1: rain's extinction in the density texture's b channel (rain_params), lit
-//                   by the flash's point lights, the sun, and the cloud's light and the sky
-//                   from above (the ground maps)
+//                   by the flash's point lights, the sun and the sky
 //   TEMPORAL     1: keep the rain's light from the channel apart from the flash's S and
 //                   return the ray's opacity-weighted depth (the temporal history's terms)
-#include "ground_maps.glsl"
-
 #ifndef SKIP_EMPTY
 #define SKIP_EMPTY 1
 #endif
@@ -99,51 +96,11 @@ float rain_flash(vec3 p, vec3 d, vec3 o, inout float light_t) {
     return s;
 }
 
-// What of the light arriving from above the rain scatters toward the camera (-d), per unit
-// radiance scale: x for a radiance the same over the upper hemisphere, transport::hg_from_above
-// (-d.z, the rain's g); y for one proportional to the cosine from the zenith, its cos moment.
-// From rain_above's 65 entries, linearly.
-vec2 rain_above_shares(vec3 d) {
-    float x = clamp((1.0 - d.z) * 32.0, 0.0, 64.0);
-    int i = min(int(x), 63);
-    vec4 a = rain_above[i >> 1], b = rain_above[(i + 1) >> 1];
-    return mix((i & 1) == 0 ? a.xy : a.zw, (i & 1) == 0 ? b.zw : b.xy, x - float(i));
-}
-
-// What rain scatters toward the camera, per unit albedo, of a light whose irradiance on the
-// ground below is E (the maps hold the light the cloud sends down, without the rain: its own
-// dimming on the way is left out, as for the channel's):
-//  * overhead: light the cloud scatters down, shaped as cos from the zenith, radiance
-//    3 E cos / (2 pi): (3 / (2 pi)) E times the cos share. The cloud above sends it, and the
-//    drops (forward scattering) pass little of it to a level viewer.
-//  * sky: the sky's light (its part the cloud scatters and the sky seen past the cloud), the
-//    same over the hemisphere, E / pi: E / pi times the plain share.
-// fulgur-study rain-light measured these two against the phase-weighted light arriving at the
-// rain's points under the default storm (docs/cloud.md).
-vec3 rain_overhead(vec3 E, vec2 shares) { return E * (1.5 / 3.14159265 * shares.y); }
-vec3 rain_sky(vec3 E, vec2 shares) { return E * (shares.x / 3.14159265); }
-
-// The cloud's scattered flash light falling into the rain (u_ground_scatter's map; zero
-// outside its cells and without it), per unit albedo.
-float rain_cloud_flash(vec3 p, vec2 shares) {
-    float e = ground_scatter.z > 0.0 ? textureLod(u_ground_scatter, (p.xy - ground_scatter.xy) * ground_scatter.zw, 0.0).r
-                                     : 0.0;
-    return rain_overhead(vec3(e), shares).x;
-}
-
 // The same for the sun or moon through the cloud and the rain (the full-resolution
-// transmittance at p_tex) and, from the static light's map of the ground below, the sun's light
-// the cloud scatters down and the sky's; outside the map's cells (or without it) the sky as
-// half the dome at the horizon's radiance.
-vec3 rain_static(vec3 d, vec3 p_tex, vec3 p, vec2 shares) {
-    vec2 uv = ground_static_uv(p);
-    vec3 s;
-    if (uv.x >= 0.0) {
-        vec3 E = textureLod(u_ground_static, uv, 0.0).rgb, E_sun = textureLod(u_ground_static_sun, uv, 0.0).rgb;
-        s = rain_overhead(E_sun, shares) + rain_sky(max(E - E_sun, vec3(0.0)), shares);
-    } else {
-        s = sky_params.z > 0.5 ? 0.5 * sky_horizon.rgb : vec3(0.0);
-    }
+// transmittance at p_tex) and the sky: below a storm's base the rain sees about half the dome
+// as the horizon's sky, the rest as cloud.
+vec3 rain_static(vec3 d, vec3 p_tex) {
+    vec3 s = sky_params.z > 0.5 ? 0.5 * sky_horizon.rgb : vec3(0.0);
     if (sun_dir.w > 0.5 && sun_params.y > 0.5)
         s += sun_rgb.rgb * (hg_phase(dot(-d, sun_dir.xyz), rain_params.y) * textureLod(u_sun_t, p_tex, 0.0).r);
     return s;
@@ -223,9 +180,6 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
     float kappa = vol_min.w;
     float voxel = vol_size.w;
     float T = 1.0, L = 0.0, Te = 1.0;
-#if HAS_RAIN
-    vec2 above = rain_above_shares(d);  // of the light from above, what the rain sends along -d
-#endif
 #if TEMPORAL
     float Lrf = 0.0, depth_sum = 0.0, light_depth_sum = 0.0, rain_depth_sum = 0.0;
 #endif
@@ -262,17 +216,13 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
         if (sigma_r > 0.0) {
             float wr = T * alpha * (1.0 - wc) * rain_params.w;
             float light_t = 0.0;
-            vec3 p = o + t * d;
-            float from_cloud = rain_cloud_flash(p, above);
 #if TEMPORAL
-            // The cloud's light lies where the drops are (depth t); the channel's halo moves
-            // with its lights.
-            Lrf += wr * (rain_flash(p, d, o, light_t) + from_cloud);
-            rain_depth_sum += wr * (light_t + from_cloud * t);
+            Lrf += wr * rain_flash(o + t * d, d, o, light_t);
+            rain_depth_sum += wr * light_t;
 #else
-            L += wr * (rain_flash(p, d, o, light_t) + from_cloud);
+            L += wr * rain_flash(o + t * d, d, o, light_t);
 #endif
-            Ls += wr * rain_static(d, o_tex + t * d_tex, p, above);
+            Ls += wr * rain_static(d, o_tex + t * d_tex);
         }
 #else
         float alpha = 1.0 - exp(-kappa * rho * (b - a));

@@ -11,7 +11,9 @@
 //   3 in shape; cosine, proportional to cos; a + b cos from E and the scalar flux at the ground;
 //   and, for the sky, the renderer's half dome at the horizon's radiance (the sun's cloud light:
 //   none). Relative L2 over the points and the ratio of totals, per light, height, view and
-//   model. Output: rain_light.csv. --quick: one height, 1024 rays.
+//   model. The same for a strike's flash (seed 1 at its return stroke, per_strike: the storm's
+//   bake, storm.fgb, baked when stale) from its ground map, diffuse and cosine.
+//   Outputs: rain_light.csv, rain_light_flash.csv. --quick: one height, 1024 rays.
 #include "study/study.h"
 
 #include "cloud/rain.h"

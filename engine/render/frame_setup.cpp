@@ -1,7 +1,6 @@
 // One frame's setup, before the passes: the targets at the frame's sizes, the frame
 // uniforms (and the ground lights they carry), and the GL state every pass starts from.
 #include "render/detail/renderer_impl.h"
-#include "transport/transport.h"
 
 #include <glad/gl.h>
 
@@ -183,22 +182,7 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
         f.sun_params = glm::vec4(float(sun_g), sun_fine && has_volume ? 1.0f : 0.0f, 0.0f, 0.0f);
     }
     u.rain = has_volume && has_rain && st.rain;
-    if (u.rain) {
-        f.rain = glm::vec4(float(rain_max), float(rain_g), float(rain_top), float(rain_albedo));
-        // The share of the rain's scattering that light from above provides, per cosine of the
-        // view, and the same for light from above weighted by its cosine (volume.glsl's
-        // rain_above_shares interpolates them; 65 entries keep the share within 0.34% at
-        // g = 0.85, test_render_rain). Once per g.
-        if (!(rain_above_g == rain_g)) {
-            for (int k = 0; k <= 64; ++k) {
-                glm::vec4& v = rain_above[std::size_t(k / 2)];
-                v[2 * (k % 2)] = float(transport::hg_from_above(-1.0 + k / 32.0, rain_g));
-                v[2 * (k % 2) + 1] = float(transport::hg_from_above(-1.0 + k / 32.0, rain_g, 1));
-            }
-            rain_above_g = rain_g;
-        }
-        std::copy(rain_above.begin(), rain_above.end(), f.rain_above);
-    }
+    if (u.rain) f.rain = glm::vec4(float(rain_max), float(rain_g), float(rain_top), float(rain_albedo));
     if (u.detail) f.detail = glm::vec4(float(1.0 / detail_period), float(detail_strength), 0.0f, 0.0f);
     f.march_params = glm::vec4(float(step), float(st.min_transmittance), st.jitter ? 1.0f : 0.0f,
                                float(std::fmod(double(st.frame_index) * 0.6180339887498949, 1.0)));
@@ -211,10 +195,9 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
             f.ground_light[i] = ground_lights[i];
         f.ground_params = glm::vec4(float(st.ground_height), float(st.ground_albedo / std::numbers::pi),
                                     st.ground ? 1.0f : 0.0f, float(ground_lights.size()));
-        // The maps of the light reaching the ground light the rain from above too.
-        u.ground_scatter = st.ground_scatter;
+        u.ground_scatter = st.ground && st.ground_scatter;
         if (u.ground_scatter) f.ground_scatter = ground_scatter_map;
-        if (statics.has && st.static_light) f.ground_static = ground_static_map;
+        if (st.ground && statics.has && st.static_light) f.ground_static = ground_static_map;
         for (std::size_t i = 0; u.rain && i < rain_lights.size(); ++i) f.rain_light[i] = rain_lights[i];
         if (u.rain) f.rain_lights = glm::vec4(float(rain_lights.size()), 0.0f, 0.0f, 0.0f);
     } else {

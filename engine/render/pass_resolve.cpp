@@ -197,7 +197,6 @@ void Renderer::Impl::resolve_pass(const glm::dvec3& camera, const Settings& st, 
     glBindTextureUnit(10, ground_scatter_tex);  // zero outside its cells (and 1x1 zero while there is none)
     // The static light's ground, read only inside its cells (0 while there is none: unbound).
     glBindTextureUnit(11, ground_static_tex);
-    glBindTextureUnit(12, ground_static_sun_tex);
     last_scam = u.lit && resolve ? scam : 0;
     last_static = u.statics && resolve ? stat : 0;
 }

@@ -115,11 +115,7 @@ struct StaticUpload {
         glm::dvec2 origin{0.0};  ///< lower corner (x, y) of cell (0, 0), metres
         double cell = 0.0;       ///< cell size (m), > 0
         int nx = 0, ny = 0;      ///< cells along x and y, each in [1, 4096]
-        std::span<const float> rgb = {};
-        /// The part of `rgb` that is the sun's (or moon's) light the cloud scatters down, 3
-        /// floats per cell (empty: none). Rain takes it as light from overhead, the rest (the
-        /// sky's) as light from the whole upper hemisphere (docs/cloud.md, "Rain shafts").
-        std::span<const float> sun_rgb = {};
+        std::span<const float> rgb;
     } ground;
 };
 

@@ -165,7 +165,6 @@ Renderer::~Renderer() {
     delete_texture(m.zero_tex);
     delete_texture(m.ground_scatter_tex);
     delete_texture(m.ground_static_tex);
-    delete_texture(m.ground_static_sun_tex);
     delete_texture(m.profile_tex);
     delete_texture(m.density_tex);
     delete_texture(m.detail_tex);
@@ -351,13 +350,6 @@ void Renderer::upload_static(const StaticUpload& s) {
             if (!std::isfinite(g.rgb[i]) || g.rgb[i] < 0.0f)
                 throw core::Error("upload_static: ground.rgb[" + std::to_string(i) + "]",
                                   "irradiance must be finite and >= 0");
-        if (!g.sun_rgb.empty() && g.sun_rgb.size() != g.rgb.size())
-            throw core::Error("upload_static: ground.sun_rgb",
-                              "holds " + std::to_string(g.sun_rgb.size()) + " values, not 3 per cell (or none)");
-        for (std::size_t i = 0; i < g.sun_rgb.size(); ++i)
-            if (!std::isfinite(g.sun_rgb[i]) || g.sun_rgb[i] < 0.0f || g.sun_rgb[i] > g.rgb[i])
-                throw core::Error("upload_static: ground.sun_rgb[" + std::to_string(i) + "]",
-                                  "must be finite, >= 0 and at most ground.rgb's (a part of it)");
     }
     upload_into(m.statics, "upload_static", s.geometry, s.direction_count, all, s.rgb, 3, false);
     if (g.rgb.empty()) {
@@ -365,17 +357,12 @@ void Renderer::upload_static(const StaticUpload& s) {
     } else {
         if (g.nx != m.ground_static_nx || g.ny != m.ground_static_ny) {
             delete_texture(m.ground_static_tex);
-            delete_texture(m.ground_static_sun_tex);
             m.ground_static_tex = detail::make_texture_2d(g.nx, g.ny, GL_RGB32F, GL_CLAMP_TO_EDGE);
-            m.ground_static_sun_tex = detail::make_texture_2d(g.nx, g.ny, GL_RGB32F, GL_CLAMP_TO_EDGE);
             m.ground_static_nx = g.nx;
             m.ground_static_ny = g.ny;
         }
         glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
         glTextureSubImage2D(m.ground_static_tex, 0, 0, 0, g.nx, g.ny, GL_RGB, GL_FLOAT, g.rgb.data());
-        const std::vector<float> no_sun(g.sun_rgb.empty() ? g.rgb.size() : 0, 0.0f);
-        glTextureSubImage2D(m.ground_static_sun_tex, 0, 0, 0, g.nx, g.ny, GL_RGB, GL_FLOAT,
-                            g.sun_rgb.empty() ? no_sun.data() : g.sun_rgb.data());
         m.ground_static_map =
             glm::vec4(float(g.origin.x), float(g.origin.y), float(1.0 / (g.cell * g.nx)), float(1.0 / (g.cell * g.ny)));
     }

@@ -204,15 +204,12 @@ void StormView::update_static_light(const ViewOptions& o) {
             ground_version_ = static_version_;
         }
         const std::vector<float> ground_rgb = sky::compose_ground(ground_, sun_, scene_.sky, sun, sky);
-        // Its sun's part apart: rain takes it as light from overhead (render::StaticUpload).
-        const std::vector<float> ground_sun = sky::compose_ground(ground_, sun_, scene_.sky, sun, false);
         if (!ground_rgb.empty()) {
             up.ground.origin = ground_.cells.origin;
             up.ground.cell = ground_.cells.cell;
             up.ground.nx = ground_.cells.nx;
             up.ground.ny = ground_.cells.ny;
             up.ground.rgb = ground_rgb;
-            up.ground.sun_rgb = ground_sun;
         }
         renderer_->upload_static(up);
     }

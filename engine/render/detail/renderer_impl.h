@@ -16,7 +16,6 @@
 
 #include <array>
 #include <cstdint>
-#include <limits>
 #include <map>
 #include <optional>
 #include <string>
@@ -41,10 +40,6 @@ struct Renderer::Impl {
     double detail_finest = 0.0;  // metres across the finest billows
     bool has_rain = false;       // the density texture's b channel holds rain (RGBA)
     double rain_max = 0.0, rain_g = 0.0, rain_albedo = 0.0, rain_top = 0.0;
-    // FrameBlock::rain_above for rain_above_g (transport::hg_from_above and its cos moment at
-    // 65 cosines; NaN: none yet).
-    std::array<glm::vec4, 33> rain_above{};
-    double rain_above_g = std::numeric_limits<double>::quiet_NaN();
 
     // Source: the flash's S and the static light's (colour)
     detail::SourceSet flash = detail::SourceSet(GL_R32F), statics = detail::SourceSet(GL_RGBA32F);
@@ -107,7 +102,6 @@ struct Renderer::Impl {
     void set_ground_scatter(const LitChannel::GroundScatter& g);
     // The static light's ground (StaticUpload::ground): RGB32F, bound to unit 11.
     GLuint ground_static_tex = 0;
-    GLuint ground_static_sun_tex = 0;  // StaticUpload::Ground::sun_rgb (zero when not given), ground_static_tex's size
     int ground_static_nx = 0, ground_static_ny = 0;
     glm::vec4 ground_static_map{0.0f};  // FrameBlock::ground_static (zw 0: none)
 
