@@ -33,6 +33,23 @@
 
 namespace fulgur::study {
 
+namespace {
+
+// A model against the truth, point by point: relative L2 and the ratio of totals.
+struct Agreement {
+    double d2 = 0.0, n2 = 0.0, model = 0.0, truth = 0.0;
+    void add(double m, double t) {
+        d2 += (m - t) * (m - t);
+        n2 += t * t;
+        model += m;
+        truth += t;
+    }
+    double l2() const { return std::sqrt(d2 / n2); }
+    double ratio() const { return model / truth; }
+};
+
+}  // namespace
+
 FULGUR_STUDY(rain_light, "rain-light",
              "the rain's light from above under the default storm (its static light): the phase-weighted light "
              "arriving at the rain's points against models from the ground's maps") {
@@ -65,6 +82,15 @@ FULGUR_STUDY(rain_light, "rain-light",
         const glm::ivec3 v(glm::floor((glm::dvec3(x, y, z) - rg.origin) / rg.voxel_size));
         return v.x >= 0 && v.y >= 0 && v.z >= 0 && v.x < rg.dims.x && v.y < rg.dims.y && v.z < rg.dims.z &&
                rain.extinction.at(v.x, v.y, v.z) > 0.0f;
+    };
+    // The cells of `at` whose centres (at its height) are in the rain.
+    const auto raining_cells = [&](const transport::GroundTally& at) {
+        std::vector<std::size_t> out;
+        for (int j = 0; j < at.ny; ++j)
+            for (int i = 0; i < at.nx; ++i)
+                if (raining(at.origin.x + (i + 0.5) * at.cell, at.origin.y + (j + 0.5) * at.cell, at.height))
+                    out.push_back(std::size_t(j) * std::size_t(at.nx) + std::size_t(i));
+        return out;
     };
     // Views: the scattered direction toward the camera w_s (the camera looks along -w_s):
     // level, from below at 30 degrees, from above at 20 degrees; toward +x and toward +y.
@@ -113,27 +139,18 @@ FULGUR_STUDY(rain_light, "rain-light",
                     }
                 }
             };
+            const std::vector<std::size_t> points = raining_cells(at);
             for (int m = 0; m < 5; ++m) {
-                double d_sun = 0.0, n_sun = 0.0, m_sun = 0.0, e_sun = 0.0;
-                double d_sky = 0.0, n_sky = 0.0, m_sky = 0.0, e_sky = 0.0;
-                int n = 0;
-                for (int j = 0; j < at.ny; ++j)
-                    for (int i = 0; i < at.nx; ++i) {
-                        const double x = at.origin.x + (i + 0.5) * at.cell, y = at.origin.y + (j + 0.5) * at.cell;
-                        if (!raining(x, y, at.height)) continue;
-                        const std::size_t c = std::size_t(j) * std::size_t(at.nx) + std::size_t(i);
-                        const double ms = model(m, ground.sun[c], flux.sun[c]), xs = exact.sun[c];
-                        const double mk = m == 4 ? 0.5 : model(m, ground.uniform[c], flux.uniform[c]);
-                        const double xk = exact.uniform[c];
-                        d_sun += (ms - xs) * (ms - xs), n_sun += xs * xs, m_sun += ms, e_sun += xs;
-                        d_sky += (mk - xk) * (mk - xk), n_sky += xk * xk, m_sky += mk, e_sky += xk;
-                        ++n;
-                    }
-                csv << at.height << v.name << names[m] << double(n) << std::sqrt(d_sun / n_sun) << m_sun / e_sun
-                    << std::sqrt(d_sky / n_sky) << m_sky / e_sky;
+                Agreement sun_a, sky_a;
+                for (const std::size_t c : points) {
+                    sun_a.add(model(m, ground.sun[c], flux.sun[c]), exact.sun[c]);
+                    sky_a.add(m == 4 ? 0.5 : model(m, ground.uniform[c], flux.uniform[c]), exact.uniform[c]);
+                }
+                csv << at.height << v.name << names[m] << double(points.size()) << sun_a.l2() << sun_a.ratio()
+                    << sky_a.l2() << sky_a.ratio();
                 csv.end_row();
-                worst[m][0] = std::max(worst[m][0], std::sqrt(d_sun / n_sun));
-                worst[m][1] = std::max(worst[m][1], std::sqrt(d_sky / n_sky));
+                worst[m][0] = std::max(worst[m][0], sun_a.l2());
+                worst[m][1] = std::max(worst[m][1], sky_a.l2());
             }
         }
     }
@@ -167,23 +184,17 @@ FULGUR_STUDY(rain_light, "rain-light",
             const transport::GroundIrradiance exact =
                 transport::ground_dome(ss.media.lighting, flash_group, {}, at, lobe).groups.at(0);
             const double f0 = transport::hg_from_above(mu, rain.g), f1 = transport::hg_from_above(mu, rain.g, 1);
+            const std::vector<std::size_t> points = raining_cells(at);
             for (int m = 0; m < 2; ++m) {
-                double d = 0.0, nn = 0.0, sm = 0.0, se = 0.0;
-                int n = 0;
-                for (int j = 0; j < at.ny; ++j)
-                    for (int i = 0; i < at.nx; ++i) {
-                        const double x = at.origin.x + (i + 0.5) * at.cell, y = at.origin.y + (j + 0.5) * at.cell;
-                        if (!raining(x, y, at.height)) continue;
-                        const std::size_t c = std::size_t(j) * std::size_t(at.nx) + std::size_t(i);
-                        const double E = f.ground.data[c];
-                        const double mo = m == 0 ? E / pi * f0 : 1.5 * E / pi * f1, xo = exact.data[c];
-                        d += (mo - xo) * (mo - xo), nn += xo * xo, sm += mo, se += xo;
-                        ++n;
-                    }
-                flash_csv << at.height << v.name << (m == 0 ? "diffuse" : "cosine") << double(n) << std::sqrt(d / nn)
-                          << sm / se;
+                Agreement flash_a;
+                for (const std::size_t c : points) {
+                    const double E = f.ground.data[c];
+                    flash_a.add(m == 0 ? E / pi * f0 : 1.5 * E / pi * f1, exact.data[c]);
+                }
+                flash_csv << at.height << v.name << (m == 0 ? "diffuse" : "cosine") << double(points.size())
+                          << flash_a.l2() << flash_a.ratio();
                 flash_csv.end_row();
-                worst_flash[m] = std::max(worst_flash[m], std::sqrt(d / nn));
+                worst_flash[m] = std::max(worst_flash[m], flash_a.l2());
             }
         }
     }
