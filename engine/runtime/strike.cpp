@@ -48,16 +48,8 @@ StrikeSolveOptions strike_solve_options(const scene::Quality& q) {
 
 std::optional<transport::GroundTally> strike_ground(const scene::Scene& scene, const core::GridGeometry& lighting) {
     if (!scene.effects.ground || !scene.effects.lightning) return std::nullopt;
-    constexpr double kMargin = 20000.0;
-    transport::GroundTally g;
-    g.height = scene.lightning.bolt.ground_height;
-    g.cell = 2.0 * lighting.voxel_size;
-    g.origin = glm::dvec2(lighting.origin.x, lighting.origin.y) - kMargin;
-    const glm::dvec3 hi = lighting.upper();
-    g.nx = std::clamp(int(std::ceil((hi.x - lighting.origin.x + 2.0 * kMargin) / g.cell)), 1, 4096);
-    g.ny = std::clamp(int(std::ceil((hi.y - lighting.origin.y + 2.0 * kMargin) / g.cell)), 1, 4096);
-    if (g.cells() > (std::size_t(1) << 22)) return std::nullopt;  // a lighting voxel under 10 m: not a storm
-    return g;
+    // At most 2048 a side: 2^22 cells (16 MB a group), the most a tally holds.
+    return transport::ground_cells_around(lighting, scene.lightning.bolt.ground_height, 20000.0, 2048);
 }
 
 StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& density, const solve::Media& media,

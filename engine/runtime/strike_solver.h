@@ -78,7 +78,9 @@ struct StrikeSolveOptions {
 /// plane (its lightning's ground height) under the lighting grid `lighting` and 20 km around
 /// it (a camera at the storm's distance sees the ground that far out), in cells of two
 /// lighting voxels (the light a cloud base a kilometre or more up sends down varies over
-/// kilometres; each cell then gathers enough crossings). None when the scene draws no ground.
+/// kilometres; each cell then gathers enough crossings), wider where that would take more
+/// than 2048 a side (transport::ground_cells_around). None when the scene draws no ground or
+/// no lightning.
 std::optional<transport::GroundTally> strike_ground(const scene::Scene& scene, const core::GridGeometry& lighting);
 
 /// The per-strike solve a quality preset asks for (its multiple-scattering solver and paths).

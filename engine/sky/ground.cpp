@@ -11,20 +11,12 @@ namespace fulgur::sky {
 
 std::optional<transport::GroundTally> static_ground_cells(const scene::Scene& s, const core::GridGeometry& lighting) {
     if (!s.effects.ground) return std::nullopt;
-    constexpr double kMargin = 20000.0;
     // At most 128 cells a side, and few enough that transport::ground_dome's work bound (2^33
     // voxel visits: cells x rays x the voxels a ray can cross) holds whatever the cloud.
     const double crossing = double(lighting.dims.x + lighting.dims.y + lighting.dims.z) + 3.0;
     const double most_cells = double(std::uint64_t(1) << 33) / (transport::DomeGroundOptions{}.rays * crossing);
-    const int kMaxSide = std::clamp(int(std::floor(std::sqrt(most_cells))), 1, 128);
-    const glm::dvec3 span = lighting.extent() + 2.0 * kMargin;
-    transport::GroundTally g;
-    g.height = s.lightning.bolt.ground_height;
-    g.cell = std::max(2.0 * lighting.voxel_size, std::max(span.x, span.y) / kMaxSide);
-    g.origin = glm::dvec2(lighting.origin.x, lighting.origin.y) - kMargin;
-    g.nx = std::clamp(int(std::ceil(span.x / g.cell)), 1, kMaxSide);
-    g.ny = std::clamp(int(std::ceil(span.y / g.cell)), 1, kMaxSide);
-    return g;
+    const int max_side = std::clamp(int(std::floor(std::sqrt(most_cells))), 1, 128);
+    return transport::ground_cells_around(lighting, s.lightning.bolt.ground_height, 20000.0, max_side);
 }
 
 StaticGround static_ground(const solve::Media& media, const StaticLight& light, const transport::GroundTally& cells,

@@ -30,6 +30,18 @@ SourceField in_every_direction(const SourceField& one, std::span<const glm::dvec
     return out;
 }
 
+GroundTally ground_cells_around(const core::GridGeometry& lighting, double height, double margin, int max_side) {
+    FULGUR_ASSERT(max_side >= 1 && max_side <= 4096 && margin >= 0.0, "ground_cells_around: bad max_side or margin");
+    const glm::dvec3 span = lighting.extent() + 2.0 * margin;
+    GroundTally g;
+    g.height = height;
+    g.cell = std::max(2.0 * lighting.voxel_size, std::max(span.x, span.y) / max_side);
+    g.origin = glm::dvec2(lighting.origin.x, lighting.origin.y) - margin;
+    g.nx = std::clamp(int(std::ceil(span.x / g.cell)), 1, max_side);
+    g.ny = std::clamp(int(std::ceil(span.y / g.cell)), 1, max_side);
+    return g;
+}
+
 void validate_ground_tally(const GroundTally& g, const std::string& where) {
     if (!std::isfinite(g.height) || std::abs(g.height) > 1e7)
         throw core::Error(where + ".height", "must be finite and within 1e7 m, got " + std::to_string(g.height));

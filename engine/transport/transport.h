@@ -262,6 +262,12 @@ struct GroundTally {
 /// Throws core::Error naming the bad field (`where`.height, .origin, .cell, .nx, .ny).
 void validate_ground_tally(const GroundTally& g, const std::string& where = "monte_carlo.ground");
 
+/// Square cells of the plane z = `height` under the footprint of `lighting` and `margin`
+/// metres around it: two lighting voxels wide (the light a cloud base a kilometre or more up
+/// sends down varies over kilometres), or wider where that would take more than `max_side`
+/// (in [1, 4096]) cells along a side. Always covers the footprint and margin.
+GroundTally ground_cells_around(const core::GridGeometry& lighting, double height, double margin, int max_side);
+
 /// Irradiance on a GroundTally's cells: W/m^2 averaged over each cell, x fastest ([j nx + i]).
 struct GroundIrradiance {
     GroundTally cells;
