@@ -164,6 +164,23 @@ DomeGround ground_dome(const LightingMedium& medium, std::span<const std::vector
             e.cells = cells;
             e.data.assign(cells.cells(), 0.0f);
         }
+    // Each group's fields summed once (a group of one field is read in place): a ray then
+    // reads one value per direction at each voxel it crosses where it read one per field.
+    std::vector<SourceField> sums;
+    sums.reserve(ng);  // no reallocation: field_of points into it
+    std::vector<const SourceField*> field_of(ng);
+    for (std::size_t q = 0; q < ng; ++q) {
+        if (groups[q].size() == 1) {
+            field_of[q] = groups[q][0];
+            continue;
+        }
+        SourceField& sum = sums.emplace_back(*groups[q][0]);
+        for (std::size_t f = 1; f < groups[q].size(); ++f) {
+            const std::vector<float>& d = groups[q][f]->data;
+            for (std::size_t i = 0; i < d.size(); ++i) sum.data[i] += d[i];
+        }
+        field_of[q] = &sum;
+    }
     const bool any_cloud = lo.x <= hi.x;
     const bool centre = options.within == DomeGroundOptions::Within::Centre;
     const double weight = std::numbers::pi / double(dome.size() * std::size_t(n * n));
@@ -187,12 +204,9 @@ DomeGround ground_dome(const LightingMedium& medium, std::span<const std::vector
                         const double emitted = centre ? st * (b - a) * std::exp(-0.5 * st * (b - a)) : absorbed;
                         for (std::size_t q = 0; q < ng; ++q) {
                             double s = 0.0;
-                            for (int t = 0; t < dw.count; ++t) {
-                                const std::size_t m = std::size_t(dw.index[std::size_t(t)]);
-                                double v = 0.0;
-                                for (const SourceField* f : groups[q]) v += double(f->direction(m)[c]);
-                                s += dw.weight[std::size_t(t)] * v;
-                            }
+                            for (int t = 0; t < dw.count; ++t)
+                                s += dw.weight[std::size_t(t)] *
+                                     double(field_of[q]->direction(std::size_t(dw.index[std::size_t(t)]))[c]);
                             l[q] += T * emitted * s;
                         }
                         T *= 1.0 - absorbed;

@@ -207,7 +207,9 @@ TEST_CASE("ground dome: voxels three optical depths thick, lit from within") {
     CHECK(c.ratio == test::rel(1.18, 0.03));
 }
 
-TEST_CASE("ground dome: the same irradiance on one thread and on two, groups together as apart; bad arguments") {
+TEST_CASE(
+    "ground dome: the same irradiance on one thread and on two, groups together as apart, a group as its sum; bad "
+    "arguments") {
     const LightingMedium m = test::synthetic_cloud({6, 6, 6}, 200.0, {0.002, 0.9, 0.6});
     SourceField s(m.density.geom, output_directions(26));
     for (std::size_t i = 0; i < s.data.size(); ++i) s.data[i] = float(1.0 + 0.5 * std::sin(double(i)));
@@ -233,6 +235,14 @@ TEST_CASE("ground dome: the same irradiance on one thread and on two, groups tog
     // Each group alone: the same rays, the same sums.
     const std::vector<std::vector<const SourceField*>> first = {{&s}};
     CHECK(ground_dome(m, first, {}, kCells, {.rays = 128, .points_per_side = 2}).groups[0].data == a.groups[0].data);
+    // A group of two fields is the group of their sum, to float rounding (the fields are summed
+    // once, in float, before the rays read them).
+    SourceField sum = s;
+    for (std::size_t i = 0; i < sum.data.size(); ++i) sum.data[i] = half.data[i] + s.data[i];
+    const std::vector<std::vector<const SourceField*>> summed = {{&sum}};
+    const DomeGround one = ground_dome(m, summed, {}, kCells, {.rays = 128, .points_per_side = 2});
+    for (std::size_t c = 0; c < kCells.cells(); ++c)
+        CHECK(double(one.groups[0].data[c]) == test::rel(double(a.groups[1].data[c]), 1e-6));
 
     const auto bad = [&](auto&& call, const char* what) {
         CHECK_THROWS_WITH_AS(call(), doctest::Contains(what), core::Error);
