@@ -32,6 +32,8 @@ SourceField in_every_direction(const SourceField& one, std::span<const glm::dvec
 
 GroundTally ground_cells_around(const core::GridGeometry& lighting, double height, double margin, int max_side) {
     FULGUR_ASSERT(max_side >= 1 && max_side <= 4096 && margin >= 0.0, "ground_cells_around: bad max_side or margin");
+    FULGUR_ASSERT(std::isfinite(lighting.voxel_size) && lighting.voxel_size > 0.0,
+                  "ground_cells_around: the lighting grid has no voxel size");
     const glm::dvec3 span = lighting.extent() + 2.0 * margin;
     GroundTally g;
     g.height = height;
