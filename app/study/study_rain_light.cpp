@@ -104,9 +104,16 @@ FULGUR_STUDY(rain_light, "rain-light",
                           {"from below 30 deg", {c30, 0.0, -0.5}},
                           {"from above 20 deg", {0.0, c20, std::sin(std::numbers::pi / 9)}}};
     const double ground_z = cells->height;
+    const int rays = ctx.quick ? 1024 : 4096;
+    // The rays that give what the rain scatters toward a view: its phase function as the lobe.
+    const auto toward = [&](const View& v) {
+        return transport::DomeGroundOptions{.rays = rays, .lobe = [&rain, ws = v.ws](const glm::dvec3& w) {
+                                                return transport::hg_phase(-glm::dot(w, ws), rain.g);
+                                            }};
+    };
     // The scalar flux at the ground (the lobe 1): with the irradiance, a radiance a + b cos.
-    const sky::StaticGround flux = sky::static_ground(
-        media, light, *cells, {.rays = ctx.quick ? 1024 : 4096, .lobe = [](const glm::dvec3&) { return 1.0; }});
+    const sky::StaticGround flux =
+        sky::static_ground(media, light, *cells, {.rays = rays, .lobe = [](const glm::dvec3&) { return 1.0; }});
     const double pi = std::numbers::pi;
     const char* names[] = {"diffuse", "overcast", "cosine", "a+b cos", "half horizon"};
     Csv csv(ctx.file("rain_light.csv"),
@@ -117,12 +124,9 @@ FULGUR_STUDY(rain_light, "rain-light",
         transport::GroundTally at = *cells;
         at.height = ground_z + share * (rain.top - ground_z);
         for (const View& v : views) {
-            const double mu = v.ws.z;
-            const transport::DomeGroundOptions lobe{.rays = ctx.quick ? 1024 : 4096, .lobe = [&](const glm::dvec3& w) {
-                                                        return transport::hg_phase(-glm::dot(w, v.ws), rain.g);
-                                                    }};
-            const sky::StaticGround exact = sky::static_ground(media, light, at, lobe);
-            const double f0 = transport::hg_from_above(mu, rain.g), f1 = transport::hg_from_above(mu, rain.g, 1);
+            const sky::StaticGround exact = sky::static_ground(media, light, at, toward(v));
+            const double f0 = transport::hg_from_above(v.ws.z, rain.g),
+                         f1 = transport::hg_from_above(v.ws.z, rain.g, 1);
             const auto model = [&](int m, double E, double phi) {
                 switch (m) {
                     case 0:
@@ -177,13 +181,10 @@ FULGUR_STUDY(rain_light, "rain-light",
         transport::GroundTally at = f.ground.cells;
         at.height = ground_z + share * (rain.top - ground_z);
         for (const View& v : views) {
-            const double mu = v.ws.z;
-            const transport::DomeGroundOptions lobe{.rays = ctx.quick ? 1024 : 4096, .lobe = [&](const glm::dvec3& w) {
-                                                        return transport::hg_phase(-glm::dot(w, v.ws), rain.g);
-                                                    }};
             const transport::GroundIrradiance exact =
-                transport::ground_dome(ss.media.lighting, flash_group, {}, at, lobe).groups.at(0);
-            const double f0 = transport::hg_from_above(mu, rain.g), f1 = transport::hg_from_above(mu, rain.g, 1);
+                transport::ground_dome(ss.media.lighting, flash_group, {}, at, toward(v)).groups.at(0);
+            const double f0 = transport::hg_from_above(v.ws.z, rain.g),
+                         f1 = transport::hg_from_above(v.ws.z, rain.g, 1);
             const std::vector<std::size_t> points = raining_cells(at);
             for (int m = 0; m < 2; ++m) {
                 Agreement flash_a;
