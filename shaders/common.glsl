@@ -36,6 +36,8 @@ layout(std140, binding = 0) uniform Frame {
     vec4 ground_scatter;   // the cloud's scattered flash light on the ground (u_ground_scatter):
                            // xy lower corner of its cells (m), zw 1 / its extent along x, y (1/m); zw 0: none
     vec4 ground_static;    // the static light on the ground (u_ground_static), as ground_scatter
+    vec4 rain_sky[17];     // rain: the share of its scattering a sky of the horizon's radiance x (1 - cos zenith)
+                           // provides toward mu = -1 + k / 32 (k = 0..64: rain_sky[k / 4][k % 4]; rain_sky_share)
 };
 
 // The host's depth buffer (render_into_host), full output resolution; read only when host_depth.w != 0.

@@ -96,11 +96,22 @@ float rain_flash(vec3 p, vec3 d, vec3 o, inout float light_t) {
     return s;
 }
 
+// What the rain scatters toward the camera (-d) of the sky, per unit albedo: the sky as the
+// horizon's radiance falling to none at the zenith (the cloud overhead), (1 - cos), through
+// the drops' phase function (render::rain_sky_shares; from rain_sky's 65 entries, linearly).
+// The same for every sample of a ray.
+vec3 rain_sky_light(vec3 d) {
+    if (sky_params.z < 0.5) return vec3(0.0);
+    float x = clamp((1.0 - d.z) * 32.0, 0.0, 64.0);
+    int i = min(int(x), 63);
+    float a = rain_sky[i >> 2][i & 3], b = rain_sky[(i + 1) >> 2][(i + 1) & 3];
+    return sky_horizon.rgb * mix(a, b, x - float(i));
+}
+
 // The same for the sun or moon through the cloud and the rain (the full-resolution
-// transmittance at p_tex) and the sky: below a storm's base the rain sees about half the dome
-// as the horizon's sky, the rest as cloud.
-vec3 rain_static(vec3 d, vec3 p_tex) {
-    vec3 s = sky_params.z > 0.5 ? 0.5 * sky_horizon.rgb : vec3(0.0);
+// transmittance at p_tex), plus the sky's (rain_sky_light, the ray's).
+vec3 rain_static(vec3 d, vec3 p_tex, vec3 sky) {
+    vec3 s = sky;
     if (sun_dir.w > 0.5 && sun_params.y > 0.5)
         s += sun_rgb.rgb * (hg_phase(dot(-d, sun_dir.xyz), rain_params.y) * textureLod(u_sun_t, p_tex, 0.0).r);
     return s;
@@ -176,6 +187,9 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
     // (light travelling along sun_dir scattered into -d): albedo p(-d . sun_dir) E x colour.
     vec3 sun_s1 = sun_rgb.w * hg_phase(dot(-d, sun_dir.xyz), sun_params.x) * sun_rgb.rgb;
 #endif
+#if HAS_RAIN
+    vec3 rain_sky = rain_sky_light(d);
+#endif
     vec3 Ls = vec3(0.0);
     float kappa = vol_min.w;
     float voxel = vol_size.w;
@@ -222,7 +236,7 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #else
             L += wr * rain_flash(o + t * d, d, o, light_t);
 #endif
-            Ls += wr * rain_static(d, o_tex + t * d_tex);
+            Ls += wr * rain_static(d, o_tex + t * d_tex, rain_sky);
         }
 #else
         float alpha = 1.0 - exp(-kappa * rho * (b - a));

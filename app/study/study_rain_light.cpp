@@ -1,18 +1,21 @@
-// The light the rain gets from above, and what a model of it from the ground's maps would
-// draw.
-//   rain-light: storm-full.json's rain under the default storm (storm.json's cloud, its static
-//   light: the sun at 45 degrees and a uniform sky, solved as the cache solves them). At the
-//   rain's points (the static ground cells' centres where it rains, at a quarter, half and three
-//   quarters of the rain's height) the truth is the light arriving from above weighted by the
-//   rain's phase function toward a viewer (transport::ground_dome with a lobe: the same rays
-//   and S as the ground's map), for a viewer level (toward +x, +y), below at 30 degrees and
-//   above at 20 degrees. The models take the ground's map E (cosine-weighted, at the ground) as
-//   a radiance from above: diffuse E / pi (x transport::hg_from_above); overcast, (1 + 2 cos) /
-//   3 in shape; cosine, proportional to cos; a + b cos from E and the scalar flux at the ground;
-//   and, for the sky, the renderer's half dome at the horizon's radiance (the sun's cloud light:
-//   none). Relative L2 over the points and the ratio of totals, per light, height, view and
-//   model. The same for a strike's flash (seed 1 at its return stroke, per_strike: the storm's
-//   bake, storm.fgb, baked when stale) from its ground map, diffuse and cosine.
+// The light the rain gets from above, and what a model of it from the ground's maps or the
+// sky would draw.
+//   rain-light: storm-full.json's rain under the default storm's cloud and under the day
+//   cumulus (each with its static light: the sun at 45 degrees and a uniform sky, solved as the
+//   cache solves them). At the rain's points (the static ground cells' centres where it rains,
+//   at a quarter, half and three quarters of the rain's height) the truth is the light arriving
+//   from above weighted by the rain's phase function toward a viewer (transport::ground_dome
+//   with a lobe: the same rays and S as the ground's map), for a viewer level (toward +x, +y),
+//   below at 30 degrees and above at 20 degrees. The models take the ground's map E
+//   (cosine-weighted, at the ground) as a radiance from above: diffuse E / pi (x
+//   transport::hg_from_above); overcast, (1 + 2 cos) / 3 in shape; cosine, proportional to cos;
+//   a + b cos from E and the scalar flux at the ground; and, for the sky, three without a map:
+//   half the dome at the horizon's radiance (what the renderer drew before), the upper
+//   hemisphere at it, and the horizon's radiance falling to none at the zenith, (1 - cos)
+//   (render::rain_sky_shares, what it draws). The sun's cloud light: none of those. Relative L2
+//   over the points and the ratio of totals, per cloud, light, height, view and model. The same
+//   for a strike's flash (seed 1 at its return stroke, per_strike: the storm's bake, storm.fgb,
+//   baked when stale) from its ground map, diffuse and cosine.
 //   Outputs: rain_light.csv, rain_light_flash.csv. --quick: one height, 1024 rays.
 #include "study/study.h"
 
@@ -27,6 +30,7 @@
 #include <glm/geometric.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <vector>
@@ -48,121 +52,140 @@ struct Agreement {
     double ratio() const { return model / truth; }
 };
 
-}  // namespace
+// A view of the rain: the scattered direction toward the camera w_s (the camera looks along -w_s).
+struct View {
+    const char* name;
+    glm::dvec3 ws;
+};
 
-FULGUR_STUDY(rain_light, "rain-light",
-             "the rain's light from above under the default storm (its static light): the phase-weighted light "
-             "arriving at the rain's points against models from the ground's maps") {
-    const std::filesystem::path scenes = std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes";
-    scene::Scene s = scene::load_scene(scenes / "storm.json");
-    const core::Grid3<float> density = scene::make_density(s);
-    const solve::Media media = sky::static_media(s, density);
-    const sky::SolveSettings st = sky::solve_settings(s, density);
-    const auto dirs = transport::output_directions(s.effective_directions());
-    const auto cells = sky::static_ground_cells(s, media.lighting.density.geom);
-    if (!cells) throw core::Error("storm.json", "the scene has no ground");
-    // storm-full.json's rain under this cloud (its footprint and top; the drops' g).
-    const scene::Scene full = scene::load_scene(scenes / "storm-full.json");
-    if (!full.rain) throw core::Error("storm-full.json", "the scene has no rain");
-    const cloud::RainField rain = cloud::make_rain(density, *full.rain);
+// Level (toward +x and +y), from below at 30 degrees, from above at 20 degrees.
+std::array<View, 4> rain_views() {
+    const double c30 = std::cos(std::numbers::pi / 6), c20 = std::cos(std::numbers::pi / 9);
+    return {{{"level +x", {1.0, 0.0, 0.0}},
+             {"level +y", {0.0, 1.0, 0.0}},
+             {"from below 30 deg", {c30, 0.0, -0.5}},
+             {"from above 20 deg", {0.0, c20, std::sin(std::numbers::pi / 9)}}}};
+}
 
-    // The sun at 45 degrees and a uniform sky, solved as the scene's cache solves them.
-    const glm::dvec3 sun_dir = scene::sun_direction(45.0, -60.0);
-    const transport::DirectionalSource sun{sun_dir, 1.0};
-    sky::StaticLight light;
-    light.sun = sky::solve_directional(media, std::span(&sun, 1), dirs, st);
-    light.sun_direction = sun_dir;
-    light.sky = sky::solve_sky(media, true, dirs, st);
-    const sky::StaticGround ground = sky::static_ground(media, light, *cells);
-
-    // The rain points: the cells' centres where it rains, at a quarter, half and three quarters
-    // of the way from the ground up to the rain's top.
+// The rain's points: the cells of `at` whose centres (at its height) are in the rain.
+std::vector<std::size_t> raining_cells(const cloud::RainField& rain, const transport::GroundTally& at) {
     const core::GridGeometry& rg = rain.extinction.geom;
     const auto raining = [&](double x, double y, double z) {
         const glm::ivec3 v(glm::floor((glm::dvec3(x, y, z) - rg.origin) / rg.voxel_size));
         return v.x >= 0 && v.y >= 0 && v.z >= 0 && v.x < rg.dims.x && v.y < rg.dims.y && v.z < rg.dims.z &&
                rain.extinction.at(v.x, v.y, v.z) > 0.0f;
     };
-    // The cells of `at` whose centres (at its height) are in the rain.
-    const auto raining_cells = [&](const transport::GroundTally& at) {
-        std::vector<std::size_t> out;
-        for (int j = 0; j < at.ny; ++j)
-            for (int i = 0; i < at.nx; ++i)
-                if (raining(at.origin.x + (i + 0.5) * at.cell, at.origin.y + (j + 0.5) * at.cell, at.height))
-                    out.push_back(std::size_t(j) * std::size_t(at.nx) + std::size_t(i));
-        return out;
-    };
-    // Views: the scattered direction toward the camera w_s (the camera looks along -w_s):
-    // level, from below at 30 degrees, from above at 20 degrees; toward +x and toward +y.
-    struct View {
-        const char* name;
-        glm::dvec3 ws;
-    };
-    const double c30 = std::cos(std::numbers::pi / 6), c20 = std::cos(std::numbers::pi / 9);
-    const View views[] = {{"level +x", {1.0, 0.0, 0.0}},
-                          {"level +y", {0.0, 1.0, 0.0}},
-                          {"from below 30 deg", {c30, 0.0, -0.5}},
-                          {"from above 20 deg", {0.0, c20, std::sin(std::numbers::pi / 9)}}};
-    const double ground_z = cells->height;
+    std::vector<std::size_t> out;
+    for (int j = 0; j < at.ny; ++j)
+        for (int i = 0; i < at.nx; ++i)
+            if (raining(at.origin.x + (i + 0.5) * at.cell, at.origin.y + (j + 0.5) * at.cell, at.height))
+                out.push_back(std::size_t(j) * std::size_t(at.nx) + std::size_t(i));
+    return out;
+}
+
+// The rays that give what the rain scatters toward a view: its phase function as the lobe.
+transport::DomeGroundOptions toward(const cloud::RainField& rain, const View& v, int rays) {
+    return {.rays = rays,
+            .lobe = [g = rain.g, ws = v.ws](const glm::dvec3& w) { return transport::hg_phase(-glm::dot(w, ws), g); }};
+}
+
+}  // namespace
+
+FULGUR_STUDY(rain_light, "rain-light",
+             "the rain's light from above under the default storm and the day cumulus (their static light): the "
+             "phase-weighted light arriving at the rain's points against models from the ground's maps and the sky") {
+    const std::filesystem::path scenes = std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes";
+    // storm-full.json's rain (its rate, threshold, shear, streaks) under each cloud.
+    const scene::Scene full = scene::load_scene(scenes / "storm-full.json");
+    if (!full.rain) throw core::Error("storm-full.json", "the scene has no rain");
     const int rays = ctx.quick ? 1024 : 4096;
-    // The rays that give what the rain scatters toward a view: its phase function as the lobe.
-    const auto toward = [&](const View& v) {
-        return transport::DomeGroundOptions{.rays = rays, .lobe = [&rain, ws = v.ws](const glm::dvec3& w) {
-                                                return transport::hg_phase(-glm::dot(w, ws), rain.g);
-                                            }};
-    };
-    // The scalar flux at the ground (the lobe 1): with the irradiance, a radiance a + b cos.
-    const sky::StaticGround flux =
-        sky::static_ground(media, light, *cells, {.rays = rays, .lobe = [](const glm::dvec3&) { return 1.0; }});
-    const double pi = std::numbers::pi;
-    const char* names[] = {"diffuse", "overcast", "cosine", "a+b cos", "half horizon"};
-    Csv csv(ctx.file("rain_light.csv"),
-            {"height_m", "view", "model", "points", "sun_l2", "sun_ratio", "sky_l2", "sky_ratio"});
-    double worst[5][2] = {};
     const std::vector<double> shares = ctx.quick ? std::vector<double>{0.5} : std::vector<double>{0.25, 0.5, 0.75};
-    for (const double share : shares) {
-        transport::GroundTally at = *cells;
-        at.height = ground_z + share * (rain.top - ground_z);
-        for (const View& v : views) {
-            const sky::StaticGround exact = sky::static_ground(media, light, at, toward(v));
-            const double f0 = transport::hg_from_above(v.ws.z, rain.g),
-                         f1 = transport::hg_from_above(v.ws.z, rain.g, 1);
-            const auto model = [&](int m, double E, double phi) {
-                switch (m) {
-                    case 0:
-                        return E / pi * f0;
-                    case 1:
-                        return 3.0 * E / (7.0 * pi) * (f0 + 2.0 * f1);
-                    case 2:
-                        return 1.5 * E / pi * f1;
-                    case 4:
-                        return 0.0;  // replaced below: the sky's half dome, the sun's none
-                    default: {
-                        const double bb = 3.0 * (2.0 * E - phi) / pi, aa = (2.0 * phi - 3.0 * E) / pi;
-                        return aa * f0 + bb * f1;
+    const double pi = std::numbers::pi;
+    const char* names[] = {"diffuse",      "overcast",           "cosine",      "a+b cos",
+                           "half horizon", "horizon from above", "horizon band"};
+    constexpr int kModels = 7;
+    Csv csv(ctx.file("rain_light.csv"),
+            {"cloud", "height_m", "view", "model", "points", "sun_l2", "sun_ratio", "sky_l2", "sky_ratio"});
+    nlohmann::json j;
+    for (const char* cloud_file : {"storm.json", "day-cumulus.json"}) {
+        const scene::Scene s = scene::load_scene(scenes / cloud_file);
+        const core::Grid3<float> density = scene::make_density(s);
+        const solve::Media media = sky::static_media(s, density);
+        const sky::SolveSettings st = sky::solve_settings(s, density);
+        const auto dirs = transport::output_directions(s.effective_directions());
+        const auto cells = sky::static_ground_cells(s, media.lighting.density.geom);
+        if (!cells) throw core::Error(cloud_file, "the scene has no ground");
+        const cloud::RainField rain = cloud::make_rain(density, *full.rain);
+
+        // The sun at 45 degrees and a uniform sky, solved as the scene's cache solves them.
+        const glm::dvec3 sun_dir = scene::sun_direction(45.0, -60.0);
+        const transport::DirectionalSource sun{sun_dir, 1.0};
+        sky::StaticLight light;
+        light.sun = sky::solve_directional(media, std::span(&sun, 1), dirs, st);
+        light.sun_direction = sun_dir;
+        light.sky = sky::solve_sky(media, true, dirs, st);
+        const sky::StaticGround ground = sky::static_ground(media, light, *cells);
+        // The scalar flux at the ground (the lobe 1): with the irradiance, a radiance a + b cos.
+        const sky::StaticGround flux =
+            sky::static_ground(media, light, *cells, {.rays = rays, .lobe = [](const glm::dvec3&) { return 1.0; }});
+        double worst[kModels][2] = {};
+        // The rain's points: the cells' centres where it rains, at a quarter, half and three
+        // quarters of the way from the ground up to the rain's top.
+        for (const double share : shares) {
+            transport::GroundTally at = *cells;
+            at.height = cells->height + share * (rain.top - cells->height);
+            const std::vector<std::size_t> points = raining_cells(rain, at);
+            for (const View& v : rain_views()) {
+                const sky::StaticGround exact = sky::static_ground(media, light, at, toward(rain, v, rays));
+                const double f0 = transport::hg_from_above(v.ws.z, rain.g),
+                             f1 = transport::hg_from_above(v.ws.z, rain.g, 1);
+                // The ground's map E (and the scalar flux phi) as a radiance from above, through
+                // the phase function's shares; the sky of radiance 1 as the renderer can draw it
+                // without a map: half the dome at the horizon's radiance whatever the view (4),
+                // the upper hemisphere at that radiance (5), or the horizon's radiance falling to
+                // none at the zenith, (1 - cos) (6), each through the phase function. The sun's
+                // cloud light has no such model (none drawn: 100%).
+                const auto model = [&](int m, double E, double phi) {
+                    switch (m) {
+                        case 0:
+                            return E / pi * f0;
+                        case 1:
+                            return 3.0 * E / (7.0 * pi) * (f0 + 2.0 * f1);
+                        case 2:
+                            return 1.5 * E / pi * f1;
+                        case 3: {
+                            const double bb = 3.0 * (2.0 * E - phi) / pi, aa = (2.0 * phi - 3.0 * E) / pi;
+                            return aa * f0 + bb * f1;
+                        }
+                        default:
+                            return 0.0;
                     }
+                };
+                const double horizon[] = {0.5, f0, f0 - f1};
+                for (int m = 0; m < kModels; ++m) {
+                    Agreement sun_a, sky_a;
+                    for (const std::size_t c : points) {
+                        sun_a.add(model(m, ground.sun[c], flux.sun[c]), exact.sun[c]);
+                        sky_a.add(m >= 4 ? horizon[m - 4] : model(m, ground.uniform[c], flux.uniform[c]),
+                                  exact.uniform[c]);
+                    }
+                    csv << cloud_file << at.height << v.name << names[m] << double(points.size()) << sun_a.l2()
+                        << sun_a.ratio() << sky_a.l2() << sky_a.ratio();
+                    csv.end_row();
+                    worst[m][0] = std::max(worst[m][0], sun_a.l2());
+                    worst[m][1] = std::max(worst[m][1], sky_a.l2());
                 }
-            };
-            const std::vector<std::size_t> points = raining_cells(at);
-            for (int m = 0; m < 5; ++m) {
-                Agreement sun_a, sky_a;
-                for (const std::size_t c : points) {
-                    sun_a.add(model(m, ground.sun[c], flux.sun[c]), exact.sun[c]);
-                    sky_a.add(m == 4 ? 0.5 : model(m, ground.uniform[c], flux.uniform[c]), exact.uniform[c]);
-                }
-                csv << at.height << v.name << names[m] << double(points.size()) << sun_a.l2() << sun_a.ratio()
-                    << sky_a.l2() << sky_a.ratio();
-                csv.end_row();
-                worst[m][0] = std::max(worst[m][0], sun_a.l2());
-                worst[m][1] = std::max(worst[m][1], sky_a.l2());
             }
         }
+        for (int m = 0; m < kModels; ++m)
+            j[cloud_file][names[m]] = {{"worst_sun_l2", worst[m][0]}, {"worst_sky_l2", worst[m][1]}};
     }
     // A strike's flash (seed 1, per_strike: its S single + lattice, its ground gathered by
     // rays from that S) at its return stroke: the cloud's flash light into the same rain, the
     // flash's ground map (the renderer's LitChannel::ground) as light from overhead (cosine)
     // or diffuse, against the phase-weighted light at the rain's points.
     const StrikeScene ss = strike_scene("storm.json");
+    const cloud::RainField rain = cloud::make_rain(ss.density, *full.rain);
     runtime::FramePipeline pipe(ss.scene, ss.density, ss.bases, std::nullopt, scene::quality_preset("per_strike"));
     const std::size_t strike = pipe.strike_at(0.0, 1);
     runtime::ReconstructOptions wait;
@@ -179,13 +202,13 @@ FULGUR_STUDY(rain_light, "rain-light",
     double worst_flash[2] = {};
     for (const double share : shares) {
         transport::GroundTally at = f.ground.cells;
-        at.height = ground_z + share * (rain.top - ground_z);
-        for (const View& v : views) {
+        at.height = f.ground.cells.height + share * (rain.top - f.ground.cells.height);
+        const std::vector<std::size_t> points = raining_cells(rain, at);
+        for (const View& v : rain_views()) {
             const transport::GroundIrradiance exact =
-                transport::ground_dome(ss.media.lighting, flash_group, {}, at, toward(v)).groups.at(0);
+                transport::ground_dome(ss.media.lighting, flash_group, {}, at, toward(rain, v, rays)).groups.at(0);
             const double f0 = transport::hg_from_above(v.ws.z, rain.g),
                          f1 = transport::hg_from_above(v.ws.z, rain.g, 1);
-            const std::vector<std::size_t> points = raining_cells(at);
             for (int m = 0; m < 2; ++m) {
                 Agreement flash_a;
                 for (const std::size_t c : points) {
@@ -199,8 +222,6 @@ FULGUR_STUDY(rain_light, "rain-light",
             }
         }
     }
-    nlohmann::json j;
-    for (int m = 0; m < 5; ++m) j[names[m]] = {{"worst_sun_l2", worst[m][0]}, {"worst_sky_l2", worst[m][1]}};
     j["flash"] = {{"worst_diffuse_l2", worst_flash[0]}, {"worst_cosine_l2", worst_flash[1]}};
     ctx.summary("rain-light", j);
 }
