@@ -118,12 +118,7 @@ FULGUR_STUDY(rain_light, "rain-light",
         const cloud::RainField rain = cloud::make_rain(density, *full.rain);
 
         // The sun at 45 degrees and a uniform sky, solved as the scene's cache solves them.
-        const glm::dvec3 sun_dir = scene::sun_direction(45.0, -60.0);
-        const transport::DirectionalSource sun{sun_dir, 1.0};
-        sky::StaticLight light;
-        light.sun = sky::solve_directional(media, std::span(&sun, 1), dirs, st);
-        light.sun_direction = sun_dir;
-        light.sky = sky::solve_sky(media, true, dirs, st);
+        const sky::StaticLight light = sky::solve_static(media, scene::sun_direction(45.0, -60.0), true, dirs, st);
         const sky::StaticGround ground = sky::static_ground(media, light, *cells);
         // The scalar flux at the ground (the lobe 1): with the irradiance, a radiance a + b cos.
         const sky::StaticGround flux =

@@ -250,6 +250,12 @@ struct StaticLight {
     std::optional<SkyField> sky;               ///< per unit radiance
 };
 
+/// A sun of unit irradiance travelling along `sun_direction` and the sky (uniform, or the
+/// gradient's two ends), solved as load_or_solve solves them, with no cache: for studies and
+/// tests that light a cloud by both.
+StaticLight solve_static(const solve::Media& media, const glm::dvec3& sun_direction, bool sky_uniform,
+                         std::span<const glm::dvec3> directions, const SolveSettings& settings);
+
 /// Where solves are cached: `dir` (created when missing), or beside the scene file when
 /// empty; nothing is cached when `enabled` is false or the scene has no file.
 struct CacheOptions {

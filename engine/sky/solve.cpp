@@ -524,4 +524,14 @@ core::Grid3<float> sun_transmittance(const scene::Scene& s, const core::Grid3<fl
     return sun_transmittance(both, s.medium.extinction, direction);
 }
 
+StaticLight solve_static(const solve::Media& media, const glm::dvec3& sun_direction, bool sky_uniform,
+                         std::span<const glm::dvec3> directions, const SolveSettings& settings) {
+    const transport::DirectionalSource unit{sun_direction, 1.0};
+    StaticLight out;
+    out.sun = solve_directional(media, std::span(&unit, 1), directions, settings);
+    out.sun_direction = sun_direction;
+    out.sky = solve_sky(media, sky_uniform, directions, settings);
+    return out;
+}
+
 }  // namespace fulgur::sky

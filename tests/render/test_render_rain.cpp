@@ -40,6 +40,15 @@ void light_by_channel(render::Renderer& r, glm::vec3 a, glm::vec3 b) {
     r.clear_source();
 }
 
+// A pixel's ray d and where it enters and leaves box() (t0 < t1); false when it misses.
+bool box_chord(const render::Camera& cam, int x, int y, int w, int h, glm::dvec3& d, double& t0, double& t1) {
+    d = test::pixel_ray(cam, x, y, w, h);
+    t0 = 0.0;
+    t1 = 1e300;
+    const core::GridGeometry g = box();
+    return core::clip_ray_to_box(cam.position, d, g.origin, g.upper(), t0, t1);
+}
+
 render::Camera side_camera() {
     render::Camera cam;
     cam.position = {-300.0, -4000.0, 600.0};
@@ -69,10 +78,9 @@ TEST_CASE("rain's extinction: T = exp(-sigma chord) through a uniform rain box")
     int inside = 0;
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
-            const glm::dvec3 d = test::pixel_ray(cam, x, y, W, H);
-            double t0 = 0.0, t1 = 1e300;
-            const core::GridGeometry g = box();
-            const double chord = core::clip_ray_to_box(cam.position, d, g.origin, g.upper(), t0, t1) ? t1 - t0 : 0.0;
+            glm::dvec3 d;
+            double t0, t1;
+            const double chord = box_chord(cam, x, y, W, H, d, t0, t1) ? t1 - t0 : 0.0;
             inside += chord > 0.0;
             const double T = std::exp(-sigma * chord);
             worst = std::max(worst, std::abs(double(img[(std::size_t(y) * W + std::size_t(x)) * 4 + 3]) - T));
@@ -200,10 +208,9 @@ TEST_CASE("the channel's light in the rain: the march against its single-scatter
     std::vector<double> expected(std::size_t(W) * H, 0.0);
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
-            const glm::dvec3 d = test::pixel_ray(cam, x, y, W, H);
-            double t0 = 0.0, t1 = 1e300;
-            const core::GridGeometry g = box();
-            if (!core::clip_ray_to_box(cam.position, d, g.origin, g.upper(), t0, t1)) continue;
+            glm::dvec3 d;
+            double t0, t1;
+            if (!box_chord(cam, x, y, W, H, d, t0, t1)) continue;
             double T = 1.0, L = 0.0, a = t0;
             for (int k = 0; a < t1; ++k) {
                 const double b = std::min(t0 + (k + 0.5) * dt, t1);
@@ -284,10 +291,9 @@ TEST_CASE("the sky's light in the rain: uniform rain against the closed form, se
         counted.push_back(0);
         for (int y = 0; y < H; ++y)
             for (int x = 0; x < W; ++x) {
-                const glm::dvec3 d = test::pixel_ray(cam, x, y, W, H);
-                double t0 = 0.0, t1 = 1e300;
-                const core::GridGeometry g = box();
-                if (!core::clip_ray_to_box(cam.position, d, g.origin, g.upper(), t0, t1)) continue;
+                glm::dvec3 d;
+                double t0, t1;
+                if (!box_chord(cam, x, y, W, H, d, t0, t1)) continue;
                 if (t1 - t0 < 10.0) continue;  // float rounding of a chord's ends (as above)
                 const double u = std::clamp((1.0 - d.z) * 32.0, 0.0, 64.0);
                 const int i = std::min(int(u), 63);

@@ -52,11 +52,7 @@ TEST_CASE("default storm: the static light on the ground against the truth's gro
 
     // The sun at 45 degrees and a uniform sky, solved as the scene's cache solves them.
     const glm::dvec3 sun_dir = scene::sun_direction(45.0, -60.0);
-    const transport::DirectionalSource sun{sun_dir, 1.0};
-    sky::StaticLight solved;
-    solved.sun = sky::solve_directional(media, std::span(&sun, 1), dirs, st);
-    solved.sun_direction = sun_dir;
-    solved.sky = sky::solve_sky(media, true, dirs, st);
+    const sky::StaticLight solved = sky::solve_static(media, sun_dir, true, dirs, st);
     const sky::TruthField sun_truth = sky::sun_truth(full, sun_dir, dirs, to);
     const sky::SkyTruth sky_truth = sky::sky_truth(full, true, dirs, to);
     REQUIRE(!sun_truth.ground.empty());
