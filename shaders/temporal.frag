@@ -11,7 +11,9 @@
 //
 // STRIDE (compile time; a software rasterizer runs both sides of a branch its lanes split on,
 // so each case is its own program): 0 nothing marched (still camera), 1 every pixel marched,
-// 2 one pixel of each 2x2 block marched, at (u_phase.x, u_phase.y).
+// 2 one pixel of each 2x2 block marched, at (u_phase.x, u_phase.y) (moving camera), 3 the same
+// with the others from the history in place (a camera that stopped: in four frames every pixel
+// is marched at its place).
 #include "common.glsl"
 
 #ifndef STRIDE
@@ -74,12 +76,22 @@ void main() {
     o_flash = texelFetch(u_fresh_flash, p, 0);
     o_statics = texelFetch(u_fresh_statics, p, 0);
     o_channel = texelFetch(u_fresh_channel, p, 0);
-#elif STRIDE == 0
-    o_flash = texelFetch(u_hist_flash, p, 0);
-    o_statics = texelFetch(u_hist_statics, p, 0);
-    o_channel = texelFetch(u_hist_channel, p, 0);
-    o_flash.x *= u_rescale.x;
-    o_channel.rgb *= u_rescale.y;
+#elif STRIDE == 0 || STRIDE == 3
+#if STRIDE == 3
+    if (all(equal(p & 1, u_phase))) {
+        ivec2 q = p >> 1;
+        o_flash = texelFetch(u_fresh_flash, q, 0);
+        o_statics = texelFetch(u_fresh_statics, q, 0);
+        o_channel = texelFetch(u_fresh_channel, q, 0);
+    } else
+#endif
+    {
+        o_flash = texelFetch(u_hist_flash, p, 0);
+        o_statics = texelFetch(u_hist_statics, p, 0);
+        o_channel = texelFetch(u_hist_channel, p, 0);
+        o_flash.x *= u_rescale.x;
+        o_channel.rgb *= u_rescale.y;
+    }
 #else
     if (all(equal(p & 1, u_phase))) {
         ivec2 q = p >> 1;

@@ -122,8 +122,8 @@ detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const S
     const bool still = valid && detail::same_camera(camera, h.camera);
     // A quarter needs a 2x2 block: a march one pixel wide or high marches every pixel.
     const bool blocks = u.internal_width >= 2 && u.internal_height >= 2;
-    plan.stride = !valid ? 1 : still ? 0 : blocks ? 2 : 1;
-    plan.phase = plan.stride == 2 ? kPhases[h.frames % 4] : glm::ivec2(0);
+    plan.stride = !valid ? 1 : still ? (h.unsettled > 0 ? 3 : 0) : blocks ? 2 : 1;
+    plan.phase = plan.stride >= 2 ? kPhases[h.frames % 4] : glm::ivec2(0);
     return plan;
 }
 
@@ -135,18 +135,19 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     const glm::ivec2 phase = plan.phase;
     const std::string& defines = plan.defines;
     detail::TemporalKey& key = plan.key;
-    stats.temporal = stride == 0 ? TemporalStep::Reused : stride == 2 ? TemporalStep::Quarter : TemporalStep::Full;
+    stats.temporal = stride == 0 ? TemporalStep::Reused : stride == 1 ? TemporalStep::Full : TemporalStep::Quarter;
+    const int grid = stride == 3 ? 2 : stride;  // every grid-th pixel marched
 
     const int iw = u.internal_width, ih = u.internal_height;
     stats.marched_share = 0.0;
     if (stride > 0) {
-        const int fw = (iw - phase.x + stride - 1) / stride, fh = (ih - phase.y + stride - 1) / stride;
+        const int fw = (iw - phase.x + grid - 1) / grid, fh = (ih - phase.y + grid - 1) / grid;
         h.fresh.ensure(fw, fh, 3);
         const GLuint p =
             program("march_groups", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "march_groups.frag"}},
                     defines);
         glUseProgram(p);
-        glUniform3i(glGetUniformLocation(p, "u_grid"), stride, phase.x, phase.y);
+        glUniform3i(glGetUniformLocation(p, "u_grid"), grid, phase.x, phase.y);
         glBindFramebuffer(GL_FRAMEBUFFER, h.fresh.fbo);
         glViewport(0, 0, fw, fh);
         glDrawArrays(GL_TRIANGLES, 0, 3);
@@ -193,6 +194,9 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     h.source.written();
     h.channel.written();
     ++h.frames;
+    // A moving camera upsamples three pixels of each 2x2 block: once it stops, the next four
+    // frames march the four phases in turn, after which every pixel is marched and rescaled.
+    h.unsettled = stride == 2 ? 4 : stride == 3 ? h.unsettled - 1 : stride == 1 ? 0 : h.unsettled;
 }
 
 }  // namespace fulgur::render

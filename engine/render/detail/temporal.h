@@ -42,7 +42,9 @@ struct TemporalKey {
 
 /// What a frame's march does with the history (Renderer::Impl::plan_temporal): `stride` 0 reuses
 /// it (nothing marched: no resolve, no glow), 1 marches every pixel, 2 the pixel `phase` of each
-/// 2x2 block; the march's defines and the frame's key.
+/// 2x2 block of a moving camera, 3 the same for a camera that stopped while the history still
+/// holds pixels a moving camera upsampled (the others kept in place); the march's defines and the
+/// frame's key.
 struct TemporalPlan {
     int stride = 1;
     glm::ivec2 phase{0};
@@ -61,6 +63,7 @@ struct TemporalState {
     Camera camera;
     glm::mat4 view_proj{1.0f};
     std::uint32_t frames = 0;  // temporal frames rendered (the quarter's phase)
+    int unsettled = 0;         // still-camera quarters left before every pixel of the history is marched
     ScaleTracker source, channel;
     void release();
 };
