@@ -31,7 +31,8 @@ Units (checked by scripts/blender_calibrate.py against analytic cases on Cycles 
 The VDB is read with pyopenvdb (Debian's Blender runs the system Python, which has it), checked
 against frame.json (grid name and type, voxel size, origin, dims) and rewritten, density grid
 only, with its transform divided by K, into a temporary directory (or next to --save-blend's
-file, which then refers to it).
+file, which then refers to it). A frame with rain (frame.json's "rain": its extinction per metre
+on the density's grid, albedo and g) gets a second volume object the same way (rain.vdb).
 
 Why each Cycles setting is chosen is written next to it (configure_cycles and friends): the aim
 is an unbiased estimate (no clamping, no bounce limit that matters, no denoiser, no adaptive
@@ -270,29 +271,34 @@ def read_frame(frame_dir):
         F.err("camera.up", "is zero or parallel to the view direction")
     fr["camera"] = c
 
-    med = F.get(root, "medium", "medium", optional=True)
-    if med is not None:
-        m = {}
-        m["file"] = F.string(F.get(med, "medium.file", "file"), "medium.file")
-        m["grid"] = F.string(F.get(med, "medium.grid", "grid"), "medium.grid")
-        m["extinction"] = F.number(F.get(med, "medium.extinction", "extinction"), "medium.extinction", lo=0.0)
-        m["albedo"] = F.number(F.get(med, "medium.albedo", "albedo"), "medium.albedo", lo=0.0, hi=1.0)
-        m["g"] = F.number(F.get(med, "medium.g", "g"), "medium.g", lo=-1.0, hi=1.0)
+    # The cloud ("medium") and the rain under it ("rain", optional): each a VDB grid whose value
+    # times `extinction` is sigma_t per metre, with its albedo and Henyey-Greenstein g.
+    for key in ("medium", "rain"):
+        med = F.get(root, key, key, optional=True)
+        if med is None:
+            fr[key] = None
+            continue
+        m = {"key": key}
+        m["file"] = F.string(F.get(med, key + ".file", "file"), key + ".file")
+        m["grid"] = F.string(F.get(med, key + ".grid", "grid"), key + ".grid")
+        m["extinction"] = F.number(F.get(med, key + ".extinction", "extinction"), key + ".extinction", lo=0.0)
+        m["albedo"] = F.number(F.get(med, key + ".albedo", "albedo"), key + ".albedo", lo=0.0, hi=1.0)
+        m["g"] = F.number(F.get(med, key + ".g", "g"), key + ".g", lo=-1.0, hi=1.0)
         if abs(m["g"]) >= 1.0:
-            F.err("medium.g", "%g: |g| must be < 1" % m["g"])
-        m["voxel_size"] = F.number(F.get(med, "medium.voxel_size", "voxel_size"), "medium.voxel_size",
+            F.err(key + ".g", "%g: |g| must be < 1" % m["g"])
+        m["voxel_size"] = F.number(F.get(med, key + ".voxel_size", "voxel_size"), key + ".voxel_size",
                                    lo=0.0, lo_open=True)
-        m["origin"] = F.vec(F.get(med, "medium.origin", "origin"), "medium.origin")
-        dims = F.get(med, "medium.dims", "dims")
+        m["origin"] = F.vec(F.get(med, key + ".origin", "origin"), key + ".origin")
+        dims = F.get(med, key + ".dims", "dims")
         if not isinstance(dims, list) or len(dims) != 3:
-            F.err("medium.dims", "expected an array of 3 integers")
-        m["dims"] = [F.integer(d, "medium.dims[%d]" % i, 1, 1 << 20) for i, d in enumerate(dims)]
+            F.err(key + ".dims", "expected an array of 3 integers")
+        m["dims"] = [F.integer(d, "%s.dims[%d]" % (key, i), 1, 1 << 20) for i, d in enumerate(dims)]
         m["path"] = os.path.join(frame_dir, m["file"])
         if not os.path.isfile(m["path"]):
-            F.err("medium.file", "%s: no such file" % m["path"])
-        fr["medium"] = m
-    else:
-        fr["medium"] = None
+            F.err(key + ".file", "%s: no such file" % m["path"])
+        fr[key] = m
+    if fr["rain"] is not None and fr["medium"] is None:
+        F.err("rain", "rain without a medium (it falls from the cloud's base)")
 
     flash = F.vec(F.get(root, "flash_colour", "flash_colour"), "flash_colour", lo=0.0)
     fr["flash_colour"] = flash
@@ -486,12 +492,12 @@ def add_camera(scene, fr):
     scene.camera = ob
 
 
-def prepare_vdb(fr, out, K):
-    """Checks DIR/<medium.file> against frame.json and writes the copy Blender loads: the density
-    grid alone, its transform divided by K (density_scale; the object is scaled back up, see
-    add_medium), every constant tile of a leafless grid split into leaves. Returns its path."""
-    m = fr["medium"]
-    where = "%s: field 'medium.%%s'" % fr["path"]
+def prepare_vdb(fr, m, out, K):
+    """Checks DIR/<m.file> (m: frame.json's medium or rain) against frame.json and writes the
+    copy Blender loads: its grid alone, the transform divided by K (density_scale; the object is
+    scaled back up, see add_medium), every constant tile of a leafless grid split into leaves.
+    Returns its path."""
+    where = "%s: field '%s.%%s'" % (fr["path"], m["key"])
     try:
         grids, _meta = vdb.readAll(m["path"])
     except Exception as e:  # noqa: BLE001 - pyopenvdb raises plain RuntimeError/KeyError
@@ -524,15 +530,15 @@ def prepare_vdb(fr, out, K):
             raise FrameError((where % "voxel_size") + ": %s's index-to-world transform is not a "
                              "scale by %g (axis %d steps by (%g, %g, %g))"
                              % ((m["path"], vs, axis) + tuple(step)))
-    # A dense copy for choosing the channel's light radius (light_radius), when the frame has a
-    # channel and the copy fits in memory.
-    if fr["lights"] and m["dims"][0] * m["dims"][1] * m["dims"][2] <= DENSE_DENSITY_LIMIT:
+    # A dense copy of the cloud for choosing the channel's light radius (light_radius), when the
+    # frame has a channel and the copy fits in memory.
+    if m["key"] == "medium" and fr["lights"] and m["dims"][0] * m["dims"][1] * m["dims"][2] <= DENSE_DENSITY_LIMIT:
         m["rho"] = np.zeros(tuple(m["dims"]), np.float32)
         grid.copyToArray(m["rho"], ijk=(0, 0, 0))
     lo, hi = grid.evalActiveVoxelBoundingBox()
     if grid.activeVoxelCount() > 0 and (min(lo) < 0 or any(h >= d for h, d in zip(hi, m["dims"]))):
         warn("%s: %s's active voxels span index (%d,%d,%d)..(%d,%d,%d), outside frame.json's "
-             "medium.dims (%d, %d, %d)" % ((fr["path"], m["path"]) + tuple(lo) + tuple(hi) + tuple(m["dims"])))
+             "%s.dims (%d, %d, %d)" % ((fr["path"], m["path"]) + tuple(lo) + tuple(hi) + (m["key"],) + tuple(m["dims"])))
     # A grid made only of constant tiles (no leaf nodes) renders empty in Cycles 3.4 (a grid with
     # some leaves renders its tiles fine): split each tile into leaves. Writing a different value
     # into a tile and then the tile's value back leaves a leaf behind (OpenVDB does not re-prune).
@@ -555,22 +561,24 @@ def prepare_vdb(fr, out, K):
     try:
         vdb.write(out, grids=[grid])
     except Exception as e:  # noqa: BLE001
-        raise FrameError("cannot write the rescaled density grid %s: %s" % (out, e))
+        raise FrameError("cannot write the rescaled %s grid %s: %s" % (m["key"], out, e))
     return out
 
 
-def add_medium(scene, fr, vdb_out):
-    m = fr["medium"]
-    vol = bpy.data.volumes.new("medium")
+def add_medium(scene, fr, m, vdb_out):
+    """The volume object of frame.json's medium or rain (m), from its rescaled grid at vdb_out.
+    Where both are, Cycles adds their coefficients (its volume stack), as Fulgur's march does."""
+    name = m["key"]
+    vol = bpy.data.volumes.new(name)
     K = density_scale(m["voxel_size"])
-    vol.filepath = prepare_vdb(fr, vdb_out, K)
+    vol.filepath = prepare_vdb(fr, m, vdb_out, K)
     try:
         ok = vol.grids.load()
     except Exception:  # noqa: BLE001 - Blender raises plain RuntimeError here
         ok = False
     if not ok or m["grid"] not in [g.name for g in vol.grids]:
-        raise FrameError("%s: field 'medium.file': Blender cannot read the density grid of %s "
-                         "(rewritten as %s): %s" % (fr["path"], m["path"], vol.filepath,
+        raise FrameError("%s: field '%s.file': Blender cannot read the grid of %s "
+                         "(rewritten as %s): %s" % (fr["path"], name, m["path"], vol.filepath,
                                                     vol.grids.error_message or "grid missing"))
     # The density is read at full float precision (the default, HALF, rounds rho to 11 bits)
     # and nothing is clipped (the default drops rho below 0.001, the thin fringe of a cloud,
@@ -593,14 +601,14 @@ def add_medium(scene, fr, vdb_out):
     # space the step is given in object units and multiplied by the object's scale.
     vol.render.step_size = 0.5 * m["voxel_size"] / K
 
-    ob = bpy.data.objects.new("medium", vol)
+    ob = bpy.data.objects.new(name, vol)
     ob.scale = (K, K, K)
     # Undo Cycles' half-voxel offset (see VOXEL_CENTRE_SHIFT); world units.
     shift = VOXEL_CENTRE_SHIFT * m["voxel_size"]
     ob.location = (shift, shift, shift)
     scene.collection.objects.link(ob)
 
-    mat = bpy.data.materials.new("medium")
+    mat = bpy.data.materials.new(name)
     mat.use_nodes = True
     nt = mat.node_tree
     nt.nodes.clear()
@@ -811,7 +819,8 @@ def add_ground(scene, fr):
 
 
 def build_scene(fr, args, vdb_out):
-    """vdb_out: where the rescaled copy of the density grid is written (prepare_vdb)."""
+    """vdb_out: where the rescaled copy of the density grid is written (prepare_vdb); the rain's
+    beside it (.rain.vdb for .density.vdb)."""
     clear_scene()
     scene = bpy.context.scene
     scene.frame_set(1)
@@ -819,7 +828,10 @@ def build_scene(fr, args, vdb_out):
     add_camera(scene, fr)
     add_world(scene, fr)
     if fr["medium"] is not None:
-        add_medium(scene, fr, vdb_out)
+        add_medium(scene, fr, fr["medium"], vdb_out)
+    if fr["rain"] is not None:
+        assert vdb_out.endswith("density.vdb")
+        add_medium(scene, fr, fr["rain"], vdb_out[:-len("density.vdb")] + "rain.vdb")
     radius, fr["light_loss"] = light_radius(fr, args)
     fr["light_radius"] = radius
     add_point_lights(scene, fr, radius)

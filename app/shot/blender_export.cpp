@@ -41,6 +41,22 @@ void write_blender_export(const std::filesystem::path& dir, const view::StormVie
     const cloud::VdbOutputGrid grids[] = {d};
     cloud::save_vdb(dir / "density.vdb", grids,
                     {{"fulgur_scene", e.scene}, {"fulgur_length_unit", "m (world space; z up)"}});
+    // The rain the frame draws, as its own medium on the density's grid: its extinction per
+    // metre (so the medium's extinction factor is 1), its albedo and phase.
+    const cloud::RainField* rain = st.rain ? view.rain() : nullptr;
+    if (rain && !(rain->max_extinction > 0.0)) rain = nullptr;  // a cloud too thin to rain
+    if (rain) {
+        cloud::VdbOutputGrid r;
+        r.name = "rain";
+        r.values = &rain->extinction;
+        r.fog_volume = true;
+        r.text = {{"fulgur_quantity", "rain extinction sigma_t"}, {"fulgur_units", "1/m"}};
+        const cloud::VdbOutputGrid rain_grids[] = {r};
+        cloud::save_vdb(dir / "rain.vdb", rain_grids,
+                        {{"fulgur_scene", e.scene}, {"fulgur_length_unit", "m (world space; z up)"}});
+    } else {
+        std::filesystem::remove(dir / "rain.vdb", ec);  // not this frame's: no stale file beside it
+    }
 
     nlohmann::json j;
     j["format"] = "fulgur-blender-frame";
@@ -62,6 +78,21 @@ void write_blender_export(const std::filesystem::path& dir, const view::StormVie
                    {"voxel_size", g.voxel_size},
                    {"origin", vec(g.origin)},
                    {"dims", {g.dims.x, g.dims.y, g.dims.z}}};
+    if (rain) {
+        const core::GridGeometry& rg = rain->extinction.geom;
+        j["rain"] = {{"file", "rain.vdb"},
+                     {"grid", "rain"},
+                     {"extinction", 1.0},
+                     {"albedo", rain->albedo},
+                     {"g", rain->g},
+                     {"voxel_size", rg.voxel_size},
+                     {"origin", vec(rg.origin)},
+                     {"dims", {rg.dims.x, rg.dims.y, rg.dims.z}},
+                     {"max_extinction", rain->max_extinction},
+                     {"top", rain->top}};
+    } else {
+        j["rain"] = nullptr;
+    }
     j["flash_colour"] = vec(st.flash_colour);
 
     // The lit channel as isotropic points (the truth's line sources, sampled).

@@ -212,6 +212,8 @@ public:
     const sky::ScenePlan& plan() const noexcept { return plan_; }
     const scene::Scene& scene() const noexcept { return scene_; }
     const core::Grid3<float>& density() const noexcept { return density_; }
+    /// The scene's rain as the renderer draws it (null: the scene has none).
+    const cloud::RainField* rain() const noexcept { return rain_ ? &*rain_ : nullptr; }
     const runtime::Frame* last_frame() const noexcept { return last_; }
 
 private:
