@@ -75,6 +75,25 @@ const synthetic::Storm& small_storm() {
     return storm;
 }
 
+// Every direction of the storm's S (a moving camera needs others than the first view's).
+render::SourceUpload every_direction(const synthetic::Storm& storm) {
+    render::SourceUpload all;
+    all.geometry = storm.lighting;
+    all.direction_count = storm.directions;
+    const std::size_t cells = storm.lighting.cell_count();
+    for (int m = 0; m < storm.directions; ++m) {
+        all.directions.push_back(m);
+        all.values.emplace_back(storm.source.data() + std::size_t(m) * cells, cells);
+    }
+    return all;
+}
+
+// What the orbits turn about: the storm's middle, 70% of the way up.
+glm::dvec3 orbit_target(const synthetic::Storm& storm) {
+    const core::GridGeometry& g = storm.density.geom;
+    return g.origin + 0.5 * g.extent() * glm::dvec3(1.0, 1.0, 0.7);
+}
+
 // The storm's volume, its channel and the directions of S its camera needs.
 void show_storm(render::Renderer& r, const synthetic::Storm& storm) {
     r.set_volume({.density = &storm.density, .extinction = storm.extinction});
@@ -149,18 +168,10 @@ TEST_CASE("temporal history: a moving camera marches a quarter and stays near a 
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
     r.set_volume({.density = &storm.density, .extinction = storm.extinction});
-    render::SourceUpload all;  // every direction: the orbit needs others than the first view's
-    all.geometry = storm.lighting;
-    all.direction_count = storm.directions;
-    const std::size_t cells = storm.lighting.cell_count();
-    for (int m = 0; m < storm.directions; ++m) {
-        all.directions.push_back(m);
-        all.values.emplace_back(storm.source.data() + std::size_t(m) * cells, cells);
-    }
+    const render::SourceUpload all = every_direction(storm);  // the orbit needs others than the first view's
     render::Settings st = storm.settings;
     st.dither = false;
-    const core::GridGeometry& g = storm.density.geom;
-    const glm::dvec3 target = g.origin + 0.5 * g.extent() * glm::dvec3(1.0, 1.0, 0.7);
+    const glm::dvec3 target = orbit_target(storm);
     const double distance = glm::length(storm.camera.position - target);
     double worst = 0.0, sum = 0.0, jitter_noise = 0.0;
     int quarter = 0;
@@ -220,19 +231,11 @@ TEST_CASE("temporal history: a camera that stops marches the four quarters in tu
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
     r.set_volume({.density = &storm.density, .extinction = storm.extinction});
-    render::SourceUpload all;
-    all.geometry = storm.lighting;
-    all.direction_count = storm.directions;
-    const std::size_t cells = storm.lighting.cell_count();
-    for (int m = 0; m < storm.directions; ++m) {
-        all.directions.push_back(m);
-        all.values.emplace_back(storm.source.data() + std::size_t(m) * cells, cells);
-    }
+    const render::SourceUpload all = every_direction(storm);
     render::Settings st = storm.settings;
     st.dither = false;
     st.jitter = false;  // the history's pixels were marched in other frames: no per-frame jitter
-    const core::GridGeometry& g = storm.density.geom;
-    const glm::dvec3 target = g.origin + 0.5 * g.extent() * glm::dvec3(1.0, 1.0, 0.7);
+    const glm::dvec3 target = orbit_target(storm);
     const double distance = glm::length(storm.camera.position - target);
     using Step = render::TemporalStep;
     // Frames 0-3 orbit 1 degree a frame, then the camera stays at frame 3's view.
