@@ -75,6 +75,26 @@ const synthetic::Storm& small_storm() {
     return storm;
 }
 
+// Frame `index` with the temporal history (what it did, its march) and the same frame marched
+// afresh.
+struct Frame {
+    render::FrameStats stats;
+    std::vector<float> kept, fresh;
+};
+Frame with_and_without_history(render::Renderer& r, const render::Camera& cam, render::Settings st,
+                               std::uint32_t index) {
+    st.frame_index = index;
+    render::Settings temporal = st;
+    temporal.temporal = true;
+    Frame f;
+    f.stats = render_at(r, cam, temporal, W, H);
+    int w = 0, h = 0;
+    f.kept = r.read_march(w, h);
+    render_at(r, cam, st, W, H);
+    f.fresh = r.read_march(w, h);
+    return f;
+}
+
 // Every direction of the storm's S (a moving camera needs others than the first view's).
 render::SourceUpload every_direction(const synthetic::Storm& storm) {
     render::SourceUpload all;
@@ -139,15 +159,9 @@ TEST_CASE("temporal history: a still camera through a whole flash gives each fra
     double worst = 0.0, worst_t = 0.0;
     for (std::size_t i = 0; i < flash.size(); ++i) {
         show_flash(r, storm, shape, flash[i]);
-        st.frame_index = std::uint32_t(i);
-        render::Settings temporal = st;
-        temporal.temporal = true;
-        const render::FrameStats stats = render_at(r, storm.camera, temporal, W, H);
-        int w = 0, h = 0;
-        const std::vector<float> kept = r.read_march(w, h);
-        render_at(r, storm.camera, st, W, H);
-        const std::vector<float> fresh = r.read_march(w, h);
-        const MarchDiff d = march_diff(kept, fresh);
+        const Frame f = with_and_without_history(r, storm.camera, st, std::uint32_t(i));
+        const render::FrameStats& stats = f.stats;
+        const MarchDiff d = march_diff(f.kept, f.fresh);
         CAPTURE(i);
         CHECK(stats.temporal == expected[i]);
         CHECK(stats.marched_share == (stats.temporal == render::TemporalStep::Reused ? 0.0 : 1.0));
@@ -179,16 +193,12 @@ TEST_CASE("temporal history: a moving camera marches a quarter and stays near a 
     for (int i = 0; i < frames; ++i) {
         const render::Camera cam = render::Camera::orbit(target, distance, -60.0 + i, 8.0, 55.0);
         show_flash(r, storm, all, {.g = std::exp(-i / 8.0)});  // a return stroke's decay
-        st.frame_index = std::uint32_t(i);
-        render::Settings temporal = st;
-        temporal.temporal = true;
-        const render::FrameStats stats = render_at(r, cam, temporal, W, H);
+        const Frame f = with_and_without_history(r, cam, st, std::uint32_t(i));
+        const render::FrameStats& stats = f.stats;
+        const std::vector<float>&kept = f.kept, &fresh = f.fresh;
         int w = 0, h = 0;
-        const std::vector<float> kept = r.read_march(w, h);
-        render_at(r, cam, st, W, H);
-        const std::vector<float> fresh = r.read_march(w, h);
         render::Settings other = st;
-        other.frame_index += 7;
+        other.frame_index = std::uint32_t(i) + 7;
         render_at(r, cam, other, W, H);
         jitter_noise = std::max(jitter_noise, march_diff(r.read_march(w, h), fresh).radiance);
         CAPTURE(i);
@@ -246,16 +256,10 @@ TEST_CASE("temporal history: a camera that stops marches the four quarters in tu
     for (std::size_t i = 0; i < expected.size(); ++i) {
         const render::Camera cam = render::Camera::orbit(target, distance, -60.0 + std::min<double>(i, 3), 8.0, 55.0);
         show_flash(r, storm, all, {.g = std::exp(-double(i) / 8.0)});  // a return stroke's decay
-        st.frame_index = std::uint32_t(i);
-        render::Settings temporal = st;
-        temporal.temporal = true;
-        const render::FrameStats stats = render_at(r, cam, temporal, W, H);
-        int w = 0, h = 0;
-        const std::vector<float> kept = r.read_march(w, h);
-        render_at(r, cam, st, W, H);
-        error.push_back(march_diff(kept, r.read_march(w, h)).radiance);
+        const Frame f = with_and_without_history(r, cam, st, std::uint32_t(i));
+        error.push_back(march_diff(f.kept, f.fresh).radiance);
         CAPTURE(i);
-        CHECK(stats.temporal == expected[i]);
+        CHECK(f.stats.temporal == expected[i]);
     }
     MESSAGE("a camera that stops: relative L2 radiance against a fresh render per frame: moving "
             << error[1] << " " << error[2] << " " << error[3] << ", settling " << error[4] << " " << error[5] << " "
