@@ -19,6 +19,11 @@
 #ifndef STRIDE
 #define STRIDE 2
 #endif
+// REPROJECT_LIGHT (STRIDE 2): 1 the flash's and the channel's groups reprojected through their
+// light depths; 0 upsampled from this frame's marched pixels (Settings::temporal_reproject_light).
+#ifndef REPROJECT_LIGHT
+#define REPROJECT_LIGHT 1
+#endif
 
 layout(binding = 10) uniform sampler2D u_fresh_flash;
 layout(binding = 11) uniform sampler2D u_fresh_statics;
@@ -109,9 +114,11 @@ void main() {
         ivec2 k = min(p >> 1, textureSize(u_fresh_flash, 0) - 1);
         vec4 f = texelFetch(u_fresh_flash, k, 0);
         if (f.y <= 0.9) consider(cloud, f.w, A, B, d, 0);
+#if REPROJECT_LIGHT
         float zf = texelFetch(u_fresh_channel, k, 0).w, zc = texelFetch(u_fresh_statics, k, 0).w;
         if (zf > 0.0) consider(flash, zf, A, B, d, 1);
         if (zc > 0.0) consider(channel, zc, A, B, d, 2);
+#endif
         float tg = ground_distance(cam_pos.xyz, d);
         consider(cloud, tg < kBig ? tg : -1.0, A, B, d, 0);
         // Each group from the history where its depth was found, else from the marched pixels.

@@ -167,7 +167,11 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                           .detail = effects ? std::optional(detail) : std::nullopt,
                           .rain = effects ? &rain : nullptr});
             for (const bool orbit : {false, true})
-                for (const bool temporal : {false, true}) {
+                for (const int mode : {0, 1, 2}) {
+                    // 0 without the history, 1 with it, 2 with it and the light groups
+                    // upsampled instead of reprojected (a moving camera's knob only).
+                    const bool temporal = mode > 0;
+                    if (mode == 2 && !orbit) continue;
                     std::vector<double> wall, cpu, error, jitter_noise;
                     std::vector<render::PassTimes> passes;
                     int steps[4] = {0, 0, 0, 0};
@@ -175,6 +179,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                         show_flash(r, std::exp(-(i + 2) / 8.0));
                         st.frame_index = std::uint32_t(i + 2);
                         st.temporal = temporal;
+                        st.temporal_reproject_light = mode != 2;
                         const render::Camera cam =
                             orbit ? render::Camera::orbit(target, distance, -60.0 + 1.0 * (i + 2), 8.0, 55.0)
                                   : storm.camera;
@@ -207,6 +212,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                                           {"camera", orbit ? "orbit" : "still"},
                                           {"effects", effects ? "detail+rain" : "none"},
                                           {"temporal", temporal},
+                                          {"light_reprojected", mode == 1},
                                           {"frame_ms", ms},
                                           {"fps", 1000.0 / ms},
                                           {"frame_cpu_ms", bench::median(cpu)},

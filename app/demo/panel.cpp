@@ -166,6 +166,14 @@ void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& r
         ImGui::SetTooltip(
             "the march's light kept per group and rescaled by the flash's intensity: a still camera "
             "marches nothing while the flash only dims, a moving one a quarter of the pixels");
+    if (opt.settings.temporal) {
+        ImGui::SameLine();
+        ImGui::Checkbox("reproject light", &opt.settings.temporal_reproject_light);
+        if (ImGui::IsItemHovered())
+            ImGui::SetTooltip(
+                "a moving camera's flash and channel light: reprojected from the history (off: upsampled from "
+                "the marched quarter, nearer a fresh render at 1280x720 and above, farther below)");
+    }
 }
 
 void DemoPanel::frame_times(const view::FrameReport& rep) {

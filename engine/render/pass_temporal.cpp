@@ -124,6 +124,7 @@ detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const S
     const bool blocks = u.internal_width >= 2 && u.internal_height >= 2;
     plan.stride = !valid ? 1 : still ? (h.unsettled > 0 ? 3 : 0) : blocks ? 2 : 1;
     plan.phase = plan.stride >= 2 ? kPhases[h.frames % 4] : glm::ivec2(0);
+    plan.reproject_light = st.temporal_reproject_light;
     return plan;
 }
 
@@ -132,6 +133,7 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     detail::TemporalState& h = temporal;
     timer.begin(kMarch);
     const int stride = plan.stride;
+    const bool reproject_light = plan.reproject_light;
     const glm::ivec2 phase = plan.phase;
     const std::string& defines = plan.defines;
     detail::TemporalKey& key = plan.key;
@@ -167,7 +169,8 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     detail::check_framebuffer(fbo, iw, ih);
 
     const GLuint p = program("temporal", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "temporal.frag"}},
-                             "#define STRIDE " + std::to_string(stride) + "\n");
+                             "#define STRIDE " + std::to_string(stride) + "\n#define REPROJECT_LIGHT " +
+                                 (reproject_light ? "1" : "0") + "\n");
     glUseProgram(p);
     const detail::MultiTarget& fresh = stride > 0 ? h.fresh : h.history[h.current];
     for (int i = 0; i < 3; ++i) {

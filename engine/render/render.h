@@ -236,6 +236,14 @@ struct Settings {
     /// group's shape (a leader's front, another strike, the static light, any other input or
     /// setting) marches every pixel. The fragment kernel; not with render_into_host.
     bool temporal = false;
+    /// With the temporal history and a moving camera: the flash's and the channel's light of
+    /// the pixels not marched reprojected from the history through their light's depth (true),
+    /// or upsampled from this frame's marched pixels (false; the cloud's group is reprojected
+    /// either way). Against a fresh render of each frame, orbiting: upsampled is the more
+    /// accurate at 1280x720 and above (2.3% / 9.4% against 3.9% / 12.8% at 1280x720, plain /
+    /// detail and rain) and ~10 ms cheaper there, the less accurate at 640x360 and below (7.3% /
+    /// 16.4% against 4.5% / 12.2%) (docs/render.md, "Temporal history").
+    bool temporal_reproject_light = true;
     std::uint32_t frame_index = 0;  ///< varies the jitter pattern between frames (deterministic)
     // Effects
     bool sky = true;

@@ -48,6 +48,7 @@ struct TemporalKey {
 struct TemporalPlan {
     int stride = 1;
     glm::ivec2 phase{0};
+    bool reproject_light = true;  // Settings::temporal_reproject_light
     std::string defines;
     TemporalKey key;
 };
