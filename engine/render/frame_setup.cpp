@@ -184,11 +184,6 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
     u.rain = has_volume && has_rain && st.rain;
     if (u.rain) {
         f.rain = glm::vec4(float(rain_max), float(rain_g), float(rain_top), float(rain_albedo));
-        if (!(rain_sky_g == rain_g)) {  // once per g: 65 quadratures
-            const std::array<float, 65> s = rain_sky_shares(rain_g);
-            for (std::size_t k = 0; k < s.size(); ++k) rain_sky[k / 4][int(k % 4)] = s[k];
-            rain_sky_g = rain_g;
-        }
         std::copy(rain_sky.begin(), rain_sky.end(), f.rain_sky);
     }
     if (u.detail) f.detail = glm::vec4(float(1.0 / detail_period), float(detail_strength), 0.0f, 0.0f);

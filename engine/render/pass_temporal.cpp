@@ -133,7 +133,6 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     detail::TemporalState& h = temporal;
     timer.begin(kMarch);
     const int stride = plan.stride;
-    const bool reproject_light = plan.reproject_light;
     const glm::ivec2 phase = plan.phase;
     const std::string& defines = plan.defines;
     detail::TemporalKey& key = plan.key;
@@ -168,9 +167,11 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     glNamedFramebufferDrawBuffers(fbo, 4, draw);
     detail::check_framebuffer(fbo, iw, ih);
 
-    const GLuint p = program("temporal", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "temporal.frag"}},
-                             "#define STRIDE " + std::to_string(stride) + "\n#define REPROJECT_LIGHT " +
-                                 (reproject_light ? "1" : "0") + "\n");
+    const GLuint p =
+        program("temporal", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "temporal.frag"}},
+                "#define STRIDE " + std::to_string(stride) + "\n" +
+                    (stride == 2 ? std::string("#define REPROJECT_LIGHT ") + (plan.reproject_light ? "1" : "0") + "\n"
+                                 : std::string()));
     glUseProgram(p);
     const detail::MultiTarget& fresh = stride > 0 ? h.fresh : h.history[h.current];
     for (int i = 0; i < 3; ++i) {

@@ -16,7 +16,6 @@
 
 #include <array>
 #include <cstdint>
-#include <limits>
 #include <map>
 #include <optional>
 #include <string>
@@ -41,9 +40,7 @@ struct Renderer::Impl {
     double detail_finest = 0.0;  // metres across the finest billows
     bool has_rain = false;       // the density texture's b channel holds rain (RGBA)
     double rain_max = 0.0, rain_g = 0.0, rain_albedo = 0.0, rain_top = 0.0;
-    // FrameBlock::rain_sky for rain_sky_g (render::rain_sky_shares; NaN: none yet).
-    std::array<glm::vec4, 17> rain_sky{};
-    double rain_sky_g = std::numeric_limits<double>::quiet_NaN();
+    std::array<glm::vec4, 17> rain_sky{};  // FrameBlock::rain_sky: render::rain_sky_shares(rain_g)
 
     // Source: the flash's S and the static light's (colour)
     detail::SourceSet flash = detail::SourceSet(GL_R32F), statics = detail::SourceSet(GL_RGBA32F);
