@@ -32,7 +32,7 @@ layout(std140, binding = 0) uniform Frame {
     vec4 detail_params;    // sub-voxel detail: x 1 / tile period (1/m), y erosion strength
     vec4 rain_params;      // rain: x extinction at b = 1 (1/m), y HG g, z its top (m), w albedo
     vec4 rain_light[8];    // the channel below the rain's top as point lights: xyz position, w W/sr
-    vec4 rain_lights;      // x number of rain_light
+    vec4 rain_lights;      // x number of rain_light, y 1 / the cloud's albedo (which the static S carries)
     vec4 ground_scatter;   // the cloud's scattered flash light on the ground (u_ground_scatter):
                            // xy lower corner of its cells (m), zw 1 / its extent along x, y (1/m); zw 0: none
     vec4 ground_static;    // the static light on the ground (u_ground_static), as ground_scatter

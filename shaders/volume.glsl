@@ -236,7 +236,16 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #else
             L += wr * rain_flash(o + t * d, d, o, light_t);
 #endif
+#if HAS_STATIC
+            // The static light solved with the rain in its media: S at the rain's points holds
+            // the light of every order the cloud and the rain scatter there, the sky's own
+            // included (in place of the sky model); the sun's first scattering is drawn at full
+            // resolution with the drops' phase function (rain_static).
+            Ls += wr * (rain_static(d, o_tex + t * d_tex, vec3(0.0)) +
+                        rain_lights.y * textureLod(u_static, o_st + t * d_st, 0.0).rgb);  // per unit albedo
+#else
             Ls += wr * rain_static(d, o_tex + t * d_tex, rain_sky);
+#endif
         }
 #else
         float alpha = 1.0 - exp(-kappa * rho * (b - a));

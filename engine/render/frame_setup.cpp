@@ -202,7 +202,11 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
         if (u.ground_scatter) f.ground_scatter = ground_scatter_map;
         if (st.ground && statics.has && st.static_light) f.ground_static = ground_static_map;
         for (std::size_t i = 0; u.rain && i < rain_lights.size(); ++i) f.rain_light[i] = rain_lights[i];
-        if (u.rain) f.rain_lights = glm::vec4(float(rain_lights.size()), 0.0f, 0.0f, 0.0f);
+        // The rain scatters the static light's S by its own albedo: S carries the cloud's, taken
+        // out here (an albedo of 0 leaves S at 0).
+        if (u.rain)
+            f.rain_lights = glm::vec4(float(rain_lights.size()),
+                                      static_albedo > 0.0 ? float(1.0 / static_albedo) : 0.0f, 0.0f, 0.0f);
     } else {
         f.ground_params = glm::vec4(float(st.ground_height), 0.0f, 0.0f, 0.0f);
     }

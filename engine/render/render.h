@@ -99,10 +99,13 @@ struct SourceUpload {
 };
 
 /// The static light: S of the sun (or moon) and the sky in colour, on a lighting grid, for
-/// every direction of the baked set (it changes only when the sun moves).
+/// every direction of the baked set (it changes only when the sun moves). With rain (VolumeDesc::
+/// rain) S is that of the static light solved with the rain in its media (sky::static_media), and
+/// the rain's samples scatter it too, times the rain's albedo / `albedo`.
 struct StaticUpload {
     core::GridGeometry geometry;
     int direction_count = 1;  ///< 1, 6, 18 or 26 (transport::output_directions order)
+    double albedo = 0.99;     ///< the cloud's single-scattering albedo, which S carries, [0, 1]
     /// One array per direction (all of them, in order): 3 floats (rgb) per cell, x fastest,
     /// radiance units. Must stay valid during the call only.
     std::vector<std::span<const float>> rgb;

@@ -336,6 +336,8 @@ void Renderer::upload_static(const StaticUpload& s) {
     if (int(s.rgb.size()) != s.direction_count)
         throw core::Error("upload_static", "needs all " + std::to_string(s.direction_count) + " directions, got " +
                                                std::to_string(s.rgb.size()));
+    if (!(s.albedo >= 0.0 && s.albedo <= 1.0))
+        throw core::Error("upload_static: albedo", "must be in [0, 1], got " + core::format_number(s.albedo, 8));
     const StaticUpload::Ground& g = s.ground;
     if (!g.rgb.empty()) {
         if (g.nx < 1 || g.nx > 4096 || g.ny < 1 || g.ny > 4096)
@@ -354,6 +356,7 @@ void Renderer::upload_static(const StaticUpload& s) {
                                   "irradiance must be finite and >= 0");
     }
     upload_into(m.statics, "upload_static", s.geometry, s.direction_count, all, s.rgb, 3, false);
+    m.static_albedo = s.albedo;
     if (g.rgb.empty()) {
         m.ground_static_map = glm::vec4(0.0f);
     } else {

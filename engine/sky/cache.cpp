@@ -31,6 +31,19 @@ constexpr std::uint64_t kMaxUncheckedBytes = std::uint64_t(1) << 32;
 /// leaves three decades above that and still refuses values no solve writes (3e38, 1e30).
 constexpr double kMaxUnitS = 1e6;
 
+// The rain the static media hold (static_media): it is made from the density, which the key
+// has, and these parameters. No line without rain, so a dry scene keeps its key.
+std::string rain_lines(const scene::Scene& s) {
+    if (!s.rain) return {};
+    const cloud::RainParams& r = *s.rain;
+    std::ostringstream d;
+    const auto num = [](double v) { return core::format_number(v, 17); };
+    d << "sky.rain=" << num(r.rate) << "," << num(r.threshold) << "," << num(r.shear.x) << "," << num(r.shear.y) << ","
+      << num(r.streak_scale) << "," << num(r.streak_strength) << "," << r.seed << "," << num(r.g) << ","
+      << num(r.albedo) << "\n";
+    return d.str();
+}
+
 std::string settings_lines(const SolveSettings& st) {
     std::ostringstream d;
     d << "sky.algorithm=" << kSkyAlgorithm << "\n";
@@ -159,7 +172,7 @@ LightField field_of(std::vector<NamedField>& fields, const std::string& prefix) 
 basis::BakeKey sun_key(const scene::Scene& s, const core::Grid3<float>& density, const SolveSettings& settings,
                        const glm::dvec3& direction) {
     std::ostringstream d;
-    d << bake::scene_key(s, density).description << settings_lines(settings);
+    d << bake::scene_key(s, density).description << settings_lines(settings) << rain_lines(s);
     d << "sky.light=sun\n";
     d << "sky.sun.direction=" << core::format_number(direction.x, 17) << "," << core::format_number(direction.y, 17)
       << "," << core::format_number(direction.z, 17) << "\n";
@@ -169,7 +182,7 @@ basis::BakeKey sun_key(const scene::Scene& s, const core::Grid3<float>& density,
 basis::BakeKey sky_key(const scene::Scene& s, const core::Grid3<float>& density, const SolveSettings& settings,
                        bool uniform) {
     std::ostringstream d;
-    d << bake::scene_key(s, density).description << settings_lines(settings);
+    d << bake::scene_key(s, density).description << settings_lines(settings) << rain_lines(s);
     d << "sky.light=dome\n";
     d << "sky.dome.uniform=" << uniform << "\n";
     // The dome as directions keeps its key; by Monte Carlo its paths replace the samples.

@@ -1,6 +1,8 @@
 // The sun's and the sky's light through the lattice (sky.h, docs/sky.md).
 #include "sky/sky.h"
 
+#include "cloud/rain.h"
+
 #include <glm/geometric.hpp>
 
 #include <algorithm>
@@ -267,11 +269,31 @@ int static_direction_count(const scene::Scene& s, const SolveSettings& settings)
     return settings.toward ? 1 : s.effective_directions();
 }
 
+// The cloud and, when the scene declares rain, the rain as cloud of the same transport
+// coefficient (rain_media_density). Where the sum passes 1 the medium's extinction is raised
+// to the largest sum and every density divided by it, so sigma_t is kept.
+solve::Media make_static_media(const scene::Scene& s, const core::Grid3<float>& density, int refine, bool full) {
+    if (!s.rain) return solve::make_media(s, density, refine, full);
+    const cloud::RainField rain = cloud::make_rain(density, *s.rain);
+    const double per_extinction = rain_media_density(s.medium, *s.rain);
+    std::vector<double> both(density.data.size());
+    double peak = 1.0;
+    for (std::size_t i = 0; i < both.size(); ++i) {
+        both[i] = double(density.data[i]) + per_extinction * double(rain.extinction.data[i]);
+        peak = std::max(peak, both[i]);
+    }
+    core::Grid3<float> wet(density.geom, 0.0f);
+    for (std::size_t i = 0; i < both.size(); ++i) wet.data[i] = float(std::min(both[i] / peak, 1.0));
+    scene::Scene raised = s;
+    raised.medium.extinction = s.medium.extinction * peak;
+    return solve::make_media(raised, wet, refine, full);
+}
+
 namespace {
 
 // The static light's media for settings `st` (solve_settings of the scene).
 solve::Media media_for(const scene::Scene& s, const core::Grid3<float>& density, const SolveSettings& st, bool full) {
-    solve::Media m = solve::make_media(s, density, st.refine, full);
+    solve::Media m = make_static_media(s, density, st.refine, full);
     if (st.keep_transport_grid) {
         m.lighting = m.transport;
         m.refine = 1;
@@ -280,6 +302,11 @@ solve::Media media_for(const scene::Scene& s, const core::Grid3<float>& density,
 }
 
 }  // namespace
+
+double rain_media_density(const transport::Medium& cloud, const cloud::RainParams& rain) {
+    FULGUR_ASSERT(cloud.extinction > 0.0, "rain_media_density: the cloud's extinction must be positive");
+    return (1.0 - rain.albedo * rain.g) / (cloud.extinction * (1.0 - cloud.albedo * cloud.g));
+}
 
 solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density, bool full) {
     return media_for(s, density, solve_settings(s, density), full);

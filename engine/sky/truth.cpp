@@ -138,7 +138,7 @@ StaticLight truth_of(const scene::Scene& s, const core::Grid3<float>& density, c
     // the lighting grid it needs no transport grid.
     if (m->full.density.data.empty())
         m = &own.emplace(solve_settings(s, density).keep_transport_grid ? static_media(s, density, true)
-                                                                        : solve::make_media(s, density, 1, true));
+                                                                        : make_static_media(s, density, 1, true));
     StaticLight truth = static_truth(plan, *m, solved.sun_direction, directions, options, noise);
     keep_parts(truth, solved);
     return truth;

@@ -195,6 +195,7 @@ void StormView::update_static_light(const ViewOptions& o) {
         render::StaticUpload up;
         up.geometry = c.geom;
         up.direction_count = int(c.directions.size());
+        up.albedo = scene_.medium.albedo;
         for (const std::vector<float>& v : c.rgb) up.rgb.emplace_back(v.data(), v.size());
         // The ground's static light: what the cloud scatters down and the sky it leaves.
         if (ground_version_ != static_version_) {

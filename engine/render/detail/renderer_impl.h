@@ -44,6 +44,7 @@ struct Renderer::Impl {
 
     // Source: the flash's S and the static light's (colour)
     detail::SourceSet flash = detail::SourceSet(GL_R32F), statics = detail::SourceSet(GL_RGBA32F);
+    double static_albedo = 0.0;  // StaticUpload::albedo: the cloud's albedo the static S carries
     // The sun drawn at full resolution (set_sun)
     GLuint sun_tex = 0;  // transmittance to the sun on the density grid (R16F)
     bool has_sun = false, sun_fine = false, sun_scatter = false;
