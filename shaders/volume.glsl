@@ -227,6 +227,7 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
         float sigma_c = kappa * rho, sigma_r = rain_params.x * dv.b;
         float alpha = 1.0 - exp(-(sigma_c + sigma_r) * (b - a));
         float wc = sigma_c + sigma_r > 0.0 ? sigma_c / (sigma_c + sigma_r) : 0.0;
+        float ws = wc;  // the static S's weight: the cloud's share, plus the rain's (HAS_STATIC)
         if (sigma_r > 0.0) {
             float wr = T * alpha * (1.0 - wc) * rain_params.w;
             float light_t = 0.0;
@@ -240,9 +241,10 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
             // The static light solved with the rain in its media: S at the rain's points holds
             // the light of every order the cloud and the rain scatter there, the sky's own
             // included (in place of the sky model); the sun's first scattering is drawn at full
-            // resolution with the drops' phase function (rain_static).
-            Ls += wr * (rain_static(d, o_tex + t * d_tex, vec3(0.0)) +
-                        rain_lights.y * textureLod(u_static, o_st + t * d_st, 0.0).rgb);  // per unit albedo
+            // resolution with the drops' phase function (rain_static). S is read once for the
+            // cloud and the rain (below), the rain's share per unit albedo.
+            Ls += wr * rain_static(d, o_tex + t * d_tex, vec3(0.0));
+            ws += (1.0 - wc) * rain_params.w * rain_lights.y;
 #else
             Ls += wr * rain_static(d, o_tex + t * d_tex, rain_sky);
 #endif
@@ -263,7 +265,11 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #endif
 #endif
 #if HAS_STATIC
+#if HAS_RAIN
+        Ls += T * alpha * ws * textureLod(u_static, o_st + t * d_st, 0.0).rgb;
+#else
         Ls += T * alpha * wc * textureLod(u_static, o_st + t * d_st, 0.0).rgb;
+#endif
 #endif
 #if HAS_SUN
         Ls += (T * alpha * wc * textureLod(u_sun_t, o_tex + t * d_tex, 0.0).r) * sun_s1;
