@@ -47,9 +47,7 @@ StrikeSolveOptions strike_solve_options(const scene::Quality& q) {
 }
 
 std::optional<transport::GroundTally> strike_ground(const scene::Scene& scene, const core::GridGeometry& lighting) {
-    if (!scene.effects.ground || !scene.effects.lightning) return std::nullopt;
-    // At most 2048 a side: 2^22 cells (16 MB a group), the most a tally holds.
-    return transport::ground_cells_around(lighting, scene.lightning.bolt.ground_height, 20000.0, 2048);
+    return scene::strike_ground_cells(scene, lighting);
 }
 
 StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& density, const solve::Media& media,

@@ -58,6 +58,11 @@ double strike_seconds(const Scene& s, const Cost& c) {
 
 }  // namespace
 
+std::optional<transport::GroundTally> strike_ground_cells(const Scene& s, const core::GridGeometry& lighting) {
+    if (!s.effects.ground || !s.effects.lightning) return std::nullopt;
+    return transport::ground_cells_around(lighting, s.lightning.bolt.ground_height, 20000.0, 2048);
+}
+
 Cost estimate_cost(const Scene& s, std::size_t lights, int threads) {
     Cost c;
     c.lights = std::max<std::size_t>(lights, 1);
@@ -65,12 +70,18 @@ Cost estimate_cost(const Scene& s, std::size_t lights, int threads) {
     const bool file = s.cloud.kind != CloudSource::Kind::Generator;
     // The NRRD header or the VDB's metadata alone (bounded, checked): no voxel is read.
     std::uint64_t vdb_load_bytes = 0;
+    double voxel = s.cloud.generator.voxel_size;  // metres per density voxel
     if (s.cloud.kind == CloudSource::Kind::Vdb) {
         const cloud::VdbInfo v = inspect_vdb_cloud(s);
         c.density_dims = v.density.dims;
+        voxel = v.density.voxel_size;
         vdb_load_bytes = v.load_bytes;
+    } else if (file) {
+        const core::GridGeometry g = core::read_nrrd_header(s.cloud.file).geom;
+        c.density_dims = g.dims;
+        voxel = g.voxel_size;
     } else {
-        c.density_dims = file ? core::read_nrrd_header(s.cloud.file).geom.dims : s.cloud.generator.grid;
+        c.density_dims = s.cloud.generator.grid;
     }
     c.lighting_dims = divided(c.density_dims, s.lighting_downsample);
     c.transport_dims = divided(c.density_dims, s.lighting_downsample / std::max(1, s.transport.refine));
@@ -109,6 +120,10 @@ Cost estimate_cost(const Scene& s, std::size_t lights, int threads) {
         double bytes = 4.0 * per_field * nl;
         if (s.quality.keep_transport_grid)
             bytes += (4.0 * per_field + dirs * 4.0) * volume(strike_transport_dims(s, c));
+        // The light the cloud scatters onto the ground, per group, on the strike's ground cells
+        // (runtime::strike_ground: up to 2048 a side, 32 MB a strike on a continent-sized grid).
+        const core::GridGeometry lighting{c.lighting_dims, voxel * s.lighting_downsample, glm::dvec3(0.0)};
+        if (const auto ground = strike_ground_cells(s, lighting)) bytes += 2.0 * 4.0 * double(ground->cells());
         c.strike_light_bytes = std::uint64_t(bytes);
     }
     return c;

@@ -365,13 +365,19 @@ TEST_CASE("quality.grid \"transport\": refused where nothing is kept or the grid
     CHECK(kept.quality.keep_transport_grid);
     CHECK_FALSE(plain.quality.keep_transport_grid);
     const Cost ck = estimate_cost(kept), cp = estimate_cost(plain);
-    CHECK(cp.strike_light_bytes == std::uint64_t(4.0 * 26.0 * 4.0 * 8.0 * 8.0 * 6.0));  // 32 x 32 x 24 / 4
+    // The light the cloud scatters onto the ground, two groups of floats on the strike's ground
+    // cells: the 8 x 8 lighting voxels of 2 km and 20 km around, in cells of two voxels, 14 x 14.
+    const double ground = 2.0 * 4.0 * 14.0 * 14.0;
+    CHECK(cp.strike_light_bytes == std::uint64_t(4.0 * 26.0 * 4.0 * 8.0 * 8.0 * 6.0 + ground));  // 32 x 32 x 24 / 4
+    Scene no_ground = plain;
+    no_ground.effects.ground = false;
+    CHECK(estimate_cost(no_ground).strike_light_bytes == std::uint64_t(4.0 * 26.0 * 4.0 * 8.0 * 8.0 * 6.0));
     CHECK(ck.strike_light_bytes - cp.strike_light_bytes == std::uint64_t(5.0 * 26.0 * 4.0 * 32.0 * 32.0 * 24.0));
     // Tallied toward the camera, a strike holds one direction; the frame's copy keeps 26.
     const Scene toward = parse_scene(
         quality(R"({"preset": "per_strike_mc", "grid": "transport", "refine": 4, "directions": "camera"})"), "t.json");
     CHECK(estimate_cost(toward).strike_light_bytes ==
-          std::uint64_t(4.0 * 4.0 * 8.0 * 8.0 * 6.0 + (4.0 + 26.0) * 4.0 * 32.0 * 32.0 * 24.0));
+          std::uint64_t(4.0 * 4.0 * 8.0 * 8.0 * 6.0 + (4.0 + 26.0) * 4.0 * 32.0 * 32.0 * 24.0 + ground));
     // Refused before anything is solved when a strike kept that way does not fit, with a limit
     // the bake itself fits in.
     Scene tight = kept;
