@@ -268,6 +268,11 @@ TEST_CASE("static light and sun: bad inputs are rejected naming the field") {
     CHECK_THROWS_WITH_AS(r.upload_static(up), doctest::Contains("direction 3: value of cell 2 channel 1"), core::Error);
     up.rgb[3] = std::span<const float>(v.data(), v.size() - 3);
     CHECK_THROWS_WITH_AS(r.upload_static(up), doctest::Contains("x 3"), core::Error);
+    up.rgb[3] = std::span<const float>(v);
+    for (const double albedo : {-0.1, 1.5, double(std::nanf(""))}) {
+        up.albedo = albedo;
+        CHECK_THROWS_WITH_AS(r.upload_static(up), doctest::Contains("upload_static: albedo"), core::Error);
+    }
     render::SunDesc s;
     s.direction = {0, 0, 0};
     CHECK_THROWS_WITH_AS(r.set_sun(s), doctest::Contains("set_sun: direction"), core::Error);
