@@ -49,6 +49,51 @@ bool box_chord(const render::Camera& cam, int x, int y, int w, int h, glm::dvec3
     return core::clip_ray_to_box(cam.position, d, g.origin, g.upper(), t0, t1);
 }
 
+// The march with only the sky lit (horizon and zenith of other colours), no jitter, no early exit.
+render::Settings sky_lit() {
+    render::Settings st = test::volume_only();
+    st.sky = true;
+    st.star_radiance = 0.0;
+    st.jitter = false;
+    st.early_exit = false;
+    st.sky_horizon = {0.5, 0.25, 0.125};
+    st.sky_zenith = {0.05, 0.1, 0.2};  // not the rain's: the zenith's share is the cloud's
+    return st;
+}
+
+// Uniform rain of `sigma` in box() seen from `pos` (toward the box's centre, 40 degrees of
+// field, 64 x 48): the frame without rain (B) and with it (I); f(d, opacity, c, got, pixel) for
+// each colour channel c of each pixel whose ray crosses the box over 10 m or more (shorter
+// chords: the float rounding of their ends), with got = I - B (1 - opacity) the rain's own light.
+template <class F>
+void rain_light_per_pixel(render::Renderer& r, const glm::dvec3& pos, const render::Settings& st,
+                          const cloud::RainField& rain, double sigma, F f) {
+    const core::Grid3<float> empty(box(), 0.0f);
+    const int W = 64, H = 48;
+    render::Camera cam;
+    cam.position = pos;
+    cam.target = {0.0, 0.0, 600.0};
+    cam.vertical_fov_deg = 40.0;
+    const auto shot = [&](const cloud::RainField* rf) {
+        r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16, .rain = rf});
+        render_at(r, cam, st, W, H);
+        int w = 0, h = 0;
+        return r.read_march(w, h);
+    };
+    const std::vector<float> sky = shot(nullptr), img = shot(&rain);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            glm::dvec3 d;
+            double t0, t1;
+            if (!box_chord(cam, x, y, W, H, d, t0, t1) || t1 - t0 < 10.0) continue;
+            const double opacity = 1.0 - std::exp(-sigma * (t1 - t0));
+            for (int c = 0; c < 3; ++c) {
+                const std::size_t at = (std::size_t(y) * W + std::size_t(x)) * 4 + std::size_t(c);
+                f(d, opacity, c, img[at] - double(sky[at]) * (1.0 - opacity), double(img[at]));
+            }
+        }
+}
+
 render::Camera side_camera() {
     render::Camera cam;
     cam.position = {-300.0, -4000.0, 600.0};
@@ -243,21 +288,13 @@ TEST_CASE("the sky's light in the rain: uniform rain against the closed form, se
     // checked both as the renderer's 65 entries interpolated (render::rain_sky_shares) and as
     // the exact share.
     render::Renderer& r = gl_renderer();
-    const core::Grid3<float> empty(box(), 0.0f);
     const double sigma = 1e-3;
     const cloud::RainField rain = uniform_rain(sigma);
     r.clear_source();
     r.clear_sun();
     r.clear_static();
     r.set_channel({});
-    const int W = 64, H = 48;
-    render::Settings st = test::volume_only();
-    st.sky = true;
-    st.star_radiance = 0.0;
-    st.jitter = false;
-    st.early_exit = false;
-    st.sky_horizon = {0.5, 0.25, 0.125};
-    st.sky_zenith = {0.05, 0.1, 0.2};  // not the rain's: the zenith's share is the cloud's
+    const render::Settings st = sky_lit();
     const auto share = [&](double mu) {
         return transport::hg_from_above(mu, rain.g) - transport::hg_from_above(mu, rain.g, 1);
     };
@@ -276,41 +313,21 @@ TEST_CASE("the sky's light in the rain: uniform rain against the closed form, se
     // ground: the ground is off).
     for (const glm::dvec3 pos : {glm::dvec3(-300.0, -4000.0, 600.0), glm::dvec3(-300.0, -3000.0, 3200.0),
                                  glm::dvec3(-300.0, -3000.0, -2000.0)}) {
-        render::Camera cam;
-        cam.position = pos;
-        cam.target = {0.0, 0.0, 600.0};
-        cam.vertical_fov_deg = 40.0;
-        const auto shot = [&](const cloud::RainField* rf) {
-            r.set_volume(
-                {.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16, .rain = rf});
-            render_at(r, cam, st, W, H);
-            int w = 0, h = 0;
-            return r.read_march(w, h);
-        };
-        const std::vector<float> sky = shot(nullptr), img = shot(&rain);
         counted.push_back(0);
-        for (int y = 0; y < H; ++y)
-            for (int x = 0; x < W; ++x) {
-                glm::dvec3 d;
-                double t0, t1;
-                if (!box_chord(cam, x, y, W, H, d, t0, t1)) continue;
-                if (t1 - t0 < 10.0) continue;  // float rounding of a chord's ends (as above)
+        rain_light_per_pixel(
+            r, pos, st, rain, sigma, [&](const glm::dvec3& d, double opacity, int c, double got, double pixel) {
                 const double u = std::clamp((1.0 - d.z) * 32.0, 0.0, 64.0);
                 const int i = std::min(int(u), 63);
                 const double interpolated = table[std::size_t(i)] * (i + 1 - u) + table[std::size_t(i) + 1] * (u - i);
-                const double opacity = 1.0 - std::exp(-sigma * (t1 - t0));
-                for (int c = 0; c < 3; ++c) {
-                    const std::size_t at = (std::size_t(y) * W + std::size_t(x)) * 4 + std::size_t(c);
-                    const double got = img[at] - double(sky[at]) * (1.0 - opacity);
-                    const double expect = rain.albedo * st.sky_horizon[c] * opacity;
-                    // Where the rain's light is a tenth of the pixel or more: the subtraction of
-                    // B T leaves the float rounding of the pixel's total (~1e-7 of it).
-                    if (expect * interpolated < 0.1 * img[at]) continue;
-                    worst = std::max(worst, std::abs(got / (expect * interpolated) - 1.0));
-                    worst_exact = std::max(worst_exact, std::abs(got / (expect * share(-d.z)) - 1.0));
-                    ++counted.back();
-                }
-            }
+                const double expect = rain.albedo * st.sky_horizon[c] * opacity;
+                // Where the rain's light is a tenth of the pixel or more: the
+                // subtraction of B T leaves the float rounding of the pixel's
+                // total (~1e-7 of it).
+                if (expect * interpolated < 0.1 * pixel) return;
+                worst = std::max(worst, std::abs(got / (expect * interpolated) - 1.0));
+                worst_exact = std::max(worst_exact, std::abs(got / (expect * share(-d.z)) - 1.0));
+                ++counted.back();
+            });
     }
     MESSAGE("worst relative error: against the interpolated table "
             << worst << ", the exact share " << worst_exact << " (" << counted[0] << ", " << counted[1] << ", "
@@ -333,7 +350,6 @@ TEST_CASE("the static light in the rain: S at its points scattered by its albedo
     // (albedo_rain / albedo_cloud) S (1 - exp(-sigma chord)) over the sky behind it times
     // exp(-sigma chord), whatever the view, and the sky model of the test above is not added.
     render::Renderer& r = gl_renderer();
-    const core::Grid3<float> empty(box(), 0.0f);
     const double sigma = 1e-3;
     const cloud::RainField rain = uniform_rain(sigma);
     r.clear_source();
@@ -344,14 +360,7 @@ TEST_CASE("the static light in the rain: S at its points scattered by its albedo
     std::vector<float> rgb(lg.cell_count() * 3);
     for (std::size_t i = 0; i < lg.cell_count(); ++i)
         for (int c = 0; c < 3; ++c) rgb[3 * i + std::size_t(c)] = float(S[std::size_t(c)]);
-    const int W = 64, H = 48;
-    render::Settings st = test::volume_only();
-    st.sky = true;
-    st.star_radiance = 0.0;
-    st.jitter = false;
-    st.early_exit = false;
-    st.sky_horizon = {0.5, 0.25, 0.125};
-    st.sky_zenith = {0.05, 0.1, 0.2};
+    const render::Settings st = sky_lit();
     double worst = 0.0;
     int counted = 0;
     for (const double cloud_albedo : {0.99, 0.6}) {
@@ -361,36 +370,14 @@ TEST_CASE("the static light in the rain: S at its points scattered by its albedo
         up.albedo = cloud_albedo;
         up.rgb.assign(1, std::span<const float>(rgb));
         r.upload_static(up);
-        for (const glm::dvec3 pos : {glm::dvec3(-300.0, -4000.0, 600.0), glm::dvec3(-300.0, -3000.0, 3200.0)}) {
-            render::Camera cam;
-            cam.position = pos;
-            cam.target = {0.0, 0.0, 600.0};
-            cam.vertical_fov_deg = 40.0;
-            const auto shot = [&](const cloud::RainField* rf) {
-                r.set_volume(
-                    {.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16, .rain = rf});
-                render_at(r, cam, st, W, H);
-                int w = 0, h = 0;
-                return r.read_march(w, h);
-            };
-            const std::vector<float> sky = shot(nullptr), img = shot(&rain);
-            for (int y = 0; y < H; ++y)
-                for (int x = 0; x < W; ++x) {
-                    glm::dvec3 d;
-                    double t0, t1;
-                    if (!box_chord(cam, x, y, W, H, d, t0, t1)) continue;
-                    if (t1 - t0 < 10.0) continue;  // float rounding of a chord's ends (as above)
-                    const double opacity = 1.0 - std::exp(-sigma * (t1 - t0));
-                    for (int c = 0; c < 3; ++c) {
-                        const std::size_t at = (std::size_t(y) * W + std::size_t(x)) * 4 + std::size_t(c);
-                        const double got = img[at] - double(sky[at]) * (1.0 - opacity);
-                        const double expect = rain.albedo / cloud_albedo * S[std::size_t(c)] * opacity;
-                        if (expect < 0.1 * img[at]) continue;  // as above: the subtraction's rounding
-                        worst = std::max(worst, std::abs(got / expect - 1.0));
-                        ++counted;
-                    }
-                }
-        }
+        for (const glm::dvec3 pos : {glm::dvec3(-300.0, -4000.0, 600.0), glm::dvec3(-300.0, -3000.0, 3200.0)})
+            rain_light_per_pixel(r, pos, st, rain, sigma,
+                                 [&](const glm::dvec3&, double opacity, int c, double got, double pixel) {
+                                     const double expect = rain.albedo / cloud_albedo * S[std::size_t(c)] * opacity;
+                                     if (expect < 0.1 * pixel) return;  // as above: the subtraction's rounding
+                                     worst = std::max(worst, std::abs(got / expect - 1.0));
+                                     ++counted;
+                                 });
     }
     r.clear_static();
     MESSAGE("worst relative error " << worst << " over " << counted << " values");
