@@ -8,11 +8,15 @@ usage:
         [--light-radius M] [--max-light-loss F]
   scripts/compare_cycles.py compare FULGUR.exr CYCLES_A.exr CYCLES_B.exr [--near-px R] [--picture P.png]
         [--picture-block N]
+  scripts/compare_cycles.py rain SCENE.json OUT_DIR (the options of run)
 
 `run` renders the frame with fulgur-shot (--exr with its passes, --blender DIR, one ray-march ray
 per pixel), builds and renders the Blender scene twice with Cycles (two seeds), and compares;
 `compare` only compares. Both print one JSON line and write OUT_DIR/compare.png (Fulgur | Cycles
-| |difference|, each tone mapped alike) when run.
+| |difference|, each tone mapped alike) when run. `rain` runs the scene (OUT_DIR/wet) and a copy of
+it without its "rain" (OUT_DIR/dry; the copies are written into OUT_DIR, so the scene's files must be
+found from there, as a generated cloud is), and compares the change the rain makes to its pixels:
+the `rain_*` figures below.
 
 What is compared: Fulgur's lightning + static + background passes (the cloud lit by the flash's
 S and by the sun or moon and sky, over the sky and the ground it transmits) against Cycles'
@@ -26,6 +30,11 @@ Regions (Fulgur's transmittance T of each pixel's ray, and its channel pass):
   near         cloud pixels within --near-px of a pixel the channel's core covers
   rest         the other cloud pixels
   background   T >= 0.98: sky and ground seen past at most 2% extinction
+The rain (`rain`): over the pixels whose ray meets rain and no cloud (Fulgur's T < 0.98 with the
+rain, > 0.999 without), each renderer's wet pixel less its dry pixel times Fulgur's T (the rain's
+own light, less its shadow on what lies behind it), Fulgur against Cycles' (its dry frame the mean
+of its two seeds).
+
 Per region: relative L2 (all three colours: sqrt(sum (f - c)^2 / sum c^2)) and the ratio of
 totals sum f / sum c. Cycles' noise: its image is the mean of the two seeds, whose own relative
 L2 error is |A - B| / 2 over |mean| (two independent estimates: the difference has twice the
@@ -169,12 +178,48 @@ def write_picture(path, f, c):
     out.close()
 
 
+def rain_change(wet, dry, seeds):
+    """The rain's figures (module docstring) from a `run` of the scene (`wet`) and of it without rain."""
+    fw, fd = read_channels(wet / "fulgur.exr"), read_channels(dry / "fulgur.exr")
+    passes = lambda ch: rgb(ch, "lightning") + rgb(ch, "static") + rgb(ch, "background")
+    t = fw["T.Y"][..., None]
+    mask = (fw["T.Y"] < 0.98) & (fd["T.Y"] > 0.999)
+    cycles = lambda d, s: rgb(read_channels(d / f"cycles_{s}.exr"))
+    dry_c = (cycles(dry, seeds[0]) + cycles(dry, seeds[1])) / 2
+    a, b = cycles(wet, seeds[0]) - dry_c * t, cycles(wet, seeds[1]) - dry_c * t
+    f = passes(fw) - passes(fd) * t
+    return {"rain_" + k: v for k, v in region_figures(f, (a + b) / 2, a, b, mask).items()}
+
+
+def rain(args):
+    out = pathlib.Path(args.out_dir)
+    scene = json.loads(pathlib.Path(args.scene).read_text())
+    if not scene.get("rain"):
+        raise SystemExit(f"{args.scene}: the scene has no rain")
+    res = {}
+    for name in ("wet", "dry"):
+        d = out / name
+        d.mkdir(parents=True, exist_ok=True)
+        copy = {k: v for k, v in scene.items() if not (name == "dry" and k == "rain")}
+        (d / "scene.json").write_text(json.dumps(copy, indent=1))
+        one = argparse.Namespace(**vars(args))
+        one.scene, one.out_dir = str(d / "scene.json"), str(d / "out")
+        r = run(one)
+        res.update({f"{name}_{k}": v for k, v in r.items() if k.startswith(("cloud_", "background_"))})
+        res[f"{name}_cycles_seconds"] = r["cycles_seconds"]
+    res.update(rain_change(out / "wet/out", out / "dry/out", [int(s) for s in args.cycles_seeds.split(",")]))
+    res.update({"scene": args.scene, "camera": args.camera, "samples": args.samples})
+    return res
+
+
 def run(args):
     out = pathlib.Path(args.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     shot = [args.fulgur_shot, args.scene, "--seed", str(args.seed), "--time", args.time, "--size", args.size,
             "-o", str(out / "fulgur.png"), "--exr", str(out / "fulgur.exr"), "--exr-passes",
             "--blender", str(out / "blender"), "--internal-scale", "1"]
+    if args.camera:
+        shot += ["--camera", args.camera]
     if args.quality:
         shot += ["--quality", args.quality]
     if args.strike_grid:
@@ -213,12 +258,11 @@ def run(args):
     return r
 
 
-def main():
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = p.add_subparsers(dest="cmd", required=True)
-    r = sub.add_parser("run")
+def add_run_arguments(r):
+    """The arguments of `run` (and of `rain`, which runs twice)."""
     r.add_argument("scene")
     r.add_argument("out_dir")
+    r.add_argument("--camera", help="passed to fulgur-shot (the exported frame carries it to Blender)")
     r.add_argument("--seed", type=int, required=True)
     r.add_argument("--time", required=True)
     r.add_argument("--size", required=True)
@@ -237,6 +281,14 @@ def main():
     r.add_argument("--light-radius", help="passed to blender_scene.py (default: the largest radius whose share "
                    "of the first collisions withheld from the cloud is within --max-light-loss)")
     r.add_argument("--max-light-loss", help="passed to blender_scene.py (default 0.01)")
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="cmd", required=True)
+    r, w = sub.add_parser("run"), sub.add_parser("rain")
+    add_run_arguments(r)
+    add_run_arguments(w)
     c = sub.add_parser("compare")
     c.add_argument("fulgur")
     c.add_argument("cycles_a")
@@ -245,13 +297,15 @@ def main():
     c.add_argument("--picture", help="also write Fulgur | Cycles | |difference| as this PNG")
     c.add_argument("--picture-block", type=int, default=1, help="the picture's pixels averaged over N x N "
                    "blocks (the scale of the block figures, above Cycles' per-pixel noise)")
-    for q in (r, c):
+    for q in (r, w, c):
         q.add_argument("--block", type=int, default=8, help="block size (pixels) of the cloud_blocks_* figures")
         q.add_argument("--require", action="append",
                        help="KEY<=VALUE or KEY>=VALUE on a printed figure; exit 1 when one fails (repeatable)")
     args = p.parse_args()
     if args.cmd == "run":
         res = run(args)
+    elif args.cmd == "rain":
+        res = rain(args)
     else:
         res = compare(args.fulgur, args.cycles_a, args.cycles_b, args.near_px, args.picture, args.block,
                       args.picture_block)

@@ -26,18 +26,18 @@ layout(std140, binding = 0) uniform Frame {
     vec4 static_size;      // xyz static light's grid extent
     vec4 sun_dir;          // xyz direction sunlight travels (unit), w = 1 when the sun lights the scene
     vec4 sun_rgb;          // rgb sun irradiance x colour (W m^-2), w = albedo of the cloud
-    vec4 sun_params;       // x HG g of the cloud, y = 1 when the full-resolution sun transmittance is bound
+    vec4 sun_params;       // x HG g of the cloud, y = 1 when the full-resolution sun transmittance is bound,
+                           // z = 1 when the sun's first scattering is drawn in the volume (cloud and rain)
     vec4 host_depth;       // a host's depth buffer: x P22, y P32 of its projection (eye depth = y / (z_ndc + x)),
                            // z 1 when its depth is in [0, 1] (else [-1, 1]), w 0 none, 1 standard Z, -1 reversed Z
     vec4 detail_params;    // sub-voxel detail: x 1 / tile period (1/m), y erosion strength
     vec4 rain_params;      // rain: x extinction at b = 1 (1/m), y HG g, z its top (m), w albedo
     vec4 rain_light[8];    // the channel below the rain's top as point lights: xyz position, w W/sr
-    vec4 rain_lights;      // x number of rain_light, y 1 / the cloud's albedo (which the static S carries)
+    vec4 rain_lights;      // x number of rain_light (0 when the flash does not light the volume),
+                           // y 1 / the cloud's albedo (which the static S carries)
     vec4 ground_scatter;   // the cloud's scattered flash light on the ground (u_ground_scatter):
                            // xy lower corner of its cells (m), zw 1 / its extent along x, y (1/m); zw 0: none
     vec4 ground_static;    // the static light on the ground (u_ground_static), as ground_scatter
-    vec4 rain_sky[17];     // rain: the share of its scattering a sky of the horizon's radiance x (1 - cos zenith)
-                           // provides toward mu = -1 + k / 32 (k = 0..64: rain_sky[k / 4][k % 4]; rain_sky_share)
 };
 
 // The host's depth buffer (render_into_host), full output resolution; read only when host_depth.w != 0.

@@ -10,7 +10,7 @@
 //   HAS_EMISSION 1: track the transmittance up to the glow's depth
 //   HAS_DETAIL   1: erode the density by the sub-voxel detail (u_detail, detail_params)
 //   HAS_RAIN     1: rain's extinction in the density texture's b channel (rain_params), lit
-//                   by the flash's point lights, the sun and the sky
+//                   by the flash's point lights, the sun and the static light's S
 //   TEMPORAL     1: keep the rain's light from the channel apart from the flash's S and
 //                   return the ray's opacity-weighted depth (the temporal history's terms)
 #ifndef SKIP_EMPTY
@@ -118,25 +118,12 @@ float rain_flash(RainRay ray, float t, inout float light_t) {
     return s;
 }
 
-// What the rain scatters toward the camera (-d) of the sky, per unit albedo: the sky as the
-// horizon's radiance falling to none at the zenith (the cloud overhead), (1 - cos), through
-// the drops' phase function (render::rain_sky_shares; from rain_sky's 65 entries, linearly).
-// The same for every sample of a ray.
-vec3 rain_sky_light(vec3 d) {
-    if (sky_params.z < 0.5) return vec3(0.0);
-    float x = clamp((1.0 - d.z) * 32.0, 0.0, 64.0);
-    int i = min(int(x), 63);
-    float a = rain_sky[i >> 2][i & 3], b = rain_sky[(i + 1) >> 2][(i + 1) & 3];
-    return sky_horizon.rgb * mix(a, b, x - float(i));
-}
-
-// The same for the sun or moon through the cloud and the rain (the full-resolution
-// transmittance at p_tex), plus the sky's (rain_sky_light, the ray's).
-vec3 rain_static(vec3 d, vec3 p_tex, vec3 sky) {
-    vec3 s = sky;
-    if (sun_dir.w > 0.5 && sun_params.y > 0.5)
-        s += sun_rgb.rgb * (hg_phase(dot(-d, sun_dir.xyz), rain_params.y) * textureLod(u_sun_t, p_tex, 0.0).r);
-    return s;
+// What the rain scatters toward the camera (-d) of the sun or moon, per unit albedo: its first
+// scattering through the cloud and the rain (the full-resolution transmittance at p_tex) with the
+// drops' phase function; none when the sun does not light the volume (sun_params.z).
+vec3 rain_sun(vec3 d, vec3 p_tex) {
+    if (sun_params.z < 0.5) return vec3(0.0);
+    return sun_rgb.rgb * (hg_phase(dot(-d, sun_dir.xyz), rain_params.y) * textureLod(u_sun_t, p_tex, 0.0).r);
 }
 #endif
 
@@ -210,7 +197,6 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
     vec3 sun_s1 = sun_rgb.w * hg_phase(dot(-d, sun_dir.xyz), sun_params.x) * sun_rgb.rgb;
 #endif
 #if HAS_RAIN
-    vec3 rain_sky = rain_sky_light(d);
     RainRay rain = rain_ray(o, d);
 #endif
     vec3 Ls = vec3(0.0);
@@ -260,16 +246,14 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #else
             L += wr * rain_flash(rain, t, light_t);
 #endif
+            Ls += wr * rain_sun(d, o_tex + t * d_tex);
 #if HAS_STATIC
             // The static light solved with the rain in its media: S at the rain's points holds
             // the light of every order the cloud and the rain scatter there, the sky's own
-            // included (in place of the sky model); the sun's first scattering is drawn at full
-            // resolution with the drops' phase function (rain_static). S is read once for the
-            // cloud and the rain (below), the rain's share per unit albedo.
-            Ls += wr * rain_static(d, o_tex + t * d_tex, vec3(0.0));
+            // included; the sun's first scattering is drawn at full resolution with the drops'
+            // phase function (rain_sun). S is read once for the cloud and the rain (below), the
+            // rain's share per unit albedo.
             ws += (1.0 - wc) * rain_params.w * rain_lights.y;
-#else
-            Ls += wr * rain_static(d, o_tex + t * d_tex, rain_sky);
 #endif
         }
 #else

@@ -179,12 +179,11 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
     if (sun_on) {
         f.sun_dir = glm::vec4(glm::vec3(sun_direction), 1.0f);
         f.sun_rgb = glm::vec4(glm::vec3(sun_rgb), float(sun_albedo));
-        f.sun_params = glm::vec4(float(sun_g), sun_fine && has_volume ? 1.0f : 0.0f, 0.0f, 0.0f);
+        f.sun_params = glm::vec4(float(sun_g), sun_fine && has_volume ? 1.0f : 0.0f, u.sun ? 1.0f : 0.0f, 0.0f);
     }
     u.rain = has_volume && has_rain && st.rain;
     if (u.rain) {
         f.rain = glm::vec4(float(rain_max), float(rain_g), float(rain_top), float(rain_albedo));
-        std::copy(rain_sky.begin(), rain_sky.end(), f.rain_sky);
     }
     if (u.detail) f.detail = glm::vec4(float(1.0 / detail_period), float(detail_strength), 0.0f, 0.0f);
     f.march_params = glm::vec4(float(step), float(st.min_transmittance), st.jitter ? 1.0f : 0.0f,
@@ -202,10 +201,12 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
         if (u.ground_scatter) f.ground_scatter = ground_scatter_map;
         if (st.ground && statics.has && st.static_light) f.ground_static = ground_static_map;
         for (std::size_t i = 0; u.rain && i < rain_lights.size(); ++i) f.rain_light[i] = rain_lights[i];
-        // The rain scatters the static light's S by its own albedo: S carries the cloud's, taken
-        // out here (an albedo of 0 leaves S at 0).
+        // The channel lights the rain when the flash lights the volume (its light is the
+        // flash's). The rain scatters the static light's S by its own albedo: S carries the
+        // cloud's, taken out here (an albedo of 0 leaves S at 0).
+        const bool flash_lights_rain = st.cloud_lighting && st.flash_light;
         if (u.rain)
-            f.rain_lights = glm::vec4(float(rain_lights.size()),
+            f.rain_lights = glm::vec4(flash_lights_rain ? float(rain_lights.size()) : 0.0f,
                                       static_albedo > 0.0 ? float(1.0 / static_albedo) : 0.0f, 0.0f, 0.0f);
     } else {
         f.ground_params = glm::vec4(float(st.ground_height), 0.0f, 0.0f, 0.0f);

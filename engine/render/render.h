@@ -294,15 +294,6 @@ struct Settings {
     Timing timing = Timing::Finish;
 };
 
-/// How the rain takes the sky's light: below a cloud the sky is bright at the horizon and dark
-/// overhead, where the cloud is, so the rain sees a radiance L_h (1 - cos theta) from the zenith
-/// angle theta (L_h the horizon's), and scatters toward a direction of z-component mu the
-/// share hg_from_above(mu, g) - hg_from_above(mu, g, 1) of L_h (transport::hg_from_above).
-/// Measured against the phase-weighted light arriving at the rain's points under the default
-/// storm and the day cumulus (`fulgur-study rain-light`, docs/cloud.md). This returns that
-/// share at mu = -1 + k / 32, k = 0..64, which the march interpolates linearly per ray.
-std::array<float, 65> rain_sky_shares(double g);
-
 /// A baked output direction the current view needs, with the largest interpolation weight it
 /// receives anywhere in the (non-empty part of the) lighting grid.
 struct DirectionUse {

@@ -261,8 +261,6 @@ void Renderer::set_volume(const VolumeDesc& v) {
         m.rain_g = rain->g;
         m.rain_albedo = rain->albedo;
         m.rain_top = rain->top;
-        const std::array<float, 65> s = rain_sky_shares(rain->g);  // 130 quadratures, once per volume
-        for (std::size_t k = 0; k < s.size(); ++k) m.rain_sky[k / 4][int(k % 4)] = s[k];
     }
     if (m.sun_tex && !(m.density.geom == v.density->geom)) {
         delete_texture(m.sun_tex);  // on the old grid

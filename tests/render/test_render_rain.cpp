@@ -279,76 +279,53 @@ TEST_CASE("the channel's light in the rain: the march against its single-scatter
     r.set_channel({});
 }
 
-TEST_CASE("the sky's light in the rain: uniform rain against the closed form, seen level, from above and below") {
-    // With only the sky, rain of constant sigma scatters toward the camera albedo L_h F(-d.z)
-    // (1 - exp(-sigma chord)): F the same at every sample of a ray (the share of a sky of the
-    // horizon's radiance L_h falling as (1 - cos) to the zenith, hg_from_above less its cos
-    // moment), so the march's pieces telescope to the closed form. The march's output adds the
-    // sky behind, B T, with B the same pixel without rain and T = exp(-sigma chord). F is
-    // checked both as the renderer's 65 entries interpolated (render::rain_sky_shares) and as
-    // the exact share.
+TEST_CASE("the rain's light follows the switches: no sky light without the static light, the flash's with the flash") {
+    // The rain takes the sky's light only through the static light's S (next case): with none
+    // uploaded, a sky behind uniform rain is only dimmed by it. The channel lights it only when
+    // the flash lights the volume (Settings::flash_light and cloud_lighting), so a frame's terms
+    // (the EXR's passes) hold the rain's light once.
     render::Renderer& r = gl_renderer();
     const double sigma = 1e-3;
     const cloud::RainField rain = uniform_rain(sigma);
     r.clear_source();
     r.clear_sun();
     r.clear_static();
-    r.set_channel({});
-    const render::Settings st = sky_lit();
-    const auto share = [&](double mu) {
-        return transport::hg_from_above(mu, rain.g) - transport::hg_from_above(mu, rain.g, 1);
+    light_by_channel(r, {100.0f, 200.0f, 500.0f}, {100.0f, 200.0f, 510.0f});
+    const auto rain_light = [&](const render::Settings& st) {
+        double worst = 0.0;
+        int n = 0;
+        rain_light_per_pixel(r, glm::dvec3(-300.0, -4000.0, 600.0), st, rain, sigma,
+                             [&](const glm::dvec3&, double, int, double got, double pixel) {
+                                 worst = std::max(worst, std::abs(got) / pixel);
+                                 ++n;
+                             });
+        CHECK(n > 1000);
+        return std::pair(worst, n);
     };
-    // The table against the share itself, between its entries: the worst over all mu.
-    const std::array<float, 65> table = render::rain_sky_shares(rain.g);
-    double table_error = 0.0;
-    for (int k = 0; k < 64 * 8; ++k) {
-        const double u = (k + 0.5) / 8.0, mu = -1.0 + u / 32.0;
-        const int i = int(u);
-        const double f = table[std::size_t(i)] * (i + 1 - u) + table[std::size_t(i) + 1] * (u - i);
-        table_error = std::max(table_error, std::abs(f - share(mu)) / share(0.0));
-    }
-    double worst = 0.0, worst_exact = 0.0;
-    std::vector<int> counted;  // channel values checked, per view
-    // Level, from 40 degrees above, from 40 degrees below (the box's floor at z = 0 is not
-    // ground: the ground is off).
-    for (const glm::dvec3 pos : {glm::dvec3(-300.0, -4000.0, 600.0), glm::dvec3(-300.0, -3000.0, 3200.0),
-                                 glm::dvec3(-300.0, -3000.0, -2000.0)}) {
-        counted.push_back(0);
-        rain_light_per_pixel(
-            r, pos, st, rain, sigma, [&](const glm::dvec3& d, double opacity, int c, double got, double pixel) {
-                const double u = std::clamp((1.0 - d.z) * 32.0, 0.0, 64.0);
-                const int i = std::min(int(u), 63);
-                const double interpolated = table[std::size_t(i)] * (i + 1 - u) + table[std::size_t(i) + 1] * (u - i);
-                const double expect = rain.albedo * st.sky_horizon[c] * opacity;
-                // Where the rain's light is a tenth of the pixel or more: the
-                // subtraction of B T leaves the float rounding of the pixel's
-                // total (~1e-7 of it).
-                if (expect * interpolated < 0.1 * pixel) return;
-                worst = std::max(worst, std::abs(got / (expect * interpolated) - 1.0));
-                worst_exact = std::max(worst_exact, std::abs(got / (expect * share(-d.z)) - 1.0));
-                ++counted.back();
-            });
-    }
-    MESSAGE("worst relative error: against the interpolated table "
-            << worst << ", the exact share " << worst_exact << " (" << counted[0] << ", " << counted[1] << ", "
-            << counted[2] << " values level, above, below); the table " << table_error << " of the level share");
-    for (const int n : counted) CHECK(n > 1000);
-    // The same sum as the march's: float rounding only (measured 2e-5 at worst).
-    CHECK(worst < 1e-4);
-    // The 65 entries between them: 0.30% of the level share at worst over every mu (g = 0.85's
-    // share is steepest near mu = 0), 0.39% of the share itself over these views. Deterministic
-    // (a fixed function interpolated), so the bounds sit just above what was measured.
-    CHECK(table_error < 0.004);
-    CHECK(worst_exact < 0.005);
+    render::Settings st = sky_lit();
+    st.flash_light = false;
+    const double sky_only = rain_light(st).first;
+    st.flash_light = true;
+    st.cloud_lighting = false;
+    const double unlit = rain_light(st).first;
+    st.cloud_lighting = true;
+    const double lit = rain_light(st).first;
+    MESSAGE("the rain's own light relative to the pixel: sky only " << sky_only << ", volume unlit " << unlit
+                                                                    << ", with the flash up to " << lit);
+    // Float rounding of I - B T (~1e-7 of the pixel, 2.5e-6 measured at worst).
+    CHECK(sky_only < 1e-5);
+    CHECK(unlit < 1e-5);
+    CHECK(lit > 1e-3);  // the flash's light is there when it is on (1.9% of its pixel at most)
+    r.set_channel({});
 }
 
-TEST_CASE("the static light in the rain: S at its points scattered by its albedo, in place of the sky model") {
+TEST_CASE("the static light in the rain: S at its points scattered by its albedo") {
     // The static light solved with the rain in its media (sky::static_media) holds, at the
     // rain's points, the light of every order the cloud and the rain scatter there, the sky's
     // included, carrying the cloud's albedo. The rain scatters it by its own albedo: with S
     // uniform (rgb, the same in every direction) and no sun, rain of constant sigma draws
     // (albedo_rain / albedo_cloud) S (1 - exp(-sigma chord)) over the sky behind it times
-    // exp(-sigma chord), whatever the view, and the sky model of the test above is not added.
+    // exp(-sigma chord), whatever the view.
     render::Renderer& r = gl_renderer();
     const double sigma = 1e-3;
     const cloud::RainField rain = uniform_rain(sigma);

@@ -40,7 +40,6 @@ struct Renderer::Impl {
     double detail_finest = 0.0;  // metres across the finest billows
     bool has_rain = false;       // the density texture's b channel holds rain (RGBA)
     double rain_max = 0.0, rain_g = 0.0, rain_albedo = 0.0, rain_top = 0.0;
-    std::array<glm::vec4, 17> rain_sky{};  // FrameBlock::rain_sky: render::rain_sky_shares(rain_g)
 
     // Source: the flash's S and the static light's (colour)
     detail::SourceSet flash = detail::SourceSet(GL_R32F), statics = detail::SourceSet(GL_RGBA32F);
