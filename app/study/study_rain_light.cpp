@@ -10,9 +10,9 @@
 //   (cosine-weighted, at the ground) as a radiance from above: diffuse E / pi (x
 //   transport::hg_from_above); overcast, (1 + 2 cos) / 3 in shape; cosine, proportional to cos;
 //   a + b cos from E and the scalar flux at the ground; and, for the sky, three without a map:
-//   half the dome at the horizon's radiance (what the renderer drew before), the upper
-//   hemisphere at it, and the horizon's radiance falling to none at the zenith, (1 - cos)
-//   (render::rain_sky_shares, what it draws). The sun's cloud light: none of those. Relative L2
+//   half the dome at the horizon's radiance, the upper hemisphere at it, and the horizon's
+//   radiance falling to none at the zenith, (1 - cos) (models the renderer drew before the rain
+//   entered the static light's transport). The sun's cloud light: none of those. Relative L2
 //   over the points and the ratio of totals, per cloud, light, height, view and model. The same
 //   for a strike's flash (seed 1 at its return stroke, per_strike: the storm's bake, storm.fgb,
 //   baked when stale) from its ground map, diffuse and cosine.
