@@ -128,11 +128,14 @@ int static_refine_for(const scene::Scene& s, const core::Grid3<float>& density);
 /// of the same transport coefficient; sigma_t = extinction x density stays exact where cloud and
 /// rain together pass density 1 (the media's extinction is raised and their density scaled).
 /// No rain: the cloud alone, as the virtual-light bake and the strikes' solves always see it.
-solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density);
+/// `rain`: cloud::make_rain of that density and the scene's rain, made here when null.
+solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density,
+                          const cloud::RainField* rain = nullptr);
 solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density, bool full);
 /// solve::make_media(s, density, refine, full) with the rain in it as above (the truth's media,
 /// which tally on the lighting grid and need no transport grid of their own).
-solve::Media make_static_media(const scene::Scene& s, const core::Grid3<float>& density, int refine, bool full);
+solve::Media make_static_media(const scene::Scene& s, const core::Grid3<float>& density, int refine, bool full,
+                               const cloud::RainField* rain = nullptr);
 
 /// The cloud density that stands for rain of extinction 1 (1/m) in the static light's media:
 /// the density of equal transport coefficient sigma_a + sigma_s (1 - g) (the similarity

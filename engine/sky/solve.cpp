@@ -269,31 +269,43 @@ int static_direction_count(const scene::Scene& s, const SolveSettings& settings)
     return settings.toward ? 1 : s.effective_directions();
 }
 
+namespace {
+
+// The density with the rain as cloud: (rho + per_extinction x sigma_rain) / divisor per voxel,
+// summed in double.
+core::Grid3<float> density_with_rain(const core::Grid3<float>& density, const cloud::RainField& rain,
+                                     double per_extinction, double divisor = 1.0) {
+    core::Grid3<float> out(density.geom, 0.0f);
+    for (std::size_t i = 0; i < out.data.size(); ++i)
+        out.data[i] = float((double(density.data[i]) + double(rain.extinction.data[i]) * per_extinction) / divisor);
+    return out;
+}
+
+}  // namespace
+
 // The cloud and, when the scene declares rain, the rain as cloud of the same transport
 // coefficient (rain_media_density). Where the sum passes 1 the medium's extinction is raised
 // to the largest sum and every density divided by it, so sigma_t is kept.
-solve::Media make_static_media(const scene::Scene& s, const core::Grid3<float>& density, int refine, bool full) {
+solve::Media make_static_media(const scene::Scene& s, const core::Grid3<float>& density, int refine, bool full,
+                               const cloud::RainField* rain) {
     if (!s.rain) return solve::make_media(s, density, refine, full);
-    const cloud::RainField rain = cloud::make_rain(density, *s.rain);
+    std::optional<cloud::RainField> made;
+    if (!rain) rain = &made.emplace(cloud::make_rain(density, *s.rain));
     const double per_extinction = rain_media_density(s.medium, *s.rain);
-    std::vector<double> both(density.data.size());
     double peak = 1.0;
-    for (std::size_t i = 0; i < both.size(); ++i) {
-        both[i] = double(density.data[i]) + per_extinction * double(rain.extinction.data[i]);
-        peak = std::max(peak, both[i]);
-    }
-    core::Grid3<float> wet(density.geom, 0.0f);
-    for (std::size_t i = 0; i < both.size(); ++i) wet.data[i] = float(std::min(both[i] / peak, 1.0));
+    for (std::size_t i = 0; i < density.data.size(); ++i)
+        peak = std::max(peak, double(density.data[i]) + double(rain->extinction.data[i]) * per_extinction);
     scene::Scene raised = s;
     raised.medium.extinction = s.medium.extinction * peak;
-    return solve::make_media(raised, wet, refine, full);
+    return solve::make_media(raised, density_with_rain(density, *rain, per_extinction, peak), refine, full);
 }
 
 namespace {
 
 // The static light's media for settings `st` (solve_settings of the scene).
-solve::Media media_for(const scene::Scene& s, const core::Grid3<float>& density, const SolveSettings& st, bool full) {
-    solve::Media m = make_static_media(s, density, st.refine, full);
+solve::Media media_for(const scene::Scene& s, const core::Grid3<float>& density, const SolveSettings& st, bool full,
+                       const cloud::RainField* rain = nullptr) {
+    solve::Media m = make_static_media(s, density, st.refine, full, rain);
     if (st.keep_transport_grid) {
         m.lighting = m.transport;
         m.refine = 1;
@@ -312,9 +324,10 @@ solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& densi
     return media_for(s, density, solve_settings(s, density), full);
 }
 
-solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density) {
+solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& density, const cloud::RainField* rain) {
     const SolveSettings st = solve_settings(s, density);
-    return media_for(s, density, st, exact_two(st) || (s.sky && st.sky_paths > 0) || st.method == Method::MonteCarlo);
+    return media_for(s, density, st, exact_two(st) || (s.sky && st.sky_paths > 0) || st.method == Method::MonteCarlo,
+                     rain);
 }
 
 LightField solve_directional(const solve::Media& media, std::span<const transport::DirectionalSource> lights,
@@ -544,11 +557,8 @@ core::Grid3<float> sun_transmittance(const scene::Scene& s, const core::Grid3<fl
     std::optional<cloud::RainField> made;
     if (!rain) rain = &made.emplace(cloud::make_rain(density, *s.rain));
     // Rain as density of the same extinction per unit (extinction > 0: the scene's range).
-    core::Grid3<float> both = density;
-    const double per_unit = 1.0 / s.medium.extinction;
-    for (std::size_t i = 0; i < both.data.size(); ++i)
-        both.data[i] = float(double(both.data[i]) + double(rain->extinction.data[i]) * per_unit);
-    return sun_transmittance(both, s.medium.extinction, direction);
+    return sun_transmittance(density_with_rain(density, *rain, 1.0 / s.medium.extinction), s.medium.extinction,
+                             direction);
 }
 
 StaticLight solve_static(const solve::Media& media, const glm::dvec3& sun_direction, bool sky_uniform,

@@ -89,10 +89,10 @@ StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::opti
     } else if (fgb) {
         throw core::Error(fgb->string(), "the scene has no lightning: it renders without a .fgb");
     }
-    if (plan_.sun || plan_.sky)
-        static_ = sky::load_or_solve(scene_, density_, static_media(), plan_, setup.cache, setup.say);
     if (scene_.rain) rain_ = cloud::make_rain(density_, *scene_.rain);
     const cloud::RainField* rain = rain_ ? &*rain_ : nullptr;
+    if (plan_.sun || plan_.sky)
+        static_ = sky::load_or_solve(scene_, density_, static_media(), plan_, setup.cache, setup.say);
     if (plan_.sun) {
         sun_ = scene_.sun;
         sun_transmittance_ = sky::sun_transmittance(scene_, density_, static_.sun_direction, rain);
@@ -240,7 +240,7 @@ const solve::Media& StormView::media() {
 }
 
 const solve::Media& StormView::static_media() {
-    if (!static_media_) static_media_ = sky::static_media(scene_, density_);
+    if (!static_media_) static_media_ = sky::static_media(scene_, density_, rain_ ? &*rain_ : nullptr);
     return *static_media_;
 }
 
