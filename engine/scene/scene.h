@@ -368,15 +368,15 @@ std::optional<glm::dvec3> strike_toward(const Scene& s, const Quality& q, const 
 /// solved by Monte Carlo).
 std::optional<glm::dvec3> static_toward(const Scene& s, const core::GridGeometry& density);
 
-/// What baking the scene costs, estimated from the scene alone (for a cloud file, from its
-/// NRRD header or VDB metadata): nothing is allocated or solved. Memory is an upper estimate of the peak;
-/// time is a lower bound (per-cell and per-path costs measured on a 2-core machine, the
-/// fastest case each: the real bake takes 1-4x longer), so a refusal is never a guess.
 /// The ground cells a strike's scattered light is gathered on (transport::ground_cells_around:
 /// the lighting grid's footprint and 20 km around, at most 2048 a side, 2^22 cells, 16 MB a
 /// group); none when the scene draws no ground or has no lightning.
 std::optional<transport::GroundTally> strike_ground_cells(const Scene& s, const core::GridGeometry& lighting);
 
+/// What baking the scene costs, estimated from the scene alone (for a cloud file, from its
+/// NRRD header or VDB metadata): nothing is allocated or solved. Memory is an upper estimate of the peak;
+/// time is a lower bound (per-cell and per-path costs measured on a 2-core machine, the
+/// fastest case each: the real bake takes 1-4x longer), so a refusal is never a guess.
 struct Cost {
     core::Int3 density_dims, lighting_dims, transport_dims;
     std::uint64_t density_bytes = 0;     ///< density grid and the generator's working arrays
