@@ -41,6 +41,8 @@ std::string rain_lines(const scene::Scene& s) {
     d << "sky.rain=" << num(r.rate) << "," << num(r.threshold) << "," << num(r.shear.x) << "," << num(r.shear.y) << ","
       << num(r.streak_scale) << "," << num(r.streak_strength) << "," << r.seed << "," << num(r.g) << ","
       << num(r.albedo) << "\n";
+    // S read out with the drops' own phase function in the rain's cells (transport::PhaseMix).
+    d << "sky.rain_phase=drops\n";
     return d.str();
 }
 

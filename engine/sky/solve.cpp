@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <numbers>
 #include <optional>
 
@@ -88,8 +89,9 @@ void second_order(const solve::Media& media, std::span<const transport::Directio
     fs.phi2 = core::Grid3<float>(geom, 0.0f);
     for (std::size_t i = 0; i < lights.size(); ++i) {
         if (lights[i].irradiance == 0.0) continue;
-        const transport::MonteCarloResult r = transport::monte_carlo(
-            media.full, lights[i], geom, dirs, solve::order_two_options(paths, core::hash_seed(seed, i)));
+        transport::MonteCarloOptions mo = solve::order_two_options(paths, core::hash_seed(seed, i));
+        mo.phase_mix = media.transport.phase_mix.get();
+        const transport::MonteCarloResult r = transport::monte_carlo(media.full, lights[i], geom, dirs, mo);
         add_scaled(fs.s2, r.multiple, 1.0);
         add_scaled(fs.phi2, r.fluence2, 1.0);
     }
@@ -106,6 +108,7 @@ FirstScattered dome_first_scattered(const solve::Media& media, const transport::
     FULGUR_ASSERT(!media.full.density.data.empty(), "sky: the dome's Monte Carlo needs static_media's full density");
     core::Stopwatch sw;
     transport::MonteCarloOptions mo = solve::order_two_options(paths, seed);
+    mo.phase_mix = media.transport.phase_mix.get();
     if (!two) {
         mo.expected_second_order = false;
         mo.max_scatterings = 0;
@@ -281,6 +284,27 @@ core::Grid3<float> density_with_rain(const core::Grid3<float>& density, const cl
     return out;
 }
 
+// The drops' phase function in S (transport::PhaseMix): on the grid coarser than the density
+// by `factor`, the rain's part of each cell's scattering coefficient, albedo x extinction of
+// the rain against the cloud's own (not the similarity density the transport sees).
+std::shared_ptr<const transport::PhaseMix> rain_phase_mix(const scene::Scene& s, const core::Grid3<float>& density,
+                                                          const cloud::RainField& rain, int factor) {
+    core::Grid3<float> cloud_s(density.geom, 0.0f), rain_s(density.geom, 0.0f);
+    for (std::size_t i = 0; i < density.data.size(); ++i) {
+        cloud_s.data[i] = float(s.medium.albedo * s.medium.extinction * double(density.data[i]));
+        rain_s.data[i] = float(s.rain->albedo * double(rain.extinction.data[i]));
+    }
+    auto mix = std::make_shared<transport::PhaseMix>();
+    mix->g = s.rain->g;
+    const core::Grid3<float> c = factor > 1 ? core::downsample(cloud_s, factor) : cloud_s;
+    mix->share = factor > 1 ? core::downsample(rain_s, factor) : std::move(rain_s);
+    for (std::size_t i = 0; i < mix->share.data.size(); ++i) {
+        const double r = double(mix->share.data[i]), sum = r + double(c.data[i]);
+        mix->share.data[i] = sum > 0.0 ? float(std::min(1.0, r / sum)) : 0.0f;
+    }
+    return mix;
+}
+
 }  // namespace
 
 // The cloud and, when the scene declares rain, the rain as cloud of the same transport
@@ -297,7 +321,11 @@ solve::Media make_static_media(const scene::Scene& s, const core::Grid3<float>& 
         peak = std::max(peak, double(density.data[i]) + double(rain->extinction.data[i]) * per_extinction);
     scene::Scene raised = s;
     raised.medium.extinction = s.medium.extinction * peak;
-    return solve::make_media(raised, density_with_rain(density, *rain, per_extinction, peak), refine, full);
+    solve::Media m = solve::make_media(raised, density_with_rain(density, *rain, per_extinction, peak), refine, full);
+    m.transport.phase_mix = rain_phase_mix(s, density, *rain, s.lighting_downsample / refine);
+    m.lighting.phase_mix =
+        refine == 1 ? m.transport.phase_mix : rain_phase_mix(s, density, *rain, s.lighting_downsample);
+    return m;
 }
 
 namespace {

@@ -16,7 +16,9 @@ const transport::LightingMedium& full_medium(const solve::Media& media) {
     return media.full;
 }
 
-transport::MonteCarloOptions truth_options(const TruthOptions& o, std::uint64_t stream) {
+/// The truth's options for one run; S tallied on the lighting grid, with the rain's phase
+/// where it has rain (the media's PhaseMix on that grid).
+transport::MonteCarloOptions truth_options(const TruthOptions& o, std::uint64_t stream, const solve::Media& media) {
     if (o.paths < 1000 || o.paths > (std::uint64_t(1) << 34))
         throw core::Error("truth paths", "must be in [1000, 2^34], got " + std::to_string(o.paths));
     transport::MonteCarloOptions mo;
@@ -25,6 +27,7 @@ transport::MonteCarloOptions truth_options(const TruthOptions& o, std::uint64_t 
     mo.halves = true;
     mo.toward = o.toward;
     mo.ground = o.ground;
+    mo.phase_mix = media.lighting.phase_mix.get();
     return mo;
 }
 
@@ -61,7 +64,7 @@ TruthField sun_truth(const solve::Media& media, const glm::dvec3& direction, std
                      const TruthOptions& options) {
     const transport::DirectionalSource sun{direction, 1.0};
     return as_field(transport::monte_carlo(full_medium(media), sun, media.lighting.density.geom, directions,
-                                           truth_options(options, 0)));
+                                           truth_options(options, 0, media)));
 }
 
 SkyTruth sky_truth(const solve::Media& media, bool uniform, std::span<const glm::dvec3> directions,
@@ -73,7 +76,7 @@ SkyTruth sky_truth(const solve::Media& media, bool uniform, std::span<const glm:
     SkyTruth out;
     if (uniform) {
         TruthField t = as_field(transport::monte_carlo(full, dome_basis(DomeBasis::Uniform), lighting, directions,
-                                                       truth_options(options, 1)));
+                                                       truth_options(options, 1, media)));
         out.field.uniform = std::move(t.field);
         out.noise.push_back(t.noise);
         out.sums.push_back(t.sums);
@@ -84,8 +87,10 @@ SkyTruth sky_truth(const solve::Media& media, bool uniform, std::span<const glm:
     }
     const transport::DomeSource zenith = dome_basis(DomeBasis::Zenith, options.table),
                                 horizon = dome_basis(DomeBasis::Horizon, options.table);
-    TruthField z = as_field(transport::monte_carlo(full, zenith, lighting, directions, truth_options(options, 2)));
-    TruthField h = as_field(transport::monte_carlo(full, horizon, lighting, directions, truth_options(options, 3)));
+    TruthField z =
+        as_field(transport::monte_carlo(full, zenith, lighting, directions, truth_options(options, 2, media)));
+    TruthField h =
+        as_field(transport::monte_carlo(full, horizon, lighting, directions, truth_options(options, 3, media)));
     out.field.zenith = std::move(z.field);
     out.field.horizon = std::move(h.field);
     out.noise = {z.noise, h.noise};

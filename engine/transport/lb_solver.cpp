@@ -482,6 +482,11 @@ void read_out(const Arriving& arriving, const Problem& p, const LightingMedium& 
     const std::size_t n = g.cell_count();
     std::vector<std::array<double, kQ>> out_phase(directions.size());
     for (std::size_t m = 0; m < directions.size(); ++m) out_phase[m] = output_phase(directions[m], medium.optics.g);
+    // A second scatterer's phase (PhaseMix): S's read-out in a cell is linear in the phase, so
+    // the two read-outs are mixed by the cell's share.
+    const PhaseMix* mix = medium.phase_mix.get();
+    std::vector<std::array<double, kQ>> mix_phase(mix ? directions.size() : 0);
+    for (std::size_t m = 0; m < mix_phase.size(); ++m) mix_phase[m] = output_phase(directions[m], mix->g);
     res.source = SourceField(g, std::vector<glm::dvec3>(directions.begin(), directions.end()));
     for (auto& d : res.source.directions) d = glm::normalize(d);
     res.fluence = core::Grid3<float>(g, 0.0f);
@@ -500,9 +505,15 @@ void read_out(const Arriving& arriving, const Problem& p, const LightingMedium& 
             phi += T[q];
         }
         res.fluence.data[i] = float(phi * inv_V);
+        const double share = mix ? double(mix->share.data[i]) : 0.0;
         for (std::size_t m = 0; m < directions.size(); ++m) {
             double s = 0.0;
             for (int q = 1; q < kQ; ++q) s += out_phase[m][std::size_t(q)] * T[q];
+            if (share > 0.0) {
+                double s2 = 0.0;
+                for (int q = 1; q < kQ; ++q) s2 += mix_phase[m][std::size_t(q)] * T[q];
+                s += share * (s2 - s);
+            }
             res.source.data[m * n + i] = float(p.albedo * s * inv_V);
         }
     });

@@ -244,6 +244,17 @@ public:
         ground0_ = ground_cur_ = sums;
     }
 
+    /// Tally S with a second phase function by each tally cell's share (PhaseMix, on the tally
+    /// grid; nullptr: the medium's alone).
+    void set_mix(const PhaseMix* mix) {
+        mix_ = mix ? mix->share.data.data() : nullptr;
+        if (mix) {
+            FULGUR_ASSERT(mix->share.geom == tg_->geom, "GridTally: the phase mix lies on the tally grid");
+            hg2_ = HgConstants(mix->g);
+            p2_.assign(M_, 0.0);
+        }
+    }
+
     void begin_path(std::uint32_t group) {
         crossed_ = false;
         if (ground0_) ground_cur_ = ground0_ + std::size_t(group) * ground_->cells();
@@ -313,11 +324,18 @@ private:
         const double *sx = sx_.data(), *sy = sy_.data(), *sz = sz_.data();
         double* p = p_.data();
         for (std::size_t m = 0; m < M_; ++m) p[m] = hg_(sx[m] * x + sy[m] * y + sz[m] * z);
+        if (mix_) {
+            double* p2 = p2_.data();
+            for (std::size_t m = 0; m < M_; ++m) p2[m] = hg2_(sx[m] * x + sy[m] * y + sz[m] * z);
+        }
     }
     void add(double* base, std::size_t tally_cell, double c) {
         double* a = base + tally_cell * M_;
+        const double share = mix_ ? double(mix_[tally_cell]) : 0.0;
         if (toward_on_)
-            a[0] += c * toward_phase(tally_cell);
+            a[0] += c * toward_phase(tally_cell, share);
+        else if (share > 0.0)
+            for (std::size_t m = 0; m < M_; ++m) a[m] += c * (p_[m] + share * (p2_[m] - p_[m]));
         else
             for (std::size_t m = 0; m < M_; ++m) a[m] += c * p_[m];
         // Fluence (no phase): of the uncollided light, and of the second order when its
@@ -328,7 +346,7 @@ private:
     /// p(w . d) for the flight's direction d, w the unit vector from the cell's centre toward
     /// the point (normalized and dotted as unit_directions and phase() do a fixed direction, so
     /// a cell gives the bits a run along its own direction gives).
-    double toward_phase(std::size_t cell) const {
+    double toward_phase(std::size_t cell, double share) const {
         const core::GridGeometry& g = tg_->geom;
         const std::size_t nx = std::size_t(g.dims.x), ny = std::size_t(g.dims.y);
         const std::size_t i = cell % nx, j = (cell / nx) % ny, k = cell / (nx * ny);
@@ -338,7 +356,9 @@ private:
         // averaged over directions, 1 / (4 pi), as an isotropic field would hold.
         if (!(len > 0.0)) return 1.0 / (4.0 * std::numbers::pi);
         const glm::dvec3 u = w / len;
-        return hg_(u.x * d_.x + u.y * d_.y + u.z * d_.z);
+        const double cos_theta = u.x * d_.x + u.y * d_.y + u.z * d_.z;
+        const double p = hg_(cos_theta);
+        return share > 0.0 ? p + share * (hg2_(cos_theta) - p) : p;
     }
     /// w * (weighted) length on the tally grid over [t0, t1], outside the medium (empty:
     /// weight 1, and nothing into cloud cells when weighting by extinction).
@@ -410,6 +430,9 @@ private:
     const TallyGrid* tg_;
     double kappa_;
     HgConstants hg_;
+    HgConstants hg2_{0.0};        // the mix's phase (set_mix)
+    const float* mix_ = nullptr;  // the mix's share per tally cell
+    std::vector<double> p2_;      // hg2_ per output direction, as p_
     std::size_t M_;
     bool expected_single_, track_single_, tally_multiple_;
     double cutoff_;
@@ -658,6 +681,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
     const std::vector<glm::dvec3> dirs = unit_directions(medium, directions, o);
     core::Stopwatch clock;
     const TallyGrid tg(medium, tally_grid, o.tally_weight);
+    if (o.phase_mix) validate_phase_mix(*o.phase_mix, tg.geom);
     const core::GridGeometry& g = tg.geom;
     const std::size_t G = std::size_t(o.groups);
     const std::size_t cells = g.cell_count(), M = dirs.size(), size = cells * M * G;
@@ -705,6 +729,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
                             multiple ? buf.multiple.data() : nullptr, fluence ? buf.fluence.data() : nullptr,
                             fluence2 ? buf.fluence2.data() : nullptr, o.toward ? &*o.toward : nullptr);
             if (o.ground) tally.set_ground(&*o.ground, buf.ground.data());
+            tally.set_mix(o.phase_mix);
             trace_paths(gm, em, po, o.seed, batch_first_path(o.paths, o.batches, b), batch_paths(o.paths, o.batches, b),
                         tally, buf.energy);
             if (tg.extinction)  // per-cell normalization (volume: the constant in `scale`)
@@ -937,6 +962,7 @@ struct ProgressiveMonteCarlo::Impl {
         ground_cells = o.ground ? o.ground->cells() * G : 0;
         if (!o.tally_single && !multiple)
             throw core::Error("monte_carlo.tally_single", "false needs the multiple tally: nothing would be estimated");
+        if (o.phase_mix) validate_phase_mix(*o.phase_mix, med.tg.geom);
         reset(o.seed);
     }
 
@@ -983,6 +1009,7 @@ struct ProgressiveMonteCarlo::Impl {
                                     multiple, detail::kPathCutoff, sums(h1, o.tally_single, h), sums(hm, multiple, h),
                                     sums(hf, fluence, h), sums(hf2, fluence2, h), o.toward ? &*o.toward : nullptr);
             if (o.ground) tally.set_ground(&*o.ground, sums(hg, true, h));
+            tally.set_mix(o.phase_mix);
             detail::trace_paths(med.gm, em, po, half_seed[h], half_traced[h], half[h], tally, energy, &emission[h]);
         });
         for (std::size_t h = 0; h < 2; ++h) {

@@ -205,7 +205,8 @@ void for_each_voxel(const LightingMedium& m, SourceField& out, const std::vector
     const std::size_t M = out.directions.size();
     core::parallel_for_dynamic(0, rows, [&](std::int64_t row) {
         const int j = int(row % g.dims.y), k = int(row / g.dims.y);
-        PhaseAccumulator acc(out.directions, g_phase);
+        const PhaseMix* mix = m.phase_mix.get();
+        PhaseAccumulator acc(out.directions, g_phase, mix ? std::optional<double>(mix->g) : std::nullopt);
         for (int i = 0; i < g.dims.x; ++i) {
             const std::size_t cell = g.index(i, j, k);
             if (!need[cell]) {
@@ -216,6 +217,7 @@ void for_each_voxel(const LightingMedium& m, SourceField& out, const std::vector
             b.lo = g.origin + glm::dvec3(i, j, k) * g.voxel_size;
             b.hi = g.origin + glm::dvec3(i + 1, j + 1, k + 1) * g.voxel_size;
             acc.reset();
+            if (mix) acc.set_share(double(mix->share.data[cell]));
             const double scale = fn(b, cell, acc);
             const std::vector<double>& r = acc.result();
             for (std::size_t mm = 0; mm < M; ++mm) out.data[mm * cells + cell] = float(scale * r[mm]);

@@ -31,6 +31,24 @@ void validate_medium(const LightingMedium& m) {
                               "density must be in [0, 1], got " + std::to_string(v));
         }
     }
+    if (m.phase_mix) validate_phase_mix(*m.phase_mix, m.density.geom);
+}
+
+void validate_phase_mix(const PhaseMix& mix, const core::GridGeometry& geom) {
+    if (!std::isfinite(mix.g)) throw core::Error("phase_mix.g", "must be finite (it is clamped to +-0.9999)");
+    if (!(mix.share.geom == geom) || mix.share.data.size() != geom.cell_count())
+        throw core::Error("phase_mix.share", "must lie on the grid S is computed on (" + std::to_string(geom.dims.x) +
+                                                 "x" + std::to_string(geom.dims.y) + "x" + std::to_string(geom.dims.z) +
+                                                 " voxels)");
+    for (std::size_t c = 0; c < mix.share.data.size(); ++c) {
+        const float v = mix.share.data[c];
+        if (!(v >= 0.0f && v <= 1.0f)) {
+            const core::Int3 ijk = geom.unindex(c);
+            throw core::Error("phase_mix.share[" + std::to_string(ijk.x) + "," + std::to_string(ijk.y) + "," +
+                                  std::to_string(ijk.z) + "]",
+                              "must be in [0, 1], got " + std::to_string(v));
+        }
+    }
 }
 
 double optical_depth(const LightingMedium& m, const glm::dvec3& a, const glm::dvec3& b) noexcept {

@@ -44,10 +44,30 @@ struct Medium {
     double g = 0.0;            ///< Henyey-Greenstein asymmetry, (-1, 1)
 };
 
+/// A second scatterer mixed into some cells (rain drops under a cloud) whose own phase function
+/// S is read out with. Light is transported with Medium::g everywhere (the second scatterer
+/// enters the density as cloud of the same transport coefficient: sky::rain_media_density);
+/// what it changes is the last scattering, toward the viewer: in each cell S takes
+///   (1 - share) p(s . w, Medium::g) + share p(s . w, g)
+/// for the phase function. share is the second scatterer's part of the cell's scattering
+/// coefficient, in [0, 1], on the grid S is computed (tallied) on.
+struct PhaseMix {
+    double g = 0.0;
+    core::Grid3<float> share;
+};
+
+/// Throws core::Error naming the field when a mix is unusable: g not finite, a share that is
+/// not finite or outside [0, 1] (names the cell), or a grid that is not `geom`.
+void validate_phase_mix(const PhaseMix& mix, const core::GridGeometry& geom);
+
 /// The medium every solver sees: piecewise-constant density on the lighting grid plus optics.
 struct LightingMedium {
     core::Grid3<float> density;  ///< values in [0, 1]
     Medium optics;
+    /// Set: S is read out with this second phase function where its share is > 0 (on this
+    /// medium's grid): the lattice's read-out and single_scattering() honour it; a Monte Carlo
+    /// run takes it as MonteCarloOptions::phase_mix, on its tally grid.
+    std::shared_ptr<const PhaseMix> phase_mix = nullptr;
     double sigma_t(std::size_t cell) const noexcept { return optics.extinction * double(density.data[cell]); }
 };
 
@@ -345,6 +365,9 @@ struct MonteCarloOptions {
     /// renderer lights the ground with the channel directly. Needs paths traced past their first
     /// scattering (not uncollided_only nor expected_second_order).
     std::optional<GroundTally> ground;
+    /// Set: S is tallied with this second phase function where its share is > 0 (PhaseMix; the
+    /// share on the tally grid). The paths still scatter with the medium's g.
+    const PhaseMix* phase_mix = nullptr;
 };
 
 struct MonteCarloResult {

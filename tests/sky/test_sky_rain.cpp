@@ -9,6 +9,8 @@
 
 #include <doctest/doctest.h>
 
+#include <glm/geometric.hpp>
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -68,6 +70,43 @@ TEST_CASE("rain in the static light's media: sigma_t of cloud and rain, exact at
     CHECK(rainy > 100);                                        // the shaft under the cloud: not a vacuous check
     CHECK(wet.full.optics.extinction == s.medium.extinction);  // 25 mm/h under this cloud stays below density 1
 
+    // The drops' phase function in S: each transport and lighting cell's share of the rain's
+    // scattering, albedo x extinction summed over its voxels against the cloud's (the real
+    // extinctions, not the similarity density); mixed cells at the cloud's base and edges.
+    const cloud::RainField rain = cloud::make_rain(density, *s.rain);
+    for (const transport::LightingMedium* m : {&wet.transport, &wet.lighting}) {
+        REQUIRE(m->phase_mix);
+        CHECK(m->phase_mix->g == s.rain->g);
+        const core::GridGeometry& g = m->density.geom;
+        REQUIRE(m->phase_mix->share.geom == g);
+        const int n = int(std::lround(g.voxel_size / density.geom.voxel_size));
+        double worst = 0.0;
+        int drops = 0, mixed = 0;
+        for (int k = 0; k < g.dims.z; ++k)
+            for (int j = 0; j < g.dims.y; ++j)
+                for (int i = 0; i < g.dims.x; ++i) {
+                    double cloud_s = 0.0, rain_s = 0.0;
+                    for (int c = k * n; c < std::min((k + 1) * n, density.geom.dims.z); ++c)
+                        for (int b = j * n; b < std::min((j + 1) * n, density.geom.dims.y); ++b)
+                            for (int a = i * n; a < std::min((i + 1) * n, density.geom.dims.x); ++a) {
+                                cloud_s += s.medium.albedo * s.medium.extinction * double(density.at(a, b, c));
+                                rain_s += s.rain->albedo * double(rain.extinction.at(a, b, c));
+                            }
+                    const double want = cloud_s + rain_s > 0.0 ? rain_s / (cloud_s + rain_s) : 0.0;
+                    const double got = m->phase_mix->share.at(i, j, k);
+                    worst = std::max(worst, std::abs(got - want));
+                    drops += got == 1.0;
+                    mixed += got > 0.0 && got < 1.0;
+                }
+        MESSAGE(g.voxel_size << " m cells: " << drops << " of rain alone, " << mixed << " of rain and cloud");
+        // Float sums of up to 4^3 voxels and a division: ~1e-7 (bound 1e-5).
+        CHECK(worst < 1e-5);
+        CHECK(drops > 0);  // cells of rain alone, under the base
+        // On the density's own voxels (the transport grid here) the rain falls from below the
+        // cloud's; the 2000 m lighting cells hold both at the base (measured 18).
+        if (n > 1) CHECK(mixed > 0);
+    }
+
     // Rain far heavier than the cloud (1000 mm/h, 29 km^-1) in a cloud of a tenth the
     // extinction: cloud and rain pass density 1 by far; the media's extinction is raised
     // instead, and sigma_t kept.
@@ -88,6 +127,8 @@ TEST_CASE("rain in the static light's media: sigma_t of cloud and rain, exact at
     CHECK(dm.full.density.data == dry_density.data);
     CHECK(dm.transport.density.data == plain.transport.density.data);
     CHECK(dm.full.optics.extinction == dry.medium.extinction);
+    CHECK(!dm.transport.phase_mix);
+    CHECK(!dm.lighting.phase_mix);
 }
 
 TEST_CASE("rain in the static light: its cache key follows the rain, and the light reaches the rain's cells") {
@@ -115,6 +156,18 @@ TEST_CASE("rain in the static light: its cache key follows the rain, and the lig
     const solve::Media dm = sky::static_media(dry, density);
     const sky::StaticLight wet = sky::solve_static(wm, sun, true, dirs, st);
     const sky::StaticLight dry_light = sky::solve_static(dm, sun, true, dirs, sky::solve_settings(dry, density));
+    // The same media read out with the cloud's phase function alone.
+    solve::Media cloud_phase = wm;
+    cloud_phase.transport.phase_mix = cloud_phase.lighting.phase_mix = nullptr;
+    const sky::StaticLight wet_cloud_phase = sky::solve_static(cloud_phase, sun, true, dirs, st);
+    // The output directions nearest toward the sun and away from it.
+    const glm::dvec3 to_sun = sun.z > 0.0 ? sun : -sun;
+    std::size_t back = 0, onward = 0;
+    for (std::size_t m = 0; m < dirs.size(); ++m) {
+        if (glm::dot(dirs[m], to_sun) > glm::dot(dirs[back], to_sun)) back = m;
+        if (glm::dot(dirs[m], to_sun) < glm::dot(dirs[onward], to_sun)) onward = m;
+    }
+    double back_drops = 0.0, back_cloud = 0.0, forward_drops = 0.0, forward_cloud = 0.0;
     const cloud::RainField rain = cloud::make_rain(density, *s.rain);
     const core::GridGeometry& lg = wm.lighting.density.geom;
     double sum_wet = 0.0, sum_dry = 0.0;
@@ -132,12 +185,25 @@ TEST_CASE("rain in the static light: its cache key follows the rain, and the lig
                     sum_dry +=
                         dry_light.sun->multiple.direction(m)[at] + dry_light.sky->uniform.multiple.direction(m)[at];
                 }
+                back_drops += wet.sun->multiple.direction(back)[at];
+                back_cloud += wet_cloud_phase.sun->multiple.direction(back)[at];
+                forward_drops += wet.sun->multiple.direction(onward)[at];
+                forward_cloud += wet_cloud_phase.sun->multiple.direction(onward)[at];
                 ++cells;
             }
     MESSAGE(cells << " rain cells: S of orders >= 2, wet / dry " << sum_wet / sum_dry);
     REQUIRE(cells > 50);
-    // Measured 2.37 over 98 cells (the rain scatters the sun and the sky itself, and its light
+    // Measured 2.40 over 98 cells (the rain scatters the sun and the sky itself, and its light
     // scatters on). The bound sits far above the order-2 Monte Carlo's noise (~1% of S) and
     // well below the effect: a solve that left the rain out (1.0) fails it.
     CHECK(sum_wet > 1.5 * sum_dry);
+
+    // The drops' phase function (g 0.85 against the cloud's 0.6) sends less of the sun's
+    // scattered light back toward the sun and more on along its way: measured 0.49 and 1.52
+    // over the same cells; the bounds lie halfway to 1 (the cloud's phase function alone), far
+    // outside the order-2 Monte Carlo's ~1% noise.
+    MESSAGE("the sun's S of orders >= 2 in the rain, drops' / cloud's phase function: toward the sun "
+            << back_drops / back_cloud << ", away from it " << forward_drops / forward_cloud);
+    CHECK(back_drops < 0.75 * back_cloud);
+    CHECK(forward_drops > 1.25 * forward_cloud);
 }

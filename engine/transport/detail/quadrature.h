@@ -17,6 +17,7 @@
 #include <array>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -31,8 +32,11 @@ struct Box {
 /// samples vectorizes; for g == 0 only the sum of weights is kept.
 class PhaseAccumulator {
 public:
-    PhaseAccumulator(std::span<const glm::dvec3> dirs, double g) : dirs_(dirs), hg_(g) {
-        if (!hg_.isotropic) {
+    /// With `mix_g`, a cell's samples are also weighted by HG(mix_g) and the two sums mixed by
+    /// the share set_share() gives (PhaseMix).
+    PhaseAccumulator(std::span<const glm::dvec3> dirs, double g, std::optional<double> mix_g = std::nullopt)
+        : dirs_(dirs), hg_(g), hg2_(mix_g.value_or(0.0)), mixed_(mix_g.has_value()) {
+        if (!hg_.isotropic || mixed_) {
             w_.resize(kCap);
             x_.resize(kCap);
             y_.resize(kCap);
@@ -42,14 +46,20 @@ public:
     }
     void reset() {
         std::fill(acc_.begin(), acc_.end(), 0.0);
+        share_ = 0.0;
         sum_ = 0.0;
         total_ = 0.0;
         n_ = 0;
     }
+    /// The second phase function's share of the samples added until the next reset().
+    void set_share(double share) {
+        FULGUR_ASSERT(mixed_ && n_ == 0 && share >= 0.0 && share <= 1.0, "PhaseAccumulator: share of a mix, per cell");
+        share_ = share;
+    }
     void add(double w, const glm::dvec3& d) {
         if (!(w > 0.0)) return;
         total_ += w;
-        if (hg_.isotropic) {
+        if (hg_.isotropic && !mixed_) {
             sum_ += w;
             return;
         }
@@ -63,7 +73,7 @@ public:
     double weight_sum() const noexcept { return total_; }
     /// Reduces and returns acc[m] (for every output direction).
     const std::vector<double>& result() {
-        if (hg_.isotropic) {
+        if (hg_.isotropic && !mixed_) {
             std::fill(acc_.begin(), acc_.end(), sum_ * hg_.norm);
         } else {
             flush();
@@ -74,6 +84,14 @@ public:
 private:
     static constexpr std::size_t kCap = 256;
     void flush() {
+        for (std::size_t m = 0; m < dirs_.size(); ++m) {
+            const double s = phase_sum(hg_, dirs_[m]);
+            acc_[m] += share_ > 0.0 ? s + share_ * (phase_sum(hg2_, dirs_[m]) - s) : s;
+        }
+        n_ = 0;
+    }
+    /// The pending samples' weights times p(s . d) for HG h.
+    double phase_sum(const detail::HgConstants& h, const glm::dvec3& dir) const {
         // omp simd reduction: the vectorized summation order is fixed by the binary, so the
         // result is deterministic (and independent of the thread count).
         const std::size_t n = n_;
@@ -81,24 +99,23 @@ private:
         const double* x = x_.data();
         const double* y = y_.data();
         const double* z = z_.data();
-        const double a = hg_.one_minus_g_sq, b = hg_.two_g;
-        for (std::size_t m = 0; m < dirs_.size(); ++m) {
-            const double sx = dirs_[m].x, sy = dirs_[m].y, sz = dirs_[m].z;
-            double s = 0.0;
+        const double a = h.one_minus_g_sq, b = h.two_g;
+        const double sx = dir.x, sy = dir.y, sz = dir.z;
+        double s = 0.0;
 #pragma omp simd reduction(+ : s)
-            for (std::size_t q = 0; q < n; ++q) {
-                double c = sx * x[q] + sy * y[q] + sz * z[q];
-                c = c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c);
-                const double d = a + b * (1.0 - c);
-                s += w[q] / (d * std::sqrt(d));
-            }
-            acc_[m] += s * hg_.norm;
+        for (std::size_t q = 0; q < n; ++q) {
+            double c = sx * x[q] + sy * y[q] + sz * z[q];
+            c = c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c);
+            const double d = a + b * (1.0 - c);
+            s += w[q] / (d * std::sqrt(d));
         }
-        n_ = 0;
+        return s * h.norm;
     }
 
     std::span<const glm::dvec3> dirs_;
-    detail::HgConstants hg_;
+    detail::HgConstants hg_, hg2_;
+    bool mixed_ = false;
+    double share_ = 0.0;
     std::vector<double> w_, x_, y_, z_, acc_;
     double total_ = 0.0;
     std::size_t n_ = 0;

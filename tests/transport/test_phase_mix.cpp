@@ -1,0 +1,221 @@
+// A second scatterer's phase function in S (transport::PhaseMix: rain drops under a cloud).
+// The light is transported with the medium's g; S's last scattering takes each cell's mix
+//   (1 - share) p(g) + share p(g2).
+// Every solver's read-out is linear in the phase function, so each is held to the mix of two
+// runs that differ only in the phase S is read out with: single scattering of the sun (whose
+// quadrature does not depend on g) and the Monte Carlo's order 1 (whose unscattered rays do not
+// either) against runs with the medium's g set to g2; the Monte Carlo's orders >= 2 and the
+// lattice against their own runs with the share 0 and 1 everywhere. And bad mixes are refused.
+#include "core/error.h"
+#include "transport/transport.h"
+
+#include "support/test_support.h"
+#include "transport_test_util.h"
+
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <numbers>
+#include <string>
+
+using namespace fulgur;
+
+namespace {
+
+constexpr double kG = 0.6, kG2 = 0.85;
+
+// A 6x6x6 blob of 100 m voxels, optical depth ~0.3 per voxel at its heart, thinning outward.
+transport::LightingMedium blob() {
+    transport::LightingMedium m = test::uniform_medium({6, 6, 6}, 100.0, {0.0, 0.0, 0.0}, 0.0f, {0.003, 0.99, kG});
+    const core::GridGeometry& g = m.density.geom;
+    for (int k = 0; k < 6; ++k)
+        for (int j = 0; j < 6; ++j)
+            for (int i = 0; i < 6; ++i) {
+                const double r = glm::length(glm::dvec3(i - 2.5, j - 2.5, k - 2.5));
+                m.density.data[g.index(i, j, k)] = float(std::clamp(1.0 - r / 4.5, 0.05, 1.0));
+            }
+    return m;
+}
+
+// Shares of every kind on `geom`: 0, 1 and values between, cell by cell.
+std::shared_ptr<transport::PhaseMix> mix_on(const core::GridGeometry& geom, double g2, float everywhere = -1.0f) {
+    auto mix = std::make_shared<transport::PhaseMix>();
+    mix->g = g2;
+    mix->share = core::Grid3<float>(geom, 0.0f);
+    for (std::size_t c = 0; c < mix->share.data.size(); ++c)
+        mix->share.data[c] = everywhere >= 0.0f ? everywhere : float(c % 5) / 4.0f;
+    return mix;
+}
+
+// Largest |got - (a + share (b - a))| over cells and directions, relative to the largest |a|, |b|.
+double worst_mix_error(const transport::SourceField& got, const transport::SourceField& a,
+                       const transport::SourceField& b, const transport::PhaseMix& mix) {
+    REQUIRE(got.data.size() == a.data.size());
+    REQUIRE(got.data.size() == b.data.size());
+    double peak = 0.0, worst = 0.0;
+    for (std::size_t m = 0; m < a.directions.size(); ++m)
+        for (std::size_t c = 0; c < a.cells(); ++c) {
+            const double x = a.direction(m)[c], y = b.direction(m)[c], s = mix.share.data[c];
+            peak = std::max({peak, std::abs(x), std::abs(y)});
+            worst = std::max(worst, std::abs(double(got.direction(m)[c]) - (x + s * (y - x))));
+        }
+    REQUIRE(peak > 0.0);
+    return worst / peak;
+}
+
+// Relative L2 difference of two fields.
+double rel_l2(const transport::SourceField& a, const transport::SourceField& b) {
+    double d = 0.0, n = 0.0;
+    for (std::size_t i = 0; i < a.data.size(); ++i) {
+        d += (double(a.data[i]) - double(b.data[i])) * (double(a.data[i]) - double(b.data[i]));
+        n += double(b.data[i]) * double(b.data[i]);
+    }
+    return std::sqrt(d / n);
+}
+
+const transport::DirectionalSource kSun{glm::normalize(glm::dvec3(0.3, 0.2, -1.0)), 1.0};
+
+}  // namespace
+
+TEST_CASE("phase mix: the sun's single scattering takes each cell's mix of the two phase functions") {
+    const auto dirs = transport::output_directions(26);
+    const transport::LightingMedium plain = blob();
+    transport::LightingMedium drops = plain;
+    drops.optics.g = kG2;
+    transport::LightingMedium mixed = plain;
+    const auto mix = mix_on(plain.density.geom, kG2);
+    mixed.phase_mix = mix;
+    const transport::SourceField a = transport::single_scattering(plain, kSun, dirs);
+    const transport::SourceField b = transport::single_scattering(drops, kSun, dirs);
+    const transport::SourceField got = transport::single_scattering(mixed, kSun, dirs);
+    // The mix is taken in double and stored as float, against the mix of two float fields:
+    // a few float roundings (~1e-7 of the peak).
+    CHECK(worst_mix_error(got, a, b, *mix) < 1e-6);
+    CHECK(rel_l2(b, a) > 0.2);  // the drops' phase function is another one (not a vacuous check)
+
+    // Share 0 everywhere: the medium's own field, bit for bit.
+    mixed.phase_mix = mix_on(plain.density.geom, kG2, 0.0f);
+    CHECK(transport::single_scattering(mixed, kSun, dirs).data == a.data);
+}
+
+TEST_CASE(
+    "phase mix: the Monte Carlo tallies it per cell, order 1 and orders >= 2, along directions and toward a point") {
+    const transport::LightingMedium plain = blob();
+    transport::LightingMedium drops = plain;
+    drops.optics.g = kG2;
+    const auto mix = mix_on(plain.density.geom, kG2);
+    const auto all = mix_on(plain.density.geom, kG2, 1.0f);
+    for (const bool toward : {false, true}) {
+        CAPTURE(toward);
+        const auto dirs = transport::output_directions(toward ? 1 : 26);
+        transport::MonteCarloOptions o;
+        o.paths = 20'000;
+        o.batches = 4;
+        if (toward) o.toward = glm::dvec3(300.0, -2000.0, 900.0);
+        const auto run = [&](const transport::LightingMedium& m, const transport::PhaseMix* p) {
+            transport::MonteCarloOptions x = o;
+            x.phase_mix = p;
+            return transport::monte_carlo(m, kSun, dirs, x);
+        };
+        const transport::MonteCarloResult a = run(plain, nullptr), got = run(plain, mix.get());
+        // Order 1: the unscattered rays do not depend on g, so the medium with g2 gives the
+        // drops' field from the same rays. Per deposit mixing against mixed sums: double
+        // rounding, stored as float.
+        const transport::MonteCarloResult b = run(drops, nullptr);
+        CHECK(worst_mix_error(got.single, a.single, b.single, *mix) < 1e-6);
+        CHECK(rel_l2(b.single, a.single) > 0.2);
+        // Orders >= 2: the same paths (the medium's g) read out with the share 1 everywhere.
+        const transport::MonteCarloResult one = run(plain, all.get());
+        CHECK(worst_mix_error(got.multiple, a.multiple, one.multiple, *mix) < 1e-6);
+        CHECK(rel_l2(one.multiple, a.multiple) > 0.05);
+        CHECK(got.energy.escaped.mean == a.energy.escaped.mean);  // the paths themselves are the same
+    }
+
+    // An isotropic second phase function read out alone (share 1, g2 0) is albedo phi / (4 pi)
+    // in every direction: against the same run's own fluence tally (order 2 exactly, whose
+    // fluence the Monte Carlo tallies). Float rounding of the stored fields.
+    transport::MonteCarloOptions o;
+    o.paths = 20'000;
+    o.batches = 4;
+    o.expected_second_order = true;
+    o.tally_fluence = true;
+    const auto iso = mix_on(plain.density.geom, 0.0, 1.0f);
+    o.phase_mix = iso.get();
+    const auto dirs = transport::output_directions(26);
+    const transport::MonteCarloResult r = transport::monte_carlo(plain, kSun, dirs, o);
+    REQUIRE(r.fluence2.data.size() == r.multiple.cells());
+    double worst = 0.0, peak = 0.0;
+    for (std::size_t c = 0; c < r.multiple.cells(); ++c) {
+        const double want = plain.optics.albedo * double(r.fluence2.data[c]) / (4.0 * std::numbers::pi);
+        peak = std::max(peak, want);
+        for (std::size_t m = 0; m < dirs.size(); ++m)
+            worst = std::max(worst, std::abs(double(r.multiple.direction(m)[c]) - want));
+    }
+    REQUIRE(peak > 0.0);
+    CHECK(worst / peak < 1e-6);
+}
+
+TEST_CASE("phase mix: the lattice reads S out with it, site by site") {
+    const auto dirs = transport::output_directions(26);
+    const transport::LightingMedium plain = blob();
+    transport::LbSources src;
+    src.points.push_back({{250.0, 310.0, 280.0}, 1.0});
+    const auto solve = [&](std::shared_ptr<transport::PhaseMix> p) {
+        transport::LightingMedium m = plain;
+        m.phase_mix = std::move(p);
+        return transport::solve_lattice_boltzmann(m, src, dirs).source;
+    };
+    const transport::SourceField a = solve(nullptr);
+    const auto mix = mix_on(plain.density.geom, kG2);
+    const transport::SourceField got = solve(mix), one = solve(mix_on(plain.density.geom, kG2, 1.0f));
+    // The lattice runs alike (the phase mix is not in its collisions): only the read-out's
+    // float rounding differs.
+    CHECK(worst_mix_error(got, a, one, *mix) < 1e-6);
+    CHECK(rel_l2(one, a) > 0.05);
+    // The share 1 with the medium's own g is the medium alone, bit for bit.
+    CHECK(solve(mix_on(plain.density.geom, kG, 1.0f)).data == a.data);
+    // An isotropic second phase function read out alone is albedo phi / (4 pi) in every
+    // direction, against the same solve's fluence (float rounding).
+    transport::LightingMedium m = plain;
+    m.phase_mix = mix_on(plain.density.geom, 0.0, 1.0f);
+    const transport::LbResult r = transport::solve_lattice_boltzmann(m, src, dirs);
+    double worst = 0.0, peak = 0.0;
+    for (std::size_t c = 0; c < r.source.cells(); ++c) {
+        const double want = plain.optics.albedo * double(r.fluence.data[c]) / (4.0 * std::numbers::pi);
+        peak = std::max(peak, want);
+        for (std::size_t k = 0; k < dirs.size(); ++k)
+            worst = std::max(worst, std::abs(double(r.source.direction(k)[c]) - want));
+    }
+    REQUIRE(peak > 0.0);
+    CHECK(worst / peak < 1e-6);
+}
+
+TEST_CASE("phase mix: bad mixes are refused, naming the field") {
+    const transport::LightingMedium plain = blob();
+    const auto dirs = transport::output_directions(6);
+    const auto refused = [&](const transport::PhaseMix& p, const std::string& field) {
+        transport::LightingMedium m = plain;
+        m.phase_mix = std::make_shared<transport::PhaseMix>(p);
+        CHECK_THROWS_WITH_AS(transport::single_scattering(m, kSun, dirs), doctest::Contains(field.c_str()),
+                             core::Error);
+        transport::MonteCarloOptions o;
+        o.paths = 100;
+        o.batches = 2;
+        o.phase_mix = &p;
+        CHECK_THROWS_WITH_AS(transport::monte_carlo(plain, kSun, dirs, o), doctest::Contains(field.c_str()),
+                             core::Error);
+    };
+    transport::PhaseMix p = *mix_on(plain.density.geom, kG2);
+    p.share.data[7] = 1.5f;
+    refused(p, "phase_mix.share[1,1,0]");
+    p.share.data[7] = std::nanf("");
+    refused(p, "phase_mix.share[1,1,0]");
+    p = *mix_on(plain.density.geom, kG2);
+    p.g = std::nan("");
+    refused(p, "phase_mix.g");
+    core::GridGeometry other = plain.density.geom;
+    other.dims.x = 5;
+    refused(*mix_on(other, kG2), "phase_mix.share");
+}
