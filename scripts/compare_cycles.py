@@ -7,7 +7,7 @@ usage:
         [--samples N] [--cycles-seeds A,B] [--fulgur-shot EXE] [--blender EXE]
         [--light-radius M] [--max-light-loss F]
   scripts/compare_cycles.py compare FULGUR.exr CYCLES_A.exr CYCLES_B.exr [--near-px R] [--picture P.png]
-        [--picture-block N]
+        [--picture-block N] [--frame FRAME.json]
   scripts/compare_cycles.py rain SCENE.json OUT_DIR (the options of run)
 
 `run` renders the frame with fulgur-shot (--exr with its passes, --blender DIR, one ray-march ray
@@ -30,6 +30,9 @@ Regions (Fulgur's transmittance T of each pixel's ray, and its channel pass):
   near         cloud pixels within --near-px of a pixel the channel's core covers
   rest         the other cloud pixels
   background   T >= 0.98: sky and ground seen past at most 2% extinction
+  ground       (with the exported frame.json: `run`, `rain`, `compare --frame`) background pixels
+               whose ray meets the ground within Fulgur's haze 0.5 (~28 km); `ground_dehazed_*`
+               compares them with that haze taken out (the Blender scene has none)
 The rain (`rain`): over the pixels whose ray meets rain and no cloud (Fulgur's T < 0.98 with the
 rain, > 0.999 without), each renderer's wet pixel less its dry pixel times Fulgur's T (the rain's
 own light, less its shadow on what lies behind it), Fulgur against Cycles' (its dry frame the mean
@@ -127,7 +130,49 @@ def region_figures(f, c, a, b, mask):
     }
 
 
-def compare(fulgur_exr, cycles_a, cycles_b, near_px=None, picture=None, block=8, picture_block=1):
+# The haze Fulgur lays over its ground (shaders/background.glsl, ground_haze and haze_colour): the
+# ground's radiance mixed toward the sky's horizon radiance (none with the sky off) by
+# 1 - exp(-t / 40 km), t the ray's distance to the ground. The Blender scene has no haze.
+HAZE_DISTANCE_M = 40000.0
+
+
+def pixel_rays(fulgur_exr, width, height):
+    """The camera's position and each pixel centre's unit ray from the EXR's header."""
+    spec = oiio.ImageInput.open(str(fulgur_exr)).spec()
+    pos = np.array(spec.getattribute("cameraPosition"), dtype=np.float64)
+    target = np.array(spec.getattribute("cameraTarget"), dtype=np.float64)
+    up = np.array(spec.getattribute("cameraUp"), dtype=np.float64)
+    tan_half = math.tan(math.radians(spec.getattribute("cameraVerticalFovDeg")) / 2)
+    fwd = (target - pos) / np.linalg.norm(target - pos)
+    right = np.cross(fwd, up)
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    x = ((np.arange(width) + 0.5) / width * 2 - 1) * tan_half * width / height
+    y = (1 - (np.arange(height) + 0.5) / height * 2) * tan_half
+    d = fwd + x[None, :, None] * right + y[:, None, None] * up
+    return pos, d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+def ground_figures(fulgur_exr, frame_json, f, c, a, b, t):
+    """The ground seen past the cloud (T >= 0.98, rays down), as drawn and with Fulgur's haze
+    taken out (f less T h H, over 1 - h), where the haze h is at most 0.5 (within ~28 km: farther
+    the division amplifies everything): `ground_*` and `ground_dehazed_*`."""
+    frame = json.loads(pathlib.Path(frame_json).read_text())
+    pos, d = pixel_rays(fulgur_exr, f.shape[1], f.shape[0])
+    height = frame["ground"]["height"]
+    down = d[..., 2] < 0
+    dist = np.where(down, (height - pos[2]) / np.where(down, d[..., 2], -1.0), np.inf)
+    h = 1 - np.exp(-dist / HAZE_DISTANCE_M)
+    sky = frame.get("sky") or {}
+    horizon = np.array(sky["horizon_rgb"]) if sky.get("visible") else np.zeros(3)
+    ground = down & (t >= 0.98) & (h <= 0.5)
+    dehazed = (f - (t * h)[..., None] * horizon) / (1 - np.minimum(h, 0.5))[..., None]
+    out = {f"ground_{k}": v for k, v in region_figures(f, c, a, b, ground).items()}
+    out.update({f"ground_dehazed_{k}": v for k, v in region_figures(dehazed, c, a, b, ground).items()})
+    return out
+
+
+def compare(fulgur_exr, cycles_a, cycles_b, near_px=None, picture=None, block=8, picture_block=1, frame_json=None):
     fc = read_channels(fulgur_exr)
     for need in ("lightning.R", "static.R", "background.R", "channel.R", "T.Y"):
         if need not in fc:
@@ -155,6 +200,8 @@ def compare(fulgur_exr, cycles_a, cycles_b, near_px=None, picture=None, block=8,
     for k, v in region_figures(fb, cb, ab, bb, blocks_cloud).items():
         out[f"cloud_blocks_{k}"] = v
     out["block_px"] = n
+    if frame_json:
+        out.update(ground_figures(fulgur_exr, frame_json, f, c, a, b, t))
     if picture:
         if picture_block > 1:  # the scale the block figures measure: each block's mean, shown as a block
             up = lambda x: np.repeat(np.repeat(block_mean(x, picture_block), picture_block, 0), picture_block, 1)
@@ -205,7 +252,7 @@ def rain(args):
         one = argparse.Namespace(**vars(args))
         one.scene, one.out_dir = str(d / "scene.json"), str(d / "out")
         r = run(one)
-        res.update({f"{name}_{k}": v for k, v in r.items() if k.startswith(("cloud_", "background_"))})
+        res.update({f"{name}_{k}": v for k, v in r.items() if k.startswith(("cloud_", "background_", "ground_"))})
         res[f"{name}_cycles_seconds"] = r["cycles_seconds"]
     res.update(rain_change(out / "wet/out", out / "dry/out", [int(s) for s in args.cycles_seeds.split(",")]))
     res.update({"scene": args.scene, "camera": args.camera, "samples": args.samples})
@@ -248,7 +295,7 @@ def run(args):
         line = [l for l in done.stdout.splitlines() if l.startswith('{"name":"blender-scene"')]
         lights = json.loads(line[-1]) if line else lights
     r = compare(out / "fulgur.exr", out / f"cycles_{seeds[0]}.exr", out / f"cycles_{seeds[1]}.exr",
-                args.near_px, out / "compare.png", args.block)
+                args.near_px, out / "compare.png", args.block, frame_json=out / "blender" / "frame.json")
     r.update({"scene": args.scene, "seed": args.seed, "time": args.time, "quality": args.quality or "scene's",
               "strike_grid": args.strike_grid, "strike_toward_camera": args.strike_toward_camera,
               "static_toward_camera": args.static_toward_camera,
@@ -297,6 +344,8 @@ def main():
     c.add_argument("--picture", help="also write Fulgur | Cycles | |difference| as this PNG")
     c.add_argument("--picture-block", type=int, default=1, help="the picture's pixels averaged over N x N "
                    "blocks (the scale of the block figures, above Cycles' per-pixel noise)")
+    c.add_argument("--frame", help="the exported frame.json (fulgur-shot --blender): also the ground's figures, "
+                   "as drawn and with Fulgur's haze taken out (ground_*, ground_dehazed_*)")
     for q in (r, w, c):
         q.add_argument("--block", type=int, default=8, help="block size (pixels) of the cloud_blocks_* figures")
         q.add_argument("--require", action="append",
@@ -308,7 +357,7 @@ def main():
         res = rain(args)
     else:
         res = compare(args.fulgur, args.cycles_a, args.cycles_b, args.near_px, args.picture, args.block,
-                      args.picture_block)
+                      args.picture_block, args.frame)
     print(json.dumps(res))
     sys.stdout.flush()
     failed = []
