@@ -339,6 +339,22 @@ def read_frame(frame_dir):
                         "albedo": F.number(F.get(ground, "ground.albedo", "albedo"), "ground.albedo",
                                            lo=0.0, hi=1.0)}
         fr["ground"]["lights_cloud"] = F.flag(ground, "ground.lights_cloud", "lights_cloud", True)
+        pat = F.get(ground, "ground.pattern", "pattern", optional=True)
+        if pat is not None:
+            fr["ground"]["pattern"] = {
+                "cell_m": F.number(F.get(pat, "ground.pattern.cell_m", "cell_m"), "ground.pattern.cell_m",
+                                   lo=1.0, hi=1.0e6),
+                "seed": F.integer(F.get(pat, "ground.pattern.seed", "seed"), "ground.pattern.seed", 0, 2**32 - 1),
+                "low": F.number(F.get(pat, "ground.pattern.low", "low"), "ground.pattern.low", lo=0.0, hi=10.0),
+                "span": F.number(F.get(pat, "ground.pattern.span", "span"), "ground.pattern.span", lo=0.0, hi=10.0),
+                "tint_rgb": F.vec(F.get(pat, "ground.pattern.tint_rgb", "tint_rgb"), "ground.pattern.tint_rgb",
+                                  lo=0.0)}
+            q = fr["ground"]["pattern"]
+            if fr["ground"]["albedo"] * (q["low"] + q["span"]) * max(q["tint_rgb"]) > 1.0:
+                F.err("ground.pattern", "makes an albedo above 1 (albedo x (low + span) x tint)")
+        haze = F.get(ground, "ground.haze_m", "haze_m", optional=True)
+        if haze is not None:
+            fr["ground"]["haze_m"] = F.number(haze, "ground.haze_m", lo=0.0, lo_open=True)
     else:
         fr["ground"] = None
     return fr
@@ -788,6 +804,119 @@ def add_world(scene, fr):
     vis.scatter = lit
 
 
+def pcg_hash(v):
+    """common.glsl's hash_u32 on uint32 arrays (wrapping arithmetic)."""
+    v = v.astype(np.uint32)
+    state = v * np.uint32(747796405) + np.uint32(2891336453)
+    word = ((state >> ((state >> np.uint32(28)) + np.uint32(4))) ^ state) * np.uint32(277803737)
+    return (word >> np.uint32(22)) ^ word
+
+
+def pattern_albedo(g, x, y):
+    """The ground's albedo (RGB) at the points x, y (metres, arrays): background.glsl's
+    ground_albedo with frame.json's pattern (render::GroundLook)."""
+    q = g["pattern"]
+    gx, gy = x / q["cell_m"], y / q["cell_m"]
+    ix, iy = np.floor(gx), np.floor(gy)
+    fx, fy = gx - ix, gy - iy
+    fx, fy = fx * fx * (3 - 2 * fx), fy * fy * (3 - 2 * fy)
+    seed = np.uint32(q["seed"])
+
+    def corner(dx, dy):  # hash_unit(hash_u32(uvec3(ivec3(i, j, seed)))): ints as two's complement
+        i = (ix + dx).astype(np.int64).astype(np.uint32)
+        j = (iy + dy).astype(np.int64).astype(np.uint32)
+        h = pcg_hash(i ^ pcg_hash(j ^ pcg_hash(np.full(i.shape, seed, dtype=np.uint32))))
+        return (h >> np.uint32(8)).astype(np.float64) / 16777216.0
+
+    v = (corner(0, 0) * (1 - fx) + corner(1, 0) * fx) * (1 - fy) + (corner(0, 1) * (1 - fx) + corner(1, 1) * fx) * fy
+    return g["albedo"] * (q["low"] + q["span"] * v)[..., None] * np.array(q["tint_rgb"])
+
+
+# The ground's pattern as an image texture (Cycles has no hash node): PATTERN_TEXELS per cell
+# over PATTERN_CELLS cells around the point below the camera, linear between texel centres (the
+# smoothstep between cell corners within ~0.1% of the albedo at 16 texels); beyond it the
+# pattern's mean, low + span / 2 (Fulgur hazes the ground there: 78% at 60 km).
+PATTERN_TEXELS = 16
+PATTERN_CELLS = 80
+
+
+def ground_albedo_node(nt, fr):
+    """A node giving the ground's albedo colour: the pattern's texture where it covers the
+    ground, its mean colour elsewhere, or the grey albedo without a pattern."""
+    g = fr["ground"]
+    q = g.get("pattern")
+    if q is None:
+        rgb = nt.nodes.new("ShaderNodeRGB")
+        rgb.outputs[0].default_value = (g["albedo"], g["albedo"], g["albedo"], 1.0)
+        return rgb.outputs[0]
+    n = PATTERN_TEXELS * PATTERN_CELLS
+    size = PATTERN_CELLS * q["cell_m"]
+    cx, cy = fr["camera"]["position"][0], fr["camera"]["position"][1]
+    x0 = (math.floor(cx / q["cell_m"]) - PATTERN_CELLS // 2) * q["cell_m"]
+    y0 = (math.floor(cy / q["cell_m"]) - PATTERN_CELLS // 2) * q["cell_m"]
+    t = (np.arange(n) + 0.5) * (size / n)
+    X, Y = np.meshgrid(x0 + t, y0 + t)  # rows: y (Blender's images are stored bottom row first)
+    alb = pattern_albedo(g, X, Y)
+    img = bpy.data.images.new("ground_albedo", n, n, alpha=True, float_buffer=True)
+    img.colorspace_settings.name = "Non-Color"  # albedo values, not a picture
+    px = np.ones((n, n, 4), dtype=np.float32)
+    px[..., :3] = alb
+    img.pixels.foreach_set(px.ravel())
+    img.pack()
+    coord = nt.nodes.new("ShaderNodeTexCoord")
+    mapping = nt.nodes.new("ShaderNodeMapping")  # object (= world) metres -> the image's [0, 1]^2
+    mapping.vector_type = "POINT"
+    mapping.inputs["Location"].default_value = (-x0 / size, -y0 / size, 0.0)
+    mapping.inputs["Scale"].default_value = (1.0 / size, 1.0 / size, 1.0)
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    tex.interpolation = "Linear"
+    tex.extension = "CLIP"  # transparent outside: the mean below
+    nt.links.new(coord.outputs["Object"], mapping.inputs["Vector"])
+    nt.links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
+    mean = nt.nodes.new("ShaderNodeRGB")
+    m = [g["albedo"] * (q["low"] + 0.5 * q["span"]) * c for c in q["tint_rgb"]]
+    mean.outputs[0].default_value = (m[0], m[1], m[2], 1.0)
+    mix = nt.nodes.new("ShaderNodeMixRGB")
+    nt.links.new(tex.outputs["Alpha"], mix.inputs["Fac"])
+    nt.links.new(mean.outputs[0], mix.inputs["Color1"])
+    nt.links.new(tex.outputs["Color"], mix.inputs["Color2"])
+    return mix.outputs["Color"]
+
+
+def add_haze(nt, fr, surface):
+    """Fulgur's aerial perspective on the ground: seen by the camera at a distance t, its
+    radiance mixed toward the sky's horizon radiance (black when the sky is not drawn) by
+    1 - exp(-t / haze_m) (background.glsl's ground_haze). t is the camera ray's length (Light
+    Path); rays that scattered do not see the ground (lights_cloud false), so only camera rays
+    are hazed."""
+    g, sky = fr["ground"], fr["sky"]
+    h = sky["horizon_rgb"] if sky is not None and sky["visible"] else [0.0, 0.0, 0.0]
+    path = nt.nodes.new("ShaderNodeLightPath")
+
+    def math_node(op, a, b):
+        n = nt.nodes.new("ShaderNodeMath")
+        n.operation = op
+        for k, v in enumerate((a, b)):
+            if isinstance(v, float):
+                n.inputs[k].default_value = v
+            else:
+                nt.links.new(v, n.inputs[k])
+        return n.outputs[0]
+
+    # 1 - exp(-t / haze_m), on camera rays only
+    e = math_node("EXPONENT", math_node("MULTIPLY", path.outputs["Ray Length"], -1.0 / g["haze_m"]), 0.0)
+    fac = math_node("MULTIPLY", math_node("SUBTRACT", 1.0, e), path.outputs["Is Camera Ray"])
+    emit = nt.nodes.new("ShaderNodeEmission")  # radiance = Color x Strength
+    emit.inputs["Color"].default_value = (h[0], h[1], h[2], 1.0)
+    emit.inputs["Strength"].default_value = 1.0
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(fac, mix.inputs["Fac"])
+    nt.links.new(surface, mix.inputs[1])
+    nt.links.new(emit.outputs["Emission"], mix.inputs[2])
+    return mix.outputs["Shader"]
+
+
 def add_ground(scene, fr):
     g = fr["ground"]
     h = 0.5 * GROUND_SIZE_M
@@ -800,12 +929,14 @@ def add_ground(scene, fr):
     nt = mat.node_tree
     nt.nodes.clear()
     bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    a = g["albedo"]
-    bsdf.inputs["Color"].default_value = (a, a, a, 1.0)   # Lambertian, grey albedo
-    bsdf.inputs["Roughness"].default_value = 0.0         # 0 = Lambert (not Oren-Nayar)
+    nt.links.new(ground_albedo_node(nt, fr), bsdf.inputs["Color"])  # Lambertian, Fulgur's pattern
+    bsdf.inputs["Roughness"].default_value = 0.0  # 0 = Lambert (not Oren-Nayar)
     out = nt.nodes.new("ShaderNodeOutputMaterial")
     out.target = "CYCLES"
-    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    surface = bsdf.outputs["BSDF"]
+    if g.get("haze_m"):
+        surface = add_haze(nt, fr, surface)
+    nt.links.new(surface, out.inputs["Surface"])
     mesh.materials.append(mat)
     ob = bpy.data.objects.new("ground", mesh)
     scene.collection.objects.link(ob)

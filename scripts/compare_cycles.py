@@ -31,8 +31,9 @@ Regions (Fulgur's transmittance T of each pixel's ray, and its channel pass):
   rest         the other cloud pixels
   background   T >= 0.98: sky and ground seen past at most 2% extinction
   ground       (with the exported frame.json: `run`, `rain`, `compare --frame`) background pixels
-               whose ray meets the ground within Fulgur's haze 0.5 (~28 km); `ground_dehazed_*`
-               compares them with that haze taken out (the Blender scene has none)
+               whose ray meets the ground within Fulgur's haze 0.5 (~28 km); for frames exported
+               without the haze (no ground.haze_m: Cycles drew none) `ground_dehazed_*` compares
+               them with Fulgur's haze taken out
 The rain (`rain`): over the pixels whose ray meets rain and no cloud (Fulgur's T < 0.98 with the
 rain, > 0.999 without), each renderer's wet pixel less its dry pixel times Fulgur's T (the rain's
 own light, less its shadow on what lies behind it), Fulgur against Cycles' (its dry frame the mean
@@ -132,7 +133,8 @@ def region_figures(f, c, a, b, mask):
 
 # The haze Fulgur lays over its ground (shaders/background.glsl, ground_haze and haze_colour): the
 # ground's radiance mixed toward the sky's horizon radiance (none with the sky off) by
-# 1 - exp(-t / 40 km), t the ray's distance to the ground. The Blender scene has no haze.
+# 1 - exp(-t / 40 km), t the ray's distance to the ground. Frames exported before frame.json
+# carried it (ground.haze_m) rendered in Blender without it.
 HAZE_DISTANCE_M = 40000.0
 
 
@@ -154,9 +156,9 @@ def pixel_rays(fulgur_exr, width, height):
 
 
 def ground_figures(fulgur_exr, frame_json, f, c, a, b, t):
-    """The ground seen past the cloud (T >= 0.98, rays down), as drawn and with Fulgur's haze
-    taken out (f less T h H, over 1 - h), where the haze h is at most 0.5 (within ~28 km: farther
-    the division amplifies everything): `ground_*` and `ground_dehazed_*`."""
+    """The ground seen past the cloud (T >= 0.98, rays down) where Fulgur's haze h is at most 0.5
+    (within ~28 km), as drawn (`ground_*`), and for a frame whose Blender scene has no haze (no
+    ground.haze_m) also with Fulgur's haze taken out (f less T h H, over 1 - h: `ground_dehazed_*`)."""
     frame = json.loads(pathlib.Path(frame_json).read_text())
     pos, d = pixel_rays(fulgur_exr, f.shape[1], f.shape[0])
     height = frame["ground"]["height"]
@@ -168,7 +170,8 @@ def ground_figures(fulgur_exr, frame_json, f, c, a, b, t):
     ground = down & (t >= 0.98) & (h <= 0.5)
     dehazed = (f - (t * h)[..., None] * horizon) / (1 - np.minimum(h, 0.5))[..., None]
     out = {f"ground_{k}": v for k, v in region_figures(f, c, a, b, ground).items()}
-    out.update({f"ground_dehazed_{k}": v for k, v in region_figures(dehazed, c, a, b, ground).items()})
+    if "haze_m" not in frame["ground"]:
+        out.update({f"ground_dehazed_{k}": v for k, v in region_figures(dehazed, c, a, b, ground).items()})
     return out
 
 

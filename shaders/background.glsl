@@ -151,18 +151,20 @@ vec3 ground_static_irradiance(vec3 p, vec3 E) {
 
 // The ground's reflectance at p: Lambertian, with a mild, low-frequency variation (fields,
 // forest) so the plane reads as ground; divided by pi.
+// The GROUND_* constants are render::GroundLook's (render.h), defined by the renderer.
 vec3 ground_albedo(vec3 p) {
-    vec2 g = p.xy / 1500.0;
+    vec2 g = p.xy / GROUND_CELL_M;
     vec2 gi = floor(g), gf = fract(g);
     gf = gf * gf * (3.0 - 2.0 * gf);
-    float n00 = hash_unit(hash_u32(uvec3(ivec3(gi, 7)))), n10 = hash_unit(hash_u32(uvec3(ivec3(gi + vec2(1, 0), 7))));
-    float n01 = hash_unit(hash_u32(uvec3(ivec3(gi + vec2(0, 1), 7)))), n11 = hash_unit(hash_u32(uvec3(ivec3(gi + vec2(1, 1), 7))));
+    const int s = int(GROUND_SEED);
+    float n00 = hash_unit(hash_u32(uvec3(ivec3(gi, s)))), n10 = hash_unit(hash_u32(uvec3(ivec3(gi + vec2(1, 0), s))));
+    float n01 = hash_unit(hash_u32(uvec3(ivec3(gi + vec2(0, 1), s)))), n11 = hash_unit(hash_u32(uvec3(ivec3(gi + vec2(1, 1), s))));
     float variation = mix(mix(n00, n10, gf.x), mix(n01, n11, gf.x), gf.y);
-    return ground_params.y * (0.85 + 0.3 * variation) * vec3(0.9, 1.0, 0.85);
+    return ground_params.y * (GROUND_LOW + GROUND_SPAN * variation) * GROUND_TINT;
 }
 
 // Haze toward the horizon over a ground distance t (aerial perspective toward the horizon colour).
-float ground_haze(float t) { return 1.0 - exp(-t / 40000.0); }
+float ground_haze(float t) { return 1.0 - exp(-t / GROUND_HAZE_M); }
 vec3 haze_colour(vec3 d) { return sky_params.z > 0.5 ? sky_gradient(vec3(d.xy, 0.0)) : vec3(0.0); }
 
 // Ground: Lambertian, lit by the channel, the sun and the sky; hazy with distance.

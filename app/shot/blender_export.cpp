@@ -125,9 +125,19 @@ void write_blender_export(const std::filesystem::path& dir, const view::StormVie
         j["sky"] = nullptr;
     // Fulgur's cloud is not lit by the ground (the sky light stops at the horizon), so the
     // ground is drawn but lights nothing in Blender either.
-    if (st.ground)
-        j["ground"] = {{"height", st.ground_height}, {"albedo", st.ground_albedo}, {"lights_cloud", false}};
-    else
+    if (st.ground) {
+        using G = render::GroundLook;
+        j["ground"] = {{"height", st.ground_height},
+                       {"albedo", st.ground_albedo},
+                       {"pattern",
+                        {{"cell_m", G::cell_m},
+                         {"seed", G::seed},
+                         {"low", G::low},
+                         {"span", G::span},
+                         {"tint_rgb", {G::tint_rgb[0], G::tint_rgb[1], G::tint_rgb[2]}}}},
+                       {"haze_m", G::haze_m},
+                       {"lights_cloud", false}};
+    } else
         j["ground"] = nullptr;
     core::write_file(dir / "frame.json", j.dump(1) + "\n");
 }

@@ -207,6 +207,22 @@ enum class TemporalStep {
 enum class Timing { Off, Finish, Queries };
 
 /// Frame settings. Every accuracy/time knob is here with its default.
+/// The ground's look (background.glsl's ground_albedo and ground_haze), one set of constants
+/// for the shaders (written into each as GROUND_* defines) and for a frame exported to another
+/// renderer (fulgur-shot --blender). At a ground point (x, y) the albedo is
+///   Settings::ground_albedo x (low + span v(x / cell_m, y / cell_m)) x tint_rgb,
+/// v the value noise of the cell corners' hashes (hash_unit(hash_u32(uvec3(i, j, seed))),
+/// common.glsl) blended by smoothstep: fields 1.5 km across, mean 1 x tint. Seen from the
+/// camera at a distance t the ground's radiance is mixed toward the sky's horizon radiance
+/// (black with the sky off) by 1 - exp(-t / haze_m): aerial perspective.
+struct GroundLook {
+    static constexpr double cell_m = 1500.0;
+    static constexpr unsigned seed = 7;
+    static constexpr double low = 0.85, span = 0.3;
+    static constexpr std::array<double, 3> tint_rgb{0.9, 1.0, 0.85};
+    static constexpr double haze_m = 40000.0;
+};
+
 struct Settings {
     // Image
     /// Automatic exposure (docs/render.md "Exposure"): each frame meters its ray march and
@@ -270,7 +286,7 @@ struct Settings {
     bool rain = true;
     // Scene constants
     double ground_height = 0.0;  ///< z of the ground plane (m)
-    double ground_albedo = 0.1;  ///< Lambertian reflectance of the ground (wet fields at night)
+    double ground_albedo = 0.1;  ///< mean Lambertian reflectance of the ground (wet fields at night; GroundLook)
     /// Colour of the flash (luminance ~1; bluish white: lightning's spectrum is dominated
     /// by nitrogen and hydrogen lines) applied to S, the bolt, the glow and the ground light.
     glm::dvec3 flash_colour{0.93, 0.97, 1.25};

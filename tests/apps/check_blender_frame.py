@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """scripts/blender_scene.py on an exported frame with rain (fulgur-shot --blender): it renders
 (a tiny image, one sample: the rain's medium is built beside the cloud's), and refuses a
-frame.json whose rain is malformed with exit status 1 and a message naming the field.
+frame.json whose rain or ground is malformed with exit status 1 and a message naming the field.
 Usage: check_blender_frame.py BLENDER SCRIPT DIR (DIR: an export whose frame has rain)"""
 import json
 import os
@@ -38,7 +38,12 @@ def main(blender, script, src):
                ("rain.dims", lambda j: j["rain"].update(dims=[4, 4])),
                ("rain.file", lambda j: j["rain"].update(file="missing.vdb")),
                ("rain.grid", lambda j: j["rain"].update(grid="not_there")),
-               ("rain", lambda j: j.update(medium=None))]
+               ("rain", lambda j: j.update(medium=None)),
+               ("ground.pattern.cell_m", lambda j: j["ground"]["pattern"].update(cell_m=0)),
+               ("ground.pattern.seed", lambda j: j["ground"]["pattern"].update(seed=-3)),
+               ("ground.pattern.tint_rgb", lambda j: j["ground"]["pattern"].update(tint_rgb=[1, 2])),
+               ("ground.pattern", lambda j: j["ground"]["pattern"].update(tint_rgb=[20, 20, 20])),
+               ("ground.haze_m", lambda j: j["ground"].update(haze_m=-1))]
         for field, spoil in bad:
             d = os.path.join(tmp, field.replace(".", "_"))
             shutil.copytree(src, d)
@@ -50,8 +55,8 @@ def main(blender, script, src):
             assert r.returncode == 1, "%s: exit status %d, expected 1" % (field, r.returncode)
             assert "'%s" % field in r.stderr or "field '%s" % field in r.stderr, \
                 "%s: the message does not name it:\n%s" % (field, r.stderr[-1000:])
-        print("blender_scene.py: the frame with rain renders; %d malformed rain entries refused, each named"
-              % len(bad))
+        print("blender_scene.py: the frame with rain renders; %d malformed rain and ground entries refused, each "
+              "named" % len(bad))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

@@ -128,9 +128,22 @@ struct Renderer::Impl {
     GLuint program(const std::string& key, const std::vector<detail::Stage>& stages, const std::string& defines = {}) {
         const std::string full = key + "|" + defines;
         if (auto it = programs.find(full); it != programs.end()) return it->second;
-        const GLuint p = detail::build_program(shader_dir, stages, defines);
+        const GLuint p = detail::build_program(shader_dir, stages, ground_pattern_defines() + defines);
         programs[full] = p;
         return p;
+    }
+
+    /// GroundLook's constants for background.glsl, in every program.
+    static std::string ground_pattern_defines() {
+        using G = GroundLook;
+        const auto num = [](double v) {  // a float literal, whole numbers included
+            const std::string t = core::format_number(v, 9);
+            return t.find_first_of(".e") == std::string::npos ? t + ".0" : t;
+        };
+        return "#define GROUND_CELL_M " + num(G::cell_m) + "\n#define GROUND_SEED " + std::to_string(G::seed) + "u" +
+               "\n#define GROUND_LOW " + num(G::low) + "\n#define GROUND_SPAN " + num(G::span) +
+               "\n#define GROUND_TINT vec3(" + num(G::tint_rgb[0]) + ", " + num(G::tint_rgb[1]) + ", " +
+               num(G::tint_rgb[2]) + ")\n#define GROUND_HAZE_M " + num(G::haze_m) + "\n";
     }
 
     static std::string march_defines(bool skip, bool early, bool source, bool emission, bool statics = false,
