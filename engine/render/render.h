@@ -206,7 +206,6 @@ enum class TemporalStep {
 };
 enum class Timing { Off, Finish, Queries };
 
-/// Frame settings. Every accuracy/time knob is here with its default.
 /// The ground's look (background.glsl's ground_albedo and ground_haze), one set of constants
 /// for the shaders (written into each as GROUND_* defines) and for a frame exported to another
 /// renderer (fulgur-shot --blender). At a ground point (x, y) the albedo is
@@ -223,6 +222,7 @@ struct GroundLook {
     static constexpr double haze_m = 40000.0;
 };
 
+/// Frame settings. Every accuracy/time knob is here with its default.
 struct Settings {
     // Image
     /// Automatic exposure (docs/render.md "Exposure"): each frame meters its ray march and

@@ -284,26 +284,35 @@ core::Grid3<float> density_with_rain(const core::Grid3<float>& density, const cl
     return out;
 }
 
-// The drops' phase function in S (transport::PhaseMix): on the grid coarser than the density
-// by `factor`, the rain's part of each cell's scattering coefficient, albedo x extinction of
-// the rain against the cloud's own (not the similarity density the transport sees).
-std::shared_ptr<const transport::PhaseMix> rain_phase_mix(const scene::Scene& s, const core::Grid3<float>& density,
-                                                          const cloud::RainField& rain, int factor) {
-    core::Grid3<float> cloud_s(density.geom, 0.0f), rain_s(density.geom, 0.0f);
-    for (std::size_t i = 0; i < density.data.size(); ++i) {
-        cloud_s.data[i] = float(s.medium.albedo * s.medium.extinction * double(density.data[i]));
-        rain_s.data[i] = float(s.rain->albedo * double(rain.extinction.data[i]));
+// The drops' phase function in S (transport::PhaseMix): the rain's part of each cell's
+// scattering coefficient, albedo x extinction of the rain against the cloud's own (not the
+// similarity density the transport sees), on grids coarser than the density.
+class RainPhaseMix {
+public:
+    RainPhaseMix(const scene::Scene& s, const core::Grid3<float>& density, const cloud::RainField& rain)
+        : g_(s.rain->g), cloud_(density.geom, 0.0f), rain_(density.geom, 0.0f) {
+        for (std::size_t i = 0; i < density.data.size(); ++i) {
+            cloud_.data[i] = float(s.medium.albedo * s.medium.extinction * double(density.data[i]));
+            rain_.data[i] = float(s.rain->albedo * double(rain.extinction.data[i]));
+        }
     }
-    auto mix = std::make_shared<transport::PhaseMix>();
-    mix->g = s.rain->g;
-    const core::Grid3<float> c = factor > 1 ? core::downsample(cloud_s, factor) : cloud_s;
-    mix->share = factor > 1 ? core::downsample(rain_s, factor) : std::move(rain_s);
-    for (std::size_t i = 0; i < mix->share.data.size(); ++i) {
-        const double r = double(mix->share.data[i]), sum = r + double(c.data[i]);
-        mix->share.data[i] = sum > 0.0 ? float(std::min(1.0, r / sum)) : 0.0f;
+    /// The mix on the grid coarser than the density by `factor`.
+    std::shared_ptr<const transport::PhaseMix> on(int factor) const {
+        auto mix = std::make_shared<transport::PhaseMix>();
+        mix->g = g_;
+        const core::Grid3<float> c = factor > 1 ? core::downsample(cloud_, factor) : cloud_;
+        mix->share = factor > 1 ? core::downsample(rain_, factor) : rain_;
+        for (std::size_t i = 0; i < mix->share.data.size(); ++i) {
+            const double r = double(mix->share.data[i]), sum = r + double(c.data[i]);
+            mix->share.data[i] = sum > 0.0 ? float(std::min(1.0, r / sum)) : 0.0f;
+        }
+        return mix;
     }
-    return mix;
-}
+
+private:
+    double g_;
+    core::Grid3<float> cloud_, rain_;  // scattering coefficients per density voxel (1/m)
+};
 
 }  // namespace
 
@@ -322,9 +331,9 @@ solve::Media make_static_media(const scene::Scene& s, const core::Grid3<float>& 
     scene::Scene raised = s;
     raised.medium.extinction = s.medium.extinction * peak;
     solve::Media m = solve::make_media(raised, density_with_rain(density, *rain, per_extinction, peak), refine, full);
-    m.transport.phase_mix = rain_phase_mix(s, density, *rain, s.lighting_downsample / refine);
-    m.lighting.phase_mix =
-        refine == 1 ? m.transport.phase_mix : rain_phase_mix(s, density, *rain, s.lighting_downsample);
+    const RainPhaseMix mix(s, density, *rain);
+    m.transport.phase_mix = mix.on(s.lighting_downsample / refine);
+    m.lighting.phase_mix = refine == 1 ? m.transport.phase_mix : mix.on(s.lighting_downsample);
     return m;
 }
 

@@ -1,6 +1,7 @@
 // Lattice-Boltzmann driver: builds the lattice problem from the physical medium and the
 // light sources, steps a kernel to steady state and converts densities to radiance units.
 #include "transport/detail/lb_solver.h"
+#include "transport/detail/kernels.h"
 
 #include <glm/geometric.hpp>
 
@@ -512,7 +513,7 @@ void read_out(const Arriving& arriving, const Problem& p, const LightingMedium& 
             if (share > 0.0) {
                 double s2 = 0.0;
                 for (int q = 1; q < kQ; ++q) s2 += mix_phase[m][std::size_t(q)] * T[q];
-                s += share * (s2 - s);
+                s = transport::detail::mixed_phase(s, s2, share);
             }
             res.source.data[m * n + i] = float(p.albedo * s * inv_V);
         }

@@ -335,7 +335,7 @@ private:
         if (toward_on_)
             a[0] += c * toward_phase(tally_cell, share);
         else if (share > 0.0)
-            for (std::size_t m = 0; m < M_; ++m) a[m] += c * (p_[m] + share * (p2_[m] - p_[m]));
+            for (std::size_t m = 0; m < M_; ++m) a[m] += c * mixed_phase(p_[m], p2_[m], share);
         else
             for (std::size_t m = 0; m < M_; ++m) a[m] += c * p_[m];
         // Fluence (no phase): of the uncollided light, and of the second order when its
@@ -358,7 +358,7 @@ private:
         const glm::dvec3 u = w / len;
         const double cos_theta = u.x * d_.x + u.y * d_.y + u.z * d_.z;
         const double p = hg_(cos_theta);
-        return share > 0.0 ? p + share * (hg2_(cos_theta) - p) : p;
+        return share > 0.0 ? mixed_phase(p, hg2_(cos_theta), share) : p;
     }
     /// w * (weighted) length on the tally grid over [t0, t1], outside the medium (empty:
     /// weight 1, and nothing into cloud cells when weighting by extinction).

@@ -128,13 +128,13 @@ struct Renderer::Impl {
     GLuint program(const std::string& key, const std::vector<detail::Stage>& stages, const std::string& defines = {}) {
         const std::string full = key + "|" + defines;
         if (auto it = programs.find(full); it != programs.end()) return it->second;
-        const GLuint p = detail::build_program(shader_dir, stages, ground_pattern_defines() + defines);
+        const GLuint p = detail::build_program(shader_dir, stages, ground_look_defines() + defines);
         programs[full] = p;
         return p;
     }
 
     /// GroundLook's constants for background.glsl, in every program.
-    static std::string ground_pattern_defines() {
+    static std::string ground_look_defines() {
         using G = GroundLook;
         const auto num = [](double v) {  // a float literal, whole numbers included
             const std::string t = core::format_number(v, 9);

@@ -47,6 +47,10 @@ struct HgConstants {
     }
 };
 
+/// A phase function mixed with a second one by the second's share (PhaseMix): p + share (p2 - p).
+/// Every solver's read-out mixes by this one rule.
+inline double mixed_phase(double p, double p2, double share) noexcept { return p + share * (p2 - p); }
+
 /// Integral of exp(-sigma t) for t in [0, len]: (1 - e^{-sigma len}) / sigma, written with
 /// expm1 (no cancellation for small sigma*len) and exactly len for sigma = 0.
 inline double chord_integral(double sigma, double len) noexcept {

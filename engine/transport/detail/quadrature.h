@@ -86,7 +86,7 @@ private:
     void flush() {
         for (std::size_t m = 0; m < dirs_.size(); ++m) {
             const double s = phase_sum(hg_, dirs_[m]);
-            acc_[m] += share_ > 0.0 ? s + share_ * (phase_sum(hg2_, dirs_[m]) - s) : s;
+            acc_[m] += share_ > 0.0 ? mixed_phase(s, phase_sum(hg2_, dirs_[m]), share_) : s;
         }
         n_ = 0;
     }
