@@ -133,14 +133,18 @@ def region_figures(f, c, a, b, mask):
 
 # The haze Fulgur lays over its ground (shaders/background.glsl, ground_haze and haze_colour): the
 # ground's radiance mixed toward the sky's horizon radiance (none with the sky off) by
-# 1 - exp(-t / 40 km), t the ray's distance to the ground. Frames exported before frame.json
-# carried it (ground.haze_m) rendered in Blender without it.
+# 1 - exp(-t / haze_m), t the ray's distance to the ground. Frames exported before frame.json
+# carried haze_m rendered in Blender without it; for them, the distance it had then.
 HAZE_DISTANCE_M = 40000.0
 
 
 def pixel_rays(fulgur_exr, width, height):
     """The camera's position and each pixel centre's unit ray from the EXR's header."""
-    spec = oiio.ImageInput.open(str(fulgur_exr)).spec()
+    inp = oiio.ImageInput.open(str(fulgur_exr))
+    if inp is None:
+        raise SystemExit(f"{fulgur_exr}: cannot open: {oiio.geterror()}")
+    spec = inp.spec()
+    inp.close()
     pos = np.array(spec.getattribute("cameraPosition"), dtype=np.float64)
     target = np.array(spec.getattribute("cameraTarget"), dtype=np.float64)
     up = np.array(spec.getattribute("cameraUp"), dtype=np.float64)
@@ -164,13 +168,14 @@ def ground_figures(fulgur_exr, frame_json, f, c, a, b, t):
     height = frame["ground"]["height"]
     down = d[..., 2] < 0
     dist = np.where(down, (height - pos[2]) / np.where(down, d[..., 2], -1.0), np.inf)
-    h = 1 - np.exp(-dist / HAZE_DISTANCE_M)
-    sky = frame.get("sky") or {}
-    horizon = np.array(sky["horizon_rgb"]) if sky.get("visible") else np.zeros(3)
+    hazed_in_blender = "haze_m" in frame["ground"]
+    h = 1 - np.exp(-dist / frame["ground"].get("haze_m", HAZE_DISTANCE_M))
     ground = down & (t >= 0.98) & (h <= 0.5)
-    dehazed = (f - (t * h)[..., None] * horizon) / (1 - np.minimum(h, 0.5))[..., None]
     out = {f"ground_{k}": v for k, v in region_figures(f, c, a, b, ground).items()}
-    if "haze_m" not in frame["ground"]:
+    if not hazed_in_blender:
+        sky = frame.get("sky") or {}
+        horizon = np.array(sky["horizon_rgb"]) if sky.get("visible") else np.zeros(3)
+        dehazed = (f - (t * h)[..., None] * horizon) / (1 - np.minimum(h, 0.5))[..., None]
         out.update({f"ground_dehazed_{k}": v for k, v in region_figures(dehazed, c, a, b, ground).items()})
     return out
 
