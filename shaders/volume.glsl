@@ -250,9 +250,10 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #if HAS_STATIC
             // The static light solved with the rain in its media: S at the rain's points holds
             // the light of every order the cloud and the rain scatter there, the sky's own
-            // included; the sun's first scattering is drawn at full resolution with the drops'
-            // phase function (rain_sun). S is read once for the cloud and the rain (below), the
-            // rain's share per unit albedo.
+            // included, read out with the drops' phase function by the cell's share of rain
+            // (transport::PhaseMix); the sun's first scattering is drawn at full resolution with
+            // the drops' phase function (rain_sun). S is read once for the cloud and the rain
+            // (below), the rain's share per unit albedo.
             ws += (1.0 - wc) * rain_params.w * rain_lights.y;
 #endif
         }
