@@ -72,10 +72,15 @@ layout(binding = 7) uniform sampler3D u_sun_t;
 
 // Transmittance from p toward the sun: outside the cloud's box nothing absorbs, so it is the
 // full-resolution transmittance where the ray to the sun enters the box (1 if it misses it).
+// It is read where the ray reaches the box of the voxels' centres, which hold the
+// transmittance: at the box's face the texture would clamp to the first layer of centres
+// straight above (or beside) the entry point, moving the shadow toward the sun by half a voxel
+// over the tangent of the sun's elevation. The half voxel between the face and the centres
+// holds the outer layer's density, which no cloud away from the box's faces has.
 float sun_visibility(vec3 p) {
     if (sun_params.y < 0.5 || vol_size.w <= 0.0) return 1.0;
     vec3 to_sun = -sun_dir.xyz;
-    vec3 lo = vol_min.xyz, hi = vol_min.xyz + vol_size.xyz;
+    vec3 lo = vol_min.xyz + 0.5 * vol_size.w, hi = vol_min.xyz + vol_size.xyz - 0.5 * vol_size.w;
     vec3 inv = 1.0 / vec3(abs(to_sun.x) < 1e-9 ? 1e-9 : to_sun.x, abs(to_sun.y) < 1e-9 ? 1e-9 : to_sun.y,
                           abs(to_sun.z) < 1e-9 ? 1e-9 : to_sun.z);
     vec3 ta = (lo - p) * inv, tb = (hi - p) * inv;
