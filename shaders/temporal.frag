@@ -20,7 +20,7 @@
 #define STRIDE 2
 #endif
 // REPROJECT_LIGHT (STRIDE 2): 1 the flash's and the channel's groups reprojected through their
-// light depths; 0 upsampled from this frame's marched pixels (Settings::temporal_reproject_light).
+// light depths; 0 upsampled from this frame's marched pixels (Settings::temporal_light).
 #ifndef REPROJECT_LIGHT
 #define REPROJECT_LIGHT 1
 #endif

@@ -167,12 +167,14 @@ void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& r
             "the march's light kept per group and rescaled by the flash's intensity: a still camera "
             "marches nothing while the flash only dims, a moving one a quarter of the pixels");
     if (opt.settings.temporal) {
-        ImGui::SameLine();
-        ImGui::Checkbox("reproject light", &opt.settings.temporal_reproject_light);
+        int mode = int(opt.settings.temporal_light);
+        if (ImGui::Combo("moving camera's light", &mode, "auto\0reproject\0upsample\0"))
+            opt.settings.temporal_light = render::TemporalLight(mode);
         if (ImGui::IsItemHovered())
             ImGui::SetTooltip(
-                "a moving camera's flash and channel light: reprojected from the history (off: upsampled from "
-                "the marched quarter, nearer a fresh render at 1280x720 and above, farther below)");
+                "a moving camera's flash and channel light in the pixels not marched: reprojected from the "
+                "history, or upsampled from the marched quarter (nearer a fresh render where the marched pixels "
+                "are close together: 1280x720 and above); auto picks by their spacing on screen");
     }
 }
 

@@ -124,7 +124,7 @@ detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const S
     const bool blocks = u.internal_width >= 2 && u.internal_height >= 2;
     plan.stride = !valid ? 1 : still ? (h.unsettled > 0 ? 3 : 0) : blocks ? 2 : 1;
     plan.phase = plan.stride >= 2 ? kPhases[h.frames % 4] : glm::ivec2(0);
-    plan.reproject_light = st.temporal_reproject_light;
+    plan.reproject_light = !temporal_upsamples_light(st.temporal_light, camera.vertical_fov_deg, u.internal_height);
     return plan;
 }
 

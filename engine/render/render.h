@@ -197,6 +197,32 @@ struct HostFrame {
 Camera camera_from_matrices(const glm::dmat4& view, const glm::dmat4& projection, double aspect);
 
 enum class MarchKernel { Fragment, Compute };
+
+/// How the temporal history fills the flash's and the channel's light of the pixels a moving
+/// camera does not march (Settings::temporal_light). Against a fresh render of each frame,
+/// orbiting the synthetic storm with a 55 degree field (docs/render.md, "Temporal history"):
+/// upsampled is the more accurate where the marched pixels are close together on screen (at
+/// 1280x720, every other internal pixel 0.31 degrees apart: 2.3% / 9.4% against 3.9% / 12.8%,
+/// plain / detail and rain, and ~3 ms cheaper), reprojected where they are far apart (at
+/// 640x360, 0.61 degrees: 4.5% / 12.2% against 7.3% / 16.4%).
+enum class TemporalLight {
+    Auto,       ///< Upsample when the marched pixels are at most kTemporalUpsampleDeg apart, else Reproject
+    Reproject,  ///< from the history, through their light's depth (where the history saw that light)
+    Upsample,   ///< bilinearly from this frame's marched pixels
+};
+
+/// The marched pixels' spacing (degrees, vertically) at or below which TemporalLight::Auto
+/// upsamples: between the two measured sizes, 0.31 (upsampling better) and 0.61 (reprojecting
+/// better) degrees, at their geometric mean.
+inline constexpr double kTemporalUpsampleDeg = 0.44;
+
+/// Whether a moving camera's frame upsamples the light groups (true) or reprojects them:
+/// `mode`, and for Auto the spacing of the marched pixels, every other pixel of a march
+/// `march_height` pixels high over `vertical_fov_deg`.
+constexpr bool temporal_upsamples_light(TemporalLight mode, double vertical_fov_deg, int march_height) {
+    if (mode != TemporalLight::Auto) return mode == TemporalLight::Upsample;
+    return march_height > 0 && 2.0 * vertical_fov_deg / double(march_height) <= kTemporalUpsampleDeg;
+}
 /// What the temporal history did in a frame (Settings::temporal).
 enum class TemporalStep {
     Off,      ///< no history: the march as without it
@@ -255,14 +281,9 @@ struct Settings {
     /// group's shape (a leader's front, another strike, the static light, any other input or
     /// setting) marches every pixel. The fragment kernel; not with render_into_host.
     bool temporal = false;
-    /// With the temporal history and a moving camera: the flash's and the channel's light of
-    /// the pixels not marched reprojected from the history through their light's depth (true),
-    /// or upsampled from this frame's marched pixels (false; the cloud's group is reprojected
-    /// either way). Against a fresh render of each frame, orbiting: upsampled is the more
-    /// accurate at 1280x720 and above (2.3% / 9.4% against 3.9% / 12.8% at 1280x720, plain /
-    /// detail and rain) and ~10 ms cheaper there, the less accurate at 640x360 and below (7.3% /
-    /// 16.4% against 4.5% / 12.2%) (docs/render.md, "Temporal history").
-    bool temporal_reproject_light = true;
+    /// With the temporal history and a moving camera: how the flash's and the channel's light
+    /// of the pixels not marched is filled (the cloud's group is reprojected either way).
+    TemporalLight temporal_light = TemporalLight::Auto;
     std::uint32_t frame_index = 0;  ///< varies the jitter pattern between frames (deterministic)
     // Effects
     bool sky = true;

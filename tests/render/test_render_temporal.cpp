@@ -222,13 +222,13 @@ TEST_CASE("temporal history: a moving camera marches a quarter and stays near a 
     CHECK(worst < 0.09);
 
     // The same orbit with the light groups upsampled from the marched pixels instead of
-    // reprojected (Settings::temporal_reproject_light false): at this size the marched quarter
+    // reprojected (TemporalLight::Upsample; Auto reprojects here): at this size the marched quarter
     // (80x45) is too sparse for the channel's light, measured 15.6% mean, 19.6% worst (at the
     // demo's 1280x720 it is the more accurate: render.md); bounded so that a broken resolve
     // (garbage or a missing group, tens of percent and more) fails.
     {
         render::Settings up = st;
-        up.temporal_reproject_light = false;
+        up.temporal_light = render::TemporalLight::Upsample;
         double up_sum = 0.0, up_worst = 0.0;
         int up_quarter = 0;
         for (int i = 0; i < frames; ++i) {
@@ -246,6 +246,39 @@ TEST_CASE("temporal history: a moving camera marches a quarter and stays near a 
         MESSAGE("the same orbit, the light upsampled: mean ", up_sum / up_quarter, ", worst ", up_worst);
         CHECK(up_sum / up_quarter < 0.2);
         CHECK(up_worst < 0.25);
+    }
+
+    // TemporalLight::Auto is the mode its rule names, pixel for pixel: the second frame of an
+    // orbit (its first quarter) under Auto against the same frame under each explicit mode, at
+    // this test's 55 degrees (marched pixels 1.2 degrees apart: reprojected) and at 19 degrees
+    // (0.42: upsampled). Each sequence starts from full marches (a changed step restarts it).
+    for (const double fov : {55.0, 19.0}) {
+        CAPTURE(fov);
+        const auto quarter_frame = [&](render::TemporalLight mode) {
+            render::Settings s = st;
+            s.temporal = true;
+            s.temporal_light = mode;
+            s.frame_index = 7;
+            // Four frames a sequence: the quarter's phase follows the history's frame count.
+            for (const double step : {0.99, 0.98, st.step_voxels}) {
+                s.step_voxels = step;
+                CHECK(render_at(r, render::Camera::orbit(target, distance, -60.0, 8.0, fov), s, W, H).temporal ==
+                      render::TemporalStep::Full);
+            }
+            s.frame_index = 8;
+            CHECK(render_at(r, render::Camera::orbit(target, distance, -59.0, 8.0, fov), s, W, H).temporal ==
+                  render::TemporalStep::Quarter);
+            int w = 0, h = 0;
+            return r.read_march(w, h);
+        };
+        show_flash(r, storm, all, {.g = 1.0});
+        const std::vector<float> automatic = quarter_frame(render::TemporalLight::Auto);
+        const std::vector<float> reprojected = quarter_frame(render::TemporalLight::Reproject);
+        const std::vector<float> upsampled = quarter_frame(render::TemporalLight::Upsample);
+        const bool upsamples = render::temporal_upsamples_light(render::TemporalLight::Auto, fov, H);
+        CHECK(upsamples == (fov < 30.0));
+        CHECK(automatic == (upsamples ? upsampled : reprojected));
+        CHECK(reprojected != upsampled);  // the two modes differ here, so the check above can fail
     }
 
     // A cut (the view turned by 30 degrees) and a changed setting start the history again.
@@ -351,4 +384,21 @@ TEST_CASE("a still camera's stars, drawn once and read back, are the stars compu
     render_at(r, storm.camera, dark, W, H);
     CHECK(r.read_hdr() != computed_hdr);
     r.clear_volume();
+}
+
+TEST_CASE("temporal history: TemporalLight::Auto upsamples where the marched pixels are close together") {
+    // The demo's sizes at internal scale 0.5 and a 55 degree field: 640x360 marches 180 rows
+    // (every other one 0.61 degrees apart: reprojecting measured the nearer), 1280x720 360
+    // rows (0.31 degrees: upsampling the nearer), 1920x1080 540 rows.
+    using render::TemporalLight;
+    CHECK_FALSE(render::temporal_upsamples_light(TemporalLight::Auto, 55.0, 180));
+    CHECK(render::temporal_upsamples_light(TemporalLight::Auto, 55.0, 360));
+    CHECK(render::temporal_upsamples_light(TemporalLight::Auto, 55.0, 540));
+    CHECK_FALSE(render::temporal_upsamples_light(TemporalLight::Auto, 55.0, 0));  // no march: nothing to upsample
+    // the bound itself upsamples: every other of 2 rows over kTemporalUpsampleDeg
+    CHECK(render::temporal_upsamples_light(TemporalLight::Auto, render::kTemporalUpsampleDeg, 2));
+    for (const int rows : {1, 90, 180, 360, 4096}) {
+        CHECK(render::temporal_upsamples_light(TemporalLight::Upsample, 55.0, rows));
+        CHECK_FALSE(render::temporal_upsamples_light(TemporalLight::Reproject, 55.0, rows));
+    }
 }

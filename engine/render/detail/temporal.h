@@ -48,7 +48,7 @@ struct TemporalKey {
 struct TemporalPlan {
     int stride = 1;
     glm::ivec2 phase{0};
-    bool reproject_light = true;  // Settings::temporal_reproject_light
+    bool reproject_light = true;  // !temporal_upsamples_light(Settings::temporal_light, ...)
     std::string defines;
     TemporalKey key;
 };
