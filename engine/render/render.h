@@ -203,7 +203,7 @@ enum class MarchKernel { Fragment, Compute };
 /// orbiting the synthetic storm with a 55 degree field (docs/render.md, "Temporal history"):
 /// upsampled is the more accurate where the marched pixels are close together on screen (at
 /// 1280x720, every other internal pixel 0.31 degrees apart: 2.3% / 9.4% against 3.9% / 12.8%,
-/// plain / detail and rain, and ~3 ms cheaper), reprojected where they are far apart (at
+/// plain / detail and rain, for about the same march time), reprojected where they are far apart (at
 /// 640x360, 0.61 degrees: 4.5% / 12.2% against 7.3% / 16.4%).
 enum class TemporalLight {
     Auto,       ///< Upsample when the marched pixels are at most kTemporalUpsampleDeg apart, else Reproject
