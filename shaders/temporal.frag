@@ -119,8 +119,11 @@ void main() {
         if (zf > 0.0) consider(flash, zf, A, B, d, 1);
         if (zc > 0.0) consider(channel, zc, A, B, d, 2);
 #endif
+        // The pixel's own background only where the cloud's depth found nothing: a sky that
+        // the history saw in this direction agrees exactly (no depth to differ), so tried
+        // first it would take every pixel of a cloud's edge that the history saw beside it.
         float tg = ground_distance(cam_pos.xyz, d);
-        consider(cloud, tg < kBig ? tg : -1.0, A, B, d, 0);
+        if (cloud.err >= kBig) consider(cloud, tg < kBig ? tg : -1.0, A, B, d, 0);
         // Each group from the history where its depth was found, else from the marched pixels.
         vec2 fuv = ((pixel - vec2(u_phase) - 0.5) * 0.5 + 0.5) / vec2(textureSize(u_fresh_flash, 0));
         vec4 fresh_flash = textureLod(u_fresh_flash, fuv, 0.0);

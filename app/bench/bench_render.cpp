@@ -128,8 +128,9 @@ cloud::RainParams bench_rain() {
 // compiled before timing), all 26 directions of S uploaded (the orbit needs others than the
 // first view's), the storm plain or with detail and rain, a return stroke decaying over the
 // frames (S and the channel scaled by exp(-frame / 8) before each, untimed, as the run time
-// uploads them), today's renderer and the temporal history. Each temporal frame is compared
-// with a fresh render of the same frame (untimed).
+// uploads them), today's renderer and the temporal history; then the same between flashes (a
+// static light alone). Each temporal frame is compared with a fresh render of the same frame
+// (untimed).
 void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const cloud::SubvoxelDetail& detail,
                const cloud::RainParams& rain_params, int frames) {
     const cloud::RainField rain = cloud::make_rain(storm.density, rain_params);
@@ -149,6 +150,15 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
         for (render::ChannelSegment& c : ch.segments) c.intensity = float(double(c.intensity) * g);
         r.set_channel(ch);
     };
+    std::vector<std::vector<float>> grey(std::size_t(storm.directions), std::vector<float>(3 * cells));
+    for (int m = 0; m < storm.directions; ++m)
+        for (std::size_t c = 0; c < cells; ++c)
+            for (int ch = 0; ch < 3; ++ch)
+                grey[std::size_t(m)][3 * c + std::size_t(ch)] = 1e-3f * storm.source[std::size_t(m) * cells + c];
+    render::StaticUpload grey_static;
+    grey_static.geometry = storm.lighting;
+    grey_static.direction_count = storm.directions;
+    for (const std::vector<float>& v : grey) grey_static.rgb.emplace_back(v.data(), v.size());
     const core::GridGeometry& g = storm.density.geom;
     const glm::dvec3 target = g.origin + 0.5 * g.extent() * glm::dvec3(1.0, 1.0, 0.7);
     const double distance = glm::length(storm.camera.position - target);
@@ -162,96 +172,111 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
         st.timing = render::Timing::Queries;  // per-pass GPU times; render() waits for them at its end
         double baseline = 0.0;
         constexpr double kOrbitFov = 55.0;  // the orbiting camera's vertical field of view (degrees)
-        for (const bool effects : {false, true}) {
-            r.set_volume({.density = &storm.density,
-                          .extinction = storm.extinction,
-                          .detail = effects ? std::optional(detail) : std::nullopt,
-                          .rain = effects ? &rain : nullptr});
-            for (const bool orbit : {false, true})
-                for (const int mode : {0, 1, 2}) {
-                    // 0 without the history, 1 with it, 2 with it and the light groups
-                    // upsampled instead of reprojected (a moving camera's knob only).
-                    const bool temporal = mode > 0;
-                    if (mode == 2 && !orbit) continue;
-                    std::vector<double> wall, cpu, error, jitter_noise;
-                    std::vector<render::PassTimes> passes;
-                    int steps[4] = {0, 0, 0, 0};
-                    for (int i = -2; i < frames; ++i) {  // two frames to compile and fault pages in
-                        show_flash(r, std::exp(-(i + 2) / 8.0));
-                        st.frame_index = std::uint32_t(i + 2);
-                        st.temporal = temporal;
-                        st.temporal_light =
-                            mode == 2 ? render::TemporalLight::Upsample : render::TemporalLight::Reproject;
-                        const render::Camera cam =
-                            orbit ? render::Camera::orbit(target, distance, -60.0 + 1.0 * (i + 2), 8.0, kOrbitFov)
-                                  : storm.camera;
-                        const double cpu0 = process_cpu_ms();
-                        core::Stopwatch sw;
-                        const render::FrameStats stats = r.render(cam, st, size.x, size.y);
-                        context->present();  // glFinish
-                        if (i < 0) continue;
-                        wall.push_back(sw.milliseconds());
-                        cpu.push_back(process_cpu_ms() - cpu0);
-                        passes.push_back(stats.wall);
-                        ++steps[int(stats.temporal)];
-                        if (!temporal) continue;
-                        int w = 0, h = 0;
-                        const std::vector<float> kept = r.read_march(w, h);
-                        render::Settings fresh = st;
-                        fresh.temporal = false;
-                        r.render(cam, fresh, size.x, size.y);
-                        const std::vector<float> fresh_march = r.read_march(w, h);
-                        error.push_back(radiance_rel_rms(kept, fresh_march));
-                        // The jitter's own noise: the same frame marched with another frame's jitter.
-                        fresh.frame_index += 2;
-                        r.render(cam, fresh, size.x, size.y);
-                        jitter_noise.push_back(radiance_rel_rms(r.read_march(w, h), fresh_march));
+        // During a flash (the return stroke's decay; no static light), then between flashes:
+        // the static light alone (the storm's S, x 1e-3, as a grey moonlit field on the
+        // lighting grid), no flash S, no channel, so no glow, bolt or glare: what most of a
+        // storm's frames draw.
+        for (const bool flash : {true, false}) {
+            if (!flash) {
+                r.clear_source();
+                r.set_channel({});
+                r.upload_static(grey_static);
+            }
+            for (const bool effects : {false, true}) {
+                r.set_volume({.density = &storm.density,
+                              .extinction = storm.extinction,
+                              .detail = effects ? std::optional(detail) : std::nullopt,
+                              .rain = effects ? &rain : nullptr});
+                for (const bool orbit : {false, true})
+                    for (const int mode : {0, 1, 2}) {
+                        // 0 without the history, 1 with it, 2 with it and the light groups
+                        // upsampled instead of reprojected (a moving camera's knob only).
+                        const bool temporal = mode > 0;
+                        if (mode == 2 && (!orbit || !flash)) continue;  // no light groups to fill otherwise
+                        std::vector<double> wall, cpu, error, jitter_noise;
+                        std::vector<render::PassTimes> passes;
+                        int steps[4] = {0, 0, 0, 0};
+                        for (int i = -2; i < frames; ++i) {  // two frames to compile and fault pages in
+                            if (flash) show_flash(r, std::exp(-(i + 2) / 8.0));
+                            st.frame_index = std::uint32_t(i + 2);
+                            st.temporal = temporal;
+                            st.temporal_light =
+                                mode == 2 ? render::TemporalLight::Upsample : render::TemporalLight::Reproject;
+                            const render::Camera cam =
+                                orbit ? render::Camera::orbit(target, distance, -60.0 + 1.0 * (i + 2), 8.0, kOrbitFov)
+                                      : storm.camera;
+                            const double cpu0 = process_cpu_ms();
+                            core::Stopwatch sw;
+                            const render::FrameStats stats = r.render(cam, st, size.x, size.y);
+                            context->present();  // glFinish
+                            if (i < 0) continue;
+                            wall.push_back(sw.milliseconds());
+                            cpu.push_back(process_cpu_ms() - cpu0);
+                            passes.push_back(stats.wall);
+                            ++steps[int(stats.temporal)];
+                            if (!temporal) continue;
+                            int w = 0, h = 0;
+                            const std::vector<float> kept = r.read_march(w, h);
+                            render::Settings fresh = st;
+                            fresh.temporal = false;
+                            r.render(cam, fresh, size.x, size.y);
+                            const std::vector<float> fresh_march = r.read_march(w, h);
+                            error.push_back(radiance_rel_rms(kept, fresh_march));
+                            // The jitter's own noise: the same frame marched with another frame's jitter.
+                            fresh.frame_index += 2;
+                            r.render(cam, fresh, size.x, size.y);
+                            jitter_noise.push_back(radiance_rel_rms(r.read_march(w, h), fresh_march));
+                        }
+                        const double ms = bench::median(wall);
+                        if (!effects && !orbit && !temporal) baseline = ms;
+                        nlohmann::json row = {
+                            {"case", "demo"},
+                            {"size", {size.x, size.y}},
+                            {"camera", orbit ? "orbit" : "still"},
+                            {"flash", flash},
+                            {"effects", effects ? "detail+rain" : "none"},
+                            {"temporal", temporal},
+                            {"light_reprojected", mode == 1},
+                            // What the default (TemporalLight::Auto) does at this size.
+                            {"auto_upsamples_light", render::temporal_upsamples_light(
+                                                         render::TemporalLight::Auto, kOrbitFov,
+                                                         std::max(1, int(std::lround(size.y * st.internal_scale))))},
+                            {"frame_ms", ms},
+                            {"fps", 1000.0 / ms},
+                            {"frame_cpu_ms", bench::median(cpu)},
+                            {"baseline_frame_ms", baseline},
+                            {"ratio", ms / baseline},
+                            {"baseline",
+                             "today's renderer (no temporal history), the plain storm, "
+                             "still camera, same size, same run"}};
+                        auto pass = [&](double render::PassTimes::*m) {
+                            std::vector<double> v;
+                            for (const render::PassTimes& t : passes) v.push_back(t.*m);
+                            return bench::median(v);
+                        };
+                        row["pass_ms"] = {{"resolve", pass(&render::PassTimes::resolve)},
+                                          {"glow", pass(&render::PassTimes::glow)},
+                                          {"march", pass(&render::PassTimes::march)},
+                                          {"meter", pass(&render::PassTimes::meter)},
+                                          {"bolt", pass(&render::PassTimes::bolt)},
+                                          {"glare", pass(&render::PassTimes::glare)},
+                                          {"composite", pass(&render::PassTimes::composite)}};
+                        if (temporal) {
+                            row["frames_full"] = steps[int(render::TemporalStep::Full)];
+                            row["frames_quarter"] = steps[int(render::TemporalStep::Quarter)];
+                            row["frames_reused"] = steps[int(render::TemporalStep::Reused)];
+                            row["error_vs_fresh_median"] = bench::median(error);
+                            row["error_vs_fresh_max"] = *std::max_element(error.begin(), error.end());
+                            row["jitter_noise_median"] = bench::median(jitter_noise);
+                            row["error"] =
+                                "relative L2 of the march's radiance against a fresh render of the frame; "
+                                "jitter_noise: a fresh render with another frame's jitter against it";
+                        }
+                        ctx.emit("render", row);
                     }
-                    const double ms = bench::median(wall);
-                    if (!effects && !orbit && !temporal) baseline = ms;
-                    nlohmann::json row = {
-                        {"case", "demo"},
-                        {"size", {size.x, size.y}},
-                        {"camera", orbit ? "orbit" : "still"},
-                        {"effects", effects ? "detail+rain" : "none"},
-                        {"temporal", temporal},
-                        {"light_reprojected", mode == 1},
-                        // What the default (TemporalLight::Auto) does at this size.
-                        {"auto_upsamples_light",
-                         render::temporal_upsamples_light(render::TemporalLight::Auto, kOrbitFov,
-                                                          std::max(1, int(std::lround(size.y * st.internal_scale))))},
-                        {"frame_ms", ms},
-                        {"fps", 1000.0 / ms},
-                        {"frame_cpu_ms", bench::median(cpu)},
-                        {"baseline_frame_ms", baseline},
-                        {"ratio", ms / baseline},
-                        {"baseline",
-                         "today's renderer (no temporal history), the plain storm, "
-                         "still camera, same size, same run"}};
-                    auto pass = [&](double render::PassTimes::*m) {
-                        std::vector<double> v;
-                        for (const render::PassTimes& t : passes) v.push_back(t.*m);
-                        return bench::median(v);
-                    };
-                    row["pass_ms"] = {
-                        {"resolve", pass(&render::PassTimes::resolve)},    {"glow", pass(&render::PassTimes::glow)},
-                        {"march", pass(&render::PassTimes::march)},        {"meter", pass(&render::PassTimes::meter)},
-                        {"bolt", pass(&render::PassTimes::bolt)},          {"glare", pass(&render::PassTimes::glare)},
-                        {"composite", pass(&render::PassTimes::composite)}};
-                    if (temporal) {
-                        row["frames_full"] = steps[int(render::TemporalStep::Full)];
-                        row["frames_quarter"] = steps[int(render::TemporalStep::Quarter)];
-                        row["frames_reused"] = steps[int(render::TemporalStep::Reused)];
-                        row["error_vs_fresh_median"] = bench::median(error);
-                        row["error_vs_fresh_max"] = *std::max_element(error.begin(), error.end());
-                        row["jitter_noise_median"] = bench::median(jitter_noise);
-                        row["error"] =
-                            "relative L2 of the march's radiance against a fresh render of the frame; "
-                            "jitter_noise: a fresh render with another frame's jitter against it";
-                    }
-                    ctx.emit("render", row);
-                }
+            }
         }
+        r.clear_static();
     }
 }
 

@@ -402,3 +402,56 @@ TEST_CASE("temporal history: TemporalLight::Auto upsamples where the marched pix
         CHECK_FALSE(render::temporal_upsamples_light(TemporalLight::Reproject, 55.0, rows));
     }
 }
+
+TEST_CASE("temporal history: between flashes, a moving camera's static light stays near a fresh render") {
+    // The static light alone (the storm's S as a grey field on its lighting grid, no flash S,
+    // no channel): what a storm's frames draw between flashes, all of it the cloud's group.
+    render::Renderer& r = gl_renderer();
+    const synthetic::Storm& storm = small_storm();
+    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
+    const std::size_t cells = storm.lighting.cell_count();
+    std::vector<std::vector<float>> grey(std::size_t(storm.directions), std::vector<float>(3 * cells));
+    for (int m = 0; m < storm.directions; ++m)
+        for (std::size_t c = 0; c < cells; ++c)
+            for (int ch = 0; ch < 3; ++ch)
+                grey[std::size_t(m)][3 * c + std::size_t(ch)] = storm.source[std::size_t(m) * cells + c];
+    render::StaticUpload up;
+    up.geometry = storm.lighting;
+    up.direction_count = storm.directions;
+    for (const std::vector<float>& v : grey) up.rgb.emplace_back(v.data(), v.size());
+    r.upload_static(up);
+    r.clear_source();
+    r.set_channel({});
+    const glm::dvec3 target = orbit_target(storm);
+    const double distance = glm::length(storm.camera.position - target);
+    for (const bool background : {false, true}) {
+        CAPTURE(background);
+        render::Settings st = storm.settings;
+        st.dither = false;
+        st.sky = st.ground = background;
+        double worst = 0.0, sum = 0.0;
+        int quarter = 0;
+        const int frames = 8;
+        for (int i = 0; i < frames; ++i) {
+            const render::Camera cam = render::Camera::orbit(target, distance, -60.0 + i, 8.0, 55.0);
+            const Frame f = with_and_without_history(r, cam, st, std::uint32_t(200 + i));
+            if (f.stats.temporal != render::TemporalStep::Quarter) continue;
+            const double e = march_diff(f.kept, f.fresh).radiance;
+            sum += e;
+            worst = std::max(worst, e);
+            ++quarter;
+        }
+        MESSAGE("between flashes, orbit: mean ", sum / quarter, ", worst ", worst);
+        CHECK(quarter == frames - 1);
+        // Measured (llvmpipe, 160x90 marched): mean 11.4% / 9.1-9.8%, worst 13.2-13.3% /
+        // 11.4-11.5% (without / with sky and ground), most of it at the cloud's base, where
+        // this field (the flash's S used as a static light) peaks over a few pixels. With the
+        // pixel's own background tried before the cloud's depth, a sky the history saw beside
+        // the cloud's edge took the edge's pixels: 20% / 15% mean, 22% / 17.5% worst, which
+        // both bounds fail.
+        CHECK(sum / quarter < 0.14);
+        CHECK(worst < 0.16);
+    }
+    r.clear_static();
+    r.clear_volume();
+}
