@@ -124,6 +124,39 @@ cloud::RainParams bench_rain() {
     return r;
 }
 
+// A grey static light from the storm's S (x 1e-3, every direction) on its lighting grid refined
+// `refine` times (each refined node takes its coarse node's S).
+struct GreyStatic {
+    core::GridGeometry geometry;
+    std::vector<std::vector<float>> rgb;  // per direction, RGB per node
+    render::StaticUpload upload() const {
+        render::StaticUpload up;
+        up.geometry = geometry;
+        up.direction_count = int(rgb.size());
+        for (const std::vector<float>& v : rgb) up.rgb.emplace_back(v.data(), v.size());
+        return up;
+    }
+};
+
+GreyStatic grey_static(const synthetic::Storm& storm, int refine) {
+    const core::GridGeometry& lg = storm.lighting;
+    const std::size_t coarse = lg.cell_count();
+    GreyStatic out;
+    out.geometry = lg;
+    out.geometry.voxel_size = lg.voxel_size / refine;
+    out.geometry.dims = {lg.dims.x * refine, lg.dims.y * refine, lg.dims.z * refine};
+    const std::size_t cells = out.geometry.cell_count();
+    out.rgb.assign(std::size_t(storm.directions), std::vector<float>(3 * cells));
+    for (int m = 0; m < storm.directions; ++m)
+        for (std::size_t c = 0; c < cells; ++c) {
+            const core::Int3 n = out.geometry.unindex(c);
+            const float v =
+                1e-3f * storm.source[std::size_t(m) * coarse + lg.index(n.x / refine, n.y / refine, n.z / refine)];
+            for (int ch = 0; ch < 3; ++ch) out.rgb[std::size_t(m)][3 * c + std::size_t(ch)] = v;
+        }
+    return out;
+}
+
 // The demo's frames at one output size: a context and renderer of that size (shaders
 // compiled before timing), all 26 directions of S uploaded (the orbit needs others than the
 // first view's), the storm plain or with detail and rain, a return stroke decaying over the
@@ -150,15 +183,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
         for (render::ChannelSegment& c : ch.segments) c.intensity = float(double(c.intensity) * g);
         r.set_channel(ch);
     };
-    std::vector<std::vector<float>> grey(std::size_t(storm.directions), std::vector<float>(3 * cells));
-    for (int m = 0; m < storm.directions; ++m)
-        for (std::size_t c = 0; c < cells; ++c)
-            for (int ch = 0; ch < 3; ++ch)
-                grey[std::size_t(m)][3 * c + std::size_t(ch)] = 1e-3f * storm.source[std::size_t(m) * cells + c];
-    render::StaticUpload grey_static;
-    grey_static.geometry = storm.lighting;
-    grey_static.direction_count = storm.directions;
-    for (const std::vector<float>& v : grey) grey_static.rgb.emplace_back(v.data(), v.size());
+    const GreyStatic moonlit = grey_static(storm, 1);
     const core::GridGeometry& g = storm.density.geom;
     const glm::dvec3 target = g.origin + 0.5 * g.extent() * glm::dvec3(1.0, 1.0, 0.7);
     const double distance = glm::length(storm.camera.position - target);
@@ -180,7 +205,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
             if (!flash) {
                 r.clear_source();
                 r.set_channel({});
-                r.upload_static(grey_static);
+                r.upload_static(moonlit.upload());
             }
             for (const bool effects : {false, true}) {
                 r.set_volume({.density = &storm.density,
@@ -287,26 +312,11 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
 // field's values do not matter for the time: each refined node takes its coarse node's S.
 void static_grid_rows(const bench::Context& ctx, render::Renderer& r, const synthetic::Storm& storm,
                       const render::Settings& base, int w, int h, int frames) {
-    const core::GridGeometry& lg = storm.lighting;
-    const std::size_t coarse = lg.cell_count();
     double baseline_resolve = 0.0, baseline_frame = 0.0;
     for (const int refine : {1, 3}) {
-        core::GridGeometry fg = lg;
-        fg.voxel_size = lg.voxel_size / refine;
-        fg.dims = {lg.dims.x * refine, lg.dims.y * refine, lg.dims.z * refine};
-        const std::size_t cells = fg.cell_count();
-        std::vector<std::vector<float>> rgb(std::size_t(storm.directions), std::vector<float>(3 * cells));
-        for (int m = 0; m < storm.directions; ++m)
-            for (std::size_t c = 0; c < cells; ++c) {
-                const core::Int3 n = fg.unindex(c);
-                const float v =
-                    1e-3f * storm.source[std::size_t(m) * coarse + lg.index(n.x / refine, n.y / refine, n.z / refine)];
-                for (int ch = 0; ch < 3; ++ch) rgb[std::size_t(m)][3 * c + std::size_t(ch)] = v;
-            }
-        render::StaticUpload up;
-        up.geometry = fg;
-        up.direction_count = storm.directions;
-        for (const std::vector<float>& v : rgb) up.rgb.emplace_back(v.data(), v.size());
+        const GreyStatic grey = grey_static(storm, refine);
+        const std::size_t cells = grey.geometry.cell_count();
+        const render::StaticUpload up = grey.upload();
         core::Stopwatch sw;
         r.upload_static(up);
         const double upload_ms = sw.milliseconds();
