@@ -28,6 +28,14 @@ int glare_levels(int w, int h) {
     return n;
 }
 
+// The output pixels per march pixel when that is the same whole number 1 or 2 on both axes
+// (internal scale 1 or 0.5 of an even size), else 0: glare_first.frag's fixed reads.
+int core_block(const FrameUniforms& u) {
+    for (int b : {1, 2})
+        if (u.width == b * u.internal_width && u.height == b * u.internal_height) return b;
+    return 0;
+}
+
 }  // namespace
 
 void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const FrameUniforms& u, PassTimer& timer,
@@ -56,8 +64,9 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
         glare_up[std::size_t(k)].ensure(w, h);
     }
     // Level 0: march + core.
-    glUseProgram(
-        program("glare_first", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_first.frag"}}));
+    glUseProgram(program("glare_first",
+                         {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_first.frag"}},
+                         "#define BLOCK " + std::to_string(core_block(u)) + "\n"));
     glBindTextureUnit(3, march_target.tex);
     glBindTextureUnit(4, core_target.tex);
     glBindFramebuffer(GL_FRAMEBUFFER, glare_down[0].fbo);
