@@ -42,7 +42,6 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
                                 FrameStats& stats) {
     glare_ran = false;
     if (!(st.glare && st.bolt && seg_count > 0)) return;
-    timer.begin(kGlare);
     const int levels = glare_levels(u.internal_width, u.internal_height);
     // The fit depends on the view's pixel size and the levels only: kept while they stay.
     const double fov = camera.vertical_fov_deg;
@@ -51,11 +50,15 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
     const double half_diagonal =
         glm::degrees(std::atan(std::tan(glm::radians(0.5 * fov)) * std::sqrt(1.0 + aspect * aspect)));
     const double scale = double(u.internal_width) / double(u.width);
+    // A frame a few pixels across, whose ray-march pixel is wider than the frame's half diagonal,
+    // has no surround within it to spread light to: it is drawn as without the glare.
+    if (!(half_diagonal > pixel_deg / scale)) return;
     if (!(glare_key[0] == pixel_deg && glare_key[1] == scale && glare_key[2] == half_diagonal &&
           int(glare_fit.weights.size()) == levels)) {
         glare_fit = fit_glare(pixel_deg, scale, levels, half_diagonal);
         glare_key[0] = pixel_deg, glare_key[1] = scale, glare_key[2] = half_diagonal;
     }
+    timer.begin(kGlare);
     glare_down.resize(std::size_t(levels));
     glare_up.resize(std::size_t(levels));
     for (int k = 0; k < levels; ++k) {

@@ -6,6 +6,7 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <vector>
@@ -110,4 +111,30 @@ TEST_CASE("glare: frames that draw no channel are the same with it on or off") {
     CHECK(r.read_hdr() == off);
     CHECK(s.wall.glare == 0.0);
     CHECK(s.glare_keep == 1.0);
+}
+
+TEST_CASE(
+    "glare: frames a few pixels across draw, and as without it where a march pixel is wider than the half diagonal") {
+    // 1x1 to 3x3 at 50 degrees: the frame's half diagonal is 33.4 degrees; a march pixel spans
+    // 50 degrees at one march pixel (every size at scale 0.3: lround(0.3-0.9) = 1; 1x1 at 1),
+    // where the pyramid has no surround to spread to, and 17-25 degrees at 2x2 and 3x3 at 1,
+    // where it spreads as at any size.
+    for (const int size : {1, 2, 3})
+        for (const double scale : {1.0, 0.3}) {
+            CAPTURE(size);
+            CAPTURE(scale);
+            render::Settings st;
+            st.dither = false;
+            st.internal_scale = scale;
+            const PointFrame off = render_point(st, size, 50.0);
+            st.glare = true;
+            const PointFrame on = render_point(st, size, 50.0);
+            const int march_rows = std::max(1, int(std::lround(size * scale)));
+            CHECK(std::isfinite(on.total));
+            if (march_rows == 1)
+                CHECK(on.rgb == off.rgb);
+            else
+                CHECK(on.rgb != off.rgb);
+        }
+    gl_renderer().set_channel({});
 }
