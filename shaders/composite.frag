@@ -8,6 +8,7 @@
 //   OUTPUT  0: tone-mapped sRGB; 1: the radiance (read-back); 2: a host's frame, (L, T)
 //           blended as L + T dst
 //   GLARE   1: the frame's light spread by the eye's point-spread function
+//   CORE    1: the bolt core's pixels (0 when the frame draws no channel: they would add 0)
 //   STARS   1: the stars (0 when the sky or its stars are off: they would add exactly 0; 2:
 //           the same read from u_stars, stars.frag's, while the camera stays still)
 //   DITHER  1: +-1 LSB triangular dither before 8-bit output
@@ -19,6 +20,9 @@
 #endif
 #ifndef GLARE
 #define GLARE 0
+#endif
+#ifndef CORE
+#define CORE 1
 #endif
 #ifndef STARS
 #define STARS 1
@@ -67,7 +71,11 @@ void main() {
     vec2 pixel = gl_FragCoord.xy;
     vec2 uv = pixel / sizes.xy;
     vec4 m = textureLod(u_march, uv, 0.0);
+#if CORE
     vec3 core = texelFetch(u_core, ivec2(pixel), 0).rgb;
+#else
+    const vec3 core = vec3(0.0);
+#endif
 #if OUTPUT == 2
     o_colour = vec4(m.rgb + core, m.a);
 #else

@@ -10,13 +10,14 @@ using detail::FrameUniforms;
 using detail::kBolt;
 using detail::PassTimer;
 
-/// Bolt: endpoint transmittances, then the HDR core ribbons at full resolution (the core
-/// target is cleared even when no bolt is drawn).
+/// Bolt: endpoint transmittances, then the HDR core ribbons at full resolution. A frame that
+/// draws no channel neither clears nor reads the core target (core_drawn: the composite's CORE 0).
 void Renderer::Impl::bolt_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer, FrameStats& stats) {
+    core_drawn = st.bolt && seg_count > 0;
+    if (!core_drawn) return;
+    timer.begin(kBolt);
     const float clear[4] = {0, 0, 0, 0};
     glClearNamedFramebufferfv(core_target.fbo, GL_COLOR, 0, clear);
-    if (!(st.bolt && seg_count > 0)) return;
-    timer.begin(kBolt);
     // The channel seen through the same detailed density the march draws.
     glUseProgram(
         program("bolt_t", {{GL_COMPUTE_SHADER, "bolt_transmittance.comp"}},

@@ -65,8 +65,9 @@ void Renderer::Impl::prepare_stars(const FrameUniforms& u, bool stars) {
 
 GLuint Renderer::Impl::composite_program(int output) {
     const std::string defines = "#define OUTPUT " + std::to_string(output) + "\n#define GLARE " +
-                                (glare_ran ? "1" : "0") + "\n#define STARS " + std::to_string(composite_stars) +
-                                "\n#define DITHER " + (composite_dither ? "1" : "0") + "\n";
+                                (glare_ran ? "1" : "0") + "\n#define CORE " + (core_drawn ? "1" : "0") +
+                                "\n#define STARS " + std::to_string(composite_stars) + "\n#define DITHER " +
+                                (composite_dither ? "1" : "0") + "\n";
     return program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}},
                    defines);
 }

@@ -116,6 +116,7 @@ struct Renderer::Impl {
     detail::TemporalState temporal;            // the temporal history (pass_temporal.cpp)
     double glare_key[3] = {-1.0, -1.0, -1.0};  // pixel size, internal scale, reach the fit was made for
     bool glare_ran = false;                    // this frame's composite adds glare_up[0]
+    bool core_drawn = false;                   // this frame's bolt pass drew core_target
     int composite_stars = 1;  // this frame's composite's stars: 0 none, 1 computed, 2 read from star_target
     bool composite_dither = true;
     // The stars kept while the camera stays still (pass_composite.cpp): the target, what they
