@@ -74,10 +74,10 @@ GLuint Renderer::Impl::composite_program(int output) {
 
 void Renderer::Impl::bind_composite_inputs(GLuint p) const {
     glUniform1f(glGetUniformLocation(p, "u_glare_keep"), glare_ran ? float(glare_fit.keep) : 1.0f);
-    glBindTextureUnit(3, march_target.tex);
+    glBindTextureUnit(3, march_out->tex);
     glBindTextureUnit(4, core_target.tex);
-    glBindTextureUnit(5, glare_ran ? glare_up[0].tex : march_target.tex);
-    glBindTextureUnit(6, composite_stars == 2 ? star_target.tex : march_target.tex);
+    glBindTextureUnit(5, glare_ran ? glare_up[0].tex : march_out->tex);
+    glBindTextureUnit(6, composite_stars == 2 ? star_target.tex : march_out->tex);
 }
 
 }  // namespace fulgur::render

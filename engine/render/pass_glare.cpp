@@ -70,7 +70,7 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
     glUseProgram(program("glare_first",
                          {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_first.frag"}},
                          "#define BLOCK " + std::to_string(core_block(u)) + "\n"));
-    glBindTextureUnit(3, march_target.tex);
+    glBindTextureUnit(3, march_out->tex);
     glBindTextureUnit(4, core_target.tex);
     glBindFramebuffer(GL_FRAMEBUFFER, glare_down[0].fbo);
     glViewport(0, 0, glare_down[0].w, glare_down[0].h);

@@ -15,6 +15,7 @@ using detail::PassTimer;
 /// Ray march at internal resolution: in-scattered radiance + attenuated glow, and T.
 void Renderer::Impl::march_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer) {
     timer.begin(kMarch);
+    march_out = &march_target;
     const std::string defines =
         march_defines(st.skip_empty, st.early_exit, u.lit, u.glow, u.statics, u.sun, u.detail, u.rain);
     const GLuint p = march_program(st.kernel, defines);

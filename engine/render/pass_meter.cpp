@@ -31,27 +31,41 @@ constexpr float kMeterLog2Min = -126.0f, kMeterBinWidth = 0.25f;
 void Renderer::Impl::meter_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer, FrameStats& stats) {
     stats.exposure = st.exposure;
     if (!st.auto_exposure) return;
-    timer.begin(kMeter);
-    const GLuint p = program("meter", {{GL_COMPUTE_SHADER, "meter.comp"}});
-    glUseProgram(p);
-    const std::vector<std::uint32_t> zero(kMeterBins, 0u);
-    meter_buf.upload(zero.data(), zero.size() * sizeof(std::uint32_t));
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, meter_buf.id);
-    glBindTextureUnit(3, march_target.tex);
-    glUniform1i(glGetUniformLocation(p, "u_bins"), kMeterBins);
-    glUniform1f(glGetUniformLocation(p, "u_log2_min"), kMeterLog2Min);
-    glUniform1f(glGetUniformLocation(p, "u_bin_width"), kMeterBinWidth);
-    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
-    glDispatchCompute(GLuint((u.internal_width + 31) / 32), GLuint((u.internal_height + 31) / 32), 1);  // 32x32 tiles
-    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
-    std::vector<std::uint32_t> bins(kMeterBins);
-    glGetNamedBufferSubData(meter_buf.id, 0, GLsizeiptr(bins.size() * sizeof(std::uint32_t)), bins.data());
-    const detail::ExposureChoice c = detail::choose_exposure(bins, kMeterLog2Min, kMeterBinWidth, st);
+    // The history's march unchanged since the meter counted it (a still frame between flashes):
+    // the same histogram. The exposure is chosen again (its adaptation moves with the frame). A
+    // frame rendered without the history between two with it leaves the history's histogram kept.
+    const std::uint64_t version = march_out == &temporal.march ? temporal.march_version : 0;
+    const bool kept = version != 0 && version == meter_version;
+    std::vector<std::uint32_t> counted;
+    if (!kept) {
+        timer.begin(kMeter);
+        const GLuint p = program("meter", {{GL_COMPUTE_SHADER, "meter.comp"}});
+        glUseProgram(p);
+        const std::vector<std::uint32_t> zero(kMeterBins, 0u);
+        meter_buf.upload(zero.data(), zero.size() * sizeof(std::uint32_t));
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, meter_buf.id);
+        glBindTextureUnit(3, march_out->tex);
+        glUniform1i(glGetUniformLocation(p, "u_bins"), kMeterBins);
+        glUniform1f(glGetUniformLocation(p, "u_log2_min"), kMeterLog2Min);
+        glUniform1f(glGetUniformLocation(p, "u_bin_width"), kMeterBinWidth);
+        glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
+        glDispatchCompute(GLuint((u.internal_width + 31) / 32), GLuint((u.internal_height + 31) / 32),
+                          1);  // 32x32 tiles
+        glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+        counted.resize(kMeterBins);
+        glGetNamedBufferSubData(meter_buf.id, 0, GLsizeiptr(counted.size() * sizeof(std::uint32_t)), counted.data());
+        if (version != 0) {
+            meter_bins = counted;
+            meter_version = version;
+        }
+        timer.end(kMeter);
+    }
+    const detail::ExposureChoice c =
+        detail::choose_exposure(kept ? meter_bins : counted, kMeterLog2Min, kMeterBinWidth, st);
     stats.metered_exposure = c.metered;
     stats.exposure = c.applied;
     const float e = float(c.applied);
     glNamedBufferSubData(frame_ubo, GLintptr(offsetof(FrameBlock, sky_params) + 3 * sizeof(float)), sizeof(float), &e);
-    timer.end(kMeter);
 }
 
 }  // namespace fulgur::render

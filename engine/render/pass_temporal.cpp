@@ -47,6 +47,8 @@ void MultiTarget::release() {
 void TemporalState::release() {
     fresh.release();
     for (MultiTarget& t : history) t.release();
+    march.release();
+    march_current = false;
     for (GLuint& f : resolve_fbo) {
         if (f) glDeleteFramebuffers(1, &f);
         f = 0;
@@ -131,16 +133,25 @@ detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const S
 void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalPlan plan, const FrameUniforms& u,
                                          PassTimer& timer, FrameStats& stats) {
     detail::TemporalState& h = temporal;
-    timer.begin(kMarch);
     const int stride = plan.stride;
     const glm::ivec2 phase = plan.phase;
     const std::string& defines = plan.defines;
     detail::TemporalKey& key = plan.key;
     stats.temporal = stride == 0 ? TemporalStep::Reused : stride == 1 ? TemporalStep::Full : TemporalStep::Quarter;
+    stats.marched_share = 0.0;
+    march_out = &h.march;
+    // A still camera whose light groups kept their intensities (a moonlit or sunlit frame
+    // between flashes): the resolve would write the history's values again, times 1, and the
+    // same march from them. Nothing runs; the meter keeps its histogram of that march too.
+    if (stride == 0 && h.march_current && h.source.rescale() == 1.0 && h.channel.rescale() == 1.0) {
+        h.key = std::move(key);
+        ++h.frames;
+        return;
+    }
+    timer.begin(kMarch);
     const int grid = stride == 3 ? 2 : stride;  // every grid-th pixel marched
 
     const int iw = u.internal_width, ih = u.internal_height;
-    stats.marched_share = 0.0;
     if (stride > 0) {
         const int fw = (iw - phase.x + grid - 1) / grid, fh = (ih - phase.y + grid - 1) / grid;
         h.fresh.ensure(fw, fh, 3);
@@ -162,7 +173,8 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     if (!fbo) glCreateFramebuffers(1, &fbo);
     for (int i = 0; i < 3; ++i)
         glNamedFramebufferTexture(fbo, GLenum(GL_COLOR_ATTACHMENT0 + i), h.history[next].tex[std::size_t(i)], 0);
-    glNamedFramebufferTexture(fbo, GL_COLOR_ATTACHMENT3, march_target.tex, 0);
+    h.march.ensure(iw, ih);
+    glNamedFramebufferTexture(fbo, GL_COLOR_ATTACHMENT3, h.march.tex, 0);
     const GLenum draw[4] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2, GL_COLOR_ATTACHMENT3};
     glNamedFramebufferDrawBuffers(fbo, 4, draw);
     detail::check_framebuffer(fbo, iw, ih);
@@ -190,6 +202,8 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     timer.end(kMarch);
 
     h.current = next;
+    ++h.march_version;
+    h.march_current = true;
     h.has_history = true;
     h.inputs_changed = false;
     h.key = std::move(key);

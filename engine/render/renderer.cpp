@@ -595,12 +595,12 @@ std::vector<float> Renderer::read_resolved_static() const {
 
 std::vector<float> Renderer::read_march(int& width, int& height) const {
     const Impl& m = *impl_;
-    FULGUR_ASSERT(m.march_target.tex != 0, "read_march before render");
-    width = m.march_target.w;
-    height = m.march_target.h;
+    FULGUR_ASSERT(m.march_out->tex != 0, "read_march before render");
+    width = m.march_out->w;
+    height = m.march_out->h;
     std::vector<float> rgba(std::size_t(width) * std::size_t(height) * 4), out(rgba.size());
     glPixelStorei(GL_PACK_ALIGNMENT, 4);
-    glGetTextureImage(m.march_target.tex, 0, GL_RGBA, GL_FLOAT, GLsizei(rgba.size() * sizeof(float)), rgba.data());
+    glGetTextureImage(m.march_out->tex, 0, GL_RGBA, GL_FLOAT, GLsizei(rgba.size() * sizeof(float)), rgba.data());
     const std::size_t row = std::size_t(width) * 4;
     for (int y = 0; y < height; ++y)
         std::copy_n(rgba.begin() + std::ptrdiff_t(std::size_t(height - 1 - y) * row), row,

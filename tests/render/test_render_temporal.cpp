@@ -121,6 +121,24 @@ void show_storm(render::Renderer& r, const synthetic::Storm& storm) {
     r.upload_source(synthetic::needed_upload(r, storm));
 }
 
+// Between flashes: the storm's S as a grey static light on its lighting grid (its values
+// kept by the renderer's upload), no flash S, no channel.
+void show_between_flashes(render::Renderer& r, const synthetic::Storm& storm) {
+    const std::size_t cells = storm.lighting.cell_count();
+    std::vector<std::vector<float>> grey(std::size_t(storm.directions), std::vector<float>(3 * cells));
+    for (int m = 0; m < storm.directions; ++m)
+        for (std::size_t c = 0; c < cells; ++c)
+            for (int ch = 0; ch < 3; ++ch)
+                grey[std::size_t(m)][3 * c + std::size_t(ch)] = storm.source[std::size_t(m) * cells + c];
+    render::StaticUpload up;
+    up.geometry = storm.lighting;
+    up.direction_count = storm.directions;
+    for (const std::vector<float>& v : grey) up.rgb.emplace_back(v.data(), v.size());
+    r.upload_static(up);
+    r.clear_source();
+    r.set_channel({});
+}
+
 }  // namespace
 
 TEST_CASE("temporal history: a still camera through a whole flash gives each frame a fresh render's") {
@@ -409,19 +427,7 @@ TEST_CASE("temporal history: between flashes, a moving camera's static light sta
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
     r.set_volume({.density = &storm.density, .extinction = storm.extinction});
-    const std::size_t cells = storm.lighting.cell_count();
-    std::vector<std::vector<float>> grey(std::size_t(storm.directions), std::vector<float>(3 * cells));
-    for (int m = 0; m < storm.directions; ++m)
-        for (std::size_t c = 0; c < cells; ++c)
-            for (int ch = 0; ch < 3; ++ch)
-                grey[std::size_t(m)][3 * c + std::size_t(ch)] = storm.source[std::size_t(m) * cells + c];
-    render::StaticUpload up;
-    up.geometry = storm.lighting;
-    up.direction_count = storm.directions;
-    for (const std::vector<float>& v : grey) up.rgb.emplace_back(v.data(), v.size());
-    r.upload_static(up);
-    r.clear_source();
-    r.set_channel({});
+    show_between_flashes(r, storm);
     const glm::dvec3 target = orbit_target(storm);
     const double distance = glm::length(storm.camera.position - target);
     for (const bool background : {false, true}) {
@@ -451,6 +457,53 @@ TEST_CASE("temporal history: between flashes, a moving camera's static light sta
         // both bounds fail.
         CHECK(sum / quarter < 0.14);
         CHECK(worst < 0.16);
+    }
+    r.clear_static();
+    r.clear_volume();
+}
+
+TEST_CASE(
+    "temporal history: a still camera between flashes runs no march, resolve or meter, and draws the same frame") {
+    // The static light alone and a still camera: every group keeps its intensity, so the
+    // history's march is each frame's as it stands. A frame rendered without the history in
+    // between (another camera) leaves the history's march and its histogram as they were.
+    render::Renderer& r = gl_renderer();
+    const synthetic::Storm& storm = small_storm();
+    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
+    show_between_flashes(r, storm);
+    render::Settings st = storm.settings;
+    st.dither = false;
+    st.auto_exposure = true;
+    st.temporal = true;
+    st.timing = render::Timing::Finish;
+    std::vector<float> first;
+    double first_exposure = 0.0;
+    for (int i = 0; i < 6; ++i) {
+        CAPTURE(i);
+        st.frame_index = std::uint32_t(300 + i);
+        if (i == 3) {  // a frame without the history, elsewhere
+            render::Settings other = st;
+            other.temporal = false;
+            const render::Camera away =
+                render::Camera::orbit(orbit_target(storm), 15000.0, 40.0, 20.0, storm.camera.vertical_fov_deg);
+            render_at(r, away, other, W, H);
+            CHECK(r.read_hdr() != first);
+        }
+        const render::FrameStats s = render_at(r, storm.camera, st, W, H);
+        const std::vector<float> hdr = r.read_hdr();
+        if (i == 0) {
+            CHECK(s.temporal == render::TemporalStep::Full);
+            CHECK(s.wall.march > 0.0);
+            CHECK(s.wall.meter > 0.0);
+            first = hdr;
+            first_exposure = s.exposure;
+            continue;
+        }
+        CHECK(s.temporal == render::TemporalStep::Reused);
+        CHECK(s.wall.march == 0.0);
+        CHECK(s.wall.meter == 0.0);
+        CHECK(s.exposure == first_exposure);
+        CHECK(hdr == first);
     }
     r.clear_static();
     r.clear_volume();

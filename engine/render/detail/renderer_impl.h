@@ -115,8 +115,14 @@ struct Renderer::Impl {
     GlareFit glare_fit;
     detail::TemporalState temporal;            // the temporal history (pass_temporal.cpp)
     double glare_key[3] = {-1.0, -1.0, -1.0};  // pixel size, internal scale, reach the fit was made for
-    bool glare_ran = false;                    // this frame's composite adds glare_up[0]
-    bool core_drawn = false;                   // this frame's bolt pass drew core_target
+    // The march this frame's later passes read: march_target, or the temporal history's own
+    // (TemporalState::march), which a frame rendered without the history leaves as it was.
+    const detail::Target* march_out = &march_target;
+    // The meter's last histogram, and the history's march it counted (version; 0: another).
+    std::vector<std::uint32_t> meter_bins;
+    std::uint64_t meter_version = 0;
+    bool glare_ran = false;   // this frame's composite adds glare_up[0]
+    bool core_drawn = false;  // this frame's bolt pass drew core_target
     int composite_stars = 1;  // this frame's composite's stars: 0 none, 1 computed, 2 read from star_target
     bool composite_dither = true;
     // The stars kept while the camera stays still (pass_composite.cpp): the target, what they
