@@ -11,9 +11,9 @@
 //
 // STRIDE (compile time; a software rasterizer runs both sides of a branch its lanes split on,
 // so each case is its own program): 0 nothing marched (still camera), 1 every pixel marched,
-// 2 one pixel of each 2x2 block marched, at (u_phase.x, u_phase.y) (moving camera), 3 the same
-// with the others from the history in place (a camera that stopped: in four frames every pixel
-// is marched at its place).
+// 2 one pixel of each BLOCK x BLOCK block marched, at (u_phase.x, u_phase.y) (moving camera), 3
+// one of each 2x2 block with the others from the history in place (a camera that stopped: in
+// four frames every pixel is marched at its place).
 #include "common.glsl"
 
 #ifndef STRIDE
@@ -24,6 +24,10 @@
 #ifndef REPROJECT_LIGHT
 #define REPROJECT_LIGHT 1
 #endif
+// BLOCK (STRIDE 2): 2 or 4 (Settings::temporal_moving_block).
+#ifndef BLOCK
+#define BLOCK 2
+#endif
 
 layout(binding = 10) uniform sampler2D u_fresh_flash;
 layout(binding = 11) uniform sampler2D u_fresh_statics;
@@ -32,7 +36,7 @@ layout(binding = 13) uniform sampler2D u_hist_flash;
 layout(binding = 14) uniform sampler2D u_hist_statics;
 layout(binding = 15) uniform sampler2D u_hist_channel;
 
-uniform ivec2 u_phase;           // the marched pixel of each 2x2 block (STRIDE 2)
+uniform ivec2 u_phase;           // the marched pixel of each block (STRIDE 2: BLOCK x BLOCK; 3: 2x2)
 uniform mat4 u_prev_view_proj;   // the history's camera: world -> clip
 uniform vec4 u_prev_cam;         // xyz the history's camera position
 uniform vec2 u_rescale;          // x: the flash's S now / in the history, y: the channel's intensity now / in the history
@@ -98,8 +102,8 @@ void main() {
         o_channel.rgb *= u_rescale.y;
     }
 #else
-    if (all(equal(p & 1, u_phase))) {
-        ivec2 q = p >> 1;
+    if (all(equal(p % BLOCK, u_phase))) {
+        ivec2 q = p / BLOCK;
         o_flash = texelFetch(u_fresh_flash, q, 0);
         o_statics = texelFetch(u_fresh_statics, q, 0);
         o_channel = texelFetch(u_fresh_channel, q, 0);
@@ -107,11 +111,11 @@ void main() {
         vec2 pixel = vec2(p) + 0.5;
         vec3 d = camera_ray(pixel / sizes.zw * 2.0 - 1.0);
         vec4 A = u_prev_view_proj * vec4(cam_pos.xyz, 1.0), B = u_prev_view_proj * vec4(d, 0.0);
-        // The candidates: the depths the marched pixel of this pixel's 2x2 block found for
+        // The candidates: the depths the marched pixel of this pixel's block found for
         // each group (for the cloud's, where it sees cloud), and the pixel's own background for
         // the cloud's (the ground plane's distance, or the sky).
         Candidate cloud = Candidate(kBig, vec2(0.0), 0.0), flash = cloud, channel = cloud;
-        ivec2 k = min(p >> 1, textureSize(u_fresh_flash, 0) - 1);
+        ivec2 k = min(p / BLOCK, textureSize(u_fresh_flash, 0) - 1);
         vec4 f = texelFetch(u_fresh_flash, k, 0);
         if (f.y <= 0.9) consider(cloud, f.w, A, B, d, 0);
 #if REPROJECT_LIGHT
@@ -125,7 +129,7 @@ void main() {
         float tg = ground_distance(cam_pos.xyz, d);
         if (cloud.err >= kBig) consider(cloud, tg < kBig ? tg : -1.0, A, B, d, 0);
         // Each group from the history where its depth was found, else from the marched pixels.
-        vec2 fuv = ((pixel - vec2(u_phase) - 0.5) * 0.5 + 0.5) / vec2(textureSize(u_fresh_flash, 0));
+        vec2 fuv = ((pixel - vec2(u_phase) - 0.5) / float(BLOCK) + 0.5) / vec2(textureSize(u_fresh_flash, 0));
         vec4 fresh_flash = textureLod(u_fresh_flash, fuv, 0.0);
         vec4 fresh_statics = textureLod(u_fresh_statics, fuv, 0.0);
         vec4 fresh_channel = textureLod(u_fresh_channel, fuv, 0.0);

@@ -213,11 +213,13 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                               .detail = effects ? std::optional(detail) : std::nullopt,
                               .rain = effects ? &rain : nullptr});
                 for (const bool orbit : {false, true})
-                    for (const int mode : {0, 1, 2}) {
+                    for (const int mode : {0, 1, 2, 3}) {
                         // 0 without the history, 1 with it, 2 with it and the light groups
-                        // upsampled instead of reprojected (a moving camera's knob only).
+                        // upsampled instead of reprojected, 3 with it marching one pixel of each
+                        // 4x4 block (the light as Auto picks): a moving camera's knobs only.
                         const bool temporal = mode > 0;
                         if (mode == 2 && (!orbit || !flash)) continue;  // no light groups to fill otherwise
+                        if (mode == 3 && !orbit) continue;
                         std::vector<double> wall, cpu, error, jitter_noise;
                         std::vector<render::PassTimes> passes;
                         int steps[4] = {0, 0, 0, 0};
@@ -225,8 +227,10 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             if (flash) show_flash(r, std::exp(-(i + 2) / 8.0));
                             st.frame_index = std::uint32_t(i + 2);
                             st.temporal = temporal;
-                            st.temporal_light =
-                                mode == 2 ? render::TemporalLight::Upsample : render::TemporalLight::Reproject;
+                            st.temporal_light = mode == 2   ? render::TemporalLight::Upsample
+                                                : mode == 3 ? render::TemporalLight::Auto
+                                                            : render::TemporalLight::Reproject;
+                            st.temporal_moving_block = mode == 3 ? 4 : 2;
                             const render::Camera cam =
                                 orbit ? render::Camera::orbit(target, distance, -60.0 + 1.0 * (i + 2), 8.0, kOrbitFov)
                                       : storm.camera;
@@ -261,11 +265,17 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             {"flash", flash},
                             {"effects", effects ? "detail+rain" : "none"},
                             {"temporal", temporal},
-                            {"light_reprojected", mode == 1},
+                            {"light_reprojected",
+                             mode == 1 ||
+                                 (mode == 3 && !render::temporal_upsamples_light(
+                                                   render::TemporalLight::Auto, kOrbitFov,
+                                                   std::max(1, int(std::lround(size.y * st.internal_scale))), 4))},
+                            {"moving_block", mode == 3 ? 4 : 2},
                             // What the default (TemporalLight::Auto) does at this size.
-                            {"auto_upsamples_light", render::temporal_upsamples_light(
-                                                         render::TemporalLight::Auto, kOrbitFov,
-                                                         std::max(1, int(std::lround(size.y * st.internal_scale))))},
+                            {"auto_upsamples_light",
+                             render::temporal_upsamples_light(
+                                 render::TemporalLight::Auto,
+                                 kOrbitFov, std::max(1, int(std::lround(size.y * st.internal_scale))))},
                             {"frame_ms", ms},
                             {"fps", 1000.0 / ms},
                             {"frame_cpu_ms", bench::median(cpu)},

@@ -8,6 +8,7 @@
 
 #include <glm/gtc/type_ptr.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <string>
@@ -100,6 +101,11 @@ namespace {
 // The order in which a moving camera marches the four pixels of each 2x2 block: diagonal
 // first, so two consecutive frames cover both diagonals.
 constexpr std::array<glm::ivec2, 4> kPhases = {glm::ivec2{0, 0}, {1, 1}, {1, 0}, {0, 1}};
+// The same for the sixteen of a 4x4 block: the 4x4 Bayer matrix's order (each frame's pixel as
+// far from the previous ones as the block allows; each 2x2 quarter of the block once in every 4 frames).
+constexpr std::array<glm::ivec2, 16> kPhases16 = {glm::ivec2{0, 0}, {2, 2}, {2, 0}, {0, 2}, {1, 1}, {3, 3},
+                                                  {3, 1},           {1, 3}, {1, 0}, {3, 2}, {3, 0}, {1, 2},
+                                                  {0, 1},           {2, 3}, {2, 1}, {0, 3}};
 // A history sample serves a pixel when its depth is within this fraction of the distance the
 // pixel's depth predicts from the history's camera (1 degree of orbit moves a cloud's depth
 // by well under 1%; a disoccluded background differs by tens of percent).
@@ -122,11 +128,16 @@ detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const S
     const bool valid = h.has_history && !h.inputs_changed && plan.key == h.key && h.source.valid() &&
                        h.channel.valid() && detail::camera_continues(h.camera, camera);
     const bool still = valid && detail::same_camera(camera, h.camera);
-    // A quarter needs a 2x2 block: a march one pixel wide or high marches every pixel.
-    const bool blocks = u.internal_width >= 2 && u.internal_height >= 2;
-    plan.stride = !valid ? 1 : still ? (h.unsettled > 0 ? 3 : 0) : blocks ? 2 : 1;
-    plan.phase = plan.stride >= 2 ? kPhases[h.frames % 4] : glm::ivec2(0);
-    plan.reproject_light = !temporal_upsamples_light(st.temporal_light, camera.vertical_fov_deg, u.internal_height);
+    // A block needs the march to be at least as wide and high: a march one pixel wide or high
+    // marches every pixel, one under 4 pixels marches quarters.
+    const int fits = std::min(u.internal_width, u.internal_height);
+    plan.block = fits >= st.temporal_moving_block ? st.temporal_moving_block : 2;
+    plan.stride = !valid ? 1 : still ? (h.unsettled > 0 ? 3 : 0) : fits >= 2 ? 2 : 1;
+    plan.phase = plan.stride == 2 && plan.block == 4 ? kPhases16[h.frames % 16]
+                 : plan.stride >= 2                  ? kPhases[h.frames % 4]
+                                                     : glm::ivec2(0);
+    plan.reproject_light =
+        !temporal_upsamples_light(st.temporal_light, camera.vertical_fov_deg, u.internal_height, plan.block);
     return plan;
 }
 
@@ -149,7 +160,7 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
         return;
     }
     timer.begin(kMarch);
-    const int grid = stride == 3 ? 2 : stride;  // every grid-th pixel marched
+    const int grid = stride == 3 ? 2 : stride == 2 ? plan.block : stride;  // every grid-th pixel marched
 
     const int iw = u.internal_width, ih = u.internal_height;
     if (stride > 0) {
@@ -182,7 +193,8 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     const GLuint p =
         program("temporal", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "temporal.frag"}},
                 "#define STRIDE " + std::to_string(stride) + "\n" +
-                    (stride == 2 ? std::string("#define REPROJECT_LIGHT ") + (plan.reproject_light ? "1" : "0") + "\n"
+                    (stride == 2 ? std::string("#define REPROJECT_LIGHT ") + (plan.reproject_light ? "1" : "0") +
+                                       "\n#define BLOCK " + std::to_string(plan.block) + "\n"
                                  : std::string()));
     glUseProgram(p);
     const detail::MultiTarget& fresh = stride > 0 ? h.fresh : h.history[h.current];

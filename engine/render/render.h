@@ -217,17 +217,18 @@ enum class TemporalLight {
 inline constexpr double kTemporalUpsampleDeg = 0.44;
 
 /// Whether a moving camera's frame upsamples the light groups (true) or reprojects them:
-/// `mode`, and for Auto the spacing of the marched pixels, every other pixel of a march
-/// `march_height` pixels high over `vertical_fov_deg`.
-constexpr bool temporal_upsamples_light(TemporalLight mode, double vertical_fov_deg, int march_height) {
+/// `mode`, and for Auto the spacing of the marched pixels, every `block`-th pixel (2 or 4:
+/// Settings::temporal_moving_block) of a march `march_height` pixels high over `vertical_fov_deg`.
+constexpr bool temporal_upsamples_light(TemporalLight mode, double vertical_fov_deg, int march_height, int block = 2) {
     if (mode != TemporalLight::Auto) return mode == TemporalLight::Upsample;
-    return march_height > 0 && 2.0 * vertical_fov_deg / double(march_height) <= kTemporalUpsampleDeg;
+    return march_height > 0 && double(block) * vertical_fov_deg / double(march_height) <= kTemporalUpsampleDeg;
 }
 /// What the temporal history did in a frame (Settings::temporal).
 enum class TemporalStep {
     Off,      ///< no history: the march as without it
     Full,     ///< every pixel marched (no history yet, or a light changed in shape)
-    Quarter,  ///< the camera moved: a quarter of the pixels marched, the rest reprojected
+    Quarter,  ///< the camera moved: a quarter of the pixels marched (a sixteenth with
+              ///< Settings::temporal_moving_block 4), the rest reprojected
     Reused,   ///< a still camera and lights changed only in intensity: nothing marched
 };
 enum class Timing { Off, Finish, Queries };
@@ -284,6 +285,11 @@ struct Settings {
     /// With the temporal history and a moving camera: how the flash's and the channel's light
     /// of the pixels not marched is filled (the cloud's group is reprojected either way).
     TemporalLight temporal_light = TemporalLight::Auto;
+    /// With the temporal history and a moving camera: one pixel of each N x N block is marched
+    /// per frame, the rest reprojected. 2 (a quarter, every pixel fresh every 4 frames) or 4 (a
+    /// sixteenth, every 16 frames: less march time, more of the frame reprojected; docs/render.md
+    /// measures both against a fresh render). A camera that stops marches its quarters in turn either way.
+    int temporal_moving_block = 2;
     std::uint32_t frame_index = 0;  ///< varies the jitter pattern between frames (deterministic)
     // Effects
     bool sky = true;

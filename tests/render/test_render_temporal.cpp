@@ -350,6 +350,56 @@ TEST_CASE("temporal history: a camera that stops marches the four quarters in tu
     r.clear_volume();
 }
 
+TEST_CASE("temporal history: a moving camera marching a sixteenth (temporal_moving_block 4), then stopping") {
+    // The orbit of the quarter's test with one pixel of each 4x4 block marched per frame, then
+    // the camera stays: four settling frames march the 2x2 quarters in place (as after a
+    // quarter's orbit), after which a flash that only dims is exact.
+    render::Renderer& r = gl_renderer();
+    const synthetic::Storm& storm = small_storm();
+    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
+    const render::SourceUpload all = every_direction(storm);
+    render::Settings st = storm.settings;
+    st.dither = false;
+    st.temporal_moving_block = 4;
+    const glm::dvec3 target = orbit_target(storm);
+    const double distance = glm::length(storm.camera.position - target);
+    using Step = render::TemporalStep;
+    const int moving = 12, frames = moving + 7;
+    double sum = 0.0, worst = 0.0;
+    std::vector<double> settle;
+    for (int i = 0; i < frames; ++i) {
+        const render::Camera cam = render::Camera::orbit(target, distance, -60.0 + std::min(i, moving - 1), 8.0, 55.0);
+        show_flash(r, storm, all, {.g = std::exp(-i / 8.0)});
+        const Frame f = with_and_without_history(r, cam, st, std::uint32_t(400 + i));
+        const double e = march_diff(f.kept, f.fresh).radiance;
+        CAPTURE(i);
+        if (i == 0) {
+            CHECK(f.stats.temporal == Step::Full);
+        } else if (i < moving) {
+            CHECK(f.stats.temporal == Step::Quarter);
+            CHECK(f.stats.marched_share == doctest::Approx(1.0 / 16.0).epsilon(0.15));
+            sum += e;
+            worst = std::max(worst, e);
+        } else if (i < moving + 4) {
+            CHECK(f.stats.temporal == Step::Quarter);  // settling: a 2x2 quarter in place
+            CHECK(f.stats.marched_share == doctest::Approx(0.25).epsilon(0.05));
+        } else {
+            CHECK(f.stats.temporal == Step::Reused);
+            settle.push_back(e);
+        }
+    }
+    const double mean = sum / (moving - 1);
+    MESSAGE("orbit marching a sixteenth: mean ", mean, ", worst ", worst, "; settled ", settle[0], " ", settle[1], " ",
+            settle[2]);
+    // Measured (llvmpipe, 160x90 marched, 40x23 a frame): mean MEAN, worst WORST; the quarter's
+    // orbit above 5.5-5.9% / 7.5-7.9%. Settled: the jitter of the frames that marched the
+    // pixels against this frame's (the quarter's test turns the jitter off for exactness; here
+    // it stays on, as in the demo).
+    CHECK(mean < 0.5);
+    CHECK(worst < 0.5);
+    r.clear_volume();
+}
+
 TEST_CASE("temporal history: tiny and changing sizes march what they must, without errors") {
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();

@@ -42,11 +42,12 @@ struct TemporalKey {
 
 /// What a frame's march does with the history (Renderer::Impl::plan_temporal): `stride` 0 reuses
 /// it (nothing marched: no resolve, no glow), 1 marches every pixel, 2 the pixel `phase` of each
-/// 2x2 block of a moving camera, 3 the same for a camera that stopped while the history still
-/// holds pixels a moving camera upsampled (the others kept in place); the march's defines and the
-/// frame's key.
+/// `block` x `block` block of a moving camera, 3 the pixel `phase` of each 2x2 block for a camera
+/// that stopped while the history still holds pixels a moving camera upsampled (the others kept
+/// in place); the march's defines and the frame's key.
 struct TemporalPlan {
     int stride = 1;
+    int block = 2;  // stride 2's block (Settings::temporal_moving_block, less where the march is smaller)
     glm::ivec2 phase{0};
     bool reproject_light = true;  // !temporal_upsamples_light(Settings::temporal_light, ...)
     std::string defines;
