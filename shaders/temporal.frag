@@ -111,14 +111,22 @@ void main() {
         vec2 pixel = vec2(p) + 0.5;
         vec3 d = camera_ray(pixel / sizes.zw * 2.0 - 1.0);
         vec4 A = u_prev_view_proj * vec4(cam_pos.xyz, 1.0), B = u_prev_view_proj * vec4(d, 0.0);
-        // The candidates: the depths the marched pixel of this pixel's block found for
-        // each group (for the cloud's, where it sees cloud), and the pixel's own background for
-        // the cloud's (the ground plane's distance, or the sky).
+        // The candidates: for the cloud's group the depths the four marched pixels around this
+        // one found where they see cloud, and the pixel's own background (the ground plane's
+        // distance, or the sky); for the flash's and the channel's, the light depths the marched
+        // pixel of its own block found. The cloud's four, not only its own block's: at a cloud's
+        // edge the depth that agrees with the history is often a neighbouring block's (between
+        // flashes, orbiting, 160x90 marched: 11.4% -> 6.3% from a fresh render). The lights' four
+        // measured 3.8% -> 3.7% at 1280x720 for +8-12 ms of this pass there: not taken.
         Candidate cloud = Candidate(kBig, vec2(0.0), 0.0), flash = cloud, channel = cloud;
-        ivec2 k = min(p / BLOCK, textureSize(u_fresh_flash, 0) - 1);
-        vec4 f = texelFetch(u_fresh_flash, k, 0);
-        if (f.y <= 0.9) consider(cloud, f.w, A, B, d, 0);
+        ivec2 k0 = ivec2(floor((vec2(p) - vec2(u_phase)) / float(BLOCK)));
+        for (int j = 0; j < 2; ++j)
+            for (int i = 0; i < 2; ++i) {
+                vec4 f = texelFetch(u_fresh_flash, clamp(k0 + ivec2(i, j), ivec2(0), textureSize(u_fresh_flash, 0) - 1), 0);
+                if (f.y <= 0.9) consider(cloud, f.w, A, B, d, 0);
+            }
 #if REPROJECT_LIGHT
+        ivec2 k = min(p / BLOCK, textureSize(u_fresh_flash, 0) - 1);
         float zf = texelFetch(u_fresh_channel, k, 0).w, zc = texelFetch(u_fresh_statics, k, 0).w;
         if (zf > 0.0) consider(flash, zf, A, B, d, 1);
         if (zc > 0.0) consider(channel, zc, A, B, d, 2);

@@ -230,10 +230,11 @@ TEST_CASE("temporal history: a moving camera marches a quarter and stays near a 
     }
     MESSAGE("orbit 1 degree a frame: relative L2 radiance against a fresh render, worst ", worst, ", mean ",
             sum / quarter, " (two fresh jitters differ by ", jitter_noise, ")");
-    // Measured here (llvmpipe, 160x90 marched): mean 5.5-5.9%, worst 7.5-7.9% (as the renderer's
-    // earlier frames leave its state), of which the jitter's own
-    // noise is 1.7% (the history's pixels were marched with other frames' jitter); the rest is
-    // the bilinear resampling of the reprojected history, sharpest at the channel's light.
+    // Measured here (llvmpipe, 160x90 marched): mean 5.5-5.9%, worst 7.4-7.9% (as the renderer's
+    // earlier frames leave its state), of which the jitter's own noise is 1.7% (the history's
+    // pixels were marched with other frames' jitter); the rest is the bilinear resampling of the
+    // reprojected history, sharpest at the channel's light (the lights' depths taken from the
+    // four marched pixels around each pixel gave 4.4% / 4.8-5.3%, at a cost: temporal.frag).
     // Without reprojection (the history at the same pixel) the frames err by 8.4% on average
     // and 9.8% at worst, unrescaled by the flash's decay by 27%: the bounds sit between.
     CHECK(sum / quarter < 0.07);
@@ -350,26 +351,28 @@ TEST_CASE("temporal history: a camera that stops marches the four quarters in tu
     r.clear_volume();
 }
 
-TEST_CASE("temporal history: a moving camera marching a sixteenth (temporal_moving_block 4), then stopping") {
-    // The orbit of the quarter's test with one pixel of each 4x4 block marched per frame, then
-    // the camera stays: four settling frames march the 2x2 quarters in place (as after a
-    // quarter's orbit), after which a flash that only dims is exact.
+TEST_CASE(
+    "temporal history: between flashes a moving camera marches a sixteenth (temporal_moving_block 4), then settles") {
+    // The static light alone, the orbit of the quarter's test with one pixel of each 4x4 block
+    // marched per frame; then the camera stays: four settling frames march the 2x2 quarters in
+    // place, after which the history is the still camera's own march. A flash in the frame
+    // marches quarters again.
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
     r.set_volume({.density = &storm.density, .extinction = storm.extinction});
-    const render::SourceUpload all = every_direction(storm);
+    show_between_flashes(r, storm);
     render::Settings st = storm.settings;
     st.dither = false;
+    st.jitter = false;  // settled frames exact: no per-frame jitter
     st.temporal_moving_block = 4;
     const glm::dvec3 target = orbit_target(storm);
     const double distance = glm::length(storm.camera.position - target);
     using Step = render::TemporalStep;
     const int moving = 12, frames = moving + 7;
     double sum = 0.0, worst = 0.0;
-    std::vector<double> settle;
+    std::vector<double> settled;
     for (int i = 0; i < frames; ++i) {
         const render::Camera cam = render::Camera::orbit(target, distance, -60.0 + std::min(i, moving - 1), 8.0, 55.0);
-        show_flash(r, storm, all, {.g = std::exp(-i / 8.0)});
         const Frame f = with_and_without_history(r, cam, st, std::uint32_t(400 + i));
         const double e = march_diff(f.kept, f.fresh).radiance;
         CAPTURE(i);
@@ -385,18 +388,35 @@ TEST_CASE("temporal history: a moving camera marching a sixteenth (temporal_movi
             CHECK(f.stats.marched_share == doctest::Approx(0.25).epsilon(0.05));
         } else {
             CHECK(f.stats.temporal == Step::Reused);
-            settle.push_back(e);
+            settled.push_back(e);
         }
     }
     const double mean = sum / (moving - 1);
-    MESSAGE("orbit marching a sixteenth: mean ", mean, ", worst ", worst, "; settled ", settle[0], " ", settle[1], " ",
-            settle[2]);
-    // Measured (llvmpipe, 160x90 marched, 40x23 a frame): mean MEAN, worst WORST; the quarter's
-    // orbit above 5.5-5.9% / 7.5-7.9%. Settled: the jitter of the frames that marched the
-    // pixels against this frame's (the quarter's test turns the jitter off for exactness; here
-    // it stays on, as in the demo).
-    CHECK(mean < 0.5);
-    CHECK(worst < 0.5);
+    MESSAGE("between flashes, orbit marching a sixteenth: mean ", mean, ", worst ", worst, "; settled ", settled[0],
+            " ", settled[1], " ", settled[2]);
+    // Measured (llvmpipe, 160x90 marched, 40x23 a frame): mean 11.9-13.4%, worst 17.3-19.2%
+    // (as the renderer's earlier frames leave its state), against the quarter's 6.3% / 7.6% on
+    // the same light (the test below); with depths from the pixel's own block alone 20.8% /
+    // 32.8%, which fails both bounds. At 1280x720 it is 5.7% (docs/render.md). Settled: exact
+    // (no jitter, the static light unchanged).
+    CHECK(mean < 0.16);
+    CHECK(worst < 0.24);
+    for (const double e : settled) CHECK(e < 1e-5);
+
+    // A flash lights the frame: the next moving frame marches a quarter.
+    show_flash(r, storm, every_direction(storm), {.g = 1.0});
+    render::Settings flash = st;
+    flash.temporal = true;
+    flash.frame_index = 500;
+    const render::FrameStats s =
+        render_at(r, render::Camera::orbit(target, distance, -60.0 + moving, 8.0, 55.0), flash, W, H);
+    CHECK(s.temporal == Step::Full);  // the flash's S is a new shape
+    flash.frame_index = 501;
+    const render::FrameStats q =
+        render_at(r, render::Camera::orbit(target, distance, -59.0 + moving, 8.0, 55.0), flash, W, H);
+    CHECK(q.temporal == Step::Quarter);
+    CHECK(q.marched_share == doctest::Approx(0.25).epsilon(0.05));
+    r.clear_static();
     r.clear_volume();
 }
 
@@ -499,14 +519,15 @@ TEST_CASE("temporal history: between flashes, a moving camera's static light sta
         }
         MESSAGE("between flashes, orbit: mean ", sum / quarter, ", worst ", worst);
         CHECK(quarter == frames - 1);
-        // Measured (llvmpipe, 160x90 marched): mean 11.4% / 9.1-9.8%, worst 13.2-13.3% /
-        // 11.4-11.5% (without / with sky and ground), most of it at the cloud's base, where
-        // this field (the flash's S used as a static light) peaks over a few pixels. With the
-        // pixel's own background tried before the cloud's depth, a sky the history saw beside
-        // the cloud's edge took the edge's pixels: 20% / 15% mean, 22% / 17.5% worst, which
-        // both bounds fail.
-        CHECK(sum / quarter < 0.14);
-        CHECK(worst < 0.16);
+        // Measured (llvmpipe, 160x90 marched): mean 6.3% / 4.9%, worst 7.6% / 5.7% (without /
+        // with sky and ground), most of it at the cloud's base, where this field (the flash's S
+        // used as a static light) peaks over a few pixels. With the cloud's depth from the
+        // pixel's own block's marched pixel alone: 11.4% / 9.1-9.8% mean, 13.2-13.3% /
+        // 11.4-11.5% worst, which fails both bounds; with, besides, the pixel's own background
+        // tried before the cloud's depth (a sky the history saw beside the cloud's edge took the
+        // edge's pixels): 20% / 15% and 22% / 17.5%.
+        CHECK(sum / quarter < 0.085);
+        CHECK(worst < 0.10);
     }
     r.clear_static();
     r.clear_volume();
