@@ -139,6 +139,15 @@ void show_between_flashes(render::Renderer& r, const synthetic::Storm& storm) {
     r.set_channel({});
 }
 
+// The storm's volume between flashes (show_between_flashes), and its settings without dither.
+render::Settings between_flashes(render::Renderer& r, const synthetic::Storm& storm) {
+    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
+    show_between_flashes(r, storm);
+    render::Settings st = storm.settings;
+    st.dither = false;
+    return st;
+}
+
 }  // namespace
 
 TEST_CASE("temporal history: a still camera through a whole flash gives each frame a fresh render's") {
@@ -359,10 +368,7 @@ TEST_CASE(
     // marches quarters again.
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
-    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
-    show_between_flashes(r, storm);
-    render::Settings st = storm.settings;
-    st.dither = false;
+    render::Settings st = between_flashes(r, storm);
     st.jitter = false;  // settled frames exact: no per-frame jitter
     st.temporal_moving_block = 4;
     const glm::dvec3 target = orbit_target(storm);
@@ -496,14 +502,12 @@ TEST_CASE("temporal history: between flashes, a moving camera's static light sta
     // no channel): what a storm's frames draw between flashes, all of it the cloud's group.
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
-    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
-    show_between_flashes(r, storm);
+    const render::Settings base = between_flashes(r, storm);
     const glm::dvec3 target = orbit_target(storm);
     const double distance = glm::length(storm.camera.position - target);
     for (const bool background : {false, true}) {
         CAPTURE(background);
-        render::Settings st = storm.settings;
-        st.dither = false;
+        render::Settings st = base;
         st.sky = st.ground = background;
         double worst = 0.0, sum = 0.0;
         int quarter = 0;
@@ -540,10 +544,7 @@ TEST_CASE(
     // between (another camera) leaves the history's march and its histogram as they were.
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
-    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
-    show_between_flashes(r, storm);
-    render::Settings st = storm.settings;
-    st.dither = false;
+    render::Settings st = between_flashes(r, storm);
     st.auto_exposure = true;
     st.temporal = true;
     st.timing = render::Timing::Finish;
