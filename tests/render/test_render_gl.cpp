@@ -508,6 +508,58 @@ TEST_CASE("bolt core and glow are attenuated by the cloud in front of them, not 
     r.set_channel({});
 }
 
+TEST_CASE("a bolt's core leaves nothing where it was: the next bolt's frame is a fresh renderer's") {
+    // The core target is cleared only over the last bolt's footprint on screen: a moved
+    // channel, one passing beside the camera (clipped at the near plane, projected far off
+    // screen), a thick one and a frame with no channel before the next bolt.
+    render::Renderer& r = gl_renderer();
+    r.clear_volume();
+    r.clear_source();
+    render::Settings st;
+    st.sky = st.ground = st.glow = st.glare = false;
+    st.bolt = true;
+    st.dither = false;
+    st.star_radiance = 0.0;
+    render::Camera cam;
+    cam.position = {0, -8000, 3000};
+    cam.target = {0, 0, 3000};
+    cam.vertical_fov_deg = 40.0;
+    auto channel = [](glm::vec3 a, glm::vec3 b, float radius) {
+        render::LitChannel c;
+        for (int i = 0; i < 8; ++i)
+            c.segments.push_back(
+                {a + (b - a) * (float(i) / 8.0f), a + (b - a) * (float(i + 1) / 8.0f), 100.0f, radius});
+        return c;
+    };
+    const render::LitChannel left = channel({-2000, 0, 1000}, {-2500, 0, 5000}, 2.0f);
+    const render::LitChannel right = channel({1500, 0, 500}, {1200, 500, 4500}, 2.0f);
+    const render::LitChannel beside = channel({40, -9500, 2990}, {300, -6000, 3100}, 2.0f);
+    const render::LitChannel thick = channel({0, 0, 1000}, {100, 0, 5000}, 150.0f);
+    const int w = 96, h = 64;
+    auto frame = [&](const render::LitChannel& c) {
+        r.set_channel(c);
+        render_at(r, cam, st, w, h);
+        return r.read_hdr();
+    };
+    auto fresh = [&](const render::LitChannel& c) {
+        r.set_channel({});
+        render_at(r, cam, st, w + 1, h);  // another size: new targets, cleared whole
+        return frame(c);
+    };
+    const std::vector<float> right_fresh = fresh(right);
+    for (const render::LitChannel* before : {&left, &beside, &thick}) {
+        fresh(*before);
+        CHECK(frame(right) == right_fresh);
+        fresh(*before);
+        frame({});  // a frame without a channel between
+        CHECK(frame(right) == right_fresh);
+    }
+    // The fixture is meaningful: the channels before light pixels the right one does not.
+    CHECK(fresh(beside) != right_fresh);
+    CHECK(fresh(thick) != right_fresh);
+    r.set_channel({});
+}
+
 TEST_CASE("hard cases give finite images") {
     render::Renderer& r = gl_renderer();
     auto finite = [&] {

@@ -123,6 +123,10 @@ struct Renderer::Impl {
     std::uint64_t meter_version = 0;
     bool glare_ran = false;   // this frame's composite adds glare_up[0]
     bool core_drawn = false;  // this frame's bolt pass drew core_target
+    // The pixels of core_target that may hold a drawn bolt ([x0, x1) x [y0, y1)), and the
+    // texture and size they are of: the next bolt pass clears only these.
+    glm::ivec4 core_footprint{0};
+    glm::ivec3 core_footprint_of{0};
     int composite_stars = 1;  // this frame's composite's stars: 0 none, 1 computed, 2 read from star_target
     bool composite_dither = true;
     // The stars kept while the camera stays still (pass_composite.cpp): the target, what they
