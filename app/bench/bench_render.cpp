@@ -197,6 +197,9 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
         st.timing = render::Timing::Queries;  // per-pass GPU times; render() waits for them at its end
         double baseline = 0.0;
         constexpr double kOrbitFov = 55.0;  // the orbiting camera's vertical field of view (degrees)
+        // Whether the default (TemporalLight::Auto) upsamples an orbiting frame's light at this size.
+        const bool auto_upsamples = render::temporal_upsamples_light(
+            render::TemporalLight::Auto, kOrbitFov, std::max(1, int(std::lround(size.y * st.internal_scale))));
         // During a flash (the return stroke's decay; no static light), then between flashes:
         // the static light alone (the storm's S, x 1e-3, as a grey moonlit field on the
         // lighting grid), no flash S, no channel, so no glow, bolt or glare: what most of a
@@ -267,17 +270,9 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             {"temporal", temporal},
                             // With no flash the light groups are zero and never reprojected; the 4x4
                             // block marches only then (a quarter during a flash).
-                            {"light_reprojected",
-                             flash && (mode == 1 ||
-                                       (mode == 3 && !render::temporal_upsamples_light(
-                                                         render::TemporalLight::Auto, kOrbitFov,
-                                                         std::max(1, int(std::lround(size.y * st.internal_scale))))))},
+                            {"light_reprojected", flash && (mode == 1 || (mode == 3 && !auto_upsamples))},
                             {"moving_block", mode == 3 && !flash ? 4 : 2},
-                            // What the default (TemporalLight::Auto) does at this size.
-                            {"auto_upsamples_light",
-                             render::temporal_upsamples_light(
-                                 render::TemporalLight::Auto,
-                                 kOrbitFov, std::max(1, int(std::lround(size.y * st.internal_scale))))},
+                            {"auto_upsamples_light", auto_upsamples},  // what the default does here
                             {"frame_ms", ms},
                             {"fps", 1000.0 / ms},
                             {"frame_cpu_ms", bench::median(cpu)},

@@ -41,7 +41,7 @@ int core_block(const FrameUniforms& u) {
 void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const FrameUniforms& u, PassTimer& timer,
                                 FrameStats& stats) {
     glare_ran = false;
-    if (!(st.glare && st.bolt && seg_count > 0)) return;
+    if (!(st.glare && core_drawn)) return;  // the bolt pass ran first: the core it drew
     const int levels = glare_levels(u.internal_width, u.internal_height);
     // The fit depends on the view's pixel size and the levels only: kept while they stay.
     const double fov = camera.vertical_fov_deg;

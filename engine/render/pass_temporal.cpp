@@ -49,7 +49,6 @@ void TemporalState::release() {
     fresh.release();
     for (MultiTarget& t : history) t.release();
     march.release();
-    march_current = false;
     for (GLuint& f : resolve_fbo) {
         if (f) glDeleteFramebuffers(1, &f);
         f = 0;
@@ -158,7 +157,8 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     // A still camera whose light groups kept their intensities (a moonlit or sunlit frame
     // between flashes): the resolve would write the history's values again, times 1, and the
     // same march from them. Nothing runs; the meter keeps its histogram of that march too.
-    if (stride == 0 && h.march_current && h.source.rescale() == 1.0 && h.channel.rescale() == 1.0) {
+    // (Stride 0 needs the history, which its march was written with.)
+    if (stride == 0 && h.source.rescale() == 1.0 && h.channel.rescale() == 1.0) {
         h.key = std::move(key);
         ++h.frames;
         return;
@@ -219,7 +219,6 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
 
     h.current = next;
     ++h.march_version;
-    h.march_current = true;
     h.has_history = true;
     h.inputs_changed = false;
     h.key = std::move(key);

@@ -58,11 +58,11 @@ struct TemporalState {
     MultiTarget fresh;       // this frame's marched pixels (flash, statics, channel)
     MultiTarget history[2];  // ping-pong: history[current] is the last one written
     GLuint resolve_fbo[2] = {0, 0};
-    // The march of history[current] (attachment 3 of the resolve), and how many resolves have
-    // written it: the meter's histogram of it is kept while the version stays.
+    // The march of history[current] (attachment 3 of the resolve, written with it: valid while
+    // has_history), and how many resolves have written it: the meter's histogram of it is kept
+    // while the version stays.
     Target march;
     std::uint64_t march_version = 0;
-    bool march_current = false;  // `march` is the march of history[current] with the trackers at 1
     int current = 0;
     bool has_history = false;
     bool inputs_changed = true;  // the volume, the static light or the sun changed since
