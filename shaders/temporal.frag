@@ -10,7 +10,8 @@
 // sums it.
 //
 // STRIDE (compile time; a software rasterizer runs both sides of a branch its lanes split on,
-// so each case is its own program): 0 nothing marched (still camera), 1 every pixel marched,
+// so each case is its own program): 0 nothing marched (still camera): the history is kept as
+// it is and only the march is written, its groups scaled by u_rescale, 1 every pixel marched,
 // 2 one pixel of each BLOCK x BLOCK block marched, at (u_phase.x, u_phase.y) (moving camera), 3
 // one of each 2x2 block with the others from the history in place (a camera that stopped: in
 // four frames every pixel is marched at its place).
@@ -42,10 +43,14 @@ uniform vec4 u_prev_cam;         // xyz the history's camera position
 uniform vec2 u_rescale;          // x: the flash's S now / in the history, y: the channel's intensity now / in the history
 uniform float u_depth_tolerance; // relative depth difference beyond which a history sample is disoccluded
 
+#if STRIDE == 0
+layout(location = 0) out vec4 o_march;
+#else
 layout(location = 0) out vec4 o_flash;
 layout(location = 1) out vec4 o_statics;
 layout(location = 2) out vec4 o_channel;
 layout(location = 3) out vec4 o_march;
+#endif
 
 #if STRIDE == 2
 // Where the history saw a point at depth z along this pixel's ray: its clip position is
@@ -81,20 +86,21 @@ void consider(inout Candidate best, float z, vec4 A, vec4 B, vec3 d, int which) 
 
 void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
-#if STRIDE == 1
+#if STRIDE == 0
+    vec4 o_flash = texelFetch(u_hist_flash, p, 0);
+    vec3 statics = texelFetch(u_hist_statics, p, 0).rgb, channel = texelFetch(u_hist_channel, p, 0).rgb;
+    o_march = vec4(o_flash.x * u_rescale.x * light_colour.rgb + statics + channel * u_rescale.y, o_flash.y);
+#elif STRIDE == 1
     o_flash = texelFetch(u_fresh_flash, p, 0);
     o_statics = texelFetch(u_fresh_statics, p, 0);
     o_channel = texelFetch(u_fresh_channel, p, 0);
-#elif STRIDE == 0 || STRIDE == 3
-#if STRIDE == 3
+#elif STRIDE == 3
     if (all(equal(p & 1, u_phase))) {
         ivec2 q = p >> 1;
         o_flash = texelFetch(u_fresh_flash, q, 0);
         o_statics = texelFetch(u_fresh_statics, q, 0);
         o_channel = texelFetch(u_fresh_channel, q, 0);
-    } else
-#endif
-    {
+    } else {
         o_flash = texelFetch(u_hist_flash, p, 0);
         o_statics = texelFetch(u_hist_statics, p, 0);
         o_channel = texelFetch(u_hist_channel, p, 0);
@@ -152,5 +158,7 @@ void main() {
         o_statics.w = ch_ok ? channel.depth : fresh_statics.w;
     }
 #endif
+#if STRIDE != 0
     o_march = vec4(o_flash.x * light_colour.rgb + o_statics.rgb + o_channel.rgb, o_flash.y);
+#endif
 }

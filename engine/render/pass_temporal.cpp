@@ -154,11 +154,29 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     stats.temporal = stride == 0 ? TemporalStep::Reused : stride == 1 ? TemporalStep::Full : TemporalStep::Quarter;
     stats.marched_share = 0.0;
     march_out = &h.march;
-    // A still camera whose light groups kept their intensities (a moonlit or sunlit frame
-    // between flashes): the resolve would write the history's values again, times 1, and the
-    // same march from them. Nothing runs; the meter keeps its histogram of that march too.
-    // (Stride 0 needs the history, which its march was written with.)
-    if (stride == 0 && h.source.rescale() == 1.0 && h.channel.rescale() == 1.0) {
+    // A still camera: the history stays as it was marched (the groups' trackers keep their
+    // factors relative to it), and only the march the later passes read is summed again from it
+    // with the groups' factors now (temporal.frag, STRIDE 0): one target written instead of the
+    // history's three and the march. When the factors are those the march was summed with (a
+    // moonlit or sunlit frame between flashes), not even that: the meter keeps its histogram of
+    // that march too. (Stride 0 needs the history, which its march was written with.)
+    if (stride == 0) {
+        const glm::dvec2 scale(h.source.rescale(), h.channel.rescale());
+        if (scale != h.march_scale) {
+            timer.begin(kMarch);
+            const GLuint p = program(
+                "temporal", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "temporal.frag"}},
+                "#define STRIDE 0\n");
+            glUseProgram(p);
+            for (int i = 0; i < 3; ++i) glBindTextureUnit(GLuint(13 + i), h.history[h.current].tex[std::size_t(i)]);
+            glUniform2f(glGetUniformLocation(p, "u_rescale"), float(scale.x), float(scale.y));
+            glBindFramebuffer(GL_FRAMEBUFFER, h.march.fbo);
+            glViewport(0, 0, h.march.w, h.march.h);
+            glDrawArrays(GL_TRIANGLES, 0, 3);
+            timer.end(kMarch);
+            h.march_scale = scale;
+            ++h.march_version;
+        }
         h.key = std::move(key);
         ++h.frames;
         return;
@@ -167,7 +185,7 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     const int grid = stride == 3 ? 2 : stride == 2 ? plan.block : stride;  // every grid-th pixel marched
 
     const int iw = u.internal_width, ih = u.internal_height;
-    if (stride > 0) {
+    {
         const int fw = (iw - phase.x + grid - 1) / grid, fh = (ih - phase.y + grid - 1) / grid;
         h.fresh.ensure(fw, fh, 3);
         const GLuint p =
@@ -201,9 +219,8 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
                                        "\n#define BLOCK " + std::to_string(plan.block) + "\n"
                                  : std::string()));
     glUseProgram(p);
-    const detail::MultiTarget& fresh = stride > 0 ? h.fresh : h.history[h.current];
     for (int i = 0; i < 3; ++i) {
-        glBindTextureUnit(GLuint(10 + i), fresh.tex[std::size_t(i)]);
+        glBindTextureUnit(GLuint(10 + i), h.fresh.tex[std::size_t(i)]);
         glBindTextureUnit(GLuint(13 + i), h.history[h.current].tex[std::size_t(i)]);
     }
     glUniform2i(glGetUniformLocation(p, "u_phase"), phase.x, phase.y);
@@ -219,6 +236,7 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
 
     h.current = next;
     ++h.march_version;
+    h.march_scale = glm::dvec2(1.0);
     h.has_history = true;
     h.inputs_changed = false;
     h.key = std::move(key);
@@ -229,7 +247,7 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     ++h.frames;
     // A moving camera upsamples three pixels of each 2x2 block: once it stops, the next four
     // frames march the four phases in turn, after which every pixel is marched and rescaled.
-    h.unsettled = stride == 2 ? 4 : stride == 3 ? h.unsettled - 1 : stride == 1 ? 0 : h.unsettled;
+    h.unsettled = stride == 2 ? 4 : stride == 3 ? h.unsettled - 1 : 0;
 }
 
 }  // namespace fulgur::render

@@ -41,7 +41,7 @@ struct TemporalKey {
 };
 
 /// What a frame's march does with the history (Renderer::Impl::plan_temporal): `stride` 0 reuses
-/// it (nothing marched: no resolve, no glow), 1 marches every pixel, 2 the pixel `phase` of each
+/// it (nothing marched, no resolve, no glow: the march summed from it), 1 marches every pixel, 2 the pixel `phase` of each
 /// `block` x `block` block of a moving camera, 3 the pixel `phase` of each 2x2 block for a camera
 /// that stopped while the history still holds pixels a moving camera upsampled (the others kept
 /// in place); the march's defines and the frame's key.
@@ -59,9 +59,12 @@ struct TemporalState {
     MultiTarget history[2];  // ping-pong: history[current] is the last one written
     GLuint resolve_fbo[2] = {0, 0};
     // The march of history[current] (attachment 3 of the resolve, written with it: valid while
-    // has_history), and how many resolves have written it: the meter's histogram of it is kept
+    // has_history), the flash's and the channel's factors it was summed with (1 after a
+    // resolve; a still camera's frame sums it again from the history with the trackers'
+    // factors), and how many times it has been written: the meter's histogram of it is kept
     // while the version stays.
     Target march;
+    glm::dvec2 march_scale{1.0};
     std::uint64_t march_version = 0;
     int current = 0;
     bool has_history = false;
