@@ -12,11 +12,30 @@ vec3 sky_gradient(vec3 d) {
 }
 
 // Stars: each cell of a cube map (kStarCells per face edge) holds at most one star, placed
-// well inside its cell and drawn as a Gaussian spot of fixed size in pixels (sigma 0.6 px),
-// with a brightness from a steep power law (many faint stars, few bright ones). One hash per
-// pixel decides presence, position, brightness and tint. Deterministic.
+// well inside its cell and drawn as a Gaussian spot of fixed size in pixels (sigma 0.6 px, cut
+// at kStarSpot pixels, where it is 4e-6 of its peak, so that a star reaches a bounded set of
+// pixels: star_points.vert draws them), with a brightness from a steep power law (many faint
+// stars, few bright ones). One hash per pixel decides presence, position, brightness and tint.
+// Deterministic.
 const float kStarCells = 160.0;
 const float kStarProbability = 0.07;
+const float kStarSpot = 3.0;  // pixels (mirrored by kStarSpotPixels in pass_composite.cpp)
+
+// The draws of a cell's star, each in [0, 1]: x its presence (a star when < kStarProbability),
+// yz its position in the cell, w its brightness and tint.
+vec4 star_draws(vec2 cell, uint face) {
+    uint h = hash_u32(uvec3(uvec2(cell), face));
+    return vec4(uvec4(h, h >> 8u, h >> 16u, h >> 24u) & 255u) * (1.0 / 255.0);
+}
+
+// Where a cell's star is on its face ([-1, 1]^2).
+vec2 star_position(vec2 cell, vec4 draws) { return ((cell + 0.35 + 0.3 * draws.yz) / kStarCells) * 2.0 - 1.0; }
+
+// The (unnormalized) direction of face coordinates uv on a face: stars()' projection undone.
+vec3 cube_face_direction(uint face, vec2 uv) {
+    float s = (face & 1u) == 1u ? 1.0 : -1.0;
+    return face < 2u ? vec3(s, uv.x, uv.y) : face < 4u ? vec3(uv.y, s, uv.x) : vec3(uv.x, uv.y, s);
+}
 
 vec3 stars(vec3 d, float pixel_angle) {
     // Cube face of d without dynamic vector indexing (slow on SIMD software rasterizers).
@@ -39,10 +58,8 @@ vec3 stars(vec3 d, float pixel_angle) {
     }
     uv /= major;                                            // [-1, 1]^2 on the face
     vec2 cell = floor((uv * 0.5 + 0.5) * kStarCells);
-    uint h = hash_u32(uvec3(uvec2(cell), face));
-    // bits: 0-7 presence, 8-15 / 16-23 position in the cell, 24-31 brightness and tint
-    vec4 u = vec4(uvec4(h, h >> 8u, h >> 16u, h >> 24u) & 255u) * (1.0 / 255.0);
-    vec2 star = ((cell + 0.35 + 0.3 * u.yz) / kStarCells) * 2.0 - 1.0;
+    vec4 u = star_draws(cell, face);
+    vec2 star = star_position(cell, u);
     // Angular distance on the cube face: d(angle) = d(uv) / (1 + |uv|^2) (exact at the face
     // centre and along radial lines; stars near face edges are slightly elongated).
     float r = length(star - uv) / ((1.0 + dot(uv, uv)) * pixel_angle);  // pixels
@@ -50,7 +67,8 @@ vec3 stars(vec3 d, float pixel_angle) {
     float brightness = b4 * b4 * b4;                          // u^12
     vec3 tint = mix(vec3(1.0, 0.85, 0.7), vec3(0.8, 0.9, 1.0), fract(u.w * 7.0));
     float present = u.x < kStarProbability ? 1.0 : 0.0;
-    return (present * sky_params.y * brightness * exp(-r * r * (0.5 / 0.36))) * tint;
+    float spot = r < kStarSpot ? exp(-r * r * (0.5 / 0.36)) : 0.0;
+    return (present * sky_params.y * brightness * spot) * tint;
 }
 
 vec3 sky_radiance(vec3 d) {

@@ -4,6 +4,8 @@
 
 #include <glad/gl.h>
 
+#include <cmath>
+
 namespace fulgur::render {
 
 using detail::CallerTarget;
@@ -16,17 +18,13 @@ using detail::PassTimer;
 void Renderer::Impl::composite_pass(const FrameUniforms& u, const CallerTarget& caller, PassTimer& timer) {
     timer.begin(kComposite);
     prepare_stars(u, !u.host && u.stars);
-    const GLuint p = composite_program(u.host ? 2 : 0);
-    glUseProgram(p);
-    bind_composite_inputs(p);
     glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(caller.fbo));
-    glViewport(0, 0, u.width, u.height);
     if (u.host) {
         // A host's frame: dst = L + T dst (premultiplied radiance over the host's radiance); its alpha is kept.
         glEnable(GL_BLEND);
         glBlendFuncSeparate(GL_ONE, GL_SRC_ALPHA, GL_ZERO, GL_ONE);
     }
-    glDrawArrays(GL_TRIANGLES, 0, 3);
+    draw_composite(u.host ? 2 : 0);
     if (u.host) {
         glBlendFunc(GL_ONE, GL_ZERO);
         glDisable(GL_BLEND);
@@ -34,8 +32,28 @@ void Renderer::Impl::composite_pass(const FrameUniforms& u, const CallerTarget& 
     timer.end(kComposite);
 }
 
+namespace {
+
+// background.glsl's kStarSpot: a star's spot is cut at this radius (pixels at the view's centre).
+constexpr double kStarSpotPixels = 3.0;
+
+// The widest point star_points.vert asks for in a frame (pixels): a spot's half-width on screen
+// is at most its square's half-diagonal on the cube face, sqrt 2 x 3 kStarSpot pixel angles
+// (1 + |uv|^2 <= 3; an angle is at most its distance in face coordinates), times 1 + t^2
+// pixels per pixel angle at a direction t (tangent) off the view axis, taken at the frame's
+// corner and a quarter more for spots centred off the frame, plus a pixel.
+double widest_star_point(const detail::FrameBlock& f) {
+    const double tan_half = f.cam_pos.w, aspect = f.cam_fwd.w;
+    const double tx = tan_half * aspect * (1.0 + std::abs(double(f.cam_right.w)));
+    const double ty = tan_half * (1.0 + std::abs(double(f.cam_up.w)));
+    return 2.0 * (1.25 * std::sqrt(2.0) * 3.0 * kStarSpotPixels * (1.0 + tx * tx + ty * ty) + 1.0);
+}
+
+}  // namespace
+
 void Renderer::Impl::prepare_stars(const FrameUniforms& u, bool stars) {
     composite_stars = 0;
+    star_guard = 0.0f;
     if (!stars) return;
     // What star_radiance reads: the camera's frame and lens, the output size, the stars' radiance
     // and the sky and ground switches.
@@ -48,7 +66,20 @@ void Renderer::Impl::prepare_stars(const FrameUniforms& u, bool stars) {
     const bool still = key == star_previous;
     star_previous = key;
     if (!still) {
-        composite_stars = 1;
+        // A moving camera's stars: as points over the composite without them (finding every
+        // pixel's star cell is ~5 ms of a 1280x720 composite on llvmpipe; a few percent of the
+        // pixels are near a star), unless the view is so wide that a spot needs a wider point
+        // than GL draws.
+        if (max_point_size == 0.0f) {
+            float range[2] = {1.0f, 1.0f};
+            glGetFloatv(GL_POINT_SIZE_RANGE, range);
+            max_point_size = range[1];
+        }
+        const double widest = widest_star_point(f);
+        if (widest <= double(max_point_size))
+            star_guard = float(std::ceil(0.5 * widest));
+        else
+            composite_stars = 1;
         return;
     }
     if (key != star_key || !star_target.tex) {
@@ -63,11 +94,34 @@ void Renderer::Impl::prepare_stars(const FrameUniforms& u, bool stars) {
     composite_stars = 2;
 }
 
-GLuint Renderer::Impl::composite_program(int output) {
+void Renderer::Impl::draw_composite(int output) {
+    const GLuint p = composite_program(output);
+    glUseProgram(p);
+    bind_composite_inputs(p);
+    glViewport(0, 0, out_w, out_h);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    if (star_guard <= 0.0f) return;
+    const GLuint q = composite_program(output, true);
+    glUseProgram(q);
+    bind_composite_inputs(q);
+    glUniform1f(glGetUniformLocation(q, "u_guard"), star_guard);
+    const int g = int(star_guard);
+    glViewport(-g, -g, out_w + 2 * g, out_h + 2 * g);
+    glEnable(GL_PROGRAM_POINT_SIZE);
+    constexpr int kStarCellCount = 6 * 160 * 160;  // background.glsl's 6 kStarCells^2
+    glDrawArrays(GL_POINTS, 0, kStarCellCount);
+    glDisable(GL_PROGRAM_POINT_SIZE);
+    glViewport(0, 0, out_w, out_h);
+}
+
+GLuint Renderer::Impl::composite_program(int output, bool star_points) {
     const std::string defines = "#define OUTPUT " + std::to_string(output) + "\n#define GLARE " +
                                 (glare_ran ? "1" : "0") + "\n#define CORE " + (core_drawn ? "1" : "0") +
-                                "\n#define STARS " + std::to_string(composite_stars) + "\n#define DITHER " +
-                                (composite_dither ? "1" : "0") + "\n";
+                                "\n#define STARS " + std::to_string(star_points ? 1 : composite_stars) +
+                                "\n#define DITHER " + (composite_dither ? "1" : "0") + "\n";
+    if (star_points)
+        return program("composite_stars",
+                       {{GL_VERTEX_SHADER, "star_points.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}}, defines);
     return program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}},
                    defines);
 }

@@ -164,9 +164,9 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
         const glm::dvec2 scale(h.source.rescale(), h.channel.rescale());
         if (scale != h.march_scale) {
             timer.begin(kMarch);
-            const GLuint p = program(
-                "temporal", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "temporal.frag"}},
-                "#define STRIDE 0\n");
+            const GLuint p =
+                program("temporal", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "temporal.frag"}},
+                        "#define STRIDE 0\n");
             glUseProgram(p);
             for (int i = 0; i < 3; ++i) glBindTextureUnit(GLuint(13 + i), h.history[h.current].tex[std::size_t(i)]);
             glUniform2f(glGetUniformLocation(p, "u_rescale"), float(scale.x), float(scale.y));

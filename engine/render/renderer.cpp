@@ -556,15 +556,11 @@ std::vector<float> Renderer::read_hdr() const {
     FULGUR_ASSERT(m.out_w > 0, "read_hdr before render");
     const CallerTarget caller = CallerTarget::save();
     m.hdr_target.ensure(m.out_w, m.out_h);
-    const GLuint p = m.composite_program(1);
-    glUseProgram(p);
     glBindBufferBase(GL_UNIFORM_BUFFER, 0, m.frame_ubo);
     glBindVertexArray(m.vao);
-    m.bind_composite_inputs(p);
     glDisable(GL_BLEND);
     glBindFramebuffer(GL_FRAMEBUFFER, m.hdr_target.fbo);
-    glViewport(0, 0, m.out_w, m.out_h);
-    glDrawArrays(GL_TRIANGLES, 0, 3);
+    m.draw_composite(1);
     std::vector<float> rgba(std::size_t(m.out_w) * std::size_t(m.out_h) * 4);
     glPixelStorei(GL_PACK_ALIGNMENT, 4);
     glGetTextureImage(m.hdr_target.tex, 0, GL_RGBA, GL_FLOAT, GLsizei(rgba.size() * sizeof(float)), rgba.data());

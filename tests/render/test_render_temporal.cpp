@@ -454,29 +454,55 @@ TEST_CASE("temporal history: tiny and changing sizes march what they must, witho
     r.clear_volume();
 }
 
-TEST_CASE("a still camera's stars, drawn once and read back, are the stars computed each frame") {
+TEST_CASE("a moving camera's stars, drawn as points, are a still camera's, computed at every pixel") {
+    // A moving camera's frame draws the stars as points over the composite without them
+    // (star_points.vert); a still camera's next frames read the stars computed at every pixel
+    // (stars.frag). Both must give the same frame to the bit: a point too small for its star's
+    // spot, or a star dropped at the frame's edge or the horizon, leaves pixels without their
+    // star. Views: the storm's, one looking up at 80 degrees with a lens shift (spots
+    // stretched toward the corners), a narrow one, one with the horizon across the frame.
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
     show_storm(r, storm);
     render::Settings st = storm.settings;
     st.star_radiance = 1e-3;  // bright enough to show in 8 bits through the storm's exposure
     st.sky = true;
-    // The first frame of a view computes its stars; the next ones (the same view) read them.
-    render::Camera moved = storm.camera;
-    moved.position.z += 50.0;
-    render_at(r, moved, st, W, H);
-    render_at(r, storm.camera, st, W, H);
-    const std::vector<std::uint8_t> computed = test::gl_context().read_rgba8();
-    const std::vector<float> computed_hdr = r.read_hdr();
-    render_at(r, storm.camera, st, W, H);
-    render_at(r, storm.camera, st, W, H);
-    CHECK(test::gl_context().read_rgba8() == computed);
-    CHECK(r.read_hdr() == computed_hdr);
-    // And they are there: without stars the frame differs.
-    render::Settings dark = st;
-    dark.star_radiance = 0.0;
-    render_at(r, storm.camera, dark, W, H);
-    CHECK(r.read_hdr() != computed_hdr);
+    std::vector<render::Camera> views(4, storm.camera);
+    views[1].target = storm.camera.position + glm::dvec3(1000.0, 300.0, 900.0);
+    views[1].vertical_fov_deg = 80.0;
+    views[1].lens_shift = {0.3, -0.2};
+    views[2].vertical_fov_deg = 12.0;
+    views[2].target = storm.camera.position + glm::dvec3(-400.0, 1000.0, 500.0);
+    views[3].target = storm.camera.position + glm::dvec3(0.0, 1000.0, 20.0);
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        CAPTURE(v);
+        for (const int width : {W, 960}) {
+            const int height = width * 9 / 16;
+            CAPTURE(width);
+            render::Camera moved = views[v];
+            moved.position.z += 50.0;
+            render_at(r, moved, st, width, height);
+            render_at(r, views[v], st, width, height);  // moved: the stars as points
+            const std::vector<std::uint8_t> points = test::gl_context().read_rgba8();
+            const std::vector<float> points_hdr = r.read_hdr();
+            render_at(r, views[v], st, width, height);  // still: the stars of every pixel, read back
+            CHECK(test::gl_context().read_rgba8() == points);
+            const std::vector<float> every_pixel = r.read_hdr();
+            // And they are there: the pixels the stars change.
+            render::Settings dark = st;
+            dark.star_radiance = 0.0;
+            render_at(r, views[v], dark, width, height);
+            const std::vector<float> none = r.read_hdr();
+            std::size_t starred = 0, differ = 0;
+            for (std::size_t i = 0; i < none.size(); ++i) {
+                starred += every_pixel[i] != none[i];
+                differ += every_pixel[i] != points_hdr[i];
+            }
+            MESSAGE("view ", v, " at ", width, ": ", starred, " star values, ", differ, " differ");
+            CHECK(differ == 0);
+            CHECK(starred > 0);
+        }
+    }
     r.clear_volume();
 }
 

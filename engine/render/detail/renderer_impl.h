@@ -127,7 +127,9 @@ struct Renderer::Impl {
     // texture and size they are of: the next bolt pass clears only these.
     glm::ivec4 core_footprint{0};
     glm::ivec3 core_footprint_of{0};
-    int composite_stars = 1;  // this frame's composite's stars: 0 none, 1 computed, 2 read from star_target
+    int composite_stars = 1;      // this frame's composite's stars: 0 none, 1 computed, 2 read from star_target
+    float star_guard = 0.0f;      // > 0: the stars drawn as points (star_points.vert) with this guard band (pixels)
+    float max_point_size = 0.0f;  // GL_POINT_SIZE_RANGE's upper end (0: not asked yet)
     bool composite_dither = true;
     // The stars kept while the camera stays still (pass_composite.cpp): the target, what they
     // were drawn for, and the previous frame's view (a still camera: two frames alike).
@@ -238,9 +240,12 @@ struct Renderer::Impl {
     /// The stars for this frame's composite: computed in it while the camera moves, drawn once
     /// into star_target and read from there while it stays still.
     void prepare_stars(const detail::FrameUniforms& u, bool stars);
+    /// The composite with this frame's switches into the bound framebuffer: the full-screen
+    /// pass, then the stars' points when they are drawn so.
+    void draw_composite(int output);
     /// The composite's program for this frame's switches (glare, stars, dither) and `output`
     /// (composite.frag's OUTPUT: 0 tone mapped, 1 radiance, 2 a host's frame).
-    GLuint composite_program(int output);
+    GLuint composite_program(int output, bool star_points = false);
     /// Binds what composite.frag reads (march, core, glare) to program `p`.
     void bind_composite_inputs(GLuint p) const;
 };
