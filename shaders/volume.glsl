@@ -88,15 +88,27 @@ float hg_phase(float cos_theta, float g) {
 // sample at o + t d is at u = t + q.d along the ray from the light's foot and r^2 = u^2 + h^2
 // from it (h the ray's distance from the light), and l.(-d) = -u, so a sample costs the
 // phase function and no vector arithmetic (the light loop was ~30% of the march with rain).
+// RAIN_LIGHTS (compile time): how many of rain_light the march reads, int(rain_lights.x). A
+// loop of a count known when compiling is unrolled, the per-ray arrays kept in registers; with
+// the count read from the uniform the whole march slowed, even with no light to read (the full
+// march with rain at 1280x720 between flashes, 0 lights: 110 -> 81 ms).
+#ifndef RAIN_LIGHTS
+#define RAIN_LIGHTS 8
+#endif
+#if RAIN_LIGHTS > 0
+#define RAIN_ARRAY RAIN_LIGHTS
+#else
+#define RAIN_ARRAY 1
+#endif
+
 struct RainRay {
-    float along[8];  // q.d: the light's foot on the ray is at t = -along
-    float h2[8];     // the ray's squared distance from the light
+    float along[RAIN_ARRAY];  // q.d: the light's foot on the ray is at t = -along
+    float h2[RAIN_ARRAY];     // the ray's squared distance from the light
 };
 
 RainRay rain_ray(vec3 o, vec3 d) {
     RainRay r;
-    int n = int(rain_lights.x);
-    for (int i = 0; i < n; ++i) {
+    for (int i = 0; i < RAIN_LIGHTS; ++i) {
         vec3 q = o - rain_light[i].xyz;
         r.along[i] = dot(q, d);
         vec3 h = cross(q, d);  // not |q|^2 - along^2: that cancels for a far camera
@@ -107,8 +119,7 @@ RainRay rain_ray(vec3 o, vec3 d) {
 
 float rain_flash(RainRay ray, float t, inout float light_t) {
     float s = 0.0;
-    int n = int(rain_lights.x);
-    for (int i = 0; i < n; ++i) {
+    for (int i = 0; i < RAIN_LIGHTS; ++i) {
         float u = t + ray.along[i];
         float r2 = max(u * u + ray.h2[i], 2500.0);
         float c = rain_light[i].w * hg_phase(-u * inversesqrt(r2), rain_params.y) / r2;

@@ -205,9 +205,11 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
         // flash's). The rain scatters the static light's S by its own albedo: S carries the
         // cloud's, taken out here (an albedo of 0 leaves S at 0).
         const bool flash_lights_rain = st.cloud_lighting && st.flash_light;
-        if (u.rain)
-            f.rain_lights = glm::vec4(flash_lights_rain ? float(rain_lights.size()) : 0.0f,
-                                      static_albedo > 0.0 ? float(1.0 / static_albedo) : 0.0f, 0.0f, 0.0f);
+        if (u.rain) {
+            u.rain_lights = flash_lights_rain ? int(rain_lights.size()) : 0;
+            f.rain_lights =
+                glm::vec4(float(u.rain_lights), static_albedo > 0.0 ? float(1.0 / static_albedo) : 0.0f, 0.0f, 0.0f);
+        }
     } else {
         f.ground_params = glm::vec4(float(st.ground_height), 0.0f, 0.0f, 0.0f);
     }

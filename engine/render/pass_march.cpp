@@ -17,7 +17,7 @@ void Renderer::Impl::march_pass(const Settings& st, const FrameUniforms& u, Pass
     timer.begin(kMarch);
     march_out = &march_target;
     const std::string defines =
-        march_defines(st.skip_empty, st.early_exit, u.lit, u.glow, u.statics, u.sun, u.detail, u.rain);
+        march_defines(st.skip_empty, st.early_exit, u.lit, u.glow, u.statics, u.sun, u.detail, u.rain, u.rain_lights);
     const GLuint p = march_program(st.kernel, defines);
     glUseProgram(p);
     if (st.kernel == MarchKernel::Fragment) {

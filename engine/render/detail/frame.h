@@ -67,6 +67,7 @@ struct FrameUniforms {
     bool sun = false;                             ///< the march draws the sun's full-resolution single scattering
     bool detail = false;                          ///< the march erodes the density by the sub-voxel detail
     bool rain = false;                            ///< the march draws the rain (and the ground its shadow)
+    int rain_lights = 0;                          ///< the rain's flash lights the march reads (rain_lights.x)
     bool glow = false;                            ///< the glow pass runs
     bool host = false;                            ///< composited into a host's frame (render_into_host)
     bool stars = false;                           ///< the composite draws stars (sky on, star radiance > 0)

@@ -159,8 +159,10 @@ struct Renderer::Impl {
                num(G::tint_rgb[2]) + ")\n#define GROUND_HAZE_M " + num(G::haze_m) + "\n";
     }
 
+    /// The march's switches; `rain_lights` >= 0 (with `rain`): the number of the rain's flash
+    /// lights the march reads (volume.glsl's RAIN_LIGHTS; < 0: not stated, as in the temporal key).
     static std::string march_defines(bool skip, bool early, bool source, bool emission, bool statics = false,
-                                     bool sun = false, bool detail = false, bool rain = false) {
+                                     bool sun = false, bool detail = false, bool rain = false, int rain_lights = -1) {
         std::string d = std::string("#define SKIP_EMPTY ") + (skip ? "1" : "0") + "\n#define EARLY_EXIT " +
                         (early ? "1" : "0") + "\n#define HAS_SOURCE " + (source ? "1" : "0") +
                         "\n#define HAS_EMISSION " + (emission ? "1" : "0") + "\n";
@@ -168,6 +170,7 @@ struct Renderer::Impl {
         if (sun) d += "#define HAS_SUN 1\n";
         if (detail) d += "#define HAS_DETAIL 1\n";
         if (rain) d += "#define HAS_RAIN 1\n";
+        if (rain && rain_lights >= 0) d += "#define RAIN_LIGHTS " + std::to_string(rain_lights) + "\n";
         return d;
     }
 
