@@ -460,20 +460,23 @@ TEST_CASE("a moving camera's stars, drawn as points, are a still camera's, compu
     // (stars.frag). Both must give the same frame to the bit: a point too small for its star's
     // spot, or a star dropped at the frame's edge or the horizon, leaves pixels without their
     // star. Views: the storm's, one looking up at 80 degrees with a lens shift (spots
-    // stretched toward the corners), a narrow one, one with the horizon across the frame.
+    // stretched toward the corners), a narrow one, one with the horizon across the frame, and
+    // one at 130 degrees, wider than points can draw (its moving frame computes every pixel's).
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
     show_storm(r, storm);
     render::Settings st = storm.settings;
     st.star_radiance = 1e-3;  // bright enough to show in 8 bits through the storm's exposure
     st.sky = true;
-    std::vector<render::Camera> views(4, storm.camera);
+    std::vector<render::Camera> views(5, storm.camera);
     views[1].target = storm.camera.position + glm::dvec3(1000.0, 300.0, 900.0);
     views[1].vertical_fov_deg = 80.0;
     views[1].lens_shift = {0.3, -0.2};
     views[2].vertical_fov_deg = 12.0;
     views[2].target = storm.camera.position + glm::dvec3(-400.0, 1000.0, 500.0);
     views[3].target = storm.camera.position + glm::dvec3(0.0, 1000.0, 20.0);
+    views[4].target = storm.camera.position + glm::dvec3(300.0, 1000.0, 600.0);
+    views[4].vertical_fov_deg = 130.0;
     for (std::size_t v = 0; v < views.size(); ++v) {
         CAPTURE(v);
         for (const int width : {W, 960}) {
