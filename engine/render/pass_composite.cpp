@@ -38,10 +38,10 @@ namespace {
 constexpr double kStarSpotPixels = 3.0;
 
 // The widest point star_points.vert asks for in a frame (pixels): a spot's half-width on screen
-// is at most its square's half-diagonal on the cube face, sqrt 2 x 3 kStarSpot pixel angles
-// (1 + |uv|^2 <= 3; an angle is at most its distance in face coordinates), times 1 + t^2
-// pixels per pixel angle at a direction t (tangent) off the view axis, taken at the frame's
-// corner and a quarter more for spots centred off the frame, plus a pixel.
+// is at most its reach on the cube face, 3 kStarSpot pixel angles (1 + |uv|^2 <= 3; an angle is
+// at most its distance in face coordinates), times 1 + t^2 pixels per pixel angle at a direction
+// t (tangent) off the view axis, taken at the frame's corner; sqrt 2 and a quarter more are
+// margins (the box of the spot's ellipse, spots centred off the frame), plus a pixel.
 double widest_star_point(const detail::FrameBlock& f) {
     const double tan_half = f.cam_pos.w, aspect = f.cam_fwd.w;
     const double tx = tan_half * aspect * (1.0 + std::abs(double(f.cam_right.w)));

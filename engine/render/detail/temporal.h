@@ -41,10 +41,10 @@ struct TemporalKey {
 };
 
 /// What a frame's march does with the history (Renderer::Impl::plan_temporal): `stride` 0 reuses
-/// it (nothing marched, no resolve, no glow: the march summed from it), 1 marches every pixel, 2 the pixel `phase` of each
-/// `block` x `block` block of a moving camera, 3 the pixel `phase` of each 2x2 block for a camera
-/// that stopped while the history still holds pixels a moving camera upsampled (the others kept
-/// in place); the march's defines and the frame's key.
+/// it (nothing marched, no resolve, no glow: the march summed from it), 1 marches every pixel,
+/// 2 the pixel `phase` of each `block` x `block` block of a moving camera, 3 the pixel `phase` of
+/// each 2x2 block for a camera that stopped while the history still holds pixels a moving camera
+/// upsampled (the others kept in place); the march's defines and the frame's key.
 struct TemporalPlan {
     int stride = 1;
     int block = 2;  // stride 2's block (Settings::temporal_moving_block, less where the march is smaller)
