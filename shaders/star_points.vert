@@ -30,21 +30,20 @@ void main() {
     vec4 u = star_draws(cell, face);
     gl_PointSize = 1.0;
     gl_Position = vec4(2.0, 2.0, 0.0, 1.0);  // outside the view: dropped
-    vec2 centre;
-    if (u.x >= kStarProbability || !to_pixel(cube_face_direction(face, star_position(cell, u)), centre)) return;
+    vec2 star = star_position(cell, u), centre;
+    vec3 ps = cube_face_direction(face, star);
+    if (u.x >= kStarProbability || !to_pixel(ps, centre)) return;
     // The spot: r < kStarSpot where |uv - star| < kStarSpot pixel_angle (1 + |uv|^2), uv on this
     // face (|uv|^2 <= 2): a disc of face coordinates of radius `reach` around the star. Over a
     // few pixels the projection onto the screen is affine to ~1e-3 of the spot's size, so the
     // disc projects into an ellipse whose box has the half-widths |(a.x, b.x)| and |(a.y, b.y)|,
     // a and b the images of the disc's two radii along the face's axes (a pixel more below
     // covers the rest and the pixels' centres).
-    vec2 star = star_position(cell, u);
     float pixel_angle = 2.0 * cam_pos.w / sizes.y;
     float near = kStarSpot * pixel_angle;
     float far = min(length(star) + 3.0 * near, sqrt(2.0));
     float reach = near * (1.0 + far * far);
     vec2 a, b;
-    vec3 ps = cube_face_direction(face, star);
     vec3 pa = cube_face_direction(face, star + vec2(reach, 0.0)), pb = cube_face_direction(face, star + vec2(0.0, reach));
     // An end behind the camera with the star in front: the star lies a few pixel angles from 90
     // degrees off the view axis, outside any frame the composite draws points for.

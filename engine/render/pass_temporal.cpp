@@ -187,19 +187,16 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     const int grid = stride == 3 ? 2 : stride == 2 ? plan.block : stride;  // every grid-th pixel marched
 
     const int iw = u.internal_width, ih = u.internal_height;
-    {
-        const int fw = (iw - phase.x + grid - 1) / grid, fh = (ih - phase.y + grid - 1) / grid;
-        h.fresh.ensure(fw, fh, 3);
-        const GLuint p =
-            program("march_groups", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "march_groups.frag"}},
-                    defines);
-        glUseProgram(p);
-        glUniform3i(glGetUniformLocation(p, "u_grid"), grid, phase.x, phase.y);
-        glBindFramebuffer(GL_FRAMEBUFFER, h.fresh.fbo);
-        glViewport(0, 0, fw, fh);
-        glDrawArrays(GL_TRIANGLES, 0, 3);
-        stats.marched_share = double(fw) * double(fh) / (double(iw) * double(ih));
-    }
+    const int fw = (iw - phase.x + grid - 1) / grid, fh = (ih - phase.y + grid - 1) / grid;
+    h.fresh.ensure(fw, fh, 3);
+    const GLuint march = program(
+        "march_groups", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "march_groups.frag"}}, defines);
+    glUseProgram(march);
+    glUniform3i(glGetUniformLocation(march, "u_grid"), grid, phase.x, phase.y);
+    glBindFramebuffer(GL_FRAMEBUFFER, h.fresh.fbo);
+    glViewport(0, 0, fw, fh);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    stats.marched_share = double(fw) * double(fh) / (double(iw) * double(ih));
 
     // The resolve into the other history buffer and the march target.
     const int next = 1 - h.current;
