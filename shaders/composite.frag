@@ -33,7 +33,7 @@
 
 layout(binding = 3) uniform sampler2D u_march;   // internal res: rgb radiance, a transmittance
 layout(binding = 4) uniform sampler2D u_core;    // full res: bolt core radiance
-layout(binding = 5) uniform sampler2D u_glare_sum;  // internal res: the glare pyramid's sum (GLARE)
+layout(binding = 5) uniform sampler2D u_glare_sum;  // internal res: keep x the march + the spread light, T (GLARE)
 layout(binding = 6) uniform sampler2D u_stars;      // full res: the stars (STARS 2)
 
 uniform float u_glare_keep;  // the share of march + core left in place (render::GlareFit::keep)
@@ -70,7 +70,13 @@ vec3 srgb_encode(vec3 c) {
 void main() {
     vec2 pixel = gl_FragCoord.xy;
     vec2 uv = pixel / sizes.xy;
+#if GLARE && OUTPUT != 2
+    // The glare's sum holds keep x the march's radiance and its transmittance (glare_up.frag):
+    // one bilinear read for both (bilinear filtering is linear).
+    vec4 m = textureLod(u_glare_sum, uv, 0.0);
+#else
     vec4 m = textureLod(u_march, uv, 0.0);
+#endif
 #if CORE
     vec3 core = texelFetch(u_core, ivec2(pixel), 0).rgb;
 #else
@@ -89,7 +95,7 @@ void main() {
     const vec3 stars = vec3(0.0);
 #endif
 #if GLARE
-    vec3 hdr = u_glare_keep * (m.rgb + core) + stars + textureLod(u_glare_sum, uv, 0.0).rgb;
+    vec3 hdr = m.rgb + u_glare_keep * core + stars;
 #else
     vec3 hdr = m.rgb + stars + core;
 #endif

@@ -2,21 +2,29 @@
 // One step up the glare pyramid: this level weighted (its share of the point-spread
 // function, render::fit_glare) plus the coarser levels' sum, upsampled by a tent: four
 // bilinear taps half a coarser texel either side onto the finest levels, nine taps a whole
-// texel either side onto the coarser ones (render::glare_wide_from).
+// texel either side onto the coarser ones (render::glare_wide_from). The finest level also
+// adds the share of the march the glare keeps in place and carries the march's transmittance,
+// so the composite reads one texture where it would read two (render/pass_glare.cpp).
 layout(binding = 0) uniform sampler2D u_level;   // this level (the way down)
 layout(binding = 1) uniform sampler2D u_coarse;  // the coarser levels' weighted sum
+layout(binding = 3) uniform sampler2D u_march;   // the march (FOLD)
 
 // Compile-time switches (a software rasterizer runs both sides of a uniform branch):
 //   HAS_COARSE 1: a coarser level's sum to add (all but the coarsest level)
 //   WIDE       1: nine taps (a tent a coarser texel either side); 0: four taps half a texel off
+//   FOLD       1: the finest level: + u_keep x the march's radiance, alpha its transmittance
 #ifndef HAS_COARSE
 #define HAS_COARSE 1
 #endif
 #ifndef WIDE
 #define WIDE 0
 #endif
+#ifndef FOLD
+#define FOLD 0
+#endif
 
 uniform float u_weight;
+uniform float u_keep;  // render::GlareFit::keep (FOLD)
 uniform vec2 u_coarse_texel;  // 1 / coarser size
 uniform vec2 u_size;          // this level's size
 
@@ -40,5 +48,10 @@ void main() {
                  textureLod(u_coarse, uv + vec2(-o.x, o.y), 0.0).rgb + textureLod(u_coarse, uv + vec2(o.x, o.y), 0.0).rgb);
 #endif
 #endif
+#if FOLD
+    vec4 m = texelFetch(u_march, ivec2(gl_FragCoord.xy), 0);
+    o_radiance = vec4(s + u_keep * m.rgb, m.a);
+#else
     o_radiance = vec4(s, 1.0);
+#endif
 }

@@ -1,7 +1,8 @@
 // The glare pass: the frame's light (march + bolt core) spread by the eye's point-spread
 // function (render::glare_psf) through a pyramid: box downsamples, then tent upsamples that
-// add each level with its fitted weight (render::fit_glare). The composite keeps
-// GlareFit::keep of the frame in place and adds the result.
+// add each level with its fitted weight (render::fit_glare). The finest level's sum also holds
+// GlareFit::keep of the march (the share left in place) and its transmittance: the composite
+// reads it instead of the march and adds keep of the core.
 #include "render/detail/renderer_impl.h"
 
 #include <glad/gl.h>
@@ -94,13 +95,19 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
         const detail::Target& dst = glare_up[std::size_t(k)];
         const bool coarser = k + 1 < levels;
         const std::string defines = std::string("#define HAS_COARSE ") + (coarser ? "1" : "0") + "\n#define WIDE " +
-                                    (k >= kGlareWideFrom ? "1" : "0") + "\n";
+                                    (k >= kGlareWideFrom ? "1" : "0") + "\n#define FOLD " + (k == 0 ? "1" : "0") + "\n";
         const GLuint up = program(
             "glare_up", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_up.frag"}}, defines);
         glUseProgram(up);
         glBindTextureUnit(0, glare_down[std::size_t(k)].tex);
         glBindTextureUnit(1, coarser ? glare_up[std::size_t(k + 1)].tex : glare_down[std::size_t(k)].tex);
         glUniform1f(glGetUniformLocation(up, "u_weight"), float(glare_fit.weights[std::size_t(k)]));
+        if (k == 0) {
+            // The finest level holds what the composite reads at the march's resolution: keep x
+            // the march + the spread light, and the march's transmittance (composite.frag).
+            glUniform1f(glGetUniformLocation(up, "u_keep"), float(glare_fit.keep));
+            glBindTextureUnit(3, march_out->tex);
+        }
         if (coarser) {
             const detail::Target& c = glare_up[std::size_t(k + 1)];
             glUniform2f(glGetUniformLocation(up, "u_coarse_texel"), 1.0f / float(c.w), 1.0f / float(c.h));
