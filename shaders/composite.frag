@@ -32,9 +32,9 @@
 #endif
 
 layout(binding = 3) uniform sampler2D u_march;   // internal res: rgb radiance, a transmittance
-layout(binding = 4) uniform sampler2D u_core;    // full res: bolt core radiance
+layout(binding = 0, rgba32f) readonly uniform image2D u_core;   // full res: bolt core radiance
 layout(binding = 5) uniform sampler2D u_glare_sum;  // internal res: keep x the march + the spread light, T (GLARE)
-layout(binding = 6) uniform sampler2D u_stars;      // full res: the stars (STARS 2)
+layout(binding = 1, rgba32f) readonly uniform image2D u_stars;  // full res: the stars (STARS 2)
 
 uniform float u_glare_keep;  // the share of march + core left in place (render::GlareFit::keep)
 
@@ -78,7 +78,7 @@ void main() {
     vec4 m = textureLod(u_march, uv, 0.0);
 #endif
 #if CORE
-    vec3 core = texelFetch(u_core, ivec2(pixel), 0).rgb;
+    vec3 core = imageLoad(u_core, ivec2(pixel)).rgb;
 #else
     const vec3 core = vec3(0.0);
 #endif
@@ -90,7 +90,7 @@ void main() {
     float pixel_angle = 2.0 * cam_pos.w / sizes.y;
     vec3 stars = m.a * star_radiance(cam_pos.xyz, d, pixel_angle);
 #elif STARS == 2
-    vec3 stars = m.a * texelFetch(u_stars, ivec2(pixel), 0).rgb;
+    vec3 stars = m.a * imageLoad(u_stars, ivec2(pixel)).rgb;
 #else
     const vec3 stars = vec3(0.0);
 #endif
