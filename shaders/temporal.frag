@@ -36,6 +36,14 @@ layout(binding = 12) uniform sampler2D u_fresh_channel;
 layout(binding = 13) uniform sampler2D u_hist_flash;
 layout(binding = 14) uniform sampler2D u_hist_statics;
 layout(binding = 15) uniform sampler2D u_hist_channel;
+// The same textures as images, for the reads at a texel (on llvmpipe an image load costs less
+// than a texel fetch; render/pass_temporal.cpp binds both).
+layout(binding = 2, rgba32f) readonly uniform image2D i_fresh_flash;
+layout(binding = 3, rgba32f) readonly uniform image2D i_fresh_statics;
+layout(binding = 4, rgba32f) readonly uniform image2D i_fresh_channel;
+layout(binding = 5, rgba32f) readonly uniform image2D i_hist_flash;
+layout(binding = 6, rgba32f) readonly uniform image2D i_hist_statics;
+layout(binding = 7, rgba32f) readonly uniform image2D i_hist_channel;
 
 uniform ivec2 u_phase;           // the marched pixel of each block (STRIDE 2: BLOCK x BLOCK; 3: 2x2)
 uniform mat4 u_prev_view_proj;   // the history's camera: world -> clip
@@ -74,8 +82,8 @@ void consider(inout Candidate best, bool valid, float z, vec4 A, vec4 B, vec2 mo
     vec2 uv = clip.xy / (ahead ? clip.w : 1.0) * 0.5 + 0.5;
     bool inside = ahead && all(greaterThanEqual(uv, vec2(0.0))) && all(lessThanEqual(uv, vec2(1.0)));
     ivec2 texel = clamp(ivec2(uv * sizes.zw), ivec2(0), ivec2(sizes.zw) - 1);
-    float seen = which == 0 ? texelFetch(u_hist_flash, texel, 0).w
-               : which == 1 ? texelFetch(u_hist_channel, texel, 0).w : texelFetch(u_hist_statics, texel, 0).w;
+    float seen = which == 0 ? imageLoad(i_hist_flash, texel).w
+               : which == 1 ? imageLoad(i_hist_channel, texel).w : imageLoad(i_hist_statics, texel).w;
     float expected = sqrt(max(z * z + 2.0 * z * motion.x + motion.y, 1e-30));
     float err = z < 0.0 || seen < 0.0 ? (z < 0.0 && seen < 0.0 ? 0.0 : kBig) : abs(seen - expected) / expected;
     bool take = valid && inside && err <= u_depth_tolerance && err < best.err;
@@ -88,32 +96,32 @@ void consider(inout Candidate best, bool valid, float z, vec4 A, vec4 B, vec2 mo
 void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
 #if STRIDE == 0
-    vec4 o_flash = texelFetch(u_hist_flash, p, 0);
-    vec3 statics = texelFetch(u_hist_statics, p, 0).rgb, channel = texelFetch(u_hist_channel, p, 0).rgb;
+    vec4 o_flash = imageLoad(i_hist_flash, p);
+    vec3 statics = imageLoad(i_hist_statics, p).rgb, channel = imageLoad(i_hist_channel, p).rgb;
     o_march = vec4(o_flash.x * u_rescale.x * light_colour.rgb + statics + channel * u_rescale.y, o_flash.y);
 #elif STRIDE == 1
-    o_flash = texelFetch(u_fresh_flash, p, 0);
-    o_statics = texelFetch(u_fresh_statics, p, 0);
-    o_channel = texelFetch(u_fresh_channel, p, 0);
+    o_flash = imageLoad(i_fresh_flash, p);
+    o_statics = imageLoad(i_fresh_statics, p);
+    o_channel = imageLoad(i_fresh_channel, p);
 #elif STRIDE == 3
     if (all(equal(p & 1, u_phase))) {
         ivec2 q = p >> 1;
-        o_flash = texelFetch(u_fresh_flash, q, 0);
-        o_statics = texelFetch(u_fresh_statics, q, 0);
-        o_channel = texelFetch(u_fresh_channel, q, 0);
+        o_flash = imageLoad(i_fresh_flash, q);
+        o_statics = imageLoad(i_fresh_statics, q);
+        o_channel = imageLoad(i_fresh_channel, q);
     } else {
-        o_flash = texelFetch(u_hist_flash, p, 0);
-        o_statics = texelFetch(u_hist_statics, p, 0);
-        o_channel = texelFetch(u_hist_channel, p, 0);
+        o_flash = imageLoad(i_hist_flash, p);
+        o_statics = imageLoad(i_hist_statics, p);
+        o_channel = imageLoad(i_hist_channel, p);
         o_flash.x *= u_rescale.x;
         o_channel.rgb *= u_rescale.y;
     }
 #else
     if (all(equal(p % BLOCK, u_phase))) {
         ivec2 q = p / BLOCK;
-        o_flash = texelFetch(u_fresh_flash, q, 0);
-        o_statics = texelFetch(u_fresh_statics, q, 0);
-        o_channel = texelFetch(u_fresh_channel, q, 0);
+        o_flash = imageLoad(i_fresh_flash, q);
+        o_statics = imageLoad(i_fresh_statics, q);
+        o_channel = imageLoad(i_fresh_channel, q);
     } else {
         vec2 pixel = vec2(p) + 0.5;
         vec3 d = camera_ray(pixel / sizes.zw * 2.0 - 1.0);
@@ -131,12 +139,12 @@ void main() {
         ivec2 k0 = ivec2(floor((vec2(p) - vec2(u_phase)) / float(BLOCK)));
         for (int j = 0; j < 2; ++j)
             for (int i = 0; i < 2; ++i) {
-                vec4 f = texelFetch(u_fresh_flash, clamp(k0 + ivec2(i, j), ivec2(0), textureSize(u_fresh_flash, 0) - 1), 0);
+                vec4 f = imageLoad(i_fresh_flash, clamp(k0 + ivec2(i, j), ivec2(0), textureSize(u_fresh_flash, 0) - 1));
                 consider(cloud, f.y <= 0.9, f.w, A, B, motion, 0);
             }
 #if REPROJECT_LIGHT
         ivec2 k = min(p / BLOCK, textureSize(u_fresh_flash, 0) - 1);
-        float zf = texelFetch(u_fresh_channel, k, 0).w, zc = texelFetch(u_fresh_statics, k, 0).w;
+        float zf = imageLoad(i_fresh_channel, k).w, zc = imageLoad(i_fresh_statics, k).w;
         consider(flash, zf > 0.0, zf, A, B, motion, 1);
         consider(channel, zc > 0.0, zc, A, B, motion, 2);
 #endif

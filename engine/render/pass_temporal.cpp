@@ -19,6 +19,25 @@ using detail::FrameUniforms;
 using detail::kMarch;
 using detail::PassTimer;
 
+namespace {
+
+// temporal.frag's inputs: this frame's marched groups (when it marched) and the history, each
+// as a texture (bilinear reads) and as an image (reads at a texel: on llvmpipe an image load
+// costs less than a texel fetch).
+void bind_temporal_inputs(const detail::MultiTarget* fresh, const detail::MultiTarget& history) {
+    for (int i = 0; i < 3; ++i) {
+        const GLuint hist = history.tex[std::size_t(i)];
+        glBindTextureUnit(GLuint(13 + i), hist);
+        glBindImageTexture(GLuint(5 + i), hist, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
+        if (!fresh) continue;
+        const GLuint f = fresh->tex[std::size_t(i)];
+        glBindTextureUnit(GLuint(10 + i), f);
+        glBindImageTexture(GLuint(2 + i), f, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
+    }
+}
+
+}  // namespace
+
 namespace detail {
 
 void MultiTarget::ensure(int width, int height, int count) {
@@ -170,7 +189,7 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
                 program("temporal", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "temporal.frag"}},
                         "#define STRIDE 0\n");
             glUseProgram(p);
-            for (int i = 0; i < 3; ++i) glBindTextureUnit(GLuint(13 + i), h.history[h.current].tex[std::size_t(i)]);
+            bind_temporal_inputs(nullptr, h.history[h.current]);
             glUniform2f(glGetUniformLocation(p, "u_rescale"), float(scale.x), float(scale.y));
             glBindFramebuffer(GL_FRAMEBUFFER, h.march.fbo);
             glViewport(0, 0, h.march.w, h.march.h);
@@ -218,10 +237,7 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
                                        "\n#define BLOCK " + std::to_string(plan.block) + "\n"
                                  : std::string()));
     glUseProgram(p);
-    for (int i = 0; i < 3; ++i) {
-        glBindTextureUnit(GLuint(10 + i), h.fresh.tex[std::size_t(i)]);
-        glBindTextureUnit(GLuint(13 + i), h.history[h.current].tex[std::size_t(i)]);
-    }
+    bind_temporal_inputs(&h.fresh, h.history[h.current]);
     glUniform2i(glGetUniformLocation(p, "u_phase"), phase.x, phase.y);
     glUniformMatrix4fv(glGetUniformLocation(p, "u_prev_view_proj"), 1, GL_FALSE, glm::value_ptr(h.view_proj));
     const glm::vec3 prev(h.camera.position);
