@@ -9,8 +9,8 @@
 //           blended as L + T dst
 //   GLARE   1: the frame's light spread by the eye's point-spread function
 //   CORE    1: the bolt core's pixels (0 when the frame draws no channel: they would add 0)
-//   STARS   1: the stars (0 when the sky or its stars are off: they would add exactly 0; 2:
-//           the same read from u_stars, stars.frag's, while the camera stays still)
+//   STARS   1: the stars (0 when the sky or its stars are off, they would add exactly 0, or
+//           drawn as points: star_points.vert)
 //   DITHER  1: +-1 LSB triangular dither before 8-bit output
 #include "common.glsl"
 #include "background.glsl"
@@ -34,7 +34,6 @@
 layout(binding = 3) uniform sampler2D u_march;   // internal res: rgb radiance, a transmittance
 layout(binding = 0, rgba32f) readonly uniform image2D u_core;   // full res: bolt core radiance
 layout(binding = 5) uniform sampler2D u_glare_sum;  // internal res: keep x the march + the spread light, T (GLARE)
-layout(binding = 1, rgba32f) readonly uniform image2D u_stars;  // full res: the stars (STARS 2)
 
 uniform float u_glare_keep;  // the share of march + core left in place (render::GlareFit::keep)
 
@@ -89,8 +88,6 @@ void main() {
     vec3 d = camera_ray(uv * 2.0 - 1.0);
     float pixel_angle = 2.0 * cam_pos.w / sizes.y;
     vec3 stars = m.a * star_radiance(cam_pos.xyz, d, pixel_angle);
-#elif STARS == 2
-    vec3 stars = m.a * imageLoad(u_stars, ivec2(pixel)).rgb;
 #else
     const vec3 stars = vec3(0.0);
 #endif

@@ -1,6 +1,7 @@
 #version 450 core
 // The stars of a moving camera's frame as points: one vertex per cell of the stars' cube map
-// (6 x kStarCells^2, no vertex buffer). A cell holding a star becomes a point covering every
+// that may hold a star (u_cells, listed by render/pass_composite.cpp: ~7% of the 6 kStarCells^2
+// cells, numbered face, row, column). A cell holding a star becomes a point covering every
 // output pixel its spot reaches (r < kStarSpot in stars()); the others are dropped. The
 // fragment shader is the composite's with its stars (composite.frag, STARS 1), drawn over the
 // composite without them, so those pixels get what the composite with stars gives, and no
@@ -10,6 +11,7 @@
 #include "background.glsl"
 
 uniform float u_guard;  // pixels
+layout(std430, binding = 5) readonly buffer Cells { uint u_cells[]; };
 
 // The output pixel a direction p (need not be unit) projects to; false behind the camera.
 bool to_pixel(vec3 p, out vec2 pixel) {
@@ -24,8 +26,9 @@ bool to_pixel(vec3 p, out vec2 pixel) {
 
 void main() {
     const int edge = int(kStarCells), per_face = edge * edge;
-    uint face = uint(gl_VertexID / per_face);
-    int i = gl_VertexID % per_face;
+    int id = int(u_cells[gl_VertexID]);
+    uint face = uint(id / per_face);
+    int i = id % per_face;
     vec2 cell = vec2(i % edge, i / edge);
     vec4 u = star_draws(cell, face);
     gl_PointSize = 1.0;

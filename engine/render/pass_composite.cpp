@@ -5,6 +5,8 @@
 #include <glad/gl.h>
 
 #include <cmath>
+#include <cstdint>
+#include <vector>
 
 namespace fulgur::render {
 
@@ -17,7 +19,7 @@ using detail::PassTimer;
 /// into the caller's framebuffer.
 void Renderer::Impl::composite_pass(const FrameUniforms& u, const CallerTarget& caller, PassTimer& timer) {
     timer.begin(kComposite);
-    prepare_stars(u, !u.host && u.stars);
+    prepare_stars(u, !u.host && u.stars, u.star_points);
     glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(caller.fbo));
     if (u.host) {
         // A host's frame: dst = L + T dst (premultiplied radiance over the host's radiance); its alpha is kept.
@@ -49,49 +51,50 @@ double widest_star_point(const detail::FrameBlock& f) {
     return 2.0 * (1.25 * std::sqrt(2.0) * 3.0 * kStarSpotPixels * (1.0 + tx * tx + ty * ty) + 1.0);
 }
 
+// common.glsl's hash_u32 (PCG's output permutation of an LCG step) and its three-word form.
+std::uint32_t hash_u32(std::uint32_t v) {
+    const std::uint32_t state = v * 747796405u + 2891336453u;
+    const std::uint32_t word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+std::uint32_t hash_u32(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+    return hash_u32(x ^ hash_u32(y ^ hash_u32(z)));
+}
+
+// The cells of background.glsl's star cube map (kStarCells per face edge) that may hold a star,
+// as star_points.vert numbers them (face, row, column): star_draws() puts one where its
+// presence byte / 255 < kStarProbability = 0.07, a byte of at most 17; the list takes 18 as well,
+// a margin for the shader's float arithmetic, whose own test decides. 7% of the cells, so the
+// vertex shader runs for them only.
+std::vector<std::uint32_t> star_cell_list() {
+    constexpr std::uint32_t edge = 160;  // background.glsl's kStarCells
+    std::vector<std::uint32_t> cells;
+    for (std::uint32_t face = 0; face < 6; ++face)
+        for (std::uint32_t y = 0; y < edge; ++y)
+            for (std::uint32_t x = 0; x < edge; ++x)
+                if ((hash_u32(x, y, face) & 255u) <= 18u) cells.push_back((face * edge + y) * edge + x);
+    return cells;
+}
+
 }  // namespace
 
-void Renderer::Impl::prepare_stars(const FrameUniforms& u, bool stars) {
+void Renderer::Impl::prepare_stars(const FrameUniforms& u, bool stars, bool points) {
     composite_stars = 0;
     star_guard = 0.0f;
     if (!stars) return;
-    // What star_radiance reads: the camera's frame and lens, the output size, the stars' radiance
-    // and the sky and ground switches.
-    const detail::FrameBlock& f = u.block;
-    std::vector<float> key;
-    for (const glm::vec4* v : {&f.cam_pos, &f.cam_fwd, &f.cam_right, &f.cam_up, &f.sizes})
-        detail::append_components(key, *v);
-    detail::append_components(key, f.sky_params, 3);     // not its w: the exposure
-    detail::append_components(key, f.ground_params, 3);  // not its w: the number of ground lights
-    const bool still = key == star_previous;
-    star_previous = key;
-    if (!still) {
-        // A moving camera's stars: as points over the composite without them (finding every
-        // pixel's star cell is ~5 ms of a 1280x720 composite on llvmpipe; a few percent of the
-        // pixels are near a star), unless the view is so wide that a spot needs a wider point
-        // than GL draws.
-        if (max_point_size == 0.0f) {
-            float range[2] = {1.0f, 1.0f};
-            glGetFloatv(GL_POINT_SIZE_RANGE, range);
-            max_point_size = range[1];
-        }
-        const double widest = widest_star_point(f);
-        if (widest <= double(max_point_size))
-            star_guard = float(std::ceil(0.5 * widest));
-        else
-            composite_stars = 1;
-        return;
+    // The stars as points over the composite without them (finding every pixel's star cell is
+    // ~5 ms of a 1280x720 composite on llvmpipe; a few percent of the pixels are near a star),
+    // unless the view is so wide that a spot needs a wider point than GL draws.
+    if (max_point_size == 0.0f) {
+        float range[2] = {1.0f, 1.0f};
+        glGetFloatv(GL_POINT_SIZE_RANGE, range);
+        max_point_size = range[1];
     }
-    if (key != star_key || !star_target.tex) {
-        star_target.ensure(u.width, u.height);
-        const GLuint p = program("stars", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "stars.frag"}});
-        glUseProgram(p);
-        glBindFramebuffer(GL_FRAMEBUFFER, star_target.fbo);
-        glViewport(0, 0, u.width, u.height);
-        glDrawArrays(GL_TRIANGLES, 0, 3);
-        star_key = key;
-    }
-    composite_stars = 2;
+    const double widest = widest_star_point(u.block);
+    if (points && widest <= double(max_point_size))
+        star_guard = float(std::ceil(0.5 * widest));
+    else
+        composite_stars = 1;
 }
 
 void Renderer::Impl::draw_composite(int output) {
@@ -108,8 +111,13 @@ void Renderer::Impl::draw_composite(int output) {
     const int g = int(star_guard);
     glViewport(-g, -g, out_w + 2 * g, out_h + 2 * g);
     glEnable(GL_PROGRAM_POINT_SIZE);
-    constexpr int kStarCellCount = 6 * 160 * 160;  // background.glsl's 6 kStarCells^2
-    glDrawArrays(GL_POINTS, 0, kStarCellCount);
+    if (star_cell_count == 0) {
+        const std::vector<std::uint32_t> cells = star_cell_list();
+        star_cells.upload(cells.data(), cells.size() * sizeof(std::uint32_t));
+        star_cell_count = int(cells.size());
+    }
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, star_cells.id);
+    glDrawArrays(GL_POINTS, 0, star_cell_count);
     glDisable(GL_PROGRAM_POINT_SIZE);
     glViewport(0, 0, out_w, out_h);
 }
@@ -130,12 +138,9 @@ void Renderer::Impl::bind_composite_inputs(GLuint p) const {
     glUniform1f(glGetUniformLocation(p, "u_glare_keep"), glare_ran ? float(glare_fit.keep) : 1.0f);
     glBindTextureUnit(3, march_out->tex);
     glBindTextureUnit(5, glare_ran ? glare_up[0].tex : march_out->tex);
-    // The full-resolution targets read at their own pixel, as images: on llvmpipe an image load
-    // costs less than a texel fetch (at 1280x720, the still camera's stars: ~0.9 of an 11 ms
-    // composite).
+    // The full-resolution core read at its own pixel, as an image: on llvmpipe an image load
+    // costs less than a texel fetch (at 1280x720, ~0.9 ms of a 12 ms composite for one target).
     glBindImageTexture(0, core_target.tex, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
-    glBindImageTexture(1, composite_stars == 2 ? star_target.tex : core_target.tex, 0, GL_FALSE, 0, GL_READ_ONLY,
-                       GL_RGBA32F);
 }
 
 }  // namespace fulgur::render

@@ -175,6 +175,8 @@ Renderer::~Renderer() {
     m.statics.release();
     delete_texture(m.sun_tex);
     m.meter_buf.release();
+    m.star_cells.release();
+    m.star_cell_count = 0;
     m.resolve_tiles.release();
     m.seg_buf.release();
     m.endpoint_buf.release();
@@ -186,7 +188,6 @@ Renderer::~Renderer() {
     for (detail::Target& t : m.glare_down) t.release();
     for (detail::Target& t : m.glare_up) t.release();
     m.temporal.release();
-    m.star_target.release();
 }
 
 void Renderer::set_volume(const VolumeDesc& v) {

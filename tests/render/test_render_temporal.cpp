@@ -454,14 +454,16 @@ TEST_CASE("temporal history: tiny and changing sizes march what they must, witho
     r.clear_volume();
 }
 
-TEST_CASE("a moving camera's stars, drawn as points, are a still camera's, computed at every pixel") {
-    // A moving camera's frame draws the stars as points over the composite without them
-    // (star_points.vert); a still camera's next frames read the stars computed at every pixel
-    // (stars.frag). Both must give the same frame to the bit: a point too small for its star's
-    // spot, or a star dropped at the frame's edge or the horizon, leaves pixels without their
-    // star. Views: the storm's, one looking up at 80 degrees with a lens shift (spots
-    // stretched toward the corners), a narrow one, one with the horizon across the frame, and
-    // one at 130 degrees, wider than points can draw (its moving frame computes every pixel's).
+TEST_CASE("the stars drawn as points are the stars computed at every pixel, moving or still") {
+    // The composite draws the stars as points over the frame without them (star_points.vert,
+    // Settings::star_points), from a list of the cells that may hold a star
+    // (pass_composite.cpp); with star_points off every pixel computes its own. Both must give the
+    // same frame to the bit: a point too small for its star's spot, a star left out of the list,
+    // or one dropped at the frame's edge or the horizon, leaves pixels without their star.
+    // Views: the storm's, one looking up at 80 degrees with a lens shift (spots stretched
+    // toward the corners), a narrow one, one with the horizon across the frame, and one at 130
+    // degrees, wider than points can draw (it computes every pixel's either way). Each view is
+    // drawn right after another (a moving camera) and again (a still one).
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
     show_storm(r, storm);
@@ -477,6 +479,8 @@ TEST_CASE("a moving camera's stars, drawn as points, are a still camera's, compu
     views[3].target = storm.camera.position + glm::dvec3(0.0, 1000.0, 20.0);
     views[4].target = storm.camera.position + glm::dvec3(300.0, 1000.0, 600.0);
     views[4].vertical_fov_deg = 130.0;
+    render::Settings every = st;
+    every.star_points = false;
     for (std::size_t v = 0; v < views.size(); ++v) {
         CAPTURE(v);
         for (const int width : {W, 960}) {
@@ -484,13 +488,16 @@ TEST_CASE("a moving camera's stars, drawn as points, are a still camera's, compu
             CAPTURE(width);
             render::Camera moved = views[v];
             moved.position.z += 50.0;
+            render_at(r, moved, every, width, height);
+            render_at(r, views[v], every, width, height);
+            const std::vector<std::uint8_t> every_rgba = test::gl_context().read_rgba8();
+            const std::vector<float> every_pixel = r.read_hdr();
             render_at(r, moved, st, width, height);
             render_at(r, views[v], st, width, height);  // moved: the stars as points
-            const std::vector<std::uint8_t> points = test::gl_context().read_rgba8();
-            const std::vector<float> points_hdr = r.read_hdr();
-            render_at(r, views[v], st, width, height);  // still: the stars of every pixel, read back
-            CHECK(test::gl_context().read_rgba8() == points);
-            const std::vector<float> every_pixel = r.read_hdr();
+            CHECK(test::gl_context().read_rgba8() == every_rgba);
+            const std::vector<float> moving = r.read_hdr();
+            render_at(r, views[v], st, width, height);  // still
+            CHECK(test::gl_context().read_rgba8() == every_rgba);
             // And they are there: the pixels the stars change.
             render::Settings dark = st;
             dark.star_radiance = 0.0;
@@ -499,7 +506,7 @@ TEST_CASE("a moving camera's stars, drawn as points, are a still camera's, compu
             std::size_t starred = 0, differ = 0;
             for (std::size_t i = 0; i < none.size(); ++i) {
                 starred += every_pixel[i] != none[i];
-                differ += every_pixel[i] != points_hdr[i];
+                differ += every_pixel[i] != moving[i];
             }
             MESSAGE("view ", v, " at ", width, ": ", starred, " star values, ", differ, " differ");
             CHECK(differ == 0);

@@ -127,14 +127,14 @@ struct Renderer::Impl {
     // texture and size they are of: the next bolt pass clears only these.
     glm::ivec4 core_footprint{0};
     glm::ivec3 core_footprint_of{0};
-    int composite_stars = 1;      // this frame's composite's stars: 0 none, 1 computed, 2 read from star_target
+    int composite_stars = 1;      // this frame's full-screen composite's stars: 0 none (or as points), 1 computed
     float star_guard = 0.0f;      // > 0: the stars drawn as points (star_points.vert) with this guard band (pixels)
     float max_point_size = 0.0f;  // GL_POINT_SIZE_RANGE's upper end (0: not asked yet)
     bool composite_dither = true;
-    // The stars kept while the camera stays still (pass_composite.cpp): the target, what they
-    // were drawn for, and the previous frame's view (a still camera: two frames alike).
-    detail::Target star_target;
-    std::vector<float> star_key, star_previous;
+    // The cells of the stars' cube map that may hold a star (star_points.vert's vertices), made
+    // at the first frame that draws the stars as points; star_cell_count of them.
+    detail::Buffer star_cells;
+    int star_cell_count = 0;
     int out_w = 0, out_h = 0;
 
     // ----------------------------------------------------------------------------------
@@ -240,9 +240,9 @@ struct Renderer::Impl {
     void glare_pass(const Camera& camera, const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer,
                     FrameStats& stats);
     void composite_pass(const detail::FrameUniforms& u, const detail::CallerTarget& caller, detail::PassTimer& timer);
-    /// The stars for this frame's composite: computed in it while the camera moves, drawn once
-    /// into star_target and read from there while it stays still.
-    void prepare_stars(const detail::FrameUniforms& u, bool stars);
+    /// The stars for this frame's composite: drawn as points over it (`points`, when the view's
+    /// spots fit GL's largest point) or computed at every pixel of it.
+    void prepare_stars(const detail::FrameUniforms& u, bool stars, bool points);
     /// The composite with this frame's switches into the bound framebuffer: the full-screen
     /// pass, then the stars' points when they are drawn so.
     void draw_composite(int output);
