@@ -8,6 +8,7 @@ layout(std430, binding = 1) readonly buffer Segments { vec4 seg[]; };          /
 layout(std430, binding = 2) readonly buffer Endpoints { vec2 endpoint_t[]; };
 
 uniform float u_min_width_px;
+uniform float u_margin_px;  // the ribbon's outline pushed out by this (the composite's overlay; 0 here)
 
 out float v_across;          // -1 .. 1 across the ribbon
 out vec3 v_radiance;
@@ -40,7 +41,8 @@ void main() {
     float w_clip = k.x == 0 ? ca.w : cb.w;
     float w_true = 2.0 * B.w * focal / w_clip;            // projected channel diameter, pixels
     float w = max(w_true, u_min_width_px);
-    vec2 p = (k.x == 0 ? pa - dir * 0.5 * w : pb + dir * 0.5 * w) + float(k.y) * n * 0.5 * w;
+    float wq = w + 2.0 * u_margin_px;
+    vec2 p = (k.x == 0 ? pa - dir * 0.5 * wq : pb + dir * 0.5 * wq) + float(k.y) * n * 0.5 * wq;
     gl_Position = vec4(p / half_size, 0.0, 1.0);
     float core = A.w / (2.0 * B.w) * (w_true / w);        // radiance of a cylinder seen side-on
     float T = k.x == 0 ? endpoint_t[s].x : endpoint_t[s].y;

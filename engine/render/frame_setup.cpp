@@ -222,7 +222,7 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
     f.light_colour = glm::vec4(glm::vec3(st.flash_colour), st.dither ? 1.0f : 0.0f);
     composite_dither = st.dither;
     u.stars = st.sky && st.star_radiance > 0.0;
-    u.star_points = st.star_points;
+    composite_overlays = st.composite_overlays;
     u.glow = st.glow && seg_count > 0 && st.air_scattering > 0.0;
     if (u.glow && glow_built_radius != st.glow_radius) rebuild_glow_quads(st.glow_radius);
     f.counts = glm::ivec4(max_steps, int(st.frame_index & 0x7fffffff), u.glow ? glow_count : 0, seg_count);

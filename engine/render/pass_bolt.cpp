@@ -76,7 +76,9 @@ void Renderer::Impl::bolt_pass(const Settings& st, const FrameUniforms& u, PassT
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     const GLuint p = program("bolt", {{GL_VERTEX_SHADER, "bolt.vert"}, {GL_FRAGMENT_SHADER, "bolt.frag"}});
     glUseProgram(p);
-    glUniform1f(glGetUniformLocation(p, "u_min_width_px"), float(st.bolt_min_width_px));
+    core_min_width_px = float(st.bolt_min_width_px);
+    glUniform1f(glGetUniformLocation(p, "u_min_width_px"), core_min_width_px);
+    glUniform1f(glGetUniformLocation(p, "u_margin_px"), 0.0f);
     glBindFramebuffer(GL_FRAMEBUFFER, core_target.fbo);
     glViewport(0, 0, u.width, u.height);
     glEnable(GL_BLEND);

@@ -19,7 +19,7 @@ using detail::PassTimer;
 /// into the caller's framebuffer.
 void Renderer::Impl::composite_pass(const FrameUniforms& u, const CallerTarget& caller, PassTimer& timer) {
     timer.begin(kComposite);
-    prepare_stars(u, !u.host && u.stars, u.star_points);
+    prepare_stars(u, !u.host && u.stars, composite_overlays);
     glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(caller.fbo));
     if (u.host) {
         // A host's frame: dst = L + T dst (premultiplied radiance over the host's radiance); its alpha is kept.
@@ -98,13 +98,29 @@ void Renderer::Impl::prepare_stars(const FrameUniforms& u, bool stars, bool poin
 }
 
 void Renderer::Impl::draw_composite(int output) {
-    const GLuint p = composite_program(output);
+    // The core as an overlay: not into a host's frame (its blend would add the ribbons' pixels twice).
+    const bool core_overlay = core_drawn && composite_overlays && output != 2;
+    const bool star_overlay = star_guard > 0.0f;
+    const GLuint p = composite_program(output, Overlay::None, core_drawn && !core_overlay, composite_stars);
     glUseProgram(p);
     bind_composite_inputs(p);
     glViewport(0, 0, out_w, out_h);
     glDrawArrays(GL_TRIANGLES, 0, 3);
-    if (star_guard <= 0.0f) return;
-    const GLuint q = composite_program(output, true);
+    // Each overlay's pixels get the whole composite: the core's with the stars, the stars' with the core.
+    if (core_overlay) {
+        const GLuint q = composite_program(output, Overlay::Core, true, star_overlay || composite_stars == 1 ? 1 : 0);
+        glUseProgram(q);
+        bind_composite_inputs(q);
+        // bolt.vert's ribbons as the bolt pass drew them, 2 pixels wider on every side: a superset of
+        // the pixels they wrote, whatever the rounding of a program compiled apart.
+        glUniform1f(glGetUniformLocation(q, "u_min_width_px"), core_min_width_px);
+        glUniform1f(glGetUniformLocation(q, "u_margin_px"), 2.0f);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, seg_buf.id);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, endpoint_buf.id);
+        glDrawArrays(GL_TRIANGLES, 0, 6 * seg_count);
+    }
+    if (!star_overlay) return;
+    const GLuint q = composite_program(output, Overlay::Stars, core_drawn, 1);
     glUseProgram(q);
     bind_composite_inputs(q);
     glUniform1f(glGetUniformLocation(q, "u_guard"), star_guard);
@@ -122,16 +138,17 @@ void Renderer::Impl::draw_composite(int output) {
     glViewport(0, 0, out_w, out_h);
 }
 
-GLuint Renderer::Impl::composite_program(int output, bool star_points) {
+GLuint Renderer::Impl::composite_program(int output, Overlay overlay, bool core, int stars) {
     const std::string defines = "#define OUTPUT " + std::to_string(output) + "\n#define GLARE " +
-                                (glare_ran ? "1" : "0") + "\n#define CORE " + (core_drawn ? "1" : "0") +
-                                "\n#define STARS " + std::to_string(star_points ? 1 : composite_stars) +
-                                "\n#define DITHER " + (composite_dither ? "1" : "0") + "\n";
-    if (star_points)
-        return program("composite_stars",
-                       {{GL_VERTEX_SHADER, "star_points.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}}, defines);
-    return program("composite", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "composite.frag"}},
-                   defines);
+                                (glare_ran ? "1" : "0") + "\n#define CORE " + (core ? "1" : "0") + "\n#define STARS " +
+                                std::to_string(stars) + "\n#define DITHER " + (composite_dither ? "1" : "0") + "\n";
+    const char* vertex = overlay == Overlay::Core    ? "bolt.vert"
+                         : overlay == Overlay::Stars ? "star_points.vert"
+                                                     : "fullscreen.vert";
+    const char* name = overlay == Overlay::Core    ? "composite_core"
+                       : overlay == Overlay::Stars ? "composite_stars"
+                                                   : "composite";
+    return program(name, {{GL_VERTEX_SHADER, vertex}, {GL_FRAGMENT_SHADER, "composite.frag"}}, defines);
 }
 
 void Renderer::Impl::bind_composite_inputs(GLuint p) const {

@@ -325,11 +325,14 @@ struct Settings {
     glm::dvec3 sky_zenith{9e-8, 1.2e-7, 2e-7};
     glm::dvec3 sky_horizon{4.8e-7, 4.6e-7, 5.2e-7};
     double star_radiance = 2e-5;  ///< brightest stars (W m^-2 sr^-1, per pixel-sized star)
-    /// The stars drawn as points over the composite without them, so only the pixels near a star
-    /// find its cell (the same frame to the bit: at 1280x720 ~0.5 ms instead of ~3); false: every
-    /// pixel computes its stars (the reference the points are tested against). Views too wide
-    /// for GL's largest point (~130 degrees) compute every pixel's either way.
-    bool star_points = true;
+    /// The stars and the channel's core drawn over the composite without them, the stars as
+    /// points and the core as its ribbons widened by 2 pixels, each pixel they cover shaded by the
+    /// whole composite: only the pixels near a star find its cell and only those near the core
+    /// read it (the same frame to the bit; at 1280x720 the stars ~0.5 ms instead of ~3, the core
+    /// ~2.3 ms less during a flash). false: every pixel computes its stars and reads the core (the
+    /// reference the overlays are tested against). Views too wide for GL's largest point (~130
+    /// degrees) compute every pixel's stars either way; a host's frame reads the core everywhere.
+    bool composite_overlays = true;
     double air_scattering = 1.5e-5;  ///< sigma_s of the (rainy) air around the bolt (1/m): glow strength
     double glow_radius = 600.0;      ///< glow quad radius (m); the profile tapers to 0 there
     double bolt_min_width_px = 1.5;  ///< thinner ribbons are widened and dimmed (flux conserved)

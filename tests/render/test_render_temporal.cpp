@@ -456,8 +456,8 @@ TEST_CASE("temporal history: tiny and changing sizes march what they must, witho
 
 TEST_CASE("the stars drawn as points are the stars computed at every pixel, moving or still") {
     // The composite draws the stars as points over the frame without them (star_points.vert,
-    // Settings::star_points), from a list of the cells that may hold a star
-    // (pass_composite.cpp); with star_points off every pixel computes its own. Both must give the
+    // Settings::composite_overlays), from a list of the cells that may hold a star
+    // (pass_composite.cpp); with the overlays off every pixel computes its own. Both must give the
     // same frame to the bit: a point too small for its star's spot, a star left out of the list,
     // or one dropped at the frame's edge or the horizon, leaves pixels without their star.
     // Views: the storm's, one looking up at 80 degrees with a lens shift (spots stretched
@@ -480,7 +480,7 @@ TEST_CASE("the stars drawn as points are the stars computed at every pixel, movi
     views[4].target = storm.camera.position + glm::dvec3(300.0, 1000.0, 600.0);
     views[4].vertical_fov_deg = 130.0;
     render::Settings every = st;
-    every.star_points = false;
+    every.composite_overlays = false;
     for (std::size_t v = 0; v < views.size(); ++v) {
         CAPTURE(v);
         for (const int width : {W, 960}) {
@@ -511,6 +511,69 @@ TEST_CASE("the stars drawn as points are the stars computed at every pixel, movi
             MESSAGE("view ", v, " at ", width, ": ", starred, " star values, ", differ, " differ");
             CHECK(differ == 0);
             CHECK(starred > 0);
+        }
+    }
+    r.clear_volume();
+}
+
+TEST_CASE("the channel's core drawn as an overlay is the core read at every pixel") {
+    // With the overlays the composite reads the core only under the bolt's ribbons widened by 2
+    // pixels (bolt.vert's u_margin_px, pass_composite.cpp) and writes no core elsewhere; without
+    // them every pixel reads it. Both must give the same frame to the bit: a ribbon drawn
+    // narrower than the bolt pass drew it, or a segment dropped, leaves pixels without their
+    // core. Views: the storm's; one a few hundred metres from the channel (ribbons tens of
+    // pixels wide, segments clipped at the near plane); one looking down its length; a narrow
+    // one whose ribbons fall below the minimum width (widened and dimmed); each with and
+    // without the glare (the core's share kept in place), moving and still.
+    render::Renderer& r = gl_renderer();
+    const synthetic::Storm& storm = small_storm();
+    show_storm(r, storm);
+    render::Settings st = storm.settings;
+    st.sky = true;
+    std::vector<render::Camera> views(4, storm.camera);
+    const std::vector<render::ChannelSegment>& segs = storm.bolt.segments;
+    REQUIRE(segs.size() > 2);
+    const glm::dvec3 mid(segs[segs.size() / 2].a), top(segs.front().a), foot(segs.back().b);
+    views[1].position = mid + glm::dvec3(300.0, -200.0, 50.0);
+    views[1].target = mid;
+    views[1].vertical_fov_deg = 70.0;
+    views[2].position = top + 1.3 * (top - foot) + glm::dvec3(30.0, 20.0, 0.0);
+    views[2].target = foot;
+    views[3].vertical_fov_deg = 3.0;
+    views[3].target = mid;
+    render::Settings every = st;
+    every.composite_overlays = false;
+    for (std::size_t v = 0; v < views.size(); ++v) {
+        CAPTURE(v);
+        for (const bool glare : {false, true}) {
+            CAPTURE(glare);
+            st.glare = every.glare = glare;
+            render::Camera moved = views[v];
+            moved.position.z += 20.0;
+            render_at(r, moved, every, W, 180);
+            render_at(r, views[v], every, W, 180);
+            const std::vector<std::uint8_t> every_rgba = test::gl_context().read_rgba8();
+            const std::vector<float> every_pixel = r.read_hdr();
+            render_at(r, moved, st, W, 180);
+            render_at(r, views[v], st, W, 180);  // moved
+            CHECK(test::gl_context().read_rgba8() == every_rgba);
+            const std::vector<float> moving = r.read_hdr();
+            render_at(r, views[v], st, W, 180);  // still
+            CHECK(test::gl_context().read_rgba8() == every_rgba);
+            // And the core is there: the pixels it changes.
+            render::Settings no_bolt = every;
+            no_bolt.bolt = false;
+            render_at(r, views[v], no_bolt, W, 180);
+            const std::vector<float> none = r.read_hdr();
+            std::size_t cored = 0, differ = 0;
+            for (std::size_t i = 0; i < none.size(); ++i) {
+                cored += every_pixel[i] != none[i];
+                differ += every_pixel[i] != moving[i];
+            }
+            MESSAGE("view ", v, std::string(glare ? " with" : " without"), " glare: ", cored, " values the core changes, ", differ,
+                    " differ");
+            CHECK(differ == 0);
+            CHECK(cored > 0);
         }
     }
     r.clear_volume();

@@ -71,7 +71,6 @@ struct FrameUniforms {
     bool glow = false;                            ///< the glow pass runs
     bool host = false;                            ///< composited into a host's frame (render_into_host)
     bool stars = false;                           ///< the composite draws stars (sky on, star radiance > 0)
-    bool star_points = true;                      ///< Settings::star_points
     bool ground_scatter = false;                  ///< the settings ask for the ground's scattered flash light
 };
 

@@ -131,6 +131,8 @@ struct Renderer::Impl {
     float star_guard = 0.0f;      // > 0: the stars drawn as points (star_points.vert) with this guard band (pixels)
     float max_point_size = 0.0f;  // GL_POINT_SIZE_RANGE's upper end (0: not asked yet)
     bool composite_dither = true;
+    bool composite_overlays = true;  // Settings::composite_overlays
+    float core_min_width_px = 1.5f;  // the bolt pass's Settings::bolt_min_width_px (the core's overlay)
     // The cells of the stars' cube map that may hold a star (star_points.vert's vertices), made
     // at the first frame that draws the stars as points; star_cell_count of them.
     detail::Buffer star_cells;
@@ -186,7 +188,7 @@ struct Renderer::Impl {
         program("bolt_t", {{GL_COMPUTE_SHADER, "bolt_transmittance.comp"}});
         program("glow", {{GL_VERTEX_SHADER, "glow.vert"}, {GL_FRAGMENT_SHADER, "glow.frag"}});
         program("bolt", {{GL_VERTEX_SHADER, "bolt.vert"}, {GL_FRAGMENT_SHADER, "bolt.frag"}});
-        composite_program(0);
+        composite_program(0, Overlay::None, true, 1);
         program("glare_first", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_first.frag"}});
         program("glare_down", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_down.frag"}});
         march_program(MarchKernel::Fragment, march_defines(true, true, true, true));
@@ -248,7 +250,10 @@ struct Renderer::Impl {
     void draw_composite(int output);
     /// The composite's program for this frame's switches (glare, stars, dither) and `output`
     /// (composite.frag's OUTPUT: 0 tone mapped, 1 radiance, 2 a host's frame).
-    GLuint composite_program(int output, bool star_points = false);
+    /// The composite's program for `output`: over the whole frame, or (`overlay`) as the core's
+    /// ribbons or the stars' points, with its core and stars switches (composite.frag's CORE, STARS).
+    enum class Overlay { None, Core, Stars };
+    GLuint composite_program(int output, Overlay overlay, bool core, int stars);
     /// Binds what composite.frag reads (march, core, glare) to program `p`.
     void bind_composite_inputs(GLuint p) const;
 };
