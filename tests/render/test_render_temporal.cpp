@@ -570,8 +570,8 @@ TEST_CASE("the channel's core drawn as an overlay is the core read at every pixe
                 cored += every_pixel[i] != none[i];
                 differ += every_pixel[i] != moving[i];
             }
-            MESSAGE("view ", v, std::string(glare ? " with" : " without"), " glare: ", cored, " values the core changes, ", differ,
-                    " differ");
+            MESSAGE("view ", v, std::string(glare ? " with" : " without"), " glare: ", cored,
+                    " values the core changes, ", differ, " differ");
             CHECK(differ == 0);
             CHECK(cored > 0);
         }
