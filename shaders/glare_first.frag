@@ -4,12 +4,21 @@
 // point-spread function spreads).
 #include "common.glsl"
 
-// Compile-time switch (render/pass_glare.cpp): BLOCK 1 or 2 when the output is exactly that
+// Compile-time switches (render/pass_glare.cpp): BLOCK 1 or 2 when the output is exactly that
 // many times the march's size on both axes, 0 otherwise. The general loop has per-pixel
 // bounds, which a software rasterizer runs at about three times the cost of the fixed reads.
+// GROUP: what u_march holds: 0 the march (rgb radiance); a group of the temporal history, 1
+// the flash's (x: S, times the flash colour), 2 the static light's (rgb), 3 the channel's (rgb),
+// the only group the core is added to, times u_core_scale (the core at the history's
+// intensity).
 #ifndef BLOCK
 #define BLOCK 0
 #endif
+#ifndef GROUP
+#define GROUP 0
+#endif
+
+uniform float u_core_scale;  // GROUP 3
 
 layout(binding = 3) uniform sampler2D u_march;  // internal res: rgb radiance, a transmittance
 layout(binding = 4) uniform sampler2D u_core;   // full res: bolt core radiance (bilinear)
@@ -18,6 +27,13 @@ out vec4 o_radiance;
 
 void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
+#if GROUP == 1
+    o_radiance = vec4(texelFetch(u_march, p, 0).x * light_colour.rgb, 1.0);
+    return;
+#elif GROUP == 2
+    o_radiance = vec4(texelFetch(u_march, p, 0).rgb, 1.0);
+    return;
+#endif
     vec3 c = texelFetch(u_march, p, 0).rgb;
 #if BLOCK == 1
     vec3 core = texelFetch(u_core, p, 0).rgb;
@@ -42,6 +58,9 @@ void main() {
         }
     }
     core /= ratio.x * ratio.y;
+#endif
+#if GROUP == 3
+    core *= u_core_scale;
 #endif
     o_radiance = vec4(c + core, 1.0);
 }

@@ -67,55 +67,114 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
         glare_down[std::size_t(k)].ensure(w, h);
         glare_up[std::size_t(k)].ensure(w, h);
     }
-    // Level 0: march + core.
-    glUseProgram(program("glare_first",
-                         {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_first.frag"}},
-                         "#define BLOCK " + std::to_string(core_block(u)) + "\n"));
-    glBindTextureUnit(3, march_out->tex);
-    glBindTextureUnit(4, core_target.tex);
-    glBindFramebuffer(GL_FRAMEBUFFER, glare_down[0].fbo);
-    glViewport(0, 0, glare_down[0].w, glare_down[0].h);
-    glDrawArrays(GL_TRIANGLES, 0, 3);
-    // Down.
-    const GLuint down =
-        program("glare_down", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_down.frag"}});
-    glUseProgram(down);
-    for (int k = 1; k < levels; ++k) {
-        const detail::Target& fine = glare_down[std::size_t(k - 1)];
-        const detail::Target& dst = glare_down[std::size_t(k)];
-        glBindTextureUnit(0, fine.tex);
-        glUniform2f(glGetUniformLocation(down, "u_fine_texel"), 1.0f / float(fine.w), 1.0f / float(fine.h));
-        glUniform2f(glGetUniformLocation(down, "u_size"), float(dst.w), float(dst.h));
-        glBindFramebuffer(GL_FRAMEBUFFER, dst.fbo);
-        glViewport(0, 0, dst.w, dst.h);
+    // Level 0: the light `input` holds (glare_first.frag's GROUP) + the core.
+    const auto first_level = [&](int group, GLuint input, float core_scale) {
+        const GLuint p = program(
+            "glare_first", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_first.frag"}},
+            "#define BLOCK " + std::to_string(core_block(u)) + "\n#define GROUP " + std::to_string(group) + "\n");
+        glUseProgram(p);
+        glUniform1f(glGetUniformLocation(p, "u_core_scale"), core_scale);
+        glBindTextureUnit(3, input);
+        glBindTextureUnit(4, core_target.tex);
+        glBindFramebuffer(GL_FRAMEBUFFER, glare_down[0].fbo);
+        glViewport(0, 0, glare_down[0].w, glare_down[0].h);
         glDrawArrays(GL_TRIANGLES, 0, 3);
+    };
+    // Down from level 0, then up, the finest sum into `out` (with the march's share: `fold`).
+    const auto down_and_up = [&](const detail::Target& out, bool fold) {
+        const GLuint down =
+            program("glare_down", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_down.frag"}});
+        glUseProgram(down);
+        for (int k = 1; k < levels; ++k) {
+            const detail::Target& fine = glare_down[std::size_t(k - 1)];
+            const detail::Target& dst = glare_down[std::size_t(k)];
+            glBindTextureUnit(0, fine.tex);
+            glUniform2f(glGetUniformLocation(down, "u_fine_texel"), 1.0f / float(fine.w), 1.0f / float(fine.h));
+            glUniform2f(glGetUniformLocation(down, "u_size"), float(dst.w), float(dst.h));
+            glBindFramebuffer(GL_FRAMEBUFFER, dst.fbo);
+            glViewport(0, 0, dst.w, dst.h);
+            glDrawArrays(GL_TRIANGLES, 0, 3);
+        }
+        // Up: each level weighted, plus the coarser sum.
+        for (int k = levels - 1; k >= 0; --k) {
+            const detail::Target& dst = k == 0 ? out : glare_up[std::size_t(k)];
+            const bool coarser = k + 1 < levels;
+            const std::string defines = std::string("#define HAS_COARSE ") + (coarser ? "1" : "0") + "\n#define WIDE " +
+                                        (k >= kGlareWideFrom ? "1" : "0") + "\n#define FOLD " +
+                                        (k == 0 && fold ? "1" : "0") + "\n";
+            const GLuint up = program(
+                "glare_up", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_up.frag"}}, defines);
+            glUseProgram(up);
+            glBindTextureUnit(0, glare_down[std::size_t(k)].tex);
+            glBindTextureUnit(1, coarser ? glare_up[std::size_t(k + 1)].tex : glare_down[std::size_t(k)].tex);
+            glUniform1f(glGetUniformLocation(up, "u_weight"), float(glare_fit.weights[std::size_t(k)]));
+            if (k == 0 && fold) {
+                // The finest level holds what the composite reads at the march's resolution: keep x
+                // the march + the spread light, and the march's transmittance (composite.frag).
+                glUniform1f(glGetUniformLocation(up, "u_keep"), float(glare_fit.keep));
+                glBindTextureUnit(3, march_out->tex);
+            }
+            if (coarser) {
+                const detail::Target& c = glare_up[std::size_t(k + 1)];
+                glUniform2f(glGetUniformLocation(up, "u_coarse_texel"), 1.0f / float(c.w), 1.0f / float(c.h));
+            }
+            glUniform2f(glGetUniformLocation(up, "u_size"), float(dst.w), float(dst.h));
+            glBindFramebuffer(GL_FRAMEBUFFER, dst.fbo);
+            glViewport(0, 0, dst.w, dst.h);
+            glDrawArrays(GL_TRIANGLES, 0, 3);
+        }
+    };
+    // A still camera whose frame is the history's groups with their factors (nothing marched):
+    // the glare is linear in the light, so it is each group's glare with the same factors. The
+    // groups' glares are made once from the history (three pyramids) and summed each frame,
+    // while the history, the view and the channel's shape stay. The core is in the channel's
+    // group: its light scales with the channel's (the channel's tracker holds the segments'
+    // intensities proportional to within 1e-5, or the history is marched again). Made when the
+    // channel is lit: the core now over the channel's factor is the core at the history's
+    // intensity.
+    const detail::TemporalState& h = temporal;
+    const bool reused = stats.temporal == TemporalStep::Reused && march_out == &h.march;
+    const glm::dvec2 factors = h.march_scale;
+    // What the groups' glares depend on besides the history: the fit, the sizes, the core's
+    // width and segments, the flash colour (the flash group's S is before it).
+    const glm::vec4 colour = u.block.light_colour;
+    const std::vector<double> groups_key = {double(h.history_version),
+                                            pixel_deg,
+                                            scale,
+                                            half_diagonal,
+                                            double(levels),
+                                            double(u.width),
+                                            double(u.height),
+                                            double(core_min_width_px),
+                                            double(seg_count),
+                                            double(colour.x),
+                                            double(colour.y),
+                                            double(colour.z)};
+    if (reused && glare_groups_key != groups_key && factors.y > 0.0) {
+        const GLuint* hist = h.history[h.current].tex.data();  // flash, statics, channel (temporal.frag)
+        for (int g = 0; g < 3; ++g) {
+            detail::Target& out = glare_groups[g];
+            out.ensure(u.internal_width, u.internal_height);
+            first_level(g + 1, hist[g], float(1.0 / factors.y));
+            down_and_up(out, false);
+        }
+        glare_groups_key = groups_key;
     }
-    // Up: each level weighted, plus the coarser sum.
-    for (int k = levels - 1; k >= 0; --k) {
-        const detail::Target& dst = glare_up[std::size_t(k)];
-        const bool coarser = k + 1 < levels;
-        const std::string defines = std::string("#define HAS_COARSE ") + (coarser ? "1" : "0") + "\n#define WIDE " +
-                                    (k >= kGlareWideFrom ? "1" : "0") + "\n#define FOLD " + (k == 0 ? "1" : "0") + "\n";
-        const GLuint up = program(
-            "glare_up", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_up.frag"}}, defines);
-        glUseProgram(up);
-        glBindTextureUnit(0, glare_down[std::size_t(k)].tex);
-        glBindTextureUnit(1, coarser ? glare_up[std::size_t(k + 1)].tex : glare_down[std::size_t(k)].tex);
-        glUniform1f(glGetUniformLocation(up, "u_weight"), float(glare_fit.weights[std::size_t(k)]));
-        if (k == 0) {
-            // The finest level holds what the composite reads at the march's resolution: keep x
-            // the march + the spread light, and the march's transmittance (composite.frag).
-            glUniform1f(glGetUniformLocation(up, "u_keep"), float(glare_fit.keep));
-            glBindTextureUnit(3, march_out->tex);
-        }
-        if (coarser) {
-            const detail::Target& c = glare_up[std::size_t(k + 1)];
-            glUniform2f(glGetUniformLocation(up, "u_coarse_texel"), 1.0f / float(c.w), 1.0f / float(c.h));
-        }
-        glUniform2f(glGetUniformLocation(up, "u_size"), float(dst.w), float(dst.h));
-        glBindFramebuffer(GL_FRAMEBUFFER, dst.fbo);
-        glViewport(0, 0, dst.w, dst.h);
+    if (reused && glare_groups_key == groups_key) {
+        const GLuint p =
+            program("glare_sum", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_sum.frag"}});
+        glUseProgram(p);
+        glUniform1f(glGetUniformLocation(p, "u_keep"), float(glare_fit.keep));
+        glUniform2f(glGetUniformLocation(p, "u_factors"), float(factors.x), float(factors.y));
+        glBindImageTexture(0, h.march.tex, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
+        for (int g = 0; g < 3; ++g)
+            glBindImageTexture(GLuint(1 + g), glare_groups[g].tex, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
+        glBindFramebuffer(GL_FRAMEBUFFER, glare_up[0].fbo);
+        glViewport(0, 0, glare_up[0].w, glare_up[0].h);
         glDrawArrays(GL_TRIANGLES, 0, 3);
+    } else {
+        first_level(0, march_out->tex, 1.0f);
+        down_and_up(glare_up[0], true);
     }
     glare_ran = true;
     stats.glare_keep = glare_fit.keep;

@@ -68,6 +68,7 @@ void TemporalState::release() {
     fresh.release();
     for (MultiTarget& t : history) t.release();
     march.release();
+    ++history_version;
     for (GLuint& f : resolve_fbo) {
         if (f) glDeleteFramebuffers(1, &f);
         f = 0;
@@ -251,6 +252,7 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
 
     h.current = next;
     ++h.march_version;
+    ++h.history_version;
     h.march_scale = glm::dvec2(1.0);
     h.has_history = true;
     h.inputs_changed = false;

@@ -187,6 +187,8 @@ Renderer::~Renderer() {
     m.hdr_target.release();
     for (detail::Target& t : m.glare_down) t.release();
     for (detail::Target& t : m.glare_up) t.release();
+    for (detail::Target& t : m.glare_groups) t.release();
+    m.glare_groups_key.clear();
     m.temporal.release();
 }
 

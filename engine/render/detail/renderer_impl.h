@@ -115,6 +115,11 @@ struct Renderer::Impl {
     GlareFit glare_fit;
     detail::TemporalState temporal;            // the temporal history (pass_temporal.cpp)
     double glare_key[3] = {-1.0, -1.0, -1.0};  // pixel size, internal scale, reach the fit was made for
+    // A still camera's glare per light group of the history (pass_glare.cpp): the flash's, the
+    // static light's, the channel's with the core, each the pyramid's finest sum, and what they
+    // were made from (empty: none).
+    detail::Target glare_groups[3];
+    std::vector<double> glare_groups_key;
     // The march this frame's later passes read: march_target, or the temporal history's own
     // (TemporalState::march), which a frame rendered without the history leaves as it was.
     const detail::Target* march_out = &march_target;

@@ -66,6 +66,9 @@ struct TemporalState {
     Target march;
     glm::dvec2 march_scale{1.0};
     std::uint64_t march_version = 0;
+    // How many times the history itself has been written or released: what is derived from its
+    // groups (the glare's per-group pyramids, pass_glare.cpp) is kept while it stays.
+    std::uint64_t history_version = 0;
     int current = 0;
     bool has_history = false;
     bool inputs_changed = true;  // the volume, the static light or the sun changed since
