@@ -36,6 +36,7 @@ layout(binding = 0, rgba32f) readonly uniform image2D u_core;   // full res: bol
 layout(binding = 5) uniform sampler2D u_glare_sum;  // internal res: keep x the march + the spread light, T (GLARE)
 
 uniform float u_glare_keep;  // the share of march + core left in place (render::GlareFit::keep)
+uniform float u_core_scale;  // the core target's factor this frame (1 but for a kept core: pass_bolt.cpp)
 
 out vec4 o_colour;
 
@@ -77,7 +78,7 @@ void main() {
     vec4 m = textureLod(u_march, uv, 0.0);
 #endif
 #if CORE
-    vec3 core = imageLoad(u_core, ivec2(pixel)).rgb;
+    vec3 core = imageLoad(u_core, ivec2(pixel)).rgb * u_core_scale;
 #else
     const vec3 core = vec3(0.0);
 #endif

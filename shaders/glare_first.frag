@@ -9,8 +9,8 @@
 // bounds, which a software rasterizer runs at about three times the cost of the fixed reads.
 // GROUP: what u_march holds: 0 the march (rgb radiance); a group of the temporal history, 1
 // the flash's (x: S, times the flash colour), 2 the static light's (rgb), 3 the channel's (rgb),
-// the only group the core is added to, times u_core_scale (the core at the history's
-// intensity).
+// the only group the core is added to. The core is the target's times u_core_scale (a kept
+// core's factor; for the channel's group, the core at the history's intensity).
 #ifndef BLOCK
 #define BLOCK 0
 #endif
@@ -18,7 +18,7 @@
 #define GROUP 0
 #endif
 
-uniform float u_core_scale;  // GROUP 3
+uniform float u_core_scale;
 
 layout(binding = 3) uniform sampler2D u_march;  // internal res: rgb radiance, a transmittance
 layout(binding = 4) uniform sampler2D u_core;   // full res: bolt core radiance (bilinear)
@@ -59,8 +59,6 @@ void main() {
     }
     core /= ratio.x * ratio.y;
 #endif
-#if GROUP == 3
     core *= u_core_scale;
-#endif
     o_radiance = vec4(c + core, 1.0);
 }

@@ -27,8 +27,9 @@
 //                  1920x1080, the camera orbiting (1 degree a frame) or still, with the storm
 //                  plain and with detail and rain, through a return stroke's decay; today's
 //                  renderer and the temporal history (Settings::temporal: its steps and its
-//                  error against a fresh render of each frame). Today's plain still camera at
-//                  the same size is the baseline of each row (ratio).
+//                  error against a fresh render of each frame, the frames timed in a row and
+//                  then marched again afresh). Today's plain still camera at the same size is
+//                  the baseline of each row (ratio).
 //   case "static_grid": the static light on the lighting grid and on a 3x finer one: upload,
 //                  resolve and frame of a moving camera (FULGUR_BENCH_STATIC_GRID=1: these alone).
 //   FULGUR_BENCH_DEMO_WIDTH=W runs only the demo rows, at output width W (640, 1280 or 1920).
@@ -226,17 +227,23 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                         std::vector<double> wall, cpu, error, jitter_noise;
                         std::vector<render::PassTimes> passes;
                         int steps[4] = {0, 0, 0, 0};
-                        for (int i = -2; i < frames; ++i) {  // two frames to compile and fault pages in
+                        st.temporal = temporal;
+                        st.temporal_light = mode == 2   ? render::TemporalLight::Upsample
+                                            : mode == 3 ? render::TemporalLight::Auto
+                                                        : render::TemporalLight::Reproject;
+                        st.temporal_moving_block = mode == 3 ? 4 : 2;
+                        // Frame i (from -2: two frames to compile and fault pages in): its flash and camera.
+                        auto show_frame = [&](int i) {
                             if (flash) show_flash(r, std::exp(-(i + 2) / 8.0));
                             st.frame_index = std::uint32_t(i + 2);
-                            st.temporal = temporal;
-                            st.temporal_light = mode == 2   ? render::TemporalLight::Upsample
-                                                : mode == 3 ? render::TemporalLight::Auto
-                                                            : render::TemporalLight::Reproject;
-                            st.temporal_moving_block = mode == 3 ? 4 : 2;
-                            const render::Camera cam =
-                                orbit ? render::Camera::orbit(target, distance, -60.0 + 1.0 * (i + 2), 8.0, kOrbitFov)
-                                      : storm.camera;
+                            return orbit
+                                       ? render::Camera::orbit(target, distance, -60.0 + 1.0 * (i + 2), 8.0, kOrbitFov)
+                                       : storm.camera;
+                        };
+                        // The frames in a row, as the demo draws them; the history's march of each kept.
+                        std::vector<std::vector<float>> kept;
+                        for (int i = -2; i < frames; ++i) {
+                            const render::Camera cam = show_frame(i);
                             const double cpu0 = process_cpu_ms();
                             core::Stopwatch sw;
                             const render::FrameStats stats = r.render(cam, st, size.x, size.y);
@@ -246,14 +253,18 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             cpu.push_back(process_cpu_ms() - cpu0);
                             passes.push_back(stats.wall);
                             ++steps[int(stats.temporal)];
-                            if (!temporal) continue;
                             int w = 0, h = 0;
-                            const std::vector<float> kept = r.read_march(w, h);
+                            if (temporal) kept.push_back(r.read_march(w, h));
+                        }
+                        // Then each frame again, marched afresh, against the history's.
+                        for (int i = 0; temporal && i < frames; ++i) {
+                            const render::Camera cam = show_frame(i);
                             render::Settings fresh = st;
                             fresh.temporal = false;
                             r.render(cam, fresh, size.x, size.y);
+                            int w = 0, h = 0;
                             const std::vector<float> fresh_march = r.read_march(w, h);
-                            error.push_back(radiance_rel_rms(kept, fresh_march));
+                            error.push_back(radiance_rel_rms(kept[std::size_t(i)], fresh_march));
                             // The jitter's own noise: the same frame marched with another frame's jitter.
                             fresh.frame_index += 2;
                             r.render(cam, fresh, size.x, size.y);

@@ -153,6 +153,7 @@ GLuint Renderer::Impl::composite_program(int output, Overlay overlay, bool core,
 
 void Renderer::Impl::bind_composite_inputs(GLuint p) const {
     glUniform1f(glGetUniformLocation(p, "u_glare_keep"), glare_ran ? float(glare_fit.keep) : 1.0f);
+    glUniform1f(glGetUniformLocation(p, "u_core_scale"), core_scale);
     glBindTextureUnit(3, march_out->tex);
     glBindTextureUnit(5, glare_ran ? glare_up[0].tex : march_out->tex);
     // The full-resolution core read at its own pixel, as an image: on llvmpipe an image load

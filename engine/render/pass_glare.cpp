@@ -67,13 +67,13 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
         glare_down[std::size_t(k)].ensure(w, h);
         glare_up[std::size_t(k)].ensure(w, h);
     }
-    // Level 0: the light `input` holds (glare_first.frag's GROUP) + the core.
-    const auto first_level = [&](int group, GLuint input, float core_scale) {
+    // Level 0: the light `input` holds (glare_first.frag's GROUP) + the core target times `core_factor`.
+    const auto first_level = [&](int group, GLuint input, float core_factor) {
         const GLuint p = program(
             "glare_first", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_first.frag"}},
             "#define BLOCK " + std::to_string(core_block(u)) + "\n#define GROUP " + std::to_string(group) + "\n");
         glUseProgram(p);
-        glUniform1f(glGetUniformLocation(p, "u_core_scale"), core_scale);
+        glUniform1f(glGetUniformLocation(p, "u_core_scale"), core_factor);
         glBindTextureUnit(3, input);
         glBindTextureUnit(4, core_target.tex);
         glBindFramebuffer(GL_FRAMEBUFFER, glare_down[0].fbo);
@@ -155,7 +155,7 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
         for (int g = 0; g < 3; ++g) {
             detail::Target& out = glare_groups[g];
             out.ensure(u.internal_width, u.internal_height);
-            first_level(g + 1, hist[g], float(1.0 / factors.y));
+            first_level(g + 1, hist[g], float(double(core_scale) / factors.y));
             down_and_up(out, false);
         }
         glare_groups_key = groups_key;
@@ -173,7 +173,7 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
         glViewport(0, 0, glare_up[0].w, glare_up[0].h);
         glDrawArrays(GL_TRIANGLES, 0, 3);
     } else {
-        first_level(0, march_out->tex, 1.0f);
+        first_level(0, march_out->tex, core_scale);
         down_and_up(glare_up[0], true);
     }
     glare_ran = true;

@@ -128,6 +128,11 @@ struct Renderer::Impl {
     std::uint64_t meter_version = 0;
     bool glare_ran = false;   // this frame's composite adds glare_up[0]
     bool core_drawn = false;  // this frame's bolt pass drew core_target
+    // The core as kept for a still camera reusing its history (pass_bolt.cpp): what it was drawn
+    // for (empty: not kept), the channel's factor then, and this frame's scale of it (1 when drawn).
+    std::vector<double> core_kept_key;
+    double core_kept_factor = 0.0;
+    float core_scale = 1.0f;
     // The pixels of core_target that may hold a drawn bolt ([x0, x1) x [y0, y1)), and the
     // texture and size they are of: the next bolt pass clears only these.
     glm::ivec4 core_footprint{0};
