@@ -38,9 +38,11 @@ layout(binding = 14) uniform sampler2D u_hist_statics;
 layout(binding = 15) uniform sampler2D u_hist_channel;
 // The same textures as images, for the reads at a texel (on llvmpipe an image load costs less
 // than a texel fetch; render/pass_temporal.cpp binds both).
+#if STRIDE != 0
 layout(binding = 2, rgba32f) readonly uniform image2D i_fresh_flash;
 layout(binding = 3, rgba32f) readonly uniform image2D i_fresh_statics;
 layout(binding = 4, rgba32f) readonly uniform image2D i_fresh_channel;
+#endif
 layout(binding = 5, rgba32f) readonly uniform image2D i_hist_flash;
 layout(binding = 6, rgba32f) readonly uniform image2D i_hist_statics;
 layout(binding = 7, rgba32f) readonly uniform image2D i_hist_channel;
@@ -53,6 +55,19 @@ uniform float u_depth_tolerance; // relative depth difference beyond which a his
 
 #if STRIDE == 0
 layout(location = 0) out vec4 o_march;
+// GLARE_SUM (STRIDE 0): the glare of the march as well, from the light groups' glares with the
+// same factors, as glare_sum.frag writes it (render/pass_glare.cpp: the glare is linear in the
+// light). One pass for both: the history's groups are read here already.
+#ifndef GLARE_SUM
+#define GLARE_SUM 0
+#endif
+#if GLARE_SUM
+layout(location = 1) out vec4 o_glare;
+layout(binding = 2, rgba32f) readonly uniform image2D i_glare_flash;
+layout(binding = 3, rgba32f) readonly uniform image2D i_glare_statics;
+layout(binding = 4, rgba32f) readonly uniform image2D i_glare_channel;
+uniform float u_keep;  // render::GlareFit::keep
+#endif
 #else
 layout(location = 0) out vec4 o_flash;
 layout(location = 1) out vec4 o_statics;
@@ -99,6 +114,11 @@ void main() {
     vec4 o_flash = imageLoad(i_hist_flash, p);
     vec3 statics = imageLoad(i_hist_statics, p).rgb, channel = imageLoad(i_hist_channel, p).rgb;
     o_march = vec4(o_flash.x * u_rescale.x * light_colour.rgb + statics + channel * u_rescale.y, o_flash.y);
+#if GLARE_SUM
+    vec3 spread = u_rescale.x * imageLoad(i_glare_flash, p).rgb + imageLoad(i_glare_statics, p).rgb +
+                  u_rescale.y * imageLoad(i_glare_channel, p).rgb;
+    o_glare = vec4(u_keep * o_march.rgb + spread, o_march.a);
+#endif
 #elif STRIDE == 1
     o_flash = imageLoad(i_fresh_flash, p);
     o_statics = imageLoad(i_fresh_statics, p);

@@ -37,23 +37,58 @@ int core_block(const FrameUniforms& u) {
     return 0;
 }
 
+// The view's quantities the glare's fit depends on.
+struct GlareView {
+    int levels = 0;
+    double pixel_deg = 0.0, half_diagonal = 0.0, scale = 0.0;
+    // A frame a few pixels across, whose ray-march pixel is wider than the frame's half diagonal,
+    // has no surround within it to spread light to: it is drawn as without the glare.
+    bool spreads() const { return half_diagonal > pixel_deg / scale; }
+};
+
+GlareView glare_view(const Camera& camera, const FrameUniforms& u) {
+    GlareView v;
+    v.levels = glare_levels(u.internal_width, u.internal_height);
+    const double fov = camera.vertical_fov_deg;
+    v.pixel_deg = fov / double(u.height);
+    const double aspect = double(u.width) / double(u.height);
+    v.half_diagonal = glm::degrees(std::atan(std::tan(glm::radians(0.5 * fov)) * std::sqrt(1.0 + aspect * aspect)));
+    v.scale = double(u.internal_width) / double(u.width);
+    return v;
+}
+
 }  // namespace
+
+std::vector<double> Renderer::Impl::glare_groups_key_of(const Camera& camera, const Settings& st,
+                                                        const FrameUniforms& u) const {
+    const GlareView v = glare_view(camera, u);
+    if (!(st.glare && st.bolt && seg_count > 0 && v.spreads())) return {};
+    // What the groups' glares depend on besides the history: the fit, the sizes, the core's
+    // width and segments, the flash colour (the flash group's S is before it).
+    const glm::vec4 colour = u.block.light_colour;
+    return {double(temporal.history_version),
+            v.pixel_deg,
+            v.scale,
+            v.half_diagonal,
+            double(v.levels),
+            double(u.width),
+            double(u.height),
+            double(float(st.bolt_min_width_px)),
+            double(seg_count),
+            double(colour.x),
+            double(colour.y),
+            double(colour.z)};
+}
 
 void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const FrameUniforms& u, PassTimer& timer,
                                 FrameStats& stats) {
     glare_ran = false;
     if (!(st.glare && core_drawn)) return;  // the bolt pass ran first: the core it drew
-    const int levels = glare_levels(u.internal_width, u.internal_height);
+    const GlareView view = glare_view(camera, u);
+    const int levels = view.levels;
+    const double pixel_deg = view.pixel_deg, half_diagonal = view.half_diagonal, scale = view.scale;
+    if (!view.spreads()) return;
     // The fit depends on the view's pixel size and the levels only: kept while they stay.
-    const double fov = camera.vertical_fov_deg;
-    const double pixel_deg = fov / double(u.height);
-    const double aspect = double(u.width) / double(u.height);
-    const double half_diagonal =
-        glm::degrees(std::atan(std::tan(glm::radians(0.5 * fov)) * std::sqrt(1.0 + aspect * aspect)));
-    const double scale = double(u.internal_width) / double(u.width);
-    // A frame a few pixels across, whose ray-march pixel is wider than the frame's half diagonal,
-    // has no surround within it to spread light to: it is drawn as without the glare.
-    if (!(half_diagonal > pixel_deg / scale)) return;
     if (!(glare_key[0] == pixel_deg && glare_key[1] == scale && glare_key[2] == half_diagonal &&
           int(glare_fit.weights.size()) == levels)) {
         glare_fit = fit_glare(pixel_deg, scale, levels, half_diagonal);
@@ -135,21 +170,7 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
     const detail::TemporalState& h = temporal;
     const bool reused = stats.temporal == TemporalStep::Reused && march_out == &h.march;
     const glm::dvec2 factors = h.march_scale;
-    // What the groups' glares depend on besides the history: the fit, the sizes, the core's
-    // width and segments, the flash colour (the flash group's S is before it).
-    const glm::vec4 colour = u.block.light_colour;
-    const std::vector<double> groups_key = {double(h.history_version),
-                                            pixel_deg,
-                                            scale,
-                                            half_diagonal,
-                                            double(levels),
-                                            double(u.width),
-                                            double(u.height),
-                                            double(core_min_width_px),
-                                            double(seg_count),
-                                            double(colour.x),
-                                            double(colour.y),
-                                            double(colour.z)};
+    const std::vector<double> groups_key = glare_groups_key_of(camera, st, u);
     if (reused && glare_groups_key != groups_key && factors.y > 0.0) {
         const GLuint* hist = h.history[h.current].tex.data();  // flash, statics, channel (temporal.frag)
         for (int g = 0; g < 3; ++g) {
@@ -159,8 +180,11 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
             down_and_up(out, false);
         }
         glare_groups_key = groups_key;
+        glare_groups_keep = glare_fit.keep;
     }
-    if (reused && glare_groups_key == groups_key) {
+    if (reused && glare_groups_key == groups_key && glare_sum_version == h.march_version) {
+        // The temporal pass summed it with the march (TemporalPlan::glare_sum).
+    } else if (reused && glare_groups_key == groups_key) {
         const GLuint p =
             program("glare_sum", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_sum.frag"}});
         glUseProgram(p);
@@ -172,9 +196,11 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
         glBindFramebuffer(GL_FRAMEBUFFER, glare_up[0].fbo);
         glViewport(0, 0, glare_up[0].w, glare_up[0].h);
         glDrawArrays(GL_TRIANGLES, 0, 3);
+        glare_sum_version = h.march_version;
     } else {
         first_level(0, march_out->tex, core_scale);
         down_and_up(glare_up[0], true);
+        glare_sum_version = 0;
     }
     glare_ran = true;
     stats.glare_keep = glare_fit.keep;

@@ -186,18 +186,35 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
         const glm::dvec2 scale(h.source.rescale(), h.channel.rescale());
         if (scale != h.march_scale) {
             timer.begin(kMarch);
+            // With the glare's groups ready, the glare's sum too, into its finest level (the
+            // glare pass then runs nothing).
+            const bool glare =
+                plan.glare_sum && !glare_up.empty() && glare_up[0].w == h.march.w && glare_up[0].h == h.march.h;
             const GLuint p =
                 program("temporal", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "temporal.frag"}},
-                        "#define STRIDE 0\n");
+                        std::string("#define STRIDE 0\n#define GLARE_SUM ") + (glare ? "1" : "0") + "\n");
             glUseProgram(p);
             bind_temporal_inputs(nullptr, h.history[h.current]);
             glUniform2f(glGetUniformLocation(p, "u_rescale"), float(scale.x), float(scale.y));
-            glBindFramebuffer(GL_FRAMEBUFFER, h.march.fbo);
+            if (glare) {
+                glUniform1f(glGetUniformLocation(p, "u_keep"), float(glare_groups_keep));
+                for (int g = 0; g < 3; ++g)
+                    glBindImageTexture(GLuint(2 + g), glare_groups[g].tex, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
+                if (!glare_sum_fbo) glCreateFramebuffers(1, &glare_sum_fbo);
+                glNamedFramebufferTexture(glare_sum_fbo, GL_COLOR_ATTACHMENT0, h.march.tex, 0);
+                glNamedFramebufferTexture(glare_sum_fbo, GL_COLOR_ATTACHMENT1, glare_up[0].tex, 0);
+                const GLenum both[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+                glNamedFramebufferDrawBuffers(glare_sum_fbo, 2, both);
+                glBindFramebuffer(GL_FRAMEBUFFER, glare_sum_fbo);
+            } else {
+                glBindFramebuffer(GL_FRAMEBUFFER, h.march.fbo);
+            }
             glViewport(0, 0, h.march.w, h.march.h);
             glDrawArrays(GL_TRIANGLES, 0, 3);
             timer.end(kMarch);
             h.march_scale = scale;
             ++h.march_version;
+            if (glare) glare_sum_version = h.march_version;
         }
         h.key = std::move(key);
         ++h.frames;

@@ -189,6 +189,9 @@ Renderer::~Renderer() {
     for (detail::Target& t : m.glare_up) t.release();
     for (detail::Target& t : m.glare_groups) t.release();
     m.glare_groups_key.clear();
+    m.glare_sum_version = 0;
+    if (m.glare_sum_fbo) glDeleteFramebuffers(1, &m.glare_sum_fbo);
+    m.glare_sum_fbo = 0;
     m.temporal.release();
 }
 
@@ -534,6 +537,7 @@ FrameStats Renderer::Impl::run_frame(const Camera& camera, const Settings& st, i
     std::optional<detail::TemporalPlan> plan;
     if (st.temporal && !host) plan = m.plan_temporal(camera, st, u);
     const bool reuse = plan && plan->stride == 0;  // the history holds the march, the glow in it
+    if (reuse) plan->glare_sum = m.glare_groups_ready(camera, st, u);
     m.resolve_pass(camera.position, st, u, timer, stats, !reuse);
     m.glow_pass(st, u, timer, stats, !reuse);
     if (plan)

@@ -235,6 +235,25 @@ TEST_CASE("temporal history: a still camera's glare from the groups' glares is a
         summed += s.temporal == render::TemporalStep::Reused && s.glare_keep < 1.0;
         kept.push_back(r.read_hdr());
     }
+    // A frame drawn without the history from elsewhere between two still ones whose light did
+    // not change (nothing summed again): the next still frame must not show that frame's glare.
+    {
+        render::Settings temporal = st;
+        temporal.temporal = true;
+        temporal.frame_index = std::uint32_t(flash.size() - 1);
+        render::Camera elsewhere = storm.camera;
+        elsewhere.position.x += 300.0;
+        render_at(r, elsewhere, st, W, H);
+        const render::FrameStats s = render_at(r, storm.camera, temporal, W, H);
+        CHECK(s.temporal == render::TemporalStep::Reused);
+        const std::vector<float> again = r.read_hdr();
+        double d = 0.0, n = 0.0;
+        for (std::size_t k = 0; k < again.size(); ++k) {
+            d += (double(again[k]) - double(kept.back()[k])) * (double(again[k]) - double(kept.back()[k]));
+            n += double(kept.back()[k]) * double(kept.back()[k]);
+        }
+        CHECK(std::sqrt(d / n) < 1e-6);  // the same frame as before, to rounding
+    }
     double worst = 0.0;
     for (std::size_t i = 0; i < flash.size(); ++i) {
         show_flash(r, storm, shape, flash[i]);

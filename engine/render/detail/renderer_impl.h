@@ -120,6 +120,11 @@ struct Renderer::Impl {
     // were made from (empty: none).
     detail::Target glare_groups[3];
     std::vector<double> glare_groups_key;
+    double glare_groups_keep = 1.0;  // GlareFit::keep of the fit the groups were made with
+    // The march version whose glare sum glare_up[0] holds (0: another glare), and the temporal
+    // pass's framebuffer that writes the march and that sum at once.
+    std::uint64_t glare_sum_version = 0;
+    GLuint glare_sum_fbo = 0;
     // The march this frame's later passes read: march_target, or the temporal history's own
     // (TemporalState::march), which a frame rendered without the history leaves as it was.
     const detail::Target* march_out = &march_target;
@@ -249,6 +254,15 @@ struct Renderer::Impl {
                              detail::PassTimer& timer, FrameStats& stats);
     void meter_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats);
     void bolt_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats);
+    /// The key of the glare's light groups for this frame (pass_glare.cpp), empty when the frame
+    /// draws no glare.
+    std::vector<double> glare_groups_key_of(const Camera& camera, const Settings& st,
+                                            const detail::FrameUniforms& u) const;
+    /// The glare's light groups were made for this frame's history and view.
+    bool glare_groups_ready(const Camera& camera, const Settings& st, const detail::FrameUniforms& u) const {
+        const std::vector<double> key = glare_groups_key_of(camera, st, u);
+        return !key.empty() && key == glare_groups_key;
+    }
     void glare_pass(const Camera& camera, const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer,
                     FrameStats& stats);
     void composite_pass(const detail::FrameUniforms& u, const detail::CallerTarget& caller, detail::PassTimer& timer);
