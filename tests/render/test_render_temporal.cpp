@@ -39,6 +39,16 @@ MarchDiff march_diff(const std::vector<float>& a, const std::vector<float>& b) {
     return {std::sqrt(dr / std::max(nr, 1e-300)), std::sqrt(dt / std::max(nt, 1e-300))};
 }
 
+// Relative L2 difference of two images, every value alike.
+double rel_l2(const std::vector<float>& a, const std::vector<float>& b) {
+    double d = 0.0, n = 0.0;
+    for (std::size_t k = 0; k < a.size(); ++k) {
+        d += (double(a[k]) - double(b[k])) * (double(a[k]) - double(b[k]));
+        n += double(b[k]) * double(b[k]);
+    }
+    return std::sqrt(d / std::max(n, 1e-300));
+}
+
 // The flash of one frame: S and the channel at intensity g (the return stroke's decay), the
 // channel cut to its first `lit` segments (a leader's front; all: -1).
 struct FlashFrame {
@@ -246,26 +256,14 @@ TEST_CASE("temporal history: a still camera's glare from the groups' glares is a
         render_at(r, elsewhere, st, W, H);
         const render::FrameStats s = render_at(r, storm.camera, temporal, W, H);
         CHECK(s.temporal == render::TemporalStep::Reused);
-        const std::vector<float> again = r.read_hdr();
-        double d = 0.0, n = 0.0;
-        for (std::size_t k = 0; k < again.size(); ++k) {
-            d += (double(again[k]) - double(kept.back()[k])) * (double(again[k]) - double(kept.back()[k]));
-            n += double(kept.back()[k]) * double(kept.back()[k]);
-        }
-        CHECK(std::sqrt(d / n) < 1e-6);  // the same frame as before, to rounding
+        CHECK(rel_l2(r.read_hdr(), kept.back()) < 1e-6);  // the same frame as before, to rounding
     }
     double worst = 0.0;
     for (std::size_t i = 0; i < flash.size(); ++i) {
         show_flash(r, storm, shape, flash[i]);
         st.frame_index = std::uint32_t(i);
         render_at(r, storm.camera, st, W, H);
-        const std::vector<float> fresh = r.read_hdr();
-        double d = 0.0, n = 0.0;
-        for (std::size_t k = 0; k < fresh.size(); ++k) {
-            d += (double(kept[i][k]) - double(fresh[k])) * (double(kept[i][k]) - double(fresh[k]));
-            n += double(fresh[k]) * double(fresh[k]);
-        }
-        const double e = std::sqrt(d / std::max(n, 1e-300));
+        const double e = rel_l2(kept[i], r.read_hdr());
         CAPTURE(i);
         CAPTURE(e);
         CHECK(e < 1e-5);
