@@ -56,12 +56,12 @@ uniform float u_depth_tolerance; // relative depth difference beyond which a his
 #if STRIDE == 0
 layout(location = 0) out vec4 o_march;
 // GLARE_SUM (STRIDE 0): the glare of the march as well, from the light groups' glares with the
-// same factors, as glare_sum.frag writes it (render/pass_glare.cpp: the glare is linear in the
-// light). One pass for both: the history's groups are read here already.
+// same factors (glare_groups.glsl). One pass for both: the history's groups are read here already.
 #ifndef GLARE_SUM
 #define GLARE_SUM 0
 #endif
 #if GLARE_SUM
+#include "glare_groups.glsl"
 layout(location = 1) out vec4 o_glare;
 layout(binding = 2, rgba32f) readonly uniform image2D i_glare_flash;
 layout(binding = 3, rgba32f) readonly uniform image2D i_glare_statics;
@@ -115,9 +115,8 @@ void main() {
     vec3 statics = imageLoad(i_hist_statics, p).rgb, channel = imageLoad(i_hist_channel, p).rgb;
     o_march = vec4(o_flash.x * u_rescale.x * light_colour.rgb + statics + channel * u_rescale.y, o_flash.y);
 #if GLARE_SUM
-    vec3 spread = u_rescale.x * imageLoad(i_glare_flash, p).rgb + imageLoad(i_glare_statics, p).rgb +
-                  u_rescale.y * imageLoad(i_glare_channel, p).rgb;
-    o_glare = vec4(u_keep * o_march.rgb + spread, o_march.a);
+    o_glare = glare_from_groups(o_march, imageLoad(i_glare_flash, p).rgb, imageLoad(i_glare_statics, p).rgb,
+                                imageLoad(i_glare_channel, p).rgb, u_rescale, u_keep);
 #endif
 #elif STRIDE == 1
     o_flash = imageLoad(i_fresh_flash, p);

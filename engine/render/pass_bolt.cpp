@@ -61,10 +61,8 @@ void Renderer::Impl::bolt_pass(const Settings& st, const FrameUniforms& u, PassT
     // tracker holds proportional to within 1e-5, or the history is marched again.
     const detail::TemporalState& h = temporal;
     const bool reused = stats.temporal == TemporalStep::Reused && march_out == &h.march;
-    const glm::vec4 colour = u.block.light_colour;
-    const std::vector<double> key = {double(h.history_version), double(u.width),   double(u.height),
-                                     double(core_target.tex),   double(seg_count), st.bolt_min_width_px,
-                                     double(colour.x),          double(colour.y),  double(colour.z)};
+    std::vector<double> key = kept_channel_key(st, u);
+    key.push_back(double(core_target.tex));
     if (reused && key == core_kept_key && core_kept_factor > 0.0) {
         core_scale = float(h.channel.rescale() / core_kept_factor);
         stats.bolt_segments = seg_count;

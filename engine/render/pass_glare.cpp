@@ -59,18 +59,9 @@ GlareView glare_view(const Camera& camera, const FrameUniforms& u) {
 
 }  // namespace
 
-std::vector<double> Renderer::Impl::glare_groups_key_of(const Camera& camera, const Settings& st,
-                                                        const FrameUniforms& u) const {
-    const GlareView v = glare_view(camera, u);
-    if (!(st.glare && st.bolt && seg_count > 0 && v.spreads())) return {};
-    // What the groups' glares depend on besides the history: the fit, the sizes, the core's
-    // width and segments, the flash colour (the flash group's S is before it).
+std::vector<double> Renderer::Impl::kept_channel_key(const Settings& st, const FrameUniforms& u) const {
     const glm::vec4 colour = u.block.light_colour;
     return {double(temporal.history_version),
-            v.pixel_deg,
-            v.scale,
-            v.half_diagonal,
-            double(v.levels),
             double(u.width),
             double(u.height),
             double(float(st.bolt_min_width_px)),
@@ -78,6 +69,17 @@ std::vector<double> Renderer::Impl::glare_groups_key_of(const Camera& camera, co
             double(colour.x),
             double(colour.y),
             double(colour.z)};
+}
+
+std::vector<double> Renderer::Impl::glare_groups_key_of(const Camera& camera, const Settings& st,
+                                                        const FrameUniforms& u) const {
+    const GlareView v = glare_view(camera, u);
+    if (!(st.glare && st.bolt && seg_count > 0 && v.spreads())) return {};
+    // Besides the channel's kept light (the core is in the channel's group, the flash group's S
+    // is before the flash colour): the fit.
+    std::vector<double> key = kept_channel_key(st, u);
+    key.insert(key.end(), {v.pixel_deg, v.scale, v.half_diagonal, double(v.levels)});
+    return key;
 }
 
 void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const FrameUniforms& u, PassTimer& timer,
@@ -182,21 +184,22 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
         glare_groups_key = groups_key;
         glare_groups_keep = glare_fit.keep;
     }
-    if (reused && glare_groups_key == groups_key && glare_sum_version == h.march_version) {
-        // The temporal pass summed it with the march (TemporalPlan::glare_sum).
-    } else if (reused && glare_groups_key == groups_key) {
-        const GLuint p =
-            program("glare_sum", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_sum.frag"}});
-        glUseProgram(p);
-        glUniform1f(glGetUniformLocation(p, "u_keep"), float(glare_fit.keep));
-        glUniform2f(glGetUniformLocation(p, "u_factors"), float(factors.x), float(factors.y));
-        glBindImageTexture(0, h.march.tex, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
-        for (int g = 0; g < 3; ++g)
-            glBindImageTexture(GLuint(1 + g), glare_groups[g].tex, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
-        glBindFramebuffer(GL_FRAMEBUFFER, glare_up[0].fbo);
-        glViewport(0, 0, glare_up[0].w, glare_up[0].h);
-        glDrawArrays(GL_TRIANGLES, 0, 3);
-        glare_sum_version = h.march_version;
+    if (reused && glare_groups_key == groups_key) {
+        // Unless the temporal pass summed it with the march (TemporalPlan::glare_sum).
+        if (glare_sum_version != h.march_version) {
+            const GLuint p =
+                program("glare_sum", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_sum.frag"}});
+            glUseProgram(p);
+            glUniform1f(glGetUniformLocation(p, "u_keep"), float(glare_fit.keep));
+            glUniform2f(glGetUniformLocation(p, "u_factors"), float(factors.x), float(factors.y));
+            glBindImageTexture(0, h.march.tex, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
+            for (int g = 0; g < 3; ++g)
+                glBindImageTexture(GLuint(1 + g), glare_groups[g].tex, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
+            glBindFramebuffer(GL_FRAMEBUFFER, glare_up[0].fbo);
+            glViewport(0, 0, glare_up[0].w, glare_up[0].h);
+            glDrawArrays(GL_TRIANGLES, 0, 3);
+            glare_sum_version = h.march_version;
+        }
     } else {
         first_level(0, march_out->tex, core_scale);
         down_and_up(glare_up[0], true);

@@ -254,6 +254,10 @@ struct Renderer::Impl {
                              detail::PassTimer& timer, FrameStats& stats);
     void meter_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats);
     void bolt_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats);
+    /// What a still camera's kept channel light (its core, pass_bolt.cpp; the glare's light
+    /// groups, pass_glare.cpp) depends on besides the channel's intensity: the history, the
+    /// output size, the channel's segments and minimum width, the flash colour.
+    std::vector<double> kept_channel_key(const Settings& st, const detail::FrameUniforms& u) const;
     /// The key of the glare's light groups for this frame (pass_glare.cpp), empty when the frame
     /// draws no glare.
     std::vector<double> glare_groups_key_of(const Camera& camera, const Settings& st,
@@ -270,12 +274,12 @@ struct Renderer::Impl {
     /// spots fit GL's largest point) or computed at every pixel of it.
     void prepare_stars(const detail::FrameUniforms& u, bool stars, bool points);
     /// The composite with this frame's switches into the bound framebuffer: the full-screen
-    /// pass, then the stars' points when they are drawn so.
+    /// pass, then the core's ribbons and the stars' points when they are drawn as overlays.
     void draw_composite(int output);
-    /// The composite's program for this frame's switches (glare, stars, dither) and `output`
-    /// (composite.frag's OUTPUT: 0 tone mapped, 1 radiance, 2 a host's frame).
-    /// The composite's program for `output`: over the whole frame, or (`overlay`) as the core's
-    /// ribbons or the stars' points, with its core and stars switches (composite.frag's CORE, STARS).
+    /// The composite's program for `output` (composite.frag's OUTPUT: 0 tone mapped, 1 radiance,
+    /// 2 a host's frame) with this frame's glare and dither: over the whole frame, or
+    /// (`overlay`) as the core's ribbons or the stars' points, with its core and stars switches
+    /// (composite.frag's CORE, STARS).
     enum class Overlay { None, Core, Stars };
     GLuint composite_program(int output, Overlay overlay, bool core, int stars);
     /// Binds what composite.frag reads (march, core, glare) to program `p`.
