@@ -29,7 +29,8 @@
 //                  renderer and the temporal history (Settings::temporal: its steps and its
 //                  error against a fresh render of each frame, the frames timed in a row and
 //                  then marched again afresh). Today's plain still camera at the same size is
-//                  the baseline of each row (ratio).
+//                  the baseline of each row (ratio). The rows without the history give the
+//                  metered exposure's difference from metering every pixel (Settings::meter_stride).
 //   case "static_grid": the static light on the lighting grid and on a 3x finer one: upload,
 //                  resolve and frame of a moving camera (FULGUR_BENCH_STATIC_GRID=1: these alone).
 //   FULGUR_BENCH_DEMO_WIDTH=W runs only the demo rows, at output width W (640, 1280 or 1920).
@@ -224,7 +225,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                         const bool temporal = mode > 0;
                         if (mode == 2 && (!orbit || !flash)) continue;  // no light groups to fill otherwise
                         if (mode == 3 && !orbit) continue;
-                        std::vector<double> wall, cpu, error, jitter_noise;
+                        std::vector<double> wall, cpu, error, jitter_noise, exposure;
                         std::vector<render::PassTimes> passes;
                         int steps[4] = {0, 0, 0, 0};
                         st.temporal = temporal;
@@ -252,6 +253,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             wall.push_back(sw.milliseconds());
                             cpu.push_back(process_cpu_ms() - cpu0);
                             passes.push_back(stats.wall);
+                            exposure.push_back(stats.metered_exposure);
                             ++steps[int(stats.temporal)];
                             int w = 0, h = 0;
                             if (temporal) kept.push_back(r.read_march(w, h));
@@ -269,6 +271,16 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             fresh.frame_index += 2;
                             r.render(cam, fresh, size.x, size.y);
                             jitter_noise.push_back(radiance_rel_rms(r.read_march(w, h), fresh_march));
+                        }
+                        // Without the history: each frame's exposure metered at every pixel
+                        // (Settings::meter_stride 1) against the timed frames' (the default).
+                        std::vector<double> meter_stops;
+                        for (int i = 0; !temporal && i < frames; ++i) {
+                            const render::Camera cam = show_frame(i);
+                            render::Settings every = st;
+                            every.meter_stride = 1;
+                            const double e1 = r.render(cam, every, size.x, size.y).metered_exposure;
+                            meter_stops.push_back(std::abs(std::log2(exposure[std::size_t(i)] / e1)));
                         }
                         const double ms = bench::median(wall);
                         if (!effects && !orbit && !temporal) baseline = ms;
@@ -304,6 +316,12 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                                           {"bolt", pass(&render::PassTimes::bolt)},
                                           {"glare", pass(&render::PassTimes::glare)},
                                           {"composite", pass(&render::PassTimes::composite)}};
+                        if (!temporal) {
+                            row["meter_stride"] = st.meter_stride;
+                            row["meter_vs_every_pixel_stops_median"] = bench::median(meter_stops);
+                            row["meter_vs_every_pixel_stops_max"] =
+                                *std::max_element(meter_stops.begin(), meter_stops.end());
+                        }
                         if (temporal) {
                             row["frames_full"] = steps[int(render::TemporalStep::Full)];
                             row["frames_quarter"] = steps[int(render::TemporalStep::Quarter)];

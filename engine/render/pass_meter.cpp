@@ -35,7 +35,8 @@ void Renderer::Impl::meter_pass(const Settings& st, const FrameUniforms& u, Pass
     // the same histogram. The exposure is chosen again (its adaptation moves with the frame). A
     // frame rendered without the history between two with it leaves the history's histogram kept.
     const std::uint64_t version = march_out == &temporal.march ? temporal.march_version : 0;
-    const bool kept = version != 0 && version == meter_version;
+    const int stride = st.meter_stride;
+    const bool kept = version != 0 && version == meter_version && stride == meter_stride;
     std::vector<std::uint32_t> counted;
     if (!kept) {
         timer.begin(kMeter);
@@ -48,15 +49,19 @@ void Renderer::Impl::meter_pass(const Settings& st, const FrameUniforms& u, Pass
         glUniform1i(glGetUniformLocation(p, "u_bins"), kMeterBins);
         glUniform1f(glGetUniformLocation(p, "u_log2_min"), kMeterLog2Min);
         glUniform1f(glGetUniformLocation(p, "u_bin_width"), kMeterBinWidth);
+        glUniform1i(glGetUniformLocation(p, "u_stride"), stride);
         glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
-        glDispatchCompute(GLuint((u.internal_width + 31) / 32), GLuint((u.internal_height + 31) / 32),
-                          1);  // 32x32 tiles
+        // 32x32 tiles of the counted pixels, one of each stride x stride block.
+        const int counted_w = (u.internal_width + stride - 1) / stride;
+        const int counted_h = (u.internal_height + stride - 1) / stride;
+        glDispatchCompute(GLuint((counted_w + 31) / 32), GLuint((counted_h + 31) / 32), 1);
         glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
         counted.resize(kMeterBins);
         glGetNamedBufferSubData(meter_buf.id, 0, GLsizeiptr(counted.size() * sizeof(std::uint32_t)), counted.data());
         if (version != 0) {
             meter_bins = counted;
             meter_version = version;
+            meter_stride = stride;
         }
         timer.end(kMeter);
     }

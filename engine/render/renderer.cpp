@@ -81,6 +81,8 @@ void validate_settings(const Settings& st) {
     range(st.ground_height, -1e6, 1e6, false, "ground_height");
     for (int c = 0; c < 3; ++c) range(st.flash_colour[c], 0.0, inf, false, "flash_colour");
     range(st.direction_min_weight, 0.0, 0.5, false, "direction_min_weight");
+    if (st.meter_stride < 1 || st.meter_stride > 8)
+        throw core::Error("render", "settings.meter_stride: must be 1 to 8, got " + std::to_string(st.meter_stride));
     if (st.temporal_moving_block != 2 && st.temporal_moving_block != 4)
         throw core::Error("render", "settings.temporal_moving_block: must be 2 or 4, got " +
                                         std::to_string(st.temporal_moving_block));

@@ -750,3 +750,53 @@ TEST_CASE(
     r.clear_static();
     r.clear_volume();
 }
+
+TEST_CASE("the meter counting one pixel in four chooses the exposure that counting every pixel does") {
+    // Settings::meter_stride 2 (the default) against 1, through a return stroke's decay seen by
+    // an orbiting camera and a still one, and between flashes. The exposure is the lower of a
+    // key from the lit pixels' log-average and the level at the highlights' percentile, a bin
+    // edge of a quarter stop (19%): a quarter of the pixels may move the percentile across an
+    // edge, and the log-average by sampling noise.
+    render::Renderer& r = gl_renderer();
+    const synthetic::Storm& storm = small_storm();
+    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
+    const render::SourceUpload all = every_direction(storm);
+    render::Settings st = storm.settings;
+    st.auto_exposure = true;
+    st.glare = true;
+    const glm::dvec3 target = orbit_target(storm);
+    const double distance = glm::length(storm.camera.position - target);
+    std::vector<double> stops;  // |log2(exposure at stride 2 / at stride 1)| per frame
+    const auto compare = [&](const render::Camera& cam, std::uint32_t index) {
+        render::Settings every = st;
+        every.meter_stride = 1;
+        every.frame_index = index;
+        render::Settings quarter = every;
+        quarter.meter_stride = 2;
+        const double e1 = render_at(r, cam, every, W, H).metered_exposure;
+        const double e2 = render_at(r, cam, quarter, W, H).metered_exposure;
+        REQUIRE(e1 > 0.0);
+        REQUIRE(e2 > 0.0);
+        stops.push_back(std::abs(std::log2(e2 / e1)));
+    };
+    for (int i = 0; i < 12; ++i) {
+        show_flash(r, storm, all, {.g = std::exp(-i / 4.0)});
+        compare(render::Camera::orbit(target, distance, -60.0 + 4.0 * i, 8.0, 55.0), std::uint32_t(i));
+        compare(storm.camera, std::uint32_t(i));
+    }
+    show_between_flashes(r, storm);
+    for (int i = 0; i < 6; ++i)
+        compare(render::Camera::orbit(target, distance, -60.0 + 10.0 * i, 8.0, 55.0), std::uint32_t(100 + i));
+    std::vector<double> sorted = stops;
+    std::sort(sorted.begin(), sorted.end());
+    MESSAGE("meter stride 2 against 1: median ", sorted[sorted.size() / 2], " stops, worst ", sorted.back(), " over ",
+            sorted.size(), " frames");
+    // Measured (llvmpipe, 160x90 marched, 3,600 pixels counted of 14,400): median 0.004 stops,
+    // worst 0.078, the log-average's sampling noise; no frame's percentile crossed a bin edge.
+    // The bounds are twice that worst and five times that median. A meter that counts only the
+    // lower left 80% of each axis: median 0.22, worst 0.96 stops.
+    CHECK(sorted[sorted.size() / 2] < 0.02);
+    CHECK(sorted.back() < 0.15);
+    r.clear_static();
+    r.clear_volume();
+}

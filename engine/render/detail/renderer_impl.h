@@ -128,9 +128,11 @@ struct Renderer::Impl {
     // The march this frame's later passes read: march_target, or the temporal history's own
     // (TemporalState::march), which a frame rendered without the history leaves as it was.
     const detail::Target* march_out = &march_target;
-    // The meter's last histogram, and the history's march it counted (version; 0: another).
+    // The meter's last histogram, and the history's march it counted (version; 0: another)
+    // with which stride (Settings::meter_stride).
     std::vector<std::uint32_t> meter_bins;
     std::uint64_t meter_version = 0;
+    int meter_stride = 0;
     bool glare_ran = false;   // this frame's composite adds glare_up[0]
     bool core_drawn = false;  // this frame's bolt pass drew core_target
     // The core as kept for a still camera reusing its history (pass_bolt.cpp): what it was drawn
