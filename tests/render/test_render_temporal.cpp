@@ -792,11 +792,18 @@ TEST_CASE("the meter counting one pixel in four chooses the exposure that counti
     MESSAGE("meter stride 2 against 1: median ", sorted[sorted.size() / 2], " stops, worst ", sorted.back(), " over ",
             sorted.size(), " frames");
     // Measured (llvmpipe, 160x90 marched, 3,600 pixels counted of 14,400): median 0.004 stops,
-    // worst 0.078, the log-average's sampling noise; no frame's percentile crossed a bin edge.
-    // The bounds are twice that worst and five times that median. A meter that counts only the
-    // lower left 80% of each axis: median 0.22, worst 0.96 stops.
+    // worst 0.078, the log-average's sampling noise. The exposure itself is not continuous in
+    // the counts: the highlights' level is a bin's edge, and the lit pixels start at a whole
+    // bin, so a frame near a jump may jump with a quarter of the pixels and not with all (at
+    // 1280x720 on fulgur-bench's storm, 1 frame in 72 by 0.40 stops, where the every-pixel
+    // exposure jumps by 0.40 stops from one frame to the next; another frame's jitter alone
+    // flips 1 in 72 by 0.25 stops at every pixel, and 1 in 72 at one in four). So: the median within five times the measured one,
+    // at most one frame in ten beyond twice the measured worst, none beyond two bins. A meter
+    // that counts only the lower left 80% of each axis: median 0.22, worst 0.96 stops.
     CHECK(sorted[sorted.size() / 2] < 0.02);
-    CHECK(sorted.back() < 0.15);
+    const auto beyond = std::count_if(sorted.begin(), sorted.end(), [](double x) { return x > 0.15; });
+    CHECK(beyond * 10 <= std::ptrdiff_t(sorted.size()));
+    CHECK(sorted.back() < 0.5);
     r.clear_static();
     r.clear_volume();
 }
