@@ -34,16 +34,22 @@ ExposureChoice choose_exposure(std::span<const std::uint32_t> bins, double log2_
     const double L_lit = std::exp2(lit_log2 / lit);
     const double key = 1.03 - 2.0 / (2.0 + std::log10(683.0 * L_lit + 1.0));
     double e = key / L_lit;
-    // Highlights: the luminance exceeded by highlight_fraction of the lit pixels.
+    // Highlights: the luminance exceeded by highlight_fraction of the lit pixels, within the
+    // bin where the count from the top passes it, as if the bin's pixels were spread evenly in
+    // log luminance over it. The bin's upper edge instead would move the exposure in whole bins
+    // (a quarter stop) as a pixel or two crosses a count: pops between the frames of a fading
+    // flash, and between two jitter patterns of one frame.
+    const double wanted = st.highlight_fraction * lit;
     double above = 0.0;
     for (std::size_t b = bins.size(); b-- > first_lit;) {
-        above += double(bins[b]);
-        if (above > st.highlight_fraction * lit) {
-            // The bin's upper edge: at most the fraction lies above it.
-            const double Lq = std::exp2(log2_min + double(b + 1) * bin_width);
+        const double count = double(bins[b]);
+        if (above + count > wanted) {
+            const double share = (wanted - above) / count;  // of this bin, from its upper edge: [0, 1)
+            const double Lq = std::exp2(log2_min + (double(b + 1) - share) * bin_width);
             e = std::min(e, kHighlightExposed / Lq);
             break;
         }
+        above += count;
     }
     out.metered = e * std::exp2(st.exposure_compensation);
     out.applied = out.metered;

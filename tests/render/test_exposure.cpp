@@ -60,10 +60,13 @@ TEST_CASE("exposure: the key of a uniform frame, dim scenes dimmer; the highligh
     h[bin(50.0)] = 200;    // near the channel: 2% of the lit pixels
     h[bin(400.0)] = 1;     // the brightest pixel
     const detail::ExposureChoice g = detail::choose_exposure(h, kMin, kWidth, st);
-    // The 50-bin is where more than 2% of the lit pixels lie above: its upper edge is mapped
-    // to the highlight level, so at most 2% of the lit pixels are brighter.
+    // The 50-bin is where the count from the top passes 2% of the 10001 lit pixels (200.02):
+    // 1 above it, so 199.02 of its 200 pixels, spread evenly in log over the bin, lie above the
+    // highlight level, which is mapped to kHighlightExposed.
+    const double share = (0.02 * 10001.0 - 1.0) / 200.0;
     CHECK(g.metered ==
-          fulgur::test::rel(detail::kHighlightExposed / std::exp2(kMin + double(bin(50.0) + 1) * kWidth), 1e-12));
+          fulgur::test::rel(detail::kHighlightExposed / std::exp2(kMin + (double(bin(50.0) + 1) - share) * kWidth),
+                            1e-12));
     CHECK(g.metered * centre(1.0) < detail::kHighlightExposed);
     CHECK(g.metered * centre(400.0) < 10.0 * detail::kWhiteExposed);  // a single pixel may clip
 
@@ -79,4 +82,30 @@ TEST_CASE("exposure: the key of a uniform frame, dim scenes dimmer; the highligh
     const double a = 1.0 - std::exp(-0.016 / st.brighten_seconds);
     CHECK(detail::choose_exposure(h, kMin, kWidth, st).applied ==
           fulgur::test::rel(st.previous_exposure * std::pow(10.0, a), 1e-12));
+}
+
+TEST_CASE("exposure: continuous in the counts, no quarter-stop pops as pixels cross a bin") {
+    // A lit cloud under a dark sky whose highlights (300 pixels, 3% of the lit ones) brighten
+    // one pixel at a time into the next bin up: the highlights' level moves by about a bin
+    // width over the pixels that cross (0.25 / 300 stops a pixel, while the 2% point lies in
+    // the bin). Taking a bin's upper edge, the exposure jumped by a whole bin, 0.25 stops, at
+    // the pixel where the 2% point crossed the edge.
+    std::vector<std::uint32_t> h(256, 0);
+    Settings st;
+    h[bin(1e-7)] = 60000;  // night sky
+    h[bin(1.0)] = 9700;    // cloud
+    const std::size_t b = bin(50.0);
+    h[b] = 300;
+    double last = detail::choose_exposure(h, kMin, kWidth, st).metered, worst = 0.0;
+    for (int moved = 1; moved <= 300; ++moved) {
+        --h[b];
+        ++h[b + 1];
+        const double e = detail::choose_exposure(h, kMin, kWidth, st).metered;
+        CHECK(e <= last);  // brighter highlights: never a higher exposure
+        worst = std::max(worst, std::abs(std::log2(e / last)));
+        last = e;
+    }
+    // 0.25 / 200 = 0.00125 stops a pixel where the 2% point (200 pixels) lies in the upper bin,
+    // a little more while it lies in the lower one; a whole bin is 0.25.
+    CHECK(worst < 0.003);
 }

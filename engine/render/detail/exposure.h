@@ -29,7 +29,8 @@ struct ExposureChoice {
 ///     key of its luminance in cd/m^2 (taken as 683 L_lit), so dim scenes stay dim and bright
 ///     ones bright;
 ///   * the highlights: the luminance exceeded by settings.highlight_fraction of the lit pixels
-///     mapped to kHighlightExposed, below the tone curve's white;
+///     (a bin's pixels taken as spread evenly in log luminance over it: continuous in the
+///     counts) mapped to kHighlightExposed, below the tone curve's white;
 /// then the compensation and the adaptation. A frame with no non-black pixel keeps
 /// settings.previous_exposure (else settings.exposure).
 ExposureChoice choose_exposure(std::span<const std::uint32_t> bins, double log2_min, double bin_width,
