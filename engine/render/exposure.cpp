@@ -23,13 +23,28 @@ ExposureChoice choose_exposure(std::span<const std::uint32_t> bins, double log2_
     const double L = std::exp2(sum_log2 / n);
     out.log_average = L;
     // The lit pixels: those at or above the frame's log-average (a dark sky around a lit
-    // cloud would otherwise pull the key's luminance down and show the cloud too bright).
+    // cloud would otherwise pull the key's luminance down and show the cloud too bright). As
+    // everywhere here a bin's pixels are taken as spread evenly in log luminance over it, so
+    // the bin holding the log-average counts with the share of it above, at that share's
+    // centre: the lit pixels change smoothly as the log-average moves. Starting at a whole bin
+    // instead moved the exposure by up to 0.4 stops between two frames of a fading flash.
+    const double log2_L = sum_log2 / n;
     const std::size_t first_lit =
-        std::size_t(std::clamp(std::floor((std::log2(L) - log2_min) / bin_width), 1.0, double(bins.size() - 1)));
+        std::size_t(std::clamp(std::floor((log2_L - log2_min) / bin_width), 1.0, double(bins.size() - 1)));
+    const auto upper_edge = [&](std::size_t b) { return log2_min + double(b + 1) * bin_width; };
+    // The lit part of each bin from first_lit up: its width in bins, (0, 1] (1 above first_lit).
+    const auto lit_width = [&](std::size_t b) {
+        return b == first_lit ? std::clamp((upper_edge(b) - log2_L) / bin_width, 0.0, 1.0) : 1.0;
+    };
     double lit = 0.0, lit_log2 = 0.0;
     for (std::size_t b = first_lit; b < bins.size(); ++b) {
-        lit += double(bins[b]);
-        lit_log2 += double(bins[b]) * (log2_min + (double(b) + 0.5) * bin_width);
+        const double part = lit_width(b);
+        lit += part * double(bins[b]);
+        lit_log2 += part * double(bins[b]) * (upper_edge(b) - 0.5 * part * bin_width);
+    }
+    if (lit <= 0.0) {  // every pixel at the log-average, on a bin's upper edge: all of them lit
+        lit = double(bins[first_lit]);
+        lit_log2 = lit * log2_L;
     }
     const double L_lit = std::exp2(lit_log2 / lit);
     const double key = 1.03 - 2.0 / (2.0 + std::log10(683.0 * L_lit + 1.0));
@@ -42,10 +57,11 @@ ExposureChoice choose_exposure(std::span<const std::uint32_t> bins, double log2_
     const double wanted = st.highlight_fraction * lit;
     double above = 0.0;
     for (std::size_t b = bins.size(); b-- > first_lit;) {
-        const double count = double(bins[b]);
+        const double part = lit_width(b);
+        const double count = part * double(bins[b]);
         if (above + count > wanted) {
-            const double share = (wanted - above) / count;  // of this bin, from its upper edge: [0, 1)
-            const double Lq = std::exp2(log2_min + (double(b + 1) - share) * bin_width);
+            const double share = (wanted - above) / count;  // of this bin's lit part, from its upper edge: [0, 1)
+            const double Lq = std::exp2(upper_edge(b) - share * part * bin_width);
             e = std::min(e, kHighlightExposed / Lq);
             break;
         }

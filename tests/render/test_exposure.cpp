@@ -17,6 +17,8 @@ constexpr double kMin = -40.0, kWidth = 0.25;
 std::size_t bin(double L) { return std::size_t(std::floor((std::log2(L) - kMin) / kWidth)); }
 // The luminance the choice attributes to that bin (its centre).
 double centre(double L) { return std::exp2(kMin + (double(bin(L)) + 0.5) * kWidth); }
+// The centre of that bin's upper half.
+double upper_half(double L) { return std::exp2(kMin + (double(bin(L)) + 0.75) * kWidth); }
 double key(double L) { return 1.03 - 2.0 / (2.0 + std::log10(683.0 * L + 1.0)); }
 
 }  // namespace
@@ -32,13 +34,15 @@ TEST_CASE("exposure: the key of a uniform frame, dim scenes dimmer; the highligh
     CHECK(detail::choose_exposure(h, kMin, kWidth, st).applied == 3.0);
     st.previous_exposure = 0.0;
 
-    // A uniform frame: exposure = key(L) / L (the highlight level is then key < 3: no guard).
+    // A uniform frame: its pixels taken as spread evenly in log over their bin, whose centre is
+    // the log-average: the lit ones are the bin's upper half, exposure = key(L) / L at that
+    // half's centre (the highlight level is then key < 3: no guard).
     for (double L : {1e-4, 1.0, 100.0}) {
         std::fill(h.begin(), h.end(), 0u);
         h[bin(L)] = 5000;
         const detail::ExposureChoice c = detail::choose_exposure(h, kMin, kWidth, st);
         CHECK(c.log_average == fulgur::test::rel(centre(L), 1e-12));
-        CHECK(c.metered == fulgur::test::rel(key(centre(L)) / centre(L), 1e-12));
+        CHECK(c.metered == fulgur::test::rel(key(upper_half(L)) / upper_half(L), 1e-12));
     }
     // Dim scenes are shown dimmer: the exposed log-average (the key) grows with luminance.
     CHECK(key(1e-4) < key(1.0));
@@ -108,4 +112,28 @@ TEST_CASE("exposure: continuous in the counts, no quarter-stop pops as pixels cr
     // 0.25 / 200 = 0.00125 stops a pixel where the 2% point (200 pixels) lies in the upper bin,
     // a little more while it lies in the lower one; a whole bin is 0.25.
     CHECK(worst < 0.003);
+}
+
+TEST_CASE("exposure: continuous as the log-average crosses a bin holding many pixels") {
+    // A cloud whose pixels brighten a pixel at a time from one bin into the next: the
+    // log-average walks across the edge between them. Counting the bin that holds it whole,
+    // the lit pixels lost the lower bin at once there and the exposure jumped (by 0.12 stops);
+    // with its share above the log-average, the key moves by a small step per pixel.
+    std::vector<std::uint32_t> h(256, 0);
+    Settings st;
+    st.highlight_fraction = 1e-9;  // the key alone (no pixel is a highlight past the brightest)
+    const std::size_t b = bin(1.0);
+    h[b] = 4000;
+    double last = detail::choose_exposure(h, kMin, kWidth, st).metered, worst = 0.0;
+    for (int moved = 1; moved <= 4000; ++moved) {
+        --h[b];
+        ++h[b + 1];
+        const double e = detail::choose_exposure(h, kMin, kWidth, st).metered;
+        worst = std::max(worst, std::abs(std::log2(e / last)));
+        last = e;
+    }
+    MESSAGE("largest step of the exposure from one pixel: " << worst << " stops");
+    // Each pixel moves the log-average by 0.25 / 4000 of a stop and the lit pixels' by about
+    // as much; a jump is a hundred times more.
+    CHECK(worst < 0.001);
 }
