@@ -4,6 +4,7 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -20,6 +21,25 @@ double centre(double L) { return std::exp2(kMin + (double(bin(L)) + 0.5) * kWidt
 // The centre of that bin's upper half.
 double upper_half(double L) { return std::exp2(kMin + (double(bin(L)) + 0.75) * kWidth); }
 double key(double L) { return 1.03 - 2.0 / (2.0 + std::log10(683.0 * L + 1.0)); }
+
+// The metered exposure before and after each of `count` pixels moves from bin b up to b + 1,
+// one at a time.
+std::vector<double> moving_up(std::vector<std::uint32_t> h, std::size_t b, int count, const Settings& st) {
+    std::vector<double> e{detail::choose_exposure(h, kMin, kWidth, st).metered};
+    for (int moved = 1; moved <= count; ++moved) {
+        --h[b];
+        ++h[b + 1];
+        e.push_back(detail::choose_exposure(h, kMin, kWidth, st).metered);
+    }
+    return e;
+}
+
+// The largest change between consecutive exposures, in stops.
+double largest_step(const std::vector<double>& e) {
+    double worst = 0.0;
+    for (std::size_t i = 1; i < e.size(); ++i) worst = std::max(worst, std::abs(std::log2(e[i] / e[i - 1])));
+    return worst;
+}
 
 }  // namespace
 
@@ -100,18 +120,11 @@ TEST_CASE("exposure: continuous in the counts, no quarter-stop pops as pixels cr
     h[bin(1.0)] = 9700;    // cloud
     const std::size_t b = bin(50.0);
     h[b] = 300;
-    double last = detail::choose_exposure(h, kMin, kWidth, st).metered, worst = 0.0;
-    for (int moved = 1; moved <= 300; ++moved) {
-        --h[b];
-        ++h[b + 1];
-        const double e = detail::choose_exposure(h, kMin, kWidth, st).metered;
-        CHECK(e <= last);  // brighter highlights: never a higher exposure
-        worst = std::max(worst, std::abs(std::log2(e / last)));
-        last = e;
-    }
+    const std::vector<double> e = moving_up(h, b, 300, st);
+    for (std::size_t i = 1; i < e.size(); ++i) CHECK(e[i] <= e[i - 1]);  // brighter highlights: never a higher exposure
     // 0.25 / 200 = 0.00125 stops a pixel where the 2% point (200 pixels) lies in the upper bin,
     // a little more while it lies in the lower one; a whole bin is 0.25.
-    CHECK(worst < 0.003);
+    CHECK(largest_step(e) < 0.003);
 }
 
 TEST_CASE("exposure: continuous as the log-average crosses a bin holding many pixels") {
@@ -124,14 +137,7 @@ TEST_CASE("exposure: continuous as the log-average crosses a bin holding many pi
     st.highlight_fraction = 1e-9;  // the key alone (no pixel is a highlight past the brightest)
     const std::size_t b = bin(1.0);
     h[b] = 4000;
-    double last = detail::choose_exposure(h, kMin, kWidth, st).metered, worst = 0.0;
-    for (int moved = 1; moved <= 4000; ++moved) {
-        --h[b];
-        ++h[b + 1];
-        const double e = detail::choose_exposure(h, kMin, kWidth, st).metered;
-        worst = std::max(worst, std::abs(std::log2(e / last)));
-        last = e;
-    }
+    const double worst = largest_step(moving_up(h, b, 4000, st));
     MESSAGE("largest step of the exposure from one pixel: " << worst << " stops");
     // Each pixel moves the log-average by 0.25 / 4000 of a stop and the lit pixels' by about
     // as much; a jump is a hundred times more.
