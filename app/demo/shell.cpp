@@ -39,7 +39,13 @@ bool DemoShell::begin_frame(Orbit& orbit) {
     const double now = glfwGetTime();
     dt_ = std::max(now - last_, 1e-6);
     last_ = now;
-    fps_ = frames_ <= 1 ? 1.0 / dt_ : 0.8 * fps_ + 0.2 / dt_;
+    recent_.push_back(dt_);
+    recent_sum_ += dt_;
+    while (recent_.size() > 1 && recent_sum_ - recent_.front() >= 1.0) {
+        recent_sum_ -= recent_.front();
+        recent_.pop_front();
+    }
+    fps_ = double(recent_.size()) / recent_sum_;
 
     const ImGuiIO& io = ImGui::GetIO();
     double cx, cy;

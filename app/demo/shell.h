@@ -1,10 +1,11 @@
 // The demo's window shell: GLFW window + Dear ImGui set-up and teardown, frame timing and
-// smoothed fps, the orbit camera input, key edges (Space, C, P, Esc) and screenshots (P, or
+// the frame rate over the last second, the orbit camera input, key edges (Space, C, P, Esc) and screenshots (P, or
 // --screenshot-after N).
 #pragma once
 
 #include "platform/platform.h"
 
+#include <deque>
 #include <memory>
 #include <string>
 
@@ -37,8 +38,10 @@ public:
     platform::Context& context() noexcept { return *ctx_; }
     int width() const { return ctx_->width(); }
     int height() const { return ctx_->height(); }
-    double dt() const noexcept { return dt_; }                ///< seconds since the previous frame
-    double fps() const noexcept { return fps_; }              ///< exponentially smoothed
+    double dt() const noexcept { return dt_; }  ///< seconds since the previous frame
+    /// Frames a second over the last second's frames (at least the last frame): the first
+    /// frames, which compile shaders and upload the volume, drop out of it within a second.
+    double fps() const noexcept { return fps_; }
     bool strike_pressed() const noexcept { return strike_; }  ///< Space went down this frame
     bool camera_pressed() const noexcept { return camera_; }  ///< C went down this frame
     void request_screenshot() noexcept { screenshot_ = true; }
@@ -55,6 +58,8 @@ private:
     GLFWwindow* win_ = nullptr;
     int screenshot_after_ = 0, frames_ = 0, shots_ = 0;
     double dt_ = 0, fps_ = 0, mx_ = 0, my_ = 0;
+    std::deque<double> recent_;  // the durations of the frames fps() counts (seconds)
+    double recent_sum_ = 0;
     bool strike_ = false, camera_ = false, screenshot_ = false, space_down_ = false, p_down_ = false, c_down_ = false,
          hold_ = false, auto_shot_ = false;
     double last_ = 0;
