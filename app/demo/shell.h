@@ -1,6 +1,6 @@
 // The demo's window shell: GLFW window + Dear ImGui set-up and teardown, frame timing and
-// the frame rate over the last second, the orbit camera input, key edges (Space, C, P, Esc) and screenshots (P, or
-// --screenshot-after N).
+// the frame rate over the last second, the orbit camera input, key edges (Space, C, P, Esc)
+// and screenshots (P, or --screenshot-after N).
 #pragma once
 
 #include "platform/platform.h"

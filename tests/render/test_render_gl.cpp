@@ -677,6 +677,12 @@ TEST_CASE("bad inputs are rejected with errors naming the field") {
         st.temporal_moving_block = block;
         CHECK_THROWS_WITH_AS(render_at(r, cam, st, 32, 32), doctest::Contains("temporal_moving_block"), core::Error);
     }
+    for (const int stride : {0, -1, 9}) {
+        st = {};
+        st.auto_exposure = true;
+        st.meter_stride = stride;
+        CHECK_THROWS_WITH_AS(render_at(r, cam, st, 32, 32), doctest::Contains("meter_stride"), core::Error);
+    }
     st = {};
     CHECK_THROWS_AS(render_at(r, cam, st, 0, 32), core::Error);
     render::Camera degenerate;
