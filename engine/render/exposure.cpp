@@ -20,15 +20,14 @@ ExposureChoice choose_exposure(std::span<const std::uint32_t> bins, double log2_
         out.metered = out.applied = fallback;
         return out;
     }
-    const double L = std::exp2(sum_log2 / n);
-    out.log_average = L;
+    const double log2_L = sum_log2 / n;
+    out.log_average = std::exp2(log2_L);
     // The lit pixels: those at or above the frame's log-average (a dark sky around a lit
     // cloud would otherwise pull the key's luminance down and show the cloud too bright). As
     // everywhere here a bin's pixels are taken as spread evenly in log luminance over it, so
     // the bin holding the log-average counts with the share of it above, at that share's
     // centre: the lit pixels change smoothly as the log-average moves. Starting at a whole bin
     // instead moved the exposure by up to 0.4 stops between two frames of a fading flash.
-    const double log2_L = sum_log2 / n;
     const std::size_t first_lit =
         std::size_t(std::clamp(std::floor((log2_L - log2_min) / bin_width), 1.0, double(bins.size() - 1)));
     const auto upper_edge = [&](std::size_t b) { return log2_min + double(b + 1) * bin_width; };
@@ -42,10 +41,8 @@ ExposureChoice choose_exposure(std::span<const std::uint32_t> bins, double log2_
         lit += part * double(bins[b]);
         lit_log2 += part * double(bins[b]) * (upper_edge(b) - 0.5 * part * bin_width);
     }
-    if (lit <= 0.0) {  // every pixel at the log-average, on a bin's upper edge: all of them lit
-        lit = double(bins[first_lit]);
-        lit_log2 = lit * log2_L;
-    }
+    // lit > 0: the log-average is a mean of the bins' centres, so the brightest non-empty bin
+    // lies at or above first_lit with at least half of it lit.
     const double L_lit = std::exp2(lit_log2 / lit);
     const double key = 1.03 - 2.0 / (2.0 + std::log10(683.0 * L_lit + 1.0));
     double e = key / L_lit;
