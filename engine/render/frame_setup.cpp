@@ -223,6 +223,7 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
     composite_dither = st.dither;
     u.stars = st.sky && st.star_radiance > 0.0;
     composite_overlays = st.composite_overlays;
+    display_upsample = st.display_upsample;
     u.glow = st.glow && seg_count > 0 && st.air_scattering > 0.0;
     if (u.glow && glow_built_radius != st.glow_radius) rebuild_glow_quads(st.glow_radius);
     f.counts = glm::ivec4(max_steps, int(st.frame_index & 0x7fffffff), u.glow ? glow_count : 0, seg_count);

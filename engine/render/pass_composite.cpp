@@ -20,6 +20,10 @@ using detail::PassTimer;
 void Renderer::Impl::composite_pass(const FrameUniforms& u, const CallerTarget& caller, PassTimer& timer) {
     timer.begin(kComposite);
     prepare_stars(u, !u.host && u.stars, composite_overlays);
+    // Display values are upsampled only where there is something to upsample, and never into a
+    // host's frame (radiance, blended).
+    composite_display = display_upsample && !u.host && (u.internal_width != out_w || u.internal_height != out_h);
+    if (composite_display) display_pass(u);
     glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(caller.fbo));
     if (u.host) {
         // A host's frame: dst = L + T dst (premultiplied radiance over the host's radiance); its alpha is kept.
@@ -32,6 +36,20 @@ void Renderer::Impl::composite_pass(const FrameUniforms& u, const CallerTarget& 
         glDisable(GL_BLEND);
     }
     timer.end(kComposite);
+}
+
+void Renderer::Impl::display_pass(const FrameUniforms& u) {
+    display_target.ensure(u.internal_width, u.internal_height, GL_RGBA8);
+    const std::string defines = std::string("#define GLARE ") + (glare_ran ? "1" : "0") + "\n#define DITHER " +
+                                (composite_dither ? "1" : "0") + "\n";
+    const GLuint p =
+        program("display", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "display.frag"}}, defines);
+    glUseProgram(p);
+    glBindTextureUnit(3, march_out->tex);
+    glBindTextureUnit(5, glare_ran ? glare_up[0].tex : march_out->tex);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, display_target.fbo);
+    glViewport(0, 0, display_target.w, display_target.h);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
 }
 
 namespace {
@@ -141,7 +159,8 @@ void Renderer::Impl::draw_composite(int output) {
 GLuint Renderer::Impl::composite_program(int output, Overlay overlay, bool core, int stars) {
     const std::string defines = "#define OUTPUT " + std::to_string(output) + "\n#define GLARE " +
                                 (glare_ran ? "1" : "0") + "\n#define CORE " + (core ? "1" : "0") + "\n#define STARS " +
-                                std::to_string(stars) + "\n#define DITHER " + (composite_dither ? "1" : "0") + "\n";
+                                std::to_string(stars) + "\n#define DITHER " + (composite_dither ? "1" : "0") +
+                                "\n#define DISPLAY " + (output == 0 && composite_display ? "1" : "0") + "\n";
     const char* vertex = overlay == Overlay::Core    ? "bolt.vert"
                          : overlay == Overlay::Stars ? "star_points.vert"
                                                      : "fullscreen.vert";
@@ -159,6 +178,7 @@ void Renderer::Impl::bind_composite_inputs(GLuint p) const {
     // The full-resolution core read at its own pixel, as an image: on llvmpipe an image load
     // costs less than a texel fetch (at 1280x720, ~0.9 ms of a 12 ms composite for one target).
     glBindImageTexture(0, core_target.tex, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
+    if (composite_display) glBindTextureUnit(6, display_target.tex);
 }
 
 }  // namespace fulgur::render

@@ -187,6 +187,7 @@ Renderer::~Renderer() {
     m.march_target.release();
     m.core_target.release();
     m.hdr_target.release();
+    m.display_target.release();
     for (detail::Target& t : m.glare_down) t.release();
     for (detail::Target& t : m.glare_up) t.release();
     for (detail::Target& t : m.glare_groups) t.release();

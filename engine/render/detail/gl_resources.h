@@ -54,18 +54,20 @@ inline GLuint make_texture_2d(int w, int h, GLenum format = GL_RGBA32F, GLenum w
 inline void check_framebuffer(GLuint fbo, int w, int h) {
     if (glCheckNamedFramebufferStatus(fbo, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
         throw core::Error("render",
-                          "RGBA32F framebuffer of " + std::to_string(w) + "x" + std::to_string(h) + " is not complete");
+                          "framebuffer of " + std::to_string(w) + "x" + std::to_string(h) + " is not complete");
 }
 
-struct Target {  // a colour texture + framebuffer
+struct Target {  // a colour texture (RGBA32F unless asked otherwise) + framebuffer
     GLuint tex = 0, fbo = 0;
     int w = 0, h = 0;
-    void ensure(int width, int height) {
-        if (tex && w == width && h == height) return;
+    GLenum format = GL_RGBA32F;
+    void ensure(int width, int height, GLenum texture_format = GL_RGBA32F) {
+        if (tex && w == width && h == height && format == texture_format) return;
         release();
         w = width;
         h = height;
-        tex = make_texture_2d(w, h);
+        format = texture_format;
+        tex = make_texture_2d(w, h, format);
         glCreateFramebuffers(1, &fbo);
         glNamedFramebufferTexture(fbo, GL_COLOR_ATTACHMENT0, tex, 0);
         check_framebuffer(fbo, w, h);

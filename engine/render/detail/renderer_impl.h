@@ -111,6 +111,7 @@ struct Renderer::Impl {
 
     // Targets
     detail::Target glow_target, march_target, core_target, hdr_target;
+    detail::Target display_target;  // the march's frame as display values (RGBA8, internal size; pass_composite.cpp)
     std::vector<detail::Target> glare_down, glare_up;  // the glare pyramid's levels (pass_glare.cpp)
     GlareFit glare_fit;
     detail::TemporalState temporal;            // the temporal history (pass_temporal.cpp)
@@ -149,6 +150,8 @@ struct Renderer::Impl {
     float max_point_size = 0.0f;  // GL_POINT_SIZE_RANGE's upper end (0: not asked yet)
     bool composite_dither = true;
     bool composite_overlays = true;  // Settings::composite_overlays
+    bool display_upsample = true;    // Settings::display_upsample
+    bool composite_display = false;  // this frame's composite upsamples display_target (composite.frag's DISPLAY)
     float core_min_width_px = 1.5f;  // the bolt pass's Settings::bolt_min_width_px (the core's overlay)
     // The cells of the stars' cube map that may hold a star (star_points.vert's vertices), made
     // at the first frame that draws the stars as points; star_cell_count of them.
@@ -272,6 +275,9 @@ struct Renderer::Impl {
     void glare_pass(const Camera& camera, const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer,
                     FrameStats& stats);
     void composite_pass(const detail::FrameUniforms& u, const detail::CallerTarget& caller, detail::PassTimer& timer);
+    /// The march's frame (with the glare when it ran) tone mapped at its own resolution into
+    /// display_target (display.frag), for the composite to upsample.
+    void display_pass(const detail::FrameUniforms& u);
     /// The stars for this frame's composite: drawn as points over it (`points`, when the view's
     /// spots fit GL's largest point) or computed at every pixel of it.
     void prepare_stars(const detail::FrameUniforms& u, bool stars, bool points);
