@@ -186,9 +186,6 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
         r.set_channel(ch);
     };
     const GreyStatic moonlit = grey_static(storm, 1);
-    const core::GridGeometry& g = storm.density.geom;
-    const glm::dvec3 target = g.origin + 0.5 * g.extent() * glm::dvec3(1.0, 1.0, 0.7);
-    const double distance = glm::length(storm.camera.position - target);
     for (const core::Int3 size : {core::Int3{640, 360, 0}, core::Int3{1280, 720, 0}, core::Int3{1920, 1080, 0}}) {
         if (const char* only = std::getenv("FULGUR_BENCH_DEMO_WIDTH"); only && size.x != std::atoi(only)) continue;
         auto context = platform::create_headless({.width = size.x, .height = size.y});
@@ -237,9 +234,8 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                         auto show_frame = [&](int i) {
                             if (flash) show_flash(r, std::exp(-(i + 2) / 8.0));
                             st.frame_index = std::uint32_t(i + 2);
-                            return orbit
-                                       ? render::Camera::orbit(target, distance, -60.0 + 1.0 * (i + 2), 8.0, kOrbitFov)
-                                       : storm.camera;
+                            return orbit ? synthetic::orbit_camera(storm, -60.0 + 1.0 * (i + 2), 8.0, kOrbitFov)
+                                         : storm.camera;
                         };
                         // The frames in a row, as the demo draws them; the history's march of each kept.
                         std::vector<std::vector<float>> kept;

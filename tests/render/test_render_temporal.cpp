@@ -118,12 +118,6 @@ render::SourceUpload every_direction(const synthetic::Storm& storm) {
     return all;
 }
 
-// What the orbits turn about: the storm's middle, 70% of the way up.
-glm::dvec3 orbit_target(const synthetic::Storm& storm) {
-    const core::GridGeometry& g = storm.density.geom;
-    return g.origin + 0.5 * g.extent() * glm::dvec3(1.0, 1.0, 0.7);
-}
-
 // The storm's volume, its channel and the directions of S its camera needs.
 void show_storm(render::Renderer& r, const synthetic::Storm& storm) {
     r.set_volume({.density = &storm.density, .extinction = storm.extinction});
@@ -283,13 +277,11 @@ TEST_CASE("temporal history: a moving camera marches a quarter and stays near a 
     const render::SourceUpload all = every_direction(storm);  // the orbit needs others than the first view's
     render::Settings st = storm.settings;
     st.dither = false;
-    const glm::dvec3 target = orbit_target(storm);
-    const double distance = glm::length(storm.camera.position - target);
     double worst = 0.0, sum = 0.0, jitter_noise = 0.0;
     int quarter = 0;
     const int frames = 12;
     for (int i = 0; i < frames; ++i) {
-        const render::Camera cam = render::Camera::orbit(target, distance, -60.0 + i, 8.0, 55.0);
+        const render::Camera cam = synthetic::orbit_camera(storm, -60.0 + i, 8.0, 55.0);
         show_flash(r, storm, all, {.g = std::exp(-i / 8.0)});  // a return stroke's decay
         const Frame f = with_and_without_history(r, cam, st, std::uint32_t(i));
         const render::FrameStats& stats = f.stats;
@@ -331,7 +323,7 @@ TEST_CASE("temporal history: a moving camera marches a quarter and stays near a 
         double up_sum = 0.0, up_worst = 0.0;
         int up_quarter = 0;
         for (int i = 0; i < frames; ++i) {
-            const render::Camera cam = render::Camera::orbit(target, distance, -60.0 + i, 8.0, 55.0);
+            const render::Camera cam = synthetic::orbit_camera(storm, -60.0 + i, 8.0, 55.0);
             show_flash(r, storm, all, {.g = std::exp(-i / 8.0)});
             const Frame f = with_and_without_history(r, cam, up, std::uint32_t(100 + i));
             CAPTURE(i);
@@ -361,11 +353,11 @@ TEST_CASE("temporal history: a moving camera marches a quarter and stays near a 
             // Four frames a sequence: the quarter's phase follows the history's frame count.
             for (const double step : {0.99, 0.98, st.step_voxels}) {
                 s.step_voxels = step;
-                CHECK(render_at(r, render::Camera::orbit(target, distance, -60.0, 8.0, fov), s, W, H).temporal ==
+                CHECK(render_at(r, synthetic::orbit_camera(storm, -60.0, 8.0, fov), s, W, H).temporal ==
                       render::TemporalStep::Full);
             }
             s.frame_index = 8;
-            CHECK(render_at(r, render::Camera::orbit(target, distance, -59.0, 8.0, fov), s, W, H).temporal ==
+            CHECK(render_at(r, synthetic::orbit_camera(storm, -59.0, 8.0, fov), s, W, H).temporal ==
                   render::TemporalStep::Quarter);
             int w = 0, h = 0;
             return r.read_march(w, h);
@@ -384,7 +376,7 @@ TEST_CASE("temporal history: a moving camera marches a quarter and stays near a 
     st.frame_index = 99;
     render::Settings temporal = st;
     temporal.temporal = true;
-    const render::Camera cut = render::Camera::orbit(target, distance, -60.0 + frames + 30.0, 8.0, 55.0);
+    const render::Camera cut = synthetic::orbit_camera(storm, -60.0 + frames + 30.0, 8.0, 55.0);
     CHECK(render_at(r, cut, temporal, W, H).temporal == render::TemporalStep::Full);
     CHECK(render_at(r, cut, temporal, W, H).temporal == render::TemporalStep::Reused);
     temporal.step_voxels = 0.5;
@@ -404,8 +396,6 @@ TEST_CASE("temporal history: a camera that stops marches the four quarters in tu
     render::Settings st = storm.settings;
     st.dither = false;
     st.jitter = false;  // the history's pixels were marched in other frames: no per-frame jitter
-    const glm::dvec3 target = orbit_target(storm);
-    const double distance = glm::length(storm.camera.position - target);
     using Step = render::TemporalStep;
     // Frames 0-3 orbit 1 degree a frame, then the camera stays at frame 3's view.
     const std::vector<Step> expected = {Step::Full,    Step::Quarter, Step::Quarter, Step::Quarter,
@@ -413,7 +403,7 @@ TEST_CASE("temporal history: a camera that stops marches the four quarters in tu
                                         Step::Reused,  Step::Reused,  Step::Reused};
     std::vector<double> error;
     for (std::size_t i = 0; i < expected.size(); ++i) {
-        const render::Camera cam = render::Camera::orbit(target, distance, -60.0 + std::min<double>(i, 3), 8.0, 55.0);
+        const render::Camera cam = synthetic::orbit_camera(storm, -60.0 + std::min<double>(i, 3), 8.0, 55.0);
         show_flash(r, storm, all, {.g = std::exp(-double(i) / 8.0)});  // a return stroke's decay
         const Frame f = with_and_without_history(r, cam, st, std::uint32_t(i));
         error.push_back(march_diff(f.kept, f.fresh).radiance);
@@ -442,14 +432,12 @@ TEST_CASE(
     render::Settings st = between_flashes(r, storm);
     st.jitter = false;  // settled frames exact: no per-frame jitter
     st.temporal_moving_block = 4;
-    const glm::dvec3 target = orbit_target(storm);
-    const double distance = glm::length(storm.camera.position - target);
     using Step = render::TemporalStep;
     const int moving = 12, frames = moving + 7;
     double sum = 0.0, worst = 0.0;
     std::vector<double> settled;
     for (int i = 0; i < frames; ++i) {
-        const render::Camera cam = render::Camera::orbit(target, distance, -60.0 + std::min(i, moving - 1), 8.0, 55.0);
+        const render::Camera cam = synthetic::orbit_camera(storm, -60.0 + std::min(i, moving - 1), 8.0, 55.0);
         const Frame f = with_and_without_history(r, cam, st, std::uint32_t(400 + i));
         const double e = march_diff(f.kept, f.fresh).radiance;
         CAPTURE(i);
@@ -485,12 +473,10 @@ TEST_CASE(
     render::Settings flash = st;
     flash.temporal = true;
     flash.frame_index = 500;
-    const render::FrameStats s =
-        render_at(r, render::Camera::orbit(target, distance, -60.0 + moving, 8.0, 55.0), flash, W, H);
+    const render::FrameStats s = render_at(r, synthetic::orbit_camera(storm, -60.0 + moving, 8.0, 55.0), flash, W, H);
     CHECK(s.temporal == Step::Full);  // the flash's S is a new shape
     flash.frame_index = 501;
-    const render::FrameStats q =
-        render_at(r, render::Camera::orbit(target, distance, -59.0 + moving, 8.0, 55.0), flash, W, H);
+    const render::FrameStats q = render_at(r, synthetic::orbit_camera(storm, -59.0 + moving, 8.0, 55.0), flash, W, H);
     CHECK(q.temporal == Step::Quarter);
     CHECK(q.marched_share == doctest::Approx(0.25).epsilon(0.05));
     r.clear_static();
@@ -673,8 +659,6 @@ TEST_CASE("temporal history: between flashes, a moving camera's static light sta
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
     const render::Settings base = between_flashes(r, storm);
-    const glm::dvec3 target = orbit_target(storm);
-    const double distance = glm::length(storm.camera.position - target);
     for (const bool background : {false, true}) {
         CAPTURE(background);
         render::Settings st = base;
@@ -683,7 +667,7 @@ TEST_CASE("temporal history: between flashes, a moving camera's static light sta
         int quarter = 0;
         const int frames = 8;
         for (int i = 0; i < frames; ++i) {
-            const render::Camera cam = render::Camera::orbit(target, distance, -60.0 + i, 8.0, 55.0);
+            const render::Camera cam = synthetic::orbit_camera(storm, -60.0 + i, 8.0, 55.0);
             const Frame f = with_and_without_history(r, cam, st, std::uint32_t(200 + i));
             if (f.stats.temporal != render::TemporalStep::Quarter) continue;
             const double e = march_diff(f.kept, f.fresh).radiance;
@@ -726,8 +710,8 @@ TEST_CASE(
         if (i == 3) {  // a frame without the history, elsewhere
             render::Settings other = st;
             other.temporal = false;
-            const render::Camera away =
-                render::Camera::orbit(orbit_target(storm), 15000.0, 40.0, 20.0, storm.camera.vertical_fov_deg);
+            const render::Camera away = render::Camera::orbit(synthetic::orbit_target(storm), 15000.0, 40.0, 20.0,
+                                                              storm.camera.vertical_fov_deg);
             render_at(r, away, other, W, H);
             CHECK(r.read_hdr() != first);
         }
@@ -763,8 +747,6 @@ TEST_CASE("the meter counting one pixel in four chooses the exposure that counti
     render::Settings st = storm.settings;
     st.auto_exposure = true;
     st.glare = true;
-    const glm::dvec3 target = orbit_target(storm);
-    const double distance = glm::length(storm.camera.position - target);
     std::vector<double> stops;  // |log2(exposure at stride 2 / at stride 1)| per frame
     const auto compare = [&](const render::Camera& cam, std::uint32_t index) {
         render::Settings every = st;
@@ -780,12 +762,12 @@ TEST_CASE("the meter counting one pixel in four chooses the exposure that counti
     };
     for (int i = 0; i < 12; ++i) {
         show_flash(r, storm, all, {.g = std::exp(-i / 4.0)});
-        compare(render::Camera::orbit(target, distance, -60.0 + 4.0 * i, 8.0, 55.0), std::uint32_t(i));
+        compare(synthetic::orbit_camera(storm, -60.0 + 4.0 * i, 8.0, 55.0), std::uint32_t(i));
         compare(storm.camera, std::uint32_t(i));
     }
     show_between_flashes(r, storm);
     for (int i = 0; i < 6; ++i)
-        compare(render::Camera::orbit(target, distance, -60.0 + 10.0 * i, 8.0, 55.0), std::uint32_t(100 + i));
+        compare(synthetic::orbit_camera(storm, -60.0 + 10.0 * i, 8.0, 55.0), std::uint32_t(100 + i));
     std::vector<double> sorted = stops;
     std::sort(sorted.begin(), sorted.end());
     MESSAGE("meter stride 2 against 1: median ", sorted[sorted.size() / 2], " stops, worst ", sorted.back(), " over ",

@@ -274,4 +274,15 @@ render::SourceUpload needed_upload(const render::Renderer& renderer, const Storm
     return up;
 }
 
+glm::dvec3 orbit_target(const Storm& storm) {
+    const core::GridGeometry& g = storm.density.geom;
+    return g.origin + 0.5 * g.extent() * glm::dvec3(1.0, 1.0, 0.7);
+}
+
+render::Camera orbit_camera(const Storm& storm, double azimuth_deg, double elevation_deg, double vertical_fov_deg) {
+    const glm::dvec3 target = orbit_target(storm);
+    return render::Camera::orbit(target, glm::length(storm.camera.position - target), azimuth_deg, elevation_deg,
+                                 vertical_fov_deg);
+}
+
 }  // namespace fulgur::synthetic

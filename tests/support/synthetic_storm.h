@@ -60,4 +60,11 @@ Storm storm(const core::Int3& dims = {128, 128, 96}, double voxel_size = 100.0);
 /// An upload of the directions of `storm.source` that `renderer` says the camera needs.
 render::SourceUpload needed_upload(const render::Renderer& renderer, const Storm& storm);
 
+/// What the temporal history's tests and benchmark orbit about: the storm's middle, 70% of the
+/// way up.
+glm::dvec3 orbit_target(const Storm& storm);
+
+/// A camera on that orbit at the distance of the storm's own camera from its target.
+render::Camera orbit_camera(const Storm& storm, double azimuth_deg, double elevation_deg, double vertical_fov_deg);
+
 }  // namespace fulgur::synthetic
