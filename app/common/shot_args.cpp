@@ -14,9 +14,9 @@ namespace fulgur::app {
 
 namespace {
 
-constexpr std::array<std::string_view, 13> kSwitches = {"sun",    "sky",    "silver-lining",  "glow",   "glare",
-                                                        "bolt",   "ground", "ground-scatter", "single", "multiple",
-                                                        "detail", "rain",   "dither"};
+constexpr std::array<std::string_view, 14> kSwitches = {
+    "sun",      "sky",    "silver-lining", "glow",   "glare",           "bolt", "ground", "ground-scatter", "single",
+    "multiple", "detail", "rain",          "dither", "display-upsample"};
 
 constexpr const char* kTool = "fulgur-shot";
 
@@ -90,7 +90,7 @@ void declare(CommandLine& cli, ShotArgs& a) {
                            kTool,
                            "--off: \"" + name +
                                "\" is not one of sun, sky, silver-lining, glow, glare, bolt, ground, ground-scatter, "
-                               "single, multiple, detail, rain, dither");
+                               "single, multiple, detail, rain, dither, display-upsample");
                    a.off.push_back(name);
                    b = e + 1;
                }
@@ -99,7 +99,8 @@ void declare(CommandLine& cli, ShotArgs& a) {
            "at full resolution: on the lighting grid instead), glow, glare, bolt, ground (ground-scatter: only the "
            "light the cloud scatters onto it), single, multiple, detail "
            "(the march draws the cloud before its sub-voxel detail), rain, dither (the 8-bit output's dither: "
-           "smooth images compress far better)")
+           "smooth images compress far better), display-upsample (the march's radiance upsampled and tone mapped "
+           "at every output pixel instead of its display values upsampled)")
         ->type_name("A,B,..");
     app.add_option("-o,--output", a.output, "output PNG")->type_name("OUT.png")->required();
     path_option(app, "--reference", a.reference, ".png",

@@ -21,8 +21,9 @@ struct ShotArgs {
     int repeat = 1;  ///< --repeat N: render N times, report medians (the first frame compiles shaders); same image
     double exposure_ev = 0.0;               ///< --exposure EV: stops added to the automatic exposure
     std::optional<double> manual_exposure;  ///< --manual-exposure X: a fixed exposure X instead of the automatic one
-    /// --off A,B,..: run-time switches turned off (sun, sky, silver-lining, glow, bolt, ground,
-    /// single, multiple), to see or time a frame without them.
+    /// --off A,B,..: run-time switches turned off (sun, sky, silver-lining, glow, glare, bolt,
+    /// ground, ground-scatter, single, multiple, detail, rain, dither, display-upsample), to see or
+    /// time a frame without them.
     std::vector<std::string> off;
     std::filesystem::path output;
     /// --reference REF.png: also render the frame lit by the direct solve (the reference the

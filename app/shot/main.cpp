@@ -439,6 +439,7 @@ int main(int argc, char** argv) {
             opt.settings.detail &= off != "detail";
             opt.settings.rain &= off != "rain";
             opt.settings.dither &= off != "dither";
+            opt.settings.display_upsample &= off != "display-upsample";
         }
         // The view: --camera, else the scene's, else the default; printed with every part explicit.
         const std::optional<scene::CameraSpec> chosen = view.scene().camera;

@@ -81,6 +81,8 @@ TEST_CASE("fulgur-shot: a complete command line parses") {
     std::vector<std::string> off = good;
     off.insert(off.end(), {"--off", "sun,silver-lining,multiple"});
     CHECK(parse(off).off == std::vector<std::string>{"sun", "silver-lining", "multiple"});
+    off.back() = "dither,display-upsample";
+    CHECK(parse(off).off == std::vector<std::string>{"dither", "display-upsample"});
     off.back() = "sun,moon";
     CHECK_THROWS_WITH_AS(parse(off), doctest::Contains("--off: \"moon\" is not one of sun, sky"), core::Error);
     off.back() = "";
