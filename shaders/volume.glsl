@@ -129,13 +129,6 @@ float rain_flash(RainRay ray, float t, inout float light_t) {
     return s;
 }
 
-// What the rain scatters toward the camera (-d) of the sun or moon, per unit albedo: its first
-// scattering through the cloud and the rain (the full-resolution transmittance at p_tex) with the
-// drops' phase function; none when the sun does not light the volume (sun_params.z).
-vec3 rain_sun(vec3 d, vec3 p_tex) {
-    if (sun_params.z < 0.5) return vec3(0.0);
-    return sun_rgb.rgb * (hg_phase(dot(-d, sun_dir.xyz), rain_params.y) * textureLod(u_sun_t, p_tex, 0.0).r);
-}
 #endif
 
 // Safety margin of the skip distance, in voxels. The trilinear interpolant D~(p) of the
@@ -209,6 +202,12 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #endif
 #if HAS_RAIN
     RainRay rain = rain_ray(o, d);
+#if HAS_SUN
+    // What the rain scatters toward the camera (-d) of the sun or moon, per unit albedo: its first
+    // scattering through the cloud and the rain (the full-resolution transmittance, read once per
+    // sample for the cloud and the rain) with the drops' phase function, constant along the ray.
+    float rain_sun_phase = hg_phase(dot(-d, sun_dir.xyz), rain_params.y);
+#endif
 #endif
     vec3 Ls = vec3(0.0);
     float kappa = vol_min.w;
@@ -242,6 +241,9 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #if HAS_DETAIL
         if (rho > 0.0) rho = detailed_density(rho, o + t * d);
 #endif
+#if HAS_SUN
+        float sun_t = textureLod(u_sun_t, o_tex + t * d_tex, 0.0).r;
+#endif
 #if HAS_RAIN
         // Cloud and rain in the same piece: alpha from both, each scattering its share.
         float sigma_c = kappa * rho, sigma_r = rain_params.x * dv.b;
@@ -257,13 +259,15 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #else
             L += wr * rain_flash(rain, t, light_t);
 #endif
-            Ls += wr * rain_sun(d, o_tex + t * d_tex);
+#if HAS_SUN
+            Ls += wr * (sun_rgb.rgb * (rain_sun_phase * sun_t));
+#endif
 #if HAS_STATIC
             // The static light solved with the rain in its media: S at the rain's points holds
             // the light of every order the cloud and the rain scatter there, the sky's own
             // included, read out with the drops' phase function by the cell's share of rain
             // (transport::PhaseMix); the sun's first scattering is drawn at full resolution with
-            // the drops' phase function (rain_sun). S is read once for the cloud and the rain
+            // the drops' phase function (rain_sun_phase). S is read once for the cloud and the rain
             // (below), the rain's share per unit albedo.
             ws += (1.0 - wc) * rain_params.w * rain_lights.y;
 #endif
@@ -291,7 +295,7 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #endif
 #endif
 #if HAS_SUN
-        Ls += (T * alpha * wc * textureLod(u_sun_t, o_tex + t * d_tex, 0.0).r) * sun_s1;
+        Ls += (T * alpha * wc * sun_t) * sun_s1;
 #endif
 #if TEMPORAL
         depth_sum += T * alpha * t;
@@ -347,6 +351,9 @@ float transmittance_to(vec3 p) {
         float rho = dv.r;
 #if HAS_DETAIL
         if (rho > 0.0) rho = detailed_density(rho, o + t * d);
+#endif
+#if HAS_SUN
+        float sun_t = textureLod(u_sun_t, o_tex + t * d_tex, 0.0).r;
 #endif
         tau += rho * (b - a);
 #if HAS_RAIN
