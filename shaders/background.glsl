@@ -128,19 +128,42 @@ float rain_transmittance(vec3 p, vec3 q) {
 // averaged over cells of the ground plane (clamped to zero outside them).
 layout(binding = 10) uniform sampler2D u_ground_scatter;
 
+// GROUND_LIGHTS 0 and GROUND_SCATTER 0 (compile time, the march's programs when the frame has
+// no ground lights, no scattered light on the ground: render/pass_march.cpp). A software
+// rasterizer runs a loop's body at least once and both sides of every test, so read from the
+// uniforms every pixel paid a light's and the scattered light's rain transmittance (8 density
+// reads) with neither there (between flashes: storm-full's march at 1280x720 59.5-60.1 ->
+// 54.6-56.3 ms, the same frame). Frames that have them read the count and the test from the
+// uniforms: the loop unrolled for 6 lights and the scattered light without its test measured
+// slower (the flash's march 86 -> 90 and 96 ms). Undefined (-1): read from the uniforms.
+#ifndef GROUND_LIGHTS
+#define GROUND_LIGHTS -1
+#endif
+#ifndef GROUND_SCATTER
+#define GROUND_SCATTER -1
+#endif
+
 // The ground's irradiance from the flash, in its colour: the channel as a few point lights
 // (intensity already multiplied by their visibility through the cloud), through the rain, and
 // the light the cloud scatters down (through the rain straight above the point).
 vec3 ground_flash_irradiance(vec3 p) {
     vec3 E = vec3(0.0);
+#if GROUND_SCATTER != 0
     if (ground_scatter.z > 0.0) {
+#else
+    if (false) {
+#endif
         float e = textureLod(u_ground_scatter, (p.xy - ground_scatter.xy) * ground_scatter.zw, 0.0).r;
 #if HAS_RAIN
         e *= rain_transmittance(p, vec3(p.xy, rain_params.z));
 #endif
         E += light_colour.rgb * e;
     }
+#if GROUND_LIGHTS != 0
     int n = int(ground_params.w);
+#else
+    const int n = 0;
+#endif
     for (int i = 0; i < n; ++i) {
         vec3 l = ground_light[i].xyz - p;
         float r2 = max(dot(l, l), 1.0);

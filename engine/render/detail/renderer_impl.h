@@ -182,9 +182,13 @@ struct Renderer::Impl {
     }
 
     /// The march's switches; `rain_lights` >= 0 (with `rain`): the number of the rain's flash
-    /// lights the march reads (volume.glsl's RAIN_LIGHTS; < 0: not stated, as in the temporal key).
+    /// lights the march reads (volume.glsl's RAIN_LIGHTS; < 0: not stated, as in the temporal key);
+    /// `ground_lights` >= 0: the ground's point lights and whether the cloud's scattered light on
+    /// the ground is bound, each compiled away when absent (background.glsl's GROUND_LIGHTS 0,
+    /// GROUND_SCATTER 0; < 0: not stated).
     static std::string march_defines(bool skip, bool early, bool source, bool emission, bool statics = false,
-                                     bool sun = false, bool detail = false, bool rain = false, int rain_lights = -1) {
+                                     bool sun = false, bool detail = false, bool rain = false, int rain_lights = -1,
+                                     int ground_lights = -1, bool ground_scattered = false) {
         std::string d = std::string("#define SKIP_EMPTY ") + (skip ? "1" : "0") + "\n#define EARLY_EXIT " +
                         (early ? "1" : "0") + "\n#define HAS_SOURCE " + (source ? "1" : "0") +
                         "\n#define HAS_EMISSION " + (emission ? "1" : "0") + "\n";
@@ -193,6 +197,8 @@ struct Renderer::Impl {
         if (detail) d += "#define HAS_DETAIL 1\n";
         if (rain) d += "#define HAS_RAIN 1\n";
         if (rain && rain_lights >= 0) d += "#define RAIN_LIGHTS " + std::to_string(rain_lights) + "\n";
+        if (ground_lights == 0) d += "#define GROUND_LIGHTS 0\n";
+        if (ground_lights >= 0 && !ground_scattered) d += "#define GROUND_SCATTER 0\n";
         return d;
     }
 
