@@ -197,10 +197,8 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
             f.ground_light[i] = ground_lights[i];
         f.ground_params = glm::vec4(float(st.ground_height), float(st.ground_albedo / std::numbers::pi),
                                     st.ground ? 1.0f : 0.0f, float(ground_lights.size()));
-        u.ground_lights = int(std::min<std::size_t>(ground_lights.size(), kMaxGroundLights));
         u.ground_scatter = st.ground && st.ground_scatter;
         if (u.ground_scatter) f.ground_scatter = ground_scatter_map;
-        u.ground_scattered = f.ground_scatter.z > 0.0f;
         if (st.ground && statics.has && st.static_light) f.ground_static = ground_static_map;
         for (std::size_t i = 0; u.rain && i < rain_lights.size(); ++i) f.rain_light[i] = rain_lights[i];
         // The channel lights the rain when the flash lights the volume (its light is the

@@ -45,8 +45,7 @@ void Renderer::Impl::display_pass(const FrameUniforms& u) {
     const GLuint p =
         program("display", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "display.frag"}}, defines);
     glUseProgram(p);
-    glBindTextureUnit(3, march_out->tex);
-    glBindTextureUnit(5, glare_ran ? glare_up[0].tex : march_out->tex);
+    bind_frame_radiance();
     glBindFramebuffer(GL_DRAW_FRAMEBUFFER, display_target.fbo);
     glViewport(0, 0, display_target.w, display_target.h);
     glDrawArrays(GL_TRIANGLES, 0, 3);
@@ -170,11 +169,15 @@ GLuint Renderer::Impl::composite_program(int output, Overlay overlay, bool core,
     return program(name, {{GL_VERTEX_SHADER, vertex}, {GL_FRAGMENT_SHADER, "composite.frag"}}, defines);
 }
 
+void Renderer::Impl::bind_frame_radiance() const {
+    glBindTextureUnit(3, march_out->tex);
+    glBindTextureUnit(5, glare_ran ? glare_up[0].tex : march_out->tex);
+}
+
 void Renderer::Impl::bind_composite_inputs(GLuint p) const {
     glUniform1f(glGetUniformLocation(p, "u_glare_keep"), glare_ran ? float(glare_fit.keep) : 1.0f);
     glUniform1f(glGetUniformLocation(p, "u_core_scale"), core_scale);
-    glBindTextureUnit(3, march_out->tex);
-    glBindTextureUnit(5, glare_ran ? glare_up[0].tex : march_out->tex);
+    bind_frame_radiance();
     // The full-resolution core read at its own pixel, as an image: on llvmpipe an image load
     // costs less than a texel fetch (at 1280x720, ~0.9 ms of a 12 ms composite for one target).
     glBindImageTexture(0, core_target.tex, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);

@@ -16,8 +16,7 @@ using detail::PassTimer;
 void Renderer::Impl::march_pass(const Settings& st, const FrameUniforms& u, PassTimer& timer) {
     timer.begin(kMarch);
     march_out = &march_target;
-    const std::string defines = march_defines(st.skip_empty, st.early_exit, u.lit, u.glow, u.statics, u.sun, u.detail,
-                                              u.rain, u.rain_lights, u.ground_lights, u.ground_scattered);
+    const std::string defines = frame_march_defines(st, u);
     const GLuint p = march_program(st.kernel, defines);
     glUseProgram(p);
     if (st.kernel == MarchKernel::Fragment) {

@@ -136,9 +136,7 @@ detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const S
                                                    const FrameUniforms& u) const {
     const detail::TemporalState& h = temporal;
     detail::TemporalPlan plan;
-    plan.defines = march_defines(st.skip_empty, st.early_exit, u.lit, u.glow, u.statics, u.sun, u.detail, u.rain,
-                                 u.rain_lights, u.ground_lights, u.ground_scattered) +
-                   "#define TEMPORAL 1\n";
+    plan.defines = frame_march_defines(st, u) + "#define TEMPORAL 1\n";
     // The key names the flash's S and the glow as the settings ask for them, not as present
     // this frame, and not the rain's flash lights: a flash going dark is the trackers' to
     // follow, a setting switched is not.

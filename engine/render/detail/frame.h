@@ -68,12 +68,10 @@ struct FrameUniforms {
     bool detail = false;                          ///< the march erodes the density by the sub-voxel detail
     bool rain = false;                            ///< the march draws the rain (and the ground its shadow)
     int rain_lights = 0;                          ///< the rain's flash lights the march reads (rain_lights.x)
-    int ground_lights = 0;                        ///< the ground's point lights the march reads (ground_params.w)
-    bool ground_scattered = false;  ///< the cloud's scattered light on the ground is bound (ground_scatter.z > 0)
-    bool glow = false;              ///< the glow pass runs
-    bool host = false;              ///< composited into a host's frame (render_into_host)
-    bool stars = false;             ///< the composite draws stars (sky on, star radiance > 0)
-    bool ground_scatter = false;    ///< the settings ask for the ground's scattered flash light
+    bool glow = false;                            ///< the glow pass runs
+    bool host = false;                            ///< composited into a host's frame (render_into_host)
+    bool stars = false;                           ///< the composite draws stars (sky on, star radiance > 0)
+    bool ground_scatter = false;                  ///< the settings ask for the ground's scattered flash light
 };
 
 /// The caller's draw and read framebuffers and viewport, restored when a frame or a read-back is

@@ -202,6 +202,14 @@ struct Renderer::Impl {
         return d;
     }
 
+    /// march_defines for this frame's march (march.frag, march_groups.frag): its switches as
+    /// the settings and the frame set them, with the ground's lights and scattered light as
+    /// the frame block holds them.
+    static std::string frame_march_defines(const Settings& st, const detail::FrameUniforms& u) {
+        return march_defines(st.skip_empty, st.early_exit, u.lit, u.glow, u.statics, u.sun, u.detail, u.rain,
+                             u.rain_lights, int(u.block.ground_params.w), u.block.ground_scatter.z > 0.0f);
+    }
+
     GLuint march_program(MarchKernel kernel, const std::string& defines) {
         if (kernel == MarchKernel::Fragment)
             return program("march.frag", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "march.frag"}},
@@ -298,6 +306,9 @@ struct Renderer::Impl {
     GLuint composite_program(int output, Overlay overlay, bool core, int stars);
     /// Binds what composite.frag reads (march, core, glare) to program `p`.
     void bind_composite_inputs(GLuint p) const;
+    /// Binds the frame's radiance at the march's resolution, as composite.frag and display.frag
+    /// read it: the march on unit 3, the glare's sum (the march without glare) on unit 5.
+    void bind_frame_radiance() const;
 };
 
 }  // namespace fulgur::render
