@@ -122,6 +122,37 @@ float rain_transmittance(vec3 p, vec3 q) {
     }
     return exp(-rain_params.x * tau * 0.25 * f * length(l));
 }
+
+// The ground lights' rain transmittance tabulated per light (render/pass_ground_rain.cpp,
+// ground_rain.comp): layer i holds light i's on a polar map around its foot. x is the azimuth
+// (texel a at 2 pi (a + 0.5) / width, repeating), y the distance r from the foot as r / (r + R)
+// (R: ground_rain_scale), so the map reaches every point of the ground, finest near the foot
+// where the path is steepest. GROUND_RAIN_MAP 1 (compile time): the ground reads the map;
+// 0: each pixel integrates its paths (rain_transmittance).
+#ifndef GROUND_RAIN_MAP
+#define GROUND_RAIN_MAP 0
+#endif
+
+// The polar map's radial scale for a light at q: its height over the ground (the distance over
+// which the path's slope changes), at least 4 density voxels.
+float ground_rain_scale(vec3 q) { return max(q.z - ground_params.x, 4.0 * vol_size.w); }
+
+#if GROUND_RAIN_MAP
+layout(binding = 12) uniform sampler2DArray u_ground_rain;
+#endif
+
+// The rain's transmittance between the ground point p and ground light i.
+float ground_light_rain(vec3 p, int i) {
+#if GROUND_RAIN_MAP
+    vec2 d = p.xy - ground_light[i].xy;
+    float r = length(d);
+    // atan(y, x) is undefined at x = y = 0; there r = 0 and every azimuth holds the foot's value.
+    float azimuth = atan(d.y, d.x + 1e-30) * 0.15915494;
+    return textureLod(u_ground_rain, vec3(azimuth, r / (r + ground_rain_scale(ground_light[i].xyz)), float(i)), 0.0).r;
+#else
+    return rain_transmittance(p, ground_light[i].xyz);
+#endif
+}
 #endif
 
 // The irradiance the cloud's scattered flash light gives the ground (W/m^2 at luminance 1),
@@ -169,7 +200,7 @@ vec3 ground_flash_irradiance(vec3 p) {
         float r2 = max(dot(l, l), 1.0);
         float cos_theta = max(l.z, 0.0) * inversesqrt(r2);
 #if HAS_RAIN
-        E += light_colour.rgb * (ground_light[i].w * cos_theta / r2 * rain_transmittance(p, ground_light[i].xyz));
+        E += light_colour.rgb * (ground_light[i].w * cos_theta / r2 * ground_light_rain(p, i));
 #else
         E += light_colour.rgb * (ground_light[i].w * cos_theta / r2);
 #endif

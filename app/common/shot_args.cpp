@@ -14,9 +14,21 @@ namespace fulgur::app {
 
 namespace {
 
-constexpr std::array<std::string_view, 14> kSwitches = {
-    "sun",      "sky",    "silver-lining", "glow",   "glare",           "bolt", "ground", "ground-scatter", "single",
-    "multiple", "detail", "rain",          "dither", "display-upsample"};
+constexpr std::array<std::string_view, 15> kSwitches = {"sun",
+                                                        "sky",
+                                                        "silver-lining",
+                                                        "glow",
+                                                        "glare",
+                                                        "bolt",
+                                                        "ground",
+                                                        "ground-scatter",
+                                                        "single",
+                                                        "multiple",
+                                                        "detail",
+                                                        "rain",
+                                                        "dither",
+                                                        "display-upsample",
+                                                        "ground-rain-map"};
 
 constexpr const char* kTool = "fulgur-shot";
 
@@ -90,7 +102,7 @@ void declare(CommandLine& cli, ShotArgs& a) {
                            kTool,
                            "--off: \"" + name +
                                "\" is not one of sun, sky, silver-lining, glow, glare, bolt, ground, ground-scatter, "
-                               "single, multiple, detail, rain, dither, display-upsample");
+                               "single, multiple, detail, rain, dither, display-upsample, ground-rain-map");
                    a.off.push_back(name);
                    b = e + 1;
                }
@@ -100,7 +112,9 @@ void declare(CommandLine& cli, ShotArgs& a) {
            "light the cloud scatters onto it), single, multiple, detail "
            "(the march draws the cloud before its sub-voxel detail), rain, dither (the 8-bit output's dither: "
            "smooth images compress far better), display-upsample (the march's radiance upsampled and tone mapped "
-           "at every output pixel instead of its display values upsampled)")
+           "at every output pixel instead of its display values upsampled), ground-rain-map (each ground pixel "
+           "integrates the rain toward the channel's ground lights instead of reading their tabulated "
+           "transmittance)")
         ->type_name("A,B,..");
     app.add_option("-o,--output", a.output, "output PNG")->type_name("OUT.png")->required();
     path_option(app, "--reference", a.reference, ".png",

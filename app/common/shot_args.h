@@ -22,7 +22,8 @@ struct ShotArgs {
     double exposure_ev = 0.0;               ///< --exposure EV: stops added to the automatic exposure
     std::optional<double> manual_exposure;  ///< --manual-exposure X: a fixed exposure X instead of the automatic one
     /// --off A,B,..: run-time switches turned off (sun, sky, silver-lining, glow, glare, bolt,
-    /// ground, ground-scatter, single, multiple, detail, rain, dither, display-upsample), to see or
+    /// ground, ground-scatter, single, multiple, detail, rain, dither, display-upsample,
+    /// ground-rain-map), to see or
     /// time a frame without them.
     std::vector<std::string> off;
     std::filesystem::path output;

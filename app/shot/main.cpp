@@ -440,6 +440,7 @@ int main(int argc, char** argv) {
             opt.settings.rain &= off != "rain";
             opt.settings.dither &= off != "dither";
             opt.settings.display_upsample &= off != "display-upsample";
+            opt.settings.ground_rain_map &= off != "ground-rain-map";
         }
         // The view: --camera, else the scene's, else the default; printed with every part explicit.
         const std::optional<scene::CameraSpec> chosen = view.scene().camera;

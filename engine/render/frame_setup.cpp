@@ -198,6 +198,7 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
         f.ground_params = glm::vec4(float(st.ground_height), float(st.ground_albedo / std::numbers::pi),
                                     st.ground ? 1.0f : 0.0f, float(ground_lights.size()));
         u.ground_scatter = st.ground && st.ground_scatter;
+        u.ground_rain_map = st.ground_rain_map && st.ground && u.rain && !ground_lights.empty();
         if (u.ground_scatter) f.ground_scatter = ground_scatter_map;
         if (st.ground && statics.has && st.static_light) f.ground_static = ground_static_map;
         for (std::size_t i = 0; u.rain && i < rain_lights.size(); ++i) f.rain_light[i] = rain_lights[i];

@@ -224,6 +224,7 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     const int iw = u.internal_width, ih = u.internal_height;
     const int fw = (iw - phase.x + grid - 1) / grid, fh = (ih - phase.y + grid - 1) / grid;
     h.fresh.ensure(fw, fh, 3);
+    ground_rain_pass(u);
     const GLuint march = program(
         "march_groups", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "march_groups.frag"}}, defines);
     glUseProgram(march);

@@ -319,6 +319,12 @@ struct Settings {
     double detail_step_billows = 2.0;
     /// The volume's rain (VolumeDesc::rain); false: not drawn (the texture keeps it).
     bool rain = true;
+    /// With rain and the ground lit by the channel: the rain's transmittance between the ground
+    /// and each ground light is tabulated once per channel on a polar map around the light's
+    /// foot (integrated a sample per density voxel), and the ground reads one value per light;
+    /// false: every ground pixel integrates each path by 4 samples. docs/render.md, "Bolt,
+    /// glow, ground, sky", has what either costs and how far each is from a finer integral.
+    bool ground_rain_map = true;
     // Scene constants
     double ground_height = 0.0;  ///< z of the ground plane (m)
     double ground_albedo = 0.1;  ///< mean Lambertian reflectance of the ground (wet fields at night; GroundLook)

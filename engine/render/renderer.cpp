@@ -169,6 +169,7 @@ Renderer::~Renderer() {
     glDeleteQueries(kPassCount, m.queries);
     delete_texture(m.zero_tex);
     delete_texture(m.ground_scatter_tex);
+    delete_texture(m.ground_rain_tex);
     delete_texture(m.ground_static_tex);
     delete_texture(m.profile_tex);
     delete_texture(m.density_tex);
@@ -299,6 +300,7 @@ void Renderer::set_volume(const VolumeDesc& v) {
     m.temporal.inputs_changed = true;
     m.forget_needed();
     m.ground_lights_k = -1;  // visibility depends on the volume
+    m.ground_rain_key.clear();
     m.segment_visibility.clear();
 }
 
@@ -315,6 +317,7 @@ void Renderer::clear_volume() {
     m.temporal.inputs_changed = true;
     m.forget_needed();
     m.ground_lights_k = -1;
+    m.ground_rain_key.clear();
     m.segment_visibility.clear();
 }
 

@@ -72,6 +72,7 @@ struct FrameUniforms {
     bool host = false;                            ///< composited into a host's frame (render_into_host)
     bool stars = false;                           ///< the composite draws stars (sky on, star radiance > 0)
     bool ground_scatter = false;                  ///< the settings ask for the ground's scattered flash light
+    bool ground_rain_map = false;                 ///< the ground reads its lights' rain transmittance from its map
 };
 
 /// The caller's draw and read framebuffers and viewport, restored when a frame or a read-back is

@@ -98,6 +98,10 @@ struct Renderer::Impl {
     // The cloud's scattered flash light on the ground (LitChannel::ground): an R32F texture of
     // its cells, clamped to zero outside (1x1 zero while there is none), and where it lies.
     GLuint ground_scatter_tex = 0;
+    // The ground lights' rain transmittance on polar maps around their feet (a 2D array texture,
+    // a layer per light; pass_ground_rain.cpp), and what it was made from (empty: to make).
+    GLuint ground_rain_tex = 0;
+    std::vector<float> ground_rain_key;
     int ground_scatter_nx = 0, ground_scatter_ny = 0;  // the texture's size (0: the 1x1 zero)
     glm::vec4 ground_scatter_map{0.0f};                // FrameBlock::ground_scatter (zw 0: none)
     void set_ground_scatter(const LitChannel::GroundScatter& g);
@@ -185,10 +189,12 @@ struct Renderer::Impl {
     /// lights the march reads (volume.glsl's RAIN_LIGHTS; < 0: not stated, as in the temporal key);
     /// `ground_lights` >= 0: the ground's point lights and whether the cloud's scattered light on
     /// the ground is bound, each compiled away when absent (background.glsl's GROUND_LIGHTS 0,
-    /// GROUND_SCATTER 0; < 0: not stated).
+    /// GROUND_SCATTER 0; < 0: not stated); `ground_rain_map`: the ground reads its lights' rain
+    /// transmittance from the map (GROUND_RAIN_MAP 1).
     static std::string march_defines(bool skip, bool early, bool source, bool emission, bool statics = false,
                                      bool sun = false, bool detail = false, bool rain = false, int rain_lights = -1,
-                                     int ground_lights = -1, bool ground_scattered = false) {
+                                     int ground_lights = -1, bool ground_scattered = false,
+                                     bool ground_rain_map = false) {
         std::string d = std::string("#define SKIP_EMPTY ") + (skip ? "1" : "0") + "\n#define EARLY_EXIT " +
                         (early ? "1" : "0") + "\n#define HAS_SOURCE " + (source ? "1" : "0") +
                         "\n#define HAS_EMISSION " + (emission ? "1" : "0") + "\n";
@@ -199,6 +205,7 @@ struct Renderer::Impl {
         if (rain && rain_lights >= 0) d += "#define RAIN_LIGHTS " + std::to_string(rain_lights) + "\n";
         if (ground_lights == 0) d += "#define GROUND_LIGHTS 0\n";
         if (ground_lights >= 0 && !ground_scattered) d += "#define GROUND_SCATTER 0\n";
+        if (ground_rain_map) d += "#define GROUND_RAIN_MAP 1\n";
         return d;
     }
 
@@ -207,7 +214,8 @@ struct Renderer::Impl {
     /// the frame block holds them.
     static std::string frame_march_defines(const Settings& st, const detail::FrameUniforms& u) {
         return march_defines(st.skip_empty, st.early_exit, u.lit, u.glow, u.statics, u.sun, u.detail, u.rain,
-                             u.rain_lights, int(u.block.ground_params.w), u.block.ground_scatter.z > 0.0f);
+                             u.rain_lights, int(u.block.ground_params.w), u.block.ground_scatter.z > 0.0f,
+                             u.ground_rain_map);
     }
 
     GLuint march_program(MarchKernel kernel, const std::string& defines) {
@@ -266,6 +274,9 @@ struct Renderer::Impl {
     void glow_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats,
                    bool draw = true);
     void march_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer);
+    /// The ground lights' rain transmittance map (FrameUniforms::ground_rain_map), made when the
+    /// lights, the ground or the rain changed, bound on unit 12 for the march; the march's timer slot.
+    void ground_rain_pass(const detail::FrameUniforms& u);
     /// With the temporal history (Settings::temporal): what this frame does with it (before the
     /// resolve and glow passes, which a reused history skips), and the march in place of march_pass.
     detail::TemporalPlan plan_temporal(const Camera& camera, const Settings& st, const detail::FrameUniforms& u) const;
