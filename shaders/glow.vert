@@ -5,6 +5,9 @@
 #include "common.glsl"
 
 layout(std430, binding = 0) readonly buffer Quads { vec4 quads[]; };  // xyz centre, w intensity (W/sr)
+// x' = u_window.xy x + u_window.zw in normalized device coordinates: (1, 1, 0, 0) draws at the
+// march's resolution; otherwise into a temporal plan's marched pixels (render/pass_glow.cpp).
+uniform vec4 u_window;
 
 out vec2 v_local;       // position on the quad, in units of R
 out float v_intensity;
@@ -21,6 +24,7 @@ void main() {
     vec3 u = cross(r, f);
     vec3 p = q.xyz + glow_params.x * (k.x * r + k.y * u);
     gl_Position = view_proj * vec4(p, 1.0);
+    gl_Position.xy = u_window.xy * gl_Position.xy + u_window.zw * gl_Position.w;
     v_local = k;
     v_intensity = q.w;
     v_distance = dist;

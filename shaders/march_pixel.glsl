@@ -4,7 +4,12 @@
 #include "background.glsl"
 
 // Glow emission at internal resolution: rgb radiance, a = sum of luminance * distance.
+// GLOW_ON_GRID 1 (march_groups.frag, a temporal plan marching a grid of the pixels): it holds
+// only the marched pixels, each at the marching fragment's own coordinates.
 layout(binding = 2) uniform sampler2D u_glow;
+#ifndef GLOW_ON_GRID
+#define GLOW_ON_GRID 0
+#endif
 
 // The march of one pixel: its ray, its jitter, where it ends (the ground, a host's surface),
 // the glow at it (e; t_emit its depth) and the march itself.
@@ -24,7 +29,11 @@ PixelMarch march_pixel(vec2 pixel) {
     // A host's opaque surface ends the ray too (its eye depth over the ray's forward cosine).
     if (host_depth.w != 0.0) m.t_end = min(m.t_end, host_eye_depth(pixel * sizes.xy / sizes.zw) / max(dot(m.d, cam_fwd.xyz), 1e-6));
 #if HAS_EMISSION
+#if GLOW_ON_GRID
+    m.e = texelFetch(u_glow, ivec2(gl_FragCoord.xy), 0);
+#else
     m.e = texelFetch(u_glow, ivec2(pixel), 0);
+#endif
     float y = luminance(m.e.rgb);
     float t_emit = y > 0.0 ? m.e.a / y : kBig;
     if (host_depth.w != 0.0 && t_emit > m.t_end) m.e = vec4(0.0);  // the glow behind the host's surface

@@ -143,7 +143,8 @@ detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const S
     const bool flash_on = st.cloud_lighting && st.flash_light && has_volume;
     const bool glow_on = st.glow && st.air_scattering > 0.0;
     plan.key = detail::temporal_key(
-        u, march_defines(st.skip_empty, st.early_exit, flash_on, glow_on, u.statics, u.sun, u.detail, u.rain));
+        u, march_defines(st.skip_empty, st.early_exit, flash_on, glow_on, u.statics, u.sun, u.detail, u.rain, -1, -1,
+                         false, st.ground_rain_map && st.ground && u.rain));
     const bool valid = h.has_history && !h.inputs_changed && plan.key == h.key && h.source.valid() &&
                        h.channel.valid() && detail::camera_continues(h.camera, camera);
     const bool still = valid && detail::same_camera(camera, h.camera);
@@ -219,14 +220,16 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
         return;
     }
     timer.begin(kMarch);
-    const int grid = stride == 3 ? 2 : stride == 2 ? plan.block : stride;  // every grid-th pixel marched
+    const int grid = plan.grid();
 
     const int iw = u.internal_width, ih = u.internal_height;
     const int fw = (iw - phase.x + grid - 1) / grid, fh = (ih - phase.y + grid - 1) / grid;
     h.fresh.ensure(fw, fh, 3);
     ground_rain_pass(u);
-    const GLuint march = program(
-        "march_groups", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "march_groups.frag"}}, defines);
+    // The glow pass drew only the marched pixels (glow_pass): the march reads them in place.
+    const GLuint march =
+        program("march_groups", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "march_groups.frag"}},
+                defines + (grid > 1 ? "#define GLOW_ON_GRID 1\n" : ""));
     glUseProgram(march);
     glUniform3i(glGetUniformLocation(march, "u_grid"), grid, phase.x, phase.y);
     glBindFramebuffer(GL_FRAMEBUFFER, h.fresh.fbo);

@@ -185,6 +185,7 @@ Renderer::~Renderer() {
     m.endpoint_buf.release();
     m.glow_buf.release();
     m.glow_target.release();
+    m.glow_grid_target.release();
     m.march_target.release();
     m.core_target.release();
     m.hdr_target.release();
@@ -545,7 +546,7 @@ FrameStats Renderer::Impl::run_frame(const Camera& camera, const Settings& st, i
     const bool reuse = plan && plan->stride == 0;  // the history holds the march, the glow in it
     if (reuse) plan->glare_sum = m.glare_groups_ready(camera, st, u);
     m.resolve_pass(camera.position, st, u, timer, stats, !reuse);
-    m.glow_pass(st, u, timer, stats, !reuse);
+    m.glow_pass(st, u, timer, stats, !reuse, plan ? &*plan : nullptr);
     if (plan)
         m.temporal_march_pass(camera, std::move(*plan), u, timer, stats);
     else

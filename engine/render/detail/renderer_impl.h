@@ -115,7 +115,8 @@ struct Renderer::Impl {
 
     // Targets
     detail::Target glow_target, march_target, core_target, hdr_target;
-    detail::Target display_target;  // the march's frame as display values (RGBA8, internal size; pass_composite.cpp)
+    detail::Target glow_grid_target;  // the glow at a temporal plan's marched pixels only
+    detail::Target display_target;    // the march's frame as display values (RGBA8, internal size; pass_composite.cpp)
     std::vector<detail::Target> glare_down, glare_up;  // the glare pyramid's levels (pass_glare.cpp)
     GlareFit glare_fit;
     detail::TemporalState temporal;            // the temporal history (pass_temporal.cpp)
@@ -270,9 +271,10 @@ struct Renderer::Impl {
     /// textures are bound, S stays to be resolved.
     void resolve_pass(const glm::dvec3& camera, const Settings& st, const detail::FrameUniforms& u,
                       detail::PassTimer& timer, FrameStats& stats, bool resolve = true);
-    /// `draw` false: the glow is not needed this frame (a reused history holds it).
+    /// `draw` false: the glow is not needed this frame (a reused history holds it). With a
+    /// temporal plan that marches a grid of the pixels, only those are drawn (glow_grid_target).
     void glow_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer, FrameStats& stats,
-                   bool draw = true);
+                   bool draw = true, const detail::TemporalPlan* plan = nullptr);
     void march_pass(const Settings& st, const detail::FrameUniforms& u, detail::PassTimer& timer);
     /// The ground lights' rain transmittance map (FrameUniforms::ground_rain_map), made when the
     /// lights, the ground or the rain changed, bound on unit 12 for the march; the march's timer slot.

@@ -55,6 +55,9 @@ struct TemporalPlan {
     bool glare_sum = false;
     std::string defines;
     TemporalKey key;
+    /// Every grid()-th pixel of each row and column is marched, from `phase` (strides 2 and 3;
+    /// 1: every pixel).
+    int grid() const { return stride == 3 ? 2 : stride == 2 ? block : 1; }
 };
 
 struct TemporalState {
