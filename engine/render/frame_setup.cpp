@@ -22,7 +22,6 @@ using detail::FrameUniforms;
 
 namespace {
 
-constexpr int kMaxGroundLights = 8;
 // The channel below the rain's top as this many point lights (the rain's light per sample loops
 // over them; 4 instead of 8 saves nothing measurable on fulgur-bench render: the rain's cost is
 // its marched volume, where the dry march skipped empty space).
@@ -193,7 +192,7 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
     if (st.ground || u.rain) {
         if (ground_lights_k != st.ground_lights || ground_lights_height != st.ground_height)
             rebuild_ground_lights(st.ground_lights, st.ground_height);
-        for (std::size_t i = 0; i < ground_lights.size() && i < kMaxGroundLights; ++i)
+        for (std::size_t i = 0; i < ground_lights.size() && i < std::size_t(detail::kMaxGroundLights); ++i)
             f.ground_light[i] = ground_lights[i];
         f.ground_params = glm::vec4(float(st.ground_height), float(st.ground_albedo / std::numbers::pi),
                                     st.ground ? 1.0f : 0.0f, float(ground_lights.size()));

@@ -34,7 +34,6 @@ constexpr int kRadii = 96;
 // kMaxSamples (a path of 6.4 km or more of rain below its top is sampled coarser).
 constexpr int kVoxelsPerSample = 1;
 constexpr int kMaxSamples = 64;
-constexpr int kLayers = 8;  // the frame block's ground lights
 
 }  // namespace
 
@@ -50,7 +49,7 @@ void Renderer::Impl::ground_rain_pass(const FrameUniforms& u) {
     key.push_back(f.ground_params.x);
     if (!ground_rain_tex) {
         glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &ground_rain_tex);
-        glTextureStorage3D(ground_rain_tex, 1, GL_R32F, kAzimuths, kRadii, kLayers);
+        glTextureStorage3D(ground_rain_tex, 1, GL_R32F, kAzimuths, kRadii, detail::kMaxGroundLights);
         glTextureParameteri(ground_rain_tex, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
         glTextureParameteri(ground_rain_tex, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
         glTextureParameteri(ground_rain_tex, GL_TEXTURE_WRAP_S, GL_REPEAT);  // the azimuth goes round

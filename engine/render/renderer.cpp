@@ -67,7 +67,7 @@ void validate_settings(const Settings& st) {
     range(st.detail_step_billows, 0.0, 64.0, false, "detail_step_billows");
     range(st.min_transmittance, 0.0, 0.5, false, "min_transmittance");
     range(st.ground_albedo, 0.0, 1.0, false, "ground_albedo");
-    range(double(st.ground_lights), 0.0, 8.0, false, "ground_lights");
+    range(double(st.ground_lights), 0.0, double(detail::kMaxGroundLights), false, "ground_lights");
     for (int c = 0; c < 3; ++c) {
         range(st.sky_zenith[c], 0.0, inf, false, "sky_zenith");
         range(st.sky_horizon[c], 0.0, inf, false, "sky_horizon");

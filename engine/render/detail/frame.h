@@ -16,6 +16,9 @@
 
 namespace fulgur::render::detail {
 
+/// The ground's point lights the frame block holds (ground_light[] in shaders/common.glsl).
+inline constexpr int kMaxGroundLights = 8;
+
 /// Mirror of the std140 block `Frame` in shaders/common.glsl (vec4/mat4 members only, so
 /// the C++ layout equals std140).
 struct FrameBlock {
@@ -23,7 +26,7 @@ struct FrameBlock {
     glm::vec4 cam_pos{0.0f}, cam_fwd{0.0f}, cam_right{0.0f}, cam_up{0.0f};
     glm::vec4 vol_min{0.0f}, vol_size{0.0f}, lit_min{0.0f}, lit_size{1.0f};
     glm::vec4 march_params{0.0f}, sizes{0.0f}, ground_params{0.0f};
-    glm::vec4 ground_light[8]{};
+    glm::vec4 ground_light[kMaxGroundLights]{};
     glm::vec4 sky_params{0.0f}, glow_params{0.0f}, light_colour{0.0f};
     glm::ivec4 counts{0};
     glm::vec4 sky_zenith{0.0f}, sky_horizon{0.0f};
