@@ -46,6 +46,7 @@
 #include "support/synthetic_storm.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <thread>
@@ -83,6 +84,27 @@ double radiance_rel_rms(const std::vector<float>& a, const std::vector<float>& r
         den.add(double(ref[i]) * double(ref[i]));
     }
     return den.value() > 0.0 ? std::sqrt(num.value() / den.value()) : 0.0;
+}
+
+/// Two march images as a viewer sees them: each pixel's radiance at `exposure` through the
+/// composite's display transform (render::display_levels), the largest channel difference in
+/// 8-bit levels: its mean over the pixels and the share of pixels more than 2 levels apart.
+struct DisplayDiff {
+    double mean_levels = 0.0, over_2 = 0.0;
+};
+DisplayDiff display_diff(const std::vector<float>& a, const std::vector<float>& ref, double exposure) {
+    core::CompensatedSum sum;
+    std::size_t over = 0;
+    const std::size_t n = a.size() / 4;
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::array<int, 3> x = render::display_levels({a[4 * i], a[4 * i + 1], a[4 * i + 2]}, exposure);
+        const std::array<int, 3> y = render::display_levels({ref[4 * i], ref[4 * i + 1], ref[4 * i + 2]}, exposure);
+        int d = 0;
+        for (std::size_t c = 0; c < 3; ++c) d = std::max(d, std::abs(x[c] - y[c]));
+        sum.add(double(d));
+        over += d > 2;
+    }
+    return {n ? sum.value() / double(n) : 0.0, n ? double(over) / double(n) : 0.0};
 }
 
 /// Largest absolute transmittance difference.
@@ -222,7 +244,8 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                         const bool temporal = mode > 0;
                         if (mode == 2 && (!orbit || !flash)) continue;  // no light groups to fill otherwise
                         if (mode == 3 && !orbit) continue;
-                        std::vector<double> wall, cpu, error, jitter_noise, exposure;
+                        std::vector<double> wall, cpu, error, jitter_noise, exposure, shown;
+                        std::vector<double> display_mean, display_over2, display_noise_mean, display_noise_over2;
                         std::vector<render::PassTimes> passes;
                         int steps[4] = {0, 0, 0, 0};
                         st.temporal = temporal;
@@ -250,6 +273,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             cpu.push_back(process_cpu_ms() - cpu0);
                             passes.push_back(stats.wall);
                             exposure.push_back(stats.metered_exposure);
+                            shown.push_back(stats.exposure);
                             ++steps[int(stats.temporal)];
                             int w = 0, h = 0;
                             if (temporal) kept.push_back(r.read_march(w, h));
@@ -263,10 +287,18 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             int w = 0, h = 0;
                             const std::vector<float> fresh_march = r.read_march(w, h);
                             error.push_back(radiance_rel_rms(kept[std::size_t(i)], fresh_march));
+                            const DisplayDiff shown_diff =
+                                display_diff(kept[std::size_t(i)], fresh_march, shown[std::size_t(i)]);
+                            display_mean.push_back(shown_diff.mean_levels);
+                            display_over2.push_back(shown_diff.over_2);
                             // The jitter's own noise: the same frame marched with another frame's jitter.
                             fresh.frame_index += 2;
                             r.render(cam, fresh, size.x, size.y);
-                            jitter_noise.push_back(radiance_rel_rms(r.read_march(w, h), fresh_march));
+                            const std::vector<float> other = r.read_march(w, h);
+                            jitter_noise.push_back(radiance_rel_rms(other, fresh_march));
+                            const DisplayDiff noise_diff = display_diff(other, fresh_march, shown[std::size_t(i)]);
+                            display_noise_mean.push_back(noise_diff.mean_levels);
+                            display_noise_over2.push_back(noise_diff.over_2);
                         }
                         // Without the history: each frame's exposure metered at every pixel
                         // (Settings::meter_stride 1) against the timed frames' (the default).
@@ -325,9 +357,16 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             row["error_vs_fresh_median"] = bench::median(error);
                             row["error_vs_fresh_max"] = *std::max_element(error.begin(), error.end());
                             row["jitter_noise_median"] = bench::median(jitter_noise);
+                            row["display_levels_mean_median"] = bench::median(display_mean);
+                            row["display_over_2_levels_median"] = bench::median(display_over2);
+                            row["display_jitter_noise_levels_mean_median"] = bench::median(display_noise_mean);
+                            row["display_jitter_noise_over_2_levels_median"] = bench::median(display_noise_over2);
                             row["error"] =
                                 "relative L2 of the march's radiance against a fresh render of the frame; "
-                                "jitter_noise: a fresh render with another frame's jitter against it";
+                                "jitter_noise: a fresh render with another frame's jitter against it; display_*: "
+                                "both marches at the frame's exposure through the display transform, the largest "
+                                "channel difference in 8-bit levels per pixel, its mean and the share of pixels "
+                                "over 2 levels (medians over the frames)";
                         }
                         ctx.emit("render", row);
                     }

@@ -435,6 +435,17 @@ double glare_level_sigma(int k) noexcept;
 inline constexpr int kGlareWideFrom = 2;
 
 // ---------------------------------------------------------------------------------------
+// Display
+
+/// The composite's display transform (shaders/tonemap.glsl) on the CPU, without the dither:
+/// `radiance` (linear sRGB, W m^-2 sr^-1) times `exposure` through the ACES filmic fit, sRGB
+/// encoded by the shader's own approximation of the power, as 8-bit levels (0-255, rounded).
+/// To compare frames as a viewer sees them: two radiance images at the same exposure
+/// (fulgur-bench render's display errors). Within a level of the composite's output
+/// (test_render_images: float32 against double).
+std::array<int, 3> display_levels(const glm::dvec3& radiance, double exposure) noexcept;
+
+// ---------------------------------------------------------------------------------------
 // Output
 
 /// Times of one frame's passes, milliseconds (0 for passes that did not run).

@@ -164,3 +164,48 @@ TEST_CASE(
     CHECK(display_mean <= 1.3 * radiance_mean);
     CHECK(display_rms <= radiance_rms);
 }
+
+TEST_CASE("the display transform on the CPU is the composite's") {
+    // The synthetic storm marched at the output's resolution, without dither, glare, stars or
+    // the channel's core (the composite adds nothing to the march's radiance but the exposure,
+    // the tone map and the encoding) at a fixed exposure: render::display_levels of each
+    // march pixel against the frame the composite wrote.
+    const int W = 192, H = 108;
+    render::Renderer& r = test::gl_renderer();
+    const synthetic::Storm storm = synthetic::storm({64, 64, 48}, 200.0);
+    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
+    r.upload_source(synthetic::needed_upload(r, storm));
+    r.set_channel(storm.bolt);
+    render::Settings st = storm.settings;
+    st.internal_scale = 1.0;
+    st.dither = st.glare = st.bolt = false;
+    st.star_radiance = 0.0;
+    st.auto_exposure = true;
+    const double exposure = test::render_at(r, storm.camera, st, W, H).exposure;
+    st.auto_exposure = false;
+    st.exposure = exposure;
+    test::render_at(r, storm.camera, st, W, H);
+    const std::vector<std::uint8_t> rgba = test::gl_context().read_rgba8();
+    int w = 0, h = 0;
+    const std::vector<float> march = r.read_march(w, h);
+    REQUIRE(w == W);
+    REQUIRE(h == H);
+    int worst = 0;
+    std::vector<bool> seen(256, false);
+    for (std::size_t i = 0; i < std::size_t(W) * H; ++i) {
+        const std::array<int, 3> levels =
+            render::display_levels({march[4 * i], march[4 * i + 1], march[4 * i + 2]}, exposure);
+        for (std::size_t c = 0; c < 3; ++c) {
+            worst = std::max(worst, std::abs(levels[c] - int(rgba[4 * i + c])));
+            seen[std::size_t(rgba[4 * i + c])] = true;
+        }
+    }
+    const auto distinct = std::count(seen.begin(), seen.end(), true);
+    MESSAGE("display levels on the CPU against the composite's: worst ", worst, " levels over ", distinct,
+            " distinct levels");
+    CHECK(distinct > 100);  // the frame spans the tone curve, not a few levels of it
+    // float32 on the GPU against double here: a value on a rounding boundary moves by one level.
+    CHECK(worst <= 1);
+    r.set_channel({});
+    r.clear_source();
+}
