@@ -18,7 +18,9 @@
 //   resolve   S_cam(x_i) = sum_m w_m(normalize(camera - x_i)) S_m(x_i) on the lighting grid
 //             (compute shader; only when S or the camera changed; skipped for 1 direction)
 //   glow      texture-mapped glow quads along the strokes -> emission buffer (internal res)
-//   march     ray march at internal resolution -> (in-scattered + attenuated glow, T)
+//   march     ray march at internal resolution -> (in-scattered + attenuated glow, T); first,
+//             with rain, the rain's transmittance toward each ground light on a map (compute,
+//             made when the lights or the rain change)
 //   bolt      bright HDR core ribbons at full resolution, attenuated per vertex
 //   meter     (automatic exposure) a luminance histogram of the march, read back
 //   composite upsample + background (sky, stars, ground) * T + bolt -> filmic tone map
