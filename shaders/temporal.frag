@@ -25,6 +25,12 @@
 #ifndef REPROJECT_LIGHT
 #define REPROJECT_LIGHT 1
 #endif
+// REPROJECT_CLOUD (STRIDE 2): 1 the cloud's group (its transmittance and the static light)
+// reprojected through the cloud's or the background's depth; 0 upsampled from this frame's
+// marched pixels, as the light groups where Settings::temporal_light upsamples them.
+#ifndef REPROJECT_CLOUD
+#define REPROJECT_CLOUD 1
+#endif
 // BLOCK (STRIDE 2): 2 or 4 (Settings::temporal_moving_block).
 #ifndef BLOCK
 #define BLOCK 2
@@ -155,12 +161,14 @@ void main() {
         // flashes, orbiting, 160x90 marched: 11.4% -> 6.3% from a fresh render). The lights' four
         // measured 3.8% -> 3.7% at 1280x720 for +8-12 ms of this pass there: not taken.
         Candidate cloud = Candidate(kBig, vec2(0.0), 0.0), flash = cloud, channel = cloud;
+#if REPROJECT_CLOUD
         ivec2 k0 = ivec2(floor((vec2(p) - vec2(u_phase)) / float(BLOCK)));
         for (int j = 0; j < 2; ++j)
             for (int i = 0; i < 2; ++i) {
                 vec4 f = imageLoad(i_fresh_flash, clamp(k0 + ivec2(i, j), ivec2(0), textureSize(u_fresh_flash, 0) - 1));
                 consider(cloud, f.y <= 0.9, f.w, A, B, motion, 0);
             }
+#endif
 #if REPROJECT_LIGHT
         ivec2 k = min(p / BLOCK, textureSize(u_fresh_flash, 0) - 1);
         float zf = imageLoad(i_fresh_channel, k).w, zc = imageLoad(i_fresh_statics, k).w;
@@ -170,8 +178,10 @@ void main() {
         // The pixel's own background only where the cloud's depth found nothing: a sky that
         // the history saw in this direction agrees exactly (no depth to differ), so tried
         // first it would take every pixel of a cloud's edge that the history saw beside it.
+#if REPROJECT_CLOUD
         float tg = ground_distance(cam_pos.xyz, d);
         consider(cloud, cloud.err >= kBig, tg < kBig ? tg : -1.0, A, B, motion, 0);
+#endif
         // Each group from the history where its depth was found, else from the marched pixels.
         vec2 fuv = ((pixel - vec2(u_phase) - 0.5) / float(BLOCK) + 0.5) / vec2(textureSize(u_fresh_flash, 0));
         vec4 fresh_flash = textureLod(u_fresh_flash, fuv, 0.0);

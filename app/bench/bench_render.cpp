@@ -218,9 +218,13 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
         st.timing = render::Timing::Queries;  // per-pass GPU times; render() waits for them at its end
         double baseline = 0.0;
         constexpr double kOrbitFov = 55.0;  // the orbiting camera's vertical field of view (degrees)
-        // Whether the default (TemporalLight::Auto) upsamples an orbiting frame's light at this size.
-        const bool auto_upsamples = render::temporal_upsamples_light(
-            render::TemporalLight::Auto, kOrbitFov, std::max(1, int(std::lround(size.y * st.internal_scale))));
+        // Whether the default (TemporalLight::Auto) fills an orbiting frame's pixels not marched
+        // from the marched ones (else from the history, reprojected), marching one of each
+        // `block` x `block`.
+        const auto auto_upsamples = [&](int block) {
+            return render::temporal_upsamples_light(render::TemporalLight::Auto, kOrbitFov,
+                                                    std::max(1, int(std::lround(size.y * st.internal_scale))), block);
+        };
         // During a flash (the return stroke's decay; no static light), then between flashes:
         // the static light alone (the storm's S, x 1e-3, as a grey moonlit field on the
         // lighting grid), no flash S, no channel, so no glow, bolt or glare: what most of a
@@ -238,21 +242,26 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                               .rain = effects ? &rain : nullptr});
                 for (const bool orbit : {false, true})
                     for (const int mode : {0, 1, 2, 3}) {
-                        // 0 without the history, 1 with it, 2 with it and the light groups
-                        // upsampled instead of reprojected, 3 with it marching one pixel of each
-                        // 4x4 block (the light as Auto picks): a moving camera's knobs only.
+                        // 0 without the history, 1 with it (the default: the pixels not marched
+                        // filled as TemporalLight::Auto picks), 2 with them filled the other way
+                        // (reprojected where Auto upsamples, upsampled where it reprojects), 3
+                        // marching one pixel of each 4x4 block between flashes (filled as Auto
+                        // picks): a moving camera's knobs only.
                         const bool temporal = mode > 0;
-                        if (mode == 2 && (!orbit || !flash)) continue;  // no light groups to fill otherwise
-                        if (mode == 3 && !orbit) continue;
+                        if ((mode == 2 || mode == 3) && !orbit) continue;
+                        if (mode == 3 && flash) continue;  // a flash marches a quarter: mode 1's frames
                         std::vector<double> wall, cpu, error, jitter_noise, exposure, shown;
                         std::vector<double> display_mean, display_over2, display_noise_mean, display_noise_over2;
                         std::vector<render::PassTimes> passes;
                         int steps[4] = {0, 0, 0, 0};
                         st.temporal = temporal;
-                        st.temporal_light = mode == 2   ? render::TemporalLight::Upsample
-                                            : mode == 3 ? render::TemporalLight::Auto
-                                                        : render::TemporalLight::Reproject;
                         st.temporal_moving_block = mode == 3 ? 4 : 2;
+                        // The block a frame marches: a sixteenth only between flashes.
+                        const int block = mode == 3 && !flash ? 4 : 2;
+                        const bool upsampled = mode == 2 ? !auto_upsamples(block) : auto_upsamples(block);
+                        st.temporal_light =
+                            mode == 2 ? (upsampled ? render::TemporalLight::Upsample : render::TemporalLight::Reproject)
+                                      : render::TemporalLight::Auto;
                         // Frame i (from -2: two frames to compile and fault pages in): its flash and camera.
                         auto show_frame = [&](int i) {
                             if (flash) show_flash(r, std::exp(-(i + 2) / 8.0));
@@ -321,9 +330,11 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             {"temporal", temporal},
                             // With no flash the light groups are zero and never reprojected; the 4x4
                             // block marches only then (a quarter during a flash).
-                            {"light_reprojected", flash && (mode == 1 || (mode == 3 && !auto_upsamples))},
-                            {"moving_block", mode == 3 && !flash ? 4 : 2},
-                            {"auto_upsamples_light", auto_upsamples},  // what the default does here
+                            // A moving camera's pixels not marched: upsampled from the marched
+                            // ones or reprojected from the history; and what the default does.
+                            {"fill", orbit && temporal ? (upsampled ? "upsample" : "reproject") : "none"},
+                            {"default_fill", auto_upsamples(block) ? "upsample" : "reproject"},
+                            {"moving_block", block},
                             {"frame_ms", ms},
                             {"fps", 1000.0 / ms},
                             {"frame_cpu_ms", bench::median(cpu)},

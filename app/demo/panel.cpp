@@ -186,13 +186,13 @@ void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& r
             "marches nothing while the flash only dims, a moving one a quarter of the pixels");
     if (opt.settings.temporal) {
         int mode = int(opt.settings.temporal_light);
-        if (ImGui::Combo("moving camera's light", &mode, "auto\0reproject\0upsample\0"))
+        if (ImGui::Combo("moving camera's fill", &mode, "auto\0reproject\0upsample\0"))
             opt.settings.temporal_light = render::TemporalLight(mode);
         if (ImGui::IsItemHovered())
             ImGui::SetTooltip(
-                "a moving camera's flash and channel light in the pixels not marched: reprojected from the "
-                "history, or upsampled from the marched quarter (nearer a fresh render where the marched pixels "
-                "are close together: 1280x720 and above); auto picks by their spacing on screen");
+                "a moving camera's pixels not marched: reprojected from the history, or upsampled from the "
+                "marched quarter (nearer a fresh render and faster where the marched pixels are close together: "
+                "1280x720 and above); auto picks by their spacing on screen");
         bool sixteenth = opt.settings.temporal_moving_block == 4;
         if (ImGui::Checkbox("moving camera marches a sixteenth between flashes", &sixteenth))
             opt.settings.temporal_moving_block = sixteenth ? 4 : 2;

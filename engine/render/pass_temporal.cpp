@@ -159,9 +159,14 @@ detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const S
     plan.phase = plan.stride == 2 && plan.block == 4 ? kPhases16[h.frames % 16]
                  : plan.stride >= 2                  ? kPhases[h.frames % 4]
                                                      : glm::ivec2(0);
-    // With no flash or channel light the light groups are zero either way: the cheaper resolve.
-    plan.reproject_light = !flash_dark && !temporal_upsamples_light(st.temporal_light, camera.vertical_fov_deg,
-                                                                    u.internal_height, plan.block);
+    // Upsampled or reprojected, by the same rule for every group: where the marched pixels are
+    // close together on screen upsampling them is the nearer a fresh render for the cloud's group
+    // too (docs/render.md). With no flash or channel light the light groups are zero either way:
+    // the cheaper resolve.
+    const bool upsample =
+        temporal_upsamples_light(st.temporal_light, camera.vertical_fov_deg, u.internal_height, plan.block);
+    plan.reproject_light = !flash_dark && !upsample;
+    plan.reproject_cloud = !upsample;
     return plan;
 }
 
@@ -254,6 +259,7 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
         program("temporal", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "temporal.frag"}},
                 "#define STRIDE " + std::to_string(stride) + "\n" +
                     (stride == 2 ? std::string("#define REPROJECT_LIGHT ") + (plan.reproject_light ? "1" : "0") +
+                                       "\n#define REPROJECT_CLOUD " + (plan.reproject_cloud ? "1" : "0") +
                                        "\n#define BLOCK " + std::to_string(plan.block) + "\n"
                                  : std::string()));
     glUseProgram(p);

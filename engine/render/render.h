@@ -200,17 +200,20 @@ Camera camera_from_matrices(const glm::dmat4& view, const glm::dmat4& projection
 
 enum class MarchKernel { Fragment, Compute };
 
-/// How the temporal history fills the flash's and the channel's light of the pixels a moving
-/// camera does not march (Settings::temporal_light). Against a fresh render of each frame,
-/// orbiting the synthetic storm with a 55 degree field (docs/render.md, "Temporal history"):
-/// upsampled is the more accurate where the marched pixels are close together on screen (at
-/// 1280x720, every other internal pixel 0.31 degrees apart: 2.3% / 9.4% against 3.9% / 12.8%,
-/// plain / detail and rain, for about the same march time), reprojected where they are far apart (at
-/// 640x360, 0.61 degrees: 4.5% / 12.2% against 7.3% / 16.4%).
+/// How the temporal history fills the pixels a moving camera does not march
+/// (Settings::temporal_light): every light group (the flash's, the channel's and the cloud's,
+/// with its transmittance) reprojected from the history through its depth, or upsampled from
+/// this frame's marched pixels. Against a fresh render of each frame, orbiting the synthetic
+/// storm with a 55 degree field (docs/render.md, "Temporal history"): upsampled is the more
+/// accurate where the marched pixels are close together on screen (at 1280x720, every other
+/// internal pixel 0.31 degrees apart, during a flash: the light 2.3% / 9.4% against 3.9% /
+/// 12.8%, plain / detail and rain; between flashes 0.6% / 1.2% against 1.1% / 1.9%, and ~5 ms
+/// less of the resolve), reprojected where they are far apart (at 640x360, 0.61 degrees: the
+/// light 4.5% / 12.2% against 7.3% / 16.4%).
 enum class TemporalLight {
     Auto,       ///< Upsample when the marched pixels are at most kTemporalUpsampleDeg apart, else Reproject
-    Reproject,  ///< from the history, through their light's depth (where the history saw that light)
-    Upsample,   ///< bilinearly from this frame's marched pixels
+    Reproject,  ///< from the history, each group through its depth (where the history saw it)
+    Upsample,   ///< bilinearly from this frame's marched pixels, every group
 };
 
 /// The marched pixels' spacing (degrees, vertically) at or below which TemporalLight::Auto
@@ -218,7 +221,7 @@ enum class TemporalLight {
 /// better) degrees, at their geometric mean.
 inline constexpr double kTemporalUpsampleDeg = 0.44;
 
-/// Whether a moving camera's frame upsamples the light groups (true) or reprojects them:
+/// Whether a moving camera's frame upsamples its pixels not marched (true) or reprojects them:
 /// `mode`, and for Auto the spacing of the marched pixels, every `block`-th pixel (2 or 4:
 /// Settings::temporal_moving_block) of a march `march_height` pixels high over `vertical_fov_deg`.
 constexpr bool temporal_upsamples_light(TemporalLight mode, double vertical_fov_deg, int march_height, int block = 2) {
@@ -290,8 +293,8 @@ struct Settings {
     /// group's shape (a leader's front, another strike, the static light, any other input or
     /// setting) marches every pixel. The fragment kernel; not with render_into_host.
     bool temporal = false;
-    /// With the temporal history and a moving camera: how the flash's and the channel's light
-    /// of the pixels not marched is filled (the cloud's group is reprojected either way).
+    /// With the temporal history and a moving camera: how the pixels not marched are filled
+    /// (every light group and the cloud's transmittance alike).
     TemporalLight temporal_light = TemporalLight::Auto;
     /// With the temporal history and a moving camera: one pixel of each N x N block is marched
     /// per frame, the rest reprojected. 2: a quarter, every pixel fresh every 4 frames. 4: a
