@@ -289,7 +289,8 @@ struct Settings {
     /// per group (the flash's S, the channel's direct light, the static light) with the
     /// transmittances and a depth. A frame whose groups changed only in intensity rescales
     /// the history: a still camera marches nothing, a moving one a quarter of the pixels (a
-    /// 2x2 block's pixels in turn) and reprojects the rest through their depth. A change in a
+    /// 2x2 block's pixels in turn) and fills the rest from the history reprojected through
+    /// their depth or from the marched pixels (temporal_light). A change in a
     /// group's shape (a leader's front, another strike, the static light, any other input or
     /// setting) marches every pixel. The fragment kernel; not with render_into_host.
     bool temporal = false;
@@ -297,11 +298,12 @@ struct Settings {
     /// (every light group and the cloud's transmittance alike).
     TemporalLight temporal_light = TemporalLight::Auto;
     /// With the temporal history and a moving camera: one pixel of each N x N block is marched
-    /// per frame, the rest reprojected. 2: a quarter, every pixel fresh every 4 frames. 4: a
-    /// sixteenth between flashes (no flash S, no channel), every 16 frames, and a quarter during
-    /// a flash (at 1280x720 orbiting with detail and rain, between flashes 36 ms and 4.1% from a
-    /// fresh render against 56 ms and 1.9%; during a flash a sixteenth erred by 24%:
-    /// docs/render.md). A camera that stops marches its quarters in turn either way.
+    /// per frame, the rest filled (temporal_light). 2: a quarter, every pixel fresh every 4
+    /// frames. 4: a sixteenth between flashes (no flash S, no channel), every 16 frames, and a
+    /// quarter during a flash (at 1280x720 orbiting with detail and rain, between flashes 22.8 ms
+    /// and 4.0% from a fresh render against the quarter's 28 ms and 1.2%; during a flash a
+    /// sixteenth erred by 24%, 0.72 levels of 255 as displayed against 0.16: docs/render.md). A
+    /// camera that stops marches its quarters in turn either way.
     int temporal_moving_block = 2;
     std::uint32_t frame_index = 0;  ///< varies the jitter pattern between frames (deterministic)
     // Effects
