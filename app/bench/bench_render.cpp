@@ -107,6 +107,28 @@ DisplayDiff display_diff(const std::vector<float>& a, const std::vector<float>& 
     return {n ? sum.value() / double(n) : 0.0, n ? double(over) / double(n) : 0.0};
 }
 
+/// Writes `path`: a fresh march, the history's march of the same frame and their difference
+/// (x8, the largest channel's, in levels) side by side, each through the display transform
+/// at `exposure` (the picture docs/render.md shows of a moving camera's frame).
+void write_comparison(const std::filesystem::path& path, const std::vector<float>& fresh,
+                      const std::vector<float>& kept, int w, int h, double exposure) {
+    std::vector<std::uint8_t> px(std::size_t(3 * w) * std::size_t(h) * 4, 255);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const std::size_t at = (std::size_t(y) * std::size_t(w) + std::size_t(x)) * 4;
+            const std::array<int, 3> a = render::display_levels({fresh[at], fresh[at + 1], fresh[at + 2]}, exposure);
+            const std::array<int, 3> b = render::display_levels({kept[at], kept[at + 1], kept[at + 2]}, exposure);
+            int d = 0;
+            for (std::size_t c = 0; c < 3; ++c) d = std::max(d, std::abs(a[c] - b[c]));
+            for (int panel = 0; panel < 3; ++panel) {
+                const std::size_t out = (std::size_t(y) * std::size_t(3 * w) + std::size_t(panel * w + x)) * 4;
+                for (std::size_t c = 0; c < 3; ++c)
+                    px[out + c] = std::uint8_t(panel == 0 ? a[c] : panel == 1 ? b[c] : std::min(255, 8 * d));
+            }
+        }
+    core::write_png(path, 3 * w, h, 4, px);
+}
+
 /// Largest absolute transmittance difference.
 double transmittance_max_err(const std::vector<float>& a, const std::vector<float>& ref) {
     double e = 0.0;
@@ -298,6 +320,14 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             error.push_back(radiance_rel_rms(kept[std::size_t(i)], fresh_march));
                             const DisplayDiff shown_diff =
                                 display_diff(kept[std::size_t(i)], fresh_march, shown[std::size_t(i)]);
+                            // FULGUR_BENCH_DEMO_IMAGES=DIR: an orbiting frame with detail and rain
+                            // during a flash, fresh | the history's | difference.
+                            if (const char* dir = std::getenv("FULGUR_BENCH_DEMO_IMAGES");
+                                dir && orbit && flash && effects && i == 6)
+                                write_comparison(
+                                    std::filesystem::path(dir) / ("demo-orbit-" + std::to_string(size.x) + "-" +
+                                                                  (upsampled ? "upsample" : "reproject") + ".png"),
+                                    fresh_march, kept[std::size_t(i)], w, h, shown[std::size_t(i)]);
                             display_mean.push_back(shown_diff.mean_levels);
                             display_over2.push_back(shown_diff.over_2);
                             // The jitter's own noise: the same frame marched with another frame's jitter.
