@@ -34,6 +34,8 @@
 //   case "static_grid": the static light on the lighting grid and on a 3x finer one: upload,
 //                  resolve and frame of a moving camera (FULGUR_BENCH_STATIC_GRID=1: these alone).
 //   FULGUR_BENCH_DEMO_WIDTH=W runs only the demo rows, at output width W (640, 1280 or 1920).
+//   FULGUR_BENCH_DEMO_IMAGES=DIR also writes, for the orbiting rows with detail and rain during
+//   a flash, frame 6 marched afresh beside the history's and their difference (PNG in DIR).
 // llvmpipe uses LP_NUM_THREADS threads (default: all cores); the row says how many.
 #include "bench/bench.h"
 
