@@ -211,22 +211,26 @@ enum class MarchKernel { Fragment, Compute };
 /// less of the resolve), reprojected where they are far apart (at 640x360, 0.61 degrees: the
 /// light 4.5% / 12.2% against 7.3% / 16.4%).
 enum class TemporalLight {
-    Auto,       ///< Upsample when the marched pixels are at most kTemporalUpsampleDeg apart, else Reproject
+    Auto,       ///< Upsample when every other internal pixel is at most kTemporalUpsampleDeg apart, else Reproject
     Reproject,  ///< from the history, each group through its depth (where the history saw it)
     Upsample,   ///< bilinearly from this frame's marched pixels, every group
 };
 
-/// The marched pixels' spacing (degrees, vertically) at or below which TemporalLight::Auto
-/// upsamples: between the two measured sizes, 0.31 (upsampling better) and 0.61 (reprojecting
-/// better) degrees, at their geometric mean.
+/// The angle (degrees, vertically) between every other internal pixel at or below which
+/// TemporalLight::Auto upsamples, a quarter or a sixteenth marched alike: between the two
+/// measured internal resolutions, 0.31 (1280x720 at a 55 degree field: upsampling better, a
+/// quarter and a sixteenth) and 0.61 (640x360: reprojecting better in radiance), at their
+/// geometric mean. A sixteenth's marched pixels are twice as far apart, but its history is four
+/// times older: at 1280x720 its frames upsampled are the nearer a fresh render too (3.3% against
+/// 4.0%; docs/render.md).
 inline constexpr double kTemporalUpsampleDeg = 0.44;
 
 /// Whether a moving camera's frame upsamples its pixels not marched (true) or reprojects them:
-/// `mode`, and for Auto the spacing of the marched pixels, every `block`-th pixel (2 or 4:
-/// Settings::temporal_moving_block) of a march `march_height` pixels high over `vertical_fov_deg`.
-constexpr bool temporal_upsamples_light(TemporalLight mode, double vertical_fov_deg, int march_height, int block = 2) {
+/// `mode`, and for Auto the angle between every other pixel of a march `march_height` pixels
+/// high over `vertical_fov_deg`.
+constexpr bool temporal_upsamples_light(TemporalLight mode, double vertical_fov_deg, int march_height) {
     if (mode != TemporalLight::Auto) return mode == TemporalLight::Upsample;
-    return march_height > 0 && double(block) * vertical_fov_deg / double(march_height) <= kTemporalUpsampleDeg;
+    return march_height > 0 && 2.0 * vertical_fov_deg / double(march_height) <= kTemporalUpsampleDeg;
 }
 /// What the temporal history did in a frame (Settings::temporal).
 enum class TemporalStep {
@@ -300,8 +304,8 @@ struct Settings {
     /// With the temporal history and a moving camera: one pixel of each N x N block is marched
     /// per frame, the rest filled (temporal_light). 2: a quarter, every pixel fresh every 4
     /// frames. 4: a sixteenth between flashes (no flash S, no channel), every 16 frames, and a
-    /// quarter during a flash (at 1280x720 orbiting with detail and rain, between flashes 22.8 ms
-    /// and 4.0% from a fresh render against the quarter's 28 ms and 1.2%; during a flash a
+    /// quarter during a flash (at 1280x720 orbiting with detail and rain, between flashes 17.4 ms
+    /// and 3.3% from a fresh render against the quarter's 28 ms and 1.2%; during a flash a
     /// sixteenth erred by 24%, 0.72 levels of 255 as displayed against 0.16: docs/render.md). A
     /// camera that stops marches its quarters in turn either way.
     int temporal_moving_block = 2;
