@@ -192,15 +192,15 @@ void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& r
             ImGui::SetTooltip(
                 "a moving camera's pixels not marched: reprojected from the history, or upsampled from the "
                 "marched quarter (nearer a fresh render and faster where the marched pixels are close together: "
-                "1280x720 and above); auto picks by their spacing on screen");
+                "1280x720 and above); auto picks by the march's pixel size on screen");
         bool sixteenth = opt.settings.temporal_moving_block == 4;
         if (ImGui::Checkbox("moving camera marches a sixteenth between flashes", &sixteenth))
             opt.settings.temporal_moving_block = sixteenth ? 4 : 2;
         if (ImGui::IsItemHovered())
             ImGui::SetTooltip(
                 "while no flash lights the frame, a moving camera marches one pixel of each 4x4 block instead of "
-                "each 2x2 (1280x720, detail and rain: ~1.5x faster, about twice the quarter's error against a "
-                "fresh render); during a flash a quarter either way");
+                "each 2x2 (1280x720, detail and rain: 28 -> 17 ms, 1.2% -> 3.3% from a fresh render, 0.04 -> 0.13 "
+                "levels as displayed); during a flash a quarter either way");
     }
 }
 
