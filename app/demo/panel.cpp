@@ -199,7 +199,7 @@ void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& r
         if (ImGui::IsItemHovered())
             ImGui::SetTooltip(
                 "while no flash lights the frame, a moving camera marches one pixel of each 4x4 block instead of "
-                "each 2x2 (1280x720, detail and rain: 28 -> 17 ms, 1.2% -> 3.3% from a fresh render, 0.04 -> 0.13 "
+                "each 2x2 (1280x720, detail and rain: 28 -> 17 ms, 1.2%% -> 3.3%% from a fresh render, 0.04 -> 0.13 "
                 "levels as displayed); during a flash a quarter either way");
     }
 }
