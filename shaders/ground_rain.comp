@@ -30,11 +30,9 @@ void main() {
     vec3 p = vec3(q.xy + r * vec2(cos(azimuth), sin(azimuth)), ground_params.x);
     // The segment p + t (q - p), t in [0, 1], clipped to the density's box and the rain's top.
     vec3 l = q - p;
-    vec3 inv = 1.0 / vec3(abs(l.x) < 1e-6 ? 1e-6 : l.x, abs(l.y) < 1e-6 ? 1e-6 : l.y, abs(l.z) < 1e-6 ? 1e-6 : l.z);
-    vec3 ta = (vol_min.xyz - p) * inv, tb = (vol_min.xyz + vol_size.xyz - p) * inv;
-    vec3 lo = min(ta, tb), hi = max(ta, tb);
-    float t0 = max(max(lo.x, lo.y), max(lo.z, 0.0));
-    float t1 = min(min(hi.x, hi.y), min(hi.z, 1.0));
+    float t0, t1;
+    ray_box(p, l, vol_min.xyz, vol_min.xyz + vol_size.xyz, t0, t1);
+    t1 = min(t1, 1.0);
     if (l.z > 1e-3) t1 = min(t1, (rain_params.z - p.z) / l.z);
     float tau = 0.0;
     if (t1 > t0) {
