@@ -88,9 +88,22 @@ double radiance_rel_rms(const std::vector<float>& a, const std::vector<float>& r
     return den.value() > 0.0 ? std::sqrt(num.value() / den.value()) : 0.0;
 }
 
-/// Two march images as a viewer sees them: each pixel's radiance at `exposure` through the
-/// composite's display transform (render::display_levels), the largest channel difference in
-/// 8-bit levels: its mean over the pixels and the share of pixels more than 2 levels apart.
+/// Pixel i (RGBA) of two march images as a viewer sees them: each radiance at `exposure`
+/// through the composite's display transform (render::display_levels), and the largest channel
+/// difference in 8-bit levels.
+struct ShownPixel {
+    std::array<int, 3> a, b;
+    int diff = 0;
+};
+ShownPixel shown_pixel(const std::vector<float>& a, const std::vector<float>& b, std::size_t i, double exposure) {
+    ShownPixel p{render::display_levels({a[4 * i], a[4 * i + 1], a[4 * i + 2]}, exposure),
+                 render::display_levels({b[4 * i], b[4 * i + 1], b[4 * i + 2]}, exposure)};
+    for (std::size_t c = 0; c < 3; ++c) p.diff = std::max(p.diff, std::abs(p.a[c] - p.b[c]));
+    return p;
+}
+
+/// Two march images as a viewer sees them (shown_pixel): the largest channel difference's mean
+/// over the pixels and the share of pixels more than 2 levels apart.
 struct DisplayDiff {
     double mean_levels = 0.0, over_2 = 0.0;
 };
@@ -99,10 +112,7 @@ DisplayDiff display_diff(const std::vector<float>& a, const std::vector<float>& 
     std::size_t over = 0;
     const std::size_t n = a.size() / 4;
     for (std::size_t i = 0; i < n; ++i) {
-        const std::array<int, 3> x = render::display_levels({a[4 * i], a[4 * i + 1], a[4 * i + 2]}, exposure);
-        const std::array<int, 3> y = render::display_levels({ref[4 * i], ref[4 * i + 1], ref[4 * i + 2]}, exposure);
-        int d = 0;
-        for (std::size_t c = 0; c < 3; ++c) d = std::max(d, std::abs(x[c] - y[c]));
+        const int d = shown_pixel(a, ref, i, exposure).diff;
         sum.add(double(d));
         over += d > 2;
     }
@@ -117,15 +127,11 @@ void write_comparison(const std::filesystem::path& path, const std::vector<float
     std::vector<std::uint8_t> px(std::size_t(3 * w) * std::size_t(h) * 4, 255);
     for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
-            const std::size_t at = (std::size_t(y) * std::size_t(w) + std::size_t(x)) * 4;
-            const std::array<int, 3> a = render::display_levels({fresh[at], fresh[at + 1], fresh[at + 2]}, exposure);
-            const std::array<int, 3> b = render::display_levels({kept[at], kept[at + 1], kept[at + 2]}, exposure);
-            int d = 0;
-            for (std::size_t c = 0; c < 3; ++c) d = std::max(d, std::abs(a[c] - b[c]));
+            const ShownPixel s = shown_pixel(fresh, kept, std::size_t(y) * std::size_t(w) + std::size_t(x), exposure);
             for (int panel = 0; panel < 3; ++panel) {
                 const std::size_t out = (std::size_t(y) * std::size_t(3 * w) + std::size_t(panel * w + x)) * 4;
                 for (std::size_t c = 0; c < 3; ++c)
-                    px[out + c] = std::uint8_t(panel == 0 ? a[c] : panel == 1 ? b[c] : std::min(255, 8 * d));
+                    px[out + c] = std::uint8_t(panel == 0 ? s.a[c] : panel == 1 ? s.b[c] : std::min(255, 8 * s.diff));
             }
         }
     core::write_png(path, 3 * w, h, 4, px);
@@ -358,8 +364,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             {"flash", flash},
                             {"effects", effects ? "detail+rain" : "none"},
                             {"temporal", temporal},
-                            // With no flash the light groups are zero and never reprojected; the 4x4
-                            // block marches only then (a quarter during a flash).
+                            // The 4x4 block marches only between flashes (a quarter during a flash).
                             // A moving camera's pixels not marched: upsampled from the marched
                             // ones or reprojected from the history; and what the default does.
                             {"fill", orbit && temporal ? (upsampled ? "upsample" : "reproject") : "none"},
