@@ -251,7 +251,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
         // Whether the default (TemporalLight::Auto) fills an orbiting frame's pixels not marched
         // from the marched ones (else from the history, reprojected), a quarter or a sixteenth
         // marched alike.
-        const bool auto_upsamples = render::temporal_upsamples_light(
+        const bool auto_upsamples = render::temporal_upsamples(
             render::TemporalLight::Auto, kOrbitFov, std::max(1, int(std::lround(size.y * st.internal_scale))));
         // During a flash (the return stroke's decay; no static light), then between flashes:
         // the static light alone (the storm's S, x 1e-3, as a grey moonlit field on the

@@ -163,7 +163,7 @@ detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const S
     // close together on screen upsampling them is the nearer a fresh render for the cloud's group
     // too (docs/render.md). With no flash or channel light the light groups are zero either way:
     // the cheaper resolve.
-    const bool upsample = temporal_upsamples_light(st.temporal_light, camera.vertical_fov_deg, u.internal_height);
+    const bool upsample = temporal_upsamples(st.temporal_light, camera.vertical_fov_deg, u.internal_height);
     plan.reproject_light = !flash_dark && !upsample;
     plan.reproject_cloud = !upsample;
     return plan;

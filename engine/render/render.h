@@ -228,7 +228,7 @@ inline constexpr double kTemporalUpsampleDeg = 0.44;
 /// Whether a moving camera's frame upsamples its pixels not marched (true) or reprojects them:
 /// `mode`, and for Auto the angle between every other pixel of a march `march_height` pixels
 /// high over `vertical_fov_deg`.
-constexpr bool temporal_upsamples_light(TemporalLight mode, double vertical_fov_deg, int march_height) {
+constexpr bool temporal_upsamples(TemporalLight mode, double vertical_fov_deg, int march_height) {
     if (mode != TemporalLight::Auto) return mode == TemporalLight::Upsample;
     return march_height > 0 && 2.0 * vertical_fov_deg / double(march_height) <= kTemporalUpsampleDeg;
 }

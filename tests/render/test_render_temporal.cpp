@@ -366,7 +366,7 @@ TEST_CASE("temporal history: a moving camera marches a quarter and stays near a 
         const std::vector<float> automatic = quarter_frame(render::TemporalLight::Auto);
         const std::vector<float> reprojected = quarter_frame(render::TemporalLight::Reproject);
         const std::vector<float> upsampled = quarter_frame(render::TemporalLight::Upsample);
-        const bool upsamples = render::temporal_upsamples_light(render::TemporalLight::Auto, fov, H);
+        const bool upsamples = render::temporal_upsamples(render::TemporalLight::Auto, fov, H);
         CHECK(upsamples == (fov < 30.0));
         CHECK(automatic == (upsamples ? upsampled : reprojected));
         CHECK(reprojected != upsampled);  // the two modes differ here, so the check above can fail
@@ -701,15 +701,15 @@ TEST_CASE("temporal history: TemporalLight::Auto upsamples where the marched pix
     // (every other one 0.61 degrees apart: reprojecting measured the nearer), 1280x720 360
     // rows (0.31 degrees: upsampling the nearer), 1920x1080 540 rows.
     using render::TemporalLight;
-    CHECK_FALSE(render::temporal_upsamples_light(TemporalLight::Auto, 55.0, 180));
-    CHECK(render::temporal_upsamples_light(TemporalLight::Auto, 55.0, 360));
-    CHECK(render::temporal_upsamples_light(TemporalLight::Auto, 55.0, 540));
-    CHECK_FALSE(render::temporal_upsamples_light(TemporalLight::Auto, 55.0, 0));  // no march: nothing to upsample
+    CHECK_FALSE(render::temporal_upsamples(TemporalLight::Auto, 55.0, 180));
+    CHECK(render::temporal_upsamples(TemporalLight::Auto, 55.0, 360));
+    CHECK(render::temporal_upsamples(TemporalLight::Auto, 55.0, 540));
+    CHECK_FALSE(render::temporal_upsamples(TemporalLight::Auto, 55.0, 0));  // no march: nothing to upsample
     // the bound itself upsamples: every other of 2 rows over kTemporalUpsampleDeg
-    CHECK(render::temporal_upsamples_light(TemporalLight::Auto, render::kTemporalUpsampleDeg, 2));
+    CHECK(render::temporal_upsamples(TemporalLight::Auto, render::kTemporalUpsampleDeg, 2));
     for (const int rows : {1, 90, 180, 360, 4096}) {
-        CHECK(render::temporal_upsamples_light(TemporalLight::Upsample, 55.0, rows));
-        CHECK_FALSE(render::temporal_upsamples_light(TemporalLight::Reproject, 55.0, rows));
+        CHECK(render::temporal_upsamples(TemporalLight::Upsample, 55.0, rows));
+        CHECK_FALSE(render::temporal_upsamples(TemporalLight::Reproject, 55.0, rows));
     }
 }
 

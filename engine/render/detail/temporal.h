@@ -49,8 +49,8 @@ struct TemporalPlan {
     int stride = 1;
     int block = 2;  // stride 2's block (Settings::temporal_moving_block, less where the march is smaller)
     glm::ivec2 phase{0};
-    bool reproject_light = true;  // !temporal_upsamples_light(Settings::temporal_light, ...) during a flash
-    bool reproject_cloud = true;  // !temporal_upsamples_light(Settings::temporal_light, ...)
+    bool reproject_light = true;  // !temporal_upsamples(Settings::temporal_light, ...) during a flash
+    bool reproject_cloud = true;  // !temporal_upsamples(Settings::temporal_light, ...)
     // Stride 0 with the glare's light groups ready (Renderer::Impl::glare_groups_ready): the
     // sum of the march also writes the glare's (glare_sum.frag's work, temporal.frag GLARE_SUM).
     bool glare_sum = false;
