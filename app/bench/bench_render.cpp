@@ -237,6 +237,37 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
         for (render::ChannelSegment& c : ch.segments) c.intensity = float(double(c.intensity) * g);
         r.set_channel(ch);
     };
+    // A leader's frame: the channel lit above a front that descends over `n` frames from the
+    // channel's top to its foot, and S weighted by the same front (whole above it, fading to 0
+    // over 1 km below): the flash and the channel in a new shape every frame, as a stepped
+    // leader or a new stroke's channel shows them.
+    double top = -1e30, foot = 1e30;
+    for (const render::ChannelSegment& c : storm.bolt.segments) {
+        top = std::max({top, double(c.a.z), double(c.b.z)});
+        foot = std::min({foot, double(c.a.z), double(c.b.z)});
+    }
+    auto show_leader = [&](render::Renderer& r, int i, int n) {
+        const double front = top - (top - foot) * double(i + 1) / double(n);
+        const auto weight = [&](double z) { return std::clamp(1.0 - (front - z) / 1000.0, 0.0, 1.0); };
+        std::vector<double> w(cells);
+        for (std::size_t c = 0; c < cells; ++c) {
+            const core::Int3 v = storm.lighting.unindex(c);
+            w[c] = 0.3 * weight(storm.lighting.centre(v.x, v.y, v.z).z);
+        }
+        for (std::size_t k = 0; k < scaled.size(); ++k) scaled[k] = float(double(storm.source[k]) * w[k % cells]);
+        render::SourceUpload all;
+        all.geometry = storm.lighting;
+        all.direction_count = storm.directions;
+        for (int m = 0; m < storm.directions; ++m) {
+            all.directions.push_back(m);
+            all.values.emplace_back(scaled.data() + std::size_t(m) * cells, cells);
+        }
+        r.upload_source(all);
+        render::LitChannel ch = storm.bolt;
+        std::erase_if(ch.segments, [&](const render::ChannelSegment& c) { return std::min(c.a.z, c.b.z) < front; });
+        for (render::ChannelSegment& c : ch.segments) c.intensity *= 0.3f;
+        r.set_channel(ch);
+    };
     const GreyStatic moonlit = grey_static(storm, 1);
     for (const core::Int3 size : {core::Int3{640, 360, 0}, core::Int3{1280, 720, 0}, core::Int3{1920, 1080, 0}}) {
         if (const char* only = std::getenv("FULGUR_BENCH_DEMO_WIDTH"); only && size.x != std::atoi(only)) continue;
@@ -257,7 +288,10 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
         // the static light alone (the storm's S, x 1e-3, as a grey moonlit field on the
         // lighting grid), no flash S, no channel, so no glow, bolt or glare: what most of a
         // storm's frames draw.
-        for (const bool flash : {true, false}) {
+        for (const int light : {0, 1, 2}) {
+            // 0: a return stroke's decay (a flash changing in intensity only), 1: a leader
+            // (changing in shape every frame), 2: between flashes.
+            const bool flash = light < 2, leader = light == 1;
             if (!flash) {
                 r.clear_source();
                 r.set_channel({});
@@ -269,20 +303,24 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                               .detail = effects ? std::optional(detail) : std::nullopt,
                               .rain = effects ? &rain : nullptr});
                 for (const bool orbit : {false, true})
-                    for (const int mode : {0, 1, 2, 3}) {
+                    for (const int mode : {0, 1, 2, 3, 4}) {
                         // 0 without the history, 1 with it (the default: the pixels not marched
                         // filled as TemporalLight::Auto picks), 2 with them filled the other way
                         // (reprojected where Auto upsamples, upsampled where it reprojects), 3
                         // marching one pixel of each 4x4 block between flashes (filled as Auto
-                        // picks): a moving camera's knobs only.
+                        // picks): a moving camera's knobs only; 4 a leader's new shapes marched at
+                        // every pixel (TemporalReshape::Full; mode 1: a quarter, the default).
                         const bool temporal = mode > 0;
-                        if ((mode == 2 || mode == 3) && !orbit) continue;
+                        if ((mode == 2 || mode == 3) && (!orbit || leader)) continue;
                         if (mode == 3 && flash) continue;  // a flash marches a quarter: mode 1's frames
+                        if (mode == 4 && !leader) continue;
                         std::vector<double> wall, cpu, error, jitter_noise, exposure, shown;
                         std::vector<double> display_mean, display_over2, display_noise_mean, display_noise_over2;
                         std::vector<render::PassTimes> passes;
                         int steps[4] = {0, 0, 0, 0};
                         st.temporal = temporal;
+                        st.temporal_reshape =
+                            mode == 4 ? render::TemporalReshape::Full : render::TemporalReshape::Quarter;
                         st.temporal_moving_block = mode == 3 ? 4 : 2;
                         // The block a frame marches: a sixteenth only between flashes.
                         const int block = mode == 3 && !flash ? 4 : 2;
@@ -292,7 +330,10 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                                       : render::TemporalLight::Auto;
                         // Frame i (from -2: two frames to compile and fault pages in): its flash and camera.
                         auto show_frame = [&](int i) {
-                            if (flash) show_flash(r, std::exp(-(i + 2) / 8.0));
+                            if (leader)
+                                show_leader(r, i + 2, frames + 2);
+                            else if (flash)
+                                show_flash(r, std::exp(-(i + 2) / 8.0));
                             st.frame_index = std::uint32_t(i + 2);
                             return orbit ? synthetic::orbit_camera(storm, -60.0 + 1.0 * (i + 2), 8.0, kOrbitFov)
                                          : storm.camera;
@@ -329,7 +370,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             // FULGUR_BENCH_DEMO_IMAGES=DIR: an orbiting frame with detail and rain
                             // during a flash, fresh | the history's | difference.
                             if (const char* dir = std::getenv("FULGUR_BENCH_DEMO_IMAGES");
-                                dir && orbit && flash && effects && i == 6)
+                                dir && orbit && flash && !leader && effects && i == 6)
                                 write_comparison(
                                     std::filesystem::path(dir) / ("demo-orbit-" + std::to_string(size.x) + "-" +
                                                                   (upsampled ? "upsample" : "reproject") + ".png"),
@@ -362,6 +403,10 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             {"size", {size.x, size.y}},
                             {"camera", orbit ? "orbit" : "still"},
                             {"flash", flash},
+                            {"light", leader  ? "leader"
+                                      : flash ? "decay"
+                                              : "static"},
+                            {"reshape", mode == 4 ? "full" : "quarter"},
                             {"effects", effects ? "detail+rain" : "none"},
                             {"temporal", temporal},
                             // The 4x4 block marches only between flashes (a quarter during a flash).

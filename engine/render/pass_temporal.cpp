@@ -145,17 +145,28 @@ detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const S
     plan.key = detail::temporal_key(
         u, march_defines(st.skip_empty, st.early_exit, flash_on, glow_on, u.statics, u.sun, u.detail, u.rain, -1, -1,
                          false, st.ground_rain_map && st.ground && u.rain));
-    const bool valid = h.has_history && !h.inputs_changed && plan.key == h.key && h.source.valid() &&
-                       h.channel.valid() && detail::camera_continues(h.camera, camera);
-    const bool still = valid && detail::same_camera(camera, h.camera);
+    // The cloud's group holds when nothing but the camera (within reprojection) and the light
+    // groups changed; the flash's and the channel's when they changed only in intensity.
+    const bool cloud_holds =
+        h.has_history && !h.inputs_changed && plan.key == h.key && detail::camera_continues(h.camera, camera);
+    const bool lights_hold = h.source.valid() && h.channel.valid();
+    const bool still = cloud_holds && detail::same_camera(camera, h.camera);
     // A block needs the march to be at least as wide and high: a march one pixel wide or high
     // marches every pixel, one under 4 pixels marches quarters. The 4x4 block only while no
     // flash or channel lights the frame (between flashes): during a flash a sixteenth measured
     // 24% from a fresh render against the quarter's 9% (docs/render.md).
     const int fits = std::min(u.internal_width, u.internal_height);
     const bool flash_dark = !u.lit && seg_count == 0;
-    plan.block = st.temporal_moving_block == 4 && flash_dark && fits >= 4 ? 4 : 2;
-    plan.stride = !valid ? 1 : still ? (h.unsettled > 0 ? 3 : 0) : fits >= 2 ? 2 : 1;
+    // A light that changed in shape, the cloud's group holding: a quarter marched, the light
+    // groups upsampled from it (Settings::temporal_reshape).
+    const bool reshaped = cloud_holds && !lights_hold && st.temporal_reshape == TemporalReshape::Quarter && fits >= 2;
+    plan.block = st.temporal_moving_block == 4 && flash_dark && fits >= 4 && !reshaped ? 4 : 2;
+    plan.stride = reshaped                        ? 2
+                  : !(cloud_holds && lights_hold) ? 1
+                  : still                         ? (h.unsettled > 0 ? 3 : 0)
+                  : fits >= 2                     ? 2
+                                                  : 1;
+    plan.still_cloud = reshaped && still;
     plan.phase = plan.stride == 2 && plan.block == 4 ? kPhases16[h.frames % 16]
                  : plan.stride >= 2                  ? kPhases[h.frames % 4]
                                                      : glm::ivec2(0);
@@ -164,7 +175,7 @@ detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const S
     // too (docs/render.md). With no flash or channel light the light groups are zero either way:
     // the cheaper resolve.
     const bool upsample = temporal_upsamples(st.temporal_light, camera.vertical_fov_deg, u.internal_height);
-    plan.reproject_light = !flash_dark && !upsample;
+    plan.reproject_light = !flash_dark && !upsample && !reshaped;
     plan.reproject_cloud = !upsample;
     return plan;
 }
@@ -259,7 +270,8 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
                 "#define STRIDE " + std::to_string(stride) + "\n" +
                     (stride == 2 ? std::string("#define REPROJECT_LIGHT ") + (plan.reproject_light ? "1" : "0") +
                                        "\n#define REPROJECT_CLOUD " + (plan.reproject_cloud ? "1" : "0") +
-                                       "\n#define BLOCK " + std::to_string(plan.block) + "\n"
+                                       "\n#define STILL_CLOUD " + (plan.still_cloud ? "1" : "0") + "\n#define BLOCK " +
+                                       std::to_string(plan.block) + "\n"
                                  : std::string()));
     glUseProgram(p);
     bind_temporal_inputs(&h.fresh, h.history[h.current]);
@@ -287,8 +299,9 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     h.channel.written();
     ++h.frames;
     // A moving camera upsamples three pixels of each 2x2 block: once it stops, the next four
-    // frames march the four phases in turn, after which every pixel is marched and rescaled.
-    h.unsettled = stride == 2 ? 4 : stride == 3 ? h.unsettled - 1 : 0;
+    // frames march the four phases in turn, after which every pixel is marched and rescaled. A
+    // still camera's light that changed in shape marched one phase at this view already: three.
+    h.unsettled = stride == 2 ? (plan.still_cloud ? 3 : 4) : stride == 3 ? h.unsettled - 1 : 0;
 }
 
 }  // namespace fulgur::render

@@ -232,6 +232,18 @@ constexpr bool temporal_upsamples(TemporalLight mode, double vertical_fov_deg, i
     if (mode != TemporalLight::Auto) return mode == TemporalLight::Upsample;
     return march_height > 0 && 2.0 * vertical_fov_deg / double(march_height) <= kTemporalUpsampleDeg;
 }
+/// What a frame of the temporal history marches when a light group changed in shape (a leader's
+/// front growing, another stroke or branch lighting, a strike's own solve replacing its first
+/// light) while the cloud's group still holds (Settings::temporal_reshape).
+enum class TemporalReshape {
+    /// A quarter of the pixels (one of each 2x2 block, as a moving camera): the groups that
+    /// changed are upsampled from them, the cloud's group (its transmittance and the static
+    /// light) kept from the history, in place for a still camera. A still camera then marches
+    /// the other quarters in turn once the shapes hold, after which its history is exact again.
+    Quarter,
+    Full,  ///< every pixel, every group: each frame exactly a fresh render's, at a fresh render's cost
+};
+
 /// What the temporal history did in a frame (Settings::temporal).
 enum class TemporalStep {
     Off,      ///< no history: the march as without it
@@ -296,8 +308,12 @@ struct Settings {
     /// 2x2 block's pixels in turn) and fills the rest from the history reprojected through
     /// their depth or from the marched pixels (temporal_light). A change in a
     /// group's shape (a leader's front, another strike, the static light, any other input or
-    /// setting) marches every pixel. The fragment kernel; not with render_into_host.
+    /// setting) marches every pixel, or for the flash's and the channel's groups a quarter
+    /// (temporal_reshape). The fragment kernel; not with render_into_host.
     bool temporal = false;
+    /// With the temporal history: what a frame marches when the flash's or the channel's light
+    /// changed in shape (docs/render.md, "A light that changes in shape").
+    TemporalReshape temporal_reshape = TemporalReshape::Quarter;
     /// With the temporal history and a moving camera: how the pixels not marched are filled
     /// (every light group and the cloud's transmittance alike).
     TemporalLight temporal_light = TemporalLight::Auto;

@@ -3,8 +3,10 @@
 // static light (sun, moon, sky) — with the transmittances and a depth, so that a frame whose
 // groups changed only in intensity rescales the history instead of marching again: a still
 // camera re-marches nothing through a return stroke's decay, a moving one marches a quarter
-// of the pixels and reprojects the rest. A group whose light changed in shape (a leader's
-// front, another strike, a new static light, other settings) starts the history again.
+// of the pixels and reprojects the rest. A flash or channel group whose light changed in shape
+// (a leader's front, another stroke) is upsampled from a quarter of the pixels marched, the
+// cloud's group kept (Settings::temporal_reshape); a new static light or other settings start
+// the history again.
 #pragma once
 
 #include "render/detail/frame.h"
@@ -42,7 +44,8 @@ struct TemporalKey {
 
 /// What a frame's march does with the history (Renderer::Impl::plan_temporal): `stride` 0 reuses
 /// it (nothing marched, no resolve, no glow: the march summed from it), 1 marches every pixel,
-/// 2 the pixel `phase` of each `block` x `block` block of a moving camera, 3 the pixel `phase` of
+/// 2 the pixel `phase` of each `block` x `block` block of a moving camera (or of any camera whose
+/// flash or channel changed in shape: reproject_light false), 3 the pixel `phase` of
 /// each 2x2 block for a camera that stopped while the history still holds pixels a moving camera
 /// upsampled (the others kept in place); the march's defines and the frame's key.
 struct TemporalPlan {
@@ -51,6 +54,10 @@ struct TemporalPlan {
     glm::ivec2 phase{0};
     bool reproject_light = true;  // !temporal_upsamples(Settings::temporal_light, ...) during a flash
     bool reproject_cloud = true;  // !temporal_upsamples(Settings::temporal_light, ...)
+    // Stride 2 for a light group that changed in shape (Settings::temporal_reshape Quarter) with
+    // a still camera: the cloud's group kept from the history at the same pixel, the light groups
+    // upsampled (temporal.frag STILL_CLOUD).
+    bool still_cloud = false;
     // Stride 0 with the glare's light groups ready (Renderer::Impl::glare_groups_ready): the
     // sum of the march also writes the glare's (glare_sum.frag's work, temporal.frag GLARE_SUM).
     bool glare_sum = false;
