@@ -35,7 +35,8 @@
 //                  resolve and frame of a moving camera (FULGUR_BENCH_STATIC_GRID=1: these alone).
 //   FULGUR_BENCH_DEMO_WIDTH=W runs only the demo rows, at output width W (640, 1280 or 1920).
 //   FULGUR_BENCH_DEMO_IMAGES=DIR also writes, for the orbiting rows with detail and rain during
-//   a flash, frame 6 marched afresh beside the history's and their difference (PNG in DIR).
+//   a return stroke and the still camera's leader, frame 6 marched afresh beside the history's
+//   and their difference (PNG in DIR).
 // llvmpipe uses LP_NUM_THREADS threads (default: all cores); the row says how many.
 #include "bench/bench.h"
 
@@ -367,14 +368,17 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             error.push_back(radiance_rel_rms(kept[std::size_t(i)], fresh_march));
                             const DisplayDiff shown_diff =
                                 display_diff(kept[std::size_t(i)], fresh_march, shown[std::size_t(i)]);
-                            // FULGUR_BENCH_DEMO_IMAGES=DIR: an orbiting frame with detail and rain
-                            // during a flash, fresh | the history's | difference.
-                            if (const char* dir = std::getenv("FULGUR_BENCH_DEMO_IMAGES");
-                                dir && orbit && flash && !leader && effects && i == 6)
-                                write_comparison(
-                                    std::filesystem::path(dir) / ("demo-orbit-" + std::to_string(size.x) + "-" +
-                                                                  (upsampled ? "upsample" : "reproject") + ".png"),
-                                    fresh_march, kept[std::size_t(i)], w, h, shown[std::size_t(i)]);
+                            // FULGUR_BENCH_DEMO_IMAGES=DIR: frame 6 with detail and rain of an orbit
+                            // through a return stroke and of a still camera's leader (its new
+                            // shapes a quarter at a time), fresh | the history's | difference.
+                            const char* dir = std::getenv("FULGUR_BENCH_DEMO_IMAGES");
+                            const bool picture = orbit ? flash && !leader : leader && mode == 1;
+                            if (dir && picture && effects && i == 6)
+                                write_comparison(std::filesystem::path(dir) /
+                                                     (leader ? "demo-leader-" + std::to_string(size.x) + "-still.png"
+                                                             : "demo-orbit-" + std::to_string(size.x) + "-" +
+                                                                   (upsampled ? "upsample" : "reproject") + ".png"),
+                                                 fresh_march, kept[std::size_t(i)], w, h, shown[std::size_t(i)]);
                             display_mean.push_back(shown_diff.mean_levels);
                             display_over2.push_back(shown_diff.over_2);
                             // The jitter's own noise: the same frame marched with another frame's jitter.
