@@ -85,6 +85,54 @@ std::vector<glm::dvec4> cluster_channel(const LitChannel& bolt, int k, double to
     return out;
 }
 
+// The channel's stretches below `top` (as cluster_channel's) as exactly k point lights of equal
+// power (none when no power is below `top`): the stretches in channel order cut into k runs of
+// equal power, a segment cut where a run ends, each light at its run's power centroid. The
+// rain's lights: the march compiles their count (volume.glsl RAIN_LIGHTS), so a channel that
+// grows into the rain keeps one program, and a short stretch is k lights along it, not one.
+std::vector<glm::dvec4> split_channel(const LitChannel& bolt, int k, double top) {
+    struct Piece {
+        glm::dvec3 a, b;
+        double power;
+    };
+    std::vector<Piece> pieces;
+    double total = 0.0;
+    for (const ChannelSegment& s : bolt.segments) {
+        glm::dvec3 a(s.a), b(s.b);
+        if (a.z > b.z) std::swap(a, b);
+        if (a.z > top) continue;
+        if (b.z > top) b = a + (b - a) * ((top - a.z) / (b.z - a.z));
+        const double p = double(s.intensity) * glm::length(b - a);
+        if (!(p > 0.0)) continue;
+        pieces.push_back({a, b, p});
+        total += p;
+    }
+    std::vector<glm::dvec4> out;
+    if (!(total > 0.0) || k <= 0) return out;
+    const double per = total / k;
+    glm::dvec3 moment(0.0);  // the run's power-weighted sum of positions
+    double run = 0.0;        // the run's power so far
+    for (const Piece& piece : pieces) {
+        double from = 0.0;  // the fraction of the piece taken by earlier runs
+        while (from < 1.0) {
+            const double left = (1.0 - from) * piece.power;
+            const bool last = int(out.size()) == k - 1;
+            const double take = last ? left : std::min(left, per - run);
+            const double to = std::min(1.0, from + take / piece.power);
+            moment += take * (piece.a + (piece.b - piece.a) * (0.5 * (from + to)));
+            run += take;
+            from = to;
+            if (!last && run >= per * (1.0 - 1e-12)) {
+                out.emplace_back(moment / run, run);
+                moment = glm::dvec3(0.0);
+                run = 0.0;
+            }
+        }
+    }
+    if (run > 0.0) out.emplace_back(moment / run, run);
+    return out;
+}
+
 }  // namespace
 
 /// Representative point lights for the ground: each segment's power dimmed by the cloud
@@ -112,7 +160,7 @@ void Renderer::Impl::rebuild_ground_lights(int k, double ground) {
     // The rain's: the channel below the rain's top (no cloud between them and the rain).
     rain_lights.clear();
     if (has_rain)
-        for (glm::dvec4 l : cluster_channel(bolt, kRainLights, rain_top, {})) rain_lights.emplace_back(l);
+        for (glm::dvec4 l : split_channel(bolt, kRainLights, rain_top)) rain_lights.emplace_back(l);
 }
 
 /// Targets at the frame's sizes, and the frame uniforms: camera, volume and march step,
