@@ -122,6 +122,12 @@ int main(int argc, char** argv) {
         view::ViewOptions opt;
         opt.settings.dither = args.dither;
         opt.settings.temporal = true;  // the march's history: a still view re-marches only what changed in shape
+        // The programs the storm's frames will ask for, compiled now rather than at the first
+        // flash, move or leader (each a stall of up to half a second on a cold shader cache).
+        const double warm_ms =
+            view.warm_up(view::scene_camera(view_spec, view.density()), shell.width(), shell.height(), opt);
+        std::printf("renderer warmed up in %.0f ms\n", warm_ms);
+        std::fflush(stdout);
         const int seed = int(seed_arg.value_or(view.scene().lightning.seed));
         double t = 0.0;
         view::FrameReport rep;

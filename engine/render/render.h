@@ -504,6 +504,10 @@ struct FrameStats {
     double glare_keep = 1.0;        ///< the share of the frame's light the glare left in place (1: no glare)
     TemporalStep temporal = TemporalStep::Off;
     double marched_share = 1.0;  ///< the share of the internal pixels the march ran for
+    /// Programs this frame compiled and linked (a variant the renderer had not used before). A
+    /// software rasterizer also compiles each at its first draw, which can stall the frame for
+    /// ~0.2-0.5 s without a shader cache (view::StormView::warm_up compiles them ahead).
+    int programs_built = 0;
 };
 
 class Renderer {
@@ -536,6 +540,11 @@ public:
     void set_sun(const SunDesc& sun);
     void clear_sun();
     void set_channel(const LitChannel& bolt);
+    /// Forgets the temporal history (Settings::temporal): the next frame marches every pixel,
+    /// as the first frame does, and the frames after it take the same steps a new renderer's
+    /// would. For a host that knows its camera cut or its scene changed, and after frames that
+    /// are not shown (view::StormView::warm_up).
+    void reset_history();
 
     /// Directions of S this camera needs (see view_directions), restricted to lighting nodes
     /// near non-empty density (all nodes before set_volume()). Pass the min_weight of the

@@ -341,6 +341,16 @@ void Renderer::clear_source() {
     impl_->flash.dirty = true;
 }
 
+void Renderer::reset_history() {
+    detail::TemporalState& h = impl_->temporal;
+    h.release();
+    h.frames = 0;
+    h.unsettled = 0;
+    h.inputs_changed = true;
+    h.source = {};
+    h.channel = {};
+}
+
 void Renderer::upload_static(const StaticUpload& s) {
     Impl& m = *impl_;
     core::Stopwatch sw;
@@ -533,6 +543,7 @@ FrameStats Renderer::Impl::run_frame(const Camera& camera, const Settings& st, i
     core::Stopwatch total;
     const double total_cpu0 = process_cpu_ms();
     const CallerTarget caller = CallerTarget::save();
+    m.programs_built = 0;
 
     FrameUniforms u = m.prepare_frame(camera, st, width, height);
     if (host) m.attach_host_depth(*host, u);
@@ -562,6 +573,7 @@ FrameStats Renderer::Impl::run_frame(const Camera& camera, const Settings& st, i
     stats.wall = timer.wall_times(m.pending_upload_ms, total.milliseconds());
     stats.cpu = timer.cpu_times(m.pending_upload_cpu_ms, process_cpu_ms() - total_cpu0);
     m.pending_upload_ms = m.pending_upload_cpu_ms = 0.0;
+    stats.programs_built = m.programs_built;
     return stats;
 }
 

@@ -317,6 +317,85 @@ render::LitChannel lit_channel(std::span<const lightning::LitSegment> lit, doubl
 
 }  // namespace
 
+double StormView::warm_up(const render::Camera& camera, int width, int height, const ViewOptions& options) {
+    const auto t0 = std::chrono::steady_clock::now();
+    render::Settings st = frame_settings(options);
+    if (!st.temporal) return 0.0;
+    // The programs are the full size's: a moving camera's fill as Auto picks it there (the
+    // internal height decides), everything else independent of the size.
+    const int full_march_height = std::max(1, int(std::lround(height * st.internal_scale)));
+    st.temporal_light = render::temporal_upsamples(st.temporal_light, camera.vertical_fov_deg, full_march_height)
+                            ? render::TemporalLight::Upsample
+                            : render::TemporalLight::Reproject;
+    const int w = std::max(64, width / 4), h = std::max(36, height / 4);
+    // The camera turned about the vertical through its target (degrees).
+    const auto turned = [&](double deg) {
+        render::Camera c = camera;
+        const glm::dvec3 off = c.position - c.target;
+        const double a = glm::radians(deg), ca = std::cos(a), sa = std::sin(a);
+        c.position = c.target + glm::dvec3(ca * off.x - sa * off.y, sa * off.x + ca * off.y, off.z);
+        return c;
+    };
+    update_static_light(options);
+    renderer_->set_channel({});
+    renderer_->clear_source();
+    int frame = 0;
+    const auto draw = [&](const render::Camera& c) {
+        st.frame_index = std::uint32_t(frame++);
+        renderer_->render(c, st, w, h);
+    };
+    // Between flashes: still (marched, then reused), then orbiting.
+    draw(camera);
+    draw(camera);
+    draw(turned(1.0));
+    draw(turned(2.0));
+    if (pipeline_ && bases_) {
+        // A flash: a vertical channel from the middle of the cloud to the ground, S uniform on
+        // the lighting grid in every direction.
+        const core::GridGeometry& lg = bases_->lighting();
+        const glm::dvec3 mid = lg.origin + 0.5 * lg.extent();
+        const double ground = scene_.lightning.bolt.ground_height;
+        const std::vector<float> ones(lg.cell_count(), 1e-3f);
+        render::SourceUpload up;
+        up.geometry = lg;
+        up.direction_count = int(bases_->directions().size());
+        for (int m = 0; m < up.direction_count; ++m) {
+            up.directions.push_back(m);
+            up.values.emplace_back(ones);
+        }
+        const auto show = [&](double g, double reach, bool ground_light) {
+            render::LitChannel ch;
+            const glm::dvec3 top = mid, foot(mid.x, mid.y, ground);
+            ch.segments.push_back({glm::vec3(top), glm::vec3(top + (foot - top) * reach), float(1e3 * g), 1.0f});
+            if (ground_light) ch.ground = {glm::dvec2(lg.origin), lg.voxel_size, 2, 2, std::vector<float>(4, 0.0f)};
+            renderer_->set_channel(ch);
+            renderer_->upload_source(up);
+        };
+        for (const bool ground_light : {true, false}) {
+            const double at = ground_light ? 2.0 : 4.0;
+            // A leader reaching down (new shapes, still), the stroke dimming (settling, then reused,
+            // the glare summed from the history), the camera orbiting through it, a new shape then.
+            show(0.1, 0.5, ground_light);
+            draw(turned(at));
+            for (const double g : {1.0, 0.7, 0.5, 0.35, 0.25, 0.2}) {
+                show(g, 1.0, ground_light);
+                draw(turned(at));
+            }
+            show(0.15, 1.0, ground_light);
+            draw(turned(at + 1.0));
+            show(0.1, 0.7, ground_light);
+            draw(turned(at + 2.0));
+            // A cut during a flash: every pixel marched with the flash's light (as the first
+            // frame a history makes when it opens on a flash).
+            draw(turned(at + 45.0));
+        }
+        renderer_->set_channel({});
+        renderer_->clear_source();
+    }
+    renderer_->reset_history();
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
 FrameReport StormView::render(const render::Camera& camera, double t, int width, int height, const ViewOptions& options,
                               const transport::SourceField* source) {
     using clock = std::chrono::steady_clock;

@@ -112,6 +112,18 @@ public:
     /// ground still come from the frame at t, so two renders differ only in S.
     FrameReport render(const render::Camera& camera, double t, int width, int height, const ViewOptions& options,
                        const transport::SourceField* source = nullptr);
+    /// Compiles the renderer's programs a storm's frames will ask for, so that the first flash,
+    /// the first camera move and the first leader do not stall the frames that show them (a
+    /// software rasterizer compiles a program at its first draw: ~0.2-0.5 s a program without
+    /// Mesa's shader cache). Renders a short sequence at a quarter of `width` x `height` (at
+    /// least 64 pixels wide) into the bound framebuffer with `options`' settings and the fill a
+    /// moving camera gets at the full size: the static light still and orbiting, then a
+    /// synthetic flash (a vertical channel from the cloud's middle to the ground, S uniform)
+    /// appearing, dimming, changing in shape, with the camera still and orbiting, with and
+    /// without the cloud's scattered light on the ground. The channel and S are cleared after:
+    /// the next render() shows its own. Returns the wall time (ms). Nothing to do for a
+    /// renderer without the temporal history (its frame asks for a few programs only).
+    double warm_up(const render::Camera& camera, int width, int height, const ViewOptions& options);
     /// The frame at time t composited into a host engine's HDR target (bound as the draw
     /// framebuffer) with the host's camera and depth (render::Renderer::render_into_host): the
     /// storm's radiance before exposure over the host's, which keeps its own world, tone map

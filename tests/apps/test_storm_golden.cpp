@@ -18,6 +18,8 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <utility>
+#include <vector>
 
 using namespace fulgur;
 
@@ -288,10 +290,10 @@ view::LinearFrame check_linear_passes(view::StormView& view, double t, const std
 
 }  // namespace
 
-TEST_CASE("storm with rain, moon and sky: the linear passes sum to the frame, the rain's light in its own") {
-    // The rain takes light from the flash (the channel), the moon's first scattering and the
-    // static light's S: each belongs to one pass (lightning, static), none to the background's
-    // or the transmittance's, which draw the volume unlit.
+namespace {
+
+// The anisotropic test scene with a moon, a sky and rain (25 mm/h), baked for this run.
+std::unique_ptr<view::StormView> rain_view() {
     std::ifstream in(kScenes / "test_aniso_ms_cg.json");
     nlohmann::json j = nlohmann::json::parse(in);
     j.merge_patch(nlohmann::json::parse(R"({
@@ -307,7 +309,17 @@ TEST_CASE("storm with rain, moon and sky: the linear passes sum to the frame, th
     REQUIRE(s.rain);
     core::Grid3<float> d = scene::make_density(s);
     const auto fgb = baked("test_aniso_rain", s, d);
-    view::StormView view(std::move(s), std::move(d), fgb, context().get_proc_address());
+    return std::make_unique<view::StormView>(std::move(s), std::move(d), fgb, context().get_proc_address());
+}
+
+}  // namespace
+
+TEST_CASE("storm with rain, moon and sky: the linear passes sum to the frame, the rain's light in its own") {
+    // The rain takes light from the flash (the channel), the moon's first scattering and the
+    // static light's S: each belongs to one pass (lightning, static), none to the background's
+    // or the transmittance's, which draw the volume unlit.
+    std::unique_ptr<view::StormView> owned = rain_view();
+    view::StormView& view = *owned;
     view::ViewOptions opt;
     // Float rounding leaves 5e-6 of a pixel at worst; the moon's first scattering in the rain
     // drawn in the background's pass as well as the static one made it 4.8e-4.
@@ -334,4 +346,45 @@ TEST_CASE("storm: the linear frame (fulgur-shot --exr) is the tone map's input a
     opt.settings.auto_exposure = false;
     view.render(cam, t, W, H, opt);
     CHECK(view.renderer().read_hdr() == f.radiance);
+}
+
+TEST_CASE("StormView::warm_up: a storm's frames after it compile nothing and show what they show without it") {
+    // A strike's leader, return stroke and decay with the camera still, then orbiting, in the
+    // rain scene with the demo's settings (the temporal history, glare), once after warm_up and
+    // once without: after it no frame builds a program, and the last frame is the same image
+    // (warm_up clears its channel and S; what the renderer keeps is keyed by what it was made
+    // from). Without it the first flash builds ~20 programs.
+    std::vector<std::uint8_t> last[2];
+    int built[2] = {0, 0};
+    for (const bool warm : {true, false}) {
+        std::unique_ptr<view::StormView> owned = rain_view();
+        view::StormView& view = *owned;
+        view::ViewOptions opt;
+        opt.settings.temporal = true;
+        opt.settings.timing = render::Timing::Off;
+        opt.settings.dither = false;
+        const scene::CameraSpec spec = view::explicit_orbit(view.scene().camera, view.density());
+        const double onset = return_stroke(view, 11) - 0.002;
+        if (warm) CHECK(view.warm_up(view::scene_camera(spec, view.density()), W, H, opt) > 0.0);
+        const std::vector<std::pair<double, double>> frames = {
+            {0.3 * onset, 0.0},  {0.8 * onset, 0.0},  {onset + 2e-4, 0.0}, {onset + 1e-3, 0.0},
+            {onset + 2e-3, 0.0}, {onset + 3e-3, 0.0}, {onset + 4e-3, 0.0}, {onset + 5e-3, 0.0},
+            {onset + 6e-3, 1.0}, {onset + 7e-3, 2.0}, {onset + 8e-3, 3.0}};
+        for (std::size_t i = 0; i < frames.size(); ++i) {
+            scene::CameraSpec c = spec;
+            c.azimuth_deg += frames[i].second;
+            opt.settings.frame_index = std::uint32_t(i);
+            const view::FrameReport r = view.render(view::scene_camera(c, view.density()), frames[i].first, W, H, opt);
+            CAPTURE(warm);
+            CAPTURE(i);
+            if (warm) CHECK(r.gpu.programs_built == 0);
+            built[warm ? 0 : 1] += r.gpu.programs_built;
+            if (i == 2) CHECK(r.lit);
+        }
+        context().present();
+        last[warm ? 0 : 1] = context().read_rgba8();
+    }
+    MESSAGE("programs built by the frames: after warm_up ", built[0], ", without it ", built[1]);
+    CHECK(built[1] > 0);
+    CHECK(last[0] == last[1]);
 }

@@ -26,6 +26,7 @@ namespace fulgur::render {
 struct Renderer::Impl {
     std::filesystem::path shader_dir;
     std::map<std::string, GLuint> programs;
+    int programs_built = 0;  // programs built since the count was last taken (FrameStats::programs_built)
     GLuint vao = 0, frame_ubo = 0, zero_tex = 0, profile_tex = 0;
     GLuint queries[detail::kPassCount] = {};
 
@@ -170,6 +171,7 @@ struct Renderer::Impl {
         if (auto it = programs.find(full); it != programs.end()) return it->second;
         const GLuint p = detail::build_program(shader_dir, stages, ground_look_defines() + defines);
         programs[full] = p;
+        ++programs_built;
         return p;
     }
 
