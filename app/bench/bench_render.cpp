@@ -34,6 +34,8 @@
 //   case "static_grid": the static light on the lighting grid and on a 3x finer one: upload,
 //                  resolve and frame of a moving camera (FULGUR_BENCH_STATIC_GRID=1: these alone).
 //   FULGUR_BENCH_DEMO_WIDTH=W runs only the demo rows, at output width W (640, 1280 or 1920).
+//   FULGUR_BENCH_PASS_FINISH=1 times the demo rows' passes one by one (glFinish around each)
+//   instead of with timer queries, which llvmpipe may charge to the wrong pass.
 //   FULGUR_BENCH_DEMO_IMAGES=DIR also writes, for the orbiting rows with detail and rain during
 //   a return stroke and the still camera's leader, frame 6 marched afresh beside the history's
 //   and their difference (PNG in DIR).
@@ -277,7 +279,11 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
         render::Settings st = storm.settings;
         st.glare = true;
         st.auto_exposure = true;
-        st.timing = render::Timing::Queries;  // per-pass GPU times; render() waits for them at its end
+        // Per-pass GPU times, read at the frame's end (timer queries; llvmpipe may count work
+        // queued by one pass in the next that flushes it), or FULGUR_BENCH_PASS_FINISH=1: each
+        // pass waited for (glFinish) and timed on the wall clock, exact per pass, the frame
+        // serialized.
+        st.timing = std::getenv("FULGUR_BENCH_PASS_FINISH") ? render::Timing::Finish : render::Timing::Queries;
         double baseline = 0.0;
         constexpr double kOrbitFov = 55.0;  // the orbiting camera's vertical field of view (degrees)
         // Whether the default (TemporalLight::Auto) fills an orbiting frame's pixels not marched
@@ -432,6 +438,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             for (const render::PassTimes& t : passes) v.push_back(t.*m);
                             return bench::median(v);
                         };
+                        row["pass_timing"] = st.timing == render::Timing::Finish ? "finish" : "queries";
                         row["pass_ms"] = {{"resolve", pass(&render::PassTimes::resolve)},
                                           {"glow", pass(&render::PassTimes::glow)},
                                           {"march", pass(&render::PassTimes::march)},
