@@ -8,6 +8,10 @@
 
 #include <glad/gl.h>
 
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
 namespace fulgur::render {
 
 using detail::FrameBlock;
@@ -35,18 +39,41 @@ constexpr int kRadii = 96;
 constexpr int kVoxelsPerSample = 1;
 constexpr int kMaxSamples = 64;
 
+// What the map is made from: the lights' positions, the density's box, the rain, the ground.
+std::vector<float> map_key(const FrameBlock& f) {
+    std::vector<float> key;
+    for (int i = 0; i < int(f.ground_params.w); ++i) detail::append_components(key, f.ground_light[i], 3);
+    detail::append_components(key, f.vol_min, 3);
+    detail::append_components(key, f.vol_size, 4);
+    detail::append_components(key, f.rain, 3);
+    key.push_back(f.ground_params.x);
+    return key;
+}
+
+// Two keys of the same map: the lights' positions within 1e-5 of themselves (0.1 m at 10 km: a
+// channel's lights are the power centroids of its stretches, and a flash dimming moves them by
+// float rounding, ~1e-7; the map's texels are 16 m and more), the rest alike.
+bool same_map(const std::vector<float>& a, const std::vector<float>& b) {
+    if (a.size() != b.size()) return false;
+    for (std::size_t i = 0; i < a.size(); ++i)
+        if (!(std::abs(a[i] - b[i]) <= 1e-5f * std::max({std::abs(a[i]), std::abs(b[i]), 1.0f}))) return false;
+    return true;
+}
+
 }  // namespace
+
+bool Renderer::Impl::ground_lights_moving(const FrameUniforms& u) {
+    std::vector<float> key = map_key(u.block);
+    const bool moving = !same_map(key, ground_rain_key) && !same_map(key, ground_rain_last);
+    ground_rain_last = std::move(key);
+    return moving;
+}
 
 void Renderer::Impl::ground_rain_pass(const FrameUniforms& u) {
     if (!u.ground_rain_map) return;
     const FrameBlock& f = u.block;
     const int lights = int(f.ground_params.w);
-    std::vector<float> key;
-    for (int i = 0; i < lights; ++i) detail::append_components(key, f.ground_light[i], 3);
-    detail::append_components(key, f.vol_min, 3);
-    detail::append_components(key, f.vol_size, 4);
-    detail::append_components(key, f.rain, 3);
-    key.push_back(f.ground_params.x);
+    std::vector<float> key = map_key(f);
     if (!ground_rain_tex) {
         glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &ground_rain_tex);
         glTextureStorage3D(ground_rain_tex, 1, GL_R32F, kAzimuths, kRadii, detail::kMaxGroundLights);
@@ -56,7 +83,7 @@ void Renderer::Impl::ground_rain_pass(const FrameUniforms& u) {
         glTextureParameteri(ground_rain_tex, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
         ground_rain_key.clear();
     }
-    if (key != ground_rain_key) {
+    if (!same_map(key, ground_rain_key)) {
         const GLuint p = program("ground_rain", {{GL_COMPUTE_SHADER, "ground_rain.comp"}});
         glUseProgram(p);
         glUniform1i(glGetUniformLocation(p, "u_max_samples"), kMaxSamples);

@@ -136,7 +136,7 @@ detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const S
                                                    const FrameUniforms& u) const {
     const detail::TemporalState& h = temporal;
     detail::TemporalPlan plan;
-    plan.defines = frame_march_defines(st, u) + "#define TEMPORAL 1\n";
+    plan.defines = temporal_march_defines(st, u);
     // The key names the flash's S and the glow as the settings ask for them, not as present
     // this frame, and not the rain's flash lights: a flash going dark is the trackers' to
     // follow, a setting switched is not.
@@ -300,8 +300,9 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     ++h.frames;
     // A moving camera upsamples three pixels of each 2x2 block: once it stops, the next four
     // frames march the four phases in turn, after which every pixel is marched and rescaled. A
-    // still camera's light that changed in shape marched one phase at this view already: three.
-    h.unsettled = stride == 2 ? (plan.still_cloud ? 3 : 4) : stride == 3 ? h.unsettled - 1 : 0;
+    // still camera's light that changed in shape marched one phase at this view already: three
+    // (four when that phase's ground was integrated per pixel, as a fresh frame's is not).
+    h.unsettled = stride == 2 ? (plan.still_cloud && plan.marched_as_fresh ? 3 : 4) : stride == 3 ? h.unsettled - 1 : 0;
 }
 
 }  // namespace fulgur::render

@@ -554,6 +554,16 @@ FrameStats Renderer::Impl::run_frame(const Camera& camera, const Settings& st, i
     PassTimer timer(st.timing, m.queries);
     std::optional<detail::TemporalPlan> plan;
     if (st.temporal && !host) plan = m.plan_temporal(camera, st, u);
+    // A frame that marches a fraction of its pixels while the ground lights move (a leader's
+    // channel growing) integrates the rain along their paths at those pixels (~a quarter of
+    // the map's ~7 ms at 1280x720) instead of making a map the next frame would not keep; the
+    // map is made once the lights hold for a frame.
+    const bool lights_moving = u.ground_rain_map && m.ground_lights_moving(u);
+    if (plan && plan->stride >= 2 && lights_moving) {
+        u.ground_rain_map = false;
+        plan->defines = Impl::temporal_march_defines(st, u);
+        plan->marched_as_fresh = false;
+    }
     const bool reuse = plan && plan->stride == 0;  // the history holds the march, the glow in it
     if (reuse) plan->glare_sum = m.glare_groups_ready(camera, st, u);
     m.resolve_pass(camera.position, st, u, timer, stats, !reuse);

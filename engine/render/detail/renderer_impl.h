@@ -103,6 +103,7 @@ struct Renderer::Impl {
     // a layer per light; pass_ground_rain.cpp), and what it was made from (empty: to make).
     GLuint ground_rain_tex = 0;
     std::vector<float> ground_rain_key;
+    std::vector<float> ground_rain_last;               // the map's key the previous frame asked for (empty: none)
     int ground_scatter_nx = 0, ground_scatter_ny = 0;  // the texture's size (0: the 1x1 zero)
     glm::vec4 ground_scatter_map{0.0f};                // FrameBlock::ground_scatter (zw 0: none)
     void set_ground_scatter(const LitChannel::GroundScatter& g);
@@ -221,6 +222,11 @@ struct Renderer::Impl {
                              u.ground_rain_map);
     }
 
+    /// frame_march_defines for the temporal history's march (march_groups.frag).
+    static std::string temporal_march_defines(const Settings& st, const detail::FrameUniforms& u) {
+        return frame_march_defines(st, u) + "#define TEMPORAL 1\n";
+    }
+
     GLuint march_program(MarchKernel kernel, const std::string& defines) {
         if (kernel == MarchKernel::Fragment)
             return program("march.frag", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "march.frag"}},
@@ -281,6 +287,10 @@ struct Renderer::Impl {
     /// The ground lights' rain transmittance map (FrameUniforms::ground_rain_map), made when the
     /// lights, the ground or the rain changed, bound on unit 12 for the march; the march's timer slot.
     void ground_rain_pass(const detail::FrameUniforms& u);
+    /// Whether the ground lights moved since the previous frame and the map is not theirs
+    /// (pass_ground_rain.cpp): a frame marching a fraction of its pixels then integrates their
+    /// paths per pixel instead of making the map. Notes this frame's lights for the next.
+    bool ground_lights_moving(const detail::FrameUniforms& u);
     /// With the temporal history (Settings::temporal): what this frame does with it (before the
     /// resolve and glow passes, which a reused history skips), and the march in place of march_pass.
     detail::TemporalPlan plan_temporal(const Camera& camera, const Settings& st, const detail::FrameUniforms& u) const;

@@ -58,6 +58,10 @@ struct TemporalPlan {
     // a still camera: the cloud's group kept from the history at the same pixel, the light groups
     // upsampled (temporal.frag STILL_CLOUD).
     bool still_cloud = false;
+    // This frame's marched pixels are what a fresh render of the frame marches there (false: the
+    // ground integrated its rain per pixel while its lights moved, where a fresh render reads the
+    // map): a still camera's settling then marches them again.
+    bool marched_as_fresh = true;
     // Stride 0 with the glare's light groups ready (Renderer::Impl::glare_groups_ready): the
     // sum of the march also writes the glare's (glare_sum.frag's work, temporal.frag GLARE_SUM).
     bool glare_sum = false;
