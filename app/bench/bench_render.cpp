@@ -226,8 +226,8 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
     const cloud::RainField rain = cloud::make_rain(storm.density, rain_params);
     const std::size_t cells = storm.lighting.cell_count();
     std::vector<float> scaled(storm.source.size());
-    auto show_flash = [&](render::Renderer& r, double g) {
-        for (std::size_t i = 0; i < scaled.size(); ++i) scaled[i] = float(double(storm.source[i]) * g);
+    // Uploads `scaled` as S in every direction.
+    auto upload_scaled = [&](render::Renderer& r) {
         render::SourceUpload all;
         all.geometry = storm.lighting;
         all.direction_count = storm.directions;
@@ -236,6 +236,10 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
             all.values.emplace_back(scaled.data() + std::size_t(m) * cells, cells);
         }
         r.upload_source(all);
+    };
+    auto show_flash = [&](render::Renderer& r, double g) {
+        for (std::size_t i = 0; i < scaled.size(); ++i) scaled[i] = float(double(storm.source[i]) * g);
+        upload_scaled(r);
         render::LitChannel ch = storm.bolt;
         for (render::ChannelSegment& c : ch.segments) c.intensity = float(double(c.intensity) * g);
         r.set_channel(ch);
@@ -258,14 +262,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
             w[c] = 0.3 * weight(storm.lighting.centre(v.x, v.y, v.z).z);
         }
         for (std::size_t k = 0; k < scaled.size(); ++k) scaled[k] = float(double(storm.source[k]) * w[k % cells]);
-        render::SourceUpload all;
-        all.geometry = storm.lighting;
-        all.direction_count = storm.directions;
-        for (int m = 0; m < storm.directions; ++m) {
-            all.directions.push_back(m);
-            all.values.emplace_back(scaled.data() + std::size_t(m) * cells, cells);
-        }
-        r.upload_source(all);
+        upload_scaled(r);
         render::LitChannel ch = storm.bolt;
         std::erase_if(ch.segments, [&](const render::ChannelSegment& c) { return std::min(c.a.z, c.b.z) < front; });
         for (render::ChannelSegment& c : ch.segments) c.intensity *= 0.3f;

@@ -153,42 +153,59 @@ render::Settings between_flashes(render::Renderer& r, const synthetic::Storm& st
     return st;
 }
 
+// A whole flash of a channel of `segments` segments, frame by frame: the leader (its front
+// creeping down: frames 0, 1), the return stroke's peak and decay (2-8), a dark gap (9, 10), a
+// restrike and its decay (11-17).
+std::vector<FlashFrame> whole_flash(int segments) {
+    return {{0.1, segments / 4},
+            {0.1, segments / 2},
+            {1.0},
+            {0.7},
+            {0.45},
+            {0.3},
+            {0.2},
+            {0.12},
+            {0.08},
+            {0.0},
+            {0.0},
+            {0.6},
+            {0.4},
+            {0.25},
+            {0.15},
+            {0.1},
+            {0.07},
+            {0.05}};
+}
+
+// The small storm with rain in the renderer, the directions of S its camera needs (`shape`), and
+// its settings for a still camera's history: no jitter (the history's pixels were marched in
+// other frames), no dither.
+render::Settings still_rainy_storm(render::Renderer& r, render::SourceUpload& shape) {
+    const synthetic::Storm& storm = small_storm();
+    static const cloud::RainField rain = cloud::make_rain(storm.density, cloud::RainParams{});
+    r.set_volume({.density = &storm.density, .extinction = storm.extinction, .rain = &rain});
+    shape = synthetic::needed_upload(r, storm);
+    render::Settings st = storm.settings;
+    st.jitter = false;
+    st.dither = false;
+    return st;
+}
+
 }  // namespace
 
 TEST_CASE("temporal history: a still camera through a whole flash gives each frame a fresh render's") {
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
-    cloud::RainParams rp;
-    const cloud::RainField rain = cloud::make_rain(storm.density, rp);
-    r.set_volume({.density = &storm.density, .extinction = storm.extinction, .rain = &rain});
-    const render::SourceUpload shape = synthetic::needed_upload(r, storm);
-    render::Settings st = storm.settings;
-    st.jitter = false;  // the history's pixels were marched in other frames: no per-frame jitter
-    st.dither = false;
+    render::SourceUpload shape;
+    render::Settings st = still_rainy_storm(r, shape);
     st.temporal_reshape = render::TemporalReshape::Full;  // a light's new shape marched at every pixel
     const int segments = int(storm.bolt.segments.size());
-    // Leader (the front creeping down), the return stroke's peak and decay, a dark gap, a
-    // restrike and its decay.
-    const std::vector<FlashFrame> flash = {{0.1, segments / 4},
-                                           {0.1, segments / 2},
-                                           {1.0},
-                                           {0.7},
-                                           {0.45},
-                                           {0.3},
-                                           {0.2},
-                                           {0.12},
-                                           {0.0},
-                                           {0.0},
-                                           {0.6},
-                                           {0.4},
-                                           {0.25},
-                                           {0.15}};
-    const std::vector<render::TemporalStep> expected = {
-        render::TemporalStep::Full,   render::TemporalStep::Full,   render::TemporalStep::Full,
-        render::TemporalStep::Reused, render::TemporalStep::Reused, render::TemporalStep::Reused,
-        render::TemporalStep::Reused, render::TemporalStep::Reused, render::TemporalStep::Reused,
-        render::TemporalStep::Reused, render::TemporalStep::Full,   render::TemporalStep::Reused,
-        render::TemporalStep::Reused, render::TemporalStep::Reused};
+    const std::vector<FlashFrame> flash = whole_flash(segments);
+    using Step = render::TemporalStep;
+    // Every new shape marched at every pixel (the leader's two frames, the return stroke, the
+    // restrike after the dark gap), every other frame reused.
+    std::vector<Step> expected(flash.size(), Step::Reused);
+    for (const std::size_t k : {0, 1, 2, 11}) expected[k] = Step::Full;
     double worst = 0.0, worst_t = 0.0;
     for (std::size_t i = 0; i < flash.size(); ++i) {
         show_flash(r, storm, shape, flash[i]);
@@ -218,35 +235,12 @@ TEST_CASE("temporal history: a light that changes in shape marches a quarter, th
     // the history is exact again.
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
-    cloud::RainParams rp;
-    const cloud::RainField rain = cloud::make_rain(storm.density, rp);
-    r.set_volume({.density = &storm.density, .extinction = storm.extinction, .rain = &rain});
-    const render::SourceUpload shape = synthetic::needed_upload(r, storm);
-    render::Settings st = storm.settings;
-    st.jitter = false;  // the history's pixels were marched in other frames: no per-frame jitter
-    st.dither = false;
+    render::SourceUpload shape;
+    render::Settings st = still_rainy_storm(r, shape);
     REQUIRE(st.temporal_reshape == render::TemporalReshape::Quarter);
     const int segments = int(storm.bolt.segments.size());
     using Step = render::TemporalStep;
-    // Leader, the return stroke and its decay, a dark gap, a restrike and its decay.
-    const std::vector<FlashFrame> flash = {{0.1, segments / 4},
-                                           {0.1, segments / 2},
-                                           {1.0},
-                                           {0.7},
-                                           {0.45},
-                                           {0.3},
-                                           {0.2},
-                                           {0.12},
-                                           {0.08},
-                                           {0.0},
-                                           {0.0},
-                                           {0.6},
-                                           {0.4},
-                                           {0.25},
-                                           {0.15},
-                                           {0.1},
-                                           {0.07},
-                                           {0.05}};
+    const std::vector<FlashFrame> flash = whole_flash(segments);
     // The frames a new shape marks (1, 2 the leader growing, 11 the restrike after the dark gap),
     // then the quarters a fresh render at this view would march otherwise, one a frame: after
     // the return stroke (2) all four, its ground lights having moved since the leader's frame
