@@ -300,9 +300,12 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     ++h.frames;
     // A moving camera upsamples three pixels of each 2x2 block: once it stops, the next four
     // frames march the four phases in turn, after which every pixel is marched and rescaled. A
-    // still camera's light that changed in shape marched one phase at this view already: three
-    // (four when that phase's ground was integrated per pixel, as a fresh frame's is not).
-    h.unsettled = stride == 2 ? (plan.still_cloud && plan.marched_as_fresh ? 3 : 4) : stride == 3 ? h.unsettled - 1 : 0;
+    // still camera's light that changed in shape marched one phase at this view already: three.
+    // A frame whose ground was integrated per pixel, as a fresh frame's is not, settles none: four.
+    h.unsettled = !plan.marched_as_fresh ? 4
+                  : stride == 2          ? (plan.still_cloud ? 3 : 4)
+                  : stride == 3          ? h.unsettled - 1
+                                         : 0;
 }
 
 }  // namespace fulgur::render

@@ -320,7 +320,6 @@ render::LitChannel lit_channel(std::span<const lightning::LitSegment> lit, doubl
 double StormView::warm_up(const render::Camera& camera, int width, int height, const ViewOptions& options) {
     const auto t0 = std::chrono::steady_clock::now();
     render::Settings st = frame_settings(options);
-    if (!st.temporal) return 0.0;
     // The programs are the full size's: a moving camera's fill as Auto picks it there (the
     // internal height decides), everything else independent of the size.
     const int full_march_height = std::max(1, int(std::lround(height * st.internal_scale)));

@@ -121,8 +121,9 @@ public:
     /// synthetic flash (a vertical channel from the cloud's middle to the ground, S uniform)
     /// appearing, dimming, changing in shape, with the camera still and orbiting, with and
     /// without the cloud's scattered light on the ground. The channel and S are cleared after:
-    /// the next render() shows its own. Returns the wall time (ms). Nothing to do for a
-    /// renderer without the temporal history (its frame asks for a few programs only).
+    /// the next render() shows its own, and the temporal history is forgotten
+    /// (render::Renderer::reset_history): the frames after it are those a new view draws.
+    /// Returns the wall time (ms).
     double warm_up(const render::Camera& camera, int width, int height, const ViewOptions& options);
     /// The frame at time t composited into a host engine's HDR target (bound as the draw
     /// framebuffer) with the host's camera and depth (render::Renderer::render_into_host): the
