@@ -83,6 +83,16 @@ void validate_settings(const Settings& st) {
     range(st.direction_min_weight, 0.0, 0.5, false, "direction_min_weight");
     if (st.meter_stride < 1 || st.meter_stride > 8)
         throw core::Error("render", "settings.meter_stride: must be 1 to 8, got " + std::to_string(st.meter_stride));
+    // The enumerations, as a caller that casts an integer could set them.
+    const auto one_of = [](int v, int count, const char* field) {
+        if (v < 0 || v >= count)
+            throw core::Error("render", std::string("settings.") + field + ": not a value of its enumeration, got " +
+                                            std::to_string(v));
+    };
+    one_of(int(st.temporal_light), 3, "temporal_light");
+    one_of(int(st.temporal_reshape), 2, "temporal_reshape");
+    one_of(int(st.kernel), 2, "kernel");
+    one_of(int(st.timing), 3, "timing");
     if (st.temporal_moving_block != 2 && st.temporal_moving_block != 4)
         throw core::Error("render", "settings.temporal_moving_block: must be 2 or 4, got " +
                                         std::to_string(st.temporal_moving_block));

@@ -677,6 +677,17 @@ TEST_CASE("bad inputs are rejected with errors naming the field") {
         st.temporal_moving_block = block;
         CHECK_THROWS_WITH_AS(render_at(r, cam, st, 32, 32), doctest::Contains("temporal_moving_block"), core::Error);
     }
+    // Enumerations set from an integer out of their range.
+    for (const int v : {-1, 2, 7}) {
+        st = {};
+        st.temporal_reshape = render::TemporalReshape(v);
+        CHECK_THROWS_WITH_AS(render_at(r, cam, st, 32, 32), doctest::Contains("temporal_reshape"), core::Error);
+    }
+    for (const int v : {-1, 3}) {
+        st = {};
+        st.temporal_light = render::TemporalLight(v);
+        CHECK_THROWS_WITH_AS(render_at(r, cam, st, 32, 32), doctest::Contains("temporal_light"), core::Error);
+    }
     for (const int stride : {0, -1, 9}) {
         st = {};
         st.auto_exposure = true;
