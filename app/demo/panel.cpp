@@ -224,6 +224,7 @@ void DemoPanel::frame_times(const view::FrameReport& rep) {
                     rep.gpu.wall.total);
         static const char* const kSteps[] = {"off", "every pixel marched", "a quarter marched", "history reused"};
         ImGui::Text("temporal history: %s", kSteps[int(rep.gpu.temporal)]);
+        ImGui::Text("programs compiled: %d", rep.gpu.programs_built);
         ImGui::TreePop();
     }
 }
