@@ -306,10 +306,10 @@ struct Settings {
     /// transmittances and a depth. A frame whose groups changed only in intensity rescales
     /// the history: a still camera marches nothing, a moving one a quarter of the pixels (a
     /// 2x2 block's pixels in turn) and fills the rest from the history reprojected through
-    /// their depth or from the marched pixels (temporal_light). A change in a
-    /// group's shape (a leader's front, another strike, the static light, any other input or
-    /// setting) marches every pixel, or for the flash's and the channel's groups a quarter
-    /// (temporal_reshape). The fragment kernel; not with render_into_host.
+    /// their depth or from the marched pixels (temporal_light). The flash or the channel in a
+    /// new shape (a leader's front, another strike) marches a quarter and upsamples them
+    /// (temporal_reshape; or every pixel); a new static light, any other input or setting marches
+    /// every pixel. The fragment kernel; not with render_into_host.
     bool temporal = false;
     /// With the temporal history: what a frame marches when the flash's or the channel's light
     /// changed in shape (docs/render.md, "A light that changes in shape").
