@@ -43,17 +43,18 @@ double Renderer::Impl::vertical_transmittance(const glm::dvec3& p, double ground
 
 namespace {
 
-// The channel's stretches (segments clipped to z <= top), each segment's power (intensity x
-// length) times its weight (empty: 1), as at most k point lights of equal weighted power in
-// channel order: each at its stretches' weighted-power centroid, its radiant intensity (W/sr)
-// their summed weighted power.
-std::vector<glm::dvec4> cluster_channel(const LitChannel& bolt, int k, double top, std::span<const double> weight) {
-    struct Piece {
-        glm::dvec3 ends;  // a + b
-        double power;
-    };
-    std::vector<Piece> pieces;
-    double total = 0.0;
+// A stretch of channel: its ends (a the lower) and its power.
+struct Stretch {
+    glm::dvec3 a, b;
+    double power;
+};
+
+// The channel's segments clipped to z <= top, in channel order, each with its power (intensity
+// x length) times its weight (empty: 1); those without power left out. `total`: their sum.
+std::vector<Stretch> stretches_below(const LitChannel& bolt, double top, std::span<const double> weight,
+                                     double& total) {
+    std::vector<Stretch> out;
+    total = 0.0;
     for (std::size_t i = 0; i < bolt.segments.size(); ++i) {
         const ChannelSegment& s = bolt.segments[i];
         glm::dvec3 a(s.a), b(s.b);
@@ -62,16 +63,25 @@ std::vector<glm::dvec4> cluster_channel(const LitChannel& bolt, int k, double to
         if (b.z > top) b = a + (b - a) * ((top - a.z) / (b.z - a.z));
         const double p = double(s.intensity) * glm::length(b - a) * (weight.empty() ? 1.0 : weight[i]);
         if (!(p > 0.0)) continue;
-        pieces.push_back({a + b, p});
+        out.push_back({a, b, p});
         total += p;
     }
+    return out;
+}
+
+// The channel's stretches below `top` (stretches_below), as at most k point lights of equal weighted power in
+// channel order: each at its stretches' weighted-power centroid, its radiant intensity (W/sr)
+// their summed weighted power.
+std::vector<glm::dvec4> cluster_channel(const LitChannel& bolt, int k, double top, std::span<const double> weight) {
+    double total = 0.0;
+    const std::vector<Stretch> pieces = stretches_below(bolt, top, weight, total);
     std::vector<glm::dvec4> out;
     if (total <= 0.0 || k <= 0) return out;
     const double per = total / k;
     double acc = 0.0, wsum = 0.0;
     glm::dvec3 centroid(0.0);
     for (std::size_t i = 0; i < pieces.size(); ++i) {
-        centroid += pieces[i].power * 0.5 * pieces[i].ends;
+        centroid += pieces[i].power * 0.5 * (pieces[i].a + pieces[i].b);
         wsum += pieces[i].power;
         acc += pieces[i].power;
         if (acc >= per * double(out.size() + 1) - 1e-9 * total || i + 1 == pieces.size()) {
@@ -91,28 +101,14 @@ std::vector<glm::dvec4> cluster_channel(const LitChannel& bolt, int k, double to
 // rain's lights: the march compiles their count (volume.glsl RAIN_LIGHTS), so a channel that
 // grows into the rain keeps one program, and a short stretch is k lights along it, not one.
 std::vector<glm::dvec4> split_channel(const LitChannel& bolt, int k, double top) {
-    struct Piece {
-        glm::dvec3 a, b;
-        double power;
-    };
-    std::vector<Piece> pieces;
     double total = 0.0;
-    for (const ChannelSegment& s : bolt.segments) {
-        glm::dvec3 a(s.a), b(s.b);
-        if (a.z > b.z) std::swap(a, b);
-        if (a.z > top) continue;
-        if (b.z > top) b = a + (b - a) * ((top - a.z) / (b.z - a.z));
-        const double p = double(s.intensity) * glm::length(b - a);
-        if (!(p > 0.0)) continue;
-        pieces.push_back({a, b, p});
-        total += p;
-    }
+    const std::vector<Stretch> pieces = stretches_below(bolt, top, {}, total);
     std::vector<glm::dvec4> out;
     if (!(total > 0.0) || k <= 0) return out;
     const double per = total / k;
     glm::dvec3 moment(0.0);  // the run's power-weighted sum of positions
     double run = 0.0;        // the run's power so far
-    for (const Piece& piece : pieces) {
+    for (const Stretch& piece : pieces) {
         double from = 0.0;  // the fraction of the piece taken by earlier runs
         while (from < 1.0) {
             const double left = (1.0 - from) * piece.power;

@@ -89,7 +89,8 @@ void Renderer::Impl::glow_pass(const Settings& st, const FrameUniforms& u, PassT
         glm::vec4 window(1.0f, 1.0f, 0.0f, 0.0f);
         if (grid > 1) {
             const glm::ivec2 phase = plan->phase;
-            const int fw = (iw - phase.x + grid - 1) / grid, fh = (ih - phase.y + grid - 1) / grid;
+            const glm::ivec2 marched = plan->marched_size(iw, ih);
+            const int fw = marched.x, fh = marched.y;
             glow_grid_target.ensure(fw, fh);
             const auto map = [&](int size, int n, int first) {
                 return glm::dvec2(double(size) / (grid * n), double(size - 2 * first - 1) / (grid * n) + 1.0 / n - 1.0);

@@ -238,7 +238,8 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     const int grid = plan.grid();
 
     const int iw = u.internal_width, ih = u.internal_height;
-    const int fw = (iw - phase.x + grid - 1) / grid, fh = (ih - phase.y + grid - 1) / grid;
+    const glm::ivec2 marched = plan.marched_size(iw, ih);
+    const int fw = marched.x, fh = marched.y;
     h.fresh.ensure(fw, fh, 3);
     ground_rain_pass(u);
     // The glow pass drew only the marched pixels (glow_pass): the march reads them in place.

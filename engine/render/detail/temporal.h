@@ -70,6 +70,11 @@ struct TemporalPlan {
     /// Every grid()-th pixel of each row and column is marched, from `phase` (strides 2 and 3;
     /// 1: every pixel).
     int grid() const { return stride == 3 ? 2 : stride == 2 ? block : 1; }
+    /// The marched pixels of a march `width` x `height`: a grid() x grid() block's pixel each.
+    glm::ivec2 marched_size(int width, int height) const {
+        const int g = grid();
+        return {(width - phase.x + g - 1) / g, (height - phase.y + g - 1) / g};
+    }
 };
 
 struct TemporalState {
