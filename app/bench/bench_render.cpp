@@ -37,8 +37,8 @@
 //   FULGUR_BENCH_PASS_FINISH=1 times the demo rows' passes one by one (glFinish around each)
 //   instead of with timer queries, which llvmpipe may charge to the wrong pass.
 //   FULGUR_BENCH_DEMO_IMAGES=DIR also writes, for the orbiting rows with detail and rain during
-//   a return stroke and the still camera's leader, frame 6 marched afresh beside the history's
-//   and their difference (PNG in DIR).
+//   a return stroke and between flashes marching a sixteenth, and the still camera's leader,
+//   frame 6 marched afresh beside the history's and their difference (PNG in DIR).
 // llvmpipe uses LP_NUM_THREADS threads (default: all cores); the row says how many.
 #include "bench/bench.h"
 
@@ -286,8 +286,10 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
         // Whether the default (TemporalLight::Auto) fills an orbiting frame's pixels not marched
         // from the marched ones (else from the history, reprojected), a quarter or a sixteenth
         // marched alike.
-        const bool auto_upsamples = render::temporal_upsamples(
-            render::TemporalLight::Auto, kOrbitFov, std::max(1, int(std::lround(size.y * st.internal_scale))));
+        const int march_height = std::max(1, int(std::lround(size.y * st.internal_scale)));
+        const bool auto_upsamples = render::temporal_upsamples(render::TemporalLight::Auto, kOrbitFov, march_height);
+        // The block the default (temporal_moving_block 0) marches between flashes, orbiting.
+        const int auto_block = render::temporal_block(0, kOrbitFov, march_height);
         // During a flash (the return stroke's decay; no static light), then between flashes:
         // the static light alone (the storm's S, x 1e-3, as a grey moonlit field on the
         // lighting grid), no flash S, no channel, so no glow, bolt or glare: what most of a
@@ -311,9 +313,10 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                         // 0 without the history, 1 with it (the default: the pixels not marched
                         // filled as TemporalLight::Auto picks), 2 with them filled the other way
                         // (reprojected where Auto upsamples, upsampled where it reprojects), 3
-                        // marching one pixel of each 4x4 block between flashes (filled as Auto
-                        // picks): a moving camera's knobs only; 4 a leader's new shapes marched at
-                        // every pixel (TemporalReshape::Full; mode 1: a quarter, the default).
+                        // between flashes the other block than the default's (a quarter where it
+                        // marches a sixteenth, a sixteenth where it marches a quarter; filled as
+                        // Auto picks): a moving camera's knobs only; 4 a leader's new shapes marched
+                        // at every pixel (TemporalReshape::Full; mode 1: a quarter, the default).
                         const bool temporal = mode > 0;
                         if ((mode == 2 || mode == 3) && (!orbit || leader)) continue;
                         if (mode == 3 && flash) continue;  // a flash marches a quarter: mode 1's frames
@@ -325,9 +328,9 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                         st.temporal = temporal;
                         st.temporal_reshape =
                             mode == 4 ? render::TemporalReshape::Full : render::TemporalReshape::Quarter;
-                        st.temporal_moving_block = mode == 3 ? 4 : 2;
+                        st.temporal_moving_block = mode == 3 ? 6 - auto_block : 0;
                         // The block a frame marches: a sixteenth only between flashes.
-                        const int block = mode == 3 && !flash ? 4 : 2;
+                        const int block = flash ? 2 : mode == 3 ? 6 - auto_block : auto_block;
                         const bool upsampled = mode == 2 ? !auto_upsamples : auto_upsamples;
                         st.temporal_light =
                             mode == 2 ? (upsampled ? render::TemporalLight::Upsample : render::TemporalLight::Reproject)
@@ -375,13 +378,17 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             // through a return stroke and of a still camera's leader (its new
                             // shapes a quarter at a time), fresh | the history's | difference.
                             const char* dir = std::getenv("FULGUR_BENCH_DEMO_IMAGES");
-                            const bool picture = orbit ? flash && !leader : leader && mode == 1;
+                            // Between flashes, the orbit's sixteenth too.
+                            const bool picture =
+                                orbit ? (flash && !leader) || (!flash && block == 4) : leader && mode == 1;
                             if (dir && picture && effects && i == 6)
-                                write_comparison(std::filesystem::path(dir) /
-                                                     (leader ? "demo-leader-" + std::to_string(size.x) + "-still.png"
-                                                             : "demo-orbit-" + std::to_string(size.x) + "-" +
-                                                                   (upsampled ? "upsample" : "reproject") + ".png"),
-                                                 fresh_march, kept[std::size_t(i)], w, h, shown[std::size_t(i)]);
+                                write_comparison(
+                                    std::filesystem::path(dir) /
+                                        (leader   ? "demo-leader-" + std::to_string(size.x) + "-still.png"
+                                         : !flash ? "demo-orbit-static-" + std::to_string(size.x) + "-sixteenth.png"
+                                                  : "demo-orbit-" + std::to_string(size.x) + "-" +
+                                                        (upsampled ? "upsample" : "reproject") + ".png"),
+                                    fresh_march, kept[std::size_t(i)], w, h, shown[std::size_t(i)]);
                             display_mean.push_back(shown_diff.mean_levels);
                             display_over2.push_back(shown_diff.over_2);
                             // The jitter's own noise: the same frame marched with another frame's jitter.
@@ -422,6 +429,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             {"fill", orbit && temporal ? (upsampled ? "upsample" : "reproject") : "none"},
                             {"default_fill", auto_upsamples ? "upsample" : "reproject"},
                             {"moving_block", block},
+                            {"default_moving_block", flash ? 2 : auto_block},
                             {"frame_ms", ms},
                             {"fps", 1000.0 / ms},
                             {"frame_cpu_ms", bench::median(cpu)},

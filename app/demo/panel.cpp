@@ -193,14 +193,15 @@ void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& r
                 "a moving camera's pixels not marched: reprojected from the history, or upsampled from the "
                 "marched quarter (nearer a fresh render and faster where the marched pixels are close together: "
                 "1280x720 and above); auto picks by the march's pixel size on screen");
-        bool sixteenth = opt.settings.temporal_moving_block == 4;
-        if (ImGui::Checkbox("moving camera marches a sixteenth between flashes", &sixteenth))
-            opt.settings.temporal_moving_block = sixteenth ? 4 : 2;
+        int block = opt.settings.temporal_moving_block / 2;  // 0 auto, 1 a quarter, 2 a sixteenth
+        if (ImGui::Combo("moving camera marches between flashes", &block, "auto\0a quarter\0a sixteenth\0"))
+            opt.settings.temporal_moving_block = 2 * block;
         if (ImGui::IsItemHovered())
             ImGui::SetTooltip(
-                "while no flash lights the frame, a moving camera marches one pixel of each 4x4 block instead of "
-                "each 2x2 (1280x720, detail and rain: 28 -> 17 ms, 1.2%% -> 3.3%% from a fresh render, 0.04 -> 0.13 "
-                "levels as displayed); during a flash a quarter either way");
+                "while no flash lights the frame, a moving camera marches one pixel of each 2x2 block or of each "
+                "4x4 (1280x720, detail and rain: 28 -> 17 ms, 1.2%% -> 3.3%% from a fresh render, 0.04 -> 0.13 "
+                "levels as displayed); auto marches a sixteenth where its pixels are close together on screen "
+                "(1280x720 and above); during a flash a quarter either way");
         bool reshape_full = opt.settings.temporal_reshape == render::TemporalReshape::Full;
         if (ImGui::Checkbox("a light's new shape marched at every pixel", &reshape_full))
             opt.settings.temporal_reshape =

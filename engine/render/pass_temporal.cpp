@@ -160,7 +160,8 @@ detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const S
     // A light that changed in shape, the cloud's group holding: a quarter marched, the light
     // groups upsampled from it (Settings::temporal_reshape).
     const bool reshaped = cloud_holds && !lights_hold && st.temporal_reshape == TemporalReshape::Quarter && fits >= 2;
-    plan.block = st.temporal_moving_block == 4 && flash_dark && fits >= 4 && !reshaped ? 4 : 2;
+    const int block = temporal_block(st.temporal_moving_block, camera.vertical_fov_deg, u.internal_height);
+    plan.block = block == 4 && flash_dark && fits >= 4 && !reshaped ? 4 : 2;
     plan.stride = reshaped                        ? 2
                   : !(cloud_holds && lights_hold) ? 1
                   : still                         ? (h.unsettled > 0 ? 3 : 0)

@@ -232,6 +232,24 @@ constexpr bool temporal_upsamples(TemporalLight mode, double vertical_fov_deg, i
     if (mode != TemporalLight::Auto) return mode == TemporalLight::Upsample;
     return march_height > 0 && 2.0 * vertical_fov_deg / double(march_height) <= kTemporalUpsampleDeg;
 }
+/// The angle (degrees, vertically) between every fourth internal pixel at or below which
+/// Settings::temporal_moving_block 0 (auto) marches a sixteenth between flashes, else a quarter:
+/// up to the spacing measured at 1280x720 with a 55 degree field (0.61 degrees; orbiting with
+/// detail and rain a fresh render's frame is 3.3% / 0.13 display levels away, against the
+/// quarter's 1.2% / 0.04 and the default flash frame's 8.9% / 0.13, for 17 instead of 28 ms;
+/// 1920x1080, 0.41 degrees: 2.0% / 0.07). At 640x360 (1.22 degrees) a sixteenth gains little
+/// time and its marched pixels are as far apart as the quarter's at 320x180 (docs/render.md).
+inline constexpr double kTemporalSixteenthDeg = 0.62;
+
+/// The block of which a moving camera between flashes marches one pixel a frame: `setting`
+/// (Settings::temporal_moving_block) if 2 or 4, and for 0 (auto) 4 where every fourth pixel of
+/// a march `march_height` pixels high over `vertical_fov_deg` is at most kTemporalSixteenthDeg
+/// apart, else 2.
+constexpr int temporal_block(int setting, double vertical_fov_deg, int march_height) {
+    if (setting != 0) return setting;
+    return march_height > 0 && 4.0 * vertical_fov_deg / double(march_height) <= kTemporalSixteenthDeg ? 4 : 2;
+}
+
 /// What a frame of the temporal history marches when a light group changed in shape (a leader's
 /// front growing, another stroke or branch lighting, a strike's own solve replacing its first
 /// light) while the cloud's group still holds (Settings::temporal_reshape).
@@ -322,9 +340,11 @@ struct Settings {
     /// frames. 4: a sixteenth between flashes (no flash S, no channel), every 16 frames, and a
     /// quarter during a flash (at 1280x720 orbiting with detail and rain, between flashes 17.4 ms
     /// and 3.3% from a fresh render against the quarter's 28 ms and 1.2%; during a flash a
-    /// sixteenth erred by 24%, 0.72 levels of 255 as displayed against 0.16: docs/render.md). A
-    /// camera that stops marches its quarters in turn either way.
-    int temporal_moving_block = 2;
+    /// sixteenth erred by 24%, 0.72 levels of 255 as displayed against 0.16: docs/render.md).
+    /// 0 (auto): 4 where the sixteenth's marched pixels are close together on screen
+    /// (temporal_block, kTemporalSixteenthDeg: 1280x720 and above at a 50-55 degree field),
+    /// else 2. A camera that stops marches its quarters in turn either way.
+    int temporal_moving_block = 0;
     std::uint32_t frame_index = 0;  ///< varies the jitter pattern between frames (deterministic)
     // Effects
     bool sky = true;

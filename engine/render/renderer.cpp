@@ -93,8 +93,8 @@ void validate_settings(const Settings& st) {
     one_of(int(st.temporal_reshape), 2, "temporal_reshape");
     one_of(int(st.kernel), 2, "kernel");
     one_of(int(st.timing), 3, "timing");
-    if (st.temporal_moving_block != 2 && st.temporal_moving_block != 4)
-        throw core::Error("render", "settings.temporal_moving_block: must be 2 or 4, got " +
+    if (st.temporal_moving_block != 0 && st.temporal_moving_block != 2 && st.temporal_moving_block != 4)
+        throw core::Error("render", "settings.temporal_moving_block: must be 0 (auto), 2 or 4, got " +
                                         std::to_string(st.temporal_moving_block));
 }
 

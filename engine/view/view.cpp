@@ -320,12 +320,14 @@ render::LitChannel lit_channel(std::span<const lightning::LitSegment> lit, doubl
 double StormView::warm_up(const render::Camera& camera, int width, int height, const ViewOptions& options) {
     const auto t0 = std::chrono::steady_clock::now();
     render::Settings st = frame_settings(options);
-    // The programs are the full size's: a moving camera's fill as Auto picks it there (the
-    // internal height decides), everything else independent of the size.
+    // The programs are the full size's: a moving camera's fill and block as Auto picks them
+    // there (the internal height decides), everything else independent of the size.
     const int full_march_height = std::max(1, int(std::lround(height * st.internal_scale)));
     st.temporal_light = render::temporal_upsamples(st.temporal_light, camera.vertical_fov_deg, full_march_height)
                             ? render::TemporalLight::Upsample
                             : render::TemporalLight::Reproject;
+    st.temporal_moving_block =
+        render::temporal_block(st.temporal_moving_block, camera.vertical_fov_deg, full_march_height);
     const int w = std::max(64, width / 4), h = std::max(36, height / 4);
     // The camera turned about the vertical through its target (degrees).
     const auto turned = [&](double deg) {

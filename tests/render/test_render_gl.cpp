@@ -672,7 +672,7 @@ TEST_CASE("bad inputs are rejected with errors naming the field") {
     st = {};
     st.step_voxels = std::nan("");
     CHECK_THROWS_WITH_AS(render_at(r, cam, st, 32, 32), doctest::Contains("step_voxels"), core::Error);
-    for (const int block : {0, 3, 8, -2}) {
+    for (const int block : {1, 3, 8, -2}) {
         st = {};
         st.temporal_moving_block = block;
         CHECK_THROWS_WITH_AS(render_at(r, cam, st, 32, 32), doctest::Contains("temporal_moving_block"), core::Error);

@@ -616,6 +616,44 @@ TEST_CASE(
     r.clear_volume();
 }
 
+TEST_CASE(
+    "temporal history: temporal_moving_block 0 marches a sixteenth between flashes where its pixels are close "
+    "together on screen") {
+    // The rule on every fourth internal pixel's angle: a 55 degree field over 360 rows (the
+    // bench's 1280x720) is 0.61 degrees, a sixteenth; over 180 rows 1.22, a quarter.
+    CHECK(render::temporal_block(0, 55.0, 360) == 4);
+    CHECK(render::temporal_block(0, 55.0, 180) == 2);
+    CHECK(render::temporal_block(0, 55.0, 0) == 2);
+    CHECK(render::temporal_block(2, 10.0, 360) == 2);
+    CHECK(render::temporal_block(4, 90.0, 10) == 4);
+    // The renderer follows it: this test's 90 rows at 55 degrees (2.4 degrees) march a quarter,
+    // at 12 degrees (0.53) a sixteenth; a flash a quarter at either.
+    render::Renderer& r = gl_renderer();
+    const synthetic::Storm& storm = small_storm();
+    render::Settings st = between_flashes(r, storm);
+    st.temporal = true;
+    REQUIRE(st.temporal_moving_block == 0);
+    for (const double fov : {55.0, 12.0}) {
+        CAPTURE(fov);
+        const double share = fov > 30.0 ? 0.25 : 1.0 / 16.0;
+        for (int i = 0; i < 3; ++i) {
+            st.frame_index = std::uint32_t(600 + i);
+            const render::FrameStats s = render_at(r, synthetic::orbit_camera(storm, -60.0 + i, 8.0, fov), st, W, H);
+            CHECK(s.temporal == (i == 0 ? render::TemporalStep::Full : render::TemporalStep::Quarter));
+            if (i > 0) CHECK(s.marched_share == doctest::Approx(share).epsilon(0.15));
+        }
+    }
+    show_flash(r, storm, every_direction(storm), {.g = 1.0});
+    for (int i = 3; i < 5; ++i) {
+        st.frame_index = std::uint32_t(600 + i);
+        const render::FrameStats s = render_at(r, synthetic::orbit_camera(storm, -60.0 + i, 8.0, 12.0), st, W, H);
+        CHECK(s.temporal == render::TemporalStep::Quarter);
+        CHECK(s.marched_share == doctest::Approx(0.25).epsilon(0.05));
+    }
+    r.clear_static();
+    r.clear_volume();
+}
+
 TEST_CASE("temporal history: tiny and changing sizes march what they must, without errors") {
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
