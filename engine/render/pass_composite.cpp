@@ -21,9 +21,9 @@ void Renderer::Impl::composite_pass(const FrameUniforms& u, const CallerTarget& 
     timer.begin(kComposite);
     prepare_stars(u, !u.host && u.stars, composite_overlays);
     // Display values are upsampled only where there is something to upsample, and never into a
-    // host's frame (radiance, blended).
-    composite_display = display_upsample && !u.host && (u.internal_width != out_w || u.internal_height != out_h);
-    if (composite_display) display_pass(u);
+    // host's frame (radiance, blended); the glare's finest level may have written them already.
+    composite_display = wants_display(u);
+    if (composite_display && !display_written) display_pass(u);
     glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(caller.fbo));
     if (u.host) {
         // A host's frame: dst = L + T dst (premultiplied radiance over the host's radiance); its alpha is kept.

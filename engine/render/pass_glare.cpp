@@ -85,6 +85,7 @@ std::vector<double> Renderer::Impl::glare_groups_key_of(const Camera& camera, co
 void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const FrameUniforms& u, PassTimer& timer,
                                 FrameStats& stats) {
     glare_ran = false;
+    display_written = false;
     if (!(st.glare && core_drawn)) return;  // the bolt pass ran first: the core it drew
     const GlareView view = glare_view(camera, u);
     const int levels = view.levels;
@@ -117,7 +118,9 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
         glViewport(0, 0, glare_down[0].w, glare_down[0].h);
         glDrawArrays(GL_TRIANGLES, 0, 3);
     };
-    // Down from level 0, then up, the finest sum into `out` (with the march's share: `fold`).
+    // Down from level 0, then up, the finest sum into `out` (with the march's share: `fold`;
+    // then also the display values the composite upsamples, when it does).
+    const bool display = wants_display(u);
     const auto down_and_up = [&](const detail::Target& out, bool fold) {
         const GLuint down =
             program("glare_down", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_down.frag"}});
@@ -136,16 +139,18 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
         for (int k = levels - 1; k >= 0; --k) {
             const detail::Target& dst = k == 0 ? out : glare_up[std::size_t(k)];
             const bool coarser = k + 1 < levels;
+            const bool folded = k == 0 && fold, with_display = folded && display;
             const std::string defines = std::string("#define HAS_COARSE ") + (coarser ? "1" : "0") + "\n#define WIDE " +
-                                        (k >= kGlareWideFrom ? "1" : "0") + "\n#define FOLD " +
-                                        (k == 0 && fold ? "1" : "0") + "\n";
+                                        (k >= kGlareWideFrom ? "1" : "0") + "\n#define FOLD " + (folded ? "1" : "0") +
+                                        "\n#define DISPLAY " + (with_display ? "1" : "0") + "\n#define DITHER " +
+                                        (composite_dither ? "1" : "0") + "\n";
             const GLuint up = program(
                 "glare_up", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "glare_up.frag"}}, defines);
             glUseProgram(up);
             glBindTextureUnit(0, glare_down[std::size_t(k)].tex);
             glBindTextureUnit(1, coarser ? glare_up[std::size_t(k + 1)].tex : glare_down[std::size_t(k)].tex);
             glUniform1f(glGetUniformLocation(up, "u_weight"), float(glare_fit.weights[std::size_t(k)]));
-            if (k == 0 && fold) {
+            if (folded) {
                 // The finest level holds what the composite reads at the march's resolution: keep x
                 // the march + the spread light, and the march's transmittance (composite.frag).
                 glUniform1f(glGetUniformLocation(up, "u_keep"), float(glare_fit.keep));
@@ -156,9 +161,20 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
                 glUniform2f(glGetUniformLocation(up, "u_coarse_texel"), 1.0f / float(c.w), 1.0f / float(c.h));
             }
             glUniform2f(glGetUniformLocation(up, "u_size"), float(dst.w), float(dst.h));
-            glBindFramebuffer(GL_FRAMEBUFFER, dst.fbo);
+            if (with_display) {
+                display_target.ensure(dst.w, dst.h, GL_RGBA8);
+                if (!glare_display_fbo) glCreateFramebuffers(1, &glare_display_fbo);
+                glNamedFramebufferTexture(glare_display_fbo, GL_COLOR_ATTACHMENT0, dst.tex, 0);
+                glNamedFramebufferTexture(glare_display_fbo, GL_COLOR_ATTACHMENT1, display_target.tex, 0);
+                const GLenum both[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+                glNamedFramebufferDrawBuffers(glare_display_fbo, 2, both);
+                glBindFramebuffer(GL_FRAMEBUFFER, glare_display_fbo);
+            } else {
+                glBindFramebuffer(GL_FRAMEBUFFER, dst.fbo);
+            }
             glViewport(0, 0, dst.w, dst.h);
             glDrawArrays(GL_TRIANGLES, 0, 3);
+            display_written = display_written || with_display;
         }
     };
     // A still camera whose frame is the history's groups with their factors (nothing marched):

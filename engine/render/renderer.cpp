@@ -207,6 +207,8 @@ Renderer::~Renderer() {
     m.glare_sum_version = 0;
     if (m.glare_sum_fbo) glDeleteFramebuffers(1, &m.glare_sum_fbo);
     m.glare_sum_fbo = 0;
+    if (m.glare_display_fbo) glDeleteFramebuffers(1, &m.glare_display_fbo);
+    m.glare_display_fbo = 0;
     m.temporal.release();
 }
 

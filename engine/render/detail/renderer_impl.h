@@ -159,6 +159,8 @@ struct Renderer::Impl {
     bool composite_overlays = true;  // Settings::composite_overlays
     bool display_upsample = true;    // Settings::display_upsample
     bool composite_display = false;  // this frame's composite upsamples display_target (composite.frag's DISPLAY)
+    bool display_written = false;    // this frame's glare wrote display_target beside its finest sum (pass_glare.cpp)
+    GLuint glare_display_fbo = 0;    // the glare's finest sum and the display values at once
     float core_min_width_px = 1.5f;  // the bolt pass's Settings::bolt_min_width_px (the core's overlay)
     // The cells of the stars' cube map that may hold a star (star_points.vert's vertices), made
     // at the first frame that draws the stars as points; star_cell_count of them.
@@ -317,6 +319,11 @@ struct Renderer::Impl {
     /// The march's frame (with the glare when it ran) tone mapped at its own resolution into
     /// display_target (display.frag), for the composite to upsample.
     void display_pass(const detail::FrameUniforms& u);
+    /// Whether this frame's composite upsamples display values (Settings::display_upsample):
+    /// where the march is smaller than the output, and not into a host's frame (radiance, blended).
+    bool wants_display(const detail::FrameUniforms& u) const {
+        return display_upsample && !u.host && (u.internal_width != out_w || u.internal_height != out_h);
+    }
     /// The stars for this frame's composite: drawn as points over it (`points`, when the view's
     /// spots fit GL's largest point) or computed at every pixel of it.
     void prepare_stars(const detail::FrameUniforms& u, bool stars, bool points);
