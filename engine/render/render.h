@@ -266,8 +266,8 @@ enum class TemporalReshape {
 enum class TemporalStep {
     Off,      ///< no history: the march as without it
     Full,     ///< every pixel marched (no history yet, or a light changed in shape)
-    Quarter,  ///< the camera moved: a quarter of the pixels marched (a sixteenth with
-              ///< Settings::temporal_moving_block 4), the rest reprojected
+    Quarter,  ///< the camera moved: a quarter of the pixels marched (between flashes a sixteenth
+              ///< where Settings::temporal_moving_block picks 4), the rest filled
     Reused,   ///< a still camera and lights changed only in intensity: nothing marched
 };
 enum class Timing { Off, Finish, Queries };
