@@ -349,11 +349,16 @@ TEST_CASE("storm: the linear frame (fulgur-shot --exr) is the tone map's input a
 }
 
 TEST_CASE("StormView::warm_up: a storm's frames after it compile nothing and show what they show without it") {
-    // A strike's leader, return stroke and decay with the camera still, then orbiting, in the
-    // rain scene with the demo's settings (the temporal history, glare), once after warm_up and
-    // once without: after it no frame builds a program, and the last frame is the same image
-    // (warm_up clears its channel and S; what the renderer keeps is keyed by what it was made
-    // from). Without it the first flash builds ~20 programs.
+    // A strike's leader, return stroke and decay with the camera still, then orbiting, and
+    // orbiting 3 s later (no flash), in the rain scene with the demo's settings (the temporal
+    // history, glare), once after warm_up and once without: after it no frame builds a program,
+    // and the last frame is the same image (warm_up clears its channel and S; what the renderer
+    // keeps is keyed by what it was made from). Without it the first flash builds ~20 programs.
+    // A 6 degree field, so that this test's 45 rows marched are spaced as the demo's 360 at
+    // 1280x720: the pixels not marched upsampled (every other pixel 0.27 degrees apart), and
+    // between flashes a sixteenth marched (every fourth 0.53: render::temporal_block), which
+    // warm_up, run at a quarter of the size, must pick as the full size does (left to pick
+    // at its own size, it leaves one program to the frames).
     std::vector<std::uint8_t> last[2];
     int built[2] = {0, 0};
     for (const bool warm : {true, false}) {
@@ -363,13 +368,15 @@ TEST_CASE("StormView::warm_up: a storm's frames after it compile nothing and sho
         opt.settings.temporal = true;
         opt.settings.timing = render::Timing::Off;
         opt.settings.dither = false;
-        const scene::CameraSpec spec = view::explicit_orbit(view.scene().camera, view.density());
+        scene::CameraSpec spec = view::explicit_orbit(view.scene().camera, view.density());
+        spec.vertical_fov_deg = 6.0;
         const double onset = return_stroke(view, 11) - 0.002;
         if (warm) CHECK(view.warm_up(view::scene_camera(spec, view.density()), W, H, opt) > 0.0);
         const std::vector<std::pair<double, double>> frames = {
-            {0.3 * onset, 0.0},  {0.8 * onset, 0.0},  {onset + 2e-4, 0.0}, {onset + 1e-3, 0.0},
-            {onset + 2e-3, 0.0}, {onset + 3e-3, 0.0}, {onset + 4e-3, 0.0}, {onset + 5e-3, 0.0},
-            {onset + 6e-3, 1.0}, {onset + 7e-3, 2.0}, {onset + 8e-3, 3.0}};
+            {0.3 * onset, 0.0},  {0.8 * onset, 0.0},  {onset + 2e-4, 0.0}, {onset + 1e-3, 0.0}, {onset + 2e-3, 0.0},
+            {onset + 3e-3, 0.0}, {onset + 4e-3, 0.0}, {onset + 5e-3, 0.0}, {onset + 6e-3, 1.0}, {onset + 7e-3, 2.0},
+            {onset + 8e-3, 3.0}, {onset + 3.0, 4.0},  {onset + 3.0, 5.0},  {onset + 3.0, 6.0}};
+        int sixteenths = 0;
         for (std::size_t i = 0; i < frames.size(); ++i) {
             scene::CameraSpec c = spec;
             c.azimuth_deg += frames[i].second;
@@ -379,8 +386,10 @@ TEST_CASE("StormView::warm_up: a storm's frames after it compile nothing and sho
             CAPTURE(i);
             if (warm) CHECK(r.gpu.programs_built == 0);
             built[warm ? 0 : 1] += r.gpu.programs_built;
+            sixteenths += r.gpu.temporal == render::TemporalStep::Quarter && r.gpu.marched_share < 0.1;
             if (i == 2) CHECK(r.lit);
         }
+        CHECK(sixteenths == 3);  // the frames orbiting after the flash
         context().present();
         last[warm ? 0 : 1] = context().read_rgba8();
     }
