@@ -428,8 +428,10 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             // ones or reprojected from the history; and what the default does.
                             {"fill", orbit && temporal ? (upsampled ? "upsample" : "reproject") : "none"},
                             {"default_fill", auto_upsamples ? "upsample" : "reproject"},
-                            {"moving_block", block},
-                            {"default_moving_block", flash ? 2 : auto_block},
+                            // The block a moving camera marches (none for a still one).
+                            {"moving_block", orbit ? nlohmann::json(block) : nlohmann::json(nullptr)},
+                            {"default_moving_block",
+                             orbit ? nlohmann::json(flash ? 2 : auto_block) : nlohmann::json(nullptr)},
                             {"frame_ms", ms},
                             {"fps", 1000.0 / ms},
                             {"frame_cpu_ms", bench::median(cpu)},

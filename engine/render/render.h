@@ -237,8 +237,8 @@ constexpr bool temporal_upsamples(TemporalLight mode, double vertical_fov_deg, i
 /// up to the spacing measured at 1280x720 with a 55 degree field (0.61 degrees; orbiting with
 /// detail and rain a fresh render's frame is 3.3% / 0.13 display levels away, against the
 /// quarter's 1.2% / 0.04 and the default flash frame's 8.9% / 0.13, for 17 instead of 28 ms;
-/// 1920x1080, 0.41 degrees: 2.0% / 0.07). At 640x360 (1.22 degrees) a sixteenth gains little
-/// time and its marched pixels are as far apart as the quarter's at 320x180 (docs/render.md).
+/// 1920x1080, 0.41 degrees: 2.0% / 0.07). At 640x360 (1.22 degrees) a sixteenth's frame is
+/// 5.2% / 0.52 levels away for 8.3 instead of 10.7 ms: the quarter kept (docs/render.md).
 inline constexpr double kTemporalSixteenthDeg = 0.62;
 
 /// The block of which a moving camera between flashes marches one pixel a frame: `setting`
