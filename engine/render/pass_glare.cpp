@@ -163,11 +163,7 @@ void Renderer::Impl::glare_pass(const Camera& camera, const Settings& st, const 
             glUniform2f(glGetUniformLocation(up, "u_size"), float(dst.w), float(dst.h));
             if (with_display) {
                 display_target.ensure(dst.w, dst.h, GL_RGBA8);
-                if (!glare_display_fbo) glCreateFramebuffers(1, &glare_display_fbo);
-                glNamedFramebufferTexture(glare_display_fbo, GL_COLOR_ATTACHMENT0, dst.tex, 0);
-                glNamedFramebufferTexture(glare_display_fbo, GL_COLOR_ATTACHMENT1, display_target.tex, 0);
-                const GLenum both[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
-                glNamedFramebufferDrawBuffers(glare_display_fbo, 2, both);
+                detail::attach_targets(glare_display_fbo, {dst.tex, display_target.tex});
                 glBindFramebuffer(GL_FRAMEBUFFER, glare_display_fbo);
             } else {
                 glBindFramebuffer(GL_FRAMEBUFFER, dst.fbo);

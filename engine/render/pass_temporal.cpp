@@ -215,11 +215,7 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
                 glUniform1f(glGetUniformLocation(p, "u_keep"), float(glare_groups_keep));
                 for (int g = 0; g < 3; ++g)
                     glBindImageTexture(GLuint(2 + g), glare_groups[g].tex, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
-                if (!glare_sum_fbo) glCreateFramebuffers(1, &glare_sum_fbo);
-                glNamedFramebufferTexture(glare_sum_fbo, GL_COLOR_ATTACHMENT0, h.march.tex, 0);
-                glNamedFramebufferTexture(glare_sum_fbo, GL_COLOR_ATTACHMENT1, glare_up[0].tex, 0);
-                const GLenum both[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
-                glNamedFramebufferDrawBuffers(glare_sum_fbo, 2, both);
+                detail::attach_targets(glare_sum_fbo, {h.march.tex, glare_up[0].tex});
                 glBindFramebuffer(GL_FRAMEBUFFER, glare_sum_fbo);
             } else {
                 glBindFramebuffer(GL_FRAMEBUFFER, h.march.fbo);
@@ -258,13 +254,9 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     const int next = 1 - h.current;
     for (detail::MultiTarget& t : h.history) t.ensure(iw, ih, 3);
     GLuint& fbo = h.resolve_fbo[next];
-    if (!fbo) glCreateFramebuffers(1, &fbo);
-    for (int i = 0; i < 3; ++i)
-        glNamedFramebufferTexture(fbo, GLenum(GL_COLOR_ATTACHMENT0 + i), h.history[next].tex[std::size_t(i)], 0);
     h.march.ensure(iw, ih);
-    glNamedFramebufferTexture(fbo, GL_COLOR_ATTACHMENT3, h.march.tex, 0);
-    const GLenum draw[4] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2, GL_COLOR_ATTACHMENT3};
-    glNamedFramebufferDrawBuffers(fbo, 4, draw);
+    const std::vector<GLuint>& hist = h.history[next].tex;
+    detail::attach_targets(fbo, {hist[0], hist[1], hist[2], h.march.tex});
     detail::check_framebuffer(fbo, iw, ih);
 
     const GLuint p =

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <initializer_list>
 #include <span>
 #include <string>
 #include <vector>
@@ -55,6 +56,20 @@ inline void check_framebuffer(GLuint fbo, int w, int h) {
     if (glCheckNamedFramebufferStatus(fbo, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
         throw core::Error("render",
                           "framebuffer of " + std::to_string(w) + "x" + std::to_string(h) + " is not complete");
+}
+
+/// Framebuffer `fbo` (created when 0) drawing into `textures` as its colour attachments 0, 1,
+/// ... in that order (at most 8): a pass that writes several targets at once.
+inline void attach_targets(GLuint& fbo, std::initializer_list<GLuint> textures) {
+    if (!fbo) glCreateFramebuffers(1, &fbo);
+    GLenum draw[8];
+    GLsizei n = 0;
+    for (const GLuint tex : textures) {
+        draw[n] = GLenum(GL_COLOR_ATTACHMENT0 + n);
+        glNamedFramebufferTexture(fbo, draw[n], tex, 0);
+        ++n;
+    }
+    glNamedFramebufferDrawBuffers(fbo, n, draw);
 }
 
 struct Target {  // a colour texture (RGBA32F unless asked otherwise) + framebuffer
