@@ -54,6 +54,7 @@
 #include <array>
 #include <cmath>
 #include <cstdlib>
+#include <string>
 #include <thread>
 
 #include <time.h>
@@ -298,6 +299,12 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
             // 0: a return stroke's decay (a flash changing in intensity only), 1: a leader
             // (changing in shape every frame), 2: between flashes.
             const bool flash = light < 2, leader = light == 1;
+            // FULGUR_BENCH_DEMO_LIGHT=decay|leader|static: that light's rows alone.
+            if (const char* only = std::getenv("FULGUR_BENCH_DEMO_LIGHT");
+                only && std::string(only) != (leader  ? "leader"
+                                              : flash ? "decay"
+                                                      : "static"))
+                continue;
             if (!flash) {
                 r.clear_source();
                 r.set_channel({});
