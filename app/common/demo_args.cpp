@@ -15,7 +15,8 @@ constexpr const char* kDescription =
     "Interactive storm demo (default scene: content/scenes/storm.json). Bakes the scene first\n"
     "when no up-to-date .fgb exists. Without a display (or with --headless) it renders N\n"
     "(default 8) frames headless to out/fulgur_NNN.png.\n"
-    "Mouse: left drag orbits, wheel zooms. Keys: Space strike now, P screenshot, Esc quit.";
+    "Mouse: left drag orbits, wheel zooms. Keys: Space strike now, H hide or show the panels,\n"
+    "C print the camera, P screenshot, Esc quit.";
 
 // The demo's options, writing into `a`.
 void declare(CommandLine& cli, DemoArgs& a) {
@@ -59,6 +60,9 @@ void declare(CommandLine& cli, DemoArgs& a) {
     add_camera_option(app, a.camera, kTool);
     app.add_flag_callback(
         "--no-dither", [&a] { a.dither = false; }, "turn the 8-bit dither off (smaller PNGs)");
+    app.add_flag_callback(
+        "--hide-panels", [&a] { a.panels = false; },
+        "start with the panels hidden (H shows them): the window and its screenshots show the storm alone");
     add_choice(
         app, "--quality", [&a](const std::string& s) { a.quality = s; }, scene::kInteractiveQualityPresets,
         "how frames are lit (default: the scene's \"quality\")")

@@ -214,12 +214,14 @@ void AccuracyPanel::draw_static() {
 }
 
 void AccuracyPanel::draw(const view::FrameReport& rep) {
+    if (view_.has_lightning())
+        draw_lightning(rep);
+    else
+        ImGui::TextUnformatted("(the scene has no lightning)");
     draw_static();
-    if (!view_.has_lightning()) {
-        ImGui::TextUnformatted("Quality (the scene has no lightning)");
-        return;
-    }
-    ImGui::TextUnformatted("Quality");
+}
+
+void AccuracyPanel::draw_lightning(const view::FrameReport& rep) {
     ImGui::Combo("preset", &preset_, kPresets.data(), int(kPresets.size()));
     if (ImGui::IsItemHovered())
         ImGui::SetTooltip(

@@ -61,6 +61,7 @@ private:
         double seconds = 0.0, single = 0.0, multiple = 0.0, total = 0.0;
     };
     void update_static(const view::ViewOptions& options);
+    void draw_lightning(const view::FrameReport& rep);  // the preset, the strike solves, the reference
     void draw_static();
     void release_static();  // shows the solves again and drops the truth
     bool static_requested_ = false;

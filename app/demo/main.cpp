@@ -107,6 +107,7 @@ int main(int argc, char** argv) {
                                      std::min(H, 360), sd, args.time_of_day);
         }
         app::DemoShell shell(W, H, "Fulgur", screenshot_after);
+        shell.show_panels(args.panels);
         const view::StaticSetup setup = app::static_setup(plan, stdout, &density);
         view::StormView view(std::move(s), std::move(density.density), fgb, shell.context().get_proc_address(), setup);
         std::optional<app::TimeOfDay> time_of_day;
@@ -148,10 +149,13 @@ int main(int argc, char** argv) {
                 accuracy.request(false);  // frames() counts finished frames
             if (args.static_truth && shell.frames() == 1) accuracy.request_static();
             if (!accuracy.holds_time()) t = at_peak ? peak_time : t + shell.dt() * panel.time_scale();
-            const bool strike = panel.draw(shell, t, rep, opt);
-            // The radiance slice, in its own window at the bottom right (the panel fills a
-            // 720-pixel-high window already).
-            slice.draw(view.last_frame(), shell.width(), shell.height());
+            // The panels, unless H hid them (Space still strikes).
+            bool strike = shell.strike_pressed();
+            if (shell.panels_shown()) {
+                strike = panel.draw(shell, t, rep, opt);
+                // The radiance slice, in its own window at the bottom right.
+                slice.draw(view.last_frame(), shell.width(), shell.height());
+            }
             panel.apply(t, strike);
             accuracy.update(t, opt);
             // --solve-direct: the screenshot shows its result; --screenshot-at-peak with a

@@ -2,6 +2,7 @@
 
 #include <imgui.h>
 
+#include <cfloat>
 #include <cmath>
 
 namespace fulgur::app {
@@ -70,8 +71,11 @@ DemoPanel::DemoPanel(view::StormView& view, AccuracyPanel& accuracy, TimeOfDay* 
 bool DemoPanel::draw(const DemoShell& shell, double t, const view::FrameReport& rep, view::ViewOptions& opt) {
     bool strike = shell.strike_pressed();
     ImGui::SetNextWindowPos({10, 10}, ImGuiCond_FirstUseEver);
-    ImGui::SetNextWindowSize({430, 0}, ImGuiCond_FirstUseEver);
+    // As high as its open sections, 380 pixels wide (sliders 11 font heights, their labels
+    // beside them): a 1280x720 view keeps the storm in its left third in sight.
+    ImGui::SetNextWindowSizeConstraints({380, 0}, {380, FLT_MAX});
     ImGui::Begin("Fulgur", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
+    ImGui::PushItemWidth(11.0f * ImGui::GetFontSize());
     // The window's frames: the view, the panel and the swap, with the GPU's work (the view's
     // own wall time ends before llvmpipe's threads finish drawing; the plots give its stages).
     ImGui::Text("%.1f fps  (%.1f ms a frame)", shell.fps(), 1000.0 / shell.fps());
@@ -80,18 +84,17 @@ bool DemoPanel::draw(const DemoShell& shell, double t, const view::FrameReport& 
         ImGui::SetTooltip(
             "prints the view as a scene's \"camera\" (stdout and the clipboard): for the scene file, "
             "fulgur-shot --camera or fulgur --camera; drag to turn, wheel to move closer");
-    ImGui::Separator();
-    if (lightning_section(t)) strike = true;
-    ImGui::Separator();
-    light_section(opt, rep, shell.dt());
-    if (time_of_day_) {
-        ImGui::Separator();
-        time_of_day_->panel();
-    }
-    ImGui::Separator();
-    accuracy_.draw(rep);
-    ImGui::Separator();
-    frame_times(rep);
+    ImGui::SameLine();
+    ImGui::TextDisabled("H hides the panels");
+    // Sections the user opens: the lightning and the quality open at first; the light's
+    // switches, the time of day and the frame-time plots closed, so that the panel leaves most
+    // of a 1280x720 view to the storm.
+    if (ImGui::CollapsingHeader("Lightning", ImGuiTreeNodeFlags_DefaultOpen) && lightning_section(t)) strike = true;
+    if (ImGui::CollapsingHeader("Light")) light_section(opt, rep, shell.dt());
+    if (time_of_day_ && ImGui::CollapsingHeader("Time of day")) time_of_day_->panel();
+    if (ImGui::CollapsingHeader("Quality and accuracy", ImGuiTreeNodeFlags_DefaultOpen)) accuracy_.draw(rep);
+    if (ImGui::CollapsingHeader("Frame times")) frame_times(rep);
+    ImGui::PopItemWidth();
     ImGui::End();
     return strike;
 }
@@ -100,7 +103,7 @@ bool DemoPanel::draw(const DemoShell& shell, double t, const view::FrameReport& 
 bool DemoPanel::lightning_section(double t) {
     bool strike = false;
     ImGui::BeginDisabled(!has_lightning_);
-    ImGui::TextUnformatted(has_lightning_ ? "Lightning" : "Lightning (the scene has none)");
+    if (!has_lightning_) ImGui::TextUnformatted("(the scene has none)");
     ImGui::InputInt("seed", &seed_);
     if (ImGui::Button("Strike now")) strike = true;
     ImGui::Checkbox("automatic strikes", &autos_);
@@ -124,7 +127,6 @@ bool DemoPanel::lightning_section(double t) {
 }
 
 void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& rep, double dt) {
-    ImGui::TextUnformatted("Light");
     ImGui::BeginDisabled(!separate_);
     ImGui::Checkbox("single scattering", &opt.components.single);
     ImGui::Checkbox("multiple scattering", &opt.components.multiple);
@@ -215,7 +217,7 @@ void DemoPanel::light_section(view::ViewOptions& opt, const view::FrameReport& r
 }
 
 void DemoPanel::frame_times(const view::FrameReport& rep) {
-    ImGui::TextUnformatted("Frame times, last 240 frames (ms)");
+    ImGui::TextUnformatted("last 240 frames (ms)");
     frame_plots_.draw();
     if (ImGui::TreeNode("this frame's stages")) {
         ImGui::Text("bolt %.2f  sources %.2f  splat %.2f", rep.stages.bolt, rep.stages.sources, rep.stages.splat);

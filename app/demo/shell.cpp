@@ -63,11 +63,12 @@ bool DemoShell::begin_frame(Orbit& orbit) {
     strike_ = camera_ = false;
     if (!io.WantCaptureKeyboard) {
         const bool sp = glfwGetKey(win_, GLFW_KEY_SPACE) == GLFW_PRESS, pk = glfwGetKey(win_, GLFW_KEY_P) == GLFW_PRESS,
-                   ck = glfwGetKey(win_, GLFW_KEY_C) == GLFW_PRESS;
+                   ck = glfwGetKey(win_, GLFW_KEY_C) == GLFW_PRESS, hk = glfwGetKey(win_, GLFW_KEY_H) == GLFW_PRESS;
         strike_ = sp && !space_down_;
         camera_ = ck && !c_down_;
         if (pk && !p_down_) screenshot_ = true;
-        space_down_ = sp, p_down_ = pk, c_down_ = ck;
+        if (hk && !h_down_) panels_ = !panels_;
+        space_down_ = sp, p_down_ = pk, c_down_ = ck, h_down_ = hk;
         if (glfwGetKey(win_, GLFW_KEY_ESCAPE) == GLFW_PRESS) glfwSetWindowShouldClose(win_, 1);
     }
     ImGui_ImplOpenGL3_NewFrame();

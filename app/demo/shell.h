@@ -1,5 +1,5 @@
 // The demo's window shell: GLFW window + Dear ImGui set-up and teardown, frame timing and
-// the frame rate over the last second, the orbit camera input, key edges (Space, C, P, Esc)
+// the frame rate over the last second, the orbit camera input, key edges (Space, C, H, P, Esc)
 // and screenshots (P, or --screenshot-after N).
 #pragma once
 
@@ -44,6 +44,10 @@ public:
     double fps() const noexcept { return fps_; }
     bool strike_pressed() const noexcept { return strike_; }  ///< Space went down this frame
     bool camera_pressed() const noexcept { return camera_; }  ///< C went down this frame
+    /// Whether the ImGui windows are drawn: H toggles them (the storm alone on screen and in
+    /// screenshots); --hide-panels starts without them.
+    bool panels_shown() const noexcept { return panels_; }
+    void show_panels(bool shown) noexcept { panels_ = shown; }
     void request_screenshot() noexcept { screenshot_ = true; }
     /// While held, --screenshot-after waits (e.g. for a reference solve still running).
     void hold_screenshot(bool hold) noexcept { hold_ = hold; }
@@ -61,7 +65,7 @@ private:
     std::deque<double> recent_;  // the durations of the frames fps() counts (seconds)
     double recent_sum_ = 0;
     bool strike_ = false, camera_ = false, screenshot_ = false, space_down_ = false, p_down_ = false, c_down_ = false,
-         hold_ = false, auto_shot_ = false;
+         h_down_ = false, hold_ = false, auto_shot_ = false, panels_ = true;
     double last_ = 0;
 };
 

@@ -174,6 +174,8 @@ TEST_CASE("fulgur: the demo's command line parses strictly") {
     CHECK(d.time_scale == 0.25);
     CHECK_FALSE(d.seed.has_value());
     CHECK(d.dither);
+    CHECK(d.panels);
+    CHECK_FALSE(demo({"--hide-panels"}).panels);
     const app::DemoArgs e = demo({s_json, "--frames", "3", "--size", "320x180", "--seed", "5", "--time-scale", "0.5",
                                   "--no-dither", "--headless", "--solve-direct"});
     CHECK(e.scene == s_json);
