@@ -18,7 +18,7 @@ struct DemoArgs {
     int width = 1280, height = 720;
     int screenshot_after = 0;           ///< --screenshot-after N: write a screenshot after N frames and quit (0: never)
     bool screenshot_at_peak = false;    ///< hold 2 ms after the first return stroke, screenshot after 4 frames
-    bool solve_direct = false;          ///< press "Solve this frame directly" on the second frame
+    bool solve_direct = false;          ///< press "against the direct solve" on the second frame
     bool static_truth = false;          ///< press "Static light against its truth" on the second frame
     std::optional<std::uint64_t> seed;  ///< the first strike's seed (default: the scene's)
     double time_scale = 0.25;           ///< storm seconds per wall-clock second
