@@ -24,6 +24,7 @@ struct DemoArgs {
     double time_scale = 0.25;           ///< storm seconds per wall-clock second
     bool dither = true;                 ///< --no-dither turns the 8-bit dither off
     bool panels = true;                 ///< --hide-panels starts without the ImGui windows
+    double orbit_deg_per_s = 0.0;       ///< --orbit X: the camera turns around its target at X deg/s
     std::optional<std::string> quality;  ///< --quality PRESET: paper, hybrid or per_strike (default: the scene's)
     std::optional<double> time_of_day;   ///< --time-of-day H: the sun moved to solar time H at the start
     /// --camera JSON|FILE: the first view (a scene's "camera" object, as JSON text or a file

@@ -143,6 +143,7 @@ int main(int argc, char** argv) {
         // The quality section: preset, its costs, the frame's error against a reference.
         app::AccuracyPanel accuracy(view);
         app::DemoPanel panel(view, accuracy, time_of_day ? &*time_of_day : nullptr, seed, time_scale);
+        panel.turn(args.orbit_deg_per_s);
         while (shell.begin_frame(orbit)) {
             // --solve-direct: ask for the direct solve of the second frame.
             if (solve_direct_at_start && shell.frames() == 1)
@@ -167,6 +168,7 @@ int main(int argc, char** argv) {
                 if (time_of_day->busy()) shell.delay_screenshot();  // a screenshot shows the new sun
             }
             opt.settings.frame_index++;
+            orbit.az += panel.turn_rate() * shell.dt();
             view_spec.azimuth_deg = orbit.az;
             view_spec.elevation_deg = orbit.el;
             view_spec.distance = orbit.dist;

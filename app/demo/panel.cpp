@@ -86,6 +86,11 @@ bool DemoPanel::draw(const DemoShell& shell, double t, const view::FrameReport& 
             "fulgur-shot --camera or fulgur --camera; drag to turn, wheel to move closer");
     ImGui::SameLine();
     ImGui::TextDisabled("H hides the panels");
+    ImGui::Checkbox("turn", &turning_);
+    ImGui::SameLine();
+    ImGui::SliderFloat("deg/s", &turn_deg_per_s_, -90.0f, 90.0f, "%.0f");
+    if (ImGui::IsItemHovered())
+        ImGui::SetTooltip("the camera orbits its target on its own (a turntable; negative: the other way)");
     // Sections the user opens: the lightning and the quality open at first; the light's
     // switches, the time of day and the frame-time plots closed, so that the panel leaves most
     // of a 1280x720 view to the storm.

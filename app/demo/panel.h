@@ -33,6 +33,13 @@ public:
     void add_frame(const view::FrameReport& rep) { frame_plots_.add(rep); }
     /// Storm seconds per wall second (the slider).
     double time_scale() const noexcept { return double(slow_); }
+    /// The turntable: degrees of azimuth per wall second the camera turns by on its own (0: off).
+    double turn_rate() const noexcept { return turning_ ? double(turn_deg_per_s_) : 0.0; }
+    /// Starts turning at `deg_per_s` (--orbit).
+    void turn(double deg_per_s) noexcept {
+        turning_ = deg_per_s != 0.0;
+        turn_deg_per_s_ = float(deg_per_s);
+    }
 
 private:
     bool lightning_section(double t);
@@ -50,6 +57,8 @@ private:
     float slow_;
     lightning::LightningParams lp_;
     bool shape_changed_ = false;
+    bool turning_ = false;
+    float turn_deg_per_s_ = 20.0f;
     FrameTimePlots frame_plots_;
     FlashPlot flash_plot_;
 };

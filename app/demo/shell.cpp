@@ -91,7 +91,7 @@ void DemoShell::end_frame() {
         char name[64];
         std::snprintf(name, sizeof name, "out/screenshot_%03d.png", shots_++);
         core::write_png(name, ctx_->width(), ctx_->height(), 4, ctx_->read_rgba8());
-        std::printf("wrote %s\n", name);
+        std::printf("wrote %s (%.1f fps over the last second)\n", name, fps_);
         if (screenshot_after_ > 0) glfwSetWindowShouldClose(win_, 1);
     }
     ctx_->present();

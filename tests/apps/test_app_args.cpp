@@ -176,6 +176,8 @@ TEST_CASE("fulgur: the demo's command line parses strictly") {
     CHECK(d.dither);
     CHECK(d.panels);
     CHECK_FALSE(demo({"--hide-panels"}).panels);
+    CHECK(d.orbit_deg_per_s == 0.0);
+    CHECK(demo({"--orbit", "-30"}).orbit_deg_per_s == -30.0);
     const app::DemoArgs e = demo({s_json, "--frames", "3", "--size", "320x180", "--seed", "5", "--time-scale", "0.5",
                                   "--no-dither", "--headless", "--solve-direct"});
     CHECK(e.scene == s_json);
@@ -206,6 +208,8 @@ TEST_CASE("fulgur: the demo's command line parses strictly") {
     rejects({"--time-of-day", "25"}, "solar time in [0, 24] hours");
     rejects({"--time-of-day", "nan"}, "solar time in [0, 24] hours");
     rejects({"--time-of-day", "5pm"}, "not a number");
+    rejects({"--orbit", "400"}, "-360..360");
+    rejects({"--orbit", "nan"}, "-360..360");
     rejects({"--size", "320x"}, "not a number");
     rejects({"--size", "8x8"}, "16..8192");
     rejects({"--screenshot-after", "0"}, ">= 1");
