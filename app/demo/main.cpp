@@ -168,7 +168,7 @@ int main(int argc, char** argv) {
                 if (time_of_day->busy()) shell.delay_screenshot();  // a screenshot shows the new sun
             }
             opt.settings.frame_index++;
-            orbit.az += panel.turn_rate() * shell.dt();
+            orbit.turn(panel.turn_rate() * shell.dt());
             view_spec.azimuth_deg = orbit.az;
             view_spec.elevation_deg = orbit.el;
             view_spec.distance = orbit.dist;

@@ -52,7 +52,7 @@ bool DemoShell::begin_frame(Orbit& orbit) {
     glfwGetCursorPos(win_, &cx, &cy);
     if (!io.WantCaptureMouse) {
         if (glfwGetMouseButton(win_, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
-            orbit.az -= 0.3 * (cx - mx_);
+            orbit.turn(-0.3 * (cx - mx_));
             orbit.el = std::clamp(orbit.el + 0.3 * (cy - my_), -89.0, 89.0);
         }
         if (io.MouseWheel != 0)

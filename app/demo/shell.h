@@ -5,6 +5,7 @@
 
 #include "platform/platform.h"
 
+#include <cmath>
 #include <deque>
 #include <memory>
 #include <string>
@@ -18,6 +19,9 @@ namespace fulgur::app {
 /// [dist_min, dist_max]. ImGui keeps the mouse while it is over the panel.
 struct Orbit {
     double az = 0, el = 0, dist = 1, dist_min = 0.1, dist_max = 10;
+    /// Turns the azimuth by `deg`, kept in [-180, 180]: the printed camera stays one a scene
+    /// takes (azimuth in [-360, 360]) however many turns the mouse or the turntable made.
+    void turn(double deg) { az = std::remainder(az + deg, 360.0); }
 };
 
 class DemoShell {
