@@ -77,7 +77,7 @@ bool DemoShell::begin_frame(Orbit& orbit) {
     return true;
 }
 
-void DemoShell::end_frame() {
+bool DemoShell::end_frame() {
     ImGui::Render();
     ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
     ++frames_;
@@ -85,6 +85,7 @@ void DemoShell::end_frame() {
         screenshot_ = true;
         auto_shot_ = true;
     }
+    const bool shot = screenshot_;
     if (screenshot_) {
         screenshot_ = false;
         std::filesystem::create_directories("out");
@@ -95,6 +96,7 @@ void DemoShell::end_frame() {
         if (screenshot_after_ > 0) glfwSetWindowShouldClose(win_, 1);
     }
     ctx_->present();
+    return shot;
 }
 
 }  // namespace fulgur::app

@@ -36,8 +36,9 @@ public:
     /// Polls events, updates timing, the orbit and key edges, and starts the ImGui frame.
     /// False when the window should close.
     bool begin_frame(Orbit& orbit);
-    /// Draws ImGui over the rendered frame, writes a screenshot when asked, presents.
-    void end_frame();
+    /// Draws ImGui over the rendered frame, writes a screenshot when asked, presents. True when
+    /// it wrote a screenshot.
+    bool end_frame();
 
     platform::Context& context() noexcept { return *ctx_; }
     int width() const { return ctx_->width(); }
