@@ -182,8 +182,7 @@ int main(int argc, char** argv) {
             rep = view.render(cam, t, shell.width(), shell.height(), opt, accuracy.shown_field());
             panel.add_frame(rep);
             // A screenshot's view, so that it can be drawn again (fulgur-shot --camera).
-            if (shell.end_frame())
-                std::printf("screenshot camera: %s\n", scene::camera_json(view_spec, 8).c_str());
+            if (shell.end_frame()) std::printf("screenshot camera: %s\n", scene::camera_json(view_spec, 8).c_str());
         }
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur: %s\n", e.what());
