@@ -59,8 +59,9 @@ void declare(CommandLine& cli, DemoArgs& a) {
         ->type_name("H");
     add_camera_option(app, a.camera, kTool);
     cli.number("--orbit", a.orbit_deg_per_s,
-               "turn the camera around its target at this many degrees of azimuth per wall-clock second (a "
-               "turntable; 0: still, the default; the panel's \"turn\")",
+               "in the window, turn the camera around its target at this many degrees of azimuth per wall-clock "
+               "second (a turntable; 0: still, the default; the panel's \"turn\"; the headless sequence keeps "
+               "its camera)",
                -360.0, 360.0);
     app.add_flag_callback(
         "--no-dither", [&a] { a.dither = false; }, "turn the 8-bit dither off (smaller PNGs)");

@@ -91,12 +91,15 @@ bool DemoPanel::draw(const DemoShell& shell, double t, const view::FrameReport& 
     ImGui::SliderFloat("deg/s", &turn_deg_per_s_, -90.0f, 90.0f, "%.0f");
     if (ImGui::IsItemHovered())
         ImGui::SetTooltip("the camera orbits its target on its own (a turntable; negative: the other way)");
-    // Sections the user opens: the lightning and the quality open at first; the light's
-    // switches, the time of day and the frame-time plots closed, so that the panel leaves most
-    // of a 1280x720 view to the storm.
-    if (ImGui::CollapsingHeader("Lightning", ImGuiTreeNodeFlags_DefaultOpen) && lightning_section(t)) strike = true;
+    // Sections the user opens: the lightning and the quality open at first (the time of day
+    // instead of the lightning in a scene without lightning, whose sun is its main control);
+    // the light's switches and the frame-time plots closed, so that the panel leaves most of a
+    // 1280x720 view to the storm.
+    const ImGuiTreeNodeFlags lightning_open = has_lightning_ ? ImGuiTreeNodeFlags_DefaultOpen : 0;
+    if (ImGui::CollapsingHeader("Lightning", lightning_open) && lightning_section(t)) strike = true;
     if (ImGui::CollapsingHeader("Light")) light_section(opt, rep, shell.dt());
-    if (time_of_day_ && ImGui::CollapsingHeader("Time of day")) time_of_day_->panel();
+    if (time_of_day_ && ImGui::CollapsingHeader("Time of day", has_lightning_ ? 0 : ImGuiTreeNodeFlags_DefaultOpen))
+        time_of_day_->panel();
     if (ImGui::CollapsingHeader("Quality and accuracy", ImGuiTreeNodeFlags_DefaultOpen)) accuracy_.draw(rep);
     if (ImGui::CollapsingHeader("Frame times")) frame_times(rep);
     ImGui::PopItemWidth();

@@ -35,10 +35,10 @@ public:
     double time_scale() const noexcept { return double(slow_); }
     /// The turntable: degrees of azimuth per wall second the camera turns by on its own (0: off).
     double turn_rate() const noexcept { return turning_ ? double(turn_deg_per_s_) : 0.0; }
-    /// Starts turning at `deg_per_s` (--orbit).
+    /// Starts turning at `deg_per_s` (--orbit); 0 leaves the turntable off at its default rate.
     void turn(double deg_per_s) noexcept {
         turning_ = deg_per_s != 0.0;
-        turn_deg_per_s_ = float(deg_per_s);
+        if (turning_) turn_deg_per_s_ = float(deg_per_s);
     }
 
 private:
