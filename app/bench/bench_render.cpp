@@ -33,7 +33,8 @@
 //                  metered exposure's difference from metering every pixel (Settings::meter_stride).
 //   case "static_grid": the static light on the lighting grid and on a 3x finer one: upload,
 //                  resolve and frame of a moving camera (FULGUR_BENCH_STATIC_GRID=1: these alone).
-//   FULGUR_BENCH_DEMO_WIDTH=W runs only the demo rows, at output width W (640, 1280 or 1920).
+//   FULGUR_BENCH_DEMO_WIDTH=W runs only the demo rows, at output width W (640, 1280 or 1920);
+//   FULGUR_BENCH_DEMO_LIGHT=decay|leader|static only that light's of them.
 //   FULGUR_BENCH_PASS_FINISH=1 times the demo rows' passes one by one (glFinish around each)
 //   instead of with timer queries, which llvmpipe may charge to the wrong pass.
 //   FULGUR_BENCH_DEMO_IMAGES=DIR also writes, for the orbiting rows with detail and rain during
@@ -299,7 +300,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
             // 0: a return stroke's decay (a flash changing in intensity only), 1: a leader
             // (changing in shape every frame), 2: between flashes.
             const bool flash = light < 2, leader = light == 1;
-            // FULGUR_BENCH_DEMO_LIGHT=decay|leader|static: that light's rows alone.
+            // FULGUR_BENCH_DEMO_LIGHT: that light's rows alone.
             if (const char* only = std::getenv("FULGUR_BENCH_DEMO_LIGHT");
                 only && std::string(only) != (leader  ? "leader"
                                               : flash ? "decay"

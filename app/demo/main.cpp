@@ -144,6 +144,9 @@ int main(int argc, char** argv) {
         app::AccuracyPanel accuracy(view);
         app::DemoPanel panel(view, accuracy, time_of_day ? &*time_of_day : nullptr, seed, time_scale);
         panel.turn(args.orbit_deg_per_s);
+        // The view as a scene's "camera" (printed by C and with each screenshot), to 8 significant
+        // digits: ~mm at storm distances.
+        const auto view_json = [&] { return scene::camera_json(view_spec, 8); };
         while (shell.begin_frame(orbit)) {
             // --solve-direct: ask for the direct solve of the second frame.
             if (solve_direct_at_start && shell.frames() == 1)
@@ -173,7 +176,7 @@ int main(int argc, char** argv) {
             view_spec.elevation_deg = orbit.el;
             view_spec.distance = orbit.dist;
             if (shell.camera_pressed() || panel.take_camera_request()) {
-                const std::string json = scene::camera_json(view_spec, 8);  // ~mm at storm distances
+                const std::string json = view_json();
                 std::printf("camera: %s\n", json.c_str());
                 std::fflush(stdout);
                 ImGui::SetClipboardText(json.c_str());
@@ -182,7 +185,7 @@ int main(int argc, char** argv) {
             rep = view.render(cam, t, shell.width(), shell.height(), opt, accuracy.shown_field());
             panel.add_frame(rep);
             // A screenshot's view, so that it can be drawn again (fulgur-shot --camera).
-            if (shell.end_frame()) std::printf("screenshot camera: %s\n", scene::camera_json(view_spec, 8).c_str());
+            if (shell.end_frame()) std::printf("screenshot camera: %s\n", view_json().c_str());
         }
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur: %s\n", e.what());
