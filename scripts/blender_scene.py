@@ -3,7 +3,7 @@ Cycles, as an independent reference for Fulgur's renderer.
 
     blender -b --factory-startup --python scripts/blender_scene.py -- DIR --out OUT.exr \
         [--samples N] [--seed S] [--threads T] [--light-radius M] [--max-light-loss F]
-        [--single-scattering] [--save-blend FILE.blend]
+        [--single-scattering] [--channel drawn|hidden|alone] [--save-blend FILE.blend]
 
 It builds the scene from scratch (the factory cube, light and camera are deleted), renders it
 with Cycles on the CPU and writes OUT.exr: linear radiance in W m^-2 sr^-1 (metres are the world
@@ -34,6 +34,13 @@ only, with its transform divided by K, into a temporary directory (or next to --
 file, which then refers to it). A frame with rain (frame.json's "rain": its extinction per metre
 on the density's grid, albedo and g) gets a second volume object the same way (rain.vdb).
 
+The channel (frame.json's "channel": the stretches the frame draws, with the core's radius) is a
+mesh of thin tubes that emits the core's radiance and is seen by camera rays only: its light in
+the cloud is the point lights', so nothing is counted twice (`--channel drawn`, the default, for
+a shot). `--channel hidden` leaves it out (the comparison with Fulgur's passes without the
+channel, compare_cycles.py); `--channel alone` renders it alone through the media (no lights,
+sun, sky or ground: the counterpart of Fulgur's channel pass, compare_cycles.py channel).
+
 Why each Cycles setting is chosen is written next to it (configure_cycles and friends): the aim
 is an unbiased estimate (no clamping, no bounce limit that matters, no denoiser, no adaptive
 stopping, full-precision density, no density clipping, fine volume steps) of the same quantity
@@ -53,6 +60,10 @@ import numpy as np
 import pyopenvdb as vdb  # Debian's python3-openvdb; Blender 3.4 (Debian) runs the system Python 3.11
 
 PROG = "blender_scene.py"
+# The channel's tubes: sides around each stretch, and the most stretches a frame may carry (a
+# strike has hundreds; the bound keeps a hostile frame.json from building an unbounded mesh).
+CHANNEL_SIDES = 8
+MAX_CHANNEL_SEGMENTS = 200000
 
 # Cycles samples a VDB grid with voxel (i,j,k)'s value at index-space position (i+0.5, j+0.5,
 # k+0.5) (it treats the voxel as a cell [i, i+1] whose centre carries the value), whereas
@@ -112,9 +123,9 @@ def fail(message):
 def parse_args(argv):
     usage = ("usage: blender -b --factory-startup --python scripts/blender_scene.py -- DIR "
              "--out OUT.exr [--samples N] [--seed S] [--threads T] [--light-radius M] [--max-light-loss F] "
-             "[--single-scattering] [--save-blend FILE.blend]")
+             "[--single-scattering] [--channel drawn|hidden|alone] [--save-blend FILE.blend]")
     args = {"dir": None, "out": None, "samples": 64, "seed": 0, "threads": 2, "save_blend": None,
-            "light_radius": None, "max_light_loss": 0.01, "single": False}
+            "light_radius": None, "max_light_loss": 0.01, "single": False, "channel": "drawn"}
     ints = {"--samples": ("samples", 1), "--seed": ("seed", 0), "--threads": ("threads", 1)}
     i = 0
     while i < len(argv):
@@ -122,7 +133,7 @@ def parse_args(argv):
         if a in ("-h", "--help"):
             print(usage)
             sys.exit(0)
-        if a in ("--out", "--save-blend", "--light-radius", "--max-light-loss") or a in ints:
+        if a in ("--out", "--save-blend", "--light-radius", "--max-light-loss", "--channel") or a in ints:
             if i + 1 >= len(argv):
                 fail("%s needs a value\n%s" % (a, usage))
             v = argv[i + 1]
@@ -142,6 +153,10 @@ def parse_args(argv):
                 if not (math.isfinite(f) and 0.0 <= f < 1.0):
                     fail("--max-light-loss: %s is not a fraction in [0, 1)" % v)
                 args["max_light_loss"] = f
+            elif a == "--channel":
+                if v not in ("drawn", "hidden", "alone"):
+                    fail("--channel: expected drawn, hidden or alone, got '%s'" % v)
+                args["channel"] = v
             elif a == "--out":
                 args["out"] = v
             elif a == "--save-blend":
@@ -313,6 +328,23 @@ def read_frame(frame_dir):
         inten = F.number(F.get(l, "lights[%d].intensity" % i, "intensity"), "lights[%d].intensity" % i, lo=0.0)
         fr["lights"].append((pos, inten))
 
+    # The channel the camera sees: [ax, ay, az, bx, by, bz, intensity per metre] per stretch.
+    ch = F.get(root, "channel", "channel", optional=True)
+    fr["channel"] = None
+    if ch is not None:
+        radius = F.number(F.get(ch, "channel.radius", "radius"), "channel.radius", lo=0.0, hi=1000.0, lo_open=True)
+        segs = F.get(ch, "channel.segments", "segments")
+        if not isinstance(segs, list):
+            F.err("channel.segments", "expected an array")
+        if len(segs) > MAX_CHANNEL_SEGMENTS:
+            F.err("channel.segments", "%d stretches: at most %d" % (len(segs), MAX_CHANNEL_SEGMENTS))
+        fr["channel"] = {"radius": radius, "segments": []}
+        for i, sg in enumerate(segs):
+            field = "channel.segments[%d]" % i
+            v = F.vec(sg, field, n=7)
+            F.number(v[6], field + "[6]", lo=0.0)   # W sr^-1 m^-1
+            fr["channel"]["segments"].append(v)
+
     sun = F.get(root, "sun", "sun", optional=True)
     if sun is not None:
         d = F.vec(F.get(sun, "sun.direction", "direction"), "sun.direction")
@@ -405,6 +437,11 @@ def configure_cycles(scene, fr, args):
     # cap would drop. 1024 makes the truncation negligible (0.99^1024 ~ 3e-5 of the energy).
     cy.max_bounces = 1024                # the overall cap; 1024 is RNA's hard maximum in 3.4
     cy.volume_bounces = 0 if args["single"] else 1024  # default 0: single scattering only, a heavy bias
+    if args["channel"] == "alone":
+        # Nothing lights the scene and the channel is seen by camera rays only: a path that
+        # scatters can reach nothing, so it ends there (the camera ray's estimate of the
+        # channel times the transmittance in front of it stays unbiased).
+        cy.volume_bounces = 0
     cy.diffuse_bounces = 1024            # ground <-> cloud interreflection
     cy.glossy_bounces = 1024
     cy.transmission_bounces = 1024
@@ -707,6 +744,68 @@ def add_point_lights(scene, fr, radius):
         coll.objects.link(ob)
 
 
+def add_channel(scene, fr):
+    """The channel as the camera sees it: one mesh of open tubes (CHANNEL_SIDES-gons around each
+    stretch, the core's radius to their corners), emitting the core's radiance, intensity per
+    metre / (2 radius) (Fulgur's bolt pass: a cylinder seen side-on). A polygon's projected width,
+    averaged over the directions around its axis, is its perimeter / pi (Cauchy), 2 n r sin(pi / n)
+    / pi for n sides, so the radiance is the intensity over that width: the flux a camera sees from
+    the side is the cylinder's. Seen by camera rays only, and invisible to shadow rays: the point
+    lights on its axis light the cloud, and the tube must not shadow them."""
+    ch = fr["channel"]
+    r = ch["radius"]
+    colour, scale = fold_colour(fr["flash_colour"], 1.0)
+    n = CHANNEL_SIDES
+    width = 2.0 * n * r * math.sin(math.pi / n) / math.pi
+    verts, faces, radiance = [], [], []
+    for ax, ay, az, bx, by, bz, inten in ch["segments"]:
+        a, b = mathutils.Vector((ax, ay, az)), mathutils.Vector((bx, by, bz))
+        d = b - a
+        if d.length == 0.0 or inten <= 0.0 or scale <= 0.0:
+            continue
+        d.normalize()
+        u = d.cross(mathutils.Vector((1.0, 0.0, 0.0)) if abs(d.x) < 0.9 else mathutils.Vector((0.0, 1.0, 0.0)))
+        u.normalize()
+        v = d.cross(u)
+        base = len(verts)
+        for k in range(n):
+            ang = 2.0 * math.pi * k / n
+            off = r * (math.cos(ang) * u + math.sin(ang) * v)
+            verts += [a + off, b + off]
+        for k in range(n):
+            k1 = (k + 1) % n
+            faces.append((base + 2 * k, base + 2 * k1, base + 2 * k1 + 1, base + 2 * k + 1))
+            radiance.append(inten * scale / width)
+    if not faces:
+        return
+    mesh = bpy.data.meshes.new("channel")
+    mesh.from_pydata([tuple(p) for p in verts], [], faces)
+    attr = mesh.attributes.new("radiance", "FLOAT", "FACE")   # W m^-2 sr^-1 over the colour's max
+    attr.data.foreach_set("value", radiance)
+    mat = bpy.data.materials.new("channel")
+    mat.use_nodes = True
+    nt = mat.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    emit = nt.nodes.new("ShaderNodeEmission")   # radiance = Color x Strength (the haze's calibration)
+    emit.inputs["Color"].default_value = (colour[0], colour[1], colour[2], 1.0)
+    att = nt.nodes.new("ShaderNodeAttribute")
+    att.attribute_type = "GEOMETRY"
+    att.attribute_name = "radiance"
+    nt.links.new(att.outputs["Fac"], emit.inputs["Strength"])
+    nt.links.new(emit.outputs["Emission"], out.inputs["Surface"])
+    if hasattr(mat.cycles, "sample_as_light"):
+        mat.cycles.sample_as_light = False      # not a light: the points carry its light
+    mesh.materials.append(mat)
+    ob = bpy.data.objects.new("channel", mesh)
+    scene.collection.objects.link(ob)
+    ob.visible_diffuse = False
+    ob.visible_glossy = False
+    ob.visible_transmission = False
+    ob.visible_volume_scatter = False
+    ob.visible_shadow = False
+
+
 def add_sun(scene, fr):
     colour, strength = fold_colour(fr["sun"]["irradiance_rgb"], 1.0)
     if strength <= 0.0:
@@ -952,6 +1051,9 @@ def add_ground(scene, fr):
 def build_scene(fr, args, vdb_out):
     """vdb_out: where the rescaled copy of the density grid is written (prepare_vdb); the rain's
     beside it (.rain.vdb for .density.vdb)."""
+    if args["channel"] == "alone":
+        # The channel through the media and nothing else: no light, a black world, no ground.
+        fr.update(lights=[], sun=None, sky=None, ground=None)
     clear_scene()
     scene = bpy.context.scene
     scene.frame_set(1)
@@ -966,6 +1068,8 @@ def build_scene(fr, args, vdb_out):
     radius, fr["light_loss"] = light_radius(fr, args)
     fr["light_radius"] = radius
     add_point_lights(scene, fr, radius)
+    if fr["channel"] is not None and args["channel"] != "hidden":
+        add_channel(scene, fr)
     if fr["sun"] is not None:
         add_sun(scene, fr)
     if fr["ground"] is not None:

@@ -9,6 +9,7 @@ usage:
   scripts/compare_cycles.py compare FULGUR.exr CYCLES_A.exr CYCLES_B.exr [--near-px R] [--picture P.png]
         [--picture-block N] [--frame FRAME.json]
   scripts/compare_cycles.py rain SCENE.json OUT_DIR (the options of run)
+  scripts/compare_cycles.py channel SCENE.json OUT_DIR (the options of run)
 
 `run` renders the frame with fulgur-shot (--exr with its passes, --blender DIR, one ray-march ray
 per pixel), builds and renders the Blender scene twice with Cycles (two seeds), and compares;
@@ -16,7 +17,9 @@ per pixel), builds and renders the Blender scene twice with Cycles (two seeds), 
 | |difference|, each tone mapped alike) when run. `rain` runs the scene (OUT_DIR/wet) and a copy of
 it without its "rain" (OUT_DIR/dry; the copies are written into OUT_DIR, so the scene's files must be
 found from there, as a generated cloud is), and compares the change the rain makes to its pixels:
-the `rain_*` figures below.
+the `rain_*` figures below. `channel` renders the channel the camera sees alone (Fulgur's channel
+pass; Cycles' `blender_scene.py --channel alone`: the channel's tubes through the media, nothing
+lit) and compares them: the `channel_*` figures below.
 
 What is compared: Fulgur's lightning + static + background passes (the cloud lit by the flash's
 S and by the sun or moon and sky, over the sky and the ground it transmits) against Cycles'
@@ -38,6 +41,11 @@ The rain (`rain`): over the pixels whose ray meets rain and no cloud (Fulgur's T
 rain, > 0.999 without), each renderer's wet pixel less its dry pixel times Fulgur's T (the rain's
 own light, less its shadow on what lies behind it), Fulgur against Cycles' (its dry frame the mean
 of its two seeds).
+
+The channel (`channel`): Fulgur draws the core at least 1.5 pixels wide, dimmed to keep its flux,
+where Cycles draws the channel's physical width, so only sums over areas wider than the core
+compare: `channel_ratio_of_totals` (the whole image) and `channel_blocks_*` (--block N blocks
+that hold some of either image's channel).
 
 Per region: relative L2 (all three colours: sqrt(sum (f - c)^2 / sum c^2)) and the ratio of
 totals sum f / sum c. Cycles' noise: its image is the mean of the two seeds, whose own relative
@@ -219,6 +227,27 @@ def compare(fulgur_exr, cycles_a, cycles_b, near_px=None, picture=None, block=8,
     return out
 
 
+def compare_channel(fulgur_exr, cycles_a, cycles_b, block):
+    """Fulgur's channel pass against Cycles' channel alone (module docstring, `channel`)."""
+    fc = read_channels(fulgur_exr)
+    if "channel.R" not in fc:
+        raise SystemExit(f"{fulgur_exr}: no channel channel.R (write it with fulgur-shot --exr-passes)")
+    f = rgb(fc, "channel")
+    a, b = rgb(read_channels(cycles_a)), rgb(read_channels(cycles_b))
+    if a.shape != f.shape or b.shape != f.shape:
+        raise SystemExit(f"image sizes differ: Fulgur {f.shape[:2]}, Cycles {a.shape[:2]} and {b.shape[:2]}")
+    c = (a + b) / 2
+    out = {"name": "compare-cycles-channel", "width": f.shape[1], "height": f.shape[0], "block_px": block}
+    for k, v in region_figures(f, c, a, b, np.ones(f.shape[:2], dtype=bool)).items():
+        if "ratio" in k or "total" in k:
+            out[f"channel_{k}"] = v
+    fb, cb, ab, bb = (block_mean(x, block) for x in (f, c, a, b))
+    lit = (fb.sum(axis=-1) > 0) | (cb.sum(axis=-1) > 0)
+    for k, v in region_figures(fb, cb, ab, bb, lit).items():
+        out[f"channel_blocks_{k}"] = v
+    return out
+
+
 def write_picture(path, f, c):
     """Fulgur | Cycles | |difference|, one exposure for all three (the cloud's 99th percentile
     of Cycles' luminance at 0.8 of white), a plain Reinhard curve and sRGB."""
@@ -297,13 +326,18 @@ def run(args):
                                "--out", str(out / f"cycles_{s}.exr"),
                                "--samples", str(args.samples), "--seed", str(s)]
                               + (["--light-radius", args.light_radius] if args.light_radius else [])
-                              + (["--max-light-loss", args.max_light_loss] if args.max_light_loss else []),
+                              + (["--max-light-loss", args.max_light_loss] if args.max_light_loss else [])
+                              + ["--channel", getattr(args, "channel_mode", "hidden")],
                               check=True, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
         cycles_s.append(time.monotonic() - t0)
         line = [l for l in done.stdout.splitlines() if l.startswith('{"name":"blender-scene"')]
         lights = json.loads(line[-1]) if line else lights
-    r = compare(out / "fulgur.exr", out / f"cycles_{seeds[0]}.exr", out / f"cycles_{seeds[1]}.exr",
-                args.near_px, out / "compare.png", args.block, frame_json=out / "blender" / "frame.json")
+    if getattr(args, "channel_mode", "hidden") == "alone":
+        r = compare_channel(out / "fulgur.exr", out / f"cycles_{seeds[0]}.exr", out / f"cycles_{seeds[1]}.exr",
+                            args.block)
+    else:
+        r = compare(out / "fulgur.exr", out / f"cycles_{seeds[0]}.exr", out / f"cycles_{seeds[1]}.exr",
+                    args.near_px, out / "compare.png", args.block, frame_json=out / "blender" / "frame.json")
     r.update({"scene": args.scene, "seed": args.seed, "time": args.time, "quality": args.quality or "scene's",
               "strike_grid": args.strike_grid, "strike_toward_camera": args.strike_toward_camera,
               "static_toward_camera": args.static_toward_camera,
@@ -341,9 +375,10 @@ def add_run_arguments(r):
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="cmd", required=True)
-    r, w = sub.add_parser("run"), sub.add_parser("rain")
+    r, w, h = sub.add_parser("run"), sub.add_parser("rain"), sub.add_parser("channel")
     add_run_arguments(r)
     add_run_arguments(w)
+    add_run_arguments(h)
     c = sub.add_parser("compare")
     c.add_argument("fulgur")
     c.add_argument("cycles_a")
@@ -354,7 +389,7 @@ def main():
                    "blocks (the scale of the block figures, above Cycles' per-pixel noise)")
     c.add_argument("--frame", help="the exported frame.json (fulgur-shot --blender): also the ground's figures, "
                    "as drawn and with Fulgur's haze taken out (ground_*, ground_dehazed_*)")
-    for q in (r, w, c):
+    for q in (r, w, h, c):
         q.add_argument("--block", type=int, default=8, help="block size (pixels) of the cloud_blocks_* figures")
         q.add_argument("--require", action="append",
                        help="KEY<=VALUE or KEY>=VALUE on a printed figure; exit 1 when one fails (repeatable)")
@@ -363,6 +398,9 @@ def main():
         res = run(args)
     elif args.cmd == "rain":
         res = rain(args)
+    elif args.cmd == "channel":
+        args.channel_mode = "alone"
+        res = run(args)
     else:
         res = compare(args.fulgur, args.cycles_a, args.cycles_b, args.near_px, args.picture, args.block,
                       args.picture_block, args.frame)

@@ -104,6 +104,17 @@ void write_blender_export(const std::filesystem::path& dir, const view::StormVie
         if (p.intensity > 0.0) lights.push_back({{"position", vec(p.position)}, {"intensity", p.intensity}});
     j["lights"] = std::move(lights);
     j["light_spacing"] = e.light_spacing;
+    // The channel the camera sees (the bolt pass's core): each stretch with its intensity per
+    // metre, drawn as a cylinder of the core's radius. Its light in the cloud is the points above.
+    if (st.bolt && !e.drawn_channel.empty()) {
+        FULGUR_ASSERT(e.channel_radius > 0.0, "a drawn channel needs its radius");
+        nlohmann::json segs = nlohmann::json::array();
+        for (const lightning::LitSegment& c : e.drawn_channel)
+            if (c.intensity > 0.0) segs.push_back({c.a.x, c.a.y, c.a.z, c.b.x, c.b.y, c.b.z, c.intensity});
+        j["channel"] = {{"radius", e.channel_radius}, {"segments", std::move(segs)}};
+    } else {
+        j["channel"] = nullptr;
+    }
 
     // The sun or moon and the sky where they light the cloud in this frame.
     const sky::StaticLight& sl = view.static_light();

@@ -18,11 +18,17 @@ struct BlenderExport {
     /// The channel is exported as isotropic point lights no farther apart than this (metres):
     /// lightning::append_point_sources keeps the total intensity exactly.
     double light_spacing = 0.0;
+    /// The channel the frame draws (its core, seen by the camera): the lit stretches at t, and
+    /// the radius they are drawn with (core radiance = intensity / (2 radius)). Empty when the
+    /// frame draws no channel.
+    std::span<const lightning::LitSegment> drawn_channel;
+    double channel_radius = 0.0;
 };
 
 /// Writes DIR/density.vdb (grid "density", rho; sigma_t = extinction * rho) and DIR/frame.json
 /// (format "fulgur-blender-frame" version 1: camera, image size, medium, flash colour, the lit
-/// channel as point lights, sun or moon, sky, ground), as `view` renders with `options` (the
+/// channel as point lights, the drawn channel as segments, sun or moon, sky, ground), as `view`
+/// renders with `options` (the
 /// sun and sky only where they light the cloud in the frame, the sky and ground only where they
 /// are drawn). `lit` is the frame's lit channel. Creates DIR; refuses a DIR that is a file.
 void write_blender_export(const std::filesystem::path& dir, const view::StormView& view,

@@ -333,14 +333,18 @@ void write_frame_exr(view::StormView& view, const render::Camera& cam, double t,
 // --blender: the frame's lit channel (as shown: the frame at t), its camera and its lights.
 void write_frame_blender(view::StormView& view, const render::Camera& cam, double t, const view::ViewOptions& opt,
                          const app::ShotArgs& a) {
-    std::vector<lightning::LitSegment> lit;
+    std::vector<lightning::LitSegment> drawn;
     // Cycles renders every order of scattering: the flash is exported whole or not at all.
     if (opt.components.single != opt.components.multiple)
         throw core::Error("--blender",
                           "Cycles renders all orders of scattering: turn both single and multiple off "
                           "(no flash light in the cloud) or neither");
-    if (view.has_lightning() && opt.components.single) view.pipeline().storm().lit(t, lit);
+    if (view.has_lightning()) view.pipeline().storm().lit(t, drawn);
+    std::span<const lightning::LitSegment> lit;  // the cloud's lights: none with its flash light off
+    if (opt.components.single) lit = drawn;
     app::BlenderExport e;
+    e.drawn_channel = drawn;
+    e.channel_radius = opt.bolt_radius;
     e.scene = view.scene().name + " (" + a.scene.string() + ")";
     e.frame = frame_label(view, t, a);
     e.camera = cam;

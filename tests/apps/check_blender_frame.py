@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """scripts/blender_scene.py on an exported frame with rain (fulgur-shot --blender): it renders
 (a tiny image, one sample: the rain's medium is built beside the cloud's), and refuses a
-frame.json whose rain or ground is malformed with exit status 1 and a message naming the field.
+frame.json whose rain, ground or channel is malformed with exit status 1 and a message naming the field.
 Usage: check_blender_frame.py BLENDER SCRIPT DIR (DIR: an export whose frame has rain)"""
 import json
 import os
@@ -43,7 +43,10 @@ def main(blender, script, src):
                ("ground.pattern.seed", lambda j: j["ground"]["pattern"].update(seed=-3)),
                ("ground.pattern.tint_rgb", lambda j: j["ground"]["pattern"].update(tint_rgb=[1, 2])),
                ("ground.pattern", lambda j: j["ground"]["pattern"].update(tint_rgb=[20, 20, 20])),
-               ("ground.haze_m", lambda j: j["ground"].update(haze_m=-1))]
+               ("ground.haze_m", lambda j: j["ground"].update(haze_m=-1)),
+               ("channel.radius", lambda j: j.update(channel={"radius": 0, "segments": []})),
+               ("channel.segments[1]", lambda j: j.update(channel={"radius": 2, "segments": [
+                   [0, 0, 0, 0, 0, 100, 1e5], [0, 0, 100, 0, 0, 200]]}))]
         for field, spoil in bad:
             d = os.path.join(tmp, field.replace(".", "_"))
             shutil.copytree(src, d)
@@ -55,7 +58,7 @@ def main(blender, script, src):
             assert r.returncode == 1, "%s: exit status %d, expected 1" % (field, r.returncode)
             assert "'%s" % field in r.stderr or "field '%s" % field in r.stderr, \
                 "%s: the message does not name it:\n%s" % (field, r.stderr[-1000:])
-        print("blender_scene.py: the frame with rain renders; %d malformed rain and ground entries refused, each "
+        print("blender_scene.py: the frame with rain renders; %d malformed rain, ground and channel entries refused, each "
               "named" % len(bad))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
