@@ -1,10 +1,12 @@
 #version 450 core
-// The bolt's bright core: one screen-aligned ribbon per segment, with round-ish caps (the
-// ribbon extends half a width past each end), at least bolt_min_width_px wide; a thinner
-// channel is widened and dimmed by the same factor so its flux is conserved.
+// The bolt's bright core: one screen-aligned ribbon per segment, at least bolt_min_width_px
+// wide; a thinner channel is widened and dimmed by the same factor so its flux is conserved.
+// The ribbon extends half a width past an end that meets another segment, so that a bend leaves
+// no gap (MAX blending keeps the overlap single); a free end (the sign bit of its w set: the
+// channel's foot, a branch's tip) stops where the channel does, which keeps its flux.
 #include "common.glsl"
 
-layout(std430, binding = 1) readonly buffer Segments { vec4 seg[]; };          // a.xyz, intensity | b.xyz, radius
+layout(std430, binding = 1) readonly buffer Segments { vec4 seg[]; };  // a.xyz, +-intensity | b.xyz, +-radius
 layout(std430, binding = 2) readonly buffer Endpoints { vec2 endpoint_t[]; };
 
 uniform float u_min_width_px;
@@ -20,6 +22,9 @@ void main() {
     int s = gl_VertexID / 6;
     ivec2 k = corner[gl_VertexID % 6];
     vec4 A = seg[2 * s], B = seg[2 * s + 1];
+    bool free_end = (floatBitsToUint(k.x == 0 ? A.w : B.w) >> 31) != 0u;
+    A.w = abs(A.w);
+    B.w = abs(B.w);
     vec4 ca = view_proj * vec4(A.xyz, 1.0), cb = view_proj * vec4(B.xyz, 1.0);
     const float w_near = 1e-2;  // clip against a plane just in front of the camera
     if (ca.w < w_near && cb.w < w_near) {
@@ -42,7 +47,8 @@ void main() {
     float w_true = 2.0 * B.w * focal / w_clip;            // projected channel diameter, pixels
     float w = max(w_true, u_min_width_px);
     float wq = w + 2.0 * u_margin_px;
-    vec2 p = (k.x == 0 ? pa - dir * 0.5 * wq : pb + dir * 0.5 * wq) + float(k.y) * n * 0.5 * wq;
+    float past = free_end ? u_margin_px : 0.5 * wq;  // how far the ribbon reaches past this end
+    vec2 p = (k.x == 0 ? pa - dir * past : pb + dir * past) + float(k.y) * n * 0.5 * wq;
     gl_Position = vec4(p / half_size, 0.0, 1.0);
     float core = A.w / (2.0 * B.w) * (w_true / w);        // radiance of a cylinder seen side-on
     float T = k.x == 0 ? endpoint_t[s].x : endpoint_t[s].y;

@@ -13,6 +13,7 @@
 #include <glm/glm.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdlib>
@@ -457,8 +458,29 @@ void Renderer::clear_sun() {
     impl_->has_sun = impl_->sun_fine = false;
 }
 
+namespace {
+
+// Whether each end of each segment (2 i: a, 2 i + 1: b) meets another segment's end: the
+// channel's stretches share their joints exactly (they are cut from one polyline).
+std::vector<bool> joined_ends(const std::vector<ChannelSegment>& segments) {
+    std::vector<std::pair<std::array<float, 3>, std::size_t>> ends;
+    ends.reserve(2 * segments.size());
+    for (std::size_t i = 0; i < segments.size(); ++i) {
+        ends.push_back({{segments[i].a.x, segments[i].a.y, segments[i].a.z}, 2 * i});
+        ends.push_back({{segments[i].b.x, segments[i].b.y, segments[i].b.z}, 2 * i + 1});
+    }
+    std::sort(ends.begin(), ends.end());
+    std::vector<bool> joined(ends.size(), false);
+    for (std::size_t k = 1; k < ends.size(); ++k)
+        if (ends[k].first == ends[k - 1].first) joined[ends[k].second] = joined[ends[k - 1].second] = true;
+    return joined;
+}
+
+}  // namespace
+
 void Renderer::set_channel(const LitChannel& bolt) {
     Impl& m = *impl_;
+    const std::vector<bool> joined = joined_ends(bolt.segments);
     std::vector<glm::vec4> segs;
     segs.reserve(bolt.segments.size() * 2);
     for (std::size_t i = 0; i < bolt.segments.size(); ++i) {
@@ -472,8 +494,11 @@ void Renderer::set_channel(const LitChannel& bolt) {
             throw core::Error(where, "intensity must be finite and >= 0, got " + std::to_string(s.intensity));
         if (!std::isfinite(s.radius) || s.radius <= 0.0f)
             throw core::Error(where, "radius must be finite and > 0, got " + std::to_string(s.radius));
-        segs.emplace_back(s.a, s.intensity);
-        segs.emplace_back(s.b, s.radius);
+        // bolt.vert extends a ribbon past an end that meets another segment (so that a bend leaves
+        // no gap); a free end (the channel's foot, a branch's tip) ends where the channel does,
+        // which the sign bit of intensity (end a) and radius (end b) tells it.
+        segs.emplace_back(s.a, joined[2 * i] ? s.intensity : -s.intensity);
+        segs.emplace_back(s.b, joined[2 * i + 1] ? s.radius : -s.radius);
     }
     const LitChannel::GroundScatter& gs = bolt.ground;
     if (!gs.irradiance.empty()) {
