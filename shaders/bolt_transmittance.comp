@@ -6,11 +6,11 @@
 
 layout(local_size_x = 64) in;
 
-layout(std430, binding = 1) readonly buffer Segments { vec4 seg[]; };  // 2 per segment
+layout(std430, binding = 1) readonly buffer Segments { vec4 seg[]; };  // 4 per segment (bolt.vert)
 layout(std430, binding = 2) writeonly buffer Endpoints { vec2 endpoint_t[]; };
 
 void main() {
     int s = int(gl_GlobalInvocationID.x);
     if (s >= counts.w) return;
-    endpoint_t[s] = vec2(transmittance_to(seg[2 * s].xyz), transmittance_to(seg[2 * s + 1].xyz));
+    endpoint_t[s] = vec2(transmittance_to(seg[4 * s].xyz), transmittance_to(seg[4 * s + 1].xyz));
 }

@@ -460,9 +460,11 @@ void Renderer::clear_sun() {
 
 namespace {
 
-// Whether each end of each segment (2 i: a, 2 i + 1: b) meets another segment's end: the
-// channel's stretches share their joints exactly (they are cut from one polyline).
-std::vector<bool> joined_ends(const std::vector<ChannelSegment>& segments) {
+// For each end of each segment (2 i: a, 2 i + 1: b), the far end of the segment it joins (xyz)
+// and w = 1, or w = 0 for a free end (the channel's foot, a branch's tip). The channel's
+// stretches share their joints exactly (they are cut from one polyline); where several meet (a
+// branch point), the one that turns least from this segment's own direction.
+std::vector<glm::vec4> joined_ends(const std::vector<ChannelSegment>& segments) {
     std::vector<std::pair<std::array<float, 3>, std::size_t>> ends;
     ends.reserve(2 * segments.size());
     for (std::size_t i = 0; i < segments.size(); ++i) {
@@ -470,9 +472,26 @@ std::vector<bool> joined_ends(const std::vector<ChannelSegment>& segments) {
         ends.push_back({{segments[i].b.x, segments[i].b.y, segments[i].b.z}, 2 * i + 1});
     }
     std::sort(ends.begin(), ends.end());
-    std::vector<bool> joined(ends.size(), false);
-    for (std::size_t k = 1; k < ends.size(); ++k)
-        if (ends[k].first == ends[k - 1].first) joined[ends[k].second] = joined[ends[k - 1].second] = true;
+    const auto point = [&](std::size_t e) { return e % 2 == 0 ? segments[e / 2].a : segments[e / 2].b; };
+    const auto other = [&](std::size_t e) { return e % 2 == 0 ? segments[e / 2].b : segments[e / 2].a; };
+    std::vector<glm::vec4> joined(ends.size(), glm::vec4(0.0f));
+    std::vector<float> best(ends.size(), -2.0f);
+    for (std::size_t lo = 0, hi; lo < ends.size(); lo = hi) {
+        for (hi = lo + 1; hi < ends.size() && ends[hi].first == ends[lo].first; ++hi) {}
+        for (std::size_t x = lo; x < hi; ++x)
+            for (std::size_t y = lo; y < hi; ++y) {
+                const std::size_t e = ends[x].second, f = ends[y].second;
+                if (e / 2 == f / 2) continue;
+                // The way this segment leaves through end e, and the way the other goes on.
+                const glm::vec3 out = point(e) - other(e), on = other(f) - point(f);
+                const float l = glm::length(out) * glm::length(on);
+                const float c = l > 0.0f ? glm::dot(out, on) / l : -1.0f;
+                if (c > best[e]) {
+                    best[e] = c;
+                    joined[e] = glm::vec4(other(f), 1.0f);
+                }
+            }
+    }
     return joined;
 }
 
@@ -480,9 +499,9 @@ std::vector<bool> joined_ends(const std::vector<ChannelSegment>& segments) {
 
 void Renderer::set_channel(const LitChannel& bolt) {
     Impl& m = *impl_;
-    const std::vector<bool> joined = joined_ends(bolt.segments);
+    const std::vector<glm::vec4> joined = joined_ends(bolt.segments);
     std::vector<glm::vec4> segs;
-    segs.reserve(bolt.segments.size() * 2);
+    segs.reserve(bolt.segments.size() * 4);
     for (std::size_t i = 0; i < bolt.segments.size(); ++i) {
         const ChannelSegment& s = bolt.segments[i];
         const std::string where = "set_bolt: segment " + std::to_string(i);
@@ -494,11 +513,11 @@ void Renderer::set_channel(const LitChannel& bolt) {
             throw core::Error(where, "intensity must be finite and >= 0, got " + std::to_string(s.intensity));
         if (!std::isfinite(s.radius) || s.radius <= 0.0f)
             throw core::Error(where, "radius must be finite and > 0, got " + std::to_string(s.radius));
-        // bolt.vert extends a ribbon past an end that meets another segment (so that a bend leaves
-        // no gap); a free end (the channel's foot, a branch's tip) ends where the channel does,
-        // which the sign bit of intensity (end a) and radius (end b) tells it.
-        segs.emplace_back(s.a, joined[2 * i] ? s.intensity : -s.intensity);
-        segs.emplace_back(s.b, joined[2 * i + 1] ? s.radius : -s.radius);
+        // bolt.vert's layout: a, intensity | b, radius | the segment joined at a | at b.
+        segs.emplace_back(s.a, s.intensity);
+        segs.emplace_back(s.b, s.radius);
+        segs.push_back(joined[2 * i]);
+        segs.push_back(joined[2 * i + 1]);
     }
     const LitChannel::GroundScatter& gs = bolt.ground;
     if (!gs.irradiance.empty()) {

@@ -23,15 +23,16 @@ struct PointFrame {
     double cx = 0.0, cy = 0.0;
 };
 
-// A zero-length channel segment (a 1.5-pixel square of known flux) at the view's centre,
-// nothing else: no volume, sky, ground or glow.
+// A channel segment one pixel long across the line of sight (a 1 x 1.5-pixel ribbon: its free
+// ends are not extended) at the view's centre, nothing else: no volume, sky, ground or glow.
 PointFrame render_point(render::Settings st, int size, double fov) {
     render::Renderer& r = gl_renderer();
     r.clear_volume();
     r.clear_source();
     r.clear_static();
     render::LitChannel b;
-    b.segments.push_back({{0.0f, 0.0f, 3000.0f}, {0.0f, 0.0f, 3000.0f}, 1000.0f, 2.0f});
+    const float half_px = float(8000.0 * std::tan(fov * std::numbers::pi / 360.0) / size);  // half a pixel at 8 km
+    b.segments.push_back({{-half_px, 0.0f, 3000.0f}, {half_px, 0.0f, 3000.0f}, 1000.0f, 2.0f});
     r.set_channel(b);
     render::Camera cam;
     cam.position = {0, -8000, 3000};
@@ -88,8 +89,8 @@ TEST_CASE("glare: a point's light spreads as the eye's point-spread function, en
             CAPTURE(R_px);
             MESSAGE("scale " << scale << ", R " << R_px << " px: energy within " << rendered << ", P " << model);
             // The fit's own error (<= 0.011 of the point's light, test_glare_model) plus the
-            // pyramid's filters being Gaussians only approximately and the source a 1.5-pixel
-            // square: measured <= 0.014 at every radius and scale.
+            // pyramid's filters being Gaussians only approximately and the source a 1 x 1.5-pixel
+            // ribbon: measured <= 0.014 at every radius and scale.
             CHECK(std::abs(rendered - model) <= 0.02);
         }
     }
