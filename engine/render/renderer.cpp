@@ -463,7 +463,10 @@ namespace {
 // For each end of each segment (2 i: a, 2 i + 1: b), the far end of the segment it joins (xyz)
 // and w = 1, or w = 0 for a free end (the channel's foot, a branch's tip). The channel's
 // stretches share their joints exactly (they are cut from one polyline); where several meet (a
-// branch point), the one that turns least from this segment's own direction.
+// branch point), the one that turns least from this segment's own direction. A far end at the
+// joint itself makes bolt.vert reach half the ribbon's width past it.
+constexpr std::size_t kMaxEndsAtJoint = 16;
+
 std::vector<glm::vec4> joined_ends(const std::vector<ChannelSegment>& segments) {
     std::vector<std::pair<std::array<float, 3>, std::size_t>> ends;
     ends.reserve(2 * segments.size());
@@ -478,6 +481,12 @@ std::vector<glm::vec4> joined_ends(const std::vector<ChannelSegment>& segments) 
     std::vector<float> best(ends.size(), -2.0f);
     for (std::size_t lo = 0, hi; lo < ends.size(); lo = hi) {
         for (hi = lo + 1; hi < ends.size() && ends[hi].first == ends[lo].first; ++hi) {}
+        if (hi - lo > kMaxEndsAtJoint) {
+            // More ends at one point than a channel makes (a caller's): joined, each ribbon
+            // reaching half its width past it, without the pairwise search.
+            for (std::size_t x = lo; x < hi; ++x) joined[ends[x].second] = glm::vec4(point(ends[x].second), 1.0f);
+            continue;
+        }
         for (std::size_t x = lo; x < hi; ++x)
             for (std::size_t y = lo; y < hi; ++y) {
                 const std::size_t e = ends[x].second, f = ends[y].second;
