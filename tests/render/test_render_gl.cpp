@@ -48,6 +48,25 @@ Image read_march(render::Renderer& r) {
     return im;
 }
 
+// What draws the channel's core alone: no sky, ground, glow, glare, stars or dither.
+render::Settings core_only() {
+    render::Settings st;
+    st.sky = st.ground = st.glow = st.glare = false;
+    st.bolt = true;
+    st.dither = false;
+    st.star_radiance = 0.0;
+    return st;
+}
+
+// Level with z = 3 km, 8 km from the x-z plane the core tests draw their channels in, 40 degrees.
+render::Camera core_camera() {
+    render::Camera cam;
+    cam.position = {0, -8000, 3000};
+    cam.target = {0, 0, 3000};
+    cam.vertical_fov_deg = 40.0;
+    return cam;
+}
+
 std::string read_text(const std::filesystem::path& p) {
     std::ifstream in(p);
     std::stringstream ss;
@@ -515,15 +534,8 @@ TEST_CASE("a bolt's core leaves nothing where it was: the next bolt's frame is a
     render::Renderer& r = gl_renderer();
     r.clear_volume();
     r.clear_source();
-    render::Settings st;
-    st.sky = st.ground = st.glow = st.glare = false;
-    st.bolt = true;
-    st.dither = false;
-    st.star_radiance = 0.0;
-    render::Camera cam;
-    cam.position = {0, -8000, 3000};
-    cam.target = {0, 0, 3000};
-    cam.vertical_fov_deg = 40.0;
+    const render::Settings st = core_only();
+    const render::Camera cam = core_camera();
     auto channel = [](glm::vec3 a, glm::vec3 b, float radius) {
         render::LitChannel c;
         for (int i = 0; i < 8; ++i)
@@ -570,15 +582,8 @@ TEST_CASE("the core's flux is the channel's: bends and free ends add none") {
     render::Renderer& r = gl_renderer();
     r.clear_volume();
     r.clear_source();
-    render::Settings st;
-    st.sky = st.ground = st.glow = st.glare = false;
-    st.bolt = true;
-    st.dither = false;
-    st.star_radiance = 0.0;
-    render::Camera cam;
-    cam.position = {0, -8000, 3000};
-    cam.target = {0, 0, 3000};
-    cam.vertical_fov_deg = 40.0;
+    const render::Settings st = core_only();
+    const render::Camera cam = core_camera();
     const float len = 121.0f, sx = len * 0.5f, sz = len * 0.8660254f;
     auto flux = [&](int kind) {
         render::LitChannel c;
