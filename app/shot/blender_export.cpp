@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <optional>
 #include <system_error>
 #include <vector>
 
@@ -29,7 +30,21 @@ void write_blender_export(const std::filesystem::path& dir, const view::StormVie
 
     const scene::Scene& s = view.scene();
     const render::Settings st = view.frame_settings(options);
-    const core::Grid3<float>& density = view.density();
+    // The density Cycles renders is the one the march draws: with the billows, the detailed
+    // density sampled on a grid fine enough for the finest of them (within kMaxExportVoxels);
+    // with the detail turned off, the density before it; without detail the density grid itself.
+    std::optional<core::Grid3<float>> detailed;
+    const core::Grid3<float>* drawn = &view.density();
+    if (s.cloud.detail && e.undetailed) {
+        if (st.detail) {
+            const int refine = cloud::detail_refinement(e.undetailed->geom, *s.cloud.detail, kMaxExportVoxels);
+            drawn = &detailed.emplace(
+                cloud::detailed_on_finer_grid(*e.undetailed, cloud::DetailNoise(*s.cloud.detail), refine));
+        } else {
+            drawn = e.undetailed;
+        }
+    }
+    const core::Grid3<float>& density = *drawn;
 
     cloud::VdbOutputGrid d;
     d.name = "density";

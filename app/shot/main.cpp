@@ -332,7 +332,7 @@ void write_frame_exr(view::StormView& view, const render::Camera& cam, double t,
 
 // --blender: the frame's lit channel (as shown: the frame at t), its camera and its lights.
 void write_frame_blender(view::StormView& view, const render::Camera& cam, double t, const view::ViewOptions& opt,
-                         const app::ShotArgs& a) {
+                         const app::ShotArgs& a, const core::Grid3<float>* undetailed) {
     std::vector<lightning::LitSegment> drawn;
     // Cycles renders every order of scattering: the flash is exported whole or not at all.
     if (opt.components.single != opt.components.multiple)
@@ -352,6 +352,7 @@ void write_frame_blender(view::StormView& view, const render::Camera& cam, doubl
     e.height = a.height;
     // A quarter of a density voxel: the points differ from the line only within a voxel of it.
     e.light_spacing = 0.25 * view.density().geom.voxel_size;
+    e.undetailed = undetailed;
     app::write_blender_export(*a.blender, view, opt, lit, e);
 }
 
@@ -473,7 +474,7 @@ int main(int argc, char** argv) {
         line.pop_back();  // the object's closing brace: the camera joins it
         std::cout << line << ",\"camera\":" << scene::camera_json(stated) << "}" << std::endl;
         if (a.vdb) write_frame_vdb(view, t, opt, a, shown_field);
-        if (a.blender) write_frame_blender(view, cam, t, opt, a);
+        if (a.blender) write_frame_blender(view, cam, t, opt, a, loaded.undetailed ? &*loaded.undetailed : nullptr);
         if (a.exr) write_frame_exr(view, cam, t, opt, a, shown_field, r.gpu.exposure, *a.exr, "");
         if (a.reference && a.against == "static")
             render_static_reference(view, ctx.get(), cam, t, opt, a, px, shown_field);

@@ -137,4 +137,35 @@ core::Grid3<float> detailed_density(const core::Grid3<float>& density, const Det
     return out;
 }
 
+core::Grid3<float> detailed_on_finer_grid(const core::Grid3<float>& density, const DetailNoise& noise, int refine) {
+    FULGUR_ASSERT(refine >= 1, "a refinement of at least 1");
+    const core::GridGeometry& g = density.geom;
+    core::GridGeometry fine = g;
+    fine.dims = {g.dims.x * refine, g.dims.y * refine, g.dims.z * refine};
+    fine.voxel_size = g.voxel_size / double(refine);
+    core::Grid3<float> out(fine, 0.0f);
+    const float strength = float(noise.params().strength);
+    core::parallel_for_dynamic(0, fine.dims.z, [&](std::int64_t k) {
+        for (int j = 0; j < fine.dims.y; ++j)
+            for (int i = 0; i < fine.dims.x; ++i) {
+                const glm::dvec3 x = fine.centre(i, j, int(k));
+                const float rho = density.sample(x);
+                if (rho > 0.0f) out.at(i, j, int(k)) = erode(rho, noise.sample(x), strength);
+            }
+    });
+    return out;
+}
+
+int detail_refinement(const core::GridGeometry& g, const SubvoxelDetail& d, std::uint64_t max_voxels) noexcept {
+    const double finest = d.scale / double(1 << std::clamp(d.octaves - 1, 0, kMaxDetailOctaves - 1));
+    // At most 64 (so the count below cannot overflow): a grid that coarse against its billows
+    // is far past any budget anyway.
+    int refine = int(std::clamp(std::ceil(g.voxel_size / (0.5 * finest) - 1e-9), 1.0, 64.0));
+    const auto voxels = [&](int r) {
+        return std::uint64_t(g.cell_count()) * std::uint64_t(r) * std::uint64_t(r) * std::uint64_t(r);
+    };
+    while (refine > 1 && voxels(refine) > max_voxels) --refine;
+    return refine;
+}
+
 }  // namespace fulgur::cloud

@@ -20,6 +20,8 @@
 //     they compute sees the detail's extinction at the grid's resolution. Structure finer
 //     than a voxel shapes what the camera sees, not the light transport (docs/cloud.md,
 //     "Sub-voxel detail", measures what that leaves out).
+//   * an outside renderer (fulgur-shot --blender) gets rho_d itself on a finer voxel grid
+//     (detailed_on_finer_grid), so it renders the billows the march draws.
 #pragma once
 
 #include "core/core.h"
@@ -88,5 +90,16 @@ inline constexpr int kDetailSupersamples = 4;
 /// exactly 0, rho_d <= rho, and with strength 0 the result equals the input bit for bit.
 /// Deterministic whatever core::thread_count() is.
 core::Grid3<float> detailed_density(const core::Grid3<float>& density, const DetailNoise& noise);
+
+/// The detailed density rho_d (detailed_at) at the voxel centres of a grid over the same box
+/// `refine` times finer than `density`'s (voxels voxel_size / refine across): the billows the
+/// march draws, for a renderer that reads a voxel grid (fulgur-shot --blender). Voxels whose
+/// point of `density` is 0 stay exactly 0. Deterministic whatever core::thread_count() is.
+core::Grid3<float> detailed_on_finer_grid(const core::Grid3<float>& density, const DetailNoise& noise, int refine);
+
+/// The refinement for detailed_on_finer_grid: the smallest whose voxels are at most half the
+/// finest billow across (scale / 2^(octaves - 1) / 2; at most 64), lowered until the finer grid holds at most
+/// `max_voxels` voxels; at least 1.
+int detail_refinement(const core::GridGeometry& g, const SubvoxelDetail& d, std::uint64_t max_voxels) noexcept;
 
 }  // namespace fulgur::cloud
