@@ -41,6 +41,10 @@ The rain (`rain`): over the pixels whose ray meets rain and no cloud (Fulgur's T
 rain, > 0.999 without), each renderer's wet pixel less its dry pixel times Fulgur's T (the rain's
 own light, less its shadow on what lies behind it), Fulgur against Cycles' (its dry frame the mean
 of its two seeds).
+With a drawn channel, `rain_channel_0_10_px_*`, `rain_channel_10_30_px_*` and
+`rain_channel_30_up_px_*` give the pixels, ratio of totals and Cycles' total noise of the same
+by the rain pixel's distance on screen from the channel's nearest pixel (Chebyshev): near it
+the channel's own light dominates the rain, farther the light scattered more than once.
 
 The channel (`channel`): Fulgur draws the core at least 1.5 pixels wide, dimmed to keep its flux,
 where Cycles draws the channel's physical width, so only sums over areas wider than the core
@@ -262,6 +266,11 @@ def write_picture(path, f, c):
     out.close()
 
 
+# The rain's pixels by their distance on screen (Chebyshev, pixels) from the nearest pixel of
+# the drawn channel: [lo, hi), the last without end.
+RAIN_CHANNEL_BANDS = [(0, 10), (10, 30), (30, None)]
+
+
 def rain_change(wet, dry, seeds):
     """The rain's figures (module docstring) from a `run` of the scene (`wet`) and of it without rain."""
     fw, fd = read_channels(wet / "fulgur.exr"), read_channels(dry / "fulgur.exr")
@@ -272,7 +281,22 @@ def rain_change(wet, dry, seeds):
     dry_c = (cycles(dry, seeds[0]) + cycles(dry, seeds[1])) / 2
     a, b = cycles(wet, seeds[0]) - dry_c * t, cycles(wet, seeds[1]) - dry_c * t
     f = passes(fw) - passes(fd) * t
-    return {"rain_" + k: v for k, v in region_figures(f, (a + b) / 2, a, b, mask).items()}
+    out = {"rain_" + k: v for k, v in region_figures(f, (a + b) / 2, a, b, mask).items()}
+    # By distance on screen from the nearest pixel of the drawn channel (Fulgur's channel pass):
+    # near it the channel's own light dominates the rain, farther the light scattered more than once.
+    if "channel.R" in fw:
+        core = rgb(fw, "channel").sum(axis=-1) > 0
+        if core.any():
+            inner = np.zeros_like(core)
+            for lo, hi in RAIN_CHANNEL_BANDS:
+                outer = dilate(core, hi - 1) if hi is not None else np.ones_like(core)
+                band = mask & outer & ~inner
+                inner = outer
+                name = "rain_channel_%d_%s_px_" % (lo, "up" if hi is None else "%d" % hi)
+                for k, v in region_figures(f, (a + b) / 2, a, b, band).items():
+                    if k in ("pixels", "ratio_of_totals", "cycles_total_noise"):
+                        out[name + k] = v
+    return out
 
 
 def rain(args):
