@@ -11,6 +11,8 @@
 //   HAS_DETAIL   1: erode the density by the sub-voxel detail (u_detail, detail_params)
 //   HAS_RAIN     1: rain's extinction in the density texture's b channel (rain_params), lit
 //                   by the flash's point lights, the sun and the static light's S
+//   HAS_RAIN_SOURCE 1 (with HAS_RAIN): the rain also scatters the flash's light of orders >= 2
+//                   (u_rain_scam)
 //   TEMPORAL     1: keep the rain's light from the channel apart from the flash's S and
 //                   return the ray's opacity-weighted depth (the temporal history's terms)
 #ifndef SKIP_EMPTY
@@ -37,6 +39,9 @@
 #ifndef HAS_RAIN
 #define HAS_RAIN 0
 #endif
+#ifndef HAS_RAIN_SOURCE
+#define HAS_RAIN_SOURCE 0
+#endif
 #ifndef TEMPORAL
 #define TEMPORAL 0
 #endif
@@ -53,6 +58,12 @@ layout(binding = 6) uniform sampler3D u_static;
 #define SUN_TRANSMITTANCE_DECLARED
 // Transmittance from the sun to each full-resolution voxel (the density grid).
 layout(binding = 7) uniform sampler3D u_sun_t;
+#endif
+
+#if HAS_RAIN && HAS_RAIN_SOURCE
+// The flash's light of orders >= 2 at the rain's points toward the camera, per unit albedo, on
+// its grid (rain_src_min, rain_src_size): the strikes solved with the rain in their media.
+layout(binding = 13) uniform sampler3D u_rain_scam;
 #endif
 
 #if HAS_DETAIL
@@ -202,6 +213,9 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #endif
 #if HAS_RAIN
     RainRay rain = rain_ray(o, d);
+#if HAS_RAIN_SOURCE
+    vec3 o_rs = (o - rain_src_min.xyz) / rain_src_size.xyz, d_rs = d / rain_src_size.xyz;
+#endif
 #if HAS_SUN
     // What the rain scatters toward the camera (-d) of the sun or moon, per unit albedo: its first
     // scattering through the cloud and the rain (the full-resolution transmittance, read once per
@@ -258,6 +272,16 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
             rain_depth_sum += wr * light_t;
 #else
             L += wr * rain_flash(rain, t, light_t);
+#endif
+#if HAS_RAIN_SOURCE
+            // The flash's light that reached the rain after scattering (the lit cloud's light
+            // sent down, the rain's own multiple scattering), with the drops' phase function by
+            // the cell's share of rain: part of the flash's S, not of the channel's direct light.
+            float dR = wr * max(textureLod(u_rain_scam, o_rs + t * d_rs, 0.0).r, 0.0);
+            L += dR;
+#if TEMPORAL
+            light_depth_sum += dR * t;
+#endif
 #endif
 #if HAS_SUN
             Ls += wr * (sun_rgb.rgb * (rain_sun_phase * sun_t));

@@ -161,25 +161,29 @@ GLuint Renderer::Impl::resolve_set(SourceSet& set, const glm::dvec3& camera, con
 /// Resolve: S toward the camera on the lighting grid, for the flash and for the static light
 /// (only when S or the camera changed; with one direction S itself). Binds the density (unit
 /// 0), the flash's S toward the camera (unit 1), the static light's (unit 6), the sun's
-/// transmittance (unit 7), the detail (unit 9) and the ground's scattered flash light (unit 10).
+/// transmittance (unit 7), the detail (unit 9), the ground's scattered flash light (unit 10) and
+/// the flash's light of orders >= 2 at the rain toward the camera (unit 13).
 void Renderer::Impl::resolve_pass(const glm::dvec3& camera, const Settings& st, const FrameUniforms& u,
                                   PassTimer& timer, FrameStats& stats, bool resolve) {
-    GLuint scam = zero_tex, stat = zero_tex;
-    if (u.lit && resolve) {
-        const bool must_resolve = flash.dir_count > 1 && (flash.dirty || flash.resolved_camera != camera);
+    GLuint scam = zero_tex, stat = zero_tex, rain_scam = zero_tex;
+    // The flash's S and, at the rain's points, its light of orders >= 2: the view's needed
+    // directions that were uploaded.
+    const auto resolve_flash = [&](SourceSet& set, bool count) {
+        const bool must_resolve = set.dir_count > 1 && (set.dirty || set.resolved_camera != camera);
         if (must_resolve) timer.begin(kResolve);  // includes the CPU work of finding the needed directions
-        const std::vector<DirectionUse>& need =
-            needed_for(camera, flash.geom, flash.dir_count, st.direction_min_weight);
-        stats.directions_used = int(need.size());
+        const std::vector<DirectionUse>& need = needed_for(camera, set.geom, set.dir_count, st.direction_min_weight);
+        if (count) stats.directions_used = int(need.size());
         std::vector<int> active;
         for (const DirectionUse& d : need) {
-            if (flash.present[std::size_t(d.index)])
+            if (set.present[std::size_t(d.index)])
                 active.push_back(d.index);
-            else
+            else if (count)
                 stats.missing_weight = std::max(stats.missing_weight, d.max_weight);
         }
-        scam = resolve_set(flash, camera, active, must_resolve, timer);
-    }
+        return resolve_set(set, camera, active, must_resolve, timer);
+    };
+    if (u.lit && resolve) scam = resolve_flash(flash, true);
+    if (u.rain_source && resolve) rain_scam = resolve_flash(rain_flash, false);
     if (u.statics && resolve) {
         // Every direction is present (upload_static); the view's needed ones are resolved.
         const bool must_resolve = statics.dir_count > 1 && (statics.dirty || statics.resolved_camera != camera);
@@ -197,6 +201,7 @@ void Renderer::Impl::resolve_pass(const glm::dvec3& camera, const Settings& st, 
     glBindTextureUnit(10, ground_scatter_tex);  // zero outside its cells (and 1x1 zero while there is none)
     // The static light's ground, read only inside its cells (0 while there is none: unbound).
     glBindTextureUnit(11, ground_static_tex);
+    glBindTextureUnit(13, rain_scam);
     last_scam = u.lit && resolve ? scam : 0;
     last_static = u.statics && resolve ? stat : 0;
 }

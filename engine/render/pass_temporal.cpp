@@ -76,6 +76,13 @@ void TemporalState::release() {
     has_history = false;
 }
 
+bool TemporalState::flash_holds() const {
+    if (!source.valid() || !rain_source.valid()) return false;
+    if (rain_source.dark() && rain_source.rescale() == 1.0) return true;  // no rain light then or now
+    const double a = source.rescale(), b = rain_source.rescale();
+    return std::abs(a - b) <= ScaleTracker::kTolerance * std::max(std::abs(a), std::abs(b));
+}
+
 TemporalKey temporal_key(const FrameUniforms& u, const std::string& march_defines) {
     const FrameBlock& f = u.block;
     TemporalKey k;
@@ -144,12 +151,12 @@ detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const S
     const bool glow_on = st.glow && st.air_scattering > 0.0;
     plan.key = detail::temporal_key(
         u, march_defines(st.skip_empty, st.early_exit, flash_on, glow_on, u.statics, u.sun, u.detail, u.rain, -1, -1,
-                         false, st.ground_rain_map && st.ground && u.rain));
+                         false, st.ground_rain_map && st.ground && u.rain, flash_on));
     // The cloud's group holds when nothing but the camera (within reprojection) and the light
     // groups changed; the flash's and the channel's when they changed only in intensity.
     const bool cloud_holds =
         h.has_history && !h.inputs_changed && plan.key == h.key && detail::camera_continues(h.camera, camera);
-    const bool lights_hold = h.source.valid() && h.channel.valid();
+    const bool lights_hold = h.flash_holds() && h.channel.valid();
     const bool still = cloud_holds && detail::same_camera(camera, h.camera);
     // A block needs the march to be at least as wide and high: a march one pixel wide or high
     // marches every pixel, one under 4 pixels marches quarters. The 4x4 block only while no
@@ -290,6 +297,7 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     h.camera = camera;
     h.view_proj = u.block.view_proj;
     h.source.written();
+    h.rain_source.written();
     h.channel.written();
     ++h.frames;
     // A moving camera upsamples three pixels of each 2x2 block: once it stops, the next four

@@ -548,6 +548,16 @@ public:
     /// Uploads directions of S (see SourceUpload). Throws core::Error on inconsistent input
     /// (direction index out of range, wrong array size, invalid geometry, non-finite values).
     void upload_source(const SourceUpload& source);
+    /// With rain (VolumeDesc::rain): the flash's light of orders >= 2 at the rain's points, per
+    /// unit albedo, on its own grid (runtime::Frame::rain: the strikes solved with the rain in
+    /// their media), validated and kept as upload_source's S. The rain's samples scatter it by
+    /// the rain's albedo; its first order comes from the channel's point lights. It belongs to
+    /// the flash's light group: the temporal history rescales it with the flash's S, and marches
+    /// again where the two changed by different factors.
+    void upload_rain_source(const SourceUpload& rain);
+    /// No such light (the default; clear_source clears it too): the rain is lit by the channel's
+    /// first order alone.
+    void clear_rain_source();
     /// No light in the cloud (no active flash): the march skips S entirely.
     void clear_source();
     /// Uploads the static light (all directions; see StaticUpload). Throws core::Error on

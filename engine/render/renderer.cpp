@@ -186,6 +186,7 @@ Renderer::~Renderer() {
     delete_texture(m.density_tex);
     delete_texture(m.detail_tex);
     m.flash.release();
+    m.rain_flash.release();
     m.statics.release();
     delete_texture(m.sun_tex);
     m.meter_buf.release();
@@ -335,15 +336,24 @@ void Renderer::clear_volume() {
     m.segment_visibility.clear();
 }
 
+namespace {
+
+// An upload of S into its set, noted by the light group's tracker.
+void upload_tracked(detail::SourceSet& set, detail::ScaleTracker& tracker, const char* what, const SourceUpload& s) {
+    upload_into(set, what, s.geometry, s.direction_count, s.directions, s.values, 1, s.keep_others);
+    const core::GridGeometry& g = s.geometry;
+    const float fixed[8] = {float(g.origin.x), float(g.origin.y), float(g.origin.z), float(g.voxel_size),
+                            float(g.dims.x),   float(g.dims.y),   float(g.dims.z),   float(s.direction_count)};
+    tracker.note(fixed, s.directions, s.values, !s.keep_others);
+}
+
+}  // namespace
+
 void Renderer::upload_source(const SourceUpload& s) {
     Impl& m = *impl_;
     core::Stopwatch sw;
     const double cpu0 = process_cpu_ms();
-    upload_into(m.flash, "upload_source", s.geometry, s.direction_count, s.directions, s.values, 1, s.keep_others);
-    const core::GridGeometry& g = s.geometry;
-    const float fixed[8] = {float(g.origin.x), float(g.origin.y), float(g.origin.z), float(g.voxel_size),
-                            float(g.dims.x),   float(g.dims.y),   float(g.dims.z),   float(s.direction_count)};
-    m.temporal.source.note(fixed, s.directions, s.values, !s.keep_others);
+    upload_tracked(m.flash, m.temporal.source, "upload_source", s);
     m.pending_upload_ms += sw.milliseconds();
     m.pending_upload_cpu_ms += process_cpu_ms() - cpu0;
 }
@@ -352,6 +362,22 @@ void Renderer::clear_source() {
     impl_->temporal.source.clear();
     impl_->flash.has = false;
     impl_->flash.dirty = true;
+    clear_rain_source();  // the flash's light at the rain goes with it
+}
+
+void Renderer::upload_rain_source(const SourceUpload& s) {
+    Impl& m = *impl_;
+    core::Stopwatch sw;
+    const double cpu0 = process_cpu_ms();
+    upload_tracked(m.rain_flash, m.temporal.rain_source, "upload_rain_source", s);
+    m.pending_upload_ms += sw.milliseconds();
+    m.pending_upload_cpu_ms += process_cpu_ms() - cpu0;
+}
+
+void Renderer::clear_rain_source() {
+    impl_->temporal.rain_source.clear();
+    impl_->rain_flash.has = false;
+    impl_->rain_flash.dirty = true;
 }
 
 void Renderer::reset_history() {

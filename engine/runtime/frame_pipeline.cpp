@@ -2,6 +2,7 @@
 // the lighting grid, by the bases alone (the paper preset) or with the strikes' own solved
 // light where it is ready.
 #include "runtime/runtime.h"
+#include "sky/sky.h"
 
 #include <algorithm>
 #include <chrono>
@@ -22,7 +23,14 @@ struct FramePipeline::Impl {
     scene::Quality quality;
     // Presets that solve strikes (the solver keeps references to the scene and the media).
     scene::Scene solve_scene;
-    std::optional<solve::Media> media;
+    // `media` holds the rain when the scene declares it (sky::make_static_media, the rain as
+    // cloud of equal transport coefficient, S at its points with the drops' phase function):
+    // the strikes solved ahead light the rain (Frame::rain), and the rain scatters their light
+    // back into the cloud and onto the ground. The instant path's estimates blend with the
+    // bases, which hold no rain: it keeps the cloud alone (`dry_media`, only made when `media`
+    // holds rain).
+    std::optional<solve::Media> media, dry_media;
+    const solve::Media& instant_media() const { return dry_media ? *dry_media : *media; }
     std::unique_ptr<StrikeSolver> solver;
     std::unique_ptr<InstantStrikes> instant;
     std::set<std::pair<std::uint64_t, double>> unscheduled;  // strike_at(..., known_ahead = false)
@@ -62,6 +70,7 @@ struct FramePipeline::Impl {
         instant.reset();
         shown.clear();
         media.reset();
+        dry_media.reset();
         quality = q;
         keep_fine = false;
         if (q.preset == scene::Quality::Preset::Paper) return;
@@ -69,6 +78,10 @@ struct FramePipeline::Impl {
         solve_scene.transport.refine = scene::strike_refine(s, q);
         if (q.exact_orders > 0) solve_scene.transport.lb_exact_orders = q.exact_orders;
         media = solve::make_media(solve_scene, *density);
+        if (solve_scene.rain) {
+            dry_media = std::move(media);
+            media = sky::make_static_media(solve_scene, *density, solve_scene.transport.refine, true);
+        }
         if (q.preset == scene::Quality::Preset::Instant) {
             make_instant(q);
             return;
@@ -89,7 +102,7 @@ struct FramePipeline::Impl {
     // a preset that solves ahead). Every core: a frame costs about a millisecond of the frame
     // thread, and the first estimate's latency is the first round's paths over the cores.
     void make_instant(const scene::Quality& q) {
-        instant = std::make_unique<InstantStrikes>(solve_scene, *density, *media, bases, instant_options(q),
+        instant = std::make_unique<InstantStrikes>(solve_scene, *density, instant_media(), bases, instant_options(q),
                                                    core::thread_count());
     }
 
@@ -107,12 +120,15 @@ struct FramePipeline::Impl {
         frame.strikes_solved = frame.strikes_fallback = 0;
         frame.instant_weight = 1.0;
         frame.ground.data.clear();
+        frame.rain.values.clear();
+        frame.rain.directions.clear();
         return frame;
     }
     // A solved strike's light in a frame, scaled by its glow (and, instant, by its weight).
     struct Lit {
         std::shared_ptr<const StrikeLight> light;
         double main = 0.0, branch = 0.0;
+        bool rain = false;  // solved with the rain in its media: its multiple S lights the rain
     };
     // The solved strikes' ground tallies, each group scaled by its glow, into the frame's
     // (every strike of the scene is tallied on the same cells: strike_ground()).
@@ -148,6 +164,7 @@ struct FramePipeline::Impl {
     void move_toward_target(Shown& s, double step);
     const Frame& build_paper(double t, std::span<const int> directions, const ReconstructOptions& options);
     const Frame& build_solved(double t, std::span<const int> directions, const ReconstructOptions& options);
+    void add_rain_light(const std::vector<Lit>& solved, const ReconstructOptions& options);
 };
 
 FramePipeline::FramePipeline(const scene::Scene& scene, const core::Grid3<float>& density, const BakedBases& bases,
@@ -262,7 +279,7 @@ void FramePipeline::Impl::add_instant(const lightning::Strike& k, const lightnin
 void FramePipeline::Impl::move_toward_target(Shown& s, double step) {
     const StrikeEstimate& e = *s.target;
     const double w = e.weight();
-    const std::vector<float>& rho = media->lighting.density.data;
+    const std::vector<float>& rho = instant_media().lighting.density.data;
     const std::size_t cells = rho.size(), n = e.total.size();
     const std::vector<float>* B = e.bases && e.bases->size() == n ? e.bases.get() : nullptr;
     if (!s.light) {  // start from the bases alone
@@ -377,7 +394,7 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
                 continue;
             }
             ++f.strikes_solved;
-            solved.push_back({light, st.main_glow, st.branch_glow});
+            solved.push_back({light, st.main_glow, st.branch_glow, dry_media.has_value()});
             const lightning::FlashParts parts = lightning::split_leaders(st);
             lightning::lit_segments(storm.bolt(i), parts.leaders, basis_segments);  // bases, both components
             if (!light->has_multiple())  // hybrid: the strokes' multiple scattering from the bases
@@ -521,9 +538,41 @@ const Frame& FramePipeline::Impl::build_solved(double t, std::span<const int> di
         add_solved(f.radiance, false);
         if (fine) add_solved(f.fine, true);
     }
+    if (valid) add_rain_light(solved, options);
     f.times.strike_light = sw.milliseconds();
     f.lit = valid;
     return f;
+}
+
+// Frame::rain: the multiple S of the strikes solved with the rain in their media, per unit
+// albedo (S carries the cloud's), scaled by their glow; on the lighting grid (where the strikes'
+// multiple S is kept, whichever grid the cloud's S is on), for the frame's directions.
+void FramePipeline::Impl::add_rain_light(const std::vector<Lit>& solved, const ReconstructOptions& options) {
+    const auto wet = [](const Lit& l) { return l.rain && l.light->has_multiple(); };
+    const double albedo = solve_scene.medium.albedo;
+    if (!options.components.multiple || !(albedo > 0.0) || std::none_of(solved.begin(), solved.end(), wet)) return;
+    RadianceField& r = frame.rain;
+    r.geometry = media->lighting.density.geom;
+    r.direction_count = frame.radiance.direction_count;
+    r.directions = frame.radiance.directions;
+    r.components = {false, true};
+    r.values.resize(r.directions.size());
+    const std::size_t cells = r.geometry.cell_count();
+    for (std::size_t k = 0; k < r.directions.size(); ++k) {
+        std::vector<float>& out = r.values[k];
+        out.assign(cells, 0.0f);
+        const std::size_t m = std::size_t(r.directions[k]);
+        for (const Lit& l : solved) {
+            if (!wet(l)) continue;
+            const float w[2] = {float(l.main / albedo), float(l.branch / albedo)};
+            for (std::size_t q = 0; q < 2; ++q) {
+                const std::span<const float> v = StrikeLight::direction(l.light->multiple[q], m);
+                FULGUR_ASSERT(v.size() == cells, "FramePipeline: a strike's multiple S is not on the lighting grid");
+                if (w[q] != 0.0f)
+                    for (std::size_t i = 0; i < cells; ++i) out[i] += w[q] * v[i];
+            }
+        }
+    }
 }
 
 const Frame& build_since_known(FramePipeline& pipeline, double t, double since_known_ms,

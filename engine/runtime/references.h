@@ -68,7 +68,9 @@ struct Truth {
 /// tallied as voxel averages on the lighting grid for the scene's output directions, split
 /// into single and multiple scattering, with a noise estimate from two independent halves.
 /// Uses the scene's optics (exact Henyey-Greenstein), independent of its transport settings.
-/// Offline: seconds to minutes.
+/// With rain, the rain is part of the medium as the strikes' solves see it
+/// (sky::make_static_media: cloud of equal transport coefficient, S at its points with the
+/// drops' phase function by each cell's share of rain). Offline: seconds to minutes.
 Truth truth(const scene::Scene& scene, const core::Grid3<float>& density, std::span<const lightning::LitSegment> lit,
             std::span<const transport::PointSource> points = {}, const TruthOptions& options = {});
 

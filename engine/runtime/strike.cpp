@@ -62,7 +62,11 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
     const core::GridGeometry& lighting = media.lighting.density.geom;
     const core::GridGeometry& grid = media.transport.density.geom;  // where the lattice runs
     const std::vector<transport::LineSource> lines = strike_line_sources(bolt);
-    const transport::LightingMedium fine = full_resolution(scene, density);
+    // The paths' medium: the media's own full-resolution one where they carry it (with rain,
+    // the rain in it: sky::make_static_media), else the density.
+    const bool own_fine = media.full.density.data.empty();
+    const transport::LightingMedium made = own_fine ? full_resolution(scene, density) : transport::LightingMedium{};
+    const transport::LightingMedium& fine = own_fine ? made : media.full;
     const bool lattice = options.multiple == StrikeSolveOptions::Multiple::Lattice && scene.effects.multiple_scattering;
     const bool mc = options.multiple == StrikeSolveOptions::Multiple::MonteCarlo && scene.effects.multiple_scattering;
     FULGUR_ASSERT(!(options.toward && lattice),
@@ -85,6 +89,7 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
     so.halves = true;
     so.tally_fluence = lattice;
     so.toward = options.toward;
+    so.phase_mix = media.transport.phase_mix.get();  // the drops' phase function where it rains
     core::Stopwatch sw;
     transport::MonteCarloResult s1 = transport::monte_carlo(fine, {}, lines, grid, tallied_dirs, so);
     out.seconds_single = sw.seconds();
@@ -131,6 +136,7 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
         const core::GridGeometry& tally = keep ? grid : lighting;
         mo.toward = options.toward;
         mo.ground = options.ground;
+        mo.phase_mix = (keep ? media.transport : media.lighting).phase_mix.get();
         const transport::MonteCarloResult r = transport::monte_carlo(fine, {}, lines, tally, tallied_dirs, mo);
         if (options.ground)
             for (std::uint32_t q = 0; q < 2; ++q)

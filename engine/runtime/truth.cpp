@@ -1,6 +1,7 @@
 // The truth (runtime.h): Monte Carlo of a frame's lit channel through the full-resolution
 // density, S tallied on the lighting grid with a noise estimate.
 #include "runtime/runtime.h"
+#include "sky/sky.h"
 
 #include <utility>
 
@@ -15,9 +16,17 @@ transport::SourceField Truth::sum(const Components& c) const {
 
 Truth truth(const scene::Scene& scene, const core::Grid3<float>& density, std::span<const lightning::LitSegment> lit,
             std::span<const transport::PointSource> points, const TruthOptions& options) {
+    // With rain, the medium the presets' strike solves see (FramePipeline): the rain as cloud
+    // of equal transport coefficient, S at its points with the drops' phase function.
+    std::optional<solve::Media> wet;
+    if (scene.rain) wet = sky::make_static_media(scene, density, 1, true);
     transport::LightingMedium fine;
-    fine.density = density;
-    fine.optics = scene.medium;
+    if (wet) {
+        fine = std::move(wet->full);
+    } else {
+        fine.density = density;
+        fine.optics = scene.medium;
+    }
     core::GridGeometry lighting = density.geom;
     const int f = scene.lighting_downsample;
     lighting.voxel_size *= f;
@@ -36,6 +45,7 @@ Truth truth(const scene::Scene& scene, const core::Grid3<float>& density, std::s
     const std::vector<glm::dvec3> dirs = transport::output_directions(scene.effective_directions());
     mc.toward = options.toward;
     mc.ground = options.multiple ? options.ground : std::nullopt;  // scattered light: the paths must go on
+    if (wet) mc.phase_mix = wet->lighting.phase_mix.get();
     transport::MonteCarloResult r =
         transport::monte_carlo(fine, pts, lines, lighting, options.toward ? transport::output_directions(1) : dirs, mc);
     Truth t;

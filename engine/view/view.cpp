@@ -486,6 +486,7 @@ void StormView::render_lightning(const render::Camera& camera, double t, const V
         up.directions = dirs;
         for (int m : dirs) up.values.push_back(source->direction(std::size_t(m)));
         renderer_->upload_source(up);
+        renderer_->clear_rain_source();  // a given S: the channel alone lights the rain
     } else if (f.lit && !f.radiance.values.empty()) {
         // S on the transport grid where the quality keeps the strikes there.
         const runtime::RadianceField& r = f.fine.values.empty() ? f.radiance : f.fine;
@@ -495,6 +496,16 @@ void StormView::render_lightning(const render::Camera& camera, double t, const V
         up.directions = r.directions;
         for (const auto& v : r.values) up.values.emplace_back(v.data(), v.size());
         renderer_->upload_source(up);
+        if (f.rain.values.empty()) {
+            renderer_->clear_rain_source();
+        } else {
+            render::SourceUpload rain;
+            rain.geometry = f.rain.geometry;
+            rain.direction_count = f.rain.direction_count;
+            rain.directions = f.rain.directions;
+            for (const auto& v : f.rain.values) rain.values.emplace_back(v.data(), v.size());
+            renderer_->upload_rain_source(rain);
+        }
     } else {
         renderer_->clear_source();
     }

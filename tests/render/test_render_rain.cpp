@@ -452,3 +452,74 @@ TEST_CASE("the static light in the rain: S at its points scattered by its albedo
     // The same sum as the march's: float rounding only, as the sky's case above (2e-5 there).
     CHECK(worst < 1e-4);
 }
+
+TEST_CASE("the flash's light at the rain: its S of orders >= 2 scattered by the rain's albedo, with the flash") {
+    // runtime::Frame::rain (upload_rain_source): the flash's light of orders >= 2 at the rain's
+    // points per unit albedo. With it uniform (the same in every direction) and no channel,
+    // rain of constant sigma draws albedo_rain x S x flash colour x (1 - exp(-sigma chord)) over
+    // the sky behind it times exp(-sigma chord), whatever the view. The cloud's S (uploaded
+    // too, larger) is never read in rain alone; cleared, or the flash off, the rain has none.
+    render::Renderer& r = gl_renderer();
+    const double sigma = 1e-3;
+    const cloud::RainField rain = uniform_rain(sigma);
+    r.clear_sun();
+    r.clear_static();
+    r.set_channel({});
+    const core::GridGeometry lg{{6, 6, 3}, 400.0, box().origin};  // the box in 400 m cells
+    const double S = 3.0;
+    const std::vector<float> cloud_s(lg.cell_count(), 50.0f), rain_s(lg.cell_count(), float(S));
+    render::SourceUpload up;
+    up.geometry = lg;
+    up.direction_count = 1;
+    up.directions = {0};
+    up.values = {std::span<const float>(cloud_s)};
+    render::SourceUpload wet = up;
+    wet.values = {std::span<const float>(rain_s)};
+    render::Settings st = sky_lit();
+    st.flash_colour = {1.0, 0.5, 0.25};
+    const auto worst_of = [&](double scale) {
+        double worst = 0.0;
+        int counted = 0;
+        for (const glm::dvec3 pos : {glm::dvec3(-300.0, -4000.0, 600.0), glm::dvec3(-300.0, -3000.0, 3200.0)})
+            rain_light_per_pixel(r, pos, st, rain, sigma,
+                                 [&](const glm::dvec3&, double opacity, int c, double got, double pixel) {
+                                     const double expect = scale * rain.albedo * S * st.flash_colour[c] * opacity;
+                                     if (scale == 0.0) {
+                                         worst = std::max(worst, std::abs(got) / pixel);
+                                     } else {
+                                         if (expect < 0.1 * pixel) return;  // the subtraction's rounding
+                                         worst = std::max(worst, std::abs(got / expect - 1.0));
+                                     }
+                                     ++counted;
+                                 });
+        CHECK(counted > 2000);
+        return worst;
+    };
+    r.upload_source(up);
+    r.upload_rain_source(wet);
+    const double lit = worst_of(1.0);
+    st.flash_light = false;
+    const double flash_off = worst_of(0.0);
+    st.flash_light = true;
+    r.clear_rain_source();
+    const double cleared = worst_of(0.0);
+    r.upload_rain_source(wet);
+    r.clear_source();  // the flash's light at the rain goes with it
+    const double dark = worst_of(0.0);
+    MESSAGE("worst relative error " << lit << "; the rain's own light relative to the pixel with the flash off "
+                                    << flash_off << ", cleared " << cleared << ", the flash cleared " << dark);
+    // The same sum as the march's: float rounding only (the static light's case: 1e-4).
+    CHECK(lit < 1e-4);
+    // Float rounding of I - B T (as the switches' case above).
+    CHECK(flash_off < 1e-5);
+    CHECK(cleared < 1e-5);
+    CHECK(dark < 1e-5);
+
+    // Bad input is rejected with the direction named, and leaves nothing half-uploaded.
+    std::vector<float> bad = rain_s;
+    bad[7] = std::nanf("");
+    wet.values = {std::span<const float>(bad)};
+    CHECK_THROWS_WITH_AS(r.upload_rain_source(wet), doctest::Contains("direction 0"), core::Error);
+    wet.values = {};
+    CHECK_THROWS_AS(r.upload_rain_source(wet), core::Error);
+}

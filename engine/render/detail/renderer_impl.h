@@ -44,6 +44,8 @@ struct Renderer::Impl {
 
     // Source: the flash's S and the static light's (colour)
     detail::SourceSet flash = detail::SourceSet(GL_R32F), statics = detail::SourceSet(GL_RGBA32F);
+    // The flash's light of orders >= 2 at the rain's points (SourceUpload::rain), resolved as `flash`.
+    detail::SourceSet rain_flash = detail::SourceSet(GL_R32F);
     double static_albedo = 0.0;  // StaticUpload::albedo: the cloud's albedo the static S carries
     // The sun drawn at full resolution (set_sun)
     GLuint sun_tex = 0;  // transmittance to the sun on the density grid (R16F)
@@ -69,9 +71,10 @@ struct Renderer::Impl {
         double min_weight = -1.0;
         std::vector<DirectionUse> needed;
     };
-    // Two grids: the flash's and the static light's (which may be finer: a frame resolves
-    // both, and one slot would recompute each every frame).
-    mutable std::array<NeededCache, 2> needed_cache;
+    // Three grids: the flash's, the static light's (which may be finer) and the flash's light
+    // at the rain (the lighting grid, where the flash's may be the finer transport grid): a
+    // frame resolves each, and fewer slots would recompute one every frame.
+    mutable std::array<NeededCache, 3> needed_cache;
     mutable std::size_t needed_next = 0;  // the slot a third grid replaces
     NeededCache& needed_slot(const core::GridGeometry& lg) const;
     /// The active-node tiles of a lighting grid (cached with its active mask).
@@ -200,7 +203,7 @@ struct Renderer::Impl {
     static std::string march_defines(bool skip, bool early, bool source, bool emission, bool statics = false,
                                      bool sun = false, bool detail = false, bool rain = false, int rain_lights = -1,
                                      int ground_lights = -1, bool ground_scattered = false,
-                                     bool ground_rain_map = false) {
+                                     bool ground_rain_map = false, bool rain_source = false) {
         std::string d = std::string("#define SKIP_EMPTY ") + (skip ? "1" : "0") + "\n#define EARLY_EXIT " +
                         (early ? "1" : "0") + "\n#define HAS_SOURCE " + (source ? "1" : "0") +
                         "\n#define HAS_EMISSION " + (emission ? "1" : "0") + "\n";
@@ -209,6 +212,7 @@ struct Renderer::Impl {
         if (detail) d += "#define HAS_DETAIL 1\n";
         if (rain) d += "#define HAS_RAIN 1\n";
         if (rain && rain_lights >= 0) d += "#define RAIN_LIGHTS " + std::to_string(rain_lights) + "\n";
+        if (rain && rain_source) d += "#define HAS_RAIN_SOURCE 1\n";
         if (ground_lights == 0) d += "#define GROUND_LIGHTS 0\n";
         if (ground_lights >= 0 && !ground_scattered) d += "#define GROUND_SCATTER 0\n";
         if (ground_rain_map) d += "#define GROUND_RAIN_MAP 1\n";
@@ -221,7 +225,7 @@ struct Renderer::Impl {
     static std::string frame_march_defines(const Settings& st, const detail::FrameUniforms& u) {
         return march_defines(st.skip_empty, st.early_exit, u.lit, u.glow, u.statics, u.sun, u.detail, u.rain,
                              u.rain_lights, int(u.block.ground_params.w), u.block.ground_scatter.z > 0.0f,
-                             u.ground_rain_map);
+                             u.ground_rain_map, u.rain_source);
     }
 
     /// frame_march_defines for the temporal history's march (march_groups.frag).

@@ -37,6 +37,8 @@ public:
     }
     void invalidate() { valid_ = false; }
     bool valid() const { return valid_; }
+    /// No light in the group now.
+    bool dark() const { return dark_; }
     double rescale() const { return rescale_; }
 
 private:

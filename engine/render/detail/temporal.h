@@ -100,7 +100,12 @@ struct TemporalState {
     glm::mat4 view_proj{1.0f};
     std::uint32_t frames = 0;  // temporal frames rendered (the quarter's phase)
     int unsettled = 0;         // still-camera quarters left before every pixel of the history is marched
-    ScaleTracker source, channel;
+    // The light groups: the flash's S, with its light at the rain (`rain_source`, rescaled with
+    // it: flash_holds), and the channel's direct light.
+    ScaleTracker source, rain_source, channel;
+    /// The flash's group changed only in intensity: its S and its light at the rain by the same
+    /// factor (or the rain dark, now as when the history was written).
+    bool flash_holds() const;
     void release();
 };
 
