@@ -318,8 +318,8 @@ TEST_CASE("truth: with rain, a solved strike's light at the rain (Frame::rain) a
     for (float& v : frame) v *= float(albedo);
     const test::FieldError e = compare_fields(frame, truth.multiple.data, wet),
                            a = compare_fields(frame, truth.multiple.data, only_rain);
-    MESSAGE("the rain's light: " << e.l2 << " relative L2 (sum ratio " << e.ratio << "); rain alone " << a.l2
-                                 << " (" << a.ratio << "); truth noise " << truth.noise.multiple);
+    MESSAGE("the rain's light: " << e.l2 << " relative L2 (sum ratio " << e.ratio << "); rain alone " << a.l2 << " ("
+                                 << a.ratio << "); truth noise " << truth.noise.multiple);
     // Measured: 1.6% relative L2, sum ratio 1.006 over the 23 cells; 4.1% and 1.014 over the 5
     // of rain alone (the strike's 400k paths and the truth's 1M on few cells). Tallied with the
     // cloud's phase function at the rain instead: 21% and 53%. Bounds: about twice the measured
