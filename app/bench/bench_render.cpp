@@ -25,7 +25,8 @@
 //   case "demo":   whole frames as the demo draws them (glare, ground, sky, automatic exposure,
 //                  internal scale 0.5, Timing::Off + glFinish) at 640x360, 1280x720 and
 //                  1920x1080, the camera orbiting (1 degree a frame) or still, with the storm
-//                  plain and with detail and rain, through a return stroke's decay; today's
+//                  plain and with detail and rain (the flash's light at the rain uploaded too),
+//                  through a return stroke's decay; today's
 //                  renderer and the temporal history (Settings::temporal: its steps and its
 //                  error against a fresh render of each frame, the frames timed in a row and
 //                  then marched again afresh). Today's plain still camera at the same size is
@@ -228,6 +229,9 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
     const cloud::RainField rain = cloud::make_rain(storm.density, rain_params);
     const std::size_t cells = storm.lighting.cell_count();
     std::vector<float> scaled(storm.source.size());
+    // With rain, the flash's light at the rain too (runtime::Frame::rain, uploaded by the run
+    // time with its S): `scaled` again, the same grid and directions, as a stand-in of its cost.
+    bool wet = false;
     // Uploads `scaled` as S in every direction.
     auto upload_scaled = [&](render::Renderer& r) {
         render::SourceUpload all;
@@ -238,6 +242,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
             all.values.emplace_back(scaled.data() + std::size_t(m) * cells, cells);
         }
         r.upload_source(all);
+        if (wet) r.upload_rain_source(all);
     };
     auto show_flash = [&](render::Renderer& r, double g) {
         for (std::size_t i = 0; i < scaled.size(); ++i) scaled[i] = float(double(storm.source[i]) * g);
@@ -312,6 +317,7 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                 r.upload_static(moonlit.upload());
             }
             for (const bool effects : {false, true}) {
+                wet = effects;
                 r.set_volume({.density = &storm.density,
                               .extinction = storm.extinction,
                               .detail = effects ? std::optional(detail) : std::nullopt,
