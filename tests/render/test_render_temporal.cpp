@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <vector>
 
 using namespace fulgur;
@@ -59,8 +60,10 @@ struct FlashFrame {
 
 // The flash's S of frame `f` (without its channel): `shape`'s at intensity g, and for a
 // leader the stroke's at the lit share of the channel, in another shape: here
-// S^(1 + lit / 100), which no factor turns into the stroke's.
-void upload_flash_source(render::Renderer& r, const render::SourceUpload& shape, const FlashFrame& f) {
+// S^(1 + lit / 100), which no factor turns into the stroke's. With `rain_scale`, the flash's
+// light at the rain too (Renderer::upload_rain_source): that S x rain_scale.
+void upload_flash_source(render::Renderer& r, const render::SourceUpload& shape, const FlashFrame& f,
+                         std::optional<double> rain_scale = std::nullopt) {
     std::vector<std::vector<float>> values;
     render::SourceUpload up = shape;
     up.values.clear();
@@ -70,10 +73,17 @@ void upload_flash_source(render::Renderer& r, const render::SourceUpload& shape,
     }
     for (const std::vector<float>& s : values) up.values.emplace_back(s);
     r.upload_source(up);
+    if (!rain_scale) {
+        r.clear_rain_source();
+        return;
+    }
+    for (std::vector<float>& v : values)
+        for (float& x : v) x = float(double(x) * *rain_scale);
+    r.upload_rain_source(up);  // up's spans see `values`, rescaled
 }
 
 void show_flash(render::Renderer& r, const synthetic::Storm& storm, const render::SourceUpload& shape,
-                const FlashFrame& f) {
+                const FlashFrame& f, std::optional<double> rain_scale = std::nullopt) {
     render::LitChannel ch = storm.bolt;
     if (f.lit >= 0) ch.segments.resize(std::size_t(f.lit));
     for (render::ChannelSegment& s : ch.segments) s.intensity = float(s.intensity * f.g);
@@ -81,7 +91,7 @@ void show_flash(render::Renderer& r, const synthetic::Storm& storm, const render
     if (f.g <= 0.0)
         r.clear_source();
     else
-        upload_flash_source(r, shape, f);
+        upload_flash_source(r, shape, f, rain_scale);
 }
 
 // The synthetic storm at 200 m voxels, made once.
@@ -212,7 +222,7 @@ TEST_CASE("temporal history: a still camera through a whole flash gives each fra
     for (const std::size_t k : {0, 1, 2, 11}) expected[k] = Step::Full;
     double worst = 0.0, worst_t = 0.0;
     for (std::size_t i = 0; i < flash.size(); ++i) {
-        show_flash(r, storm, shape, flash[i]);
+        show_flash(r, storm, shape, flash[i], 0.5);  // the flash's light at the rain with its S
         const Frame f = with_and_without_history(r, storm.camera, st, std::uint32_t(i));
         const render::FrameStats& stats = f.stats;
         const MarchDiff d = march_diff(f.kept, f.fresh);
@@ -229,6 +239,39 @@ TEST_CASE("temporal history: a still camera through a whole flash gives each fra
     MESSAGE("still camera through a flash: worst relative L2 radiance ", worst, ", transmittance ", worst_t);
     CHECK(worst < 1e-5);
     CHECK(worst_t < 1e-6);
+    r.clear_volume();
+}
+
+TEST_CASE("temporal history: the flash's light at the rain rescales with its S; by another factor, it marches") {
+    // The rain's share of the flash's light (Renderer::upload_rain_source) is part of the
+    // flash's light group: changed by the S's factor the history is rescaled, by another the
+    // group changed in shape and is marched again. Either way the frame is a fresh render's.
+    render::Renderer& r = gl_renderer();
+    const synthetic::Storm& storm = small_storm();
+    render::SourceUpload shape;
+    render::Settings st = still_rainy_storm(r, shape);
+    st.temporal_reshape = render::TemporalReshape::Full;
+    using Step = render::TemporalStep;
+    struct Case {
+        double g, rain;  // the flash's intensity; its light at the rain over its S
+        Step step;
+    };
+    double worst = 0.0;
+    std::uint32_t index = 0;
+    for (const Case c : {Case{1.0, 0.5, Step::Full}, Case{0.7, 0.5, Step::Reused}, Case{0.5, 0.25, Step::Full},
+                         Case{0.4, 0.25, Step::Reused}}) {
+        show_flash(r, storm, shape, {c.g}, c.rain);
+        const Frame f = with_and_without_history(r, storm.camera, st, index++);
+        CAPTURE(c.g);
+        CAPTURE(c.rain);
+        CHECK(f.stats.temporal == c.step);
+        worst = std::max(worst, march_diff(f.kept, f.fresh).radiance);
+    }
+    // As the whole flash above: float rounding (a history whose rain light were rescaled by
+    // the S's factor would err by half the rain's share of the light in the third frame).
+    MESSAGE("worst relative L2 radiance " << worst);
+    CHECK(worst < 1e-5);
+    r.clear_rain_source();
     r.clear_volume();
 }
 
