@@ -11,8 +11,8 @@
 //   HAS_DETAIL   1: erode the density by the sub-voxel detail (u_detail, detail_params)
 //   HAS_RAIN     1: rain's extinction in the density texture's b channel (rain_params), lit
 //                   by the flash's point lights, the sun and the static light's S
-//   HAS_RAIN_SOURCE 1 (with HAS_RAIN): the rain also scatters the flash's light of orders >= 2
-//                   (u_rain_scam)
+//   HAS_RAIN_SOURCE 1 (with HAS_RAIN and HAS_SOURCE): the rain also scatters the flash's light
+//                   of orders >= 2 (u_scam's g)
 //   TEMPORAL     1: keep the rain's light from the channel apart from the flash's S and
 //                   return the ray's opacity-weighted depth (the temporal history's terms)
 #ifndef SKIP_EMPTY
@@ -50,7 +50,9 @@
 // from the voxel centre to the nearest voxel with non-zero density or rain (0 inside them);
 // b (with rain): the rain's extinction / rain_params.x.
 layout(binding = 0) uniform sampler3D u_density;
-// S(x, w_cam(x)) on the lighting grid: the source function toward the camera.
+// S(x, w_cam(x)) on the lighting grid: the source function toward the camera; with
+// HAS_RAIN_SOURCE, in g the flash's light of orders >= 2 at the rain toward the camera, per unit
+// albedo (pair.comp: one fetch for both).
 layout(binding = 1) uniform sampler3D u_scam;
 // The static light (sun, moon, sky) toward the camera, rgb, on its grid.
 layout(binding = 6) uniform sampler3D u_static;
@@ -58,12 +60,6 @@ layout(binding = 6) uniform sampler3D u_static;
 #define SUN_TRANSMITTANCE_DECLARED
 // Transmittance from the sun to each full-resolution voxel (the density grid).
 layout(binding = 7) uniform sampler3D u_sun_t;
-#endif
-
-#if HAS_RAIN && HAS_RAIN_SOURCE
-// The flash's light of orders >= 2 at the rain's points toward the camera, per unit albedo, on
-// its grid (rain_src_min, rain_src_size): the strikes solved with the rain in their media.
-layout(binding = 13) uniform sampler3D u_rain_scam;
 #endif
 
 #if HAS_DETAIL
@@ -213,9 +209,6 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #endif
 #if HAS_RAIN
     RainRay rain = rain_ray(o, d);
-#if HAS_RAIN_SOURCE
-    vec3 o_rs = (o - rain_src_min.xyz) / rain_src_size.xyz, d_rs = d / rain_src_size.xyz;
-#endif
 #if HAS_SUN
     // What the rain scatters toward the camera (-d) of the sun or moon, per unit albedo: its first
     // scattering through the cloud and the rain (the full-resolution transmittance, read once per
@@ -258,6 +251,16 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
 #if HAS_SUN
         float sun_t = textureLod(u_sun_t, o_tex + t * d_tex, 0.0).r;
 #endif
+#if HAS_SOURCE
+        // S toward the camera; with HAS_RAIN_SOURCE the rain's light in g, from the same fetch.
+        // Radiance is never negative: S from the lattice (its signed phase fit) and from
+        // truncated Haar coefficients can dip below zero; clamped where it is consumed.
+#if HAS_RAIN && HAS_RAIN_SOURCE
+        vec2 s_cam = max(textureLod(u_scam, o_lit + t * d_lit, 0.0).rg, vec2(0.0));
+#else
+        vec2 s_cam = vec2(max(textureLod(u_scam, o_lit + t * d_lit, 0.0).r, 0.0), 0.0);
+#endif
+#endif
 #if HAS_RAIN
         // Cloud and rain in the same piece: alpha from both, each scattering its share.
         float sigma_c = kappa * rho, sigma_r = rain_params.x * dv.b;
@@ -277,7 +280,7 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
             // The flash's light that reached the rain after scattering (the lit cloud's light
             // sent down, the rain's own multiple scattering), with the drops' phase function by
             // the cell's share of rain: part of the flash's S, not of the channel's direct light.
-            float dR = wr * max(textureLod(u_rain_scam, o_rs + t * d_rs, 0.0).r, 0.0);
+            float dR = wr * s_cam.y;
             L += dR;
 #if TEMPORAL
             light_depth_sum += dR * t;
@@ -301,14 +304,12 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
         const float wc = 1.0;
 #endif
 #if HAS_SOURCE
-        // Radiance is never negative: S from the lattice (its signed phase fit) and from
-        // truncated Haar coefficients can dip below zero; clamped where it is consumed.
 #if TEMPORAL
-        float dL = T * alpha * wc * max(textureLod(u_scam, o_lit + t * d_lit, 0.0).r, 0.0);
+        float dL = T * alpha * wc * s_cam.x;
         L += dL;
         light_depth_sum += dL * t;
 #else
-        L += T * alpha * wc * max(textureLod(u_scam, o_lit + t * d_lit, 0.0).r, 0.0);
+        L += T * alpha * wc * s_cam.x;
 #endif
 #endif
 #if HAS_STATIC

@@ -38,6 +38,8 @@
 //   FULGUR_BENCH_DEMO_LIGHT=decay|leader|static only that light's of them.
 //   FULGUR_BENCH_PASS_FINISH=1 times the demo rows' passes one by one (glFinish around each)
 //   instead of with timer queries, which llvmpipe may charge to the wrong pass.
+//   FULGUR_BENCH_DEMO_RAIN_SOURCE=0: the demo rows' rain without the flash's light at the rain
+//   (its cost, against a run without it).
 //   FULGUR_BENCH_DEMO_IMAGES=DIR also writes, for the orbiting rows with detail and rain during
 //   a return stroke and between flashes marching a sixteenth, and the still camera's leader,
 //   frame 6 marched afresh beside the history's and their difference (PNG in DIR).
@@ -317,7 +319,8 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                 r.upload_static(moonlit.upload());
             }
             for (const bool effects : {false, true}) {
-                wet = effects;
+                const char* rain_source = std::getenv("FULGUR_BENCH_DEMO_RAIN_SOURCE");
+                wet = effects && !(rain_source && std::string(rain_source) == "0");
                 r.set_volume({.density = &storm.density,
                               .extinction = storm.extinction,
                               .detail = effects ? std::optional(detail) : std::nullopt,

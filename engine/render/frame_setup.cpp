@@ -252,10 +252,6 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
         if (u.rain) {
             u.rain_lights = flash_lights_rain ? int(rain_lights.size()) : 0;
             u.rain_source = u.lit && rain_flash.has;
-            if (u.rain_source) {
-                f.rain_src_min = glm::vec4(glm::vec3(rain_flash.geom.origin), 1.0f);
-                f.rain_src_size = glm::vec4(glm::vec3(rain_flash.geom.extent()), 0.0f);
-            }
             f.rain_lights =
                 glm::vec4(float(u.rain_lights), static_albedo > 0.0 ? float(1.0 / static_albedo) : 0.0f, 0.0f, 0.0f);
         }

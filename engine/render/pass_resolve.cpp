@@ -17,7 +17,9 @@
 
 namespace fulgur::render {
 
+using detail::delete_texture;
 using detail::FrameUniforms;
+using detail::make_texture_3d;
 using detail::kResolve;
 using detail::PassTimer;
 using detail::SourceSet;
@@ -158,14 +160,41 @@ GLuint Renderer::Impl::resolve_set(SourceSet& set, const glm::dvec3& camera, con
     return set.cam_tex;
 }
 
+/// S toward the camera (r) and the flash's light at the rain toward the camera (g) in one texture
+/// on S's grid (pair.comp): the march reads both with the one fetch it makes for S (a second
+/// fetch per rain sample cost the march ~10 ms of ~80 at 1280x720 on fulgur-bench render's
+/// rain). The rain's is sampled trilinearly at S's nodes, its own grid or a coarser one.
+GLuint Renderer::Impl::pair_with_rain(GLuint scam, GLuint rain_scam) {
+    const core::GridGeometry& g = flash.geom;
+    if (!pair_tex || !(pair_dims == g.dims)) {
+        delete_texture(pair_tex);
+        pair_tex = make_texture_3d(GL_RG32F, g.dims);
+        pair_dims = g.dims;
+    }
+    const GLuint p = program("pair", {{GL_COMPUTE_SHADER, "pair.comp"}});
+    glUseProgram(p);
+    glBindTextureUnit(0, scam);
+    glBindTextureUnit(1, rain_scam);
+    glBindImageTexture(0, pair_tex, 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_RG32F);
+    const core::GridGeometry& r = rain_flash.geom;
+    const glm::dvec3 extent = r.extent();
+    glUniform3i(glGetUniformLocation(p, "u_dims"), g.dims.x, g.dims.y, g.dims.z);
+    glUniform3f(glGetUniformLocation(p, "u_rain_min"), float(r.origin.x), float(r.origin.y), float(r.origin.z));
+    glUniform3f(glGetUniformLocation(p, "u_rain_size"), float(extent.x), float(extent.y), float(extent.z));
+    glDispatchCompute(GLuint((g.dims.x + kResolveTile - 1) / kResolveTile),
+                      GLuint((g.dims.y + kResolveTile - 1) / kResolveTile), GLuint(g.dims.z));
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
+    return pair_tex;
+}
+
 /// Resolve: S toward the camera on the lighting grid, for the flash and for the static light
 /// (only when S or the camera changed; with one direction S itself). Binds the density (unit
 /// 0), the flash's S toward the camera (unit 1), the static light's (unit 6), the sun's
-/// transmittance (unit 7), the detail (unit 9), the ground's scattered flash light (unit 10) and
-/// the flash's light of orders >= 2 at the rain toward the camera (unit 13).
+/// transmittance (unit 7), the detail (unit 9) and the ground's scattered flash light (unit 10).
+/// With the flash's light at the rain, unit 1 holds both (pair_with_rain).
 void Renderer::Impl::resolve_pass(const glm::dvec3& camera, const Settings& st, const FrameUniforms& u,
                                   PassTimer& timer, FrameStats& stats, bool resolve) {
-    GLuint scam = zero_tex, stat = zero_tex, rain_scam = zero_tex;
+    GLuint scam = zero_tex, stat = zero_tex;
     // The flash's S and, at the rain's points, its light of orders >= 2: the view's needed
     // directions that were uploaded.
     const auto resolve_flash = [&](SourceSet& set, bool count) {
@@ -183,7 +212,7 @@ void Renderer::Impl::resolve_pass(const glm::dvec3& camera, const Settings& st, 
         return resolve_set(set, camera, active, must_resolve, timer);
     };
     if (u.lit && resolve) scam = resolve_flash(flash, true);
-    if (u.rain_source && resolve) rain_scam = resolve_flash(rain_flash, false);
+    if (u.rain_source && resolve) scam = pair_with_rain(scam, resolve_flash(rain_flash, false));
     if (u.statics && resolve) {
         // Every direction is present (upload_static); the view's needed ones are resolved.
         const bool must_resolve = statics.dir_count > 1 && (statics.dirty || statics.resolved_camera != camera);
@@ -201,7 +230,6 @@ void Renderer::Impl::resolve_pass(const glm::dvec3& camera, const Settings& st, 
     glBindTextureUnit(10, ground_scatter_tex);  // zero outside its cells (and 1x1 zero while there is none)
     // The static light's ground, read only inside its cells (0 while there is none: unbound).
     glBindTextureUnit(11, ground_static_tex);
-    glBindTextureUnit(13, rain_scam);
     last_scam = u.lit && resolve ? scam : 0;
     last_static = u.statics && resolve ? stat : 0;
 }

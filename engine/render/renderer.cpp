@@ -187,6 +187,7 @@ Renderer::~Renderer() {
     delete_texture(m.detail_tex);
     m.flash.release();
     m.rain_flash.release();
+    delete_texture(m.pair_tex);
     m.statics.release();
     delete_texture(m.sun_tex);
     m.meter_buf.release();

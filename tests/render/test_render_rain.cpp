@@ -457,8 +457,9 @@ TEST_CASE("the flash's light at the rain: its S of orders >= 2 scattered by the 
     // runtime::Frame::rain (upload_rain_source): the flash's light of orders >= 2 at the rain's
     // points per unit albedo. With it uniform (the same in every direction) and no channel,
     // rain of constant sigma draws albedo_rain x S x flash colour x (1 - exp(-sigma chord)) over
-    // the sky behind it times exp(-sigma chord), whatever the view. The cloud's S (uploaded
-    // too, larger) is never read in rain alone; cleared, or the flash off, the rain has none.
+    // the sky behind it times exp(-sigma chord), whatever the view and whichever grid the cloud's
+    // S is on. The cloud's S (uploaded too, larger) is never read in rain alone; cleared, or the
+    // flash off, the rain has none.
     render::Renderer& r = gl_renderer();
     const double sigma = 1e-3;
     const cloud::RainField rain = uniform_rain(sigma);
@@ -497,7 +498,17 @@ TEST_CASE("the flash's light at the rain: its S of orders >= 2 scattered by the 
     };
     r.upload_source(up);
     r.upload_rain_source(wet);
-    const double lit = worst_of(1.0);
+    double lit = worst_of(1.0);
+    // S on a grid twice as fine (a strike kept on the transport grid): the rain's light is read
+    // from its own grid at S's nodes (the march's one fetch takes both).
+    const core::GridGeometry fine{{12, 12, 6}, 200.0, box().origin};
+    const std::vector<float> fine_s(fine.cell_count(), 50.0f);
+    render::SourceUpload fine_up = up;
+    fine_up.geometry = fine;
+    fine_up.values = {std::span<const float>(fine_s)};
+    r.upload_source(fine_up);
+    lit = std::max(lit, worst_of(1.0));
+    r.upload_source(up);
     st.flash_light = false;
     const double flash_off = worst_of(0.0);
     st.flash_light = true;

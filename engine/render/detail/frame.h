@@ -39,9 +39,8 @@ struct FrameBlock {
     glm::vec4 rain_lights{0.0f};
     glm::vec4 ground_scatter{0.0f};
     glm::vec4 ground_static{0.0f};
-    glm::vec4 rain_src_min{0.0f}, rain_src_size{1.0f};
 };
-static_assert(sizeof(FrameBlock) == 64 + 11 * 16 + 8 * 16 + 4 * 16 + 10 * 16 + 8 * 16 + 5 * 16,
+static_assert(sizeof(FrameBlock) == 64 + 11 * 16 + 8 * 16 + 4 * 16 + 10 * 16 + 8 * 16 + 3 * 16,
               "FrameBlock must match std140");
 
 /// Appends the first `n` components of `v` to `out` (keys made of frame-block fields).
@@ -72,7 +71,7 @@ struct FrameUniforms {
     bool detail = false;                          ///< the march erodes the density by the sub-voxel detail
     bool rain = false;                            ///< the march draws the rain (and the ground its shadow)
     int rain_lights = 0;                          ///< the rain's flash lights the march reads (rain_lights.x)
-    bool rain_source = false;                     ///< the rain scatters the flash's light of orders >= 2 (u_rain_scam)
+    bool rain_source = false;                     ///< the rain scatters the flash's light of orders >= 2 (u_scam's g)
     bool glow = false;                            ///< the glow pass runs
     bool host = false;                            ///< composited into a host's frame (render_into_host)
     bool stars = false;                           ///< the composite draws stars (sky on, star radiance > 0)

@@ -44,8 +44,12 @@ struct Renderer::Impl {
 
     // Source: the flash's S and the static light's (colour)
     detail::SourceSet flash = detail::SourceSet(GL_R32F), statics = detail::SourceSet(GL_RGBA32F);
-    // The flash's light of orders >= 2 at the rain's points (SourceUpload::rain), resolved as `flash`.
+    // The flash's light of orders >= 2 at the rain's points (upload_rain_source), resolved as
+    // `flash`, and packed with the flash's resolved S (pair_with_rain: RG32F on its grid).
     detail::SourceSet rain_flash = detail::SourceSet(GL_R32F);
+    GLuint pair_tex = 0;
+    core::Int3 pair_dims{0, 0, 0};
+    GLuint pair_with_rain(GLuint scam, GLuint rain_scam);
     double static_albedo = 0.0;  // StaticUpload::albedo: the cloud's albedo the static S carries
     // The sun drawn at full resolution (set_sun)
     GLuint sun_tex = 0;  // transmittance to the sun on the density grid (R16F)
