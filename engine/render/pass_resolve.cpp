@@ -19,8 +19,8 @@ namespace fulgur::render {
 
 using detail::delete_texture;
 using detail::FrameUniforms;
-using detail::make_texture_3d;
 using detail::kResolve;
+using detail::make_texture_3d;
 using detail::PassTimer;
 using detail::SourceSet;
 
