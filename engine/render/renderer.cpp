@@ -337,26 +337,21 @@ void Renderer::clear_volume() {
     m.segment_visibility.clear();
 }
 
-namespace {
-
-// An upload of S into its set, noted by the light group's tracker.
-void upload_tracked(detail::SourceSet& set, detail::ScaleTracker& tracker, const char* what, const SourceUpload& s) {
+void Renderer::Impl::upload_tracked(detail::SourceSet& set, detail::ScaleTracker& tracker, const char* what,
+                                    const SourceUpload& s) {
+    core::Stopwatch sw;
+    const double cpu0 = process_cpu_ms();
     upload_into(set, what, s.geometry, s.direction_count, s.directions, s.values, 1, s.keep_others);
     const core::GridGeometry& g = s.geometry;
     const float fixed[8] = {float(g.origin.x), float(g.origin.y), float(g.origin.z), float(g.voxel_size),
                             float(g.dims.x),   float(g.dims.y),   float(g.dims.z),   float(s.direction_count)};
     tracker.note(fixed, s.directions, s.values, !s.keep_others);
+    pending_upload_ms += sw.milliseconds();
+    pending_upload_cpu_ms += process_cpu_ms() - cpu0;
 }
 
-}  // namespace
-
 void Renderer::upload_source(const SourceUpload& s) {
-    Impl& m = *impl_;
-    core::Stopwatch sw;
-    const double cpu0 = process_cpu_ms();
-    upload_tracked(m.flash, m.temporal.source, "upload_source", s);
-    m.pending_upload_ms += sw.milliseconds();
-    m.pending_upload_cpu_ms += process_cpu_ms() - cpu0;
+    impl_->upload_tracked(impl_->flash, impl_->temporal.source, "upload_source", s);
 }
 
 void Renderer::clear_source() {
@@ -367,12 +362,7 @@ void Renderer::clear_source() {
 }
 
 void Renderer::upload_rain_source(const SourceUpload& s) {
-    Impl& m = *impl_;
-    core::Stopwatch sw;
-    const double cpu0 = process_cpu_ms();
-    upload_tracked(m.rain_flash, m.temporal.rain_source, "upload_rain_source", s);
-    m.pending_upload_ms += sw.milliseconds();
-    m.pending_upload_cpu_ms += process_cpu_ms() - cpu0;
+    impl_->upload_tracked(impl_->rain_flash, impl_->temporal.rain_source, "upload_rain_source", s);
 }
 
 void Renderer::clear_rain_source() {

@@ -50,6 +50,9 @@ struct Renderer::Impl {
     GLuint pair_tex = 0;
     core::Int3 pair_dims{0, 0, 0};
     GLuint pair_with_rain(GLuint scam, GLuint rain_scam);
+    /// An upload of S into its set, noted by its light group's tracker, its time counted with
+    /// the frame's uploads.
+    void upload_tracked(detail::SourceSet& set, detail::ScaleTracker& tracker, const char* what, const SourceUpload& s);
     double static_albedo = 0.0;  // StaticUpload::albedo: the cloud's albedo the static S carries
     // The sun drawn at full resolution (set_sun)
     GLuint sun_tex = 0;  // transmittance to the sun on the density grid (R16F)
