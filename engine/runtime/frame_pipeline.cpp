@@ -78,7 +78,8 @@ struct FramePipeline::Impl {
         solve_scene.transport.refine = scene::strike_refine(s, q);
         if (q.exact_orders > 0) solve_scene.transport.lb_exact_orders = q.exact_orders;
         media = solve::make_media(solve_scene, *density);
-        if (solve_scene.rain) {
+        // The instant preset solves no strike ahead: its media stay the cloud's alone.
+        if (solve_scene.rain && q.preset != scene::Quality::Preset::Instant) {
             dry_media = std::move(media);
             media = sky::make_static_media(solve_scene, *density, solve_scene.transport.refine, true);
         }
