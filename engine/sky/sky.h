@@ -137,16 +137,6 @@ solve::Media static_media(const scene::Scene& s, const core::Grid3<float>& densi
 solve::Media make_static_media(const scene::Scene& s, const core::Grid3<float>& density, int refine, bool full,
                                const cloud::RainField* rain = nullptr);
 
-/// The drops' phase function in the S of media `m` (solve::make_media of `s` and `density`):
-/// transport::PhaseMix on its transport and lighting grids, each cell's rain share of the
-/// scattering coefficient. The media still hold the cloud alone: what is solved or tallied in
-/// them at the rain's points is the light that reaches the rain through the cloud, read out as
-/// the drops scatter it. make_static_media adds it to media that hold the rain. `rain`:
-/// cloud::make_rain of that
-/// density and the scene's rain, made here when null. The scene must declare rain.
-void add_rain_phase(solve::Media& m, const scene::Scene& s, const core::Grid3<float>& density,
-                    const cloud::RainField* rain = nullptr);
-
 /// The cloud density that stands for rain of extinction 1 (1/m) in the static light's media:
 /// the density of equal transport coefficient sigma_a + sigma_s (1 - g) (the similarity
 /// relation of diffusion theory; Wyman, Patterson and Wilson 1989),

@@ -331,18 +331,10 @@ solve::Media make_static_media(const scene::Scene& s, const core::Grid3<float>& 
     scene::Scene raised = s;
     raised.medium.extinction = s.medium.extinction * peak;
     solve::Media m = solve::make_media(raised, density_with_rain(density, *rain, per_extinction, peak), refine, full);
-    add_rain_phase(m, s, density, rain);
-    return m;
-}
-
-void add_rain_phase(solve::Media& m, const scene::Scene& s, const core::Grid3<float>& density,
-                    const cloud::RainField* rain) {
-    FULGUR_ASSERT(s.rain, "add_rain_phase: the scene has no rain");
-    std::optional<cloud::RainField> made;
-    if (!rain) rain = &made.emplace(cloud::make_rain(density, *s.rain));
     const RainPhaseMix mix(s, density, *rain);
-    m.transport.phase_mix = mix.on(s.lighting_downsample / m.refine);
-    m.lighting.phase_mix = m.refine == 1 ? m.transport.phase_mix : mix.on(s.lighting_downsample);
+    m.transport.phase_mix = mix.on(s.lighting_downsample / refine);
+    m.lighting.phase_mix = refine == 1 ? m.transport.phase_mix : mix.on(s.lighting_downsample);
+    return m;
 }
 
 namespace {
