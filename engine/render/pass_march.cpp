@@ -17,6 +17,7 @@ void Renderer::Impl::march_pass(const Settings& st, const FrameUniforms& u, Pass
     timer.begin(kMarch);
     march_out = &march_target;
     ground_rain_pass(u);
+    rain_lights_pass(u);
     const std::string defines = frame_march_defines(st, u);
     const GLuint p = march_program(st.kernel, defines);
     glUseProgram(p);

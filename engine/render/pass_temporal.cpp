@@ -246,6 +246,7 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     const int fw = marched.x, fh = marched.y;
     h.fresh.ensure(fw, fh, 3);
     ground_rain_pass(u);
+    rain_lights_pass(u);
     // The glow pass drew only the marched pixels (glow_pass): the march reads them in place.
     const GLuint march =
         program("march_groups", {{GL_VERTEX_SHADER, "fullscreen.vert"}, {GL_FRAGMENT_SHADER, "march_groups.frag"}},

@@ -181,6 +181,7 @@ Renderer::~Renderer() {
     delete_texture(m.zero_tex);
     delete_texture(m.ground_scatter_tex);
     delete_texture(m.ground_rain_tex);
+    for (GLuint& t : m.rain_map_tex) delete_texture(t);
     delete_texture(m.ground_static_tex);
     delete_texture(m.profile_tex);
     delete_texture(m.density_tex);

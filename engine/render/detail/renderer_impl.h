@@ -113,7 +113,12 @@ struct Renderer::Impl {
     // a layer per light; pass_ground_rain.cpp), and what it was made from (empty: to make).
     GLuint ground_rain_tex = 0;
     std::vector<float> ground_rain_key;
-    std::vector<float> ground_rain_last;               // the map's key the previous frame asked for (empty: none)
+    std::vector<float> ground_rain_last;  // the map's key the previous frame asked for (empty: none)
+    // The rain's lights' mean extinction toward each point of the rain (two RGBA16F 3D textures,
+    // lights 0-3 and 4-7; pass_rain_lights.cpp), its grid, and what it was made from (empty: to make).
+    GLuint rain_map_tex[2] = {0, 0};
+    core::Int3 rain_map_dims{0, 0, 0};
+    std::vector<float> rain_map_key;
     int ground_scatter_nx = 0, ground_scatter_ny = 0;  // the texture's size (0: the 1x1 zero)
     glm::vec4 ground_scatter_map{0.0f};                // FrameBlock::ground_scatter (zw 0: none)
     void set_ground_scatter(const LitChannel::GroundScatter& g);
@@ -304,6 +309,9 @@ struct Renderer::Impl {
     /// (pass_ground_rain.cpp): a frame marching a fraction of its pixels then integrates their
     /// paths per pixel instead of making the map. Notes this frame's lights for the next.
     bool ground_lights_moving(const detail::FrameUniforms& u);
+    /// The rain's lights' extinction map (volume.glsl's rain_flash reads it: FrameUniforms::rain_lights
+    /// > 0), made when the lights, the volume or the rain changed, bound on units 16 and 17.
+    void rain_lights_pass(const detail::FrameUniforms& u);
     /// With the temporal history (Settings::temporal): what this frame does with it (before the
     /// resolve and glow passes, which a reused history skips), and the march in place of march_pass.
     detail::TemporalPlan plan_temporal(const Camera& camera, const Settings& st, const detail::FrameUniforms& u) const;
