@@ -38,8 +38,6 @@ layout(std140, binding = 0) uniform Frame {
     vec4 ground_scatter;   // the cloud's scattered flash light on the ground (u_ground_scatter):
                            // xy lower corner of its cells (m), zw 1 / its extent along x, y (1/m); zw 0: none
     vec4 ground_static;    // the static light on the ground (u_ground_static), as ground_scatter
-    vec4 rain_map_min;     // the rain's lights' extinction map (u_rain_map0/1): xyz its lower corner (m)
-    vec4 rain_map_size;    // xyz its extent (m)
 };
 
 // The host's depth buffer (render_into_host), full output resolution; read only when host_depth.w != 0.

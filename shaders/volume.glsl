@@ -84,10 +84,10 @@ float hg_phase(float cos_theta, float g) {
 #if HAS_RAIN
 // Rain's in-scattered radiance toward the camera (-d) at p, per unit albedo: the channel
 // below the rain's top as point lights of equal power (W/sr; the flash colour applied with
-// the cloud's flash light), each attenuated on its way by exp(-m r): r its exact distance, m
-// the mean extinction of the rain and the cloud between it and p (the lights' extinction map,
-// u_rain_map0/1: render/pass_rain_lights.cpp). r^2 is kept above (50 m)^2 in the fall-off:
-// closer, a point stands for a stretch of channel, not a point.
+// the cloud's flash light), each attenuated by the rain on its way, exp(-m r): r its distance,
+// m the rain's mean extinction between p and the lights' centroid (the density texture's
+// alpha: render/pass_rain_lights.cpp). r^2 is kept above (50 m)^2: closer, a point stands for
+// a stretch of channel, not a point.
 // In `light_t` it adds each light's share times its distance along the ray o + t d: the
 // rain's forward-scattered halo around a light moves on screen with the light, not with the
 // drops that scatter it (the temporal history reprojects it by this; without TEMPORAL the
@@ -110,20 +110,13 @@ float hg_phase(float cos_theta, float g) {
 #define RAIN_ARRAY 1
 #endif
 
-// The lights' mean extinction toward each point of the rain (1/m): lights 0-3, 4-7.
-layout(binding = 16) uniform sampler3D u_rain_map0;
-layout(binding = 17) uniform sampler3D u_rain_map1;
-
 struct RainRay {
     float along[RAIN_ARRAY];  // q.d: the light's foot on the ray is at t = -along
     float h2[RAIN_ARRAY];     // the ray's squared distance from the light
-    vec3 o_map, d_map;        // the ray in the extinction map's texture coordinates
 };
 
 RainRay rain_ray(vec3 o, vec3 d) {
     RainRay r;
-    r.o_map = (o - rain_map_min.xyz) / rain_map_size.xyz;
-    r.d_map = d / rain_map_size.xyz;
     for (int i = 0; i < RAIN_LIGHTS; ++i) {
         vec3 q = o - rain_light[i].xyz;
         r.along[i] = dot(q, d);
@@ -133,23 +126,16 @@ RainRay rain_ray(vec3 o, vec3 d) {
     return r;
 }
 
-float rain_flash(RainRay ray, float t, inout float light_t) {
+// `mean`: the rain's mean extinction toward the lights over rain_params.x (the density
+// texture's alpha).
+float rain_flash(RainRay ray, float t, float mean, inout float light_t) {
     float s = 0.0;
-    float m[8];
-#if RAIN_LIGHTS > 0
-    vec3 x = ray.o_map + t * ray.d_map;
-    vec4 m0 = textureLod(u_rain_map0, x, 0.0);
-    m[0] = m0.x, m[1] = m0.y, m[2] = m0.z, m[3] = m0.w;
-#endif
-#if RAIN_LIGHTS > 4
-    vec4 m1 = textureLod(u_rain_map1, x, 0.0);
-    m[4] = m1.x, m[5] = m1.y, m[6] = m1.z, m[7] = m1.w;
-#endif
+    float m = mean * (rain_params.x * 1.4426950);  // times log2(e), for exp2
     for (int i = 0; i < RAIN_LIGHTS; ++i) {
         float u = t + ray.along[i];
-        float d2 = u * u + ray.h2[i];
-        float r2 = max(d2, 2500.0);
-        float c = rain_light[i].w * hg_phase(-u * inversesqrt(r2), rain_params.y) / r2 * exp(-m[i] * sqrt(d2));
+        float r2 = max(u * u + ray.h2[i], 2500.0);
+        float inv_r = inversesqrt(r2);
+        float c = rain_light[i].w * hg_phase(-u * inv_r, rain_params.y) * (inv_r * inv_r) * exp2(-m * (r2 * inv_r));
         s += c;
         light_t -= c * ray.along[i];
     }
@@ -291,10 +277,10 @@ MarchResult march_ray(vec3 o, vec3 d, float t_end, float jitter, float t_emit) {
             float wr = T * alpha * (1.0 - wc) * rain_params.w;
             float light_t = 0.0;
 #if TEMPORAL
-            Lrf += wr * rain_flash(rain, t, light_t);
+            Lrf += wr * rain_flash(rain, t, dv.a, light_t);
             rain_depth_sum += wr * light_t;
 #else
-            L += wr * rain_flash(rain, t, light_t);
+            L += wr * rain_flash(rain, t, dv.a, light_t);
 #endif
 #if HAS_RAIN_SOURCE
             // The flash's light that reached the rain after scattering (the lit cloud's light

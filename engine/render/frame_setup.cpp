@@ -22,10 +22,6 @@ using detail::FrameUniforms;
 
 namespace {
 
-// The rain's lights' extinction map: its cells' size in density voxels (pass_rain_lights.cpp
-// has the figures that chose it).
-constexpr double kRainMapVoxels = 2.0;
-
 // The channel below the rain's top as this many point lights (the rain's light per sample loops
 // over them; 4 instead of 8 saves nothing measurable on fulgur-bench render: the rain's cost is
 // its marched volume, where the dry march skipped empty space).
@@ -258,19 +254,6 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
             u.rain_source = u.lit && rain_flash.has;
             f.rain_lights =
                 glm::vec4(float(u.rain_lights), static_albedo > 0.0 ? float(1.0 / static_albedo) : 0.0f, 0.0f, 0.0f);
-            if (u.rain_lights > 0) {
-                // The lights' extinction map (pass_rain_lights.cpp): cells of kRainMapVoxels density
-                // voxels over the density's box, from its floor to the rain's top.
-                const core::GridGeometry& g = density.geom;
-                const double cell = kRainMapVoxels * g.voxel_size;
-                const glm::dvec3 lo = g.origin, hi = g.upper();
-                const double top = std::clamp(rain_top, lo.z, hi.z);
-                const core::Int3 n{std::max(1, int(std::ceil((hi.x - lo.x) / cell - 1e-9))),
-                                   std::max(1, int(std::ceil((hi.y - lo.y) / cell - 1e-9))),
-                                   std::max(1, int(std::ceil((top - lo.z) / cell - 1e-9)))};
-                f.rain_map_min = glm::vec4(glm::vec3(lo), float(cell));
-                f.rain_map_size = glm::vec4(float(n.x * cell), float(n.y * cell), float(n.z * cell), 0.0f);
-            }
         }
     } else {
         f.ground_params = glm::vec4(float(st.ground_height), 0.0f, 0.0f, 0.0f);

@@ -1,14 +1,19 @@
-// The rain's lights' extinction map (shaders/rain_lights.comp): for each of the channel's point
-// lights below the rain's top, the mean extinction (rain and cloud, 1/m) along the straight path
-// from it to each point of the rain, on a grid over the density's box below the rain's top. The
-// march multiplies each light's contribution at a rain sample by exp(-mean extinction x the
-// sample's exact distance to it): the light's attenuation on its way to the drops that scatter it.
+// The rain's lights' extinction (shaders/rain_lights.comp): at each voxel with rain, the rain's
+// mean extinction along the straight path from the voxel to the channel's lights below the
+// rain's top (their centroid), over the rain's largest, in the density texture's alpha, which
+// the march reads with the fetch it already makes. The march multiplies each light's
+// contribution at a rain sample by exp(-that mean x the sample's distance to the light): the
+// light's attenuation by the rain on its way to the drops that scatter it. The cloud is left
+// out: the lights and the rain are below the lowest cloud base over the rain.
 //
-// The mean, not the transmittance, is tabulated: it is smooth where the transmittance has a kink
-// (at the light, exp(-sigma r) falls off linearly in r) and exact in uniform rain, so the grid can
-// be coarse. It depends on the lights' positions, the density's box and the rain, not on the
-// lights' intensities: a flash's decay and restrikes keep it; a leader's growing channel or
-// another strike makes it again.
+// The mean, not the transmittance, is stored: it is smooth where the transmittance has a kink (at
+// a light in the rain, exp(-sigma r) falls off linearly in r) and exact in uniform rain, so the
+// voxel's resolution and 8 bits hold it (2 km from a light in rain of the largest extinction,
+// half a step is an optical depth of 0.011). One mean for the 8 lights, toward their centroid:
+// a map per light (or pair of lights) costs a fetch per rain sample, which cost the march 15 ms
+// of its 82 at 1280x720 with detail and rain (docs/render.md). It depends on the lights'
+// positions, the volume and the rain, not on the lights' intensities: a flash's decay and
+// restrikes keep it; a leader's growing channel or another strike makes it again.
 #include "render/detail/renderer_impl.h"
 
 #include <glad/gl.h>
@@ -28,23 +33,27 @@ namespace {
 // at 125 m voxels is sampled coarser), as the ground lights' map.
 constexpr int kMaxSamples = 64;
 
-// What the map is made from: the lights' positions, the density's box and extinction, the rain,
-// the map's grid.
+// The lights' centroid (they carry equal power: split_channel).
+glm::vec3 centroid(const FrameUniforms& u) {
+    glm::dvec3 c(0.0);
+    for (int i = 0; i < u.rain_lights; ++i) c += glm::dvec3(u.block.rain_light[i]);
+    return glm::vec3(c / double(std::max(u.rain_lights, 1)));
+}
+
+// What the extinction is made from: the lights' centroid, the volume's box, the rain.
 std::vector<float> map_key(const FrameUniforms& u) {
     const FrameBlock& f = u.block;
     std::vector<float> key;
-    key.push_back(float(u.rain_lights));
-    for (int i = 0; i < u.rain_lights; ++i) detail::append_components(key, f.rain_light[i], 3);
+    const glm::vec3 c = centroid(u);
+    key.insert(key.end(), {c.x, c.y, c.z});
     detail::append_components(key, f.vol_min);
     detail::append_components(key, f.vol_size);
     detail::append_components(key, f.rain, 3);
-    detail::append_components(key, f.rain_map_min);
-    detail::append_components(key, f.rain_map_size, 3);
     return key;
 }
 
-// Two keys of the same map: the lights' positions within 1e-5 of themselves (a flash dimming
-// moves their power centroids by float rounding, ~1e-7; the cells are 250 m), the rest alike.
+// Two keys of the same extinction: the centroid within 1e-5 of itself (a flash dimming moves
+// the lights' power centroids by float rounding, ~1e-7; the voxels are ~100 m), the rest alike.
 bool same_map(const std::vector<float>& a, const std::vector<float>& b) {
     if (a.size() != b.size()) return false;
     for (std::size_t i = 0; i < a.size(); ++i)
@@ -56,33 +65,24 @@ bool same_map(const std::vector<float>& a, const std::vector<float>& b) {
 
 void Renderer::Impl::rain_lights_pass(const FrameUniforms& u) {
     if (!(u.rain && u.rain_lights > 0)) return;
-    const FrameBlock& f = u.block;
-    const float cell = f.rain_map_min.w;
-    const core::Int3 dims{int(std::lround(f.rain_map_size.x / cell)), int(std::lround(f.rain_map_size.y / cell)),
-                          int(std::lround(f.rain_map_size.z / cell))};
-    if (!(dims == rain_map_dims) || !rain_map_tex[0]) {
-        for (GLuint& t : rain_map_tex) {
-            detail::delete_texture(t);
-            t = detail::make_texture_3d(GL_RGBA16F, dims);
-        }
-        rain_map_dims = dims;
-        rain_map_key.clear();
-    }
+    const core::Int3 n{rain_hi.x - rain_lo.x, rain_hi.y - rain_lo.y, rain_hi.z - rain_lo.z};
+    if (n.x <= 0 || n.y <= 0 || n.z <= 0) return;
     std::vector<float> key = map_key(u);
-    if (!same_map(key, rain_map_key)) {
-        const GLuint p = program("rain_lights", {{GL_COMPUTE_SHADER, "rain_lights.comp"}});
-        glUseProgram(p);
-        glUniform1i(glGetUniformLocation(p, "u_lights"), u.rain_lights);
-        glUniform1i(glGetUniformLocation(p, "u_max_samples"), kMaxSamples);
-        glBindTextureUnit(0, density_tex);
-        glBindImageTexture(0, rain_map_tex[0], 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_RGBA16F);
-        glBindImageTexture(1, rain_map_tex[1], 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_RGBA16F);
-        glDispatchCompute(GLuint((dims.x + 3) / 4), GLuint((dims.y + 3) / 4), GLuint((dims.z + 3) / 4));
-        glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
-        rain_map_key = std::move(key);
-    }
-    glBindTextureUnit(16, rain_map_tex[0]);
-    glBindTextureUnit(17, rain_map_tex[1]);
+    if (same_map(key, rain_map_key)) return;
+    const GLenum format = density_u8 ? GL_RGBA8 : GL_RGBA16F;
+    const GLuint p = program("rain_lights", {{GL_COMPUTE_SHADER, "rain_lights.comp"}},
+                             std::string("#define DENSITY_U8 ") + (density_u8 ? "1" : "0") + "\n");
+    glUseProgram(p);
+    const glm::vec3 c = centroid(u);
+    glUniform3f(glGetUniformLocation(p, "u_centroid"), c.x, c.y, c.z);
+    glUniform3i(glGetUniformLocation(p, "u_lo"), rain_lo.x, rain_lo.y, rain_lo.z);
+    glUniform3i(glGetUniformLocation(p, "u_hi"), rain_hi.x, rain_hi.y, rain_hi.z);
+    glUniform1i(glGetUniformLocation(p, "u_max_samples"), kMaxSamples);
+    glBindTextureUnit(0, density_tex);
+    glBindImageTexture(0, density_tex, 0, GL_TRUE, 0, GL_READ_WRITE, format);
+    glDispatchCompute(GLuint((n.x + 3) / 4), GLuint((n.y + 3) / 4), GLuint((n.z + 3) / 4));
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+    rain_map_key = std::move(key);
 }
 
 }  // namespace fulgur::render

@@ -181,7 +181,6 @@ Renderer::~Renderer() {
     delete_texture(m.zero_tex);
     delete_texture(m.ground_scatter_tex);
     delete_texture(m.ground_rain_tex);
-    for (GLuint& t : m.rain_map_tex) delete_texture(t);
     delete_texture(m.ground_static_tex);
     delete_texture(m.profile_tex);
     delete_texture(m.density_tex);
@@ -251,13 +250,21 @@ void Renderer::set_volume(const VolumeDesc& v) {
     if (rain) {
         if (!(rain->extinction.geom == v.density->geom))
             throw core::Error("set_volume: rain", "is not on the density grid");
+        core::Int3 lo{d.x, d.y, d.z}, hi{-1, -1, -1};
         for (std::size_t i = 0; i < n; ++i) {
             const float r = rain->extinction.data[i];
             if (!std::isfinite(r) || r < 0.0f)
                 throw core::Error("set_volume: rain",
                                   "extinction must be finite and >= 0 at voxel " + std::to_string(i));
             occupied[i] = occupied[i] || r > 0.0f;
+            if (r > 0.0f) {
+                const core::Int3 c = v.density->geom.unindex(i);
+                lo = {std::min(lo.x, c.x), std::min(lo.y, c.y), std::min(lo.z, c.z)};
+                hi = {std::max(hi.x, c.x), std::max(hi.y, c.y), std::max(hi.z, c.z)};
+            }
         }
+        m.rain_lo = lo;
+        m.rain_hi = {hi.x + 1, hi.y + 1, hi.z + 1};
     }
     std::vector<std::uint8_t> dist = detail::chebyshev_distance(occupied, d);
     delete_texture(m.density_tex);
@@ -286,6 +293,9 @@ void Renderer::set_volume(const VolumeDesc& v) {
         glTextureSubImage3D(m.density_tex, 0, 0, 0, 0, d.x, d.y, d.z, layout, GL_FLOAT, packed.data());
     }
     m.has_rain = rain != nullptr;
+    m.density_u8 = v.precision == DensityPrecision::U8;
+    m.rain_map_key.clear();  // a new texture: its alpha is 0
+    if (!rain) m.rain_lo = m.rain_hi = {0, 0, 0};
     if (rain) {
         m.rain_max = rain->max_extinction;
         m.rain_g = rain->g;

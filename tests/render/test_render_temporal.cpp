@@ -310,14 +310,18 @@ TEST_CASE("temporal history: a light that changes in shape marches a quarter, th
     for (const double e : error) line += " " + std::to_string(e);
     MESSAGE("still camera, light changing shape: relative L2 radiance per frame:" << line);
     // The new shapes' frames: the light groups upsampled from 80x45 marched pixels (this test's
-    // 160x90 march), measured 17.3-21.9%, bound 26% (at 1280x720, 640x360 marched a quarter at a
+    // 160x90 march), measured 46-58%, bound 65% (at 1280x720, 640x360 marched a quarter at a
     // time, the median frame of a leader is 1.2% off, 2.0% with detail and rain: docs/render.md).
-    // The light kept from the history instead of upsampled errs by 51-82%.
-    for (const std::size_t i : {1, 2, 11}) CHECK(error[i] < 0.26);
-    // Settling, the new shape marched at two and three of the four pixels of each block: 10.5-18.6%,
-    // bound 20% (the history kept instead: 33-65%); frame 5 has one quarter left whose ground was
-    // integrated per pixel (1.4e-5).
-    for (const std::size_t i : {3, 4, 5, 12, 13}) CHECK(error[i] < 0.2);
+    // Most of this frame's light is the rain's around the channel, which 80x45 pixels resolve
+    // worst: before the channel's lights were attenuated by the rain on their way, the frame held
+    // 9 times the light, spread wider, and erred by 17-22% (4-8 times the absolute error of now);
+    // the light kept from the history instead of upsampled erred by 51-82% then, not measured
+    // since, so this bound no longer tells the two apart (the settled frames below do).
+    for (const std::size_t i : {1, 2, 11}) CHECK(error[i] < 0.65);
+    // Settling, the new shape marched at two and three of the four pixels of each block: 9-45%,
+    // bound 50% (10.5-18.6% before the attenuation, the history kept instead 33-65%); frame 5
+    // has one quarter left whose ground was integrated per pixel (1.4e-4).
+    for (const std::size_t i : {3, 4, 5, 12, 13}) CHECK(error[i] < 0.5);
     // Settled (every quarter marched at this view as a fresh render marches it): float rounding
     // of the rescaled groups, as with every pixel marched (the test above, ~1e-7).
     for (const std::size_t i : {6, 7, 8, 9, 10, 14, 15, 16, 17}) CHECK(error[i] < 1e-5);

@@ -39,9 +39,8 @@ struct FrameBlock {
     glm::vec4 rain_lights{0.0f};
     glm::vec4 ground_scatter{0.0f};
     glm::vec4 ground_static{0.0f};
-    glm::vec4 rain_map_min{0.0f}, rain_map_size{1.0f};
 };
-static_assert(sizeof(FrameBlock) == 64 + 11 * 16 + 8 * 16 + 4 * 16 + 10 * 16 + 8 * 16 + 5 * 16,
+static_assert(sizeof(FrameBlock) == 64 + 11 * 16 + 8 * 16 + 4 * 16 + 10 * 16 + 8 * 16 + 3 * 16,
               "FrameBlock must match std140");
 
 /// Appends the first `n` components of `v` to `out` (keys made of frame-block fields).

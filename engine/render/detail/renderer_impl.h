@@ -41,6 +41,8 @@ struct Renderer::Impl {
     double detail_finest = 0.0;  // metres across the finest billows
     bool has_rain = false;       // the density texture's b channel holds rain (RGBA)
     double rain_max = 0.0, rain_g = 0.0, rain_albedo = 0.0, rain_top = 0.0;
+    core::Int3 rain_lo{0, 0, 0}, rain_hi{0, 0, 0};  // the voxels with rain: [lo, hi) (empty: none)
+    bool density_u8 = false;                        // the density texture is RGBA8 (else RGBA16F)
 
     // Source: the flash's S and the static light's (colour)
     detail::SourceSet flash = detail::SourceSet(GL_R32F), statics = detail::SourceSet(GL_RGBA32F);
@@ -114,10 +116,8 @@ struct Renderer::Impl {
     GLuint ground_rain_tex = 0;
     std::vector<float> ground_rain_key;
     std::vector<float> ground_rain_last;  // the map's key the previous frame asked for (empty: none)
-    // The rain's lights' mean extinction toward each point of the rain (two RGBA16F 3D textures,
-    // lights 0-3 and 4-7; pass_rain_lights.cpp), its grid, and what it was made from (empty: to make).
-    GLuint rain_map_tex[2] = {0, 0};
-    core::Int3 rain_map_dims{0, 0, 0};
+    // What the rain's lights' extinction in the density texture's alpha was made from
+    // (pass_rain_lights.cpp; empty: to make).
     std::vector<float> rain_map_key;
     int ground_scatter_nx = 0, ground_scatter_ny = 0;  // the texture's size (0: the 1x1 zero)
     glm::vec4 ground_scatter_map{0.0f};                // FrameBlock::ground_scatter (zw 0: none)
@@ -309,8 +309,9 @@ struct Renderer::Impl {
     /// (pass_ground_rain.cpp): a frame marching a fraction of its pixels then integrates their
     /// paths per pixel instead of making the map. Notes this frame's lights for the next.
     bool ground_lights_moving(const detail::FrameUniforms& u);
-    /// The rain's lights' extinction map (volume.glsl's rain_flash reads it: FrameUniforms::rain_lights
-    /// > 0), made when the lights, the volume or the rain changed, bound on units 16 and 17.
+    /// The rain's mean extinction toward the rain's lights at each voxel with rain, in the density
+    /// texture's alpha (volume.glsl's rain_flash reads it: FrameUniforms::rain_lights > 0), made
+    /// when the lights, the volume or the rain changed.
     void rain_lights_pass(const detail::FrameUniforms& u);
     /// With the temporal history (Settings::temporal): what this frame does with it (before the
     /// resolve and glow passes, which a reused history skips), and the march in place of march_pass.
