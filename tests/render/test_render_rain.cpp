@@ -375,10 +375,11 @@ TEST_CASE("the channel's light in the rain: the march against its single-scatter
 TEST_CASE("the channel's light in a shaft beside it: each light attenuated by the rain on its path") {
     // Rain fills the half x > 0 of the box (sigma 3e-3, storm-full's 25 mm/h); a channel of
     // 400 m stands 300 m outside it, so the paths from its lights into the shaft run partly
-    // through clear air: what the lights' map (pass_rain_lights.cpp: a mean per pair of lights, on
-    // cells of 2 voxels, in 8 bits) approximates. The CPU integrates each path through the same
-    // field the march filters (trilinear: a ramp over the voxel either side of x = 0) at 1 m
-    // steps, and sums the march's pieces as the case above.
+    // through clear air: what the rain's mean extinction toward the lights' centroid, per voxel
+    // (pass_rain_lights.cpp), approximates. The CPU integrates each light's path through the
+    // same field the march filters (trilinear: a ramp over the voxel either side of x = 0) at
+    // 1 m steps, and sums the march's pieces as the case above. Both density precisions (the
+    // mean in 16-bit floats or 8 bits).
     render::Renderer& r = gl_renderer();
     const core::Grid3<float> empty(box(), 0.0f);
     const double sigma = 3e-3;
@@ -388,8 +389,6 @@ TEST_CASE("the channel's light in a shaft beside it: each light attenuated by th
             for (int i = 0; i < box().dims.x / 2; ++i) rain.extinction.at(i, j, k) = 0.0f;
     rain.albedo = 1.0;
     rain.g = 0.85;
-    r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16, .rain = &rain});
-    light_by_channel(r, {-300.0f, 100.0f, 300.0f}, {-300.0f, 100.0f, 700.0f});
     render::Camera cam = side_camera();
     cam.position = {600.0, -3000.0, 500.0};
     cam.target = {200.0, 100.0, 500.0};
@@ -397,9 +396,6 @@ TEST_CASE("the channel's light in a shaft beside it: each light attenuated by th
     render::Settings st = test::volume_only();
     st.jitter = false;
     st.early_exit = false;
-    render_at(r, cam, st, W, H);
-    int w = 0, h = 0;
-    const std::vector<float> img = r.read_march(w, h);
     // The field the march reads: voxel centres at x = -50 (0) and 50 m (sigma), linear between.
     const auto field = [&](const glm::dvec3& x) {
         const core::GridGeometry g = box();
@@ -421,7 +417,7 @@ TEST_CASE("the channel's light in a shaft beside it: each light attenuated by th
         const double a = 1.0 + g * g - 2.0 * g * c;
         return (1.0 - g * g) / (4.0 * std::numbers::pi * a * std::sqrt(a));
     };
-    double err2 = 0.0, ref2 = 0.0, worst = 0.0, peak = 0.0, unattenuated = 0.0, total = 0.0;
+    double peak = 0.0, unattenuated = 0.0, total = 0.0;
     std::vector<double> expected(std::size_t(W) * H, 0.0);
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
@@ -451,18 +447,33 @@ TEST_CASE("the channel's light in a shaft beside it: each light attenuated by th
             unattenuated += L0;
             total += L;
         }
-    for (std::size_t p = 0; p < expected.size(); ++p) {
-        const double e = double(img[p * 4]) - expected[p];
-        err2 += e * e;
-        ref2 += expected[p] * expected[p];
-        if (expected[p] > 0.01 * peak) worst = std::max(worst, std::abs(e) / expected[p]);
+    REQUIRE(peak > 0.0);
+    MESSAGE("the attenuation takes ", 1.0 - total / unattenuated, " of the rain's light");
+    for (const render::DensityPrecision precision : {render::DensityPrecision::F16, render::DensityPrecision::U8}) {
+        r.set_volume({.density = &empty, .extinction = 4e-3, .precision = precision, .rain = &rain});
+        light_by_channel(r, {-300.0f, 100.0f, 300.0f}, {-300.0f, 100.0f, 700.0f});
+        render_at(r, cam, st, W, H);
+        int w = 0, h = 0;
+        const std::vector<float> img = r.read_march(w, h);
+        double err2 = 0.0, ref2 = 0.0, worst = 0.0;
+        for (std::size_t p = 0; p < expected.size(); ++p) {
+            const double e = double(img[p * 4]) - expected[p];
+            err2 += e * e;
+            ref2 += expected[p] * expected[p];
+            if (expected[p] > 0.01 * peak) worst = std::max(worst, std::abs(e) / expected[p]);
+        }
+        const double l2 = std::sqrt(err2 / ref2);
+        CAPTURE(int(precision));
+        MESSAGE("the shaft beside the channel: relative L2 ", l2, ", worst ", worst, " (pixels above 1% of the peak)");
+        // Measured 3.6% and 10% (F16), 3.4% and 9.4% (U8): the edge of the shaft placed to within
+        // a voxel, the mean toward the centroid rather than each light. The bounds leave room for
+        // another CPU's rounding; the lights unattenuated err by 132% (the attenuation takes 57%
+        // of the light), the mean on cells of 2 voxels by 15% and 28%, both far outside.
+        CHECK(l2 < 0.05);
+        CHECK(worst < 0.14);
     }
-    const double l2 = std::sqrt(err2 / ref2);
-    MESSAGE("the shaft beside the channel: relative L2 ", l2, ", worst ", worst,
-            " (pixels above 1% of the peak); the attenuation takes ", 1.0 - total / unattenuated, " of the light");
-    CHECK(peak > 0.0);
-    CHECK(l2 < 1.0);
     r.set_channel({});
+    r.clear_volume();
 }
 
 TEST_CASE("the rain's light follows the switches: no sky light without the static light, the flash's with the flash") {
