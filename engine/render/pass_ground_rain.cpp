@@ -50,21 +50,11 @@ std::vector<float> map_key(const FrameBlock& f) {
     return key;
 }
 
-// Two keys of the same map: the lights' positions within 1e-5 of themselves (0.1 m at 10 km: a
-// channel's lights are the power centroids of its stretches, and a flash dimming moves them by
-// float rounding, ~1e-7; the map's texels are 16 m and more), the rest alike.
-bool same_map(const std::vector<float>& a, const std::vector<float>& b) {
-    if (a.size() != b.size()) return false;
-    for (std::size_t i = 0; i < a.size(); ++i)
-        if (!(std::abs(a[i] - b[i]) <= 1e-5f * std::max({std::abs(a[i]), std::abs(b[i]), 1.0f}))) return false;
-    return true;
-}
-
 }  // namespace
 
 bool Renderer::Impl::ground_lights_moving(const FrameUniforms& u) {
     std::vector<float> key = map_key(u.block);
-    const bool moving = !same_map(key, ground_rain_key) && !same_map(key, ground_rain_last);
+    const bool moving = !detail::same_light_key(key, ground_rain_key) && !detail::same_light_key(key, ground_rain_last);
     ground_rain_last = std::move(key);
     return moving;
 }
@@ -83,7 +73,7 @@ void Renderer::Impl::ground_rain_pass(const FrameUniforms& u) {
         glTextureParameteri(ground_rain_tex, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
         ground_rain_key.clear();
     }
-    if (!same_map(key, ground_rain_key)) {
+    if (!detail::same_light_key(key, ground_rain_key)) {
         const GLuint p = program("ground_rain", {{GL_COMPUTE_SHADER, "ground_rain.comp"}});
         glUseProgram(p);
         glUniform1i(glGetUniformLocation(p, "u_max_samples"), kMaxSamples);

@@ -52,15 +52,6 @@ std::vector<float> map_key(const FrameUniforms& u) {
     return key;
 }
 
-// Two keys of the same extinction: the centroid within 1e-5 of itself (a flash dimming moves
-// the lights' power centroids by float rounding, ~1e-7; the voxels are ~100 m), the rest alike.
-bool same_map(const std::vector<float>& a, const std::vector<float>& b) {
-    if (a.size() != b.size()) return false;
-    for (std::size_t i = 0; i < a.size(); ++i)
-        if (!(std::abs(a[i] - b[i]) <= 1e-5f * std::max({std::abs(a[i]), std::abs(b[i]), 1.0f}))) return false;
-    return true;
-}
-
 }  // namespace
 
 void Renderer::Impl::rain_lights_pass(const FrameUniforms& u) {
@@ -68,7 +59,7 @@ void Renderer::Impl::rain_lights_pass(const FrameUniforms& u) {
     const core::Int3 n{rain_hi.x - rain_lo.x, rain_hi.y - rain_lo.y, rain_hi.z - rain_lo.z};
     if (n.x <= 0 || n.y <= 0 || n.z <= 0) return;
     std::vector<float> key = map_key(u);
-    if (same_map(key, rain_map_key)) return;
+    if (detail::same_light_key(key, rain_map_key)) return;
     const GLenum format = density_u8 ? GL_RGBA8 : GL_RGBA16F;
     const GLuint p = program("rain_lights", {{GL_COMPUTE_SHADER, "rain_lights.comp"}},
                              std::string("#define DENSITY_U8 ") + (density_u8 ? "1" : "0") + "\n");

@@ -12,6 +12,9 @@
 
 #include <time.h>
 
+#include <algorithm>
+#include <cmath>
+
 #include <vector>
 
 namespace fulgur::render::detail {
@@ -46,6 +49,19 @@ static_assert(sizeof(FrameBlock) == 64 + 11 * 16 + 8 * 16 + 4 * 16 + 10 * 16 + 8
 /// Appends the first `n` components of `v` to `out` (keys made of frame-block fields).
 inline void append_components(std::vector<float>& out, const glm::vec4& v, int n = 4) {
     for (int i = 0; i < n; ++i) out.push_back(v[i]);
+}
+
+/// Two keys of the same map made from the channel's lights: each component within 1e-5 of the
+/// other, relative, with a floor at 1 (a channel's lights are the power centroids of its
+/// stretches, which a flash dimming moves by float rounding, ~1e-7: 0.1 m at 10 km, far below
+/// the maps' texels), the same length.
+inline bool same_light_key(const std::vector<float>& a, const std::vector<float>& b) {
+    if (a.size() != b.size()) return false;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        const float scale = std::max(std::max(std::abs(a[i]), std::abs(b[i])), 1.0f);
+        if (!(std::abs(a[i] - b[i]) <= 1e-5f * scale)) return false;
+    }
+    return true;
 }
 
 /// The passes of a frame in the order render() runs them (the timer's slots).
