@@ -263,8 +263,9 @@ void Renderer::set_volume(const VolumeDesc& v) {
                 hi = {std::max(hi.x, c.x), std::max(hi.y, c.y), std::max(hi.z, c.z)};
             }
         }
-        m.rain_lo = lo;
-        m.rain_hi = {hi.x + 1, hi.y + 1, hi.z + 1};
+        // Their box a voxel wider: the march filters the alpha trilinearly at the rain's edge.
+        m.rain_lo = {std::max(lo.x - 1, 0), std::max(lo.y - 1, 0), std::max(lo.z - 1, 0)};
+        m.rain_hi = {std::min(hi.x + 2, d.x), std::min(hi.y + 2, d.y), std::min(hi.z + 2, d.z)};
     }
     std::vector<std::uint8_t> dist = detail::chebyshev_distance(occupied, d);
     delete_texture(m.density_tex);
