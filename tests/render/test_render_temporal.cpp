@@ -310,17 +310,19 @@ TEST_CASE("temporal history: a light that changes in shape marches a quarter, th
     for (const double e : error) line += " " + std::to_string(e);
     MESSAGE("still camera, light changing shape: relative L2 radiance per frame:" << line);
     // The new shapes' frames: the light groups upsampled from 80x45 marched pixels (this test's
-    // 160x90 march), measured 46-58%, bound 65% (at 1280x720, 640x360 marched a quarter at a
-    // time, the median frame of a leader is 1.2% off, 2.0% with detail and rain: docs/render.md).
-    // Most of this frame's light is the rain's around the channel, which 80x45 pixels resolve
-    // worst: before the channel's lights were attenuated by the rain on their way, the frame held
-    // 9 times the light, spread wider, and erred by 17-22% (4-8 times the absolute error of now);
-    // the light kept from the history instead of upsampled erred by 51-82% then, not measured
-    // since, so this bound no longer tells the two apart (the settled frames below do).
-    for (const std::size_t i : {1, 2, 11}) CHECK(error[i] < 0.65);
-    // Settling, the new shape marched at two and three of the four pixels of each block: 9-45%,
-    // bound 50% (10.5-18.6% before the attenuation, the history kept instead 33-65%); frame 5
-    // has one quarter left whose ground was integrated per pixel (1.4e-4).
+    // 160x90 march), measured 46-58% (frames 1, 2, 11: 58%, 48%, 46%), bound 60% (at 1280x720,
+    // 640x360 marched a quarter at a time, the median frame of a leader is 1.2% off, 2.0% with
+    // detail and rain: docs/render.md). The light groups kept from the history instead of
+    // upsampled (temporal.frag's still-cloud branch reading the history, rescaled) err by 65%,
+    // 89% and 74%, all above the bound. Most of this frame's light is the rain's around the
+    // channel, which 80x45 pixels resolve worst: before the channel's lights were attenuated by
+    // the rain on their way, the frame held 9 times the light, spread wider, and erred by 17-22%
+    // (4-8 times the absolute error of now).
+    for (const std::size_t i : {1, 2, 11}) CHECK(error[i] < 0.6);
+    // Settling, the new shape marched at two and three of the four pixels of each block (frames
+    // 3, 4, 12, 13): 45%, 44%, 45%, 9%, bound 50%; kept instead 60%, 45%, 62%, 41% (frames 4 and
+    // 13 pass either way). Frame 5 has one quarter left whose ground was integrated per pixel
+    // (1.4e-4).
     for (const std::size_t i : {3, 4, 5, 12, 13}) CHECK(error[i] < 0.5);
     // Settled (every quarter marched at this view as a fresh render marches it): float rounding
     // of the rescaled groups, as with every pixel marched (the test above, ~1e-7).
