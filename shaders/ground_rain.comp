@@ -34,15 +34,6 @@ void main() {
     ray_box(p, l, vol_min.xyz, vol_min.xyz + vol_size.xyz, t0, t1);
     t1 = min(t1, 1.0);
     if (l.z > 1e-3) t1 = min(t1, (rain_params.z - p.z) / l.z);
-    float tau = 0.0;
-    if (t1 > t0) {
-        float len = (t1 - t0) * length(l);
-        int n = clamp(int(ceil(len / (u_voxels_per_sample * vol_size.w))), 1, u_max_samples);
-        for (int k = 0; k < n; ++k) {
-            vec3 x = p + (t0 + (float(k) + 0.5) / float(n) * (t1 - t0)) * l;
-            tau += textureLod(u_density, (x - vol_min.xyz) / vol_size.xyz, 0.0).b;
-        }
-        tau *= len / float(n);
-    }
+    float tau = rain_depth(p, l, t0, t1, u_voxels_per_sample * vol_size.w, u_max_samples);
     imageStore(u_out, id, vec4(exp(-rain_params.x * tau)));
 }

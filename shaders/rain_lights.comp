@@ -30,16 +30,7 @@ float mean_rain(vec3 p, vec3 q) {
     if (len < 1e-3) return textureLod(u_density, (p - vol_min.xyz) / vol_size.xyz, 0.0).b;
     float t0, t1;
     if (!ray_box(p, l, vol_min.xyz, vol_min.xyz + vol_size.xyz, t0, t1)) return 0.0;
-    t1 = min(t1, 1.0);
-    if (t1 <= t0) return 0.0;
-    float inside = (t1 - t0) * len;
-    int n = clamp(int(ceil(inside / vol_size.w)), 1, u_max_samples);
-    float rain = 0.0;
-    for (int k = 0; k < n; ++k) {
-        vec3 x = p + (t0 + (float(k) + 0.5) / float(n) * (t1 - t0)) * l;
-        rain += textureLod(u_density, (x - vol_min.xyz) / vol_size.xyz, 0.0).b;
-    }
-    return rain * (inside / float(n)) / len;
+    return rain_depth(p, l, t0, min(t1, 1.0), vol_size.w, u_max_samples) / len;
 }
 
 void main() {

@@ -142,6 +142,21 @@ float rain_flash(RainRay ray, float t, float mean, inout float light_t) {
     return s;
 }
 
+// The rain's optical depth over rain_params.x along the segment p + t l, t in [t0, t1] (none
+// when t1 <= t0), by the midpoint rule with one sample per `per_sample` metres of it,
+// `max_samples` at most: the paths of the lights' maps (ground_rain.comp, rain_lights.comp).
+float rain_depth(vec3 p, vec3 l, float t0, float t1, float per_sample, int max_samples) {
+    if (t1 <= t0) return 0.0;
+    float len = (t1 - t0) * length(l);
+    int n = clamp(int(ceil(len / per_sample)), 1, max_samples);
+    float tau = 0.0;
+    for (int k = 0; k < n; ++k) {
+        vec3 x = p + (t0 + (float(k) + 0.5) / float(n) * (t1 - t0)) * l;
+        tau += textureLod(u_density, (x - vol_min.xyz) / vol_size.xyz, 0.0).b;
+    }
+    return tau * (len / float(n));
+}
+
 #endif
 
 // Safety margin of the skip distance, in voxels. The trilinear interpolant D~(p) of the

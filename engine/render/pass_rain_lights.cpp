@@ -10,7 +10,7 @@
 // a light in the rain, exp(-sigma r) falls off linearly in r) and exact in uniform rain, so the
 // voxel's resolution and 8 bits hold it (2 km from a light in rain of the largest extinction,
 // half a step is an optical depth of 0.011). One mean for the 8 lights, toward their centroid:
-// a map per light (or pair of lights) costs a fetch per rain sample, which cost the march 15 ms
+// a map per light (or pair of lights) costs a fetch per rain sample, which cost the march 14 ms
 // of its 82 at 1280x720 with detail and rain (docs/render.md). It depends on the lights'
 // positions, the volume and the rain, not on the lights' intensities: a flash's decay and
 // restrikes keep it; a leader's growing channel or another strike makes it again.
@@ -24,7 +24,6 @@
 
 namespace fulgur::render {
 
-using detail::FrameBlock;
 using detail::FrameUniforms;
 
 namespace {
@@ -40,16 +39,11 @@ glm::vec3 centroid(const FrameUniforms& u) {
     return glm::vec3(c / double(std::max(u.rain_lights, 1)));
 }
 
-// What the extinction is made from: the lights' centroid, the volume's box, the rain.
+// What the extinction is made from besides the volume and the rain (set_volume, which makes a
+// new texture, clears the key): the lights' centroid.
 std::vector<float> map_key(const FrameUniforms& u) {
-    const FrameBlock& f = u.block;
-    std::vector<float> key;
     const glm::vec3 c = centroid(u);
-    key.insert(key.end(), {c.x, c.y, c.z});
-    detail::append_components(key, f.vol_min);
-    detail::append_components(key, f.vol_size);
-    detail::append_components(key, f.rain, 3);
-    return key;
+    return {c.x, c.y, c.z};
 }
 
 }  // namespace
