@@ -199,7 +199,7 @@ struct Expect {
 Expect refused(std::vector<std::string> err) { return {kRefused, std::move(err), {}}; }
 Expect succeeds(std::vector<std::string> out) { return {0, {}, std::move(out)}; }
 
-std::string tail(const std::string& s) { return s.size() > 1500 ? "..." + s.substr(s.size() - 1500) : s; }
+std::string tail(const std::string& s) { return s.size() > 1500 ? std::string("...").append(s, s.size() - 1500) : s; }
 
 // Runs a case and checks its outcome.
 void check(const std::string& name, const fs::path& tool, const std::vector<std::string>& args, const fs::path& dir,

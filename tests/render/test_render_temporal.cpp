@@ -307,7 +307,7 @@ TEST_CASE("temporal history: a light that changes in shape marches a quarter, th
         if (expected[i] == Step::Quarter) CHECK(f.stats.marched_share == doctest::Approx(0.25).epsilon(0.05));
     }
     std::string line;
-    for (const double e : error) line += " " + std::to_string(e);
+    for (const double e : error) line.append(" ").append(std::to_string(e));
     MESSAGE("still camera, light changing shape: relative L2 radiance per frame:" << line);
     // The new shapes' frames: the light groups upsampled from 80x45 marched pixels (this test's
     // 160x90 march), measured 46-58% (frames 1, 2, 11: 58%, 48%, 46%), bound 60% (at 1280x720,
@@ -363,7 +363,7 @@ TEST_CASE("temporal history: a flash's new shape lit by its S alone is upsampled
     }
     std::string line;
     for (std::size_t i = 0; i < error.size(); ++i)
-        line += " " + std::to_string(error[i]) + " (" + std::to_string(total[i]) + ")";
+        line.append(" ").append(std::to_string(error[i])).append(" (").append(std::to_string(total[i])).append(")");
     MESSAGE(
         "still camera, the flash's S alone changing shape: relative L2 radiance (ratio of totals) per frame:" << line);
     // Measured (llvmpipe, this test's 160x90, 80x45 marched; no jitter, so the same every run):
