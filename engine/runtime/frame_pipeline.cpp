@@ -26,9 +26,10 @@ struct FramePipeline::Impl {
     // `media` holds the rain when the scene declares it (sky::make_static_media, the rain as
     // cloud of equal transport coefficient, S at its points with the drops' phase function):
     // the strikes solved ahead light the rain (Frame::rain), and the rain scatters their light
-    // back into the cloud and onto the ground. The instant path's estimates blend with the
-    // bases, which hold no rain: it keeps the cloud alone (`dry_media`, only made when `media`
-    // holds rain).
+    // back into the cloud and onto the ground. The instant path's near-field correction and its
+    // blend with the bases, which hold no rain, are over the cloud alone (`dry_media`, only made
+    // when `media` holds rain); its tracers trace the rain themselves
+    // (InstantStrikes::traces_rain), so its strikes light the rain too.
     std::optional<solve::Media> media, dry_media;
     const solve::Media& instant_media() const { return dry_media ? *dry_media : *media; }
     std::unique_ptr<StrikeSolver> solver;
@@ -256,7 +257,8 @@ void FramePipeline::Impl::add_instant(const lightning::Strike& k, const lightnin
     }
     ++f.strikes_solved;
     f.instant_weight = std::min(f.instant_weight, 1.0 - s.bases);
-    solved.push_back({s.light, st.main_glow, st.branch_glow});
+    // Its multiple S at the rain is the estimate's share (w); the bases' carry none there.
+    solved.push_back({s.light, st.main_glow, st.branch_glow, instant->traces_rain()});
     // The strokes' share of the bases: from the worker's bases' frame of each group when it
     // holds what this frame asks for (both components, no ambient term: how it was made), so
     // the frame reconstructs only the leaders; else splatted and reconstructed with them.

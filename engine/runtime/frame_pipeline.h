@@ -39,14 +39,16 @@ struct Frame {
     /// ground tallies (StrikeLight::ground) scaled by their glow, as their S is. Empty when no
     /// strike lighting the frame carries one (the bases' frames, hybrid, no ground).
     transport::GroundIrradiance ground;
-    /// A scene with rain, under a preset that solves its strikes ahead (not the paper or instant
-    /// preset, not the hybrid's strokes): the light of orders >= 2 the strikes' solves hold at
-    /// the rain's points, per unit albedo (S / the cloud's albedo), scaled by their glow. Their
-    /// media hold the rain (sky::make_static_media), so it is the flash-lit cloud's light sent
-    /// down into the rain and the rain's own multiple scattering, read out with the drops' phase
-    /// function by each cell's share of rain. The renderer's rain scatters it by the rain's
-    /// albedo and draws the channel's own light (its first order, unattenuated by the rain,
-    /// which stands in for the drops' forward scattering) from the channel itself.
+    /// A scene with rain, under a preset that solves its strikes (not the paper preset, not the
+    /// hybrid's strokes): the light of orders >= 2 the strikes' solves hold at the rain's
+    /// points, per unit albedo (S / the cloud's albedo), scaled by their glow. Their media hold
+    /// the rain (sky::make_static_media), so it is the flash-lit cloud's light sent down into
+    /// the rain and the rain's own multiple scattering, read out with the drops' phase function
+    /// by each cell's share of rain. A strike lit the instant way contributes its estimate's
+    /// share (its weight against the bases, which carry none at the rain; nothing before its
+    /// first estimate). The renderer's rain scatters it by the rain's albedo and draws the
+    /// channel's own light (its first order, attenuated by the rain on its way) from the
+    /// channel itself.
     /// On the lighting grid, the directions of `radiance`; empty (no values) otherwise.
     RadianceField rain;
     StageTimes times;

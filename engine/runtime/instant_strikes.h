@@ -108,6 +108,11 @@ public:
     std::shared_ptr<const StrikeEstimate> wait_final(std::uint64_t seed, double time);
     /// S's output directions, every field's [m][cell] layout.
     std::size_t directions() const noexcept;
+    /// Whether the estimates' multiple S holds the flash's light at the rain: the scene has
+    /// rain, and the strikes are traced through the medium the truth traces (the rain as cloud
+    /// of equal transport coefficient, S at its points with the drops' phase function). The
+    /// near-field correction and the bases' error stay over the cloud alone.
+    bool traces_rain() const noexcept;
     /// While paused the worker starts no round and a round that ends publishes nothing: what
     /// get() returns at the pause stays (the time a caller gives the solve is exact).
     void set_paused(bool paused);
