@@ -106,7 +106,7 @@ struct InstantStrikes::Impl {
     const BakedBases* bases;
     InstantOptions options;
     int threads;
-    transport::LightingMedium fine;  // the full-resolution density (the cloud's)
+    transport::LightingMedium fine;       // the full-resolution density (the cloud's)
     transport::MonteCarloMedium tracing;  // the cloud's: its cells are what the estimates' norms are over
     // With rain, the medium the truth traces (runtime::truth) and the strikes solved ahead see:
     // the rain as cloud of equal transport coefficient, S at its points with the drops' phase
