@@ -3,9 +3,9 @@
 // and engine/sky (sky.h); this file parses arguments and prints.
 #include "bake/bake.h"
 #include "common/bake_args.h"
-#include "common/cli.h"
 #include "common/lighting_vdb.h"
 #include "common/progress.h"
+#include "common/tool_start.h"
 #include "core/core.h"
 #include "distributed/distributed.h"
 #include "scene/scene.h"

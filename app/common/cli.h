@@ -4,6 +4,7 @@
 // the tests check the validation without GL.
 #pragma once
 
+#include "common/tool_start.h"
 #include "core/core.h"
 
 #include <CLI/CLI.hpp>
@@ -23,10 +24,6 @@
 #include <vector>
 
 namespace fulgur::app {
-
-/// Exit statuses of every tool (also in each --help footer).
-inline constexpr int kExitFailure = 1;  ///< the work failed: unreadable scene or file, I/O, GL, ...
-inline constexpr int kExitUsage = 2;    ///< the command line is invalid (one-line reason on stderr)
 
 /// Parses the whole of `s` as a T (integers in base 10, doubles in the C locale's form).
 /// Throws core::Error(tool, "<what>: not a number: '<s>'") otherwise.
@@ -127,23 +124,6 @@ Args parse_args(const char* tool, const std::string& description, const std::vec
     cli.reject_second_scene(a.scene);
     if (check) check(cli, a);
     return a;
-}
-
-/// The start of a tool's main(): parses argv[1..] with `parse`. Prints the reason and gives
-/// kExitUsage on an invalid command line, prints `usage()` and gives 0 for --help, and
-/// nullopt (go on with `a`) otherwise.
-template <class Args>
-std::optional<int> start(int argc, char** argv, Args& a, Args (*parse)(const std::vector<std::string>&),
-                         std::string (*usage)()) {
-    try {
-        a = parse(std::vector<std::string>(argv + 1, argv + argc));
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "%s\n", e.what());
-        return kExitUsage;
-    }
-    if (!a.help) return std::nullopt;
-    std::fputs(usage().c_str(), stdout);
-    return 0;
 }
 
 template <class T>

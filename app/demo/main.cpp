@@ -1,7 +1,7 @@
 // fulgur: the interactive storm demo (GLFW window + Dear ImGui panel). Without a display it
 // says so and renders a short headless PNG sequence through OSMesa into out/.
-#include "common/cli.h"
 #include "common/demo_args.h"
+#include "common/tool_start.h"
 #include "common/view_cli.h"
 #include "core/core.h"
 #include "demo/panel.h"

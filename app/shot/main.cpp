@@ -1,9 +1,9 @@
 // fulgur-shot: one frame of a scene's storm, headless (OSMesa), to PNG; timings as JSON.
-#include "common/cli.h"
 #include "common/exr_image.h"
 #include "common/image_compare.h"
 #include "common/lighting_vdb.h"
 #include "common/shot_args.h"
+#include "common/tool_start.h"
 #include "common/view_cli.h"
 #include "platform/platform.h"
 #include "shot/blender_export.h"

@@ -218,7 +218,14 @@ struct InstantStrikes::Impl {
         }
         std::array<transport::MonteCarloOptions, 2> o = instant_tracer_options();
         o[1].ground = strike_ground(scene, media.lighting.density.geom);  // the paths that scatter reach the ground
-        if (wet) o[0].phase_mix = o[1].phase_mix = wet->lighting.phase_mix.get();
+        if (wet) {
+            o[0].phase_mix = o[1].phase_mix = wet->lighting.phase_mix.get();
+            // The noise over the cloud, where the norms, the bases' error and the blend are: the
+            // rain's cells around the channel hold S far above the cloud's (order 1, where the
+            // frame draws the channel's light itself), and their noise would count as the
+            // estimate's.
+            o[0].noise_cells = o[1].noise_cells = &tracing.cloud();
+        }
         const std::span<const transport::LineSource> none;
         return {std::make_unique<transport::ProgressiveMonteCarlo>(traced(), std::span<const transport::PointSource>{},
                                                                    none, dirs, o[0]),
@@ -370,8 +377,7 @@ struct InstantStrikes::Impl {
         est->round = e.round;
 
         // Noise of the sum: the parts are independent, so their absolute noises add in
-        // quadrature. The norms are over the cloud (with rain, the parts' relative noises are
-        // over the rain's cells too: their tracers' medium).
+        // quadrature. The norms and the noises are over the cloud (with rain too).
         const CloudNorms norms{tracing.cloud()};
         const bool with_multiple = scene.effects.multiple_scattering;
         const double n1 = norms.norm2(rs.single.data), nm = with_multiple ? norms.norm2(rm.multiple.data) : 0.0;

@@ -463,18 +463,18 @@ struct HalfSums {
     }
 };
 
-/// Relative L2 noise of the mean of all batches over the cloud cells, for the sum over the
-/// groups of s1 (when use_single) and sm, [group][cell][m] layout, from the two half means
-/// A, B: ||A - B|| sqrt(na nb) / (na + nb) / ||mean||.
-double half_noise(const HalfSums& s1, const HalfSums* sm, const TallyGrid& tg, std::size_t M, std::size_t groups,
-                  bool use_single) {
+/// Relative L2 noise of the mean of all batches over the tally cells `cells` marks (non-zero),
+/// for the sum over the groups of s1 (when use_single) and sm, [group][cell][m] layout, from
+/// the two half means A, B: ||A - B|| sqrt(na nb) / (na + nb) / ||mean||.
+double half_noise(const HalfSums& s1, const HalfSums* sm, const std::vector<std::uint8_t>& cells, std::size_t M,
+                  std::size_t groups, bool use_single) {
     core::CompensatedSum diff2, ref2;
     const double ka = 1.0 / double(std::max<std::int64_t>(1, s1.na)),
                  kb = 1.0 / double(std::max<std::int64_t>(1, s1.nb));
     const double kall = 1.0 / double(std::max<std::int64_t>(1, s1.na + s1.nb));
-    const std::size_t size = tg.cloud.size() * M;
-    for (std::size_t c = 0; c < tg.cloud.size(); ++c) {
-        if (!tg.cloud[c]) continue;
+    const std::size_t size = cells.size() * M;
+    for (std::size_t c = 0; c < cells.size(); ++c) {
+        if (!cells[c]) continue;
         for (std::size_t m = 0; m < M; ++m) {
             double a = 0.0, b = 0.0;
             for (std::size_t g = 0; g < groups; ++g) {
@@ -646,10 +646,10 @@ MonteCarloResult grid_result(const BatchTallies& t, const TallyGrid& tg, const s
     if (t.fluence) sum_fluence(t.fl, r.fluence);
     if (t.fluence2) sum_fluence(t.fl2, r.fluence2);
     if (o.halves) {
-        r.noise.single = half_noise(t.h1, nullptr, tg, M, G, true);
+        r.noise.single = half_noise(t.h1, nullptr, tg.cloud, M, G, true);
         if (t.multiple) {
-            r.noise.multiple = half_noise(t.hm, nullptr, tg, M, G, true);
-            r.noise.total = half_noise(t.h1, &t.hm, tg, M, G, true);
+            r.noise.multiple = half_noise(t.hm, nullptr, tg.cloud, M, G, true);
+            r.noise.total = half_noise(t.h1, &t.hm, tg.cloud, M, G, true);
         } else {
             r.noise.total = r.noise.single;
         }
@@ -963,6 +963,10 @@ struct ProgressiveMonteCarlo::Impl {
         if (!o.tally_single && !multiple)
             throw core::Error("monte_carlo.tally_single", "false needs the multiple tally: nothing would be estimated");
         if (o.phase_mix) validate_phase_mix(*o.phase_mix, med.tg.geom);
+        if (o.noise_cells && o.noise_cells->size() != cells)
+            throw core::Error("monte_carlo.noise_cells", "must hold one value per tally cell (" +
+                                                             std::to_string(cells) + "), got " +
+                                                             std::to_string(o.noise_cells->size()));
         reset(o.seed);
     }
 
@@ -1081,11 +1085,12 @@ struct ProgressiveMonteCarlo::Impl {
             }
         }
         if (traced_any) {
-            if (o.tally_single) r.noise.single = detail::half_noise(h1, nullptr, med.tg, M, G, true);
-            if (multiple) r.noise.multiple = detail::half_noise(hm, nullptr, med.tg, M, G, true);
+            const std::vector<std::uint8_t>& noise_cells = o.noise_cells ? *o.noise_cells : med.tg.cloud;
+            if (o.tally_single) r.noise.single = detail::half_noise(h1, nullptr, noise_cells, M, G, true);
+            if (multiple) r.noise.multiple = detail::half_noise(hm, nullptr, noise_cells, M, G, true);
             r.noise.total = !multiple         ? r.noise.single
                             : !o.tally_single ? r.noise.multiple
-                                              : detail::half_noise(h1, &hm, med.tg, M, G, true);
+                                              : detail::half_noise(h1, &hm, noise_cells, M, G, true);
         }
         return r;
     }

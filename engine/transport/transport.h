@@ -368,6 +368,10 @@ struct MonteCarloOptions {
     /// Set: S is tallied with this second phase function where its share is > 0 (PhaseMix; the
     /// share on the tally grid). The paths still scatter with the medium's g.
     const PhaseMix* phase_mix = nullptr;
+    /// ProgressiveMonteCarlo: the tally cells its noise is measured over (non-zero: measured;
+    /// one per tally cell), e.g. the cloud's alone where the medium also holds rain. Null: the
+    /// cells holding density (MonteCarloMedium::cloud). monte_carlo() ignores it.
+    const std::vector<std::uint8_t>* noise_cells = nullptr;
 };
 
 struct MonteCarloResult {

@@ -7,6 +7,7 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 using namespace fulgur;
@@ -65,6 +66,27 @@ TEST_CASE("progressive Monte Carlo: one result for any thread count; order 1 lef
         bad.intensity = -1.0;
         CHECK_THROWS_WITH_AS(p.restart({}, std::span(&bad, 1), 1), doctest::Contains("lines[0].intensity"),
                              core::Error);
+    }
+    // noise_cells: the noise measured over the cells it marks, the tallies unchanged. Over
+    // every cell it is the default's exactly (the uniform medium's cells all hold density);
+    // over the bottom half alone, another figure; a mask of the wrong size is named.
+    {
+        MonteCarloOptions all = o, half = o;
+        const std::vector<std::uint8_t> every(tracing.cloud().size(), 1);
+        std::vector<std::uint8_t> bottom(tracing.cloud().size(), 0);
+        for (std::size_t c = 0; c < bottom.size() / 2; ++c) bottom[c] = 1;
+        all.noise_cells = &every;
+        half.noise_cells = &bottom;
+        const MonteCarloResult ra = run(2, all), rh = run(2, half);
+        CHECK(ra.single.data == two.single.data);
+        CHECK(rh.multiple.data == two.multiple.data);
+        CHECK(ra.noise.total == two.noise.total);
+        CHECK(rh.noise.total != two.noise.total);
+        CHECK(rh.noise.total > 0.0);
+        std::vector<std::uint8_t> wrong(bottom.size() + 1, 1);
+        half.noise_cells = &wrong;
+        CHECK_THROWS_WITH_AS(ProgressiveMonteCarlo(tracing, {}, std::span(&line, 1), dirs, half),
+                             doctest::Contains("noise_cells"), core::Error);
     }
     // No light: zero after tracing, no noise.
     const LineSource dark{line.a, line.b, 0.0, 0};
