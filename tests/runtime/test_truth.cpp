@@ -62,6 +62,21 @@ RainCells rain_cells(const test::TruthScene& s) {
     return r;
 }
 
+// Strike 5 at its peak under `p` (its solve waited for; `t` set to the time), a frame with
+// light at the rain.
+const runtime::Frame& rain_frame(runtime::FramePipeline& p, const test::TruthScene& s, double& t) {
+    t = peak_time(p, 5);
+    runtime::ReconstructOptions o;
+    o.wait_for_strikes = true;
+    const runtime::Frame& f = p.build(t, {}, o);
+    REQUIRE(f.lit);
+    REQUIRE(f.strikes_solved == 1);
+    REQUIRE(f.rain.values.size() == f.radiance.values.size());
+    CHECK(f.rain.directions == f.radiance.directions);
+    CHECK(f.rain.geometry == s.media.lighting.density.geom);
+    return f;
+}
+
 }  // namespace
 
 TEST_CASE("truth: a virtual light's bases against the truth, per component") {
@@ -300,15 +315,8 @@ TEST_CASE("truth: with rain, a solved strike's light at the rain (Frame::rain) a
     scene::Quality q = scene::quality_preset("per_strike_mc");
     q.multiple_paths = 400'000;  // the preset's 50k: ~9% noise over the few rain cells
     runtime::FramePipeline p(s.scene, s.density, *s.bases, {}, q);
-    const double t = peak_time(p, 5);
-    runtime::ReconstructOptions o;
-    o.wait_for_strikes = true;
-    const runtime::Frame& f = p.build(t, {}, o);
-    REQUIRE(f.lit);
-    REQUIRE(f.strikes_solved == 1);
-    REQUIRE(f.rain.values.size() == f.radiance.values.size());
-    CHECK(f.rain.directions == f.radiance.directions);
-    CHECK(f.rain.geometry == s.media.lighting.density.geom);
+    double t = 0.0;
+    const runtime::Frame& f = rain_frame(p, s, t);
 
     // The frame's field is the solved strike's multiple S x glow / albedo, group by group.
     const lightning::Strike& k = p.storm().strike(p.strike_at(0.0, 5));
@@ -351,7 +359,7 @@ TEST_CASE("truth: with rain, a solved strike's light at the rain (Frame::rain) a
 
     // The paper preset solves no strike: no light at the rain but the channel's own.
     runtime::FramePipeline paper(s.scene, s.density, *s.bases, {}, scene::quality_preset("paper"));
-    CHECK(paper.build(t, {}, o).rain.values.empty());
+    CHECK(paper.build(t, {}).rain.values.empty());
 }
 
 TEST_CASE("truth: with rain, a strike lit the instant way lights the rain as the truth does") {
@@ -368,14 +376,8 @@ TEST_CASE("truth: with rain, a strike lit the instant way lights the rain as the
     runtime::FramePipeline p(s.scene, s.density, *s.bases, {}, q);
     REQUIRE(p.instant_strikes() != nullptr);
     CHECK(p.instant_strikes()->traces_rain());
-    const double t = peak_time(p, 5);
-    runtime::ReconstructOptions o;
-    o.wait_for_strikes = true;
-    const runtime::Frame& f = p.build(t, {}, o);
-    REQUIRE(f.lit);
-    REQUIRE(f.strikes_solved == 1);
-    REQUIRE(f.rain.values.size() == f.radiance.values.size());
-    CHECK(f.rain.geometry == s.media.lighting.density.geom);
+    double t = 0.0;
+    const runtime::Frame& f = rain_frame(p, s, t);
     const lightning::Strike& k = p.storm().strike(p.strike_at(0.0, 5));
     const auto est = p.instant_strikes()->get(k.seed, k.time);
     REQUIRE(est);
