@@ -2,7 +2,9 @@
 // (content/scenes/storm.json, baked beside the scene if stale).
 //
 //   paths: Monte Carlo cost per path of each part (single: expected-value uncollided only;
-//     multiple: whole paths), 1 and 2 threads, and the cost of one estimate (result()).
+//     multiple: whole paths), 1 and 2 threads, and the cost of one estimate (result()); in the
+//     cloud alone and, as InstantStrikes traces a scene with rain, in the cloud with
+//     content/scenes/storm-full.json's rain (the same strike, the same run).
 //   timeline: strikes nobody scheduled (seeds 1-3, lookahead 0): wall time from the request
 //     to the first estimate, and the estimate's noise and weight against the bases at 16, 50,
 //     100, 300 and 1000 ms.
@@ -23,6 +25,7 @@
 #include "core/core.h"
 #include "runtime/runtime.h"
 #include "scene/scene.h"
+#include "sky/sky.h"
 
 #include <time.h>
 
@@ -61,39 +64,51 @@ FULGUR_BENCH(instant,
         const transport::LightingMedium fine{density, s.medium};
         const transport::MonteCarloMedium tracing(fine, media.lighting.density.geom);
         const std::vector<glm::dvec3> dirs = transport::output_directions(s.effective_directions());
-        for (const int threads : {1, 2}) {
-            if (threads > ctx.max_threads) continue;
-            core::set_thread_count(threads);
-            for (const bool whole : {false, true}) {
-                transport::MonteCarloOptions o;
-                o.groups = 2;
-                if (!whole) {
-                    o.max_scatterings = 0;
-                    o.tally_multiple = false;
-                    o.uncollided_only = true;
-                } else {
-                    o.tally_single = false;  // as InstantStrikes traces them
+        // The medium with rain as InstantStrikes makes it (the truth's), its noise over the cloud.
+        scene::Scene wet_scene = s;
+        wet_scene.rain =
+            scene::load_scene(std::filesystem::path(FULGUR_SOURCE_ROOT) / "content/scenes/storm-full.json").rain;
+        const solve::Media wet = sky::make_static_media(wet_scene, density, 1, true);
+        const transport::MonteCarloMedium wet_tracing(wet.full, media.lighting.density.geom);
+        for (const int threads : {1, 2})
+            for (const bool rain : {false, true}) {
+                if (threads > ctx.max_threads) continue;
+                core::set_thread_count(threads);
+                for (const bool whole : {false, true}) {
+                    transport::MonteCarloOptions o;
+                    o.groups = 2;
+                    if (rain) {
+                        o.phase_mix = wet.lighting.phase_mix.get();
+                        o.noise_cells = &tracing.cloud();
+                    }
+                    if (!whole) {
+                        o.max_scatterings = 0;
+                        o.tally_multiple = false;
+                        o.uncollided_only = true;
+                    } else {
+                        o.tally_single = false;  // as InstantStrikes traces them
+                    }
+                    transport::ProgressiveMonteCarlo p(rain ? wet_tracing : tracing, {}, lines, dirs, o);
+                    const std::uint64_t n = (whole ? 4'000 : 20'000) / (ctx.quick ? 4 : 1);
+                    p.advance(n);  // warm: first touch of the buffers
+                    std::vector<double> us, result_ms;
+                    for (int r = 0; r < 3; ++r) {
+                        core::Stopwatch sw;
+                        p.advance(n);
+                        us.push_back(sw.seconds() * 1e6 / double(n));
+                        sw.reset();
+                        (void)p.result();
+                        result_ms.push_back(sw.milliseconds());
+                    }
+                    nlohmann::json j = base;
+                    j["part"] = whole ? "multiple (whole paths, order 1 not tallied)" : "single (uncollided)";
+                    j["medium"] = rain ? "cloud and storm-full's rain" : "cloud";
+                    j["threads"] = threads;
+                    j["us_per_path_median"] = bench::median(us);
+                    j["result_ms_median"] = bench::median(result_ms);
+                    ctx.emit("instant_paths", j);
                 }
-                transport::ProgressiveMonteCarlo p(tracing, {}, lines, dirs, o);
-                const std::uint64_t n = (whole ? 4'000 : 20'000) / (ctx.quick ? 4 : 1);
-                p.advance(n);  // warm: first touch of the buffers
-                std::vector<double> us, result_ms;
-                for (int r = 0; r < 3; ++r) {
-                    core::Stopwatch sw;
-                    p.advance(n);
-                    us.push_back(sw.seconds() * 1e6 / double(n));
-                    sw.reset();
-                    (void)p.result();
-                    result_ms.push_back(sw.milliseconds());
-                }
-                nlohmann::json j = base;
-                j["part"] = whole ? "multiple (whole paths, order 1 not tallied)" : "single (uncollided)";
-                j["threads"] = threads;
-                j["us_per_path_median"] = bench::median(us);
-                j["result_ms_median"] = bench::median(result_ms);
-                ctx.emit("instant_paths", j);
             }
-        }
         core::set_thread_count(ctx.max_threads);
     }
 
