@@ -79,8 +79,8 @@ struct FramePipeline::Impl {
         solve_scene.transport.refine = scene::strike_refine(s, q);
         if (q.exact_orders > 0) solve_scene.transport.lb_exact_orders = q.exact_orders;
         media = solve::make_media(solve_scene, *density);
-        // The instant preset solves no strike ahead: its media stay the cloud's alone.
-        if (solve_scene.rain && q.preset != scene::Quality::Preset::Instant) {
+        // With rain, the strikes' media hold it, the instant way's too (its tracers'; made once).
+        if (solve_scene.rain) {
             dry_media = std::move(media);
             media = sky::make_static_media(solve_scene, *density, solve_scene.transport.refine, true);
         }
@@ -105,7 +105,7 @@ struct FramePipeline::Impl {
     // thread, and the first estimate's latency is the first round's paths over the cores.
     void make_instant(const scene::Quality& q) {
         instant = std::make_unique<InstantStrikes>(solve_scene, *density, instant_media(), bases, instant_options(q),
-                                                   core::thread_count());
+                                                   core::thread_count(), dry_media ? &*media : nullptr);
     }
 
     // Whether the strike is lit the instant way.

@@ -113,7 +113,8 @@ struct InstantStrikes::Impl {
     // function. Both tracers trace it: the channel's light reaches the cloud through the rain,
     // and the estimates' multiple S holds the flash's light at the rain (Frame::rain). (With
     // the cloud's medium instead, a rain scene's S was 21% off its truth: order 1 52% high.)
-    std::optional<solve::Media> wet;
+    std::optional<solve::Media> own_wet;  // made here when the caller has none
+    const solve::Media* wet = nullptr;
     std::optional<transport::MonteCarloMedium> wet_tracing;
     const transport::MonteCarloMedium& traced() const { return wet_tracing ? *wet_tracing : tracing; }
     std::vector<glm::dvec3> dirs;
@@ -127,7 +128,7 @@ struct InstantStrikes::Impl {
     std::thread worker;  // started in the constructor's body, once the members above exist
 
     Impl(const scene::Scene& s, const core::Grid3<float>& density, const solve::Media& m, const BakedBases* b,
-         const InstantOptions& o, int t)
+         const InstantOptions& o, int t, const solve::Media* rain_media)
         : scene(s),
           media(m),
           bases(b),
@@ -137,7 +138,9 @@ struct InstantStrikes::Impl {
           tracing(fine, m.lighting.density.geom),
           dirs(transport::output_directions(s.effective_directions())) {
         if (s.rain) {
-            wet = sky::make_static_media(s, density, 1, true);
+            wet = rain_media ? rain_media : &own_wet.emplace(sky::make_static_media(s, density, 1, true));
+            FULGUR_ASSERT(wet->full.density.data.size() == density.data.size(),
+                          "InstantStrikes: rain_media must hold the full-resolution density");
             wet_tracing.emplace(wet->full, m.lighting.density.geom);
         }
         if (bases && o.near_field_rays > 0) {
@@ -474,11 +477,12 @@ struct InstantStrikes::Impl {
 };
 
 InstantStrikes::InstantStrikes(const scene::Scene& scene, const core::Grid3<float>& density, const solve::Media& media,
-                               const BakedBases* bases, const InstantOptions& options, int threads) {
+                               const BakedBases* bases, const InstantOptions& options, int threads,
+                               const solve::Media* rain_media) {
     FULGUR_ASSERT(threads >= 1, "InstantStrikes: threads must be >= 1");
     FULGUR_ASSERT(options.first_single_paths >= 2 && options.first_multiple_paths >= 2,
                   "InstantStrikes: the first round needs at least two paths per part");
-    impl_ = std::make_unique<Impl>(scene, density, media, bases, options, threads);
+    impl_ = std::make_unique<Impl>(scene, density, media, bases, options, threads, rain_media);
 }
 
 InstantStrikes::~InstantStrikes() = default;

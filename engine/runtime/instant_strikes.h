@@ -84,9 +84,13 @@ std::array<transport::MonteCarloOptions, 2> instant_tracer_options();
 class InstantStrikes {
 public:
     /// Keeps references to `scene`, `density`, `media` and `bases` (may be null: no bases
-    /// error); they must outlive it.
+    /// error); they must outlive it. `media` is the cloud's (solve::make_media). With a scene
+    /// with rain, `rain_media` is what the strikes are traced through
+    /// (sky::make_static_media(scene, density, refine, true): it must hold the full-resolution
+    /// density; kept by reference), made here when null (~0.1 s on storm-full).
     InstantStrikes(const scene::Scene& scene, const core::Grid3<float>& density, const solve::Media& media,
-                   const BakedBases* bases, const InstantOptions& options, int threads);
+                   const BakedBases* bases, const InstantOptions& options, int threads,
+                   const solve::Media* rain_media = nullptr);
     ~InstantStrikes();
     InstantStrikes(const InstantStrikes&) = delete;
     InstantStrikes& operator=(const InstantStrikes&) = delete;
