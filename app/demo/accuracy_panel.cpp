@@ -42,6 +42,10 @@ const transport::SourceField* AccuracyPanel::shown_field() const noexcept {
     return reference_ && show_ ? &reference_->field : nullptr;
 }
 
+const transport::SourceField* AccuracyPanel::shown_rain() const noexcept {
+    return reference_ && show_ && !reference_->rain.data.empty() ? &reference_->rain : nullptr;
+}
+
 void AccuracyPanel::reset() {
     reference_.reset();  // a running solve finishes and is dropped when collected
     requested_ = -1;
@@ -107,6 +111,8 @@ void AccuracyPanel::update(double t, const view::ViewOptions& options) {
         if (truth) {
             const runtime::Truth tr = runtime::truth(scene, density, segments);
             r.field = tr.sum(components);
+            if (scene.rain && components.multiple && scene.medium.albedo > 0.0)
+                r.rain = tr.rain_light(scene.medium.albedo);
             r.noise = tr.noise.total;
         } else {
             r.field = runtime::direct_solve(scene, media, sources, components);

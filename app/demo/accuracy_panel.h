@@ -31,6 +31,9 @@ public:
     }
     /// The field to light the cloud with instead of the frame's (the reference, when shown).
     const transport::SourceField* shown_field() const noexcept;
+    /// With it, the light at the rain (the truth's, in a scene with rain; else null: the channel
+    /// alone lights the rain).
+    const transport::SourceField* shown_rain() const noexcept;
     /// Drops the reference (a new strike, new lightning, other components).
     void reset();
     /// Asks for a reference solve of the next frame: the truth, or the direct solve.
@@ -40,7 +43,7 @@ public:
 
 private:
     struct Reference {
-        transport::SourceField field;
+        transport::SourceField field, rain;
         bool truth = false;
         double seconds = 0.0, frame_ms = 0.0, error = 0.0, noise = 0.0;
         runtime::Components components;

@@ -182,7 +182,8 @@ int main(int argc, char** argv) {
                 ImGui::SetClipboardText(json.c_str());
             }
             const render::Camera cam = view::scene_camera(view_spec, view.density());
-            rep = view.render(cam, t, shell.width(), shell.height(), opt, accuracy.shown_field());
+            rep =
+                view.render(cam, t, shell.width(), shell.height(), opt, accuracy.shown_field(), accuracy.shown_rain());
             panel.add_frame(rep);
             // A screenshot's view, so that it can be drawn again (fulgur-shot --camera).
             if (shell.end_frame()) std::printf("screenshot camera: %s\n", view_json().c_str());

@@ -23,6 +23,14 @@ using namespace fulgur;
 
 namespace {
 
+// The flash's light a render is given in place of its frame's (view::StormView::render's
+// `source` and `rain_source`): S, and the light of orders >= 2 at the rain (null: the channel
+// alone lights the rain). No S: the frame's own light.
+struct GivenLight {
+    const transport::SourceField* source = nullptr;
+    const transport::SourceField* rain = nullptr;
+};
+
 // Relative L2 of `field` against `reference` over the cloud voxels, every direction.
 double field_error(view::StormView& view, const transport::SourceField& field,
                    const transport::SourceField& reference) {
@@ -37,7 +45,7 @@ double field_error(view::StormView& view, const transport::SourceField& field,
 // directions, as a field the renders show; the per-strike work is stopped there. Prints what
 // the frames cost meanwhile and how the strike was lit as JSON.
 transport::SourceField since_known_field(view::StormView& view, double t, const view::ViewOptions& opt,
-                                         const app::ShotArgs& a) {
+                                         const app::ShotArgs& a, std::optional<transport::SourceField>& rain) {
     runtime::FramePipeline& p = view.pipeline();
     runtime::ReconstructOptions ro;
     ro.components = opt.components;
@@ -50,6 +58,12 @@ transport::SourceField since_known_field(view::StormView& view, double t, const 
         for (std::size_t k = 0; k < f.radiance.directions.size(); ++k)
             std::copy(f.radiance.values[k].begin(), f.radiance.values[k].end(),
                       field.direction(std::size_t(f.radiance.directions[k])).begin());
+    if (f.lit && !f.rain.values.empty()) {  // the light at the rain as it was shown then
+        rain.emplace(view.bases().lighting(), view.bases().directions());
+        for (std::size_t k = 0; k < f.rain.directions.size(); ++k)
+            std::copy(f.rain.values[k].begin(), f.rain.values[k].end(),
+                      rain->direction(std::size_t(f.rain.directions[k])).begin());
+    }
     std::printf(
         "{\"name\":\"fulgur-shot-since-known\",\"quality\":\"%s\",\"since_known_ms\":%.4g,"
         "\"triggered_at_leader_start\":%s,\"frames_meanwhile\":%d,\"frame_ms_median\":%.4g,\"frame_ms_max\":%.4g,"
@@ -98,26 +112,28 @@ scene::Quality shot_options_quality(const scene::Scene& s, scene::Quality q, con
 }
 
 void write_frame_exr(view::StormView& view, const render::Camera& cam, double t, const view::ViewOptions& opt,
-                     const app::ShotArgs& a, const transport::SourceField* shown_field, double shown_exposure,
-                     const std::filesystem::path& out, const std::string& lit_by);
+                     const app::ShotArgs& a, GivenLight shown, double shown_exposure, const std::filesystem::path& out,
+                     const std::string& lit_by);
 
 // What --reference writes besides its JSON line: the reference frame's image (and with --exr its
 // radiance, OUT_reference.exr), the difference of the cloud's radiance (march buffer: no glow,
 // no jitter) between the shown field and the reference, and the three side by side.
 // `show_reference` / `show_basis` make the view light the frame by the reference or by what was
 // shown (before each render).
-app::RadianceComparison reference_images(
-    view::StormView& view, platform::Context* ctx, const render::Camera& cam, double t, const view::ViewOptions& opt,
-    const app::ShotArgs& a, const std::vector<std::uint8_t>& shown_basis, const transport::SourceField* shown_field,
-    const transport::SourceField* reference_field, const std::function<void()>& show_reference,
-    const std::function<void()>& show_basis, app::DisplayDifference& shown, int& w, int& h) {
+app::RadianceComparison reference_images(view::StormView& view, platform::Context* ctx, const render::Camera& cam,
+                                         double t, const view::ViewOptions& opt, const app::ShotArgs& a,
+                                         const std::vector<std::uint8_t>& shown_basis, GivenLight shown_light,
+                                         GivenLight reference_light, const std::function<void()>& show_reference,
+                                         const std::function<void()>& show_basis, app::DisplayDifference& shown, int& w,
+                                         int& h) {
     show_reference();
-    const double ref_exposure = view.render(cam, t, a.width, a.height, opt, reference_field).gpu.exposure;
+    const double ref_exposure =
+        view.render(cam, t, a.width, a.height, opt, reference_light.source, reference_light.rain).gpu.exposure;
     ctx->present();
     const std::vector<std::uint8_t> shown_ref = ctx->read_rgba8();
     core::write_png(*a.reference, a.width, a.height, 4, shown_ref);
     if (a.exr)
-        write_frame_exr(view, cam, t, opt, a, reference_field, ref_exposure, app::reference_exr_path(*a.exr),
+        write_frame_exr(view, cam, t, opt, a, reference_light, ref_exposure, app::reference_exr_path(*a.exr),
                         a.against == "static" ? ", its static light by the truth (--against static)"
                                               : ", lit by the reference (--against " + a.against + ")");
     shown = app::compare_display(shown_basis, shown_ref);
@@ -127,10 +143,10 @@ app::RadianceComparison reference_images(
     metric.settings.glow = false;
     metric.settings.jitter = false;
     show_basis();
-    view.render(cam, t, a.width, a.height, metric, shown_field);
+    view.render(cam, t, a.width, a.height, metric, shown_light.source, shown_light.rain);
     const std::vector<float> basis = view.renderer().read_march(w, h);
     show_reference();
-    view.render(cam, t, a.width, a.height, metric, reference_field);
+    view.render(cam, t, a.width, a.height, metric, reference_light.source, reference_light.rain);
     const std::vector<float> ref = view.renderer().read_march(w, h);
     show_basis();
     const app::RadianceComparison c = app::compare_radiance(basis, ref);
@@ -159,8 +175,9 @@ app::RadianceComparison reference_images(
 // (S over the cloud; the cloud's in-scattered radiance in the image) and times as JSON.
 void render_reference(view::StormView& view, platform::Context* ctx, const render::Camera& cam, double t,
                       const view::ViewOptions& opt, const app::ShotArgs& a,
-                      const std::vector<std::uint8_t>& shown_basis, const transport::SourceField* shown_field) {
-    transport::SourceField direct;
+                      const std::vector<std::uint8_t>& shown_basis, GivenLight shown_light) {
+    const transport::SourceField* shown_field = shown_light.source;
+    transport::SourceField direct, direct_rain;
     double solve_s = 0.0, frame_ms = 0.0;
     transport::MonteCarloResult::Noise noise;
     if (a.against == "truth") {
@@ -169,6 +186,7 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
         to.seed = a.seed;
         view::StormView::TruthSolve solved = view.solve_truth(t, opt.components, to, !shown_field);
         direct = std::move(solved.field);
+        direct_rain = std::move(solved.rain);
         solve_s = solved.seconds;
         frame_ms = solved.basis_ms;
         noise = solved.noise;
@@ -189,7 +207,8 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
     const auto nothing = [] {};
     int w = 0, h = 0;
     const app::RadianceComparison c =
-        reference_images(view, ctx, cam, t, opt, a, shown_basis, shown_field, &direct, nothing, nothing, shown, w, h);
+        reference_images(view, ctx, cam, t, opt, a, shown_basis, shown_light,
+                         {&direct, direct_rain.data.empty() ? nullptr : &direct_rain}, nothing, nothing, shown, w, h);
     std::printf(
         "{\"name\":\"fulgur-shot-reference\",\"against\":\"%s\",\"quality\":\"%s\",\"lit\":%s,"
         "\"sources\":%zu,\"active_lights\":%zu,\"reference_noise\":%.4g,"
@@ -210,7 +229,7 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
 // of the cloud's radiance in the image, as JSON.
 void render_static_reference(view::StormView& view, platform::Context* ctx, const render::Camera& cam, double t,
                              const view::ViewOptions& opt, const app::ShotArgs& a,
-                             const std::vector<std::uint8_t>& shown_basis, const transport::SourceField* shown_field) {
+                             const std::vector<std::uint8_t>& shown_basis, GivenLight shown_light) {
     sky::TruthOptions to;
     to.paths = a.truth_paths;
     to.seed = a.seed;
@@ -231,7 +250,7 @@ void render_static_reference(view::StormView& view, platform::Context* ctx, cons
     app::DisplayDifference shown;
     int w = 0, h = 0;
     const app::RadianceComparison c = reference_images(
-        view, ctx, cam, t, opt, a, shown_basis, shown_field, shown_field, [&] { view.set_static_light(truth.light); },
+        view, ctx, cam, t, opt, a, shown_basis, shown_light, shown_light, [&] { view.set_static_light(truth.light); },
         [&] { view.set_static_light(solved); }, shown, w, h);
     std::printf(
         "{\"name\":\"fulgur-shot-static-reference\",\"against\":\"static\",\"sun\":%s,\"sky\":%s,"
@@ -301,9 +320,10 @@ std::string frame_label(view::StormView& view, double t, const app::ShotArgs& a)
 // --exr: the frame's linear radiance (and with --exr-passes its terms and transmittance), the
 // camera as vectors and as OpenEXR's standard worldToCamera / worldToNDC, the units.
 void write_frame_exr(view::StormView& view, const render::Camera& cam, double t, const view::ViewOptions& opt,
-                     const app::ShotArgs& a, const transport::SourceField* shown_field, double shown_exposure,
-                     const std::filesystem::path& out, const std::string& lit_by) {
-    const view::LinearFrame f = view::render_linear(view, cam, t, a.width, a.height, opt, shown_field, a.exr_passes);
+                     const app::ShotArgs& a, GivenLight shown, double shown_exposure, const std::filesystem::path& out,
+                     const std::string& lit_by) {
+    const view::LinearFrame f =
+        view::render_linear(view, cam, t, a.width, a.height, opt, shown.source, a.exr_passes, shown.rain);
     std::vector<app::ExrLayer> layers{{"", {"R", "G", "B"}, f.radiance}};
     for (const view::LinearPass& p : f.passes) layers.push_back({p.name, {"R", "G", "B"}, p.rgb});
     if (!f.transmittance.empty()) layers.push_back({"T", {"Y"}, f.transmittance});
@@ -453,18 +473,20 @@ int main(int argc, char** argv) {
         const scene::CameraSpec stated = chosen && chosen->kind == scene::CameraSpec::Kind::LookAt
                                              ? *chosen
                                              : view::explicit_orbit(chosen, view.density());
-        std::optional<transport::SourceField> shown;  // --since-known: the frame as it was then
+        std::optional<transport::SourceField> shown, shown_rain;  // --since-known: the frame as it was then
         if (a.since_known_ms) {
             opt.wait_for_strikes = false;
-            shown = since_known_field(view, t, opt, a);
+            shown = since_known_field(view, t, opt, a, shown_rain);
         }
         const transport::SourceField* shown_field = shown ? &*shown : nullptr;
+        const GivenLight shown_light{shown_field, shown_rain ? &*shown_rain : nullptr};
         // Medians over --repeat frames: the first one also compiles shaders and uploads the
         // density; the run time rebuilds the same frame each time (same strike, same t). The
         // frame index (which varies the ray-march jitter) stays the same too, so the image
         // written is the one a single render writes: --repeat only times it.
         std::vector<view::FrameReport> reps;
-        for (int k = 0; k < a.repeat; ++k) reps.push_back(view.render(cam, t, a.width, a.height, opt, shown_field));
+        for (int k = 0; k < a.repeat; ++k)
+            reps.push_back(view.render(cam, t, a.width, a.height, opt, shown_light.source, shown_light.rain));
         view::FrameReport r = reps.back();
         if (reps.size() > 1) r = view::median_report(reps);
         ctx->present();
@@ -475,11 +497,11 @@ int main(int argc, char** argv) {
         std::cout << line << ",\"camera\":" << scene::camera_json(stated) << "}" << std::endl;
         if (a.vdb) write_frame_vdb(view, t, opt, a, shown_field);
         if (a.blender) write_frame_blender(view, cam, t, opt, a, loaded.undetailed ? &*loaded.undetailed : nullptr);
-        if (a.exr) write_frame_exr(view, cam, t, opt, a, shown_field, r.gpu.exposure, *a.exr, "");
+        if (a.exr) write_frame_exr(view, cam, t, opt, a, shown_light, r.gpu.exposure, *a.exr, "");
         if (a.reference && a.against == "static")
-            render_static_reference(view, ctx.get(), cam, t, opt, a, px, shown_field);
+            render_static_reference(view, ctx.get(), cam, t, opt, a, px, shown_light);
         else if (a.reference)
-            render_reference(view, ctx.get(), cam, t, opt, a, px, shown_field);
+            render_reference(view, ctx.get(), cam, t, opt, a, px, shown_light);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fulgur-shot: %s\n", e.what());
         return app::kExitFailure;

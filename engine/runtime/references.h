@@ -60,6 +60,9 @@ struct Truth {
     double seconds = 0.0;
     /// The components asked for, summed (a field like direct_solve's).
     transport::SourceField sum(const Components& c = {}) const;
+    /// The light of orders >= 2 at the rain as runtime::Frame::rain holds it: `multiple` over
+    /// the cloud's albedo (> 0), read by the renderer where the rain is.
+    transport::SourceField rain_light(double albedo) const;
 };
 
 /// What every method is measured against: Monte Carlo of the frame's lit channel (its lit

@@ -14,6 +14,13 @@ transport::SourceField Truth::sum(const Components& c) const {
     return out;
 }
 
+transport::SourceField Truth::rain_light(double albedo) const {
+    FULGUR_ASSERT(albedo > 0.0, "Truth::rain_light: the albedo must be positive");
+    transport::SourceField out = multiple;
+    for (float& v : out.data) v = float(double(v) / albedo);
+    return out;
+}
+
 Truth truth(const scene::Scene& scene, const core::Grid3<float>& density, std::span<const lightning::LitSegment> lit,
             std::span<const transport::PointSource> points, const TruthOptions& options) {
     // With rain, the medium the presets' strike solves see (FramePipeline): the rain as cloud

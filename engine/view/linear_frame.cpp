@@ -21,11 +21,12 @@ render::Settings dark(render::Settings st) {
 }  // namespace
 
 LinearFrame render_linear(StormView& view, const render::Camera& camera, double t, int width, int height,
-                          const ViewOptions& options, const transport::SourceField* source, bool passes) {
+                          const ViewOptions& options, const transport::SourceField* source, bool passes,
+                          const transport::SourceField* rain_source) {
     ViewOptions o = options;
     o.settings.glare = false;
     o.settings.auto_exposure = false;  // radiance: the exposure is not applied, so not metered
-    view.render(camera, t, width, height, o, source);
+    view.render(camera, t, width, height, o, source, rain_source);
     render::Renderer& r = view.renderer();
     LinearFrame f;
     f.width = width;

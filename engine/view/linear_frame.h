@@ -41,6 +41,6 @@ struct LinearFrame {
 /// the transmittance is the frame seen against a uniform unit sky with no light.
 LinearFrame render_linear(StormView& view, const render::Camera& camera, double t, int width, int height,
                           const ViewOptions& options, const transport::SourceField* source = nullptr,
-                          bool passes = false);
+                          bool passes = false, const transport::SourceField* rain_source = nullptr);
 
 }  // namespace fulgur::view

@@ -268,6 +268,8 @@ StormView::TruthSolve StormView::solve_truth(double t, const runtime::Components
     const runtime::Truth truth = runtime::truth(scene_, density_, last_->segments, {}, o);
     out.seconds = sw.seconds();
     out.field = truth.sum(components);
+    if (scene_.rain && components.multiple && scene_.medium.albedo > 0.0)
+        out.rain = truth.rain_light(scene_.medium.albedo);
     out.noise = truth.noise;
     return out;
 }
@@ -398,20 +400,21 @@ double StormView::warm_up(const render::Camera& camera, int width, int height, c
 }
 
 FrameReport StormView::render(const render::Camera& camera, double t, int width, int height, const ViewOptions& options,
-                              const transport::SourceField* source) {
+                              const transport::SourceField* source, const transport::SourceField* rain_source) {
     using clock = std::chrono::steady_clock;
     const auto t0 = clock::now();
     FrameReport rep;
-    upload_frame(camera, t, options, source, rep);
+    upload_frame(camera, t, options, source, rain_source, rep);
     rep.gpu = renderer_->render(camera, frame_settings(options), width, height);
     rep.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - t0).count();
     return rep;
 }
 
 void StormView::upload_frame(const render::Camera& camera, double t, const ViewOptions& options,
-                             const transport::SourceField* source, FrameReport& rep) {
+                             const transport::SourceField* source, const transport::SourceField* rain_source,
+                             FrameReport& rep) {
     if (pipeline_) {
-        render_lightning(camera, t, options, source, rep);
+        render_lightning(camera, t, options, source, rain_source, rep);
     } else {
         if (source) throw core::Error("StormView::render", "the scene has no lightning: no field to show");
         renderer_->set_channel({});
@@ -427,7 +430,7 @@ FrameReport StormView::render_into_host(const render::HostFrame& host, double t,
     const render::Camera camera =
         render::camera_from_matrices(host.view, host.projection, double(width) / double(height));
     FrameReport rep;
-    upload_frame(camera, t, options, nullptr, rep);
+    upload_frame(camera, t, options, nullptr, nullptr, rep);
     rep.gpu = renderer_->render_into_host(host, frame_settings(options), width, height);
     rep.wall_ms = std::chrono::duration<double, std::milli>(clock::now() - t0).count();
     return rep;
@@ -458,7 +461,8 @@ render::Settings StormView::frame_settings(const ViewOptions& options) const {
 }
 
 void StormView::render_lightning(const render::Camera& camera, double t, const ViewOptions& options,
-                                 const transport::SourceField* source, FrameReport& rep) {
+                                 const transport::SourceField* source, const transport::SourceField* rain_source,
+                                 FrameReport& rep) {
     const int ndir = int(bases_->directions().size());
     std::vector<int> dirs;
     for (const render::DirectionUse& u :
@@ -486,7 +490,17 @@ void StormView::render_lightning(const render::Camera& camera, double t, const V
         up.directions = dirs;
         for (int m : dirs) up.values.push_back(source->direction(std::size_t(m)));
         renderer_->upload_source(up);
-        renderer_->clear_rain_source();  // a given S: the channel alone lights the rain
+        if (rain_source && !rain_source->data.empty()) {
+            check_field(*rain_source, "StormView::render (rain_source)");
+            render::SourceUpload rain;
+            rain.geometry = rain_source->geom;
+            rain.direction_count = ndir;
+            rain.directions = dirs;
+            for (int m : dirs) rain.values.push_back(rain_source->direction(std::size_t(m)));
+            renderer_->upload_rain_source(rain);
+        } else {
+            renderer_->clear_rain_source();  // the channel alone lights the rain
+        }
     } else if (f.lit && !f.radiance.values.empty()) {
         // S on the transport grid where the quality keeps the strikes there.
         const runtime::RadianceField& r = f.fine.values.empty() ? f.radiance : f.fine;

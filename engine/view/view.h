@@ -109,9 +109,13 @@ public:
     /// Builds the frame at time t and renders it into the bound framebuffer. With `source`
     /// (a field on the bases' lighting grid with all their directions, e.g. solve_direct's),
     /// the cloud is lit by that field instead of the reconstruction: the bolt, glow and
-    /// ground still come from the frame at t, so two renders differ only in S.
+    /// ground still come from the frame at t, so two renders differ only in S. With `source`,
+    /// `rain_source` (the same layout) is the flash's light of orders >= 2 at the rain per unit
+    /// albedo (runtime::Frame::rain's, e.g. TruthSolve::rain); null: the channel alone lights
+    /// the rain.
     FrameReport render(const render::Camera& camera, double t, int width, int height, const ViewOptions& options,
-                       const transport::SourceField* source = nullptr);
+                       const transport::SourceField* source = nullptr,
+                       const transport::SourceField* rain_source = nullptr);
     /// Compiles the renderer's programs a storm's frames will ask for, so that the first flash,
     /// the first camera move and the first leader do not stall the frames that show them (a
     /// software rasterizer compiles a program at its first draw: ~0.2-0.5 s a program without
@@ -160,6 +164,10 @@ public:
     /// directions; times the frame like solve_direct. `noise` is the truth's own estimate.
     struct TruthSolve {
         transport::SourceField field;
+        /// With rain and the multiple component: the truth's multiple S over the cloud's albedo,
+        /// the light of orders >= 2 at the rain as runtime::Frame::rain holds it (render()'s
+        /// rain_source); empty otherwise.
+        transport::SourceField rain;
         transport::MonteCarloResult::Noise noise;
         double seconds = 0.0, basis_ms = 0.0;
     };
@@ -235,10 +243,12 @@ private:
     void check_field(const transport::SourceField& f, const char* where) const;  // throws core::Error
     void update_static_light(const ViewOptions& options);                        // uploads what changed
     void render_lightning(const render::Camera& camera, double t, const ViewOptions& options,
-                          const transport::SourceField* source, FrameReport& rep);
+                          const transport::SourceField* source, const transport::SourceField* rain_source,
+                          FrameReport& rep);
     /// The frame at t into the renderer: its lightning (or none) and the static light.
     void upload_frame(const render::Camera& camera, double t, const ViewOptions& options,
-                      const transport::SourceField* source, FrameReport& rep);
+                      const transport::SourceField* source, const transport::SourceField* rain_source,
+                      FrameReport& rep);
     scene::Scene scene_;
     core::Grid3<float> density_;
     sky::ScenePlan plan_;
