@@ -308,6 +308,27 @@ double StormView::reconstruction_error(const transport::SourceField& reference) 
 
 namespace {
 
+// A field on the lighting grid with every direction, as the renderer takes it: the directions
+// `dirs` of `ndir`.
+render::SourceUpload upload_of(const transport::SourceField& f, int ndir, const std::vector<int>& dirs) {
+    render::SourceUpload up;
+    up.geometry = f.geom;
+    up.direction_count = ndir;
+    up.directions = dirs;
+    for (int m : dirs) up.values.push_back(f.direction(std::size_t(m)));
+    return up;
+}
+
+// A frame's field (the directions it holds), as the renderer takes it.
+render::SourceUpload upload_of(const runtime::RadianceField& r) {
+    render::SourceUpload up;
+    up.geometry = r.geometry;
+    up.direction_count = r.direction_count;
+    up.directions = r.directions;
+    for (const auto& v : r.values) up.values.emplace_back(v.data(), v.size());
+    return up;
+}
+
 // What the renderer draws of the lit stretches: each with its intensity and the drawn radius.
 render::LitChannel lit_channel(std::span<const lightning::LitSegment> lit, double radius) {
     render::LitChannel bolt;
@@ -484,42 +505,20 @@ void StormView::render_lightning(const render::Camera& camera, double t, const V
     renderer_->set_channel(channel);
     if (source) {
         check_field(*source, "StormView::render");
-        render::SourceUpload up;
-        up.geometry = source->geom;
-        up.direction_count = ndir;
-        up.directions = dirs;
-        for (int m : dirs) up.values.push_back(source->direction(std::size_t(m)));
-        renderer_->upload_source(up);
+        renderer_->upload_source(upload_of(*source, ndir, dirs));
         if (rain_source && !rain_source->data.empty()) {
             check_field(*rain_source, "StormView::render (rain_source)");
-            render::SourceUpload rain;
-            rain.geometry = rain_source->geom;
-            rain.direction_count = ndir;
-            rain.directions = dirs;
-            for (int m : dirs) rain.values.push_back(rain_source->direction(std::size_t(m)));
-            renderer_->upload_rain_source(rain);
+            renderer_->upload_rain_source(upload_of(*rain_source, ndir, dirs));
         } else {
             renderer_->clear_rain_source();  // the channel alone lights the rain
         }
     } else if (f.lit && !f.radiance.values.empty()) {
         // S on the transport grid where the quality keeps the strikes there.
-        const runtime::RadianceField& r = f.fine.values.empty() ? f.radiance : f.fine;
-        render::SourceUpload up;
-        up.geometry = r.geometry;
-        up.direction_count = r.direction_count;
-        up.directions = r.directions;
-        for (const auto& v : r.values) up.values.emplace_back(v.data(), v.size());
-        renderer_->upload_source(up);
-        if (f.rain.values.empty()) {
+        renderer_->upload_source(upload_of(f.fine.values.empty() ? f.radiance : f.fine));
+        if (f.rain.values.empty())
             renderer_->clear_rain_source();
-        } else {
-            render::SourceUpload rain;
-            rain.geometry = f.rain.geometry;
-            rain.direction_count = f.rain.direction_count;
-            rain.directions = f.rain.directions;
-            for (const auto& v : f.rain.values) rain.values.emplace_back(v.data(), v.size());
-            renderer_->upload_rain_source(rain);
-        }
+        else
+            renderer_->upload_rain_source(upload_of(f.rain));
     } else {
         renderer_->clear_source();
     }
