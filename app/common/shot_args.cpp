@@ -172,10 +172,15 @@ void declare(CommandLine& cli, ShotArgs& a) {
                    throw core::Error(kTool, what);
            },
            "the frame as a strike nobody scheduled shows it MS ms of wall time after it became known (0: its first "
-           "lit frame; frames at 60 fps meanwhile, lookahead 0); \"leader\": the strike triggered at its leader's "
-           "start, the leader's frames at their own storm time (\"Strike now\"); without it the strike's own solve "
-           "is waited for")
+           "lit frame; frames at 60 fps meanwhile, lookahead 0; the demo's \"Strike now\": under a preset that "
+           "solves strikes ahead it is lit the instant way meanwhile); \"leader\": the strike triggered at its "
+           "leader's start, the leader's frames at their own storm time; without it the strike's own solve is "
+           "waited for")
         ->type_name("MS|leader");
+    app.add_flag("--without-instant", a.without_instant,
+                 "with --since-known under a preset that solves strikes ahead (hybrid, per_strike, per_strike_mc, "
+                 "reference): the strike as one scheduled with no lookahead, lit by the preset's own solve when "
+                 "it is ready and by the bases until then (the preset without the instant way)");
     path_option(app, "--vdb", a.vdb, ".vdb",
                 "also write the density and the frame's lightning S in every direction (grids density, S_00, S_01, "
                 "...) as OUT.vdb (OpenVDB, metres), for Houdini, Blender or ParaView")
@@ -211,6 +216,7 @@ std::string shot_usage() { return usage_of<ShotArgs>(kTool, kDescription, declar
 ShotArgs parse_shot_args(const std::vector<std::string>& args) {
     return parse_args<ShotArgs>(kTool, kDescription, args, declare, [](const CommandLine&, const ShotArgs& a) {
         if (a.exr_passes && !a.exr) throw core::Error(kTool, "--exr-passes goes with --exr OUT.exr");
+        if (a.without_instant && !a.since_known_ms) throw core::Error(kTool, "--without-instant goes with --since-known");
         std::vector<core::NamedPath> outputs{{"image (-o)", a.output}};
         if (a.exr) outputs.push_back({"EXR (--exr)", *a.exr});
         if (a.reference) {

@@ -55,11 +55,16 @@ struct ShotArgs {
     /// --since-known MS: the frame as a strike nobody scheduled shows it MS milliseconds of wall
     /// time after it became known (runtime::build_since_known: lookahead 0, frames at 60 fps
     /// meanwhile, then the per-strike work stops and the frame is what exists); 0 is its first
-    /// lit frame. Without it the strike's own solve is waited for. `--since-known leader`: the
+    /// lit frame; under a preset that solves strikes ahead the strike is lit the instant way
+    /// meanwhile, as the demo's "Strike now" (FramePipeline::strike_at(..., known_ahead = false)).
+    /// Without it the strike's own solve is waited for. `--since-known leader`: the
     /// strike triggered at its leader's start, its leader's frames built at their own storm time
     /// (what "Strike now" shows at --time); since_known_ms is then set from the strike's timing.
     std::optional<double> since_known_ms;
     bool since_leader = false;
+    /// --without-instant (with --since-known): the strike counted as scheduled with lookahead 0
+    /// under a preset that solves strikes ahead, so no instant tracing lights it meanwhile.
+    bool without_instant = false;
     /// --vdb OUT.vdb: also write the density and the frame's lightning S (every direction, on
     /// the lighting grid) as OpenVDB.
     std::optional<std::filesystem::path> vdb;

@@ -111,8 +111,7 @@ void AccuracyPanel::update(double t, const view::ViewOptions& options) {
         if (truth) {
             const runtime::Truth tr = runtime::truth(scene, density, segments);
             r.field = tr.sum(components);
-            if (scene.rain && components.multiple && scene.medium.albedo > 0.0)
-                r.rain = tr.rain_light(scene.medium.albedo);
+            r.rain = tr.rain_light(scene, components);
             r.noise = tr.noise.total;
         } else {
             r.field = runtime::direct_solve(scene, media, sources, components);

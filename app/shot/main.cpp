@@ -53,23 +53,15 @@ transport::SourceField since_known_field(view::StormView& view, double t, const 
     const runtime::Frame& f = runtime::build_since_known(p, t, *a.since_known_ms, {}, ro, &seen, a.since_leader);
     if (runtime::InstantStrikes* is = p.instant_strikes()) is->set_paused(true);
     if (runtime::StrikeSolver* ss = p.strike_solver()) ss->set_paused(true);
-    transport::SourceField field(view.bases().lighting(), view.bases().directions());
-    if (f.lit)
-        for (std::size_t k = 0; k < f.radiance.directions.size(); ++k)
-            std::copy(f.radiance.values[k].begin(), f.radiance.values[k].end(),
-                      field.direction(std::size_t(f.radiance.directions[k])).begin());
-    if (f.lit && !f.rain.values.empty()) {  // the light at the rain as it was shown then
-        rain.emplace(view.bases().lighting(), view.bases().directions());
-        for (std::size_t k = 0; k < f.rain.directions.size(); ++k)
-            std::copy(f.rain.values[k].begin(), f.rain.values[k].end(),
-                      rain->direction(std::size_t(f.rain.directions[k])).begin());
-    }
+    transport::SourceField field = f.lit ? runtime::every_direction(f.radiance)
+                                         : transport::SourceField(view.bases().lighting(), view.bases().directions());
+    if (f.lit && !f.rain.values.empty()) rain = runtime::every_direction(f.rain);  // the rain's light as shown then
     std::printf(
         "{\"name\":\"fulgur-shot-since-known\",\"quality\":\"%s\",\"since_known_ms\":%.4g,"
-        "\"triggered_at_leader_start\":%s,\"frames_meanwhile\":%d,\"frame_ms_median\":%.4g,\"frame_ms_max\":%.4g,"
+        "\"triggered_at_leader_start\":%s,\"instant_way\":%s,\"frames_meanwhile\":%d,\"frame_ms_median\":%.4g,\"frame_ms_max\":%.4g,"
         "\"strikes_solved\":%zu,\"strikes_fallback\":%zu,\"instant_weight\":%.4g}\n",
         std::string(scene::to_string(p.quality().preset)).c_str(), *a.since_known_ms, a.since_leader ? "true" : "false",
-        seen.frames, seen.median_frame_ms, seen.max_frame_ms, f.strikes_solved, f.strikes_fallback, f.instant_weight);
+        p.instant_strikes() ? "true" : "false", seen.frames, seen.median_frame_ms, seen.max_frame_ms, f.strikes_solved, f.strikes_fallback, f.instant_weight);
     std::fflush(stdout);
     return field;
 }
@@ -268,7 +260,7 @@ void render_static_reference(view::StormView& view, platform::Context* ctx, cons
 std::string since_known_text(const app::ShotArgs& a) {
     if (!a.since_known_ms) return {};
     return ", " + core::format_number(*a.since_known_ms, 6) + " ms after it became known" +
-           (a.since_leader ? " at its leader's start" : "");
+           (a.since_leader ? " at its leader's start" : "") + (a.without_instant ? ", without the instant way" : "");
 }
 
 // --vdb: the density and the frame's lightning S at t in every baked direction (zeros when no
@@ -426,8 +418,17 @@ int main(int argc, char** argv) {
             scene::Quality q = shot_quality(view.scene(), a);
             q = shot_options_quality(view.scene(), q, a);
             if (a.since_known_ms) q.lookahead = 0.0;  // nobody scheduled it
+            using P = scene::Quality::Preset;
+            if (a.without_instant && (q.preset == P::Paper || q.preset == P::Instant))
+                throw core::Error("--without-instant", "the " + std::string(scene::to_string(q.preset)) +
+                                                           " preset solves no strike ahead; use hybrid, per_strike, "
+                                                           "per_strike_mc or reference");
             if (a.quality || a.since_known_ms) view.set_quality(q);
-            const std::size_t strike = view.pipeline().strike_at(0.0, a.seed, /*known_ahead=*/!a.since_leader);
+            // --since-known: known when it strikes, so lit the instant way until the preset's own
+            // solve is ready ("Strike now"); --without-instant: counted as scheduled with
+            // lookahead 0 (the bases until then).
+            const bool known_ahead = !a.since_known_ms || a.without_instant;
+            const std::size_t strike = view.pipeline().strike_at(0.0, a.seed, known_ahead);
             const lightning::Strike& k = view.pipeline().storm().strike(strike);
             if (a.time_after_return_stroke) t += k.profile.stroke_onset.at(0);
             if (a.since_leader) {  // known since the strike started

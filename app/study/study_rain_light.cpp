@@ -187,11 +187,7 @@ FULGUR_STUDY(rain_light, "rain-light",
     wait.wait_for_strikes = true;
     const runtime::Frame& f = pipe.build(pipe.storm().strike(strike).profile.stroke_onset.at(0) + 0.002, {}, wait);
     if (!f.lit || f.ground.empty()) throw core::Error("rain-light", "the strike's frame has no light or no ground");
-    transport::SourceField flash(f.radiance.geometry, transport::output_directions(f.radiance.direction_count));
-    for (std::size_t k = 0; k < f.radiance.directions.size(); ++k) {
-        const std::vector<float>& v = f.radiance.values[k];
-        std::copy(v.begin(), v.end(), flash.direction(std::size_t(f.radiance.directions[k])).begin());
-    }
+    const transport::SourceField flash = runtime::every_direction(f.radiance);
     const std::vector<std::vector<const transport::SourceField*>> flash_group = {{&flash}};
     Csv flash_csv(ctx.file("rain_light_flash.csv"), {"height_m", "view", "model", "points", "l2", "ratio"});
     double worst_flash[2] = {};

@@ -578,6 +578,13 @@ void FramePipeline::Impl::add_rain_light(const std::vector<Lit>& solved, const R
     }
 }
 
+transport::SourceField every_direction(const RadianceField& field) {
+    transport::SourceField out(field.geometry, transport::output_directions(field.direction_count));
+    for (std::size_t k = 0; k < field.directions.size(); ++k)
+        std::copy(field.values[k].begin(), field.values[k].end(), out.direction(std::size_t(field.directions[k])).begin());
+    return out;
+}
+
 const Frame& build_since_known(FramePipeline& pipeline, double t, double since_known_ms,
                                std::span<const int> directions, const ReconstructOptions& options, SinceKnown* seen,
                                bool storm_time_runs) {

@@ -18,6 +18,10 @@
 
 namespace fulgur::runtime {
 
+/// `field` (some of the baked directions) as a field of every baked direction, the others 0:
+/// what a renderer or a comparison with the truth (Truth::sum) reads.
+transport::SourceField every_direction(const RadianceField& field);
+
 /// One frame's lightning state and radiance.
 struct Frame {
     double time = 0.0;

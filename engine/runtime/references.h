@@ -61,8 +61,10 @@ struct Truth {
     /// The components asked for, summed (a field like direct_solve's).
     transport::SourceField sum(const Components& c = {}) const;
     /// The light of orders >= 2 at the rain as runtime::Frame::rain holds it: `multiple` over
-    /// the cloud's albedo (> 0), read by the renderer where the rain is.
-    transport::SourceField rain_light(double albedo) const;
+    /// the cloud's albedo, read by the renderer where the rain is. Empty (no data) unless the
+    /// scene rains, the frame draws the multiple component and the cloud scatters (albedo > 0):
+    /// the renderer's rain is then lit by the channel alone, as the frame's own would be.
+    transport::SourceField rain_light(const scene::Scene& scene, const Components& drawn) const;
 };
 
 /// What every method is measured against: Monte Carlo of the frame's lit channel (its lit

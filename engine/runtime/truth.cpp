@@ -14,8 +14,9 @@ transport::SourceField Truth::sum(const Components& c) const {
     return out;
 }
 
-transport::SourceField Truth::rain_light(double albedo) const {
-    FULGUR_ASSERT(albedo > 0.0, "Truth::rain_light: the albedo must be positive");
+transport::SourceField Truth::rain_light(const scene::Scene& scene, const Components& drawn) const {
+    const double albedo = scene.medium.albedo;
+    if (!(scene.rain && drawn.multiple && albedo > 0.0)) return {};
     transport::SourceField out = multiple;
     for (float& v : out.data) v = float(double(v) / albedo);
     return out;

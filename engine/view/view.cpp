@@ -268,8 +268,7 @@ StormView::TruthSolve StormView::solve_truth(double t, const runtime::Components
     const runtime::Truth truth = runtime::truth(scene_, density_, last_->segments, {}, o);
     out.seconds = sw.seconds();
     out.field = truth.sum(components);
-    if (scene_.rain && components.multiple && scene_.medium.albedo > 0.0)
-        out.rain = truth.rain_light(scene_.medium.albedo);
+    out.rain = truth.rain_light(scene_, components);
     out.noise = truth.noise;
     return out;
 }

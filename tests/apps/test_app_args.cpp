@@ -62,6 +62,12 @@ TEST_CASE("fulgur-shot: a complete command line parses") {
     known.back() = "leader";  // triggered at its leader's start: the time comes from the strike
     CHECK(parse(known).since_leader);
     CHECK(parse(known).since_known_ms.has_value());
+    CHECK_FALSE(parse(known).without_instant);  // an unscheduled strike: the instant way meanwhile
+    known.push_back("--without-instant");
+    CHECK(parse(known).without_instant);
+    std::vector<std::string> alone = good;  // nothing to say without a strike that became known
+    alone.push_back("--without-instant");
+    CHECK_THROWS_WITH_AS(parse(alone), doctest::Contains("--without-instant goes with --since-known"), core::Error);
     more[more.size() - 3] = "0";  // --repeat 0
     CHECK_THROWS_AS(parse(more), core::Error);
     CHECK(a.width == 64);

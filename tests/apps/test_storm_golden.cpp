@@ -202,10 +202,7 @@ TEST_CASE("storm: a render lit by a given field; the direct-solve reference of t
     // bit for bit (the override path uploads exactly what the pipeline would).
     const runtime::Frame& f = view.pipeline().build(t, {}, {});
     REQUIRE(f.lit);
-    transport::SourceField field(view.bases().lighting(), view.bases().directions());
-    for (std::size_t k = 0; k < f.radiance.directions.size(); ++k)
-        std::copy(f.radiance.values[k].begin(), f.radiance.values[k].end(),
-                  field.direction(std::size_t(f.radiance.directions[k])).begin());
+    const transport::SourceField field = runtime::every_direction(f.radiance);
     CHECK(shot(&field) == own);
 
     // The direct solve: finite, non-negative energy, and a visibly different image on this
