@@ -216,7 +216,8 @@ std::string shot_usage() { return usage_of<ShotArgs>(kTool, kDescription, declar
 ShotArgs parse_shot_args(const std::vector<std::string>& args) {
     return parse_args<ShotArgs>(kTool, kDescription, args, declare, [](const CommandLine&, const ShotArgs& a) {
         if (a.exr_passes && !a.exr) throw core::Error(kTool, "--exr-passes goes with --exr OUT.exr");
-        if (a.without_instant && !a.since_known_ms) throw core::Error(kTool, "--without-instant goes with --since-known");
+        if (a.without_instant && !a.since_known_ms)
+            throw core::Error(kTool, "--without-instant goes with --since-known");
         std::vector<core::NamedPath> outputs{{"image (-o)", a.output}};
         if (a.exr) outputs.push_back({"EXR (--exr)", *a.exr});
         if (a.reference) {

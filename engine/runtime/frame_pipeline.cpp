@@ -130,7 +130,8 @@ struct FramePipeline::Impl {
     struct Lit {
         std::shared_ptr<const StrikeLight> light;
         double main = 0.0, branch = 0.0;
-        bool rain = false;  // solved with the rain in its media: its multiple S lights the rain
+        bool rain = false;        // solved with the rain in its media: its multiple S lights the rain
+        double rain_scale = 1.0;  // its multiple S at the rain is `light`'s times this
     };
     // The solved strikes' ground tallies, each group scaled by its glow, into the frame's
     // (every strike of the scene is tallied on the same cells: strike_ground()).
@@ -257,8 +258,12 @@ void FramePipeline::Impl::add_instant(const lightning::Strike& k, const lightnin
     }
     ++f.strikes_solved;
     f.instant_weight = std::min(f.instant_weight, 1.0 - s.bases);
-    // Its multiple S at the rain is the estimate's share (w); the bases' carry none there.
-    solved.push_back({s.light, st.main_glow, st.branch_glow, instant->traces_rain()});
+    // At the rain the bases carry no light: there the estimates' light, which s.light holds
+    // with their share 1 - s.bases, is weighed against none (StrikeEstimate::rain_weight). A
+    // share under 1e-3 (the estimates discarded) is not scaled up: the rain is then unlit.
+    const double estimates_share = 1.0 - s.bases;
+    const double rain_scale = estimates_share >= 1e-3 ? s.target->rain_weight() / estimates_share : 0.0;
+    solved.push_back({s.light, st.main_glow, st.branch_glow, instant->traces_rain(), rain_scale});
     // The strokes' share of the bases: from the worker's bases' frame of each group when it
     // holds what this frame asks for (both components, no ambient term: how it was made), so
     // the frame reconstructs only the leaders; else splatted and reconstructed with them.
@@ -567,7 +572,7 @@ void FramePipeline::Impl::add_rain_light(const std::vector<Lit>& solved, const R
         const std::size_t m = std::size_t(r.directions[k]);
         for (const Lit& l : solved) {
             if (!wet(l)) continue;
-            const float w[2] = {float(l.main / albedo), float(l.branch / albedo)};
+            const float w[2] = {float(l.rain_scale * l.main / albedo), float(l.rain_scale * l.branch / albedo)};
             for (std::size_t q = 0; q < 2; ++q) {
                 const std::span<const float> v = StrikeLight::direction(l.light->multiple[q], m);
                 FULGUR_ASSERT(v.size() == cells, "FramePipeline: a strike's multiple S is not on the lighting grid");
@@ -581,7 +586,8 @@ void FramePipeline::Impl::add_rain_light(const std::vector<Lit>& solved, const R
 transport::SourceField every_direction(const RadianceField& field) {
     transport::SourceField out(field.geometry, transport::output_directions(field.direction_count));
     for (std::size_t k = 0; k < field.directions.size(); ++k)
-        std::copy(field.values[k].begin(), field.values[k].end(), out.direction(std::size_t(field.directions[k])).begin());
+        std::copy(field.values[k].begin(), field.values[k].end(),
+                  out.direction(std::size_t(field.directions[k])).begin());
     return out;
 }
 

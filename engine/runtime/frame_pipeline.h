@@ -48,9 +48,10 @@ struct Frame {
     /// points, per unit albedo (S / the cloud's albedo), scaled by their glow. Their media hold
     /// the rain (sky::make_static_media), so it is the flash-lit cloud's light sent down into
     /// the rain and the rain's own multiple scattering, read out with the drops' phase function
-    /// by each cell's share of rain. A strike lit the instant way contributes its estimate's
-    /// share (its weight against the bases, which carry none at the rain; nothing before its
-    /// first estimate). The renderer's rain scatters it by the rain's albedo and draws the
+    /// by each cell's share of rain. A strike lit the instant way contributes its estimates'
+    /// light weighed against none (the bases carry no light at the rain:
+    /// StrikeEstimate::rain_weight), not their share of the cloud's; nothing before its first
+    /// estimate. The renderer's rain scatters it by the rain's albedo and draws the
     /// channel's own light (its first order, attenuated by the rain on its way) from the
     /// channel itself.
     /// On the lighting grid, the directions of `radiance`; empty (no values) otherwise.

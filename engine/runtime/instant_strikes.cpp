@@ -30,6 +30,11 @@ double StrikeEstimate::weight() const noexcept {
     return w > 0.99 ? 1.0 : w;
 }
 
+double StrikeEstimate::rain_weight() const noexcept {
+    const double w = 1.0 / (1.0 + light.noise.total * light.noise.total);
+    return w > 0.99 ? 1.0 : w;
+}
+
 InstantOptions instant_options(const scene::Quality& q) {
     InstantOptions o;
     o.max_single_paths = q.single_paths;

@@ -45,6 +45,10 @@ struct StrikeEstimate {
     /// inverse-variance weights, e_b^2 / (e_b^2 + noise^2); 1 when the bases' error is unknown
     /// or the bases' share would be under 1%.
     double weight() const noexcept;
+    /// The same weight where the bases carry no light at all (the rain's points: their error
+    /// is 100% there), 1 / (1 + noise^2), the estimate's noise over the cloud standing for its
+    /// noise there; 1 when the bases' share would be under 1%.
+    double rain_weight() const noexcept;
 };
 
 /// How the progressive solves run (instant_options: from a quality preset).

@@ -364,9 +364,10 @@ TEST_CASE("truth: with rain, a solved strike's light at the rain (Frame::rain) a
 
 TEST_CASE("truth: with rain, a strike lit the instant way lights the rain as the truth does") {
     // The same scene and strike under the instant preset, nobody scheduling it: its tracers
-    // trace the rain (InstantStrikes::traces_rain), and the frame's light at the rain is the
-    // estimate's share, weight w against the bases (which carry none there). Run to
-    // the path caps, the frame's field over w is the truth's.
+    // trace the rain (InstantStrikes::traces_rain). Over the cloud the frame shows the estimate
+    // with weight w against the bases; at the rain, where the bases carry no light, the estimate
+    // weighed against none (StrikeEstimate::rain_weight, 1 at noise under 10%). Run to the path
+    // caps, the frame's light at the rain is the truth's.
     const test::TruthScene& s = rain_scene();
     scene::Quality q = scene::quality_preset("instant");
     q.lookahead = 0.0;
@@ -383,18 +384,19 @@ TEST_CASE("truth: with rain, a strike lit the instant way lights the rain as the
     REQUIRE(est);
     REQUIRE(est->final);
     const double w = est->weight();
+    CHECK(est->rain_weight() == 1.0);
     const RainCells rc = rain_cells(s);
     runtime::TruthOptions to;
     to.paths = 1'000'000;
     const runtime::Truth truth = runtime::truth(s.scene, s.density, f.segments, {}, to);
     std::vector<float> frame = flat(f.rain);
-    for (float& v : frame) v *= float(s.scene.medium.albedo / w);
+    for (float& v : frame) v *= float(s.scene.medium.albedo);
     const test::FieldError e = compare_fields(frame, truth.multiple.data, rc.wet),
                            a = compare_fields(frame, truth.multiple.data, rc.only_rain);
     // The cloud's S: the shown light (w x the estimate + (1 - w) x the bases), whose channel
     // light reaches the cloud through the rain as the truth's does.
     const test::FieldError c = compare_fields(flat(f.radiance), truth.sum().data, s.media.lighting.density.data);
-    MESSAGE("instant, w = " << w << ": the rain's light over w " << e.l2 << " relative L2 (sum ratio " << e.ratio
+    MESSAGE("instant, w = " << w << ": the rain's light " << e.l2 << " relative L2 (sum ratio " << e.ratio
                             << "); rain alone " << a.l2 << " (" << a.ratio << "); the cloud's S " << c.l2 << " ("
                             << c.ratio << "); truth noise " << truth.noise.single << " / " << truth.noise.multiple);
     // Measured (w = 1): the rain's light 1.5% relative L2, sum ratio 1.001; rain alone 1.8%
@@ -408,4 +410,34 @@ TEST_CASE("truth: with rain, a strike lit the instant way lights the rain as the
     CHECK(std::fabs(e.ratio - 1.0) <= 0.02);
     CHECK(c.l2 <= 0.02);
     CHECK(std::fabs(c.ratio - 1.0) <= 0.02);
+
+    // An early estimate, which the bases still share the cloud with (a few thousand paths):
+    // at the rain its light is not cut to its share w of the cloud's.
+    scene::Quality early = q;
+    early.single_paths = 400;
+    early.multiple_paths = 400;
+    runtime::FramePipeline pe(s.scene, s.density, *s.bases, {}, early);
+    double te = 0.0;
+    const runtime::Frame& fe = rain_frame(pe, s, te);
+    const auto ee = pe.instant_strikes()->get(k.seed, k.time);
+    REQUIRE(ee);
+    std::vector<float> rain_e = flat(fe.rain);
+    for (float& v : rain_e) v *= float(s.scene.medium.albedo);
+    const test::FieldError r = compare_fields(rain_e, truth.multiple.data, rc.wet);
+    const double we = ee->weight(), rw = ee->rain_weight();
+    std::vector<float> cut = rain_e;  // the estimate at its share of the cloud's light
+    for (float& v : cut) v *= float(we / rw);
+    const test::FieldError rc_cut = compare_fields(cut, truth.multiple.data, rc.wet);
+    MESSAGE("early estimate: noise " << ee->light.noise.total << ", w = " << we << ", rain weight " << rw
+                                     << ": the rain's light " << r.l2 << " relative L2 (sum ratio " << r.ratio
+                                     << "); cut to w: " << rc_cut.l2 << " (" << rc_cut.ratio << ")");
+    // Measured (400 + 400 paths, seed 5's strike): noise 19.6%, w 0.44, rain weight 0.963; the
+    // rain's light 36% relative L2 (its own noise), sum ratio 0.968, i.e. the estimate's sum
+    // 0.5% from the truth's (1.8% with 2000 + 4000 paths). Cut to w: 60%, ratio 0.44. Bounds: the
+    // weight is the one asked for (w < 0.8, so the case is one the bases share); the sum ratio
+    // over the rain weight within 10% of 1, several times the estimate's measured sum errors
+    // and a fifth of the cut's 56%; and nearer the truth than the cut.
+    REQUIRE(we < 0.8);
+    CHECK(std::fabs(r.ratio / rw - 1.0) <= 0.1);
+    CHECK(r.l2 < rc_cut.l2);
 }
