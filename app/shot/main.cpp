@@ -58,9 +58,9 @@ transport::SourceField since_known_field(view::StormView& view, double t, const 
     if (f.lit && !f.rain.values.empty()) rain = runtime::every_direction(f.rain);  // the rain's light as shown then
     std::printf(
         "{\"name\":\"fulgur-shot-since-known\",\"quality\":\"%s\",\"since_known_ms\":%.4g,"
-        "\"triggered_at_leader_start\":%s,\"instant_way\":%s,\"frames_meanwhile\":%d,\"frame_ms_median\":%.4g,\"frame_"
-        "ms_max\":%.4g,"
-        "\"strikes_solved\":%zu,\"strikes_fallback\":%zu,\"instant_weight\":%.4g}\n",
+        "\"triggered_at_leader_start\":%s,\"instant_way\":%s,\"frames_meanwhile\":%d,"
+        "\"frame_ms_median\":%.4g,\"frame_ms_max\":%.4g,\"strikes_solved\":%zu,\"strikes_fallback\":%zu,"
+        "\"instant_weight\":%.4g}\n",
         std::string(scene::to_string(p.quality().preset)).c_str(), *a.since_known_ms, a.since_leader ? "true" : "false",
         p.instant_strikes() ? "true" : "false", seen.frames, seen.median_frame_ms, seen.max_frame_ms, f.strikes_solved,
         f.strikes_fallback, f.instant_weight);
