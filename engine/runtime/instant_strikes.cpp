@@ -475,7 +475,9 @@ struct InstantStrikes::Impl {
         RadianceField r;
         StageTimes times;
         ReconstructOptions o;
-        o.parallel_min_work = ~std::size_t(0);  // this thread only: the tracing has the other cores
+        // On the worker's threads, whatever the work: the tracing waits for it (the first
+        // estimate's two reconstructions 3.55 -> 2.84 ms on the default storm, 2 threads).
+        o.parallel_min_work = 0;
         std::vector<float> b;
         if (!rec.reconstruct(w, {}, o, r, times)) return b;
         for (const std::vector<float>& d : r.values) b.insert(b.end(), d.begin(), d.end());
