@@ -43,7 +43,7 @@ const transport::SourceField* AccuracyPanel::shown_field() const noexcept {
 }
 
 const transport::SourceField* AccuracyPanel::shown_rain() const noexcept {
-    return reference_ && show_ && !reference_->rain.data.empty() ? &reference_->rain : nullptr;
+    return reference_ && show_ ? &reference_->rain : nullptr;
 }
 
 void AccuracyPanel::reset() {

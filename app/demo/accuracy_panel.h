@@ -31,8 +31,8 @@ public:
     }
     /// The field to light the cloud with instead of the frame's (the reference, when shown).
     const transport::SourceField* shown_field() const noexcept;
-    /// With it, the light at the rain (the truth's, in a scene with rain; else null: the channel
-    /// alone lights the rain).
+    /// With it, the light at the rain (the truth's in a scene with rain, else empty: the channel
+    /// alone lights the rain; null without it).
     const transport::SourceField* shown_rain() const noexcept;
     /// Drops the reference (a new strike, new lightning, other components).
     void reset();

@@ -24,8 +24,8 @@ using namespace fulgur;
 namespace {
 
 // The flash's light a render is given in place of its frame's (view::StormView::render's
-// `source` and `rain_source`): S, and the light of orders >= 2 at the rain (null: the channel
-// alone lights the rain). No S: the frame's own light.
+// `source` and `rain_source`): S, and the light of orders >= 2 at the rain (null or empty: the
+// channel alone lights the rain). No S: the frame's own light.
 struct GivenLight {
     const transport::SourceField* source = nullptr;
     const transport::SourceField* rain = nullptr;
@@ -43,9 +43,10 @@ double field_error(view::StormView& view, const transport::SourceField& field,
 
 // --since-known: the frame an unscheduled strike shows MS ms after it became known, all
 // directions, as a field the renders show; the per-strike work is stopped there. Prints what
-// the frames cost meanwhile and how the strike was lit as JSON.
+// the frames cost meanwhile and how the strike was lit as JSON. `rain` gets the frame's light at
+// the rain then (left empty where it has none).
 transport::SourceField since_known_field(view::StormView& view, double t, const view::ViewOptions& opt,
-                                         const app::ShotArgs& a, std::optional<transport::SourceField>& rain) {
+                                         const app::ShotArgs& a, transport::SourceField& rain) {
     runtime::FramePipeline& p = view.pipeline();
     runtime::ReconstructOptions ro;
     ro.components = opt.components;
@@ -200,9 +201,8 @@ void render_reference(view::StormView& view, platform::Context* ctx, const rende
     app::DisplayDifference shown;
     const auto nothing = [] {};
     int w = 0, h = 0;
-    const app::RadianceComparison c =
-        reference_images(view, ctx, cam, t, opt, a, shown_basis, shown_light,
-                         {&direct, direct_rain.data.empty() ? nullptr : &direct_rain}, nothing, nothing, shown, w, h);
+    const app::RadianceComparison c = reference_images(view, ctx, cam, t, opt, a, shown_basis, shown_light,
+                                                       {&direct, &direct_rain}, nothing, nothing, shown, w, h);
     std::printf(
         "{\"name\":\"fulgur-shot-reference\",\"against\":\"%s\",\"quality\":\"%s\",\"lit\":%s,"
         "\"sources\":%zu,\"active_lights\":%zu,\"reference_noise\":%.4g,"
@@ -476,13 +476,14 @@ int main(int argc, char** argv) {
         const scene::CameraSpec stated = chosen && chosen->kind == scene::CameraSpec::Kind::LookAt
                                              ? *chosen
                                              : view::explicit_orbit(chosen, view.density());
-        std::optional<transport::SourceField> shown, shown_rain;  // --since-known: the frame as it was then
+        std::optional<transport::SourceField> shown;  // --since-known: the frame as it was then
+        transport::SourceField shown_rain;            // and its light at the rain (empty: none)
         if (a.since_known_ms) {
             opt.wait_for_strikes = false;
             shown = since_known_field(view, t, opt, a, shown_rain);
         }
         const transport::SourceField* shown_field = shown ? &*shown : nullptr;
-        const GivenLight shown_light{shown_field, shown_rain ? &*shown_rain : nullptr};
+        const GivenLight shown_light{shown_field, &shown_rain};
         // Medians over --repeat frames: the first one also compiles shaders and uploads the
         // density; the run time rebuilds the same frame each time (same strike, same t). The
         // frame index (which varies the ray-march jitter) stays the same too, so the image

@@ -111,8 +111,8 @@ public:
     /// the cloud is lit by that field instead of the reconstruction: the bolt, glow and
     /// ground still come from the frame at t, so two renders differ only in S. With `source`,
     /// `rain_source` (the same layout) is the flash's light of orders >= 2 at the rain per unit
-    /// albedo (runtime::Frame::rain's, e.g. TruthSolve::rain); null: the channel alone lights
-    /// the rain.
+    /// albedo (runtime::Frame::rain's, e.g. TruthSolve::rain); null or empty (no data): the
+    /// channel alone lights the rain.
     FrameReport render(const render::Camera& camera, double t, int width, int height, const ViewOptions& options,
                        const transport::SourceField* source = nullptr,
                        const transport::SourceField* rain_source = nullptr);
