@@ -5,7 +5,7 @@ usage:
   scripts/compare_cycles.py run SCENE.json OUT_DIR --seed S --time [+]T --size WxH
         [--quality PRESET] [--strike-grid N] [--strike-toward-camera] [--static-toward-camera]
         [--samples N] [--cycles-seeds A,B] [--fulgur-shot EXE] [--blender EXE]
-        [--light-radius M] [--max-light-loss F]
+        [--light-radius M] [--max-light-loss F] [--single-scattering]
   scripts/compare_cycles.py compare FULGUR.exr CYCLES_A.exr CYCLES_B.exr [--near-px R] [--picture P.png]
         [--picture-block N] [--frame FRAME.json]
   scripts/compare_cycles.py rain SCENE.json OUT_DIR (the options of run)
@@ -13,7 +13,9 @@ usage:
 
 `run` renders the frame with fulgur-shot (--exr with its passes, --blender DIR, one ray-march ray
 per pixel), builds and renders the Blender scene twice with Cycles (two seeds), and compares;
-`compare` only compares. Both print one JSON line and write OUT_DIR/compare.png (Fulgur | Cycles
+`compare` only compares; `--single-scattering` renders the light scattered once alone on both
+sides (fulgur-shot --off multiple, exported from a second run with every order; Cycles with no
+volume bounce). Both print one JSON line and write OUT_DIR/compare.png (Fulgur | Cycles
 | |difference|, each tone mapped alike) when run. `rain` runs the scene (OUT_DIR/wet) and a copy of
 it without its "rain" (OUT_DIR/dry; the copies are written into OUT_DIR, so the scene's files must be
 found from there, as a generated cloud is), and compares the change the rain makes to its pixels:
@@ -337,6 +339,14 @@ def run(args):
     if args.strike_toward_camera:
         shot += ["--strike-toward-camera"]
     t0 = time.monotonic()
+    if args.single_scattering:
+        # fulgur-shot exports the whole light (--blender refuses a frame without some orders),
+        # so the export and the single-scattering frame are two runs.
+        i = shot.index("--blender")
+        subprocess.run(shot[:2] + ["--seed", str(args.seed), "--time", args.time, "--size", args.size,
+                                   "-o", str(out / "export.png"), "--blender", shot[i + 1]]
+                       + shot[shot.index("--internal-scale"):], check=True, stdout=subprocess.DEVNULL)
+        shot = shot[:i] + shot[i + 2:] + ["--off", "multiple"]
     subprocess.run(shot, check=True, stdout=subprocess.DEVNULL)
     fulgur_s = time.monotonic() - t0
     seeds = [int(s) for s in args.cycles_seeds.split(",")]
@@ -351,7 +361,8 @@ def run(args):
                                "--samples", str(args.samples), "--seed", str(s)]
                               + (["--light-radius", args.light_radius] if args.light_radius else [])
                               + (["--max-light-loss", args.max_light_loss] if args.max_light_loss else [])
-                              + ["--channel", getattr(args, "channel_mode", "hidden")],
+                              + ["--channel", getattr(args, "channel_mode", "hidden")]
+                              + (["--single-scattering"] if args.single_scattering else []),
                               check=True, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
         cycles_s.append(time.monotonic() - t0)
         line = [l for l in done.stdout.splitlines() if l.startswith('{"name":"blender-scene"')]
@@ -387,6 +398,9 @@ def add_run_arguments(r):
     r.add_argument("--static-toward-camera", action="store_true", help="passed to fulgur-shot: the sun's, moon's "
                    "and sky's light solved by Monte Carlo toward the camera on the transport grid")
     r.add_argument("--samples", type=int, default=64)
+    r.add_argument("--single-scattering", action="store_true", help="light scattered once in the media alone, "
+                   "on both sides (fulgur-shot --off multiple; blender_scene.py --single-scattering): "
+                   "splits a difference between the orders")
     r.add_argument("--cycles-seeds", default="1,2")
     r.add_argument("--near-px", type=int)
     r.add_argument("--fulgur-shot", default=str(ROOT / "build/release/app/fulgur-shot"))

@@ -4,7 +4,7 @@ Fulgur's image and Cycles' (docs/blender.md, "The content scenes against Cycles"
 
 usage:
   scripts/exact_single_scattering.py DIR OUT.json [--medium pc|trilinear] [--stride N]
-        [--step M] [--shadow-samples K]
+        [--step M] [--shadow-samples K] [--window X0,Y0,X1,Y1]
   scripts/exact_single_scattering.py compare DIR OUT_PC.json OUT_TRILINEAR.json FULGUR.exr CYCLES_A.exr CYCLES_B.exr
         [--max-t T]
 
@@ -15,7 +15,11 @@ straight shadow ray sampled at K points, scattered once by the Henyey-Greenstein
 
   L = sum over samples of exp(-tau_camera) albedo sigma_t (sum over lights of I p(cos) exp(-tau_light) / r^2) M
 
-in W m^-2 sr^-1 per unit flash colour; and when the frame has a sun (or moon), its single
+in W m^-2 sr^-1 per unit flash colour. A frame with rain (frame.json's "rain", rain.vdb) has it
+as a second medium: its extinction adds to the cloud's on every ray and it scatters its share
+with its own albedo and phase function; its part of each pixel is also written apart
+("rain_pixels"). `--window` samples only the pixels with X0 <= x < X1, Y0 <= y < Y1. And when
+the frame has a sun (or moon), its single
 scattering apart: parallel light of the sun's irradiance (green) through a shadow ray to the
 medium's box, in W m^-2 sr^-1. The medium is the density grid read either piecewise
 constant per voxel (`pc`: what Fulgur's Monte Carlo truth and its solvers transport light
@@ -96,13 +100,37 @@ def density_sampler(rho, origin, voxel, medium):
     return pc if medium == "pc" else trilinear
 
 
-def render(directory, out, medium="pc", stride=4, step=5.0, shadow_samples=256):
+def load_rain(directory, frame):
+    """The frame's rain (frame.json "rain", rain.vdb) as its extinction grid in 1/m, or None."""
+    import pyopenvdb as vdb
+
+    r = frame.get("rain")
+    if not r:
+        return None
+    nx, ny, nz = r["dims"]
+    grid = vdb.read(str(pathlib.Path(directory) / r["file"]), r["grid"])
+    sigma = np.zeros((nx, ny, nz), np.float32)
+    grid.copyToArray(sigma, ijk=(0, 0, 0))
+    return sigma * np.float32(r["extinction"])
+
+
+def render(directory, out, medium="pc", stride=4, step=5.0, shadow_samples=256, window=None):
     frame, rho = load(directory)
     m = frame["medium"]
     origin = np.array(m["origin"], float)
     voxel = float(m["voxel_size"])
     kappa, albedo, g = m["extinction"], m["albedo"], m["g"]
     density = density_sampler(rho, origin, voxel, medium)
+    # The rain, a second medium on its own grid: its extinction adds to the cloud's, and it
+    # scatters its share with its own albedo and phase function.
+    rain_grid = load_rain(directory, frame)
+    if rain_grid is not None:
+        rf = frame["rain"]
+        rain_at = density_sampler(rain_grid, np.array(rf["origin"], float), float(rf["voxel_size"]), medium)
+        rain_albedo, rain_g = rf["albedo"], rf["g"]
+    else:
+        rain_at = lambda p: np.zeros(p.shape[:-1])  # noqa: E731
+        rain_albedo, rain_g = 0.0, 0.0
     lights = np.array([l["position"] for l in frame["lights"]], float).reshape(-1, 3)
     intensity = np.array([l["intensity"] for l in frame["lights"]], float)
     cam = frame["camera"]
@@ -124,9 +152,10 @@ def render(directory, out, medium="pc", stride=4, step=5.0, shadow_samples=256):
         travel = np.array(sun["direction"], float)
         travel /= np.linalg.norm(travel)
         to_sun, sun_green = -travel, float(sun["irradiance_rgb"][1])
-    pixels, sun_pixels = {}, {}
-    for py in range(stride // 2, height, stride):
-        for px in range(stride // 2, width, stride):
+    pixels, sun_pixels, rain_pixels = {}, {}, {}
+    x0, y0, x1, y1 = window if window else (0, 0, width, height)
+    for py in range(y0 + stride // 2, y1, stride):
+        for px in range(x0 + stride // 2, x1, stride):
             sx = (2.0 * (px + 0.5) / width - 1.0) * tan_half * width / height
             sy = (1.0 - 2.0 * (py + 0.5) / height) * tan_half
             d = forward + sx * right + sy * up
@@ -139,20 +168,27 @@ def render(directory, out, medium="pc", stride=4, step=5.0, shadow_samples=256):
                 continue
             t = np.arange(max(near, 0.0) + 0.5 * step, far, step)
             x = eye + t[:, None] * d
-            sigma = kappa * density(x)
+            sigma_c = kappa * density(x)
+            sigma_r = rain_at(x)
+            sigma = sigma_c + sigma_r
             tau = np.cumsum(sigma) * step - 0.5 * sigma * step  # to each sample's middle
             keep = (tau < 12.0) & (sigma > 0.0)
             if not keep.any():
                 continue
-            x, sigma, tau = x[keep], sigma[keep], tau[keep]
+            x, sigma, sigma_c, sigma_r, tau = x[keep], sigma[keep], sigma_c[keep], sigma_r[keep], tau[keep]
             v = lights[None, :, :] - x[:, None, :]
             r = np.linalg.norm(v, axis=-1)
             points = x[:, None, None, :] + v[:, :, None, :] * along[None, None, :, None]
-            tau_light = kappa * density(points).sum(-1) * r / shadow_samples
+            tau_light = (kappa * density(points) + rain_at(points)).sum(-1) * r / shadow_samples
             cos = np.einsum("slk,k->sl", -v / r[..., None], -d)  # light's travel . toward the eye
-            phase = hg(g, cos)
-            arriving = (intensity[None, :] * np.exp(-tau_light) * phase / (r * r)).sum(-1)
-            pixels[f"{px},{py}"] = float((np.exp(-tau) * albedo * sigma * arriving).sum() * step)
+            unphased = intensity[None, :] * np.exp(-tau_light) / (r * r)
+            cloud = (unphased * hg(g, cos)).sum(-1)
+            seen = np.exp(-tau) * step
+            pixels[f"{px},{py}"] = float((seen * albedo * sigma_c * cloud).sum())
+            if rain_grid is not None:
+                rain = (unphased * hg(rain_g, cos)).sum(-1)
+                rain_pixels[f"{px},{py}"] = float((seen * rain_albedo * sigma_r * rain).sum())
+                pixels[f"{px},{py}"] += rain_pixels[f"{px},{py}"]
             if sun is not None:
                 # The sun: parallel light of irradiance E (green) from -travel, attenuated from
                 # where the shadow ray leaves the medium's box.
@@ -160,16 +196,16 @@ def render(directory, out, medium="pc", stride=4, step=5.0, shadow_samples=256):
                     exits = np.where(to_sun != 0.0, (np.where(to_sun > 0.0, hi, lo) - x) / to_sun, np.inf)
                 t_exit = np.maximum(exits.min(axis=-1), 0.0)
                 points = x[:, None, :] + (t_exit[:, None] * along[None, :])[..., None] * to_sun
-                tau_sun = kappa * density(points).sum(-1) * t_exit / shadow_samples
+                tau_sun = (kappa * density(points) + rain_at(points)).sum(-1) * t_exit / shadow_samples
                 cos = float(np.dot(travel, -d))
-                phase = hg(g, cos)
+                scattered = albedo * sigma_c * hg(g, cos) + rain_albedo * sigma_r * hg(rain_g, cos)
                 sun_pixels[f"{px},{py}"] = float(
-                    (np.exp(-tau) * albedo * sigma * sun_green * phase * np.exp(-tau_sun)).sum() * step)
+                    (np.exp(-tau) * scattered * sun_green * np.exp(-tau_sun)).sum() * step)
     pathlib.Path(out).write_text(json.dumps({"medium": medium, "stride": stride, "step": step,
                                              "shadow_samples": shadow_samples, "pixels": pixels,
-                                             "sun_pixels": sun_pixels}))
+                                             "sun_pixels": sun_pixels, "rain_pixels": rain_pixels}))
     print(json.dumps({"medium": medium, "pixels": len(pixels), "total": sum(pixels.values()),
-                      "sun_total": sum(sun_pixels.values())}))
+                      "sun_total": sum(sun_pixels.values()), "rain_total": sum(rain_pixels.values())}))
 
 
 def compare(directory, pc_json, tri_json, fulgur_exr, cycles_a, cycles_b, max_t=0.98):
@@ -220,7 +256,7 @@ def main(argv):
         return
     if len(argv) < 2 or argv[0] == "compare":
         raise SystemExit(__doc__)
-    opts = {"--medium": "pc", "--stride": "4", "--step": "5", "--shadow-samples": "256"}
+    opts = {"--medium": "pc", "--stride": "4", "--step": "5", "--shadow-samples": "256", "--window": None}
     rest = argv[2:]
     if len(rest) % 2:
         raise SystemExit(__doc__)
@@ -230,8 +266,16 @@ def main(argv):
         opts[k] = v
     if opts["--medium"] not in ("pc", "trilinear"):
         raise SystemExit("--medium: pc or trilinear")
+    window = None
+    if opts["--window"] is not None:
+        try:
+            window = [int(v) for v in opts["--window"].split(",")]
+        except ValueError:
+            window = []
+        if len(window) != 4 or window[0] >= window[2] or window[1] >= window[3] or min(window) < 0:
+            raise SystemExit("--window: X0,Y0,X1,Y1 (pixels, X0 < X1, Y0 < Y1)")
     render(argv[0], argv[1], opts["--medium"], int(opts["--stride"]), float(opts["--step"]),
-           int(opts["--shadow-samples"]))
+           int(opts["--shadow-samples"]), window)
 
 
 if __name__ == "__main__":

@@ -43,7 +43,10 @@ double Renderer::Impl::vertical_transmittance(const glm::dvec3& p, double ground
 
 namespace {
 
-// A stretch of channel: its ends (a the lower) and its power.
+// A stretch of channel: its ends in channel order (a where the previous stretch ended, as the
+// channel's segments run) and its power. split_channel cuts runs along it from a: ends sorted
+// by height instead put a run that spans two segments at the far ends of both (a light in
+// the middle of nowhere, its neighbour doubled up).
 struct Stretch {
     glm::dvec3 a, b;
     double power;
@@ -58,8 +61,8 @@ std::vector<Stretch> stretches_below(const LitChannel& bolt, double top, std::sp
     for (std::size_t i = 0; i < bolt.segments.size(); ++i) {
         const ChannelSegment& s = bolt.segments[i];
         glm::dvec3 a(s.a), b(s.b);
-        if (a.z > b.z) std::swap(a, b);
-        if (a.z > top) continue;
+        if (a.z > top && b.z > top) continue;
+        if (a.z > top) a = b + (a - b) * ((top - b.z) / (a.z - b.z));
         if (b.z > top) b = a + (b - a) * ((top - a.z) / (b.z - a.z));
         const double p = double(s.intensity) * glm::length(b - a) * (weight.empty() ? 1.0 : weight[i]);
         if (!(p > 0.0)) continue;
