@@ -111,7 +111,8 @@ float sun_visibility(vec3 p) {
 
 #if HAS_RAIN
 // Transmittance of the rain between a ground point p and a light at q: the part of the segment
-// below the rain's top, sampled at 4 points (the rain varies over hundreds of metres).
+// below the rain's top, sampled at 4 points (the rain varies over hundreds of metres), at the
+// share of its extinction the light solves carry (rain_lights.z).
 float rain_transmittance(vec3 p, vec3 q) {
     vec3 l = q - p;
     float f = l.z > 1e-3 ? clamp((rain_params.z - p.z) / l.z, 0.0, 1.0) : 1.0;
@@ -120,7 +121,7 @@ float rain_transmittance(vec3 p, vec3 q) {
         vec3 x = p + ((float(k) + 0.5) * 0.25 * f) * l;
         tau += textureLod(u_density, (x - vol_min.xyz) / vol_size.xyz, 0.0).b;
     }
-    return exp(-rain_params.x * tau * 0.25 * f * length(l));
+    return exp(-rain_params.x * rain_lights.z * tau * 0.25 * f * length(l));
 }
 
 // The ground lights' rain transmittance tabulated per light (render/pass_ground_rain.cpp,

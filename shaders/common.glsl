@@ -34,7 +34,8 @@ layout(std140, binding = 0) uniform Frame {
     vec4 rain_params;      // rain: x extinction at b = 1 (1/m), y HG g, z its top (m), w albedo
     vec4 rain_light[8];    // the channel below the rain's top as point lights: xyz position, w W/sr
     vec4 rain_lights;      // x number of rain_light (0 when the flash does not light the volume),
-                           // y 1 / the cloud's albedo (which the static S carries)
+                           // y 1 / the cloud's albedo (which the static S carries), z the share of
+                           // the rain's extinction on the ground lights' way (render::VolumeDesc::rain_solved_share)
     vec4 ground_scatter;   // the cloud's scattered flash light on the ground (u_ground_scatter):
                            // xy lower corner of its cells (m), zw 1 / its extent along x, y (1/m); zw 0: none
     vec4 ground_static;    // the static light on the ground (u_ground_static), as ground_scatter

@@ -35,5 +35,5 @@ void main() {
     t1 = min(t1, 1.0);
     if (l.z > 1e-3) t1 = min(t1, (rain_params.z - p.z) / l.z);
     float tau = rain_depth(p, l, t0, t1, u_voxels_per_sample * vol_size.w, u_max_samples);
-    imageStore(u_out, id, vec4(exp(-rain_params.x * tau)));
+    imageStore(u_out, id, vec4(exp(-rain_params.x * rain_lights.z * tau)));  // as background.glsl's
 }

@@ -255,8 +255,8 @@ FrameUniforms Renderer::Impl::prepare_frame(const Camera& camera, const Settings
         if (u.rain) {
             u.rain_lights = flash_lights_rain ? int(rain_lights.size()) : 0;
             u.rain_source = u.lit && rain_flash.has;
-            f.rain_lights =
-                glm::vec4(float(u.rain_lights), static_albedo > 0.0 ? float(1.0 / static_albedo) : 0.0f, 0.0f, 0.0f);
+            f.rain_lights = glm::vec4(float(u.rain_lights), static_albedo > 0.0 ? float(1.0 / static_albedo) : 0.0f,
+                                      float(rain_solved_share), 0.0f);
         }
     } else {
         f.ground_params = glm::vec4(float(st.ground_height), 0.0f, 0.0f, 0.0f);

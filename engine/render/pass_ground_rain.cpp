@@ -39,7 +39,8 @@ constexpr int kRadii = 96;
 constexpr int kVoxelsPerSample = 1;
 constexpr int kMaxSamples = 64;
 
-// What the map is made from: the lights' positions, the density's box, the rain, the ground.
+// What the map is made from: the lights' positions, the density's box, the rain and the share of
+// its extinction it is drawn at, the ground.
 std::vector<float> map_key(const FrameBlock& f) {
     std::vector<float> key;
     for (int i = 0; i < int(f.ground_params.w); ++i) detail::append_components(key, f.ground_light[i], 3);
@@ -47,6 +48,7 @@ std::vector<float> map_key(const FrameBlock& f) {
     detail::append_components(key, f.vol_size, 4);
     detail::append_components(key, f.rain, 3);
     key.push_back(f.ground_params.x);
+    key.push_back(f.rain_lights.z);
     return key;
 }
 

@@ -81,6 +81,14 @@ struct VolumeDesc {
     /// light (the flash's point lights, the sun through set_sun's transmittance, the sky) and
     /// its shadow on the ground's flash light. Null (or no rain in it): none, no cost.
     const cloud::RainField* rain = nullptr;
+    /// The share of the rain's extinction the scene's light solves carry, > 0: the rain enters
+    /// their media as cloud of equal transport coefficient (sky::rain_media_density x kappa;
+    /// 0.39 for the default storm's drops and cloud). The ground's flash lights are attenuated
+    /// by that share on their way through the rain, so that their light and the solved light
+    /// the rain scatters onto the ground (Frame::ground) are one medium's: with the full
+    /// extinction the light the drops scatter forward was lost, and the ground under a shaft
+    /// too dark (docs/blender.md). 1: the rain's full extinction (no solve lights the ground).
+    double rain_solved_share = 1.0;
 };
 
 /// One upload of the source function S. Only the listed directions are transferred. By

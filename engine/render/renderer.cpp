@@ -224,6 +224,9 @@ void Renderer::set_volume(const VolumeDesc& v) {
                                                      std::to_string(v.density->geom.cell_count()) + " voxels");
     if (!std::isfinite(v.extinction) || v.extinction < 0.0)
         throw core::Error("set_volume: extinction", "must be finite and >= 0, got " + std::to_string(v.extinction));
+    if (!std::isfinite(v.rain_solved_share) || !(v.rain_solved_share > 0.0))
+        throw core::Error("set_volume: rain_solved_share",
+                          "must be finite and > 0, got " + core::format_number(v.rain_solved_share, 8));
     GLint max3d = 0;
     glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
     const core::Int3 d = v.density->geom.dims;
@@ -302,6 +305,7 @@ void Renderer::set_volume(const VolumeDesc& v) {
         m.rain_g = rain->g;
         m.rain_albedo = rain->albedo;
         m.rain_top = rain->top;
+        m.rain_solved_share = v.rain_solved_share;
     }
     if (m.sun_tex && !(m.density.geom == v.density->geom)) {
         delete_texture(m.sun_tex);  // on the old grid

@@ -108,8 +108,15 @@ StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::opti
         if (!(drawn->geom == density_.geom))
             throw core::Error("StaticSetup::undetailed_density", "is not on the scene's density grid");
     }
-    renderer_->set_volume(
-        {.density = drawn, .extinction = scene_.medium.extinction, .detail = scene_.cloud.detail, .rain = rain});
+    // The ground's flash light through the rain at the rain's extinction as the solves carry it
+    // (render::VolumeDesc::rain_solved_share).
+    const double solved_share =
+        scene_.rain ? sky::rain_media_density(scene_.medium, *scene_.rain) * scene_.medium.extinction : 1.0;
+    renderer_->set_volume({.density = drawn,
+                           .extinction = scene_.medium.extinction,
+                           .detail = scene_.cloud.detail,
+                           .rain = rain,
+                           .rain_solved_share = solved_share});
 }
 
 void StormView::set_lightning(const lightning::LightningParams& p) {

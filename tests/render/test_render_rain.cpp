@@ -247,8 +247,12 @@ TEST_CASE("rain shadows the ground's flash light") {
     st.ground = true;
     st.jitter = false;
     st.ground_lights = 1;
-    auto centre = [&](const cloud::RainField* rf) {
-        r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16, .rain = rf});
+    auto centre = [&](const cloud::RainField* rf, double share = 1.0) {
+        r.set_volume({.density = &empty,
+                      .extinction = 4e-3,
+                      .precision = render::DensityPrecision::F16,
+                      .rain = rf,
+                      .rain_solved_share = share});
         render_at(r, cam, st, 32, 32);
         int w = 0, h = 0;
         const std::vector<float> im = r.read_march(w, h);
@@ -266,6 +270,17 @@ TEST_CASE("rain shadows the ground's flash light") {
     // The light is the channel's power centroid, 1050 m up over the point; the rain's
     // top (1200 m) is above it, so the whole path is in rain.
     CHECK(shadow == test::rel(std::exp(-sigma * 1050.0), 0.001));  // measured 7e-5 apart
+    // At the share of its extinction the light solves carry (the default storm's drops in its
+    // cloud: 0.39), the ground's light is attenuated by that share alone, read from the lights'
+    // map or integrated per pixel; the view's own transmittance through the rain keeps the full
+    // extinction.
+    for (const bool map : {true, false}) {
+        CAPTURE(map);
+        st.ground_rain_map = map;
+        const auto [wet39, wet39_t] = centre(&rain, 0.39);
+        CHECK(wet39_t == doctest::Approx(wet_t));
+        CHECK(wet39 / wet39_t / dry == test::rel(std::exp(-0.39 * sigma * 1050.0), 0.001));  // the same sums
+    }
     r.set_channel({});
 }
 
