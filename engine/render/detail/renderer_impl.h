@@ -41,7 +41,7 @@ struct Renderer::Impl {
     double detail_finest = 0.0;  // metres across the finest billows
     bool has_rain = false;       // the density texture's b channel holds rain (RGBA)
     double rain_max = 0.0, rain_g = 0.0, rain_albedo = 0.0, rain_top = 0.0;
-    double rain_solved_share = 1.0;  // VolumeDesc::rain_solved_share
+    double rain_solved_share = 1.0;                 // VolumeDesc::rain_solved_share
     core::Int3 rain_lo{0, 0, 0}, rain_hi{0, 0, 0};  // the voxels with rain, a voxel wider: [lo, hi) (empty: none)
     bool density_u8 = false;                        // the density texture is RGBA8 (else RGBA16F)
 
