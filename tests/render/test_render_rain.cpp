@@ -13,6 +13,7 @@
 #include <array>
 #include <cmath>
 #include <numbers>
+#include <utility>
 
 using namespace fulgur;
 using test::gl_renderer;
@@ -147,6 +148,39 @@ std::vector<double> cpu_rain_light(const render::Camera& cam, int W, int H, cons
             expected[std::size_t(y) * W + std::size_t(x)] = L;
         }
     return expected;
+}
+
+// The march's light of `channel` (straight from lo to hi, 1 W/sr per metre) in uniform rain
+// (sigma 3e-4, albedo 1, g 0.85), no jitter, against cpu_rain_light's sum: the peak of the
+// CPU's image and the worst relative error over its pixels above 1% of that peak.
+std::pair<double, double> uniform_rain_against_cpu(render::Renderer& r, const render::LitChannel& channel,
+                                                   const glm::dvec3& lo, const glm::dvec3& hi) {
+    const core::Grid3<float> empty(box(), 0.0f);
+    const double sigma = 3e-4;
+    cloud::RainField rain = uniform_rain(sigma);
+    rain.albedo = 1.0;
+    rain.g = 0.85;
+    r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16, .rain = &rain});
+    r.set_channel(channel);
+    r.clear_source();
+    const render::Camera cam = side_camera();
+    const int W = 64, H = 48;
+    render::Settings st = test::volume_only();
+    st.jitter = false;
+    st.early_exit = false;
+    render_at(r, cam, st, W, H);
+    int w = 0, h = 0;
+    const std::vector<float> img = r.read_march(w, h);
+    r.set_channel({});
+    double unattenuated = 0.0;
+    const std::vector<double> expected = cpu_rain_light(
+        cam, W, H, lo, hi, 1.0, [&](const glm::dvec3&) { return sigma; },
+        [&](const glm::dvec3&, const glm::dvec3&, double distance) { return sigma * distance; }, unattenuated);
+    const double peak = *std::max_element(expected.begin(), expected.end());
+    double worst = 0.0;
+    for (std::size_t p = 0; p < expected.size(); ++p)
+        if (expected[p] > 0.01 * peak) worst = std::max(worst, std::abs(double(img[p * 4]) / expected[p] - 1.0));
+    return {peak, worst};
 }
 
 }  // namespace
@@ -378,36 +412,15 @@ TEST_CASE("the channel's light in the rain: the march against its single-scatter
     // sampled at their midpoints, r^2 floored at (50 m)^2) with the exact HG phase: in uniform
     // rain the lights' map holds the largest extinction exactly (1 in 8 bits), so what differs
     // is float rounding.
-    render::Renderer& r = gl_renderer();
-    const core::Grid3<float> empty(box(), 0.0f);
-    const double sigma = 3e-4;
-    cloud::RainField rain = uniform_rain(sigma);
-    rain.albedo = 1.0;
-    rain.g = 0.85;
-    r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16, .rain = &rain});
-    light_by_channel(r, {100.0f, 200.0f, 500.0f}, {100.0f, 200.0f, 510.0f});
-    const render::Camera cam = side_camera();
-    const int W = 64, H = 48;
-    render::Settings st = test::volume_only();
-    st.jitter = false;
-    st.early_exit = false;
-    render_at(r, cam, st, W, H);
-    int w = 0, h = 0;
-    const std::vector<float> img = r.read_march(w, h);
-    double unattenuated = 0.0;
-    const std::vector<double> expected = cpu_rain_light(
-        cam, W, H, {100.0, 200.0, 500.0}, {100.0, 200.0, 510.0}, 1.0, [&](const glm::dvec3&) { return sigma; },
-        [&](const glm::dvec3&, const glm::dvec3&, double distance) { return sigma * distance; }, unattenuated);
-    const double peak = *std::max_element(expected.begin(), expected.end());
-    double worst = 0.0;
-    for (std::size_t p = 0; p < expected.size(); ++p)
-        if (expected[p] > 0.01 * peak) worst = std::max(worst, std::abs(double(img[p * 4]) / expected[p] - 1.0));
+    render::LitChannel ch;
+    ch.segments.push_back({{100.0f, 200.0f, 500.0f}, {100.0f, 200.0f, 510.0f}, 1.0f, 2.0f});
+    const auto [peak, worst] =
+        uniform_rain_against_cpu(gl_renderer(), ch, {100.0, 200.0, 500.0}, {100.0, 200.0, 510.0});
     // Measured 1.8e-5 (4.2e-6 before the attenuation); 1e-3 leaves room for another CPU's float rounding (FMA, vector width),
     // and a 5% error in the rain's light fails by far.
     MESSAGE("worst relative error of the rain's light (pixels above 1% of the peak): ", worst);
     CHECK(peak > 0.0);
     CHECK(worst < 1e-3);
-    r.set_channel({});
 }
 
 TEST_CASE("a channel of several segments in the rain: its lights evenly along it, whatever way its segments run") {
@@ -417,41 +430,17 @@ TEST_CASE("a channel of several segments in the rain: its lights evenly along it
     // its eighths whatever its cuts, as the CPU sum places them. Cutting each segment's runs from
     // its lower end instead (heights sorted) paired them up, 20-70 m apart with ~200 m between
     // pairs on the Cycles test scene's channel; this case's worst pixel was then 110% off.
-    render::Renderer& r = gl_renderer();
-    const core::Grid3<float> empty(box(), 0.0f);
-    const double sigma = 3e-4;
-    cloud::RainField rain = uniform_rain(sigma);
-    rain.albedo = 1.0;
-    rain.g = 0.85;
-    r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16, .rain = &rain});
     render::LitChannel ch;
     const float cuts[] = {900.0f, 760.0f, 700.0f, 480.0f, 300.0f};
     for (std::size_t i = 0; i + 1 < std::size(cuts); ++i)
         ch.segments.push_back({{100.0f, 200.0f, cuts[i]}, {100.0f, 200.0f, cuts[i + 1]}, 1.0f, 2.0f});
-    r.set_channel(ch);
-    r.clear_source();
-    const render::Camera cam = side_camera();
-    const int W = 64, H = 48;
-    render::Settings st = test::volume_only();
-    st.jitter = false;
-    st.early_exit = false;
-    render_at(r, cam, st, W, H);
-    int w = 0, h = 0;
-    const std::vector<float> img = r.read_march(w, h);
-    double unattenuated = 0.0;
-    const std::vector<double> expected = cpu_rain_light(
-        cam, W, H, {100.0, 200.0, 300.0}, {100.0, 200.0, 900.0}, 1.0, [&](const glm::dvec3&) { return sigma; },
-        [&](const glm::dvec3&, const glm::dvec3&, double distance) { return sigma * distance; }, unattenuated);
-    const double peak = *std::max_element(expected.begin(), expected.end());
-    double worst = 0.0;
-    for (std::size_t p = 0; p < expected.size(); ++p)
-        if (expected[p] > 0.01 * peak) worst = std::max(worst, std::abs(double(img[p * 4]) / expected[p] - 1.0));
+    const auto [peak, worst] =
+        uniform_rain_against_cpu(gl_renderer(), ch, {100.0, 200.0, 300.0}, {100.0, 200.0, 900.0});
     // The bound is the single segment's above (float rounding, there 1.8e-5), the lights' positions
     // now summed from five segments' ends in float.
     MESSAGE("worst relative error of the rain's light (pixels above 1% of the peak): ", worst);
     CHECK(peak > 0.0);
     CHECK(worst < 1e-3);
-    r.set_channel({});
 }
 
 TEST_CASE("the channel's light in a shaft beside it: each light attenuated by the rain on its path") {
