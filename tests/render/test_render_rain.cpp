@@ -109,6 +109,22 @@ render::Camera side_camera() {
     return cam;
 }
 
+constexpr int kSideW = 64, kSideH = 48;
+
+// The march (RGBA, kSideW x kSideH) of box() holding no cloud and `rain`, seen by side_camera()
+// without jitter or early exit, lit by the renderer's channel alone (no S).
+std::vector<float> side_march(render::Renderer& r, const cloud::RainField& rain) {
+    const core::Grid3<float> empty(box(), 0.0f);
+    r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16, .rain = &rain});
+    r.clear_source();
+    render::Settings st = test::volume_only();
+    st.jitter = false;
+    st.early_exit = false;
+    render_at(r, side_camera(), st, kSideW, kSideH);
+    int w = 0, h = 0;
+    return r.read_march(w, h);
+}
+
 // The rain's light from a channel from `lo` straight up to `hi` of `power` W/sr per metre (the
 // march's 8 lights of equal power at the middles of its eighths), summed on the CPU over the
 // march's pieces (cut at t0 + (k + 1/2) dt, sampled at their midpoints, r^2 floored at
@@ -155,26 +171,17 @@ std::vector<double> cpu_rain_light(const render::Camera& cam, int W, int H, cons
 // CPU's image and the worst relative error over its pixels above 1% of that peak.
 std::pair<double, double> uniform_rain_against_cpu(render::Renderer& r, const render::LitChannel& channel,
                                                    const glm::dvec3& lo, const glm::dvec3& hi) {
-    const core::Grid3<float> empty(box(), 0.0f);
     const double sigma = 3e-4;
     cloud::RainField rain = uniform_rain(sigma);
     rain.albedo = 1.0;
     rain.g = 0.85;
-    r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16, .rain = &rain});
     r.set_channel(channel);
-    r.clear_source();
-    const render::Camera cam = side_camera();
-    const int W = 64, H = 48;
-    render::Settings st = test::volume_only();
-    st.jitter = false;
-    st.early_exit = false;
-    render_at(r, cam, st, W, H);
-    int w = 0, h = 0;
-    const std::vector<float> img = r.read_march(w, h);
+    const std::vector<float> img = side_march(r, rain);
     r.set_channel({});
+    const render::Camera cam = side_camera();
     double unattenuated = 0.0;
     const std::vector<double> expected = cpu_rain_light(
-        cam, W, H, lo, hi, 1.0, [&](const glm::dvec3&) { return sigma; },
+        cam, kSideW, kSideH, lo, hi, 1.0, [&](const glm::dvec3&) { return sigma; },
         [&](const glm::dvec3&, const glm::dvec3&, double distance) { return sigma * distance; }, unattenuated);
     const double peak = *std::max_element(expected.begin(), expected.end());
     double worst = 0.0;
@@ -186,20 +193,10 @@ std::pair<double, double> uniform_rain_against_cpu(render::Renderer& r, const re
 }  // namespace
 
 TEST_CASE("rain's extinction: T = exp(-sigma chord) through a uniform rain box") {
-    render::Renderer& r = gl_renderer();
-    const core::Grid3<float> empty(box(), 0.0f);
     const double sigma = 1e-3;
-    const cloud::RainField rain = uniform_rain(sigma);
-    r.set_volume({.density = &empty, .extinction = 4e-3, .precision = render::DensityPrecision::F16, .rain = &rain});
-    r.clear_source();
+    const std::vector<float> img = side_march(gl_renderer(), uniform_rain(sigma));
     const render::Camera cam = side_camera();
-    const int W = 64, H = 48;
-    render::Settings st = test::volume_only();
-    st.jitter = false;
-    st.early_exit = false;
-    render_at(r, cam, st, W, H);
-    int w = 0, h = 0;
-    const std::vector<float> img = r.read_march(w, h);
+    const int W = kSideW, H = kSideH;
     double worst = 0.0;
     int inside = 0;
     for (int y = 0; y < H; ++y)
