@@ -1034,12 +1034,17 @@ struct ProgressiveMonteCarlo::Impl {
         const double kf = traced_any ? 1.0 / (vol * double(traced)) : 0.0;
         const auto mean = [&](const detail::HalfSums& h, std::size_t i) { return (h.a[i] + h.b[i]) * ks; };
         const auto mean_fluence = [&](const detail::HalfSums& h, std::size_t i) { return (h.a[i] + h.b[i]) * kf; };
-        r.single = r.multiple = SourceField(g, dirs);
+        // A part not tallied (tally_single, tally_multiple) stays empty: building and summing
+        // its zeros cost ~1 ms of an instant strike's round on the default storm.
+        const bool single = o.tally_single;
+        if (single) r.single = SourceField(g, dirs);
+        if (multiple) r.multiple = SourceField(g, dirs);
         if (G > 1) r.groups.resize(G);
         for (std::size_t q = 0; q < G; ++q) {
             SourceField* s1 = G > 1 ? &r.groups[q].single : &r.single;
             SourceField* sm = G > 1 ? &r.groups[q].multiple : &r.multiple;
-            if (G > 1) *s1 = *sm = SourceField(g, dirs);
+            if (G > 1 && single) *s1 = SourceField(g, dirs);
+            if (G > 1 && multiple) *sm = SourceField(g, dirs);
             // Direction-major output from cell-major sums, in blocks of cells whose sums fit in
             // the L1 cache (a direction at a time over all cells would stream the sums M times).
             constexpr std::size_t kBlock = 64;
@@ -1048,15 +1053,16 @@ struct ProgressiveMonteCarlo::Impl {
                 for (std::size_t m = 0; m < M; ++m)
                     for (std::size_t c = c0; c < c1; ++c) {
                         const std::size_t i = (q * cells + c) * M + m;
-                        if (o.tally_single) s1->data[m * cells + c] = float(mean(h1, i));
+                        if (single) s1->data[m * cells + c] = float(mean(h1, i));
                         if (multiple) sm->data[m * cells + c] = float(mean(hm, i));
                     }
             });
-            if (G > 1)
-                for (std::size_t i = 0; i < s1->data.size(); ++i) {
-                    r.single.data[i] += s1->data[i];
-                    r.multiple.data[i] += sm->data[i];
-                }
+            if (G > 1) {
+                if (single)
+                    for (std::size_t i = 0; i < s1->data.size(); ++i) r.single.data[i] += s1->data[i];
+                if (multiple)
+                    for (std::size_t i = 0; i < sm->data.size(); ++i) r.multiple.data[i] += sm->data[i];
+            }
             const auto write_fluence = [&](const detail::HalfSums& h, core::Grid3<float>& out) {
                 out = core::Grid3<float>(g, 0.0f);
                 for (std::size_t c = 0; c < cells; ++c) out.data[c] = float(mean_fluence(h, q * cells + c));

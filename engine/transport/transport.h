@@ -324,11 +324,13 @@ struct MonteCarloOptions {
     int macro_cell = 4;
     /// Safety stop per path (counted as `truncated`; never reached in practice).
     std::uint64_t max_collisions = 100'000'000;
-    /// Estimate orders >= 2 (the `multiple` field). false: only order 1 is tallied.
+    /// Estimate orders >= 2 (the `multiple` field). false: only order 1 is tallied
+    /// (ProgressiveMonteCarlo::result() then leaves `multiple` empty, in each group too).
     bool tally_multiple = true;
     /// Estimate order 1 (the `single` field). false: a run for orders >= 2 only, whose paths
     /// then skip order 1's expected-value deposit (about a third of a path's cost in a storm
-    /// cloud). Only ProgressiveMonteCarlo honours it; monte_carlo() always tallies order 1.
+    /// cloud), and whose result() leaves `single` empty, in each group too. Only
+    /// ProgressiveMonteCarlo honours it; monte_carlo() always tallies order 1.
     bool tally_single = true;
     /// Also estimate the noise of the result from two independent halves of the batches
     /// (MonteCarloResult::noise; needs batches >= 4; two more fields of memory).

@@ -37,13 +37,31 @@ TEST_CASE("progressive Monte Carlo: one result for any thread count; order 1 lef
     CHECK(one.multiple.data == two.multiple.data);
     CHECK(one.noise.total == two.noise.total);
     // Without order 1 the paths draw the same random numbers (its expected-value deposit uses
-    // none): the same multiple scattering, bit for bit, and no single.
+    // none): the same multiple scattering, bit for bit, and no single field at all (in groups
+    // too); likewise no multiple field without orders >= 2.
     MonteCarloOptions no_single = o;
     no_single.tally_single = false;
     const MonteCarloResult ms = run(2, no_single);
     CHECK(ms.multiple.data == one.multiple.data);
-    for (const float v : ms.single.data) REQUIRE(v == 0.0f);
+    CHECK(ms.single.data.empty());
     CHECK(ms.noise.total == ms.noise.multiple);
+    {
+        MonteCarloOptions grouped = no_single, no_multiple = o;
+        grouped.groups = 2;
+        const MonteCarloResult g = run(2, grouped);
+        REQUIRE(g.groups.size() == 2);
+        CHECK(g.single.data.empty());
+        for (const auto& part : g.groups) CHECK(part.single.data.empty());
+        REQUIRE(g.multiple.data.size() == g.groups[0].multiple.data.size());
+        for (std::size_t i = 0; i < g.multiple.data.size(); ++i)
+            REQUIRE(g.multiple.data[i] == g.groups[0].multiple.data[i] + g.groups[1].multiple.data[i]);
+        no_multiple.tally_multiple = false;
+        no_multiple.groups = 2;
+        const MonteCarloResult n = run(2, no_multiple);
+        CHECK(n.multiple.data.empty());
+        for (const auto& part : n.groups) CHECK(part.multiple.data.empty());
+        CHECK_FALSE(n.single.data.empty());
+    }
     no_single.tally_multiple = false;
     CHECK_THROWS_WITH_AS(ProgressiveMonteCarlo(tracing, {}, std::span(&line, 1), dirs, no_single),
                          doctest::Contains("tally_single"), core::Error);
