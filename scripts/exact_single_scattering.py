@@ -7,6 +7,7 @@ usage:
         [--step M] [--shadow-samples K] [--window X0,Y0,X1,Y1]
   scripts/exact_single_scattering.py compare DIR OUT_PC.json OUT_TRILINEAR.json FULGUR.exr CYCLES_A.exr CYCLES_B.exr
         [--max-t T]
+  scripts/exact_single_scattering.py compare-rain RUN OUT.json
 
 DIR is what `fulgur-shot ... --blender DIR` writes (frame.json, density.vdb). For every N-th pixel
 (both axes, from N / 2) the camera ray is sampled every M metres until its optical depth reaches
@@ -26,6 +27,13 @@ constant per voxel (`pc`: what Fulgur's Monte Carlo truth and its solvers transp
 through) or trilinear between voxel centres and zero outside (`trilinear`: what Fulgur's march
 and Cycles read). No light bounces off the ground and no light scatters twice: compare it with
 `fulgur-shot --off multiple` and Cycles with `blender_scene.py --single-scattering`.
+
+`compare-rain` takes a `compare_cycles.py rain ... --single-scattering` run (RUN: its OUT_DIR)
+and OUT.json made over RUN/wet/out/blender: over the sampled pixels that see rain and no cloud,
+all of them and by distance on screen from the drawn channel (0-1, 1-2, 2-4, 4-8, 8-16 pixels),
+Fulgur's rain light (its lightning pass, wet less dry times the rain's transmittance), its whole
+change (with the ground seen through the rain) and Cycles' whole change, each over the exact's
+rain light, with Cycles' noise.
 
 `compare` prints the totals over the sampled cloud pixels (Fulgur's transmittance < T, 0.98
 unless --max-t says) of the two exact images, Fulgur's lightning pass and the mean of the two
@@ -239,6 +247,58 @@ def compare(directory, pc_json, tri_json, fulgur_exr, cycles_a, cycles_b, max_t=
     print(json.dumps(out))
 
 
+# The rain's pixels by their distance on screen (Chebyshev, pixels) from the drawn channel:
+# [lo, hi); 0-1 the channel's own pixels.
+RAIN_BANDS = [(0, 1), (1, 2), (2, 4), (4, 8), (8, 16)]
+
+
+def compare_rain(run_dir, exact_json):
+    """The rain's first order from the channel (`rain_pixels` of a run over RUN/wet/out/blender)
+    against a `compare_cycles.py rain ... --single-scattering` run's frames in RUN: over the
+    sampled pixels that see rain and no cloud, Fulgur's lightning pass change (wet less dry times
+    the rain's T: the rain's own light), its whole change (the ground seen through the rain too)
+    and Cycles' (its whole change), each over the exact's, by distance from the drawn channel."""
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+    from compare_cycles import dilate, read_channels, rgb
+
+    wet, dry = pathlib.Path(run_dir) / "wet/out", pathlib.Path(run_dir) / "dry/out"
+    frame = json.loads((wet / "blender/frame.json").read_text())
+    colour = sum(frame["flash_colour"])  # the exact is per unit flash colour; the sums are over r, g, b
+    fw, fd = read_channels(wet / "fulgur.exr"), read_channels(dry / "fulgur.exr")
+    t = fw["T.Y"]
+    mask = (t < 0.98) & (fd["T.Y"] > 0.999)
+    change = lambda layers: sum(rgb(fw, p) - rgb(fd, p) * t[..., None] for p in layers).sum(-1)  # noqa: E731
+    rain_light, whole = change(["lightning"]), change(["lightning", "static", "background"])
+    cycles_dry = sum(rgb(read_channels(dry / f"cycles_{s}.exr")) for s in (1, 2)) / 2
+    cycles = [(rgb(read_channels(wet / f"cycles_{s}.exr")) - cycles_dry * t[..., None]).sum(-1) for s in (1, 2)]
+    exact = np.full(t.shape, np.nan)
+    for k, v in json.loads(pathlib.Path(exact_json).read_text())["rain_pixels"].items():
+        px, py = map(int, k.split(","))
+        exact[py, px] = v * colour
+    sampled = mask & ~np.isnan(exact)
+    core = rgb(fw, "channel").sum(axis=-1) > 0
+    out = {"name": "exact-rain", "run": str(run_dir)}
+
+    def add(name, region):
+        e = exact[region].sum()
+        if not region.any() or not e > 0.0:
+            return
+        c = [x[region].sum() for x in cycles]
+        out.update({name + "pixels": int(region.sum()), name + "exact": float(e),
+                    name + "fulgur_rain_over_exact": float(rain_light[region].sum() / e),
+                    name + "fulgur_whole_over_exact": float(whole[region].sum() / e),
+                    name + "cycles_over_exact": float((c[0] + c[1]) / 2 / e),
+                    name + "cycles_noise": float(abs(c[0] - c[1]) / 2 / e)})
+
+    add("", sampled)
+    inner = np.zeros_like(core)
+    for lo, hi in RAIN_BANDS:
+        outer = dilate(core, hi - 1) if hi > 1 else core
+        add("band_%d_%d_px_" % (lo, hi), sampled & outer & ~inner)
+        inner = outer
+    print(json.dumps(out))
+
+
 def figures(out, prefix, totals):
     exact_pc, exact_tri, fulgur, cycles = totals
     ratio = lambda x, y: x / y if y > 0.0 else None  # noqa: E731
@@ -254,7 +314,10 @@ def main(argv):
     if argv[:1] == ["compare"] and len(argv) in (7, 9) and (len(argv) == 7 or argv[7] == "--max-t"):
         compare(*argv[1:7], max_t=float(argv[8]) if len(argv) == 9 else 0.98)
         return
-    if len(argv) < 2 or argv[0] == "compare":
+    if argv[:1] == ["compare-rain"] and len(argv) == 3:
+        compare_rain(argv[1], argv[2])
+        return
+    if len(argv) < 2 or argv[0] in ("compare", "compare-rain"):
         raise SystemExit(__doc__)
     opts = {"--medium": "pc", "--stride": "4", "--step": "5", "--shadow-samples": "256", "--window": None}
     rest = argv[2:]
