@@ -551,6 +551,9 @@ public:
     /// Uploads the density (full resolution) and derives the empty-space distance field.
     /// Throws core::Error for an invalid geometry or a null density.
     void set_volume(const VolumeDesc& volume);
+    /// The share of the rain's extinction the ground's flash lights cross
+    /// (VolumeDesc::rain_solved_share of the last set_volume; 1 when it held no rain).
+    double rain_solved_share() const noexcept;
     /// No cloud: the march pass outputs T = 1 (the background is seen unchanged).
     void clear_volume();
     /// Uploads directions of S (see SourceUpload). Throws core::Error on inconsistent input

@@ -215,6 +215,8 @@ Renderer::~Renderer() {
     m.temporal.release();
 }
 
+double Renderer::rain_solved_share() const noexcept { return impl_->rain_solved_share; }
+
 void Renderer::set_volume(const VolumeDesc& v) {
     Impl& m = *impl_;
     if (!v.density) throw core::Error("set_volume", "density is null");
@@ -305,8 +307,8 @@ void Renderer::set_volume(const VolumeDesc& v) {
         m.rain_g = rain->g;
         m.rain_albedo = rain->albedo;
         m.rain_top = rain->top;
-        m.rain_solved_share = v.rain_solved_share;
     }
+    m.rain_solved_share = rain ? v.rain_solved_share : 1.0;
     if (m.sun_tex && !(m.density.geom == v.density->geom)) {
         delete_texture(m.sun_tex);  // on the old grid
         m.sun_fine = false;

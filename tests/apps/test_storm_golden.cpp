@@ -317,6 +317,12 @@ TEST_CASE("storm with rain, moon and sky: the linear passes sum to the frame, th
     // or the transmittance's, which draw the volume unlit.
     std::unique_ptr<view::StormView> owned = rain_view();
     view::StormView& view = *owned;
+    // The ground's flash lights cross the rain at the share of its extinction the light solves
+    // carry (the drops as cloud of equal transport coefficient), not at its full extinction.
+    const scene::Scene& s = view.scene();
+    CHECK(view.renderer().rain_solved_share() ==
+          doctest::Approx(sky::rain_media_density(s.medium, *s.rain) * s.medium.extinction).epsilon(1e-12));
+    CHECK(view.renderer().rain_solved_share() < 0.5);  // g 0.85 drops against the cloud's 0.6: 0.39
     view::ViewOptions opt;
     // Float rounding leaves 5e-6 of a pixel at worst; the moon's first scattering in the rain
     // drawn in the background's pass as well as the static one made it 4.8e-4.
