@@ -273,31 +273,44 @@ def write_picture(path, f, c):
 RAIN_CHANNEL_BANDS = [(0, 10), (10, 30), (30, None)]
 
 
+class RainFrames:
+    """A `run` of the scene (`wet`) and of it without rain (`dry`): the pixels that see rain and
+    no cloud (`mask`: Fulgur's T < 0.98 wet, > 0.999 dry), the change the rain makes to Fulgur's
+    passes (`fulgur_change`: wet less dry times the rain's T), Cycles' change for each seed (`a`,
+    `b`; its dry frame the seeds' mean) and the drawn channel's pixels (`core`; None without a
+    channel pass)."""
+
+    def __init__(self, wet, dry, seeds):
+        self.fw, self.fd = read_channels(wet / "fulgur.exr"), read_channels(dry / "fulgur.exr")
+        self.t = self.fw["T.Y"][..., None]
+        self.mask = (self.fw["T.Y"] < 0.98) & (self.fd["T.Y"] > 0.999)
+        cycles = lambda d, s: rgb(read_channels(d / f"cycles_{s}.exr"))  # noqa: E731
+        dry_c = (cycles(dry, seeds[0]) + cycles(dry, seeds[1])) / 2
+        self.a, self.b = cycles(wet, seeds[0]) - dry_c * self.t, cycles(wet, seeds[1]) - dry_c * self.t
+        self.core = rgb(self.fw, "channel").sum(axis=-1) > 0 if "channel.R" in self.fw else None
+
+    def fulgur_change(self, layers=("lightning", "static", "background")):
+        return sum(rgb(self.fw, p) - rgb(self.fd, p) * self.t for p in layers)
+
+
 def rain_change(wet, dry, seeds):
     """The rain's figures (module docstring) from a `run` of the scene (`wet`) and of it without rain."""
-    fw, fd = read_channels(wet / "fulgur.exr"), read_channels(dry / "fulgur.exr")
-    passes = lambda ch: rgb(ch, "lightning") + rgb(ch, "static") + rgb(ch, "background")
-    t = fw["T.Y"][..., None]
-    mask = (fw["T.Y"] < 0.98) & (fd["T.Y"] > 0.999)
-    cycles = lambda d, s: rgb(read_channels(d / f"cycles_{s}.exr"))
-    dry_c = (cycles(dry, seeds[0]) + cycles(dry, seeds[1])) / 2
-    a, b = cycles(wet, seeds[0]) - dry_c * t, cycles(wet, seeds[1]) - dry_c * t
-    f = passes(fw) - passes(fd) * t
+    r = RainFrames(wet, dry, seeds)
+    mask, a, b, core = r.mask, r.a, r.b, r.core
+    f = r.fulgur_change()
     out = {"rain_" + k: v for k, v in region_figures(f, (a + b) / 2, a, b, mask).items()}
     # By distance on screen from the nearest pixel of the drawn channel (Fulgur's channel pass):
     # near it the channel's own light dominates the rain, farther the light scattered more than once.
-    if "channel.R" in fw:
-        core = rgb(fw, "channel").sum(axis=-1) > 0
-        if core.any():
-            inner = np.zeros_like(core)
-            for lo, hi in RAIN_CHANNEL_BANDS:
-                outer = dilate(core, hi - 1) if hi is not None else np.ones_like(core)
-                band = mask & outer & ~inner
-                inner = outer
-                name = "rain_channel_%d_%s_px_" % (lo, "up" if hi is None else "%d" % hi)
-                for k, v in region_figures(f, (a + b) / 2, a, b, band).items():
-                    if k in ("pixels", "ratio_of_totals", "cycles_total_noise"):
-                        out[name + k] = v
+    if core is not None and core.any():
+        inner = np.zeros_like(core)
+        for lo, hi in RAIN_CHANNEL_BANDS:
+            outer = dilate(core, hi - 1) if hi is not None else np.ones_like(core)
+            band = mask & outer & ~inner
+            inner = outer
+            name = "rain_channel_%d_%s_px_" % (lo, "up" if hi is None else "%d" % hi)
+            for k, v in region_figures(f, (a + b) / 2, a, b, band).items():
+                if k in ("pixels", "ratio_of_totals", "cycles_total_noise"):
+                    out[name + k] = v
     return out
 
 
@@ -325,28 +338,28 @@ def rain(args):
 def run(args):
     out = pathlib.Path(args.out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    shot = [args.fulgur_shot, args.scene, "--seed", str(args.seed), "--time", args.time, "--size", args.size,
-            "-o", str(out / "fulgur.png"), "--exr", str(out / "fulgur.exr"), "--exr-passes",
-            "--blender", str(out / "blender"), "--internal-scale", "1"]
+    frame = [args.fulgur_shot, args.scene, "--seed", str(args.seed), "--time", args.time, "--size", args.size,
+             "--internal-scale", "1"]
     if args.camera:
-        shot += ["--camera", args.camera]
+        frame += ["--camera", args.camera]
     if args.quality:
-        shot += ["--quality", args.quality]
+        frame += ["--quality", args.quality]
     if args.strike_grid:
-        shot += ["--strike-grid", str(args.strike_grid)]
+        frame += ["--strike-grid", str(args.strike_grid)]
     if args.static_toward_camera:
-        shot += ["--static-toward-camera"]
+        frame += ["--static-toward-camera"]
     if args.strike_toward_camera:
-        shot += ["--strike-toward-camera"]
+        frame += ["--strike-toward-camera"]
+    images = ["-o", str(out / "fulgur.png"), "--exr", str(out / "fulgur.exr"), "--exr-passes"]
+    export = ["--blender", str(out / "blender")]
     t0 = time.monotonic()
     if args.single_scattering:
         # fulgur-shot exports the whole light (--blender refuses a frame without some orders),
         # so the export and the single-scattering frame are two runs.
-        i = shot.index("--blender")
-        subprocess.run(shot[:2] + ["--seed", str(args.seed), "--time", args.time, "--size", args.size,
-                                   "-o", str(out / "export.png"), "--blender", shot[i + 1]]
-                       + shot[shot.index("--internal-scale"):], check=True, stdout=subprocess.DEVNULL)
-        shot = shot[:i] + shot[i + 2:] + ["--off", "multiple"]
+        subprocess.run(frame + ["-o", str(out / "export.png")] + export, check=True, stdout=subprocess.DEVNULL)
+        shot = frame + images + ["--off", "multiple"]
+    else:
+        shot = frame + images + export
     subprocess.run(shot, check=True, stdout=subprocess.DEVNULL)
     fulgur_s = time.monotonic() - t0
     seeds = [int(s) for s in args.cycles_seeds.split(",")]

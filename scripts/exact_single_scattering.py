@@ -51,19 +51,23 @@ import sys
 import numpy as np
 
 
-def load(directory):
+def read_grid(directory, entry):
+    """The dense grid of a frame.json medium entry (its "file", "grid" and "dims")."""
     import pyopenvdb as vdb
 
+    nx, ny, nz = entry["dims"]
+    grid = vdb.read(str(pathlib.Path(directory) / entry["file"]), entry["grid"])
+    values = np.zeros((nx, ny, nz), np.float32)
+    grid.copyToArray(values, ijk=(0, 0, 0))
+    return values
+
+
+def load(directory):
     d = pathlib.Path(directory)
     frame = json.loads((d / "frame.json").read_text())
-    m = frame["medium"]
-    if m is None:
+    if frame["medium"] is None:
         raise SystemExit(f"{d / 'frame.json'}: no medium")
-    nx, ny, nz = m["dims"]
-    grid = vdb.read(str(d / m["file"]), m["grid"])
-    rho = np.zeros((nx, ny, nz), np.float32)
-    grid.copyToArray(rho, ijk=(0, 0, 0))
-    return frame, rho
+    return frame, read_grid(d, frame["medium"])
 
 
 def hg(g, cos):
@@ -110,16 +114,8 @@ def density_sampler(rho, origin, voxel, medium):
 
 def load_rain(directory, frame):
     """The frame's rain (frame.json "rain", rain.vdb) as its extinction grid in 1/m, or None."""
-    import pyopenvdb as vdb
-
     r = frame.get("rain")
-    if not r:
-        return None
-    nx, ny, nz = r["dims"]
-    grid = vdb.read(str(pathlib.Path(directory) / r["file"]), r["grid"])
-    sigma = np.zeros((nx, ny, nz), np.float32)
-    grid.copyToArray(sigma, ijk=(0, 0, 0))
-    return sigma * np.float32(r["extinction"])
+    return read_grid(directory, r) * np.float32(r["extinction"]) if r else None
 
 
 def render(directory, out, medium="pc", stride=4, step=5.0, shadow_samples=256, window=None):
@@ -259,24 +255,22 @@ def compare_rain(run_dir, exact_json):
     the rain's T: the rain's own light), its whole change (the ground seen through the rain too)
     and Cycles' (its whole change), each over the exact's, by distance from the drawn channel."""
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-    from compare_cycles import dilate, read_channels, rgb
+    from compare_cycles import RainFrames, dilate
 
     wet, dry = pathlib.Path(run_dir) / "wet/out", pathlib.Path(run_dir) / "dry/out"
     frame = json.loads((wet / "blender/frame.json").read_text())
     colour = sum(frame["flash_colour"])  # the exact is per unit flash colour; the sums are over r, g, b
-    fw, fd = read_channels(wet / "fulgur.exr"), read_channels(dry / "fulgur.exr")
-    t = fw["T.Y"]
-    mask = (t < 0.98) & (fd["T.Y"] > 0.999)
-    change = lambda layers: sum(rgb(fw, p) - rgb(fd, p) * t[..., None] for p in layers).sum(-1)  # noqa: E731
-    rain_light, whole = change(["lightning"]), change(["lightning", "static", "background"])
-    cycles_dry = sum(rgb(read_channels(dry / f"cycles_{s}.exr")) for s in (1, 2)) / 2
-    cycles = [(rgb(read_channels(wet / f"cycles_{s}.exr")) - cycles_dry * t[..., None]).sum(-1) for s in (1, 2)]
-    exact = np.full(t.shape, np.nan)
+    r = RainFrames(wet, dry, (1, 2))
+    mask, core = r.mask, r.core
+    rain_light, whole = r.fulgur_change(("lightning",)).sum(-1), r.fulgur_change().sum(-1)
+    cycles = [r.a.sum(-1), r.b.sum(-1)]
+    exact = np.full(mask.shape, np.nan)
     for k, v in json.loads(pathlib.Path(exact_json).read_text())["rain_pixels"].items():
         px, py = map(int, k.split(","))
         exact[py, px] = v * colour
     sampled = mask & ~np.isnan(exact)
-    core = rgb(fw, "channel").sum(axis=-1) > 0
+    if core is None:
+        raise SystemExit(f"{wet / 'fulgur.exr'}: no channel pass (fulgur-shot --exr-passes)")
     out = {"name": "exact-rain", "run": str(run_dir)}
 
     def add(name, region):
