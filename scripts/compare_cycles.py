@@ -64,7 +64,6 @@ subtraction (what "within Cycles' noise" can claim).
 import argparse
 import json
 import math
-import os
 import pathlib
 import subprocess
 import sys

@@ -135,7 +135,7 @@ FULGUR_STUDY(sun_geist, "sun-geist",
     transport::LightingMedium m;
     m.density = study_cloud(n, &h);
     const double kappa = -std::log(0.75) / h;
-    solve::Media media{m, m, 1, {}};
+    solve::Media media{m, m, 1, {}, {}};
     const transport::DirectionalSource sun{glm::normalize(glm::dvec3(0.4, 0.25, -1.0)), 1.0};
     study::Csv csv(ctx.file("sun_geist.csv"),
                    {"method", "g", "directions", "steps", "two_N", "converged", "seconds_single", "seconds_lattice",

@@ -81,13 +81,14 @@ struct VolumeDesc {
     /// light (the flash's point lights, the sun through set_sun's transmittance, the sky) and
     /// its shadow on the ground's flash light. Null (or no rain in it): none, no cost.
     const cloud::RainField* rain = nullptr;
-    /// The share of the rain's extinction the scene's light solves carry, > 0: the rain enters
-    /// their media as cloud of equal transport coefficient (sky::rain_media_density x kappa;
-    /// 0.39 for the default storm's drops and cloud). The ground's flash lights are attenuated
-    /// by that share on their way through the rain, so that their light and the solved light
-    /// the rain scatters onto the ground (Frame::ground) are one medium's: with the full
-    /// extinction the light the drops scatter forward was lost, and the ground under a shaft
-    /// too dark (docs/blender.md). 1: the rain's full extinction (no solve lights the ground).
+    /// The share of the rain's extinction the flash's light solves carry, > 0. The ground's
+    /// flash lights are attenuated by that share on their way through the rain, so that their
+    /// light and the solved light the rain scatters onto the ground (Frame::ground) are one
+    /// medium's. A lattice carries the rain as cloud of equal transport coefficient
+    /// (sky::rain_media_density x kappa; 0.39 for the default storm's drops and cloud): with the
+    /// full extinction the light the drops scatter forward was lost, and the ground under a
+    /// shaft too dark (docs/blender.md). 1: the rain's full extinction, as Monte Carlo paths
+    /// carry it (transport::PathMix). set_rain_solved_share() changes it alone.
     double rain_solved_share = 1.0;
 };
 
@@ -554,6 +555,10 @@ public:
     /// The share of the rain's extinction the ground's flash lights cross
     /// (VolumeDesc::rain_solved_share of the last set_volume; 1 when it held no rain).
     double rain_solved_share() const noexcept;
+    /// VolumeDesc::rain_solved_share without uploading the volume again (the flash's solves
+    /// changed). Throws core::Error unless finite and > 0; kept at 1 while the volume holds no
+    /// rain.
+    void set_rain_solved_share(double share);
     /// No cloud: the march pass outputs T = 1 (the background is seen unchanged).
     void clear_volume();
     /// Uploads directions of S (see SourceUpload). Throws core::Error on inconsistent input

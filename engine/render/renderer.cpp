@@ -217,6 +217,21 @@ Renderer::~Renderer() {
 
 double Renderer::rain_solved_share() const noexcept { return impl_->rain_solved_share; }
 
+namespace {
+
+void check_rain_solved_share(double share, const char* where) {
+    if (!std::isfinite(share) || !(share > 0.0))
+        throw core::Error(std::string(where) + ": rain_solved_share",
+                          "must be finite and > 0, got " + core::format_number(share, 8));
+}
+
+}  // namespace
+
+void Renderer::set_rain_solved_share(double share) {
+    check_rain_solved_share(share, "set_rain_solved_share");
+    if (impl_->has_rain) impl_->rain_solved_share = share;
+}
+
 void Renderer::set_volume(const VolumeDesc& v) {
     Impl& m = *impl_;
     if (!v.density) throw core::Error("set_volume", "density is null");
@@ -226,9 +241,7 @@ void Renderer::set_volume(const VolumeDesc& v) {
                                                      std::to_string(v.density->geom.cell_count()) + " voxels");
     if (!std::isfinite(v.extinction) || v.extinction < 0.0)
         throw core::Error("set_volume: extinction", "must be finite and >= 0, got " + std::to_string(v.extinction));
-    if (!std::isfinite(v.rain_solved_share) || !(v.rain_solved_share > 0.0))
-        throw core::Error("set_volume: rain_solved_share",
-                          "must be finite and > 0, got " + core::format_number(v.rain_solved_share, 8));
+    check_rain_solved_share(v.rain_solved_share, "set_volume");
     GLint max3d = 0;
     glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
     const core::Int3 d = v.density->geom.dims;

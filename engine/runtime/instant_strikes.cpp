@@ -113,9 +113,9 @@ struct InstantStrikes::Impl {
     int threads;
     transport::LightingMedium fine;       // the full-resolution density (the cloud's)
     transport::MonteCarloMedium tracing;  // the cloud's: its cells are what the estimates' norms are over
-    // With rain, the medium the truth traces (runtime::truth) and the strikes solved ahead see:
-    // the rain as cloud of equal transport coefficient, S at its points with the drops' phase
-    // function. Both tracers trace it: the channel's light reaches the cloud through the rain,
+    // With rain, the medium the truth traces (runtime::truth) and the strikes solved ahead by
+    // paths see: the rain at its own extinction, scattering as drops (solve::Media::traced), S at
+    // its points with the drops' phase function. Both tracers trace it: the channel's light reaches the cloud through the rain,
     // and the estimates' multiple S holds the flash's light at the rain (Frame::rain). (With
     // the cloud's medium instead, a rain scene's S was 21% off its truth: order 1 52% high.)
     std::optional<solve::Media> own_wet;  // made here when the caller has none
@@ -144,9 +144,10 @@ struct InstantStrikes::Impl {
           dirs(transport::output_directions(s.effective_directions())) {
         if (s.rain) {
             wet = rain_media ? rain_media : &own_wet.emplace(sky::make_static_media(s, density, 1, true));
-            FULGUR_ASSERT(wet->full.density.data.size() == density.data.size(),
+            const transport::LightingMedium& traced = solve::traced_medium(*wet);
+            FULGUR_ASSERT(traced.density.data.size() == density.data.size(),
                           "InstantStrikes: rain_media must hold the full-resolution density");
-            wet_tracing.emplace(wet->full, m.lighting.density.geom);
+            wet_tracing.emplace(traced, m.lighting.density.geom);
         }
         if (bases && o.near_field_rays > 0) {
             if (o.diffusion_multiple) {

@@ -62,13 +62,15 @@ StrikeLight solve_strike(const scene::Scene& scene, const core::Grid3<float>& de
     const core::GridGeometry& lighting = media.lighting.density.geom;
     const core::GridGeometry& grid = media.transport.density.geom;  // where the lattice runs
     const std::vector<transport::LineSource> lines = strike_line_sources(bolt);
-    // The paths' medium: the media's own full-resolution one where they carry it (with rain,
-    // the rain in it: sky::make_static_media), else the density.
-    const bool own_fine = media.full.density.data.empty();
-    const transport::LightingMedium made = own_fine ? full_resolution(scene, density) : transport::LightingMedium{};
-    const transport::LightingMedium& fine = own_fine ? made : media.full;
     const bool lattice = options.multiple == StrikeSolveOptions::Multiple::Lattice && scene.effects.multiple_scattering;
     const bool mc = options.multiple == StrikeSolveOptions::Multiple::MonteCarlo && scene.effects.multiple_scattering;
+    // The paths' medium: the media's own full-resolution one where they carry it (with rain,
+    // the rain in it: sky::make_static_media), else the density. Where the paths are the light
+    // (mc) the rain is traced as drops (solve::traced_medium); where they feed the lattice, as
+    // the lattice carries it.
+    const bool own_fine = media.full.density.data.empty();
+    const transport::LightingMedium made = own_fine ? full_resolution(scene, density) : transport::LightingMedium{};
+    const transport::LightingMedium& fine = own_fine ? made : mc ? solve::traced_medium(media) : media.full;
     FULGUR_ASSERT(!(options.toward && lattice),
                   "solve_strike: the lattice solves fixed directions, not toward a point");
 

@@ -24,13 +24,14 @@ transport::SourceField Truth::rain_light(const scene::Scene& scene, const Compon
 
 Truth truth(const scene::Scene& scene, const core::Grid3<float>& density, std::span<const lightning::LitSegment> lit,
             std::span<const transport::PointSource> points, const TruthOptions& options) {
-    // With rain, the medium the presets' strike solves see (FramePipeline): the rain as cloud
-    // of equal transport coefficient, S at its points with the drops' phase function.
+    // With rain, the medium the presets' traced strike solves see (FramePipeline): the rain at
+    // its own extinction, scattering as drops (solve::Media::traced), S at its points with the
+    // drops' phase function.
     std::optional<solve::Media> wet;
     if (scene.rain) wet = sky::make_static_media(scene, density, 1, true);
     transport::LightingMedium fine;
     if (wet) {
-        fine = std::move(wet->full);
+        fine = std::move(wet->traced);
     } else {
         fine.density = density;
         fine.optics = scene.medium;

@@ -314,6 +314,32 @@ private:
     core::Grid3<float> cloud_, rain_;  // scattering coefficients per density voxel (1/m)
 };
 
+// The full-resolution medium the Monte Carlo's paths trace when it rains: the rain at its own
+// extinction (density per unit of the cloud's kappa, raised as make_static_media raises it
+// where the sum passes 1) and, in each voxel, its share of the extinction, albedo and phase
+// (transport::PathMix): the drops scatter as drops, not as cloud of equal transport coefficient.
+transport::LightingMedium traced_rain(const scene::Scene& s, const core::Grid3<float>& density,
+                                      const cloud::RainField& rain) {
+    const double kappa = s.medium.extinction;
+    double peak = 1.0;
+    for (std::size_t i = 0; i < density.data.size(); ++i)
+        peak = std::max(peak, double(density.data[i]) + double(rain.extinction.data[i]) / kappa);
+    transport::LightingMedium m;
+    m.optics = s.medium;
+    m.optics.extinction = kappa * peak;
+    m.density = density_with_rain(density, rain, 1.0 / kappa, peak);
+    auto mix = std::make_shared<transport::PathMix>();
+    mix->g = s.rain->g;
+    mix->albedo = s.rain->albedo;
+    mix->share = core::Grid3<float>(density.geom, 0.0f);
+    for (std::size_t i = 0; i < density.data.size(); ++i) {
+        const double r = double(rain.extinction.data[i]), sum = r + kappa * double(density.data[i]);
+        mix->share.data[i] = sum > 0.0 ? float(std::min(1.0, r / sum)) : 0.0f;
+    }
+    m.path_mix = std::move(mix);
+    return m;
+}
+
 }  // namespace
 
 // The cloud and, when the scene declares rain, the rain as cloud of the same transport
@@ -334,6 +360,7 @@ solve::Media make_static_media(const scene::Scene& s, const core::Grid3<float>& 
     const RainPhaseMix mix(s, density, *rain);
     m.transport.phase_mix = mix.on(s.lighting_downsample / refine);
     m.lighting.phase_mix = refine == 1 ? m.transport.phase_mix : mix.on(s.lighting_downsample);
+    if (full) m.traced = traced_rain(s, density, *rain);
     return m;
 }
 

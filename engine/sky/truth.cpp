@@ -10,10 +10,11 @@ namespace fulgur::sky {
 
 namespace {
 
+// The paths' medium: with rain, the rain at its own extinction, scattering as drops.
 const transport::LightingMedium& full_medium(const solve::Media& media) {
     if (media.full.density.data.empty())
         throw core::Error("sky truth", "needs the full-resolution density (solve::make_media with full)");
-    return media.full;
+    return solve::traced_medium(media);
 }
 
 /// The truth's options for one run; S tallied on the lighting grid, with the rain's phase

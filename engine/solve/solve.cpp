@@ -51,6 +51,10 @@ transport::LbSettings lattice_settings(const scene::Scene& s) {
     return lb;
 }
 
+const transport::LightingMedium& traced_medium(const Media& m) noexcept {
+    return m.traced.density.data.empty() ? m.full : m.traced;
+}
+
 Media make_media(const scene::Scene& s, const core::Grid3<float>& density) {
     return make_media(s, density, s.transport.refine, s.transport.lb_exact_orders == 2);
 }

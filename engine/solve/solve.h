@@ -46,7 +46,15 @@ struct Media {
     /// The full-resolution density (for the Monte Carlo order 2 of
     /// transport.lattice_boltzmann.exact_orders 2; empty otherwise).
     transport::LightingMedium full;
+    /// With rain (sky::make_static_media with full): the full-resolution medium Monte Carlo
+    /// paths trace to be tallied as the light itself, the rain at its own extinction and with
+    /// its own albedo and phase (transport::PathMix), where `full` holds it as cloud of equal
+    /// transport coefficient for what feeds the lattice. Empty otherwise: paths trace `full`.
+    transport::LightingMedium traced;
 };
+
+/// The medium the Monte Carlo's paths trace: Media::traced when it is set, else Media::full.
+const transport::LightingMedium& traced_medium(const Media& m) noexcept;
 Media make_media(const scene::Scene& s, const core::Grid3<float>& density);
 /// The same with its own refinement of the lighting grid (a divisor of lighting.downsample)
 /// and, with `full`, the full-resolution density (for an order-2 Monte Carlo): the static

@@ -575,7 +575,8 @@ PathOptions path_options(const LightingMedium& medium, const MonteCarloOptions& 
             .roulette_threshold = o.roulette_threshold,
             .max_collisions = o.max_collisions,
             .uncollided_only = o.uncollided_only,
-            .expected_second_order = o.expected_second_order};
+            .expected_second_order = o.expected_second_order,
+            .mix = medium.path_mix.get()};
 }
 
 /// What run_grid accumulated over its batches: the statistics of S single and multiple

@@ -32,23 +32,40 @@ void validate_medium(const LightingMedium& m) {
         }
     }
     if (m.phase_mix) validate_phase_mix(*m.phase_mix, m.density.geom);
+    if (m.path_mix) validate_path_mix(*m.path_mix, m.density.geom);
 }
+
+namespace {
+
+// Throws unless `share` lies on `geom` with every value in [0, 1]; `field` names it.
+void validate_share(const core::Grid3<float>& share, const core::GridGeometry& geom, const std::string& field,
+                    const std::string& grid_is) {
+    if (!(share.geom == geom) || share.data.size() != geom.cell_count())
+        throw core::Error(field, "must lie on " + grid_is + " (" + std::to_string(geom.dims.x) + "x" +
+                                     std::to_string(geom.dims.y) + "x" + std::to_string(geom.dims.z) + " voxels)");
+    for (std::size_t c = 0; c < share.data.size(); ++c) {
+        const float v = share.data[c];
+        if (!(v >= 0.0f && v <= 1.0f)) {
+            const core::Int3 ijk = geom.unindex(c);
+            throw core::Error(
+                field + "[" + std::to_string(ijk.x) + "," + std::to_string(ijk.y) + "," + std::to_string(ijk.z) + "]",
+                "must be in [0, 1], got " + std::to_string(v));
+        }
+    }
+}
+
+}  // namespace
 
 void validate_phase_mix(const PhaseMix& mix, const core::GridGeometry& geom) {
     if (!std::isfinite(mix.g)) throw core::Error("phase_mix.g", "must be finite (it is clamped to +-0.9999)");
-    if (!(mix.share.geom == geom) || mix.share.data.size() != geom.cell_count())
-        throw core::Error("phase_mix.share", "must lie on the grid S is computed on (" + std::to_string(geom.dims.x) +
-                                                 "x" + std::to_string(geom.dims.y) + "x" + std::to_string(geom.dims.z) +
-                                                 " voxels)");
-    for (std::size_t c = 0; c < mix.share.data.size(); ++c) {
-        const float v = mix.share.data[c];
-        if (!(v >= 0.0f && v <= 1.0f)) {
-            const core::Int3 ijk = geom.unindex(c);
-            throw core::Error("phase_mix.share[" + std::to_string(ijk.x) + "," + std::to_string(ijk.y) + "," +
-                                  std::to_string(ijk.z) + "]",
-                              "must be in [0, 1], got " + std::to_string(v));
-        }
-    }
+    validate_share(mix.share, geom, "phase_mix.share", "the grid S is computed on");
+}
+
+void validate_path_mix(const PathMix& mix, const core::GridGeometry& geom) {
+    if (!std::isfinite(mix.g)) throw core::Error("path_mix.g", "must be finite (it is clamped to +-0.9999)");
+    if (!(mix.albedo >= 0.0 && mix.albedo <= 1.0))
+        throw core::Error("path_mix.albedo", "must be in [0, 1], got " + std::to_string(mix.albedo));
+    validate_share(mix.share, geom, "path_mix.share", "the medium's grid");
 }
 
 double optical_depth(const LightingMedium& m, const glm::dvec3& a, const glm::dvec3& b) noexcept {

@@ -60,6 +60,23 @@ struct PhaseMix {
 /// not finite or outside [0, 1] (names the cell), or a grid that is not `geom`.
 void validate_phase_mix(const PhaseMix& mix, const core::GridGeometry& geom);
 
+/// A second scatterer the Monte Carlo's paths carry exactly (rain drops under a cloud): the
+/// medium's density holds it at its own extinction, and a collision in a voxel is the second
+/// scatterer's with probability `share` (its part of the voxel's extinction), which then
+/// weighs the path by its `albedo` and turns it with its phase function (HG `g`); otherwise
+/// the medium's own optics. Where the share is 0 or 1 no random number is drawn, so a mix of
+/// share 0 traces the paths of the medium alone and a mix of share 1 those of a medium with
+/// the second's optics. The tally's S takes the medium's albedo (PhaseMix gives its phase).
+struct PathMix {
+    double g = 0.0;
+    double albedo = 1.0;
+    core::Grid3<float> share;  ///< on the medium's own grid, in [0, 1]
+};
+
+/// Throws core::Error naming the field when a path mix is unusable: g or albedo not finite,
+/// albedo outside [0, 1], a share outside [0, 1] (names the cell), or a grid that is not `geom`.
+void validate_path_mix(const PathMix& mix, const core::GridGeometry& geom);
+
 /// The medium every solver sees: piecewise-constant density on the lighting grid plus optics.
 struct LightingMedium {
     core::Grid3<float> density;  ///< values in [0, 1]
@@ -68,6 +85,9 @@ struct LightingMedium {
     /// medium's grid): the lattice's read-out and single_scattering() honour it; a Monte Carlo
     /// run takes it as MonteCarloOptions::phase_mix, on its tally grid.
     std::shared_ptr<const PhaseMix> phase_mix = nullptr;
+    /// Set: the Monte Carlo's paths scatter as PathMix says (the density then holds the second
+    /// scatterer at its own extinction); the other solvers ignore it.
+    std::shared_ptr<const PathMix> path_mix = nullptr;
     double sigma_t(std::size_t cell) const noexcept { return optics.extinction * double(density.data[cell]); }
 };
 

@@ -10,6 +10,25 @@
 
 namespace fulgur::view {
 
+namespace {
+
+// The share of the rain's extinction the flash's solves carry, which the ground's flash lights
+// cross (render::VolumeDesc::rain_solved_share). The presets that trace their strikes' paths
+// carry the rain at its own extinction (transport::PathMix), and their paths tally the light
+// the drops scatter onto the ground; the lattice (per_strike) carries it as cloud of equal
+// transport coefficient (sky::rain_media_density), and so do paper and hybrid, which light the
+// ground by the channel alone: the similarity share's lesser attenuation stands in there for
+// the light the drops scatter forward. (Unscheduled strikes under hybrid or per_strike are
+// traced, their ground light then crosses the lattice's share.)
+double flash_rain_share(const scene::Scene& s, const scene::Quality& q) {
+    if (!s.rain) return 1.0;
+    using P = scene::Quality::Preset;
+    if (q.preset == P::PerStrikeMc || q.preset == P::Instant || q.preset == P::Reference) return 1.0;
+    return sky::rain_media_density(s.medium, *s.rain) * s.medium.extinction;
+}
+
+}  // namespace
+
 std::filesystem::path ensure_baked(
     const scene::Scene& s, const core::Grid3<float>& density, const std::optional<std::filesystem::path>& explicit_fgb,
     const bake::Progress& progress,
@@ -108,15 +127,11 @@ StormView::StormView(scene::Scene s, core::Grid3<float> density, const std::opti
         if (!(drawn->geom == density_.geom))
             throw core::Error("StaticSetup::undetailed_density", "is not on the scene's density grid");
     }
-    // The ground's flash light through the rain at the rain's extinction as the solves carry it
-    // (render::VolumeDesc::rain_solved_share).
-    const double solved_share =
-        scene_.rain ? sky::rain_media_density(scene_.medium, *scene_.rain) * scene_.medium.extinction : 1.0;
     renderer_->set_volume({.density = drawn,
                            .extinction = scene_.medium.extinction,
                            .detail = scene_.cloud.detail,
                            .rain = rain,
-                           .rain_solved_share = solved_share});
+                           .rain_solved_share = flash_rain_share(scene_, scene_.quality)});
 }
 
 void StormView::set_lightning(const lightning::LightningParams& p) {
@@ -239,6 +254,7 @@ void StormView::update_static_light(const ViewOptions& o) {
 void StormView::set_quality(const scene::Quality& q) {
     scene_.quality = q;
     if (pipeline_) pipeline_->set_quality(q);
+    if (renderer_) renderer_->set_rain_solved_share(flash_rain_share(scene_, q));
 }
 
 const solve::Media& StormView::media() {

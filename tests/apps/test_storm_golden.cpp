@@ -317,12 +317,23 @@ TEST_CASE("storm with rain, moon and sky: the linear passes sum to the frame, th
     // or the transmittance's, which draw the volume unlit.
     std::unique_ptr<view::StormView> owned = rain_view();
     view::StormView& view = *owned;
-    // The ground's flash lights cross the rain at the share of its extinction the light solves
-    // carry (the drops as cloud of equal transport coefficient), not at its full extinction.
+    // The ground's flash lights cross the rain at the share of its extinction the flash's solves
+    // carry: the lattice's presets (this scene's paper) the drops as cloud of equal transport
+    // coefficient, the presets that trace the strikes' paths the drops at their own extinction;
+    // set_quality switches it.
     const scene::Scene& s = view.scene();
-    CHECK(view.renderer().rain_solved_share() ==
-          doctest::Approx(sky::rain_media_density(s.medium, *s.rain) * s.medium.extinction).epsilon(1e-12));
+    REQUIRE(s.quality.preset == scene::Quality::Preset::Paper);
+    const double similarity = sky::rain_media_density(s.medium, *s.rain) * s.medium.extinction;
+    CHECK(view.renderer().rain_solved_share() == doctest::Approx(similarity).epsilon(1e-12));
     CHECK(view.renderer().rain_solved_share() < 0.5);  // g 0.85 drops against the cloud's 0.6: 0.39
+    for (const char* traced : {"per_strike_mc", "instant", "reference"}) {
+        view.set_quality(scene::quality_preset(traced));
+        CHECK_MESSAGE(view.renderer().rain_solved_share() == 1.0, traced);
+    }
+    for (const char* lattice : {"per_strike", "hybrid", "paper"}) {
+        view.set_quality(scene::quality_preset(lattice));
+        CHECK_MESSAGE(view.renderer().rain_solved_share() == doctest::Approx(similarity).epsilon(1e-12), lattice);
+    }
     view::ViewOptions opt;
     // Float rounding leaves 5e-6 of a pixel at worst; the moon's first scattering in the rain
     // drawn in the background's pass as well as the static one made it 4.8e-4.

@@ -704,9 +704,11 @@ TEST_CASE("bad inputs are rejected with errors naming the field") {
                          core::Error);
     density.at(1, 2, 3) = 0.5f;
     CHECK_THROWS_AS(r.set_volume({.density = &density, .extinction = -1.0}), core::Error);
-    for (const double share : {0.0, -0.5, std::numeric_limits<double>::infinity(), std::nan("")})
+    for (const double share : {0.0, -0.5, std::numeric_limits<double>::infinity(), std::nan("")}) {
         CHECK_THROWS_WITH_AS(r.set_volume({.density = &density, .extinction = 0.01, .rain_solved_share = share}),
                              doctest::Contains("rain_solved_share"), core::Error);
+        CHECK_THROWS_WITH_AS(r.set_rain_solved_share(share), doctest::Contains("rain_solved_share"), core::Error);
+    }
     CHECK_THROWS_AS(r.set_volume({.density = nullptr}), core::Error);
     r.set_volume({.density = &density, .extinction = 0.01});
     core::GridGeometry lg = density.geom;

@@ -278,12 +278,14 @@ TEST_CASE("rain shadows the ground's flash light") {
     st.ground = true;
     st.jitter = false;
     st.ground_lights = 1;
-    auto centre = [&](const cloud::RainField* rf, double share = 1.0) {
+    // `then`: the share set_rain_solved_share() gives after the upload (< 0: none).
+    auto centre = [&](const cloud::RainField* rf, double share = 1.0, double then = -1.0) {
         r.set_volume({.density = &empty,
                       .extinction = 4e-3,
                       .precision = render::DensityPrecision::F16,
                       .rain = rf,
                       .rain_solved_share = share});
+        if (then > 0.0) r.set_rain_solved_share(then);
         render_at(r, cam, st, 32, 32);
         int w = 0, h = 0;
         const std::vector<float> im = r.read_march(w, h);
@@ -311,6 +313,10 @@ TEST_CASE("rain shadows the ground's flash light") {
         const auto [wet39, wet39_t] = centre(&rain, 0.39);
         CHECK(wet39_t == doctest::Approx(wet_t));
         CHECK(wet39 / wet39_t / dry == test::rel(std::exp(-0.39 * sigma * 1050.0), 0.001));  // the same sums
+        // The share changed alone (a preset that traces the drops): the full extinction again,
+        // the lights' map made anew.
+        CHECK(centre(&rain, 0.39, 1.0).first == centre(&rain).first);
+        CHECK(r.rain_solved_share() == 1.0);
     }
     r.set_channel({});
 }

@@ -69,7 +69,7 @@ TEST_CASE("the image of a sunlit homogeneous layer against the layer's own Monte
             for (int j = 0; j < nx; ++j)
                 for (int i = 0; i < nx; ++i) m.density.at(i, j, k) = 1.0f;
         m.optics = {sigma, albedo, g};
-        const solve::Media media{m, m, 1, m};
+        const solve::Media media{m, m, 1, m, {}};
         const std::vector<glm::dvec3> dirs = transport::output_directions(26);
         sky::TruthOptions to;
         to.paths = 1'000'000;

@@ -31,20 +31,22 @@ scene::Scene day_rain(const std::string& name, const std::string& patch = "{}") 
     return scene::load_scene(path);
 }
 
-// Worst relative error of the media's sigma_t against kappa rho + f sigma_rain per voxel, over
-// the voxels where it is at least `floor` (1/m); counts the voxels with rain.
-double worst_sigma_t(const scene::Scene& s, const core::Grid3<float>& density, const solve::Media& m, int& rainy) {
+// Worst relative error of a full-resolution medium's sigma_t against kappa rho + f sigma_rain
+// per voxel (f: the density per unit of the rain's extinction; the similarity relation's by
+// default); counts the voxels with rain.
+double worst_sigma_t(const scene::Scene& s, const core::Grid3<float>& density, const transport::LightingMedium& m,
+                     int& rainy, double f = -1.0) {
     const cloud::RainField rain = cloud::make_rain(density, *s.rain);
-    const double f = sky::rain_media_density(s.medium, *s.rain);
-    REQUIRE(m.full.density.data.size() == density.data.size());
+    if (f < 0.0) f = sky::rain_media_density(s.medium, *s.rain);
+    REQUIRE(m.density.data.size() == density.data.size());
     double worst = 0.0;
     rainy = 0;
     for (std::size_t i = 0; i < density.data.size(); ++i) {
         const double want = s.medium.extinction * (double(density.data[i]) + f * double(rain.extinction.data[i]));
-        const float rho = m.full.density.data[i];
+        const float rho = m.density.data[i];
         CHECK_MESSAGE((rho >= 0.0f && rho <= 1.0f), "voxel " << i << ": density " << rho);
         if (rain.extinction.data[i] > 0.0f) ++rainy;
-        if (want > 1e-9) worst = std::max(worst, std::abs(m.full.sigma_t(i) / want - 1.0));
+        if (want > 1e-9) worst = std::max(worst, std::abs(m.sigma_t(i) / want - 1.0));
     }
     return worst;
 }
@@ -66,7 +68,7 @@ TEST_CASE("rain in the static light's media: sigma_t of cloud and rain, exact at
     // (~1e-7 relative, bound 1e-6).
     int rainy = 0;
     const solve::Media wet = sky::static_media(s, density, true);
-    CHECK(worst_sigma_t(s, density, wet, rainy) < 1e-6);
+    CHECK(worst_sigma_t(s, density, wet.full, rainy) < 1e-6);
     CHECK(rainy > 100);                                        // the shaft under the cloud: not a vacuous check
     CHECK(wet.full.optics.extinction == s.medium.extinction);  // 25 mm/h under this cloud stays below density 1
 
@@ -114,7 +116,7 @@ TEST_CASE("rain in the static light's media: sigma_t of cloud and rain, exact at
     const core::Grid3<float> heavy_density = scene::make_density(heavy);
     const solve::Media hm = sky::static_media(heavy, heavy_density, true);
     CHECK(hm.full.optics.extinction > 10.0 * heavy.medium.extinction);
-    CHECK(worst_sigma_t(heavy, heavy_density, hm, rainy) < 1e-6);
+    CHECK(worst_sigma_t(heavy, heavy_density, hm.full, rainy) < 1e-6);
     CHECK(hm.lighting.optics.extinction == hm.full.optics.extinction);
     CHECK(hm.transport.optics.extinction == hm.full.optics.extinction);
 
@@ -129,6 +131,44 @@ TEST_CASE("rain in the static light's media: sigma_t of cloud and rain, exact at
     CHECK(dm.full.optics.extinction == dry.medium.extinction);
     CHECK(!dm.transport.phase_mix);
     CHECK(!dm.lighting.phase_mix);
+    CHECK(dm.traced.density.data.empty());  // the paths trace `full`
+    CHECK(&solve::traced_medium(dm) == &dm.full);
+}
+
+TEST_CASE("rain in the paths' medium: the drops at their own extinction, albedo and phase, exact at any rate") {
+    // What the Monte Carlo traces as the light itself (solve::Media::traced): sigma_t the cloud's
+    // plus the rain's own in every voxel (float rounding of one sum and one division: bound
+    // 1e-6), and each voxel's share of the extinction the drops'.
+    for (const std::string patch : {"{}", R"({"medium": {"extinction": 4e-4}, "rain": {"rate": 1000}})"}) {
+        CAPTURE(patch);
+        const scene::Scene s = day_rain("traced", patch);
+        const core::Grid3<float> density = scene::make_density(s);
+        const solve::Media m = sky::static_media(s, density, true);
+        REQUIRE(&solve::traced_medium(m) == &m.traced);
+        const transport::LightingMedium& t = m.traced;
+        int rainy = 0;
+        CHECK(worst_sigma_t(s, density, t, rainy, 1.0 / s.medium.extinction) < 1e-6);
+        CHECK(rainy > 100);
+        // The lattice's media keep the similarity relation's.
+        CHECK(worst_sigma_t(s, density, m.full, rainy) < 1e-6);
+        REQUIRE(t.path_mix);
+        CHECK(t.path_mix->g == s.rain->g);
+        CHECK(t.path_mix->albedo == s.rain->albedo);
+        CHECK(t.optics.g == s.medium.g);
+        CHECK(t.optics.albedo == s.medium.albedo);
+        const cloud::RainField rain = cloud::make_rain(density, *s.rain);
+        double worst = 0.0;
+        int drops = 0;
+        for (std::size_t i = 0; i < density.data.size(); ++i) {
+            const double r = rain.extinction.data[i], c = s.medium.extinction * double(density.data[i]);
+            const double got = t.path_mix->share.data[i];
+            worst = std::max(worst, std::abs(got - (r + c > 0.0 ? r / (r + c) : 0.0)));
+            drops += got == 1.0;
+        }
+        CHECK(worst < 1e-6);  // one float division
+        CHECK(drops > 0);
+        CHECK(drops == rainy);  // on the density's own voxels the rain falls from below the cloud's
+    }
 }
 
 TEST_CASE("rain in the static light: its cache key follows the rain, and the light reaches the rain's cells") {

@@ -23,7 +23,7 @@ transport::LightingMedium blob(transport::Medium optics = {0.015, 0.95, 0.6}) {
     return test::lumpy_cloud({20, 18, 14}, {700.0, 650.0, 450.0}, 700.0, optics);
 }
 
-solve::Media media_of(const transport::LightingMedium& m) { return solve::Media{m, m, 1, {}}; }
+solve::Media media_of(const transport::LightingMedium& m) { return solve::Media{m, m, 1, {}, {}}; }
 
 sky::SolveSettings settings(sky::Method method = sky::Method::Hybrid) {
     sky::SolveSettings s;
@@ -161,7 +161,7 @@ TEST_CASE("refinement: S averaged onto the lighting grid, or kept on the transpo
     averaged.lighting.density = core::downsample(fine.density, 2);
     averaged.lighting.optics = fine.optics;
     averaged.refine = 2;
-    const solve::Media kept{fine, fine, 1, {}};
+    const solve::Media kept{fine, fine, 1, {}, {}};
     const transport::DirectionalSource sun{{0.3, 0.2, -1.0}, 1.0};
     const std::vector<glm::dvec3> dirs = transport::output_directions(26);
     sky::SolveSettings st = settings();

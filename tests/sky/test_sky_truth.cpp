@@ -23,7 +23,7 @@ using namespace fulgur;
 namespace {
 
 // Media whose full-resolution density is the lighting grid's own (the truth tallies on it).
-solve::Media full_media(const transport::LightingMedium& m) { return solve::Media{m, m, 1, m}; }
+solve::Media full_media(const transport::LightingMedium& m) { return solve::Media{m, m, 1, m, {}}; }
 
 double cloud_sum(const transport::SourceField& f, const transport::LightingMedium& m) {
     double s = 0.0;
@@ -132,7 +132,7 @@ TEST_CASE("the static truth holds the plan's lights in a solve's shape; bad inpu
     CHECK(of.sun->single.data == light.sun->single.data);
     CHECK(of.sky->zenith.multiple.data == light.sky->zenith.multiple.data);
 
-    solve::Media no_full{m, m, 1, {}};
+    solve::Media no_full{m, m, 1, {}, {}};
     CHECK_THROWS_WITH(sky::sun_truth(no_full, sun, dirs, to), doctest::Contains("full-resolution density"));
     sky::TruthOptions bad = to;
     bad.paths = 10;

@@ -6,6 +6,11 @@
 // quadrature does not depend on g) and the Monte Carlo's order 1 (whose unscattered rays do not
 // either) against runs with the medium's g set to g2; the Monte Carlo's orders >= 2 and the
 // lattice against their own runs with the share 0 and 1 everywhere. And bad mixes are refused.
+//
+// The second scatterer carried by the Monte Carlo's paths (transport::PathMix): a share of 0
+// traces the medium's own paths and a share of 1 a medium of the second's optics, bit for bit;
+// between, a collision is the second's by its share (its albedo, measured on the absorption at
+// the first collision); bad path mixes are refused too.
 #include "core/error.h"
 #include "transport/transport.h"
 
@@ -216,4 +221,104 @@ TEST_CASE("phase mix: bad mixes are refused, naming the field") {
     core::GridGeometry other = plain.density.geom;
     other.dims.x = 5;
     refused(*mix_on(other, kG2), "phase_mix.share");
+}
+
+namespace {
+
+// A path mix of the second scatterer (g2, albedo2) with the share `everywhere` in every voxel.
+std::shared_ptr<transport::PathMix> path_mix_on(const core::GridGeometry& geom, double g2, double albedo2,
+                                                float everywhere) {
+    auto mix = std::make_shared<transport::PathMix>();
+    mix->g = g2;
+    mix->albedo = albedo2;
+    mix->share = core::Grid3<float>(geom, everywhere);
+    return mix;
+}
+
+transport::MonteCarloResult sun_paths(const transport::LightingMedium& m, const transport::PhaseMix* read = nullptr) {
+    transport::MonteCarloOptions o;
+    o.paths = 20'000;
+    o.batches = 4;
+    o.phase_mix = read;
+    return transport::monte_carlo(m, kSun, transport::output_directions(6), o);
+}
+
+}  // namespace
+
+TEST_CASE("path mix: share 0 traces the medium's paths, share 1 a medium of the second's optics, bit for bit") {
+    const transport::LightingMedium plain = blob();
+    const transport::MonteCarloResult a = sun_paths(plain);
+
+    transport::LightingMedium none = plain;
+    none.path_mix = path_mix_on(plain.density.geom, kG2, 0.5, 0.0f);
+    const transport::MonteCarloResult n = sun_paths(none);
+    CHECK(n.single.data == a.single.data);
+    CHECK(n.multiple.data == a.multiple.data);
+    CHECK(n.energy.absorbed.mean == a.energy.absorbed.mean);
+
+    // Share 1: every collision the drops' (g 0.85, albedo 0.9), the same random numbers as a
+    // medium of those optics. S read out with the drops' phase (PhaseMix share 1); the tallies'
+    // S takes the medium's albedo (0.99), so it is that medium's times 0.99 / 0.9 (float
+    // rounding of the stored fields, per deposit against the sums: 1e-6).
+    transport::LightingMedium all = plain;
+    all.path_mix = path_mix_on(plain.density.geom, kG2, 0.9, 1.0f);
+    transport::LightingMedium drops = plain;
+    drops.optics.g = kG2;
+    drops.optics.albedo = 0.9;
+    const auto read = mix_on(plain.density.geom, kG2, 1.0f);
+    const transport::MonteCarloResult got = sun_paths(all, read.get()), want = sun_paths(drops);
+    CHECK(got.energy.absorbed.mean == want.energy.absorbed.mean);
+    CHECK(got.energy.escaped.mean == want.energy.escaped.mean);
+    transport::SourceField scaled = got.multiple;
+    for (float& v : scaled.data) v = float(double(v) * 0.9 / 0.99);
+    CHECK(rel_l2(scaled, want.multiple) < 1e-6);
+    CHECK(rel_l2(want.multiple, a.multiple) > 0.05);  // the drops' optics change the light
+}
+
+TEST_CASE("path mix: a collision is the second scatterer's by its share") {
+    // A share of 0.5 everywhere; the medium scatters all it meets (albedo 1), the second absorbs
+    // it all (albedo 0). At the first collision half the power is absorbed, as a binomial of the
+    // paths that collide: bound 4 standard errors, 0.5 / sqrt(collided paths) each.
+    transport::LightingMedium m = blob();
+    m.optics.albedo = 1.0;
+    m.path_mix = path_mix_on(m.density.geom, kG2, 0.0, 0.5f);
+    const transport::MonteCarloResult r = sun_paths(m);
+    const double collided = r.energy.emitted.mean - r.energy.escaped_by_order[0].mean;
+    const double paths = 20'000.0 * collided / r.energy.emitted.mean;
+    REQUIRE(paths > 2000.0);
+    const double share = r.energy.absorbed_by_order[0].mean / collided;
+    MESSAGE("absorbed at the first collision: " << share << " of " << paths << " paths' power");
+    CHECK(std::abs(share - 0.5) < 4.0 * 0.5 / std::sqrt(paths));
+    // What the first flights deposit does not depend on the mix: order 1 is the medium's alone.
+    transport::LightingMedium plain = m;
+    plain.path_mix = nullptr;
+    CHECK(r.single.data == sun_paths(plain).single.data);
+}
+
+TEST_CASE("path mix: bad mixes are refused, naming the field") {
+    const transport::LightingMedium plain = blob();
+    const auto refused = [&](const transport::PathMix& p, const std::string& field) {
+        transport::LightingMedium m = plain;
+        m.path_mix = std::make_shared<transport::PathMix>(p);
+        transport::MonteCarloOptions o;
+        o.paths = 100;
+        o.batches = 2;
+        CHECK_THROWS_WITH_AS(transport::monte_carlo(m, kSun, transport::output_directions(6), o),
+                             doctest::Contains(field.c_str()), core::Error);
+    };
+    transport::PathMix p = *path_mix_on(plain.density.geom, kG2, 0.9, 0.5f);
+    p.share.data[7] = -0.5f;
+    refused(p, "path_mix.share[1,1,0]");
+    p.share.data[7] = std::nanf("");
+    refused(p, "path_mix.share[1,1,0]");
+    p = *path_mix_on(plain.density.geom, kG2, 0.9, 0.5f);
+    p.albedo = 1.5;
+    refused(p, "path_mix.albedo");
+    p.albedo = std::nan("");
+    refused(p, "path_mix.albedo");
+    p = *path_mix_on(plain.density.geom, std::nan(""), 0.9, 0.5f);
+    refused(p, "path_mix.g");
+    core::GridGeometry other = plain.density.geom;
+    other.dims.x = 5;
+    refused(*path_mix_on(other, kG2, 0.9, 0.5f), "path_mix.share");
 }

@@ -52,7 +52,21 @@ struct PathOptions {
     /// After the first scattering, hand the new direction to the tally's scattered_expected()
     /// (the second flight's expected-value estimate) and stop (counted as truncated).
     bool expected_second_order = false;
+    /// A second scatterer in the medium (LightingMedium::path_mix; its share on the medium's
+    /// grid): a collision is its with probability share, with its albedo and phase.
+    const PathMix* mix = nullptr;
 };
+
+/// The share of PathMix `m` in the voxel holding x (clamped to the grid: a collision lies in
+/// the medium's box, up to rounding at its faces).
+inline double path_mix_share(const PathMix& m, const glm::dvec3& x) noexcept {
+    const core::GridGeometry& g = m.share.geom;
+    const glm::dvec3 u = (x - g.origin) / g.voxel_size;
+    const int i = std::clamp(int(std::floor(u.x)), 0, g.dims.x - 1);
+    const int j = std::clamp(int(std::floor(u.y)), 0, g.dims.y - 1);
+    const int k = std::clamp(int(std::floor(u.z)), 0, g.dims.z - 1);
+    return double(m.share.data[g.index(i, j, k)]);
+}
 
 /// Raw sums of one batch (watts, summed over the batch's paths).
 struct EnergyBatch {
@@ -171,13 +185,23 @@ void trace_paths(const Medium& med, const Emitter& em, const PathOptions& o, std
                 e.truncated += w;
                 break;
             }
+            // Which scatterer the collision is: the second one's share decides (a random number
+            // only where the voxel holds both).
+            double albedo = o.albedo, g = o.g;
+            if (o.mix) {
+                const double share = path_mix_share(*o.mix, x);
+                if (share >= 1.0 || (share > 0.0 && rng.uniform() < share)) {
+                    albedo = o.mix->albedo;
+                    g = o.mix->g;
+                }
+            }
             if (o.implicit_capture) {
-                const double wn = w * o.albedo;
+                const double wn = w * albedo;
                 e.absorbed += w - wn;
                 e.absorbed_by_order[order_bucket(k)] += w - wn;
                 w = wn;
                 if (!(w > 0.0)) break;
-            } else if (rng.uniform() >= o.albedo) {
+            } else if (rng.uniform() >= albedo) {
                 e.absorbed += w;
                 e.absorbed_by_order[order_bucket(k)] += w;
                 break;
@@ -187,7 +211,7 @@ void trace_paths(const Medium& med, const Emitter& em, const PathOptions& o, std
                 break;
             }
             const double u1 = rng.uniform(), u2 = rng.uniform();
-            d = hg_sample(d, o.g, u1, u2);
+            d = hg_sample(d, g, u1, u2);
             ++k;
             if (o.expected_second_order) {
                 tally.scattered_expected(x, d, w);
