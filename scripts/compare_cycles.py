@@ -98,8 +98,10 @@ def dilate(mask, r):
     """Pixels within r (Chebyshev) of a true pixel."""
     out = mask.copy()
     h, w = mask.shape
-    for dy in range(-r, r + 1):
-        for dx in range(-r, r + 1):
+    # Offsets past the image's size reach no pixel (and would turn the slices' ends negative).
+    ry, rx = min(r, h - 1), min(r, w - 1)
+    for dy in range(-ry, ry + 1):
+        for dx in range(-rx, rx + 1):
             ys, yd = slice(max(0, dy), h + min(0, dy)), slice(max(0, -dy), h + min(0, -dy))
             xs, xd = slice(max(0, dx), w + min(0, dx)), slice(max(0, -dx), w + min(0, -dx))
             out[yd, xd] |= mask[ys, xs]
