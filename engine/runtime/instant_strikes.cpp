@@ -115,9 +115,10 @@ struct InstantStrikes::Impl {
     transport::MonteCarloMedium tracing;  // the cloud's: its cells are what the estimates' norms are over
     // With rain, the medium the truth traces (runtime::truth) and the strikes solved ahead by
     // paths see: the rain at its own extinction, scattering as drops (solve::Media::traced), S at
-    // its points with the drops' phase function. Both tracers trace it: the channel's light reaches the cloud through the rain,
-    // and the estimates' multiple S holds the flash's light at the rain (Frame::rain). (With
-    // the cloud's medium instead, a rain scene's S was 21% off its truth: order 1 52% high.)
+    // its points with the drops' phase function. Both tracers trace it: the channel's light
+    // reaches the cloud through the rain, and the estimates' multiple S holds the flash's light
+    // at the rain (Frame::rain). (With the cloud's medium instead, a rain scene's S was 21% off
+    // its truth: order 1 52% high.)
     std::optional<solve::Media> own_wet;  // made here when the caller has none
     const solve::Media* wet = nullptr;
     std::optional<transport::MonteCarloMedium> wet_tracing;

@@ -16,8 +16,8 @@ namespace {
 // cross (render::VolumeDesc::rain_solved_share). The presets that trace their strikes' paths
 // carry the rain at its own extinction (transport::PathMix), and their paths tally the light
 // the drops scatter onto the ground; the lattice (per_strike) carries it as cloud of equal
-// transport coefficient (sky::rain_media_density), and so do paper and hybrid, which light the
-// ground by the channel alone: the similarity share's lesser attenuation stands in there for
+// transport coefficient (sky::rain_media_density), whose share the others take too: paper and
+// hybrid light the ground by the channel alone, and the lesser attenuation stands in there for
 // the light the drops scatter forward. (Unscheduled strikes under hybrid or per_strike are
 // traced, their ground light then crosses the lattice's share.)
 double flash_rain_share(const scene::Scene& s, const scene::Quality& q) {
