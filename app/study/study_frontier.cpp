@@ -125,6 +125,16 @@ FULGUR_STUDY(frontier, "frontier",
             s.quality = scene::quality_preset(p);
             s.cloud.detail = detail;
         });
+    // The same with storm-full's rain shaft: the truth traces the drops as drops, the lattice's
+    // presets carry them as cloud of equal transport coefficient (the bake never sees the rain).
+    const std::optional<cloud::RainParams> rain =
+        scene::load_scene(std::filesystem::path(FULGUR_SOURCE_DIR) / "content/scenes/storm-full.json").rain;
+    for (const char* p : {"paper", "hybrid", "per_strike", "per_strike_mc"})
+        variant(std::string(p) + " detail rain", "storm_detail", [&, p](scene::Scene& s) {
+            s.quality = scene::quality_preset(p);
+            s.cloud.detail = detail;
+            s.rain = rain;
+        });
     if (!ctx.quick) {
         auto lattice = [](int refine, int orders) {
             return [refine, orders](scene::Scene& s) {
@@ -211,9 +221,9 @@ FULGUR_STUDY(frontier, "frontier",
     for (Config& c : configs)
         if (bake::scene_key(c.scene, density_of(c)) == base_key) c.bake = "storm";
 
-    // --- strikes and their truths (one per lighting grid and direction set) ---
+    // --- strikes and their truths (one per lighting grid, direction set, detail and rain) ---
     std::vector<Strike> strikes;
-    std::map<std::tuple<std::uint64_t, int, int, bool>, runtime::Truth> truths;
+    std::map<std::tuple<std::uint64_t, int, int, bool, bool>, runtime::Truth> truths;
     std::map<std::string, Bake> bakes;
 
     study::Csv per_strike(ctx.file("frontier_strikes.csv"),
@@ -279,7 +289,8 @@ FULGUR_STUDY(frontier, "frontier",
                 memory_mb = double(b.bases->memory_bytes()) / 1e6 +
                             (L ? 4.0 * double(L->single[0].data.size() * sizeof(float)) / 1e6 : 0.0);
             }
-            const auto key = std::make_tuple(seed, s.lighting_downsample, int(dirs.size()), s.cloud.detail.has_value());
+            const auto key = std::make_tuple(seed, s.lighting_downsample, int(dirs.size()), s.cloud.detail.has_value(),
+                                             s.rain.has_value());
             if (!truths.count(key)) {
                 runtime::TruthOptions to;
                 to.paths = truth_paths;
