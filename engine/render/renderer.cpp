@@ -229,7 +229,10 @@ void check_rain_solved_share(double share, const char* where) {
 
 void Renderer::set_rain_solved_share(double share) {
     check_rain_solved_share(share, "set_rain_solved_share");
-    if (impl_->has_rain) impl_->rain_solved_share = share;
+    Impl& m = *impl_;
+    if (!m.has_rain || share == m.rain_solved_share) return;
+    m.rain_solved_share = share;
+    m.temporal.inputs_changed = true;  // the ground's flash light in the history crossed the old share
 }
 
 void Renderer::set_volume(const VolumeDesc& v) {
