@@ -108,6 +108,16 @@ def dilate(mask, r):
     return out
 
 
+def rings(core, bands):
+    """For each band (lo, hi) of `bands`: the pixels whose Chebyshev distance from a pixel of `core`
+    is in [lo, hi) (hi None: every pixel farther), the bands taken in order of distance."""
+    inner = np.zeros_like(core)
+    for lo, hi in bands:
+        outer = dilate(core, hi - 1) if hi is not None else np.ones_like(core)
+        yield lo, hi, outer & ~inner
+        inner = outer
+
+
 def block_mean(x, n):
     """x (H, W, ...) averaged over n x n blocks (the last partial row and column dropped)."""
     h, w = (x.shape[0] // n) * n, (x.shape[1] // n) * n
@@ -303,13 +313,9 @@ def rain_change(wet, dry, seeds):
     # By distance on screen from the nearest pixel of the drawn channel (Fulgur's channel pass):
     # near it the channel's own light dominates the rain, farther the light scattered more than once.
     if core is not None and core.any():
-        inner = np.zeros_like(core)
-        for lo, hi in RAIN_CHANNEL_BANDS:
-            outer = dilate(core, hi - 1) if hi is not None else np.ones_like(core)
-            band = mask & outer & ~inner
-            inner = outer
+        for lo, hi, ring in rings(core, RAIN_CHANNEL_BANDS):
             name = "rain_channel_%d_%s_px_" % (lo, "up" if hi is None else "%d" % hi)
-            for k, v in region_figures(f, (a + b) / 2, a, b, band).items():
+            for k, v in region_figures(f, (a + b) / 2, a, b, mask & ring).items():
                 if k in ("pixels", "ratio_of_totals", "cycles_total_noise"):
                     out[name + k] = v
     return out

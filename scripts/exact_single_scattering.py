@@ -255,7 +255,7 @@ def compare_rain(run_dir, exact_json):
     the rain's T: the rain's own light), its whole change (the ground seen through the rain too)
     and Cycles' (its whole change), each over the exact's, by distance from the drawn channel."""
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-    from compare_cycles import RainFrames, dilate
+    from compare_cycles import RainFrames, rings
 
     wet, dry = pathlib.Path(run_dir) / "wet/out", pathlib.Path(run_dir) / "dry/out"
     frame = json.loads((wet / "blender/frame.json").read_text())
@@ -285,11 +285,8 @@ def compare_rain(run_dir, exact_json):
                     name + "cycles_noise": float(abs(c[0] - c[1]) / 2 / e)})
 
     add("", sampled)
-    inner = np.zeros_like(core)
-    for lo, hi in RAIN_BANDS:
-        outer = dilate(core, hi - 1) if hi > 1 else core
-        add("band_%d_%d_px_" % (lo, hi), sampled & outer & ~inner)
-        inner = outer
+    for lo, hi, ring in rings(core, RAIN_BANDS):
+        add("band_%d_%d_px_" % (lo, hi), sampled & ring)
     print(json.dumps(out))
 
 

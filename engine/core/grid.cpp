@@ -1,6 +1,7 @@
 #include "core/core.h"
 
 #include <algorithm>
+#include <cmath>
 #include <string>
 
 namespace fulgur::core {
@@ -8,6 +9,12 @@ namespace fulgur::core {
 Int3 GridGeometry::unindex(std::size_t idx) const noexcept {
     const std::size_t nx = std::size_t(dims.x), ny = std::size_t(dims.y);
     return {int(idx % nx), int((idx / nx) % ny), int(idx / (nx * ny))};
+}
+
+Int3 GridGeometry::clamped_voxel(const glm::dvec3& world) const noexcept {
+    const glm::dvec3 v = to_voxel(world);
+    return {std::clamp(int(std::floor(v.x)), 0, dims.x - 1), std::clamp(int(std::floor(v.y)), 0, dims.y - 1),
+            std::clamp(int(std::floor(v.z)), 0, dims.z - 1)};
 }
 
 bool GridGeometry::contains(const glm::dvec3& world) const noexcept {

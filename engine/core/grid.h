@@ -36,6 +36,8 @@ struct GridGeometry {
     glm::dvec3 upper() const noexcept { return origin + extent(); }
     /// Continuous voxel coordinates: the centre of voxel i maps to i + 0.5.
     glm::dvec3 to_voxel(const glm::dvec3& world) const noexcept { return (world - origin) / voxel_size; }
+    /// The voxel holding `world`, clamped to the grid (a point outside maps to the nearest voxel).
+    Int3 clamped_voxel(const glm::dvec3& world) const noexcept;
     bool contains(const glm::dvec3& world) const noexcept;
     bool operator==(const GridGeometry&) const = default;
 };

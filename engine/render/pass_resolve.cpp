@@ -50,15 +50,13 @@ const std::vector<std::uint8_t>& Renderer::Impl::active_mask(const core::GridGeo
         const int reach = int(std::ceil(lg.voxel_size / dg.voxel_size)) + 1;
         for (std::size_t c = 0; c < lit_active.size(); ++c) {
             const core::Int3 n = lg.unindex(c);
-            const glm::dvec3 v = dg.to_voxel(lg.centre(n.x, n.y, n.z));
-            const int i = std::clamp(int(std::floor(v.x)), 0, dg.dims.x - 1);
-            const int j = std::clamp(int(std::floor(v.y)), 0, dg.dims.y - 1);
-            const int k = std::clamp(int(std::floor(v.z)), 0, dg.dims.z - 1);
+            const glm::dvec3 p = lg.centre(n.x, n.y, n.z), v = dg.to_voxel(p);
+            const core::Int3 q = dg.clamped_voxel(p);
             // Outside the density grid, the distance to the grid adds to the reach.
             const glm::dvec3 outside =
                 glm::max(glm::dvec3(0.0), glm::max(-v, v - glm::dvec3(dg.dims.x, dg.dims.y, dg.dims.z)));
             const double extra = std::max({outside.x, outside.y, outside.z});
-            lit_active[c] = double(distance[dg.index(i, j, k)]) <= reach + 1.0 - extra ? 1 : 0;
+            lit_active[c] = double(distance[dg.index(q.x, q.y, q.z)]) <= reach + 1.0 - extra ? 1 : 0;
         }
     }
     slot.active_valid = true;

@@ -284,6 +284,21 @@ core::Grid3<float> density_with_rain(const core::Grid3<float>& density, const cl
     return out;
 }
 
+// The cloud's density with the rain as `per_extinction` density per unit of its extinction, in
+// [0, 1]: where the sum passes 1 it is divided by the largest sum, `raise`, by which the medium's
+// extinction is multiplied so that sigma_t is kept.
+struct RaisedDensity {
+    core::Grid3<float> density;
+    double raise = 1.0;
+};
+RaisedDensity raised_density_with_rain(const core::Grid3<float>& density, const cloud::RainField& rain,
+                                       double per_extinction) {
+    double peak = 1.0;
+    for (std::size_t i = 0; i < density.data.size(); ++i)
+        peak = std::max(peak, double(density.data[i]) + double(rain.extinction.data[i]) * per_extinction);
+    return {density_with_rain(density, rain, per_extinction, peak), peak};
+}
+
 // The drops' phase function in S (transport::PhaseMix): the rain's part of each cell's
 // scattering coefficient, albedo x extinction of the rain against the cloud's own (not the
 // similarity density the transport sees), on grids coarser than the density.
@@ -321,13 +336,11 @@ private:
 transport::LightingMedium traced_rain(const scene::Scene& s, const core::Grid3<float>& density,
                                       const cloud::RainField& rain) {
     const double kappa = s.medium.extinction;
-    double peak = 1.0;
-    for (std::size_t i = 0; i < density.data.size(); ++i)
-        peak = std::max(peak, double(density.data[i]) + double(rain.extinction.data[i]) / kappa);
+    RaisedDensity raised = raised_density_with_rain(density, rain, 1.0 / kappa);
     transport::LightingMedium m;
     m.optics = s.medium;
-    m.optics.extinction = kappa * peak;
-    m.density = density_with_rain(density, rain, 1.0 / kappa, peak);
+    m.optics.extinction = kappa * raised.raise;
+    m.density = std::move(raised.density);
     auto mix = std::make_shared<transport::PathMix>();
     mix->g = s.rain->g;
     mix->albedo = s.rain->albedo;
@@ -350,13 +363,10 @@ solve::Media make_static_media(const scene::Scene& s, const core::Grid3<float>& 
     if (!s.rain) return solve::make_media(s, density, refine, full);
     std::optional<cloud::RainField> made;
     if (!rain) rain = &made.emplace(cloud::make_rain(density, *s.rain));
-    const double per_extinction = rain_media_density(s.medium, *s.rain);
-    double peak = 1.0;
-    for (std::size_t i = 0; i < density.data.size(); ++i)
-        peak = std::max(peak, double(density.data[i]) + double(rain->extinction.data[i]) * per_extinction);
+    const RaisedDensity wet = raised_density_with_rain(density, *rain, rain_media_density(s.medium, *s.rain));
     scene::Scene raised = s;
-    raised.medium.extinction = s.medium.extinction * peak;
-    solve::Media m = solve::make_media(raised, density_with_rain(density, *rain, per_extinction, peak), refine, full);
+    raised.medium.extinction = s.medium.extinction * wet.raise;
+    solve::Media m = solve::make_media(raised, wet.density, refine, full);
     const RainPhaseMix mix(s, density, *rain);
     m.transport.phase_mix = mix.on(s.lighting_downsample / refine);
     m.lighting.phase_mix = refine == 1 ? m.transport.phase_mix : mix.on(s.lighting_downsample);

@@ -60,12 +60,8 @@ struct PathOptions {
 /// The share of PathMix `m` in the voxel holding x (clamped to the grid: a collision lies in
 /// the medium's box, up to rounding at its faces).
 inline double path_mix_share(const PathMix& m, const glm::dvec3& x) noexcept {
-    const core::GridGeometry& g = m.share.geom;
-    const glm::dvec3 u = (x - g.origin) / g.voxel_size;
-    const int i = std::clamp(int(std::floor(u.x)), 0, g.dims.x - 1);
-    const int j = std::clamp(int(std::floor(u.y)), 0, g.dims.y - 1);
-    const int k = std::clamp(int(std::floor(u.z)), 0, g.dims.z - 1);
-    return double(m.share.data[g.index(i, j, k)]);
+    const core::Int3 v = m.share.geom.clamped_voxel(x);
+    return double(m.share.at(v.x, v.y, v.z));
 }
 
 /// Raw sums of one batch (watts, summed over the batch's paths).
