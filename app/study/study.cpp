@@ -143,6 +143,10 @@ std::size_t toward_side_camera(std::span<const glm::dvec3> dirs) {
     return best;
 }
 
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 void Context::summary(const std::string& name, nlohmann::json j) const {
     if (!j.contains("study")) j["study"] = name;
     std::cout << j.dump() << std::endl;

@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <functional>
@@ -133,5 +134,8 @@ std::vector<float> flat(const runtime::RadianceField& r);
 
 /// The index of the direction in `dirs` closest to -y (toward side_view's camera).
 std::size_t toward_side_camera(std::span<const glm::dvec3> dirs);
+
+/// Wall seconds from `t0` to now (the studies' cost columns).
+double seconds_since(std::chrono::steady_clock::time_point t0);
 
 }  // namespace fulgur::study

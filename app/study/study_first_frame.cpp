@@ -23,10 +23,6 @@ using namespace fulgur;
 
 namespace {
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
 // Non-negative least squares min |A c - b|^2, c >= 0, by cyclic coordinate descent on the
 // normal equations (G = A^T A, r = A^T b); n is small (the lights near one bolt).
 std::vector<double> nnls(const std::vector<double>& G, const std::vector<double>& r, std::size_t n, int sweeps) {
@@ -110,7 +106,7 @@ FULGUR_STUDY(first_frame, "first-frame",
 
         auto t0 = std::chrono::steady_clock::now();
         const transport::SourceField d1 = runtime::direct_solve(s, media, pf.sources, {true, false});
-        const double direct_s = seconds_since(t0);
+        const double direct_s = study::seconds_since(t0);
         report("direct single + paper multiple", d1.data, paperm, direct_s);
         const transport::SourceField dm = runtime::direct_solve(s, media, pf.sources, {false, true});
         report("direct single + direct multiple", d1.data, dm.data, direct_s);
@@ -132,10 +128,10 @@ FULGUR_STUDY(first_frame, "first-frame",
             const transport::PointSource q{vl.position(l), 1.0};
             A.push_back(scalar_s1(std::span(&q, 1)));
         }
-        const double basis_s = seconds_since(t0);
+        const double basis_s = study::seconds_since(t0);
         t0 = std::chrono::steady_clock::now();
         const std::vector<double> b = scalar_s1(pf.sources);
-        const double target_s = seconds_since(t0);
+        const double target_s = study::seconds_since(t0);
         const std::size_t n = near.size();
         std::vector<double> G(n * n, 0.0), r(n, 0.0);
         for (std::size_t a = 0; a < n; ++a) {
@@ -149,7 +145,7 @@ FULGUR_STUDY(first_frame, "first-frame",
             }
         }
         const std::vector<double> coef = nnls(G, r, n, 400);
-        const double fit_s = seconds_since(t0);
+        const double fit_s = study::seconds_since(t0);
         lightning::LightWeights w;
         splatter.reset(w);
         for (std::size_t a = 0; a < n; ++a)
@@ -202,11 +198,11 @@ FULGUR_STUDY(first_frame, "first-frame",
             const runtime::Truth dt = runtime::truth(s, density, {}, dpts, po);
             const std::string lights = split == 1 ? "" : ", lights " + std::to_string(split) + "x denser";
             report(split == 1 ? std::string("splat traced (exact bases)") : "splat traced" + lights, dt.single.data,
-                   dt.multiple.data, seconds_since(t0));
+                   dt.multiple.data, study::seconds_since(t0));
             report("direct single + splat traced multiple" + lights, d1.data, dt.multiple.data, direct_s);
         }
         t0 = std::chrono::steady_clock::now();
         const runtime::Truth ps = runtime::truth(s, density, {}, pf.sources, po);
-        report("point sources traced", ps.single.data, ps.multiple.data, seconds_since(t0));
+        report("point sources traced", ps.single.data, ps.multiple.data, study::seconds_since(t0));
     }
 }

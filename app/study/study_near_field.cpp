@@ -43,10 +43,6 @@ using namespace fulgur;
 
 namespace {
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
 // Collided fluence per unit radiant intensity at distance r from an isotropic point source in
 // an infinite homogeneous medium of extinction sigma (diffusion approximation).
 double diffusion_phi(double r, double sigma, double albedo, double g) {
@@ -147,7 +143,7 @@ FULGUR_STUDY(near_field, "near-field",
         const TransportKernel kernel(albedo, g, ctx.quick ? 50'000 : 200'000);
         std::fprintf(stderr,
                      "near-field: transport kernel tabulated in %.2f s; F(0.1) %.4g F(1) %.4g F(3) %.4g F(10) %.4g\n",
-                     seconds_since(tk0), kernel(0.1), kernel(1.0), kernel(3.0), kernel(10.0));
+                     study::seconds_since(tk0), kernel(0.1), kernel(1.0), kernel(3.0), kernel(10.0));
 
         // Adds sign x both models of the point (q, I) to `out` on the cells `mask` admits, by
         // `rays` rays marched in steps of h / 8 out to r_max.
@@ -198,7 +194,7 @@ FULGUR_STUDY(near_field, "near-field",
                 }
                 const auto t0 = std::chrono::steady_clock::now();
                 cast(q.position, q.intensity, 1.0, reach + h, mask, rays, dirs, f);
-                source_seconds += seconds_since(t0);
+                source_seconds += study::seconds_since(t0);
                 splatter.splat(std::span(&q, 1), w);
                 for (const std::uint32_t l : w.active)
                     cast(bases.lights().position(l), w.e[l], -1.0, reach + 3.0 * h, mask, rays, dirs, f);
@@ -226,7 +222,7 @@ FULGUR_STUDY(near_field, "near-field",
             const auto t0 = std::chrono::steady_clock::now();
             for (const transport::PointSource& q : src)
                 if (q.intensity != 0.0) own(q.position, q.intensity, 1.0);
-            source_seconds = seconds_since(t0);
+            source_seconds = study::seconds_since(t0);
             lightning::LightWeights w;
             splatter.splat(src, w);
             for (const std::uint32_t l : w.active) own(bases.lights().position(l), w.e[l], -1.0);
@@ -302,10 +298,10 @@ FULGUR_STUDY(near_field, "near-field",
                 const std::vector<glm::dvec3> rays = core::fibonacci_sphere(n);
                 auto t0 = std::chrono::steady_clock::now();
                 NearField f = correction(pf.sources, rays, dirs);
-                const double secs = seconds_since(t0);
+                const double secs = study::seconds_since(t0);
                 t0 = std::chrono::steady_clock::now();
                 const std::vector<double> spread_m = spread(f.first_scattered);
-                const double spread_secs = seconds_since(t0);
+                const double spread_secs = study::seconds_since(t0);
                 report("near field: single", n, paper1, paperm, &f.single, nullptr, secs);
                 report("near field: single + point kernel", n, paper1, paperm, &f.single, &f.multiple, secs);
                 report("near field: single + transport kernel", n, paper1, paperm, &f.single, &f.transport_multiple,
@@ -320,7 +316,7 @@ FULGUR_STUDY(near_field, "near-field",
                         const std::vector<double> own_m = spread(o.first_scattered);
                         report(tapered ? "near field, own supports tapered: single + first-scattered"
                                        : "near field, own supports: single + first-scattered",
-                               n, paper1, paperm, &o.single, &own_m, own_secs + seconds_since(t0));
+                               n, paper1, paperm, &o.single, &own_m, own_secs + study::seconds_since(t0));
                         if (!tapered) continue;
                         // The engine's runtime::NearField is this model: the same figures, and
                         // its time once the lights' models are kept (a strike after the first).
@@ -330,10 +326,10 @@ FULGUR_STUDY(near_field, "near-field",
                         runtime::NearFieldParts cold, warm;
                         t0 = std::chrono::steady_clock::now();
                         engine.add(pf.sources, cold);
-                        const double cold_secs = seconds_since(t0);
+                        const double cold_secs = study::seconds_since(t0);
                         t0 = std::chrono::steady_clock::now();
                         engine.add(pf.sources, warm);
-                        const double warm_secs = seconds_since(t0);
+                        const double warm_secs = study::seconds_since(t0);
                         double d2 = 0.0, r2 = 0.0;
                         for (std::size_t j = 0; j < warm.single.size(); ++j) {
                             const double ref = o.single[j] + own_m[j % cells];

@@ -40,10 +40,6 @@ using namespace fulgur;
 
 namespace {
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
 struct Diffusion {
     std::vector<double> phi;       // fluence of orders >= 1 of the emission, per cell
     std::vector<glm::dvec3> flux;  // F = -D grad phi with the last pass's D
@@ -314,14 +310,14 @@ FULGUR_STUDY(strike_diffusion, "strike-diffusion",
                 nf_parts = {};
                 auto t0 = std::chrono::steady_clock::now();
                 single_only.add(pf.sources, nf_parts);
-                const double nf_secs = seconds_since(t0);
+                const double nf_secs = study::seconds_since(t0);
                 auto engine_row = [&](const std::string& label, const runtime::StrikeDiffusionOptions& sdo,
                                       const transport::LightingMedium* full) {
                     const runtime::StrikeDiffusion sd(lm, bases, dirs, sdo, full);
                     runtime::NearFieldParts parts = sdo.single ? runtime::NearFieldParts{} : nf_parts;
                     const auto ts = std::chrono::steady_clock::now();
                     sd.add(pf.sources, parts);
-                    const double secs = seconds_since(ts);
+                    const double secs = study::seconds_since(ts);
                     std::vector<float> e1 = paper1, em = paperm;
                     for (std::size_t j = 0; j < e1.size(); ++j) {
                         e1[j] += parts.single[j];
@@ -411,12 +407,12 @@ FULGUR_STUDY(strike_diffusion, "strike-diffusion",
                         transport::add_first_scattered_emission(tm, pf.sources, rays, 1, q);
                     else
                         q = exact_emission(s, tm, refine, pf.sources, dirs[0]);
-                    const double phi1_secs = seconds_since(t0);
+                    const double phi1_secs = study::seconds_since(t0);
                     for (const int passes : {0, 4}) {
                         if (rays && !passes) continue;
                         t0 = std::chrono::steady_clock::now();
                         const Diffusion d = diffusion(tm, q, passes);
-                        const double solve_secs = seconds_since(t0);
+                        const double solve_secs = study::seconds_since(t0);
                         // S of orders >= 2: isotropic, or the phase function applied to a radiance
                         // lobe of mean cosine |F| / phi along +F or -F (HG lobes compose as HG with
                         // the product of their g): a phi p_HG(w . F^, g |F| / phi), never negative.

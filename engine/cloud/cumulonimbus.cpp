@@ -14,11 +14,11 @@ namespace {
 constexpr std::uint64_t kLayoutTag = 0x6c61796f7574ULL;   // "layout"
 constexpr std::uint64_t kAutomatonTag = 0x6175746f6dULL;  // "autom"
 
-std::string field(const char* name) { return std::string("cloud.generator.") + name; }
+std::string generator_field(const char* name) { return std::string("cloud.generator.") + name; }
 
 std::string metres(double v) { return core::format_number(v) + " m"; }
 
-[[noreturn]] void fail(const char* name, const std::string& what) { throw core::Error(field(name), what); }
+[[noreturn]] void fail(const char* name, const std::string& what) { throw core::Error(generator_field(name), what); }
 
 void require_finite(const char* name, double v) {
     if (!std::isfinite(v)) fail(name, "must be a finite number, got " + std::to_string(v));
@@ -257,7 +257,7 @@ void validate_cumulonimbus(const CumulonimbusParams& p) {
                          std::to_string(p.grid.y) + "x" + std::to_string(p.grid.z));
     require_finite("voxel_size", p.voxel_size);
     if (!(p.voxel_size > 0.0)) fail("voxel_size", "must be a positive length in metres, got " + metres(p.voxel_size));
-    core::validate_geometry(cumulonimbus_geometry(p), field("grid"));
+    core::validate_geometry(cumulonimbus_geometry(p), generator_field("grid"));
 
     // Plain ranges.
     for (auto [name, v] : {std::pair{"base_height", p.base_height},

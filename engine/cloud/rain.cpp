@@ -17,7 +17,7 @@ namespace fulgur::cloud {
 
 namespace {
 
-std::string field(const char* name) { return std::string("rain.") + name; }
+std::string rain_field(const char* name) { return std::string("rain.") + name; }
 
 double smoothstep(double a, double b, double x) {
     const double t = std::clamp((x - a) / (b - a), 0.0, 1.0);
@@ -49,21 +49,23 @@ constexpr double kStreakStretch = 8.0;  // the streaks' vertical elongation
 void validate_rain(const RainParams& p) {
     // 1000 mm/h is beyond any rain recorded (the world record is ~300 mm in an hour).
     if (!(p.rate > 0.0 && p.rate <= 1000.0))
-        throw core::Error(field("rate"), "must be in (0, 1000] mm/h, got " + core::format_number(p.rate, 8));
+        throw core::Error(rain_field("rate"), "must be in (0, 1000] mm/h, got " + core::format_number(p.rate, 8));
     if (!(p.threshold >= 0.0 && p.threshold < 1.0))
-        throw core::Error(field("threshold"), "must be in [0, 1), got " + core::format_number(p.threshold, 8));
+        throw core::Error(rain_field("threshold"), "must be in [0, 1), got " + core::format_number(p.threshold, 8));
     for (int c = 0; c < 2; ++c)
         if (!(std::abs(p.shear[c]) <= 5000.0))
-            throw core::Error(field("shear"), "must be within +-5000 m of drift per km of fall, got " +
-                                                  core::format_number(p.shear[c], 8));
+            throw core::Error(rain_field("shear"), "must be within +-5000 m of drift per km of fall, got " +
+                                                       core::format_number(p.shear[c], 8));
     if (!(p.streak_scale >= 1.0 && p.streak_scale <= 1e5))
-        throw core::Error(field("streak_scale"),
+        throw core::Error(rain_field("streak_scale"),
                           "must be 1 to 100000 metres, got " + core::format_number(p.streak_scale, 8));
     if (!(p.streak_strength >= 0.0 && p.streak_strength <= 1.0))
-        throw core::Error(field("streak_strength"), "must be 0 to 1, got " + core::format_number(p.streak_strength, 8));
-    if (!(std::abs(p.g) < 1.0)) throw core::Error(field("g"), "must be in (-1, 1), got " + core::format_number(p.g, 8));
+        throw core::Error(rain_field("streak_strength"),
+                          "must be 0 to 1, got " + core::format_number(p.streak_strength, 8));
+    if (!(std::abs(p.g) < 1.0))
+        throw core::Error(rain_field("g"), "must be in (-1, 1), got " + core::format_number(p.g, 8));
     if (!(p.albedo >= 0.0 && p.albedo <= 1.0))
-        throw core::Error(field("albedo"), "must be 0 to 1, got " + core::format_number(p.albedo, 8));
+        throw core::Error(rain_field("albedo"), "must be 0 to 1, got " + core::format_number(p.albedo, 8));
 }
 
 double rain_extinction(double rate) {

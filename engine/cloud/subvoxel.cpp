@@ -16,7 +16,7 @@ namespace fulgur::cloud {
 
 namespace {
 
-std::string field(const char* name) { return std::string("cloud.detail.") + name; }
+std::string detail_field(const char* name) { return std::string("cloud.detail.") + name; }
 
 int wrap(int i, int n) noexcept {
     const int r = i % n;
@@ -56,14 +56,14 @@ double billow_octave(std::uint64_t seed, int octave, const glm::dvec3& q) {
 void validate_subvoxel_detail(const SubvoxelDetail& d) {
     // Billows under a metre or beyond 100 km are a unit mistake, not a cloud's detail.
     if (!(d.scale >= 1.0 && d.scale <= 1e5))
-        throw core::Error(field("scale"), "must be 1 to 100000 metres, got " + core::format_number(d.scale, 8));
+        throw core::Error(detail_field("scale"), "must be 1 to 100000 metres, got " + core::format_number(d.scale, 8));
     if (d.octaves < 1 || d.octaves > kMaxDetailOctaves)
-        throw core::Error(field("octaves"), "must be 1 to " + std::to_string(kMaxDetailOctaves) + " (the " +
-                                                std::to_string(kDetailTile) + "^3 tile's finest billows are " +
-                                                std::to_string(kDetailTile >> kMaxDetailOctaves) +
-                                                " texels across), got " + std::to_string(d.octaves));
+        throw core::Error(detail_field("octaves"), "must be 1 to " + std::to_string(kMaxDetailOctaves) + " (the " +
+                                                       std::to_string(kDetailTile) + "^3 tile's finest billows are " +
+                                                       std::to_string(kDetailTile >> kMaxDetailOctaves) +
+                                                       " texels across), got " + std::to_string(d.octaves));
     if (!(d.strength >= 0.0 && d.strength <= 1.0))
-        throw core::Error(field("strength"), "must be 0 to 1, got " + core::format_number(d.strength, 8));
+        throw core::Error(detail_field("strength"), "must be 0 to 1, got " + core::format_number(d.strength, 8));
 }
 
 DetailNoise::DetailNoise(const SubvoxelDetail& d) : params_(d) {

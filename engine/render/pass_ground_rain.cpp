@@ -35,9 +35,9 @@ namespace {
 constexpr int kAzimuths = 192;
 constexpr int kRadii = 96;
 // One sample per kVoxelsPerSample density voxels of a path's length within the rain, at most
-// kMaxSamples (a path of 6.4 km or more of rain below its top is sampled coarser).
+// kMaxGroundSamples (a path of 6.4 km or more of rain below its top is sampled coarser).
 constexpr int kVoxelsPerSample = 1;
-constexpr int kMaxSamples = 64;
+constexpr int kMaxGroundSamples = 64;
 
 // What the map is made from: the lights' positions, the density's box, the rain and the share of
 // its extinction it is drawn at, the ground.
@@ -78,7 +78,7 @@ void Renderer::Impl::ground_rain_pass(const FrameUniforms& u) {
     if (!detail::same_light_key(key, ground_rain_key)) {
         const GLuint p = program("ground_rain", {{GL_COMPUTE_SHADER, "ground_rain.comp"}});
         glUseProgram(p);
-        glUniform1i(glGetUniformLocation(p, "u_max_samples"), kMaxSamples);
+        glUniform1i(glGetUniformLocation(p, "u_max_samples"), kMaxGroundSamples);
         glUniform1f(glGetUniformLocation(p, "u_voxels_per_sample"), float(kVoxelsPerSample));
         glBindTextureUnit(0, density_tex);
         glBindImageTexture(0, ground_rain_tex, 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_R32F);

@@ -28,9 +28,9 @@ using detail::FrameUniforms;
 
 namespace {
 
-// One sample per density voxel of a path's length, at most kMaxSamples (a path of 8 km or more
+// One sample per density voxel of a path's length, at most kMaxLightSamples (a path of 8 km or more
 // at 125 m voxels is sampled coarser), as the ground lights' map.
-constexpr int kMaxSamples = 64;
+constexpr int kMaxLightSamples = 64;
 
 // The lights' centroid (they carry equal power: split_channel).
 glm::vec3 centroid(const FrameUniforms& u) {
@@ -62,7 +62,7 @@ void Renderer::Impl::rain_lights_pass(const FrameUniforms& u) {
     glUniform3f(glGetUniformLocation(p, "u_centroid"), c.x, c.y, c.z);
     glUniform3i(glGetUniformLocation(p, "u_lo"), rain_lo.x, rain_lo.y, rain_lo.z);
     glUniform3i(glGetUniformLocation(p, "u_hi"), rain_hi.x, rain_hi.y, rain_hi.z);
-    glUniform1i(glGetUniformLocation(p, "u_max_samples"), kMaxSamples);
+    glUniform1i(glGetUniformLocation(p, "u_max_samples"), kMaxLightSamples);
     glBindTextureUnit(0, density_tex);
     glBindImageTexture(0, density_tex, 0, GL_TRUE, 0, GL_READ_WRITE, format);
     glDispatchCompute(GLuint((n.x + 3) / 4), GLuint((n.y + 3) / 4), GLuint((n.z + 3) / 4));

@@ -22,11 +22,6 @@ using fulgur::test::scratch_dir;
 
 namespace {
 
-std::string read_all(const std::filesystem::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
 // Files in `dir` other than `keep` (temporaries and lock files left behind).
 std::vector<std::string> leftovers(const std::filesystem::path& dir, std::initializer_list<std::string> keep) {
     std::vector<std::string> out;
@@ -81,7 +76,7 @@ TEST_CASE("reads: only regular files of bounded size") {
 TEST_CASE("NRRD reads: devices, FIFOs, huge lines and absurd spacings are refused before allocating") {
     const auto dir = scratch_dir("files_nrrd");
     write_nrrd(dir / "g.nrrd", small_grid());
-    const std::string good = read_all(dir / "g.nrrd");
+    const std::string good = fulgur::test::read_text(dir / "g.nrrd");
     // cloud.file = /dev/zero once asked the allocator for 32 GB.
     CHECK_THROWS_WITH_AS(read_nrrd("/dev/zero"), doctest::Contains("is a character device"), Error);
     REQUIRE(::mkfifo((dir / "fifo.nrrd").c_str(), 0600) == 0);
@@ -126,14 +121,14 @@ TEST_CASE("AtomicFile: the target changes only on commit, and nothing is left be
     {
         AtomicFile f(out);
         f.write("new contents");
-        CHECK(read_all(out) == "old");  // the temporary is beside it
+        CHECK(fulgur::test::read_text(out) == "old");  // the temporary is beside it
         CHECK(f.temp_path().parent_path() == out.parent_path());
         CHECK(std::filesystem::exists(f.temp_path()));
     }  // destroyed without commit (an exception): the old file stays, the temporary goes
-    CHECK(read_all(out) == "old");
+    CHECK(fulgur::test::read_text(out) == "old");
     CHECK(leftovers(dir, {"out.bin"}).empty());
     write_file(out, "new");
-    CHECK(read_all(out) == "new");
+    CHECK(fulgur::test::read_text(out) == "new");
     CHECK(leftovers(dir, {"out.bin"}).empty());
     // A temporary a killed writer left ("<name>.<pid>.tmp") is removed by the next writer.
     fulgur::test::write_text(dir / "out.bin.12345.tmp", "stale");
@@ -194,7 +189,7 @@ TEST_CASE("AtomicFile: a terminating signal removes the temporary and the lock a
         });
         CHECK(WIFSIGNALED(status));
         if (WIFSIGNALED(status)) CHECK(WTERMSIG(status) == sig);
-        CHECK(read_all(out) == "previous");
+        CHECK(fulgur::test::read_text(out) == "previous");
         CHECK(leftovers(dir, {"s.bin"}).empty());  // neither the temporary nor the lock file
     }
 }
@@ -237,7 +232,7 @@ TEST_CASE("FileLock: a second writer of one path waits for the first; the result
     REQUIRE(::waitpid(pid, &status, 0) == pid);
     CHECK((WIFEXITED(status) && WEXITSTATUS(status) == 0));
     for (int fd : {go[0], go[1], done[0], done[1]}) ::close(fd);
-    const std::string got = read_all(out);
+    const std::string got = fulgur::test::read_text(out);
     CHECK(got.size() == 100000);
     CHECK(got.find_first_not_of('b') == std::string::npos);
     CHECK(leftovers(dir, {"shared.bin"}).empty());

@@ -21,10 +21,6 @@ Grid3<float> sample_grid() {
     return grid;
 }
 
-std::string read_all(const std::filesystem::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), {});
-}
 }  // namespace
 
 TEST_CASE("NRRD round trip keeps data and geometry bit-exact") {
@@ -43,7 +39,7 @@ TEST_CASE("NRRD reader rejects bad files with the file and offset in the message
     const auto dir = scratch_dir("nrrd_bad");
     const Grid3<float> g = sample_grid();
     write_nrrd(dir / "g.nrrd", g);
-    const std::string good = read_all(dir / "g.nrrd");
+    const std::string good = fulgur::test::read_text(dir / "g.nrrd");
     const auto data_start = good.find("\n\n") + 2;
 
     SUBCASE("missing file") {

@@ -41,6 +41,20 @@ inline core::Grid3<float> synthetic_storm(double voxel = 200.0) {
     return d;
 }
 
+/// synthetic_storm(200 m), made once per process: the cloud the generator's and the schedule's
+/// tests grow their bolts in.
+inline const core::Grid3<float>& storm_200m() {
+    static const core::Grid3<float> c = synthetic_storm(200.0);
+    return c;
+}
+
+/// A bolt that is only its main channel's length: what the flash schedule reads of a bolt.
+inline Bolt bolt_of_length(double main_length) {
+    Bolt b;
+    b.main_length = main_length;
+    return b;
+}
+
 /// A rectilinear virtual-light grid like Dobashi section 5: horizontal spacing 400 m over
 /// [-6400, 6400]; vertical spacing 400 m above the cloud base (1.5 km) and growing below it.
 inline basis::VirtualLightGrid dobashi_grid() {

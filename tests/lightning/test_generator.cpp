@@ -15,18 +15,9 @@ using namespace fulgur;
 using namespace fulgur::lightning;
 using fulgur::core::Error;
 
-namespace {
-
-const core::Grid3<float>& cloud() {
-    static const core::Grid3<float> c = fixture::synthetic_storm(200.0);
-    return c;
-}
-
-}  // namespace
-
 TEST_CASE("generator: same seed gives a bit-identical bolt, different seeds differ") {
     const BoltParams p;
-    const BoltGenerator g1(p, cloud()), g2(p, cloud());
+    const BoltGenerator g1(p, fixture::storm_200m()), g2(p, fixture::storm_200m());
     for (std::uint64_t seed : {1ULL, 7ULL, 123456789ULL}) {
         const Bolt a = g1.generate(seed), b = g2.generate(seed), c = g1.generate(seed);
         CHECK(fixture::identical(a, b));
@@ -42,7 +33,7 @@ TEST_CASE("generator: cloud-to-ground bolts end exactly on the ground and stay i
     for (double ground : {0.0, 350.0}) {
         BoltParams p;
         p.ground_height = ground;
-        const BoltGenerator gen(p, cloud());
+        const BoltGenerator gen(p, fixture::storm_200m());
         CHECK(gen.domain().lo.z == ground);
         for (std::uint64_t seed = 1; seed <= 40; ++seed) {
             const Bolt b = gen.generate(seed);
@@ -63,7 +54,7 @@ TEST_CASE("generator: branches hang together, decay with depth and respect max_d
     BoltParams p;
     p.branch_probability = 0.3;
     p.max_depth = 3;
-    const BoltGenerator gen(p, cloud());
+    const BoltGenerator gen(p, fixture::storm_200m());
     int deepest = 0;
     for (std::uint64_t seed = 1; seed <= 10; ++seed) {
         const Bolt b = gen.generate(seed);
@@ -96,7 +87,7 @@ TEST_CASE("generator: branches hang together, decay with depth and respect max_d
     none.max_depth = 0;
     BoltParams never = p;
     never.branch_probability = 0.0;
-    const BoltGenerator g0(none, cloud()), gp(never, cloud());
+    const BoltGenerator g0(none, fixture::storm_200m()), gp(never, fixture::storm_200m());
     for (std::uint64_t seed = 1; seed <= 5; ++seed) {
         const Bolt full = gen.generate(seed), b0 = g0.generate(seed), bp = gp.generate(seed);
         CHECK(b0.segments.size() == b0.main_count);
@@ -110,7 +101,7 @@ TEST_CASE("generator: a small domain makes bolts hit its walls; they stay inside
     BoltParams p;
     // A box 2.4 km wide around the tower: most bolts reach a wall.
     const Box small{glm::dvec3(-1200.0, -1200.0, 0.0), glm::dvec3(1200.0, 1200.0, 9600.0)};
-    const BoltGenerator gen(p, cloud(), small);
+    const BoltGenerator gen(p, fixture::storm_200m(), small);
     std::size_t reflections = 0, clipped = 0;
     for (std::uint64_t seed = 1; seed <= 40; ++seed) {
         const Bolt b = gen.generate(seed);
@@ -136,7 +127,7 @@ TEST_CASE("generator: the segment cap holds and a capped cloud-to-ground bolt is
     p.segment_length_mean = 1.0;  // ~8000 segments would be needed
     p.segment_length_spread = 0.0;
     p.max_segments = 300;
-    const BoltGenerator gen(p, cloud());
+    const BoltGenerator gen(p, fixture::storm_200m());
     const Bolt b = gen.generate(3);
     CHECK(b.segments.size() <= 300);
     CHECK(b.forced);
@@ -158,7 +149,8 @@ TEST_CASE("generator: clouds without a start region and impossible grounds are r
 
     BoltParams high;
     high.ground_height = 9600.0;  // the grid's top
-    CHECK_THROWS_WITH_AS(BoltGenerator(high, cloud()), doctest::Contains("lightning.ground_height"), Error);
+    CHECK_THROWS_WITH_AS(BoltGenerator(high, fixture::storm_200m()), doctest::Contains("lightning.ground_height"),
+                         Error);
 
     // A one-voxel cloud: every kind still produces a finite bolt.
     core::Grid3<float> one(g, 0.0f);
@@ -194,5 +186,5 @@ TEST_CASE("generator: absurd parameters are rejected naming the field") {
     CHECK_NOTHROW(validate(LightningParams{}));
     BoltParams bad;
     bad.target_bias = 2.0;
-    CHECK_THROWS_WITH_AS(BoltGenerator(bad, cloud()), doctest::Contains("target_bias"), Error);
+    CHECK_THROWS_WITH_AS(BoltGenerator(bad, fixture::storm_200m()), doctest::Contains("target_bias"), Error);
 }

@@ -19,17 +19,6 @@ using namespace fulgur::lightning;
 
 namespace {
 
-const core::Grid3<float>& cloud() {
-    static const core::Grid3<float> c = fixture::synthetic_storm(200.0);
-    return c;
-}
-
-Bolt bolt_of_length(double main_length) {
-    Bolt b;
-    b.main_length = main_length;
-    return b;
-}
-
 double turn_deg(const Segment& a, const Segment& b) {
     const glm::dvec3 u = glm::normalize(a.b - a.a), v = glm::normalize(b.b - b.a);
     return std::acos(std::clamp(glm::dot(u, v), -1.0, 1.0)) * 180.0 / std::numbers::pi;
@@ -53,7 +42,7 @@ struct AngleStats {
 AngleStats main_channel_turns(const BoltParams& p, int n) {
     // A domain much larger than the cloud: no wall reflections to distort the angles.
     const Box big{glm::dvec3(-60000.0, -60000.0, 0.0), glm::dvec3(60000.0, 60000.0, 30000.0)};
-    const BoltGenerator gen(p, cloud(), big);
+    const BoltGenerator gen(p, fixture::storm_200m(), big);
     core::CompensatedSum s, s2;
     AngleStats st;
     for (int seed = 1; seed <= n; ++seed) {
@@ -79,7 +68,7 @@ AngleStats main_channel_turns(const BoltParams& p, int n) {
 namespace {
 /// Fraction of the main channels' length (30 bolts) where the cloud density exceeds 0.01.
 double inside_fraction(const BoltParams& p, bool* all_reached = nullptr) {
-    const BoltGenerator gen(p, cloud());
+    const BoltGenerator gen(p, fixture::storm_200m());
     core::CompensatedSum inside, total;
     if (all_reached) *all_reached = true;
     for (std::uint64_t seed = 1; seed <= 30; ++seed) {
@@ -89,7 +78,7 @@ double inside_fraction(const BoltParams& p, bool* all_reached = nullptr) {
             const Segment& s = b.segments[i];
             const double piece = s.length() / 8.0;
             for (int k = 0; k < 8; ++k) {
-                const double rho = cloud().sample(s.a + ((k + 0.5) / 8.0) * (s.b - s.a));
+                const double rho = fixture::storm_200m().sample(s.a + ((k + 0.5) / 8.0) * (s.b - s.a));
                 total.add(piece);
                 if (rho > 0.01) inside.add(piece);
             }
@@ -144,7 +133,7 @@ TEST_CASE("generator: intra-cloud bolts stay mostly inside the cloud; cloud-to-c
     CHECK(aimless_frac < frac);
 
     p.kind = Kind::CloudToCloud;
-    const BoltGenerator cc(p, cloud());
+    const BoltGenerator cc(p, fixture::storm_200m());
     for (std::uint64_t seed = 1; seed <= 10; ++seed) {
         const Bolt b = cc.generate(seed);
         CHECK(glm::length(b.target - b.start) > 2000.0);  // a far region of the cloud (the cloud is ~10 km wide)
@@ -160,7 +149,7 @@ TEST_CASE("timing: restrike counts are Poisson with the configured mean, interva
     double count = 0.0;
     std::vector<double> intervals;
     for (int s = 0; s < n; ++s) {
-        const FlashProfile f = make_flash_profile(bolt_of_length(5000.0), p, std::uint64_t(s) + 1);
+        const FlashProfile f = make_flash_profile(fixture::bolt_of_length(5000.0), p, std::uint64_t(s) + 1);
         count += double(f.stroke_onset.size() - 1);
         for (std::size_t k = 1; k < f.stroke_onset.size(); ++k)
             intervals.push_back(f.stroke_onset[k] - f.stroke_onset[k - 1]);
@@ -173,8 +162,8 @@ TEST_CASE("timing: restrike counts are Poisson with the configured mean, interva
     // leaves room while failing a wrong median (e.g. the mean exp(0.08) = +8%).
     CHECK(median == test::rel(p.restrike_interval, 0.04));
     // Same seed, same profile.
-    const FlashProfile a = make_flash_profile(bolt_of_length(5000.0), p, 77),
-                       b = make_flash_profile(bolt_of_length(5000.0), p, 77);
+    const FlashProfile a = make_flash_profile(fixture::bolt_of_length(5000.0), p, 77),
+                       b = make_flash_profile(fixture::bolt_of_length(5000.0), p, 77);
     CHECK(a.stroke_onset == b.stroke_onset);
     CHECK(a.stroke_peak == b.stroke_peak);
 }
@@ -186,7 +175,7 @@ TEST_CASE("storm: the Poisson schedule has the configured rate and is the same i
     p.schedule.first_strike = 0.25;
     p.bolt.max_depth = 1;  // fewer segments: faster, the schedule does not depend on shape
     {
-        Storm storm(p, cloud());
+        Storm storm(p, fixture::storm_200m());
         storm.active(300.0);
         // Strikes in [0.25, 300]: 1 + Poisson(2 * 299.75); 4 standard deviations.
         const double expect = 1.0 + 2.0 * 299.75;
@@ -195,7 +184,7 @@ TEST_CASE("storm: the Poisson schedule has the configured rate and is the same i
     }
     // Forward frame by frame vs a scrambled set of times (late first: bolts dropped, then
     // regenerated bit-identically).
-    Storm forward(p, cloud()), scrambled(p, cloud());
+    Storm forward(p, fixture::storm_200m()), scrambled(p, fixture::storm_200m());
     std::vector<double> times;
     for (int f = 0; f < 600; ++f) times.push_back(f / 60.0);
     std::vector<std::vector<transport::PointSource>> fq(times.size());

@@ -16,21 +16,10 @@ using namespace fulgur::lightning;
 
 namespace {
 
-const core::Grid3<float>& cloud() {
-    static const core::Grid3<float> c = fixture::synthetic_storm(200.0);
-    return c;
-}
-
-Bolt bolt_of_length(double main_length) {
-    Bolt b;
-    b.main_length = main_length;
-    return b;
-}
-
 /// Finds a seed whose profile has exactly `n` restrikes.
 FlashProfile profile_with(int n, const TimingParams& p, double main_length) {
     for (std::uint64_t seed = 1; seed < 10000; ++seed) {
-        FlashProfile f = make_flash_profile(bolt_of_length(main_length), p, seed);
+        FlashProfile f = make_flash_profile(fixture::bolt_of_length(main_length), p, seed);
         if (int(f.stroke_onset.size()) == n + 1) return f;
     }
     FAIL("no seed with the requested restrike count");
@@ -41,7 +30,7 @@ FlashProfile profile_with(int n, const TimingParams& p, double main_length) {
 
 TEST_CASE("timing: dark before the strike and after it, leader first, then the return-stroke peak") {
     const TimingParams p;
-    const Bolt b = BoltGenerator(BoltParams{}, cloud()).generate(3);
+    const Bolt b = BoltGenerator(BoltParams{}, fixture::storm_200m()).generate(3);
     const FlashProfile f = make_flash_profile(b, p, 42);
     // A few km of channel at 2e5 m/s: tens of milliseconds of stepped leader.
     CHECK(f.leader_duration == doctest::Approx(b.main_length / p.leader_speed));
@@ -115,13 +104,13 @@ TEST_CASE("timing: the glow decays exponentially and restrikes relight the main 
 
     // No restrikes asked: one stroke.
     p.restrikes = 0.0;
-    CHECK(make_flash_profile(bolt_of_length(6000.0), p, 5).stroke_onset.size() == 1);
+    CHECK(make_flash_profile(fixture::bolt_of_length(6000.0), p, 5).stroke_onset.size() == 1);
 }
 
 TEST_CASE("storm: on-demand strikes, dark frames detectable, point sources carry the lit energy") {
     LightningParams p;
     p.schedule.strike_rate = 0.0;  // on demand only
-    Storm storm(p, cloud());
+    Storm storm(p, fixture::storm_200m());
     std::vector<transport::PointSource> q;
     CHECK_FALSE(storm.any_active(0.0));
     CHECK_FALSE(storm.point_sources(5.0, 200.0, q));

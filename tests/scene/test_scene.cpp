@@ -23,7 +23,7 @@ const std::string kMinimal = R"({
                           "tower_radius": 2000, "anvil_radius": 4500, "anvil_offset": 500}}
 })";
 
-std::string with(const std::string& from, const std::string& to) {
+std::string minimal_with(const std::string& from, const std::string& to) {
     return fulgur::test::replace_once(kMinimal, from, to);
 }
 }  // namespace
@@ -44,36 +44,39 @@ TEST_CASE("a minimal scene parses with documented defaults") {
 }
 
 TEST_CASE("isotropic scattering needs one output direction") {
-    const Scene s = parse_scene(with("\"g\": 0.5", "\"g\": 0"), "iso.json");
+    const Scene s = parse_scene(minimal_with("\"g\": 0.5", "\"g\": 0"), "iso.json");
     CHECK(s.effective_directions() == 1);
 }
 
 TEST_CASE("bad scenes are rejected with the file, the field and the allowed range") {
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"albedo\": 0.9", "\"albedo\": 1.5"), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"albedo\": 0.9", "\"albedo\": 1.5"), "s.json"),
                          doctest::Contains("s.json: /medium/albedo"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"albedo\": 0.9", "\"albedo\": 1.5"), "s.json"), doctest::Contains("[0, 1]"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"albedo\": 0.9", "\"albedo\": 1.5"), "s.json"),
+                         doctest::Contains("[0, 1]"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"g\": 0.5", "\"g\": 1"), "s.json"), doctest::Contains("/medium/g"),
                          Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"g\": 0.5", "\"g\": 1"), "s.json"), doctest::Contains("/medium/g"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"albedo\": 0.9", "\"albedo\": \"high\""), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"albedo\": 0.9", "\"albedo\": \"high\""), "s.json"),
                          doctest::Contains("expected a number"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"g\": 0.5", "\"g\": 0.5, \"colour\": 1"), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"g\": 0.5", "\"g\": 0.5, \"colour\": 1"), "s.json"),
                          doctest::Contains("/medium/colour: unknown key"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"grid\": [32, 32, 24]", "\"grid\": [32, 0, 24]"), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"grid\": [32, 32, 24]", "\"grid\": [32, 0, 24]"), "s.json"),
                          doctest::Contains("/cloud/generator/grid"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"grid\": [32, 32, 24]", "\"grid\": [32, 32]"), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"grid\": [32, 32, 24]", "\"grid\": [32, 32]"), "s.json"),
                          doctest::Contains("3 integers"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"fulgur_scene\": 1", "\"fulgur_scene\": 2"), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"fulgur_scene\": 1", "\"fulgur_scene\": 2"), "s.json"),
                          doctest::Contains("version"), Error);
     CHECK_THROWS_WITH_AS(parse_scene("{\"fulgur_scene\": 1,", "s.json"), doctest::Contains("invalid JSON"), Error);
     CHECK_THROWS_WITH_AS(parse_scene("[]", "s.json"), doctest::Contains("expected a JSON object"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"seed\": 3", "\"seed\": -3"), "s.json"), doctest::Contains("seed"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"seed\": 3", "\"seed\": -3"), "s.json"), doctest::Contains("seed"),
+                         Error);
 }
 
 TEST_CASE("every cloud generator field is read, range-checked and cross-checked") {
-    const Scene s = parse_scene(with("\"seed\": 3", R"("seed": 3, "cells": 12, "shear": -300, "flanking_towers": 1,
+    const Scene s =
+        parse_scene(minimal_with("\"seed\": 3", R"("seed": 3, "cells": 12, "shear": -300, "flanking_towers": 1,
         "anvil": false, "anvil_thickness": 900, "overshoot": 0, "edge_softness": 0.7, "steps": 20,
         "p_ext": 0.3, "p_hum": 0.25, "p_act": 0.05, "average_steps": 5, "smoothing_radius": 2, "density_gain": 1.1)"),
-                                "g.json");
+                    "g.json");
     const auto& g = s.cloud.generator;
     CHECK(g.cells == 12);
     CHECK(g.shear == -300.0);
@@ -90,32 +93,32 @@ TEST_CASE("every cloud generator field is read, range-checked and cross-checked"
     CHECK(g.smoothing_radius == 2);
     CHECK(g.density_gain == 1.1);
     // Single-field ranges name the field and the range.
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"seed\": 3", "\"seed\": 3, \"edge_softness\": 0"), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"seed\": 3", "\"seed\": 3, \"edge_softness\": 0"), "s.json"),
                          doctest::Contains("s.json: /cloud/generator/edge_softness"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"seed\": 3", "\"seed\": 3, \"p_act\": 0"), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"seed\": 3", "\"seed\": 3, \"p_act\": 0"), "s.json"),
                          doctest::Contains("(0, 1]"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"seed\": 3", "\"seed\": 3, \"flanking_towers\": 12"), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"seed\": 3", "\"seed\": 3, \"flanking_towers\": 12"), "s.json"),
                          doctest::Contains("/cloud/generator/flanking_towers"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"anvil_radius\": 4500", "\"anvil_radius\": 1e9"), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"anvil_radius\": 4500", "\"anvil_radius\": 1e9"), "s.json"),
                          doctest::Contains("/cloud/generator/anvil_radius"), Error);
     // Inconsistent fields are caught at load time too, with the file and the field.
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"anvil_radius\": 4500", "\"anvil_radius\": 1500"), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"anvil_radius\": 4500", "\"anvil_radius\": 1500"), "s.json"),
                          doctest::Contains("s.json: /cloud/generator/anvil_radius: must be larger than tower_radius"),
                          Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"base_height\": 1000", "\"base_height\": 9500"), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"base_height\": 1000", "\"base_height\": 9500"), "s.json"),
                          doctest::Contains("s.json: /cloud/generator/top_height"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"voxel_size\": 500", "\"voxel_size\": 100"), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"voxel_size\": 500", "\"voxel_size\": 100"), "s.json"),
                          doctest::Contains("s.json: /cloud/generator/top_height: 9000 m does not fit in the grid"),
                          Error);
 }
 
 TEST_CASE("cloud needs exactly one of generator or file") {
-    const std::string both = with("\"cloud\": {", "\"cloud\": {\"file\": \"x.nrrd\", ");
+    const std::string both = minimal_with("\"cloud\": {", "\"cloud\": {\"file\": \"x.nrrd\", ");
     CHECK_THROWS_WITH_AS(parse_scene(both, "s.json"), doctest::Contains("exactly one"), Error);
 }
 
 TEST_CASE("lights are points and at most one sun, and the sun effect needs a sun") {
-    const std::string lights = with("\"cloud\"", R"("lights": [
+    const std::string lights = minimal_with("\"cloud\"", R"("lights": [
         {"type": "point", "position": [0, 0, 1000], "intensity": 2},
         {"type": "sun", "direction": [0, 0, -2]}], "cloud")");
     const Scene s = parse_scene(lights, "l.json");
@@ -123,14 +126,15 @@ TEST_CASE("lights are points and at most one sun, and the sun effect needs a sun
     CHECK(s.point_lights[0].intensity == 2.0);
     REQUIRE(s.sun.has_value());
     CHECK(s.sun->direction.z == doctest::Approx(-1.0));
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", "\"effects\": {\"sun\": true}, \"cloud\""), "s.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"cloud\"", "\"effects\": {\"sun\": true}, \"cloud\""), "s.json"),
                          doctest::Contains("sun"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", "\"lights\": [{\"type\": \"laser\"}], \"cloud\""), "s.json"),
-                         doctest::Contains("/lights/0/type"), Error);
+    CHECK_THROWS_WITH_AS(
+        parse_scene(minimal_with("\"cloud\"", "\"lights\": [{\"type\": \"laser\"}], \"cloud\""), "s.json"),
+        doctest::Contains("/lights/0/type"), Error);
 }
 
 TEST_CASE("a sun (or moon): direction or elevation and azimuth, irradiance, colour of luminance 1") {
-    const Scene d = parse_scene(with("\"cloud\"", R"("lights": [{"type": "sun", "elevation": 30, "azimuth": 90,
+    const Scene d = parse_scene(minimal_with("\"cloud\"", R"("lights": [{"type": "sun", "elevation": 30, "azimuth": 90,
         "irradiance": 2.5e-3, "colour": [0.5, 0.6, 1.0], "name": "moon"}], "cloud")"),
                                 "m.json");
     REQUIRE(d.sun.has_value());
@@ -149,17 +153,18 @@ TEST_CASE("a sun (or moon): direction or elevation and azimuth, irradiance, colo
     CHECK(el == fulgur::test::rel(30.0, 1e-12));  // the round trip, rounding only
     CHECK(az == fulgur::test::rel(90.0, 1e-12));
 
-    const Scene off =
-        parse_scene(with("\"cloud\"",
-                         R"("lights": [{"type": "sun", "direction": [1, 0, -1]}], "effects": {"sun": false}, "cloud")"),
-                    "o.json");
+    const Scene off = parse_scene(
+        minimal_with("\"cloud\"",
+                     R"("lights": [{"type": "sun", "direction": [1, 0, -1]}], "effects": {"sun": false}, "cloud")"),
+        "o.json");
     CHECK(off.sun.has_value());
     CHECK_FALSE(off.effects.sun);
     CHECK(off.sun->colour == glm::dvec3(1.0));
 
     auto bad = [](const std::string& lights, const char* needle) {
-        CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", "\"lights\": [" + lights + "], \"cloud\""), "b.json"),
-                             doctest::Contains(needle), Error);
+        CHECK_THROWS_WITH_AS(
+            parse_scene(minimal_with("\"cloud\"", "\"lights\": [" + lights + "], \"cloud\""), "b.json"),
+            doctest::Contains(needle), Error);
     };
     bad(R"({"type": "sun"})", "b.json: /lights/0/direction: give either");
     bad(R"({"type": "sun", "direction": [0, 0, -1], "elevation": 10, "azimuth": 0})", "/lights/0/direction");
@@ -183,16 +188,17 @@ TEST_CASE("a sun (or moon): direction or elevation and azimuth, irradiance, colo
 
 TEST_CASE("the sky: uniform or a zenith-horizon gradient, the lightning's colour, effects defaults") {
     const Scene u =
-        parse_scene(with("\"cloud\"", R"("sky": {"radiance": 0.5, "colour": [1, 1, 1]}, "cloud")"), "u.json");
+        parse_scene(minimal_with("\"cloud\"", R"("sky": {"radiance": 0.5, "colour": [1, 1, 1]}, "cloud")"), "u.json");
     REQUIRE(u.sky.has_value());
     CHECK(u.sky->zenith() == u.sky->horizon());
     CHECK(u.sky->zenith_radiance == 0.5);
     CHECK(u.effects.sky);
     CHECK_FALSE(u.effects.sun);
-    const Scene g = parse_scene(with("\"cloud\"", R"("sky": {"zenith": {"radiance": 40, "colour": [0.3, 0.5, 1]},
+    const Scene g =
+        parse_scene(minimal_with("\"cloud\"", R"("sky": {"zenith": {"radiance": 40, "colour": [0.3, 0.5, 1]},
         "horizon": {"radiance": 90, "colour": [1, 1, 1]}, "stars": 0}, "effects": {"sky": false},
         "lightning": {"colour": [1, 1, 2]}, "cloud")"),
-                                "g.json");
+                    "g.json");
     REQUIRE(g.sky.has_value());
     CHECK(g.sky->zenith_radiance == 40.0);
     CHECK(g.sky->horizon_radiance == 90.0);
@@ -210,7 +216,7 @@ TEST_CASE("the sky: uniform or a zenith-horizon gradient, the lightning's colour
     CHECK(SkyDome::zenith_weight(0.0) == 0.0);
 
     auto bad = [](const std::string& section, const char* needle) {
-        CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", section + ", \"cloud\""), "b.json"),
+        CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"cloud\"", section + ", \"cloud\""), "b.json"),
                              doctest::Contains(needle), Error);
     };
     bad(R"("sky": {})", "b.json: /sky/radiance: give either");
@@ -253,10 +259,11 @@ TEST_CASE("virtual_lights and compression sections: values, defaults and ranges"
     const Scene d = parse_scene(kMinimal, "min.json");
     CHECK(d.virtual_lights.h_usr == fulgur::basis::VirtualLightParams{}.h_usr);
     CHECK(d.compression == fulgur::basis::CompressionParams{});
-    const Scene s = parse_scene(with("\"cloud\"", R"("virtual_lights": {"h_usr": 500, "epsilon": 2e-7, "margin": 100,
+    const Scene s =
+        parse_scene(minimal_with("\"cloud\"", R"("virtual_lights": {"h_usr": 500, "epsilon": 2e-7, "margin": 100,
         "ground_height": -50, "density_threshold": 0.1},
         "compression": {"threshold": "absolute", "xi": 5e-10, "precision": "float32"}, "cloud")"),
-                                "v.json");
+                    "v.json");
     CHECK(s.virtual_lights.h_usr == 500.0);
     CHECK(s.virtual_lights.epsilon == 2e-7);
     CHECK(s.virtual_lights.margin == 100.0);
@@ -266,19 +273,20 @@ TEST_CASE("virtual_lights and compression sections: values, defaults and ranges"
     CHECK(s.compression.xi == 5e-10);
     CHECK(s.compression.precision == fulgur::basis::Precision::Float32);
     const Scene r = parse_scene(
-        with("\"cloud\"", R"("compression": {"threshold": "relative_l2", "xi": 0.001}, "cloud")"), "r.json");
+        minimal_with("\"cloud\"", R"("compression": {"threshold": "relative_l2", "xi": 0.001}, "cloud")"), "r.json");
     CHECK(r.compression.mode == fulgur::basis::ThresholdMode::RelativeL2);
     CHECK(r.compression.precision == fulgur::basis::Precision::Float16);
     CHECK(r.compression.decomposition == fulgur::basis::Decomposition::NonStandard);
     const Scene st =
-        parse_scene(with("\"cloud\"", R"("compression": {"decomposition": "standard"}, "cloud")"), "d.json");
+        parse_scene(minimal_with("\"cloud\"", R"("compression": {"decomposition": "standard"}, "cloud")"), "d.json");
     CHECK(st.compression.decomposition == fulgur::basis::Decomposition::Standard);
     CHECK(r.compression.entropy == fulgur::basis::Entropy::Deflate);
-    const Scene plain = parse_scene(with("\"cloud\"", R"("compression": {"entropy": "none"}, "cloud")"), "e.json");
+    const Scene plain =
+        parse_scene(minimal_with("\"cloud\"", R"("compression": {"entropy": "none"}, "cloud")"), "e.json");
     CHECK(plain.compression.entropy == fulgur::basis::Entropy::None);
 
     auto bad = [](const std::string& section, const char* needle) {
-        CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", section + ", \"cloud\""), "b.json"),
+        CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"cloud\"", section + ", \"cloud\""), "b.json"),
                              doctest::Contains(needle), Error);
     };
     bad(R"("virtual_lights": {"h_usr": 0})", "b.json: /virtual_lights/h_usr");
@@ -299,21 +307,24 @@ TEST_CASE("virtual_lights and compression sections: values, defaults and ranges"
 TEST_CASE("transport.lattice_boltzmann.thick_voxels: default, both values, unknown value names the field") {
     CHECK(parse_scene(kMinimal, "min.json").transport.lb_thick_voxels == "diffusion_matched");
     const Scene m = parse_scene(
-        with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "diffusion_matched"}}, "cloud")"),
+        minimal_with("\"cloud\"",
+                     R"("transport": {"lattice_boltzmann": {"thick_voxels": "diffusion_matched"}}, "cloud")"),
         "t.json");
     CHECK(m.transport.lb_thick_voxels == "diffusion_matched");
     const Scene s = parse_scene(
-        with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "saturate"}}, "cloud")"), "t.json");
+        minimal_with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "saturate"}}, "cloud")"),
+        "t.json");
     CHECK(s.transport.lb_thick_voxels == "saturate");
     CHECK_THROWS_WITH_AS(
-        parse_scene(with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "subgrid"}}, "cloud")"),
-                    "t.json"),
+        parse_scene(
+            minimal_with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"thick_voxels": "subgrid"}}, "cloud")"),
+            "t.json"),
         doctest::Contains("/transport/lattice_boltzmann/thick_voxels"), Error);
 }
 
 TEST_CASE("quality: a preset's name or an object of knobs; bad values name the field") {
     auto scene = [](const std::string& quality) {
-        return parse_scene(with("\"cloud\"", "\"quality\": " + quality + ", \"cloud\""), "q.json");
+        return parse_scene(minimal_with("\"cloud\"", "\"quality\": " + quality + ", \"cloud\""), "q.json");
     };
     CHECK(parse_scene(kMinimal, "min.json").quality.preset == Quality::Preset::Paper);
     const Quality h = scene(R"("hybrid")").quality;
@@ -389,17 +400,19 @@ TEST_CASE("transport.refine and lattice_boltzmann.exact_orders: values and range
     const Scene d = parse_scene(kMinimal, "min.json");
     CHECK(d.transport.refine == 1);
     CHECK(d.transport.lb_exact_orders == 1);
-    const Scene s = parse_scene(with("\"cloud\"", R"("transport": {"refine": 2, "lattice_boltzmann": {"exact_orders": 2,
+    const Scene s =
+        parse_scene(minimal_with("\"cloud\"", R"("transport": {"refine": 2, "lattice_boltzmann": {"exact_orders": 2,
         "order2_paths": 20000}}, "cloud")"),
-                                "t.json");
+                    "t.json");
     CHECK(s.transport.refine == 2);
     CHECK(s.transport.lb_exact_orders == 2);
     CHECK(s.transport.lb_order2_paths == 20'000);
     // The transport grid refines the lighting grid (downsample 4): 3 does not divide it.
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", R"("transport": {"refine": 3}, "cloud")"), "t.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(minimal_with("\"cloud\"", R"("transport": {"refine": 3}, "cloud")"), "t.json"),
                          doctest::Contains("transport/refine"), Error);
     CHECK_THROWS_WITH_AS(
-        parse_scene(with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"exact_orders": 3}}, "cloud")"), "t.json"),
+        parse_scene(minimal_with("\"cloud\"", R"("transport": {"lattice_boltzmann": {"exact_orders": 3}}, "cloud")"),
+                    "t.json"),
         doctest::Contains("exact_orders"), Error);
 }
 
@@ -409,7 +422,7 @@ TEST_CASE("lightning section: defaults, every field, and ranges naming the field
     CHECK(d.lightning.bolt.angle_mean_deg == 16.0);
     CHECK(d.lightning.schedule.strike_rate == 0.2);
 
-    const std::string full = with("\"cloud\"", R"("lightning": {
+    const std::string full = minimal_with("\"cloud\"", R"("lightning": {
         "kind": "intra_cloud", "seed": 9, "intensity": 2e5, "start_density_threshold": 0.4,
         "ground_height": 120, "angle_mean": 20, "angle_spread": 6, "segment_length_mean": 150,
         "segment_length_spread": 30, "target_bias": 0.5, "wander": 0.25, "zigzag": 0.5, "max_segments": 5000,
@@ -452,8 +465,9 @@ TEST_CASE("lightning section: defaults, every field, and ranges naming the field
     CHECK(l.schedule.first_strike == 2.0);
 
     auto bad = [&](const std::string& section, const char* field) {
-        CHECK_THROWS_WITH_AS(parse_scene(with("\"cloud\"", "\"lightning\": " + section + ", \"cloud\""), "s.json"),
-                             doctest::Contains(field), Error);
+        CHECK_THROWS_WITH_AS(
+            parse_scene(minimal_with("\"cloud\"", "\"lightning\": " + section + ", \"cloud\""), "s.json"),
+            doctest::Contains(field), Error);
     };
     bad(R"({"kind": "ball"})", "s.json: /lightning/kind");
     bad(R"({"angle_mean": -3})", "s.json: /lightning/angle_mean");
@@ -481,7 +495,7 @@ TEST_CASE("camera: an orbit or a look-at camera; bad values name the field") {
     CHECK_FALSE(parse_scene(kMinimal, "s.json").camera.has_value());  // the default view
     const std::string fields = "\"medium\":";
     auto camera = [&](const std::string& c) {
-        return parse_scene(with(fields, "\"camera\": " + c + ",\n  " + fields), "s.json").camera;
+        return parse_scene(minimal_with(fields, "\"camera\": " + c + ",\n  " + fields), "s.json").camera;
     };
     const auto orbit = camera(R"({"orbit": {"azimuth": -60, "elevation": 12}})");
     REQUIRE(orbit.has_value());

@@ -24,7 +24,7 @@ const std::string kScene = R"({
   "lights": [{"type": "point", "position": [0, 0, 1000], "intensity": 1}]
 })";
 
-std::string with(const std::string& from, const std::string& to) {
+std::string hostile_with(const std::string& from, const std::string& to) {
     return fulgur::test::replace_once(kScene, from, to);
 }
 }  // namespace
@@ -32,38 +32,41 @@ std::string with(const std::string& from, const std::string& to) {
 TEST_CASE("deeply nested JSON is refused at a fixed depth, naming the field, without recursing") {
     // 100,000 levels once overflowed the stack in the error description (value dump).
     const std::string deep = std::string(100000, '[') + std::string(100000, ']');
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"hostile\"", deep), "d.json"), doctest::Contains("d.json: /name/0/0"),
-                         Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"hostile\"", deep), "d.json"), doctest::Contains("nesting deeper than 32"),
-                         Error);
+    CHECK_THROWS_WITH_AS(parse_scene(hostile_with("\"hostile\"", deep), "d.json"),
+                         doctest::Contains("d.json: /name/0/0"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(hostile_with("\"hostile\"", deep), "d.json"),
+                         doctest::Contains("nesting deeper than 32"), Error);
     const std::string objects = [] {
         std::string s;
         for (int i = 0; i < 100000; ++i) s += "{\"a\":";
         return s + "1" + std::string(100000, '}');
     }();
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"hostile\"", objects), "d.json"), doctest::Contains("/name/a/a/a"), Error);
+    CHECK_THROWS_WITH_AS(parse_scene(hostile_with("\"hostile\"", objects), "d.json"), doctest::Contains("/name/a/a/a"),
+                         Error);
     // A container that is merely the wrong type is described by its size, not dumped.
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"hostile\"", "[[1, 2], [3]]"), "d.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(hostile_with("\"hostile\"", "[[1, 2], [3]]"), "d.json"),
                          doctest::Contains("an array of 2 element(s)"), Error);
 }
 
 TEST_CASE("a key given twice in one object is refused, naming the field") {
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"albedo\": 0.9", "\"albedo\": 0.9, \"albedo\": 0.5"), "k.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(hostile_with("\"albedo\": 0.9", "\"albedo\": 0.9, \"albedo\": 0.5"), "k.json"),
                          doctest::Contains("k.json: /medium/albedo: duplicate key"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"type\": \"point\"", "\"type\": \"point\", \"type\": \"sun\""), "k.json"),
-                         doctest::Contains("k.json: /lights/0/type: duplicate key"), Error);
+    CHECK_THROWS_WITH_AS(
+        parse_scene(hostile_with("\"type\": \"point\"", "\"type\": \"point\", \"type\": \"sun\""), "k.json"),
+        doctest::Contains("k.json: /lights/0/type: duplicate key"), Error);
     // The same key in two different objects is fine.
-    CHECK_NOTHROW(parse_scene(with("\"name\": \"hostile\"", "\"name\": \"seed\""), "k.json"));
+    CHECK_NOTHROW(parse_scene(hostile_with("\"name\": \"hostile\"", "\"name\": \"seed\""), "k.json"));
 }
 
 TEST_CASE("a number beyond the range of a double is refused, naming the field") {
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"albedo\": 0.9", "\"albedo\": 1e400"), "n.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(hostile_with("\"albedo\": 0.9", "\"albedo\": 1e400"), "n.json"),
                          doctest::Contains("n.json: /medium/albedo: number out of range"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"position\": [0, 0, 1000]", "\"position\": [0, -1e400, 1000]"), "n.json"),
-                         doctest::Contains("n.json: /lights/0/position/1: number out of range"), Error);
+    CHECK_THROWS_WITH_AS(
+        parse_scene(hostile_with("\"position\": [0, 0, 1000]", "\"position\": [0, -1e400, 1000]"), "n.json"),
+        doctest::Contains("n.json: /lights/0/position/1: number out of range"), Error);
     // Never nlohmann's raw text.
     try {
-        parse_scene(with("\"albedo\": 0.9", "\"albedo\": 1e400"), "n.json");
+        parse_scene(hostile_with("\"albedo\": 0.9", "\"albedo\": 1e400"), "n.json");
         FAIL("1e400 was accepted");
     } catch (const Error& e) {
         CHECK(std::string(e.what()).find("json.exception") == std::string::npos);
@@ -75,13 +78,14 @@ TEST_CASE("byte-order marks: UTF-8 is skipped, UTF-16 is refused; a NUL in a str
     CHECK(s.name == "hostile");
     CHECK_THROWS_WITH_AS(parse_scene("\xFF\xFE" + kScene, "u16.json"), doctest::Contains("u16.json (byte 0): UTF-16"),
                          Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"hostile\"", "\"a\\u0000b\""), "z.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(hostile_with("\"hostile\"", "\"a\\u0000b\""), "z.json"),
                          doctest::Contains("z.json: /name: the string holds a NUL"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"generator\": {", "\"file\": \"x\\u0000.nrrd\", \"nope\": {"), "z.json"),
-                         doctest::Contains("z.json: /cloud/file: the string holds a NUL"), Error);
+    CHECK_THROWS_WITH_AS(
+        parse_scene(hostile_with("\"generator\": {", "\"file\": \"x\\u0000.nrrd\", \"nope\": {"), "z.json"),
+        doctest::Contains("z.json: /cloud/file: the string holds a NUL"), Error);
     // An escaped NUL in a key: the whole key is named, the NUL shown as its escape (a NUL in
     // the message would cut it where it is printed).
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"name\"", "\"na\\u0000me\": 1, \"name\""), "k.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(hostile_with("\"name\"", "\"na\\u0000me\": 1, \"name\""), "k.json"),
                          doctest::Contains("k.json: /na\\u0000me: unknown key"), Error);
     // A raw NUL byte is invalid JSON: the byte offset is named.
     std::string raw = kScene;
@@ -108,25 +112,26 @@ TEST_CASE("a scene is read only from a regular file of bounded size") {
 TEST_CASE("documented values that the solver cannot run are refused at parse time, naming the field") {
     // 6 output directions are not lattice directions: the lattice-Boltzmann solver used to fail
     // deep in the bake with no file or field named.
-    const std::string six = with("\"g\": 0.5}", "\"g\": 0.5}, \"lighting\": {\"directions\": 6}");
+    const std::string six = hostile_with("\"g\": 0.5}", "\"g\": 0.5}, \"lighting\": {\"directions\": 6}");
     CHECK_THROWS_WITH_AS(parse_scene(six, "six.json"), doctest::Contains("six.json: /lighting/directions"), Error);
     // ... but run with Monte Carlo, without multiple scattering, or when g = 0 needs one direction.
-    const std::string mc = with("\"g\": 0.5}",
-                                "\"g\": 0.5}, \"lighting\": {\"directions\": 6}, "
-                                "\"transport\": {\"solver\": \"monte_carlo\"}");
+    const std::string mc = hostile_with("\"g\": 0.5}",
+                                        "\"g\": 0.5}, \"lighting\": {\"directions\": 6}, "
+                                        "\"transport\": {\"solver\": \"monte_carlo\"}");
     CHECK(parse_scene(mc, "mc.json").effective_directions() == 6);
-    const std::string ss = with("\"g\": 0.5}",
-                                "\"g\": 0.5}, \"lighting\": {\"directions\": 6}, "
-                                "\"effects\": {\"multiple_scattering\": false}");
+    const std::string ss = hostile_with("\"g\": 0.5}",
+                                        "\"g\": 0.5}, \"lighting\": {\"directions\": 6}, "
+                                        "\"effects\": {\"multiple_scattering\": false}");
     CHECK(parse_scene(ss, "ss.json").effective_directions() == 6);
-    const std::string iso = with("\"g\": 0.5}", "\"g\": 0}, \"lighting\": {\"directions\": 6}");
+    const std::string iso = hostile_with("\"g\": 0.5}", "\"g\": 0}, \"lighting\": {\"directions\": 6}");
     CHECK(parse_scene(iso, "iso.json").effective_directions() == 1);
 }
 
 TEST_CASE("the cost of a scene is known before anything is allocated, and refused past its limits") {
     // A 1024^3 generator grid (documented as allowed) once died with std::bad_alloc after 8.4 GB.
-    const std::string huge = with("\"grid\": [32, 32, 24]", "\"grid\": [1024, 1024, 1024]");
-    const Scene big = parse_scene(with("\"lights\"", "\"limits\": {\"memory_gib\": 8}, \"lights\""), "big.json");
+    const std::string huge = hostile_with("\"grid\": [32, 32, 24]", "\"grid\": [1024, 1024, 1024]");
+    const Scene big =
+        parse_scene(hostile_with("\"lights\"", "\"limits\": {\"memory_gib\": 8}, \"lights\""), "big.json");
     CHECK(big.limits.memory_bytes == 8.0 * (1ull << 30));
     Scene s = parse_scene(huge, "huge.json");
     const Cost c = estimate_cost(s, 1, 1);
@@ -140,9 +145,9 @@ TEST_CASE("the cost of a scene is known before anything is allocated, and refuse
     CHECK_NOTHROW(check_cost(s, c));
 
     // "paths": 2^40 once hung the plan's sample lights; refused by the lower bound on time.
-    const std::string mc = with("\"lights\"",
-                                "\"transport\": {\"solver\": \"monte_carlo\", \"monte_carlo\": {\"paths\": "
-                                "1099511627776}}, \"lights\"");
+    const std::string mc = hostile_with("\"lights\"",
+                                        "\"transport\": {\"solver\": \"monte_carlo\", \"monte_carlo\": {\"paths\": "
+                                        "1099511627776}}, \"lights\"");
     const Scene m = parse_scene(mc, "mc.json");
     CHECK_THROWS_WITH_AS(make_density(m), doctest::Contains("limits.bake_hours: the bake would take at least"), Error);
     // The same scene with a tiny time limit for an ordinary bake.
@@ -150,8 +155,9 @@ TEST_CASE("the cost of a scene is known before anything is allocated, and refuse
     CHECK_NOTHROW(check_cost(small, estimate_cost(small)));
     small.limits.bake_seconds = 1e-9;
     CHECK_THROWS_WITH_AS(check_cost(small, estimate_cost(small)), doctest::Contains("limits.bake_hours"), Error);
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"lights\"", "\"limits\": {\"bake_hours\": 0}, \"lights\""), "z.json"),
-                         doctest::Contains("z.json: /limits/bake_hours"), Error);
+    CHECK_THROWS_WITH_AS(
+        parse_scene(hostile_with("\"lights\"", "\"limits\": {\"bake_hours\": 0}, \"lights\""), "z.json"),
+        doctest::Contains("z.json: /limits/bake_hours"), Error);
     // A lighting grid past what a bake file holds (2^26 cells: here 1024 x 1024 x 128 at
     // downsample 2 of a 2048 x 2048 x 256 grid) is refused from the sizes, naming the field,
     // before gigabytes of density are made (a VDB's small density_voxel_size once loaded
@@ -170,7 +176,8 @@ TEST_CASE("the cost of a scene is known before anything is allocated, and refuse
 
 TEST_CASE("a ground at or above the top of the cloud's grid is refused with the file, before any bolt") {
     // The hostile scene's grid is 24 voxels of 500 m: its top is at z = 12000 m.
-    const Scene s = parse_scene(with("\"lights\"", "\"lightning\": {\"ground_height\": 50000}, \"lights\""), "g.json");
+    const Scene s =
+        parse_scene(hostile_with("\"lights\"", "\"lightning\": {\"ground_height\": 50000}, \"lights\""), "g.json");
     CHECK_THROWS_WITH_AS(make_density(s), doctest::Contains("scene: /lightning/ground_height: 50000 m: the ground"),
                          Error);
     CHECK_NOTHROW(make_density(parse_scene(kScene, "ok.json")));
@@ -178,7 +185,7 @@ TEST_CASE("a ground at or above the top of the cloud's grid is refused with the 
 
 TEST_CASE("the sky dome's knobs are bounded: sky_samples in [1, 1024], sky_paths 0 or [1000, 2^27]") {
     const auto sky = [](const std::string& knobs) {
-        return parse_scene(with("\"lights\"", "\"transport\": {\"static_light\": {" + knobs + "}}, \"lights\""),
+        return parse_scene(hostile_with("\"lights\"", "\"transport\": {\"static_light\": {" + knobs + "}}, \"lights\""),
                            "sky.json");
     };
     const Scene ok = sky("\"sky_samples\": 64, \"sky_paths\": 3000000");
@@ -198,9 +205,9 @@ TEST_CASE("the sky dome's knobs are bounded: sky_samples in [1, 1024], sky_paths
 TEST_CASE("every knob that scales a solve's work is in the cost: order-2 paths, a preset's per-strike paths") {
     // order2_paths 2^32 with exact_orders 2 once ran with no output and no end: its paths are
     // part of each light's lower bound (2e-7 s per path: 859 s a light).
-    const Scene o = parse_scene(with("\"lights\"",
-                                     "\"transport\": {\"lattice_boltzmann\": {\"exact_orders\": 2, "
-                                     "\"order2_paths\": 4294967296}}, \"lights\""),
+    const Scene o = parse_scene(hostile_with("\"lights\"",
+                                             "\"transport\": {\"lattice_boltzmann\": {\"exact_orders\": 2, "
+                                             "\"order2_paths\": 4294967296}}, \"lights\""),
                                 "o2.json");
     const Scene plain = parse_scene(kScene, "plain.json");
     CHECK(estimate_cost(o, 1, 1).seconds_per_light - estimate_cost(plain, 1, 1).seconds_per_light >=
@@ -209,7 +216,8 @@ TEST_CASE("every knob that scales a solve's work is in the cost: order-2 paths, 
                          Error);
     // A preset's paths at 2^32: each strike's solve would run for hours while a frame waits.
     const Scene q = parse_scene(
-        with("\"lights\"", "\"quality\": {\"preset\": \"per_strike_mc\", \"single_paths\": 4294967296}, \"lights\""),
+        hostile_with("\"lights\"",
+                     "\"quality\": {\"preset\": \"per_strike_mc\", \"single_paths\": 4294967296}, \"lights\""),
         "q.json");
     CHECK_THROWS_WITH_AS(check_cost(q, estimate_cost(q)), doctest::Contains("scene: limits.strike_minutes"), Error);
     CHECK_THROWS_WITH_AS(check_cost(q, estimate_cost(q)), doctest::Contains("4294967296 single-scattering paths"),
@@ -218,14 +226,15 @@ TEST_CASE("every knob that scales a solve's work is in the cost: order-2 paths, 
     for (const std::string_view p : kQualityPresets) {
         CAPTURE(p);
         const Scene k =
-            parse_scene(with("\"lights\"", "\"quality\": \"" + std::string(p) + "\", \"lights\""), "k.json");
+            parse_scene(hostile_with("\"lights\"", "\"quality\": \"" + std::string(p) + "\", \"lights\""), "k.json");
         const Cost c = estimate_cost(k);
         CHECK_NOTHROW(check_cost(k, c));
         CHECK((c.seconds_per_strike == 0.0) == (p == "paper"));
     }
-    const Scene tight = parse_scene(
-        with("\"lights\"", "\"quality\": \"per_strike_mc\", \"limits\": {\"strike_minutes\": 1e-9}, \"lights\""),
-        "t.json");
+    const Scene tight =
+        parse_scene(hostile_with("\"lights\"",
+                                 "\"quality\": \"per_strike_mc\", \"limits\": {\"strike_minutes\": 1e-9}, \"lights\""),
+                    "t.json");
     CHECK_THROWS_WITH_AS(check_cost(tight, estimate_cost(tight)), doctest::Contains("limits.strike_minutes"), Error);
 }
 
@@ -249,25 +258,29 @@ TEST_CASE("settings that would make a bake useless are refused at parse time, na
     // No light scatters more than the albedo's fraction of its power: drop_below at or above
     // it drops every light.
     CHECK_THROWS_WITH_AS(
-        parse_scene(with("\"lights\"", "\"virtual_lights\": {\"drop_below\": 1}, \"lights\""), "d.json"),
+        parse_scene(hostile_with("\"lights\"", "\"virtual_lights\": {\"drop_below\": 1}, \"lights\""), "d.json"),
         doctest::Contains("d.json: /virtual_lights/drop_below"), Error);
     CHECK_THROWS_WITH_AS(
-        parse_scene(with("\"lights\"", "\"virtual_lights\": {\"drop_below\": 0.95}, \"lights\""), "d.json"),
+        parse_scene(hostile_with("\"lights\"", "\"virtual_lights\": {\"drop_below\": 0.95}, \"lights\""), "d.json"),
         doctest::Contains("drops every light"), Error);
-    CHECK_NOTHROW(parse_scene(with("\"lights\"", "\"virtual_lights\": {\"drop_below\": 0.5}, \"lights\""), "d.json"));
+    CHECK_NOTHROW(
+        parse_scene(hostile_with("\"lights\"", "\"virtual_lights\": {\"drop_below\": 0.5}, \"lights\""), "d.json"));
     // xi keeping no coefficient: energy 0, relative_l2 1 (no |B| exceeds ||B||).
-    CHECK_THROWS_WITH_AS(parse_scene(with("\"lights\"", "\"compression\": {\"xi\": 0}, \"lights\""), "x.json"),
+    CHECK_THROWS_WITH_AS(parse_scene(hostile_with("\"lights\"", "\"compression\": {\"xi\": 0}, \"lights\""), "x.json"),
                          doctest::Contains("x.json: /compression/xi"), Error);
     CHECK_THROWS_WITH_AS(
-        parse_scene(with("\"lights\"", "\"compression\": {\"threshold\": \"relative_l2\", \"xi\": 1}, \"lights\""),
-                    "x.json"),
+        parse_scene(
+            hostile_with("\"lights\"", "\"compression\": {\"threshold\": \"relative_l2\", \"xi\": 1}, \"lights\""),
+            "x.json"),
         doctest::Contains("x.json: /compression/xi"), Error);
 }
 
 TEST_CASE("sub-voxel detail is optional; its values are bounded, naming the field") {
     CHECK_FALSE(parse_scene(kScene, "plain.json").cloud.detail.has_value());
     const std::string cloud_end = "\"anvil_offset\": 500}";
-    auto detail = [&](const std::string& body) { return with(cloud_end, cloud_end + ", \"detail\": {" + body + "}"); };
+    auto detail = [&](const std::string& body) {
+        return hostile_with(cloud_end, cloud_end + ", \"detail\": {" + body + "}");
+    };
     const Scene s = parse_scene(detail("\"seed\": 9, \"scale\": 250, \"octaves\": 4, \"strength\": 0.7"), "d.json");
     REQUIRE(s.cloud.detail.has_value());
     CHECK(s.cloud.detail->seed == 9);
@@ -295,7 +308,9 @@ TEST_CASE("sub-voxel detail is optional; its values are bounded, naming the fiel
 
 TEST_CASE("rain is optional; its values are bounded, naming the field") {
     CHECK_FALSE(parse_scene(kScene, "dry.json").rain.has_value());
-    auto rain = [&](const std::string& body) { return with("\"lights\":", "\"rain\": {" + body + "}, \"lights\":"); };
+    auto rain = [&](const std::string& body) {
+        return hostile_with("\"lights\":", "\"rain\": {" + body + "}, \"lights\":");
+    };
     const Scene s = parse_scene(rain("\"rate\": 30, \"shear\": [300, -100], \"streak_strength\": 0.2"), "r.json");
     REQUIRE(s.rain.has_value());
     CHECK(s.rain->rate == 30.0);
@@ -323,7 +338,9 @@ TEST_CASE("rain is optional; its values are bounded, naming the field") {
 }
 
 TEST_CASE("quality.directions \"camera\": only where a strike is solved ahead by Monte Carlo alone") {
-    const auto quality = [](const std::string& q) { return with("\"lights\"", "\"quality\": " + q + ", \"lights\""); };
+    const auto quality = [](const std::string& q) {
+        return hostile_with("\"lights\"", "\"quality\": " + q + ", \"lights\"");
+    };
     // Paper and instant solve no strike ahead; per_strike's lattice solves fixed directions.
     for (const std::string p : {"paper", "instant", "per_strike"}) {
         CAPTURE(p);
@@ -344,7 +361,9 @@ TEST_CASE("quality.directions \"camera\": only where a strike is solved ahead by
 }
 
 TEST_CASE("quality.grid \"transport\": refused where nothing is kept or the grid is not finer; bounded by memory") {
-    const auto quality = [](const std::string& q) { return with("\"lights\"", "\"quality\": " + q + ", \"lights\""); };
+    const auto quality = [](const std::string& q) {
+        return hostile_with("\"lights\"", "\"quality\": " + q + ", \"lights\"");
+    };
     // The paper and instant presets keep no solved strike's light.
     for (const std::string p : {"paper", "instant"}) {
         CAPTURE(p);

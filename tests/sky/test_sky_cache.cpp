@@ -25,11 +25,6 @@ std::vector<sky::NamedField> two_fields() {
     return {{"single", a}, {"zenith.multiple", b}};
 }
 
-std::string slurp(const std::filesystem::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
 void spit(const std::filesystem::path& p, const std::string& s) {
     std::ofstream o(p, std::ios::binary | std::ios::trunc);
     o.write(s.data(), std::streamsize(s.size()));
@@ -63,7 +58,7 @@ TEST_CASE("light file: every truncation and single-byte corruption is rejected w
     const auto good = dir / "good.fgl";
     const basis::BakeKey key = basis::BakeKey::from_description("k=v\n");
     sky::write_light_file(good, key, two_fields());
-    const std::string bytes = slurp(good);
+    const std::string bytes = fulgur::test::read_text(good);
     const auto bad = dir / "bad.fgl";
     for (std::size_t n = 0; n < bytes.size(); ++n) {
         spit(bad, bytes.substr(0, n));
@@ -125,7 +120,7 @@ TEST_CASE("light file: one for another grid or directions, or with values no sol
     // The file is sized against the shape before it is read: more bytes than the grid needs
     // are refused before any is read.
     sky::write_light_file(path, key, fields);
-    spit(path, slurp(path) + std::string(std::size_t(1) << 21, '\0'));
+    spit(path, fulgur::test::read_text(path) + std::string(std::size_t(1) << 21, '\0'));
     CHECK_THROWS_WITH_AS(sky::read_light_file(path, &key, &shape), doctest::Contains("light file is"), core::Error);
 }
 

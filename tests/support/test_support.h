@@ -76,4 +76,7 @@ std::uint64_t run_seed();
 /// Writes `text` to `path` (overwriting).
 void write_text(const std::filesystem::path& path, const std::string& text);
 
+/// The whole of the file at `path`, byte for byte (empty when it cannot be opened).
+std::string read_text(const std::filesystem::path& path);
+
 }  // namespace fulgur::test
