@@ -197,9 +197,19 @@ private:
     std::vector<double> majorant_;
 };
 
+/// The albedo a Monte Carlo run's S is scaled by at the end: the medium's, or where the
+/// medium scatters nothing and a path mix's second scatterer does, the second's (GridTally
+/// weighs each voxel's deposits by its own albedo over this one).
+double tally_albedo(const LightingMedium& m) noexcept {
+    return m.path_mix && !(m.optics.albedo > 0.0) ? m.path_mix->albedo : m.optics.albedo;
+}
+
 /// Voxel tallies of the (weighted) integral of p(s_m . w) L dw dx (S without albedo and
 /// normalization), split into order 1 and orders >= 2; layout [cell][m] so one voxel's
-/// directions are contiguous.
+/// directions are contiguous. With a path mix whose albedo is not the medium's, a voxel's
+/// deposits to S are weighed by its own albedo, (1 - e) a + e a2 for its extinction share e of
+/// the second scatterer, over tally_albedo(): S is albedo x sigma_t x the in-scattered
+/// radiance, and the two scatterers' albedos differ. The fluences are not weighed.
 class GridTally {
 public:
     /// `single`, `multiple` (and `fluence`, the expected-value uncollided fluence, optional)
@@ -225,6 +235,7 @@ public:
           fluence_(fluence),
           fluence2_(fluence2),
           p_(dirs.size()) {
+        if (m.path_mix && m.path_mix->albedo != m.optics.albedo) set_albedo_mix(m, tg);
         if (toward) {
             FULGUR_ASSERT(M_ == 1, "GridTally: S toward a point is one field");
             toward_ = *toward;
@@ -253,6 +264,23 @@ public:
             hg2_ = HgConstants(mix->g);
             p2_.assign(M_, 0.0);
         }
+    }
+
+    /// The voxels' albedo weights: f = f0 + e f1 on the medium's grid (share_ the path mix's e),
+    /// and per tally cell the volume mean of f over its medium voxels (the track-length walk
+    /// on a coarser tally grid sees cells, not voxels).
+    void set_albedo_mix(const LightingMedium& m, const TallyGrid& tg) {
+        const double a = m.optics.albedo, a2 = m.path_mix->albedo, at = tally_albedo(m);
+        share_ = m.path_mix->share.data.data();
+        f0_ = a / at;
+        f1_ = (a2 - a) / at;
+        const core::GridGeometry& g = m.density.geom;
+        const double per_cell = tg.coarse ? std::pow(tg.geom.voxel_size / g.voxel_size, 3.0) : 1.0;
+        cell_f_.assign(tg.geom.cell_count(), f0_);
+        for (int k = 0; k < g.dims.z; ++k)
+            for (int j = 0; j < g.dims.y; ++j)
+                for (int i = 0; i < g.dims.x; ++i)
+                    cell_f_[tg.tally_cell(i, j, k)] += f1_ * double(share_[g.index(i, j, k)]) / per_cell;
     }
 
     void begin_path(std::uint32_t group) {
@@ -329,7 +357,8 @@ private:
             for (std::size_t m = 0; m < M_; ++m) p2[m] = hg2_(sx[m] * x + sy[m] * y + sz[m] * z);
         }
     }
-    void add(double* base, std::size_t tally_cell, double c) {
+    /// Adds c to the cell's S (times the phase per direction) and c_fluence to its fluence.
+    void add(double* base, std::size_t tally_cell, double c, double c_fluence) {
         double* a = base + tally_cell * M_;
         const double share = mix_ ? double(mix_[tally_cell]) : 0.0;
         if (toward_on_)
@@ -340,8 +369,8 @@ private:
             for (std::size_t m = 0; m < M_; ++m) a[m] += c * p_[m];
         // Fluence (no phase): of the uncollided light, and of the second order when its
         // flights are expected-value estimates.
-        if (fluence_ && base == single_) fluence_[tally_cell] += c;
-        if (fluence2_ && base == multiple_) fluence2_[tally_cell] += c;
+        if (fluence_ && base == single_) fluence_[tally_cell] += c_fluence;
+        if (fluence2_ && base == multiple_) fluence2_[tally_cell] += c_fluence;
     }
     /// p(w . d) for the flight's direction d, w the unit vector from the cell's centre toward
     /// the point (normalized and dotted as unit_directions and phase() do a fixed direction, so
@@ -367,8 +396,12 @@ private:
         DdaWalker wk;
         if (!wk.start(tg_->geom, x, d, t0, t1)) return;
         do {
-            if (!(empty_only && tg_->extinction && tg_->cloud[std::size_t(wk.cell)]))
-                add(base, std::size_t(wk.cell), w * (wk.t_next() - wk.t));
+            if (!(empty_only && tg_->extinction && tg_->cloud[std::size_t(wk.cell)])) {
+                // Empty space holds no second scatterer: its weight is f0.
+                const double c = w * (wk.t_next() - wk.t);
+                const double f = !share_ ? 1.0 : empty_only ? f0_ : cell_f_[std::size_t(wk.cell)];
+                add(base, std::size_t(wk.cell), c * f, c);
+            }
         } while (wk.advance());
     }
     /// Deposits along x + t d, t in [t0, t1], w times the integral of the tally weight (times
@@ -388,7 +421,7 @@ private:
         // Consecutive medium voxels of one tally cell are summed before the (per direction)
         // deposit: a coarse tally cell is crossed in one run of fine voxels.
         // T = exp(-tau) is carried along: one exponential per voxel with density.
-        double tau = 0.0, T = 1.0, pending = 0.0;
+        double tau = 0.0, T = 1.0, pending = 0.0, pending_fluence = 0.0;
         std::size_t pending_cell = tg_->tally_cell(wk.i, wk.j, wk.k);
         bool cut = false;
         do {
@@ -408,11 +441,12 @@ private:
             }
             if (tg_->extinction) c *= tg_->weight[std::size_t(wk.cell)];
             if (t != pending_cell) {
-                add(base, pending_cell, pending);
-                pending = 0.0;
+                add(base, pending_cell, pending, pending_fluence);
+                pending = pending_fluence = 0.0;
                 pending_cell = t;
             }
-            pending += c;
+            pending += share_ ? c * (f0_ + f1_ * double(share_[std::size_t(wk.cell)])) : c;
+            pending_fluence += c;
             if (attenuate) {
                 tau += sigma * len;
                 T *= decay;
@@ -422,7 +456,7 @@ private:
                 }
             }
         } while (wk.advance());
-        add(base, pending_cell, pending);
+        add(base, pending_cell, pending, pending_fluence);
         if (!same && !cut) walk_tally(base, x, d, wk.t_end, tb, w * T, true);
     }
 
@@ -432,7 +466,12 @@ private:
     HgConstants hg_;
     HgConstants hg2_{0.0};        // the mix's phase (set_mix)
     const float* mix_ = nullptr;  // the mix's share per tally cell
-    std::vector<double> p2_;      // hg2_ per output direction, as p_
+    // The path mix's albedo weight of a voxel's deposits to S, f0_ + f1_ e (share_: e per
+    // medium voxel; null when both scatterers have one albedo) and its mean per tally cell.
+    const float* share_ = nullptr;
+    double f0_ = 1.0, f1_ = 0.0;
+    std::vector<double> cell_f_;
+    std::vector<double> p2_;  // hg2_ per output direction, as p_
     std::size_t M_;
     bool expected_single_, track_single_, tally_multiple_;
     double cutoff_;
@@ -747,7 +786,7 @@ MonteCarloResult run_grid(const LightingMedium& medium, const Emitter& em, std::
         });
         for (int i = 0; i < nb; ++i) {
             const std::uint64_t np = batch_paths(o.paths, o.batches, b0 + i);
-            const double scale = medium.optics.albedo / (vol * double(np));
+            const double scale = tally_albedo(medium) / (vol * double(np));
             s1.add(bufs[std::size_t(i)].single, scale);
             if (multiple) sm.add(bufs[std::size_t(i)].multiple, scale);
             if (fluence) fl.add(bufs[std::size_t(i)].fluence, 1.0 / (vol * double(np)));
@@ -1031,7 +1070,7 @@ struct ProgressiveMonteCarlo::Impl {
         const bool traced_any = traced > 0 && !em.empty();
         // Raw sums per path -> S (albedo / voxel volume) and fluence (1 / voxel volume).
         const double vol = g.voxel_size * g.voxel_size * g.voxel_size;
-        const double ks = traced_any ? med.medium.optics.albedo / (vol * double(traced)) : 0.0;
+        const double ks = traced_any ? detail::tally_albedo(med.medium) / (vol * double(traced)) : 0.0;
         const double kf = traced_any ? 1.0 / (vol * double(traced)) : 0.0;
         const auto mean = [&](const detail::HalfSums& h, std::size_t i) { return (h.a[i] + h.b[i]) * ks; };
         const auto mean_fluence = [&](const detail::HalfSums& h, std::size_t i) { return (h.a[i] + h.b[i]) * kf; };

@@ -66,7 +66,8 @@ void validate_phase_mix(const PhaseMix& mix, const core::GridGeometry& geom);
 /// weighs the path by its `albedo` and turns it with its phase function (HG `g`); otherwise
 /// the medium's own optics. Where the share is 0 or 1 no random number is drawn, so a mix of
 /// share 0 traces the paths of the medium alone and a mix of share 1 those of a medium with
-/// the second's optics. The tally's S takes the medium's albedo (PhaseMix gives its phase).
+/// the second's optics. The tally's S takes each voxel's albedo, (1 - share) medium's + share
+/// `albedo` (PhaseMix gives its phase).
 struct PathMix {
     double g = 0.0;
     double albedo = 1.0;

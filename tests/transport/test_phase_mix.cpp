@@ -257,9 +257,10 @@ TEST_CASE("path mix: share 0 traces the medium's paths, share 1 a medium of the 
     CHECK(n.energy.absorbed.mean == a.energy.absorbed.mean);
 
     // Share 1: every collision the drops' (g 0.85, albedo 0.9), the same random numbers as a
-    // medium of those optics. S read out with the drops' phase (PhaseMix share 1); the tallies'
-    // S takes the medium's albedo (0.99), so it is that medium's times 0.99 / 0.9 (float
-    // rounding of the stored fields, per deposit against the sums: 1e-6).
+    // medium of those optics. S read out with the drops' phase (PhaseMix share 1) and with
+    // their albedo: each deposit weighed by 0.9 / 0.99 and the sums by 0.99, where the drops'
+    // medium sums plain deposits times 0.9 (the rounding of the two orders of operations in
+    // the stored floats: 1e-6; left at the medium's albedo it was 10% off).
     transport::LightingMedium all = plain;
     all.path_mix = path_mix_on(plain.density.geom, kG2, 0.9, 1.0f);
     transport::LightingMedium drops = plain;
@@ -269,9 +270,29 @@ TEST_CASE("path mix: share 0 traces the medium's paths, share 1 a medium of the 
     const transport::MonteCarloResult got = sun_paths(all, read.get()), want = sun_paths(drops);
     CHECK(got.energy.absorbed.mean == want.energy.absorbed.mean);
     CHECK(got.energy.escaped.mean == want.energy.escaped.mean);
-    transport::SourceField scaled = got.multiple;
-    for (float& v : scaled.data) v = float(double(v) * 0.9 / 0.99);
-    CHECK(rel_l2(scaled, want.multiple) < 1e-6);
+    CHECK(rel_l2(got.single, want.single) < 1e-6);
+    CHECK(rel_l2(got.multiple, want.multiple) < 1e-6);
+    // The same on a tally grid twice as coarse, by volume (the track lengths walked on the
+    // coarse cells, each weighed by its voxels' mean albedo) and by extinction (deposited
+    // voxel by voxel); the read-out's share then lies on the coarse grid.
+    core::GridGeometry coarse = plain.density.geom;
+    coarse.voxel_size *= 2.0;
+    coarse.dims = {3, 3, 3};
+    const auto coarse_read = mix_on(coarse, kG2, 1.0f);
+    for (const auto weight :
+         {transport::MonteCarloOptions::TallyWeight::Volume, transport::MonteCarloOptions::TallyWeight::Extinction}) {
+        transport::MonteCarloOptions o;
+        o.paths = 20'000;
+        o.batches = 4;
+        o.tally_weight = weight;
+        const auto dirs = transport::output_directions(6);
+        o.phase_mix = coarse_read.get();
+        const transport::MonteCarloResult cg = transport::monte_carlo(all, kSun, coarse, dirs, o);
+        o.phase_mix = nullptr;
+        const transport::MonteCarloResult cw = transport::monte_carlo(drops, kSun, coarse, dirs, o);
+        CHECK(rel_l2(cg.single, cw.single) < 1e-6);
+        CHECK(rel_l2(cg.multiple, cw.multiple) < 1e-6);
+    }
     CHECK(rel_l2(want.multiple, a.multiple) > 0.05);  // the drops' optics change the light
 }
 
@@ -295,10 +316,26 @@ TEST_CASE("path mix: a collision is the second scatterer's by its share") {
     const double share = first.energy.absorbed_by_order[0].mean / collided;
     MESSAGE("absorbed at the first collision: " << share << " of " << paths << " paths' power");
     CHECK(std::abs(share - 0.5) < 4.0 * 0.5 / std::sqrt(paths));
-    // What the first flights deposit does not depend on the mix: order 1 is the medium's alone.
+    // The first flights are the medium's alone, but what they leave in S is scattered by the
+    // scatterer met: half the extinction scatters with albedo 1, half with 0, so order 1's S is
+    // the plain medium's times 0.5 (each deposit halved, exactly in binary) and its fluence
+    // the plain's to the bit.
     transport::LightingMedium plain = m;
     plain.path_mix = nullptr;
-    CHECK(sun_paths(m).single.data == sun_paths(plain).single.data);
+    transport::MonteCarloOptions with_fluence;
+    with_fluence.paths = 20'000;
+    with_fluence.batches = 4;
+    with_fluence.tally_fluence = true;
+    const auto dirs = transport::output_directions(6);
+    const transport::MonteCarloResult mixed = transport::monte_carlo(m, kSun, dirs, with_fluence),
+                                      alone = transport::monte_carlo(plain, kSun, dirs, with_fluence);
+    REQUIRE(mixed.single.data.size() == alone.single.data.size());
+    bool halved = true;
+    for (std::size_t i = 0; i < alone.single.data.size(); ++i)
+        halved = halved && mixed.single.data[i] == 0.5f * alone.single.data[i];
+    CHECK(halved);
+    CHECK(mixed.fluence.data == alone.fluence.data);
+    CHECK(std::any_of(alone.fluence.data.begin(), alone.fluence.data.end(), [](float v) { return v > 0.0f; }));
 }
 
 TEST_CASE("path mix: bad mixes are refused, naming the field") {
