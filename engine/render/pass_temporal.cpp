@@ -300,7 +300,9 @@ void Renderer::Impl::temporal_march_pass(const Camera& camera, detail::TemporalP
     h.source.written();
     h.rain_source.written();
     h.channel.written();
-    ++h.frames;
+    // The phases count from the last frame that marched every pixel: what a sequence of frames
+    // marches depends on the frames since then, not on how many the renderer drew before.
+    h.frames = stride == 1 ? 0 : h.frames + 1;
     // A moving camera upsamples three pixels of each 2x2 block: once it stops, the next four
     // frames march the four phases in turn, after which every pixel is marched and rescaled. A
     // still camera's light that changed in shape marched one phase at this view already: three.

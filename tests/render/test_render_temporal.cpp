@@ -373,41 +373,62 @@ TEST_CASE("temporal history: a flash's new shape lit by its S alone is upsampled
     st.dither = false;
     REQUIRE(st.temporal_reshape == render::TemporalReshape::Quarter);
     using Step = render::TemporalStep;
-    // S^(1 + lit / 100): new shapes at frames 1 and 6, settling in 2-4, settled at 5.
+    // S^(1 + lit / 100): new shapes at frames 1 and 6, settling in 2-4, settled at 5; each
+    // started at every one of the four quarters' phases (the phases count from the frame that
+    // marched every pixel, and a still frame that reuses the history advances them: `phase`
+    // reused frames before the first new shape).
     const std::vector<int> lit = {10, 40, 40, 40, 40, 40, 80};
     const std::vector<Step> expected = {Step::Full,    Step::Quarter, Step::Quarter, Step::Quarter,
                                         Step::Quarter, Step::Reused,  Step::Quarter};
-    std::vector<double> error, total;
-    for (std::size_t i = 0; i < lit.size(); ++i) {
-        upload_flash_source(r, shape, {.g = 1.0, .lit = lit[i]});
-        const Frame f = with_and_without_history(r, storm.camera, st, std::uint32_t(700 + i));
-        error.push_back(march_diff(f.kept, f.fresh).radiance);
-        double kept = 0.0, fresh = 0.0;
-        for (std::size_t k = 0; k < f.kept.size(); k += 4)
-            for (std::size_t c = 0; c < 3; ++c) kept += double(f.kept[k + c]), fresh += double(f.fresh[k + c]);
-        total.push_back(kept / fresh);
-        CAPTURE(i);
-        CHECK(f.stats.temporal == expected[i]);
+    double worst_shape = 0.0, worst_first = 0.0, worst_settling = 0.0, worst_second = 0.0, worst_settled = 0.0;
+    for (int phase = 0; phase < 4; ++phase) {
+        r.reset_history();
+        std::vector<double> error, total;
+        std::uint32_t index = 700;
+        for (std::size_t i = 0; i < lit.size(); ++i) {
+            for (int reuse = 0; reuse < (i == 1 ? phase : 0); ++reuse) {
+                const Frame again = with_and_without_history(r, storm.camera, st, index++);
+                CHECK(again.stats.temporal == Step::Reused);
+            }
+            upload_flash_source(r, shape, {.g = 1.0, .lit = lit[i]});
+            const Frame f = with_and_without_history(r, storm.camera, st, index++);
+            error.push_back(march_diff(f.kept, f.fresh).radiance);
+            double kept = 0.0, fresh = 0.0;
+            for (std::size_t k = 0; k < f.kept.size(); k += 4)
+                for (std::size_t c = 0; c < 3; ++c) kept += double(f.kept[k + c]), fresh += double(f.fresh[k + c]);
+            total.push_back(kept / fresh);
+            CAPTURE(phase);
+            CAPTURE(i);
+            CHECK(f.stats.temporal == expected[i]);
+        }
+        std::string line;
+        for (std::size_t i = 0; i < error.size(); ++i)
+            line.append(" ").append(std::to_string(error[i])).append(" (").append(std::to_string(total[i])).append(")");
+        MESSAGE("still camera, the flash's S alone changing shape, phase "
+                << phase << ": relative L2 radiance (ratio of totals) per frame:" << line);
+        worst_shape = std::max({worst_shape, error[1], error[6]});
+        worst_first = std::max(worst_first, std::abs(total[1] - 1.0));
+        worst_settling = std::max({worst_settling, std::abs(total[2] - 1.0), std::abs(total[3] - 1.0)});
+        worst_second = std::max(worst_second, std::abs(total[6] - 1.0));
+        worst_settled = std::max({worst_settled, error[4], error[5]});
     }
-    std::string line;
-    for (std::size_t i = 0; i < error.size(); ++i)
-        line.append(" ").append(std::to_string(error[i])).append(" (").append(std::to_string(total[i])).append(")");
-    MESSAGE(
-        "still camera, the flash's S alone changing shape: relative L2 radiance (ratio of totals) per frame:" << line);
-    // Measured (llvmpipe, this test's 160x90, 80x45 marched; no jitter, so the same every run):
-    // - the new shapes' frames 15.4% (S^1.1 -> S^1.4) and 16.7% (S^1.4 -> S^1.8) in relative L2,
-    //   the marched pixels' structure at this size (at 1280x720 a leader's frame is 1.2% off:
+    // Measured (llvmpipe, this test's 160x90, 80x45 marched; no jitter, so the same every run),
+    // the worst of the four phases:
+    // - the new shapes' frames 15.4-19.6% in relative L2 (S^1.1 -> S^1.4 and S^1.4 -> S^1.8), the
+    //   marched pixels' structure at this size (at 1280x720 a leader's frame is 1.2% off:
     //   docs/render.md); S upsampled without the opacity (the marched pixels' plain mean)
-    //   34% and 26%. Bound 20%.
-    for (const std::size_t i : {1, 6}) CHECK(error[i] < 0.2);
-    // - the frame's light in total: 1.0029 at the first new shape and 1.0018 / 1.0014 while it
-    //   settles; 0.9878 at the sharper second. The plain mean 1.036 / 1.018 / 1.018 and 0.977;
-    //   the upsampled light 5% too bright 1.030 / 1.020 / 1.010 and 1.003. Bounds: twice the
-    //   measured deviation, 0.6% and 2.5%.
-    for (const std::size_t i : {1, 2, 3}) CHECK(std::abs(total[i] - 1.0) < 0.006);
-    CHECK(std::abs(total[6] - 1.0) < 0.025);
+    //   34% and 26% at one phase. Bound 25%.
+    CHECK(worst_shape < 0.25);
+    // - the frame's light in total: at the first new shape 0.978-1.003 by the phase, while it
+    //   settles 0.989-1.002, at the sharper second 0.986-0.999 (at one phase the plain mean gave
+    //   1.036 / 1.018 / 1.018 and 0.977). Bounds: 1.5 times the worst phase's deviation (0.0216,
+    //   0.0107, 0.0137). Before the phases counted from the last full frame, this case saw
+    //   whichever phase the cases before it left, and its bounds (0.6%) held at one of four.
+    CHECK(worst_first < 0.033);
+    CHECK(worst_settling < 0.017);
+    CHECK(worst_second < 0.021);
     // Every quarter marched again (frame 4) and then reused: a fresh render's, to float rounding.
-    for (const std::size_t i : {4, 5}) CHECK(error[i] < 1e-5);
+    CHECK(worst_settled < 1e-5);
     r.clear_source();
     r.clear_volume();
 }

@@ -98,7 +98,7 @@ struct TemporalState {
     TemporalKey key;
     Camera camera;
     glm::mat4 view_proj{1.0f};
-    std::uint32_t frames = 0;  // temporal frames rendered (the quarter's phase)
+    std::uint32_t frames = 0;  // temporal frames since every pixel was last marched (the quarter's phase)
     int unsettled = 0;         // still-camera quarters left before every pixel of the history is marched
     // The light groups: the flash's S, with its light at the rain (`rain_source`, rescaled with
     // it: flash_holds), and the channel's direct light.
