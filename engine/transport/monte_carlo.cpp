@@ -60,6 +60,13 @@ namespace {
 
 constexpr double kPathCutoff = 104.0;  // same optical-depth cutoff as single_scattering's default
 
+/// The albedo a Monte Carlo run's S is scaled by at the end: the medium's, or where the
+/// medium scatters nothing and a path mix's second scatterer does, the second's (GridTally
+/// weighs each voxel's deposits by its own albedo over this one).
+double tally_albedo(const LightingMedium& m) noexcept {
+    return m.path_mix && !(m.optics.albedo > 0.0) ? m.path_mix->albedo : m.optics.albedo;
+}
+
 /// Where S is tallied: the medium's own grid, or a coarsening of it by an integer factor with
 /// the same origin (the truth of a frame: the full-resolution density, S on the lighting
 /// grid). The coarse box may extend past the medium's (a trailing partial block); the medium
@@ -81,6 +88,12 @@ struct TallyGrid {
     /// and of the bricked density (`brick_axis`). Summing three table entries replaces a
     /// per-cell lookup table (one more cache miss per step) and integer divisions.
     std::vector<std::size_t> tally_axis[3], brick_axis[3];
+    /// With a path mix whose albedo is not the medium's: a voxel's deposits to S are weighed by
+    /// f = albedo_f0 + albedo_f1 e (its own albedo over tally_albedo(), e the second's share of
+    /// its extinction), and albedo_mean holds f's volume mean per tally cell (what a track-length
+    /// walk on the tally grid, which sees cells and not voxels, weighs by). Empty otherwise.
+    double albedo_f0 = 1.0, albedo_f1 = 0.0;
+    std::vector<double> albedo_mean;
 
     TallyGrid(const LightingMedium& m, const core::GridGeometry* coarse_grid, MonteCarloOptions::TallyWeight w) {
         const core::GridGeometry& g = m.density.geom;
@@ -109,6 +122,18 @@ struct TallyGrid {
                     bricked[brick_index(i, j, k)] = rho;
                     if (rho > 0.0f) cloud[tally_cell(i, j, k)] = 1;
                 }
+        if (m.path_mix && m.path_mix->albedo != m.optics.albedo) {
+            const double a = m.optics.albedo, at = tally_albedo(m);
+            albedo_f0 = a / at;
+            albedo_f1 = (m.path_mix->albedo - a) / at;
+            const double per_cell = double(f) * double(f) * double(f);
+            albedo_mean.assign(geom.cell_count(), albedo_f0);
+            for (int k = 0; k < g.dims.z; ++k)
+                for (int j = 0; j < g.dims.y; ++j)
+                    for (int i = 0; i < g.dims.x; ++i)
+                        albedo_mean[tally_cell(i, j, k)] +=
+                            albedo_f1 * double(m.path_mix->share.data[g.index(i, j, k)]) / per_cell;
+        }
         const double vc = geom.voxel_size * geom.voxel_size * geom.voxel_size;
         inv_norm.assign(geom.cell_count(), 1.0 / vc);
         if (!extinction) return;
@@ -197,13 +222,6 @@ private:
     std::vector<double> majorant_;
 };
 
-/// The albedo a Monte Carlo run's S is scaled by at the end: the medium's, or where the
-/// medium scatters nothing and a path mix's second scatterer does, the second's (GridTally
-/// weighs each voxel's deposits by its own albedo over this one).
-double tally_albedo(const LightingMedium& m) noexcept {
-    return m.path_mix && !(m.optics.albedo > 0.0) ? m.path_mix->albedo : m.optics.albedo;
-}
-
 /// Voxel tallies of the (weighted) integral of p(s_m . w) L dw dx (S without albedo and
 /// normalization), split into order 1 and orders >= 2; layout [cell][m] so one voxel's
 /// directions are contiguous. With a path mix whose albedo is not the medium's, a voxel's
@@ -235,7 +253,11 @@ public:
           fluence_(fluence),
           fluence2_(fluence2),
           p_(dirs.size()) {
-        if (m.path_mix && m.path_mix->albedo != m.optics.albedo) set_albedo_mix(m, tg);
+        if (!tg.albedo_mean.empty()) {
+            share_ = m.path_mix->share.data.data();
+            f0_ = tg.albedo_f0;
+            f1_ = tg.albedo_f1;
+        }
         if (toward) {
             FULGUR_ASSERT(M_ == 1, "GridTally: S toward a point is one field");
             toward_ = *toward;
@@ -264,23 +286,6 @@ public:
             hg2_ = HgConstants(mix->g);
             p2_.assign(M_, 0.0);
         }
-    }
-
-    /// The voxels' albedo weights: f = f0 + e f1 on the medium's grid (share_ the path mix's e),
-    /// and per tally cell the volume mean of f over its medium voxels (the track-length walk
-    /// on a coarser tally grid sees cells, not voxels).
-    void set_albedo_mix(const LightingMedium& m, const TallyGrid& tg) {
-        const double a = m.optics.albedo, a2 = m.path_mix->albedo, at = tally_albedo(m);
-        share_ = m.path_mix->share.data.data();
-        f0_ = a / at;
-        f1_ = (a2 - a) / at;
-        const core::GridGeometry& g = m.density.geom;
-        const double per_cell = tg.coarse ? std::pow(tg.geom.voxel_size / g.voxel_size, 3.0) : 1.0;
-        cell_f_.assign(tg.geom.cell_count(), f0_);
-        for (int k = 0; k < g.dims.z; ++k)
-            for (int j = 0; j < g.dims.y; ++j)
-                for (int i = 0; i < g.dims.x; ++i)
-                    cell_f_[tg.tally_cell(i, j, k)] += f1_ * double(share_[g.index(i, j, k)]) / per_cell;
     }
 
     void begin_path(std::uint32_t group) {
@@ -399,7 +404,7 @@ private:
             if (!(empty_only && tg_->extinction && tg_->cloud[std::size_t(wk.cell)])) {
                 // Empty space holds no second scatterer: its weight is f0.
                 const double c = w * (wk.t_next() - wk.t);
-                const double f = !share_ ? 1.0 : empty_only ? f0_ : cell_f_[std::size_t(wk.cell)];
+                const double f = !share_ ? 1.0 : empty_only ? f0_ : tg_->albedo_mean[std::size_t(wk.cell)];
                 add(base, std::size_t(wk.cell), c * f, c);
             }
         } while (wk.advance());
@@ -467,10 +472,9 @@ private:
     HgConstants hg2_{0.0};        // the mix's phase (set_mix)
     const float* mix_ = nullptr;  // the mix's share per tally cell
     // The path mix's albedo weight of a voxel's deposits to S, f0_ + f1_ e (share_: e per
-    // medium voxel; null when both scatterers have one albedo) and its mean per tally cell.
+    // medium voxel; null when both scatterers have one albedo): TallyGrid::albedo_f0, _f1.
     const float* share_ = nullptr;
     double f0_ = 1.0, f1_ = 0.0;
-    std::vector<double> cell_f_;
     std::vector<double> p2_;  // hg2_ per output direction, as p_
     std::size_t M_;
     bool expected_single_, track_single_, tally_multiple_;
