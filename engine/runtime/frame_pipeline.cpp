@@ -119,7 +119,7 @@ struct FramePipeline::Impl {
         frame.time = t;
         frame.lit = false;
         frame.times = {};
-        frame.strikes_solved = frame.strikes_fallback = 0;
+        frame.strikes_solved = frame.strikes_fallback = frame.strikes_instant = 0;
         frame.instant_weight = 1.0;
         frame.ground.data.clear();
         frame.rain.values.clear();
@@ -257,6 +257,7 @@ void FramePipeline::Impl::add_instant(const lightning::Strike& k, const lightnin
         return;
     }
     ++f.strikes_solved;
+    ++f.strikes_instant;
     f.instant_weight = std::min(f.instant_weight, 1.0 - s.bases);
     // At the rain the bases carry no light: there the estimates' light, which s.light holds
     // with their share 1 - s.bases, is weighed against none (StrikeEstimate::rain_weight). A

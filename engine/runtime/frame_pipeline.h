@@ -60,6 +60,10 @@ struct Frame {
     /// Presets that solve strikes: active strikes whose own solve lit this frame, and those
     /// shown by the bases because their solve was not ready (0 and 0 for the paper preset).
     std::size_t strikes_solved = 0, strikes_fallback = 0;
+    /// Of strikes_solved, those lit the instant way (the instant preset's, and unscheduled
+    /// strikes under the presets that solve ahead): their estimates are paths that carry the
+    /// rain's drops at their own extinction, whatever the preset's own solves carry.
+    std::size_t strikes_instant = 0;
     /// The instant preset: the smallest weight any active strike's own estimate had against the
     /// bases in this frame (StrikeEstimate::weight, cross-fades included; 1 for other presets).
     double instant_weight = 1.0;

@@ -18,13 +18,21 @@ namespace {
 // the drops scatter onto the ground; the lattice (per_strike) carries it as cloud of equal
 // transport coefficient (sky::rain_media_density), whose share the others take too: paper and
 // hybrid light the ground by the channel alone, and the lesser attenuation stands in there for
-// the light the drops scatter forward. (Unscheduled strikes under hybrid or per_strike are
-// traced, their ground light then crosses the lattice's share.)
+// the light the drops scatter forward.
 double flash_rain_share(const scene::Scene& s, const scene::Quality& q) {
     if (!s.rain) return 1.0;
     using P = scene::Quality::Preset;
     if (q.preset == P::PerStrikeMc || q.preset == P::Instant || q.preset == P::Reference) return 1.0;
     return sky::rain_media_density(s.medium, *s.rain) * s.medium.extinction;
+}
+
+// The share for a frame the pipeline built: the preset's, except that a frame lit only by
+// strikes lit the instant way (unscheduled strikes under hybrid or per_strike) was lit by paths
+// through the drops at their own extinction, which tallied the drops' forward light onto the
+// ground themselves.
+double frame_rain_share(const scene::Scene& s, const runtime::Frame& f) {
+    const bool traced = f.strikes_instant > 0 && f.strikes_instant == f.strikes_solved && f.strikes_fallback == 0;
+    return traced && s.rain ? 1.0 : flash_rain_share(s, s.quality);
 }
 
 }  // namespace
@@ -518,6 +526,9 @@ void StormView::render_lightning(const render::Camera& camera, double t, const V
     last_ = &f;
     rep.stages = f.times;
     rep.lit = f.lit;
+    // The caller's own S (a reference) is the preset's kind of light; the pipeline's may be a
+    // strike lit the instant way.
+    renderer_->set_rain_solved_share(source ? flash_rain_share(scene_, scene_.quality) : frame_rain_share(scene_, f));
 
     render::LitChannel channel = lit_channel(f.segments, options.bolt_radius);
     if (!f.ground.empty()) {

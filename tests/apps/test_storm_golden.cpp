@@ -334,6 +334,27 @@ TEST_CASE("storm with rain, moon and sky: the linear passes sum to the frame, th
         view.set_quality(scene::quality_preset(lattice));
         CHECK_MESSAGE(view.renderer().rain_solved_share() == doctest::Approx(similarity).epsilon(1e-12), lattice);
     }
+    {
+        // Under per_strike an unscheduled strike is lit the instant way, by paths through the
+        // drops: a frame its estimate lights takes the full share; a strike the lattice solved
+        // ahead, the lattice's again. (Far from the strike the passes are checked at below.)
+        view.set_quality(scene::quality_preset("per_strike"));
+        view::ViewOptions wait;
+        wait.wait_for_strikes = true;
+        wait.settings.timing = render::Timing::Off;
+        const render::Camera cam = view::scene_camera(s.camera, view.density());
+        const auto stroke = [&](double start, std::uint64_t seed, bool known_ahead) {
+            const std::size_t i = view.pipeline().strike_at(start, seed, known_ahead);
+            return start + view.pipeline().storm().strike(i).profile.stroke_onset.at(0) + 0.002;
+        };
+        const view::FrameReport unscheduled = view.render(cam, stroke(100.0, 5, false), 80, 45, wait);
+        CHECK(unscheduled.lit);
+        CHECK(view.renderer().rain_solved_share() == 1.0);
+        const view::FrameReport scheduled = view.render(cam, stroke(200.0, 6, true), 80, 45, wait);
+        CHECK(scheduled.lit);
+        CHECK(view.renderer().rain_solved_share() == doctest::Approx(similarity).epsilon(1e-12));
+        view.set_quality(scene::quality_preset("paper"));
+    }
     view::ViewOptions opt;
     // Float rounding leaves 5e-6 of a pixel at worst; the moon's first scattering in the rain
     // drawn in the background's pass as well as the static one made it 4.8e-4.
