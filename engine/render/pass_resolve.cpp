@@ -100,7 +100,11 @@ GLuint Renderer::Impl::resolve_set(SourceSet& set, const glm::dvec3& camera, con
     if (set.dir_count == 1) return set.tex[0];
     if (!must_resolve) return set.cam_tex;
     const bool rgb = set.format != GL_R32F;
+    // The rain's S is read out geometrically between directions (resolve.comp, GEOMETRIC): the
+    // drops' forward lobe is narrower than the directions are apart.
     const GLuint p = rgb ? program("resolve_rgb", {{GL_COMPUTE_SHADER, "resolve.comp"}}, "#define RGB 1\n")
+                     : &set == &rain_flash
+                         ? program("resolve_geometric", {{GL_COMPUTE_SHADER, "resolve.comp"}}, "#define GEOMETRIC 1\n")
                          : program("resolve", {{GL_COMPUTE_SHADER, "resolve.comp"}});
     glUseProgram(p);
     const transport::detail::FoldTable ft = transport::detail::fold_table(set.dir_count);
@@ -137,6 +141,7 @@ GLuint Renderer::Impl::resolve_set(SourceSet& set, const glm::dvec3& camera, con
     // Up to 16 directions per dispatch (unused samplers read the zero texture with weight 0);
     // at least one dispatch so the active tiles of S_cam are written (zeros) even without S.
     constexpr std::size_t kBatch = 16;
+    glUniform1i(glGetUniformLocation(p, "u_one_dispatch"), active.size() <= kBatch ? 1 : 0);
     for (std::size_t b = 0; b == 0 || b < active.size(); b += kBatch) {
         GLint dirs[kBatch];
         std::fill(std::begin(dirs), std::end(dirs), -1);

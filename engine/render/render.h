@@ -635,6 +635,10 @@ public:
     /// The last frame's S toward the camera on the lighting grid (x fastest): what the ray
     /// march sampled. Empty when the last frame had no S. For tests and radiance views.
     std::vector<float> read_resolved_source() const;
+    /// The flash's light at the rain toward the camera (upload_rain_source, read out
+    /// geometrically between directions) at the same nodes, as the last frame sampled it.
+    /// Empty when the last frame had none.
+    std::vector<float> read_resolved_rain_source() const;
     /// The same for the static light (rgb per cell). Empty when the last frame had none.
     std::vector<float> read_resolved_static() const;
 

@@ -735,6 +735,15 @@ std::vector<float> Renderer::read_resolved_source() const {
     return v;
 }
 
+std::vector<float> Renderer::read_resolved_rain_source() const {
+    const Impl& m = *impl_;
+    if (!m.last_scam || m.last_scam != m.pair_tex) return {};
+    std::vector<float> v(m.flash.geom.cell_count());
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glGetTextureImage(m.last_scam, 0, GL_GREEN, GL_FLOAT, GLsizei(v.size() * sizeof(float)), v.data());
+    return v;
+}
+
 std::vector<float> Renderer::read_resolved_static() const {
     const Impl& m = *impl_;
     if (!m.last_static) return {};
