@@ -726,31 +726,34 @@ std::vector<float> Renderer::read_hdr() const {
     return rgb;
 }
 
+namespace {
+
+// `values` floats of texture `tex`'s level 0 in `format` (GL_RED, GL_GREEN: one per texel).
+std::vector<float> read_texture(GLuint tex, GLenum format, std::size_t values) {
+    std::vector<float> v(values);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glGetTextureImage(tex, 0, format, GL_FLOAT, GLsizei(v.size() * sizeof(float)), v.data());
+    return v;
+}
+
+}  // namespace
+
 std::vector<float> Renderer::read_resolved_source() const {
     const Impl& m = *impl_;
     if (!m.last_scam) return {};
-    std::vector<float> v(m.flash.geom.cell_count());
-    glPixelStorei(GL_PACK_ALIGNMENT, 4);
-    glGetTextureImage(m.last_scam, 0, GL_RED, GL_FLOAT, GLsizei(v.size() * sizeof(float)), v.data());
-    return v;
+    return read_texture(m.last_scam, GL_RED, m.flash.geom.cell_count());
 }
 
 std::vector<float> Renderer::read_resolved_rain_source() const {
     const Impl& m = *impl_;
     if (!m.last_scam || m.last_scam != m.pair_tex) return {};
-    std::vector<float> v(m.flash.geom.cell_count());
-    glPixelStorei(GL_PACK_ALIGNMENT, 4);
-    glGetTextureImage(m.last_scam, 0, GL_GREEN, GL_FLOAT, GLsizei(v.size() * sizeof(float)), v.data());
-    return v;
+    return read_texture(m.last_scam, GL_GREEN, m.flash.geom.cell_count());
 }
 
 std::vector<float> Renderer::read_resolved_static() const {
     const Impl& m = *impl_;
     if (!m.last_static) return {};
-    std::vector<float> v(m.statics.geom.cell_count() * 3);
-    glPixelStorei(GL_PACK_ALIGNMENT, 4);
-    glGetTextureImage(m.last_static, 0, GL_RGB, GL_FLOAT, GLsizei(v.size() * sizeof(float)), v.data());
-    return v;
+    return read_texture(m.last_static, GL_RGB, m.statics.geom.cell_count() * 3);
 }
 
 std::vector<float> Renderer::read_march(int& width, int& height) const {
