@@ -55,8 +55,15 @@ std::vector<float> map_key(const FrameBlock& f) {
 }  // namespace
 
 bool Renderer::Impl::ground_lights_moving(const FrameUniforms& u) {
-    std::vector<float> key = map_key(u.block);
-    const bool moving = !detail::same_light_key(key, ground_rain_key) && !detail::same_light_key(key, ground_rain_last);
+    // Without the share (map_key's last value): it changes once when it does (a preset's or a
+    // strike's solve), not frame after frame as a leader's lights move, so a new share alone
+    // makes the map again at once.
+    const auto without_share = [](const std::vector<float>& k) {
+        return k.empty() ? k : std::vector<float>(k.begin(), k.end() - 1);
+    };
+    std::vector<float> key = without_share(map_key(u.block));
+    const bool moving = !detail::same_light_key(key, without_share(ground_rain_key)) &&
+                        !detail::same_light_key(key, ground_rain_last);
     ground_rain_last = std::move(key);
     return moving;
 }

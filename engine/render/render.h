@@ -557,7 +557,7 @@ public:
     double rain_solved_share() const noexcept;
     /// VolumeDesc::rain_solved_share without uploading the volume again (the flash's solves
     /// changed). Throws core::Error unless finite and > 0; kept at 1 while the volume holds no
-    /// rain.
+    /// rain. The temporal history is kept: a still camera marches it again a quarter a frame.
     void set_rain_solved_share(double share);
     /// No cloud: the march pass outputs T = 1 (the background is seen unchanged).
     void clear_volume();

@@ -232,7 +232,14 @@ void Renderer::set_rain_solved_share(double share) {
     Impl& m = *impl_;
     if (!m.has_rain || share == m.rain_solved_share) return;
     m.rain_solved_share = share;
-    m.temporal.inputs_changed = true;  // the ground's flash light in the history crossed the old share
+    // What the history holds of the ground's flash light (the channel's group) crossed the old
+    // share; nothing else in it depends on the share. That light changes by the rain's
+    // transmittance at the share's change (3.6e-3 of a small storm's frame), so the history is
+    // kept and marched a quarter at a time at its own pixels, as a still camera settles after a
+    // move (four frames, each pixel marched once, then exact), not marched whole. A dark
+    // channel's group holds nothing the share changes.
+    detail::TemporalState& h = m.temporal;
+    if (h.has_history && !h.channel.dark()) h.unsettled = 4;
 }
 
 void Renderer::set_volume(const VolumeDesc& v) {
