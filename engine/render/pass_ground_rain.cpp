@@ -62,8 +62,8 @@ bool Renderer::Impl::ground_lights_moving(const FrameUniforms& u) {
         return k.empty() ? k : std::vector<float>(k.begin(), k.end() - 1);
     };
     std::vector<float> key = without_share(map_key(u.block));
-    const bool moving = !detail::same_light_key(key, without_share(ground_rain_key)) &&
-                        !detail::same_light_key(key, ground_rain_last);
+    const bool moving =
+        !detail::same_light_key(key, without_share(ground_rain_key)) && !detail::same_light_key(key, ground_rain_last);
     ground_rain_last = std::move(key);
     return moving;
 }

@@ -302,7 +302,11 @@ TEST_CASE("temporal history: the rain's share on the ground's way changed alone 
     }
     std::string line;
     for (std::size_t i = 0; i < error.size(); ++i)
-        line.append(" ").append(std::to_string(error[i])).append(" (").append(std::to_string(int(steps[i]))).append(")");
+        line.append(" ")
+            .append(std::to_string(error[i]))
+            .append(" (")
+            .append(std::to_string(int(steps[i])))
+            .append(")");
     MESSAGE("after the share changed, still camera: relative L2 radiance (step) per frame:" << line);
     const std::vector<Step> expected = {Step::Quarter, Step::Quarter, Step::Quarter,
                                         Step::Quarter, Step::Reused,  Step::Reused};
