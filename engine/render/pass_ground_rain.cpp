@@ -39,8 +39,8 @@ constexpr int kRadii = 96;
 constexpr int kVoxelsPerSample = 1;
 constexpr int kMaxGroundSamples = 64;
 
-// What the map is made from: the lights' positions, the density's box, the rain and the share of
-// its extinction it is drawn at, the ground.
+// What the map is made from besides the share of the rain's extinction it is drawn at
+// (ground_rain_share): the lights' positions, the density's box, the rain, the ground.
 std::vector<float> map_key(const FrameBlock& f) {
     std::vector<float> key;
     for (int i = 0; i < int(f.ground_params.w); ++i) detail::append_components(key, f.ground_light[i], 3);
@@ -48,22 +48,17 @@ std::vector<float> map_key(const FrameBlock& f) {
     detail::append_components(key, f.vol_size, 4);
     detail::append_components(key, f.rain, 3);
     key.push_back(f.ground_params.x);
-    key.push_back(f.rain_lights.z);
     return key;
 }
 
 }  // namespace
 
 bool Renderer::Impl::ground_lights_moving(const FrameUniforms& u) {
-    // Without the share (map_key's last value): it changes once when it does (a preset's or a
-    // strike's solve), not frame after frame as a leader's lights move, so a new share alone
-    // makes the map again at once.
-    const auto without_share = [](const std::vector<float>& k) {
-        return k.empty() ? k : std::vector<float>(k.begin(), k.end() - 1);
-    };
-    std::vector<float> key = without_share(map_key(u.block));
-    const bool moving =
-        !detail::same_light_key(key, without_share(ground_rain_key)) && !detail::same_light_key(key, ground_rain_last);
+    // The share is not compared: it changes once when it does (a preset's or a strike's solve),
+    // not frame after frame as a leader's lights move, so a new share alone makes the map again
+    // at once (ground_rain_pass).
+    std::vector<float> key = map_key(u.block);
+    const bool moving = !detail::same_light_key(key, ground_rain_key) && !detail::same_light_key(key, ground_rain_last);
     ground_rain_last = std::move(key);
     return moving;
 }
@@ -82,7 +77,8 @@ void Renderer::Impl::ground_rain_pass(const FrameUniforms& u) {
         glTextureParameteri(ground_rain_tex, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
         ground_rain_key.clear();
     }
-    if (!detail::same_light_key(key, ground_rain_key)) {
+    const float share = f.rain_lights.z;
+    if (!detail::same_light_key(key, ground_rain_key) || !detail::same_light_key({share}, {ground_rain_share})) {
         const GLuint p = program("ground_rain", {{GL_COMPUTE_SHADER, "ground_rain.comp"}});
         glUseProgram(p);
         glUniform1i(glGetUniformLocation(p, "u_max_samples"), kMaxGroundSamples);
@@ -92,6 +88,7 @@ void Renderer::Impl::ground_rain_pass(const FrameUniforms& u) {
         glDispatchCompute(GLuint(kAzimuths / 8), GLuint(kRadii / 8), GLuint(lights));
         glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
         ground_rain_key = std::move(key);
+        ground_rain_share = share;
     }
     glBindTextureUnit(12, ground_rain_tex);
 }

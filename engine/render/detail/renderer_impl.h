@@ -116,7 +116,8 @@ struct Renderer::Impl {
     // a layer per light; pass_ground_rain.cpp), and what it was made from (empty: to make).
     GLuint ground_rain_tex = 0;
     std::vector<float> ground_rain_key;
-    std::vector<float> ground_rain_last;  // the map's key the previous frame asked for, less the share (empty: none)
+    float ground_rain_share = 0.0f;       // the share of the rain's extinction the map was made at
+    std::vector<float> ground_rain_last;  // the map's key the previous frame asked for (empty: none)
     // What the rain's lights' extinction in the density texture's alpha was made from
     // (pass_rain_lights.cpp; empty: to make).
     std::vector<float> rain_map_key;
