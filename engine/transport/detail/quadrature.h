@@ -216,6 +216,17 @@ struct Plan {
         }
         return k_g * std::min(1.0, worst / f_max_);
     }
+    /// Whether the face rules grade their angles toward the phase function's peak in every
+    /// output direction (face_rule_point), and a box that no split within kMaxDepth would bring
+    /// within the model is integrated by them: whenever the phase function has a peak (g != 0)
+    /// and the output directions are known (docs/transport.md, "A peaked phase function").
+    bool graded() const noexcept { return g_ != 0.0 && !dirs_.empty(); }
+    /// The peak's angular scale in radians, 1 - |g|: HG's half width at half maximum is
+    /// 0.77 (1 - |g|) / sqrt(|g|) near |g| = 1, its steepest log-slope at about 1 - |g|.
+    double peak_width() const noexcept { return 1.0 - std::fabs(g_); }
+    /// The direction of the peak for output direction m: along it for g > 0, against it for g < 0.
+    glm::dvec3 peak(std::size_t m) const noexcept { return g_ > 0.0 ? dirs_[m] : -dirs_[m]; }
+    std::size_t direction_count() const noexcept { return dirs_.size(); }
     /// Largest residual of the upstream optical depth about its linear fit over a box's nodes
     /// (a kink) accepted by the tensor rule; calibrated against the Monte Carlo reference on the
     /// default storm cloud (docs/transport.md): 0.1 * sqrt(tol / 1e-3).
@@ -246,9 +257,12 @@ struct Plan {
 
 /// Face rule for one face (normal axis ax, lower or upper) of box b, point source.
 /// inside: the source is in the box's closure (rays start in the box, T = 1, chord = R);
-/// otherwise the source sees the face from outside (entry face).
+/// otherwise the source sees the face from outside (entry face). With a plan whose phase
+/// function is peaked (Plan::graded), the face's angles are also split geometrically toward
+/// every output direction's peak, from its width (1 - |g|) outward, in azimuth and, along
+/// each azimuth, in polar angle: a Gauss rule then sees the peak as a smooth function.
 void face_rule_point(const PointCtx& c, const Box& b, double sigma, int ax, bool upper, bool inside, int n,
-                     PhaseAccumulator& acc);
+                     PhaseAccumulator& acc, const Plan* peaks = nullptr);
 
 /// Tensor rule of order n on box b. Returns false without accumulating anything when the
 /// transmittance to the nodes is not what an order-n Gauss rule integrates to the tolerance:
