@@ -71,6 +71,36 @@ double agreement(const LightingMedium& m, const SourceField& a, const SourceFiel
 // sampled flights cross many voxels each: one lucky batch moves many voxels the same way, so
 // failures cluster (measured: all of one sign) and are not binomial. Delta tracking itself is
 // validated to 0.03% by the uncollided-escape test; this is a consistency check.
+// Whether any direction of cell c is more than 3 SE from the Monte Carlo estimate.
+bool beyond_3se(const SourceField& S, const MonteCarloResult& r, std::size_t c) {
+    for (std::size_t k = 0; k < S.directions.size(); ++k) {
+        const std::size_t i = k * S.cells() + c;
+        if (std::fabs(S.data[i] - r.single.data[i]) > 3.0 * r.single_se.data[i]) return true;
+    }
+    return false;
+}
+
+// The binomial's mean + 3 sigma + 1 failing voxels of n (see check_against_mc).
+double allowed_failing(int n) {
+    const double p0 = 0.0053, mean = p0 * n;
+    return mean + 3.0 * std::sqrt(mean * (1.0 - p0)) + 1.0;
+}
+
+// Exact single scattering at tolerance 1e-4 (its error far below the Monte Carlo's noise) and
+// the expected-value estimate of order 1 from 400k paths.
+struct OrderOne {
+    SourceField exact;
+    MonteCarloResult ev;
+};
+OrderOne order_one(const LightingMedium& m, const PointSource& L, const std::vector<glm::dvec3>& dirs) {
+    SingleScatteringOptions so;
+    so.tolerance = 1e-4;
+    MonteCarloOptions o;
+    o.paths = 400'000;
+    o.max_scatterings = 0;
+    return {single_scattering(m, L, dirs, so), monte_carlo(m, L, dirs, o)};
+}
+
 double check_against_mc(const LightingMedium& m, const SourceField& S, const MonteCarloResult& r, const char* what,
                         double max_rel_se = 1e300, double extra_fraction = 0.0) {
     int voxels = 0, failing = 0;
@@ -83,15 +113,9 @@ double check_against_mc(const LightingMedium& m, const SourceField& S, const Mon
         }
         if (!reliable) continue;
         ++voxels;
-        bool fail = false;
-        for (std::size_t k = 0; k < S.directions.size(); ++k) {
-            const std::size_t i = k * S.cells() + c;
-            if (std::fabs(S.data[i] - r.single.data[i]) > 3.0 * r.single_se.data[i]) fail = true;
-        }
-        failing += fail;
+        failing += beyond_3se(S, r, c);
     }
-    const double p0 = 0.0053, mean = p0 * voxels;
-    const double allowed = mean + 3.0 * std::sqrt(mean * (1.0 - p0)) + 1.0 + extra_fraction * voxels;
+    const double allowed = allowed_failing(voxels) + extra_fraction * voxels;
     MESSAGE(std::string(what) << ": " << failing << " of " << voxels << " cloud voxels beyond 3 SE (allowed " << allowed
                               << ")");
     CHECK(voxels > 50);
@@ -230,14 +254,10 @@ TEST_CASE("order 1: expected-value and track-length estimators agree with exact 
     const LightingMedium m = test::synthetic_cloud({12, 12, 8}, 250.0, {0.004, 0.99, 0.6});
     const auto dirs = output_directions(6);
     const PointSource L{{200, -300, 400}, 1.0};
-    SingleScatteringOptions so;
-    so.tolerance = 1e-4;
-    const SourceField S = single_scattering(m, L, dirs, so);
-    MonteCarloOptions o;
-    o.paths = 400'000;
-    o.max_scatterings = 0;
-    const MonteCarloResult ev = monte_carlo(m, L, dirs, o);
+    const auto [S, ev] = order_one(m, L, dirs);
     check_against_mc(m, S, ev, "expected value");
+    MonteCarloOptions o;
+    o.max_scatterings = 0;
     o.single_estimator = MonteCarloOptions::SingleEstimator::TrackLength;
     o.paths = 1'000'000;
     const MonteCarloResult tl = monte_carlo(m, L, dirs, o);
@@ -256,13 +276,7 @@ TEST_CASE("order 1 with a peaked phase function and the light inside the cloud: 
         const LightingMedium m = test::synthetic_cloud({12, 12, 8}, 250.0, {0.004, 0.99, g});
         const auto dirs = output_directions(26);
         const PointSource L{{30, -40, 1100}, 1.0};  // in the cloud's dense part
-        SingleScatteringOptions so;
-        so.tolerance = 1e-4;
-        const SourceField S = single_scattering(m, L, dirs, so);
-        MonteCarloOptions o;
-        o.paths = 400'000;
-        o.max_scatterings = 0;
-        const MonteCarloResult ev = monte_carlo(m, L, dirs, o);
+        const auto [S, ev] = order_one(m, L, dirs);
         check_against_mc(m, S, ev, "expected value, the whole cloud");
         // The light's 3x3x3 voxels, every direction: failing voxels against the same binomial
         // bound as check_against_mc (27 voxels: at most 2).
@@ -273,15 +287,9 @@ TEST_CASE("order 1 with a peaked phase function and the light inside the cloud: 
                 for (int di = -1; di <= 1; ++di) {
                     const std::size_t c = m.density.geom.index(lc.x + di, lc.y + dj, lc.z + dk);
                     REQUIRE(m.density.data[c] > 0.0f);
-                    bool fail = false;
-                    for (std::size_t k = 0; k < dirs.size(); ++k) {
-                        const std::size_t i = k * S.cells() + c;
-                        if (std::fabs(S.data[i] - ev.single.data[i]) > 3.0 * ev.single_se.data[i]) fail = true;
-                    }
-                    failing += fail;
+                    failing += beyond_3se(S, ev, c);
                 }
-        const double p0 = 0.0053, mean = p0 * 27.0;
-        CHECK(double(failing) <= mean + 3.0 * std::sqrt(mean * (1.0 - p0)) + 1.0);
+        CHECK(double(failing) <= allowed_failing(27));
     }
 }
 
