@@ -173,7 +173,7 @@ int polar_breakpoints(double A0, double A1, double B0, double B1, double k, doub
         if (a > lo_phi && a < hi_phi && n < kMaxBreaks) phi[n++] = a;
     };
     for (const glm::dvec3& q : peaks) {
-        if (q.x == 0.0 && q.y == 0.0) continue;
+        if ((q.x == 0.0 && q.y == 0.0) || !(q.z > 0.0)) continue;
         const double a = angle(q.x, q.y);
         add_angle(a);
         for (double s = q.z; s < 0.5 * turn; s *= kPeakRatio) {
