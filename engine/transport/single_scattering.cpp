@@ -174,6 +174,16 @@ void check_options(const SingleScatteringOptions& o) {
         throw core::Error("single_scattering.skip_block", "must be in [1, 64], got " + std::to_string(o.skip_block));
 }
 
+// The phase asymmetry a point source's quadrature plans for: the medium's, or where a mix puts
+// a second phase function in some cells (PhaseMix, rain drops), the more peaked of the two. A
+// mixture's log-slope is bounded by its parts' (the error model's phase term), and grading
+// toward the narrower peak resolves the wider one about the same directions. (Two g of
+// opposite signs would have peaks on opposite sides; the planned one is graded toward.)
+double planned_g(const LightingMedium& m) {
+    const double g = m.optics.g;
+    return m.phase_mix && std::fabs(m.phase_mix->g) > std::fabs(g) ? m.phase_mix->g : g;
+}
+
 // What the quadrature of a point source needs (the medium checked, the light's position finite).
 PointCtx point_context(const LightingMedium& medium, const PointSource& light, const SingleScatteringOptions& options) {
     validate_medium(medium);
@@ -272,7 +282,7 @@ void single_scattering(const LightingMedium& medium, const PointSource& light, S
     prepare_output(medium, out);
     const core::GridGeometry& g = medium.density.geom;
     const PointCtx ctx = point_context(medium, light, options);
-    const Plan plan(options.tolerance, medium.optics.g, options.optical_depth_cutoff, out.directions);
+    const Plan plan(options.tolerance, planned_g(medium), options.optical_depth_cutoff, out.directions);
     const double vol = g.voxel_size * g.voxel_size * g.voxel_size;
     const double factor = medium.optics.albedo * light.intensity / vol;
     const auto need = needed_mask(medium, options);
@@ -289,7 +299,7 @@ SingleScatteringCost single_scattering_cost(const LightingMedium& medium, const 
     const PointCtx ctx = point_context(medium, light, options);
     const std::vector<glm::dvec3> dirs = checked_directions(directions);
     const core::GridGeometry& g = medium.density.geom;
-    const Plan plan(options.tolerance, medium.optics.g, options.optical_depth_cutoff, dirs);
+    const Plan plan(options.tolerance, planned_g(medium), options.optical_depth_cutoff, dirs);
     const auto need = needed_mask(medium, options);
 
     // The computed voxels sorted by distance from the light (the cost of a voxel depends
