@@ -78,13 +78,15 @@ void integrate_box_point(const PointCtx& c, const Box& b, double sigma, int dept
     }
     bool thick = false;
     int n = 0;
+    double inv_len = 0.0;  // the error model's 1 / L (dmin >= s)
     if (dmin >= s) {
         // The cone in which the source sees the box: about its centre, half-angle from the
         // half-diagonal (dmin >= s keeps it below 60 degrees).
         const glm::dvec3 to = 0.5 * (b.lo + b.hi) - c.xl;
         const double dist = glm::length(to);
         const double alpha = std::asin(std::min(1.0, 0.5 * std::sqrt(3.0) * s / dist));
-        n = plan.tensor_order(s, (1.0 + plan.phase_variation(to / dist, alpha)) / dmin, sigma, thick);
+        inv_len = (1.0 + plan.phase_variation(to / dist, alpha)) / dmin;
+        n = plan.tensor_order(s, inv_len, sigma, thick);
     }
     // A one-node rule cannot see transmittance varying across the box (a shadow edge, rays
     // grazing a cloud base): it is only used when no ray from the source to the box can
@@ -100,10 +102,6 @@ void integrate_box_point(const PointCtx& c, const Box& b, double sigma, int dept
     // integrated over its faces, graded toward the peaks, now rather than as 8^depth boxes
     // each integrated as badly.
     if (n == 0 && !thick && dmin >= s && plan.graded()) {
-        const glm::dvec3 to = 0.5 * (b.lo + b.hi) - c.xl;
-        const double dist = glm::length(to);
-        const double alpha = std::asin(std::min(1.0, 0.5 * std::sqrt(3.0) * s / dist));
-        const double inv_len = (1.0 + plan.phase_variation(to / dist, alpha)) / dmin;
         bool splits = false;
         for (int h = 1; h <= kMaxDepth - depth && !splits; ++h) {
             bool sub_thick = false;
