@@ -407,7 +407,7 @@ void face_rule_point(const PointCtx& c, const Box& b, double sigma, int ax, bool
 }
 
 bool tensor_rule_point(const PointCtx& c, const Box& b, int n, const Plan* check, PhaseAccumulator& acc,
-                       int* retry_order) {
+                       int* retry_order, double check_above, double* weight) {
     const GaussRule gr = gauss_legendre(n);
     const glm::dvec3 ext = b.hi - b.lo;
     const double vol = ext.x * ext.y * ext.z;
@@ -436,7 +436,10 @@ bool tensor_rule_point(const PointCtx& c, const Box& b, int n, const Plan* check
                 const double w = gr.w[std::size_t(i)] * gr.w[std::size_t(j)] * gr.w[std::size_t(k)] * vol;
                 nodes[nn++] = {w * T / r2, dir};
             }
-    if (check && n > 1 && any_lit) {
+    double sum = 0.0;
+    for (int q = 0; q < nn; ++q) sum += nodes[q].w;
+    if (weight) *weight = sum;
+    if (check && n > 1 && any_lit && sum >= check_above) {
         const int verdict = check_nodes(up, n, *check);
         if (verdict != 0) {
             if (retry_order) *retry_order = std::max(verdict, 0);
