@@ -23,7 +23,6 @@ using detail::face_rule_point;
 using detail::face_rule_sun;
 using detail::kDeepCheckShare;
 using detail::kMaxCheckDepth;
-using detail::kMinCheckedOrder;
 using detail::kMaxDepth;
 using detail::kMaxTensorOrder;
 using detail::PhaseAccumulator;
@@ -69,8 +68,8 @@ void face_rules_outside(const PointCtx& c, const Box& b, double sigma, const Pla
 }
 
 // deep_check: the uncollided weight (sum w T / r^2) above which a box below kMaxCheckDepth is
-// still checked (kDeepCheckShare x tol x its voxel's, from the voxel's first tensor rule;
-// infinite where the voxel had none).
+// still checked (kDeepCheckShare x tol x its voxel's, from the voxel's first tensor rule, with
+// Plan::deep_checks; infinite where the voxel had none).
 void integrate_box_point(const PointCtx& c, const Box& b, double sigma, int depth, const Plan& plan,
                          PhaseAccumulator& acc, double deep_check = detail::kInf) {
     const double s = b.hi.x - b.lo.x;
@@ -98,14 +97,14 @@ void integrate_box_point(const PointCtx& c, const Box& b, double sigma, int dept
     // shadow edge, rays grazing a cloud base): one node sees nothing, and on two the linear fit
     // the check makes leaves only the cross terms, so a kink along an axis passes unseen (on
     // the storm 25-34% in bright voxels at tolerance 1e-2 to 1e-4 against the brute-force
-    // reference, docs/transport.md). They are only used when no ray from the source to the box
-    // can meet density (the bounding box of source and box misses the density bounds, T == 1);
-    // elsewhere the box gets three nodes per axis at least.
+    // reference, docs/transport.md). Where a ray from the source to the box can meet density
+    // (the bounding box of source and box meets the density bounds) the box gets
+    // Plan::min_shadowed_order() nodes per axis at least.
     if (n == 1 || n == 2) {
         const glm::dvec3 hlo = glm::min(b.lo, c.xl), hhi = glm::max(b.hi, c.xl);
         const bool clear = hhi.x <= c.bounds.lo.x || hhi.y <= c.bounds.lo.y || hhi.z <= c.bounds.lo.z ||
                            hlo.x >= c.bounds.hi.x || hlo.y >= c.bounds.hi.y || hlo.z >= c.bounds.hi.z;
-        if (!clear) n = kMinCheckedOrder;
+        if (!clear) n = plan.min_shadowed_order();
     }
     // A peaked phase function: a box no split down to kMaxDepth would bring within the
     // error model (the phase's variation over the box's cone bounds every sub-box's) is
@@ -129,7 +128,7 @@ void integrate_box_point(const PointCtx& c, const Box& b, double sigma, int dept
         int retry = 0;
         double weight = 0.0;
         if (tensor_rule_point(c, b, n, check, acc, &retry, above, &weight)) return;
-        if (depth == 0) deep_check = kDeepCheckShare * plan.eps * weight;
+        if (depth == 0 && plan.deep_checks()) deep_check = kDeepCheckShare * plan.eps * weight;
         // A steep but smooth transmittance gradient (rays grazing a cloud layer, deep shadow):
         // a higher order is much cheaper than a split. A kink (shadow edge): split.
         if (retry > n && tensor_rule_point(c, b, retry, check, acc, nullptr, above)) return;

@@ -97,4 +97,40 @@ std::vector<double> single_scattering_reference(const LightingMedium& medium, co
     return acc;
 }
 
+std::vector<double> single_scattering_reference(const LightingMedium& medium, const DirectionalSource& sun,
+                                                std::span<const glm::dvec3> directions, core::Int3 voxel, int cells) {
+    validate_medium(medium);
+    const core::GridGeometry& g = medium.density.geom;
+    if (medium.phase_mix)
+        throw core::Error("single_scattering_reference", "takes a medium without a second phase function");
+    if (!(voxel.x >= 0 && voxel.y >= 0 && voxel.z >= 0 && voxel.x < g.dims.x && voxel.y < g.dims.y &&
+          voxel.z < g.dims.z))
+        throw core::Error("single_scattering_reference.voxel", "is outside the grid");
+    if (cells < 1 || cells > 256)
+        throw core::Error("single_scattering_reference.cells", "must be in [1, 256], got " + std::to_string(cells));
+    const double len = glm::length(sun.direction);
+    if (!std::isfinite(len) || !(len > 0.0)) throw core::Error("sun.direction", "must be a finite non-zero vector");
+    const glm::dvec3 d = sun.direction / len;
+    // The phase function is one value per output direction: only the transmittance is averaged.
+    const double s = g.voxel_size / cells;
+    const glm::dvec3 lo = g.origin + glm::dvec3(voxel.x, voxel.y, voxel.z) * g.voxel_size;
+    double mean_t = 0.0;
+    for (int k = 0; k < cells; ++k)
+        for (int j = 0; j < cells; ++j)
+            for (int i = 0; i < cells; ++i)
+                for (int c = 0; c < 3; ++c)
+                    for (int b = 0; b < 3; ++b)
+                        for (int a = 0; a < 3; ++a) {
+                            const glm::dvec3 x =
+                                lo + s * (glm::dvec3(i, j, k) + glm::dvec3(kNode[a], kNode[b], kNode[c]));
+                            mean_t += kWeight[a] * kWeight[b] * kWeight[c] *
+                                      std::exp(-optical_depth_to_sun(medium, x, d));
+                        }
+    mean_t /= double(cells) * cells * cells;
+    std::vector<double> out(directions.size());
+    for (std::size_t m = 0; m < directions.size(); ++m)
+        out[m] = medium.optics.albedo * sun.irradiance * hg_phase(glm::dot(directions[m], d), medium.optics.g) * mean_t;
+    return out;
+}
+
 }  // namespace fulgur::transport

@@ -233,6 +233,10 @@ SourceField single_scattering(const LightingMedium& medium, const PointSource& l
 /// cells outside [1, 256].
 std::vector<double> single_scattering_reference(const LightingMedium& medium, const PointSource& light,
                                                 std::span<const glm::dvec3> directions, core::Int3 voxel, int cells);
+/// The same for the sun (no cells near a light to refine): the voxel's mean transmittance
+/// toward the sun by the cells' Gauss nodes, times albedo E p(s . d) per direction s.
+std::vector<double> single_scattering_reference(const LightingMedium& medium, const DirectionalSource& sun,
+                                                std::span<const glm::dvec3> directions, core::Int3 voxel, int cells);
 
 /// What single_scattering() of a point source would cost on one thread, measured on a sample
 /// of its voxels (the quadrature's work per voxel depends on the tolerance, g and the density
