@@ -271,9 +271,8 @@ FULGUR_BENCH(ss_accuracy,
         if (!rel.empty()) e.p50 = rel[rel.size() / 2], e.p99 = rel[rel.size() * 99 / 100];
         return e;
     };
-    const Errors own = errors_of([&](std::size_t l, std::size_t i, std::size_t d) {
-        return samples[l].ref_coarse[i * nd + d];
-    });
+    const Errors own =
+        errors_of([&](std::size_t l, std::size_t i, std::size_t d) { return samples[l].ref_coarse[i * nd + d]; });
     std::size_t sampled = 0;
     for (const Sample& smp : samples) sampled += smp.voxels.size();
     const std::string grid = std::to_string(g.dims.x) + "x" + std::to_string(g.dims.y) + "x" +
@@ -286,8 +285,7 @@ FULGUR_BENCH(ss_accuracy,
               {"p99_rel_error_of_half_the_cells", own.p99},
               {"max_rel_error_bright_of_half_the_cells", own.max_bright},
               {"grid", grid}});
-    const auto report = [&](const std::string& rule, double tol, const std::vector<SourceField>& got,
-                            double seconds) {
+    const auto report = [&](const std::string& rule, double tol, const std::vector<SourceField>& got, double seconds) {
         const Errors e = errors_of([&](std::size_t l, std::size_t i, std::size_t d) {
             return double(got[l].data[d * cells + samples[l].voxels[i]]);
         });

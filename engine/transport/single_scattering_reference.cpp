@@ -57,7 +57,8 @@ void integrate_cell(const ReferenceCtx& c, const glm::dvec3& lo, double s, int d
                 const glm::dvec3 r = x - c.light;
                 const double r2 = glm::dot(r, r);
                 if (!(r2 > 0.0)) continue;  // a node on the light: a set of measure zero
-                const double w = volume * kWeight[i] * kWeight[j] * kWeight[k] * transmittance(c.medium, c.light, x) / r2;
+                const double w =
+                    volume * kWeight[i] * kWeight[j] * kWeight[k] * transmittance(c.medium, c.light, x) / r2;
                 if (w == 0.0) continue;
                 const glm::dvec3 rhat = r / std::sqrt(r2);
                 for (std::size_t d = 0; d < c.directions.size(); ++d)
@@ -123,8 +124,8 @@ std::vector<double> single_scattering_reference(const LightingMedium& medium, co
                         for (int a = 0; a < 3; ++a) {
                             const glm::dvec3 x =
                                 lo + s * (glm::dvec3(i, j, k) + glm::dvec3(kNode[a], kNode[b], kNode[c]));
-                            mean_t += kWeight[a] * kWeight[b] * kWeight[c] *
-                                      std::exp(-optical_depth_to_sun(medium, x, d));
+                            mean_t +=
+                                kWeight[a] * kWeight[b] * kWeight[c] * std::exp(-optical_depth_to_sun(medium, x, d));
                         }
     mean_t /= double(cells) * cells * cells;
     std::vector<double> out(directions.size());

@@ -509,7 +509,6 @@ TEST_CASE("single scattering's cost: a sample of voxels by distance, bounded by 
                          core::Error);
 }
 
-
 TEST_CASE("the brute-force reference agrees with the divergence-theorem reference, the light's voxel included") {
     // sigma h = 1, g = 0.6, the light off-centre in the middle voxel: its own voxel (the 1/r^2
     // singularity, refined toward the light), a face and an edge neighbour, two far voxels.
@@ -519,8 +518,8 @@ TEST_CASE("the brute-force reference agrees with the divergence-theorem referenc
     const LightingMedium m = uniform_medium({5, 5, 5}, 1.0, {0, 0, 0}, 1.0f, {1.0, 1.0, 0.6});
     const auto dirs = output_directions(26);
     const glm::dvec3 xl(2.3, 2.6, 2.45);
-    for (const core::Int3 v : {core::Int3{2, 2, 2}, core::Int3{3, 2, 2}, core::Int3{3, 3, 2}, core::Int3{4, 4, 4},
-                               core::Int3{0, 2, 2}}) {
+    for (const core::Int3 v :
+         {core::Int3{2, 2, 2}, core::Int3{3, 2, 2}, core::Int3{3, 3, 2}, core::Int3{4, 4, 4}, core::Int3{0, 2, 2}}) {
         CAPTURE(v.x);
         CAPTURE(v.y);
         CAPTURE(v.z);
@@ -572,7 +571,8 @@ TEST_CASE("shadow edges and rays grazing a cloud's base: within reach of the bru
         double largest_ref = 0.0;
         for (std::size_t cell = 0; cell < g.cell_count(); cell += 3) {
             if (!(m.density.data[cell] > 0.0f)) continue;
-            refs.emplace_back(cell, single_scattering_reference(m, PointSource{c.light, 1.0}, dirs, g.unindex(cell), 8));
+            refs.emplace_back(cell,
+                              single_scattering_reference(m, PointSource{c.light, 1.0}, dirs, g.unindex(cell), 8));
             for (const double v : refs.back().second) largest_ref = std::max(largest_ref, v);
         }
         REQUIRE(refs.size() >= 50);
