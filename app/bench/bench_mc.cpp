@@ -9,6 +9,7 @@
 #include "transport/transport.h"
 
 #include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -307,6 +308,49 @@ FULGUR_BENCH(ss_accuracy,
         core::Stopwatch w;
         for (const auto& p : lights) got.push_back(single_scattering(m, PointSource{p, 1.0}, dirs, o));
         report("adaptive (voxel average)", tol, got, w.seconds() / double(lights.size()));
+    }
+    // The sun's single scattering (one transmittance per node, no octree) against the same
+    // reference, at the default storm's three test elevations, on the same sample of voxels.
+    {
+        core::set_thread_count(2);
+        const double az = glm::radians(30.0);
+        for (const double elev : {60.0, 25.0, 5.0}) {
+            const double e = glm::radians(elev);
+            const DirectionalSource sun{
+                -glm::dvec3(std::cos(e) * std::cos(az), std::cos(e) * std::sin(az), std::sin(e)), 1.0};
+            const Sample& smp = samples[0];
+            std::vector<double> ref(smp.voxels.size() * nd);
+            core::parallel_for_dynamic(0, std::int64_t(smp.voxels.size()), [&](std::int64_t i) {
+                const auto r =
+                    single_scattering_reference(m, sun, dirs, g.unindex(smp.voxels[std::size_t(i)]), ref_cells);
+                std::copy(r.begin(), r.end(), ref.begin() + i * std::ptrdiff_t(nd));
+            });
+            core::set_thread_count(1);
+            for (double tol : {1e-1, 1e-2, 1e-3, 1e-4}) {
+                SingleScatteringOptions o;
+                o.tolerance = tol;
+                core::Stopwatch w;
+                const SourceField got = single_scattering(m, sun, dirs, o);
+                const double seconds = w.seconds();
+                double l1n = 0.0, l1d = 0.0, largest = 0.0;
+                const double smax = *std::max_element(ref.begin(), ref.end());
+                for (std::size_t i = 0; i < smp.voxels.size(); ++i)
+                    for (std::size_t d = 0; d < nd; ++d) {
+                        const double r = ref[i * nd + d], v = got.data[d * cells + smp.voxels[i]];
+                        l1n += std::fabs(v - r);
+                        l1d += r;
+                        if (r > 1e-3 * smax) largest = std::max(largest, std::fabs(v - r) / r);
+                    }
+                ctx.emit("ss_accuracy_sun", {{"elevation_deg", elev},
+                                             {"tolerance", tol},
+                                             {"L1_relative_error", l1n / l1d},
+                                             {"max_rel_error_bright_voxels", largest},
+                                             {"seconds_1_thread", seconds},
+                                             {"sampled_voxels", smp.voxels.size()},
+                                             {"grid", grid}});
+            }
+            core::set_thread_count(2);
+        }
     }
     // Naive: the value at the voxel centre instead of the voxel average.
     {

@@ -66,10 +66,9 @@ void integrate_cell(const ReferenceCtx& c, const glm::dvec3& lo, double s, int d
             }
 }
 
-}  // namespace
-
-std::vector<double> single_scattering_reference(const LightingMedium& medium, const PointSource& light,
-                                                std::span<const glm::dvec3> directions, core::Int3 voxel, int cells) {
+// Throws unless the medium is valid and has no second phase function, the voxel lies in its
+// grid and cells is in [1, 256].
+void check_arguments(const LightingMedium& medium, core::Int3 voxel, int cells) {
     validate_medium(medium);
     const core::GridGeometry& g = medium.density.geom;
     if (medium.phase_mix)
@@ -79,6 +78,14 @@ std::vector<double> single_scattering_reference(const LightingMedium& medium, co
         throw core::Error("single_scattering_reference.voxel", "is outside the grid");
     if (cells < 1 || cells > 256)
         throw core::Error("single_scattering_reference.cells", "must be in [1, 256], got " + std::to_string(cells));
+}
+
+}  // namespace
+
+std::vector<double> single_scattering_reference(const LightingMedium& medium, const PointSource& light,
+                                                std::span<const glm::dvec3> directions, core::Int3 voxel, int cells) {
+    check_arguments(medium, voxel, cells);
+    const core::GridGeometry& g = medium.density.geom;
     // A 3-point rule on a cell of size s at distance d from the light errs by about
     // (s (1 + k_g) / d)^6 / 400 (the a-priori model of quadrature.cpp, k_g = 1.5 |g| / (1 - |g|)
     // the phase function's log-slope): d >= 2 (1 + k_g) s keeps a cell's error under 1e-4 of
@@ -100,15 +107,8 @@ std::vector<double> single_scattering_reference(const LightingMedium& medium, co
 
 std::vector<double> single_scattering_reference(const LightingMedium& medium, const DirectionalSource& sun,
                                                 std::span<const glm::dvec3> directions, core::Int3 voxel, int cells) {
-    validate_medium(medium);
+    check_arguments(medium, voxel, cells);
     const core::GridGeometry& g = medium.density.geom;
-    if (medium.phase_mix)
-        throw core::Error("single_scattering_reference", "takes a medium without a second phase function");
-    if (!(voxel.x >= 0 && voxel.y >= 0 && voxel.z >= 0 && voxel.x < g.dims.x && voxel.y < g.dims.y &&
-          voxel.z < g.dims.z))
-        throw core::Error("single_scattering_reference.voxel", "is outside the grid");
-    if (cells < 1 || cells > 256)
-        throw core::Error("single_scattering_reference.cells", "must be in [1, 256], got " + std::to_string(cells));
     const double len = glm::length(sun.direction);
     if (!std::isfinite(len) || !(len > 0.0)) throw core::Error("sun.direction", "must be a finite non-zero vector");
     const glm::dvec3 d = sun.direction / len;
