@@ -69,7 +69,7 @@ void face_rules_outside(const PointCtx& c, const Box& b, double sigma, const Pla
 
 // deep_check: the uncollided weight (sum w T / r^2) above which a box below kMaxCheckDepth is
 // still checked (kDeepCheckShare x tol x its voxel's, from the voxel's first tensor rule, with
-// Plan::deep_checks; infinite where the voxel had none).
+// Plan::checks_shadows; infinite where the voxel had none).
 void integrate_box_point(const PointCtx& c, const Box& b, double sigma, int depth, const Plan& plan,
                          PhaseAccumulator& acc, double deep_check = detail::kInf) {
     const double s = b.hi.x - b.lo.x;
@@ -122,13 +122,14 @@ void integrate_box_point(const PointCtx& c, const Box& b, double sigma, int dept
         }
     }
     if (n > 0) {
-        const bool shallow = depth < kMaxCheckDepth;
-        const Plan* check = shallow || (depth < kMaxDepth && deep_check < detail::kInf) ? &plan : nullptr;
-        const double above = shallow ? 0.0 : deep_check;
+        // Every box is checked down to kMaxCheckDepth, below it those holding deep_check, none
+        // at kMaxDepth (it cannot be split).
+        const double above = depth < kMaxCheckDepth ? 0.0 : depth < kMaxDepth ? deep_check : detail::kInf;
+        const Plan* check = above < detail::kInf ? &plan : nullptr;
         int retry = 0;
         double weight = 0.0;
         if (tensor_rule_point(c, b, n, check, acc, &retry, above, &weight)) return;
-        if (depth == 0 && plan.deep_checks()) deep_check = kDeepCheckShare * plan.eps * weight;
+        if (depth == 0 && plan.checks_shadows()) deep_check = kDeepCheckShare * plan.eps * weight;
         // A steep but smooth transmittance gradient (rays grazing a cloud layer, deep shadow):
         // a higher order is much cheaper than a split. A kink (shadow edge): split.
         if (retry > n && tensor_rule_point(c, b, retry, check, acc, nullptr, above)) return;

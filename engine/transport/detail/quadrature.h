@@ -140,8 +140,8 @@ constexpr int kMaxCheckDepth = 2;   // below this level only boxes holding much 
 /// 2.4% against 1.3% for 0.65 against 1.03 s per light.
 inline constexpr double kDeepCheckShare = 100.0;
 /// At tolerances at or below this a tensor rule on a box some ray to which meets density has
-/// three nodes per axis at least (Plan::min_shadowed_order), and sub-boxes below
-/// kMaxCheckDepth are checked by their share of the voxel's light (Plan::deep_checks).
+/// three nodes per axis at least, and sub-boxes below kMaxCheckDepth are checked by their
+/// share of the voxel's light (Plan::checks_shadows).
 inline constexpr double kShadowTolerance = 1e-3;
 
 struct PointCtx {
@@ -243,17 +243,18 @@ struct Plan {
     /// (a kink) accepted by the tensor rule; calibrated against the Monte Carlo reference on the
     /// default storm cloud (docs/transport.md): 0.1 * sqrt(tol / 1e-3).
     double kink_limit() const { return 0.1 * std::sqrt(eps / 1e-3); }
-    /// The fewest nodes per axis of a tensor rule on a box some ray to which meets density. Three
-    /// are the fewest on which the check's linear fit of the optical depth has a residual along
-    /// an axis (a shadow edge); two at looser tolerances than kShadowTolerance, where three
-    /// would cost a bake about twice the time (the default storm at 1e-2: 40 -> 76 s, the
-    /// paper's configuration 27 -> 60 s) to bring single scattering's L1 error from 1e-3 to
-    /// 3e-4, under the bake's compression error (docs/transport.md).
-    int min_shadowed_order() const { return eps <= kShadowTolerance ? 3 : 2; }
-    /// Whether sub-boxes below kMaxCheckDepth holding kDeepCheckShare x tol of their voxel's
-    /// light are checked: at tolerances down from kShadowTolerance (at 1e-2 they doubled the
-    /// single scattering of the paper's configuration, whose lights graze a flat layer).
-    bool deep_checks() const { return eps <= kShadowTolerance; }
+    /// Whether the quadrature looks for shadow edges beyond its first checks (tolerances down
+    /// from kShadowTolerance): tensor rules on boxes some ray to which meets density get three
+    /// nodes per axis, the fewest on which the check's linear fit of the optical depth has a
+    /// residual along an axis (min_shadowed_order), and sub-boxes below kMaxCheckDepth holding
+    /// kDeepCheckShare x tol of their voxel's light are checked too. At looser tolerances
+    /// neither: at 1e-2 three nodes cost a bake about twice the time (the default storm 40 ->
+    /// 76 s, the paper's configuration 27 -> 60 s) to bring single scattering's L1 error from
+    /// 1e-3 to 3e-4, under the bake's compression error, and the deep checks doubled the paper's
+    /// configuration's single scattering, whose lights graze a flat layer (docs/transport.md).
+    bool checks_shadows() const { return eps <= kShadowTolerance; }
+    /// The fewest nodes per axis of a tensor rule on a box some ray to which meets density.
+    int min_shadowed_order() const { return checks_shadows() ? 3 : 2; }
     /// Whether a linear optical-depth variation with per-axis changes y[3] across the box is
     /// integrated to the tolerance by an order-n tensor rule: e^{-(y.x)} is separable, and the
     /// tensor rule's relative error is the sum of the per-axis errors c_n y_a^{2n}.
