@@ -330,13 +330,14 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                         // 0 without the history, 1 with it (the default: the pixels not marched
                         // filled as TemporalLight::Auto picks), 2 with them filled the other way
                         // (reprojected where Auto upsamples, upsampled where it reprojects), 3
-                        // between flashes the other block than the default's (a quarter where it
-                        // marches a sixteenth, a sixteenth where it marches a quarter; filled as
-                        // Auto picks): a moving camera's knobs only; 4 a leader's new shapes marched
-                        // at every pixel (TemporalReshape::Full; mode 1: a quarter, the default).
+                        // the other block than the default's (between flashes a quarter where it
+                        // marches a sixteenth, a sixteenth where it marches a quarter; during a
+                        // return stroke a sixteenth, temporal_flash_block 4; filled as Auto picks):
+                        // a moving camera's knobs only; 4 a leader's new shapes marched at every
+                        // pixel (TemporalReshape::Full; mode 1: a quarter, the default).
                         const bool temporal = mode > 0;
                         if ((mode == 2 || mode == 3) && (!orbit || leader)) continue;
-                        if (mode == 3 && flash) continue;  // a flash marches a quarter: mode 1's frames
+                        if (mode == 3 && leader) continue;  // a new shape marches a quarter either way
                         if (mode == 4 && !leader) continue;
                         std::vector<double> wall, cpu, error, jitter_noise, exposure, shown;
                         std::vector<double> display_mean, display_over2, display_noise_mean, display_noise_over2;
@@ -345,9 +346,11 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                         st.temporal = temporal;
                         st.temporal_reshape =
                             mode == 4 ? render::TemporalReshape::Full : render::TemporalReshape::Quarter;
-                        st.temporal_moving_block = mode == 3 ? 6 - auto_block : 0;
-                        // The block a frame marches: a sixteenth only between flashes.
-                        const int block = flash ? 2 : mode == 3 ? 6 - auto_block : auto_block;
+                        // The block a frame marches: by default a sixteenth only between flashes.
+                        const int default_block = flash ? 2 : auto_block,
+                                  block = mode == 3 ? 6 - default_block : default_block;
+                        st.temporal_moving_block = mode == 3 ? block : 0;
+                        st.temporal_flash_block = mode == 3 && flash ? 4 : 2;
                         const bool upsampled = mode == 2 ? !auto_upsamples : auto_upsamples;
                         st.temporal_light =
                             mode == 2 ? (upsampled ? render::TemporalLight::Upsample : render::TemporalLight::Reproject)
@@ -440,15 +443,14 @@ void demo_rows(const bench::Context& ctx, const synthetic::Storm& storm, const c
                             {"reshape", mode == 4 ? "full" : "quarter"},
                             {"effects", effects ? "detail+rain" : "none"},
                             {"temporal", temporal},
-                            // The 4x4 block marches only between flashes (a quarter during a flash).
                             // A moving camera's pixels not marched: upsampled from the marched
                             // ones or reprojected from the history; and what the default does.
                             {"fill", orbit && temporal ? (upsampled ? "upsample" : "reproject") : "none"},
                             {"default_fill", auto_upsamples ? "upsample" : "reproject"},
-                            // The block a moving camera marches (none for a still one).
+                            // The block a moving camera marches (none for a still one): by default
+                            // a sixteenth only between flashes (temporal_flash_block).
                             {"moving_block", orbit ? nlohmann::json(block) : nlohmann::json(nullptr)},
-                            {"default_moving_block",
-                             orbit ? nlohmann::json(flash ? 2 : auto_block) : nlohmann::json(nullptr)},
+                            {"default_moving_block", orbit ? nlohmann::json(default_block) : nlohmann::json(nullptr)},
                             {"frame_ms", ms},
                             {"fps", 1000.0 / ms},
                             {"frame_cpu_ms", bench::median(cpu)},

@@ -159,16 +159,17 @@ detail::TemporalPlan Renderer::Impl::plan_temporal(const Camera& camera, const S
     const bool lights_hold = h.flash_holds() && h.channel.valid();
     const bool still = cloud_holds && detail::same_camera(camera, h.camera);
     // A block needs the march to be at least as wide and high: a march one pixel wide or high
-    // marches every pixel, one under 4 pixels marches quarters. The 4x4 block only while no
-    // flash or channel lights the frame (between flashes): during a flash a sixteenth measured
-    // 24% from a fresh render against the quarter's 9% (docs/render.md).
+    // marches every pixel, one under 4 pixels marches quarters. The 4x4 block while no flash or
+    // channel lights the frame (between flashes), and during a flash only where the settings ask
+    // (temporal_flash_block): there a sixteenth is twice a quarter's error from a fresh render
+    // and three times as many display levels (docs/render.md).
     const int fits = std::min(u.internal_width, u.internal_height);
     const bool flash_dark = !u.lit && seg_count == 0;
     // A light that changed in shape, the cloud's group holding: a quarter marched, the light
     // groups upsampled from it (Settings::temporal_reshape).
     const bool reshaped = cloud_holds && !lights_hold && st.temporal_reshape == TemporalReshape::Quarter && fits >= 2;
     const int block = temporal_block(st.temporal_moving_block, camera.vertical_fov_deg, u.internal_height);
-    plan.block = block == 4 && flash_dark && fits >= 4 && !reshaped ? 4 : 2;
+    plan.block = block == 4 && (flash_dark || st.temporal_flash_block == 4) && fits >= 4 && !reshaped ? 4 : 2;
     plan.stride = reshaped                        ? 2
                   : !(cloud_holds && lights_hold) ? 1
                   : still                         ? (h.unsettled > 0 ? 3 : 0)

@@ -97,6 +97,9 @@ void validate_settings(const Settings& st) {
     if (st.temporal_moving_block != 0 && st.temporal_moving_block != 2 && st.temporal_moving_block != 4)
         throw core::Error("render", "settings.temporal_moving_block: must be 0 (auto), 2 or 4, got " +
                                         std::to_string(st.temporal_moving_block));
+    if (st.temporal_flash_block != 2 && st.temporal_flash_block != 4)
+        throw core::Error(
+            "render", "settings.temporal_flash_block: must be 2 or 4, got " + std::to_string(st.temporal_flash_block));
 }
 
 void check_finite(double v, const std::string& where, const std::string& what) {

@@ -734,6 +734,11 @@ TEST_CASE("bad inputs are rejected with errors naming the field") {
         st.temporal_moving_block = block;
         CHECK_THROWS_WITH_AS(render_at(r, cam, st, 32, 32), doctest::Contains("temporal_moving_block"), core::Error);
     }
+    for (const int block : {0, 1, 3, 8, -4}) {
+        st = {};
+        st.temporal_flash_block = block;
+        CHECK_THROWS_WITH_AS(render_at(r, cam, st, 32, 32), doctest::Contains("temporal_flash_block"), core::Error);
+    }
     // Enumerations set from an integer out of their range.
     for (const int v : {-1, 2, 7}) {
         st = {};
