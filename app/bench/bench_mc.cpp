@@ -311,8 +311,8 @@ FULGUR_BENCH(ss_accuracy,
         for (const auto& p : lights) got.push_back(single_scattering(m, PointSource{p, 1.0}, dirs, o));
         report("adaptive (voxel average)", tol, got, w.seconds() / double(lights.size()));
     }
-    // The sun's single scattering (one transmittance per node, no octree) against the same
-    // reference, at the default storm's three test elevations, on the same sample of voxels.
+    // The sun's single scattering (each voxel's entry faces refined to the tolerance) against
+    // the same reference, at the default storm's three test elevations, on the same sample of voxels.
     {
         core::set_thread_count(2);
         const double az = glm::radians(30.0);

@@ -15,7 +15,7 @@ namespace fulgur::sky {
 namespace {
 
 // Bump when a solve's algorithm changes what it writes for the same key (forces a new solve).
-constexpr int kSkyAlgorithm = 1;
+constexpr int kSkyAlgorithm = 2;
 constexpr char kMagic[8] = {'F', 'G', 'L', 'I', 'G', 'H', 'T', '1'};
 constexpr std::uint32_t kVersion = 1;
 constexpr std::uint32_t kMaxDirections = 64, kMaxFields = 16, kMaxName = 64;

@@ -453,44 +453,71 @@ bool tensor_rule_point(const PointCtx& c, const Box& b, int n, const Plan* check
 // ---------------------------------------------------------------------------------------
 // Sun
 
-bool tensor_rule_sun(const SunCtx& c, const Box& b, int n, const Plan* check, double& result, int* retry) {
-    const GaussRule gr = gauss_legendre(n);
-    const glm::dvec3 ext = b.hi - b.lo;
-    double tau[kMaxTensorOrder * kMaxTensorOrder * kMaxTensorOrder];
-    int nn = 0;
-    double s = 0.0;
-    bool any_lit = false;
-    for (int k = 0; k < n; ++k)
-        for (int j = 0; j < n; ++j)
-            for (int i = 0; i < n; ++i) {
-                const glm::dvec3 x(b.lo.x + ext.x * gr.x[std::size_t(i)], b.lo.y + ext.y * gr.x[std::size_t(j)],
-                                   b.lo.z + ext.z * gr.x[std::size_t(k)]);
-                const double t = std::min(c.cutoff, c.optical_depth(x));
-                any_lit = any_lit || t < c.cutoff;
-                tau[nn++] = t;
-                const double T = t >= c.cutoff ? 0.0 : std::exp(-t);
-                s += gr.w[std::size_t(i)] * gr.w[std::size_t(j)] * gr.w[std::size_t(k)] * T;
+namespace {
+
+// One piece of an entry face of a box for the sun: the rectangle [u0, u0 + du] x [v0, v0 + dv]
+// of the plane x[ax] = plane, between the lines where the exit face changes (so the chord
+// through the box is linear across it).
+struct SunPiece {
+    int ax, ua, va;
+    double plane, u0, du, v0, dv;
+};
+
+// Integral over the rectangle [u0, u0 + du] x [v0, v0 + dv] of piece `p`'s plane of T_in
+// (1 - e^{-sigma l}) / sigma, by an n x n Gauss-Legendre rule.
+double sun_piece_rule(const SunCtx& c, const Box& b, double sigma, const GaussRule& gr, int n, const SunPiece& p,
+                      double u0, double du, double v0, double dv) {
+    double sum = 0.0;
+    for (int q = 0; q < n; ++q)
+        for (int r = 0; r < n; ++r) {
+            glm::dvec3 y;
+            y[p.ax] = p.plane;
+            y[p.ua] = u0 + du * gr.x[std::size_t(q)];
+            y[p.va] = v0 + dv * gr.x[std::size_t(r)];
+            const double T = c.transmittance(y);
+            if (T == 0.0) continue;
+            // Chord from y along d through the box.
+            double len = detail::kInf;
+            for (int e = 0; e < 3; ++e) {
+                if (c.d[e] > 0.0) len = std::min(len, (b.hi[e] - y[e]) / c.d[e]);
+                if (c.d[e] < 0.0) len = std::min(len, (b.lo[e] - y[e]) / c.d[e]);
             }
-    if (check && n > 1 && any_lit) {
-        const int verdict = check_nodes(tau, n, *check);
-        if (verdict != 0) {
-            if (retry) *retry = verdict;
-            return false;
+            sum += gr.w[std::size_t(q)] * gr.w[std::size_t(r)] * T * chord_integral(sigma, std::max(0.0, len));
         }
-    }
-    result = s * ext.x * ext.y * ext.z;
-    return true;
+    return sum * du * dv;
 }
 
-double face_rule_sun(const SunCtx& c, const Box& b, double sigma, int n) {
+// The same integral refined adaptively: the rectangle's quarters by the same rule, kept where
+// they agree with `whole` (the rectangle's own rule) within `eps`, else each quarter refined
+// with a quarter of eps, to `depth` more levels.
+double sun_piece_adaptive(const SunCtx& c, const Box& b, double sigma, const GaussRule& gr, int n, const SunPiece& p,
+                          double u0, double du, double v0, double dv, double whole, double eps, int depth) {
+    const double hu = 0.5 * du, hv = 0.5 * dv;
+    const double qu[4] = {u0, u0 + hu, u0, u0 + hu}, qv[4] = {v0, v0, v0 + hv, v0 + hv};
+    double q[4];
+    for (int i = 0; i < 4; ++i) q[i] = sun_piece_rule(c, b, sigma, gr, n, p, qu[i], hu, qv[i], hv);
+    const double fine = (q[0] + q[1]) + (q[2] + q[3]);
+    if (depth <= 0 || std::fabs(fine - whole) <= eps) return fine;
+    for (int i = 0; i < 4; ++i)
+        q[i] = sun_piece_adaptive(c, b, sigma, gr, n, p, qu[i], hu, qv[i], hv, q[i], 0.25 * eps, depth - 1);
+    return (q[0] + q[1]) + (q[2] + q[3]);
+}
+
+}  // namespace
+
+double face_rule_sun(const SunCtx& c, const Box& b, double sigma, int n, double tol, int depth) {
     const GaussRule gr = gauss_legendre(n);
-    double total = 0.0;
+    // The entry faces' pieces, each with its own rule's estimate.
+    SunPiece pieces[3 * 9];
+    double whole[3 * 9];
+    int count = 0;
+    double total = 0.0, projected = 0.0;
     for (int ax = 0; ax < 3; ++ax) {
         if (c.d[ax] == 0.0) continue;
         const int ua = (ax + 1) % 3, va = (ax + 2) % 3;
-        const double depth = b.hi[ax] - b.lo[ax];
+        const double depth_ax = b.hi[ax] - b.lo[ax];
         const double plane = c.d[ax] > 0.0 ? b.lo[ax] : b.hi[ax];
-        const double off_u = c.d[ua] / std::fabs(c.d[ax]) * depth, off_v = c.d[va] / std::fabs(c.d[ax]) * depth;
+        const double off_u = c.d[ua] / std::fabs(c.d[ax]) * depth_ax, off_v = c.d[va] / std::fabs(c.d[ax]) * depth_ax;
         auto cuts = [](double lo, double hi, double off, double* out) {
             double v[4] = {lo, hi, lo - off, hi - off};
             int n2 = 0;
@@ -501,35 +528,35 @@ double face_rule_sun(const SunCtx& c, const Box& b, double sigma, int n) {
         };
         double cu[4], cv[4];
         const int nu = cuts(b.lo[ua], b.hi[ua], off_u, cu), nv = cuts(b.lo[va], b.hi[va], off_v, cv);
-        double face = 0.0;
+        projected += std::fabs(c.d[ax]) * (b.hi[ua] - b.lo[ua]) * (b.hi[va] - b.lo[va]);
         for (int iu = 0; iu + 1 < nu; ++iu) {
-            const double u0 = cu[iu], du = cu[iu + 1] - cu[iu];
+            const double du = cu[iu + 1] - cu[iu];
             if (!(du > 0.0)) continue;
             for (int iv = 0; iv + 1 < nv; ++iv) {
-                const double v0 = cv[iv], dv = cv[iv + 1] - cv[iv];
+                const double dv = cv[iv + 1] - cv[iv];
                 if (!(dv > 0.0)) continue;
-                for (int q = 0; q < n; ++q)
-                    for (int r = 0; r < n; ++r) {
-                        glm::dvec3 y;
-                        y[ax] = plane;
-                        y[ua] = u0 + du * gr.x[std::size_t(q)];
-                        y[va] = v0 + dv * gr.x[std::size_t(r)];
-                        const double T = c.transmittance(y);
-                        if (T == 0.0) continue;
-                        // Chord from y along d through the box.
-                        double len = detail::kInf;
-                        for (int e = 0; e < 3; ++e) {
-                            if (c.d[e] > 0.0) len = std::min(len, (b.hi[e] - y[e]) / c.d[e]);
-                            if (c.d[e] < 0.0) len = std::min(len, (b.lo[e] - y[e]) / c.d[e]);
-                        }
-                        len = std::max(0.0, len);
-                        face += gr.w[std::size_t(q)] * gr.w[std::size_t(r)] * du * dv * T * chord_integral(sigma, len);
-                    }
+                const SunPiece p{ax, ua, va, plane, cu[iu], du, cv[iv], dv};
+                pieces[count] = p;
+                whole[count] = sun_piece_rule(c, b, sigma, gr, n, p, p.u0, p.du, p.v0, p.dv);
+                total += std::fabs(c.d[ax]) * whole[count];
+                ++count;
             }
         }
-        total += std::fabs(c.d[ax]) * face;
     }
-    return total;
+    if (!(tol > 0.0) || depth <= 0 || !(projected > 0.0)) return total;
+    // The error allowed: tol of the voxel's integral (at least of 1e-3 of its unshadowed bound,
+    // the box's volume: a voxel in deep shadow is not refined for digits no one sees), shared
+    // among the pieces by their area seen from the sun.
+    const double vol = (b.hi.x - b.lo.x) * (b.hi.y - b.lo.y) * (b.hi.z - b.lo.z);
+    const double allowed = tol * std::max(total, kSunRefineFloor * vol);
+    double refined = 0.0;
+    for (int i = 0; i < count; ++i) {
+        const SunPiece& p = pieces[i];
+        const double w = std::fabs(c.d[p.ax]);
+        const double eps = allowed * p.du * p.dv / projected;  // in face-integral units, times w below
+        refined += w * sun_piece_adaptive(c, b, sigma, gr, n, p, p.u0, p.du, p.v0, p.dv, whole[i], eps, depth);
+    }
+    return refined;
 }
 
 }  // namespace fulgur::transport::detail

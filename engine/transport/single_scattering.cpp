@@ -25,12 +25,14 @@ using detail::kDeepCheckShare;
 using detail::kMaxCheckDepth;
 using detail::kMaxDepth;
 using detail::kMaxTensorOrder;
+using detail::kSunFaceOrder;
+using detail::kSunFinestTolerance;
+using detail::kSunRefineDepth;
 using detail::PhaseAccumulator;
 using detail::Plan;
 using detail::PointCtx;
 using detail::SunCtx;
 using detail::tensor_rule_point;
-using detail::tensor_rule_sun;
 
 DensityBounds density_bounds(const LightingMedium& m) {
     const core::GridGeometry& g = m.density.geom;
@@ -391,24 +393,19 @@ void single_scattering(const LightingMedium& medium, const DirectionalSource& su
                      density_bounds(medium)};
     const double vol = g.voxel_size * g.voxel_size * g.voxel_size;
     const double factor = medium.optics.albedo * sun.irradiance / vol;
-    // The phase function is constant per voxel for the sun (one direction): only attenuation
-    // decides the order.
-    const Plan plan(options.tolerance, 0.0, options.optical_depth_cutoff);
     const auto need = needed_mask(medium, options);
+    const double sun_tolerance = std::max(options.tolerance, kSunFinestTolerance);
     // p(s_m . d) is the same for every voxel: the accumulator receives one sample per voxel
     // (weight = integral of T over the voxel, direction d) and applies the phase function.
+    // The integral is exact along d (the density is constant within a voxel): what remains is
+    // T_in over the entry faces, refined to the tolerance (face_rule_sun). A tensor rule over
+    // the voxel, checked by the linear fit of its nodes' optical depths, passed shadow edges
+    // unseen: at 1e-2 up to 17% off the brute-force reference in a bright voxel, and 9% at 1e-4
+    // (docs/transport.md, "The sun").
     for_each_voxel(medium, out, need, medium.optics.g, options.uncollided_fluence, sun.irradiance / vol,
                    [&](const Box& b, std::size_t cell, PhaseAccumulator& acc) {
-                       const double sigma = medium.sigma_t(cell);
-                       bool thick = false;
-                       int n = plan.tensor_order(g.voxel_size, 0.0, sigma, thick);
-                       if (n == 1) n = 2;  // a one-node rule cannot see transmittance varying across the box
-                       double integral = 0.0;
-                       int retry = 0;
-                       const bool ok =
-                           n > 0 && (tensor_rule_sun(ctx, b, n, &plan, integral, &retry) ||
-                                     (retry > n && tensor_rule_sun(ctx, b, retry, &plan, integral, nullptr)));
-                       if (!ok) integral = face_rule_sun(ctx, b, sigma, plan.n_face);
+                       const double integral =
+                           face_rule_sun(ctx, b, medium.sigma_t(cell), kSunFaceOrder, sun_tolerance, kSunRefineDepth);
                        acc.add(integral, ctx.d);
                        return factor;
                    });

@@ -190,7 +190,10 @@ struct SingleScatteringOptions {
     /// a 2^3 split (boxes close to the source), or the exact-radial face rule (the voxels
     /// touching the source, and optically thick voxels) with more points per piece for a
     /// smaller tolerance. Range [1e-9, 0.5]. Shadow edges of upstream voxels are not in the
-    /// model: docs/transport.md reports the error actually measured.
+    /// model: docs/transport.md reports the error actually measured. The sun's: each voxel's
+    /// entry faces refined adaptively until their pieces agree to tolerance x the voxel's
+    /// integral (exact along the sun's direction), so the error follows the knob there too
+    /// (to 1e-5: tighter acts as 1e-5).
     double tolerance = 1e-3;
     /// Transmittance is set to 0 once the optical depth exceeds this (e^-104 < 1e-45, the
     /// smallest float32: results are stored as float, so the default loses nothing for

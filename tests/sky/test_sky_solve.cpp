@@ -28,7 +28,10 @@ solve::Media media_of(const transport::LightingMedium& m) { return solve::Media{
 sky::SolveSettings settings(sky::Method method = sky::Method::Hybrid) {
     sky::SolveSettings s;
     s.method = method;
-    s.single_options.tolerance = 1e-4;
+    // The sun's single scattering at 1e-2 is within 1.2% of the brute-force reference in any
+    // bright voxel (docs/transport.md, "The sun"): far inside these tests' comparisons with Monte
+    // Carlo, and in the optically thin cloud below T_in is smooth, where the rule is exact to rounding.
+    s.single_options.tolerance = 1e-2;
     s.lattice.tolerance = 1e-6;
     return s;
 }

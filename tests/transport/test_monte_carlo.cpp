@@ -334,11 +334,13 @@ TEST_CASE("sky dome: Monte Carlo order 1 agrees with exact single scattering sum
     // The reference: the dome as 32 x 32 suns (midpoints in u and in azimuth, each of
     // irradiance L du dphi), each solved exactly. The midpoint rule's error, measured against
     // 96 x 96 on this cloud: at most 0.4% per voxel at 24 x 24, 0.2% at 48 x 48, far below the
-    // 3 SE (~6%) the per-voxel comparison allows and the 0.6% SE of the cloud's sum.
+    // 3 SE (~6%) the per-voxel comparison allows and the 0.6% SE of the cloud's sum. Each sun at
+    // tolerance 1e-2: within 1.2% of the brute-force reference in any bright voxel and 7.5e-4 in
+    // L1 from 5 to 60 degrees (docs/transport.md, "The sun"), also far below them.
     const int n = 32;
     const double du = 1.0 / n, dphi = 2.0 * std::numbers::pi / n;
     SingleScatteringOptions so;
-    so.tolerance = 1e-4;
+    so.tolerance = 1e-2;
     SourceField S(m.density.geom, dirs);
     for (int i = 0; i < n; ++i)
         for (int j = 0; j < n; ++j) {
