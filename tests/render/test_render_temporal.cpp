@@ -167,6 +167,16 @@ render::Settings between_flashes(render::Renderer& r, const synthetic::Storm& st
     return st;
 }
 
+// The storm's volume for an orbit through a flash: `all` its S in every direction (an orbit needs
+// others than the first view's), and its settings without dither.
+render::Settings orbiting_storm(render::Renderer& r, const synthetic::Storm& storm, render::SourceUpload& all) {
+    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
+    all = every_direction(storm);
+    render::Settings st = storm.settings;
+    st.dither = false;
+    return st;
+}
+
 // A whole flash of a channel of `segments` segments, frame by frame: the leader (its front
 // creeping down: frames 0, 1), the return stroke's peak and decay (2-8), a dark gap (9, 10), a
 // restrike and its decay (11-17).
@@ -576,10 +586,8 @@ TEST_CASE("the glare's finest level writes the display values the display pass w
 TEST_CASE("temporal history: a moving camera marches a quarter and stays near a fresh render") {
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
-    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
-    const render::SourceUpload all = every_direction(storm);  // the orbit needs others than the first view's
-    render::Settings st = storm.settings;
-    st.dither = false;
+    render::SourceUpload all;
+    render::Settings st = orbiting_storm(r, storm, all);
     double worst = 0.0, sum = 0.0, jitter_noise = 0.0;
     int quarter = 0;
     const int frames = 12;
@@ -754,10 +762,8 @@ TEST_CASE("temporal history: a camera that stops marches the four quarters in tu
     // camera's case above).
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
-    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
-    const render::SourceUpload all = every_direction(storm);
-    render::Settings st = storm.settings;
-    st.dither = false;
+    render::SourceUpload all;
+    render::Settings st = orbiting_storm(r, storm, all);
     st.jitter = false;  // the history's pixels were marched in other frames: no per-frame jitter
     using Step = render::TemporalStep;
     // Frames 0-3 orbit 1 degree a frame, then the camera stays at frame 3's view.
@@ -855,10 +861,8 @@ TEST_CASE("temporal history: temporal_flash_block 4 marches a sixteenth during a
     // 4 keeps it while the flash lights the frame); a flash in a new shape still marches a quarter.
     render::Renderer& r = gl_renderer();
     const synthetic::Storm& storm = small_storm();
-    r.set_volume({.density = &storm.density, .extinction = storm.extinction});
-    const render::SourceUpload all = every_direction(storm);
-    render::Settings st = storm.settings;
-    st.dither = false;
+    render::SourceUpload all;
+    render::Settings st = orbiting_storm(r, storm, all);
     st.temporal_moving_block = 4;
     st.temporal_flash_block = 4;
     double sum = 0.0, worst = 0.0;
