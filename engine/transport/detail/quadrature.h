@@ -341,10 +341,10 @@ inline constexpr double kSunFinestTolerance = 1e-5;
 /// integral over box of T_sun with the radial (along d) integral exact: sum over the entry
 /// faces of |d . n| * integral_face T_in (1 - e^{-sigma l})/sigma dA. Each face is split into
 /// axis-aligned sub-rectangles at the lines where the exit face changes, each integrated by an
-/// n x n Gauss-Legendre rule; with tol > 0 and depth > 0 each is then refined adaptively
-/// (quartered where its quarters disagree with it) to `depth` levels, the error allowed tol of
-/// the voxel's integral (kSunRefineFloor) shared by area: T_in has kinks along the projections
-/// of the upstream voxels' edges, which a fixed rule integrates only to a few percent.
-double face_rule_sun(const SunCtx& c, const Box& b, double sigma, int n, double tol = 0.0, int depth = 0);
+/// n x n Gauss-Legendre rule, then refined adaptively (quartered where its quarters disagree
+/// with it) to `depth` levels, the error allowed tol of the voxel's integral (kSunRefineFloor)
+/// shared by area: T_in has kinks along the projections of the upstream voxels' edges, which a
+/// fixed rule integrates only to a few percent. tol <= 0 or depth <= 0: the fixed rule alone.
+double face_rule_sun(const SunCtx& c, const Box& b, double sigma, int n, double tol, int depth);
 
 }  // namespace fulgur::transport::detail
